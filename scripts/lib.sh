@@ -1,0 +1,74 @@
+# Shared helpers for scripts/demo, scripts/test, scripts/build and scripts/env.sh.
+# Sourced, not run. Sets SM_SRC (the package source) and SM_WS (the catkin
+# workspace, outside the source tree; choose it with SLOPE_MONITOR_WS).
+
+SM_SRC="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+if [ -z "${SLOPE_MONITOR_WS:-}" ]; then
+  _sm_hash="$(printf '%s' "$SM_SRC" | md5sum | cut -c1-8)"
+  SM_WS="${XDG_CACHE_HOME:-$HOME/.cache}/slope_monitor/ws_$(basename "$SM_SRC")_${_sm_hash}"
+else
+  SM_WS="$SLOPE_MONITOR_WS"
+fi
+# ROS's Python tools run under the system interpreter.
+export PATH="/usr/bin:/bin:/usr/sbin:/sbin:$PATH"
+
+sm_say() { printf '[slope_monitor] %s\n' "$*" >&2; }
+sm_die() { printf '[slope_monitor] ERROR: %s\n' "$*" >&2; exit 1; }
+
+# Install every Debian package of scripts/debian-packages.txt that is missing.
+sm_install_missing() {
+  local list="$SM_SRC/scripts/debian-packages.txt" missing=() p
+  [ -f "$list" ] || sm_die "package list $list not found"
+  while read -r p; do
+    p="${p%%#*}"; p="$(echo "$p" | xargs)"
+    [ -n "$p" ] || continue
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
+  done < "$list"
+  [ ${#missing[@]} -eq 0 ] && { sm_say "all Debian packages present"; return 0; }
+  sm_say "installing missing Debian packages: ${missing[*]}"
+  local sudo=""
+  if [ "$(id -u)" -ne 0 ]; then
+    command -v sudo >/dev/null || sm_die "not root and no sudo: install these packages first: ${missing[*]}"
+    sudo="sudo"
+  fi
+  $sudo apt-get update -qq || sm_die "apt-get update failed"
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends "${missing[@]}" \
+    || sm_die "apt-get install failed for: ${missing[*]}"
+}
+
+# Create (or reuse) the workspace with the package linked into src/.
+sm_workspace() {
+  mkdir -p "$SM_WS/src" || sm_die "cannot create workspace $SM_WS"
+  local link="$SM_WS/src/slope_monitor"
+  if [ -L "$link" ] && [ "$(readlink "$link")" != "$SM_SRC" ]; then
+    sm_say "workspace linked to another source tree; relinking to $SM_SRC"
+    rm -f "$link"
+  fi
+  [ -e "$link" ] || ln -s "$SM_SRC" "$link" || sm_die "cannot link $SM_SRC into $SM_WS/src"
+  [ -f "$SM_WS/src/CMakeLists.txt" ] || ln -sf /usr/share/catkin/cmake/toplevel.cmake "$SM_WS/src/CMakeLists.txt"
+  sm_say "workspace: $SM_WS (set SLOPE_MONITOR_WS to choose another)"
+}
+
+# Build the package (and its tests when $1 = tests).
+sm_build() {
+  sm_workspace
+  local jobs="${SM_JOBS:-$(nproc)}"
+  sm_say "building with catkin_make (-j$jobs, Release)"
+  (cd "$SM_WS" && catkin_make -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=ON -j"$jobs" >"$SM_WS/build.log" 2>&1) || {
+    tail -n 60 "$SM_WS/build.log" >&2
+    sm_die "build failed; full log: $SM_WS/build.log"
+  }
+  if [ "${1:-}" = tests ]; then
+    (cd "$SM_WS" && catkin_make -j"$jobs" tests >>"$SM_WS/build.log" 2>&1) || {
+      tail -n 60 "$SM_WS/build.log" >&2
+      sm_die "building the tests failed; full log: $SM_WS/build.log"
+    }
+  fi
+  sm_say "build ok"
+}
+
+sm_source_ws() {
+  [ -f "$SM_WS/devel/setup.bash" ] || sm_die "no built workspace at $SM_WS: run scripts/demo or scripts/test first"
+  # shellcheck disable=SC1091
+  set +u; source "$SM_WS/devel/setup.bash"; set -u
+}
