@@ -1,0 +1,46 @@
+// Typed, checked parameter loading at the ROS boundary (STYLE.md: parameters
+// are read once into typed Options and checked; a bad key names the key and
+// the reason, and the node does not advertise).
+//
+//   ParamReader p(private_nh);
+//   options.window = p.Int("window", 11, 3, 51, "px");
+//   p.CheckNoUnknownKeys();   // every key under ~ must have been read
+//
+// Every getter throws slope_monitor::ConfigError naming the full key.
+#pragma once
+
+#include <set>
+#include <string>
+#include <vector>
+
+#include <ros/node_handle.h>
+
+namespace slope_monitor {
+namespace ros_adapters {
+
+class ParamReader {
+ public:
+  explicit ParamReader(const ros::NodeHandle& nh) : nh_(nh) {}
+
+  double Double(const std::string& key, double default_value, double min, double max, const std::string& unit = "");
+  int Int(const std::string& key, int default_value, int min, int max, const std::string& unit = "");
+  bool Bool(const std::string& key, bool default_value);
+  std::string String(const std::string& key, const std::string& default_value,
+                     const std::vector<std::string>& allowed = {});
+  std::vector<double> DoubleList(const std::string& key, const std::vector<double>& default_value);
+  std::vector<std::string> StringList(const std::string& key, const std::vector<std::string>& default_value);
+
+  // Throws ConfigError naming every parameter under the node's namespace that
+  // no getter asked for (a misspelt key must not be silently ignored).
+  // Keys in `ignored` (and the nodelet manager's own) are allowed.
+  void CheckNoUnknownKeys(const std::set<std::string>& ignored = {}) const;
+
+  std::string FullKey(const std::string& key) const;
+
+ private:
+  ros::NodeHandle nh_;
+  std::set<std::string> read_;
+};
+
+}  // namespace ros_adapters
+}  // namespace slope_monitor

@@ -1,0 +1,162 @@
+#include "slope_monitor/ros/parameters.h"
+
+#include <cmath>
+
+#include <xmlrpcpp/XmlRpcValue.h>
+
+#include "slope_monitor/core/common/error.h"
+
+namespace slope_monitor {
+namespace ros_adapters {
+namespace {
+
+const char* TypeName(const XmlRpc::XmlRpcValue& v) {
+  switch (v.getType()) {
+    case XmlRpc::XmlRpcValue::TypeBoolean: return "bool";
+    case XmlRpc::XmlRpcValue::TypeInt: return "int";
+    case XmlRpc::XmlRpcValue::TypeDouble: return "double";
+    case XmlRpc::XmlRpcValue::TypeString: return "string";
+    case XmlRpc::XmlRpcValue::TypeArray: return "list";
+    case XmlRpc::XmlRpcValue::TypeStruct: return "dictionary";
+    default: return "unknown type";
+  }
+}
+
+bool ToDouble(XmlRpc::XmlRpcValue& v, double* out) {
+  if (v.getType() == XmlRpc::XmlRpcValue::TypeDouble) {
+    *out = static_cast<double>(v);
+    return true;
+  }
+  if (v.getType() == XmlRpc::XmlRpcValue::TypeInt) {
+    *out = static_cast<int>(v);
+    return true;
+  }
+  return false;
+}
+
+std::string UnitSuffix(const std::string& unit) { return unit.empty() ? "" : " " + unit; }
+
+}  // namespace
+
+std::string ParamReader::FullKey(const std::string& key) const { return nh_.resolveName(key); }
+
+double ParamReader::Double(const std::string& key, double default_value, double min, double max,
+                           const std::string& unit) {
+  read_.insert(FullKey(key));
+  XmlRpc::XmlRpcValue v;
+  if (!nh_.getParam(key, v)) return default_value;
+  double value;
+  if (!ToDouble(v, &value)) {
+    throw ConfigError(Message("parameter '", FullKey(key), "' must be a number", UnitSuffix(unit), ", got a ",
+                              TypeName(v)));
+  }
+  if (!std::isfinite(value) || value < min || value > max) {
+    throw ConfigError(Message("parameter '", FullKey(key), "' = ", value, UnitSuffix(unit), " is outside [", min, ", ",
+                              max, "]"));
+  }
+  return value;
+}
+
+int ParamReader::Int(const std::string& key, int default_value, int min, int max, const std::string& unit) {
+  read_.insert(FullKey(key));
+  XmlRpc::XmlRpcValue v;
+  if (!nh_.getParam(key, v)) return default_value;
+  if (v.getType() != XmlRpc::XmlRpcValue::TypeInt) {
+    throw ConfigError(Message("parameter '", FullKey(key), "' must be an integer", UnitSuffix(unit), ", got a ",
+                              TypeName(v)));
+  }
+  const int value = static_cast<int>(v);
+  if (value < min || value > max) {
+    throw ConfigError(Message("parameter '", FullKey(key), "' = ", value, UnitSuffix(unit), " is outside [", min, ", ",
+                              max, "]"));
+  }
+  return value;
+}
+
+bool ParamReader::Bool(const std::string& key, bool default_value) {
+  read_.insert(FullKey(key));
+  XmlRpc::XmlRpcValue v;
+  if (!nh_.getParam(key, v)) return default_value;
+  if (v.getType() != XmlRpc::XmlRpcValue::TypeBoolean) {
+    throw ConfigError(Message("parameter '", FullKey(key), "' must be true or false, got a ", TypeName(v)));
+  }
+  return static_cast<bool>(v);
+}
+
+std::string ParamReader::String(const std::string& key, const std::string& default_value,
+                                const std::vector<std::string>& allowed) {
+  read_.insert(FullKey(key));
+  XmlRpc::XmlRpcValue v;
+  std::string value = default_value;
+  if (nh_.getParam(key, v)) {
+    if (v.getType() != XmlRpc::XmlRpcValue::TypeString) {
+      throw ConfigError(Message("parameter '", FullKey(key), "' must be a string, got a ", TypeName(v)));
+    }
+    value = static_cast<std::string>(v);
+  }
+  if (!allowed.empty()) {
+    bool ok = false;
+    std::string list;
+    for (const auto& a : allowed) {
+      ok = ok || a == value;
+      list += (list.empty() ? "" : ", ") + a;
+    }
+    if (!ok) throw ConfigError(Message("parameter '", FullKey(key), "' = '", value, "' is not one of: ", list));
+  }
+  return value;
+}
+
+std::vector<double> ParamReader::DoubleList(const std::string& key, const std::vector<double>& default_value) {
+  read_.insert(FullKey(key));
+  XmlRpc::XmlRpcValue v;
+  if (!nh_.getParam(key, v)) return default_value;
+  if (v.getType() != XmlRpc::XmlRpcValue::TypeArray) {
+    throw ConfigError(Message("parameter '", FullKey(key), "' must be a list of numbers, got a ", TypeName(v)));
+  }
+  std::vector<double> out;
+  for (int i = 0; i < v.size(); ++i) {
+    double d;
+    if (!ToDouble(v[i], &d) || !std::isfinite(d)) {
+      throw ConfigError(Message("parameter '", FullKey(key), "' element ", i, " is not a finite number"));
+    }
+    out.push_back(d);
+  }
+  return out;
+}
+
+std::vector<std::string> ParamReader::StringList(const std::string& key,
+                                                 const std::vector<std::string>& default_value) {
+  read_.insert(FullKey(key));
+  XmlRpc::XmlRpcValue v;
+  if (!nh_.getParam(key, v)) return default_value;
+  if (v.getType() != XmlRpc::XmlRpcValue::TypeArray) {
+    throw ConfigError(Message("parameter '", FullKey(key), "' must be a list of strings, got a ", TypeName(v)));
+  }
+  std::vector<std::string> out;
+  for (int i = 0; i < v.size(); ++i) {
+    if (v[i].getType() != XmlRpc::XmlRpcValue::TypeString) {
+      throw ConfigError(Message("parameter '", FullKey(key), "' element ", i, " is not a string"));
+    }
+    out.push_back(static_cast<std::string>(v[i]));
+  }
+  return out;
+}
+
+void ParamReader::CheckNoUnknownKeys(const std::set<std::string>& ignored) const {
+  std::vector<std::string> all;
+  if (!nh_.getParamNames(all)) return;
+  const std::string prefix = nh_.getNamespace() + "/";
+  std::string unknown;
+  for (const std::string& name : all) {
+    if (name.compare(0, prefix.size(), prefix) != 0) continue;
+    bool known = false;
+    for (const std::string& r : read_) known = known || name == r || name.compare(0, r.size() + 1, r + "/") == 0;
+    const std::string relative = name.substr(prefix.size());
+    for (const std::string& i : ignored) known = known || relative == i || relative.compare(0, i.size() + 1, i + "/") == 0;
+    if (!known) unknown += (unknown.empty() ? "" : ", ") + name;
+  }
+  if (!unknown.empty()) throw ConfigError(Message("unknown parameter(s): ", unknown));
+}
+
+}  // namespace ros_adapters
+}  // namespace slope_monitor
