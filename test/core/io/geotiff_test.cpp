@@ -1,0 +1,151 @@
+#include "slope_monitor/core/io/geotiff.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include "slope_monitor/core/common/error.h"
+
+namespace slope_monitor {
+namespace io {
+namespace {
+
+namespace fs = std::filesystem;
+
+class GeoTiffTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("geotiff_test_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  fs::path dir_;
+};
+
+// A 5 x 3 raster (width 5 east, height 3 north) at 0.5 m cells whose
+// north-west corner is (10, 20): cell (row 2, col 4) centres at
+// (10 + 4.5 * 0.5, 20 - 2.5 * 0.5) = (12.25, 18.75).
+GeoRaster MakeRaster() {
+  GeoRaster r(5, 3, 10.0, 20.0, 0.5);
+  r.AddBand("height");
+  r.AddBand("sigma", 0.25f);
+  for (int row = 0; row < 3; ++row)
+    for (int col = 0; col < 5; ++col) r.At(0, row, col) = 100.0f + 10.0f * row + col;
+  r.At(0, 1, 2) = static_cast<float>(r.nodata);  // a hole
+  return r;
+}
+
+TEST_F(GeoTiffTest, RoundTripKeepsValuesBandsAndNoData) {
+  const GeoRaster r = MakeRaster();
+  WriteGeoTiff(Path("a.tif"), r);
+  const GeoRaster b = ReadGeoTiff(Path("a.tif"));
+  ASSERT_EQ(b.width, 5);
+  ASSERT_EQ(b.height, 3);
+  ASSERT_EQ(b.num_bands(), 2);
+  EXPECT_EQ(b.band_names[0], "height");
+  EXPECT_EQ(b.band_names[1], "sigma");
+  EXPECT_EQ(b.BandIndex("sigma"), 1);
+  EXPECT_TRUE(std::isnan(b.nodata));
+  for (int row = 0; row < 3; ++row)
+    for (int col = 0; col < 5; ++col) {
+      if (row == 1 && col == 2) {
+        EXPECT_TRUE(b.IsNoData(b.At(0, row, col)));
+      } else {
+        EXPECT_FLOAT_EQ(b.At(0, row, col), 100.0f + 10.0f * row + col);
+      }
+      EXPECT_FLOAT_EQ(b.At(1, row, col), 0.25f);
+    }
+  // No temporary file is left behind.
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(dir_)) files += e.is_regular_file();
+  EXPECT_EQ(files, 1);
+}
+
+TEST_F(GeoTiffTest, GeoTransformAndCellCentres) {
+  WriteGeoTiff(Path("g.tif"), MakeRaster());
+  const GeoRaster b = ReadGeoTiff(Path("g.tif"));
+  EXPECT_DOUBLE_EQ(b.origin_x, 10.0);
+  EXPECT_DOUBLE_EQ(b.origin_y, 20.0);
+  EXPECT_DOUBLE_EQ(b.cell_size, 0.5);
+  const std::vector<double> gt = b.GeoTransform();
+  EXPECT_DOUBLE_EQ(gt[5], -0.5);
+  const Eigen::Vector2d c = b.CellCentre(2, 4);
+  EXPECT_DOUBLE_EQ(c.x(), 12.25);
+  EXPECT_DOUBLE_EQ(c.y(), 18.75);
+  int row = -1, col = -1;
+  ASSERT_TRUE(b.CellOf(12.3, 18.6, &row, &col));
+  EXPECT_EQ(row, 2);
+  EXPECT_EQ(col, 4);
+  EXPECT_FALSE(b.CellOf(9.99, 19.0, &row, &col));
+  EXPECT_FALSE(b.CellOf(11.0, 20.01, &row, &col));
+  // Between the centres of (0,0)=100 and (0,1)=101: 100.5.
+  EXPECT_NEAR(b.Interpolate(0, 10.5, 19.75), 100.5, 1e-6);
+  // Next to the hole: NaN, never a silently filled value.
+  EXPECT_TRUE(std::isnan(b.Interpolate(0, 11.1, 19.1)));
+  // Local CRS named "site" when no EPSG code is given.
+  EXPECT_EQ(b.epsg, 0);
+  EXPECT_NE(b.srs_wkt.find("site"), std::string::npos) << b.srs_wkt;
+}
+
+TEST_F(GeoTiffTest, FiniteNoDataAndEpsg) {
+  GeoRaster r(2, 2, 500000.0, 4000000.0, 2.0);
+  r.nodata = -9999.0;
+  r.epsg = 32654;  // WGS 84 / UTM zone 54N
+  r.AddBand("z");
+  r.At(0, 0, 0) = 1.5f;
+  WriteGeoTiff(Path("u.tif"), r);
+  const GeoRaster b = ReadGeoTiff(Path("u.tif"));
+  EXPECT_DOUBLE_EQ(b.nodata, -9999.0);
+  EXPECT_EQ(b.epsg, 32654);
+  EXPECT_FLOAT_EQ(b.At(0, 0, 0), 1.5f);
+  EXPECT_FLOAT_EQ(b.At(0, 1, 1), -9999.0f);
+  EXPECT_TRUE(b.IsNoData(b.At(0, 1, 1)));
+  EXPECT_FALSE(b.IsNoData(b.At(0, 0, 0)));
+}
+
+TEST_F(GeoTiffTest, BadPathNamesTheFile) {
+  const std::string bad = Path("no_such_dir/x.tif");
+  try {
+    WriteGeoTiff(bad, MakeRaster());
+    FAIL() << "no exception";
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find(bad), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(bad));
+  try {
+    ReadGeoTiff(Path("missing.tif"));
+    FAIL() << "no exception";
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("missing.tif"), std::string::npos) << e.what();
+  }
+  // A file that is not a raster.
+  {
+    std::FILE* f = std::fopen(Path("junk.tif").c_str(), "w");
+    std::fputs("not a tiff", f);
+    std::fclose(f);
+  }
+  EXPECT_THROW(ReadGeoTiff(Path("junk.tif")), IoError);
+}
+
+TEST_F(GeoTiffTest, InconsistentRasterIsRejectedBeforeWriting) {
+  GeoRaster r = MakeRaster();
+  r.bands[1].pop_back();
+  EXPECT_THROW(WriteGeoTiff(Path("bad.tif"), r), InvalidArgument);
+  r = MakeRaster();
+  r.cell_size = 0.0;
+  EXPECT_THROW(WriteGeoTiff(Path("bad.tif"), r), InvalidArgument);
+  EXPECT_FALSE(fs::exists(Path("bad.tif")));
+  // An existing valid file is not replaced by a failed write.
+  WriteGeoTiff(Path("keep.tif"), MakeRaster());
+  EXPECT_THROW(WriteGeoTiff(Path("keep.tif"), r), InvalidArgument);
+  EXPECT_EQ(ReadGeoTiff(Path("keep.tif")).width, 5);
+}
+
+}  // namespace
+}  // namespace io
+}  // namespace slope_monitor
