@@ -1,0 +1,45 @@
+// EXIF metadata of survey photos, read with exiv2: capture time, camera
+// make/model, focal length and the GNSS position written by the camera/UAV.
+#pragma once
+
+#include <string>
+
+#include "slope_monitor/core/capture/geodesy.h"
+
+namespace slope_monitor {
+namespace capture {
+
+struct ExifInfo {
+  // Exif.Photo.DateTimeOriginal (+ SubSecTimeOriginal), read as UTC; when
+  // Exif.Photo.OffsetTimeOriginal ("+09:00") is present it is removed so the
+  // value is true UTC. [s since the Unix epoch]
+  bool has_time = false;
+  double time = 0.0;
+  bool time_zone_applied = false;  // OffsetTimeOriginal was present and used
+
+  std::string make;               // Exif.Image.Make ("" when absent)
+  std::string model;              // Exif.Image.Model
+  double focal_length_mm = 0.0;   // Exif.Photo.FocalLength [mm]; 0 when absent
+
+  // Exif.GPSInfo.GPSLatitude/GPSLongitude (deg/min/sec with N/S, E/W refs)
+  // and GPSAltitude (with GPSAltitudeRef: 0 above, 1 below sea level) [m].
+  bool has_gps = false;
+  bool has_gps_altitude = false;
+  Geodetic gps;                   // height_m is the EXIF altitude (usually above sea level)
+};
+
+// Reads the EXIF block of an image file. Throws IoError naming the file when
+// exiv2 cannot open or parse it; a file without EXIF gives an empty ExifInfo.
+// A malformed individual tag (e.g. an unparsable date) throws IoError naming
+// the file and the tag.
+ExifInfo ReadExif(const std::string& path);
+
+// "YYYY:MM:DD HH:MM:SS" (+ sub-second digits "123" = 0.123 s) as UTC -> s since
+// the Unix epoch. Throws InvalidArgument naming `context` and the text.
+double ParseExifDateTime(const std::string& text, const std::string& subsec, const std::string& context);
+
+// "+09:00" / "-05:30" -> seconds east of UTC. Throws InvalidArgument.
+double ParseExifTimeOffset(const std::string& text, const std::string& context);
+
+}  // namespace capture
+}  // namespace slope_monitor

@@ -1,0 +1,204 @@
+// A folder of JPEGs made by the test (cv::imwrite + exiv2 tags): order by EXIF
+// time, stamps, encodings, EXIF fields, file-time fallback, and bad files
+// (truncated, garbage) skipped with a message naming the file, without
+// stopping the stream.
+#include <gtest/gtest.h>
+
+#include "slope_monitor/core/capture/sources.h"
+#include "slope_monitor/core/capture/timing.h"
+#include "slope_monitor/core/common/error.h"
+#include "test_images.h"
+
+namespace slope_monitor {
+namespace capture {
+namespace {
+
+using capture_test::ExifTags;
+using capture_test::TempDir;
+
+constexpr double kMay1st10h = 1714557600.0;  // 2024-05-01 10:00:00 UTC
+
+ExifTags Tags(const std::string& hms, const std::string& subsec) {
+  ExifTags t;
+  t.date_time = "2024:05:01 " + hms;
+  t.subsec = subsec;
+  t.make = "TestMake";
+  t.model = "TestModel";
+  t.focal_num = 24;
+  t.gps = true;
+  t.lat_deg = 35.0;
+  t.lon_deg = 139.0;
+  t.alt_m = 500.0;
+  return t;
+}
+
+class FolderFixture : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    // Names deliberately not in time order. Two epochs: 10:00:00-10:00:06 and 12:00:00-12:00:02.
+    Write("z_first.jpg", 3, Tags("10:00:00", "5"), 0);
+    Write("a_second.jpg", 1, Tags("10:00:02", ""), 1);
+    Write("m_third.jpg", 3, Tags("10:00:06", "75"), 2);
+    Write("b_fourth.jpg", 3, Tags("12:00:00", ""), 3);
+    Write("c_fifth.jpg", 1, Tags("12:00:02", "0"), 4);
+    // A truncated copy of a valid EXIF JPEG (EXIF intact, image data cut), time 10:00:04.
+    const std::string full = dir_.File("full_tmp.jpeg");
+    capture_test::WriteJpeg(full, capture_test::TexturedImage(160, 120, 3, 9), Tags("10:00:04", ""));
+    capture_test::WriteTruncatedCopy(full, dir_.File("truncated.jpg"), 0.6);
+    std::filesystem::remove(full);
+    // Not an image at all (no EXIF: file time, set to between the epochs).
+    capture_test::WriteText(dir_.File("garbage.jpg"), "not a jpeg");
+    capture_test::SetFileTime(dir_.File("garbage.jpg"), kMay1st10h + 3600.0);
+    // Ignored: wrong extension.
+    capture_test::WriteText(dir_.File("notes.txt"), "field notes");
+  }
+
+  void Write(const std::string& name, int channels, const ExifTags& tags, int seed) {
+    images_[name] = capture_test::TexturedImage(160, 120, channels, seed, 20 * seed);
+    capture_test::WriteJpeg(dir_.File(name), images_[name], tags);
+  }
+
+  TempDir dir_{"folder"};
+  std::map<std::string, cv::Mat> images_;
+};
+
+TEST_F(FolderFixture, PublishesInExifTimeOrderAndSkipsBadFiles) {
+  FolderSourceOptions o;
+  o.folder = dir_.path();
+  o.clock_offset = -2.0;  // camera clock 2 s fast
+  FolderSource source(o);
+  EXPECT_EQ(source.size(), 7u);  // 5 good + truncated + garbage (notes.txt ignored)
+  ASSERT_EQ(source.exif_warnings().size(), 1u);  // garbage.jpg: exiv2 cannot read it
+  EXPECT_NE(source.exif_warnings()[0].name.find("garbage.jpg"), std::string::npos);
+
+  const std::vector<std::string> expected_names = {"z_first.jpg", "a_second.jpg", "m_third.jpg", "b_fourth.jpg",
+                                                   "c_fifth.jpg"};
+  const std::vector<double> expected_stamps = {kMay1st10h + 0.5 - 2, kMay1st10h + 2 - 2, kMay1st10h + 6.75 - 2,
+                                               kMay1st10h + 7200 - 2, kMay1st10h + 7202 - 2};
+  const std::vector<std::string> expected_enc = {"bgr8", "mono8", "bgr8", "bgr8", "mono8"};
+  Frame f;
+  size_t n = 0;
+  std::vector<std::string> skipped_names;
+  while (source.Next(&f)) {
+    ASSERT_LT(n, expected_names.size());
+    EXPECT_EQ(std::filesystem::path(f.name).filename().string(), expected_names[n]);
+    EXPECT_DOUBLE_EQ(f.stamp, expected_stamps[n]) << f.name;
+    EXPECT_EQ(f.stamp_source, StampSource::kExif);
+    EXPECT_EQ(f.encoding, expected_enc[n]);
+    EXPECT_EQ(f.image.cols, 160);
+    EXPECT_EQ(f.image.rows, 120);
+    EXPECT_EQ(f.exif.make, "TestMake");
+    EXPECT_EQ(f.exif.model, "TestModel");
+    EXPECT_DOUBLE_EQ(f.exif.focal_length_mm, 24.0);
+    EXPECT_NEAR(f.exif.gps.latitude_deg, 35.0, 1e-12);
+    EXPECT_NEAR(f.exif.gps.height_m, 500.0, 1e-12);
+    // Decoded exactly as OpenCV's own reader does, and it is the image written
+    // under that name (JPEG q95 with chroma subsampling of a sharp colour
+    // checker: mean error < 10 grey levels; the images differ by >= 20 levels).
+    EXPECT_EQ(cv::norm(f.image, cv::imread(f.name, cv::IMREAD_UNCHANGED), cv::NORM_INF), 0.0) << f.name;
+    EXPECT_LT(capture_test::MeanAbsDiff(f.image, images_[expected_names[n]]), 10.0) << f.name;
+    for (const auto& s : source.TakeSkipped()) skipped_names.push_back(s.name + ": " + s.reason);
+    ++n;
+  }
+  for (const auto& s : source.TakeSkipped()) skipped_names.push_back(s.name + ": " + s.reason);
+  EXPECT_EQ(n, 5u);
+  // Both bad files skipped, counted, and named (the stream went on past them).
+  EXPECT_EQ(source.skipped_count(), 2u);
+  ASSERT_EQ(skipped_names.size(), 2u);
+  EXPECT_NE(skipped_names[0].find("truncated.jpg"), std::string::npos) << skipped_names[0];
+  EXPECT_NE(skipped_names[0].find("truncated"), std::string::npos);
+  EXPECT_NE(skipped_names[1].find("garbage.jpg"), std::string::npos) << skipped_names[1];
+  EXPECT_FALSE(source.PeekNextStamp().has_value());
+}
+
+TEST_F(FolderFixture, EpochsFromCaptureGaps) {
+  FolderSourceOptions o;
+  o.folder = dir_.path();
+  FolderSource source(o);
+  EpochOptions eo;
+  eo.gap = 600.0;
+  EpochTracker tracker(eo);
+  std::vector<std::string> log;  // "S0", "F", "E0/3"...
+  Frame f;
+  while (source.Next(&f)) {
+    for (const auto& e : tracker.BeforeFrame(f.stamp)) {
+      log.push_back(e.end ? "E" + std::to_string(e.epoch) + "/" + std::to_string(e.count) : "S" + std::to_string(e.epoch));
+    }
+    log.push_back("F");
+    for (const auto& e : tracker.AfterFrame(source.PeekNextStamp(), true)) {
+      log.push_back("E" + std::to_string(e.epoch) + "/" + std::to_string(e.count));
+    }
+  }
+  if (auto e = tracker.Close()) log.push_back("E" + std::to_string(e->epoch) + "/" + std::to_string(e->count));
+  // Epoch 0: 10:00:00.5, :02, :06.75 (the truncated 10:00:04 file is skipped, and
+  // the garbage file at 11:00 (file time) is skipped after epoch 0 ended by look-ahead).
+  // Epoch 1: 12:00:00, 12:00:02, ended at the end of the folder.
+  const std::vector<std::string> expected = {"S0", "F", "F", "F", "E0/3", "S1", "F", "F", "E1/2"};
+  EXPECT_EQ(log, expected);
+}
+
+TEST(FolderSource, FileTimeFallbackAndEncodingOption) {
+  TempDir dir("folder_ft");
+  ASSERT_TRUE(cv::imwrite(dir.File("p2.png"), capture_test::TexturedImage(40, 30, 3, 1)));
+  ASSERT_TRUE(cv::imwrite(dir.File("p1.png"), capture_test::TexturedImage(40, 30, 3, 2)));
+  capture_test::SetFileTime(dir.File("p2.png"), 1000.25);
+  capture_test::SetFileTime(dir.File("p1.png"), 2000.5);
+  FolderSourceOptions o;
+  o.folder = dir.path();
+  o.encoding = "mono8";
+  o.clock_offset = 50.0;  // applies to EXIF times only
+  FolderSource source(o);
+  Frame f;
+  ASSERT_TRUE(source.Next(&f));
+  EXPECT_EQ(std::filesystem::path(f.name).filename(), "p2.png");
+  EXPECT_NEAR(f.stamp, 1000.25, 1e-6);
+  EXPECT_EQ(f.stamp_source, StampSource::kFile);
+  EXPECT_EQ(f.encoding, "mono8");
+  EXPECT_EQ(f.image.type(), CV_8UC1);
+  ASSERT_TRUE(source.Next(&f));
+  EXPECT_NEAR(f.stamp, 2000.5, 1e-6);
+  EXPECT_FALSE(source.Next(&f));
+  EXPECT_EQ(source.skipped_count(), 0u);
+}
+
+TEST(FolderSource, BadFolderAndOptionsNameTheProblem) {
+  FolderSourceOptions o;
+  o.folder = "/nonexistent/sm_capture_folder";
+  try {
+    FolderSource s(o);
+    FAIL();
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/sm_capture_folder"), std::string::npos);
+  }
+  TempDir empty("folder_empty");
+  o.folder = empty.path();
+  EXPECT_THROW(FolderSource s(o), IoError);
+  o.time_source = "gps";
+  EXPECT_THROW(o.Check(), ConfigError);
+  o.time_source = "exif";
+  o.encoding = "rgb8";
+  EXPECT_THROW(o.Check(), ConfigError);
+}
+
+TEST(JpegStructure, CompleteTruncatedAndNotJpeg) {
+  std::vector<unsigned char> bytes;
+  ASSERT_TRUE(cv::imencode(".jpg", capture_test::TexturedImage(64, 64, 3, 4), bytes));
+  EXPECT_EQ(CheckJpegStructure(bytes), "");
+  // Any cut before the EOI is detected.
+  for (double fraction : {0.01, 0.1, 0.5, 0.9}) {
+    std::vector<unsigned char> cut(bytes.begin(), bytes.begin() + static_cast<long>(bytes.size() * fraction));
+    EXPECT_NE(CheckJpegStructure(cut).find("truncated"), std::string::npos) << fraction;
+  }
+  std::vector<unsigned char> no_eoi(bytes.begin(), bytes.end() - 2);
+  EXPECT_NE(CheckJpegStructure(no_eoi), "");
+  // Progressive JPEGs (several scans) are complete too.
+  std::vector<unsigned char> prog;
+  ASSERT_TRUE(cv::imencode(".jpg", capture_test::TexturedImage(64, 64, 3, 5), prog, {cv::IMWRITE_JPEG_PROGRESSIVE, 1}));
+  EXPECT_EQ(CheckJpegStructure(prog), "");
+  const std::vector<unsigned char> png = {0x89, 'P', 'N', 'G', 0, 0};
+  EXPECT_NE(CheckJpegStructure(png).find("not a JPEG"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace capture
+}  // namespace slope_monitor
