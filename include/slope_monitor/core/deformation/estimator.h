@@ -1,0 +1,233 @@
+// One deformation estimate of the slope from every source that measures it.
+//
+//   deformation::EstimatorOptions options;               // defaults documented below
+//   deformation::History history("slope.db");           // optional persistent store
+//   deformation::Estimator estimator(options, &history); // resumes what history holds
+//   estimator.AddBatch(batch);                           // one source, one epoch
+//   deformation::Snapshot s = estimator.GetSnapshot();   // points, alerts, forecasts
+//
+// Per monitoring point (after alias resolution), a constant-acceleration
+// Kalman filter (point_filter.h) is fed by every source's displacements with
+// their 3x3 covariances, in stamp order whatever the arrival order. Beside
+// the fused filter, each (point, source) pair runs its own filter on that
+// source alone: two sources measuring the same point are compared through
+// their independent estimates at the time of each new measurement,
+//   delta = d_a(t) - d_b(t),  C = P_a(t) + P_b(t),  T = delta' C^-1 delta ~ chi2(3),
+// and T > disagreement_threshold is reported (PointState::sources_disagree
+// and the reason), never silently averaged: both still enter the fused
+// filter, and the flag stays until a later comparison passes.
+//
+// Alerts (per point): level L in {watch, warning, alarm} is a candidate when
+// the speed exceeds the level's threshold significantly:
+//   |v| - k sigma_v > threshold_L,  sigma_v = sqrt(u' P_v u), u = v / |v|.
+// A candidate is confirmed when at least `confirm_sources` sources' own
+// filters also exceed the threshold significantly, or at least
+// `confirm_points` points are candidates for L (or higher). A confirmed level
+// is lowered only when |v| falls below hysteresis * threshold_L.
+// The slope's level is the highest confirmed point level.
+//
+// Reference: displacements are relative to the reference epoch. The first
+// batch's reference_stamp becomes the datum; measurements whose
+// reference_stamp differs from it by more than reference_tolerance are
+// refused (their source uses another datum) and counted. SetReferenceEpoch
+// re-bases the reported displacements on a later epoch: the fused
+// displacement at that epoch's stamp is subtracted (its covariance added,
+// ignoring the correlation: conservative).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "slope_monitor/core/deformation/forecast.h"
+#include "slope_monitor/core/deformation/point_filter.h"
+
+namespace slope_monitor {
+namespace deformation {
+
+class History;
+
+// Values equal to slope_monitor/PointDisplacement SOURCE_*.
+enum class Source : uint8_t { kTarget = 1, kFeature = 2, kRadio = 3, kSurface = 4, kFused = 5, kOther = 9 };
+std::string SourceName(Source s);
+Source SourceFromInt(int value);  // throws InvalidArgument naming the value
+
+// Values equal to slope_monitor/DeformationPoint ALERT_*.
+enum class AlertLevel : uint8_t { kNone = 0, kWatch = 1, kWarning = 2, kAlarm = 3 };
+std::string AlertName(AlertLevel level);
+
+// One displacement measurement of one point by one source.
+struct Measurement {
+  std::string point_id;
+  Source source = Source::kOther;
+  std::string source_name;                                   // node or sensor
+  uint32_t epoch = 0;
+  double stamp = 0.0;                                        // [s] time of the measurement
+  double reference_stamp = 0.0;                              // [s] time of the source's reference epoch
+  Eigen::Vector3d reference_position = Eigen::Vector3d::Zero();  // [m] site
+  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();        // [m] site
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();      // [m^2]
+};
+
+// Measurements of one source at one epoch (one PointDisplacementArray).
+struct Batch {
+  uint32_t epoch = 0;
+  double stamp = 0.0;  // [s] header stamp
+  std::vector<Measurement> measurements;
+};
+
+// Velocity thresholds [m/s] of the three levels (watch < warning < alarm).
+struct Thresholds {
+  double watch = 1.0 / 86400.0 * 1e-3 * 2.0;    // [m/s] 2 mm/day
+  double warning = 1.0 / 86400.0 * 1e-3 * 10.0; // [m/s] 10 mm/day
+  double alarm = 1.0 / 86400.0 * 1e-3 * 50.0;   // [m/s] 50 mm/day
+  double Of(AlertLevel level) const;
+  void Check(const std::string& context) const;  // throws ConfigError
+};
+
+struct AlertOptions {
+  Thresholds thresholds;
+  std::map<std::string, Thresholds> point_thresholds;  // per point overrides (by point_id)
+  double significance = 3.0;   // [-] k: the speed must exceed the threshold by k sigma
+  int confirm_points = 2;      // [-] points that must be candidates for a level (>= 1)
+  int confirm_sources = 2;     // [-] or sources of the same point that exceed it (>= 1)
+  double hysteresis = 0.8;     // [-] lower a level only below hysteresis * threshold, (0, 1]
+  void Check() const;
+};
+
+struct EstimatorOptions {
+  FilterOptions filter;
+  double reorder_window = 3.0 * 86400.0;      // [s] how late a measurement may arrive and still be used
+  double reference_tolerance = 3600.0;        // [s] sources' reference stamps must agree within this
+  double disagreement_threshold = 16.27;      // [-] chi2(3) at 99.9 %: sources disagree above it
+  double comparison_max_gap = 86400.0;        // [s] compare two sources only if both measured within this
+  double innovation_gate = 0.0;               // [-] chi2(3) gate of the fused filter; 0: no gating
+  double velocity_sample_interval = 3600.0;   // [s] spacing of the velocity / displacement series kept per point
+  std::map<std::string, std::string> aliases; // measured id -> monitoring point id (e.g. "radio/tx1" -> "tag36h11/5")
+  AlertOptions alerts;
+  ForecastOptions forecast;
+  void Check() const;                         // throws ConfigError naming the field
+};
+
+struct SeriesSample {
+  double stamp = 0.0;                                    // [s]
+  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();  // [m] relative to the reference epoch
+  double sigma = 0.0;                                    // [m] sqrt(trace(P_d)/3)
+  double speed = 0.0;                                    // [m/s]
+  double speed_sigma = 0.0;                              // [m/s]
+};
+
+struct SourceComparison {
+  Source a = Source::kOther, b = Source::kOther;
+  double stamp = 0.0;
+  double statistic = 0.0;                          // chi2(3)
+  Eigen::Vector3d difference = Eigen::Vector3d::Zero();  // [m] d_a - d_b
+  bool disagree = false;
+};
+
+struct SourceEstimate {
+  Source source = Source::kOther;
+  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();  // [m]
+  Eigen::Matrix3d displacement_covariance = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  // [m/s]
+  double last_stamp = 0.0;
+  uint64_t count = 0;
+};
+
+struct PointState {
+  std::string id;
+  Eigen::Vector3d reference_position = Eigen::Vector3d::Zero();  // [m] site
+  double stamp = 0.0;                                           // [s] of the estimate
+  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();       // [m]
+  Eigen::Matrix3d displacement_covariance = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();           // [m/s]
+  Eigen::Matrix3d velocity_covariance = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d acceleration = Eigen::Vector3d::Zero();       // [m/s^2]
+  double speed = 0.0, speed_sigma = 0.0;                        // [m/s]
+  AlertLevel alert = AlertLevel::kNone;
+  std::string alert_reason;
+  Forecast forecast;
+  std::vector<Source> sources;
+  std::vector<SourceEstimate> per_source;
+  bool sources_disagree = false;
+  std::vector<SourceComparison> comparisons;  // latest comparison per source pair
+  uint64_t num_measurements = 0;
+  uint64_t num_rejected = 0;                  // gated by the innovation test
+};
+
+struct Snapshot {
+  double stamp = 0.0;             // [s] newest measurement
+  uint32_t epoch = 0;             // newest epoch
+  uint32_t reference_epoch = 0;
+  double reference_stamp = 0.0;   // [s]
+  bool has_reference = false;
+  std::vector<PointState> points;  // sorted by id
+  AlertLevel alert = AlertLevel::kNone;
+  std::string summary;
+};
+
+struct BatchSummary {
+  int accepted = 0;
+  int refused = 0;          // other datum, too late, bad covariance
+  std::vector<std::string> messages;  // one per refused measurement
+};
+
+class Estimator {
+ public:
+  // With a history, everything it holds is replayed (the reference epoch,
+  // the observations in their arrival order), so a restarted estimator is
+  // in the same state as one that never stopped. Throws ConfigError.
+  explicit Estimator(const EstimatorOptions& options, History* history = nullptr);
+  ~Estimator();
+
+  // Commits the batch's observations to the history (one transaction)
+  // before using them, then updates the filters, the alerts and the
+  // forecasts, and commits the new estimates (one transaction).
+  // Throws InvalidArgument for a batch that cannot be used at all (NaN,
+  // non-positive-definite covariance: naming the point); refusals of single
+  // measurements (other datum, too late) are reported in the summary.
+  BatchSummary AddBatch(const Batch& batch);
+
+  // Re-bases displacements on epoch `epoch` (which must have been seen), or
+  // on the latest epoch. Throws InvalidArgument naming the epoch.
+  uint32_t SetReferenceEpoch(uint32_t epoch, bool use_latest);
+
+  Snapshot GetSnapshot() const;
+  // Per point displacement / speed series (spaced velocity_sample_interval).
+  std::map<std::string, std::vector<SeriesSample>> Series() const;
+  const EstimatorOptions& options() const { return options_; }
+  const std::map<uint32_t, double>& epochs() const { return epochs_; }
+  std::string ResolveAlias(const std::string& id) const;
+  Thresholds ThresholdsOf(const std::string& point_id) const;
+
+ private:
+  struct SourceTrack;
+  struct Point;
+  BatchSummary Process(const Batch& batch, const std::vector<uint64_t>& sequences, bool replay);
+  void Validate(const Measurement& m) const;
+  void UpdateAlerts();
+  PointState StateOf(const Point& p) const;
+  Eigen::Vector3d ReferenceOffset(const Point& p, Eigen::Matrix3d* cov) const;
+
+  EstimatorOptions options_;
+  History* history_ = nullptr;
+  std::map<std::string, std::unique_ptr<Point>> points_;
+  std::map<uint32_t, double> epochs_;  // epoch -> stamp (earliest seen)
+  bool has_datum_ = false;
+  double datum_stamp_ = 0.0;
+  uint32_t reference_epoch_ = 0;
+  double reference_stamp_ = 0.0;
+  std::map<std::string, std::pair<Eigen::Vector3d, Eigen::Matrix3d>> reference_offsets_;
+  double newest_stamp_ = 0.0;
+  uint32_t newest_epoch_ = 0;
+  uint64_t next_sequence_ = 1;
+};
+
+}  // namespace deformation
+}  // namespace slope_monitor

@@ -1,0 +1,103 @@
+// Persistent history of the deformation estimator in SQLite (sqlite3 C API).
+//
+// The file is opened in WAL mode (readers never block the writer, a crash
+// never leaves a half-written transaction visible). Every batch of
+// observations is committed in one transaction *before* the estimator uses
+// it, and its estimates in a second one, so a process killed mid-epoch loses
+// nothing: on restart the estimator replays every stored batch in arrival
+// order and reaches the state it would have had without the interruption.
+//
+// A file that is not a SQLite database (or is corrupt, or was written by a
+// newer schema) is refused with an IoError naming the file; it is never
+// written to or replaced.
+//
+// Schema (PRAGMA user_version = 2):
+//   meta(key TEXT PRIMARY KEY, value TEXT NOT NULL)
+//       keys: created (UTC ISO time), datum_stamp [s], reference_epoch,
+//             reference_stamp [s]
+//   batches(id INTEGER PRIMARY KEY, received TEXT,        -- arrival order
+//           epoch INTEGER, stamp REAL)                    -- [s] header stamp
+//   observations(id INTEGER PRIMARY KEY,                  -- arrival order = replay order
+//           batch_id INTEGER REFERENCES batches(id),
+//           point_id TEXT, source INTEGER,                -- PointDisplacement.SOURCE_*
+//           source_name TEXT, epoch INTEGER,
+//           stamp REAL, reference_stamp REAL,             -- [s]
+//           rx REAL, ry REAL, rz REAL,                    -- [m] reference position (site)
+//           dx REAL, dy REAL, dz REAL,                    -- [m] displacement (site)
+//           covariance BLOB)                              -- 9 doubles, row-major [m^2]
+//   estimates(point_id TEXT, stamp REAL, epoch INTEGER, batch_id INTEGER,
+//           dx REAL, dy REAL, dz REAL,                    -- [m] from the datum
+//           vx REAL, vy REAL, vz REAL,                    -- [m/s]
+//           ax REAL, ay REAL, az REAL,                    -- [m/s^2]
+//           displacement_covariance BLOB,                 -- 9 doubles [m^2]
+//           velocity_covariance BLOB,                     -- 9 doubles [m^2/s^2]
+//           alert_level INTEGER,                          -- (v2) DeformationPoint.ALERT_*
+//           forecast_time REAL, forecast_sigma REAL,      -- (v2) [s]; NULL when no forecast
+//           PRIMARY KEY(point_id, stamp))                 -- the estimate published after each batch
+//   reference_offsets(point_id TEXT PRIMARY KEY,          -- (v2) fused displacement at the
+//           dx REAL, dy REAL, dz REAL, covariance BLOB)   --   reference epoch, subtracted on output
+//
+// Migrations: version 0 (empty file) -> 2 creates everything; 1 -> 2 adds
+// the estimates' alert and forecast columns and reference_offsets.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "slope_monitor/core/deformation/estimator.h"
+
+struct sqlite3;
+
+namespace slope_monitor {
+namespace deformation {
+
+class History {
+ public:
+  static constexpr int kSchemaVersion = 2;
+
+  // Opens (creating if absent) and migrates. Throws IoError naming the file.
+  explicit History(const std::string& path);
+  ~History();
+  History(const History&) = delete;
+  History& operator=(const History&) = delete;
+
+  const std::string& path() const { return path_; }
+  int schema_version() const;
+
+  struct StoredBatch {
+    Batch batch;
+    std::vector<uint64_t> sequences;  // observation ids, in measurement order
+  };
+
+  // One transaction; returns the observation ids (the replay order).
+  std::vector<uint64_t> AppendBatch(const Batch& batch);
+  std::vector<StoredBatch> LoadBatches() const;
+
+  // One transaction for all points.
+  void StoreEstimates(const std::vector<PointState>& points, uint32_t epoch);
+
+  void SetMeta(const std::string& key, const std::string& value);
+  std::optional<std::string> Meta(const std::string& key) const;
+
+  void StoreReferenceOffsets(const std::map<std::string, std::pair<Eigen::Vector3d, Eigen::Matrix3d>>& offsets);
+  std::map<std::string, std::pair<Eigen::Vector3d, Eigen::Matrix3d>> LoadReferenceOffsets() const;
+
+  int64_t CountRows(const std::string& table) const;
+
+ private:
+  void Exec(const std::string& sql) const;
+  [[noreturn]] void Fail(const std::string& what) const;
+  void Migrate();
+
+  std::string path_;
+  sqlite3* db_ = nullptr;
+};
+
+}  // namespace deformation
+}  // namespace slope_monitor

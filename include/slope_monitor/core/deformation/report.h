@@ -1,0 +1,83 @@
+// Deformation reports: CSV and GeoJSON of the monitoring points, a GeoTIFF of
+// the displacement field interpolated over the body, and PNG plots (a
+// displacement map with arrows coloured by alert level and a scale bar;
+// a time series per point with the alert thresholds).
+//
+// Every file is written atomically: to "<name>.tmp-<pid>" in the same
+// directory, flushed, then renamed over <name>, so a reader never sees a
+// half-written report under the final name. Errors throw IoError naming the
+// file.
+//
+// CSV columns (one row per point, header line first):
+//   id, x, y, z                      [m] reference position (site)
+//   dx, dy, dz, d                    [mm] displacement and its magnitude
+//   sigma_dx, sigma_dy, sigma_dz     [mm] 1-sigma
+//   vx, vy, vz, speed, sigma_speed   [mm/day]
+//   alert                            none | watch | warning | alarm
+//   forecast_valid, forecast_failure_time [s, stamp], forecast_sigma [h], forecast_window [h]
+//   sources                          "target+radio", ...
+//   sources_disagree                 0 | 1
+//   reason                           alert reason and disagreements (quoted)
+//
+// GeoJSON: a FeatureCollection of Point features. Without a geodetic
+// origin, coordinates are local site metres [x, y, z] and the collection
+// carries "crs_note": "local site frame ..."; with an origin (lat, lon, h of
+// the site frame's origin, x east, y north, z up), coordinates are WGS 84
+// [lon, lat, h] (RFC 7946) computed through ECEF. Properties: id,
+// displacement_mm [dx, dy, dz], displacement_magnitude_mm, velocity_mm_per_day
+// [vx, vy, vz], speed_mm_per_day, sigma_mm [sx, sy, sz], sigma_speed_mm_per_day,
+// alert, alert_reason, sources, sources_disagree, forecast {valid,
+// failure_time (s), failure_time_utc, sigma_h, window_h, alpha}.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "slope_monitor/core/deformation/estimator.h"
+
+namespace slope_monitor {
+namespace deformation {
+
+struct ReportOptions {
+  std::optional<Eigen::Vector3d> geodetic_origin;  // [deg, deg, m] lat, lon, h of the site origin
+  double grid_resolution = 1.0;     // [m] GeoTIFF cell size
+  double grid_margin = 10.0;        // [m] grid extends this far beyond the points
+  double idw_power = 2.0;           // [-] inverse-distance weighting exponent
+  double idw_radius = 50.0;         // [m] cells farther than this from every point are nodata
+  int map_width = 1200;             // [px] displacement map width (height follows the extent)
+  int series_width = 1000;          // [px] time series plot size
+  int series_height = 600;          // [px]
+  double arrow_scale = 0.0;         // [m of map per m of displacement]; 0: chosen so the largest arrow spans 15 % of the map
+  void Check() const;
+};
+
+// The largest displacement of the field in metres per pixel etc. is not
+// needed by callers; each writer returns the path it wrote.
+std::string WriteCsv(const Snapshot& snapshot, const std::string& path);
+std::string WriteGeoJson(const Snapshot& snapshot, const std::string& path, const ReportOptions& options);
+// Displacement magnitude [m] (band 1) and dx, dy, dz (bands 2-4), float32,
+// north-up grid in the site frame (x east, y north), nodata -9999.
+std::string WriteDisplacementGeoTiff(const Snapshot& snapshot, const std::string& path,
+                                     const ReportOptions& options);
+std::string WriteDisplacementMap(const Snapshot& snapshot, const std::string& path, const ReportOptions& options);
+// One plot: |d| [mm] (top) and speed [mm/day] with the point's thresholds (bottom).
+std::string WriteTimeSeries(const std::string& point_id, const std::vector<SeriesSample>& series,
+                            const Thresholds& thresholds, const std::string& path, const ReportOptions& options);
+
+// Writes every requested format ("csv", "geojson", "geotiff", "png"; empty:
+// all) into `directory` (created if absent) and returns the files written.
+std::vector<std::string> WriteReports(const Estimator& estimator, const std::string& directory,
+                                      const std::vector<std::string>& formats, const ReportOptions& options);
+
+// ENU (site, metres) -> WGS 84 [lon, lat, h] for the given origin [lat, lon, h].
+Eigen::Vector3d SiteToGeodetic(const Eigen::Vector3d& x_in_site, const Eigen::Vector3d& origin);
+
+// Atomic write helper: writes `content` to path via a temporary file + rename.
+void WriteFileAtomically(const std::string& path, const std::string& content);
+
+}  // namespace deformation
+}  // namespace slope_monitor

@@ -1,0 +1,345 @@
+#include "slope_monitor/core/deformation/history.h"
+
+#include <cstring>
+#include <ctime>
+
+#include <sqlite3.h>
+
+#include "slope_monitor/core/common/error.h"
+
+namespace slope_monitor {
+namespace deformation {
+namespace {
+
+// Statement with automatic finalisation.
+class Statement {
+ public:
+  Statement(sqlite3* db, const std::string& sql, const std::string& path) : path_(path) {
+    if (sqlite3_prepare_v2(db, sql.c_str(), -1, &stmt_, nullptr) != SQLITE_OK) {
+      throw IoError(Message("history database '", path, "': cannot prepare '", sql, "': ", sqlite3_errmsg(db)));
+    }
+  }
+  ~Statement() { sqlite3_finalize(stmt_); }
+  sqlite3_stmt* get() const { return stmt_; }
+  void Bind(int i, double v) { sqlite3_bind_double(stmt_, i, v); }
+  void Bind(int i, int64_t v) { sqlite3_bind_int64(stmt_, i, v); }
+  void Bind(int i, const std::string& v) { sqlite3_bind_text(stmt_, i, v.c_str(), -1, SQLITE_TRANSIENT); }
+  void BindMatrix(int i, const Eigen::Matrix3d& m) {
+    double a[9];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) a[3 * r + c] = m(r, c);
+    sqlite3_bind_blob(stmt_, i, a, sizeof(a), SQLITE_TRANSIENT);
+  }
+  void BindNull(int i) { sqlite3_bind_null(stmt_, i); }
+  // SQLITE_ROW -> true, SQLITE_DONE -> false, else IoError.
+  bool Step() {
+    const int rc = sqlite3_step(stmt_);
+    if (rc == SQLITE_ROW) return true;
+    if (rc == SQLITE_DONE) return false;
+    throw IoError(Message("history database '", path_, "': ", sqlite3_errmsg(sqlite3_db_handle(stmt_))));
+  }
+  void Reset() {
+    sqlite3_reset(stmt_);
+    sqlite3_clear_bindings(stmt_);
+  }
+  double Double(int i) const { return sqlite3_column_double(stmt_, i); }
+  int64_t Int(int i) const { return sqlite3_column_int64(stmt_, i); }
+  std::string Text(int i) const {
+    const unsigned char* t = sqlite3_column_text(stmt_, i);
+    return t ? reinterpret_cast<const char*>(t) : "";
+  }
+  Eigen::Matrix3d Matrix(int i) const {
+    Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
+    const void* b = sqlite3_column_blob(stmt_, i);
+    if (b && sqlite3_column_bytes(stmt_, i) == 9 * static_cast<int>(sizeof(double))) {
+      double a[9];
+      std::memcpy(a, b, sizeof(a));
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) m(r, c) = a[3 * r + c];
+    }
+    return m;
+  }
+
+ private:
+  sqlite3_stmt* stmt_ = nullptr;
+  std::string path_;
+};
+
+std::string UtcNow() {
+  char buf[32];
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+const char* kSchemaV1 =
+    "CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT NOT NULL);"
+    "CREATE TABLE batches(id INTEGER PRIMARY KEY, received TEXT, epoch INTEGER, stamp REAL);"
+    "CREATE TABLE observations(id INTEGER PRIMARY KEY, batch_id INTEGER REFERENCES batches(id),"
+    " point_id TEXT NOT NULL, source INTEGER, source_name TEXT, epoch INTEGER, stamp REAL, reference_stamp REAL,"
+    " rx REAL, ry REAL, rz REAL, dx REAL, dy REAL, dz REAL, covariance BLOB);"
+    "CREATE INDEX observations_batch ON observations(batch_id);"
+    "CREATE TABLE estimates(point_id TEXT NOT NULL, stamp REAL NOT NULL, epoch INTEGER, batch_id INTEGER,"
+    " dx REAL, dy REAL, dz REAL, vx REAL, vy REAL, vz REAL, ax REAL, ay REAL, az REAL,"
+    " displacement_covariance BLOB, velocity_covariance BLOB, PRIMARY KEY(point_id, stamp));";
+
+const char* kMigrate1To2 =
+    "ALTER TABLE estimates ADD COLUMN alert_level INTEGER NOT NULL DEFAULT 0;"
+    "ALTER TABLE estimates ADD COLUMN forecast_time REAL;"
+    "ALTER TABLE estimates ADD COLUMN forecast_sigma REAL;"
+    "CREATE TABLE reference_offsets(point_id TEXT PRIMARY KEY, dx REAL, dy REAL, dz REAL, covariance BLOB);";
+
+}  // namespace
+
+History::History(const std::string& path) : path_(path) {
+  if (path.empty()) throw IoError("history database path is empty");
+  const int rc = sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr);
+  if (rc != SQLITE_OK) {
+    const std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
+    sqlite3_close(db_);
+    db_ = nullptr;
+    throw IoError(Message("cannot open history database '", path, "': ", msg));
+  }
+  sqlite3_busy_timeout(db_, 5000);
+  try {
+    // Reading the header first: a non-SQLite file fails here, before any write.
+    int version = schema_version();
+    if (version > 0) {
+      Statement check(db_, "PRAGMA quick_check", path_);
+      if (!check.Step() || check.Text(0) != "ok")
+        Fail(Message("integrity check failed (", check.Text(0), "); the file is left untouched"));
+    }
+    if (version > kSchemaVersion)
+      Fail(Message("schema version ", version, " is newer than this program's ", kSchemaVersion,
+                   "; the file is left untouched"));
+    Exec("PRAGMA journal_mode=WAL");
+    Exec("PRAGMA synchronous=FULL");
+    Migrate();
+  } catch (...) {
+    sqlite3_close(db_);
+    db_ = nullptr;
+    throw;
+  }
+}
+
+History::~History() {
+  if (db_) sqlite3_close(db_);
+}
+
+void History::Fail(const std::string& what) const {
+  throw IoError(Message("history database '", path_, "': ", what));
+}
+
+void History::Exec(const std::string& sql) const {
+  char* err = nullptr;
+  if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
+    const std::string msg = err ? err : sqlite3_errmsg(db_);
+    sqlite3_free(err);
+    const int code = sqlite3_errcode(db_);
+    if (code == SQLITE_NOTADB || code == SQLITE_CORRUPT)
+      Fail(Message("not a SQLite database or corrupt (", msg, "); the file is left untouched"));
+    Fail(msg);
+  }
+}
+
+int History::schema_version() const {
+  sqlite3_stmt* s = nullptr;
+  if (sqlite3_prepare_v2(db_, "PRAGMA user_version", -1, &s, nullptr) != SQLITE_OK) {
+    const std::string msg = sqlite3_errmsg(db_);
+    sqlite3_finalize(s);
+    Fail(Message("not a SQLite database or corrupt (", msg, "); the file is left untouched"));
+  }
+  const int rc = sqlite3_step(s);
+  if (rc != SQLITE_ROW) {
+    const std::string msg = sqlite3_errmsg(db_);
+    sqlite3_finalize(s);
+    Fail(Message("not a SQLite database or corrupt (", msg, "); the file is left untouched"));
+  }
+  const int v = sqlite3_column_int(s, 0);
+  sqlite3_finalize(s);
+  return v;
+}
+
+void History::Migrate() {
+  int version = schema_version();
+  if (version == kSchemaVersion) return;
+  Exec("BEGIN IMMEDIATE");
+  try {
+    if (version == 0) {
+      Exec(kSchemaV1);
+      Exec(Message("INSERT INTO meta(key, value) VALUES('created', '", UtcNow(), "')"));
+      version = 1;
+    }
+    if (version == 1) {
+      Exec(kMigrate1To2);
+      version = 2;
+    }
+    Exec(Message("PRAGMA user_version = ", version));
+    Exec("COMMIT");
+  } catch (...) {
+    sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+    throw;
+  }
+}
+
+std::vector<uint64_t> History::AppendBatch(const Batch& batch) {
+  std::vector<uint64_t> ids;
+  Exec("BEGIN IMMEDIATE");
+  try {
+    Statement b(db_, "INSERT INTO batches(received, epoch, stamp) VALUES(?, ?, ?)", path_);
+    b.Bind(1, UtcNow());
+    b.Bind(2, static_cast<int64_t>(batch.epoch));
+    b.Bind(3, batch.stamp);
+    b.Step();
+    const int64_t batch_id = sqlite3_last_insert_rowid(db_);
+    Statement o(db_,
+                "INSERT INTO observations(batch_id, point_id, source, source_name, epoch, stamp, reference_stamp,"
+                " rx, ry, rz, dx, dy, dz, covariance) VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+                path_);
+    for (const Measurement& m : batch.measurements) {
+      o.Reset();
+      o.Bind(1, batch_id);
+      o.Bind(2, m.point_id);
+      o.Bind(3, static_cast<int64_t>(m.source));
+      o.Bind(4, m.source_name);
+      o.Bind(5, static_cast<int64_t>(m.epoch));
+      o.Bind(6, m.stamp);
+      o.Bind(7, m.reference_stamp);
+      for (int k = 0; k < 3; ++k) o.Bind(8 + k, m.reference_position(k));
+      for (int k = 0; k < 3; ++k) o.Bind(11 + k, m.displacement(k));
+      o.BindMatrix(14, m.covariance);
+      o.Step();
+      ids.push_back(static_cast<uint64_t>(sqlite3_last_insert_rowid(db_)));
+    }
+    Exec("COMMIT");
+  } catch (...) {
+    sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+    throw;
+  }
+  return ids;
+}
+
+std::vector<History::StoredBatch> History::LoadBatches() const {
+  std::vector<StoredBatch> out;
+  std::map<int64_t, size_t> index;
+  Statement b(db_, "SELECT id, epoch, stamp FROM batches ORDER BY id", path_);
+  while (b.Step()) {
+    index[b.Int(0)] = out.size();
+    StoredBatch sb;
+    sb.batch.epoch = static_cast<uint32_t>(b.Int(1));
+    sb.batch.stamp = b.Double(2);
+    out.push_back(sb);
+  }
+  Statement o(db_,
+              "SELECT id, batch_id, point_id, source, source_name, epoch, stamp, reference_stamp, rx, ry, rz,"
+              " dx, dy, dz, covariance FROM observations ORDER BY id",
+              path_);
+  while (o.Step()) {
+    auto it = index.find(o.Int(1));
+    if (it == index.end()) Fail(Message("observation ", o.Int(0), " refers to a missing batch ", o.Int(1)));
+    Measurement m;
+    m.point_id = o.Text(2);
+    m.source = SourceFromInt(static_cast<int>(o.Int(3)));
+    m.source_name = o.Text(4);
+    m.epoch = static_cast<uint32_t>(o.Int(5));
+    m.stamp = o.Double(6);
+    m.reference_stamp = o.Double(7);
+    m.reference_position = Eigen::Vector3d(o.Double(8), o.Double(9), o.Double(10));
+    m.displacement = Eigen::Vector3d(o.Double(11), o.Double(12), o.Double(13));
+    m.covariance = o.Matrix(14);
+    out[it->second].batch.measurements.push_back(m);
+    out[it->second].sequences.push_back(static_cast<uint64_t>(o.Int(0)));
+  }
+  return out;
+}
+
+void History::StoreEstimates(const std::vector<PointState>& points, uint32_t epoch) {
+  if (points.empty()) return;
+  Exec("BEGIN IMMEDIATE");
+  try {
+    Statement s(db_,
+                "INSERT OR REPLACE INTO estimates(point_id, stamp, epoch, batch_id, dx, dy, dz, vx, vy, vz, ax, ay, az,"
+                " displacement_covariance, velocity_covariance, alert_level, forecast_time, forecast_sigma)"
+                " VALUES(?,?,?,(SELECT MAX(id) FROM batches),?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+                path_);
+    for (const PointState& p : points) {
+      s.Reset();
+      s.Bind(1, p.id);
+      s.Bind(2, p.stamp);
+      s.Bind(3, static_cast<int64_t>(epoch));
+      for (int k = 0; k < 3; ++k) s.Bind(4 + k, p.displacement(k));
+      for (int k = 0; k < 3; ++k) s.Bind(7 + k, p.velocity(k));
+      for (int k = 0; k < 3; ++k) s.Bind(10 + k, p.acceleration(k));
+      s.BindMatrix(13, p.displacement_covariance);
+      s.BindMatrix(14, p.velocity_covariance);
+      s.Bind(15, static_cast<int64_t>(p.alert));
+      if (p.forecast.valid) {
+        s.Bind(16, p.forecast.failure_time);
+        s.Bind(17, p.forecast.sigma);
+      } else {
+        s.BindNull(16);
+        s.BindNull(17);
+      }
+      s.Step();
+    }
+    Exec("COMMIT");
+  } catch (...) {
+    sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+    throw;
+  }
+}
+
+void History::SetMeta(const std::string& key, const std::string& value) {
+  Statement s(db_, "INSERT OR REPLACE INTO meta(key, value) VALUES(?, ?)", path_);
+  s.Bind(1, key);
+  s.Bind(2, value);
+  s.Step();
+}
+
+std::optional<std::string> History::Meta(const std::string& key) const {
+  Statement s(db_, "SELECT value FROM meta WHERE key = ?", path_);
+  s.Bind(1, key);
+  if (!s.Step()) return std::nullopt;
+  return s.Text(0);
+}
+
+void History::StoreReferenceOffsets(
+    const std::map<std::string, std::pair<Eigen::Vector3d, Eigen::Matrix3d>>& offsets) {
+  Exec("BEGIN IMMEDIATE");
+  try {
+    Exec("DELETE FROM reference_offsets");
+    Statement s(db_, "INSERT INTO reference_offsets(point_id, dx, dy, dz, covariance) VALUES(?,?,?,?,?)", path_);
+    for (const auto& [id, o] : offsets) {
+      s.Reset();
+      s.Bind(1, id);
+      for (int k = 0; k < 3; ++k) s.Bind(2 + k, o.first(k));
+      s.BindMatrix(5, o.second);
+      s.Step();
+    }
+    Exec("COMMIT");
+  } catch (...) {
+    sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+    throw;
+  }
+}
+
+std::map<std::string, std::pair<Eigen::Vector3d, Eigen::Matrix3d>> History::LoadReferenceOffsets() const {
+  std::map<std::string, std::pair<Eigen::Vector3d, Eigen::Matrix3d>> out;
+  Statement s(db_, "SELECT point_id, dx, dy, dz, covariance FROM reference_offsets", path_);
+  while (s.Step()) out[s.Text(0)] = {Eigen::Vector3d(s.Double(1), s.Double(2), s.Double(3)), s.Matrix(4)};
+  return out;
+}
+
+int64_t History::CountRows(const std::string& table) const {
+  if (table != "batches" && table != "observations" && table != "estimates" && table != "meta" &&
+      table != "reference_offsets")
+    throw InvalidArgument(Message("unknown history table '", table, "'"));
+  Statement s(db_, "SELECT COUNT(*) FROM " + table, path_);
+  s.Step();
+  return s.Int(0);
+}
+
+}  // namespace deformation
+}  // namespace slope_monitor

@@ -1,0 +1,516 @@
+#include "slope_monitor/core/deformation/report.h"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+
+#include <Eigen/Eigenvalues>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/geotiff.h"
+
+namespace slope_monitor {
+namespace deformation {
+namespace {
+
+constexpr double kMmPerDay = 1e3 * 86400.0;  // m/s -> mm/day
+
+std::string TempName(const std::string& path) { return path + ".tmp-" + std::to_string(getpid()); }
+
+void Rename(const std::string& tmp, const std::string& path) {
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string why = std::strerror(errno);
+    std::remove(tmp.c_str());
+    throw IoError(Message("cannot rename '", tmp, "' to report '", path, "': ", why));
+  }
+}
+
+std::string JsonEscape(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\t': out += "\\t"; break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          char buf[8];
+          std::snprintf(buf, sizeof(buf), "\\u%04x", c);
+          out += buf;
+        } else {
+          out += c;
+        }
+    }
+  }
+  return out;
+}
+
+std::string CsvQuote(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return out + "\"";
+}
+
+std::string Num(double v, int digits = 6) {
+  if (!std::isfinite(v)) return "null";
+  std::ostringstream o;
+  o << std::setprecision(digits) << std::fixed << v;
+  std::string s = o.str();
+  if (s.find('.') != std::string::npos) {
+    while (!s.empty() && s.back() == '0') s.pop_back();
+    if (!s.empty() && s.back() == '.') s.pop_back();
+  }
+  return s == "-0" ? "0" : s;
+}
+
+std::string Utc(double stamp) {
+  const std::time_t t = static_cast<std::time_t>(std::floor(stamp));
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+std::string SourcesText(const PointState& p) {
+  std::string s;
+  for (Source src : p.sources) s += (s.empty() ? "" : "+") + SourceName(src);
+  return s;
+}
+
+cv::Scalar AlertColour(AlertLevel a) {  // BGR
+  switch (a) {
+    case AlertLevel::kWatch: return cv::Scalar(0, 200, 255);    // amber
+    case AlertLevel::kWarning: return cv::Scalar(0, 120, 255);  // orange
+    case AlertLevel::kAlarm: return cv::Scalar(0, 0, 230);      // red
+    default: return cv::Scalar(60, 160, 40);                    // green
+  }
+}
+
+void WriteImage(const std::string& path, const cv::Mat& image) {
+  const std::string tmp = TempName(path) + ".png";
+  bool ok = false;
+  try {
+    ok = cv::imwrite(tmp, image);
+  } catch (const cv::Exception& e) {
+    std::remove(tmp.c_str());
+    throw IoError(Message("cannot write PNG '", path, "': ", e.what()));
+  }
+  if (!ok) {
+    std::remove(tmp.c_str());
+    throw IoError(Message("cannot write PNG '", path, "'"));
+  }
+  Rename(tmp, path);
+}
+
+// A "nice" number near x (1, 2, 5 x 10^n).
+double Nice(double x) {
+  if (!(x > 0)) return 1.0;
+  const double e = std::pow(10.0, std::floor(std::log10(x)));
+  const double f = x / e;
+  return (f < 1.5 ? 1.0 : f < 3.5 ? 2.0 : f < 7.5 ? 5.0 : 10.0) * e;
+}
+
+void Text(cv::Mat& img, const std::string& s, cv::Point p, double scale = 0.5, cv::Scalar c = cv::Scalar(0, 0, 0),
+          int thick = 1) {
+  cv::putText(img, s, p, cv::FONT_HERSHEY_SIMPLEX, scale, c, thick, cv::LINE_AA);
+}
+
+}  // namespace
+
+void ReportOptions::Check() const {
+  if (!(grid_resolution > 0.0)) throw ConfigError(Message("report grid_resolution = ", grid_resolution, " m must be > 0"));
+  if (!(grid_margin >= 0.0)) throw ConfigError(Message("report grid_margin = ", grid_margin, " m must be >= 0"));
+  if (!(idw_power > 0.0)) throw ConfigError(Message("report idw_power = ", idw_power, " must be > 0"));
+  if (!(idw_radius > 0.0)) throw ConfigError(Message("report idw_radius = ", idw_radius, " m must be > 0"));
+  if (map_width < 200 || map_width > 8000) throw ConfigError(Message("report map_width = ", map_width, " px must be in [200, 8000]"));
+  if (series_width < 200 || series_height < 150)
+    throw ConfigError(Message("report series size ", series_width, "x", series_height, " px is too small"));
+  if (!(arrow_scale >= 0.0)) throw ConfigError(Message("report arrow_scale = ", arrow_scale, " must be >= 0"));
+}
+
+void WriteFileAtomically(const std::string& path, const std::string& content) {
+  const std::string tmp = TempName(path);
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw IoError(Message("cannot write report '", path, "' (temporary '", tmp, "'): ", std::strerror(errno)));
+    out << content;
+    out.flush();
+    if (!out) {
+      std::remove(tmp.c_str());
+      throw IoError(Message("cannot write report '", path, "': write failed"));
+    }
+  }
+  Rename(tmp, path);
+}
+
+Eigen::Vector3d SiteToGeodetic(const Eigen::Vector3d& enu, const Eigen::Vector3d& origin) {
+  // WGS 84 ellipsoid; ENU -> ECEF around the origin, then ECEF -> geodetic (Bowring iteration).
+  const double a = 6378137.0, f = 1.0 / 298.257223563, e2 = f * (2 - f);
+  const double lat0 = origin(0) * M_PI / 180.0, lon0 = origin(1) * M_PI / 180.0, h0 = origin(2);
+  const double N0 = a / std::sqrt(1 - e2 * std::sin(lat0) * std::sin(lat0));
+  const Eigen::Vector3d x0((N0 + h0) * std::cos(lat0) * std::cos(lon0), (N0 + h0) * std::cos(lat0) * std::sin(lon0),
+                           (N0 * (1 - e2) + h0) * std::sin(lat0));
+  Eigen::Matrix3d R;  // columns: east, north, up in ECEF
+  R.col(0) << -std::sin(lon0), std::cos(lon0), 0;
+  R.col(1) << -std::sin(lat0) * std::cos(lon0), -std::sin(lat0) * std::sin(lon0), std::cos(lat0);
+  R.col(2) << std::cos(lat0) * std::cos(lon0), std::cos(lat0) * std::sin(lon0), std::sin(lat0);
+  const Eigen::Vector3d x = x0 + R * enu;
+  const double lon = std::atan2(x(1), x(0));
+  const double p = std::hypot(x(0), x(1));
+  double lat = std::atan2(x(2), p * (1 - e2)), h = 0.0;
+  for (int i = 0; i < 10; ++i) {
+    const double N = a / std::sqrt(1 - e2 * std::sin(lat) * std::sin(lat));
+    h = p / std::cos(lat) - N;
+    lat = std::atan2(x(2), p * (1 - e2 * N / (N + h)));
+  }
+  return Eigen::Vector3d(lon * 180.0 / M_PI, lat * 180.0 / M_PI, h);
+}
+
+std::string WriteCsv(const Snapshot& s, const std::string& path) {
+  std::ostringstream o;
+  o << "id,x,y,z,dx_mm,dy_mm,dz_mm,d_mm,sigma_dx_mm,sigma_dy_mm,sigma_dz_mm,vx_mm_per_day,vy_mm_per_day,"
+       "vz_mm_per_day,speed_mm_per_day,sigma_speed_mm_per_day,alert,forecast_valid,forecast_failure_time,"
+       "forecast_sigma_h,forecast_window_h,sources,sources_disagree,reason\n";
+  for (const PointState& p : s.points) {
+    o << CsvQuote(p.id) << ',' << Num(p.reference_position.x(), 4) << ',' << Num(p.reference_position.y(), 4) << ','
+      << Num(p.reference_position.z(), 4);
+    for (int k = 0; k < 3; ++k) o << ',' << Num(p.displacement(k) * 1e3, 3);
+    o << ',' << Num(p.displacement.norm() * 1e3, 3);
+    for (int k = 0; k < 3; ++k) o << ',' << Num(std::sqrt(p.displacement_covariance(k, k)) * 1e3, 3);
+    for (int k = 0; k < 3; ++k) o << ',' << Num(p.velocity(k) * kMmPerDay, 3);
+    o << ',' << Num(p.speed * kMmPerDay, 3) << ',' << Num(p.speed_sigma * kMmPerDay, 3) << ',' << AlertName(p.alert)
+      << ',' << (p.forecast.valid ? 1 : 0) << ',' << (p.forecast.valid ? Num(p.forecast.failure_time, 1) : "")
+      << ',' << (p.forecast.valid ? Num(p.forecast.sigma / 3600.0, 2) : "") << ','
+      << (p.forecast.valid ? Num(p.forecast.window / 3600.0, 2) : "") << ',' << SourcesText(p) << ','
+      << (p.sources_disagree ? 1 : 0) << ',' << CsvQuote(p.alert_reason) << '\n';
+  }
+  WriteFileAtomically(path, o.str());
+  return path;
+}
+
+std::string WriteGeoJson(const Snapshot& s, const std::string& path, const ReportOptions& options) {
+  std::ostringstream o;
+  o << "{\n  \"type\": \"FeatureCollection\",\n";
+  if (options.geodetic_origin) {
+    o << "  \"crs_note\": \"WGS 84 longitude, latitude [deg], ellipsoidal height [m] (RFC 7946), from the site "
+         "frame origin "
+      << Num((*options.geodetic_origin)(0), 8) << ", " << Num((*options.geodetic_origin)(1), 8) << ", "
+      << Num((*options.geodetic_origin)(2), 3) << "\",\n";
+  } else {
+    o << "  \"crs_note\": \"local site frame: x east, y north, z up, metres (not geodetic)\",\n";
+  }
+  o << "  \"reference_epoch\": " << s.reference_epoch << ",\n  \"reference_stamp\": " << Num(s.reference_stamp, 3)
+    << ",\n  \"stamp\": " << Num(s.stamp, 3) << ",\n  \"alert\": \"" << AlertName(s.alert) << "\",\n"
+    << "  \"summary\": \"" << JsonEscape(s.summary) << "\",\n  \"features\": [";
+  for (size_t i = 0; i < s.points.size(); ++i) {
+    const PointState& p = s.points[i];
+    Eigen::Vector3d c = p.reference_position;
+    int digits = 4;
+    if (options.geodetic_origin) {
+      c = SiteToGeodetic(p.reference_position, *options.geodetic_origin);
+      digits = 9;
+    }
+    o << (i ? "," : "") << "\n    {\"type\": \"Feature\", \"geometry\": {\"type\": \"Point\", \"coordinates\": ["
+      << Num(c(0), digits) << ", " << Num(c(1), digits) << ", " << Num(c(2), 4) << "]},\n     \"properties\": {"
+      << "\"id\": \"" << JsonEscape(p.id) << "\", \"displacement_mm\": [" << Num(p.displacement.x() * 1e3, 3) << ", "
+      << Num(p.displacement.y() * 1e3, 3) << ", " << Num(p.displacement.z() * 1e3, 3)
+      << "], \"displacement_magnitude_mm\": " << Num(p.displacement.norm() * 1e3, 3) << ", \"velocity_mm_per_day\": ["
+      << Num(p.velocity.x() * kMmPerDay, 3) << ", " << Num(p.velocity.y() * kMmPerDay, 3) << ", "
+      << Num(p.velocity.z() * kMmPerDay, 3) << "], \"speed_mm_per_day\": " << Num(p.speed * kMmPerDay, 3)
+      << ", \"sigma_mm\": [" << Num(std::sqrt(p.displacement_covariance(0, 0)) * 1e3, 3) << ", "
+      << Num(std::sqrt(p.displacement_covariance(1, 1)) * 1e3, 3) << ", "
+      << Num(std::sqrt(p.displacement_covariance(2, 2)) * 1e3, 3)
+      << "], \"sigma_speed_mm_per_day\": " << Num(p.speed_sigma * kMmPerDay, 3) << ", \"alert\": \""
+      << AlertName(p.alert) << "\", \"alert_reason\": \"" << JsonEscape(p.alert_reason) << "\", \"sources\": \""
+      << SourcesText(p) << "\", \"sources_disagree\": " << (p.sources_disagree ? "true" : "false")
+      << ", \"forecast\": {\"valid\": " << (p.forecast.valid ? "true" : "false");
+    if (p.forecast.valid) {
+      o << ", \"failure_time\": " << Num(p.forecast.failure_time, 1) << ", \"failure_time_utc\": \""
+        << Utc(p.forecast.failure_time) << "\", \"sigma_h\": " << Num(p.forecast.sigma / 3600.0, 2)
+        << ", \"window_h\": " << Num(p.forecast.window / 3600.0, 2) << ", \"alpha\": " << Num(p.forecast.alpha, 2);
+    } else {
+      o << ", \"reason\": \"" << JsonEscape(p.forecast.reason) << "\"";
+    }
+    o << "}}}";
+  }
+  o << "\n  ]\n}\n";
+  WriteFileAtomically(path, o.str());
+  return path;
+}
+
+std::string WriteDisplacementGeoTiff(const Snapshot& s, const std::string& path, const ReportOptions& options) {
+  if (s.points.empty()) throw InvalidArgument(Message("no points to interpolate for GeoTIFF '", path, "'"));
+  Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+  for (const PointState& p : s.points) {
+    lo = lo.cwiseMin(p.reference_position.head<2>());
+    hi = hi.cwiseMax(p.reference_position.head<2>());
+  }
+  const double cell = options.grid_resolution;
+  const double x0 = std::floor((lo.x() - options.grid_margin) / cell) * cell;
+  const double y1 = std::ceil((hi.y() + options.grid_margin) / cell) * cell;
+  const int width = static_cast<int>(std::ceil((hi.x() + options.grid_margin - x0) / cell));
+  const int height = static_cast<int>(std::ceil((y1 - (lo.y() - options.grid_margin)) / cell));
+  if (static_cast<double>(width) * height > 5e7)
+    throw InvalidArgument(Message("GeoTIFF '", path, "' would have ", width, " x ", height,
+                                  " cells; increase grid_resolution"));
+  io::GeoRaster r(std::max(1, width), std::max(1, height), x0, y1, cell);
+  r.nodata = -9999.0;
+  r.AddBand("displacement_magnitude_m");
+  r.AddBand("dx_m");
+  r.AddBand("dy_m");
+  r.AddBand("dz_m");
+  for (int row = 0; row < r.height; ++row) {
+    for (int col = 0; col < r.width; ++col) {
+      const Eigen::Vector2d c = r.CellCentre(row, col);
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      double wsum = 0.0;
+      bool exact = false;
+      for (const PointState& p : s.points) {
+        const double dist = (p.reference_position.head<2>() - c).norm();
+        if (dist > options.idw_radius) continue;
+        if (dist < 1e-9) {
+          sum = p.displacement;
+          wsum = 1.0;
+          exact = true;
+          break;
+        }
+        const double w = 1.0 / std::pow(dist, options.idw_power);
+        sum += w * p.displacement;
+        wsum += w;
+      }
+      if (wsum <= 0.0 && !exact) continue;
+      const Eigen::Vector3d d = sum / wsum;
+      r.At(0, row, col) = static_cast<float>(d.norm());
+      for (int k = 0; k < 3; ++k) r.At(1 + k, row, col) = static_cast<float>(d(k));
+    }
+  }
+  io::WriteGeoTiff(path, r);
+  return path;
+}
+
+std::string WriteDisplacementMap(const Snapshot& s, const std::string& path, const ReportOptions& options) {
+  Eigen::Vector2d lo(0, 0), hi(1, 1);
+  if (!s.points.empty()) {
+    lo = Eigen::Vector2d(1e300, 1e300);
+    hi = -lo;
+    for (const PointState& p : s.points) {
+      lo = lo.cwiseMin(p.reference_position.head<2>());
+      hi = hi.cwiseMax(p.reference_position.head<2>());
+    }
+  }
+  const double span = std::max({hi.x() - lo.x(), hi.y() - lo.y(), 1.0});
+  lo -= Eigen::Vector2d::Constant(0.15 * span);
+  hi += Eigen::Vector2d::Constant(0.15 * span);
+  const int margin_left = 70, margin_top = 60, margin_bottom = 110, margin_right = 30;
+  const int plot_w = options.map_width - margin_left - margin_right;
+  const double m_per_px = (hi.x() - lo.x()) / plot_w;
+  const int plot_h = std::max(200, static_cast<int>(std::ceil((hi.y() - lo.y()) / m_per_px)));
+  cv::Mat img(margin_top + plot_h + margin_bottom, options.map_width, CV_8UC3, cv::Scalar(255, 255, 255));
+  auto to_px = [&](const Eigen::Vector2d& xy) {
+    return cv::Point(margin_left + static_cast<int>(std::lround((xy.x() - lo.x()) / m_per_px)),
+                     margin_top + plot_h - static_cast<int>(std::lround((xy.y() - lo.y()) / m_per_px)));
+  };
+  // Frame, grid and axes.
+  const double grid = Nice((hi.x() - lo.x()) / 6.0);
+  for (double x = std::ceil(lo.x() / grid) * grid; x <= hi.x(); x += grid) {
+    const cv::Point a = to_px({x, lo.y()}), b = to_px({x, hi.y()});
+    cv::line(img, cv::Point(a.x, margin_top), cv::Point(a.x, margin_top + plot_h), cv::Scalar(225, 225, 225), 1);
+    Text(img, Num(x, 0), cv::Point(a.x - 12, margin_top + plot_h + 18), 0.45);
+    (void)b;
+  }
+  for (double y = std::ceil(lo.y() / grid) * grid; y <= hi.y(); y += grid) {
+    const cv::Point a = to_px({lo.x(), y});
+    if (a.y < margin_top || a.y > margin_top + plot_h) continue;
+    cv::line(img, cv::Point(margin_left, a.y), cv::Point(margin_left + plot_w, a.y), cv::Scalar(225, 225, 225), 1);
+    Text(img, Num(y, 0), cv::Point(8, a.y + 5), 0.45);
+  }
+  cv::rectangle(img, cv::Point(margin_left, margin_top), cv::Point(margin_left + plot_w, margin_top + plot_h),
+                cv::Scalar(0, 0, 0), 1);
+  Text(img, "site x (east) [m]", cv::Point(margin_left + plot_w / 2 - 60, margin_top + plot_h + 38), 0.5);
+  Text(img, "y (north) [m]", cv::Point(5, margin_top - 10), 0.5);
+  Text(img, Message("Horizontal displacement since epoch ", s.reference_epoch, " (", Utc(s.reference_stamp), ") to ",
+                    Utc(s.stamp), "   slope alert: ", AlertName(s.alert)),
+       cv::Point(margin_left, 25), 0.55, cv::Scalar(0, 0, 0), 1);
+  // Arrow scale: the largest horizontal displacement spans 15 % of the map unless fixed.
+  double max_h = 0.0;
+  for (const PointState& p : s.points) max_h = std::max(max_h, p.displacement.head<2>().norm());
+  const double scale = options.arrow_scale > 0 ? options.arrow_scale
+                                                : (max_h > 0 ? 0.15 * (hi.x() - lo.x()) / max_h : 1.0);
+  for (const PointState& p : s.points) {
+    const Eigen::Vector2d from = p.reference_position.head<2>();
+    const Eigen::Vector2d to = from + scale * p.displacement.head<2>();
+    const cv::Scalar colour = AlertColour(p.alert);
+    cv::circle(img, to_px(from), 4, colour, cv::FILLED, cv::LINE_AA);
+    if ((to_px(to) - to_px(from)).dot(to_px(to) - to_px(from)) > 4)
+      cv::arrowedLine(img, to_px(from), to_px(to), colour, 2, cv::LINE_AA, 0, 0.2);
+    // Error ellipse (1 sigma, horizontal part) at the arrow head, same scale.
+    const Eigen::Matrix2d C = p.displacement_covariance.topLeftCorner<2, 2>();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(C);
+    const Eigen::Vector2d ev = es.eigenvalues().cwiseMax(0.0).cwiseSqrt() * scale / m_per_px;
+    const double ang = std::atan2(es.eigenvectors()(1, 1), es.eigenvectors()(0, 1)) * 180.0 / M_PI;
+    cv::ellipse(img, to_px(to), cv::Size(std::max(1, (int)std::lround(ev(1))), std::max(1, (int)std::lround(ev(0)))),
+                -ang, 0, 360, colour, 1, cv::LINE_AA);
+    Text(img, Message(p.id, " ", Num(p.displacement.norm() * 1e3, 1), " mm"), to_px(from) + cv::Point(6, -6), 0.4,
+         cv::Scalar(40, 40, 40));
+  }
+  // Scale bars: map metres and displacement millimetres.
+  const int y_bar = margin_top + plot_h + 70;
+  const double map_bar = Nice((hi.x() - lo.x()) / 5.0);
+  const int map_bar_px = static_cast<int>(std::lround(map_bar / m_per_px));
+  cv::line(img, cv::Point(margin_left, y_bar), cv::Point(margin_left + map_bar_px, y_bar), cv::Scalar(0, 0, 0), 3);
+  Text(img, Message(Num(map_bar, 0), " m (map)"), cv::Point(margin_left, y_bar + 22), 0.5);
+  if (max_h > 0) {
+    const double disp_bar = Nice(0.15 * (hi.x() - lo.x()) / scale);  // metres of displacement
+    const int disp_px = static_cast<int>(std::lround(disp_bar * scale / m_per_px));
+    const int x = margin_left + map_bar_px + 80;
+    cv::arrowedLine(img, cv::Point(x, y_bar), cv::Point(x + disp_px, y_bar), cv::Scalar(0, 0, 0), 2, cv::LINE_AA, 0,
+                    0.15);
+    Text(img, Message(Num(disp_bar * 1e3, 1), " mm (displacement)"), cv::Point(x, y_bar + 22), 0.5);
+  }
+  // Legend.
+  int lx = options.map_width - margin_right - 330;
+  for (AlertLevel a : {AlertLevel::kNone, AlertLevel::kWatch, AlertLevel::kWarning, AlertLevel::kAlarm}) {
+    cv::rectangle(img, cv::Rect(lx, y_bar - 8, 14, 14), AlertColour(a), cv::FILLED);
+    Text(img, AlertName(a), cv::Point(lx + 18, y_bar + 4), 0.45);
+    lx += 82;
+  }
+  WriteImage(path, img);
+  return path;
+}
+
+std::string WriteTimeSeries(const std::string& point_id, const std::vector<SeriesSample>& series,
+                            const Thresholds& thresholds, const std::string& path, const ReportOptions& options) {
+  const int W = options.series_width, H = options.series_height;
+  cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
+  const int left = 80, right = 20, top = 40, gap = 50, bottom = 45;
+  const int panel_h = (H - top - gap - bottom) / 2;
+  const int plot_w = W - left - right;
+  Text(img, Message("Point ", point_id, ": displacement and speed"), cv::Point(left, 25), 0.6);
+  if (series.empty()) {
+    Text(img, "no estimates yet", cv::Point(left, top + panel_h), 0.7, cv::Scalar(0, 0, 200));
+    WriteImage(path, img);
+    return path;
+  }
+  const double t0 = series.front().stamp;
+  const double t1 = std::max(series.back().stamp, t0 + 3600.0);
+  const double hours = (t1 - t0) / 3600.0;
+  auto tx = [&](double t) { return left + static_cast<int>(std::lround((t - t0) / (t1 - t0) * plot_w)); };
+  struct Panel {
+    int y0;
+    double lo, hi;
+  };
+  double dmax = 0.0, vmax = thresholds.warning * kMmPerDay * 1.1;
+  for (const SeriesSample& s : series) {
+    dmax = std::max(dmax, (s.displacement.norm() + s.sigma) * 1e3);
+    vmax = std::max(vmax, (s.speed + s.speed_sigma) * kMmPerDay);
+  }
+  if (vmax > thresholds.alarm * kMmPerDay * 0.7) vmax = std::max(vmax, thresholds.alarm * kMmPerDay * 1.1);
+  dmax = Nice(std::max(dmax, 1.0) * 1.1) * 1.0;
+  const Panel pd{top, 0.0, std::max(dmax, 1.0)}, pv{top + panel_h + gap, 0.0, vmax * 1.05};
+  auto ty = [&](const Panel& p, double v) {
+    return p.y0 + panel_h - static_cast<int>(std::lround((v - p.lo) / (p.hi - p.lo) * panel_h));
+  };
+  const double tick_h = Nice(hours / 8.0);
+  for (const Panel* p : {&pd, &pv}) {
+    cv::rectangle(img, cv::Point(left, p->y0), cv::Point(left + plot_w, p->y0 + panel_h), cv::Scalar(0, 0, 0), 1);
+    const double step = Nice((p->hi - p->lo) / 5.0);
+    for (double v = 0.0; v <= p->hi; v += step) {
+      const int y = ty(*p, v);
+      cv::line(img, cv::Point(left, y), cv::Point(left + plot_w, y), cv::Scalar(230, 230, 230), 1);
+      Text(img, Num(v, step < 1 ? 1 : 0), cv::Point(8, y + 5), 0.42);
+    }
+    for (double h = 0.0; h <= hours + 1e-9; h += tick_h) {
+      const int x = tx(t0 + h * 3600.0);
+      cv::line(img, cv::Point(x, p->y0), cv::Point(x, p->y0 + panel_h), cv::Scalar(230, 230, 230), 1);
+      Text(img, Num(h, tick_h < 1 ? 1 : 0), cv::Point(x - 8, p->y0 + panel_h + 16), 0.42);
+    }
+  }
+  Text(img, "|d| [mm] (band: 1 sigma)", cv::Point(left + 5, pd.y0 + 16), 0.45, cv::Scalar(120, 60, 0));
+  Text(img, "speed [mm/day] (band: 1 sigma)", cv::Point(left + 5, pv.y0 + 16), 0.45, cv::Scalar(120, 60, 0));
+  Text(img, Message("hours since ", Utc(t0)), cv::Point(left + plot_w / 2 - 90, H - 8), 0.5);
+  // Threshold lines.
+  for (AlertLevel a : {AlertLevel::kWatch, AlertLevel::kWarning, AlertLevel::kAlarm}) {
+    const double v = thresholds.Of(a) * kMmPerDay;
+    if (v > pv.hi) continue;
+    const int y = ty(pv, v);
+    cv::line(img, cv::Point(left, y), cv::Point(left + plot_w, y), AlertColour(a), 1, cv::LINE_AA);
+    Text(img, Message(AlertName(a), " ", Num(v, 1)), cv::Point(left + plot_w - 120, y - 4), 0.42, AlertColour(a));
+  }
+  // Curves with sigma bands.
+  for (size_t i = 1; i < series.size(); ++i) {
+    const SeriesSample &a = series[i - 1], &b = series[i];
+    const double da = a.displacement.norm() * 1e3, db = b.displacement.norm() * 1e3;
+    cv::line(img, cv::Point(tx(a.stamp), ty(pd, da + a.sigma * 1e3)), cv::Point(tx(b.stamp), ty(pd, db + b.sigma * 1e3)),
+             cv::Scalar(230, 190, 150), 1, cv::LINE_AA);
+    cv::line(img, cv::Point(tx(a.stamp), ty(pd, std::max(0.0, da - a.sigma * 1e3))),
+             cv::Point(tx(b.stamp), ty(pd, std::max(0.0, db - b.sigma * 1e3))), cv::Scalar(230, 190, 150), 1,
+             cv::LINE_AA);
+    cv::line(img, cv::Point(tx(a.stamp), ty(pd, da)), cv::Point(tx(b.stamp), ty(pd, db)), cv::Scalar(160, 60, 0), 2,
+             cv::LINE_AA);
+    const double va = a.speed * kMmPerDay, vb = b.speed * kMmPerDay;
+    const double sa = a.speed_sigma * kMmPerDay, sb = b.speed_sigma * kMmPerDay;
+    cv::line(img, cv::Point(tx(a.stamp), ty(pv, std::min(pv.hi, va + sa))),
+             cv::Point(tx(b.stamp), ty(pv, std::min(pv.hi, vb + sb))), cv::Scalar(230, 190, 150), 1, cv::LINE_AA);
+    cv::line(img, cv::Point(tx(a.stamp), ty(pv, std::max(0.0, va - sa))),
+             cv::Point(tx(b.stamp), ty(pv, std::max(0.0, vb - sb))), cv::Scalar(230, 190, 150), 1, cv::LINE_AA);
+    cv::line(img, cv::Point(tx(a.stamp), ty(pv, std::min(pv.hi, va))), cv::Point(tx(b.stamp), ty(pv, std::min(pv.hi, vb))),
+             cv::Scalar(160, 60, 0), 2, cv::LINE_AA);
+  }
+  WriteImage(path, img);
+  return path;
+}
+
+std::vector<std::string> WriteReports(const Estimator& estimator, const std::string& directory,
+                                      const std::vector<std::string>& formats_in, const ReportOptions& options) {
+  options.Check();
+  std::vector<std::string> formats = formats_in;
+  if (formats.empty()) formats = {"csv", "geojson", "geotiff", "png"};
+  for (const std::string& f : formats)
+    if (f != "csv" && f != "geojson" && f != "geotiff" && f != "png")
+      throw InvalidArgument(Message("unknown report format '", f, "' (csv, geojson, geotiff, png)"));
+  if (directory.empty()) throw InvalidArgument("report directory is empty");
+  // mkdir -p
+  for (size_t pos = 1; pos <= directory.size(); ++pos) {
+    if (pos == directory.size() || directory[pos] == '/') {
+      const std::string d = directory.substr(0, pos);
+      if (mkdir(d.c_str(), 0755) != 0 && errno != EEXIST)
+        throw IoError(Message("cannot create report directory '", d, "': ", std::strerror(errno)));
+    }
+  }
+  const Snapshot s = estimator.GetSnapshot();
+  const std::string base = directory + "/deformation";
+  std::vector<std::string> files;
+  for (const std::string& f : formats) {
+    if (f == "csv") files.push_back(WriteCsv(s, base + ".csv"));
+    if (f == "geojson") files.push_back(WriteGeoJson(s, base + ".geojson", options));
+    if (f == "geotiff" && !s.points.empty()) files.push_back(WriteDisplacementGeoTiff(s, base + ".tif", options));
+    if (f == "png") {
+      files.push_back(WriteDisplacementMap(s, base + "_map.png", options));
+      for (const auto& [id, series] : estimator.Series()) {
+        std::string safe = id;
+        for (char& c : safe)
+          if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '_';
+        files.push_back(
+            WriteTimeSeries(id, series, estimator.ThresholdsOf(id), base + "_series_" + safe + ".png", options));
+      }
+    }
+  }
+  return files;
+}
+
+}  // namespace deformation
+}  // namespace slope_monitor
