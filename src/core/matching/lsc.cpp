@@ -1,0 +1,405 @@
+#include "slope_monitor/core/matching/lsc.h"
+
+#include <cmath>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "slope_monitor/core/common/error.h"
+
+namespace slope_monitor {
+namespace matching {
+
+namespace {
+
+void CheckImage(const cv::Mat& image, const char* what) {
+  if (image.empty() || image.type() != CV_32FC1) {
+    throw InvalidArgument(Message("LSC: ", what, " must be a non-empty CV_32FC1 image (use ToFloat), got type ",
+                                  image.type()));
+  }
+}
+
+double Ncc(const std::vector<double>& a, const std::vector<double>& b) {
+  const size_t n = a.size();
+  double ma = 0, mb = 0;
+  for (size_t i = 0; i < n; ++i) {
+    ma += a[i];
+    mb += b[i];
+  }
+  ma /= n;
+  mb /= n;
+  double sab = 0, saa = 0, sbb = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const double da = a[i] - ma, db = b[i] - mb;
+    sab += da * db;
+    saa += da * da;
+    sbb += db * db;
+  }
+  if (saa <= 0 || sbb <= 0) return 0.0;
+  return sab / std::sqrt(saa * sbb);
+}
+
+// Value and derivatives of b at (x, y). Bilinear derivatives are taken as
+// half-pixel central differences of the interpolant (continuous in x, y),
+// bicubic ones analytically.
+inline float ValueGrad(const cv::Mat& b, double x, double y, Interpolation interp, float* dx, float* dy) {
+  if (interp == Interpolation::kBicubic) return SampleBicubicGrad(b, x, y, dx, dy);
+  const float v = SampleBilinear(b, x, y);
+  *dx = SampleBilinear(b, x + 0.5, y) - SampleBilinear(b, x - 0.5, y);
+  *dy = SampleBilinear(b, x, y + 0.5) - SampleBilinear(b, x, y - 0.5);
+  return v;
+}
+
+using Mat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 8, 8>;
+using Vec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 8, 1>;
+
+}  // namespace
+
+LscModel LscModelFromName(const std::string& name) {
+  if (name == "affine") return LscModel::kAffine;
+  if (name == "shift") return LscModel::kShift;
+  throw InvalidArgument(Message("LSC model '", name, "' unknown (use 'affine' or 'shift')"));
+}
+
+const char* LscModelName(LscModel model) { return model == LscModel::kAffine ? "affine" : "shift"; }
+
+const char* LscStatusName(LscSummary::Status status) {
+  switch (status) {
+    case LscSummary::Status::kConverged: return "converged";
+    case LscSummary::Status::kNotConverged: return "not_converged";
+    case LscSummary::Status::kOutside: return "outside";
+    case LscSummary::Status::kTextureless: return "textureless";
+    case LscSummary::Status::kDiverged: return "diverged";
+    case LscSummary::Status::kLowCorrelation: return "low_correlation";
+    case LscSummary::Status::kImprecise: return "imprecise";
+  }
+  return "unknown";
+}
+
+void LscOptions::Check() const {
+  auto fail = [](const char* key, auto value, const char* range) {
+    throw ConfigError(Message("LSC option '", key, "' = ", value, " out of range ", range));
+  };
+  if (half_window < 1 || half_window > 50) fail("half_window", half_window, "[1, 50]");
+  if (max_iterations < 1 || max_iterations > 1000) fail("max_iterations", max_iterations, "[1, 1000]");
+  if (!(convergence_shift > 0)) fail("convergence_shift", convergence_shift, "(0, inf)");
+  if (!(convergence_affine > 0)) fail("convergence_affine", convergence_affine, "(0, inf)");
+  if (!(max_shift > 0)) fail("max_shift", max_shift, "(0, inf)");
+  if (!(max_affine > 0)) fail("max_affine", max_affine, "(0, inf)");
+  if (!(max_gain_ratio > 1)) fail("max_gain_ratio", max_gain_ratio, "(1, inf)");
+  if (!(min_correlation >= -1 && min_correlation <= 1)) fail("min_correlation", min_correlation, "[-1, 1]");
+  if (!(min_gradient_energy >= 0)) fail("min_gradient_energy", min_gradient_energy, "[0, inf)");
+  if (!(max_sigma > 0)) fail("max_sigma", max_sigma, "(0, inf)");
+  if (!(min_eigen_ratio >= 0 && min_eigen_ratio < 1)) fail("min_eigen_ratio", min_eigen_ratio, "[0, 1)");
+  if (search_radius < 0 || search_radius > 200) fail("search_radius", search_radius, "[0, 200]");
+  if (search_radius_y < -1 || search_radius_y > 200) fail("search_radius_y", search_radius_y, "[-1, 200]");
+  if (search_half_window < 0 || search_half_window > 50) fail("search_half_window", search_half_window, "[0, 50]");
+}
+
+Eigen::Vector2d CorrelateInteger(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen::Vector2d& xa,
+                                 const Eigen::Vector2d& xb_start, int half_window, int radius, double* ncc,
+                                 int radius_y) {
+  if (radius_y < 0) radius_y = radius;
+  CheckImage(image_a, "image a");
+  CheckImage(image_b, "image b");
+  const int h = half_window;
+  const int ax = static_cast<int>(std::lround(xa.x())), ay = static_cast<int>(std::lround(xa.y()));
+  const int bx0 = static_cast<int>(std::lround(xb_start.x())), by0 = static_cast<int>(std::lround(xb_start.y()));
+  double best = -2.0;
+  Eigen::Vector2d best_pos = xb_start;
+  if (ax - h < 0 || ay - h < 0 || ax + h >= image_a.cols || ay + h >= image_a.rows) {
+    if (ncc) *ncc = best;
+    return best_pos;
+  }
+  const int n = (2 * h + 1) * (2 * h + 1);
+  std::vector<float> wa;
+  wa.reserve(n);
+  double sa = 0, saa = 0;
+  for (int v = -h; v <= h; ++v) {
+    const float* row = image_a.ptr<float>(ay + v);
+    for (int u = -h; u <= h; ++u) {
+      wa.push_back(row[ax + u]);
+      sa += row[ax + u];
+    }
+  }
+  const double ma = sa / n;
+  for (float& x : wa) {
+    x -= static_cast<float>(ma);
+    saa += double(x) * x;
+  }
+  if (saa <= 0) {
+    if (ncc) *ncc = best;
+    return best_pos;
+  }
+  for (int dy = -radius_y; dy <= radius_y; ++dy) {
+    const int by = by0 + dy;
+    if (by - h < 0 || by + h >= image_b.rows) continue;
+    for (int dx = -radius; dx <= radius; ++dx) {
+      const int bx = bx0 + dx;
+      if (bx - h < 0 || bx + h >= image_b.cols) continue;
+      double sb = 0, sbb = 0, sab = 0;
+      int k = 0;
+      for (int v = -h; v <= h; ++v) {
+        const float* row = image_b.ptr<float>(by + v) + bx;
+        for (int u = -h; u <= h; ++u, ++k) {
+          const double b = row[u];
+          sb += b;
+          sbb += b * b;
+          sab += wa[k] * b;
+        }
+      }
+      const double var_b = sbb - sb * sb / n;
+      if (var_b <= 1e-9) continue;
+      const double c = sab / std::sqrt(saa * var_b);
+      if (c > best) {
+        best = c;
+        best_pos = Eigen::Vector2d(bx, by);
+      }
+    }
+  }
+  if (ncc) *ncc = best;
+  return best_pos;
+}
+
+LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen::Vector2d& xa,
+                    const Eigen::Vector2d& xb_start, const LscOptions& options) {
+  CheckImage(image_a, "image a");
+  CheckImage(image_b, "image b");
+  options.Check();
+  using Status = LscSummary::Status;
+  LscSummary s;
+  s.xb = xb_start;
+  s.start = xb_start;
+  const int h = options.half_window;
+  const Interpolation interp = options.interpolation;
+  const double margin = interp == Interpolation::kBicubic ? 1.0 : 0.0;
+  // Window a (bilinear read; exact at integer positions).
+  if (xa.x() - h < margin || xa.y() - h < margin || xa.x() + h > image_a.cols - 1 - margin ||
+      xa.y() + h > image_a.rows - 1 - margin) {
+    s.status = Status::kOutside;
+    return s;
+  }
+  const int n = (2 * h + 1) * (2 * h + 1);
+  std::vector<double> wa(n), us(n), vs(n);
+  {
+    int k = 0;
+    for (int v = -h; v <= h; ++v)
+      for (int u = -h; u <= h; ++u, ++k) {
+        wa[k] = Sample(image_a, xa.x() + u, xa.y() + v, interp);
+        us[k] = u;
+        vs[k] = v;
+      }
+  }
+  // Gradient energy of window a (central differences inside the window).
+  {
+    double e = 0, sxx = 0, syy = 0, sxy = 0;
+    int m = 0;
+    const int w = 2 * h + 1;
+    for (int v = 1; v < w - 1; ++v)
+      for (int u = 1; u < w - 1; ++u) {
+        const double gx = 0.5 * (wa[v * w + u + 1] - wa[v * w + u - 1]);
+        const double gy = 0.5 * (wa[(v + 1) * w + u] - wa[(v - 1) * w + u]);
+        e += gx * gx + gy * gy;
+        sxx += gx * gx;
+        syy += gy * gy;
+        sxy += gx * gy;
+        ++m;
+      }
+    if (h == 1) {  // 3x3: one interior pixel only
+      m = std::max(m, 1);
+    }
+    const double tr = 0.5 * (sxx + syy), df = 0.5 * (sxx - syy);
+    const double root = std::sqrt(df * df + sxy * sxy);
+    const double ratio = tr + root > 0 ? (tr - root) / (tr + root) : 0.0;
+    if (e / m < options.min_gradient_energy || e == 0.0 || ratio < options.min_eigen_ratio) {
+      s.status = Status::kTextureless;
+      return s;
+    }
+  }
+
+  // Modified LSC: integer correlation first.
+  if (options.search_radius > 0) {
+    double c = -2;
+    const Eigen::Vector2d best = CorrelateInteger(image_a, image_b, xa, xb_start,
+                                                 options.search_half_window > 0 ? options.search_half_window : h,
+                                                 options.search_radius, &c, options.search_radius_y);
+    if (c <= -2) {
+      s.status = Status::kOutside;
+      return s;
+    }
+    // Keep the sub-pixel part of xa (windows are centred on xa, not on its rounding).
+    s.start = best + (xa - xa.array().round().matrix());
+    s.xb = s.start;
+  }
+
+  const bool affine = options.model == LscModel::kAffine;
+  const bool gain = options.estimate_gain;
+  const int m = 2 + (affine ? 4 : 0) + (gain ? 1 : 0) + 1;
+  const int ig = affine ? 6 : 2;
+  const int io = ig + (gain ? 1 : 0);
+  double p_aff[4] = {0, 0, 0, 0};
+  double g = 1.0, o = 0.0;
+  Eigen::Vector2d xb = s.start;
+
+  auto inside = [&](double X, double Y) {
+    return X >= margin && Y >= margin && X <= image_b.cols - 1 - margin && Y <= image_b.rows - 1 - margin;
+  };
+  auto map = [&](int k, double* X, double* Y) {
+    *X = xb.x() + (1 + p_aff[0]) * us[k] + p_aff[1] * vs[k];
+    *Y = xb.y() + p_aff[2] * us[k] + (1 + p_aff[3]) * vs[k];
+  };
+  // Offset start: difference of means.
+  {
+    double mb = 0, ma = 0;
+    for (int k = 0; k < n; ++k) {
+      double X, Y;
+      map(k, &X, &Y);
+      if (!inside(X, Y)) {
+        s.status = Status::kOutside;
+        return s;
+      }
+      mb += Sample(image_b, X, Y, interp);
+      ma += wa[k];
+    }
+    o = (ma - mb) / n;
+  }
+
+  Mat jtj(m, m);
+  Vec jtr(m);
+  Vec row(m);
+  std::vector<double> wb(n);
+  bool converged = false;
+  int it = 0;
+  for (; it < options.max_iterations; ++it) {
+    jtj.setZero();
+    jtr.setZero();
+    for (int k = 0; k < n; ++k) {
+      double X, Y;
+      map(k, &X, &Y);
+      if (!inside(X, Y)) {
+        s.status = Status::kOutside;
+        s.iterations = it;
+        return s;
+      }
+      float bx, by;
+      const double b = ValueGrad(image_b, X, Y, interp, &bx, &by);
+      const double r = g * b + o - wa[k];
+      row(0) = g * bx;
+      row(1) = g * by;
+      if (affine) {
+        row(2) = g * bx * us[k];
+        row(3) = g * bx * vs[k];
+        row(4) = g * by * us[k];
+        row(5) = g * by * vs[k];
+      }
+      if (gain) row(ig) = b;
+      row(io) = 1.0;
+      jtj.noalias() += row * row.transpose();
+      jtr += row * r;
+    }
+    // Conditioning on the column-scaled normal matrix.
+    const Vec d = jtj.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+    const Mat scaled = d.asDiagonal() * jtj * d.asDiagonal();
+    Eigen::JacobiSVD<Mat, Eigen::NoQRPreconditioner> svd(scaled);
+    if (svd.singularValues()(m - 1) < 1e-8) {
+      s.status = Status::kTextureless;
+      s.iterations = it;
+      return s;
+    }
+    const Vec step = -jtj.partialPivLu().solve(jtr);
+    xb += step.head<2>();
+    double max_aff_step = 0;
+    if (affine) {
+      for (int i = 0; i < 4; ++i) {
+        p_aff[i] += step(2 + i);
+        max_aff_step = std::max(max_aff_step, std::fabs(step(2 + i)));
+      }
+    }
+    if (gain) g += step(ig);
+    o += step(io);
+    if ((xb - s.start).norm() > options.max_shift || !std::isfinite(xb.x()) || !std::isfinite(xb.y())) {
+      s.status = Status::kDiverged;
+      s.xb = xb;
+      s.iterations = it + 1;
+      return s;
+    }
+    if (affine && (std::fabs(p_aff[0]) > options.max_affine || std::fabs(p_aff[1]) > options.max_affine ||
+                   std::fabs(p_aff[2]) > options.max_affine || std::fabs(p_aff[3]) > options.max_affine)) {
+      s.status = Status::kDiverged;
+      s.xb = xb;
+      s.iterations = it + 1;
+      return s;
+    }
+    if (gain && (g < 1.0 / options.max_gain_ratio || g > options.max_gain_ratio)) {
+      s.status = Status::kDiverged;
+      s.xb = xb;
+      s.iterations = it + 1;
+      return s;
+    }
+    if (step.head<2>().norm() < options.convergence_shift && max_aff_step < options.convergence_affine) {
+      converged = true;
+      ++it;
+      break;
+    }
+  }
+  s.iterations = it;
+  s.xb = xb;
+  s.affine = Eigen::Vector4d(p_aff[0], p_aff[1], p_aff[2], p_aff[3]);
+  s.gain = g;
+  s.offset = o;
+
+  // Final residuals, precision and correlation at the solution.
+  jtj.setZero();
+  double sum_r2 = 0;
+  for (int k = 0; k < n; ++k) {
+    double X, Y;
+    map(k, &X, &Y);
+    if (!inside(X, Y)) {
+      s.status = Status::kOutside;
+      return s;
+    }
+    float bx, by;
+    const double b = ValueGrad(image_b, X, Y, interp, &bx, &by);
+    wb[k] = b;
+    const double r = g * b + o - wa[k];
+    sum_r2 += r * r;
+    row(0) = g * bx;
+    row(1) = g * by;
+    if (affine) {
+      row(2) = g * bx * us[k];
+      row(3) = g * bx * vs[k];
+      row(4) = g * by * us[k];
+      row(5) = g * by * vs[k];
+    }
+    if (gain) row(ig) = b;
+    row(io) = 1.0;
+    jtj.noalias() += row * row.transpose();
+  }
+  const int dof = std::max(1, n - m);
+  const double s0sq = sum_r2 / dof;
+  s.sigma0 = std::sqrt(s0sq);
+  s.correlation = Ncc(wa, wb);
+  const Mat cov = s0sq * jtj.inverse();
+  s.covariance = cov.topLeftCorner<2, 2>();
+  if (!converged) {
+    s.status = Status::kNotConverged;
+    return s;
+  }
+  if (s.correlation < options.min_correlation) {
+    s.status = Status::kLowCorrelation;
+    return s;
+  }
+  // Larger eigenvalue of the symmetric 2 x 2 covariance, closed form.
+  const double tr = 0.5 * (s.covariance(0, 0) + s.covariance(1, 1));
+  const double df = 0.5 * (s.covariance(0, 0) - s.covariance(1, 1));
+  const double lmax = tr + std::sqrt(df * df + s.covariance(0, 1) * s.covariance(0, 1));
+  if (!(std::sqrt(std::max(0.0, lmax)) <= options.max_sigma)) {
+    s.status = Status::kImprecise;
+    return s;
+  }
+  s.status = Status::kConverged;
+  return s;
+}
+
+}  // namespace matching
+}  // namespace slope_monitor
