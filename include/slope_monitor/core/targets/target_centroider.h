@@ -1,0 +1,202 @@
+// Target centroider: AprilTags and circular targets (bright disc on a dark
+// ring) to sub-pixel centres with a covariance, a quality and, for targets
+// that cannot be measured, a rejection reason.
+//
+//   targets::TargetCentroider centroider(options, target_list);
+//   targets::Result r = centroider.Detect(image, "mono8");            // no pose known
+//   targets::Result r = centroider.Detect(image, "bgr8", &view);      // with camera + approximate pose
+//
+// Pixel convention (everywhere in this module): OpenCV's, column right, row
+// down, (0, 0) the centre of the top-left pixel. libapriltag uses a
+// convention shifted by half a pixel ((0.5, 0.5) is the centre of the
+// top-left pixel, checked on rendered tags in
+// test/core/targets/apriltag_test.cpp); its corners and centre are converted
+// by subtracting 0.5 px.
+//
+// AprilTags: libapriltag finds and decodes the quads; then each of the four
+// outer edges of the black border is re-measured by fitting a blurred-step
+// intensity model to the pixels around it (line angle, offset, the two
+// grey levels, blur), the corners are the intersections of adjacent edges,
+// and the centre is the intersection of the diagonals (the image of the tag
+// centre under the tag's homography, not the corner mean). The covariance of
+// the centre is propagated from the covariances of the four line fits.
+//
+// Circles: blobs of a locally thresholded image with a dark surround; then
+// the gray-weighted centroid of DESIGN.md (automatic threshold halfway
+// between the disc and ring levels, pixels under it set to 0,
+// intensity-weighted mean); then a least-squares fit of a blurred elliptical
+// disc intensity model (centre, ellipse shape, the two grey levels, blur) to
+// the pixels around the edge, started from the centroid. The centre of the
+// imaged ellipse is not the image of the circle's centre under perspective;
+// when the camera model, an approximate pose and the target's position and
+// plane normal are known the bias (ellipse centre minus projected centre,
+// computed from the model) is removed.
+//
+// Covariances come from the image noise (the fit's residual, floored at the
+// quantisation noise of the input) and the geometry of the fit (target
+// size, edge contrast, blur): sigma^2 (J^T J)^-1 of the fitted centre.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "slope_monitor/core/camera/camera_model.h"
+#include "slope_monitor/core/io/target_list.h"
+
+namespace slope_monitor {
+namespace targets {
+
+// How to find and measure targets. Units in the comments; Check() throws
+// ConfigError naming the field.
+struct Options {
+  // --- AprilTags (libapriltag) ---
+  std::vector<std::string> families{"tag36h11"};  // tag36h11 tag25h9 tag16h5 tagStandard41h12 ...
+  double quad_decimate = 2.0;      // [-] >= 1: quad detection on an image decimated by this factor
+  double quad_sigma = 0.0;         // [px] Gaussian blur before quad detection (0 = none)
+  bool refine_edges = true;        // libapriltag's own edge refinement of the quads
+  double decode_sharpening = 0.25; // [-] libapriltag's decode sharpening
+  int threads = 1;                 // [-] libapriltag worker threads, 1..64
+  int max_hamming = 1;             // [bits] error bits corrected at most, 0..3
+  double min_decision_margin = 25.0;  // [-] weaker decodes are rejected ("weak_decode")
+  bool refine_tags = true;         // our edge-model refinement of corners and centre
+  // --- circular targets ---
+  bool detect_circles = true;
+  double circle_min_diameter = 8.0;    // [px] apparent disc diameter range
+  double circle_max_diameter = 150.0;  // [px]
+  double circle_max_eccentricity = 0.9;  // [-] 1 - minor/major; 0.9 ~ 84 deg obliquity
+  double circle_id_gate = 0.5;         // [-] max distance to a projected listed circle, in its radii
+  bool refine_circles = true;          // intensity-model ellipse fit after the centroid
+  bool correct_perspective = true;     // remove the perspective bias when the geometry is known
+  // --- acceptance ---
+  double min_contrast = 20.0;          // [DN, 8-bit scale] disc/ring or white/black difference
+  double border_margin = 2.0;          // [px] targets closer to the image border are "border"
+  double saturation_level = 250.0;     // [DN, 8-bit scale] pixels at or above are saturated
+  double max_saturated_fraction = 0.10;  // [-] of the bright part; more is "saturated"
+  double max_edge_blur = 1.6;          // [px] fitted edge blur sigma; more is "blurred"
+  double max_residual = 0.25;          // [-] fit residual RMS / contrast; more is "partial"
+  double noise_floor = 0.0;            // [DN] minimum image noise; 0: quantisation of the input (1/sqrt(12) LSB)
+
+  void Check() const;
+};
+
+// Why a target was seen but not measured.
+enum class RejectReason { kBorder, kSaturated, kBlurred, kPartial, kLowContrast, kWeakDecode, kFitFailed };
+std::string RejectReasonName(RejectReason reason);  // "border", "saturated", ...
+constexpr int kNumRejectReasons = 7;
+
+struct Observation {
+  int id = -1;                        // tag ID; circle: list ID, -1 when not identified
+  std::string family;                 // "tag36h11", ..., "circle"
+  std::optional<io::TargetRole> role; // nullopt: unknown (not in the target list)
+  Eigen::Vector2d centre{0, 0};       // [px] OpenCV convention
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();  // [px^2]
+  bool has_corners = false;
+  std::array<Eigen::Vector2d, 4> corners{};  // [px] libapriltag order (bottom-left, bottom-right, top-right, top-left of the tag)
+  double size_px = 0.0;               // [px] tag edge / disc diameter (mean)
+  double quality = 0.0;               // [0..1]
+  double contrast = 0.0;              // [DN, 8-bit scale]
+  double edge_blur = 0.0;             // [px] fitted blur sigma
+  double decision_margin = 0.0;       // tags: libapriltag decision margin
+  int hamming = 0;                    // tags: corrected bits
+  Eigen::Vector2d gray_centroid{0, 0};  // circles: the plain gray-weighted centroid [px]
+  Eigen::Vector2d detector_centre{0, 0};  // tags: libapriltag's centre, converted to OpenCV convention [px]
+  bool perspective_corrected = false;  // circles: the perspective bias was removed
+  std::string Key() const { return family + "/" + std::to_string(id); }
+};
+
+struct Rejection {
+  std::string family;   // "tag36h11", "circle"
+  int id = -1;
+  Eigen::Vector2d where{0, 0};  // [px]
+  RejectReason reason = RejectReason::kFitFailed;
+  std::string detail;   // e.g. "23% of the disc saturated"
+};
+
+struct Summary {
+  int num_tags = 0;
+  int num_circles = 0;
+  int num_unknown = 0;
+  std::map<std::string, int> rejects_by_reason;
+  double noise_estimate = 0.0;  // [DN, 8-bit scale] median fit residual used for covariances
+  bool IsSolutionUsable() const { return num_tags + num_circles > 0; }
+};
+
+struct Result {
+  int width = 0;
+  int height = 0;
+  std::vector<Observation> observations;
+  std::vector<Rejection> rejections;
+  Summary summary;
+};
+
+// Camera model and approximate pose of the image: identifies circles by their
+// listed positions and corrects the perspective bias of circle centres.
+struct ViewGeometry {
+  camera::CameraModel camera;
+  camera::ExteriorOrientation pose;
+};
+
+// An image converted for measurement: 8-bit mono for libapriltag and a float
+// intensity image on the 8-bit scale (mono16 keeps its precision: /257).
+struct MonoImage {
+  cv::Mat mono8;       // CV_8UC1
+  cv::Mat intensity;   // CV_32FC1, 0..255
+  double quantisation = 1.0;  // [DN, 8-bit scale] size of one input level
+};
+
+// The encodings Detect() accepts.
+const std::vector<std::string>& SupportedEncodings();
+// Throws InvalidArgument naming the encoding when it is not supported, when
+// the image is empty, or when its type does not match the encoding.
+MonoImage ToMono(const cv::Mat& image, const std::string& encoding);
+
+class TargetCentroider {
+ public:
+  // Throws ConfigError (options) or InvalidArgument (unknown family).
+  TargetCentroider(const Options& options, const io::TargetList& targets);
+  ~TargetCentroider();
+  TargetCentroider(const TargetCentroider&) = delete;
+  TargetCentroider& operator=(const TargetCentroider&) = delete;
+
+  // Finds and measures all targets. Throws InvalidArgument for an empty
+  // image, an unsupported encoding, or a view whose sensor size differs from
+  // the image size (naming both sizes).
+  Result Detect(const cv::Mat& image, const std::string& encoding, const ViewGeometry* view = nullptr) const;
+  // The same on a converted image.
+  Result DetectMono(const MonoImage& mono, const ViewGeometry* view = nullptr) const;
+
+  const Options& options() const { return options_; }
+  const io::TargetList& targets() const { return targets_; }
+
+  // The plain gray-weighted centroid (DESIGN.md) of the bright blob around
+  // `seed` within a square window of half size `radius` [px]: threshold
+  // halfway between the window's dark and bright levels (automatic), pixels
+  // under it set to 0, intensity-weighted mean. Returns false when the window
+  // leaves the image or has no contrast.
+  static bool GrayWeightedCentroid(const cv::Mat& intensity, const Eigen::Vector2d& seed, double radius,
+                                   Eigen::Vector2d* centroid);
+
+ private:
+  struct Detector;
+  Options options_;
+  io::TargetList targets_;
+  Detector* detector_ = nullptr;  // libapriltag state (owned)
+};
+
+// Perspective bias of a circle's centre: the centre of the imaged ellipse
+// minus the image of the circle's centre [px], from the camera model and pose.
+// diameter [m], centre and unit normal in site.
+Eigen::Vector2d CirclePerspectiveBias(const ViewGeometry& view, const Eigen::Vector3d& centre_in_site,
+                                      const Eigen::Vector3d& normal_in_site, double diameter);
+
+// An annotated copy of the image (bgr8): observations (green: known, yellow:
+// unknown) with their IDs, rejections in red with their reason.
+cv::Mat DrawResult(const cv::Mat& mono8, const Result& result);
+
+}  // namespace targets
+}  // namespace slope_monitor

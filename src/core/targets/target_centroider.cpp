@@ -1,0 +1,1012 @@
+#include "slope_monitor/core/targets/target_centroider.h"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <mutex>
+
+#include <Eigen/Dense>
+#include <opencv2/imgproc.hpp>
+
+#include <apriltag/apriltag.h>
+#include <apriltag/tag16h5.h>
+#include <apriltag/tag25h9.h>
+#include <apriltag/tag36h10.h>
+#include <apriltag/tag36h11.h>
+#include <apriltag/tagCircle21h7.h>
+#include <apriltag/tagCircle49h12.h>
+#include <apriltag/tagCustom48h12.h>
+#include <apriltag/tagStandard41h12.h>
+#include <apriltag/tagStandard52h13.h>
+
+#include "slope_monitor/core/common/error.h"
+
+namespace slope_monitor {
+namespace targets {
+namespace {
+
+constexpr double kSqrt2Pi = 2.5066282746310002;
+// libapriltag puts the centre of the top-left pixel at (0.5, 0.5).
+constexpr double kAprilTagPixelOffset = 0.5;
+// Smallest optical blur sigma of the edge models [px] (the pixel's own area
+// is modelled separately, see EdgeProfile).
+constexpr double kMinBlur = 0.1;
+
+struct FamilyFactory {
+  apriltag_family_t* (*create)();
+  void (*destroy)(apriltag_family_t*);
+};
+
+const std::map<std::string, FamilyFactory>& Factories() {
+  static const std::map<std::string, FamilyFactory> f = {
+      {"tag36h11", {tag36h11_create, tag36h11_destroy}},
+      {"tag36h10", {tag36h10_create, tag36h10_destroy}},
+      {"tag25h9", {tag25h9_create, tag25h9_destroy}},
+      {"tag16h5", {tag16h5_create, tag16h5_destroy}},
+      {"tagStandard41h12", {tagStandard41h12_create, tagStandard41h12_destroy}},
+      {"tagStandard52h13", {tagStandard52h13_create, tagStandard52h13_destroy}},
+      {"tagCircle21h7", {tagCircle21h7_create, tagCircle21h7_destroy}},
+      {"tagCircle49h12", {tagCircle49h12_create, tagCircle49h12_destroy}},
+      {"tagCustom48h12", {tagCustom48h12_create, tagCustom48h12_destroy}},
+  };
+  return f;
+}
+
+double Phi(double z) { return 0.5 * std::erfc(-z / std::sqrt(2.0)); }
+double SmallPhi(double z) { return std::exp(-0.5 * z * z) / kSqrt2Pi; }
+// First and second antiderivatives of Phi.
+double PhiInt1(double x) { return x * Phi(x) + SmallPhi(x); }
+double PhiInt2(double x) { return 0.5 * (x * x + 1.0) * Phi(x) + 0.5 * x * SmallPhi(x); }
+
+// The fraction of a square pixel that is on the bright side of a straight
+// step edge blurred by a Gaussian of std sigma: the pixel's centre is at
+// signed distance d from the edge (bright side positive), (nx, ny) the edge
+// normal. The unit pixel projects on the normal as the sum of two uniform
+// variables of widths |nx| and |ny|, so the value is the mean of
+// Phi((d - |nx| u1 - |ny| u2) / sigma) over u1, u2 in [-1/2, 1/2], in closed
+// form through the antiderivatives of Phi.
+double EdgeProfile(double d, double nx, double ny, double sigma) {
+  double a = std::abs(nx), b = std::abs(ny);
+  if (a < b) std::swap(a, b);
+  const double is = 1.0 / sigma;
+  if (b < 0.05) {
+    return sigma / a * (PhiInt1((d + 0.5 * a) * is) - PhiInt1((d - 0.5 * a) * is));
+  }
+  const double ha = 0.5 * a, hb = 0.5 * b;
+  return sigma * sigma / (a * b) *
+         (PhiInt2((d + ha + hb) * is) - PhiInt2((d + ha - hb) * is) - PhiInt2((d - ha + hb) * is) +
+          PhiInt2((d - ha - hb) * is));
+}
+
+// Bilinear sample of a CV_32F image (no bounds check beyond clamping).
+double Sample(const cv::Mat& im, double x, double y) {
+  const int x0 = std::clamp(static_cast<int>(std::floor(x)), 0, im.cols - 2);
+  const int y0 = std::clamp(static_cast<int>(std::floor(y)), 0, im.rows - 2);
+  const double fx = std::clamp(x - x0, 0.0, 1.0), fy = std::clamp(y - y0, 0.0, 1.0);
+  const float* r0 = im.ptr<float>(y0);
+  const float* r1 = im.ptr<float>(y0 + 1);
+  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
+}
+
+// Pixels of a region as (x, y, value).
+struct Pixels {
+  std::vector<Eigen::Vector2d> p;
+  std::vector<double> v;
+};
+
+// A small dense Levenberg-Marquardt for the intensity models below. The model
+// returns the predicted value and its gradient w.r.t. the parameters.
+template <int N>
+struct LmResult {
+  Eigen::Matrix<double, N, 1> x;
+  Eigen::Matrix<double, N, N> jtj;
+  double rms = 0.0;
+  bool ok = false;
+};
+
+template <int N, typename Model>
+LmResult<N> FitModel(const Pixels& px, Eigen::Matrix<double, N, 1> x, const Model& model, int max_iter = 30) {
+  using Vec = Eigen::Matrix<double, N, 1>;
+  using Mat = Eigen::Matrix<double, N, N>;
+  LmResult<N> out;
+  const size_t n = px.p.size();
+  if (n < static_cast<size_t>(2 * N)) return out;
+  auto cost = [&](const Vec& xx, Mat* jtj, Vec* jtr) {
+    double c = 0.0;
+    if (jtj) jtj->setZero();
+    if (jtr) jtr->setZero();
+    Vec g;
+    for (size_t i = 0; i < n; ++i) {
+      const double pred = model(xx, px.p[i], jtj ? &g : nullptr);
+      const double r = pred - px.v[i];
+      c += r * r;
+      if (jtj) {
+        jtj->noalias() += g * g.transpose();
+        *jtr += g * r;
+      }
+    }
+    return c;
+  };
+  double lambda = 1e-3;
+  Mat jtj;
+  Vec jtr;
+  double c = cost(x, &jtj, &jtr);
+  for (int it = 0; it < max_iter; ++it) {
+    Mat a = jtj;
+    a.diagonal() += lambda * jtj.diagonal().cwiseMax(1e-12);
+    const Vec step = a.ldlt().solve(-jtr);
+    if (!step.allFinite()) break;
+    const Vec xn = x + step;
+    const double cn = cost(xn, nullptr, nullptr);
+    if (std::isfinite(cn) && cn < c) {
+      x = xn;
+      const double rel = (c - cn) / std::max(c, 1e-30);
+      c = cost(x, &jtj, &jtr);
+      lambda = std::max(lambda * 0.3, 1e-9);
+      if (rel < 1e-10 || step.norm() < 1e-9) break;
+    } else {
+      lambda *= 10.0;
+      if (lambda > 1e8) break;
+    }
+  }
+  out.x = x;
+  out.jtj = jtj;
+  out.rms = std::sqrt(c / std::max<double>(1.0, static_cast<double>(n) - N));
+  out.ok = x.allFinite();
+  return out;
+}
+
+// A straight edge: n(theta) . (p - origin) = rho, white (level w) on the
+// side of +n, black (level b) on the other, blurred by sigma.
+// Parameters: theta, rho, b, w, sigma.
+struct EdgeFit {
+  Eigen::Vector2d origin;
+  double theta = 0, rho = 0, b = 0, w = 0, sigma = 0.5;
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();  // of (theta, rho)
+  double rms = 0;
+  int n = 0;
+  bool ok = false;
+  Eigen::Vector2d Normal() const { return {std::cos(theta), std::sin(theta)}; }
+};
+
+struct Line {  // n . p = c in image coordinates
+  Eigen::Vector2d n;
+  double c;
+};
+
+Line ToLine(const EdgeFit& e, double dtheta = 0, double drho = 0) {
+  const double th = e.theta + dtheta;
+  Line l;
+  l.n = Eigen::Vector2d(std::cos(th), std::sin(th));
+  l.c = e.rho + drho + l.n.dot(e.origin);
+  return l;
+}
+
+bool Intersect(const Line& a, const Line& b, Eigen::Vector2d* p) {
+  Eigen::Matrix2d m;
+  m << a.n.transpose(), b.n.transpose();
+  const double det = m.determinant();
+  if (std::abs(det) < 1e-9) return false;
+  *p = m.inverse() * Eigen::Vector2d(a.c, b.c);
+  return true;
+}
+
+bool IntersectSegments(const Eigen::Vector2d& a0, const Eigen::Vector2d& a1, const Eigen::Vector2d& b0,
+                       const Eigen::Vector2d& b1, Eigen::Vector2d* p) {
+  const Eigen::Vector2d da = a1 - a0, db = b1 - b0;
+  const double den = da.x() * db.y() - da.y() * db.x();
+  if (std::abs(den) < 1e-12) return false;
+  const Eigen::Vector2d w = b0 - a0;
+  const double t = (w.x() * db.y() - w.y() * db.x()) / den;
+  *p = a0 + t * da;
+  return true;
+}
+
+double NoiseOf(double rms, double floor) { return std::max(rms, floor); }
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+void Options::Check() const {
+  auto fail = [](const std::string& key, const std::string& what) {
+    throw ConfigError(Message("targets option '", key, "' ", what));
+  };
+  if (families.empty() && !detect_circles) fail("families", "is empty and detect_circles is false: nothing to detect");
+  for (const auto& f : families) {
+    if (!Factories().count(f)) fail("families", "has unknown tag family '" + f + "'");
+  }
+  if (!(quad_decimate >= 1.0 && quad_decimate <= 8.0)) fail("quad_decimate", Message("= ", quad_decimate, " is outside [1, 8]"));
+  if (!(quad_sigma >= 0.0 && quad_sigma <= 10.0)) fail("quad_sigma", Message("= ", quad_sigma, " px is outside [0, 10]"));
+  if (!(decode_sharpening >= 0.0 && decode_sharpening <= 10.0)) fail("decode_sharpening", Message("= ", decode_sharpening, " is outside [0, 10]"));
+  if (threads < 1 || threads > 64) fail("threads", Message("= ", threads, " is outside [1, 64]"));
+  if (max_hamming < 0 || max_hamming > 3) fail("max_hamming", Message("= ", max_hamming, " is outside [0, 3]"));
+  if (!(min_decision_margin >= 0.0)) fail("min_decision_margin", "must be >= 0");
+  if (!(circle_min_diameter >= 4.0 && circle_min_diameter <= circle_max_diameter))
+    fail("circle_min_diameter", Message("= ", circle_min_diameter, " px must be in [4, circle_max_diameter]"));
+  if (!(circle_max_diameter <= 2000.0)) fail("circle_max_diameter", Message("= ", circle_max_diameter, " px is over 2000"));
+  if (!(circle_max_eccentricity > 0.0 && circle_max_eccentricity < 1.0)) fail("circle_max_eccentricity", "must be in (0, 1)");
+  if (!(circle_id_gate > 0.0 && circle_id_gate <= 5.0)) fail("circle_id_gate", "must be in (0, 5]");
+  if (!(min_contrast > 0.0 && min_contrast < 255.0)) fail("min_contrast", Message("= ", min_contrast, " DN is outside (0, 255)"));
+  if (!(border_margin >= 0.0 && border_margin <= 100.0)) fail("border_margin", "must be in [0, 100] px");
+  if (!(saturation_level > 0.0 && saturation_level <= 255.0)) fail("saturation_level", "must be in (0, 255] DN");
+  if (!(max_saturated_fraction >= 0.0 && max_saturated_fraction <= 1.0)) fail("max_saturated_fraction", "must be in [0, 1]");
+  if (!(max_edge_blur > 0.0 && max_edge_blur <= 20.0)) fail("max_edge_blur", "must be in (0, 20] px");
+  if (!(max_residual > 0.0 && max_residual <= 1.0)) fail("max_residual", "must be in (0, 1]");
+  if (!(noise_floor >= 0.0 && noise_floor <= 50.0)) fail("noise_floor", "must be in [0, 50] DN");
+}
+
+std::string RejectReasonName(RejectReason reason) {
+  switch (reason) {
+    case RejectReason::kBorder: return "border";
+    case RejectReason::kSaturated: return "saturated";
+    case RejectReason::kBlurred: return "blurred";
+    case RejectReason::kPartial: return "partial";
+    case RejectReason::kLowContrast: return "low_contrast";
+    case RejectReason::kWeakDecode: return "weak_decode";
+    case RejectReason::kFitFailed: return "fit_failed";
+  }
+  return "unknown";
+}
+
+const std::vector<std::string>& SupportedEncodings() {
+  static const std::vector<std::string> e = {"mono8", "mono16", "bgr8", "rgb8", "bgra8", "rgba8",
+                                             "bayer_rggb8", "bayer_bggr8", "bayer_gbrg8", "bayer_grbg8",
+                                             "bayer_rggb16", "bayer_bggr16", "bayer_gbrg16", "bayer_grbg16"};
+  return e;
+}
+
+MonoImage ToMono(const cv::Mat& image, const std::string& encoding) {
+  const auto& enc = SupportedEncodings();
+  if (std::find(enc.begin(), enc.end(), encoding) == enc.end()) {
+    std::string list;
+    for (const auto& e : enc) list += (list.empty() ? "" : ", ") + e;
+    throw InvalidArgument(Message("image encoding '", encoding, "' is not supported (supported: ", list, ")"));
+  }
+  if (image.empty() || image.cols < 2 || image.rows < 2) {
+    throw InvalidArgument(Message("image is empty (", image.cols, "x", image.rows, ", encoding '", encoding, "')"));
+  }
+  auto need = [&](int type) {
+    if (image.type() != type) {
+      throw InvalidArgument(Message("image of encoding '", encoding, "' has ", image.channels(), " channel(s) of depth ",
+                                    image.depth(), ", which does not match the encoding"));
+    }
+  };
+  MonoImage out;
+  cv::Mat gray;  // 8U or 16U
+  const bool is16 = encoding == "mono16" || (encoding.size() > 2 && encoding.substr(encoding.size() - 2) == "16");
+  if (encoding == "mono8" || encoding == "mono16") {
+    need(is16 ? CV_16UC1 : CV_8UC1);
+    gray = image;
+  } else if (encoding == "bgr8" || encoding == "rgb8") {
+    need(CV_8UC3);
+    cv::cvtColor(image, gray, encoding == "bgr8" ? cv::COLOR_BGR2GRAY : cv::COLOR_RGB2GRAY);
+  } else if (encoding == "bgra8" || encoding == "rgba8") {
+    need(CV_8UC4);
+    cv::cvtColor(image, gray, encoding == "bgra8" ? cv::COLOR_BGRA2GRAY : cv::COLOR_RGBA2GRAY);
+  } else {
+    need(is16 ? CV_16UC1 : CV_8UC1);
+    // ROS bayer names give the pattern of the top-left 2x2; OpenCV names it by
+    // the second row's middle pair (cv_bridge uses the same mapping).
+    const std::string pattern = encoding.substr(6, 4);
+    int code = cv::COLOR_BayerBG2BGR;
+    if (pattern == "rggb") code = cv::COLOR_BayerBG2BGR;
+    if (pattern == "bggr") code = cv::COLOR_BayerRG2BGR;
+    if (pattern == "gbrg") code = cv::COLOR_BayerGR2BGR;
+    if (pattern == "grbg") code = cv::COLOR_BayerGB2BGR;
+    cv::Mat bgr;
+    cv::cvtColor(image, bgr, code);
+    cv::cvtColor(bgr, gray, cv::COLOR_BGR2GRAY);
+  }
+  if (gray.depth() == CV_16U) {
+    gray.convertTo(out.intensity, CV_32F, 1.0 / 257.0);
+    gray.convertTo(out.mono8, CV_8U, 1.0 / 257.0);
+    out.quantisation = 1.0 / 257.0;
+  } else {
+    out.mono8 = gray.isContinuous() ? gray : gray.clone();
+    gray.convertTo(out.intensity, CV_32F);
+    out.quantisation = 1.0;
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------
+struct TargetCentroider::Detector {
+  apriltag_detector_t* td = nullptr;
+  std::vector<std::pair<apriltag_family_t*, void (*)(apriltag_family_t*)>> families;
+  std::mutex mutex;  // libapriltag's detector is not re-entrant
+};
+
+TargetCentroider::TargetCentroider(const Options& options, const io::TargetList& targets)
+    : options_(options), targets_(targets) {
+  options_.Check();
+  detector_ = new Detector;
+  detector_->td = apriltag_detector_create();
+  detector_->td->quad_decimate = static_cast<float>(options_.quad_decimate);
+  detector_->td->quad_sigma = static_cast<float>(options_.quad_sigma);
+  detector_->td->refine_edges = options_.refine_edges;
+  detector_->td->decode_sharpening = options_.decode_sharpening;
+  detector_->td->nthreads = options_.threads;
+  for (const auto& name : options_.families) {
+    const FamilyFactory& f = Factories().at(name);
+    apriltag_family_t* fam = f.create();
+    detector_->families.emplace_back(fam, f.destroy);
+    apriltag_detector_add_family_bits(detector_->td, fam, options_.max_hamming);
+  }
+}
+
+TargetCentroider::~TargetCentroider() {
+  if (!detector_) return;
+  apriltag_detector_destroy(detector_->td);
+  for (auto& f : detector_->families) f.second(f.first);
+  delete detector_;
+}
+
+Result TargetCentroider::Detect(const cv::Mat& image, const std::string& encoding, const ViewGeometry* view) const {
+  return DetectMono(ToMono(image, encoding), view);
+}
+
+bool TargetCentroider::GrayWeightedCentroid(const cv::Mat& intensity, const Eigen::Vector2d& seed, double radius,
+                                            Eigen::Vector2d* centroid) {
+  const int x0 = static_cast<int>(std::floor(seed.x() - radius)), x1 = static_cast<int>(std::ceil(seed.x() + radius));
+  const int y0 = static_cast<int>(std::floor(seed.y() - radius)), y1 = static_cast<int>(std::ceil(seed.y() + radius));
+  if (x0 < 0 || y0 < 0 || x1 >= intensity.cols || y1 >= intensity.rows) return false;
+  std::vector<float> vals;
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x) vals.push_back(intensity.at<float>(y, x));
+  std::vector<float> sorted = vals;
+  std::sort(sorted.begin(), sorted.end());
+  const double dark = sorted[sorted.size() / 10], bright = sorted[sorted.size() * 9 / 10];
+  if (bright - dark <= 1e-6) return false;
+  const double threshold = 0.5 * (dark + bright);
+  double sq = 0, sx = 0, sy = 0;
+  for (int y = y0; y <= y1; ++y) {
+    const float* row = intensity.ptr<float>(y);
+    for (int x = x0; x <= x1; ++x) {
+      const double q = row[x] >= threshold ? row[x] : 0.0;
+      sq += q;
+      sx += q * x;
+      sy += q * y;
+    }
+  }
+  if (sq <= 0) return false;
+  *centroid = Eigen::Vector2d(sx / sq, sy / sq);
+  return true;
+}
+
+namespace {
+
+// ---------------------------------------------------------------------------
+// Tag edges.
+// ---------------------------------------------------------------------------
+
+// Fits the edge from corner a to corner b (image coordinates); `inside` is a
+// point inside the tag (the black side); `cell` the tag's cell size [px].
+EdgeFit FitEdge(const cv::Mat& im, const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& inside,
+                double cell, int width_at_border, double noise_floor) {
+  EdgeFit e;
+  const double len = (b - a).norm();
+  if (len < 4) return e;
+  const Eigen::Vector2d t = (b - a) / len;
+  Eigen::Vector2d n(-t.y(), t.x());
+  if (n.dot(inside - a) > 0) n = -n;  // n points out of the tag (to the white side)
+  e.origin = 0.5 * (a + b);
+  e.theta = std::atan2(n.y(), n.x());
+  // Border thickness across this edge: the distance to the tag centre is
+  // half the border width, so one cell is 2 d / width_at_border.
+  const double cell_across = std::min(cell, 2.0 * std::abs(n.dot(inside - a)) / width_at_border);
+  const double band = std::clamp(cell_across - 0.6, 1.0, 3.5);
+  const double end_gap = std::min(band + 0.5, 0.3 * len);
+  Pixels px;
+  const double r = 0.5 * len + band + 2;
+  const int xa = std::max(0, static_cast<int>(std::floor(e.origin.x() - r)));
+  const int xb = std::min(im.cols - 1, static_cast<int>(std::ceil(e.origin.x() + r)));
+  const int ya = std::max(0, static_cast<int>(std::floor(e.origin.y() - r)));
+  const int yb = std::min(im.rows - 1, static_cast<int>(std::ceil(e.origin.y() + r)));
+  double vmin = 1e9, vmax = -1e9;
+  for (int y = ya; y <= yb; ++y) {
+    const float* row = im.ptr<float>(y);
+    for (int x = xa; x <= xb; ++x) {
+      const Eigen::Vector2d p(x - e.origin.x(), y - e.origin.y());
+      const double s = t.dot(p), d = n.dot(p);
+      if (std::abs(d) > band || std::abs(s) > 0.5 * len - end_gap) continue;
+      px.p.push_back(p);
+      px.v.push_back(row[x]);
+      if (d > 0.7) vmax = std::max(vmax, double(row[x]));
+      if (d < -0.7) vmin = std::min(vmin, double(row[x]));
+    }
+  }
+  if (px.p.size() < 8 || vmin > 1e8 || vmax < -1e8) return e;
+  // Levels: medians of the clearly white / black sides.
+  std::vector<double> wv, bv;
+  for (size_t i = 0; i < px.p.size(); ++i) {
+    const double d = n.dot(px.p[i]);
+    if (d > 0.7) wv.push_back(px.v[i]);
+    if (d < -0.7) bv.push_back(px.v[i]);
+  }
+  auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  Eigen::Matrix<double, 5, 1> x0;
+  x0 << e.theta, 0.0, median(bv), median(wv), 0.3;
+  auto model = [](const Eigen::Matrix<double, 5, 1>& x, const Eigen::Vector2d& p, Eigen::Matrix<double, 5, 1>* g) {
+    auto f = [&](double theta, double rho, double sigma) {
+      const double c = std::cos(theta), s = std::sin(theta);
+      return EdgeProfile(c * p.x() + s * p.y() - rho, c, s, std::max(sigma, kMinBlur));
+    };
+    const double ph = f(x[0], x[1], x[4]);
+    if (g) {
+      const double k = x[3] - x[2];
+      const double h = 1e-6, hs = 1e-5;
+      (*g)[0] = k * (f(x[0] + h, x[1], x[4]) - ph) / h;
+      (*g)[1] = k * (f(x[0], x[1] + h, x[4]) - ph) / h;
+      (*g)[2] = 1.0 - ph;
+      (*g)[3] = ph;
+      (*g)[4] = x[4] > kMinBlur ? k * (f(x[0], x[1], x[4] + hs) - ph) / hs : 0.0;
+    }
+    return x[2] + (x[3] - x[2]) * ph;
+  };
+  const LmResult<5> fit = FitModel<5>(px, x0, model);
+  if (!fit.ok) return e;
+  e.theta = fit.x[0];
+  e.rho = fit.x[1];
+  e.b = fit.x[2];
+  e.w = fit.x[3];
+  e.sigma = std::max(fit.x[4], kMinBlur);
+  e.rms = fit.rms;
+  e.n = static_cast<int>(px.p.size());
+  const double noise = NoiseOf(fit.rms, noise_floor);
+  // Covariance of (theta, rho, b, w) with the blur held at its estimate (the
+  // blur is nearly unobservable on a sharp, pixel-aligned edge).
+  const Eigen::Matrix4d jtj = fit.jtj.block<4, 4>(0, 0);
+  const Eigen::Matrix4d cov = noise * noise * jtj.inverse();
+  e.cov = cov.block<2, 2>(0, 0);
+  e.ok = cov.allFinite() && std::abs(e.rho) < band && e.w - e.b > 0;
+  return e;
+}
+
+// Corners (libapriltag order) from the four edge lines; edge i joins corner i
+// and corner i+1, so corner i is edge (i+3)%4 x edge i.
+bool CornersFromEdges(const std::array<Line, 4>& lines, std::array<Eigen::Vector2d, 4>* corners) {
+  for (int i = 0; i < 4; ++i) {
+    if (!Intersect(lines[(i + 3) % 4], lines[i], &(*corners)[i])) return false;
+  }
+  return true;
+}
+
+bool CentreFromCorners(const std::array<Eigen::Vector2d, 4>& c, Eigen::Vector2d* centre) {
+  return IntersectSegments(c[0], c[2], c[1], c[3], centre);
+}
+
+// ---------------------------------------------------------------------------
+// Circles.
+// ---------------------------------------------------------------------------
+struct Blob {
+  Eigen::Vector2d centre;
+  double a = 0, b = 0, angle = 0;  // semi-axes [px], angle of a [rad]
+  double area = 0;
+};
+
+// Ellipse intensity model: parameters cx, cy, A11, A12, A22 (shape matrix,
+// (p-c)^T A (p-c) = 1 on the edge), ring level, disc level, blur sigma.
+using EllipseParams = Eigen::Matrix<double, 8, 1>;
+
+// Signed distance (inside positive) of p from the ellipse and the unit
+// outward normal there (first order: (1 - r) / |grad r|).
+double EllipseDistance(const EllipseParams& x, const Eigen::Vector2d& p, Eigen::Vector2d* normal) {
+  const double dx = p.x() - x[0], dy = p.y() - x[1];
+  const double ax = x[2] * dx + x[3] * dy, ay = x[3] * dx + x[4] * dy;
+  const double r = std::sqrt(std::max(dx * ax + dy * ay, 1e-12));
+  const double gl = std::max(std::sqrt(ax * ax + ay * ay), 1e-12);
+  *normal = Eigen::Vector2d(ax / gl, ay / gl);
+  return (1.0 - r) * r / gl;
+}
+
+double EllipseModel(const EllipseParams& x, const Eigen::Vector2d& p, EllipseParams* g) {
+  Eigen::Vector2d n;
+  const double d = EllipseDistance(x, p, &n);
+  const double sigma = std::max(x[7], kMinBlur);
+  const double ph = EdgeProfile(d, n.x(), n.y(), sigma);
+  const double val = x[5] + (x[6] - x[5]) * ph;
+  if (g) {
+    const double k = x[6] - x[5];
+    for (int i = 0; i < 5; ++i) {
+      EllipseParams xp = x;
+      const double h = i < 2 ? 1e-6 : 1e-7 * std::max(1e-3, std::abs(x[i]));
+      xp[i] += h;
+      Eigen::Vector2d np;
+      const double dp = EllipseDistance(xp, p, &np);
+      (*g)[i] = k * (EdgeProfile(dp, np.x(), np.y(), sigma) - ph) / h;
+    }
+    (*g)[5] = 1.0 - ph;
+    (*g)[6] = ph;
+    (*g)[7] = x[7] > kMinBlur ? k * (EdgeProfile(d, n.x(), n.y(), sigma + 1e-5) - ph) / 1e-5 : 0.0;
+  }
+  return val;
+}
+
+Eigen::Vector3d FitConicCentre(const std::vector<Eigen::Vector2d>& pts, Eigen::Vector2d* centre) {
+  // Algebraic conic fit ax^2 + bxy + cy^2 + dx + ey + f = 0 on normalised points.
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const auto& p : pts) mean += p;
+  mean /= pts.size();
+  double scale = 0;
+  for (const auto& p : pts) scale += (p - mean).norm();
+  scale = pts.size() / std::max(scale, 1e-12);
+  Eigen::MatrixXd m(pts.size(), 6);
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const Eigen::Vector2d q = (pts[i] - mean) * scale;
+    m.row(i) << q.x() * q.x(), q.x() * q.y(), q.y() * q.y(), q.x(), q.y(), 1.0;
+  }
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(m, Eigen::ComputeFullV);
+  const Eigen::VectorXd v = svd.matrixV().col(5);
+  Eigen::Matrix2d a;
+  a << 2 * v[0], v[1], v[1], 2 * v[2];
+  const Eigen::Vector2d c = a.fullPivLu().solve(Eigen::Vector2d(-v[3], -v[4]));
+  *centre = c / scale + mean;
+  return Eigen::Vector3d(v[0], v[1], v[2]);
+}
+
+double Percentile(std::vector<double> v, double f) {
+  if (v.empty()) return 0;
+  const size_t k = std::min(v.size() - 1, static_cast<size_t>(f * (v.size() - 1)));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
+}
+
+}  // namespace
+
+Eigen::Vector2d CirclePerspectiveBias(const ViewGeometry& view, const Eigen::Vector3d& centre_in_site,
+                                      const Eigen::Vector3d& normal_in_site, double diameter) {
+  Eigen::Vector3d n = normal_in_site.normalized();
+  Eigen::Vector3d u = n.unitOrthogonal();
+  Eigen::Vector3d v = n.cross(u);
+  Eigen::Vector2d projected_centre;
+  if (!view.camera.Project(view.pose, centre_in_site, &projected_centre)) return Eigen::Vector2d::Zero();
+  std::vector<Eigen::Vector2d> pts;
+  const int k = 72;
+  for (int i = 0; i < k; ++i) {
+    const double a = 2 * M_PI * i / k;
+    Eigen::Vector2d px;
+    if (!view.camera.Project(view.pose, centre_in_site + 0.5 * diameter * (std::cos(a) * u + std::sin(a) * v), &px))
+      return Eigen::Vector2d::Zero();
+    pts.push_back(px);
+  }
+  Eigen::Vector2d ellipse_centre;
+  FitConicCentre(pts, &ellipse_centre);
+  return ellipse_centre - projected_centre;
+}
+
+Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* view) const {
+  const cv::Mat& im = mono.intensity;
+  Result res;
+  res.width = im.cols;
+  res.height = im.rows;
+  if (im.empty()) throw InvalidArgument("image is empty");
+  if (view) {
+    const auto& s = view->camera.sensor();
+    if (s.width != im.cols || s.height != im.rows) {
+      throw InvalidArgument(Message("image is ", im.cols, "x", im.rows, " px but the camera model (camera_info) is ",
+                                    s.width, "x", s.height, " px"));
+    }
+  }
+  const double noise_floor = options_.noise_floor > 0 ? options_.noise_floor : mono.quantisation / std::sqrt(12.0);
+  const double margin = options_.border_margin;
+  auto near_border = [&](const Eigen::Vector2d& p, double extra) {
+    return p.x() < margin + extra || p.y() < margin + extra || p.x() > im.cols - 1 - margin - extra ||
+           p.y() > im.rows - 1 - margin - extra;
+  };
+  auto reject = [&](const std::string& family, int id, const Eigen::Vector2d& where, RejectReason reason,
+                    const std::string& detail) {
+    Rejection r;
+    r.family = family;
+    r.id = id;
+    r.where = where;
+    r.reason = reason;
+    r.detail = detail;
+    res.rejections.push_back(r);
+    res.summary.rejects_by_reason[RejectReasonName(reason)]++;
+  };
+  std::vector<double> residuals;
+  std::vector<std::array<Eigen::Vector2d, 4>> tag_quads;
+
+  // ---------------- AprilTags ----------------
+  if (!options_.families.empty()) {
+    image_u8_t header{mono.mono8.cols, mono.mono8.rows, static_cast<int32_t>(mono.mono8.step[0]),
+                      const_cast<uint8_t*>(mono.mono8.ptr<uint8_t>(0))};
+    zarray_t* dets = nullptr;
+    {
+      std::lock_guard<std::mutex> lock(detector_->mutex);
+      dets = apriltag_detector_detect(detector_->td, &header);
+    }
+    for (int i = 0; i < zarray_size(dets); ++i) {
+      apriltag_detection_t* det;
+      zarray_get(dets, i, &det);
+      const std::string family = det->family->name;
+      Observation o;
+      o.id = det->id;
+      o.family = family;
+      o.decision_margin = det->decision_margin;
+      o.hamming = det->hamming;
+      o.has_corners = true;
+      for (int k = 0; k < 4; ++k) {
+        o.corners[k] = Eigen::Vector2d(det->p[k][0] - kAprilTagPixelOffset, det->p[k][1] - kAprilTagPixelOffset);
+      }
+      o.detector_centre = Eigen::Vector2d(det->c[0] - kAprilTagPixelOffset, det->c[1] - kAprilTagPixelOffset);
+      o.centre = o.detector_centre;
+      tag_quads.push_back(o.corners);
+      if (const io::TargetSpec* spec = targets_.Find(family, det->id)) o.role = spec->role;
+      double edge_sum = 0;
+      for (int k = 0; k < 4; ++k) edge_sum += (o.corners[(k + 1) % 4] - o.corners[k]).norm();
+      o.size_px = edge_sum / 4;
+      if (det->decision_margin < options_.min_decision_margin) {
+        reject(family, det->id, o.centre, RejectReason::kWeakDecode,
+               Message("decision margin ", det->decision_margin, " < ", options_.min_decision_margin));
+        continue;
+      }
+      bool at_border = false;
+      for (const auto& c : o.corners) at_border = at_border || near_border(c, 1.0);
+      if (at_border) {
+        reject(family, det->id, o.centre, RejectReason::kBorder, "a corner within the border margin");
+        continue;
+      }
+      // Edge-model fits.
+      const double cell = o.size_px / det->family->width_at_border;
+      std::array<EdgeFit, 4> edges;
+      bool fits_ok = true;
+      double worst_rel = 0, blur = 0, contrast = 1e9;
+      for (int k = 0; k < 4; ++k) {
+        edges[k] = FitEdge(im, o.corners[k], o.corners[(k + 1) % 4], o.centre, cell, det->family->width_at_border, noise_floor);
+        if (!edges[k].ok) {
+          fits_ok = false;
+          break;
+        }
+        const double c = edges[k].w - edges[k].b;
+        contrast = std::min(contrast, c);
+        worst_rel = std::max(worst_rel, edges[k].rms / std::max(c, 1e-9));
+        blur = std::max(blur, edges[k].sigma);
+      }
+      if (!fits_ok) {
+        reject(family, det->id, o.centre, RejectReason::kFitFailed, "edge model fit did not converge");
+        continue;
+      }
+      o.contrast = contrast;
+      o.edge_blur = blur;
+      // Saturation of the white surround along the edges.
+      int sat = 0, tot = 0;
+      for (int k = 0; k < 4; ++k) {
+        const Eigen::Vector2d a = o.corners[k], b = o.corners[(k + 1) % 4];
+        const Eigen::Vector2d nrm = edges[k].Normal();
+        for (int j = 1; j < 16; ++j) {
+          const Eigen::Vector2d p = a + (b - a) * (j / 16.0) + nrm * (0.5 * cell);
+          ++tot;
+          if (Sample(im, p.x(), p.y()) >= options_.saturation_level) ++sat;
+        }
+      }
+      if (contrast < options_.min_contrast) {
+        reject(family, det->id, o.centre, RejectReason::kLowContrast, Message("edge contrast ", contrast, " DN"));
+        continue;
+      }
+      if (sat > options_.max_saturated_fraction * tot) {
+        reject(family, det->id, o.centre, RejectReason::kSaturated,
+               Message(100 * sat / tot, "% of the white border saturated"));
+        continue;
+      }
+      if (blur > options_.max_edge_blur) {
+        reject(family, det->id, o.centre, RejectReason::kBlurred, Message("edge blur sigma ", blur, " px"));
+        continue;
+      }
+      if (worst_rel > options_.max_residual) {
+        reject(family, det->id, o.centre, RejectReason::kPartial,
+               Message("edge fit residual ", worst_rel, " of the contrast (occluded or damaged)"));
+        continue;
+      }
+      std::array<Line, 4> lines;
+      for (int k = 0; k < 4; ++k) lines[k] = ToLine(edges[k]);
+      std::array<Eigen::Vector2d, 4> corners;
+      Eigen::Vector2d centre;
+      if (!CornersFromEdges(lines, &corners) || !CentreFromCorners(corners, &centre) ||
+          (centre - o.detector_centre).norm() > 0.25 * o.size_px) {
+        reject(family, det->id, o.centre, RejectReason::kFitFailed, "refined corners inconsistent with the quad");
+        continue;
+      }
+      // Covariance of the centre from the four line fits (numeric Jacobian).
+      Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+      for (int k = 0; k < 4; ++k) {
+        Eigen::Matrix2d jac;
+        for (int j = 0; j < 2; ++j) {
+          const double h = 1e-6;
+          std::array<Line, 4> lp = lines, lm = lines;
+          lp[k] = ToLine(edges[k], j == 0 ? h : 0, j == 1 ? h : 0);
+          lm[k] = ToLine(edges[k], j == 0 ? -h : 0, j == 1 ? -h : 0);
+          std::array<Eigen::Vector2d, 4> cp, cm;
+          Eigen::Vector2d xp = Eigen::Vector2d::Zero(), xm = Eigen::Vector2d::Zero();
+          CornersFromEdges(lp, &cp);
+          CornersFromEdges(lm, &cm);
+          CentreFromCorners(cp, &xp);
+          CentreFromCorners(cm, &xm);
+          jac.col(j) = (xp - xm) / (2 * h);
+        }
+        cov += jac * edges[k].cov * jac.transpose();
+      }
+      if (options_.refine_tags) {
+        o.corners = corners;
+        o.centre = centre;
+      }
+      o.covariance = cov;
+      for (const auto& e : edges) residuals.push_back(e.rms);
+      o.quality = std::clamp(det->decision_margin / 100.0, 0.0, 1.0) *
+                  std::clamp(1.0 - worst_rel / options_.max_residual, 0.0, 1.0);
+      res.observations.push_back(o);
+      res.summary.num_tags++;
+      if (!o.role) res.summary.num_unknown++;
+    }
+    apriltag_detections_destroy(dets);
+  }
+
+  // ---------------- circles ----------------
+  if (options_.detect_circles) {
+    // Bright blobs against their surroundings at three scales.
+    cv::Mat bright = cv::Mat::zeros(im.size(), CV_8U);
+    const double dmin = options_.circle_min_diameter, dmax = options_.circle_max_diameter;
+    for (double k = 3 * dmin;; k *= 3) {
+      const int ks = std::min(2 * static_cast<int>(std::min(k, 1.5 * dmax) / 2) + 1, 2 * (std::min(im.cols, im.rows) / 2) - 1);
+      cv::Mat mean;
+      cv::boxFilter(im, mean, CV_32F, cv::Size(ks, ks), cv::Point(-1, -1), true, cv::BORDER_REPLICATE);
+      cv::Mat diff = im - mean;
+      cv::Mat b;
+      cv::compare(diff, 0.4 * options_.min_contrast, b, cv::CMP_GT);
+      bright |= b;
+      if (k >= 1.5 * dmax) break;
+    }
+    // Tags are not circles: mask them out.
+    for (const auto& q : tag_quads) {
+      std::vector<cv::Point> poly;
+      Eigen::Vector2d c = 0.25 * (q[0] + q[1] + q[2] + q[3]);
+      for (const auto& p : q) {
+        const Eigen::Vector2d g = c + 1.3 * (p - c);
+        poly.emplace_back(static_cast<int>(std::lround(g.x())), static_cast<int>(std::lround(g.y())));
+      }
+      cv::fillConvexPoly(bright, poly, cv::Scalar(0));
+    }
+    cv::Mat labels, stats, centroids;
+    const int nl = cv::connectedComponentsWithStats(bright, labels, stats, centroids, 8, CV_32S);
+    const double amin = M_PI / 4 * dmin * dmin * 0.5, amax = M_PI / 4 * dmax * dmax * 1.3;
+    // Listed circles projected into the image (when the view is known).
+    struct Expected {
+      const io::TargetSpec* spec;
+      Eigen::Vector2d px;
+      double radius_px;
+    };
+    std::vector<Expected> expected;
+    if (view) {
+      for (const auto& s : targets_.targets()) {
+        if (s.family != "circle" || !s.position) continue;
+        Eigen::Vector2d px;
+        if (!view->camera.Project(view->pose, *s.position, &px)) continue;
+        Eigen::Vector3d n = s.normal ? *s.normal : Eigen::Vector3d(0, 0, 1);
+        Eigen::Vector2d edge;
+        view->camera.Project(view->pose, *s.position + 0.5 * s.size * n.unitOrthogonal(), &edge);
+        expected.push_back({&s, px, (edge - px).norm()});
+      }
+    }
+    std::vector<int> used(expected.size(), 0);
+    for (int l = 1; l < nl; ++l) {
+      const int area = stats.at<int>(l, cv::CC_STAT_AREA);
+      if (area < amin || area > amax) continue;
+      const int bx = stats.at<int>(l, cv::CC_STAT_LEFT), by = stats.at<int>(l, cv::CC_STAT_TOP);
+      const int bw = stats.at<int>(l, cv::CC_STAT_WIDTH), bh = stats.at<int>(l, cv::CC_STAT_HEIGHT);
+      // Second moments of the component -> ellipse.
+      double sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, cnt = 0;
+      for (int y = by; y < by + bh; ++y) {
+        const int* lr = labels.ptr<int>(y);
+        for (int x = bx; x < bx + bw; ++x) {
+          if (lr[x] != l) continue;
+          sx += x;
+          sy += y;
+          sxx += double(x) * x;
+          sxy += double(x) * y;
+          syy += double(y) * y;
+          ++cnt;
+        }
+      }
+      Blob blob;
+      blob.centre = Eigen::Vector2d(sx / cnt, sy / cnt);
+      Eigen::Matrix2d m2;
+      m2 << sxx / cnt - blob.centre.x() * blob.centre.x(), sxy / cnt - blob.centre.x() * blob.centre.y(),
+          sxy / cnt - blob.centre.x() * blob.centre.y(), syy / cnt - blob.centre.y() * blob.centre.y();
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(m2);
+      if (es.eigenvalues()(0) <= 0) continue;
+      blob.a = 2 * std::sqrt(es.eigenvalues()(1));
+      blob.b = 2 * std::sqrt(es.eigenvalues()(0));
+      blob.area = cnt;
+      const double fill = cnt / (M_PI * blob.a * blob.b);
+      if (fill < 0.8 || fill > 1.2) continue;
+      if (2 * blob.a < 0.8 * dmin || 2 * blob.a > dmax) continue;
+      if (1.0 - blob.b / blob.a > options_.circle_max_eccentricity) continue;
+      const Eigen::Vector2d major = es.eigenvectors().col(1);
+      const Eigen::Vector2d minor = es.eigenvectors().col(0);
+      // Surround: 16 sectors of the annulus 1.3..1.6 radii must be dark.
+      auto at_scaled = [&](double ang, double s) {
+        return blob.centre + s * (blob.a * std::cos(ang) * major + blob.b * std::sin(ang) * minor);
+      };
+      if (near_border(blob.centre, 1.7 * blob.a)) {
+        // A bright blob at the border: only report it when it looks like a disc.
+        reject("circle", -1, blob.centre, RejectReason::kBorder, "disc and its ring reach the image border");
+        continue;
+      }
+      std::vector<double> inner, sectors;
+      for (int k = 0; k < 32; ++k) {
+        const double ang = 2 * M_PI * k / 32;
+        for (double s : {0.2, 0.45, 0.65}) {
+          const Eigen::Vector2d p = at_scaled(ang, s);
+          inner.push_back(Sample(im, p.x(), p.y()));
+        }
+      }
+      for (int k = 0; k < 16; ++k) {
+        double sum = 0;
+        int n = 0;
+        for (int j = 0; j < 3; ++j) {
+          const double ang = 2 * M_PI * (k + j / 3.0) / 16;
+          for (double s : {1.3, 1.45, 1.6}) {
+            const Eigen::Vector2d p = at_scaled(ang, s);
+            sum += Sample(im, p.x(), p.y());
+            ++n;
+          }
+        }
+        sectors.push_back(sum / n);
+      }
+      const double disc = Percentile(inner, 0.5);
+      const double ring = Percentile(sectors, 0.5);
+      const double contrast = disc - ring;
+      if (contrast < options_.min_contrast) continue;  // not a target (bright texture)
+      const double worst_sector = *std::max_element(sectors.begin(), sectors.end());
+      // Identification against the listed circles.
+      int id = -1;
+      const io::TargetSpec* spec = nullptr;
+      int best = -1;
+      double best_d = 1e18;
+      for (size_t k = 0; k < expected.size(); ++k) {
+        const double d = (expected[k].px - blob.centre).norm();
+        if (d < best_d) {
+          best_d = d;
+          best = static_cast<int>(k);
+        }
+      }
+      if (best >= 0 && best_d < options_.circle_id_gate * std::max(expected[best].radius_px, 2.0) + 1.0) {
+        spec = expected[best].spec;
+        id = spec->id;
+      }
+      if (worst_sector > disc - 0.5 * contrast) {
+        reject("circle", id, blob.centre, RejectReason::kPartial, "dark ring interrupted (occluded or partial target)");
+        continue;
+      }
+      int sat = 0;
+      for (double v : inner) sat += v >= options_.saturation_level;
+      if (sat > options_.max_saturated_fraction * inner.size()) {
+        reject("circle", id, blob.centre, RejectReason::kSaturated,
+               Message(100 * sat / static_cast<int>(inner.size()), "% of the disc saturated"));
+        continue;
+      }
+      Observation o;
+      o.family = "circle";
+      o.id = id;
+      if (spec) o.role = spec->role;
+      o.contrast = contrast;
+      // Plain gray-weighted centroid (DESIGN.md) over the disc and the inner ring.
+      {
+        const double thr = 0.5 * (disc + ring);
+        double sq = 0, cx = 0, cy = 0;
+        const double rr = 1.3;
+        const int x0 = static_cast<int>(std::floor(blob.centre.x() - rr * blob.a)),
+                  x1 = static_cast<int>(std::ceil(blob.centre.x() + rr * blob.a));
+        const int y0 = static_cast<int>(std::floor(blob.centre.y() - rr * blob.a)),
+                  y1 = static_cast<int>(std::ceil(blob.centre.y() + rr * blob.a));
+        Eigen::Matrix2d shape = (major * major.transpose()) / (blob.a * blob.a) + (minor * minor.transpose()) / (blob.b * blob.b);
+        for (int y = y0; y <= y1; ++y) {
+          const float* row = im.ptr<float>(y);
+          for (int x = x0; x <= x1; ++x) {
+            const Eigen::Vector2d d(x - blob.centre.x(), y - blob.centre.y());
+            if (d.dot(shape * d) > rr * rr) continue;
+            const double q = row[x] >= thr ? row[x] : 0.0;
+            sq += q;
+            cx += q * x;
+            cy += q * y;
+          }
+        }
+        o.gray_centroid = sq > 0 ? Eigen::Vector2d(cx / sq, cy / sq) : blob.centre;
+      }
+      o.centre = o.gray_centroid;
+      o.size_px = blob.a + blob.b;
+      // Intensity-model ellipse fit.
+      const double rmean = 0.5 * (blob.a + blob.b);
+      const double band = std::clamp(0.25 * rmean, 1.5, 4.0);
+      Eigen::Matrix2d shape = (major * major.transpose()) / (blob.a * blob.a) + (minor * minor.transpose()) / (blob.b * blob.b);
+      EllipseParams x0;
+      x0 << o.gray_centroid.x(), o.gray_centroid.y(), shape(0, 0), shape(0, 1), shape(1, 1), ring, disc, 0.3;
+      Pixels px;
+      {
+        const double rout = 1.0 + band / blob.b, rin = std::max(0.0, 1.0 - band / blob.b);
+        const int xa = static_cast<int>(std::floor(blob.centre.x() - blob.a - band - 1)),
+                  xb = static_cast<int>(std::ceil(blob.centre.x() + blob.a + band + 1));
+        const int ya = static_cast<int>(std::floor(blob.centre.y() - blob.a - band - 1)),
+                  yb = static_cast<int>(std::ceil(blob.centre.y() + blob.a + band + 1));
+        for (int y = std::max(0, ya); y <= std::min(im.rows - 1, yb); ++y) {
+          const float* row = im.ptr<float>(y);
+          for (int x = std::max(0, xa); x <= std::min(im.cols - 1, xb); ++x) {
+            const Eigen::Vector2d d(x - o.gray_centroid.x(), y - o.gray_centroid.y());
+            const double r = std::sqrt(d.dot(shape * d));
+            if (r > rout || r < rin) continue;
+            px.p.emplace_back(x, y);
+            px.v.push_back(row[x]);
+          }
+        }
+      }
+      const LmResult<8> fit = FitModel<8>(px, x0, EllipseModel);
+      if (!fit.ok || (fit.x.head<2>() - o.gray_centroid).norm() > 0.25 * rmean) {
+        reject("circle", id, blob.centre, RejectReason::kFitFailed, "ellipse model fit did not converge");
+        continue;
+      }
+      const double fit_contrast = fit.x[6] - fit.x[5];
+      const double rel = fit.rms / std::max(fit_contrast, 1e-9);
+      o.edge_blur = std::max(fit.x[7], kMinBlur);
+      if (o.edge_blur > options_.max_edge_blur) {
+        reject("circle", id, blob.centre, RejectReason::kBlurred, Message("edge blur sigma ", o.edge_blur, " px"));
+        continue;
+      }
+      if (rel > options_.max_residual) {
+        reject("circle", id, blob.centre, RejectReason::kPartial, Message("ellipse fit residual ", rel, " of the contrast"));
+        continue;
+      }
+      const double noise = NoiseOf(fit.rms, noise_floor);
+      const Eigen::Matrix<double, 7, 7> cov = noise * noise * fit.jtj.block<7, 7>(0, 0).inverse();
+      residuals.push_back(fit.rms);
+      if (options_.refine_circles) o.centre = fit.x.head<2>();
+      o.covariance = cov.block<2, 2>(0, 0);
+      if (!o.covariance.allFinite()) {
+        reject("circle", id, blob.centre, RejectReason::kFitFailed, "singular ellipse fit");
+        continue;
+      }
+      if (options_.correct_perspective && view && spec && spec->position && spec->normal) {
+        o.centre -= CirclePerspectiveBias(*view, *spec->position, *spec->normal, spec->size);
+        o.perspective_corrected = true;
+      }
+      o.quality = std::clamp(fit_contrast / 100.0, 0.0, 1.0) * std::clamp(1.0 - rel / options_.max_residual, 0.0, 1.0);
+      if (best >= 0 && spec) used[best]++;
+      res.observations.push_back(o);
+      res.summary.num_circles++;
+      if (!o.role) res.summary.num_unknown++;
+    }
+  }
+  if (!residuals.empty()) res.summary.noise_estimate = Percentile(residuals, 0.5);
+  return res;
+}
+
+cv::Mat DrawResult(const cv::Mat& mono8, const Result& result) {
+  cv::Mat out;
+  if (mono8.channels() == 1) {
+    cv::cvtColor(mono8, out, cv::COLOR_GRAY2BGR);
+  } else {
+    out = mono8.clone();
+  }
+  auto pt = [](const Eigen::Vector2d& p) { return cv::Point(static_cast<int>(std::lround(p.x())), static_cast<int>(std::lround(p.y()))); };
+  for (const auto& o : result.observations) {
+    const cv::Scalar colour = o.role ? cv::Scalar(0, 220, 0) : cv::Scalar(0, 220, 220);
+    if (o.has_corners) {
+      for (int k = 0; k < 4; ++k) cv::line(out, pt(o.corners[k]), pt(o.corners[(k + 1) % 4]), colour, 1);
+    } else {
+      cv::circle(out, pt(o.centre), static_cast<int>(std::lround(0.5 * o.size_px)), colour, 1);
+    }
+    cv::drawMarker(out, pt(o.centre), colour, cv::MARKER_CROSS, 7, 1);
+    cv::putText(out, o.Key(), pt(o.centre + Eigen::Vector2d(4, -4)), cv::FONT_HERSHEY_SIMPLEX, 0.4, colour, 1);
+  }
+  for (const auto& r : result.rejections) {
+    cv::drawMarker(out, pt(r.where), cv::Scalar(0, 0, 255), cv::MARKER_TILTED_CROSS, 9, 1);
+    cv::putText(out, RejectReasonName(r.reason), pt(r.where + Eigen::Vector2d(4, 10)), cv::FONT_HERSHEY_SIMPLEX, 0.4,
+                cv::Scalar(0, 0, 255), 1);
+  }
+  return out;
+}
+
+}  // namespace targets
+}  // namespace slope_monitor
