@@ -1,0 +1,253 @@
+#include "slope_monitor/core/matching/hex_matcher.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include <Eigen/Dense>
+
+#include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/matching/filters.h"
+
+namespace slope_monitor {
+namespace matching {
+
+namespace {
+
+struct SearchResult {
+  RejectReason reason = RejectReason::kNone;
+  Eigen::Vector2d x = Eigen::Vector2d::Zero();
+  double score = 0.0;
+};
+
+double Dot(const std::vector<float>& a, const std::vector<float>& b) {
+  double s = 0;
+  for (size_t i = 0; i < a.size(); ++i) s += double(a[i]) * b[i];
+  return s;
+}
+
+// Coarse-to-fine search of xa (in pyramid a) in pyramid b around centre_b.
+// `line` (if non-null) maps a point of a to its epipolar line in b.
+SearchResult Search(const HexPyramid& pa, const HexPyramid& pb, const Eigen::Vector2d& xa,
+                    const Eigen::Vector2d& centre_b, double radius, const Eigen::Matrix3d* f, double band,
+                    const HexMatcherOptions& o) {
+  SearchResult res;
+  const int top = pa.levels() - 1;
+  std::vector<float> da, db;
+  const HexRaster& ha = pa.level(top);
+  const HexRaster& hb = pb.level(top);
+  int ia, ka;
+  ha.NearestCell(xa, &ia, &ka);
+  if (!ha.Descriptor(ia, ka, o.profile_length, &da)) {
+    res.reason = RejectReason::kNoDescriptor;
+    return res;
+  }
+  Eigen::Vector3d line = Eigen::Vector3d::Zero();
+  if (f) {
+    line = *f * Eigen::Vector3d(xa.x(), xa.y(), 1.0);
+    line /= std::max(1e-12, line.head<2>().norm());
+  }
+  struct Cand {
+    double score;
+    Eigen::Vector2d x;
+  };
+  std::vector<Cand> cands;
+  const int i0 = static_cast<int>(std::floor((centre_b.y() - radius + 0.5) / hb.dy() - 0.5)) - 1;
+  const int i1 = static_cast<int>(std::ceil((centre_b.y() + radius + 0.5) / hb.dy() - 0.5)) + 1;
+  const int k0 = static_cast<int>(std::floor((centre_b.x() - radius) / hb.dx())) - 1;
+  const int k1 = static_cast<int>(std::ceil((centre_b.x() + radius) / hb.dx())) + 1;
+  const double r2 = radius * radius;
+  for (int i = std::max(0, i0); i <= std::min(hb.rows() - 1, i1); ++i) {
+    for (int k = std::max(0, k0); k <= std::min(hb.cols() - 1, k1); ++k) {
+      const Eigen::Vector2d c = hb.Centre(i, k);
+      if ((c - centre_b).squaredNorm() > r2) continue;
+      if (f && std::fabs(line.dot(Eigen::Vector3d(c.x(), c.y(), 1.0))) > band + hb.dx()) continue;
+      if (!hb.Descriptor(i, k, o.profile_length, &db)) continue;
+      cands.push_back({Dot(da, db), c});
+    }
+  }
+  if (cands.empty()) {
+    res.reason = RejectReason::kLowScore;
+    return res;
+  }
+  const auto best = std::max_element(cands.begin(), cands.end(), [](const Cand& a, const Cand& b) {
+    return a.score < b.score;
+  });
+  if (best->score < o.min_score) {
+    res.reason = RejectReason::kLowScore;
+    return res;
+  }
+  double second = -1.0;
+  const double excl2 = std::pow(2.5 * hb.dx(), 2);
+  for (const Cand& c : cands)
+    if ((c.x - best->x).squaredNorm() > excl2) second = std::max(second, c.score);
+  const double d_best = std::sqrt(std::max(0.0, 2.0 - 2.0 * best->score));
+  const double d_second = std::sqrt(std::max(0.0, 2.0 - 2.0 * second));
+  if (second > -1.0 && d_best > o.max_ratio * d_second) {
+    res.reason = RejectReason::kAmbiguous;
+    return res;
+  }
+  res.score = best->score;
+  Eigen::Vector2d x = best->x;
+  // Refinement down the pyramid.
+  for (int l = top - 1; l >= 0; --l) {
+    const HexRaster& la = pa.level(l);
+    const HexRaster& lb = pb.level(l);
+    la.NearestCell(xa, &ia, &ka);
+    if (!la.Descriptor(ia, ka, o.profile_length, &da)) continue;
+    int ib, kb;
+    lb.NearestCell(x, &ib, &kb);
+    double bs = -2.0;
+    Eigen::Vector2d bx = x;
+    const double rr = std::pow(2.2 * lb.dx() * 2.0, 2);
+    for (int i = ib - 5; i <= ib + 5; ++i)
+      for (int k = kb - 5; k <= kb + 5; ++k) {
+        if (!lb.Contains(i, k)) continue;
+        const Eigen::Vector2d c = lb.Centre(i, k);
+        if ((c - x).squaredNorm() > rr) continue;
+        if (!lb.Descriptor(i, k, o.profile_length, &db)) continue;
+        const double s = Dot(da, db);
+        if (s > bs) {
+          bs = s;
+          bx = c;
+        }
+      }
+    x = bx;
+  }
+  res.x = x;
+  return res;
+}
+
+}  // namespace
+
+void HexMatcherOptions::Check() const {
+  auto fail = [](const char* key, auto value, const char* range) {
+    throw ConfigError(Message("hex matcher option '", key, "' = ", value, " out of range ", range));
+  };
+  if (pyramid_levels < 1 || pyramid_levels > 6) fail("pyramid_levels", pyramid_levels, "[1, 6]");
+  if (profile_length < 1 || profile_length > 16) fail("profile_length", profile_length, "[1, 16]");
+  if (!(min_score >= -1 && min_score <= 1)) fail("min_score", min_score, "[-1, 1]");
+  if (!(max_ratio > 0 && max_ratio <= 1)) fail("max_ratio", max_ratio, "(0, 1]");
+  if (!(mutual_tolerance > 0)) fail("mutual_tolerance", mutual_tolerance, "(0, inf)");
+  if (lsc_search_radius < 0 || lsc_search_radius > 20) fail("lsc_search_radius", lsc_search_radius, "[0, 20]");
+  interest.Check();
+  lsc.Check();
+}
+
+const char* RejectReasonName(RejectReason reason) {
+  switch (reason) {
+    case RejectReason::kNone: return "none";
+    case RejectReason::kNoDescriptor: return "no_descriptor";
+    case RejectReason::kLowScore: return "low_score";
+    case RejectReason::kAmbiguous: return "ambiguous";
+    case RejectReason::kNotMutual: return "not_mutual";
+    case RejectReason::kLsc: return "lsc";
+    case RejectReason::kEpipolar: return "epipolar";
+  }
+  return "unknown";
+}
+
+Eigen::Matrix3d FundamentalFromOrientation(const camera::CameraModel& camera_a,
+                                           const camera::ExteriorOrientation& pose_a,
+                                           const camera::CameraModel& camera_b,
+                                           const camera::ExteriorOrientation& pose_b) {
+  const Eigen::Matrix3d ka = camera_a.ToOpenCv().k, kb = camera_b.ToOpenCv().k;
+  const Rigid3 b_from_a = pose_b.OpticalFromSite() * pose_a.SiteFromOptical();
+  const Eigen::Matrix3d r = b_from_a.rotation.toRotationMatrix();
+  const Eigen::Vector3d t = b_from_a.translation;
+  Eigen::Matrix3d tx;
+  tx << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
+  return kb.inverse().transpose() * tx * r * ka.inverse();
+}
+
+double EpipolarDistance(const Eigen::Matrix3d& f, const Eigen::Vector2d& xa, const Eigen::Vector2d& xb) {
+  const Eigen::Vector3d l = f * Eigen::Vector3d(xa.x(), xa.y(), 1.0);
+  const double n = l.head<2>().norm();
+  if (n <= 0) return 0.0;
+  return std::fabs(l.dot(Eigen::Vector3d(xb.x(), xb.y(), 1.0))) / n;
+}
+
+HexMatcher::HexMatcher(const HexMatcherOptions& options) : options_(options) { options_.Check(); }
+
+HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b, const MatchPrior& prior) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (image_a.empty() || image_b.empty()) throw InvalidArgument("HexMatcher::Match: an input image is empty");
+  if (image_a.size() != image_b.size()) {
+    throw InvalidArgument(Message("HexMatcher::Match: images differ in size (a ", image_a.cols, "x", image_a.rows,
+                                  ", b ", image_b.cols, "x", image_b.rows, ")"));
+  }
+  if (image_a.type() != image_b.type()) {
+    throw InvalidArgument(Message("HexMatcher::Match: images differ in encoding (OpenCV type a ", image_a.type(),
+                                  ", b ", image_b.type(), ")"));
+  }
+  if (!(prior.radius > 0) || !(prior.moving_radius > 0) || !(prior.epipolar_band > 0)) {
+    throw InvalidArgument("HexMatcher::Match: prior radius, moving_radius and epipolar_band must be > 0");
+  }
+  const cv::Mat fa = ToFloat(image_a, "image a"), fb = ToFloat(image_b, "image b");
+  const HexPyramid pa(fa, options_.pyramid_levels, options_.sampling);
+  const HexPyramid pb(fb, options_.pyramid_levels, options_.sampling);
+  const std::vector<InterestPoint> points = DetectInterestPoints(fa, options_.interest);
+  LscOptions lsc = options_.lsc;
+  lsc.search_radius = options_.lsc_search_radius;
+  const Eigen::Matrix3d* f = prior.has_epipolar ? &prior.fundamental : nullptr;
+  const Eigen::Matrix3d ft = prior.fundamental.transpose();
+  const Eigen::Matrix3d* f_back = prior.has_epipolar ? &ft : nullptr;
+
+  auto match_one = [&](const Eigen::Vector2d& xa, const Eigen::Vector2d& shift, double radius, HexMatch* m) {
+    const SearchResult fw = Search(pa, pb, xa, xa + shift, radius, f, prior.epipolar_band, options_);
+    if (fw.reason != RejectReason::kNone) return std::string(RejectReasonName(fw.reason));
+    const SearchResult bw = Search(pb, pa, fw.x, fw.x - shift, radius, f_back, prior.epipolar_band, options_);
+    if (bw.reason != RejectReason::kNone || (bw.x - xa).norm() > options_.mutual_tolerance) {
+      return std::string(RejectReasonName(RejectReason::kNotMutual));
+    }
+    const LscSummary s = MatchLsc(fa, fb, xa, fw.x, lsc);
+    if (!s.IsSolutionUsable()) return std::string("lsc_") + LscStatusName(s.status);
+    if (f && EpipolarDistance(*f, xa, s.xb) > prior.epipolar_band) {
+      return std::string(RejectReasonName(RejectReason::kEpipolar));
+    }
+    m->xa = xa;
+    m->xb = s.xb;
+    m->covariance = s.covariance;
+    m->score = fw.score;
+    m->correlation = s.correlation;
+    m->quality = std::max(0.0, std::min(1.0, s.correlation)) * std::max(0.0, std::min(1.0, fw.score));
+    return std::string();
+  };
+
+  HexMatchResult result;
+  Eigen::Vector2d shift = prior.shift;
+  if (prior.estimate_global_shift) {
+    std::vector<double> dx, dy;
+    for (const InterestPoint& p : points) {
+      if (prior.moving && prior.moving(p.x)) continue;
+      HexMatch m;
+      if (match_one(p.x, prior.shift, prior.radius, &m).empty()) {
+        dx.push_back(m.xb.x() - m.xa.x());
+        dy.push_back(m.xb.y() - m.xa.y());
+      }
+    }
+    if (!dx.empty()) {
+      std::nth_element(dx.begin(), dx.begin() + dx.size() / 2, dx.end());
+      std::nth_element(dy.begin(), dy.begin() + dy.size() / 2, dy.end());
+      shift = Eigen::Vector2d(dx[dx.size() / 2], dy[dy.size() / 2]);
+    }
+  }
+  result.summary.global_shift = shift;
+  for (const InterestPoint& p : points) {
+    ++result.summary.candidates;
+    const bool moving = prior.moving && prior.moving(p.x);
+    HexMatch m;
+    const std::string reason = match_one(p.x, shift, moving ? prior.moving_radius : prior.radius, &m);
+    if (reason.empty()) {
+      result.matches.push_back(m);
+    } else {
+      ++result.summary.rejects[reason];
+    }
+  }
+  result.summary.matched = static_cast<int>(result.matches.size());
+  result.summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return result;
+}
+
+}  // namespace matching
+}  // namespace slope_monitor

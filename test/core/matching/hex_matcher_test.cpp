@@ -1,0 +1,204 @@
+// Hexagonal raster geometry (hand-checkable), and the hexagonal matcher on
+// real texture with known warps, across "epochs" with a moving part, on the
+// real rectified Cones pair with an epipolar prior (ground-truth disparity),
+// and on bad input.
+#include "slope_monitor/core/matching/hex_matcher.h"
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/matching/filters.h"
+
+namespace slope_monitor {
+namespace matching {
+namespace {
+
+const std::string kCones = std::string(SM_TEST_DATA_DIR) + "/stereo_middlebury_cones/";
+
+cv::Mat Load(const std::string& name) {
+  cv::Mat m = cv::imread(kCones + name, cv::IMREAD_UNCHANGED);
+  if (m.empty()) throw IoError("cannot read " + kCones + name);
+  return m;
+}
+
+TEST(HexRaster, GeometryAndSampling) {
+  cv::Mat img(30, 40, CV_32F);
+  for (int r = 0; r < 30; ++r)
+    for (int c = 0; c < 40; ++c) img.at<float>(r, c) = float(1000 * r + c);
+  const HexRaster h = HexRaster::FromImage(img, HexSampling::kNearest);
+  EXPECT_EQ(h.rows(), 60);  // 2n rows from n
+  EXPECT_NEAR(h.dx(), 1.0 / std::sqrt(3.0), 1e-12);
+  // Six neighbours at the same distance.
+  for (int i : {10, 11}) {
+    for (int d = 0; d < 6; ++d) {
+      int ni, nk;
+      HexRaster::Neighbour(i, 20, d, &ni, &nk);
+      EXPECT_NEAR((h.Centre(ni, nk) - h.Centre(i, 20)).norm(), 1.0 / std::sqrt(3.0), 1e-12) << i << " " << d;
+    }
+  }
+  // Nearest: the value of the pixel whose centre holds the hexagon's centre.
+  for (int i = 0; i < h.rows(); ++i)
+    for (int k = 0; k < h.cols(); ++k) {
+      const Eigen::Vector2d c = h.Centre(i, k);
+      const int r = std::min(29, std::max(0, int(std::lround(c.y())))), col = int(std::lround(c.x()));
+      ASSERT_EQ(h.value(i, k), img.at<float>(r, col)) << i << " " << k;
+      int ii, kk;
+      h.NearestCell(c, &ii, &kk);
+      ASSERT_EQ(ii, i);
+      ASSERT_EQ(kk, k);
+    }
+  // Hex rows 2j and 2j + 1 both lie in square row j.
+  EXPECT_EQ(std::lround(h.Centre(14, 3).y()), 7);
+  EXPECT_EQ(std::lround(h.Centre(15, 3).y()), 7);
+  // Interpolated: exact on a ramp.
+  const HexRaster hi = HexRaster::FromImage(img, HexSampling::kInterpolated);
+  const Eigen::Vector2d c = hi.Centre(21, 13);
+  EXPECT_NEAR(hi.value(21, 13), 1000 * c.y() + c.x(), 1e-2);
+  // Descriptor: unit norm, zero mean; flat -> none.
+  std::vector<float> d;
+  ASSERT_TRUE(hi.Descriptor(30, 30, 4, &d));
+  double s = 0, n = 0;
+  for (float v : d) {
+    s += v;
+    n += v * v;
+  }
+  EXPECT_NEAR(s, 0.0, 1e-4);
+  EXPECT_NEAR(n, 1.0, 1e-4);
+  const HexRaster flat = HexRaster::FromImage(cv::Mat(20, 20, CV_8U, cv::Scalar(3)), HexSampling::kNearest);
+  EXPECT_FALSE(flat.Descriptor(20, 10, 3, &d));
+  const HexPyramid p(img, 3, HexSampling::kNearest);
+  EXPECT_EQ(p.levels(), 3);
+  EXPECT_NEAR(p.level(2).dx(), 4.0 / std::sqrt(3.0), 1e-12);
+}
+
+cv::Mat ShiftImage(const cv::Mat& f, const Eigen::Vector2d& t, const cv::Rect& moving_roi = cv::Rect(),
+                   const Eigen::Vector2d& t_moving = Eigen::Vector2d::Zero()) {
+  cv::Mat out(f.size(), CV_32F);
+  for (int r = 0; r < f.rows; ++r)
+    for (int c = 0; c < f.cols; ++c) {
+      const bool mv = moving_roi.contains(cv::Point(c, r));
+      const Eigen::Vector2d s = mv ? t_moving : t;
+      out.at<float>(r, c) = SampleBicubic(f, c - s.x(), r - s.y());
+    }
+  return out;
+}
+
+cv::Mat Noisy(const cv::Mat& f, unsigned seed) {
+  cv::Mat n(f.size(), CV_32F);
+  cv::RNG rng(seed);
+  rng.fill(n, cv::RNG::NORMAL, 0.0, 1.0);
+  return f + n;
+}
+
+TEST(HexMatcher, FindsKnownShiftOnRealTexture) {
+  const cv::Mat left = GaussianBlur(ToFloat(Load("left.tif")), 0.7);
+  const Eigen::Vector2d t(7.3, -4.6);
+  const cv::Mat a = Noisy(left, 1), b = Noisy(ShiftImage(left, t), 2);
+  HexMatcherOptions o;
+  const HexMatcher matcher(o);
+  MatchPrior prior;  // no shift known: search +-24 px
+  const HexMatchResult r = matcher.Match(a, b, prior);
+  int correct = 0, gross = 0;
+  double s2 = 0;
+  for (const HexMatch& m : r.matches) {
+    const double e = (m.xb - m.xa - t).norm();
+    if (e < 0.2) ++correct;
+    if (e > 1.0) ++gross;
+    s2 += e * e;
+  }
+  std::printf("shift (7.3, -4.6): %d candidates, %d matches, %d within 0.2 px, RMS %.3f px, %.2f s\n",
+              r.summary.candidates, r.summary.matched, correct, std::sqrt(s2 / r.summary.matched),
+              r.summary.seconds);
+  for (const auto& kv : r.summary.rejects) std::printf("  reject %s: %d\n", kv.first.c_str(), kv.second);
+  EXPECT_GT(r.summary.matched, 50);
+  EXPECT_GE(correct, 0.93 * r.summary.matched);
+  EXPECT_LE(gross, 0.01 * r.summary.matched);
+}
+
+TEST(HexMatcher, EpochsWithAMovingArea) {
+  const cv::Mat left = GaussianBlur(ToFloat(Load("left.tif")), 0.7);
+  const Eigen::Vector2d stable(3.2, 1.4), moving(3.2 + 14.5, 1.4 + 9.0);
+  const cv::Rect roi(150, 120, 160, 150);
+  const cv::Mat a = Noisy(left, 3), b = Noisy(ShiftImage(left, stable, roi, moving), 4);
+  HexMatcherOptions o;
+  const HexMatcher matcher(o);
+  MatchPrior prior;
+  prior.radius = 8.0;          // stable ground: small search around the global shift
+  prior.moving_radius = 30.0;  // the landslide: wider
+  prior.estimate_global_shift = true;
+  prior.moving = [&](const Eigen::Vector2d& x) {
+    return x.x() > roi.x - 20 && x.x() < roi.x + roi.width + 20 && x.y() > roi.y - 20 && x.y() < roi.y + roi.height + 20;
+  };
+  const HexMatchResult r = matcher.Match(a, b, prior);
+  EXPECT_LT((r.summary.global_shift - stable).norm(), 0.2);
+  int in_moving = 0, correct_moving = 0, correct = 0;
+  for (const HexMatch& m : r.matches) {
+    const bool mv = roi.contains(cv::Point(int(m.xa.x() + 6), int(m.xa.y() + 6))) &&
+                    roi.contains(cv::Point(int(m.xa.x() - 6), int(m.xa.y() - 6)));
+    const Eigen::Vector2d truth = mv ? moving : stable;
+    const bool ok = (m.xb - m.xa - truth).norm() < 0.2;
+    correct += ok;
+    if (mv) {
+      ++in_moving;
+      correct_moving += ok;
+    }
+  }
+  std::printf("epochs: %d matches (%d correct), %d inside the moving area (%d correct)\n", r.summary.matched, correct,
+              in_moving, correct_moving);
+  EXPECT_GT(in_moving, 15);
+  EXPECT_GE(correct_moving, 0.95 * in_moving);
+}
+
+TEST(HexMatcher, ConesWithEpipolarPriorAgainstGroundTruth) {
+  const cv::Mat left = Load("left.tif"), right = Load("right.tif");
+  const cv::Mat gt = Load("disp_left_gt.tif"), occl = Load("occl.png");
+  HexMatcherOptions o;
+  o.lsc.model = LscModel::kShift;
+  const HexMatcher matcher(o);
+  MatchPrior prior;
+  prior.shift = Eigen::Vector2d(-35, 0);  // disparities 0..~60 px
+  prior.radius = 36;
+  prior.has_epipolar = true;
+  prior.fundamental << 0, 0, 0, 0, 0, -1, 0, 1, 0;  // rectified: yb = ya
+  prior.epipolar_band = 1.5;
+  const HexMatchResult r = matcher.Match(left, right, prior);
+  int valid = 0, w05 = 0, w1 = 0;
+  for (const HexMatch& m : r.matches) {
+    const int c = int(m.xa.x()), rr = int(m.xa.y());
+    const float d = gt.at<float>(rr, c);
+    if (d <= 0 || occl.at<uint8_t>(rr, c) == 0) continue;
+    ++valid;
+    const double e = std::fabs(m.xa.x() - m.xb.x() - d);
+    w05 += e <= 0.5;
+    w1 += e <= 1.0;
+  }
+  std::printf("Cones hex+LSC: %d matches, %d non-occluded with truth: %.1f %% within 0.5 px, %.1f %% within 1 px\n",
+              r.summary.matched, valid, 100.0 * w05 / valid, 100.0 * w1 / valid);
+  for (const auto& kv : r.summary.rejects) std::printf("  reject %s: %d\n", kv.first.c_str(), kv.second);
+  EXPECT_GT(valid, 50);
+  EXPECT_GT(double(w1) / valid, 0.85);
+}
+
+TEST(HexMatcher, BadInput) {
+  const HexMatcher matcher{HexMatcherOptions()};
+  const cv::Mat a(60, 80, CV_8U, cv::Scalar(5));
+  EXPECT_THROW(matcher.Match(a, cv::Mat(60, 81, CV_8U), MatchPrior()), InvalidArgument);
+  EXPECT_THROW(matcher.Match(a, cv::Mat(60, 80, CV_16U), MatchPrior()), InvalidArgument);
+  EXPECT_THROW(matcher.Match(a, cv::Mat(60, 80, CV_8UC3), MatchPrior()), InvalidArgument);
+  // Textureless: no matches, no crash.
+  const HexMatchResult r = matcher.Match(a, a, MatchPrior());
+  EXPECT_EQ(r.summary.matched, 0);
+  EXPECT_FALSE(r.summary.IsSolutionUsable());
+  HexMatcherOptions bad;
+  bad.max_ratio = 0;
+  EXPECT_THROW(HexMatcher{bad}, ConfigError);
+}
+
+}  // namespace
+}  // namespace matching
+}  // namespace slope_monitor
