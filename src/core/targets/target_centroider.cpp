@@ -667,7 +667,21 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
         blur = std::max(blur, edges[k].sigma);
       }
       if (!fits_ok) {
-        reject(family, det->id, o.centre, RejectReason::kFitFailed, "edge model fit did not converge");
+        if (options_.refine_tags) {
+          reject(family, det->id, o.centre, RejectReason::kFitFailed, "edge model fit did not converge");
+          continue;
+        }
+        // Refinement off: keep libapriltag's corners and centre; the
+        // covariance then follows the decode contrast (decision margin, about
+        // the black/white difference in DN) and the tag size: an edge of L px
+        // at noise s and contrast C places a line to ~ s / C / sqrt(L).
+        const double contrast_proxy = std::max(static_cast<double>(det->decision_margin), 1.0);
+        const double sigma = std::max(noise_floor, 2.0) / contrast_proxy * std::sqrt(8.0 / std::max(o.size_px, 1.0));
+        o.covariance = Eigen::Matrix2d::Identity() * sigma * sigma;
+        o.quality = 0.5 * std::clamp(det->decision_margin / 100.0, 0.0, 1.0);
+        res.observations.push_back(o);
+        res.summary.num_tags++;
+        if (!o.role) res.summary.num_unknown++;
         continue;
       }
       o.contrast = contrast;

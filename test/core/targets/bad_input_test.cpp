@@ -1,0 +1,154 @@
+// Bad input gets a clear error naming what is wrong; targets that cannot be
+// measured are rejected with a reason (rendered with planar_target_renderer.h).
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "planar_target_renderer.h"
+#include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/targets/target_centroider.h"
+
+namespace slope_monitor {
+namespace targets {
+namespace {
+
+template <typename E, typename F>
+std::string ErrorOf(F f) {
+  try {
+    f();
+  } catch (const E& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// A disc of `diameter` px centred at (cx, cy) on a ring, nadir view, no noise.
+cv::Mat Disc(int w, int h, double cx, double cy, double diameter, double gain = 240.0) {
+  const camera::CameraModel cam = testing::NadirCamera(w, h, 1000.0);
+  camera::ExteriorOrientation pose;
+  pose.position = Eigen::Vector3d(0, 0, 10.0);
+  const double m_per_px = 10.0 / 1000.0;
+  testing::Plate plate;
+  plate.centre = Eigen::Vector3d((cx - 0.5 * (w - 1)) * m_per_px, -(cy - 0.5 * (h - 1)) * m_per_px, 0.0);
+  testing::RenderOptions ro;
+  ro.gain = gain;
+  cv::Mat f = testing::Background(w, h, ro);
+  testing::RenderPlate(&f, testing::PlaneToPixel(cam, pose, plate), testing::CirclePattern(diameter * m_per_px),
+                       diameter * m_per_px, ro);
+  return testing::ToMono8(f, ro);
+}
+
+Options CirclesOnly() {
+  Options o;
+  o.families.clear();
+  return o;
+}
+
+TEST(BadInput, WrongEncodingIsNamed) {
+  TargetCentroider c(CirclesOnly(), io::TargetList());
+  const cv::Mat img(20, 20, CV_8UC1, cv::Scalar(0));
+  const std::string msg = ErrorOf<InvalidArgument>([&] { c.Detect(img, "yuv422"); });
+  EXPECT_NE(msg.find("'yuv422'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("mono8"), std::string::npos) << msg;  // lists what is supported
+}
+
+TEST(BadInput, EmptyImage) {
+  TargetCentroider c(CirclesOnly(), io::TargetList());
+  const std::string msg = ErrorOf<InvalidArgument>([&] { c.Detect(cv::Mat(), "mono8"); });
+  EXPECT_NE(msg.find("empty"), std::string::npos) << msg;
+}
+
+TEST(BadInput, TypeNotMatchingEncoding) {
+  TargetCentroider c(CirclesOnly(), io::TargetList());
+  const cv::Mat img(20, 20, CV_8UC3, cv::Scalar(0, 0, 0));
+  const std::string msg = ErrorOf<InvalidArgument>([&] { c.Detect(img, "mono16"); });
+  EXPECT_NE(msg.find("mono16"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("3 channel"), std::string::npos) << msg;
+}
+
+TEST(BadInput, CameraInfoSizeMismatchNamesBothSizes) {
+  TargetCentroider c(CirclesOnly(), io::TargetList());
+  const cv::Mat img(48, 64, CV_8UC1, cv::Scalar(0));
+  ViewGeometry view{testing::NadirCamera(640, 480, 500.0), camera::ExteriorOrientation()};
+  const std::string msg = ErrorOf<InvalidArgument>([&] { c.Detect(img, "mono8", &view); });
+  EXPECT_NE(msg.find("64x48"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("640x480"), std::string::npos) << msg;
+}
+
+TEST(BadInput, DuplicateIdInTargetListNamesFileAndId) {
+  const std::string path = ::testing::TempDir() + "/dup_targets.yaml";
+  std::ofstream(path) << "frame: site\ntargets:\n"
+                         "  - {id: 3, family: tag36h11, size: 0.5, role: monitoring}\n"
+                         "  - {id: 3, family: tag36h11, size: 0.5, role: monitoring}\n";
+  const std::string msg = ErrorOf<ConfigError>([&] { io::TargetList::Load(path); });
+  EXPECT_NE(msg.find("dup_targets.yaml"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("3"), std::string::npos) << msg;
+}
+
+TEST(BadInput, BadOptionsAreNamed) {
+  Options o;
+  o.families = {"tag99h1"};
+  EXPECT_NE(ErrorOf<ConfigError>([&] { TargetCentroider c(o, io::TargetList()); }).find("tag99h1"), std::string::npos);
+  o = Options();
+  o.quad_decimate = 0.5;
+  EXPECT_NE(ErrorOf<ConfigError>([&] { o.Check(); }).find("quad_decimate"), std::string::npos);
+}
+
+TEST(Encodings, AllSupportedEncodingsGiveTheSameCentre) {
+  const cv::Mat mono = Disc(120, 100, 60.3, 50.7, 24.0);
+  TargetCentroider c(CirclesOnly(), io::TargetList());
+  const Result ref = c.Detect(mono, "mono8");
+  ASSERT_EQ(ref.observations.size(), 1u);
+  EXPECT_NEAR(ref.observations[0].centre.x(), 60.3, 0.01);
+  EXPECT_NEAR(ref.observations[0].centre.y(), 50.7, 0.01);
+  EXPECT_FALSE(ref.observations[0].role.has_value());  // not in the (empty) list: unknown, not dropped
+  cv::Mat bgr, rgb, m16;
+  cv::cvtColor(mono, bgr, cv::COLOR_GRAY2BGR);
+  cv::cvtColor(mono, rgb, cv::COLOR_GRAY2RGB);
+  mono.convertTo(m16, CV_16U, 257.0);
+  // Bayer: a grey scene seen through an RGGB mosaic is the grey image itself.
+  for (const auto& [img, enc] : std::vector<std::pair<cv::Mat, std::string>>{
+           {bgr, "bgr8"}, {rgb, "rgb8"}, {m16, "mono16"}, {mono, "bayer_rggb8"}}) {
+    const Result r = c.Detect(img, enc);
+    ASSERT_EQ(r.observations.size(), 1u) << enc;
+    EXPECT_NEAR((r.observations[0].centre - ref.observations[0].centre).norm(), 0.0, enc == "bayer_rggb8" ? 0.05 : 0.002)
+        << enc;
+  }
+}
+
+TEST(Rejections, BorderSaturatedBlurredPartial) {
+  TargetCentroider c(CirclesOnly(), io::TargetList());
+  // Truncated by the border.
+  {
+    const Result r = c.Detect(Disc(100, 100, 8.0, 50.0, 24.0), "mono8");
+    EXPECT_TRUE(r.observations.empty());
+    ASSERT_EQ(r.summary.rejects_by_reason.count("border"), 1u);
+  }
+  // Saturated: gain so high the disc clips at 255.
+  {
+    const Result r = c.Detect(Disc(100, 100, 50.0, 50.0, 24.0, 400.0), "mono8");
+    EXPECT_TRUE(r.observations.empty());
+    EXPECT_EQ(r.summary.rejects_by_reason.count("saturated"), 1u);
+  }
+  // Blurred: Gaussian blur sigma 3 px.
+  {
+    cv::Mat img = Disc(100, 100, 50.0, 50.0, 30.0), blurred;
+    cv::GaussianBlur(img, blurred, cv::Size(0, 0), 3.0);
+    const Result r = c.Detect(blurred, "mono8");
+    EXPECT_TRUE(r.observations.empty());
+    EXPECT_EQ(r.summary.rejects_by_reason.count("blurred"), 1u);
+  }
+  // Partial: a bright bar over one side of the ring (occlusion).
+  {
+    cv::Mat img = Disc(100, 100, 50.0, 50.0, 24.0);
+    cv::rectangle(img, cv::Rect(65, 30, 6, 40), cv::Scalar(200), cv::FILLED);
+    const Result r = c.Detect(img, "mono8");
+    EXPECT_TRUE(r.observations.empty());
+    EXPECT_EQ(r.summary.rejects_by_reason.count("partial"), 1u);
+  }
+}
+
+}  // namespace
+}  // namespace targets
+}  // namespace slope_monitor
