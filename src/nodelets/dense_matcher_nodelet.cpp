@@ -1,0 +1,290 @@
+// dense_matcher: dense surface measurement of an oriented image pair
+// (core/dense/surface.h) and its change between epochs (core/dense/change.h).
+//
+// Thin wrapper: parameters -> SurfaceOptions; left/right images + camera_info
+// + tf (site -> <camera>_optical at the image stamp) -> OrientedImage; the
+// core does the rest. Outputs: the measured points (PointCloud2 in `site`,
+// fields x y z intensity sigma_z), the significant change against the
+// reference epoch (PointCloud2, fields x y z dz lod), and, when output_dir is
+// set, GeoTIFFs of the surface model, orthophoto and change per pair.
+//
+// A pair is formed from the latest left and right image whose stamps differ
+// by at most max_pair_dt; each image is used once. Subscriptions are not lazy:
+// the reference surface must be measured whether or not anyone listens.
+#include <iomanip>
+#include <memory>
+#include <mutex>
+#include <sstream>
+
+#include <cv_bridge/cv_bridge.h>
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <nodelet/nodelet.h>
+#include <pluginlib/class_list_macros.hpp>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
+#include <tf2_eigen/tf2_eigen.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
+
+#include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/dense/change.h"
+#include "slope_monitor/core/dense/surface.h"
+#include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/ros/parameters.h"
+
+namespace slope_monitor {
+
+class DenseMatcherNodelet : public nodelet::Nodelet {
+ private:
+  struct Side {
+    sensor_msgs::ImageConstPtr image;
+    sensor_msgs::CameraInfoConstPtr info;
+  };
+
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+    try {
+      ReadParameters(pnh);
+    } catch (const Error& e) {
+      NODELET_ERROR("dense_matcher: %s; not advertising", e.what());
+      return;
+    }
+    tf_buffer_ = std::make_unique<tf2_ros::Buffer>(ros::Duration(3600.0));
+    tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh);
+    surface_pub_ = nh.advertise<sensor_msgs::PointCloud2>("surface", 2, true);
+    change_pub_ = nh.advertise<sensor_msgs::PointCloud2>("surface_change", 2, true);
+    subs_.push_back(nh.subscribe<sensor_msgs::Image>("left/image", 2, [this](const sensor_msgs::ImageConstPtr& m) {
+      OnImage(0, m);
+    }));
+    subs_.push_back(nh.subscribe<sensor_msgs::Image>("right/image", 2, [this](const sensor_msgs::ImageConstPtr& m) {
+      OnImage(1, m);
+    }));
+    subs_.push_back(nh.subscribe<sensor_msgs::CameraInfo>(
+        "left/camera_info", 2, [this](const sensor_msgs::CameraInfoConstPtr& m) { OnInfo(0, m); }));
+    subs_.push_back(nh.subscribe<sensor_msgs::CameraInfo>(
+        "right/camera_info", 2, [this](const sensor_msgs::CameraInfoConstPtr& m) { OnInfo(1, m); }));
+    updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
+    updater_->setHardwareID("dense_matcher");
+    updater_->add("dense_matcher", this, &DenseMatcherNodelet::Diagnose);
+    diag_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_->update(); });
+  }
+
+  void ReadParameters(ros::NodeHandle& pnh) {
+    ros_adapters::ParamReader p(pnh);
+    dense::SurfaceOptions& o = options_;
+    o.correlation.levels = p.Int("levels", 3, 1, 5);
+    o.correlation.peak_frequency = p.Double("peak_frequency", 1.0, 0.01, 3.0, "rad/px");
+    o.correlation.grid_spacing = p.Int("grid_spacing", 8, 1, 64, "px");
+    o.correlation.final_grid_spacing = p.Int("final_grid_spacing", 2, 1, 64, "px");
+    o.correlation.window = p.Int("window", 15, 3, 51, "px");
+    o.correlation.search_radius = p.Int("search_radius", 3, 1, 16, "px");
+    o.correlation.min_correlation = p.Double("min_correlation", 0.3, -1.0, 0.999);
+    o.correlation.lr_tolerance = p.Double("lr_tolerance", 1.0, 0.01, 10.0, "px");
+    o.correlation.order_tolerance = p.Double("order_tolerance", 0.5, 0.0, 10.0, "px");
+    o.correlation.median_filter = p.Bool("median_filter", true);
+    o.correlation.order_check = p.Bool("order_check", true);
+    o.correlation.two_way = p.Bool("two_way", true);
+    o.rectify.scale = p.Double("rectify_scale", 1.0, 0.05, 4.0);
+    o.rectify.patch_size = p.Int("patch_size", 0, 0, 8192, "px");
+    o.rectify.patch_overlap = p.Int("patch_overlap", 32, 0, 4096, "px");
+    o.rectify.min_baseline = p.Double("min_baseline", 1e-3, 1e-9, 1e6, "m");
+    o.rectify.min_overlap = p.Double("min_overlap", 0.05, 0.0, 1.0);
+    o.cell_size = p.Double("cell_size", 0.5, 1e-3, 100.0, "m");
+    o.min_points_per_cell = p.Int("min_points_per_cell", 2, 1, 1000);
+    o.parallax_sigma = p.Double("parallax_sigma", 0.3, 1e-3, 10.0, "px");
+    o.max_ray_gap = p.Double("max_ray_gap", 0.0, 0.0, 1e3, "m");
+    o.ortho_cell_size = p.Double("ortho_cell_size", 0.0, 0.0, 100.0, "m");
+    config_.min_depth = p.Double("min_depth", 5.0, 1e-3, 1e6, "m");
+    config_.max_depth = p.Double("max_depth", 500.0, 1e-3, 1e6, "m");
+    const std::vector<double> region = p.DoubleList("region", {0.0, 0.0, 0.0, 0.0});
+    if (region.size() != 4)
+      throw ConfigError(Message("parameter '", p.FullKey("region"), "' must be [xmin, xmax, ymin, ymax] (m)"));
+    config_.region = Eigen::Vector4d(region[0], region[1], region[2], region[3]);
+    change_options_.lod_factor = p.Double("lod_factor", 1.96, 0.0, 10.0);
+    change_options_.min_lod = p.Double("min_lod", 0.0, 0.0, 100.0, "m");
+    pixel_size_ = p.Double("pixel_size", 1.0, 1e-6, 1.0, "mm/px");
+    max_pair_dt_ = p.Double("max_pair_dt", 1.0, 0.0, 1e6, "s");
+    frame_id_ = p.String("frame_id", "site");
+    output_dir_ = p.String("output_dir", "");
+    tf_timeout_ = p.Double("tf_timeout", 0.5, 0.0, 60.0, "s");
+    p.CheckNoUnknownKeys();
+    options_.Check();
+    change_options_.Check();
+    if (!(config_.max_depth > config_.min_depth))
+      throw ConfigError(Message("parameter '", p.FullKey("max_depth"), "' = ", config_.max_depth,
+                                " must be > min_depth = ", config_.min_depth));
+  }
+
+  void OnInfo(int side, const sensor_msgs::CameraInfoConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    sides_[side].info = msg;
+  }
+
+  void OnImage(int side, const sensor_msgs::ImageConstPtr& msg) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    sides_[side].image = msg;
+    if (!sides_[0].image || !sides_[1].image) return;
+    if (std::abs((sides_[0].image->header.stamp - sides_[1].image->header.stamp).toSec()) > max_pair_dt_) return;
+    const Side left = sides_[0], right = sides_[1];
+    sides_[0].image.reset();
+    sides_[1].image.reset();
+    lock.unlock();
+    try {
+      Process(left, right);
+    } catch (const std::exception& e) {
+      std::lock_guard<std::mutex> state(state_mutex_);
+      ++failed_pairs_;
+      last_error_ = e.what();
+      NODELET_ERROR_THROTTLE(5.0, "dense_matcher: pair at %.3f dropped: %s", left.image->header.stamp.toSec(),
+                             e.what());
+    }
+  }
+
+  dense::OrientedImage ToOriented(const Side& s, const char* role) {
+    if (!s.info)
+      throw InvalidArgument(Message("no camera_info received yet on ", role, "/camera_info"));
+    dense::OrientedImage im;
+    im.name = s.image->header.frame_id;
+    const cv_bridge::CvImageConstPtr cv = cv_bridge::toCvShare(s.image);
+    im.image = cv->image;
+    im.camera = ros_adapters::CameraModelFromCameraInfo(*s.info, pixel_size_);
+    geometry_msgs::TransformStamped t;
+    try {
+      t = tf_buffer_->lookupTransform(frame_id_, s.image->header.frame_id, s.image->header.stamp,
+                                      ros::Duration(tf_timeout_));
+    } catch (const tf2::TransformException& e) {
+      throw InvalidArgument(Message(role, " image '", s.image->header.frame_id, "' is not oriented: no transform ",
+                                    frame_id_, " <- ", s.image->header.frame_id, " (", e.what(), ")"));
+    }
+    const Eigen::Isometry3d site_from_optical = tf2::transformToEigen(t);
+    const Rigid3 optical_from_site =
+        Rigid3(Eigen::Matrix3d(site_from_optical.rotation()), site_from_optical.translation()).Inverse();
+    im.pose = camera::ExteriorOrientation::FromOpticalFromSite(optical_from_site);
+    im.oriented = true;
+    return im;
+  }
+
+  void Process(const Side& l, const Side& r) {
+    const dense::OrientedImage left = ToOriented(l, "left"), right = ToOriented(r, "right");
+    dense::SurfaceSummary summary;
+    const dense::SurfaceResult s = dense::MeasureSurface(left, right, options_, config_, &summary);
+    std_msgs::Header header = l.image->header;
+    header.frame_id = frame_id_;
+    surface_pub_.publish(SurfaceCloud(s, header));
+    {
+      std::lock_guard<std::mutex> state(state_mutex_);
+      ++pairs_;
+      last_summary_ = summary.BriefReport();
+    }
+    NODELET_INFO("dense_matcher: %s", summary.BriefReport().c_str());
+    std::ostringstream stem;
+    stem << output_dir_ << "/dense_" << std::fixed << std::setprecision(3) << header.stamp.toSec();
+    if (!output_dir_.empty()) {
+      io::WriteGeoTiff(stem.str() + "_surface.tif", s.model);
+      io::WriteGeoTiff(stem.str() + "_ortho.tif", dense::MakeOrthophoto(s.model, left, options_.ortho_cell_size));
+    }
+    std::unique_lock<std::mutex> state(state_mutex_);
+    if (!reference_) {
+      // The first measured pair is the reference epoch of the change.
+      reference_ = std::make_unique<io::GeoRaster>(s.model);
+      return;
+    }
+    const dense::ChangeResult c = dense::SurfaceChange(*reference_, s.model, change_options_);
+    last_change_ = c.summary.BriefReport();
+    state.unlock();
+    NODELET_INFO("dense_matcher: %s", c.summary.BriefReport().c_str());
+    change_pub_.publish(ChangeCloud(c, header));
+    if (!output_dir_.empty()) io::WriteGeoTiff(stem.str() + "_change.tif", c.change);
+  }
+
+  static sensor_msgs::PointCloud2 SurfaceCloud(const dense::SurfaceResult& s, const std_msgs::Header& header) {
+    sensor_msgs::PointCloud2 cloud;
+    cloud.header = header;
+    sensor_msgs::PointCloud2Modifier mod(cloud);
+    mod.setPointCloud2Fields(5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
+                             "z", 1, sensor_msgs::PointField::FLOAT32, "intensity", 1,
+                             sensor_msgs::PointField::FLOAT32, "sigma_z", 1, sensor_msgs::PointField::FLOAT32);
+    mod.resize(s.points.size());
+    sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"), in(cloud, "intensity"),
+        sz(cloud, "sigma_z");
+    for (const dense::SurfacePoint& p : s.points) {
+      *x = p.x_in_site.x();
+      *y = p.x_in_site.y();
+      *z = p.x_in_site.z();
+      *in = p.intensity;
+      *sz = p.sigma_z;
+      ++x, ++y, ++z, ++in, ++sz;
+    }
+    return cloud;
+  }
+
+  static sensor_msgs::PointCloud2 ChangeCloud(const dense::ChangeResult& c, const std_msgs::Header& header) {
+    sensor_msgs::PointCloud2 cloud;
+    cloud.header = header;
+    sensor_msgs::PointCloud2Modifier mod(cloud);
+    mod.setPointCloud2Fields(5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
+                             "z", 1, sensor_msgs::PointField::FLOAT32, "dz", 1, sensor_msgs::PointField::FLOAT32,
+                             "lod", 1, sensor_msgs::PointField::FLOAT32);
+    mod.resize(c.significant.size());
+    sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"), dz(cloud, "dz"),
+        lod(cloud, "lod");
+    for (const dense::ChangePoint& p : c.significant) {
+      *x = p.x_in_site.x();
+      *y = p.x_in_site.y();
+      *z = p.x_in_site.z();
+      *dz = p.dz;
+      *lod = p.lod;
+      ++x, ++y, ++z, ++dz, ++lod;
+    }
+    return cloud;
+  }
+
+  void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    if (failed_pairs_ > 0 && pairs_ == 0) {
+      stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no pair measured; last error: " + last_error_);
+    } else if (pairs_ == 0) {
+      stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "waiting for an image pair");
+    } else {
+      stat.summary(failed_pairs_ > 0 ? diagnostic_msgs::DiagnosticStatus::WARN : diagnostic_msgs::DiagnosticStatus::OK,
+                   "measuring");
+    }
+    stat.add("pairs measured", pairs_);
+    stat.add("pairs dropped", failed_pairs_);
+    stat.add("last surface", last_summary_);
+    stat.add("last change", last_change_);
+    stat.add("last error", last_error_);
+    stat.add("reference surface", reference_ ? "set" : "not yet");
+  }
+
+  dense::SurfaceOptions options_;
+  dense::SurfaceConfig config_;
+  dense::ChangeOptions change_options_;
+  double pixel_size_ = 1.0;
+  double max_pair_dt_ = 1.0;
+  double tf_timeout_ = 0.5;
+  std::string frame_id_ = "site";
+  std::string output_dir_;
+  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  ros::Publisher surface_pub_, change_pub_;
+  std::vector<ros::Subscriber> subs_;
+  std::unique_ptr<diagnostic_updater::Updater> updater_;
+  ros::WallTimer diag_timer_;
+  std::mutex mutex_;        // the pending images
+  std::mutex state_mutex_;  // counters, reports, reference surface
+  Side sides_[2];
+  std::unique_ptr<io::GeoRaster> reference_;
+  int pairs_ = 0;
+  int failed_pairs_ = 0;
+  std::string last_summary_, last_change_, last_error_;
+};
+
+}  // namespace slope_monitor
+
+PLUGINLIB_EXPORT_CLASS(slope_monitor::DenseMatcherNodelet, nodelet::Nodelet)

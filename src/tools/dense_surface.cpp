@@ -1,0 +1,306 @@
+// dense_surface: offline dense surface measurement of an oriented image pair
+// (the dense_matcher nodelet's core), its orthophoto, and the change against
+// a reference surface.
+//
+// Pair from files (camera models and orientations in a YAML file):
+//   dense_surface --pair pair.yaml --out-dir DIR [--config config/defaults/dense_matcher.yaml]
+//                 [--reference DIR_OR_FILE_surface.tif]
+//   pair.yaml:
+//     left:  {image: l.png, sensor: [width, height, pixel_size_mm], distortion_model: brown,
+//             interior: [c, x0, y0, k1, k2, k3, p1, p2, b1, b2], exterior: [X0, Y0, Z0, theta, phi, kappa]}
+//     right: {...}
+//
+// Pair from a simulated survey, with the simulator's TRUE orientation and the
+// truth comparison (doc/simulator.md):
+//   dense_surface --truth demo.truth.yaml --bag demo.bag --left-camera fixed_cam_1
+//                 --right-camera fixed_cam_2 --epoch 1 [--reference-epoch 0] --out-dir DIR [--config ...]
+//   prints the height error against demo.surface_eNN.tif (RMS and 95th
+//   percentile on bare ground, and near the scarp / obstacles separately) and,
+//   with --reference-epoch, the measured cut-and-fill against the true one.
+//
+// Writes DIR/surface.tif (height, uncertainty, count, spread), DIR/ortho.tif
+// and, with a reference, DIR/change.tif. Exit status 0 on success, 1 on an
+// error (message on stderr naming the file or key; nothing half-written).
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <cv_bridge/cv_bridge.h>
+#include <opencv2/imgcodecs.hpp>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <sensor_msgs/Image.h>
+
+#include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/dense/change.h"
+#include "slope_monitor/core/dense/surface.h"
+#include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/core/io/yaml_map.h"
+#include "slope_monitor/core/sim/truth.h"
+
+using namespace slope_monitor;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Args {
+  std::map<std::string, std::string> kv;
+  std::string Get(const std::string& k, const std::string& def = "") const {
+    auto it = kv.find(k);
+    return it == kv.end() ? def : it->second;
+  }
+  bool Has(const std::string& k) const { return kv.count(k) > 0; }
+};
+
+void ReadOptions(const std::string& path, dense::SurfaceOptions* o, dense::SurfaceConfig* c, dense::ChangeOptions* co) {
+  if (path.empty()) return;
+  io::YamlMap p = io::YamlMap::Load(path);
+  o->correlation.levels = p.Int("levels", 3, 1, 5);
+  o->correlation.peak_frequency = p.Double("peak_frequency", 1.0, 0.01, 3.0, "rad/px");
+  o->correlation.grid_spacing = p.Int("grid_spacing", 8, 1, 64, "px");
+  o->correlation.final_grid_spacing = p.Int("final_grid_spacing", 2, 1, 64, "px");
+  o->correlation.window = p.Int("window", 15, 3, 51, "px");
+  o->correlation.search_radius = p.Int("search_radius", 3, 1, 16, "px");
+  o->correlation.min_correlation = p.Double("min_correlation", 0.3, -1.0, 0.999);
+  o->correlation.lr_tolerance = p.Double("lr_tolerance", 1.0, 0.01, 10.0, "px");
+  o->correlation.order_tolerance = p.Double("order_tolerance", 0.5, 0.0, 10.0, "px");
+  o->correlation.median_filter = p.Bool("median_filter", true);
+  o->correlation.order_check = p.Bool("order_check", true);
+  o->correlation.two_way = p.Bool("two_way", true);
+  o->rectify.scale = p.Double("rectify_scale", 1.0, 0.05, 4.0);
+  o->rectify.patch_size = p.Int("patch_size", 0, 0, 8192, "px");
+  o->rectify.patch_overlap = p.Int("patch_overlap", 32, 0, 4096, "px");
+  o->rectify.min_baseline = p.Double("min_baseline", 1e-3, 1e-9, 1e6, "m");
+  o->rectify.min_overlap = p.Double("min_overlap", 0.05, 0.0, 1.0);
+  c->min_depth = p.Double("min_depth", 5.0, 1e-3, 1e6, "m");
+  c->max_depth = p.Double("max_depth", 500.0, 1e-3, 1e6, "m");
+  o->cell_size = p.Double("cell_size", 0.5, 1e-3, 100.0, "m");
+  o->min_points_per_cell = p.Int("min_points_per_cell", 2, 1, 1000);
+  o->parallax_sigma = p.Double("parallax_sigma", 0.3, 1e-3, 10.0, "px");
+  o->max_ray_gap = p.Double("max_ray_gap", 0.0, 0.0, 1e3, "m");
+  o->ortho_cell_size = p.Double("ortho_cell_size", 0.0, 0.0, 100.0, "m");
+  const std::vector<double> r = p.Doubles("region", {0, 0, 0, 0}, 4);
+  c->region = Eigen::Vector4d(r[0], r[1], r[2], r[3]);
+  co->lod_factor = p.Double("lod_factor", 1.96, 0.0, 10.0);
+  co->min_lod = p.Double("min_lod", 0.0, 0.0, 100.0, "m");
+  // Node-only keys, accepted so the same file serves both.
+  p.Double("pixel_size", 0.00345, 1e-6, 1.0, "mm/px");
+  p.Double("max_pair_dt", 1.0, 0.0, 1e6, "s");
+  p.String("frame_id", "site");
+  p.String("output_dir", "");
+  p.Double("tf_timeout", 0.5, 0.0, 60.0, "s");
+  p.CheckNoUnknownKeys();
+}
+
+dense::OrientedImage ImageFromYaml(io::YamlMap m, const std::string& dir, const std::string& role) {
+  dense::OrientedImage im;
+  const std::string file = m.RequiredString("image");
+  const std::string path = fs::path(file).is_absolute() ? file : (fs::path(dir) / file).string();
+  im.name = role + ":" + file;
+  im.image = cv::imread(path, cv::IMREAD_UNCHANGED);
+  if (im.image.empty()) throw IoError(Message(path, ": cannot read the ", role, " image"));
+  const std::vector<double> s = m.RequiredDoubles("sensor", 3);
+  camera::Sensor sensor;
+  sensor.width = static_cast<int>(s[0]);
+  sensor.height = static_cast<int>(s[1]);
+  sensor.pixel_size = s[2];
+  const std::vector<double> in = m.RequiredDoubles("interior", camera::kNumInterior);
+  std::array<double, camera::kNumInterior> interior{};
+  std::copy(in.begin(), in.end(), interior.begin());
+  im.camera = camera::CameraModel(sensor, camera::DistortionModelFromName(m.String("distortion_model", "brown")),
+                                  interior);
+  if (m.Has("exterior")) {
+    const std::vector<double> e = m.RequiredDoubles("exterior", camera::kNumExterior);
+    im.pose = camera::ExteriorOrientation::FromArray(e.data());
+    im.oriented = true;
+  }
+  m.CheckNoUnknownKeys();
+  return im;
+}
+
+cv::Mat ImageFromBag(const std::string& bag_path, const std::string& camera, double stamp) {
+  rosbag::Bag bag;
+  try {
+    bag.open(bag_path, rosbag::bagmode::Read);
+  } catch (const std::exception& e) {
+    throw IoError(Message(bag_path, ": cannot open bag (", e.what(), ")"));
+  }
+  const std::string topic = "/" + camera + "/camera/image_raw";
+  rosbag::View view(bag, rosbag::TopicQuery(topic), ros::Time(std::max(0.0, stamp - 0.5)), ros::Time(stamp + 0.5));
+  for (const rosbag::MessageInstance& m : view) {
+    const sensor_msgs::Image::ConstPtr img = m.instantiate<sensor_msgs::Image>();
+    if (img && std::abs(img->header.stamp.toSec() - stamp) < 1e-3) return cv_bridge::toCvCopy(img)->image;
+  }
+  throw IoError(Message(bag_path, ": no image on ", topic, " at stamp ", stamp));
+}
+
+dense::OrientedImage ImageFromTruth(const sim::SurveyTruth& truth, const std::string& bag, const std::string& cam,
+                                    int epoch) {
+  const sim::CameraTruth* c = truth.FindCamera(cam);
+  if (!c) throw InvalidArgument(Message("camera '", cam, "' is not in the truth file"));
+  for (const sim::ImageTruth& it : c->images)
+    if (it.epoch == epoch) {
+      dense::OrientedImage im;
+      im.name = cam;
+      im.camera = c->model;
+      im.pose = it.exterior;
+      im.oriented = true;
+      im.image = ImageFromBag(bag, cam, it.stamp);
+      return im;
+    }
+  throw InvalidArgument(Message("camera '", cam, "' has no image in epoch ", epoch));
+}
+
+std::string TruthSurfacePath(const sim::SurveyTruth& truth, const std::string& truth_path, int epoch) {
+  for (const sim::SurfaceTruth& s : truth.surfaces)
+    if (s.epoch == epoch) return (fs::path(truth_path).parent_path() / s.geotiff).string();
+  throw InvalidArgument(Message(truth_path, ": no true surface for epoch ", epoch));
+}
+
+// Height errors of a model against the true surface, split by where matching must fail.
+void CompareWithTruth(const io::GeoRaster& model, const io::GeoRaster& true_surface, const sim::SurveyTruth& truth) {
+  std::vector<double> bare, hard;
+  int cells = 0;
+  for (int r = 0; r < model.height; ++r)
+    for (int c = 0; c < model.width; ++c) {
+      ++cells;
+      const float z = model.At(dense::kHeight, r, c);
+      if (model.IsNoData(z)) continue;
+      const Eigen::Vector2d xy = model.CellCentre(r, c);
+      const double zt = true_surface.Interpolate(0, xy.x(), xy.y());
+      if (std::isnan(zt)) continue;
+      const double e = z - zt;
+      (truth.Unmatchable(Eigen::Vector3d(xy.x(), xy.y(), zt)) ? hard : bare).push_back(e);
+    }
+  auto report = [](const char* what, std::vector<double> e) {
+    if (e.empty()) {
+      std::printf("%s: no cells\n", what);
+      return;
+    }
+    double s2 = 0, s = 0;
+    for (double v : e) s2 += v * v, s += v;
+    for (double& v : e) v = std::abs(v);
+    std::sort(e.begin(), e.end());
+    std::printf("%s: %zu cells, height error RMS %.4f m, mean %.4f m, p95 |e| %.4f m, max %.4f m\n", what, e.size(),
+                std::sqrt(s2 / e.size()), s / e.size(), e[static_cast<size_t>(0.95 * (e.size() - 1))], e.back());
+  };
+  std::printf("surface vs truth (%d cells, %zu filled):\n", cells, bare.size() + hard.size());
+  report("  bare ground", bare);
+  report("  near scarp / trees / boulders (Unmatchable)", hard);
+}
+
+int Run(const Args& a) {
+  dense::SurfaceOptions options;
+  options.correlation.final_grid_spacing = 2;
+  options.min_points_per_cell = 2;
+  dense::SurfaceConfig config;
+  config.min_depth = 5.0;
+  config.max_depth = 500.0;
+  dense::ChangeOptions change_options;
+  ReadOptions(a.Get("--config"), &options, &config, &change_options);
+  const std::string out_dir = a.Get("--out-dir", ".");
+  fs::create_directories(out_dir);
+
+  dense::OrientedImage left, right;
+  std::unique_ptr<sim::SurveyTruth> truth;
+  int epoch = 0;
+  if (a.Has("--truth")) {
+    truth = std::make_unique<sim::SurveyTruth>(sim::SurveyTruth::Load(a.Get("--truth")));
+    epoch = std::stoi(a.Get("--epoch", "0"));
+    left = ImageFromTruth(*truth, a.Get("--bag"), a.Get("--left-camera", "fixed_cam_1"), epoch);
+    right = ImageFromTruth(*truth, a.Get("--bag"), a.Get("--right-camera", "fixed_cam_2"), epoch);
+    if (config.region.isZero())
+      config.region = Eigen::Vector4d(truth->extent[0], truth->extent[1], truth->extent[2], truth->extent[3]);
+  } else if (a.Has("--pair")) {
+    const std::string pair_path = a.Get("--pair");
+    io::YamlMap root = io::YamlMap::Load(pair_path);
+    const std::string dir = fs::path(pair_path).parent_path().string();
+    left = ImageFromYaml(root.Map("left"), dir, "left");
+    right = ImageFromYaml(root.Map("right"), dir, "right");
+    root.CheckNoUnknownKeys();
+  } else {
+    throw InvalidArgument("give --pair pair.yaml or --truth demo.truth.yaml --bag demo.bag (see the file header)");
+  }
+
+  dense::SurfaceSummary summary;
+  const dense::SurfaceResult s = dense::MeasureSurface(left, right, options, config, &summary);
+  std::printf("%s\n", summary.BriefReport().c_str());
+  io::WriteGeoTiff((fs::path(out_dir) / "surface.tif").string(), s.model);
+  io::WriteGeoTiff((fs::path(out_dir) / "ortho.tif").string(),
+                   dense::MakeOrthophoto(s.model, left, options.ortho_cell_size));
+
+  io::GeoRaster true_now;
+  if (truth) {
+    true_now = io::ReadGeoTiff(TruthSurfacePath(*truth, a.Get("--truth"), epoch));
+    CompareWithTruth(s.model, true_now, *truth);
+  }
+
+  std::unique_ptr<io::GeoRaster> reference;
+  if (truth && a.Has("--reference-epoch")) {
+    const int ref_epoch = std::stoi(a.Get("--reference-epoch"));
+    const dense::OrientedImage l0 =
+        ImageFromTruth(*truth, a.Get("--bag"), a.Get("--left-camera", "fixed_cam_1"), ref_epoch);
+    const dense::OrientedImage r0 =
+        ImageFromTruth(*truth, a.Get("--bag"), a.Get("--right-camera", "fixed_cam_2"), ref_epoch);
+    reference = std::make_unique<io::GeoRaster>(dense::MeasureSurface(l0, r0, options, config).model);
+  } else if (a.Has("--reference")) {
+    reference = std::make_unique<io::GeoRaster>(io::ReadGeoTiff(a.Get("--reference")));
+  }
+  if (reference) {
+    const dense::ChangeResult c = dense::SurfaceChange(*reference, s.model, change_options);
+    std::printf("%s\n", c.summary.BriefReport().c_str());
+    io::WriteGeoTiff((fs::path(out_dir) / "change.tif").string(), c.change);
+    if (truth && a.Has("--reference-epoch")) {
+      const io::GeoRaster true_ref =
+          io::ReadGeoTiff(TruthSurfacePath(*truth, a.Get("--truth"), std::stoi(a.Get("--reference-epoch"))));
+      // True cut and fill over the whole model grid and over the significant cells.
+      double gain = 0, loss = 0, gain_sig = 0, loss_sig = 0;
+      const double area = c.change.cell_size * c.change.cell_size;
+      for (int r = 0; r < c.change.height; ++r)
+        for (int k = 0; k < c.change.width; ++k) {
+          const Eigen::Vector2d xy = c.change.CellCentre(r, k);
+          const double dz = true_now.Interpolate(0, xy.x(), xy.y()) - true_ref.Interpolate(0, xy.x(), xy.y());
+          if (std::isnan(dz)) continue;
+          (dz > 0 ? gain : loss) += std::abs(dz) * area;
+          const float sig = c.change.At(dense::kSignificant, r, k);
+          if (!c.change.IsNoData(sig) && sig != 0.0f) (dz > 0 ? gain_sig : loss_sig) += std::abs(dz) * area;
+        }
+      std::printf("true change over the grid: gain %.2f m3, loss %.2f m3, net %.2f m3; over the significant cells: "
+                  "gain %.2f m3, loss %.2f m3\n",
+                  gain, loss, gain - loss, gain_sig, loss_sig);
+      std::printf("ratio volume_gain measured/true = %.3f\nratio volume_loss measured/true = %.3f\n",
+                  gain > 0 ? c.summary.volume_gain / gain : 0.0, loss > 0 ? c.summary.volume_loss / loss : 0.0);
+    }
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args a;
+  for (int i = 1; i < argc; ++i) {
+    const std::string k = argv[i];
+    if (k == "-h" || k == "--help") {
+      std::printf("usage: dense_surface --pair pair.yaml --out-dir DIR [--config FILE] [--reference surface.tif]\n"
+                  "       dense_surface --truth T.truth.yaml --bag T.bag --left-camera C1 --right-camera C2 "
+                  "--epoch K [--reference-epoch K0] --out-dir DIR [--config FILE]\n");
+      return 0;
+    }
+    if (k.rfind("--", 0) != 0 || i + 1 >= argc) {
+      std::fprintf(stderr, "dense_surface: bad argument '%s' (see --help)\n", k.c_str());
+      return 1;
+    }
+    a.kv[k] = argv[++i];
+  }
+  try {
+    return Run(a);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "dense_surface: %s\n", e.what());
+    return 1;
+  }
+}
