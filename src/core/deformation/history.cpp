@@ -1,5 +1,8 @@
 #include "slope_monitor/core/deformation/history.h"
 
+#include <sys/stat.h>
+
+#include <cerrno>
 #include <cstring>
 #include <ctime>
 
@@ -95,6 +98,13 @@ const char* kMigrate1To2 =
 
 History::History(const std::string& path) : path_(path) {
   if (path.empty()) throw IoError("history database path is empty");
+  // Create the parent directories of a new file (mkdir -p).
+  for (size_t pos = path.find('/', 1); pos != std::string::npos; pos = path.find('/', pos + 1)) {
+    const std::string dir = path.substr(0, pos);
+    if (mkdir(dir.c_str(), 0755) != 0 && errno != EEXIST)
+      throw IoError(Message("cannot create the directory '", dir, "' of history database '", path, "': ",
+                            std::strerror(errno)));
+  }
   const int rc = sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr);
   if (rc != SQLITE_OK) {
     const std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";

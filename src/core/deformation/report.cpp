@@ -313,8 +313,18 @@ std::string WriteDisplacementMap(const Snapshot& s, const std::string& path, con
     }
   }
   const double span = std::max({hi.x() - lo.x(), hi.y() - lo.y(), 1.0});
-  lo -= Eigen::Vector2d::Constant(0.15 * span);
-  hi += Eigen::Vector2d::Constant(0.15 * span);
+  // Arrow scale: the largest horizontal displacement spans 15 % of the
+  // points' extent unless fixed; the map then grows to hold every arrow tip.
+  double max_h = 0.0;
+  for (const PointState& p : s.points) max_h = std::max(max_h, p.displacement.head<2>().norm());
+  const double scale = options.arrow_scale > 0 ? options.arrow_scale : (max_h > 0 ? 0.15 * span / max_h : 1.0);
+  for (const PointState& p : s.points) {
+    const Eigen::Vector2d tip = p.reference_position.head<2>() + scale * p.displacement.head<2>();
+    lo = lo.cwiseMin(tip);
+    hi = hi.cwiseMax(tip);
+  }
+  lo -= Eigen::Vector2d::Constant(0.1 * span);
+  hi += Eigen::Vector2d::Constant(0.1 * span);
   const int margin_left = 70, margin_top = 60, margin_bottom = 110, margin_right = 30;
   const int plot_w = options.map_width - margin_left - margin_right;
   const double m_per_px = (hi.x() - lo.x()) / plot_w;
@@ -345,11 +355,6 @@ std::string WriteDisplacementMap(const Snapshot& s, const std::string& path, con
   Text(img, Message("Horizontal displacement since epoch ", s.reference_epoch, " (", Utc(s.reference_stamp), ") to ",
                     Utc(s.stamp), "   slope alert: ", AlertName(s.alert)),
        cv::Point(margin_left, 25), 0.55, cv::Scalar(0, 0, 0), 1);
-  // Arrow scale: the largest horizontal displacement spans 15 % of the map unless fixed.
-  double max_h = 0.0;
-  for (const PointState& p : s.points) max_h = std::max(max_h, p.displacement.head<2>().norm());
-  const double scale = options.arrow_scale > 0 ? options.arrow_scale
-                                                : (max_h > 0 ? 0.15 * (hi.x() - lo.x()) / max_h : 1.0);
   for (const PointState& p : s.points) {
     const Eigen::Vector2d from = p.reference_position.head<2>();
     const Eigen::Vector2d to = from + scale * p.displacement.head<2>();
@@ -374,7 +379,7 @@ std::string WriteDisplacementMap(const Snapshot& s, const std::string& path, con
   cv::line(img, cv::Point(margin_left, y_bar), cv::Point(margin_left + map_bar_px, y_bar), cv::Scalar(0, 0, 0), 3);
   Text(img, Message(Num(map_bar, 0), " m (map)"), cv::Point(margin_left, y_bar + 22), 0.5);
   if (max_h > 0) {
-    const double disp_bar = Nice(0.15 * (hi.x() - lo.x()) / scale);  // metres of displacement
+    const double disp_bar = Nice(max_h * 0.6);  // metres of displacement
     const int disp_px = static_cast<int>(std::lround(disp_bar * scale / m_per_px));
     const int x = margin_left + map_bar_px + 80;
     cv::arrowedLine(img, cv::Point(x, y_bar), cv::Point(x + disp_px, y_bar), cv::Scalar(0, 0, 0), 2, cv::LINE_AA, 0,
@@ -414,9 +419,11 @@ std::string WriteTimeSeries(const std::string& point_id, const std::vector<Serie
     double lo, hi;
   };
   double dmax = 0.0, vmax = thresholds.warning * kMmPerDay * 1.1;
-  for (const SeriesSample& s : series) {
+  for (size_t i = 0; i < series.size(); ++i) {
+    const SeriesSample& s = series[i];
     dmax = std::max(dmax, (s.displacement.norm() + s.sigma) * 1e3);
-    vmax = std::max(vmax, (s.speed + s.speed_sigma) * kMmPerDay);
+    // The first tenth is the filter settling: it may leave the speed axis.
+    if (i >= series.size() / 10) vmax = std::max(vmax, (s.speed + s.speed_sigma) * kMmPerDay);
   }
   if (vmax > thresholds.alarm * kMmPerDay * 0.7) vmax = std::max(vmax, thresholds.alarm * kMmPerDay * 1.1);
   dmax = Nice(std::max(dmax, 1.0) * 1.1) * 1.0;

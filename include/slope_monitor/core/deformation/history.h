@@ -61,7 +61,7 @@ class History {
  public:
   static constexpr int kSchemaVersion = 2;
 
-  // Opens (creating if absent) and migrates. Throws IoError naming the file.
+  // Opens (creating it and its directory if absent) and migrates. Throws IoError naming the file.
   explicit History(const std::string& path);
   ~History();
   History(const History&) = delete;

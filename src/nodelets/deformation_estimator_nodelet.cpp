@@ -1,0 +1,305 @@
+// deformation_estimator: fuses every source's point displacements into one
+// deformation estimate of the slope (core/deformation/estimator.h), with
+// alerts, failure-time forecasts, a SQLite history and reports.
+// Thin wrapper: parameters -> EstimatorOptions, messages -> Batch, the core
+// does the rest; outputs are converted by ros/deformation_conversions.h.
+//
+// The subscriptions are not lazy: the history must record every measurement
+// whether or not anyone listens to the outputs.
+#include <memory>
+#include <mutex>
+#include <sstream>
+
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <nodelet/nodelet.h>
+#include <pluginlib/class_list_macros.hpp>
+#include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include "slope_monitor/ExportReport.h"
+#include "slope_monitor/PointDisplacementArray.h"
+#include "slope_monitor/SetReferenceEpoch.h"
+#include "slope_monitor/SlopeDeformation.h"
+#include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/deformation/estimator.h"
+#include "slope_monitor/core/deformation/history.h"
+#include "slope_monitor/core/deformation/report.h"
+#include "slope_monitor/ros/deformation_conversions.h"
+#include "slope_monitor/ros/parameters.h"
+
+namespace slope_monitor {
+
+namespace {
+
+std::string Trim(const std::string& s) {
+  const size_t a = s.find_first_not_of(" \t");
+  const size_t b = s.find_last_not_of(" \t");
+  return a == std::string::npos ? "" : s.substr(a, b - a + 1);
+}
+
+}  // namespace
+
+class DeformationEstimatorNodelet : public nodelet::Nodelet {
+ public:
+  ~DeformationEstimatorNodelet() override {
+    // End of a replay / shutdown: write the reports once more.
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (estimator_ && report_on_shutdown_ && !report_dir_.empty()) {
+      try {
+        const auto files = deformation::WriteReports(*estimator_, report_dir_, report_formats_, report_options_);
+        ROS_INFO("deformation_estimator: wrote %zu report file(s) to %s at shutdown", files.size(),
+                 report_dir_.c_str());
+      } catch (const std::exception& e) {
+        ROS_ERROR("deformation_estimator: reports at shutdown failed: %s", e.what());
+      }
+    }
+  }
+
+ private:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+    deformation::EstimatorOptions options;
+    try {
+      ReadParameters(pnh, &options);
+    } catch (const Error& e) {
+      NODELET_ERROR("deformation_estimator: %s; not advertising", e.what());
+      return;
+    }
+    try {
+      if (!database_.empty()) history_ = std::make_unique<deformation::History>(database_);
+      estimator_ = std::make_unique<deformation::Estimator>(options, history_.get());
+    } catch (const Error& e) {
+      NODELET_ERROR("deformation_estimator: %s; refusing to start on it (nothing was written to it); not advertising",
+                    e.what());
+      estimator_.reset();
+      history_.reset();
+      return;
+    }
+    const deformation::Snapshot resumed = estimator_->GetSnapshot();
+    if (history_) {
+      NODELET_INFO("deformation_estimator: history '%s': %zu point(s) resumed, reference epoch %u (stamp %.3f)",
+                   database_.c_str(), resumed.points.size(), resumed.reference_epoch, resumed.reference_stamp);
+    } else {
+      NODELET_WARN("deformation_estimator: parameter 'database' is empty: no history is kept (a restart loses it)");
+    }
+
+    deformation_pub_ = nh.advertise<slope_monitor::SlopeDeformation>("deformation", 4, true);
+    markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("markers", 2, true);
+    points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("points", 2, true);
+    alerts_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("alerts", 4, true);
+    reference_srv_ = nh.advertiseService("set_reference_epoch", &DeformationEstimatorNodelet::OnSetReference, this);
+    export_srv_ = nh.advertiseService("export_report", &DeformationEstimatorNodelet::OnExport, this);
+    for (const std::string& topic : input_topics_) {
+      const boost::function<void(const slope_monitor::PointDisplacementArray::ConstPtr&)> callback =
+          [this, topic](const slope_monitor::PointDisplacementArray::ConstPtr& msg) { OnDisplacements(msg, topic); };
+      subscribers_.push_back(nh.subscribe<slope_monitor::PointDisplacementArray>(topic, 64, callback));
+    }
+    updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
+    updater_->setHardwareID("deformation_estimator");
+    updater_->add("deformation_estimator", this, &DeformationEstimatorNodelet::Diagnose);
+    diag_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_->update(); });
+    if (!resumed.points.empty()) {
+      std_msgs::Header h;
+      h.frame_id = frame_id_;
+      h.stamp = ros::Time(resumed.stamp);
+      Publish(resumed, h);
+    }
+  }
+
+  void ReadParameters(ros::NodeHandle& pnh, deformation::EstimatorOptions* o) {
+    ros_adapters::ParamReader p(pnh);
+    input_topics_ = p.StringList("input_topics", {"displacements"});
+    if (input_topics_.empty()) throw ConfigError(Message("parameter '", p.FullKey("input_topics"), "' is empty"));
+    frame_id_ = p.String("frame_id", "site");
+    database_ = p.String("database", "");
+    report_dir_ = p.String("report_dir", "");
+    report_on_shutdown_ = p.Bool("report_on_shutdown", true);
+    report_formats_ = p.StringList("report_formats", {});
+    for (const std::string& f : report_formats_)
+      if (f != "csv" && f != "geojson" && f != "geotiff" && f != "png")
+        throw ConfigError(Message("parameter '", p.FullKey("report_formats"), "' has unknown format '", f, "'"));
+    const std::string unit = p.String("velocity_unit", "mm/day", {"mm/day", "mm/h"});
+    const double to_si = unit == "mm/day" ? 1e-3 / 86400.0 : 1e-3 / 3600.0;
+    // Defaults 2 / 10 / 50 mm/day, expressed in the chosen unit.
+    const double per_day = unit == "mm/day" ? 1.0 : 1.0 / 24.0;
+    o->alerts.thresholds.watch = p.Double("threshold_watch", 2.0 * per_day, 0.0, 1e6, unit) * to_si;
+    o->alerts.thresholds.warning = p.Double("threshold_warning", 10.0 * per_day, 0.0, 1e6, unit) * to_si;
+    o->alerts.thresholds.alarm = p.Double("threshold_alarm", 50.0 * per_day, 0.0, 1e6, unit) * to_si;
+    for (const std::string& entry : p.StringList("point_thresholds", {})) {
+      // "point_id: watch, warning, alarm" in velocity_unit
+      const size_t colon = entry.rfind(':');
+      std::vector<double> v;
+      if (colon != std::string::npos) {
+        std::stringstream ss(entry.substr(colon + 1));
+        std::string item;
+        while (std::getline(ss, item, ',')) {
+          try {
+            v.push_back(std::stod(item));
+          } catch (const std::exception&) {
+            v.clear();
+            break;
+          }
+        }
+      }
+      if (colon == std::string::npos || v.size() != 3 || Trim(entry.substr(0, colon)).empty())
+        throw ConfigError(Message("parameter '", p.FullKey("point_thresholds"), "' entry '", entry,
+                                  "' must read 'point_id: watch, warning, alarm' (", unit, ")"));
+      deformation::Thresholds t;
+      t.watch = v[0] * to_si;
+      t.warning = v[1] * to_si;
+      t.alarm = v[2] * to_si;
+      o->alerts.point_thresholds[Trim(entry.substr(0, colon))] = t;
+    }
+    for (const std::string& entry : p.StringList("aliases", {})) {
+      const size_t eq = entry.find('=');
+      if (eq == std::string::npos || Trim(entry.substr(0, eq)).empty() || Trim(entry.substr(eq + 1)).empty())
+        throw ConfigError(Message("parameter '", p.FullKey("aliases"), "' entry '", entry,
+                                  "' must read 'measured_id = monitoring_point_id'"));
+      o->aliases[Trim(entry.substr(0, eq))] = Trim(entry.substr(eq + 1));
+    }
+    o->alerts.significance = p.Double("alert_significance", 3.0, 0.0, 10.0, "sigma");
+    o->alerts.confirm_points = p.Int("confirm_points", 2, 1, 1000);
+    o->alerts.confirm_sources = p.Int("confirm_sources", 2, 1, 10);
+    o->alerts.hysteresis = p.Double("hysteresis", 0.8, 0.01, 1.0);
+    o->filter.jerk_spectral_density = p.Double("jerk_spectral_density", 2e-29, 0.0, 1e-20, "m^2/s^5");
+    o->filter.initial_velocity_sigma = p.Double("initial_velocity_sigma", 1e-6, 1e-12, 1.0, "m/s");
+    o->filter.initial_acceleration_sigma = p.Double("initial_acceleration_sigma", 1e-10, 1e-18, 1.0, "m/s^2");
+    o->reorder_window = p.Double("reorder_window", 3 * 86400.0, 0.0, 365 * 86400.0, "s");
+    o->reference_tolerance = p.Double("reference_tolerance", 3600.0, 0.0, 30 * 86400.0, "s");
+    o->disagreement_threshold = p.Double("disagreement_threshold", 16.27, 0.1, 1e6, "chi2(3)");
+    o->comparison_max_gap = p.Double("comparison_max_gap", 86400.0, 1.0, 365 * 86400.0, "s");
+    o->innovation_gate = p.Double("innovation_gate", 0.0, 0.0, 1e6, "chi2(3)");
+    o->velocity_sample_interval = p.Double("velocity_sample_interval", 3600.0, 1.0, 86400.0, "s");
+    o->forecast.window = p.Double("forecast_window", 48.0, 0.1, 24.0 * 365, "h") * 3600.0;
+    o->forecast.alpha = p.Double("forecast_alpha", 2.0, 1.01, 10.0);
+    o->forecast.min_samples = p.Int("forecast_min_samples", 6, 4, 100000);
+    o->forecast.min_velocity = p.Double("forecast_min_velocity", 0.0, 0.0, 1e6, unit) * to_si;
+    o->forecast.significance = p.Double("forecast_significance", 3.0, 0.0, 100.0, "sigma");
+    o->forecast.max_horizon = p.Double("forecast_max_horizon", 365.0, 0.01, 3650.0, "days") * 86400.0;
+    const std::vector<double> origin = p.DoubleList("geodetic_origin", {});
+    if (!origin.empty()) {
+      if (origin.size() != 3 || std::abs(origin[0]) > 90 || std::abs(origin[1]) > 180)
+        throw ConfigError(Message("parameter '", p.FullKey("geodetic_origin"),
+                                  "' must be [] or [lat_deg, lon_deg, height_m]"));
+      report_options_.geodetic_origin = Eigen::Vector3d(origin[0], origin[1], origin[2]);
+    }
+    report_options_.grid_resolution = p.Double("report_grid_resolution", 1.0, 0.01, 1000.0, "m");
+    report_options_.grid_margin = p.Double("report_grid_margin", 10.0, 0.0, 10000.0, "m");
+    report_options_.idw_power = p.Double("report_idw_power", 2.0, 0.1, 10.0);
+    report_options_.idw_radius = p.Double("report_idw_radius", 50.0, 0.1, 1e5, "m");
+    report_options_.map_width = p.Int("report_map_width", 1200, 200, 8000, "px");
+    marker_options_.arrow_scale = p.Double("marker_arrow_scale", 100.0, 0.0, 1e6);
+    marker_options_.text_size = p.Double("marker_text_size", 0.8, 0.01, 100.0, "m");
+    marker_options_.point_size = p.Double("marker_point_size", 0.5, 0.01, 100.0, "m");
+    p.CheckNoUnknownKeys();
+    report_options_.Check();
+    o->Check();
+  }
+
+  void OnDisplacements(const slope_monitor::PointDisplacementArray::ConstPtr& msg, const std::string& topic) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++messages_;
+    try {
+      const deformation::BatchSummary s = estimator_->AddBatch(ros_adapters::FromMsg(*msg, topic));
+      accepted_ += s.accepted;
+      refused_ += s.refused;
+      for (const std::string& m : s.messages) {
+        NODELET_WARN_THROTTLE(10.0, "deformation_estimator: topic '%s': %s", topic.c_str(), m.c_str());
+        last_problem_ = m;
+      }
+      std_msgs::Header h = msg->header;
+      h.frame_id = frame_id_;
+      Publish(estimator_->GetSnapshot(), h);
+    } catch (const Error& e) {
+      ++errors_;
+      last_problem_ = e.what();
+      NODELET_ERROR_THROTTLE(5.0, "deformation_estimator: topic '%s': %s; message dropped", topic.c_str(), e.what());
+    }
+  }
+
+  void Publish(const deformation::Snapshot& s, const std_msgs::Header& h) {
+    last_alert_ = s.alert;
+    num_points_ = s.points.size();
+    deformation_pub_.publish(ros_adapters::ToMsg(s, h));
+    if (markers_pub_.getNumSubscribers() > 0) markers_pub_.publish(ros_adapters::ToMarkers(s, h, marker_options_));
+    if (points_pub_.getNumSubscribers() > 0) points_pub_.publish(ros_adapters::ToCloud(s, h));
+    alerts_pub_.publish(ros_adapters::ToAlerts(s, h));
+  }
+
+  bool OnSetReference(slope_monitor::SetReferenceEpoch::Request& req, slope_monitor::SetReferenceEpoch::Response& res) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    try {
+      res.reference_epoch = estimator_->SetReferenceEpoch(req.epoch, req.use_latest);
+      res.success = true;
+      res.message = Message("reference epoch is now ", res.reference_epoch);
+      const deformation::Snapshot s = estimator_->GetSnapshot();
+      std_msgs::Header h;
+      h.frame_id = frame_id_;
+      h.stamp = ros::Time(s.stamp);
+      Publish(s, h);
+    } catch (const Error& e) {
+      res.success = false;
+      res.message = e.what();
+    }
+    return true;
+  }
+
+  bool OnExport(slope_monitor::ExportReport::Request& req, slope_monitor::ExportReport::Response& res) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const std::string dir = req.output_dir.empty() ? report_dir_ : req.output_dir;
+    try {
+      if (dir.empty()) throw InvalidArgument("no output_dir given and parameter 'report_dir' is empty");
+      res.files = deformation::WriteReports(*estimator_, dir, req.formats, report_options_);
+      res.success = true;
+      res.message = Message("wrote ", res.files.size(), " file(s) to ", dir);
+    } catch (const Error& e) {
+      res.success = false;
+      res.files.clear();  // never present a partial set as complete
+      res.message = e.what();
+      last_problem_ = e.what();
+    }
+    return true;
+  }
+
+  void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (errors_ > 0 && !last_problem_.empty()) {
+      stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "dropped messages: " + last_problem_);
+    } else {
+      stat.summary(diagnostic_msgs::DiagnosticStatus::OK,
+                   Message(num_points_, " points, slope alert ", deformation::AlertName(last_alert_)));
+    }
+    stat.add("messages", messages_);
+    stat.add("measurements accepted", accepted_);
+    stat.add("measurements refused", refused_);
+    stat.add("messages dropped", errors_);
+    stat.add("database", database_.empty() ? "(none)" : database_);
+    stat.add("last problem", last_problem_);
+  }
+
+  std::mutex mutex_;
+  std::vector<std::string> input_topics_;
+  std::string frame_id_, database_, report_dir_;
+  bool report_on_shutdown_ = true;
+  std::vector<std::string> report_formats_;
+  deformation::ReportOptions report_options_;
+  ros_adapters::MarkerOptions marker_options_;
+  std::unique_ptr<deformation::History> history_;
+  std::unique_ptr<deformation::Estimator> estimator_;
+  std::vector<ros::Subscriber> subscribers_;
+  ros::Publisher deformation_pub_, markers_pub_, points_pub_, alerts_pub_;
+  ros::ServiceServer reference_srv_, export_srv_;
+  std::unique_ptr<diagnostic_updater::Updater> updater_;
+  ros::WallTimer diag_timer_;
+  uint64_t messages_ = 0, accepted_ = 0, refused_ = 0, errors_ = 0;
+  size_t num_points_ = 0;
+  deformation::AlertLevel last_alert_ = deformation::AlertLevel::kNone;
+  std::string last_problem_;
+};
+
+}  // namespace slope_monitor
+
+PLUGINLIB_EXPORT_CLASS(slope_monitor::DeformationEstimatorNodelet, nodelet::Nodelet)
