@@ -94,7 +94,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     }
     tie_sub_ = nh.subscribe("tie_points", 50, &BundleAdjusterNodelet::OnTiePoints, this);
     prior_sub_ = nh.subscribe("position_prior", 50, &BundleAdjusterNodelet::OnPositionPrior, this);
-    epoch_sub_ = nh.subscribe("epoch", 20, &BundleAdjusterNodelet::OnEpoch, this);
+    for (const std::string& topic : epoch_topics_)
+      epoch_subs_.push_back(nh.subscribe(topic, 20, &BundleAdjusterNodelet::OnEpoch, this));
     run_srv_ = nh.advertiseService("run_adjustment", &BundleAdjusterNodelet::OnRun, this);
     reference_srv_ = nh.advertiseService("set_reference_epoch", &BundleAdjusterNodelet::OnSetReference, this);
     gap_timer_ = nh.createTimer(ros::Duration(1.0), &BundleAdjusterNodelet::OnTimer, this);
@@ -113,6 +114,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     targets_ = io::TargetList::Load(target_list_path_);
     target_topics_ = p.StringList("target_topics", {"targets"});
     camera_names_ = p.StringList("cameras", {});
+    epoch_topics_ = p.StringList("epoch_topics", {"epoch"});
+    epoch_wait_ = p.Double("epoch_wait", 30.0, 0.0, 3600.0, "s");
     frame_id_ = p.String("frame_id", "site");
     pixel_size_ = p.Double("pixel_size", 1.0, 1e-6, 1.0, "mm/px");
     default_pixel_sigma_ = p.Double("pixel_sigma", 0.3, 1e-4, 100.0, "px");
@@ -156,7 +159,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   }
 
   void OnTargets(const slope_monitor::TargetObservationArrayConstPtr& msg) {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::unique_lock<std::mutex> lock(mutex_);
     const std::string key = ImageKey(msg->camera_name, msg->header.stamp);
     CollectedImage& im = images_[key];
     im.camera = msg->camera_name;
@@ -180,6 +183,9 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       observations_.push_back(c);
     }
     last_input_ = ros::Time::now();
+    if (!ReadyLocked(false)) return;
+    lock.unlock();
+    SolveEpoch();
   }
 
   void OnTiePoints(const slope_monitor::TiePointArrayConstPtr& msg) {
@@ -218,14 +224,30 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       std::lock_guard<std::mutex> lock(mutex_);
       if (msg->epoch != 0) current_epoch_ = msg->epoch;
       ended_sources_.insert(msg->source);
-      // Solve when every configured camera (or, with none configured, any source) has ended its epoch.
-      ready = camera_names_.empty();
-      if (!ready) {
-        ready = true;
-        for (const std::string& c : camera_names_) ready = ready && ended_sources_.count(c) > 0;
-      }
+      announced_images_[msg->source] = msg->count;
+      ended_at_ = ros::WallTime::now();
+      end_pending_ = true;
+      ready = ReadyLocked(false);
     }
     if (ready) SolveEpoch();
+  }
+
+  // Every configured camera (or, with none configured, any source) has ended
+  // its epoch and every image it announced has delivered its targets (or the
+  // wait is over when `timed_out`).
+  bool ReadyLocked(bool timed_out) const {
+    if (!end_pending_) return false;
+    if (camera_names_.empty()) return true;
+    for (const std::string& c : camera_names_) {
+      if (!ended_sources_.count(c)) return false;
+    }
+    if (timed_out) return true;
+    for (const auto& [source, count] : announced_images_) {
+      uint32_t have = 0;
+      for (const auto& [key, im] : images_) have += im.camera == source ? 1 : 0;
+      if (have < count) return false;
+    }
+    return true;
   }
 
   void OnTimer(const ros::TimerEvent&) {
@@ -234,6 +256,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       std::lock_guard<std::mutex> lock(mutex_);
       gap = epoch_gap_ > 0.0 && !observations_.empty() && !last_input_.isZero() &&
             (ros::Time::now() - last_input_).toSec() > epoch_gap_;
+      gap = gap || (end_pending_ && (ros::WallTime::now() - ended_at_).toSec() > epoch_wait_ && ReadyLocked(true));
     }
     if (gap) SolveEpoch();
     if (updater_) updater_->update();
@@ -285,6 +308,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     std::vector<geometry_msgs::PoseWithCovarianceStamped> priors;
     priors.swap(priors_);
     ended_sources_.clear();
+    announced_images_.clear();
+    end_pending_ = false;
     last_input_ = ros::Time();
     if (observations.empty()) {
       out.message = "no observations collected";
@@ -598,6 +623,15 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   std::vector<CollectedObservation> observations_;
   std::vector<geometry_msgs::PoseWithCovarianceStamped> priors_;
   std::set<std::string> ended_sources_;
+  // Images each source announced in its epoch-end marker (EpochMarker.count),
+  // and the wall time the last marker came: the epoch is solved once every
+  // announced image's targets have arrived (the centroider lags the marker),
+  // or epoch_wait seconds after the marker at the latest.
+  std::map<std::string, uint32_t> announced_images_;
+  ros::WallTime ended_at_;
+  bool end_pending_ = false;
+  std::vector<std::string> epoch_topics_;
+  double epoch_wait_ = 30.0;
   ros::Time last_input_;
   uint32_t current_epoch_ = 0;
   std::map<int, adjustment::EpochPoints> epochs_;
@@ -609,7 +643,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   // ROS.
   ros::Publisher solution_pub_, points_pub_, displacements_pub_;
   std::vector<ros::Subscriber> target_subs_, info_subs_;
-  ros::Subscriber tie_sub_, prior_sub_, epoch_sub_;
+  ros::Subscriber tie_sub_, prior_sub_;
+  std::vector<ros::Subscriber> epoch_subs_;
   ros::ServiceServer run_srv_, reference_srv_;
   ros::Timer gap_timer_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
