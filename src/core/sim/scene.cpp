@@ -6,7 +6,7 @@
 #include <random>
 
 #include <apriltag/apriltag.h>
-#include <apriltag/common/image_u8.h>
+#include <cstdlib>
 #include <apriltag/tag36h11.h>
 
 #include "slope_monitor/core/common/error.h"
@@ -329,7 +329,10 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
       plate.pattern.resize(static_cast<size_t>(im->width) * im->height);
       for (int r = 0; r < im->height; ++r)
         for (int c = 0; c < im->width; ++c) plate.pattern[r * im->width + c] = im->buf[r * im->stride + c];
-      image_u8_destroy(im);
+      // libapriltag 3.3 exports image_u8_destroy only from libapriltag-utils;
+      // apriltag_to_image allocates the struct and its buffer with malloc.
+      std::free(im->buf);
+      std::free(im);
     } else if (p.family == "circle") {
       plate.is_tag = false;
       plate.disc_radius = 0.5 * p.size;
