@@ -1,0 +1,204 @@
+// target_centroider: image_raw + camera_info -> targets (TargetObservationArray),
+// debug_image (lazy), diagnostics. Thin: parameters once, convert, call
+// targets::TargetCentroider, publish. See doc/nodes/target_centroider.md.
+#include <atomic>
+#include <map>
+#include <memory>
+#include <mutex>
+
+#include <cv_bridge/cv_bridge.h>
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <image_transport/image_transport.h>
+#include <nodelet/nodelet.h>
+#include <pluginlib/class_list_macros.hpp>
+#include <ros/ros.h>
+#include <sensor_msgs/image_encodings.h>
+#include <tf2_eigen/tf2_eigen.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
+
+#include "slope_monitor/TargetObservationArray.h"
+#include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/targets/target_centroider.h"
+#include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/ros/parameters.h"
+
+namespace slope_monitor {
+
+class TargetCentroiderNodelet : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+    try {
+      ros_adapters::ParamReader p(pnh);
+      targets::Options o;
+      o.families = p.StringList("families", o.families);
+      o.quad_decimate = p.Double("quad_decimate", o.quad_decimate, 1.0, 8.0);
+      o.quad_sigma = p.Double("quad_sigma", o.quad_sigma, 0.0, 10.0, "px");
+      o.refine_edges = p.Bool("refine_edges", o.refine_edges);
+      o.decode_sharpening = p.Double("decode_sharpening", o.decode_sharpening, 0.0, 10.0);
+      o.threads = p.Int("threads", o.threads, 1, 64);
+      o.max_hamming = p.Int("max_hamming", o.max_hamming, 0, 3, "bits");
+      o.min_decision_margin = p.Double("min_decision_margin", o.min_decision_margin, 0.0, 1000.0);
+      o.refine_tags = p.Bool("refine_tags", o.refine_tags);
+      o.detect_circles = p.Bool("detect_circles", o.detect_circles);
+      o.circle_min_diameter = p.Double("circle_min_diameter", o.circle_min_diameter, 4.0, 2000.0, "px");
+      o.circle_max_diameter = p.Double("circle_max_diameter", o.circle_max_diameter, 4.0, 2000.0, "px");
+      o.circle_max_eccentricity = p.Double("circle_max_eccentricity", o.circle_max_eccentricity, 0.01, 0.99);
+      o.circle_id_gate = p.Double("circle_id_gate", o.circle_id_gate, 0.01, 5.0);
+      o.refine_circles = p.Bool("refine_circles", o.refine_circles);
+      o.correct_perspective = p.Bool("correct_perspective", o.correct_perspective);
+      o.min_contrast = p.Double("min_contrast", o.min_contrast, 0.1, 254.0, "DN");
+      o.border_margin = p.Double("border_margin", o.border_margin, 0.0, 100.0, "px");
+      o.saturation_level = p.Double("saturation_level", o.saturation_level, 1.0, 255.0, "DN");
+      o.max_saturated_fraction = p.Double("max_saturated_fraction", o.max_saturated_fraction, 0.0, 1.0);
+      o.max_edge_blur = p.Double("max_edge_blur", o.max_edge_blur, 0.01, 20.0, "px");
+      o.max_residual = p.Double("max_residual", o.max_residual, 0.01, 1.0);
+      o.noise_floor = p.Double("noise_floor", o.noise_floor, 0.0, 50.0, "DN");
+      const std::string list_path = p.String("target_list", "");
+      camera_name_ = p.String("camera_name", "");
+      site_frame_ = p.String("site_frame", "site");
+      use_tf_pose_ = p.Bool("use_tf_pose", true);
+      pixel_size_ = p.Double("pixel_size", 1.0, 1e-6, 1.0, "mm");
+      p.CheckNoUnknownKeys();
+      io::TargetList list;
+      if (!list_path.empty()) list = io::TargetList::Load(list_path);  // names the file and the key
+      centroider_ = std::make_unique<targets::TargetCentroider>(o, list);
+    } catch (const Error& e) {
+      NODELET_ERROR("target_centroider: %s; not advertising", e.what());
+      return;
+    }
+    if (camera_name_.empty()) {
+      camera_name_ = ros::names::parentNamespace(nh.getNamespace());
+      if (camera_name_.empty() || camera_name_ == "/") camera_name_ = nh.getNamespace();
+      if (!camera_name_.empty() && camera_name_[0] == '/') camera_name_ = camera_name_.substr(1);
+    }
+    if (use_tf_pose_) {
+      tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
+      tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh);
+    }
+    it_ = std::make_unique<image_transport::ImageTransport>(nh);
+    targets_pub_ = nh.advertise<TargetObservationArray>("targets", 10);
+    debug_pub_ = it_->advertise("debug_image", 1);
+    sub_ = it_->subscribeCamera("image_raw", 2, &TargetCentroiderNodelet::OnImage, this);
+    updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
+    updater_->setHardwareID(camera_name_);
+    updater_->add("target_centroider", this, &TargetCentroiderNodelet::Diagnose);
+    diag_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_->update(); });
+    start_ = ros::WallTime::now();
+  }
+
+  void OnImage(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info) {
+    try {
+      if (image->width != info->width || image->height != info->height) {
+        throw InvalidArgument(Message("image is ", image->width, "x", image->height, " px but camera_info is ",
+                                      info->width, "x", info->height, " px"));
+      }
+      cv_bridge::CvImageConstPtr cv_image = cv_bridge::toCvShare(image);
+      std::unique_ptr<targets::ViewGeometry> view;
+      if (use_tf_pose_ && info->K[0] > 0) {
+        geometry_msgs::TransformStamped tf;
+        try {
+          tf = tf_buffer_->lookupTransform(site_frame_, image->header.frame_id, image->header.stamp);
+          const Eigen::Isometry3d site_from_optical = tf2::transformToEigen(tf);
+          const Rigid3 optical_from_site = Rigid3(Eigen::Matrix3d(site_from_optical.rotation()),
+                                                  Eigen::Vector3d(site_from_optical.translation())).Inverse();
+          view = std::make_unique<targets::ViewGeometry>();
+          view->camera = ros_adapters::CameraModelFromCameraInfo(*info, pixel_size_);
+          view->pose = camera::ExteriorOrientation::FromOpticalFromSite(optical_from_site);
+        } catch (const tf2::TransformException&) {
+          view.reset();  // no pose: circles stay unidentified, no perspective correction
+        }
+      }
+      const targets::MonoImage mono = targets::ToMono(cv_image->image, image->encoding);
+      const targets::Result r = centroider_->DetectMono(mono, view.get());
+      TargetObservationArray out;
+      out.header = image->header;
+      out.camera_name = camera_name_;
+      out.image_width = image->width;
+      out.image_height = image->height;
+      for (const auto& o : r.observations) {
+        TargetObservation m;
+        m.id = o.id;
+        m.family = o.family;
+        m.role = !o.role ? TargetObservation::ROLE_UNKNOWN
+                 : *o.role == io::TargetRole::kControl ? TargetObservation::ROLE_CONTROL
+                 : *o.role == io::TargetRole::kCheck ? TargetObservation::ROLE_CHECK
+                                                      : TargetObservation::ROLE_MONITORING;
+        m.x = o.centre.x();
+        m.y = o.centre.y();
+        const auto cov = ros_adapters::ToRowMajor<2>(o.covariance);
+        std::copy(cov.begin(), cov.end(), m.covariance.begin());
+        if (o.has_corners) {
+          for (int k = 0; k < 4; ++k) {
+            m.corners[2 * k] = o.corners[k].x();
+            m.corners[2 * k + 1] = o.corners[k].y();
+          }
+        }
+        m.size_px = o.size_px;
+        m.quality = o.quality;
+        out.observations.push_back(m);
+      }
+      out.rejected = r.rejections.size();
+      for (const auto& rj : r.rejections) {
+        out.reject_reasons.push_back(targets::RejectReasonName(rj.reason) + ": " + rj.family + "/" +
+                                     std::to_string(rj.id) + " " + rj.detail);
+      }
+      targets_pub_.publish(out);
+      if (debug_pub_.getNumSubscribers() > 0) {
+        cv_bridge::CvImage dbg(image->header, sensor_msgs::image_encodings::BGR8, targets::DrawResult(mono.mono8, r));
+        debug_pub_.publish(dbg.toImageMsg());
+      }
+      std::lock_guard<std::mutex> lock(stats_mutex_);
+      ++frames_;
+      last_detections_ = r.observations.size();
+      for (const auto& [reason, n] : r.summary.rejects_by_reason) rejects_[reason] += n;
+    } catch (const std::exception& e) {  // slope_monitor::Error, cv_bridge::Exception, cv::Exception
+      NODELET_ERROR_THROTTLE(5.0, "target_centroider: dropped image (topic %s, stamp %.3f): %s",
+                             sub_.getTopic().c_str(), image->header.stamp.toSec(), e.what());
+      std::lock_guard<std::mutex> lock(stats_mutex_);
+      ++errors_;
+      last_error_ = e.what();
+    }
+  }
+
+  void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    const double elapsed = (ros::WallTime::now() - start_).toSec();
+    stat.add("frames", frames_);
+    stat.add("frame rate [Hz]", elapsed > 0 ? frames_ / elapsed : 0.0);
+    stat.add("detections (last frame)", last_detections_);
+    stat.add("dropped images", errors_);
+    for (const auto& [reason, n] : rejects_) stat.add("rejected: " + reason, n);
+    if (errors_ > 0) {
+      stat.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "%d images dropped; last: %s", errors_, last_error_.c_str());
+    } else if (frames_ == 0) {
+      stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "no images yet");
+    } else {
+      stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "measuring");
+    }
+  }
+
+  std::unique_ptr<targets::TargetCentroider> centroider_;
+  std::string camera_name_, site_frame_;
+  bool use_tf_pose_ = true;
+  double pixel_size_ = 1.0;
+  std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  std::unique_ptr<image_transport::ImageTransport> it_;
+  image_transport::CameraSubscriber sub_;
+  image_transport::Publisher debug_pub_;
+  ros::Publisher targets_pub_;
+  std::unique_ptr<diagnostic_updater::Updater> updater_;
+  ros::WallTimer diag_timer_;
+  ros::WallTime start_;
+  std::mutex stats_mutex_;
+  int frames_ = 0, errors_ = 0, last_detections_ = 0;
+  std::map<std::string, int> rejects_;
+  std::string last_error_;
+};
+
+}  // namespace slope_monitor
+
+PLUGINLIB_EXPORT_CLASS(slope_monitor::TargetCentroiderNodelet, nodelet::Nodelet)
