@@ -61,6 +61,7 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
       site_frame_ = p.String("site_frame", "site");
       use_tf_pose_ = p.Bool("use_tf_pose", true);
       pixel_size_ = p.Double("pixel_size", 1.0, 1e-6, 1.0, "mm");
+      queue_size_ = p.Int("queue_size", 100, 1, 10000, "images");
       p.CheckNoUnknownKeys();
       io::TargetList list;
       if (!list_path.empty()) list = io::TargetList::Load(list_path);  // names the file and the key
@@ -81,7 +82,7 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
     it_ = std::make_unique<image_transport::ImageTransport>(nh);
     targets_pub_ = nh.advertise<TargetObservationArray>("targets", 10);
     debug_pub_ = it_->advertise("debug_image", 1);
-    sub_ = it_->subscribeCamera("image_raw", 2, &TargetCentroiderNodelet::OnImage, this);
+    sub_ = it_->subscribeCamera("image_raw", queue_size_, &TargetCentroiderNodelet::OnImage, this);
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     updater_->setHardwareID(camera_name_);
     updater_->add("target_centroider", this, &TargetCentroiderNodelet::Diagnose);
@@ -184,6 +185,7 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
   std::string camera_name_, site_frame_;
   bool use_tf_pose_ = true;
   double pixel_size_ = 1.0;
+  int queue_size_ = 100;  // images buffered while the detector is busy (a replayed survey comes in bursts)
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   std::unique_ptr<image_transport::ImageTransport> it_;
