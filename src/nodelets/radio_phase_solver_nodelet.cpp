@@ -9,6 +9,7 @@
 // stamp (EpochAssembler) -> RadioPhaseSolver::ProcessEpoch -> outputs.
 // Subscriptions are not lazy: phase continuity and the reference epoch need
 // every block whether or not anyone listens.
+#include <Eigen/Cholesky>
 #include <cmath>
 #include <memory>
 #include <mutex>
@@ -174,6 +175,11 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
     out.epoch = epochs_;
     for (const auto& t : s.transmitters) {
       if (!t.initialized) continue;
+      // The reference block itself: its displacement is zero by definition with
+      // a singular covariance; it is the datum, not a measurement of motion.
+      if (t.displacement_covariance.diagonal().minCoeff() <= 0.0 ||
+          Eigen::LLT<Eigen::Matrix3d>(t.displacement_covariance).info() != Eigen::Success)
+        continue;
       slope_monitor::PointDisplacement d;
       d.point_id = t.id;
       d.source = slope_monitor::PointDisplacement::SOURCE_RADIO;
