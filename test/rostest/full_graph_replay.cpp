@@ -33,6 +33,8 @@ TEST(FullGraphReplay, FusedDeformationMatchesTruth) {
   const int max_alert_stable = static_cast<int>(Param(pnh, "max_alert_stable", 0));
   const double forecast_k = Param(pnh, "forecast_sigma_factor", 3.0);
   const double min_monitoring_points = Param(pnh, "min_monitoring_points", 1);
+  const double max_radio_error = Param(pnh, "max_radio_error", 0.005);    // [m] each transmitter, latest estimate
+  const double min_radio_points = Param(pnh, "min_radio_points", 5);
 
   ros::Time bag_end;
   {
@@ -54,7 +56,7 @@ TEST(FullGraphReplay, FusedDeformationMatchesTruth) {
   const evaluation::DeformationEvaluation e = evaluation::EvaluateHistory(database, truth);
   std::cout << evaluation::FormatTable(e);
 
-  int monitoring = 0;
+  int monitoring = 0, radio = 0;
   double sum2 = 0.0;
   for (const auto& p : e.points) {
     const bool moving = p.truth.norm() > 0.01;
@@ -74,7 +76,12 @@ TEST(FullGraphReplay, FusedDeformationMatchesTruth) {
       }
     }
     if (p.role == "control" || p.role == "check") EXPECT_LE(p.alert_level, max_alert_stable) << p.id;
+    if (p.role == "radio") {
+      ++radio;
+      EXPECT_LE(p.Error().norm(), max_radio_error) << p.id << ": error " << p.Error().transpose() * 1e3 << " mm";
+    }
   }
+  EXPECT_GE(radio, min_radio_points) << "radio transmitters in the fused estimate";
   EXPECT_GE(monitoring, min_monitoring_points) << "monitoring targets in the fused estimate";
   if (monitoring > 0) EXPECT_LE(std::sqrt(sum2 / monitoring), max_rms);
 }
