@@ -10,6 +10,7 @@
 // Subscriptions are not lazy: phase continuity and the reference epoch need
 // every block whether or not anyone listens.
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <mutex>
@@ -25,6 +26,7 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/radio/phase_solver.h"
 #include "slope_monitor/core/sim/truth.h"
+#include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/parameters.h"
 
 namespace slope_monitor {
@@ -192,8 +194,8 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
       d.displacement.x = t.displacement.x();
       d.displacement.y = t.displacement.y();
       d.displacement.z = t.displacement.z();
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) d.covariance[3 * r + c] = t.displacement_covariance(r, c);
+      const auto cov = ros_adapters::ToRowMajor<3>(t.displacement_covariance);
+      std::copy(cov.begin(), cov.end(), d.covariance.begin());
       const double n = t.displacement.norm();
       if (n > 0.0) {
         const Eigen::Vector3d u = t.displacement / n;
