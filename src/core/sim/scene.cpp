@@ -306,15 +306,47 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
     const double e = 1.0;
     const double gx = (AnalyticHeight(p.xy.x() + e, p.xy.y()) - AnalyticHeight(p.xy.x() - e, p.xy.y())) / (2 * e);
     const double gy = (AnalyticHeight(p.xy.x(), p.xy.y() + e) - AnalyticHeight(p.xy.x(), p.xy.y() - e)) / (2 * e);
-    const Eigen::Vector3d n = Eigen::Vector3d(-gx, -gy, 1.0).normalized();
-    Eigen::Vector3d up = Eigen::Vector3d::UnitY() - n.y() * n;
+    const Eigen::Vector3d ground_normal = Eigen::Vector3d(-gx, -gy, 1.0).normalized();
+    const Eigen::Vector3d ground(p.xy.x(), p.xy.y(), h);
+    Eigen::Vector3d n = ground_normal;
+    Eigen::Vector3d centre = ground + p.mount_height * n;
+    if (p.facing) {  // on a vertical post, turned towards face_toward
+      centre = ground + Eigen::Vector3d(0.0, 0.0, p.mount_height);
+      const Eigen::Vector3d to = p.face_toward - centre;
+      if (to.norm() < 1e-6) {
+        tag36h11_destroy(family);
+        throw InvalidArgument(Message("target ", p.family, "/", p.id, ": face_toward is the plate centre itself"));
+      }
+      n = to.normalized();
+      if (n.z() <= 0.0) {
+        tag36h11_destroy(family);
+        throw InvalidArgument(Message("target ", p.family, "/", p.id, ": face_toward (", p.face_toward.transpose(),
+                                      ") is not above the plate's horizon; the plate would face the ground"));
+      }
+    }
+    // The plate's top: site north projected into the plate (flat plates), site
+    // up projected into it (facing plates, whose normal may point north).
+    const Eigen::Vector3d top = p.facing ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitY();
+    Eigen::Vector3d up = top - top.dot(n) * n;
+    if (up.norm() < 1e-6) up = Eigen::Vector3d::UnitY() - n.y() * n;  // facing straight up
     up.normalize();
     Plate plate;
     plate.target = static_cast<int>(k);
     plate.normal = n;
     plate.up = up;
     plate.right = up.cross(n).normalized();
-    plate.centre = Eigen::Vector3d(p.xy.x(), p.xy.y(), h) + p.mount_height * n;
+    plate.centre = centre;
+    if (p.facing) {  // the lower edge must clear the ground
+      const double half_extent = (p.family == "circle" ? p.size : 0.5 * p.size * 10.0 / 8.0);
+      const double lowest = centre.z() - half_extent * std::abs(up.z()) - half_extent * std::abs(plate.right.z());
+      const double ground_below = std::max(h, AnalyticHeight(p.xy.x() + half_extent * n.x(), p.xy.y() + half_extent * n.y()));
+      if (lowest < ground_below + 0.02) {
+        tag36h11_destroy(family);
+        throw InvalidArgument(Message("target ", p.family, "/", p.id, ": mount_height ", p.mount_height,
+                                      " m is too low for a ", p.size, " m plate turned to face_toward; its lower edge is ",
+                                      ground_below - lowest, " m in the ground (raise mount_height)"));
+      }
+    }
     if (p.family == "tag36h11") {
       if (p.id < 0 || p.id >= static_cast<int>(family->ncodes)) {
         const unsigned n_codes = family->ncodes;

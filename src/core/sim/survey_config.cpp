@@ -189,6 +189,8 @@ SurveyConfig FromRoot(io::YamlMap& root) {
     const double mount = tg.Double("mount_height", 0.03, 0.0, 2.0, "m");
     const double tag_size = tg.Double("tag_size", 1.0, 0.05, 10.0, "m");
     const double circle_size = tg.Double("circle_size", 0.5, 0.05, 10.0, "m");
+    const bool facing_default = tg.Has("face_toward");
+    const Eigen::Vector3d face_default = facing_default ? Vec3(tg, "face_toward") : Eigen::Vector3d::Zero();
     std::vector<io::YamlMap> list = tg.List("list");
     if (list.empty()) tg.Fail("list", "is empty (the survey needs targets)");
     for (io::YamlMap& t : list) {
@@ -198,7 +200,9 @@ SurveyConfig FromRoot(io::YamlMap& root) {
       p.role = io::TargetRoleFromName(t.String("role", "control", {"control", "monitoring", "check"}));
       p.xy = Vec2(t, "position");
       p.size = t.Double("size", p.family == "circle" ? circle_size : tag_size, 0.05, 10.0, "m");
-      p.mount_height = mount;
+      p.mount_height = t.Double("mount_height", mount, 0.0, 2.0, "m");
+      p.facing = facing_default || t.Has("face_toward");
+      p.face_toward = t.Has("face_toward") ? Vec3(t, "face_toward") : face_default;
       if (p.family == "tag36h11" && p.id >= 587) t.Fail("id", Message("= ", p.id, " is outside tag36h11's 587 codes"));
       const std::string key = p.family + "/" + std::to_string(p.id);
       for (const auto& q : c.scene.targets) {

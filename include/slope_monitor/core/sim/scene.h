@@ -99,7 +99,13 @@ struct TargetPlacement {
   double size = 0.6;                // [m] tag: black border edge; circle: bright disc diameter
   io::TargetRole role = io::TargetRole::kControl;
   Eigen::Vector2d xy{0, 0};         // [m] site
-  double mount_height = 0.03;       // [m] plate above the ground
+  double mount_height = 0.03;       // [m] plate above the ground (flat plates: along the normal;
+                                    //     facing plates: the post height of the plate centre)
+  // Facing plates: a plate on a post turned towards this site point (e.g. the
+  // fixed cameras), as crews mount targets for cameras on the opposite side.
+  // Without it the plate lies flat on the ground (normal = the surface's).
+  bool facing = false;
+  Eigen::Vector3d face_toward{0, 0, 0};  // [m] site
 };
 
 struct SceneSpec {
