@@ -399,7 +399,12 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       // Drop points that could not be initialised (seen once, or not intersectable).
       adjustment::Config config;
       if (!free_interior_.empty()) config.FreeInteriorOfAll(static_cast<int>(scene.cameras.size()), free_interior_);
-      adjustment::Scene usable_scene = FilterUnknown(scene);
+      adjustment::PruneReport pruned;
+      adjustment::Scene usable_scene = adjustment::PruneScene(scene, options_.min_observations_per_image, &pruned);
+      if (!pruned.dropped_images.empty() || !pruned.dropped_cameras.empty())
+        NODELET_WARN_THROTTLE(10.0, "bundle_adjuster: epoch %u: %s", current_epoch_, pruned.Summary().c_str());
+      if (usable_scene.images.empty())
+        throw InvalidArgument(Message("no image of the epoch could be oriented (", pruned.Summary(), ")"));
       adjustment::BundleAdjuster adjuster(options_, config);
       const adjustment::Summary s = adjuster.Solve(&usable_scene);
       Fill(usable_scene, s, images, &out);
@@ -435,25 +440,6 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   }
 
   bool IsFixedCamera(const std::string& name) const { return name.find("uav") == std::string::npos; }
-
-  static adjustment::Scene FilterUnknown(const adjustment::Scene& in) {
-    adjustment::Scene out;
-    out.cameras = in.cameras;
-    out.images = in.images;
-    std::vector<int> map(in.points.size(), -1);
-    for (size_t j = 0; j < in.points.size(); ++j) {
-      if (!in.points[j].position_known) continue;
-      map[j] = static_cast<int>(out.points.size());
-      out.points.push_back(in.points[j]);
-    }
-    for (const auto& o : in.observations) {
-      if (map[o.point] < 0) continue;
-      adjustment::Observation c = o;
-      c.point = map[o.point];
-      out.observations.push_back(c);
-    }
-    return out;
-  }
 
   void Fill(const adjustment::Scene& scene, const adjustment::Summary& s,
             const std::map<std::string, CollectedImage>& images, slope_monitor::AdjustmentSolution* out) {

@@ -87,5 +87,92 @@ std::string InitializeScene(Scene* scene, const InitializationOptions& options) 
   return "";
 }
 
+std::string PruneReport::Summary() const {
+  std::string out = Message("dropped ", dropped_images.size(), " image(s), ", dropped_points.size(), " point(s), ",
+                            dropped_cameras.size(), " camera(s)");
+  int shown = 0;
+  for (const auto* list : {&dropped_images, &dropped_cameras, &dropped_points}) {
+    for (const std::string& r : *list) {
+      if (shown++ >= 3) break;
+      out += (shown == 1 ? ": " : "; ") + r;
+    }
+  }
+  return out;
+}
+
+Scene PruneScene(const Scene& scene, int min_observations_per_image, PruneReport* report) {
+  scene.CheckIndices();
+  PruneReport local;
+  PruneReport& rep = report ? *report : local;
+  std::vector<bool> keep_image(scene.images.size(), true), keep_point(scene.points.size(), true);
+  for (size_t j = 0; j < scene.points.size(); ++j) {
+    if (!scene.points[j].position_known) {
+      keep_point[j] = false;
+      rep.dropped_points.push_back(Message("point '", scene.points[j].id, "': no initial position"));
+    }
+  }
+  for (size_t i = 0; i < scene.images.size(); ++i) {
+    if (!scene.images[i].exterior_known) {
+      keep_image[i] = false;
+      rep.dropped_images.push_back(Message("image '", scene.images[i].name, "': not oriented"));
+    }
+  }
+  for (bool changed = true; changed;) {
+    changed = false;
+    std::vector<int> per_image(scene.images.size(), 0), per_point(scene.points.size(), 0);
+    for (const Observation& o : scene.observations) {
+      if (!keep_image[o.image] || !keep_point[o.point] || !o.pixel.allFinite()) continue;
+      ++per_image[o.image];
+      ++per_point[o.point];
+    }
+    for (size_t i = 0; i < scene.images.size(); ++i) {
+      if (keep_image[i] && per_image[i] < min_observations_per_image) {
+        keep_image[i] = false;
+        changed = true;
+        rep.dropped_images.push_back(Message("image '", scene.images[i].name, "': ", per_image[i],
+                                             " observations of initialised points (min ", min_observations_per_image,
+                                             ")"));
+      }
+    }
+    for (size_t j = 0; j < scene.points.size(); ++j) {
+      if (keep_point[j] && per_point[j] == 0) {
+        keep_point[j] = false;
+        changed = true;
+        rep.dropped_points.push_back(Message("point '", scene.points[j].id, "': no image left that sees it"));
+      }
+    }
+  }
+  Scene out;
+  std::vector<int> camera_map(scene.cameras.size(), -1), image_map(scene.images.size(), -1),
+      point_map(scene.points.size(), -1);
+  for (size_t i = 0; i < scene.images.size(); ++i) {
+    if (!keep_image[i]) continue;
+    const int c = scene.images[i].camera;
+    if (camera_map[c] < 0) {
+      camera_map[c] = static_cast<int>(out.cameras.size());
+      out.cameras.push_back(scene.cameras[c]);
+    }
+    image_map[i] = static_cast<int>(out.images.size());
+    out.images.push_back(scene.images[i]);
+    out.images.back().camera = camera_map[c];
+  }
+  for (size_t c = 0; c < scene.cameras.size(); ++c) {
+    if (camera_map[c] < 0) rep.dropped_cameras.push_back(Message("camera '", scene.cameras[c].name, "': no image left"));
+  }
+  for (size_t j = 0; j < scene.points.size(); ++j) {
+    if (!keep_point[j]) continue;
+    point_map[j] = static_cast<int>(out.points.size());
+    out.points.push_back(scene.points[j]);
+  }
+  for (const Observation& o : scene.observations) {
+    if (image_map[o.image] < 0 || point_map[o.point] < 0) continue;
+    Observation c = o;
+    c.image = image_map[o.image];
+    c.point = point_map[o.point];
+    out.observations.push_back(c);
+  }
+  return out;
+}
+
 }  // namespace adjustment
 }  // namespace slope_monitor

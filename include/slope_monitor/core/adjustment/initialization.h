@@ -5,6 +5,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "slope_monitor/core/adjustment/bundle_adjuster.h"
 #include "slope_monitor/core/geometry/intersection.h"
@@ -23,6 +24,23 @@ struct InitializationOptions {
 // initial value, else the reason (naming the image or points left unknown).
 // Points that cannot be intersected are left with position_known = false.
 std::string InitializeScene(Scene* scene, const InitializationOptions& options = {});
+
+// What PruneScene removed, each with the reason ("image 'uav@17.0': 3
+// observations of initialised points (min 4)").
+struct PruneReport {
+  std::vector<std::string> dropped_images;
+  std::vector<std::string> dropped_points;
+  std::vector<std::string> dropped_cameras;
+  bool Empty() const { return dropped_images.empty() && dropped_points.empty() && dropped_cameras.empty(); }
+  std::string Summary() const;  // one line: counts and the first few reasons
+};
+
+// The part of an initialised scene that can be adjusted: drops points without
+// an initial position, then repeatedly images without an orientation or with
+// fewer than `min_observations_per_image` observations, points no image sees
+// any more, and cameras with no image left; re-indexes what stays. One weak
+// image (a UAV photo with three targets) no longer sinks the whole epoch.
+Scene PruneScene(const Scene& scene, int min_observations_per_image, PruneReport* report = nullptr);
 
 }  // namespace adjustment
 }  // namespace slope_monitor
