@@ -25,7 +25,8 @@ namespace slope_monitor {
 namespace targets {
 namespace {
 
-constexpr double kSqrt2Pi = 2.5066282746310002;
+constexpr double kInvSqrt2Pi = 0.3989422804014327;
+constexpr double kInvSqrt2 = 0.7071067811865476;
 // libapriltag puts the centre of the top-left pixel at (0.5, 0.5).
 constexpr double kAprilTagPixelOffset = 0.5;
 // Smallest optical blur sigma of the edge models [px] (the pixel's own area
@@ -52,105 +53,167 @@ const std::map<std::string, FamilyFactory>& Factories() {
   return f;
 }
 
-double Phi(double z) { return 0.5 * std::erfc(-z / std::sqrt(2.0)); }
-double SmallPhi(double z) { return std::exp(-0.5 * z * z) / kSqrt2Pi; }
-// First and second antiderivatives of Phi.
-double PhiInt1(double x) { return x * Phi(x) + SmallPhi(x); }
-double PhiInt2(double x) { return 0.5 * (x * x + 1.0) * Phi(x) + 0.5 * x * SmallPhi(x); }
+// The value of a blurred, pixel-integrated step edge and its derivatives
+// with respect to the signed distance d and the blur sigma.
+struct Profile {
+  double v = 0, dd = 0, ds = 0;
+};
 
 // The fraction of a square pixel that is on the bright side of a straight
 // step edge blurred by a Gaussian of std sigma: the pixel's centre is at
-// signed distance d from the edge (bright side positive), (nx, ny) the edge
-// normal. The unit pixel projects on the normal as the sum of two uniform
-// variables of widths |nx| and |ny|, so the value is the mean of
-// Phi((d - |nx| u1 - |ny| u2) / sigma) over u1, u2 in [-1/2, 1/2], in closed
-// form through the antiderivatives of Phi.
-double EdgeProfile(double d, double nx, double ny, double sigma) {
-  double a = std::abs(nx), b = std::abs(ny);
-  if (a < b) std::swap(a, b);
+// signed distance d from the edge (bright side positive). The unit pixel
+// projects on the edge normal (nx, ny) as the sum of two uniform variables of
+// widths a = max(|nx|, |ny|) and b = min(|nx|, |ny|) (the footprint), so the
+// value is the mean of Phi((d - a u1 - b u2) / sigma) over u1, u2 in
+// [-1/2, 1/2], in closed form through the antiderivatives of Phi:
+//   I1(u) = u Phi(u) + phi(u),  I2(u) = ((u^2 + 1) Phi(u) + u phi(u)) / 2,
+// with I2' = I1, I1' = Phi, and the sigma derivatives
+//   d/dsigma [sigma I1((d+c)/sigma)] = phi,  d/dsigma [sigma^2 I2(...)] = sigma Phi.
+// Derivatives are analytic: one erfc and one exp per corner of the footprint.
+inline Profile EdgeProfile(double d, double a, double b, double sigma) {
   const double is = 1.0 / sigma;
+  Profile out;
   if (b < 0.05) {
-    return sigma / a * (PhiInt1((d + 0.5 * a) * is) - PhiInt1((d - 0.5 * a) * is));
+    double sgn = 1.0;
+    for (double c : {0.5 * a, -0.5 * a}) {
+      const double u = (d + c) * is;
+      const double Phi = 0.5 * std::erfc(-u * kInvSqrt2);
+      const double phi = kInvSqrt2Pi * std::exp(-0.5 * u * u);
+      out.v += sgn * (u * Phi + phi);
+      out.dd += sgn * Phi;
+      out.ds += sgn * phi;
+      sgn = -sgn;
+    }
+    out.v *= sigma / a;
+    out.dd /= a;
+    out.ds /= a;
+    return out;
   }
   const double ha = 0.5 * a, hb = 0.5 * b;
-  return sigma * sigma / (a * b) *
-         (PhiInt2((d + ha + hb) * is) - PhiInt2((d + ha - hb) * is) - PhiInt2((d - ha + hb) * is) +
-          PhiInt2((d - ha - hb) * is));
+  const double cs[4] = {ha + hb, ha - hb, -ha + hb, -ha - hb};
+  const double sg[4] = {1.0, -1.0, -1.0, 1.0};
+  double s2 = 0, s1 = 0, s0 = 0;
+  for (int k = 0; k < 4; ++k) {
+    const double u = (d + cs[k]) * is;
+    const double Phi = 0.5 * std::erfc(-u * kInvSqrt2);
+    const double phi = kInvSqrt2Pi * std::exp(-0.5 * u * u);
+    s2 += sg[k] * (0.5 * ((u * u + 1.0) * Phi + u * phi));
+    s1 += sg[k] * (u * Phi + phi);
+    s0 += sg[k] * Phi;
+  }
+  const double iab = 1.0 / (a * b);
+  out.v = sigma * sigma * iab * s2;
+  out.dd = sigma * iab * s1;
+  out.ds = sigma * iab * s0;
+  return out;
 }
 
-// Bilinear sample of a CV_32F image (no bounds check beyond clamping).
-double Sample(const cv::Mat& im, double x, double y) {
-  const int x0 = std::clamp(static_cast<int>(std::floor(x)), 0, im.cols - 2);
-  const int y0 = std::clamp(static_cast<int>(std::floor(y)), 0, im.rows - 2);
-  const double fx = std::clamp(x - x0, 0.0, 1.0), fy = std::clamp(y - y0, 0.0, 1.0);
-  const float* r0 = im.ptr<float>(y0);
-  const float* r1 = im.ptr<float>(y0 + 1);
-  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
+// The pixel footprint widths (a >= b) of a unit pixel on the normal (nx, ny).
+inline void Footprint(double nx, double ny, double* a, double* b) {
+  *a = std::abs(nx);
+  *b = std::abs(ny);
+  if (*a < *b) std::swap(*a, *b);
 }
+
+// Read access to the measurement image: CV_8UC1 (8-bit inputs, no copy) or
+// CV_32FC1 (deeper inputs on the 8-bit scale).
+class ImageView {
+ public:
+  explicit ImageView(const cv::Mat& m) : m_(m), is8_(m.depth() == CV_8U), cols(m.cols), rows(m.rows) {}
+  float At(int x, int y) const { return is8_ ? m_.ptr<uint8_t>(y)[x] : m_.ptr<float>(y)[x]; }
+  // Bilinear sample (clamped to the image).
+  double Sample(double x, double y) const {
+    const int x0 = std::clamp(static_cast<int>(std::floor(x)), 0, cols - 2);
+    const int y0 = std::clamp(static_cast<int>(std::floor(y)), 0, rows - 2);
+    const double fx = std::clamp(x - x0, 0.0, 1.0), fy = std::clamp(y - y0, 0.0, 1.0);
+    return (1 - fy) * ((1 - fx) * At(x0, y0) + fx * At(x0 + 1, y0)) +
+           fy * ((1 - fx) * At(x0, y0 + 1) + fx * At(x0 + 1, y0 + 1));
+  }
+  const cv::Mat& mat() const { return m_; }
+
+ private:
+  const cv::Mat& m_;
+  bool is8_;
+
+ public:
+  const int cols, rows;
+};
 
 // Pixels of a region as (x, y, value).
 struct Pixels {
   std::vector<Eigen::Vector2d> p;
   std::vector<double> v;
+  void clear() {
+    p.clear();
+    v.clear();
+  }
 };
 
 // A small dense Levenberg-Marquardt for the intensity models below. The model
-// returns the predicted value and its gradient w.r.t. the parameters.
+// has Prepare(x) (per-evaluation constants) and operator()(x, p, &g)
+// returning the predicted value and its gradient w.r.t. the parameters. One
+// model evaluation (value and Jacobian) per iteration: a trial step's
+// Jacobian becomes the next iteration's when the step is accepted.
 template <int N>
 struct LmResult {
   Eigen::Matrix<double, N, 1> x;
   Eigen::Matrix<double, N, N> jtj;
   double rms = 0.0;
+  int iterations = 0;
   bool ok = false;
 };
 
 template <int N, typename Model>
-LmResult<N> FitModel(const Pixels& px, Eigen::Matrix<double, N, 1> x, const Model& model, int max_iter = 30) {
+LmResult<N> FitModel(const Pixels& px, Eigen::Matrix<double, N, 1> x, Model& model, int max_iter) {
   using Vec = Eigen::Matrix<double, N, 1>;
   using Mat = Eigen::Matrix<double, N, N>;
   LmResult<N> out;
   const size_t n = px.p.size();
   if (n < static_cast<size_t>(2 * N)) return out;
-  auto cost = [&](const Vec& xx, Mat* jtj, Vec* jtr) {
+  auto eval = [&](const Vec& xx, Mat* jtj, Vec* jtr) {
+    model.Prepare(xx);
     double c = 0.0;
-    if (jtj) jtj->setZero();
-    if (jtr) jtr->setZero();
+    jtj->setZero();
+    jtr->setZero();
     Vec g;
     for (size_t i = 0; i < n; ++i) {
-      const double pred = model(xx, px.p[i], jtj ? &g : nullptr);
-      const double r = pred - px.v[i];
+      const double r = model(xx, px.p[i], &g) - px.v[i];
       c += r * r;
-      if (jtj) {
-        jtj->noalias() += g * g.transpose();
-        *jtr += g * r;
-      }
+      jtj->noalias() += g * g.transpose();
+      *jtr += g * r;
     }
     return c;
   };
-  double lambda = 1e-3;
-  Mat jtj;
-  Vec jtr;
-  double c = cost(x, &jtj, &jtr);
-  for (int it = 0; it < max_iter; ++it) {
+  double lambda = 1e-4;
+  Mat jtj, jn;
+  Vec jtr, rn;
+  double c = eval(x, &jtj, &jtr);
+  int it = 0;
+  for (; it < max_iter; ++it) {
     Mat a = jtj;
     a.diagonal() += lambda * jtj.diagonal().cwiseMax(1e-12);
     const Vec step = a.ldlt().solve(-jtr);
     if (!step.allFinite()) break;
+    // Converged: the predicted decrease is negligible against the cost.
+    if (-jtr.dot(step) <= 1e-9 * c + 1e-24) break;
     const Vec xn = x + step;
-    const double cn = cost(xn, nullptr, nullptr);
+    const double cn = eval(xn, &jn, &rn);
     if (std::isfinite(cn) && cn < c) {
-      x = xn;
       const double rel = (c - cn) / std::max(c, 1e-30);
-      c = cost(x, &jtj, &jtr);
-      lambda = std::max(lambda * 0.3, 1e-9);
-      if (rel < 1e-10 || step.norm() < 1e-9) break;
+      x = xn;
+      c = cn;
+      jtj = jn;
+      jtr = rn;
+      lambda = std::max(lambda * 0.2, 1e-9);
+      if (rel < 1e-8) break;
     } else {
       lambda *= 10.0;
-      if (lambda > 1e8) break;
+      if (lambda > 1e6) break;
     }
   }
   out.x = x;
   out.jtj = jtj;
+  out.iterations = it;
   out.rms = std::sqrt(c / std::max<double>(1.0, static_cast<double>(n) - N));
   out.ok = x.allFinite();
   return out;
@@ -203,6 +266,13 @@ bool IntersectSegments(const Eigen::Vector2d& a0, const Eigen::Vector2d& a1, con
 }
 
 double NoiseOf(double rms, double floor) { return std::max(rms, floor); }
+
+double Percentile(std::vector<double> v, double f) {
+  if (v.empty()) return 0;
+  const size_t k = std::min(v.size() - 1, static_cast<size_t>(f * (v.size() - 1)));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
+}
 
 }  // namespace
 
@@ -276,7 +346,7 @@ MonoImage ToMono(const cv::Mat& image, const std::string& encoding) {
   const bool is16 = encoding == "mono16" || (encoding.size() > 2 && encoding.substr(encoding.size() - 2) == "16");
   if (encoding == "mono8" || encoding == "mono16") {
     need(is16 ? CV_16UC1 : CV_8UC1);
-    gray = image;
+    gray = image;  // no copy
   } else if (encoding == "bgr8" || encoding == "rgb8") {
     need(CV_8UC3);
     cv::cvtColor(image, gray, encoding == "bgr8" ? cv::COLOR_BGR2GRAY : cv::COLOR_RGB2GRAY);
@@ -302,18 +372,21 @@ MonoImage ToMono(const cv::Mat& image, const std::string& encoding) {
     gray.convertTo(out.mono8, CV_8U, 1.0 / 257.0);
     out.quantisation = 1.0 / 257.0;
   } else {
-    out.mono8 = gray.isContinuous() ? gray : gray.clone();
-    gray.convertTo(out.intensity, CV_32F);
+    out.mono8 = gray;  // measured directly: no float copy
     out.quantisation = 1.0;
   }
   return out;
 }
 
 // ---------------------------------------------------------------------------
+// libapriltag state and the per-frame work buffers (kept between frames so a
+// frame allocates no large buffers once the image size is steady).
 struct TargetCentroider::Detector {
   apriltag_detector_t* td = nullptr;
   std::vector<std::pair<apriltag_family_t*, void (*)(apriltag_family_t*)>> families;
-  std::mutex mutex;  // libapriltag's detector is not re-entrant
+  std::mutex mutex;  // libapriltag's detector is not re-entrant; guards the buffers too
+  cv::Mat small, thr, bright, labels, stats, centroids;  // circle candidates (one pyramid level)
+  Pixels px;  // fit pixels
 };
 
 TargetCentroider::TargetCentroider(const Options& options, const io::TargetList& targets)
@@ -347,22 +420,24 @@ Result TargetCentroider::Detect(const cv::Mat& image, const std::string& encodin
 
 bool TargetCentroider::GrayWeightedCentroid(const cv::Mat& intensity, const Eigen::Vector2d& seed, double radius,
                                             Eigen::Vector2d* centroid) {
+  if (intensity.channels() != 1 || (intensity.depth() != CV_8U && intensity.depth() != CV_32F)) return false;
+  const ImageView im(intensity);
   const int x0 = static_cast<int>(std::floor(seed.x() - radius)), x1 = static_cast<int>(std::ceil(seed.x() + radius));
   const int y0 = static_cast<int>(std::floor(seed.y() - radius)), y1 = static_cast<int>(std::ceil(seed.y() + radius));
   if (x0 < 0 || y0 < 0 || x1 >= intensity.cols || y1 >= intensity.rows) return false;
-  std::vector<float> vals;
+  std::vector<float> sorted;
+  sorted.reserve((x1 - x0 + 1) * (y1 - y0 + 1));
   for (int y = y0; y <= y1; ++y)
-    for (int x = x0; x <= x1; ++x) vals.push_back(intensity.at<float>(y, x));
-  std::vector<float> sorted = vals;
+    for (int x = x0; x <= x1; ++x) sorted.push_back(im.At(x, y));
   std::sort(sorted.begin(), sorted.end());
   const double dark = sorted[sorted.size() / 10], bright = sorted[sorted.size() * 9 / 10];
   if (bright - dark <= 1e-6) return false;
   const double threshold = 0.5 * (dark + bright);
   double sq = 0, sx = 0, sy = 0;
   for (int y = y0; y <= y1; ++y) {
-    const float* row = intensity.ptr<float>(y);
     for (int x = x0; x <= x1; ++x) {
-      const double q = row[x] >= threshold ? row[x] : 0.0;
+      const double v = im.At(x, y);
+      const double q = v >= threshold ? v : 0.0;
       sq += q;
       sx += q * x;
       sy += q * y;
@@ -375,14 +450,68 @@ bool TargetCentroider::GrayWeightedCentroid(const cv::Mat& intensity, const Eige
 
 namespace {
 
+// Calls f(x, y) for every pixel centre within the rectangle |t.(p - o)| <= hl,
+// |n.(p - o)| <= hw (t, n unit and orthogonal), clipped to the image.
+template <typename F>
+void ForEachPixelInRect(const Eigen::Vector2d& o, const Eigen::Vector2d& t, const Eigen::Vector2d& n, double hl,
+                        double hw, int cols, int rows, F f) {
+  const double ext = std::abs(t.y()) * hl + std::abs(n.y()) * hw;
+  const int ya = std::max(0, static_cast<int>(std::ceil(o.y() - ext)));
+  const int yb = std::min(rows - 1, static_cast<int>(std::floor(o.y() + ext)));
+  for (int y = ya; y <= yb; ++y) {
+    const double dy = y - o.y();
+    double lo = -1e18, hi = 1e18;
+    bool empty = false;
+    for (const auto& [u, h] : {std::make_pair(t, hl), std::make_pair(n, hw)}) {
+      if (std::abs(u.x()) > 1e-12) {
+        double a = (-h - u.y() * dy) / u.x(), b = (h - u.y() * dy) / u.x();
+        if (a > b) std::swap(a, b);
+        lo = std::max(lo, a);
+        hi = std::min(hi, b);
+      } else if (std::abs(u.y() * dy) > h) {
+        empty = true;
+      }
+    }
+    if (empty || lo > hi) continue;
+    const int xa = std::max(0, static_cast<int>(std::ceil(o.x() + lo)));
+    const int xb = std::min(cols - 1, static_cast<int>(std::floor(o.x() + hi)));
+    for (int x = xa; x <= xb; ++x) f(x, y);
+  }
+}
+
 // ---------------------------------------------------------------------------
 // Tag edges.
 // ---------------------------------------------------------------------------
 
+// The blurred straight step edge: parameters theta, rho, b, w, sigma.
+struct EdgeModel {
+  double c = 1, s = 0, fa = 1, fb = 0;  // normal and pixel footprint at the current theta
+  void Prepare(const Eigen::Matrix<double, 5, 1>& x) {
+    c = std::cos(x[0]);
+    s = std::sin(x[0]);
+    Footprint(c, s, &fa, &fb);
+  }
+  double operator()(const Eigen::Matrix<double, 5, 1>& x, const Eigen::Vector2d& p,
+                    Eigen::Matrix<double, 5, 1>* g) const {
+    const double d = c * p.x() + s * p.y() - x[1];
+    const double sigma = std::max(x[4], kMinBlur);
+    const Profile pr = EdgeProfile(d, fa, fb, sigma);
+    const double k = x[3] - x[2];
+    // The footprint's dependence on theta is left out of the Jacobian (second
+    // order); the model itself is exact at every theta.
+    (*g)[0] = k * pr.dd * (-s * p.x() + c * p.y());
+    (*g)[1] = -k * pr.dd;
+    (*g)[2] = 1.0 - pr.v;
+    (*g)[3] = pr.v;
+    (*g)[4] = x[4] > kMinBlur ? k * pr.ds : 0.0;
+    return x[2] + k * pr.v;
+  }
+};
+
 // Fits the edge from corner a to corner b (image coordinates); `inside` is a
 // point inside the tag (the black side); `cell` the tag's cell size [px].
-EdgeFit FitEdge(const cv::Mat& im, const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& inside,
-                double cell, int width_at_border, double noise_floor) {
+EdgeFit FitEdge(const ImageView& im, const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& inside,
+                double cell, int width_at_border, double noise_floor, Pixels* buffer) {
   EdgeFit e;
   const double len = (b - a).norm();
   if (len < 4) return e;
@@ -396,57 +525,28 @@ EdgeFit FitEdge(const cv::Mat& im, const Eigen::Vector2d& a, const Eigen::Vector
   const double cell_across = std::min(cell, 2.0 * std::abs(n.dot(inside - a)) / width_at_border);
   const double band = std::clamp(cell_across - 0.6, 1.0, 3.5);
   const double end_gap = std::min(band + 0.5, 0.3 * len);
-  Pixels px;
-  const double r = 0.5 * len + band + 2;
-  const int xa = std::max(0, static_cast<int>(std::floor(e.origin.x() - r)));
-  const int xb = std::min(im.cols - 1, static_cast<int>(std::ceil(e.origin.x() + r)));
-  const int ya = std::max(0, static_cast<int>(std::floor(e.origin.y() - r)));
-  const int yb = std::min(im.rows - 1, static_cast<int>(std::ceil(e.origin.y() + r)));
-  double vmin = 1e9, vmax = -1e9;
-  for (int y = ya; y <= yb; ++y) {
-    const float* row = im.ptr<float>(y);
-    for (int x = xa; x <= xb; ++x) {
-      const Eigen::Vector2d p(x - e.origin.x(), y - e.origin.y());
-      const double s = t.dot(p), d = n.dot(p);
-      if (std::abs(d) > band || std::abs(s) > 0.5 * len - end_gap) continue;
-      px.p.push_back(p);
-      px.v.push_back(row[x]);
-      if (d > 0.7) vmax = std::max(vmax, double(row[x]));
-      if (d < -0.7) vmin = std::min(vmin, double(row[x]));
-    }
-  }
-  if (px.p.size() < 8 || vmin > 1e8 || vmax < -1e8) return e;
-  // Levels: medians of the clearly white / black sides.
+  Pixels& px = *buffer;
+  px.clear();
   std::vector<double> wv, bv;
-  for (size_t i = 0; i < px.p.size(); ++i) {
-    const double d = n.dot(px.p[i]);
-    if (d > 0.7) wv.push_back(px.v[i]);
-    if (d < -0.7) bv.push_back(px.v[i]);
-  }
-  auto median = [](std::vector<double> v) {
+  ForEachPixelInRect(e.origin, t, n, 0.5 * len - end_gap, band, im.cols, im.rows, [&](int x, int y) {
+    const Eigen::Vector2d p(x - e.origin.x(), y - e.origin.y());
+    const double v = im.At(x, y);
+    px.p.push_back(p);
+    px.v.push_back(v);
+    const double d = n.dot(p);
+    if (d > 0.7) wv.push_back(v);
+    if (d < -0.7) bv.push_back(v);
+  });
+  if (px.p.size() < 8 || wv.empty() || bv.empty()) return e;
+  // Levels: medians of the clearly white / black sides.
+  auto median = [](std::vector<double>& v) {
     std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
     return v[v.size() / 2];
   };
   Eigen::Matrix<double, 5, 1> x0;
-  x0 << e.theta, 0.0, median(bv), median(wv), 0.3;
-  auto model = [](const Eigen::Matrix<double, 5, 1>& x, const Eigen::Vector2d& p, Eigen::Matrix<double, 5, 1>* g) {
-    auto f = [&](double theta, double rho, double sigma) {
-      const double c = std::cos(theta), s = std::sin(theta);
-      return EdgeProfile(c * p.x() + s * p.y() - rho, c, s, std::max(sigma, kMinBlur));
-    };
-    const double ph = f(x[0], x[1], x[4]);
-    if (g) {
-      const double k = x[3] - x[2];
-      const double h = 1e-6, hs = 1e-5;
-      (*g)[0] = k * (f(x[0] + h, x[1], x[4]) - ph) / h;
-      (*g)[1] = k * (f(x[0], x[1] + h, x[4]) - ph) / h;
-      (*g)[2] = 1.0 - ph;
-      (*g)[3] = ph;
-      (*g)[4] = x[4] > kMinBlur ? k * (f(x[0], x[1], x[4] + hs) - ph) / hs : 0.0;
-    }
-    return x[2] + (x[3] - x[2]) * ph;
-  };
-  const LmResult<5> fit = FitModel<5>(px, x0, model);
+  x0 << e.theta, 0.0, median(bv), median(wv), 0.4;
+  EdgeModel model;
+  const LmResult<5> fit = FitModel<5>(px, x0, model, 20);
   if (!fit.ok) return e;
   e.theta = fit.x[0];
   e.rho = fit.x[1];
@@ -483,9 +583,34 @@ bool CentreFromCorners(const std::array<Eigen::Vector2d, 4>& c, Eigen::Vector2d*
 // ---------------------------------------------------------------------------
 struct Blob {
   Eigen::Vector2d centre;
-  double a = 0, b = 0, angle = 0;  // semi-axes [px], angle of a [rad]
+  double a = 0, b = 0;  // semi-axes [px]
+  Eigen::Vector2d major{1, 0}, minor{0, 1};
   double area = 0;
+  Eigen::Matrix2d Shape() const {
+    return (major * major.transpose()) / (a * a) + (minor * minor.transpose()) / (b * b);
+  }
+  Eigen::Vector2d At(double ang, double s) const {
+    return centre + s * (a * std::cos(ang) * major + b * std::sin(ang) * minor);
+  }
 };
+
+// An ellipse from first and second moments; false when degenerate.
+bool BlobFromMoments(double n, double sx, double sy, double sxx, double sxy, double syy, Blob* blob) {
+  if (n < 3) return false;
+  blob->centre = Eigen::Vector2d(sx / n, sy / n);
+  Eigen::Matrix2d m2;
+  const double cx = blob->centre.x(), cy = blob->centre.y();
+  m2 << sxx / n - cx * cx, sxy / n - cx * cy, sxy / n - cx * cy, syy / n - cy * cy;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(m2);
+  if (!(es.eigenvalues()(0) > 0)) return false;
+  // A uniform elliptical disc of semi-axes a, b has variances a^2/4, b^2/4.
+  blob->a = 2 * std::sqrt(es.eigenvalues()(1));
+  blob->b = 2 * std::sqrt(es.eigenvalues()(0));
+  blob->major = es.eigenvectors().col(1);
+  blob->minor = es.eigenvectors().col(0);
+  blob->area = n;
+  return true;
+}
 
 // Ellipse intensity model: parameters cx, cy, A11, A12, A22 (shape matrix,
 // (p-c)^T A (p-c) = 1 on the edge), ring level, disc level, blur sigma.
@@ -493,37 +618,43 @@ using EllipseParams = Eigen::Matrix<double, 8, 1>;
 
 // Signed distance (inside positive) of p from the ellipse and the unit
 // outward normal there (first order: (1 - r) / |grad r|).
-double EllipseDistance(const EllipseParams& x, const Eigen::Vector2d& p, Eigen::Vector2d* normal) {
+inline double EllipseDistance(const EllipseParams& x, const Eigen::Vector2d& p, double* nx, double* ny) {
   const double dx = p.x() - x[0], dy = p.y() - x[1];
   const double ax = x[2] * dx + x[3] * dy, ay = x[3] * dx + x[4] * dy;
   const double r = std::sqrt(std::max(dx * ax + dy * ay, 1e-12));
   const double gl = std::max(std::sqrt(ax * ax + ay * ay), 1e-12);
-  *normal = Eigen::Vector2d(ax / gl, ay / gl);
+  *nx = ax / gl;
+  *ny = ay / gl;
   return (1.0 - r) * r / gl;
 }
 
-double EllipseModel(const EllipseParams& x, const Eigen::Vector2d& p, EllipseParams* g) {
-  Eigen::Vector2d n;
-  const double d = EllipseDistance(x, p, &n);
-  const double sigma = std::max(x[7], kMinBlur);
-  const double ph = EdgeProfile(d, n.x(), n.y(), sigma);
-  const double val = x[5] + (x[6] - x[5]) * ph;
-  if (g) {
+struct EllipseModel {
+  std::array<double, 5> h{};
+  void Prepare(const EllipseParams& x) {
+    for (int i = 0; i < 5; ++i) h[i] = i < 2 ? 1e-6 : 1e-7 * std::max(1e-3, std::abs(x[i]));
+  }
+  double operator()(const EllipseParams& x, const Eigen::Vector2d& p, EllipseParams* g) const {
+    double nx, ny;
+    const double d = EllipseDistance(x, p, &nx, &ny);
+    double fa, fb;
+    Footprint(nx, ny, &fa, &fb);
+    const double sigma = std::max(x[7], kMinBlur);
+    const Profile pr = EdgeProfile(d, fa, fb, sigma);
     const double k = x[6] - x[5];
+    // d/dparam of the distance numerically (cheap arithmetic), the profile's
+    // derivative analytically; the footprint's change is second order.
     for (int i = 0; i < 5; ++i) {
       EllipseParams xp = x;
-      const double h = i < 2 ? 1e-6 : 1e-7 * std::max(1e-3, std::abs(x[i]));
-      xp[i] += h;
-      Eigen::Vector2d np;
-      const double dp = EllipseDistance(xp, p, &np);
-      (*g)[i] = k * (EdgeProfile(dp, np.x(), np.y(), sigma) - ph) / h;
+      xp[i] += h[i];
+      double mx, my;
+      (*g)[i] = k * pr.dd * (EllipseDistance(xp, p, &mx, &my) - d) / h[i];
     }
-    (*g)[5] = 1.0 - ph;
-    (*g)[6] = ph;
-    (*g)[7] = x[7] > kMinBlur ? k * (EdgeProfile(d, n.x(), n.y(), sigma + 1e-5) - ph) / 1e-5 : 0.0;
+    (*g)[5] = 1.0 - pr.v;
+    (*g)[6] = pr.v;
+    (*g)[7] = x[7] > kMinBlur ? k * pr.ds : 0.0;
+    return x[5] + k * pr.v;
   }
-  return val;
-}
+};
 
 Eigen::Vector3d FitConicCentre(const std::vector<Eigen::Vector2d>& pts, Eigen::Vector2d* centre) {
   // Algebraic conic fit ax^2 + bxy + cy^2 + dx + ey + f = 0 on normalised points.
@@ -545,13 +676,6 @@ Eigen::Vector3d FitConicCentre(const std::vector<Eigen::Vector2d>& pts, Eigen::V
   const Eigen::Vector2d c = a.fullPivLu().solve(Eigen::Vector2d(-v[3], -v[4]));
   *centre = c / scale + mean;
   return Eigen::Vector3d(v[0], v[1], v[2]);
-}
-
-double Percentile(std::vector<double> v, double f) {
-  if (v.empty()) return 0;
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(f * (v.size() - 1)));
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
 }
 
 }  // namespace
@@ -578,11 +702,28 @@ Eigen::Vector2d CirclePerspectiveBias(const ViewGeometry& view, const Eigen::Vec
 }
 
 Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* view) const {
-  const cv::Mat& im = mono.intensity;
+  if (mono.mono8.empty() && mono.intensity.empty()) throw InvalidArgument("image is empty");
+  if (!mono.intensity.empty() && mono.intensity.type() != CV_32FC1) {
+    throw InvalidArgument(Message("MonoImage.intensity must be CV_32FC1, got type ", mono.intensity.type()));
+  }
+  if (!mono.mono8.empty() && mono.mono8.type() != CV_8UC1) {
+    throw InvalidArgument(Message("MonoImage.mono8 must be CV_8UC1, got type ", mono.mono8.type()));
+  }
+  // What is measured: the float intensity of deep inputs, else mono8 itself.
+  cv::Mat mono8 = mono.mono8;
+  if (mono8.empty()) mono.intensity.convertTo(mono8, CV_8U);
+  const cv::Mat& meas = mono.intensity.empty() ? mono8 : mono.intensity;
+  if (meas.cols < 2 || meas.rows < 2) {
+    throw InvalidArgument(Message("image is empty (", meas.cols, "x", meas.rows, ")"));
+  }
+  if (!mono.intensity.empty() && mono.intensity.size() != mono8.size()) {
+    throw InvalidArgument(Message("MonoImage.mono8 is ", mono8.cols, "x", mono8.rows, " but intensity is ",
+                                  mono.intensity.cols, "x", mono.intensity.rows));
+  }
+  const ImageView im(meas);
   Result res;
   res.width = im.cols;
   res.height = im.rows;
-  if (im.empty()) throw InvalidArgument("image is empty");
   if (view) {
     const auto& s = view->camera.sensor();
     if (s.width != im.cols || s.height != im.rows) {
@@ -590,6 +731,8 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
                                     s.width, "x", s.height, " px"));
     }
   }
+  Detector& D = *detector_;
+  std::lock_guard<std::mutex> lock(D.mutex);
   const double noise_floor = options_.noise_floor > 0 ? options_.noise_floor : mono.quantisation / std::sqrt(12.0);
   const double margin = options_.border_margin;
   auto near_border = [&](const Eigen::Vector2d& p, double extra) {
@@ -612,13 +755,9 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
 
   // ---------------- AprilTags ----------------
   if (!options_.families.empty()) {
-    image_u8_t header{mono.mono8.cols, mono.mono8.rows, static_cast<int32_t>(mono.mono8.step[0]),
-                      const_cast<uint8_t*>(mono.mono8.ptr<uint8_t>(0))};
-    zarray_t* dets = nullptr;
-    {
-      std::lock_guard<std::mutex> lock(detector_->mutex);
-      dets = apriltag_detector_detect(detector_->td, &header);
-    }
+    image_u8_t header{mono8.cols, mono8.rows, static_cast<int32_t>(mono8.step[0]),
+                      const_cast<uint8_t*>(mono8.ptr<uint8_t>(0))};
+    zarray_t* dets = apriltag_detector_detect(D.td, &header);
     for (int i = 0; i < zarray_size(dets); ++i) {
       apriltag_detection_t* det;
       zarray_get(dets, i, &det);
@@ -650,13 +789,14 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
         reject(family, det->id, o.centre, RejectReason::kBorder, "a corner within the border margin");
         continue;
       }
-      // Edge-model fits.
+      // Edge-model fits on the pixels of a narrow band along each edge only.
       const double cell = o.size_px / det->family->width_at_border;
       std::array<EdgeFit, 4> edges;
       bool fits_ok = true;
       double worst_rel = 0, blur = 0, contrast = 1e9;
       for (int k = 0; k < 4; ++k) {
-        edges[k] = FitEdge(im, o.corners[k], o.corners[(k + 1) % 4], o.centre, cell, det->family->width_at_border, noise_floor);
+        edges[k] = FitEdge(im, o.corners[k], o.corners[(k + 1) % 4], o.centre, cell, det->family->width_at_border,
+                           noise_floor, &D.px);
         if (!edges[k].ok) {
           fits_ok = false;
           break;
@@ -694,7 +834,7 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
         for (int j = 1; j < 16; ++j) {
           const Eigen::Vector2d p = a + (b - a) * (j / 16.0) + nrm * (0.5 * cell);
           ++tot;
-          if (Sample(im, p.x(), p.y()) >= options_.saturation_level) ++sat;
+          if (im.Sample(p.x(), p.y()) >= options_.saturation_level) ++sat;
         }
       }
       if (contrast < options_.min_contrast) {
@@ -760,32 +900,48 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
 
   // ---------------- circles ----------------
   if (options_.detect_circles) {
-    // Bright blobs against their surroundings at three scales.
-    cv::Mat bright = cv::Mat::zeros(im.size(), CV_8U);
     const double dmin = options_.circle_min_diameter, dmax = options_.circle_max_diameter;
-    for (double k = 3 * dmin;; k *= 3) {
-      const int ks = std::min(2 * static_cast<int>(std::min(k, 1.5 * dmax) / 2) + 1, 2 * (std::min(im.cols, im.rows) / 2) - 1);
-      cv::Mat mean;
-      cv::boxFilter(im, mean, CV_32F, cv::Size(ks, ks), cv::Point(-1, -1), true, cv::BORDER_REPLICATE);
-      cv::Mat diff = im - mean;
-      cv::Mat b;
-      cv::compare(diff, 0.4 * options_.min_contrast, b, cv::CMP_GT);
-      bright |= b;
-      if (k >= 1.5 * dmax) break;
+    // Candidates on one pyramid level: the image reduced by f (area mean) so
+    // that the smallest disc is still >= 4 px across there; one local-contrast
+    // threshold per scale (box mean, saturating difference, threshold) and one
+    // connected-components pass. Everything after works on small ROIs of the
+    // full-resolution image. Buffers are members (no per-frame allocation).
+    const int f = std::clamp(static_cast<int>(std::floor(dmin / 4.0)), 1, 4);
+    cv::Mat small;
+    if (f > 1) {
+      const cv::Mat whole = mono8(cv::Rect(0, 0, (mono8.cols / f) * f, (mono8.rows / f) * f));
+      cv::resize(whole, D.small, cv::Size(mono8.cols / f, mono8.rows / f), 0, 0, cv::INTER_AREA);
+      small = D.small;
+    } else {
+      small = mono8;
+    }
+    auto to_full = [f](double xs) { return f * xs + 0.5 * (f - 1); };
+    D.bright.create(small.size(), CV_8U);
+    D.bright.setTo(0);
+    // Window sizes from 3 dmin to 1.5 dmax, at most a factor 4 apart.
+    const double kmin = 3 * dmin, kmax = std::max(kmin, 1.5 * dmax);
+    const int nscales = 1 + static_cast<int>(std::ceil(std::log(kmax / kmin) / std::log(4.0) - 1e-9));
+    const int kcap = std::max(3, 2 * ((std::min(small.cols, small.rows) - 1) / 2) + 1);
+    for (int i = 0; i < nscales; ++i) {
+      const double k = nscales == 1 ? kmin : kmin * std::pow(kmax / kmin, static_cast<double>(i) / (nscales - 1));
+      const int ks = std::clamp(2 * static_cast<int>(k / f / 2) + 1, 3, kcap);
+      cv::blur(small, D.thr, cv::Size(ks, ks), cv::Point(-1, -1), cv::BORDER_REPLICATE);
+      cv::subtract(small, D.thr, D.thr);  // saturating: max(0, image - local mean)
+      cv::threshold(D.thr, D.thr, 0.4 * options_.min_contrast, 255, cv::THRESH_BINARY);
+      cv::bitwise_or(D.bright, D.thr, D.bright);
     }
     // Tags are not circles: mask them out.
     for (const auto& q : tag_quads) {
       std::vector<cv::Point> poly;
       Eigen::Vector2d c = 0.25 * (q[0] + q[1] + q[2] + q[3]);
       for (const auto& p : q) {
-        const Eigen::Vector2d g = c + 1.3 * (p - c);
+        const Eigen::Vector2d g = (c + 1.3 * (p - c) - Eigen::Vector2d::Constant(0.5 * (f - 1))) / f;
         poly.emplace_back(static_cast<int>(std::lround(g.x())), static_cast<int>(std::lround(g.y())));
       }
-      cv::fillConvexPoly(bright, poly, cv::Scalar(0));
+      cv::fillConvexPoly(D.bright, poly, cv::Scalar(0));
     }
-    cv::Mat labels, stats, centroids;
-    const int nl = cv::connectedComponentsWithStats(bright, labels, stats, centroids, 8, CV_32S);
-    const double amin = M_PI / 4 * dmin * dmin * 0.5, amax = M_PI / 4 * dmax * dmax * 1.3;
+    const int nl = cv::connectedComponentsWithStats(D.bright, D.labels, D.stats, D.centroids, 8, CV_32S);
+    const double amin = M_PI / 4 * dmin * dmin * 0.4 / (f * f), amax = M_PI / 4 * dmax * dmax * 1.5 / (f * f);
     // Listed circles projected into the image (when the view is known).
     struct Expected {
       const io::TargetSpec* spec;
@@ -804,16 +960,18 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
         expected.push_back({&s, px, (edge - px).norm()});
       }
     }
-    std::vector<int> used(expected.size(), 0);
+    std::vector<double> inner, sectors, vals;
+    Pixels& px = D.px;
     for (int l = 1; l < nl; ++l) {
-      const int area = stats.at<int>(l, cv::CC_STAT_AREA);
+      const int area = D.stats.at<int>(l, cv::CC_STAT_AREA);
       if (area < amin || area > amax) continue;
-      const int bx = stats.at<int>(l, cv::CC_STAT_LEFT), by = stats.at<int>(l, cv::CC_STAT_TOP);
-      const int bw = stats.at<int>(l, cv::CC_STAT_WIDTH), bh = stats.at<int>(l, cv::CC_STAT_HEIGHT);
-      // Second moments of the component -> ellipse.
+      const int bx = D.stats.at<int>(l, cv::CC_STAT_LEFT), by = D.stats.at<int>(l, cv::CC_STAT_TOP);
+      const int bw = D.stats.at<int>(l, cv::CC_STAT_WIDTH), bh = D.stats.at<int>(l, cv::CC_STAT_HEIGHT);
+      if (f * std::max(bw, bh) > 1.3 * dmax + 2 * f) continue;
+      // Coarse ellipse from the component's moments on the reduced level.
       double sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, cnt = 0;
       for (int y = by; y < by + bh; ++y) {
-        const int* lr = labels.ptr<int>(y);
+        const int* lr = D.labels.ptr<int>(y);
         for (int x = bx; x < bx + bw; ++x) {
           if (lr[x] != l) continue;
           sx += x;
@@ -824,37 +982,66 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
           ++cnt;
         }
       }
+      Blob coarse;
+      if (!BlobFromMoments(cnt, sx, sy, sxx, sxy, syy, &coarse)) continue;
+      coarse.centre = Eigen::Vector2d(to_full(coarse.centre.x()), to_full(coarse.centre.y()));
+      coarse.a = std::max(f * coarse.a, 1.0);
+      coarse.b = std::max(f * coarse.b, 1.0);
+      // Full resolution, ROI only: disc level (median within half the coarse
+      // radius), dark level (10th percentile of the ROI), then the shape of
+      // the pixels above the midpoint within 1.3 coarse radii.
+      const double roi_r = 1.5 * coarse.a + 1.0;
+      const int rx0 = std::max(0, static_cast<int>(std::floor(coarse.centre.x() - roi_r)));
+      const int rx1 = std::min(im.cols - 1, static_cast<int>(std::ceil(coarse.centre.x() + roi_r)));
+      const int ry0 = std::max(0, static_cast<int>(std::floor(coarse.centre.y() - roi_r)));
+      const int ry1 = std::min(im.rows - 1, static_cast<int>(std::ceil(coarse.centre.y() + roi_r)));
+      const Eigen::Matrix2d cshape = coarse.Shape();
+      vals.clear();
+      inner.clear();
+      for (int y = ry0; y <= ry1; ++y) {
+        for (int x = rx0; x <= rx1; ++x) {
+          const double v = im.At(x, y);
+          vals.push_back(v);
+          const Eigen::Vector2d d(x - coarse.centre.x(), y - coarse.centre.y());
+          if (d.dot(cshape * d) <= 0.25) inner.push_back(v);
+        }
+      }
+      if (inner.empty()) {
+        inner.push_back(im.Sample(coarse.centre.x(), coarse.centre.y()));
+      }
+      const double thr0 = 0.5 * (Percentile(inner, 0.5) + Percentile(vals, 0.1));
+      sx = sy = sxx = sxy = syy = cnt = 0;
+      for (int y = ry0; y <= ry1; ++y) {
+        for (int x = rx0; x <= rx1; ++x) {
+          const Eigen::Vector2d d(x - coarse.centre.x(), y - coarse.centre.y());
+          if (d.dot(cshape * d) > 1.69 || im.At(x, y) < thr0) continue;
+          sx += x;
+          sy += y;
+          sxx += double(x) * x;
+          sxy += double(x) * y;
+          syy += double(y) * y;
+          ++cnt;
+        }
+      }
       Blob blob;
-      blob.centre = Eigen::Vector2d(sx / cnt, sy / cnt);
-      Eigen::Matrix2d m2;
-      m2 << sxx / cnt - blob.centre.x() * blob.centre.x(), sxy / cnt - blob.centre.x() * blob.centre.y(),
-          sxy / cnt - blob.centre.x() * blob.centre.y(), syy / cnt - blob.centre.y() * blob.centre.y();
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(m2);
-      if (es.eigenvalues()(0) <= 0) continue;
-      blob.a = 2 * std::sqrt(es.eigenvalues()(1));
-      blob.b = 2 * std::sqrt(es.eigenvalues()(0));
-      blob.area = cnt;
+      if (!BlobFromMoments(cnt, sx, sy, sxx, sxy, syy, &blob)) continue;
       const double fill = cnt / (M_PI * blob.a * blob.b);
       if (fill < 0.8 || fill > 1.2) continue;
       if (2 * blob.a < 0.8 * dmin || 2 * blob.a > dmax) continue;
       if (1.0 - blob.b / blob.a > options_.circle_max_eccentricity) continue;
-      const Eigen::Vector2d major = es.eigenvectors().col(1);
-      const Eigen::Vector2d minor = es.eigenvectors().col(0);
-      // Surround: 16 sectors of the annulus 1.3..1.6 radii must be dark.
-      auto at_scaled = [&](double ang, double s) {
-        return blob.centre + s * (blob.a * std::cos(ang) * major + blob.b * std::sin(ang) * minor);
-      };
       if (near_border(blob.centre, 1.7 * blob.a)) {
         // A bright blob at the border: only report it when it looks like a disc.
         reject("circle", -1, blob.centre, RejectReason::kBorder, "disc and its ring reach the image border");
         continue;
       }
-      std::vector<double> inner, sectors;
+      // Surround: 16 sectors of the annulus 1.3..1.6 radii must be dark.
+      inner.clear();
+      sectors.clear();
       for (int k = 0; k < 32; ++k) {
         const double ang = 2 * M_PI * k / 32;
         for (double s : {0.2, 0.45, 0.65}) {
-          const Eigen::Vector2d p = at_scaled(ang, s);
-          inner.push_back(Sample(im, p.x(), p.y()));
+          const Eigen::Vector2d p = blob.At(ang, s);
+          inner.push_back(im.Sample(p.x(), p.y()));
         }
       }
       for (int k = 0; k < 16; ++k) {
@@ -863,8 +1050,8 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
         for (int j = 0; j < 3; ++j) {
           const double ang = 2 * M_PI * (k + j / 3.0) / 16;
           for (double s : {1.3, 1.45, 1.6}) {
-            const Eigen::Vector2d p = at_scaled(ang, s);
-            sum += Sample(im, p.x(), p.y());
+            const Eigen::Vector2d p = blob.At(ang, s);
+            sum += im.Sample(p.x(), p.y());
             ++n;
           }
         }
@@ -907,6 +1094,7 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       o.id = id;
       if (spec) o.role = spec->role;
       o.contrast = contrast;
+      const Eigen::Matrix2d shape = blob.Shape();
       // Plain gray-weighted centroid (DESIGN.md) over the disc and the inner ring.
       {
         const double thr = 0.5 * (disc + ring);
@@ -916,13 +1104,12 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
                   x1 = static_cast<int>(std::ceil(blob.centre.x() + rr * blob.a));
         const int y0 = static_cast<int>(std::floor(blob.centre.y() - rr * blob.a)),
                   y1 = static_cast<int>(std::ceil(blob.centre.y() + rr * blob.a));
-        Eigen::Matrix2d shape = (major * major.transpose()) / (blob.a * blob.a) + (minor * minor.transpose()) / (blob.b * blob.b);
         for (int y = y0; y <= y1; ++y) {
-          const float* row = im.ptr<float>(y);
           for (int x = x0; x <= x1; ++x) {
             const Eigen::Vector2d d(x - blob.centre.x(), y - blob.centre.y());
             if (d.dot(shape * d) > rr * rr) continue;
-            const double q = row[x] >= thr ? row[x] : 0.0;
+            const double v = im.At(x, y);
+            const double q = v >= thr ? v : 0.0;
             sq += q;
             cx += q * x;
             cy += q * y;
@@ -932,13 +1119,12 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       }
       o.centre = o.gray_centroid;
       o.size_px = blob.a + blob.b;
-      // Intensity-model ellipse fit.
+      // Intensity-model ellipse fit on the pixels of a band around the edge.
       const double rmean = 0.5 * (blob.a + blob.b);
       const double band = std::clamp(0.25 * rmean, 1.5, 4.0);
-      Eigen::Matrix2d shape = (major * major.transpose()) / (blob.a * blob.a) + (minor * minor.transpose()) / (blob.b * blob.b);
       EllipseParams x0;
-      x0 << o.gray_centroid.x(), o.gray_centroid.y(), shape(0, 0), shape(0, 1), shape(1, 1), ring, disc, 0.3;
-      Pixels px;
+      x0 << o.gray_centroid.x(), o.gray_centroid.y(), shape(0, 0), shape(0, 1), shape(1, 1), ring, disc, 0.4;
+      px.clear();
       {
         const double rout = 1.0 + band / blob.b, rin = std::max(0.0, 1.0 - band / blob.b);
         const int xa = static_cast<int>(std::floor(blob.centre.x() - blob.a - band - 1)),
@@ -946,17 +1132,17 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
         const int ya = static_cast<int>(std::floor(blob.centre.y() - blob.a - band - 1)),
                   yb = static_cast<int>(std::ceil(blob.centre.y() + blob.a + band + 1));
         for (int y = std::max(0, ya); y <= std::min(im.rows - 1, yb); ++y) {
-          const float* row = im.ptr<float>(y);
           for (int x = std::max(0, xa); x <= std::min(im.cols - 1, xb); ++x) {
             const Eigen::Vector2d d(x - o.gray_centroid.x(), y - o.gray_centroid.y());
-            const double r = std::sqrt(d.dot(shape * d));
-            if (r > rout || r < rin) continue;
+            const double r2 = d.dot(shape * d);
+            if (r2 > rout * rout || r2 < rin * rin) continue;
             px.p.emplace_back(x, y);
-            px.v.push_back(row[x]);
+            px.v.push_back(im.At(x, y));
           }
         }
       }
-      const LmResult<8> fit = FitModel<8>(px, x0, EllipseModel);
+      EllipseModel model;
+      const LmResult<8> fit = FitModel<8>(px, x0, model, 30);
       if (!fit.ok || (fit.x.head<2>() - o.gray_centroid).norm() > 0.25 * rmean) {
         reject("circle", id, blob.centre, RejectReason::kFitFailed, "ellipse model fit did not converge");
         continue;
@@ -986,7 +1172,6 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
         o.perspective_corrected = true;
       }
       o.quality = std::clamp(fit_contrast / 100.0, 0.0, 1.0) * std::clamp(1.0 - rel / options_.max_residual, 0.0, 1.0);
-      if (best >= 0 && spec) used[best]++;
       res.observations.push_back(o);
       res.summary.num_circles++;
       if (!o.role) res.summary.num_unknown++;

@@ -141,11 +141,14 @@ struct ViewGeometry {
   camera::ExteriorOrientation pose;
 };
 
-// An image converted for measurement: 8-bit mono for libapriltag and a float
-// intensity image on the 8-bit scale (mono16 keeps its precision: /257).
+// An image converted for measurement: 8-bit mono for libapriltag and, for
+// inputs deeper than 8 bit only, a float intensity image on the 8-bit scale
+// (mono16 keeps its precision: /257). An 8-bit input is measured on mono8
+// directly: mono8 input is not copied (mono8 shares its data), colour and
+// bayer inputs are converted once, and no float image is made.
 struct MonoImage {
   cv::Mat mono8;       // CV_8UC1
-  cv::Mat intensity;   // CV_32FC1, 0..255
+  cv::Mat intensity;   // CV_32FC1, 0..255; empty for 8-bit inputs (then mono8 is measured)
   double quantisation = 1.0;  // [DN, 8-bit scale] size of one input level
 };
 
@@ -174,7 +177,8 @@ class TargetCentroider {
   const io::TargetList& targets() const { return targets_; }
 
   // The plain gray-weighted centroid (DESIGN.md) of the bright blob around
-  // `seed` within a square window of half size `radius` [px]: threshold
+  // `seed` within a square window of half size `radius` [px] of a CV_8UC1 or
+  // CV_32FC1 image: threshold
   // halfway between the window's dark and bright levels (automatic), pixels
   // under it set to 0, intensity-weighted mean. Returns false when the window
   // leaves the image or has no contrast.
