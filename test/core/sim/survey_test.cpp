@@ -139,6 +139,30 @@ TEST(SurveyTest, BadConfigurationsNameTheKey) {
   EXPECT_NE(e.find("receivers[0]"), std::string::npos) << e;
 }
 
+TEST(SurveyTest, FacingPlatesStandOnPostsTurnedToThePoint) {
+  const std::string good = ReadFile(kTiny);
+  const Eigen::Vector3d face(30.0, -40.0, 40.0);
+  const SurveyConfig config =
+      SurveyConfig::Parse(Replace(good, "mount_height: 0.03", "mount_height: 0.8\n  face_toward: [30.0, -40.0, 40.0]"),
+                          "facing.yaml");
+  const Scene scene(config.scene);
+  ASSERT_FALSE(scene.targets().empty());
+  for (const TargetTruth& t : scene.targets()) {
+    const Eigen::Vector3d c = t.positions[0];
+    const double ground = scene.AnalyticHeight(c.x(), c.y());
+    EXPECT_NEAR(c.z() - ground, 0.8, 0.05) << t.key;  // mesh vs analytic surface differ by mm
+    EXPECT_LT((t.normal - (face - c).normalized()).norm(), 1e-12) << t.key;
+    EXPECT_NEAR(t.up_in_plate.dot(t.normal), 0.0, 1e-12) << t.key;
+    EXPECT_GT(t.up_in_plate.z(), 0.0) << t.key;  // the tag's top row is up
+  }
+  // A plate whose lower edge would be in the ground is refused, naming the fix.
+  const std::string e = ErrorOf(Replace(good, "mount_height: 0.03", "mount_height: 0.05\n  face_toward: [30.0, -40.0, 40.0]"));
+  EXPECT_NE(e.find("mount_height"), std::string::npos) << e;
+  // Facing below the horizon is refused too.
+  const std::string e2 = ErrorOf(Replace(good, "mount_height: 0.03", "mount_height: 1.0\n  face_toward: [30.0, -40.0, -400.0]"));
+  EXPECT_NE(e2.find("face_toward"), std::string::npos) << e2;
+}
+
 TEST(SurveyTest, ShippedConfigsLoad) {
   for (const char* name : {"demo_site", "fixed_only", "uav_only", "faults"}) {
     const std::string path = std::string(SM_SOURCE_DIR) + "/config/sim/" + name + ".yaml";
