@@ -75,7 +75,10 @@ class HexMatcherNodelet : public nodelet::Nodelet {
     options_.interest.min_gradient = p.Double("min_gradient", 4.0, 0.0, 1e6, "grey/px");
     options_.lsc.model = matching::LscModelFromName(p.String("lsc_model", "affine", {"affine", "shift"}));
     options_.lsc.interpolation =
-        matching::InterpolationFromName(p.String("lsc_interpolation", "bilinear", {"bilinear", "bicubic"}));
+        matching::InterpolationFromName(p.String("lsc_interpolation", "bicubic", {"bilinear", "bicubic"}));
+    options_.lsc.gradient =
+        matching::LscGradientFromName(p.String("lsc_gradient", "template", {"template", "resampled"}));
+    options_.lsc.affine_min_f = p.Double("lsc_affine_min_f", 2.45, 0.0, 1e6);
     options_.lsc.half_window = p.Int("lsc_half_window", 5, 1, 50, "px");
     options_.lsc.estimate_gain = p.Bool("lsc_estimate_gain", false);
     options_.lsc.min_correlation = p.Double("lsc_min_correlation", 0.7, -1.0, 1.0);

@@ -63,6 +63,16 @@ LscModel LscModelFromName(const std::string& name) {
 
 const char* LscModelName(LscModel model) { return model == LscModel::kAffine ? "affine" : "shift"; }
 
+LscGradient LscGradientFromName(const std::string& name) {
+  if (name == "template") return LscGradient::kTemplate;
+  if (name == "resampled") return LscGradient::kResampled;
+  throw InvalidArgument(Message("LSC gradient '", name, "' unknown (use 'template' or 'resampled')"));
+}
+
+const char* LscGradientName(LscGradient gradient) {
+  return gradient == LscGradient::kTemplate ? "template" : "resampled";
+}
+
 const char* LscStatusName(LscSummary::Status status) {
   switch (status) {
     case LscSummary::Status::kConverged: return "converged";
@@ -86,6 +96,7 @@ void LscOptions::Check() const {
   if (!(convergence_affine > 0)) fail("convergence_affine", convergence_affine, "(0, inf)");
   if (!(max_shift > 0)) fail("max_shift", max_shift, "(0, inf)");
   if (!(max_affine > 0)) fail("max_affine", max_affine, "(0, inf)");
+  if (!(affine_min_f >= 0)) fail("affine_min_f", affine_min_f, "[0, inf)");
   if (!(max_gain_ratio > 1)) fail("max_gain_ratio", max_gain_ratio, "(1, inf)");
   if (!(min_correlation >= -1 && min_correlation <= 1)) fail("min_correlation", min_correlation, "[-1, 1]");
   if (!(min_gradient_energy >= 0)) fail("min_gradient_energy", min_gradient_energy, "[0, inf)");
@@ -232,11 +243,56 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
     s.xb = s.start;
   }
 
-  const bool affine = options.model == LscModel::kAffine;
+  // Template gradient (central differences of window a, one pixel beyond it).
+  // The Jacobian is built from it, mapped into b by the affine part
+  // (g grad B(X) = M^-T grad A(u, v) with M = dX/d(u, v)), not from the
+  // gradient of the resampled b: b's interpolated noise and its interpolated
+  // derivative are correlated wherever the noise variance of the interpolant
+  // changes with the sub-pixel position, and that correlation biases the
+  // solution (pixel locking). Central differences of a exclude the centre
+  // pixel, so the Jacobian is uncorrelated with the residual's noise.
+  std::vector<double> ga_u(n), ga_v(n);
+  if (options.gradient == LscGradient::kTemplate) {
+    const double mg = margin + 1.0;
+    if (xa.x() - h < mg || xa.y() - h < mg || xa.x() + h > image_a.cols - 1 - mg ||
+        xa.y() + h > image_a.rows - 1 - mg) {
+      s.status = Status::kOutside;
+      return s;
+    }
+    const int w = 2 * h + 3;  // window plus a one-pixel ring
+    std::vector<double> ring(w * w);
+    for (int v = -h - 1, k = 0; v <= h + 1; ++v)
+      for (int u = -h - 1; u <= h + 1; ++u, ++k) ring[k] = Sample(image_a, xa.x() + u, xa.y() + v, interp);
+    auto at = [&](int u, int v) { return ring[(v + h + 1) * w + (u + h + 1)]; };
+    for (int k = 0; k < n; ++k) {
+      const int u = static_cast<int>(us[k]), v = static_cast<int>(vs[k]);
+      ga_u[k] = 0.5 * (at(u + 1, v) - at(u - 1, v));
+      ga_v[k] = 0.5 * (at(u, v + 1) - at(u, v - 1));
+    }
+  }
+
+  // Eq. 1 is solved in two stages: eq. 2 (shift, offset, gain) to
+  // convergence first, then all parameters from there. Starting the four
+  // affine parameters together with a shift that is still up to a pixel off
+  // lets Gauss-Newton trade shift for scale along an edge and settle in a
+  // wrong minimum (measured: errors up to 1 px at 8 sigma on the warped
+  // Cones texture, doc/nodes/hex_matcher.md).
+  const bool affine_model = options.model == LscModel::kAffine;
   const bool gain = options.estimate_gain;
-  const int m = 2 + (affine ? 4 : 0) + (gain ? 1 : 0) + 1;
-  const int ig = affine ? 6 : 2;
-  const int io = ig + (gain ? 1 : 0);
+  bool affine = false;  // the stage: affine columns active
+  int m = 0, ig = 0, io = 0;
+  Mat jtj;
+  Vec jtr, row;
+  auto set_stage = [&](bool with_affine) {
+    affine = with_affine;
+    m = 2 + (affine ? 4 : 0) + (gain ? 1 : 0) + 1;
+    ig = affine ? 6 : 2;
+    io = ig + (gain ? 1 : 0);
+    jtj.resize(m, m);
+    jtr.resize(m);
+    row.resize(m);
+  };
+  set_stage(false);
   double p_aff[4] = {0, 0, 0, 0};
   double g = 1.0, o = 0.0;
   Eigen::Vector2d xb = s.start;
@@ -264,38 +320,61 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
     o = (ma - mb) / n;
   }
 
-  Mat jtj(m, m);
-  Vec jtr(m);
-  Vec row(m);
   std::vector<double> wb(n);
-  bool converged = false;
-  int it = 0;
-  for (; it < options.max_iterations; ++it) {
+  double sum_r2 = 0;
+  // Normal equations J^T J, J^T r and sum r^2 at the current parameters, one
+  // routine for both models (eq. 1 adds the four affine columns). False if
+  // the window leaves image b.
+  auto assemble = [&]() {
     jtj.setZero();
     jtr.setZero();
+    sum_r2 = 0;
+    // M^-T for the template gradient.
+    const double m11 = 1 + p_aff[0], m12 = p_aff[1], m21 = p_aff[2], m22 = 1 + p_aff[3];
+    const double det = m11 * m22 - m12 * m21;
     for (int k = 0; k < n; ++k) {
       double X, Y;
       map(k, &X, &Y);
-      if (!inside(X, Y)) {
-        s.status = Status::kOutside;
-        s.iterations = it;
-        return s;
+      if (!inside(X, Y)) return false;
+      double gx, gy, b;
+      if (options.gradient == LscGradient::kTemplate) {
+        b = Sample(image_b, X, Y, interp);
+        gx = (m22 * ga_u[k] - m21 * ga_v[k]) / det;
+        gy = (-m12 * ga_u[k] + m11 * ga_v[k]) / det;
+      } else {
+        float bx, by;
+        b = ValueGrad(image_b, X, Y, interp, &bx, &by);
+        gx = g * bx;
+        gy = g * by;
       }
-      float bx, by;
-      const double b = ValueGrad(image_b, X, Y, interp, &bx, &by);
+      wb[k] = b;
       const double r = g * b + o - wa[k];
-      row(0) = g * bx;
-      row(1) = g * by;
+      sum_r2 += r * r;
+      row(0) = gx;
+      row(1) = gy;
       if (affine) {
-        row(2) = g * bx * us[k];
-        row(3) = g * bx * vs[k];
-        row(4) = g * by * us[k];
-        row(5) = g * by * vs[k];
+        row(2) = gx * us[k];
+        row(3) = gx * vs[k];
+        row(4) = gy * us[k];
+        row(5) = gy * vs[k];
       }
       if (gain) row(ig) = b;
       row(io) = 1.0;
       jtj.noalias() += row * row.transpose();
       jtr += row * r;
+    }
+    return true;
+  };
+
+  Eigen::Vector2d xb_shift = xb;
+  double g_shift = g, o_shift = o, ssr_shift = -1;
+  bool converged = false;
+  int it = 0;
+  for (; it < options.max_iterations; ++it) {
+    if (!assemble()) {
+      s.status = Status::kOutside;
+      s.iterations = it;
+      return s;
     }
     // Conditioning on the column-scaled normal matrix.
     const Vec d = jtj.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
@@ -317,70 +396,78 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
     }
     if (gain) g += step(ig);
     o += step(io);
-    if ((xb - s.start).norm() > options.max_shift || !std::isfinite(xb.x()) || !std::isfinite(xb.y())) {
-      s.status = Status::kDiverged;
-      s.xb = xb;
-      s.iterations = it + 1;
-      return s;
-    }
-    if (affine && (std::fabs(p_aff[0]) > options.max_affine || std::fabs(p_aff[1]) > options.max_affine ||
-                   std::fabs(p_aff[2]) > options.max_affine || std::fabs(p_aff[3]) > options.max_affine)) {
-      s.status = Status::kDiverged;
-      s.xb = xb;
-      s.iterations = it + 1;
-      return s;
-    }
-    if (gain && (g < 1.0 / options.max_gain_ratio || g > options.max_gain_ratio)) {
+    const bool diverged =
+        (xb - s.start).norm() > options.max_shift || !std::isfinite(xb.x()) || !std::isfinite(xb.y()) ||
+        (affine && (std::fabs(p_aff[0]) > options.max_affine || std::fabs(p_aff[1]) > options.max_affine ||
+                    std::fabs(p_aff[2]) > options.max_affine || std::fabs(p_aff[3]) > options.max_affine)) ||
+        (gain && (g < 1.0 / options.max_gain_ratio || g > options.max_gain_ratio));
+    if (diverged) {
       s.status = Status::kDiverged;
       s.xb = xb;
       s.iterations = it + 1;
       return s;
     }
     if (step.head<2>().norm() < options.convergence_shift && max_aff_step < options.convergence_affine) {
+      if (affine_model && !affine) {
+        // Eq. 2 converged: keep its solution and residual for the F test,
+        // then release the affine parameters.
+        xb_shift = xb;
+        g_shift = g;
+        o_shift = o;
+        if (!assemble()) {
+          s.status = Status::kOutside;
+          s.iterations = it + 1;
+          return s;
+        }
+        ssr_shift = sum_r2;
+        set_stage(true);
+        continue;
+      }
       converged = true;
       ++it;
       break;
     }
   }
+  // Final residuals, precision and correlation at the solution.
+  if (!assemble()) {
+    s.status = Status::kOutside;
+    s.iterations = it;
+    return s;
+  }
+  // Eq. 1: F test of the four affine parameters against eq. 2 (residual sum
+  // of squares of both fits). Not significant -> the eq. 2 solution, whose
+  // shift is better determined (the affine terms would fit the noise).
+  if (converged && affine && options.affine_min_f > 0 && ssr_shift >= 0) {
+    const double ssr_affine = sum_r2;
+    s.affine_f = ((ssr_shift - ssr_affine) / 4.0) / std::max(ssr_affine / std::max(1, n - m), 1e-12);
+    if (s.affine_f < options.affine_min_f) {
+      xb = xb_shift;
+      g = g_shift;
+      o = o_shift;
+      for (double& a : p_aff) a = 0.0;
+      set_stage(false);
+      if (!assemble()) {
+        s.status = Status::kOutside;
+        s.iterations = it;
+        return s;
+      }
+    }
+  }
+  s.affine_used = affine;
   s.iterations = it;
   s.xb = xb;
   s.affine = Eigen::Vector4d(p_aff[0], p_aff[1], p_aff[2], p_aff[3]);
   s.gain = g;
   s.offset = o;
-
-  // Final residuals, precision and correlation at the solution.
-  jtj.setZero();
-  double sum_r2 = 0;
-  for (int k = 0; k < n; ++k) {
-    double X, Y;
-    map(k, &X, &Y);
-    if (!inside(X, Y)) {
-      s.status = Status::kOutside;
-      return s;
-    }
-    float bx, by;
-    const double b = ValueGrad(image_b, X, Y, interp, &bx, &by);
-    wb[k] = b;
-    const double r = g * b + o - wa[k];
-    sum_r2 += r * r;
-    row(0) = g * bx;
-    row(1) = g * by;
-    if (affine) {
-      row(2) = g * bx * us[k];
-      row(3) = g * bx * vs[k];
-      row(4) = g * by * us[k];
-      row(5) = g * by * vs[k];
-    }
-    if (gain) row(ig) = b;
-    row(io) = 1.0;
-    jtj.noalias() += row * row.transpose();
-  }
   const int dof = std::max(1, n - m);
   const double s0sq = sum_r2 / dof;
   s.sigma0 = std::sqrt(s0sq);
   s.correlation = Ncc(wa, wb);
   const Mat cov = s0sq * jtj.inverse();
   s.covariance = cov.topLeftCorner<2, 2>();
+  if (affine) {
+    for (int i = 0; i < 4; ++i) s.affine_sigma(i) = std::sqrt(std::max(0.0, cov(2 + i, 2 + i)));
+  }
   if (!converged) {
     s.status = Status::kNotConverged;
     return s;

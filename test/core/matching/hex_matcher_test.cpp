@@ -181,6 +181,8 @@ TEST(HexMatcher, ConesWithEpipolarPriorAgainstGroundTruth) {
               r.summary.matched, valid, 100.0 * w05 / valid, 100.0 * w1 / valid);
   for (const auto& kv : r.summary.rejects) std::printf("  reject %s: %d\n", kv.first.c_str(), kv.second);
   EXPECT_GT(valid, 50);
+  // Measured 87.2 % within 0.5 px, 91.5 % within 1 px (bicubic eq. 1).
+  EXPECT_GT(double(w05) / valid, 0.8);
   EXPECT_GT(double(w1) / valid, 0.85);
 }
 
