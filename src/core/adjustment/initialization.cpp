@@ -3,10 +3,44 @@
 #include <map>
 #include <vector>
 
+#include <Eigen/SVD>
+
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/rigid3.h"
 
 namespace slope_monitor {
 namespace adjustment {
+namespace {
+
+// An image with a GNSS projection centre but too few control points to
+// resect: the attitude that turns the image rays onto the directions from the
+// centre to the known points (Wahba's problem, solved by SVD), accepted when
+// every point reprojects within max_px. Needs >= 2 points.
+bool OrientFromPositionPrior(const camera::CameraModel& model, const Eigen::Vector3d& centre,
+                             const std::vector<Eigen::Vector2d>& px, const std::vector<Eigen::Vector3d>& xyz,
+                             double max_px, camera::ExteriorOrientation* exterior) {
+  if (px.size() < 2) return false;
+  Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
+  for (size_t k = 0; k < px.size(); ++k) {
+    const Eigen::Vector3d d = model.PixelToOpticalDirection(px[k]).normalized();
+    const Eigen::Vector3d u = (xyz[k] - centre).normalized();
+    h += d * u.transpose();
+  }
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(h, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d fix = Eigen::Matrix3d::Identity();
+  fix(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1.0 : 1.0;
+  const Eigen::Matrix3d site_from_optical = svd.matrixV() * fix * svd.matrixU().transpose();
+  const camera::ExteriorOrientation e =
+      camera::ExteriorOrientation::FromOpticalFromSite(Rigid3(site_from_optical, centre).Inverse());
+  for (size_t k = 0; k < px.size(); ++k) {
+    Eigen::Vector2d p;
+    if (!model.Project(e, xyz[k], &p) || (p - px[k]).norm() > max_px) return false;
+  }
+  *exterior = e;
+  return true;
+}
+
+}  // namespace
 
 std::string InitializeScene(Scene* scene, const InitializationOptions& options) {
   scene->CheckIndices();
@@ -42,6 +76,11 @@ std::string InitializeScene(Scene* scene, const InitializationOptions& options) 
       if (r.success) {
         im.exterior = r.exterior;
         im.exterior_known = true;
+        changed = true;
+      } else if (im.position_prior && options.prior_attitude_max_px > 0.0 &&
+                 OrientFromPositionPrior(scene->cameras[im.camera].model, *im.position_prior, px, xyz,
+                                         options.prior_attitude_max_px, &im.exterior)) {
+        im.exterior_known = true;  // GNSS centre + attitude from the known points
         changed = true;
       } else {
         last_failure = Message("image '", im.name, "': resection failed: ", r.message);

@@ -18,6 +18,11 @@ struct InitializationOptions {
   geometry::ResectionOptions resection;
   geometry::IntersectionOptions intersection;
   int max_passes = 4;
+  // Images with a GNSS position prior that cannot be resected (fewer than four
+  // known points, as a UAV photo seeing two or three targets): the attitude is
+  // fitted to the known points seen (>= 2) with the prior as projection centre,
+  // and kept when every one reprojects within this [px] (0 = off).
+  double prior_attitude_max_px = 25.0;
 };
 
 // Returns "" when every image and every point observed by >= 2 images has an
