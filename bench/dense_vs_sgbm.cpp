@@ -12,6 +12,8 @@
 //   ratio bad1 ours/sgbm = ...
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
+#include <map>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -46,6 +48,12 @@ void Print(const char* name, const DisparityErrors& e, double seconds, int pixel
 int main(int argc, char** argv) {
   const std::string dir = argc > 1 ? argv[1] : std::string(SM_SOURCE_DIR) + "/test/data/stereo_middlebury_cones";
   const int reps = argc > 2 ? std::max(1, std::atoi(argv[2])) : 10;
+  std::map<std::string, double> over;  // key=value overrides of CorrelationOptions
+  for (int i = 3; i < argc; ++i) {
+    const std::string a = argv[i];
+    const size_t eq = a.find('=');
+    if (eq != std::string::npos) over[a.substr(0, eq)] = std::atof(a.c_str() + eq + 1);
+  }
   cv::setNumThreads(2);
   const cv::Mat left = cv::imread(dir + "/left.tif", cv::IMREAD_GRAYSCALE);
   const cv::Mat right = cv::imread(dir + "/right.tif", cv::IMREAD_GRAYSCALE);
@@ -63,28 +71,57 @@ int main(int argc, char** argv) {
   opt.final_grid_spacing = 1;
   opt.min_disparity = 0;
   opt.max_disparity = 64;
-  cv::Mat ours;
-  auto t0 = std::chrono::steady_clock::now();
-  for (int i = 0; i < reps; ++i) ours = MatchRectified(left, right, opt).disparity;
-  const double t_ours = Seconds(t0) / reps;
-  const DisparityErrors e_ours = EvaluateDisparity(ours, gt, occl, thresholds);
-
+  for (const auto& [k, v] : over) {
+    if (k == "window") opt.window = static_cast<int>(v);
+    else if (k == "final_window") opt.final_window = static_cast<int>(v);
+    else if (k == "min_correlation") opt.min_correlation = v;
+    else if (k == "lr_tolerance") opt.lr_tolerance = v;
+    else if (k == "order_tolerance") opt.order_tolerance = v;
+    else if (k == "search_radius") opt.search_radius = static_cast<int>(v);
+    else if (k == "grid_spacing") opt.grid_spacing = static_cast<int>(v);
+    else if (k == "median_filter") opt.median_filter = v != 0;
+    else if (k == "order_check") opt.order_check = v != 0;
+    else if (k == "two_way") opt.two_way = v != 0;
+    else if (k == "peak_frequency") opt.peak_frequency = v;
+    else if (k == "levels") opt.levels = static_cast<int>(v);
+    else {
+      std::fprintf(stderr, "unknown option '%s'\n", k.c_str());
+      return 1;
+    }
+  }
   // OpenCV StereoSGBM with the parameters of OpenCV's own stereo_match sample.
   const int block = 5;
   cv::Ptr<cv::StereoSGBM> sgbm = cv::StereoSGBM::create(0, 64, block, 8 * block * block, 32 * block * block, 1, 63,
                                                         10, 100, 32, cv::StereoSGBM::MODE_SGBM);
-  cv::Mat raw;
-  t0 = std::chrono::steady_clock::now();
-  for (int i = 0; i < reps; ++i) sgbm->compute(left, right, raw);
-  const double t_sgbm = Seconds(t0) / reps;
+  // Interleaved repetitions (ours, SGBM, ours, ...) on a shared machine: the
+  // minimum time of each is the least disturbed; the median is printed too.
+  cv::Mat ours, raw;
+  slope_monitor::dense::CorrelationSummary summary;
+  std::vector<double> times_ours, times_sgbm;
+  for (int i = 0; i < reps; ++i) {
+    auto t0 = std::chrono::steady_clock::now();
+    ours = MatchRectified(left, right, opt, &summary).disparity;
+    times_ours.push_back(Seconds(t0));
+    t0 = std::chrono::steady_clock::now();
+    sgbm->compute(left, right, raw);
+    times_sgbm.push_back(Seconds(t0));
+  }
+  std::sort(times_ours.begin(), times_ours.end());
+  std::sort(times_sgbm.begin(), times_sgbm.end());
+  const double t_ours = times_ours.front(), t_sgbm = times_sgbm.front();
+  const double med_ours = times_ours[reps / 2], med_sgbm = times_sgbm[reps / 2];
+  const DisparityErrors e_ours = EvaluateDisparity(ours, gt, occl, thresholds);
   cv::Mat sgbm_disp;
   raw.convertTo(sgbm_disp, CV_32F, 1.0 / 16.0);
   const DisparityErrors e_sgbm = EvaluateDisparity(sgbm_disp, gt, occl, thresholds, -0.5f);
 
   std::printf("Cones %dx%d, %d non-occluded evaluated pixels, %d repetitions, OpenCV threads %d\n", left.cols,
               left.rows, e_ours.evaluated, reps, cv::getNumThreads());
+  std::printf("%s\n", summary.BriefReport().c_str());
   Print("ours", e_ours, t_ours, pixels);
   Print("sgbm", e_sgbm, t_sgbm, pixels);
+  std::printf("median time: ours %.4f s, sgbm %.4f s (ratio of medians %.3f)\n", med_ours, med_sgbm,
+              med_sgbm / med_ours);
   std::printf("ratio throughput ours/sgbm = %.3f\n", t_sgbm / t_ours);
   std::printf("ratio bad1 ours/sgbm = %.3f\n", e_ours.bad_fraction[0] / e_sgbm.bad_fraction[0]);
   std::printf("ratio bad2 ours/sgbm = %.3f\n", e_ours.bad_fraction[1] / e_sgbm.bad_fraction[1]);

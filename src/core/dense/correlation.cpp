@@ -3,11 +3,17 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <sstream>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
+
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/matching/filters.h"
@@ -31,138 +37,401 @@ struct DenseResult {
   cv::Mat correlation;  // CV_32F
 };
 
+inline int Reflect101(int i, int n) {
+  if (n == 1) return 0;
+  while (i < 0 || i >= n) i = i < 0 ? -i : 2 * n - 2 - i;
+  return i;
+}
+
+// The row kernels below are compiled twice (AVX2 and the baseline) and picked
+// at load time, so the inner loops use 8-wide vectors where the CPU has them.
+#if defined(__GNUC__) && defined(__x86_64__) && !defined(__clang__)
+#define SM_DENSE_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define SM_DENSE_CLONES
+#endif
+
+// Adds image row (l, idx, rp) of the right image warped by offset k to the
+// column sums of w, w^2 and l*w (AccumulateRow), or a row in and a row out
+// (UpdateRows):  v(x) = rp[idx(x) - k].
+SM_DENSE_CLONES void AccumulateRow(const float* __restrict l, const int* __restrict idx,
+                                   const float* __restrict rp, int k, int w, float* __restrict cw,
+                                   float* __restrict cww, float* __restrict clw) {
+  for (int x = 0; x < w; ++x) {
+    const float v = rp[idx[x] - k];
+    cw[x] += v;
+    cww[x] += v * v;
+    clw[x] += l[x] * v;
+  }
+}
+
+SM_DENSE_CLONES void UpdateRows(const float* __restrict la, const int* __restrict ia, const float* __restrict ra,
+                                const float* __restrict ls, const int* __restrict is, const float* __restrict rs,
+                                int k, int w, float* __restrict cw, float* __restrict cww, float* __restrict clw) {
+  for (int x = 0; x < w; ++x) {
+    const float va = ra[ia[x] - k], vs = rs[is[x] - k];
+    cw[x] += va - vs;
+    cww[x] += va * va - vs * vs;
+    clw[x] += la[x] * va - ls[x] * vs;
+  }
+}
+
+// out[x] = sum_{j = 0}^{len-1} in[x + j] for x in [0, n), by doubling:
+// partial sums of 1, 2, 4, ... elements combined by the binary digits of len
+// (about 2 log2(len) vector passes). tmp: 2 (n + len) floats.
+SM_DENSE_CLONES void SlidingSum(const float* __restrict in, int n, int len, float* __restrict out,
+                                float* __restrict tmp) {
+  const int total = n + len - 1;  // elements of `in` used
+  const float* p = in;            // sums of `span` consecutive elements
+  float* q = tmp;
+  float* q2 = tmp + total;
+  int span = 1, done = 0;
+  bool first = true;
+  for (int bit = 0; (1 << bit) <= len; ++bit) {
+    if (len & (1 << bit)) {
+      const float* src = p + done;
+      if (first) {
+        for (int x = 0; x < n; ++x) out[x] = src[x];
+        first = false;
+      } else {
+        for (int x = 0; x < n; ++x) out[x] += src[x];
+      }
+      done += span;
+    }
+    if ((2 << bit) > len) break;
+    // Only the part still needed: positions done .. done + n + (len - done - 2 span) of the new sums.
+    const int valid = total - 2 * span + 1;
+    const float* __restrict pp = p;
+    float* __restrict qq = q;
+    for (int x = 0; x < valid; ++x) qq[x] = pp[x] + pp[x + span];
+    p = q;
+    std::swap(q, q2);
+    span *= 2;
+  }
+}
+
+// ZNCC of one row for one offset from the window sums. A window is usable
+// when the left window has content and variance (il > 0) and the right
+// window around the warped centre lies on content (okr[idx(x) - k] = 1: the
+// right mask eroded by the window, padded with 0).
+void ScoreRowScalar(const float* bw, const float* bww, const float* blw, const float* ml, const float* il,
+                    float inv_count, float min_var, int x0, int w, float* score) {
+  for (int x = x0; x < w; ++x) {
+    const float var_r = bww[x] - bw[x] * bw[x] * inv_count;
+    const float cov = blw[x] - ml[x] * bw[x];
+    score[x] = var_r > min_var ? cov * il[x] / std::sqrt(var_r) : -2.0f;
+  }
+}
+
+#if defined(__GNUC__) && defined(__x86_64__)
+#define SM_DENSE_HAVE_AVX2_PATH 1
+__attribute__((target("avx2"))) void ScoreRowAvx2(const float* bw, const float* bww, const float* blw,
+                                                  const float* ml, const float* il, float inv_count, float min_var,
+                                                  int w, float* score) {
+  const __m256 vinv = _mm256_set1_ps(inv_count), vmin = _mm256_set1_ps(min_var), vbad = _mm256_set1_ps(-2.0f);
+  int x = 0;
+  for (; x + 8 <= w; x += 8) {
+    const __m256 sw = _mm256_loadu_ps(bw + x);
+    const __m256 var_r = _mm256_sub_ps(_mm256_loadu_ps(bww + x), _mm256_mul_ps(_mm256_mul_ps(sw, sw), vinv));
+    const __m256 cov = _mm256_sub_ps(_mm256_loadu_ps(blw + x), _mm256_mul_ps(_mm256_loadu_ps(ml + x), sw));
+    const __m256 ok = _mm256_cmp_ps(var_r, vmin, _CMP_GT_OQ);
+    const __m256 s = _mm256_div_ps(_mm256_mul_ps(cov, _mm256_loadu_ps(il + x)),
+                                   _mm256_sqrt_ps(_mm256_max_ps(var_r, vmin)));
+    _mm256_storeu_ps(score + x, _mm256_blendv_ps(vbad, s, ok));
+  }
+  ScoreRowScalar(bw, bww, blw, ml, il, inv_count, min_var, x, w, score);
+}
+#endif
+
+// ZNCC of one row for one offset from the window sums. A window is usable
+// when the left window has content and variance (il > 0) and the right
+// window around the warped centre lies on content (okr[idx(x) - k] = 1: the
+// right mask eroded by the window, padded with 0).
+void ScoreRow(const float* bw, const float* bww, const float* blw, const float* okr, const int* idx, int k,
+              const float* ml, const float* il, float inv_count, float min_var, int w, float* score) {
+#ifdef SM_DENSE_HAVE_AVX2_PATH
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  if (avx2)
+    ScoreRowAvx2(bw, bww, blw, ml, il, inv_count, min_var, w, score);
+  else
+#endif
+    ScoreRowScalar(bw, bww, blw, ml, il, inv_count, min_var, 0, w, score);
+  for (int x = 0; x < w; ++x)
+    if (!(okr[idx[x] - k] > 0.5f) || !(il[x] > 0.0f)) score[x] = -2.0f;
+}
+
+// Running arg-max over the offsets.
+SM_DENSE_CLONES void ArgMaxRow(const float* __restrict score, int ki, int w, float* __restrict best_s,
+                               int* __restrict best_k) {
+  for (int x = 0; x < w; ++x) {
+    const bool better = score[x] > best_s[x];
+    best_s[x] = better ? score[x] : best_s[x];
+    best_k[x] = better ? ki : best_k[x];
+  }
+}
+
+// Per-thread working memory of Search, kept between calls (no allocation per
+// pixel, and none per call once the sizes are reached).
+struct SearchBuffers {
+  std::vector<float> col;      // n offsets x 3 channels x (w + 2 r): column sums of w, w^2, l*w
+  std::vector<float> box;      // 3 x w: window sums of the current row and offset
+  std::vector<float> tmp;      // SlidingSum scratch
+  std::vector<float> scores;   // n x w: ZNCC of the current row per offset
+  std::vector<float> best_s;
+  std::vector<int> best_k;
+};
+
+struct SearchWorkspace {
+  cv::Mat sum_l, sum_ll, ok_l, ok_r, mean_l, inv_sd_l, rp, bp, idx;
+};
+
+// Per pyramid level, per thread: the search workspaces and results, reused by
+// the next call (a surface is usually measured patch after patch of one size).
+struct LevelWorkspace {
+  SearchWorkspace ws_l, ws_r;
+  DenseResult res_l, res_r;
+  cv::Mat median_l, median_r;
+  cv::Mat down_l, down_r, log_l, log_r, log_tmp, mask_l, mask_r;
+};
+
+LevelWorkspace& LevelCache(int level) {
+  static thread_local std::vector<LevelWorkspace> cache;
+  if (static_cast<int>(cache.size()) <= level) cache.resize(level + 1);
+  return cache[level];
+}
+
 // ZNCC search of `left` against `right` for parallaxes base(x) + k, k in
 // [k_min, k_max] (base: per-pixel integer prediction, CV_32S, or empty = 0).
-// Masks: CV_8U 1 = content.
-DenseResult Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int k_min, int k_max,
-                   int window, double min_correlation, const cv::Mat& mask_left, const cv::Mat& mask_right) {
-  const int w = left.cols, h = left.rows;
-  const cv::Size box(window, window);
-  cv::Mat mean_l, mean_ll;
-  cv::boxFilter(left, mean_l, CV_32F, box, cv::Point(-1, -1), true, cv::BORDER_REFLECT_101);
-  cv::boxFilter(left.mul(left), mean_ll, CV_32F, box, cv::Point(-1, -1), true, cv::BORDER_REFLECT_101);
-  cv::Mat bad_left;  // fraction of window pixels without content
-  cv::Mat inv_left = 1.0f - mask_left;
-  cv::boxFilter(inv_left, bad_left, CV_32F, box, cv::Point(-1, -1), true, cv::BORDER_CONSTANT);
-
+// Masks: CV_8U 1 = content. The right image is warped by base + k and the
+// window sums of the warped values, their squares and their products with the
+// left image are kept as running sums: column sums updated by one row in and
+// one row out per image row, window sums along the row by doubling sums, so
+// the cost per pixel and offset hardly depends on the window. Rows are split
+// into stripes processed in parallel.
+//
+// direction +1: `left` is the left image, a pixel x matches right x - (base + k);
+// direction -1: `left` is the RIGHT image and `right` the left one, a pixel x
+// matches x + (base + k) (the right-to-left search without mirroring).
+// `ws` and `out` are kept by the caller between calls (same sizes: no new
+// memory, no page faults).
+void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int k_min, int k_max, int window,
+            double min_correlation, const cv::Mat& mask_left, const cv::Mat& mask_right, int direction,
+            SearchWorkspace& ws, DenseResult& out) {
+  const int w = left.cols, h = left.rows, r = window / 2;
   const int n = k_max - k_min + 1;
-  std::vector<cv::Mat> scores(n);
-  cv::Mat warped(h, w, CV_32F), warped_inv(h, w, CV_32F);
-  cv::Mat mean_r, mean_rr, mean_lr, bad_right;
-  for (int ki = 0; ki < n; ++ki) {
-    const int k = k_min + ki;
-    for (int y = 0; y < h; ++y) {
-      const float* r = right.ptr<float>(y);
-      const uchar* mr = mask_right.ptr<uchar>(y);
-      const int* b = base.empty() ? nullptr : base.ptr<int>(y);
-      float* o = warped.ptr<float>(y);
-      float* oi = warped_inv.ptr<float>(y);
-      for (int x = 0; x < w; ++x) {
-        const int xr = x - (b ? b[x] : 0) - k;
-        if (xr >= 0 && xr < w) {
-          o[x] = r[xr];
-          oi[x] = mr[xr] ? 0.0f : 1.0f;
-        } else {
-          o[x] = 0.0f;
-          oi[x] = 1.0f;
-        }
-      }
-    }
-    cv::boxFilter(warped, mean_r, CV_32F, box, cv::Point(-1, -1), true, cv::BORDER_REFLECT_101);
-    cv::boxFilter(warped.mul(warped), mean_rr, CV_32F, box, cv::Point(-1, -1), true, cv::BORDER_REFLECT_101);
-    cv::boxFilter(warped.mul(left), mean_lr, CV_32F, box, cv::Point(-1, -1), true, cv::BORDER_REFLECT_101);
-    cv::boxFilter(warped_inv, bad_right, CV_32F, box, cv::Point(-1, -1), true, cv::BORDER_CONSTANT);
-    cv::Mat& s = scores[ki];
-    s.create(h, w, CV_32F);
-    for (int y = 0; y < h; ++y) {
-      const float* ml = mean_l.ptr<float>(y);
-      const float* mll = mean_ll.ptr<float>(y);
-      const float* mr = mean_r.ptr<float>(y);
-      const float* mrr = mean_rr.ptr<float>(y);
-      const float* mlr = mean_lr.ptr<float>(y);
-      const float* bl = bad_left.ptr<float>(y);
-      const float* br = bad_right.ptr<float>(y);
-      float* so = s.ptr<float>(y);
-      for (int x = 0; x < w; ++x) {
-        const float vl = mll[x] - ml[x] * ml[x];
-        const float vr = mrr[x] - mr[x] * mr[x];
-        const float den = vl * vr;
-        if (bl[x] > 1e-4f || br[x] > 1e-4f || !(den > 1e-12f)) {
-          so[x] = -2.0f;
-        } else {
-          so[x] = (mlr[x] - ml[x] * mr[x]) / std::sqrt(den);
-        }
-      }
+  const float count = static_cast<float>(window) * window, inv_count = 1.0f / count;
+  const float min_var = 1e-12f * count;
+  const cv::Size box(window, window);
+
+  // Left window statistics (independent of the offset).
+  cv::boxFilter(left, ws.sum_l, CV_32F, box, cv::Point(-1, -1), false, cv::BORDER_REFLECT_101);
+  cv::sqrBoxFilter(left, ws.sum_ll, CV_32F, box, cv::Point(-1, -1), false, cv::BORDER_REFLECT_101);
+  // The whole window has content (pixels outside the image do not count).
+  cv::erode(mask_left, ws.ok_l, cv::getStructuringElement(cv::MORPH_RECT, box), cv::Point(-1, -1), 1,
+            cv::BORDER_CONSTANT, cv::Scalar(1));
+  ws.mean_l.create(h, w, CV_32F);
+  ws.inv_sd_l.create(h, w, CV_32F);  // 0: window unusable
+  for (int y = 0; y < h; ++y) {
+    const float* s = ws.sum_l.ptr<float>(y);
+    const float* ss = ws.sum_ll.ptr<float>(y);
+    const uchar* ok = ws.ok_l.ptr<uchar>(y);
+    float* m = ws.mean_l.ptr<float>(y);
+    float* is = ws.inv_sd_l.ptr<float>(y);
+    for (int x = 0; x < w; ++x) {
+      m[x] = s[x] * inv_count;
+      const float var = ss[x] - s[x] * m[x];
+      is[x] = (ok[x] && var > min_var) ? 1.0f / std::sqrt(var) : 0.0f;
     }
   }
 
-  DenseResult out;
+  // Padded right image and the padded right "window on content" flags (the
+  // mask eroded by the window; outside the image: no content).
+  // idx(y, x) = x - base(y, x) clamped to the padding, so v = right_padded[idx - k]
+  // needs no branch.
+  cv::erode(mask_right, ws.ok_r, cv::getStructuringElement(cv::MORPH_RECT, box), cv::Point(-1, -1), 1,
+            cv::BORDER_CONSTANT, cv::Scalar(1));
+  const int pad = std::max(std::abs(k_min), std::abs(k_max)) + 1;
+  const int off = 2 * pad, wp = w + 4 * pad;
+  ws.rp.create(h, wp, CV_32F);
+  ws.bp.create(h, wp, CV_32F);
+  ws.idx.create(h, w, CV_32S);
+  ws.rp.setTo(0.0f);
+  ws.bp.setTo(0.0f);
+  for (int y = 0; y < h; ++y) {
+    const float* rr = right.ptr<float>(y);
+    const uchar* mr = mask_right.ptr<uchar>(y);
+    const uchar* okr = ws.ok_r.ptr<uchar>(y);
+    float* o = ws.rp.ptr<float>(y) + off;
+    float* ob = ws.bp.ptr<float>(y) + off;
+    // Columns closer than r to the border: the window would leave the image.
+    for (int x = 0; x < w; ++x) {
+      o[x] = mr[x] ? rr[x] : 0.0f;
+      ob[x] = (okr[x] && x >= r && x < w - r) ? 1.0f : 0.0f;
+    }
+    const int* b = base.empty() ? nullptr : base.ptr<int>(y);
+    int* id = ws.idx.ptr<int>(y);
+    for (int x = 0; x < w; ++x) id[x] = std::clamp(x - direction * (b ? b[x] : 0), -pad, w - 1 + pad) + off;
+  }
+
   out.disparity.create(h, w, CV_32F);
   out.correlation.create(h, w, CV_32F);
-  for (int y = 0; y < h; ++y) {
-    const int* b = base.empty() ? nullptr : base.ptr<int>(y);
-    float* d = out.disparity.ptr<float>(y);
-    float* c = out.correlation.ptr<float>(y);
-    for (int x = 0; x < w; ++x) {
-      int best = -1;
-      float best_s = -2.0f;
-      for (int ki = 0; ki < n; ++ki) {
-        const float v = scores[ki].at<float>(y, x);
-        if (v > best_s) {
-          best_s = v;
-          best = ki;
+  const float min_corr = static_cast<float>(min_correlation);
+  const int stripes = std::max(1, std::min(h / 16, 2 * std::max(1, cv::getNumThreads())));
+  const int cw_len = w + 2 * r;
+  const cv::Mat& idx = ws.idx;
+  const cv::Mat& rp = ws.rp;
+  const cv::Mat& bp = ws.bp;
+  const cv::Mat& mean_l = ws.mean_l;
+  const cv::Mat& inv_sd_l = ws.inv_sd_l;
+
+  cv::parallel_for_(cv::Range(0, stripes), [&](const cv::Range& range) {
+    static thread_local SearchBuffers buf;
+    buf.col.resize(static_cast<size_t>(n) * 3 * cw_len);
+    buf.box.resize(3 * static_cast<size_t>(w));
+    buf.tmp.resize(2 * static_cast<size_t>(cw_len + window));
+    buf.scores.resize(static_cast<size_t>(n) * w);
+    buf.best_s.resize(w);
+    buf.best_k.resize(w);
+    for (int stripe = range.start; stripe < range.end; ++stripe) {
+      const int y0 = static_cast<int>(static_cast<long>(h) * stripe / stripes);
+      const int y1 = static_cast<int>(static_cast<long>(h) * (stripe + 1) / stripes);
+      std::fill(buf.col.begin(), buf.col.end(), 0.0f);
+      for (int y = y0; y < y1; ++y) {
+        const float* ml = mean_l.ptr<float>(y);
+        const float* il = inv_sd_l.ptr<float>(y);
+        float* best_s = buf.best_s.data();
+        int* best_k = buf.best_k.data();
+        std::fill(buf.best_s.begin(), buf.best_s.end(), -2.0f);
+        std::fill(buf.best_k.begin(), buf.best_k.end(), -10);
+        for (int ki = 0; ki < n; ++ki) {
+          const int k = direction * (k_min + ki);  // index shift in the padded row
+          float* c[3];
+          for (int ch = 0; ch < 3; ++ch) c[ch] = &buf.col[(static_cast<size_t>(ki) * 3 + ch) * cw_len] + r;
+          // Column sums: the window of rows around y (rows reflected at the border).
+          if (y == y0) {
+            for (int j = -r; j <= r; ++j) {
+              const int yy = Reflect101(y + j, h);
+              AccumulateRow(left.ptr<float>(yy), idx.ptr<int>(yy), rp.ptr<float>(yy), k, w, c[0], c[1], c[2]);
+            }
+          } else {
+            const int ya = Reflect101(y + r, h), ys = Reflect101(y - r - 1, h);
+            UpdateRows(left.ptr<float>(ya), idx.ptr<int>(ya), rp.ptr<float>(ya), left.ptr<float>(ys),
+                       idx.ptr<int>(ys), rp.ptr<float>(ys), k, w, c[0], c[1], c[2]);
+          }
+          // Window sums along the row (columns reflected at the image border).
+          float* bx[3];
+          for (int ch = 0; ch < 3; ++ch) {
+            for (int j = 1; j <= r; ++j) {
+              c[ch][-j] = c[ch][Reflect101(-j, w)];
+              c[ch][w - 1 + j] = c[ch][Reflect101(w - 1 + j, w)];
+            }
+            bx[ch] = buf.box.data() + static_cast<size_t>(ch) * w;
+            SlidingSum(c[ch] - r, w, window, bx[ch], buf.tmp.data());
+          }
+          float* score = buf.scores.data() + static_cast<size_t>(ki) * w;
+          ScoreRow(bx[0], bx[1], bx[2], bp.ptr<float>(y), idx.ptr<int>(y), k, ml, il, inv_count, min_var, w, score);
+          ArgMaxRow(score, ki, w, best_s, best_k);
+        }
+        const int* b = base.empty() ? nullptr : base.ptr<int>(y);
+        float* d = out.disparity.ptr<float>(y);
+        float* cc = out.correlation.ptr<float>(y);
+        const float* sc = buf.scores.data();
+        for (int x = 0; x < w; ++x) {
+          const int best = best_k[x];
+          const float bs = best_s[x];
+          if (best <= 0 || best >= n - 1 || bs < min_corr) {
+            d[x] = kNaN;
+            cc[x] = kNaN;
+            continue;
+          }
+          const float sm = sc[static_cast<size_t>(best - 1) * w + x], sp = sc[static_cast<size_t>(best + 1) * w + x];
+          float delta = 0.0f;
+          const float curv = sm - 2.0f * bs + sp;
+          if (sm > -2.0f && sp > -2.0f && curv < 0.0f) delta = std::clamp(0.5f * (sm - sp) / curv, -0.5f, 0.5f);
+          d[x] = static_cast<float>((b ? b[x] : 0) + k_min + best) + delta;
+          cc[x] = bs;
         }
       }
-      if (best <= 0 || best >= n - 1 || best_s < min_correlation) {
-        d[x] = kNaN;
-        c[x] = kNaN;
-        continue;
-      }
-      const float sm = scores[best - 1].at<float>(y, x), sp = scores[best + 1].at<float>(y, x);
-      float delta = 0.0f;
-      const float curv = sm - 2.0f * best_s + sp;
-      if (sm > -2.0f && sp > -2.0f && curv < 0.0f) delta = std::clamp(0.5f * (sm - sp) / curv, -0.5f, 0.5f);
-      d[x] = static_cast<float>((b ? b[x] : 0) + k_min + best) + delta;
-      c[x] = best_s;
     }
-  }
-  return out;
+  }, stripes);
 }
 
 // Grid of nodes (i, j) at level pixel (j * g, i * g).
 cv::Mat SampleGrid(const cv::Mat& dense_map, int g) {
+  if (g == 1) return dense_map;
   const int ni = (dense_map.rows - 1) / g + 1, nj = (dense_map.cols - 1) / g + 1;
   cv::Mat grid(ni, nj, CV_32F);
-  for (int i = 0; i < ni; ++i)
-    for (int j = 0; j < nj; ++j) grid.at<float>(i, j) = dense_map.at<float>(i * g, j * g);
+  for (int i = 0; i < ni; ++i) {
+    const float* src = dense_map.ptr<float>(i * g);
+    float* dst = grid.ptr<float>(i);
+    for (int j = 0; j < nj; ++j) dst[j] = src[j * g];
+  }
   return grid;
 }
 
-void MedianFilter(cv::Mat* grid) {
-  cv::Mat out = grid->clone();
-  float v[9];
-  for (int i = 0; i < grid->rows; ++i)
-    for (int j = 0; j < grid->cols; ++j) {
-      if (!Finite(grid->at<float>(i, j))) continue;
-      int n = 0;
-      for (int di = -1; di <= 1; ++di)
-        for (int dj = -1; dj <= 1; ++dj) {
-          const int a = i + di, b = j + dj;
-          if (a < 0 || b < 0 || a >= grid->rows || b >= grid->cols) continue;
-          const float x = grid->at<float>(a, b);
-          if (Finite(x)) v[n++] = x;
+inline void Sort2(float& a, float& b) {
+  const float lo = std::min(a, b), hi = std::max(a, b);
+  a = lo;
+  b = hi;
+}
+
+// Median of nine finite values (Paeth's exchange network).
+inline float Median9(float p0, float p1, float p2, float p3, float p4, float p5, float p6, float p7, float p8) {
+  Sort2(p1, p2), Sort2(p4, p5), Sort2(p7, p8), Sort2(p0, p1), Sort2(p3, p4), Sort2(p6, p7);
+  Sort2(p1, p2), Sort2(p4, p5), Sort2(p7, p8), Sort2(p0, p3), Sort2(p5, p8), Sort2(p4, p7);
+  Sort2(p3, p6), Sort2(p1, p4), Sort2(p2, p5), Sort2(p4, p7), Sort2(p4, p2), Sort2(p6, p4);
+  Sort2(p4, p2);
+  return p4;
+}
+
+// 3 x 3 median of the valid nodes around each valid node (invalid nodes stay
+// invalid; an even count takes the mean of the two middle values). Rows in
+// parallel; all-valid neighbourhoods take a sorting network.
+void MedianFilter(const cv::Mat& in, cv::Mat* grid) {
+  grid->create(in.size(), CV_32F);
+  const int rows = in.rows, cols = in.cols;
+  cv::parallel_for_(cv::Range(0, rows), [&](const cv::Range& range) {
+    float v[9];
+    for (int i = range.start; i < range.end; ++i) {
+      const float* up = in.ptr<float>(std::max(i - 1, 0));
+      const float* mid = in.ptr<float>(i);
+      const float* dn = in.ptr<float>(std::min(i + 1, rows - 1));
+      float* o = grid->ptr<float>(i);
+      const bool inner_row = i > 0 && i < rows - 1;
+      for (int j = 0; j < cols; ++j) {
+        o[j] = mid[j];
+        if (!Finite(mid[j])) continue;
+        if (inner_row && j > 0 && j < cols - 1) {
+          const float a0 = up[j - 1], a1 = up[j], a2 = up[j + 1], a3 = mid[j - 1], a5 = mid[j + 1], a6 = dn[j - 1],
+                      a7 = dn[j], a8 = dn[j + 1];
+          if (Finite(a0) && Finite(a1) && Finite(a2) && Finite(a3) && Finite(a5) && Finite(a6) && Finite(a7) &&
+              Finite(a8)) {
+            o[j] = Median9(a0, a1, a2, a3, mid[j], a5, a6, a7, a8);
+            continue;
+          }
         }
-      std::nth_element(v, v + n / 2, v + n);
-      float m = v[n / 2];
-      if (n % 2 == 0) m = 0.5f * (m + *std::max_element(v, v + n / 2));
-      out.at<float>(i, j) = m;
+        int n = 0;
+        for (int di = -1; di <= 1; ++di) {
+          const int a = i + di;
+          if (a < 0 || a >= rows) continue;
+          const float* row = in.ptr<float>(a);
+          for (int dj = -1; dj <= 1; ++dj) {
+            const int b = j + dj;
+            if (b < 0 || b >= cols) continue;
+            if (Finite(row[b])) v[n++] = row[b];
+          }
+        }
+        std::sort(v, v + n);
+        o[j] = (n % 2 == 1) ? v[n / 2] : 0.5f * (v[n / 2 - 1] + v[n / 2]);
+      }
     }
-  *grid = out;
+  });
 }
 
 // Along each line the matched position x - d must not decrease. Returns the
 // number of nodes invalidated.
-int OrderCheck(cv::Mat* grid, int g, double tolerance) {
+// sign = -1 for the right-to-left grid (matched position x + d).
+int OrderCheck(cv::Mat* grid, int g, double tolerance, float sign) {
   int rejected = 0;
   std::vector<int> kill;
   for (int i = 0; i < grid->rows; ++i) {
@@ -172,7 +441,7 @@ int OrderCheck(cv::Mat* grid, int g, double tolerance) {
     for (int j = 0; j < grid->cols; ++j) {
       if (!Finite(row[j])) continue;
       if (prev >= 0) {
-        const double xp = prev * g - row[prev], xc = j * g - row[j];
+        const double xp = prev * g - sign * row[prev], xc = j * g - sign * row[j];
         if (xc < xp - tolerance) {
           kill.push_back(prev);
           kill.push_back(j);
@@ -242,21 +511,47 @@ cv::Mat FillForPrediction(const cv::Mat& grid, float fallback) {
 // previous level (spacing g in previous-level px): bilinear, times 2.
 cv::Mat PredictBase(const cv::Mat& filled_grid, int g, cv::Size size) {
   cv::Mat base(size, CV_32S);
-  for (int y = 0; y < size.height; ++y) {
-    const double gi = std::clamp(0.5 * y / g, 0.0, filled_grid.rows - 1.0);
-    const int i0 = std::min(static_cast<int>(gi), filled_grid.rows - 1), i1 = std::min(i0 + 1, filled_grid.rows - 1);
-    const double ti = gi - i0;
-    int* b = base.ptr<int>(y);
-    for (int x = 0; x < size.width; ++x) {
-      const double gj = std::clamp(0.5 * x / g, 0.0, filled_grid.cols - 1.0);
-      const int j0 = std::min(static_cast<int>(gj), filled_grid.cols - 1), j1 = std::min(j0 + 1, filled_grid.cols - 1);
-      const double tj = gj - j0;
-      const double v = (1 - ti) * ((1 - tj) * filled_grid.at<float>(i0, j0) + tj * filled_grid.at<float>(i0, j1)) +
-                       ti * ((1 - tj) * filled_grid.at<float>(i1, j0) + tj * filled_grid.at<float>(i1, j1));
-      b[x] = static_cast<int>(std::lround(2.0 * v));
-    }
+  // Column positions and weights once per level.
+  std::vector<int> j0s(size.width), j1s(size.width);
+  std::vector<float> tjs(size.width);
+  for (int x = 0; x < size.width; ++x) {
+    const double gj = std::clamp(0.5 * x / g, 0.0, filled_grid.cols - 1.0);
+    j0s[x] = std::min(static_cast<int>(gj), filled_grid.cols - 1);
+    j1s[x] = std::min(j0s[x] + 1, filled_grid.cols - 1);
+    tjs[x] = static_cast<float>(gj - j0s[x]);
   }
+  cv::parallel_for_(cv::Range(0, size.height), [&](const cv::Range& range) {
+    for (int y = range.start; y < range.end; ++y) {
+      const double gi = std::clamp(0.5 * y / g, 0.0, filled_grid.rows - 1.0);
+      const int i0 = std::min(static_cast<int>(gi), filled_grid.rows - 1), i1 = std::min(i0 + 1, filled_grid.rows - 1);
+      const float ti = static_cast<float>(gi - i0);
+      const float* r0 = filled_grid.ptr<float>(i0);
+      const float* r1 = filled_grid.ptr<float>(i1);
+      int* b = base.ptr<int>(y);
+      for (int x = 0; x < size.width; ++x) {
+        const float tj = tjs[x];
+        const float v = (1 - ti) * ((1 - tj) * r0[j0s[x]] + tj * r0[j1s[x]]) + ti * ((1 - tj) * r1[j0s[x]] + tj * r1[j1s[x]]);
+        b[x] = static_cast<int>(std::floor(2.0f * v + 0.5f));
+      }
+    }
+  });
   return base;
+}
+
+// The scale-normalised LoG of matching::LaplacianOfGaussian (same kernels,
+// separable: g'' x g + g x g''), written into `out` (kept between calls).
+void LogInto(const cv::Mat& image, double sigma, cv::Mat* out, cv::Mat* tmp) {
+  static thread_local double cached_sigma = -1.0;
+  static thread_local cv::Mat g, g2;
+  if (sigma != cached_sigma) {
+    g = cv::Mat(matching::GaussianKernel(sigma), true);
+    g2 = cv::Mat(matching::GaussianSecondDerivativeKernel(sigma), true);
+    cached_sigma = sigma;
+  }
+  cv::sepFilter2D(image, *out, CV_32F, g2, g, cv::Point(-1, -1), 0.0, cv::BORDER_REFLECT_101);
+  cv::sepFilter2D(image, *tmp, CV_32F, g, g2, cv::Point(-1, -1), 0.0, cv::BORDER_REFLECT_101);
+  const double s = -(sigma * sigma);
+  cv::addWeighted(*out, s, *tmp, s, 0.0, *out);
 }
 
 cv::Mat MaskOrOnes(const cv::Mat& m, cv::Size size, const char* what) {
@@ -268,22 +563,29 @@ cv::Mat MaskOrOnes(const cv::Mat& m, cv::Size size, const char* what) {
   return out / 255;
 }
 
-cv::Mat Downsample(const cv::Mat& image, int scale) {
-  if (scale == 1) return image.clone();
-  cv::Mat out;
-  cv::resize(image, out, cv::Size(image.cols / scale, image.rows / scale), 0, 0, cv::INTER_AREA);
-  return out;
+cv::Mat Downsample(const cv::Mat& image, int scale, cv::Mat* out) {
+  if (scale == 1) return image;
+  cv::resize(image, *out, cv::Size(image.cols / scale, image.rows / scale), 0, 0, cv::INTER_AREA);
+  return *out;
 }
 
-cv::Mat DownsampleMask(const cv::Mat& mask, int scale) {
-  if (scale == 1) return mask.clone();
+// `all_valid`: the full-resolution mask is all ones (no mask given).
+cv::Mat DownsampleMask(const cv::Mat& mask, int scale, bool all_valid, cv::Mat* out) {
+  if (scale == 1) return mask;
+  const cv::Size size(mask.cols / scale, mask.rows / scale);
+  if (all_valid) {
+    out->create(size, CV_8U);
+    out->setTo(1);
+    return *out;
+  }
   // A level pixel has content only when all full-resolution pixels under it have.
   cv::Mat f, small;
   mask.convertTo(f, CV_32F);
-  cv::resize(f, small, cv::Size(mask.cols / scale, mask.rows / scale), 0, 0, cv::INTER_AREA);
-  cv::Mat out;
-  cv::compare(small, 0.999, out, cv::CMP_GE);
-  return out / 255;
+  cv::resize(f, small, size, 0, 0, cv::INTER_AREA);
+  cv::Mat m;
+  cv::compare(small, 0.999, m, cv::CMP_GE);
+  *out = m / 255;
+  return *out;
 }
 
 }  // namespace
@@ -296,6 +598,8 @@ void CorrelationOptions::Check() const {
   Require(final_grid_spacing >= 1 && final_grid_spacing <= 64, "final_grid_spacing",
           Message("= ", final_grid_spacing, " must be in [1, 64]"));
   Require(window >= 3 && window <= 51 && window % 2 == 1, "window", Message("= ", window, " must be odd in [3, 51]"));
+  Require(final_window == 0 || (final_window >= 3 && final_window <= 51 && final_window % 2 == 1), "final_window",
+          Message("= ", final_window, " must be 0 (= window) or odd in [3, 51]"));
   Require(search_radius >= 1 && search_radius <= 16, "search_radius",
           Message("= ", search_radius, " must be in [1, 16]"));
   Require(std::isfinite(min_disparity) && std::isfinite(max_disparity) && max_disparity > min_disparity,
@@ -349,15 +653,24 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
     const int scale = 1 << (options.levels - 1 - k);
     const bool last = (k == options.levels - 1);
     const int g = last ? options.final_grid_spacing : options.grid_spacing;
+    const int window = (last && options.final_window > 0) ? options.final_window : options.window;
     const double sigma = matching::LogSigmaForPeakFrequency(options.peak_frequency);
-    const cv::Mat l = matching::LaplacianOfGaussian(Downsample(left, scale), sigma);
-    const cv::Mat r = matching::LaplacianOfGaussian(Downsample(right, scale), sigma);
-    const cv::Mat ml = DownsampleMask(mask_l, scale), mr = DownsampleMask(mask_r, scale);
-    cv::Mat lf, rf, mlf, mrf;
-    cv::flip(r, lf, 1);
-    cv::flip(l, rf, 1);
-    cv::flip(mr, mlf, 1);
-    cv::flip(ml, mrf, 1);
+    auto tp = std::chrono::steady_clock::now();
+    auto lap = [&](const char* what) {
+      if (std::getenv("DENSE_PROFILE")) {
+        const auto now = std::chrono::steady_clock::now();
+        std::fprintf(stderr, "  level %d %s %.2f ms\n", k, what, 1e3 * std::chrono::duration<double>(now - tp).count());
+        tp = now;
+      }
+    };
+    LevelWorkspace& lw = LevelCache(k);
+    LogInto(Downsample(left, scale, &lw.down_l), sigma, &lw.log_l, &lw.log_tmp);
+    LogInto(Downsample(right, scale, &lw.down_r), sigma, &lw.log_r, &lw.log_tmp);
+    const cv::Mat& l = lw.log_l;
+    const cv::Mat& r = lw.log_r;
+    const cv::Mat ml = DownsampleMask(mask_l, scale, valid_left.empty(), &lw.mask_l);
+    const cv::Mat mr = DownsampleMask(mask_r, scale, valid_right.empty(), &lw.mask_r);
+    lap("log");
 
     int k_min, k_max;
     cv::Mat base_l, base_r;
@@ -368,65 +681,69 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
       k_min = -options.search_radius - 1;
       k_max = options.search_radius + 1;
       base_l = PredictBase(pred_left, prev_g, l.size());
-      cv::Mat br = PredictBase(pred_right, prev_g, l.size());
-      cv::flip(br, base_r, 1);
+      base_r = PredictBase(pred_right, prev_g, l.size());
     }
+    lap("predict");
     // The extra +-1 lets the parabola use both neighbours of a maximum at the
     // edge of the nominal range; a maximum on the extended edge is rejected.
-    const DenseResult res_l =
-        Search(l, r, base_l, k_min, k_max, options.window, options.min_correlation, ml, mr);
+    DenseResult& res_l = lw.res_l;
+    Search(l, r, base_l, k_min, k_max, window, options.min_correlation, ml, mr, +1, lw.ws_l, res_l);
     cv::Mat grid_l = SampleGrid(res_l.disparity, g);
     cv::Mat corr_l = SampleGrid(res_l.correlation, g);
     const int nodes = grid_l.rows * grid_l.cols;
     const int found = cv::countNonZero(grid_l == grid_l);
     cv::Mat grid_r;
     if (options.two_way) {
-      DenseResult res_r = Search(lf, rf, base_r, k_min, k_max, options.window, options.min_correlation, mlf, mrf);
-      cv::Mat dr;
-      cv::flip(res_r.disparity, dr, 1);
-      // Mirrored nodes fall on (W-1-x); sample the unmirrored map on the grid.
-      grid_r = SampleGrid(dr, g);
+      // Right-to-left: a right pixel x matches the left x + d.
+      DenseResult& res_r = lw.res_r;
+      Search(r, l, base_r, k_min, k_max, window, options.min_correlation, mr, ml, -1, lw.ws_r, res_r);
+      grid_r = SampleGrid(res_r.disparity, g);
     }
+    lap("search");
     if (options.median_filter) {
-      MedianFilter(&grid_l);
-      if (!grid_r.empty()) MedianFilter(&grid_r);
+      MedianFilter(grid_l, &lw.median_l);
+      grid_l = lw.median_l;
+      if (!grid_r.empty()) {
+        MedianFilter(grid_r, &lw.median_r);
+        grid_r = lw.median_r;
+      }
     }
     int rejected_order = 0;
     if (options.order_check) {
-      rejected_order += OrderCheck(&grid_l, g, options.order_tolerance);
-      if (!grid_r.empty()) {
-        // For the right grid the matched left position x + d must not decrease.
-        cv::Mat neg = -grid_r;
-        rejected_order += OrderCheck(&neg, g, options.order_tolerance);
-        grid_r = -neg;
-      }
+      rejected_order += OrderCheck(&grid_l, g, options.order_tolerance, 1.0f);
+      // For the right grid the matched left position x + d must not decrease.
+      if (!grid_r.empty()) rejected_order += OrderCheck(&grid_r, g, options.order_tolerance, -1.0f);
     }
     int rejected_lr = 0;
-    cv::Mat averaged = grid_l.clone();
+    cv::Mat averaged = grid_l;  // in place
     if (!grid_r.empty()) {
+      const float tol = static_cast<float>(options.lr_tolerance);
       for (int i = 0; i < grid_l.rows; ++i) {
         const float* rr = grid_r.ptr<float>(i);
+        const float* ll = grid_l.ptr<float>(i);
+        float* av = averaged.ptr<float>(i);
         for (int j = 0; j < grid_l.cols; ++j) {
-          const float dl = grid_l.at<float>(i, j);
+          const float dl = ll[j];
           if (!Finite(dl)) continue;
           const float drv = LookupLine(rr, grid_r.cols, (j * g - dl) / g);
-          if (Finite(drv) && std::abs(drv - dl) <= options.lr_tolerance) {
-            averaged.at<float>(i, j) = 0.5f * (dl + drv);
+          if (Finite(drv) && std::abs(drv - dl) <= tol) {
+            av[j] = 0.5f * (dl + drv);
           } else {
-            averaged.at<float>(i, j) = kNaN;
+            av[j] = kNaN;
             ++rejected_lr;
           }
         }
       }
     }
+    lap("post");
     if (last) {
       sum.nodes = nodes;
       sum.rejected_correlation = nodes - found;
       sum.rejected_order = rejected_order;
       sum.rejected_left_right = rejected_lr;
       sum.valid_nodes = cv::countNonZero(averaged == averaged);
-      final_grid = averaged;
-      final_corr = corr_l;
+      final_grid = averaged.clone();
+      final_corr = corr_l.clone();
       for (int i = 0; i < final_grid.rows; ++i)
         for (int j = 0; j < final_grid.cols; ++j)
           if (!Finite(final_grid.at<float>(i, j))) final_corr.at<float>(i, j) = kNaN;

@@ -54,7 +54,8 @@ struct CorrelationOptions {
   double peak_frequency = 1.0;    // [rad/level-pixel] LoG peak at every level; (0, 3]
   int grid_spacing = 8;           // [level px] node spacing on levels 0 .. levels-2; [1, 64]
   int final_grid_spacing = 8;     // [px] node spacing on the full-resolution level; [1, 64]
-  int window = 15;                // [px] correlation window (odd); [3, 51]
+  int window = 15;                // [px] correlation window (odd) of levels 0 .. levels-2; [3, 51]
+  int final_window = 0;           // [px] window of the full-resolution level (odd, [3, 51]); 0: `window`
   int search_radius = 3;          // [level px] search around the prediction; [1, 16]
   double min_disparity = 0.0;     // [px, full resolution] search range of the coarsest level
   double max_disparity = 64.0;    // [px, full resolution]; > min_disparity
