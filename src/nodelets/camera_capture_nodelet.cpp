@@ -130,6 +130,7 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     video_.encoding = encoding_;
     // Device.
     device_.device = p.String("device", "/dev/video0");
+    device_.api = p.String("device_api", "v4l2", {"v4l2", "any"});
     device_.width = p.Int("width", 0, 0, 20000, "px");
     device_.height = p.Int("height", 0, 0, 20000, "px");
     device_.fps = p.Double("fps", 0.0, 0.0, 1000.0, "Hz");
@@ -197,7 +198,7 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     } else {
       device_.Check();
       schedule_.Check();
-      source_description_ = "V4L2 " + device_.device;
+      source_description_ = (device_.api == "v4l2" ? "V4L2 " : "camera ") + device_.device;
     }
   }
 
@@ -205,7 +206,7 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!device_open_) {
       res.success = false;
-      res.message = "V4L2 device '" + device_.device + "' is not open: " + status_;
+      res.message = source_description_ + " is not open: " + status_;
       return true;
     }
     trigger_pending_ = true;

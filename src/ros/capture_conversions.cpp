@@ -121,12 +121,24 @@ void FramePublisher::PublishEpoch(const capture::EpochEvent& event) {
   if (outputs_.epoch) outputs_.epoch(ToEpochMarker(event, options_.source_name, options_.frame_id));
 }
 
-void FramePublisher::PublishFrame(const capture::Frame& frame) {
+void FramePublisher::PublishFrame(const capture::Frame& frame, sensor_msgs::ImagePtr image) {
   const std_msgs::Header header = FrameHeader(frame, options_.frame_id);
   if (outputs_.image) {
     sensor_msgs::CameraInfoPtr info(new sensor_msgs::CameraInfo(CameraInfoFor(frame)));
     info->header = header;
-    outputs_.image(ToImageMsg(frame, header), info);
+    if (image && frame.in_image_buffer && !image->data.empty() && frame.image.data == image->data.data() &&
+        frame.image.isContinuous()) {
+      // The pixels are already in the message (decoded into it): fill in the rest.
+      image->header = header;
+      image->height = static_cast<uint32_t>(frame.image.rows);
+      image->width = static_cast<uint32_t>(frame.image.cols);
+      image->encoding = frame.encoding;
+      image->is_bigendian = 0;
+      image->step = static_cast<uint32_t>(frame.image.cols * frame.image.elemSize());
+    } else {
+      image = ToImageMsg(frame, header);
+    }
+    outputs_.image(image, info);
   }
   if (frame.exif.has_gps) {
     const sensor_msgs::NavSatFix fix = ToNavSatFix(frame.exif, options_.gnss, header);
@@ -145,17 +157,34 @@ void FramePublisher::PublishFrame(const capture::Frame& frame) {
 FramePublisher::StepResult FramePublisher::Step(capture::FrameSource* source, capture::EpochTracker* tracker,
                                                 bool look_ahead) {
   capture::Frame frame;
+  // Let the source decode into the outgoing message's data (no copy).
+  sensor_msgs::ImagePtr image;
+  if (outputs_.image) {
+    source->set_image_buffer([&image](int rows, int cols, int type) {
+      image.reset(new sensor_msgs::Image);
+      const size_t step = static_cast<size_t>(cols) * CV_ELEM_SIZE(type);
+      image->data.resize(step * static_cast<size_t>(rows));
+      return cv::Mat(rows, cols, type, image->data.data(), step);
+    });
+  }
+  struct ClearBuffer {
+    capture::FrameSource* source;
+    ~ClearBuffer() { source->set_image_buffer({}); }
+  } clear_buffer{source};
   const bool got = source->Next(&frame);
   for (const auto& s : source->TakeSkipped()) {
     ++skipped_;
-    Warn(Message("skipped ", s.name, ": ", s.reason, " (", source->skipped_count(), " skipped so far)"));
+    // The reason usually starts with the file name already.
+    const bool named = s.reason.rfind(s.name + ": ", 0) == 0;
+    Warn(Message("skipped ", s.name, ": ", named ? s.reason.substr(s.name.size() + 2) : s.reason, " (",
+                 source->skipped_count(), " skipped so far)"));
   }
   if (!got) {
     if (auto end = tracker->Close()) PublishEpoch(*end);
     return StepResult::kEnd;
   }
   for (const auto& e : tracker->BeforeFrame(frame.stamp)) PublishEpoch(e);
-  PublishFrame(frame);
+  PublishFrame(frame, frame.in_image_buffer ? image : nullptr);
   if (look_ahead) {
     for (const auto& e : tracker->AfterFrame(source->PeekNextStamp(), true)) PublishEpoch(e);
   }

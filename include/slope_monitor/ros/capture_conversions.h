@@ -84,12 +84,17 @@ class FramePublisher {
 
   enum class StepResult { kPublished, kEnd };
   // Takes the next frame from the source and publishes it with its epoch
-  // markers (look_ahead: the source knows the next stamp, so an epoch end is
+  // markers. Sources that can decode straight into the outgoing message's
+  // data do (FrameSource::set_image_buffer; 8-bit JPEGs of folders), so a
+  // frame is not copied on its way out (look_ahead: the source knows the next stamp, so an epoch end is
   // published right after its last frame). Skipped items are reported through
   // outputs.warn. At the end of the stream the open epoch is closed.
   StepResult Step(capture::FrameSource* source, capture::EpochTracker* tracker, bool look_ahead);
   // Publishes one frame (image + camera_info, GNSS when the EXIF has it).
-  void PublishFrame(const capture::Frame& frame);
+  // `image` (optional): a message whose data already holds the frame's pixels
+  // (frame.in_image_buffer, decoded into it by the source); else the pixels
+  // are copied into a new message.
+  void PublishFrame(const capture::Frame& frame, sensor_msgs::ImagePtr image = nullptr);
   void PublishEpoch(const capture::EpochEvent& event);
 
   // The camera_info sent with a frame (see FramePublisherOptions).

@@ -91,7 +91,7 @@ std::string ConvertEncoding(const std::string& requested, cv::Mat* image) {
   return mono ? "mono8" : "bgr8";
 }
 
-std::string CheckJpegStructure(const std::vector<unsigned char>& b) {
+std::string CheckJpegStructure(const std::vector<unsigned char>& b, JpegFrameInfo* info) {
   const size_t n = b.size();
   if (n < 4 || b[0] != 0xFF || b[1] != 0xD8) return "not a JPEG: no SOI marker (FF D8) at the start";
   size_t pos = 2;
@@ -110,6 +110,13 @@ std::string CheckJpegStructure(const std::vector<unsigned char>& b) {
     if (len < 2 || pos + 2 + len > n) {
       return Message("truncated: marker segment FF ", std::hex, int(m), std::dec, " at byte ", pos, " needs ", len,
                      " bytes, the file has ", n - pos - 2);
+    }
+    const bool sof = m >= 0xC0 && m <= 0xCF && m != 0xC4 && m != 0xC8 && m != 0xCC;
+    if (sof && info != nullptr && len >= 8) {
+      info->precision = b[pos + 4];
+      info->height = (int(b[pos + 5]) << 8) | b[pos + 6];
+      info->width = (int(b[pos + 7]) << 8) | b[pos + 8];
+      info->components = b[pos + 9];
     }
     pos += 2 + len;
     if (m == 0xDA) {  // start of scan: skip the entropy-coded data
@@ -132,7 +139,9 @@ std::string CheckJpegStructure(const std::vector<unsigned char>& b) {
   return Message("truncated: no EOI marker (FF D9) in ", n, " bytes");
 }
 
-cv::Mat DecodeImageFile(const std::string& path, const std::string& encoding, std::string* encoding_out) {
+cv::Mat DecodeImageFile(const std::string& path, const std::string& encoding, std::string* encoding_out,
+                        const ImageBuffer& buffer, bool* in_buffer) {
+  if (in_buffer != nullptr) *in_buffer = false;
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError(Message(path, ": cannot open the file"));
   in.seekg(0, std::ios::end);
@@ -141,12 +150,31 @@ cv::Mat DecodeImageFile(const std::string& path, const std::string& encoding, st
   if (size <= 0) throw IoError(Message(path, ": the file is empty"));
   std::vector<unsigned char> bytes(static_cast<size_t>(size));
   if (!in.read(reinterpret_cast<char*>(bytes.data()), size)) throw IoError(Message(path, ": read error"));
-  if (IsJpegName(path)) {
-    const std::string why = CheckJpegStructure(bytes);
-    if (!why.empty()) throw IoError(Message(path, ": unreadable JPEG, ", why));
-  }
   // Keep the sensor's pixel layout (no EXIF rotation): the calibration refers to it.
-  cv::Mat image = cv::imdecode(bytes, cv::IMREAD_ANYCOLOR | cv::IMREAD_ANYDEPTH | cv::IMREAD_IGNORE_ORIENTATION);
+  const int flags = cv::IMREAD_ANYCOLOR | cv::IMREAD_ANYDEPTH | cv::IMREAD_IGNORE_ORIENTATION;
+  cv::Mat image;
+  if (IsJpegName(path)) {
+    JpegFrameInfo info;
+    const std::string why = CheckJpegStructure(bytes, &info);
+    if (!why.empty()) throw IoError(Message(path, ": unreadable JPEG, ", why));
+    // 8-bit grey or YCbCr JPEGs decode to mono8 / bgr8 (IMREAD_ANYCOLOR):
+    // straight into the caller's buffer when that is the requested encoding.
+    const bool mono = info.components == 1, colour = info.components == 3;
+    if (buffer && info.precision == 8 && info.width > 0 && info.height > 0 &&
+        ((mono && encoding != "bgr8") || (colour && encoding != "mono8"))) {
+      image = buffer(info.height, info.width, mono ? CV_8UC1 : CV_8UC3);
+      const unsigned char* target = image.data;
+      cv::imdecode(bytes, flags, &image);
+      if (image.empty()) throw IoError(Message(path, ": OpenCV cannot decode the image"));
+      if (image.data == target) {
+        if (in_buffer != nullptr) *in_buffer = true;
+        *encoding_out = mono ? "mono8" : "bgr8";
+        return image;
+      }
+      // The decoder chose another layout (it reallocated): convert below.
+    }
+  }
+  if (image.empty()) image = cv::imdecode(bytes, flags);
   if (image.empty()) throw IoError(Message(path, ": OpenCV cannot decode the image"));
   try {
     *encoding_out = ConvertEncoding(encoding, &image);
@@ -226,7 +254,7 @@ bool FolderSource::Next(Frame* frame) {
     const Entry& e = entries_[next_];
     const uint64_t index = next_++;
     try {
-      frame->image = DecodeImageFile(e.path, options_.encoding, &frame->encoding);
+      frame->image = DecodeImageFile(e.path, options_.encoding, &frame->encoding, image_buffer_, &frame->in_image_buffer);
     } catch (const IoError& err) {
       Skip(e.path, err.what());
       continue;
@@ -308,6 +336,7 @@ bool VideoSource::Next(Frame* frame) {
   frame->name = Message(options_.path, "#", index);
   frame->index = static_cast<uint64_t>(index);
   frame->exif = ExifInfo();
+  frame->in_image_buffer = false;
   return true;
 }
 
@@ -326,6 +355,7 @@ std::string VideoSource::Describe() const {
 // ---------------------------------------------------------------------------
 void DeviceSourceOptions::Check() const {
   if (device.empty()) throw ConfigError("device: the V4L2 device path is empty");
+  if (api != "v4l2" && api != "any") throw ConfigError(Message("device_api '", api, "' is not one of: v4l2, any"));
   if (width < 0 || width > 20000) throw ConfigError(Message("width = ", width, " px is outside [0, 20000]"));
   if (height < 0 || height > 20000) throw ConfigError(Message("height = ", height, " px is outside [0, 20000]"));
   if (!std::isfinite(fps) || fps < 0.0 || fps > 1000.0) throw ConfigError(Message("fps = ", fps, " Hz is outside [0, 1000]"));
@@ -337,17 +367,21 @@ DeviceSource::DeviceSource(const DeviceSourceOptions& options) : options_(option
 
 void DeviceSource::Open() {
   warnings_.clear();
-  std::error_code ec;
-  if (!fs::exists(options_.device, ec)) {
-    throw IoError(Message("V4L2 device '", options_.device, "' does not exist (no camera connected?)"));
+  const std::string name = Describe();
+  if (options_.api == "v4l2") {
+    std::error_code ec;
+    if (!fs::exists(options_.device, ec)) {
+      throw IoError(Message(name, " does not exist (no camera connected?)"));
+    }
+    if (!capture_.open(options_.device, cv::CAP_V4L2)) {
+      throw IoError(Message(name, " cannot be opened (busy, no permission, or not a capture device)"));
+    }
+  } else if (!capture_.open(options_.device, cv::CAP_ANY)) {
+    throw IoError(Message(name, " cannot be opened by OpenCV (unreachable, or no backend reads it)"));
   }
-  if (!capture_.open(options_.device, cv::CAP_V4L2)) {
-    throw IoError(Message("V4L2 device '", options_.device,
-                          "' cannot be opened (busy, no permission, or not a capture device)"));
-  }
-  auto set = [this](int prop, double value, const char* what) {
+  auto set = [this, &name](int prop, double value, const char* what) {
     if (!capture_.set(prop, value)) {
-      warnings_.push_back(Message("V4L2 device '", options_.device, "' refused ", what, " = ", value));
+      warnings_.push_back(Message(name, " refused ", what, " = ", value));
     }
   };
   if (options_.width > 0) set(cv::CAP_PROP_FRAME_WIDTH, options_.width, "width");
@@ -356,17 +390,17 @@ void DeviceSource::Open() {
   if (options_.exposure >= 0.0) {
     set(cv::CAP_PROP_AUTO_EXPOSURE, 1.0, "manual exposure mode (auto_exposure = 1)");
     set(cv::CAP_PROP_EXPOSURE, options_.exposure, "exposure");
-  } else {
+  } else if (options_.api == "v4l2") {
     set(cv::CAP_PROP_AUTO_EXPOSURE, 3.0, "auto exposure mode (auto_exposure = 3)");
   }
 }
 
 bool DeviceSource::Next(Frame* frame) {
-  if (!capture_.isOpened()) throw IoError(Message("V4L2 device '", options_.device, "' is not open"));
+  if (!capture_.isOpened()) throw IoError(Message(Describe(), " is not open"));
   cv::Mat image;
   if (!capture_.read(image) || image.empty()) {
     capture_.release();
-    throw IoError(Message("V4L2 device '", options_.device, "' returned no frame (disconnected?); closed it"));
+    throw IoError(Message(Describe(), " returned no frame (disconnected, or the end of a file?); closed it"));
   }
   frame->stamp = WallClockNow();
   frame->image = image;
@@ -375,10 +409,13 @@ bool DeviceSource::Next(Frame* frame) {
   frame->name = options_.device;
   frame->index = next_index_++;
   frame->exif = ExifInfo();
+  frame->in_image_buffer = false;
   return true;
 }
 
-std::string DeviceSource::Describe() const { return Message("V4L2 device '", options_.device, "'"); }
+std::string DeviceSource::Describe() const {
+  return Message(options_.api == "v4l2" ? "V4L2 device '" : "camera '", options_.device, "'");
+}
 
 }  // namespace capture
 }  // namespace slope_monitor

@@ -199,6 +199,98 @@ TEST(JpegStructure, CompleteTruncatedAndNotJpeg) {
   EXPECT_NE(CheckJpegStructure(png).find("not a JPEG"), std::string::npos);
 }
 
+
+TEST(JpegStructure, FrameHeaderSizeAndComponents) {
+  std::vector<unsigned char> colour, grey;
+  ASSERT_TRUE(cv::imencode(".jpg", capture_test::TexturedImage(70, 50, 3, 4), colour));
+  ASSERT_TRUE(cv::imencode(".jpg", capture_test::TexturedImage(33, 21, 1, 4), grey, {cv::IMWRITE_JPEG_PROGRESSIVE, 1}));
+  JpegFrameInfo c, g;
+  EXPECT_EQ(CheckJpegStructure(colour, &c), "");
+  EXPECT_EQ(CheckJpegStructure(grey, &g), "");
+  EXPECT_EQ(c.width, 70);
+  EXPECT_EQ(c.height, 50);
+  EXPECT_EQ(c.components, 3);
+  EXPECT_EQ(c.precision, 8);
+  EXPECT_EQ(g.width, 33);
+  EXPECT_EQ(g.height, 21);
+  EXPECT_EQ(g.components, 1);
+}
+
+// The decode-into-the-caller's-memory path gives the same pixels as a plain
+// decode, writes them where the buffer says, and is not used when a
+// conversion is asked for.
+TEST(DecodeImageFile, IntoCallerBufferSamePixelsNoCopy) {
+  capture_test::TempDir dir("buffer");
+  const cv::Mat img = capture_test::TexturedImage(96, 64, 3, 2);
+  capture_test::WriteJpeg(dir.File("c.jpg"), img, capture_test::ExifTags());
+  capture_test::WriteJpeg(dir.File("g.jpg"), capture_test::TexturedImage(40, 30, 1, 2), capture_test::ExifTags());
+  std::vector<unsigned char> storage;
+  int calls = 0;
+  ImageBuffer buffer = [&](int rows, int cols, int type) {
+    ++calls;
+    storage.assign(static_cast<size_t>(rows) * cols * CV_ELEM_SIZE(type), 0);
+    return cv::Mat(rows, cols, type, storage.data());
+  };
+  std::string enc, plain_enc;
+  bool in_buffer = false;
+  const cv::Mat got = DecodeImageFile(dir.File("c.jpg"), "auto", &enc, buffer, &in_buffer);
+  const cv::Mat plain = DecodeImageFile(dir.File("c.jpg"), "auto", &plain_enc);
+  EXPECT_TRUE(in_buffer);
+  EXPECT_EQ(calls, 1);
+  EXPECT_EQ(enc, "bgr8");
+  EXPECT_EQ(plain_enc, "bgr8");
+  EXPECT_EQ(got.data, storage.data());
+  ASSERT_EQ(got.size(), plain.size());
+  EXPECT_EQ(cv::norm(got, plain, cv::NORM_INF), 0.0);
+  EXPECT_LT(capture_test::MeanAbsDiff(got, img), 12.0);  // JPEG q95 (4:2:0 chroma) of the original
+
+  const cv::Mat grey = DecodeImageFile(dir.File("g.jpg"), "auto", &enc, buffer, &in_buffer);
+  EXPECT_TRUE(in_buffer);
+  EXPECT_EQ(enc, "mono8");
+  EXPECT_EQ(grey.type(), CV_8UC1);
+  EXPECT_EQ(grey.data, storage.data());
+
+  // mono8 asked of a colour JPEG: converted in a Mat of its own.
+  calls = 0;
+  const cv::Mat converted = DecodeImageFile(dir.File("c.jpg"), "mono8", &enc, buffer, &in_buffer);
+  EXPECT_FALSE(in_buffer);
+  EXPECT_EQ(calls, 0);
+  EXPECT_EQ(enc, "mono8");
+  EXPECT_EQ(converted.type(), CV_8UC1);
+}
+
+// FolderSource uses the buffer it is given for each frame.
+TEST(FolderSource, DecodesIntoTheImageBuffer) {
+  capture_test::TempDir dir("folderbuf");
+  capture_test::ExifTags t;
+  for (int i = 0; i < 3; ++i) {
+    t.date_time = "2024:05:01 10:00:0" + std::to_string(i);
+    capture_test::WriteJpeg(dir.File("p" + std::to_string(i) + ".jpg"), capture_test::TexturedImage(48, 32, 3, i), t);
+  }
+  FolderSourceOptions o;
+  o.folder = dir.path();
+  FolderSource source(o);
+  std::vector<std::vector<unsigned char>> stores;
+  source.set_image_buffer([&](int rows, int cols, int type) {
+    stores.emplace_back(static_cast<size_t>(rows) * cols * CV_ELEM_SIZE(type));
+    return cv::Mat(rows, cols, type, stores.back().data());
+  });
+  stores.reserve(8);
+  Frame f;
+  int n = 0;
+  while (source.Next(&f)) {
+    ASSERT_EQ(stores.size(), static_cast<size_t>(n + 1));
+    EXPECT_TRUE(f.in_image_buffer);
+    EXPECT_EQ(f.image.data, stores.back().data());
+    std::string enc;
+    EXPECT_EQ(cv::norm(f.image, DecodeImageFile(f.name, "auto", &enc), cv::NORM_INF), 0.0) << f.name;
+    EXPECT_EQ(f.name, dir.File("p" + std::to_string(n) + ".jpg"));
+    ++n;
+  }
+  EXPECT_EQ(n, 3);
+  source.set_image_buffer({});
+}
+
 }  // namespace
 }  // namespace capture
 }  // namespace slope_monitor

@@ -1,6 +1,8 @@
 // A video file made by the test (cv::VideoWriter, MJPG in .avi — the Debian
 // OpenCV build writes it with its built-in MJPEG encoder and reads it back
 // through FFmpeg): frame count, stamps start + i / fps, frame step, content.
+#include <chrono>
+
 #include <gtest/gtest.h>
 
 #include <opencv2/videoio.hpp>
@@ -131,6 +133,52 @@ TEST(DeviceSource, MissingDeviceNamesIt) {
   }
   o.width = -1;
   EXPECT_THROW(DeviceSource bad(o), ConfigError);
+}
+
+
+// device_api "any": a video file opened as a live camera (the stand-in for a
+// network camera in tests): wall-clock stamps, frames in order, and at its
+// end the source closes with a message naming it, like an unplugged device.
+TEST(DeviceSource, AnyApiReadsAVideoFileAsACamera) {
+  capture_test::TempDir dir("device_any");
+  DeviceSourceOptions o;
+  o.api = "any";
+  o.device = MakeVideo(dir);
+  DeviceSource source(o);
+  EXPECT_NE(source.Describe().find("camera '" + o.device + "'"), std::string::npos) << source.Describe();
+  source.Open();
+  ASSERT_TRUE(source.IsOpen());
+  const double before = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  Frame f;
+  for (int i = 0; i < kFrames; ++i) {
+    ASSERT_TRUE(source.Next(&f)) << i;
+    EXPECT_EQ(f.stamp_source, StampSource::kClock);
+    EXPECT_GE(f.stamp, before);
+    EXPECT_EQ(f.encoding, "bgr8");
+    EXPECT_NEAR(cv::mean(f.image)[0], 20.0 * i, 3.0) << "frame " << i;
+  }
+  try {
+    source.Next(&f);
+    FAIL() << "no exception at the end of the file";
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find(o.device), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(source.IsOpen());
+  source.Open();  // reopens from the start
+  ASSERT_TRUE(source.Next(&f));
+  EXPECT_NEAR(cv::mean(f.image)[0], 0.0, 3.0);
+
+  o.api = "v4l3";
+  EXPECT_THROW(DeviceSource bad(o), ConfigError);
+  o.api = "any";
+  o.device = dir.File("absent.avi");
+  DeviceSource absent(o);
+  try {
+    absent.Open();
+    FAIL() << "no exception";
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("absent.avi"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -32,7 +33,14 @@ struct Frame {
   std::string name;           // file path, "video.avi#17" or device path
   uint64_t index = 0;         // position in the source (0-based, counts skipped items)
   ExifInfo exif;              // folder sources only (empty otherwise)
+  bool in_image_buffer = false;  // `image` lies in memory from the source's ImageBuffer (see below)
 };
+
+// Caller-owned pixel storage: returns a continuous Mat header of rows x cols
+// of `type` over memory the caller owns (e.g. a ROS message's data vector),
+// so a source can decode straight into it instead of decoding into its own
+// Mat that the caller then copies. Sources that cannot use it ignore it.
+using ImageBuffer = std::function<cv::Mat(int rows, int cols, int type)>;
 
 struct SkippedItem {
   std::string name;    // the file (or frame) that was skipped
@@ -54,8 +62,13 @@ class FrameSource {
   // Items skipped since the last call (for logging).
   std::vector<SkippedItem> TakeSkipped();
 
+  // Where the next Next() may put the pixels (an empty function: the source
+  // allocates). When used, the returned Frame has in_image_buffer = true.
+  void set_image_buffer(ImageBuffer buffer) { image_buffer_ = std::move(buffer); }
+
  protected:
   void Skip(const std::string& name, const std::string& reason);
+  ImageBuffer image_buffer_;
 
  private:
   uint64_t skipped_count_ = 0;
@@ -69,14 +82,26 @@ void CheckEncodingOption(const std::string& encoding);
 // Converts a decoded image to the requested encoding; returns its name.
 std::string ConvertEncoding(const std::string& requested, cv::Mat* image);
 
+// The frame header (SOFn segment) of a JPEG.
+struct JpegFrameInfo {
+  int width = 0, height = 0;  // [px]; 0 when no SOFn segment was seen
+  int components = 0;         // 1 grey, 3 YCbCr/RGB, 4 CMYK/YCCK
+  int precision = 0;          // bits per sample (8 or 12)
+};
+
 // Checks that a JPEG byte stream is complete: starts with SOI, its marker
 // segments are intact, and the entropy-coded data ends with an EOI marker.
 // Returns "" when complete, otherwise why not (e.g. "truncated: ...").
-std::string CheckJpegStructure(const std::vector<unsigned char>& bytes);
+// `info` (optional) receives the frame header.
+std::string CheckJpegStructure(const std::vector<unsigned char>& bytes, JpegFrameInfo* info = nullptr);
 
 // Reads and decodes one image file (JPEG structure checked first). Throws
 // IoError naming the file when it cannot be read, is truncated or does not decode.
-cv::Mat DecodeImageFile(const std::string& path, const std::string& encoding, std::string* encoding_out);
+// With `buffer`, an 8-bit grey or colour JPEG whose stored layout is the
+// requested encoding is decoded straight into the buffer's memory (no copy);
+// *in_buffer tells whether that happened.
+cv::Mat DecodeImageFile(const std::string& path, const std::string& encoding, std::string* encoding_out,
+                        const ImageBuffer& buffer = {}, bool* in_buffer = nullptr);
 
 // ---------------------------------------------------------------------------
 struct FolderSourceOptions {
@@ -154,7 +179,12 @@ class VideoSource : public FrameSource {
 
 // ---------------------------------------------------------------------------
 struct DeviceSourceOptions {
-  std::string device = "/dev/video0";  // V4L2 device path
+  std::string device = "/dev/video0";  // V4L2 device path (api "v4l2"), else what cv::VideoCapture opens
+  // "v4l2": a V4L2 device through OpenCV's V4L2 backend; "any": anything
+  // cv::VideoCapture opens with its default backends (a network camera's
+  // RTSP/HTTP URL, a GStreamer pipeline, a video file replayed as a live
+  // camera: at its end it is reopened like a disconnected device).
+  std::string api = "v4l2";
   int width = 0;                       // [px] requested; 0: device default
   int height = 0;                      // [px] requested; 0: device default
   double fps = 0.0;                    // [Hz] requested; 0: device default
@@ -164,6 +194,7 @@ struct DeviceSourceOptions {
 };
 
 // A live camera. Stamps are the system clock (UTC) when the frame is grabbed.
+// Messages name the device ("V4L2 device '/dev/video0'" or "camera 'rtsp://...'").
 class DeviceSource : public FrameSource {
  public:
   explicit DeviceSource(const DeviceSourceOptions& options);
