@@ -69,6 +69,7 @@ class HexMatcherNodelet : public nodelet::Nodelet {
     options_.max_ratio = p.Double("max_ratio", 0.85, 0.01, 1.0);
     options_.mutual_tolerance = p.Double("mutual_tolerance", 2.0, 0.1, 100.0, "px");
     options_.lsc_search_radius = p.Int("lsc_search_radius", 3, 0, 20, "px");
+    options_.lsc_prefilter_sigma = p.Double("lsc_prefilter_sigma", 0.0, 0.0, 5.0, "px");
     options_.interest.log_sigma = p.Double("log_sigma", 2.0, 0.5, 10.0, "px");
     options_.interest.max_points = p.Int("max_points", 2000, 1, 100000);
     options_.interest.min_distance = p.Int("min_distance", 5, 1, 100, "px");

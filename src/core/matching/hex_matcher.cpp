@@ -130,6 +130,9 @@ void HexMatcherOptions::Check() const {
   if (!(max_ratio > 0 && max_ratio <= 1)) fail("max_ratio", max_ratio, "(0, 1]");
   if (!(mutual_tolerance > 0)) fail("mutual_tolerance", mutual_tolerance, "(0, inf)");
   if (lsc_search_radius < 0 || lsc_search_radius > 20) fail("lsc_search_radius", lsc_search_radius, "[0, 20]");
+  if (!(lsc_prefilter_sigma >= 0 && lsc_prefilter_sigma <= 5)) {
+    fail("lsc_prefilter_sigma", lsc_prefilter_sigma, "[0, 5]");
+  }
   interest.Check();
   lsc.Check();
 }
@@ -189,6 +192,9 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
   const std::vector<InterestPoint> points = DetectInterestPoints(fa, options_.interest);
   LscOptions lsc = options_.lsc;
   lsc.search_radius = options_.lsc_search_radius;
+  // LSC on low-passed copies when asked (weak texture under noise).
+  const cv::Mat la = options_.lsc_prefilter_sigma > 0 ? GaussianBlur(fa, options_.lsc_prefilter_sigma) : fa;
+  const cv::Mat lb = options_.lsc_prefilter_sigma > 0 ? GaussianBlur(fb, options_.lsc_prefilter_sigma) : fb;
   const Eigen::Matrix3d* f = prior.has_epipolar ? &prior.fundamental : nullptr;
   const Eigen::Matrix3d ft = prior.fundamental.transpose();
   const Eigen::Matrix3d* f_back = prior.has_epipolar ? &ft : nullptr;
@@ -200,7 +206,7 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
     if (bw.reason != RejectReason::kNone || (bw.x - xa).norm() > options_.mutual_tolerance) {
       return std::string(RejectReasonName(RejectReason::kNotMutual));
     }
-    const LscSummary s = MatchLsc(fa, fb, xa, fw.x, lsc);
+    const LscSummary s = MatchLsc(la, lb, xa, fw.x, lsc);
     if (!s.IsSolutionUsable()) return std::string("lsc_") + LscStatusName(s.status);
     if (f && EpipolarDistance(*f, xa, s.xb) > prior.epipolar_band) {
       return std::string(RejectReasonName(RejectReason::kEpipolar));

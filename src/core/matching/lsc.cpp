@@ -253,17 +253,18 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
   // pixel, so the Jacobian is uncorrelated with the residual's noise.
   std::vector<double> ga_u(n), ga_v(n);
   if (options.gradient == LscGradient::kTemplate) {
+    const int hp = h + 1;  // half size of the patch read from a
     const double mg = margin + 1.0;
     if (xa.x() - h < mg || xa.y() - h < mg || xa.x() + h > image_a.cols - 1 - mg ||
         xa.y() + h > image_a.rows - 1 - mg) {
       s.status = Status::kOutside;
       return s;
     }
-    const int w = 2 * h + 3;  // window plus a one-pixel ring
-    std::vector<double> ring(w * w);
-    for (int v = -h - 1, k = 0; v <= h + 1; ++v)
-      for (int u = -h - 1; u <= h + 1; ++u, ++k) ring[k] = Sample(image_a, xa.x() + u, xa.y() + v, interp);
-    auto at = [&](int u, int v) { return ring[(v + h + 1) * w + (u + h + 1)]; };
+    const int w = 2 * hp + 1;
+    std::vector<double> patch(w * w);
+    for (int v = -hp, k = 0; v <= hp; ++v)
+      for (int u = -hp; u <= hp; ++u, ++k) patch[k] = Sample(image_a, xa.x() + u, xa.y() + v, interp);
+    auto at = [&](int u, int v) { return patch[(v + hp) * w + (u + hp)]; };
     for (int k = 0; k < n; ++k) {
       const int u = static_cast<int>(us[k]), v = static_cast<int>(vs[k]);
       ga_u[k] = 0.5 * (at(u + 1, v) - at(u - 1, v));

@@ -49,6 +49,10 @@ struct HexMatcherOptions {
   double max_ratio = 0.85;         // (0, 1]
   double mutual_tolerance = 2.0;   // [px] > 0
   int lsc_search_radius = 3;       // [px] MLSC integer search, [0, 20]
+  // [px] Gaussian low-pass of both images before LSC, [0, 5]; 0 = none. For
+  // weak texture whose gradient is comparable to the noise (the simulator's
+  // ground: 2.4 DN/px vs 2.7 DN noise), 1 px.
+  double lsc_prefilter_sigma = 0.0;
   InterestPointOptions interest;   // interest points in image a
   LscOptions lsc;                  // refinement (search_radius set from lsc_search_radius)
   void Check() const;              // throws ConfigError naming the field

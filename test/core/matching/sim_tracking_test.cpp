@@ -1,0 +1,261 @@
+// The hexagonal matcher on the package's simulator, against its geometric
+// truth (small scene, 640 x 480 images rendered in-process):
+//  * natural-feature tracking of one fixed camera from the reference epoch to
+//    a later one with the displacement prior (stable ground gives the global
+//    shift, the landslide is searched wider): image displacement of every
+//    match against the projection of the true 3-D displacement with the true
+//    camera; matches on the occluding obstacles (tree, boulder) counted;
+//  * tie points between two fixed cameras of the same epoch with the
+//    epipolar prior from their orientations, against the projection of the
+//    surface point seen by camera a into camera b.
+// Links slope_monitor_core_sim (CMakeLists.txt: this test only).
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "slope_monitor/core/matching/hex_matcher.h"
+#include "slope_monitor/core/sim/renderer.h"
+#include "slope_monitor/core/sim/scene.h"
+#include "slope_monitor/core/sim/survey.h"
+
+namespace slope_monitor {
+namespace matching {
+namespace {
+
+constexpr double kEpoch1 = 3600.0;  // [s] the later epoch; the reference epoch is t = 0
+
+// A 40 m x 30 m textured slope, a landslide body in the middle moving
+// 0.5 m per hour towards the south (down the slope, towards the cameras),
+// a boulder and a tree (unmatchable), no targets, no scarp.
+sim::SceneSpec Site() {
+  sim::SceneSpec s;
+  s.seed = 5;
+  s.terrain.extent = Eigen::Vector4d(0, 40, 0, 30);
+  s.terrain.grid_spacing = 0.5;
+  s.terrain.relief = 6.0;
+  s.terrain.undulation = 0.3;
+  s.terrain.undulation_wavelength = 15.0;
+  s.texture.coarsest_wavelength = 8.0;
+  s.landslide.centre = Eigen::Vector2d(20, 16);
+  s.landslide.length = 7.0;
+  s.landslide.width = 5.0;
+  s.landslide.taper = 0.3;
+  s.landslide.azimuth = -M_PI / 2;
+  s.landslide.plunge = 0.2;
+  s.landslide.velocity0 = 0.5 / 3600.0;
+  s.landslide.reference_time = 0.0;
+  s.scarp.depth = 0.0;
+  sim::Obstacle boulder;
+  boulder.kind = sim::Obstacle::Kind::kBoulder;
+  boulder.base = Eigen::Vector3d(12, 12, std::numeric_limits<double>::quiet_NaN());
+  boulder.radius = 0.9;
+  boulder.height = 0.5;
+  sim::Obstacle tree;
+  tree.kind = sim::Obstacle::Kind::kTree;
+  tree.base = Eigen::Vector3d(28, 19, std::numeric_limits<double>::quiet_NaN());
+  tree.radius = 1.5;
+  tree.height = 5.0;
+  s.obstacles = {boulder, tree};
+  return s;
+}
+
+camera::CameraModel Camera() {
+  camera::Sensor sensor{640, 480, 0.01};
+  std::array<double, camera::kNumInterior> in{};
+  in[camera::kC] = 8.0;
+  in[camera::kX0] = 0.02;
+  in[camera::kY0] = -0.01;
+  in[camera::kK1] = -1.0e-3;
+  return camera::CameraModel(sensor, camera::DistortionModel::kBrownAffinity, in);
+}
+
+// A fixed camera on the opposite side, x_offset [m] east of the axis.
+camera::ExteriorOrientation FixedPose(const sim::Scene& scene, double x_offset) {
+  const Eigen::Vector3d look(20, 15, scene.AnalyticHeight(20, 15));
+  const Eigen::Vector3d pos(20 + x_offset, -10, scene.AnalyticHeight(20, 0) + 10);
+  return sim::LookAt(pos, look, Eigen::Vector3d::UnitZ());
+}
+
+cv::Mat Shoot(const sim::Renderer& renderer, const sim::Scene::State& state, const camera::ExteriorOrientation& pose,
+              int epoch, unsigned seed) {
+  sim::RenderOptions ro;
+  ro.epoch_salt = epoch;  // the tree's foliage changes (wind)
+  const sim::RenderResult rr = renderer.Render(state, pose, ro);
+  sim::ExposureOptions eo;  // read noise 1.5 DN + shot noise, 8 bit
+  std::mt19937 rng(seed);
+  return sim::Expose(rr.radiance, eo, &rng);
+}
+
+// What the pixel of camera (model, pose) sees in `state`: the ground point
+// (true) or an obstacle (false); *x the hit point in site.
+bool SeesGround(const sim::Scene::State& state, const camera::CameraModel& model,
+                const camera::ExteriorOrientation& pose, const Eigen::Vector2d& pixel, Eigen::Vector3d* x) {
+  const camera::Ray ray = model.ImageToRay(pose, pixel);
+  const Eigen::Vector3d d = ray.direction.normalized();
+  const double t_ground = state.grid.IntersectRay(ray.origin, d, 500.0);
+  double t_obstacle = std::numeric_limits<double>::infinity();
+  for (const sim::Obstacle& o : state.obstacles) {
+    Eigen::Vector3d n;
+    const double t = sim::IntersectObstacle(o, ray.origin, d, &n);
+    if (t > 0) t_obstacle = std::min(t_obstacle, t);
+  }
+  if (!std::isfinite(t_ground) && !std::isfinite(t_obstacle)) return false;
+  *x = ray.origin + std::min(t_ground, t_obstacle) * d;
+  return t_ground < t_obstacle;
+}
+
+// Pixels within `margin` px of an obstacle's image (the LSC window reaches
+// that far): matches there are on or next to an unmatchable object.
+bool NearObstacle(const sim::Scene::State& state, const camera::CameraModel& model,
+                  const camera::ExteriorOrientation& pose, const Eigen::Vector2d& pixel, double margin) {
+  Eigen::Vector3d x;
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx) {
+      if (!SeesGround(state, model, pose, pixel + margin * Eigen::Vector2d(dx, dy), &x)) return true;
+    }
+  return false;
+}
+
+// Matcher settings for the simulator's ground: its texture is weak at pixel
+// scale (Sobel gradient RMS 2.4 DN/px against 2.7 DN noise at mid grey), so
+// LSC runs on a 15 x 15 window of images low-passed by 1 px (measured on
+// this scene: stable-ground error RMS 0.37 px with the defaults, 0.27 px
+// with these).
+HexMatcherOptions SimOptions() {
+  HexMatcherOptions o;
+  o.lsc.half_window = 7;
+  o.lsc_prefilter_sigma = 1.0;
+  return o;
+}
+
+TEST(SimTracking, NaturalFeaturesAcrossEpochsAgainstTruth) {
+  const sim::Scene scene(Site());
+  const camera::CameraModel model = Camera();
+  const sim::Renderer renderer(scene, model);
+  const camera::ExteriorOrientation pose = FixedPose(scene, 0.0);
+  const sim::Scene::State s0 = scene.AtTime(0.0), s1 = scene.AtTime(kEpoch1);
+  const cv::Mat img0 = Shoot(renderer, s0, pose, 0, 1), img1 = Shoot(renderer, s1, pose, 1, 2);
+  const sim::LandslideModel& slide = scene.spec().landslide;
+
+  const HexMatcher matcher(SimOptions());
+  MatchPrior prior;
+  prior.radius = 6.0;  // fixed camera: stable ground does not move
+  prior.moving_radius = 20.0;
+  prior.estimate_global_shift = true;
+  // The operator's outline of the unstable area (the body plus a margin).
+  prior.moving = [&](const Eigen::Vector2d& px) {
+    Eigen::Vector3d x;
+    if (!SeesGround(s0, model, pose, px, &x)) return false;
+    const Eigen::Vector2d rel = x.head<2>() - slide.centre;
+    return std::hypot(rel.x() / (slide.length + 3), rel.y() / (slide.width + 3)) < 1.0;
+  };
+  const HexMatchResult r = matcher.Match(img0, img1, prior);
+
+  int ground = 0, correct = 0, moving = 0, moving_correct = 0, on_obstacle = 0, on_obstacle_wrong = 0;
+  double sum2 = 0, sum2_moving = 0, max_disp = 0;
+  for (const HexMatch& m : r.matches) {
+    Eigen::Vector3d x_ref;
+    if (NearObstacle(s0, model, pose, m.xa, 6.0)) {
+      ++on_obstacle;
+      // Truth of an obstacle pixel: it does not move (the tree's crown changes).
+      if ((m.xb - m.xa).norm() > 1.0) ++on_obstacle_wrong;
+      continue;
+    }
+    if (!SeesGround(s0, model, pose, m.xa, &x_ref)) continue;
+    const Eigen::Vector3d x_now = x_ref + slide.DisplacementAt(x_ref, kEpoch1);
+    Eigen::Vector2d xb_true;
+    ASSERT_TRUE(model.Project(pose, x_now, &xb_true));
+    const double e = (m.xb - xb_true).norm();
+    ++ground;
+    const bool mv = slide.Weight(x_ref.head<2>()) > 0.05;
+    if (mv) {
+      ++moving;
+      max_disp = std::max(max_disp, (xb_true - m.xa).norm());
+    }
+    if (e <= 1.0) {
+      ++correct;
+      sum2 += e * e;
+      if (mv) {
+        ++moving_correct;
+        sum2_moving += e * e;
+      }
+    }
+  }
+  const double rms = std::sqrt(sum2 / std::max(1, correct));
+  const double rms_moving = std::sqrt(sum2_moving / std::max(1, moving_correct));
+  std::printf("sim tracking: %d candidates, %d matches, %.2f s; global shift (%.2f, %.2f) px\n", r.summary.candidates,
+              r.summary.matched, r.summary.seconds, r.summary.global_shift.x(), r.summary.global_shift.y());
+  std::printf("  ground: %d matches, %d within 1 px of truth (%.1f %%), RMS %.3f px\n", ground, correct,
+              100.0 * correct / std::max(1, ground), rms);
+  std::printf("  moving body: %d matches (true image displacement up to %.1f px), %d within 1 px, RMS %.3f px\n",
+              moving, max_disp, moving_correct, rms_moving);
+  std::printf("  on/next to obstacles: %d matches, %d of them moved > 1 px\n", on_obstacle, on_obstacle_wrong);
+  for (const auto& kv : r.summary.rejects) std::printf("  reject %s: %d\n", kv.first.c_str(), kv.second);
+
+  EXPECT_LT(r.summary.global_shift.norm(), 0.2);  // fixed camera: the stable ground does not move
+  EXPECT_GT(ground, 100);
+  EXPECT_GT(moving, 20);
+  EXPECT_GT(max_disp, 4.0);  // the body really moves several pixels
+  EXPECT_GE(correct, 0.95 * ground);
+  EXPECT_GE(moving_correct, 0.9 * moving);
+  // Measured 0.27 px (ground) and 0.31 px (moving body): the limit of the
+  // simulator's weak ground texture, see SimOptions().
+  EXPECT_LT(rms, 0.35);
+  EXPECT_LT(rms_moving, 0.4);
+  // The obstacles do not move; the tree's crown texture changes a little
+  // between epochs. The matcher has no notion of "unmatchable": matches on
+  // them are reported (measured 30, with their normal quality) and are
+  // geometrically right except at most one (measured: one at 1.08 px).
+  EXPECT_LE(on_obstacle_wrong, 1);
+}
+
+TEST(SimTracking, TiePointsBetweenTwoFixedCamerasAgainstTruth) {
+  const sim::Scene scene(Site());
+  const camera::CameraModel model = Camera();
+  const sim::Renderer renderer(scene, model);
+  const camera::ExteriorOrientation pose_a = FixedPose(scene, -2.0), pose_b = FixedPose(scene, 2.0);
+  const sim::Scene::State s0 = scene.AtTime(0.0);
+  const cv::Mat img_a = Shoot(renderer, s0, pose_a, 0, 3), img_b = Shoot(renderer, s0, pose_b, 0, 4);
+
+  const HexMatcher matcher(SimOptions());
+  MatchPrior prior;
+  prior.has_epipolar = true;
+  prior.fundamental = FundamentalFromOrientation(model, pose_a, model, pose_b);
+  prior.epipolar_band = 3.0;  // distortion is left to the band
+  prior.radius = 80.0;        // along the epipolar line: the parallax range of the slope
+  const HexMatchResult r = matcher.Match(img_a, img_b, prior);
+
+  int checked = 0, correct = 0;
+  double sum2 = 0;
+  for (const HexMatch& m : r.matches) {
+    Eigen::Vector3d x, xb_hit;
+    if (!SeesGround(s0, model, pose_a, m.xa, &x)) continue;
+    Eigen::Vector2d xb_true;
+    ASSERT_TRUE(model.Project(pose_b, x, &xb_true));
+    // Visible from b too (not hidden behind the relief or an obstacle).
+    if (!SeesGround(s0, model, pose_b, xb_true, &xb_hit) || (xb_hit - x).norm() > 0.05) continue;
+    ++checked;
+    const double e = (m.xb - xb_true).norm();
+    if (e <= 1.0) {
+      ++correct;
+      sum2 += e * e;
+    }
+  }
+  const double rms = std::sqrt(sum2 / std::max(1, correct));
+  std::printf("sim tie points (4 m baseline): %d candidates, %d matches, %d checked against truth, %d within 1 px "
+              "(%.1f %%), RMS %.3f px, %.2f s\n",
+              r.summary.candidates, r.summary.matched, checked, correct, 100.0 * correct / std::max(1, checked), rms,
+              r.summary.seconds);
+  for (const auto& kv : r.summary.rejects) std::printf("  reject %s: %d\n", kv.first.c_str(), kv.second);
+  EXPECT_GT(checked, 100);
+  EXPECT_GE(correct, 0.95 * checked);
+  EXPECT_LT(rms, 0.4);  // measured 0.31 px (weak simulated texture, see SimOptions())
+}
+
+}  // namespace
+}  // namespace matching
+}  // namespace slope_monitor
