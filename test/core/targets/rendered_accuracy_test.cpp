@@ -1,11 +1,21 @@
 // Accuracy of the centroider against exact renders (planar_target_renderer.h):
-// AprilTag and circular targets 15-60 px across, tilted 0-60 degrees, noise
-// free and with realistic noise. Prints the RMS centre error per size and
-// angle, and checks RMS <= 0.02 px (circles) / 0.05 px (tag centres) and the
-// normalised error e^T C^-1 e / 2 of the published covariance in [0.5, 2]
-// (over the noisy images, where the covariance has noise to describe).
+// AprilTag and circular targets 15, 20, 30, 45 and 60 px across, tilted 0,
+// 20, 40 and 60 degrees, noise free and with realistic noise. Prints one
+// table per target type and noise level (RMS centre error per coordinate,
+// targets measured / rendered, normalised error) and checks:
+//   * circles: every one measured; RMS <= 0.02 px in every cell;
+//   * tags: every one of 30 px and more measured, and of 20 px up to 40 deg;
+//     RMS <= 0.05 px in every cell where any was measured. Smaller or more
+//     oblique tags (cells under ~1.5 px across) are measured only in part:
+//     libapriltag misses some, and the edge-model fit of a border under
+//     ~1.5 px wide fails on some ("fit_failed"); the rate per cell and the
+//     reason of every miss are printed, not asserted;
+//   * the published covariance is consistent with the actual error: the
+//     normalised error, RMS over the images of sqrt(e^T C^-1 e / 2) (1 for a
+//     perfect covariance), is in [0.5, 2] over the noisy images of each size.
 #include <cstdio>
 #include <map>
+#include <memory>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -22,9 +32,9 @@ using testing::Plate;
 
 constexpr double kFocal = 500.0;      // [px] short focal length: strong perspective
 constexpr double kHeight = 10.0;      // [m] camera above the plate
-constexpr int kTrials = 4;            // random sub-pixel positions / azimuths per case
-const double kSizes[] = {15.0, 30.0, 60.0};       // [px] tag border edge / disc diameter, facing the camera
-const double kTiltsDeg[] = {0.0, 30.0, 45.0, 60.0};
+constexpr int kTrials = 5;            // random sub-pixel positions / azimuths per cell
+const std::vector<double> kSizes = {15.0, 20.0, 30.0, 45.0, 60.0};  // [px] tag border edge / disc diameter, facing the camera
+const std::vector<double> kTiltsDeg = {0.0, 20.0, 40.0, 60.0};
 
 struct Case {
   bool circle;
@@ -32,10 +42,18 @@ struct Case {
 };
 
 struct Stats {
-  double sum_sq = 0;
-  double nee = 0;
+  double sum_sq = 0;   // squared error per coordinate, summed
+  double sum_nee = 0;  // e^T C^-1 e / 2, summed
   int n = 0;
-  int missing = 0;
+  int rendered = 0;
+  void Add(const Stats& o) {
+    sum_sq += o.sum_sq;
+    sum_nee += o.sum_nee;
+    n += o.n;
+    rendered += o.rendered;
+  }
+  double Rms() const { return std::sqrt(sum_sq / std::max(1, n)); }
+  double Nee() const { return std::sqrt(sum_nee / std::max(1, n)); }
 };
 
 testing::RenderOptions NoiseOptions(bool noisy, unsigned seed) {
@@ -48,9 +66,20 @@ testing::RenderOptions NoiseOptions(bool noisy, unsigned seed) {
   return o;
 }
 
+Options CaseOptions(const Case& c) {
+  Options opt;
+  opt.quad_decimate = 1.0;
+  opt.detect_circles = c.circle;
+  if (c.circle) opt.families.clear();
+  return opt;
+}
+
 // Renders one target and returns the error of the matching observation.
-bool RunOne(const Case& c, double size_px, double tilt, std::mt19937* rng, Eigen::Vector2d* error,
-            Eigen::Matrix2d* cov) {
+// `tag_centroider` measures tags (made once: building libapriltag's decode
+// tables is slow); circles need the plate's position and normal in the
+// target list, so their centroider is made per image (cheap without tags).
+bool RunOne(const Case& c, double size_px, double tilt, const TargetCentroider* tag_centroider, std::mt19937* rng,
+            Eigen::Vector2d* error, Eigen::Matrix2d* cov, std::string* why_not) {
   std::uniform_real_distribution<double> uni(0.0, 1.0);
   const double size_m = size_px * kHeight / kFocal;
   const double plate_half_px = (c.circle ? 1.0 : 0.625) * size_px;
@@ -64,15 +93,14 @@ bool RunOne(const Case& c, double size_px, double tilt, std::mt19937* rng, Eigen
   const Eigen::Matrix3d h = testing::PlaneToPixel(cam, pose, plate);
   const testing::RenderOptions ro = NoiseOptions(c.noisy, static_cast<unsigned>((*rng)()));
   cv::Mat f = testing::Background(w, w, ro);
-  testing::TagPattern tag(7, size_m);
   if (c.circle) {
     testing::RenderPlate(&f, h, testing::CirclePattern(size_m), size_m, ro);
   } else {
+    testing::TagPattern tag(7, size_m);
     testing::RenderPlate(&f, h, tag.AsPattern(), tag.half_extent(), ro);
   }
   const cv::Mat img = testing::ToMono8(f, ro);
 
-  io::TargetList list;
   io::TargetSpec spec;
   spec.id = c.circle ? 5 : 7;
   spec.family = c.circle ? "circle" : "tag36h11";
@@ -80,14 +108,16 @@ bool RunOne(const Case& c, double size_px, double tilt, std::mt19937* rng, Eigen
   spec.role = io::TargetRole::kMonitoring;
   spec.position = plate.centre;
   spec.normal = plate.Normal();
-  list.Add(spec);
-  Options opt;
-  opt.quad_decimate = 1.0;
-  opt.detect_circles = c.circle;
-  if (c.circle) opt.families.clear();
-  TargetCentroider centroider(opt, list);
+  std::unique_ptr<TargetCentroider> circle_centroider;
+  const TargetCentroider* centroider = tag_centroider;
+  if (c.circle) {
+    io::TargetList list;
+    list.Add(spec);
+    circle_centroider = std::make_unique<TargetCentroider>(CaseOptions(c), list);
+    centroider = circle_centroider.get();
+  }
   ViewGeometry view{cam, pose};
-  const Result r = centroider.Detect(img, "mono8", &view);
+  const Result r = centroider->Detect(img, "mono8", &view);
   const Eigen::Vector2d truth = Apply(h, 0.0, 0.0);
   for (const auto& o : r.observations) {
     if (o.family != spec.family || o.id != spec.id) continue;
@@ -95,50 +125,85 @@ bool RunOne(const Case& c, double size_px, double tilt, std::mt19937* rng, Eigen
     *cov = o.covariance;
     return true;
   }
-  for (const auto& rj : r.rejections) std::printf("  rejected %s/%d: %s (%s)\n", rj.family.c_str(), rj.id, RejectReasonName(rj.reason).c_str(), rj.detail.c_str());
+  *why_not = c.circle ? "not detected" : "not detected by libapriltag";
+  for (const auto& rj : r.rejections) {
+    if (rj.family == spec.family) *why_not = "rejected: " + RejectReasonName(rj.reason) + " (" + rj.detail + ")";
+  }
   return false;
 }
 
 TEST(RenderedAccuracy, CirclesAndTagsMeetTheTargets) {
   std::mt19937 rng(20261122);
   for (const Case c : {Case{true, false}, Case{true, true}, Case{false, false}, Case{false, true}}) {
+    const char* what = c.circle ? "circle" : "tag";
+    const char* noise = c.noisy ? "noisy" : "noise-free";
     const double limit = c.circle ? 0.02 : 0.05;
+    std::unique_ptr<TargetCentroider> tags;
+    if (!c.circle) {
+      io::TargetList list;
+      io::TargetSpec spec;
+      spec.id = 7;
+      spec.family = "tag36h11";
+      spec.size = 1.0;
+      list.Add(spec);
+      tags = std::make_unique<TargetCentroider>(CaseOptions(c), list);
+    }
+    std::printf("\n%s centres, %s: RMS error per coordinate [px] (measured/rendered) normalised error; limit %.2f px\n",
+                what, noise, limit);
+    std::printf("  size \\ tilt |");
+    for (double t : kTiltsDeg) std::printf("        %2.0f deg        |", t);
+    std::printf("  all tilts\n");
     Stats all;
+    std::vector<std::string> misses;
     for (double size : kSizes) {
+      std::printf("  %5.0f px   |", size);
+      Stats row;
       for (double tilt_deg : kTiltsDeg) {
         Stats s;
         for (int t = 0; t < kTrials; ++t) {
+          ++s.rendered;
           Eigen::Vector2d e;
           Eigen::Matrix2d cov;
-          if (!RunOne(c, size, tilt_deg * M_PI / 180.0, &rng, &e, &cov)) {
-            ++s.missing;
+          std::string why_not;
+          if (!RunOne(c, size, tilt_deg * M_PI / 180.0, tags.get(), &rng, &e, &cov, &why_not)) {
+            char buf[64];
+            std::snprintf(buf, sizeof(buf), "%2.0f px, %2.0f deg: ", size, tilt_deg);
+            misses.push_back(buf + why_not);
             continue;
           }
-          s.sum_sq += e.squaredNorm() / 2.0;  // per coordinate
-          s.nee += e.dot(cov.inverse() * e) / 2.0;
+          s.sum_sq += e.squaredNorm() / 2.0;
+          s.sum_nee += e.dot(cov.inverse() * e) / 2.0;
           ++s.n;
         }
-        std::printf("%-6s %-10s size %4.0f px tilt %2.0f deg: RMS %.4f px per coordinate, NEE %.2f, found %d/%d\n",
-                    c.circle ? "circle" : "tag", c.noisy ? "noisy" : "noise-free", size, tilt_deg,
-                    std::sqrt(s.sum_sq / std::max(1, s.n)), s.nee / std::max(1, s.n), s.n, kTrials);
-        // Known limitation: 15 px tags (cells under 2 px) are measured only in
-        // part (edge fits on 1-cell borders fail); every larger one must be.
-        if (c.circle || size >= 30) {
-          EXPECT_EQ(s.missing, 0) << (c.circle ? "circle" : "tag") << " size " << size << " tilt " << tilt_deg;
+        if (s.n > 0) {
+          std::printf(" %.4f (%d/%d) %5.2f |", s.Rms(), s.n, s.rendered, s.Nee());
+        } else {
+          std::printf("   -    (%d/%d)   -   |", s.n, s.rendered);
         }
-        all.sum_sq += s.sum_sq;
-        all.nee += s.nee;
-        all.n += s.n;
+        // Accuracy wherever anything was measured; completeness for every
+        // circle and every tag of 20 px and more.
+        if (s.n > 0) {
+          EXPECT_LE(s.Rms(), limit) << what << " " << noise << " size " << size << " tilt " << tilt_deg;
+        }
+        if (c.circle || size >= 30 || (size >= 20 && tilt_deg <= 40)) {
+          EXPECT_EQ(s.n, s.rendered) << what << " " << noise << " size " << size << " tilt " << tilt_deg;
+        }
+        row.Add(s);
       }
+      std::printf(" %.4f (%d/%d) %5.2f\n", row.Rms(), row.n, row.rendered, row.Nee());
+      if (c.noisy && row.n >= 10) {
+        EXPECT_GE(row.Nee(), 0.5) << what << " size " << size;
+        EXPECT_LE(row.Nee(), 2.0) << what << " size " << size;
+      }
+      all.Add(row);
     }
-    const double rms = std::sqrt(all.sum_sq / std::max(1, all.n));
-    const double nee = all.nee / std::max(1, all.n);
-    std::printf("%-6s %-10s ALL: RMS %.4f px per coordinate (limit %.2f), NEE %.2f over %d targets\n",
-                c.circle ? "circle" : "tag", c.noisy ? "noisy" : "noise-free", rms, limit, nee, all.n);
-    EXPECT_LE(rms, limit);
+    std::printf("  all        | RMS %.4f px over %d of %d targets, normalised error %.2f\n", all.Rms(), all.n,
+                all.rendered, all.Nee());
+    for (const auto& m : misses) std::printf("  missed %s\n", m.c_str());
+    EXPECT_LE(all.Rms(), limit);
     if (c.noisy) {
-      EXPECT_GE(nee, 0.5);
-      EXPECT_LE(nee, 2.0);
+      EXPECT_GE(all.Nee(), 0.5);
+      EXPECT_LE(all.Nee(), 2.0);
     }
   }
 }
