@@ -11,8 +11,14 @@
 // gain (estimated when Options::estimate_gain, else 1).
 //
 // Solved by Gauss-Newton on the residuals r = g B(X, Y) + o - A(u, v) with B
-// and its derivatives read from the interpolant (bilinear or bicubic, see
-// filters.h). Parameter vector, in order:
+// read from the interpolant (bilinear or bicubic, see filters.h). The image
+// gradient of the Jacobian is the template's (central differences of window
+// a mapped into b by the affine part, Options::gradient kTemplate), or b's
+// interpolant derivative (kResampled). Eq. 1 starts from the converged eq. 2
+// solution; its four affine parameters are kept only when their F statistic
+// against eq. 2, ((SSR2 - SSR1) / 4) / (SSR1 / (n - m)), reaches
+// Options::affine_min_f, else the eq. 2 solution is returned
+// (Summary::affine_used). Parameter vector, in order:
 //   [0] xb, [1] yb [px];  affine only: [2] a1, [3] a2, [4] a4, [5] a5 [-];
 //   then gain g [-] (if estimated), then offset o [grey].
 //
