@@ -96,7 +96,7 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
     o.rectify.min_overlap = p.Double("min_overlap", 0.05, 0.0, 1.0);
     o.cell_size = p.Double("cell_size", 0.5, 1e-3, 100.0, "m");
     o.min_points_per_cell = p.Int("min_points_per_cell", 2, 1, 1000);
-    o.parallax_sigma = p.Double("parallax_sigma", 0.3, 1e-3, 10.0, "px");
+    o.parallax_sigma = p.Double("parallax_sigma", 0.15, 1e-3, 10.0, "px");
     o.max_ray_gap = p.Double("max_ray_gap", 0.0, 0.0, 1e3, "m");
     o.ortho_cell_size = p.Double("ortho_cell_size", 0.0, 0.0, 100.0, "m");
     config_.min_depth = p.Double("min_depth", 5.0, 1e-3, 1e6, "m");

@@ -80,7 +80,7 @@ void ReadOptions(const std::string& path, dense::SurfaceOptions* o, dense::Surfa
   c->max_depth = p.Double("max_depth", 500.0, 1e-3, 1e6, "m");
   o->cell_size = p.Double("cell_size", 0.5, 1e-3, 100.0, "m");
   o->min_points_per_cell = p.Int("min_points_per_cell", 2, 1, 1000);
-  o->parallax_sigma = p.Double("parallax_sigma", 0.3, 1e-3, 10.0, "px");
+  o->parallax_sigma = p.Double("parallax_sigma", 0.15, 1e-3, 10.0, "px");
   o->max_ray_gap = p.Double("max_ray_gap", 0.0, 0.0, 1e3, "m");
   o->ortho_cell_size = p.Double("ortho_cell_size", 0.0, 0.0, 100.0, "m");
   const std::vector<double> r = p.Doubles("region", {0, 0, 0, 0}, 4);

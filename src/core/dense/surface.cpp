@@ -38,7 +38,9 @@ std::string SurfaceSummary::BriefReport() const {
 }
 
 io::GeoRaster GridSurface(const std::vector<SurfacePoint>& points, double cell_size, int min_points_per_cell,
-                          const Eigen::Vector4d& region_in) {
+                          const Eigen::Vector4d& region_in, double points_per_window) {
+  if (!(points_per_window >= 1.0))
+    throw InvalidArgument(Message("GridSurface: points_per_window ", points_per_window, " must be >= 1"));
   if (!(cell_size > 0)) throw InvalidArgument(Message("GridSurface: cell_size ", cell_size, " must be > 0"));
   Eigen::Vector4d region = region_in;
   if (region.isZero()) {
@@ -84,7 +86,10 @@ io::GeoRaster GridSurface(const std::vector<SurfacePoint>& points, double cell_s
     const double var = std::max(0.0, swzz[k] / sw[k] - z * z);
     r.bands[kHeight][k] = static_cast<float>(z);
     r.bands[kSpread][k] = static_cast<float>(std::sqrt(var));
-    r.bands[kUncertainty][k] = static_cast<float>(std::sqrt(1.0 / sw[k] + var / cnt[k]));
+    // Points closer than a correlation window share pixels: about
+    // cnt / points_per_window of them are independent.
+    const double n_eff = std::max(1.0, cnt[k] / points_per_window);
+    r.bands[kUncertainty][k] = static_cast<float>(std::sqrt((1.0 / sw[k]) * (cnt[k] / n_eff) + var / n_eff));
   }
   return r;
 }
@@ -142,7 +147,10 @@ SurfaceResult MeasureSurface(const OrientedImage& left, const OrientedImage& rig
   if (result.points.empty())
     throw InvalidArgument(Message("dense pair '", left.name, "'/'", right.name,
                                   "': no parallax could be measured (", sum.correlation.BriefReport(), ")"));
-  result.model = GridSurface(result.points, options.cell_size, options.min_points_per_cell, config.region);
+  const int window = copt.final_window > 0 ? copt.final_window : copt.window;
+  const double per_window = std::max(1.0, std::pow(static_cast<double>(window) / copt.final_grid_spacing, 2));
+  result.model =
+      GridSurface(result.points, options.cell_size, options.min_points_per_cell, config.region, per_window);
   sum.cells = result.model.width * result.model.height;
   for (float v : result.model.bands[kHeight]) sum.filled_cells += !result.model.IsNoData(v);
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

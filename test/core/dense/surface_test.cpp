@@ -189,14 +189,16 @@ TEST_F(DenseSurfaceTest, ChangeVolumesMatchTheMovedVolume) {
   std::printf("change: %s\n  true over significant cells: gain %.2f loss %.2f; analytic totals gain %.2f loss %.2f\n",
               ch.summary.BriefReport().c_str(), true_gain, true_loss, gain.Volume(), -loss.Volume());
   // The significant cells hold most of the analytic volume; the rest is the
-  // bumps' thin tails below the level of detection (measured on this scene:
-  // gain -9 %, loss -12 %).
-  EXPECT_NEAR(ch.summary.volume_gain, gain.Volume(), 0.15 * gain.Volume());
-  EXPECT_NEAR(ch.summary.volume_loss, -loss.Volume(), 0.2 * -loss.Volume());
+  // bumps' thin tails below the level of detection (measured on this scene
+  // with the per-cell uncertainty counting correlated neighbours, see
+  // surface.h: gain -16 %, loss -28 %; the 0.15 m LoD hides more of the
+  // 0.8 m scar's flanks).
+  EXPECT_NEAR(ch.summary.volume_gain, gain.Volume(), 0.22 * gain.Volume());
+  EXPECT_NEAR(ch.summary.volume_loss, -loss.Volume(), 0.35 * -loss.Volume());
   EXPECT_LT(ch.summary.volume_gain, gain.Volume());
   EXPECT_LT(ch.summary.volume_loss, -loss.Volume());
   // Against the true change over the same significant cells (selection
-  // keeps cells whose noise adds to the change: a bias of ~10 %).
+  // keeps cells whose noise adds to the change: measured +11 % / +6 %).
   EXPECT_NEAR(ch.summary.volume_gain, true_gain, 0.15 * true_gain);
   EXPECT_NEAR(ch.summary.volume_loss, true_loss, 0.2 * true_loss);
   // The net over all cells, without the LoD, is unbiased.

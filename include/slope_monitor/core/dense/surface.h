@@ -15,9 +15,13 @@
 //     z = sum(w_p z_p) / sum(w_p),  w_p = 1 / sigma_p^2
 // the spread is the weighted standard deviation of the z_p about z, and the
 // per-cell uncertainty (1 sigma, metres) is
-//     u = sqrt(1 / sum(w_p) + spread^2 / n)
+//     u = sqrt(n / n_eff / sum(w_p) + spread^2 / n_eff),  n_eff = max(1, n / m)
 // (measurement noise of the mean plus the height variation inside the cell
-// as a standard error). Cells with fewer than min_points_per_cell points are
+// as a standard error), where m = (window / final_grid_spacing)^2 is the
+// number of grid points that share one correlation window: neighbouring
+// parallaxes are not independent, so only about n / m of the n points of a
+// cell count (with plain 1 / sqrt(n) the level of detection of a change came
+// out far too small on the simulator). Cells with fewer than min_points_per_cell points are
 // holes: nodata in every band except count. Holes are never filled.
 //
 // sigma_p: a parallax error sigma_d [px] moves the point along the left ray
@@ -43,7 +47,7 @@ struct SurfaceOptions {
   RectifyOptions rectify;
   double cell_size = 0.5;            // [m] surface model cell; (0, 100]
   int min_points_per_cell = 1;       // [-] fewer points: hole; [1, 1000]
-  double parallax_sigma = 0.3;       // [px] a-priori parallax standard deviation; (0, 10]
+  double parallax_sigma = 0.15;      // [px] a-priori parallax standard deviation; (0, 10]
   double max_ray_gap = 0.0;          // [m] reject intersections whose rays miss by more; 0: 10 x cell_size
   double ortho_cell_size = 0.0;      // [m] orthophoto cell; 0: cell_size
   void Check() const;                // throws ConfigError naming the field
@@ -94,8 +98,9 @@ SurfaceResult MeasureSurface(const OrientedImage& left, const OrientedImage& rig
                              const SurfaceConfig& config, SurfaceSummary* summary = nullptr);
 
 // Grids points into a surface model (weighted mean, see the file comment).
+// points_per_window: m above (1: every point independent).
 io::GeoRaster GridSurface(const std::vector<SurfacePoint>& points, double cell_size, int min_points_per_cell,
-                          const Eigen::Vector4d& region);
+                          const Eigen::Vector4d& region, double points_per_window = 1.0);
 
 // Orthophoto of `image` on the surface model: each cell of the ortho grid
 // (cell_size, same extent) takes its height from the model (bilinear between
