@@ -172,7 +172,13 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
   void Process(const Side& l, const Side& r) {
     const dense::OrientedImage left = ToOriented(l, "left"), right = ToOriented(r, "right");
     dense::SurfaceSummary summary;
-    const dense::SurfaceResult s = dense::MeasureSurface(left, right, options_, config_, &summary);
+    std::ostringstream stem;
+    stem << output_dir_ << "/dense_" << std::fixed << std::setprecision(3) << l.image->header.stamp.toSec();
+    // With output_dir: surface and orthophoto written only after a successful
+    // measurement (temporary names, renamed), never a half set.
+    const dense::SurfaceResult s = output_dir_.empty()
+                                       ? dense::MeasureSurface(left, right, options_, config_, &summary)
+                                       : dense::MeasureSurfaceToFiles(left, right, options_, config_, stem.str(), &summary);
     std_msgs::Header header = l.image->header;
     header.frame_id = frame_id_;
     surface_pub_.publish(SurfaceCloud(s, header));
@@ -182,12 +188,6 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
       last_summary_ = summary.BriefReport();
     }
     NODELET_INFO("dense_matcher: %s", summary.BriefReport().c_str());
-    std::ostringstream stem;
-    stem << output_dir_ << "/dense_" << std::fixed << std::setprecision(3) << header.stamp.toSec();
-    if (!output_dir_.empty()) {
-      io::WriteGeoTiff(stem.str() + "_surface.tif", s.model);
-      io::WriteGeoTiff(stem.str() + "_ortho.tif", dense::MakeOrthophoto(s.model, left, options_.ortho_cell_size));
-    }
     std::unique_lock<std::mutex> state(state_mutex_);
     if (!reference_) {
       // The first measured pair is the reference epoch of the change.

@@ -18,8 +18,8 @@
 //   percentile on bare ground, and near the scarp / obstacles separately) and,
 //   with --reference-epoch, the measured cut-and-fill against the true one.
 //
-// Writes DIR/surface.tif (height, uncertainty, count, spread), DIR/ortho.tif
-// and, with a reference, DIR/change.tif. Exit status 0 on success, 1 on an
+// Writes DIR/dense_surface.tif (height, uncertainty, count, spread),
+// DIR/dense_ortho.tif and, with a reference, DIR/change.tif. Exit status 0 on success, 1 on an
 // error (message on stderr naming the file or key; nothing half-written).
 #include <algorithm>
 #include <cstdio>
@@ -227,11 +227,10 @@ int Run(const Args& a) {
   }
 
   dense::SurfaceSummary summary;
-  const dense::SurfaceResult s = dense::MeasureSurface(left, right, options, config, &summary);
+  // DIR/dense_surface.tif and DIR/dense_ortho.tif, written only after the measurement succeeded.
+  const dense::SurfaceResult s =
+      dense::MeasureSurfaceToFiles(left, right, options, config, (fs::path(out_dir) / "dense").string(), &summary);
   std::printf("%s\n", summary.BriefReport().c_str());
-  io::WriteGeoTiff((fs::path(out_dir) / "surface.tif").string(), s.model);
-  io::WriteGeoTiff((fs::path(out_dir) / "ortho.tif").string(),
-                   dense::MakeOrthophoto(s.model, left, options.ortho_cell_size));
 
   io::GeoRaster true_now;
   if (truth) {

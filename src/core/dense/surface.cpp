@@ -1,6 +1,7 @@
 #include "slope_monitor/core/dense/surface.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <chrono>
 #include <cmath>
 #include <sstream>
@@ -156,6 +157,22 @@ SurfaceResult MeasureSurface(const OrientedImage& left, const OrientedImage& rig
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (summary) *summary = sum;
   return result;
+}
+
+SurfaceResult MeasureSurfaceToFiles(const OrientedImage& left, const OrientedImage& right,
+                                    const SurfaceOptions& options, const SurfaceConfig& config,
+                                    const std::string& stem, SurfaceSummary* summary) {
+  SurfaceResult s = MeasureSurface(left, right, options, config, summary);
+  const io::GeoRaster ortho = MakeOrthophoto(s.model, left, options.ortho_cell_size);
+  const std::string surface_path = stem + "_surface.tif", ortho_path = stem + "_ortho.tif";
+  io::WriteGeoTiff(surface_path, s.model);
+  try {
+    io::WriteGeoTiff(ortho_path, ortho);
+  } catch (...) {
+    std::remove(surface_path.c_str());
+    throw;
+  }
+  return s;
 }
 
 io::GeoRaster MakeOrthophoto(const io::GeoRaster& model, const OrientedImage& image, double cell_size) {

@@ -97,6 +97,17 @@ enum SurfaceBand : int { kHeight = 0, kUncertainty = 1, kCount = 2, kSpread = 3 
 SurfaceResult MeasureSurface(const OrientedImage& left, const OrientedImage& right, const SurfaceOptions& options,
                              const SurfaceConfig& config, SurfaceSummary* summary = nullptr);
 
+// Measures the pair (MeasureSurface) and writes <stem>_surface.tif (bands
+// above) and <stem>_ortho.tif (MakeOrthophoto of the left image,
+// options.ortho_cell_size). Nothing is written unless the measurement and the
+// orthophoto succeeded; each file goes to a temporary name and is renamed
+// (io::WriteGeoTiff), and when the second file cannot be written the first is
+// removed again, so a failure never leaves a file that looks valid. Throws
+// what MeasureSurface throws, and IoError naming the file.
+SurfaceResult MeasureSurfaceToFiles(const OrientedImage& left, const OrientedImage& right,
+                                    const SurfaceOptions& options, const SurfaceConfig& config,
+                                    const std::string& stem, SurfaceSummary* summary = nullptr);
+
 // Grids points into a surface model (weighted mean, see the file comment).
 // points_per_window: m above (1: every point independent).
 io::GeoRaster GridSurface(const std::vector<SurfacePoint>& points, double cell_size, int min_points_per_cell,
