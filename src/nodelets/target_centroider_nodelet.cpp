@@ -19,6 +19,7 @@
 
 #include "slope_monitor/TargetObservationArray.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/targets/options_reader.h"
 #include "slope_monitor/core/targets/target_centroider.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/parameters.h"
@@ -30,41 +31,47 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
+    targets::NodeOptions node;
+    targets::Options o;
     try {
       ros_adapters::ParamReader p(pnh);
-      targets::Options o;
-      o.families = p.StringList("families", o.families);
-      o.quad_decimate = p.Double("quad_decimate", o.quad_decimate, 1.0, 8.0);
-      o.quad_sigma = p.Double("quad_sigma", o.quad_sigma, 0.0, 10.0, "px");
-      o.refine_edges = p.Bool("refine_edges", o.refine_edges);
-      o.decode_sharpening = p.Double("decode_sharpening", o.decode_sharpening, 0.0, 10.0);
-      o.threads = p.Int("threads", o.threads, 1, 64);
-      o.max_hamming = p.Int("max_hamming", o.max_hamming, 0, 3, "bits");
-      o.min_decision_margin = p.Double("min_decision_margin", o.min_decision_margin, 0.0, 1000.0);
-      o.refine_tags = p.Bool("refine_tags", o.refine_tags);
-      o.detect_circles = p.Bool("detect_circles", o.detect_circles);
-      o.circle_min_diameter = p.Double("circle_min_diameter", o.circle_min_diameter, 4.0, 2000.0, "px");
-      o.circle_max_diameter = p.Double("circle_max_diameter", o.circle_max_diameter, 4.0, 2000.0, "px");
-      o.circle_max_eccentricity = p.Double("circle_max_eccentricity", o.circle_max_eccentricity, 0.01, 0.99);
-      o.circle_id_gate = p.Double("circle_id_gate", o.circle_id_gate, 0.01, 5.0);
-      o.refine_circles = p.Bool("refine_circles", o.refine_circles);
-      o.correct_perspective = p.Bool("correct_perspective", o.correct_perspective);
-      o.min_contrast = p.Double("min_contrast", o.min_contrast, 0.1, 254.0, "DN");
-      o.border_margin = p.Double("border_margin", o.border_margin, 0.0, 100.0, "px");
-      o.saturation_level = p.Double("saturation_level", o.saturation_level, 1.0, 255.0, "DN");
-      o.max_saturated_fraction = p.Double("max_saturated_fraction", o.max_saturated_fraction, 0.0, 1.0);
-      o.max_edge_blur = p.Double("max_edge_blur", o.max_edge_blur, 0.01, 20.0, "px");
-      o.max_residual = p.Double("max_residual", o.max_residual, 0.01, 1.0);
-      o.noise_floor = p.Double("noise_floor", o.noise_floor, 0.0, 50.0, "DN");
-      const std::string list_path = p.String("target_list", "");
-      camera_name_ = p.String("camera_name", "");
-      site_frame_ = p.String("site_frame", "site");
-      use_tf_pose_ = p.Bool("use_tf_pose", true);
-      pixel_size_ = p.Double("pixel_size", 1.0, 1e-6, 1.0, "mm");
-      queue_size_ = p.Int("queue_size", 100, 1, 10000, "images");
+      o = targets::ReadOptions(p);  // the same reader as the centroid_targets tool's
+      node = targets::ReadNodeOptions(p);
       p.CheckNoUnknownKeys();
-      io::TargetList list;
-      if (!list_path.empty()) list = io::TargetList::Load(list_path);  // names the file and the key
+      o.Check();
+    } catch (const Error& e) {
+      // Bad parameters: nothing is measured, but the node stays up and says
+      // why, throttled in the log and in diagnostics.
+      config_error_ = e.what();
+      NODELET_ERROR("target_centroider: %s; not advertising", e.what());
+      updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
+      updater_->setHardwareID(pnh.getNamespace());
+      updater_->add("target_centroider", this, &TargetCentroiderNodelet::Diagnose);
+      diag_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) {
+        NODELET_ERROR_THROTTLE(30.0, "target_centroider: not running: %s", config_error_.c_str());
+        updater_->update();
+      });
+      return;
+    }
+    camera_name_ = node.camera_name;
+    site_frame_ = node.site_frame;
+    use_tf_pose_ = node.use_tf_pose;
+    pixel_size_ = node.pixel_size;
+    queue_size_ = node.queue_size;
+    io::TargetList list;
+    if (!node.target_list.empty()) {
+      try {
+        list = io::TargetList::Load(node.target_list);  // names the file and the key (e.g. a duplicate ID)
+      } catch (const Error& e) {
+        // A bad target list: keep measuring, but with no list every target is
+        // published as UNKNOWN (never as a control point); said on every image
+        // (throttled) and in diagnostics.
+        target_list_error_ = Message("target list '", node.target_list, "' not used: ", e.what(),
+                                     "; every target is published as unknown");
+        NODELET_ERROR("target_centroider: %s", target_list_error_.c_str());
+      }
+    }
+    try {
       centroider_ = std::make_unique<targets::TargetCentroider>(o, list);
     } catch (const Error& e) {
       NODELET_ERROR("target_centroider: %s; not advertising", e.what());
@@ -91,11 +98,13 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
   }
 
   void OnImage(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info) {
+    if (!target_list_error_.empty()) {
+      NODELET_ERROR_THROTTLE(30.0, "target_centroider: %s", target_list_error_.c_str());
+    }
     try {
-      if (image->width != info->width || image->height != info->height) {
-        throw InvalidArgument(Message("image is ", image->width, "x", image->height, " px but camera_info is ",
-                                      info->width, "x", info->height, " px"));
-      }
+      // Encoding, empty image, size against camera_info: named with the topic.
+      targets::CheckImageInput(sub_.getTopic(), image->width, image->height, image->encoding, info->width,
+                               info->height);
       cv_bridge::CvImageConstPtr cv_image = cv_bridge::toCvShare(image);
       std::unique_ptr<targets::ViewGeometry> view;
       if (use_tf_pose_ && info->K[0] > 0) {
@@ -166,13 +175,19 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
 
   void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
     std::lock_guard<std::mutex> lock(stats_mutex_);
+    if (!config_error_.empty()) {
+      stat.summaryf(diagnostic_msgs::DiagnosticStatus::ERROR, "not running: %s", config_error_.c_str());
+      return;
+    }
     const double elapsed = (ros::WallTime::now() - start_).toSec();
     stat.add("frames", frames_);
     stat.add("frame rate [Hz]", elapsed > 0 ? frames_ / elapsed : 0.0);
     stat.add("detections (last frame)", last_detections_);
     stat.add("dropped images", errors_);
     for (const auto& [reason, n] : rejects_) stat.add("rejected: " + reason, n);
-    if (errors_ > 0) {
+    if (!target_list_error_.empty()) {
+      stat.summaryf(diagnostic_msgs::DiagnosticStatus::ERROR, "%s", target_list_error_.c_str());
+    } else if (errors_ > 0) {
       stat.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "%d images dropped; last: %s", errors_, last_error_.c_str());
     } else if (frames_ == 0) {
       stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "no images yet");
@@ -183,6 +198,8 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
 
   std::unique_ptr<targets::TargetCentroider> centroider_;
   std::string camera_name_, site_frame_;
+  std::string config_error_;       // bad parameters: the node only reports this
+  std::string target_list_error_;  // bad target list: measuring without it
   bool use_tf_pose_ = true;
   double pixel_size_ = 1.0;
   int queue_size_ = 100;  // images buffered while the detector is busy (a replayed survey comes in bursts)

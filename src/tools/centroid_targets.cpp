@@ -6,7 +6,8 @@
 //   centroid_targets --bag survey.bag --topic /fixed_cam_1/camera/image_raw --out targets.csv [...]
 //
 // --config reads the same keys as config/defaults/target_centroider.yaml
-// (the AprilTag / circle / acceptance keys; unknown keys are an error).
+// through the reader the nodelet uses (targets/options_reader.h; unknown keys
+// are an error naming the file and key).
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -24,45 +25,21 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/yaml_map.h"
+#include "slope_monitor/core/targets/options_reader.h"
 #include "slope_monitor/core/targets/target_centroider.h"
 
 using namespace slope_monitor;
 
 namespace {
 
-targets::Options LoadOptions(const std::string& path) {
-  targets::Options o;
-  if (path.empty()) return o;
+// --config: the node's parameter file, read by the same targets::ReadOptions
+// as the nodelet (node-only keys are read and checked too; --targets, when
+// not given, defaults to the file's target_list).
+targets::Options LoadOptions(const std::string& path, targets::NodeOptions* node) {
+  if (path.empty()) return targets::Options();
   io::YamlMap m = io::YamlMap::Load(path);
-  o.families = m.Strings("families", o.families);
-  o.quad_decimate = m.Double("quad_decimate", o.quad_decimate, 1.0, 8.0);
-  o.quad_sigma = m.Double("quad_sigma", o.quad_sigma, 0.0, 10.0, "px");
-  o.refine_edges = m.Bool("refine_edges", o.refine_edges);
-  o.decode_sharpening = m.Double("decode_sharpening", o.decode_sharpening, 0.0, 10.0);
-  o.threads = m.Int("threads", o.threads, 1, 64);
-  o.max_hamming = m.Int("max_hamming", o.max_hamming, 0, 3);
-  o.min_decision_margin = m.Double("min_decision_margin", o.min_decision_margin, 0.0, 1000.0);
-  o.refine_tags = m.Bool("refine_tags", o.refine_tags);
-  o.detect_circles = m.Bool("detect_circles", o.detect_circles);
-  o.circle_min_diameter = m.Double("circle_min_diameter", o.circle_min_diameter, 4.0, 2000.0, "px");
-  o.circle_max_diameter = m.Double("circle_max_diameter", o.circle_max_diameter, 4.0, 2000.0, "px");
-  o.circle_max_eccentricity = m.Double("circle_max_eccentricity", o.circle_max_eccentricity, 0.01, 0.99);
-  o.circle_id_gate = m.Double("circle_id_gate", o.circle_id_gate, 0.01, 5.0);
-  o.refine_circles = m.Bool("refine_circles", o.refine_circles);
-  o.correct_perspective = m.Bool("correct_perspective", o.correct_perspective);
-  o.min_contrast = m.Double("min_contrast", o.min_contrast, 0.1, 254.0, "DN");
-  o.border_margin = m.Double("border_margin", o.border_margin, 0.0, 100.0, "px");
-  o.saturation_level = m.Double("saturation_level", o.saturation_level, 1.0, 255.0, "DN");
-  o.max_saturated_fraction = m.Double("max_saturated_fraction", o.max_saturated_fraction, 0.0, 1.0);
-  o.max_edge_blur = m.Double("max_edge_blur", o.max_edge_blur, 0.01, 20.0, "px");
-  o.max_residual = m.Double("max_residual", o.max_residual, 0.01, 1.0);
-  o.noise_floor = m.Double("noise_floor", o.noise_floor, 0.0, 50.0, "DN");
-  // Node-only keys are allowed in the shared file.
-  m.String("target_list", "");
-  m.String("camera_name", "");
-  m.String("site_frame", "site");
-  m.Bool("use_tf_pose", true);
-  m.Double("pixel_size", 1.0, 1e-6, 1.0);
+  const targets::Options o = targets::ReadOptions(m);
+  *node = targets::ReadNodeOptions(m);
   m.CheckNoUnknownKeys();
   return o;
 }
@@ -93,8 +70,10 @@ int main(int argc, char** argv) {
   for (int i = 1; i + 1 < argc; i += 2) args[argv[i]] = argv[i + 1];
   if ((argc - 1) % 2 != 0 || !args.count("--out") || (args.count("--images") == args.count("--bag"))) return Usage();
   try {
-    const targets::Options options = LoadOptions(args.count("--config") ? args["--config"] : "");
-    const io::TargetList list = args.count("--targets") ? io::TargetList::Load(args["--targets"]) : io::TargetList();
+    targets::NodeOptions node;
+    const targets::Options options = LoadOptions(args.count("--config") ? args["--config"] : "", &node);
+    const std::string list_path = args.count("--targets") ? args["--targets"] : node.target_list;
+    const io::TargetList list = list_path.empty() ? io::TargetList() : io::TargetList::Load(list_path);
     targets::TargetCentroider centroider(options, list);
     std::ofstream out(args["--out"]);
     if (!out) throw IoError(Message("cannot write '", args["--out"], "'"));

@@ -392,6 +392,24 @@ MonoImage ToMono(const cv::Mat& image, const std::string& encoding) {
   return out;
 }
 
+void CheckImageInput(const std::string& topic, int width, int height, const std::string& encoding, int info_width,
+                     int info_height) {
+  if (width <= 0 || height <= 0) {
+    throw InvalidArgument(Message("image on '", topic, "' is empty (", width, "x", height, ", encoding '", encoding, "')"));
+  }
+  const auto& enc = SupportedEncodings();
+  if (std::find(enc.begin(), enc.end(), encoding) == enc.end()) {
+    std::string list;
+    for (const auto& e : enc) list += (list.empty() ? "" : ", ") + e;
+    throw InvalidArgument(
+        Message("image on '", topic, "' has encoding '", encoding, "', which is not supported (supported: ", list, ")"));
+  }
+  if (width != info_width || height != info_height) {
+    throw InvalidArgument(Message("image on '", topic, "' is ", width, "x", height, " px but its camera_info is ",
+                                  info_width, "x", info_height, " px"));
+  }
+}
+
 // ---------------------------------------------------------------------------
 // libapriltag state and the per-frame work buffers (kept between frames so a
 // frame allocates no large buffers once the image size is steady).

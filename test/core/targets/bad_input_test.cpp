@@ -7,6 +7,8 @@
 
 #include "planar_target_renderer.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/yaml_map.h"
+#include "slope_monitor/core/targets/options_reader.h"
 #include "slope_monitor/core/targets/target_centroider.h"
 
 namespace slope_monitor {
@@ -84,6 +86,111 @@ TEST(BadInput, DuplicateIdInTargetListNamesFileAndId) {
   const std::string msg = ErrorOf<ConfigError>([&] { io::TargetList::Load(path); });
   EXPECT_NE(msg.find("dup_targets.yaml"), std::string::npos) << msg;
   EXPECT_NE(msg.find("3"), std::string::npos) << msg;
+}
+
+// The nodelet's first check of every image message (before cv_bridge).
+TEST(BadInput, ImageMessageChecksNameTheTopic) {
+  const std::string topic = "/cam_1/image_raw";
+  EXPECT_NO_THROW(CheckImageInput(topic, 640, 480, "mono8", 640, 480));
+  std::string msg = ErrorOf<InvalidArgument>([&] { CheckImageInput(topic, 640, 480, "yuv422", 640, 480); });
+  EXPECT_NE(msg.find(topic), std::string::npos) << msg;
+  EXPECT_NE(msg.find("'yuv422'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("bayer_rggb8"), std::string::npos) << msg;  // lists what is supported
+  msg = ErrorOf<InvalidArgument>([&] { CheckImageInput(topic, 0, 0, "mono8", 640, 480); });
+  EXPECT_NE(msg.find(topic), std::string::npos) << msg;
+  EXPECT_NE(msg.find("empty"), std::string::npos) << msg;
+  msg = ErrorOf<InvalidArgument>([&] { CheckImageInput(topic, 640, 480, "mono8", 1280, 720); });
+  EXPECT_NE(msg.find(topic), std::string::npos) << msg;
+  EXPECT_NE(msg.find("640x480"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("1280x720"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("camera_info"), std::string::npos) << msg;
+}
+
+// A bad image does not break the centroider: the next good one is measured.
+TEST(BadInput, GoodImageAfterBadOnesIsMeasured) {
+  TargetCentroider c(CirclesOnly(), io::TargetList());
+  EXPECT_THROW(c.Detect(cv::Mat(), "mono8"), InvalidArgument);
+  EXPECT_THROW(c.Detect(cv::Mat(30, 30, CV_8UC1, cv::Scalar(0)), "32FC1"), InvalidArgument);
+  ViewGeometry view{testing::NadirCamera(640, 480, 500.0), camera::ExteriorOrientation()};
+  EXPECT_THROW(c.Detect(cv::Mat(48, 64, CV_8UC1, cv::Scalar(0)), "mono8", &view), InvalidArgument);
+  const Result r = c.Detect(Disc(120, 100, 60.3, 50.7, 24.0), "mono8");
+  ASSERT_EQ(r.observations.size(), 1u);
+  EXPECT_NEAR(r.observations[0].centre.x(), 60.3, 0.01);
+  EXPECT_NEAR(r.observations[0].centre.y(), 50.7, 0.01);
+}
+
+TEST(BadInput, MonoImageOfWrongTypeIsNamed) {
+  TargetCentroider c(CirclesOnly(), io::TargetList());
+  MonoImage m;
+  m.mono8 = cv::Mat(20, 20, CV_16UC1, cv::Scalar(0));
+  EXPECT_NE(ErrorOf<InvalidArgument>([&] { c.DetectMono(m); }).find("mono8"), std::string::npos);
+  m = MonoImage();
+  EXPECT_NE(ErrorOf<InvalidArgument>([&] { c.DetectMono(m); }).find("empty"), std::string::npos);
+}
+
+TEST(BadInput, DuplicateIdAddedInCodeIsNamed) {
+  io::TargetList list;
+  io::TargetSpec spec;
+  spec.id = 12;
+  spec.family = "circle";
+  spec.size = 0.3;
+  list.Add(spec);
+  const std::string msg = ErrorOf<InvalidArgument>([&] { list.Add(spec); });
+  EXPECT_NE(msg.find("12"), std::string::npos) << msg;
+}
+
+// One options reader for the nodelet (ParamReader) and the tool (YamlMap):
+// the shipped defaults file reads completely and equals the in-class defaults.
+TEST(OptionsReader, ShippedDefaultsEqualTheInClassDefaults) {
+  io::YamlMap m = io::YamlMap::Load(std::string(SM_SOURCE_DIR) + "/config/defaults/target_centroider.yaml");
+  const Options o = ReadOptions(m);
+  const NodeOptions n = ReadNodeOptions(m);
+  EXPECT_NO_THROW(m.CheckNoUnknownKeys());
+  const Options d;
+  EXPECT_EQ(o.families, d.families);
+  EXPECT_EQ(o.quad_decimate, d.quad_decimate);
+  EXPECT_EQ(o.quad_sigma, d.quad_sigma);
+  EXPECT_EQ(o.refine_edges, d.refine_edges);
+  EXPECT_EQ(o.decode_sharpening, d.decode_sharpening);
+  EXPECT_EQ(o.threads, d.threads);
+  EXPECT_EQ(o.max_hamming, d.max_hamming);
+  EXPECT_EQ(o.min_decision_margin, d.min_decision_margin);
+  EXPECT_EQ(o.refine_tags, d.refine_tags);
+  EXPECT_EQ(o.detect_circles, d.detect_circles);
+  EXPECT_EQ(o.circle_min_diameter, d.circle_min_diameter);
+  EXPECT_EQ(o.circle_max_diameter, d.circle_max_diameter);
+  EXPECT_EQ(o.circle_max_eccentricity, d.circle_max_eccentricity);
+  EXPECT_EQ(o.circle_id_gate, d.circle_id_gate);
+  EXPECT_EQ(o.refine_circles, d.refine_circles);
+  EXPECT_EQ(o.correct_perspective, d.correct_perspective);
+  EXPECT_EQ(o.min_contrast, d.min_contrast);
+  EXPECT_EQ(o.border_margin, d.border_margin);
+  EXPECT_EQ(o.saturation_level, d.saturation_level);
+  EXPECT_EQ(o.max_saturated_fraction, d.max_saturated_fraction);
+  EXPECT_EQ(o.max_edge_blur, d.max_edge_blur);
+  EXPECT_EQ(o.max_residual, d.max_residual);
+  EXPECT_EQ(o.noise_floor, d.noise_floor);
+  const NodeOptions nd;
+  EXPECT_EQ(n.target_list, nd.target_list);
+  EXPECT_EQ(n.site_frame, nd.site_frame);
+  EXPECT_EQ(n.queue_size, nd.queue_size);
+  EXPECT_EQ(n.pixel_size, nd.pixel_size);
+}
+
+TEST(OptionsReader, BadKeysAreNamed) {
+  {
+    io::YamlMap m = io::YamlMap::Parse("quad_decimate: 9.0\n", "bad.yaml");
+    const std::string msg = ErrorOf<ConfigError>([&] { ReadOptions(m); });
+    EXPECT_NE(msg.find("quad_decimate"), std::string::npos) << msg;
+  }
+  {
+    io::YamlMap m = io::YamlMap::Parse("quad_decimat: 2.0\n", "bad.yaml");
+    ReadOptions(m);
+    ReadNodeOptions(m);
+    const std::string msg = ErrorOf<ConfigError>([&] { m.CheckNoUnknownKeys(); });
+    EXPECT_NE(msg.find("quad_decimat"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("bad.yaml"), std::string::npos) << msg;
+  }
 }
 
 TEST(BadInput, BadOptionsAreNamed) {

@@ -157,6 +157,12 @@ const std::vector<std::string>& SupportedEncodings();
 // Throws InvalidArgument naming the encoding when it is not supported, when
 // the image is empty, or when its type does not match the encoding.
 MonoImage ToMono(const cv::Mat& image, const std::string& encoding);
+// Checks an incoming image message before any conversion: its size is not
+// empty, its encoding is supported and its size equals the camera_info's.
+// Throws InvalidArgument naming `topic` and what is wrong (the encoding, both
+// sizes).
+void CheckImageInput(const std::string& topic, int width, int height, const std::string& encoding, int info_width,
+                     int info_height);
 
 class TargetCentroider {
  public:
