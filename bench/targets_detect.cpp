@@ -204,6 +204,6 @@ int main(int argc, char** argv) {
     return 0;
   }
   Run(1280, 720, 12, 12, 40);
-  Run(4000, 3000, 40, 40, 5);
+  Run(4000, 3000, 40, 40, 9);
   return 0;
 }
