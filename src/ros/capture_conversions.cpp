@@ -208,23 +208,39 @@ namespace slope_monitor {
 namespace ros_adapters {
 
 BagReport CheckBag(const std::string& path, const BagCheckOptions& options) {
+  return CheckBags({path}, options);
+}
+
+BagReport CheckBags(const std::vector<std::string>& paths, const BagCheckOptions& options) {
   if (!(options.gap > 0.0) || !(options.epoch_gap > 0.0)) {
     throw InvalidArgument(Message("bag check gaps must be > 0 (gap = ", options.gap, ", epoch_gap = ", options.epoch_gap, ")"));
   }
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) throw IoError(Message(path, ": no such file"));
-  if (st.st_size == 0) throw IoError(Message(path, ": the file is empty (0 bytes), not a bag"));
+  if (paths.empty()) throw InvalidArgument("bag check: no bag file given");
   BagReport report;
+  std::string path;  // the file(s), for messages
+  for (const auto& p : paths) path += (path.empty() ? "" : ", ") + p;
   report.path = path;
+  // Each file opened on its own first, so an error names the bad one.
+  std::vector<std::unique_ptr<rosbag::Bag>> bags;
+  for (const auto& p : paths) {
+    struct stat st {};
+    if (::stat(p.c_str(), &st) != 0) throw IoError(Message(p, ": no such file"));
+    if (st.st_size == 0) throw IoError(Message(p, ": the file is empty (0 bytes), not a bag"));
+    try {
+      bags.push_back(std::make_unique<rosbag::Bag>());
+      bags.back()->open(p, rosbag::bagmode::Read);
+    } catch (const rosbag::BagException& e) {
+      throw IoError(Message(p, ": not a readable bag, or truncated (", e.what(), ")"));
+    }
+  }
   std::map<std::string, BagTopicStats> topics;
   std::vector<BagEpochBoundary> markers;
   std::vector<BagEpochBoundary> gap_epochs;  // epochs separated by pauses of the whole bag
   uint32_t gap_epoch_count = 0;
   double previous = -1.0;
   try {
-    rosbag::Bag bag;
-    bag.open(path, rosbag::bagmode::Read);
-    rosbag::View view(bag);
+    rosbag::View view;  // all files merged in time order (split parts of one recording)
+    for (const auto& bag : bags) view.addQuery(*bag);
     for (const rosbag::MessageInstance& m : view) {
       const double t = m.getTime().toSec();
       BagTopicStats& s = topics[m.getTopic()];
@@ -257,7 +273,7 @@ BagReport CheckBag(const std::string& path, const BagCheckOptions& options) {
       ++gap_epoch_count;
       previous = t;
     }
-    bag.close();
+    for (auto& bag : bags) bag->close();
   } catch (const rosbag::BagException& e) {
     throw IoError(Message(path, ": not a readable bag, or truncated (", e.what(), ")"));
   } catch (const ros::Exception& e) {

@@ -3,7 +3,11 @@
 // longer than --epoch-gap) and per-topic gaps longer than --gap. Fails with a
 // message naming the file on an empty, truncated or non-bag file.
 //
-//   bag_check [--gap S] [--epoch-gap S] file.bag [more.bag ...]
+//   bag_check [--gap S] [--epoch-gap S] [--session] file.bag [more.bag ...]
+//
+// --session: the bags are the split parts of one recording (record.launch):
+// one report over all of them in time order, so an epoch or gap that spans a
+// split is reported once.
 //
 // Exit status: 0 all bags readable, 1 some bag unreadable, 2 usage error.
 #include <cstdlib>
@@ -18,7 +22,7 @@ namespace {
 
 int Usage(const std::string& why) {
   std::cerr << "bag_check: " << why << "\n"
-            << "usage: bag_check [--gap SECONDS] [--epoch-gap SECONDS] file.bag [more.bag ...]\n";
+            << "usage: bag_check [--gap SECONDS] [--epoch-gap SECONDS] [--session] file.bag [more.bag ...]\n";
   return 2;
 }
 
@@ -35,9 +39,12 @@ bool ParsePositive(const std::string& text, double* out) {
 int main(int argc, char** argv) {
   slope_monitor::ros_adapters::BagCheckOptions options;
   std::vector<std::string> bags;
+  bool session = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--gap" || a == "--epoch-gap") {
+    if (a == "--session") {
+      session = true;
+    } else if (a == "--gap" || a == "--epoch-gap") {
       if (i + 1 >= argc) return Usage(a + " needs a value");
       double* target = a == "--gap" ? &options.gap : &options.epoch_gap;
       if (!ParsePositive(argv[++i], target)) return Usage(a + " value '" + argv[i] + "' is not a positive number");
@@ -51,6 +58,15 @@ int main(int argc, char** argv) {
     }
   }
   if (bags.empty()) return Usage("no bag file given");
+  if (session) {
+    try {
+      std::cout << slope_monitor::ros_adapters::FormatBagReport(slope_monitor::ros_adapters::CheckBags(bags, options));
+      return 0;
+    } catch (const slope_monitor::Error& e) {
+      std::cerr << "bag_check: " << e.what() << "\n";
+      return 1;
+    }
+  }
   int status = 0;
   for (const auto& path : bags) {
     try {

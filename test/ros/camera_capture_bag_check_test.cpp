@@ -136,5 +136,63 @@ TEST(BagCheck, EpochMarkersWrittenByTheTest) {
   EXPECT_EQ(r.gaps.size(), 2u);
 }
 
+
+// A recording split in three files (as rosbag record --split writes it): the
+// middle file holds no marker. Per file it falls back to time-gap epochs;
+// as one session (CheckBags) the epochs span the splits, counts add up.
+TEST(BagCheck, SplitSessionAsOneRecording) {
+  capture_test::TempDir dir("bagcheck_split");
+  const double t0 = 1700000000.0;
+  const std::vector<std::string> paths = {dir.File("s_0.bag"), dir.File("s_1.bag"), dir.File("s_2.bag")};
+  slope_monitor::EpochMarker m;
+  m.epoch = 4;
+  m.source = "/uav/camera";
+  std_msgs::String s;
+  s.data = "image";
+  {
+    rosbag::Bag bag(paths[0], rosbag::bagmode::Write);
+    bag.write("/uav/camera/epoch", ros::Time(t0), m);
+    bag.write("/uav/camera/image_stub", ros::Time(t0 + 1.0), s);
+  }
+  {
+    rosbag::Bag bag(paths[1], rosbag::bagmode::Write);
+    bag.setCompression(rosbag::compression::LZ4);
+    bag.write("/uav/camera/image_stub", ros::Time(t0 + 3.0), s);
+    bag.write("/uav/camera/image_stub", ros::Time(t0 + 5.0), s);
+  }
+  {
+    rosbag::Bag bag(paths[2], rosbag::bagmode::Write);
+    bag.write("/uav/camera/image_stub", ros::Time(t0 + 7.0), s);
+    m.end = true;
+    m.count = 4;
+    bag.write("/uav/camera/epoch", ros::Time(t0 + 7.5), m);
+  }
+  const ros_adapters::BagReport middle = ros_adapters::CheckBag(paths[1], ros_adapters::BagCheckOptions{});
+  EXPECT_FALSE(middle.epochs_from_markers);
+  const ros_adapters::BagReport r = ros_adapters::CheckBags(paths, ros_adapters::BagCheckOptions{});
+  EXPECT_EQ(r.messages, 6u);
+  EXPECT_DOUBLE_EQ(r.start, t0);
+  EXPECT_DOUBLE_EQ(r.end, t0 + 7.5);
+  ASSERT_EQ(r.topics.size(), 2u);
+  EXPECT_EQ(r.topics[1].topic, "/uav/camera/image_stub");
+  EXPECT_EQ(r.topics[1].count, 4u);
+  EXPECT_DOUBLE_EQ(r.topics[1].max_gap, 2.0);
+  EXPECT_TRUE(r.epochs_from_markers);
+  ASSERT_EQ(r.epochs.size(), 2u);
+  EXPECT_FALSE(r.epochs[0].end);
+  EXPECT_TRUE(r.epochs[1].end);
+  EXPECT_EQ(r.epochs[1].epoch, 4u);
+  EXPECT_EQ(r.epochs[1].count, 4u);
+  EXPECT_TRUE(r.gaps.empty());
+  // A bad part is named.
+  capture_test::WriteText(dir.File("notes.bag"), "not a bag\n");
+  try {
+    ros_adapters::CheckBags({paths[0], dir.File("notes.bag")}, ros_adapters::BagCheckOptions{});
+    FAIL() << "no exception";
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("notes.bag"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace slope_monitor

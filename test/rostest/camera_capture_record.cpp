@@ -4,7 +4,8 @@
 // folder it wrote (two epochs of three 640x480 photos), stops the recorder
 // with SIGINT once the last epoch has ended, and checks the bags: their names
 // (site, date, start time, split index), lz4 chunks, and what the bag_check
-// tool reports — topics, counts and epoch boundaries.
+// tool reports per file and for the files as one session (--session) —
+// topics, counts and epoch boundaries.
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -192,27 +193,38 @@ TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
     EXPECT_EQ(bytes.find("compression=none"), std::string::npos) << path << " has an uncompressed chunk";
   }
 
-  // The bag_check tool on the split files.
+  // The bag_check tool: each split file on its own (all readable, counts add
+  // up), then the files as one session (epoch boundaries across the splits).
+  const std::regex topic_line(R"(^  (/\S+)  (\S+)  (\d+) msgs .*)");
+  const std::regex epoch_line(R"(^  (start|end)\s+epoch (\d+) at [0-9.]+(  count (\d+))?.*)");
+  auto parse = [&](const std::string& report, std::map<std::string, int>* counts, std::vector<std::string>* boundaries) {
+    std::istringstream lines(report);
+    std::string line;
+    while (std::getline(lines, line)) {
+      std::smatch m;
+      if (std::regex_match(line, m, topic_line)) (*counts)[m[1]] += std::stoi(m[3]);
+      if (std::regex_match(line, m, epoch_line)) {
+        boundaries->push_back(m[1].str() + " " + m[2].str() + (m[4].matched ? " " + m[4].str() : ""));
+      }
+    }
+  };
   int status = -1;
-  const std::string report = RunCommand("rosrun slope_monitor bag_check" + files, &status);
+  const std::string per_file = RunCommand("rosrun slope_monitor bag_check" + files, &status);
+  EXPECT_EQ(status, 0) << per_file;
+  std::map<std::string, int> file_counts;
+  std::vector<std::string> file_boundaries;
+  parse(per_file, &file_counts, &file_boundaries);
+  const std::string report = RunCommand("rosrun slope_monitor bag_check --session" + files, &status);
   EXPECT_EQ(status, 0) << report;
   std::map<std::string, int> counts;
   std::vector<std::string> boundaries;
-  std::istringstream lines(report);
-  std::string line;
-  const std::regex topic_line(R"(^  (/\S+)  (\S+)  (\d+) msgs .*)");
-  const std::regex epoch_line(R"(^  (start|end)\s+epoch (\d+) at [0-9.]+(  count (\d+))?.*)");
-  while (std::getline(lines, line)) {
-    std::smatch m;
-    if (std::regex_match(line, m, topic_line)) counts[m[1]] += std::stoi(m[3]);
-    if (std::regex_match(line, m, epoch_line)) {
-      boundaries.push_back(m[1].str() + " " + m[2].str() + (m[4].matched ? " " + m[4].str() : ""));
-    }
+  parse(report, &counts, &boundaries);
+  for (const char* topic : {"/rec/camera/image_raw", "/rec/camera/camera_info", "/rec/camera/gnss/fix"}) {
+    EXPECT_EQ(counts[topic], 6) << topic << "\n" << report;
+    EXPECT_EQ(file_counts[topic], 6) << topic << "\n" << per_file;
   }
-  EXPECT_EQ(counts["/rec/camera/image_raw"], 6) << report;
-  EXPECT_EQ(counts["/rec/camera/camera_info"], 6) << report;
-  EXPECT_EQ(counts["/rec/camera/gnss/fix"], 6) << report;
   EXPECT_EQ(counts["/rec/camera/epoch"], 4) << report;
+  EXPECT_EQ(file_counts["/rec/camera/epoch"], 4) << per_file;
   EXPECT_EQ(boundaries, (std::vector<std::string>{"start 0", "end 0 3", "start 1", "end 1 3"})) << report;
 
   // The same through the library, and the images in the bags are the photos.

@@ -145,7 +145,7 @@ struct BagGap {
 };
 
 struct BagReport {
-  std::string path;
+  std::string path;                    // the file (CheckBags: the files, comma-separated)
   uint64_t messages = 0;
   double start = 0.0, end = 0.0;       // [s] bag time span
   std::vector<BagTopicStats> topics;   // by topic name
@@ -158,6 +158,10 @@ struct BagReport {
 // it does not exist, is empty, is not a bag, is truncated (its index or a
 // chunk cannot be read) or holds no message.
 BagReport CheckBag(const std::string& path, const BagCheckOptions& options);
+// One report over several bags taken as one recording (the split parts of a
+// session): messages merged in time order, so epochs and gaps that span a
+// split are reported once. Errors name the file.
+BagReport CheckBags(const std::vector<std::string>& paths, const BagCheckOptions& options);
 std::string FormatBagReport(const BagReport& report);
 
 }  // namespace ros_adapters
