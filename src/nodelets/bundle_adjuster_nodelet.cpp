@@ -119,6 +119,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     frame_id_ = p.String("frame_id", "site");
     pixel_size_ = p.Double("pixel_size", 1.0, 1e-6, 1.0, "mm/px");
     default_pixel_sigma_ = p.Double("pixel_sigma", 0.3, 1e-4, 100.0, "px");
+    pixel_sigma_floor_ = p.Double("pixel_sigma_floor", 0.05, 0.0, 100.0, "px");
     epoch_gap_ = p.Double("epoch_gap", 600.0, 0.0, 1e7, "s");
     prior_max_dt_ = p.Double("position_prior_max_dt", 0.1, 0.0, 10.0, "s");
     gnss_sigma_floor_ = p.Double("position_prior_min_sigma", 0.01, 1e-4, 100.0, "m");
@@ -168,6 +169,10 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     im.header = msg->header;
     if (msg->epoch != 0) current_epoch_ = msg->epoch;
     for (const auto& o : msg->observations) {
+      if (o.id < 0) {  // unidentified (a circle the centroider could not name): it ties nothing
+        ++unidentified_;
+        continue;
+      }
       CollectedObservation c;
       c.image_key = key;
       c.point_id = o.family + "/" + std::to_string(o.id);
@@ -180,6 +185,9 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       c.pixel = Eigen::Vector2d(o.x, o.y);
       c.covariance = ros_adapters::FromRowMajor<2>(o.covariance);
       if (c.covariance.isZero()) c.covariance = Eigen::Matrix2d::Identity() * default_pixel_sigma_ * default_pixel_sigma_;
+      // The centroider's covariance is image noise only; calibration and model
+      // errors of a real camera come on top (added in quadrature).
+      c.covariance += Eigen::Matrix2d::Identity() * pixel_sigma_floor_ * pixel_sigma_floor_;
       observations_.push_back(c);
     }
     last_input_ = ros::Time::now();
@@ -254,7 +262,10 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     bool gap;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      gap = epoch_gap_ > 0.0 && !observations_.empty() && !last_input_.isZero() &&
+      // The gap ends epochs of sources without epoch markers; once a marker has
+      // announced the epoch's end, wait for its images instead (on a fast
+      // replay, a slow centroider's latency is a long gap in bag time).
+      gap = epoch_gap_ > 0.0 && !end_pending_ && !observations_.empty() && !last_input_.isZero() &&
             (ros::Time::now() - last_input_).toSec() > epoch_gap_;
       gap = gap || (end_pending_ && (ros::WallTime::now() - ended_at_).toSec() > epoch_wait_ && ReadyLocked(true));
     }
@@ -428,6 +439,9 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       PublishPoints(usable_scene, s, out.header);
       PublishDisplacements(ep, out.header);
       ++accepted_;
+      NODELET_INFO("bundle_adjuster: epoch %u accepted: %zu images, %zu points, %d observations, sigma0 %.2f, rms %.3f px",
+                   out.epoch, usable_scene.images.size(), usable_scene.points.size(), s.num_observations, s.sigma0,
+                   s.rms_residual_px);
     } catch (const std::exception& e) {
       out.usable = false;
       out.message = std::string("adjustment failed: ") + e.what();
@@ -571,6 +585,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       p.significance = d.significance;
       msg.displacements.push_back(p);
     }
+    NODELET_INFO("bundle_adjuster: epoch %d vs reference %d: %zu monitoring displacements", current.epoch, ref->first,
+                 msg.displacements.size());
     displacements_pub_.publish(msg);
   }
 
@@ -586,6 +602,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     stat.add("collected observations", observations_.size());
     stat.add("collected images", images_.size());
     stat.add("accepted epochs", accepted_);
+    stat.add("unidentified observations ignored", unidentified_);
     stat.add("reference epoch", reference_epoch_);
   }
 
@@ -594,7 +611,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   io::TargetList targets_;
   std::vector<std::string> target_topics_, camera_names_;
   std::string frame_id_;
-  double pixel_size_ = 1.0, default_pixel_sigma_ = 0.3, epoch_gap_ = 600.0, prior_max_dt_ = 0.1,
+  uint64_t unidentified_ = 0;
+  double pixel_size_ = 1.0, default_pixel_sigma_ = 0.3, pixel_sigma_floor_ = 0.05, epoch_gap_ = 600.0, prior_max_dt_ = 0.1,
          gnss_sigma_floor_ = 0.01;
   int min_images_ = 2;
   std::vector<int> free_interior_;

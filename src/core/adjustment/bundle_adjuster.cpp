@@ -400,6 +400,11 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
   std::vector<int> image_n(scene.images.size(), 0);
   double sum_w2 = 0.0, sum_px2 = 0.0;
   int n_inliers = 0, n_behind = 0;
+  struct Worst {
+    double sigmas, px;
+    int observation;
+  };
+  std::vector<Worst> worst;
   for (int k : used_obs) {
     const Observation& o = scene.observations[k];
     const Image& im = scene.images[o.image];
@@ -414,6 +419,7 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
     const Eigen::Vector2d w = SqrtInformation<2>(o.covariance) * e;
     if (!std::isfinite(w.norm()) || w.norm() > options_.outlier_threshold) {
       summary.outliers.push_back(k);
+      worst.push_back({std::isfinite(w.norm()) ? w.norm() : 1e300, e.norm(), k});
       continue;
     }
     sum_w2 += w.squaredNorm();
@@ -457,8 +463,15 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
   }
   const double outlier_fraction = static_cast<double>(summary.num_outliers) / std::max(1, summary.num_observations);
   if (outlier_fraction > options_.max_outlier_fraction) {
+    std::sort(worst.begin(), worst.end(), [](const Worst& a, const Worst& b) { return a.sigmas > b.sigmas; });
+    std::string list;
+    for (size_t i = 0; i < worst.size() && i < 3; ++i) {
+      const Observation& o = scene.observations[worst[i].observation];
+      list += Message(i ? ", " : "", scene.points[o.point].id, " in '", scene.images[o.image].name, "' ", worst[i].px,
+                      " px (", worst[i].sigmas, " sigma)");
+    }
     summary.reason = Message("too many outliers: ", summary.num_outliers, " of ", summary.num_observations,
-                             " (max_outlier_fraction = ", options_.max_outlier_fraction, ")");
+                             " (max_outlier_fraction = ", options_.max_outlier_fraction, "); worst: ", list);
     return summary;
   }
   if (!(summary.sigma0 <= options_.max_sigma0)) {

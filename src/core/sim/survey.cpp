@@ -3,7 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iomanip>
 #include <random>
+#include <sstream>
 
 #include "slope_monitor/core/camera/rotation.h"
 #include "slope_monitor/core/common/error.h"
@@ -364,6 +367,12 @@ Survey SurveyGenerator::Generate(const std::function<void(int, int)>& progress) 
     spec.role = t.role;
     if (t.surveyed) spec.position = *t.surveyed;
     spec.sigma = t.survey_sigma;
+    if (!t.surveyed && t.role == io::TargetRole::kMonitoring && c.monitoring_approx_sigma > 0.0) {
+      std::mt19937 rng = Stream(c.seed, 4, static_cast<unsigned>(spec.id), spec.family == "circle" ? 1u : 0u);
+      const double a = c.monitoring_approx_sigma;
+      spec.position = t.positions[0] + Eigen::Vector3d(Gauss(&rng, a), Gauss(&rng, a), Gauss(&rng, a));
+      spec.sigma = Eigen::Vector2d(a, a);
+    }
     spec.normal = t.normal;
     survey.target_list.Add(spec);
   }
@@ -387,6 +396,44 @@ void WriteSurveyFiles(Survey* survey, const std::string& stem) {
   }
   survey->truth.Save(base + ".truth.yaml");
   survey->target_list.Save(base + ".targets.yaml");
+  WriteSiteOverlay(survey->truth, base + ".site.yaml");
+}
+
+std::vector<std::pair<std::string, std::string>> ColocatedPoints(const SurveyTruth& truth, double max_distance) {
+  std::vector<std::pair<std::string, std::string>> out;
+  for (const RadioTransmitterTruth& tx : truth.radio.transmitters) {
+    if (tx.positions.empty()) continue;
+    const TargetTruth* best = nullptr;
+    double best_d = max_distance;
+    for (const TargetTruth& t : truth.targets) {
+      if (t.role != io::TargetRole::kMonitoring || t.positions.empty()) continue;
+      const double d = (t.positions[0].head<2>() - tx.positions[0].head<2>()).norm();
+      if (d <= best_d) {
+        best_d = d;
+        best = &t;
+      }
+    }
+    if (best) out.emplace_back(tx.id, best->key);
+  }
+  return out;
+}
+
+void WriteSiteOverlay(const SurveyTruth& truth, const std::string& path) {
+  std::ostringstream out;
+  out << "# deformation_estimator overlay for this simulated site (written by make_survey_bag; load it with\n"
+         "# replay.launch site_config:=<this file>). Radio transmitters mounted on a monitoring target's post\n"
+         "# measure the same point: their ids are aliased to the target's, so the estimator fuses both\n"
+         "# sources and reports when they disagree.\n";
+  out << std::setprecision(12) << "geodetic_origin: [" << truth.origin.x() << ", " << truth.origin.y() << ", "
+      << truth.origin.z() << "]\n";
+  out << "aliases: [";
+  const auto pairs = ColocatedPoints(truth, 0.5);
+  for (size_t k = 0; k < pairs.size(); ++k)
+    out << (k ? ", " : "") << "\"" << pairs[k].first << " = " << pairs[k].second << "\"";
+  out << "]\n";
+  std::ofstream f(path);
+  f << out.str();
+  if (!f) throw IoError(Message("cannot write the site overlay '", path, "'"));
 }
 
 }  // namespace sim

@@ -186,6 +186,7 @@ SurveyConfig FromRoot(io::YamlMap& root) {
     const auto sigma = tg.Doubles("survey_sigma", {0.03, 0.01}, 2);
     if (sigma[0] < 0 || sigma[1] < 0) tg.Fail("survey_sigma", "must be >= 0");
     c.survey_sigma = Eigen::Vector2d(sigma[0], sigma[1]);
+    c.monitoring_approx_sigma = tg.Double("monitoring_approx_sigma", 0.0, 0.0, 10.0, "m");
     const double mount = tg.Double("mount_height", 0.03, 0.0, 2.0, "m");
     const double tag_size = tg.Double("tag_size", 1.0, 0.05, 10.0, "m");
     const double circle_size = tg.Double("circle_size", 0.5, 0.05, 10.0, "m");

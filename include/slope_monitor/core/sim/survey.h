@@ -5,7 +5,7 @@
 //   sim::SurveyConfig config = sim::SurveyConfig::Load("config/sim/demo_site.yaml");  // ConfigError names the key
 //   sim::SurveyGenerator gen(config);          // checks cameras see the slope and control points
 //   sim::Survey survey = gen.Generate();       // images, truth, target list, surfaces
-//   sim::WriteSurveyFiles(survey, "demo");     // demo.truth.yaml, demo.targets.yaml, demo.surface_eNN.tif
+//   sim::WriteSurveyFiles(survey, "demo");     // demo.truth.yaml, demo.targets.yaml, demo.surface_eNN.tif, demo.site.yaml
 //
 // The ROS side (src/ros/sim_bag_writer.cpp) turns a Survey into a bag.
 #pragma once
@@ -14,6 +14,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -80,6 +81,10 @@ struct SurveyConfig {
   double start_time = 1700000000.0;    // [s]
   double epoch_interval = 21600.0;     // [s]
   Eigen::Vector2d survey_sigma{0.03, 0.01};  // [m] horizontal, vertical
+  // Monitoring targets: the approximate position a crew notes when placing
+  // them (hand-held GNSS), written to the target list with this std so the
+  // centroider can identify circles; 0 = monitoring targets have no position.
+  double monitoring_approx_sigma = 0.0;       // [m]
   std::vector<std::string> target_keys_for_error;  // "targets.list[i]" per target
   std::vector<CameraSpec> cameras;
   RadioNetworkSpec radio;
@@ -144,7 +149,14 @@ class SurveyGenerator {
 
 // Writes <stem>.truth.yaml, <stem>.targets.yaml and <stem>.surface_eNN.tif;
 // fills survey->truth.surfaces with the file names. Throws IoError.
-void WriteSurveyFiles(Survey* survey, const std::string& stem);
+void WriteSurveyFiles(Survey* survey, const std::string& stem);  // also <stem>.site.yaml
+
+// Radio transmitters standing within max_distance [m] (horizontally) of a
+// monitoring target: (transmitter id, target key) pairs, nearest target each.
+std::vector<std::pair<std::string, std::string>> ColocatedPoints(const SurveyTruth& truth, double max_distance);
+// The deformation_estimator overlay of a simulated site: geodetic_origin and
+// aliases "tx1 = tag36h11/10" for co-located transmitters and targets.
+void WriteSiteOverlay(const SurveyTruth& truth, const std::string& path);
 
 }  // namespace sim
 }  // namespace slope_monitor
