@@ -1,13 +1,18 @@
 // Dense matching on Middlebury 2003 "Cones" (../shared/data/stereo_middlebury_cones):
 // our coarse-to-fine LoG correlation against OpenCV's StereoSGBM on the same
-// pair, in the same process, on the same threads.
+// pair, in the same process (ours on cv::getNumThreads() = 2 threads; SGBM's
+// MODE_SGBM runs on one).
 //
-//   bench_dense_vs_sgbm [data_dir] [repetitions]
+//   bench_dense_vs_sgbm [data_dir] [repetitions] [key=value ...]
 //
-// Prints, for each method, the share of non-occluded pixels (occl.png white,
-// reference known) with |disparity error| > 1 px and > 2 px (missing
-// estimates count as errors), the same among estimated pixels, the density,
-// the time per pair and the throughput; then the ratio lines
+// Two settings of ours: "ours" (DESIGN.md sizes) and "tuned" (7x7 final
+// window, +-5 px search, 2 px left/right tolerance); key=value overrides
+// CorrelationOptions fields of both. Prints, for each method, the share of
+// non-occluded pixels (occl.png white, reference known) with |disparity
+// error| > 1 px and > 2 px (missing estimates count as errors), the same
+// among estimated pixels, the density, the time per pair (minimum of the
+// interleaved repetitions) and the throughput; the error rates of both on the
+// pixels both estimated; then the ratio lines
 //   ratio throughput ours/sgbm = ...
 //   ratio bad1 ours/sgbm = ...
 #include <algorithm>
@@ -66,64 +71,99 @@ int main(int argc, char** argv) {
   const int pixels = left.cols * left.rows;
   const std::vector<double> thresholds = {1.0, 2.0};
 
-  // Ours: per-pixel parallaxes on the final level.
+  // Ours: per-pixel parallaxes on the final level. Two settings:
+  //   "ours"  : DESIGN.md sizes (15x15 windows, +-3 px search, lr 1 px);
+  //   "tuned" : 7x7 window on the full-resolution level, +-5 px search on the
+  //             finer levels, left/right tolerance 2 px.
+  // key=value arguments override both.
   CorrelationOptions opt;
   opt.final_grid_spacing = 1;
   opt.min_disparity = 0;
   opt.max_disparity = 64;
-  for (const auto& [k, v] : over) {
-    if (k == "window") opt.window = static_cast<int>(v);
-    else if (k == "final_window") opt.final_window = static_cast<int>(v);
-    else if (k == "min_correlation") opt.min_correlation = v;
-    else if (k == "lr_tolerance") opt.lr_tolerance = v;
-    else if (k == "order_tolerance") opt.order_tolerance = v;
-    else if (k == "search_radius") opt.search_radius = static_cast<int>(v);
-    else if (k == "grid_spacing") opt.grid_spacing = static_cast<int>(v);
-    else if (k == "median_filter") opt.median_filter = v != 0;
-    else if (k == "order_check") opt.order_check = v != 0;
-    else if (k == "two_way") opt.two_way = v != 0;
-    else if (k == "peak_frequency") opt.peak_frequency = v;
-    else if (k == "levels") opt.levels = static_cast<int>(v);
-    else {
-      std::fprintf(stderr, "unknown option '%s'\n", k.c_str());
-      return 1;
+  CorrelationOptions tuned = opt;
+  tuned.final_window = 7;
+  tuned.search_radius = 5;
+  tuned.lr_tolerance = 2.0;
+  for (CorrelationOptions* o : {&opt, &tuned})
+    for (const auto& [k, v] : over) {
+      if (k == "window") o->window = static_cast<int>(v);
+      else if (k == "final_window") o->final_window = static_cast<int>(v);
+      else if (k == "min_correlation") o->min_correlation = v;
+      else if (k == "lr_tolerance") o->lr_tolerance = v;
+      else if (k == "order_tolerance") o->order_tolerance = v;
+      else if (k == "search_radius") o->search_radius = static_cast<int>(v);
+      else if (k == "grid_spacing") o->grid_spacing = static_cast<int>(v);
+      else if (k == "median_filter") o->median_filter = v != 0;
+      else if (k == "order_check") o->order_check = v != 0;
+      else if (k == "two_way") o->two_way = v != 0;
+      else if (k == "peak_frequency") o->peak_frequency = v;
+      else if (k == "levels") o->levels = static_cast<int>(v);
+      else {
+        std::fprintf(stderr, "unknown option '%s'\n", k.c_str());
+        return 1;
+      }
     }
-  }
-  // OpenCV StereoSGBM with the parameters of OpenCV's own stereo_match sample.
+  // OpenCV StereoSGBM with the parameters of OpenCV's own stereo_match sample:
+  // 64 disparities, block 5, P1 = 8*5*5, P2 = 32*5*5, disp12MaxDiff 1,
+  // preFilterCap 63, uniqueness 10, speckle window 100 / range 32, MODE_SGBM
+  // (OpenCV runs this mode on one thread; ours uses cv::getNumThreads() = 2).
   const int block = 5;
   cv::Ptr<cv::StereoSGBM> sgbm = cv::StereoSGBM::create(0, 64, block, 8 * block * block, 32 * block * block, 1, 63,
                                                         10, 100, 32, cv::StereoSGBM::MODE_SGBM);
-  // Interleaved repetitions (ours, SGBM, ours, ...) on a shared machine: the
-  // minimum time of each is the least disturbed; the median is printed too.
-  cv::Mat ours, raw;
-  slope_monitor::dense::CorrelationSummary summary;
-  std::vector<double> times_ours, times_sgbm;
+  // Interleaved repetitions (ours, tuned, SGBM, ours, ...) on a shared
+  // machine: the minimum time of each is the least disturbed; medians too.
+  cv::Mat ours, ours_tuned, raw;
+  slope_monitor::dense::CorrelationSummary summary, summary_tuned;
+  std::vector<double> times_ours, times_tuned, times_sgbm;
   for (int i = 0; i < reps; ++i) {
     auto t0 = std::chrono::steady_clock::now();
     ours = MatchRectified(left, right, opt, &summary).disparity;
     times_ours.push_back(Seconds(t0));
     t0 = std::chrono::steady_clock::now();
+    ours_tuned = MatchRectified(left, right, tuned, &summary_tuned).disparity;
+    times_tuned.push_back(Seconds(t0));
+    t0 = std::chrono::steady_clock::now();
     sgbm->compute(left, right, raw);
     times_sgbm.push_back(Seconds(t0));
   }
-  std::sort(times_ours.begin(), times_ours.end());
-  std::sort(times_sgbm.begin(), times_sgbm.end());
-  const double t_ours = times_ours.front(), t_sgbm = times_sgbm.front();
-  const double med_ours = times_ours[reps / 2], med_sgbm = times_sgbm[reps / 2];
-  const DisparityErrors e_ours = EvaluateDisparity(ours, gt, occl, thresholds);
+  for (auto* t : {&times_ours, &times_tuned, &times_sgbm}) std::sort(t->begin(), t->end());
+  const double t_ours = times_ours.front(), t_tuned = times_tuned.front(), t_sgbm = times_sgbm.front();
   cv::Mat sgbm_disp;
   raw.convertTo(sgbm_disp, CV_32F, 1.0 / 16.0);
-  const DisparityErrors e_sgbm = EvaluateDisparity(sgbm_disp, gt, occl, thresholds, -0.5f);
+  const float kSgbmInvalid = -0.5f;
+  const DisparityErrors e_ours = EvaluateDisparity(ours, gt, occl, thresholds);
+  const DisparityErrors e_tuned = EvaluateDisparity(ours_tuned, gt, occl, thresholds);
+  const DisparityErrors e_sgbm = EvaluateDisparity(sgbm_disp, gt, occl, thresholds, kSgbmInvalid);
 
   std::printf("Cones %dx%d, %d non-occluded evaluated pixels, %d repetitions, OpenCV threads %d\n", left.cols,
               left.rows, e_ours.evaluated, reps, cv::getNumThreads());
-  std::printf("%s\n", summary.BriefReport().c_str());
+  std::printf("ours:  %s\ntuned: %s\n", summary.BriefReport().c_str(), summary_tuned.BriefReport().c_str());
+  std::printf("all non-occluded pixels (missing = error):\n");
   Print("ours", e_ours, t_ours, pixels);
+  Print("tuned", e_tuned, t_tuned, pixels);
   Print("sgbm", e_sgbm, t_sgbm, pixels);
-  std::printf("median time: ours %.4f s, sgbm %.4f s (ratio of medians %.3f)\n", med_ours, med_sgbm,
-              med_sgbm / med_ours);
+  // The same pixel set: non-occluded pixels both methods estimated.
+  for (const auto& [name, mine] : {std::make_pair("ours", &ours), std::make_pair("tuned", &ours_tuned)}) {
+    cv::Mat both = occl.clone();
+    for (int y = 0; y < both.rows; ++y)
+      for (int x = 0; x < both.cols; ++x) {
+        const float a = mine->at<float>(y, x), b = sgbm_disp.at<float>(y, x);
+        if (!(a == a) || !(b >= kSgbmInvalid)) both.at<uchar>(y, x) = 0;
+      }
+    const DisparityErrors a = EvaluateDisparity(*mine, gt, both, thresholds);
+    const DisparityErrors b = EvaluateDisparity(sgbm_disp, gt, both, thresholds, kSgbmInvalid);
+    std::printf("same pixels (%s and sgbm both estimated, %d px = %.3f of non-occluded): %s bad>1 %.4f bad>2 %.4f, "
+                "sgbm bad>1 %.4f bad>2 %.4f\n",
+                name, a.evaluated, static_cast<double>(a.evaluated) / e_ours.evaluated, name, a.bad_fraction[0],
+                a.bad_fraction[1], b.bad_fraction[0], b.bad_fraction[1]);
+  }
+  std::printf("median time: ours %.4f s, tuned %.4f s, sgbm %.4f s\n", times_ours[reps / 2], times_tuned[reps / 2],
+              times_sgbm[reps / 2]);
   std::printf("ratio throughput ours/sgbm = %.3f\n", t_sgbm / t_ours);
+  std::printf("ratio throughput tuned/sgbm = %.3f\n", t_sgbm / t_tuned);
   std::printf("ratio bad1 ours/sgbm = %.3f\n", e_ours.bad_fraction[0] / e_sgbm.bad_fraction[0]);
   std::printf("ratio bad2 ours/sgbm = %.3f\n", e_ours.bad_fraction[1] / e_sgbm.bad_fraction[1]);
+  std::printf("ratio bad1 tuned/sgbm = %.3f\n", e_tuned.bad_fraction[0] / e_sgbm.bad_fraction[0]);
+  std::printf("ratio bad2 tuned/sgbm = %.3f\n", e_tuned.bad_fraction[1] / e_sgbm.bad_fraction[1]);
   return 0;
 }

@@ -3,8 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <limits>
 #include <sstream>
 #include <vector>
@@ -110,6 +108,17 @@ SM_DENSE_CLONES void SlidingSum(const float* __restrict in, int n, int len, floa
   }
 }
 
+// Without a right mask: score = -2 where the warped centre leaves [lo, hi)
+// or the left window is unusable (branch-free, vectorised).
+SM_DENSE_CLONES void ValidRange(const int* __restrict idx, int k, int lo, int hi, const float* __restrict il, int w,
+                                float* __restrict score) {
+  for (int x = 0; x < w; ++x) {
+    const int i = idx[x] - k;
+    const bool ok = (i >= lo) & (i < hi) & (il[x] > 0.0f);
+    score[x] = ok ? score[x] : -2.0f;
+  }
+}
+
 // ZNCC of one row for one offset from the window sums. A window is usable
 // when the left window has content and variance (il > 0) and the right
 // window around the warped centre lies on content (okr[idx(x) - k] = 1: the
@@ -147,8 +156,10 @@ __attribute__((target("avx2"))) void ScoreRowAvx2(const float* bw, const float* 
 // when the left window has content and variance (il > 0) and the right
 // window around the warped centre lies on content (okr[idx(x) - k] = 1: the
 // right mask eroded by the window, padded with 0).
-void ScoreRow(const float* bw, const float* bww, const float* blw, const float* okr, const int* idx, int k,
-              const float* ml, const float* il, float inv_count, float min_var, int w, float* score) {
+// okr == nullptr: the right image has no mask; the right window is on
+// content when the warped centre lies in [lo, hi) of the padded row.
+void ScoreRow(const float* bw, const float* bww, const float* blw, const float* okr, const int* idx, int k, int lo,
+              int hi, const float* ml, const float* il, float inv_count, float min_var, int w, float* score) {
 #ifdef SM_DENSE_HAVE_AVX2_PATH
   static const bool avx2 = __builtin_cpu_supports("avx2");
   if (avx2)
@@ -156,8 +167,12 @@ void ScoreRow(const float* bw, const float* bww, const float* blw, const float* 
   else
 #endif
     ScoreRowScalar(bw, bww, blw, ml, il, inv_count, min_var, 0, w, score);
-  for (int x = 0; x < w; ++x)
-    if (!(okr[idx[x] - k] > 0.5f) || !(il[x] > 0.0f)) score[x] = -2.0f;
+  if (okr) {
+    for (int x = 0; x < w; ++x)
+      if (!(okr[idx[x] - k] > 0.5f) || !(il[x] > 0.0f)) score[x] = -2.0f;
+  } else {
+    ValidRange(idx, k, lo, hi, il, w, score);
+  }
 }
 
 // Running arg-max over the offsets.
@@ -191,8 +206,19 @@ struct LevelWorkspace {
   SearchWorkspace ws_l, ws_r;
   DenseResult res_l, res_r;
   cv::Mat median_l, median_r;
-  cv::Mat down_l, down_r, log_l, log_r, log_tmp, mask_l, mask_r;
+  cv::Mat down_l, down_r, log_l, log_r, log_tmp, mask_l, mask_r, base_l, base_r;
 };
+
+constexpr int kInputSlot = 8;  // LevelCache slot of the float input images (levels are 0 .. 4)
+
+int CountFinite(const cv::Mat& m) {
+  int n = 0;
+  for (int i = 0; i < m.rows; ++i) {
+    const float* p = m.ptr<float>(i);
+    for (int j = 0; j < m.cols; ++j) n += Finite(p[j]);
+  }
+  return n;
+}
 
 LevelWorkspace& LevelCache(int level) {
   static thread_local std::vector<LevelWorkspace> cache;
@@ -252,6 +278,7 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
             cv::BORDER_CONSTANT, cv::Scalar(1));
   const int pad = std::max(std::abs(k_min), std::abs(k_max)) + 1;
   const int off = 2 * pad, wp = w + 4 * pad;
+  const bool right_all_valid = cv::countNonZero(mask_right) == w * h;
   ws.rp.create(h, wp, CV_32F);
   ws.bp.create(h, wp, CV_32F);
   ws.idx.create(h, w, CV_32S);
@@ -276,7 +303,7 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
   out.disparity.create(h, w, CV_32F);
   out.correlation.create(h, w, CV_32F);
   const float min_corr = static_cast<float>(min_correlation);
-  const int stripes = std::max(1, std::min(h / 16, 2 * std::max(1, cv::getNumThreads())));
+  const int stripes = std::max(1, std::min(h / 16, std::max(1, cv::getNumThreads())));
   const int cw_len = w + 2 * r;
   const cv::Mat& idx = ws.idx;
   const cv::Mat& rp = ws.rp;
@@ -329,7 +356,8 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
             SlidingSum(c[ch] - r, w, window, bx[ch], buf.tmp.data());
           }
           float* score = buf.scores.data() + static_cast<size_t>(ki) * w;
-          ScoreRow(bx[0], bx[1], bx[2], bp.ptr<float>(y), idx.ptr<int>(y), k, ml, il, inv_count, min_var, w, score);
+          ScoreRow(bx[0], bx[1], bx[2], right_all_valid ? nullptr : bp.ptr<float>(y), idx.ptr<int>(y), k, off + r,
+                   off + w - r, ml, il, inv_count, min_var, w, score);
           ArgMaxRow(score, ki, w, best_s, best_k);
         }
         const int* b = base.empty() ? nullptr : base.ptr<int>(y);
@@ -509,8 +537,9 @@ cv::Mat FillForPrediction(const cv::Mat& grid, float fallback) {
 
 // Per-pixel integer base parallax of a level (size) from a filled grid of the
 // previous level (spacing g in previous-level px): bilinear, times 2.
-cv::Mat PredictBase(const cv::Mat& filled_grid, int g, cv::Size size) {
-  cv::Mat base(size, CV_32S);
+void PredictBase(const cv::Mat& filled_grid, int g, cv::Size size, cv::Mat* base_out) {
+  base_out->create(size, CV_32S);
+  cv::Mat& base = *base_out;
   // Column positions and weights once per level.
   std::vector<int> j0s(size.width), j1s(size.width);
   std::vector<float> tjs(size.width);
@@ -535,7 +564,6 @@ cv::Mat PredictBase(const cv::Mat& filled_grid, int g, cv::Size size) {
       }
     }
   });
-  return base;
 }
 
 // The scale-normalised LoG of matching::LaplacianOfGaussian (same kernels,
@@ -554,8 +582,12 @@ void LogInto(const cv::Mat& image, double sigma, cv::Mat* out, cv::Mat* tmp) {
   cv::addWeighted(*out, s, *tmp, s, 0.0, *out);
 }
 
-cv::Mat MaskOrOnes(const cv::Mat& m, cv::Size size, const char* what) {
-  if (m.empty()) return cv::Mat(size, CV_8U, cv::Scalar(1));
+cv::Mat MaskOrOnes(const cv::Mat& m, cv::Size size, const char* what, cv::Mat* ones) {
+  if (m.empty()) {
+    ones->create(size, CV_8U);
+    ones->setTo(1);
+    return *ones;
+  }
   if (m.size() != size || m.type() != CV_8U)
     throw InvalidArgument(Message("MatchRectified: ", what, " must be CV_8U of the image size"));
   cv::Mat out;
@@ -626,8 +658,15 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
   if (left_in.size() != right_in.size())
     throw InvalidArgument(Message("MatchRectified: image sizes differ (", left_in.cols, "x", left_in.rows, " vs ",
                                   right_in.cols, "x", right_in.rows, ")"));
-  const cv::Mat left = matching::ToFloat(left_in, "left image");
-  const cv::Mat right = matching::ToFloat(right_in, "right image");
+  // Float copies in memory kept between calls (8-bit input is the usual case).
+  LevelWorkspace& input = LevelCache(kInputSlot);
+  auto to_float = [](const cv::Mat& in, const char* what, cv::Mat* out) -> cv::Mat {
+    if (in.depth() == CV_32F || in.channels() != 1) return matching::ToFloat(in, what);
+    in.convertTo(*out, CV_32F);
+    return *out;
+  };
+  const cv::Mat left = to_float(left_in, "left image", &input.down_l);
+  const cv::Mat right = to_float(right_in, "right image", &input.down_r);
   const int coarse = 1 << (options.levels - 1);
   if (left.cols / coarse < options.window || left.rows / coarse < options.window)
     throw InvalidArgument(Message("MatchRectified: image ", left.cols, "x", left.rows, " too small for ",
@@ -639,8 +678,8 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
       throw InvalidArgument(Message("MatchRectified: the ", im == &left ? "left" : "right",
                                     " image has no texture (constant value ", mean[0], ", e.g. all black)"));
   }
-  const cv::Mat mask_l = MaskOrOnes(valid_left, left.size(), "valid_left");
-  const cv::Mat mask_r = MaskOrOnes(valid_right, right.size(), "valid_right");
+  const cv::Mat mask_l = MaskOrOnes(valid_left, left.size(), "valid_left", &input.mask_l);
+  const cv::Mat mask_r = MaskOrOnes(valid_right, right.size(), "valid_right", &input.mask_r);
 
   CorrelationSummary sum;
   sum.levels = options.levels;
@@ -655,14 +694,6 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
     const int g = last ? options.final_grid_spacing : options.grid_spacing;
     const int window = (last && options.final_window > 0) ? options.final_window : options.window;
     const double sigma = matching::LogSigmaForPeakFrequency(options.peak_frequency);
-    auto tp = std::chrono::steady_clock::now();
-    auto lap = [&](const char* what) {
-      if (std::getenv("DENSE_PROFILE")) {
-        const auto now = std::chrono::steady_clock::now();
-        std::fprintf(stderr, "  level %d %s %.2f ms\n", k, what, 1e3 * std::chrono::duration<double>(now - tp).count());
-        tp = now;
-      }
-    };
     LevelWorkspace& lw = LevelCache(k);
     LogInto(Downsample(left, scale, &lw.down_l), sigma, &lw.log_l, &lw.log_tmp);
     LogInto(Downsample(right, scale, &lw.down_r), sigma, &lw.log_r, &lw.log_tmp);
@@ -670,7 +701,6 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
     const cv::Mat& r = lw.log_r;
     const cv::Mat ml = DownsampleMask(mask_l, scale, valid_left.empty(), &lw.mask_l);
     const cv::Mat mr = DownsampleMask(mask_r, scale, valid_right.empty(), &lw.mask_r);
-    lap("log");
 
     int k_min, k_max;
     cv::Mat base_l, base_r;
@@ -680,10 +710,11 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
     } else {
       k_min = -options.search_radius - 1;
       k_max = options.search_radius + 1;
-      base_l = PredictBase(pred_left, prev_g, l.size());
-      base_r = PredictBase(pred_right, prev_g, l.size());
+      PredictBase(pred_left, prev_g, l.size(), &lw.base_l);
+      PredictBase(pred_right, prev_g, l.size(), &lw.base_r);
+      base_l = lw.base_l;
+      base_r = lw.base_r;
     }
-    lap("predict");
     // The extra +-1 lets the parabola use both neighbours of a maximum at the
     // edge of the nominal range; a maximum on the extended edge is rejected.
     DenseResult& res_l = lw.res_l;
@@ -691,7 +722,7 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
     cv::Mat grid_l = SampleGrid(res_l.disparity, g);
     cv::Mat corr_l = SampleGrid(res_l.correlation, g);
     const int nodes = grid_l.rows * grid_l.cols;
-    const int found = cv::countNonZero(grid_l == grid_l);
+    const int found = CountFinite(grid_l);
     cv::Mat grid_r;
     if (options.two_way) {
       // Right-to-left: a right pixel x matches the left x + d.
@@ -699,7 +730,6 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
       Search(r, l, base_r, k_min, k_max, window, options.min_correlation, mr, ml, -1, lw.ws_r, res_r);
       grid_r = SampleGrid(res_r.disparity, g);
     }
-    lap("search");
     if (options.median_filter) {
       MedianFilter(grid_l, &lw.median_l);
       grid_l = lw.median_l;
@@ -735,13 +765,12 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
         }
       }
     }
-    lap("post");
     if (last) {
       sum.nodes = nodes;
       sum.rejected_correlation = nodes - found;
       sum.rejected_order = rejected_order;
       sum.rejected_left_right = rejected_lr;
-      sum.valid_nodes = cv::countNonZero(averaged == averaged);
+      sum.valid_nodes = CountFinite(averaged);
       final_grid = averaged.clone();
       final_corr = corr_l.clone();
       for (int i = 0; i < final_grid.rows; ++i)
