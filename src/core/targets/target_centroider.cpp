@@ -569,6 +569,10 @@ EdgeFit FitEdge(const ImageView& im, const Eigen::Vector2d& a, const Eigen::Vect
     if (d > 0.7) wv.push_back(v);
     if (d < -0.7) bv.push_back(v);
   });
+  // A border under ~1.5 px (small or oblique tag): the band may hold no
+  // clearly white or black pixel; start the levels from the extremes.
+  if (px.p.size() >= 8 && wv.empty()) wv.push_back(*std::max_element(px.v.begin(), px.v.end()));
+  if (px.p.size() >= 8 && bv.empty()) bv.push_back(*std::min_element(px.v.begin(), px.v.end()));
   if (px.p.size() < 8 || wv.empty() || bv.empty()) return e;
   // Levels: medians of the clearly white / black sides.
   auto median = [](std::vector<double>& v) {
