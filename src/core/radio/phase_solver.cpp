@@ -699,15 +699,29 @@ std::vector<EpochAssembler::Epoch> EpochAssembler::Add(SampleBlock block) {
     pending_.push_back(e);
     it = pending_.end() - 1;
   }
+  auto& latest = latest_[block.receiver_id];
+  latest = std::max(latest, t);
   it->blocks.push_back(std::move(block));
   std::vector<Epoch> done;
   std::vector<Epoch> keep;
   for (Epoch& e : pending_) {
     std::set<std::string> have;
     for (const auto& b : e.blocks) have.insert(b.receiver_id);
-    bool complete = true;
-    for (const auto& r : receivers_) complete = complete && have.count(r);
-    if (complete || e.stamp < t - max_wait_)
+    // Complete, or every missing receiver has moved past it (it dropped its
+    // block), or a silent receiver: overtaken by four newer epochs and older
+    // than max_wait. Topics of different receivers interleave freely on a
+    // fast replay, so one receiver's next block alone closes nothing.
+    bool complete = true, passed = true;
+    for (const auto& r : receivers_) {
+      if (have.count(r)) continue;
+      complete = false;
+      auto l = latest_.find(r);
+      passed = passed && l != latest_.end() && l->second > e.stamp + tolerance_;
+    }
+    int newer = 0;
+    for (const Epoch& o : pending_) newer += o.stamp > e.stamp + tolerance_ ? 1 : 0;
+    const bool silent = e.stamp < t - max_wait_ && newer >= 4;
+    if (complete || passed || silent)
       done.push_back(std::move(e));
     else
       keep.push_back(std::move(e));

@@ -292,11 +292,50 @@ TEST(RadioSolver, EpochAssemblerGroupsByStamp) {
   b.stamp = 11.0;
   b.receiver_id = "rx1";
   EXPECT_TRUE(a.Add(b).empty());
-  b.stamp = 14.0;  // rx2/rx3 of 11.0 never came: released by a block 3 s newer
+  b.stamp = 14.0;  // rx1 runs ahead: that alone releases nothing (rx2, rx3 may still come)
+  EXPECT_TRUE(a.Add(b).empty());
+  b.receiver_id = "rx2";  // rx2 passed 11.0 without a block there; rx3 has not moved yet
+  EXPECT_TRUE(a.Add(b).empty());
+  b.receiver_id = "rx1";
+  for (double stamp : {17.0, 20.0}) {  // rx3 silent since 10.0: waiting
+    b.stamp = stamp;
+    EXPECT_TRUE(a.Add(b).empty()) << stamp;
+  }
+  b.stamp = 23.0;  // 11.0 is overtaken by four epochs and older than max_wait: released without rx3
   done = a.Add(b);
   ASSERT_EQ(done.size(), 1u);
   EXPECT_DOUBLE_EQ(done[0].stamp, 11.0);
-  EXPECT_EQ(a.pending(), 1u);
+  EXPECT_EQ(done[0].blocks.size(), 1u);
+  EXPECT_EQ(a.pending(), 4u);
+  b.stamp = 14.0;  // rx3 comes back: 14.0 is complete
+  b.receiver_id = "rx3";
+  done = a.Add(b);
+  ASSERT_EQ(done.size(), 1u);
+  EXPECT_DOUBLE_EQ(done[0].stamp, 14.0);
+  EXPECT_EQ(done[0].blocks.size(), 3u);
+}
+
+// A fast replay interleaves the receivers' topics: rx1 and rx2 deliver the
+// next block (600 s later) before rx3 delivers this one. Every epoch must
+// still come out complete, in order.
+TEST(RadioSolver, EpochAssemblerIsIndependentOfArrivalOrder) {
+  radio::EpochAssembler a({"rx1", "rx2", "rx3"}, 1e-3, 2.5);
+  radio::SampleBlock b;
+  std::vector<radio::EpochAssembler::Epoch> all;
+  const std::vector<std::pair<const char*, double>> order = {
+      {"rx1", 0.0},    {"rx2", 0.0},    {"rx1", 600.0},  {"rx2", 600.0},  {"rx1", 1200.0},
+      {"rx3", 0.0},    {"rx2", 1200.0}, {"rx3", 600.0},  {"rx3", 1200.0}};
+  for (const auto& [rx, stamp] : order) {
+    b.receiver_id = rx;
+    b.stamp = 1700000000.0 + stamp;
+    for (auto& e : a.Add(b)) all.push_back(std::move(e));
+  }
+  ASSERT_EQ(all.size(), 3u);
+  for (size_t k = 0; k < all.size(); ++k) {
+    EXPECT_DOUBLE_EQ(all[k].stamp, 1700000000.0 + 600.0 * k);
+    EXPECT_EQ(all[k].blocks.size(), 3u) << "epoch " << k;
+  }
+  EXPECT_EQ(a.pending(), 0u);
 }
 
 }  // namespace

@@ -244,8 +244,12 @@ class RadioPhaseSolver {
 
 // Groups blocks arriving one by one (per receiver topic) into epochs by
 // stamp. An epoch is complete when every configured receiver delivered a
-// block with that stamp (within `tolerance` s), or when a block more than
-// `max_wait` s newer arrives (the missing receivers dropped theirs).
+// block with that stamp (within `tolerance` s). It is released incomplete
+// when every missing receiver has delivered a newer block (it dropped this
+// one), or when it is more than `max_wait` s older than the newest block and
+// four newer epochs are pending (a receiver fell silent). Per-receiver topics
+// interleave freely on a fast replay, so the result does not depend on the
+// order in which the receivers' blocks arrive.
 class EpochAssembler {
  public:
   EpochAssembler(std::vector<std::string> receiver_ids, double tolerance = 1e-3, double max_wait = 2.5);
@@ -262,6 +266,7 @@ class EpochAssembler {
   std::vector<std::string> receivers_;
   double tolerance_, max_wait_;
   std::vector<Epoch> pending_;
+  std::map<std::string, double> latest_;  // newest stamp per receiver
 };
 
 }  // namespace radio
