@@ -325,7 +325,9 @@ TEST(CameraCaptureLive, PhotoFolder) {
   for (size_t i = 0; i < expected.size(); ++i) {
     EXPECT_EQ(epochs[i].end, std::get<0>(expected[i])) << i;
     EXPECT_EQ(epochs[i].epoch, std::get<1>(expected[i])) << i;
-    if (epochs[i].end) EXPECT_EQ(epochs[i].count, std::get<2>(expected[i])) << i;
+    if (epochs[i].end) {
+      EXPECT_EQ(epochs[i].count, std::get<2>(expected[i])) << i;
+    }
     EXPECT_NEAR(epochs[i].header.stamp.toSec(), std::get<3>(expected[i]), 1e-6) << i;
     EXPECT_EQ(epochs[i].source, "/uav/camera");
   }
@@ -451,7 +453,9 @@ TEST(CameraCaptureLive, FixedCameraScheduleWindowsAndTrigger) {
     if (i > 0) {
       EXPECT_GE(t - images[i - 1]->header.stamp.toSec(), 0.5 * interval) << i;
     }
-    if (i < 10) EXPECT_NEAR(MeanLevel(*images[i]), 8.0 * i, 3.0) << "capture " << i << " is frame " << i << " of the clip";
+    if (i < 10) {
+      EXPECT_NEAR(MeanLevel(*images[i]), 8.0 * i, 3.0) << "capture " << i << " is frame " << i << " of the clip";
+    }
   }
   EXPECT_LE(images.size(), static_cast<size_t>(waited / interval) + 2) << "more captures than the interval allows";
   ASSERT_TRUE(WaitFor([&] { return open_rec.epochs().size() >= 2 * images.size(); }, 3.0));
@@ -461,7 +465,9 @@ TEST(CameraCaptureLive, FixedCameraScheduleWindowsAndTrigger) {
     EXPECT_TRUE(open_epochs[i + 1].end);
     EXPECT_EQ(open_epochs[i].epoch, open_epochs[i + 1].epoch);
     EXPECT_EQ(open_epochs[i + 1].count, 1u);
-    if (i > 0) EXPECT_EQ(open_epochs[i].epoch, open_epochs[i - 2].epoch + 1);
+    if (i > 0) {
+      EXPECT_EQ(open_epochs[i].epoch, open_epochs[i - 2].epoch + 1);
+    }
   }
 
   // Outside the window the trigger still captures one epoch of frames_per_epoch frames.
