@@ -1,7 +1,8 @@
 // launch/record.launch for real (test/rostest/camera_capture_record.test):
 // the test node starts `roslaunch slope_monitor record.launch` (lz4, split at
 // 1 MB) into a temporary directory, loads a camera_capture nodelet on a photo
-// folder it wrote (two epochs of three 640x480 photos), stops the recorder
+// folder it wrote (two epochs of three 640x480 photos), publishes radio
+// sample blocks (recorded) and an unrelated topic (not), stops the recorder
 // with SIGINT once the last epoch has ended, and checks the bags: their names
 // (site, date, start time, split index), lz4 chunks, and what the bag_check
 // tool reports per file and for the files as one session (--session) —
@@ -22,10 +23,12 @@
 #include <nodelet/NodeletLoad.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
+#include <std_msgs/String.h>
 #include <XmlRpcValue.h>
 
 #include "../core/capture/test_images.h"
 #include "slope_monitor/EpochMarker.h"
+#include "slope_monitor/RadioSampleBlock.h"
 #include "slope_monitor/ros/capture_conversions.h"
 
 namespace slope_monitor {
@@ -132,6 +135,11 @@ TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
     ~Stopper() { Stop(20.0); }
   } stopper{launch};
 
+  // A radio receiver's samples (recorded) and an unrelated topic (not).
+  ros::NodeHandle root;
+  ros::Publisher radio_pub = root.advertise<slope_monitor::RadioSampleBlock>("/radio/rx_test/samples", 10);
+  ros::Publisher other_pub = root.advertise<std_msgs::String>("/field_notes/chatter", 10);
+
   const std::string recorder = "/record_" + site;
   ASSERT_TRUE(WaitFor(
       [&] {
@@ -162,6 +170,25 @@ TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
       << recorder << " did not subscribe to /rec/camera/image_raw";
   EXPECT_LT((ros::WallTime::now() - loaded).toSec(), 4.0)
       << "the recorder subscribed after publishing started; counts below would be short";
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        const auto s = Subscribers("/radio/rx_test/samples");
+        return std::find(s.begin(), s.end(), recorder) != s.end() && radio_pub.getNumSubscribers() > 0;
+      },
+      10.0))
+      << recorder << " did not subscribe to /radio/rx_test/samples";
+  for (uint32_t k = 0; k < 5; ++k) {
+    slope_monitor::RadioSampleBlock block;
+    block.header.stamp = ros::Time::now();
+    block.receiver_id = "rx_test";
+    block.sequence = k;
+    block.i.assign(64, 0.5f);
+    radio_pub.publish(block);
+    std_msgs::String note;
+    note.data = "not for the bag";
+    other_pub.publish(note);
+    ros::WallDuration(0.05).sleep();
+  }
   ASSERT_TRUE(WaitFor(
       [&] {
         std::lock_guard<std::mutex> l(mutex);
@@ -224,6 +251,8 @@ TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
     EXPECT_EQ(file_counts[topic], 6) << topic << "\n" << per_file;
   }
   EXPECT_EQ(counts["/rec/camera/epoch"], 4) << report;
+  EXPECT_EQ(counts["/radio/rx_test/samples"], 5) << report;
+  EXPECT_EQ(counts.count("/field_notes/chatter"), 0u) << "recorded a topic outside topics_regex\n" << report;
   EXPECT_EQ(file_counts["/rec/camera/epoch"], 4) << per_file;
   EXPECT_EQ(boundaries, (std::vector<std::string>{"start 0", "end 0 3", "start 1", "end 1 3"})) << report;
 
