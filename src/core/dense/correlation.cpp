@@ -206,7 +206,7 @@ struct LevelWorkspace {
   SearchWorkspace ws_l, ws_r;
   DenseResult res_l, res_r;
   cv::Mat median_l, median_r;
-  cv::Mat down_l, down_r, log_l, log_r, log_tmp, mask_l, mask_r, base_l, base_r;
+  cv::Mat down_l, down_r, log_l, log_r, log_tmp, log_tmp_r, mask_l, mask_r, base_l, base_r;
 };
 
 constexpr int kInputSlot = 8;  // LevelCache slot of the float input images (levels are 0 .. 4)
@@ -257,18 +257,20 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
             cv::BORDER_CONSTANT, cv::Scalar(1));
   ws.mean_l.create(h, w, CV_32F);
   ws.inv_sd_l.create(h, w, CV_32F);  // 0: window unusable
-  for (int y = 0; y < h; ++y) {
-    const float* s = ws.sum_l.ptr<float>(y);
-    const float* ss = ws.sum_ll.ptr<float>(y);
-    const uchar* ok = ws.ok_l.ptr<uchar>(y);
-    float* m = ws.mean_l.ptr<float>(y);
-    float* is = ws.inv_sd_l.ptr<float>(y);
-    for (int x = 0; x < w; ++x) {
-      m[x] = s[x] * inv_count;
-      const float var = ss[x] - s[x] * m[x];
-      is[x] = (ok[x] && var > min_var) ? 1.0f / std::sqrt(var) : 0.0f;
+  cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const float* s = ws.sum_l.ptr<float>(y);
+      const float* ss = ws.sum_ll.ptr<float>(y);
+      const uchar* ok = ws.ok_l.ptr<uchar>(y);
+      float* m = ws.mean_l.ptr<float>(y);
+      float* is = ws.inv_sd_l.ptr<float>(y);
+      for (int x = 0; x < w; ++x) {
+        m[x] = s[x] * inv_count;
+        const float var = ss[x] - s[x] * m[x];
+        is[x] = (ok[x] && var > min_var) ? 1.0f / std::sqrt(var) : 0.0f;
+      }
     }
-  }
+  });
 
   // Padded right image and the padded right "window on content" flags (the
   // mask eroded by the window; outside the image: no content).
@@ -282,9 +284,10 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
   ws.rp.create(h, wp, CV_32F);
   ws.bp.create(h, wp, CV_32F);
   ws.idx.create(h, w, CV_32S);
-  ws.rp.setTo(0.0f);
-  ws.bp.setTo(0.0f);
-  for (int y = 0; y < h; ++y) {
+  cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
+  for (int y = rows.start; y < rows.end; ++y) {
+    std::fill(ws.rp.ptr<float>(y), ws.rp.ptr<float>(y) + wp, 0.0f);
+    std::fill(ws.bp.ptr<float>(y), ws.bp.ptr<float>(y) + wp, 0.0f);
     const float* rr = right.ptr<float>(y);
     const uchar* mr = mask_right.ptr<uchar>(y);
     const uchar* okr = ws.ok_r.ptr<uchar>(y);
@@ -299,6 +302,7 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
     int* id = ws.idx.ptr<int>(y);
     for (int x = 0; x < w; ++x) id[x] = std::clamp(x - direction * (b ? b[x] : 0), -pad, w - 1 + pad) + off;
   }
+  });
 
   out.disparity.create(h, w, CV_32F);
   out.correlation.create(h, w, CV_32F);
@@ -695,8 +699,15 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
     const int window = (last && options.final_window > 0) ? options.final_window : options.window;
     const double sigma = matching::LogSigmaForPeakFrequency(options.peak_frequency);
     LevelWorkspace& lw = LevelCache(k);
-    LogInto(Downsample(left, scale, &lw.down_l), sigma, &lw.log_l, &lw.log_tmp);
-    LogInto(Downsample(right, scale, &lw.down_r), sigma, &lw.log_r, &lw.log_tmp);
+    // Both images at once (two tasks; OpenCV's separable filter runs on one thread).
+    cv::parallel_for_(cv::Range(0, 2), [&](const cv::Range& sides) {
+      for (int side = sides.start; side < sides.end; ++side) {
+        if (side == 0)
+          LogInto(Downsample(left, scale, &lw.down_l), sigma, &lw.log_l, &lw.log_tmp);
+        else
+          LogInto(Downsample(right, scale, &lw.down_r), sigma, &lw.log_r, &lw.log_tmp_r);
+      }
+    });
     const cv::Mat& l = lw.log_l;
     const cv::Mat& r = lw.log_r;
     const cv::Mat ml = DownsampleMask(mask_l, scale, valid_left.empty(), &lw.mask_l);
