@@ -220,11 +220,20 @@ int CountFinite(const cv::Mat& m) {
   return n;
 }
 
-LevelWorkspace& LevelCache(int level) {
+std::vector<LevelWorkspace>& LevelCacheVector() {
   static thread_local std::vector<LevelWorkspace> cache;
+  return cache;
+}
+
+LevelWorkspace& LevelCache(int level) {
+  std::vector<LevelWorkspace>& cache = LevelCacheVector();
   if (static_cast<int>(cache.size()) <= level) cache.resize(level + 1);
   return cache[level];
 }
+
+// Images larger than this do not keep their workspaces after the call (about
+// 30 float images of this size would stay allocated per thread).
+constexpr double kMaxCachedPixels = 2.0e6;
 
 // ZNCC search of `left` against `right` for parallaxes base(x) + k, k in
 // [k_min, k_max] (base: per-pixel integer prediction, CV_32S, or empty = 0).
@@ -800,6 +809,7 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
   out.spacing = options.final_grid_spacing;
   out.disparity = final_grid;
   out.correlation = final_corr;
+  if (static_cast<double>(left.total()) > kMaxCachedPixels) LevelCacheVector().clear();
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (summary) *summary = sum;
   return out;
