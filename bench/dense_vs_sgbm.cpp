@@ -102,6 +102,7 @@ int main(int argc, char** argv) {
       else if (k == "two_way") o->two_way = v != 0;
       else if (k == "peak_frequency") o->peak_frequency = v;
       else if (k == "levels") o->levels = static_cast<int>(v);
+      else if (k == "lsc_iterations") o->lsc_iterations = static_cast<int>(v);
       else {
         std::fprintf(stderr, "unknown option '%s'\n", k.c_str());
         return 1;

@@ -83,6 +83,7 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
     o.correlation.final_grid_spacing = p.Int("final_grid_spacing", 2, 1, 64, "px");
     o.correlation.window = p.Int("window", 15, 3, 51, "px");
     o.correlation.final_window = p.Int("final_window", 0, 0, 51, "px");
+    o.correlation.lsc_iterations = p.Int("lsc_iterations", 0, 0, 20);
     o.correlation.search_radius = p.Int("search_radius", 3, 1, 16, "px");
     o.correlation.min_correlation = p.Double("min_correlation", 0.3, -1.0, 0.999);
     o.correlation.lr_tolerance = p.Double("lr_tolerance", 1.0, 0.01, 10.0, "px");

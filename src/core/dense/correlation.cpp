@@ -7,6 +7,7 @@
 #include <sstream>
 #include <vector>
 
+#include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
 
 #if defined(__GNUC__) && defined(__x86_64__)
@@ -579,6 +580,49 @@ void PredictBase(const cv::Mat& filled_grid, int g, cv::Size size, cv::Mat* base
   });
 }
 
+// Least-squares refinement of the parallax d of left pixel (x, y): minimises
+// sum over the window of (l(q) - a - b r(q - d))^2 by Gauss-Newton in (d, a,
+// b), r sampled linearly along the line. Returns NaN when a window sample
+// leaves the image, the system is singular, or d moves by more than 1 px.
+float RefineLsc(const cv::Mat& l, const cv::Mat& r, int x, int y, float d0, int half, int iterations) {
+  const int w = l.cols, h = l.rows;
+  if (x - half < 0 || x + half >= w || y - half < 0 || y + half >= h) return kNaN;
+  double d = d0, a = 0.0, b = 1.0;
+  for (int it = 0; it < iterations; ++it) {
+    double n[3][3] = {{0}}, u[3] = {0};
+    for (int yy = y - half; yy <= y + half; ++yy) {
+      const float* lr = l.ptr<float>(yy);
+      const float* rr = r.ptr<float>(yy);
+      for (int xx = x - half; xx <= x + half; ++xx) {
+        const double xs = xx - d;
+        const int x0 = static_cast<int>(std::floor(xs));
+        if (x0 < 0 || x0 + 1 >= w) return kNaN;
+        const double t = xs - x0;
+        const double rv = (1 - t) * rr[x0] + t * rr[x0 + 1];
+        const double gx = rr[x0 + 1] - rr[x0];  // d r / d xs
+        const double res = lr[xx] - (a + b * rv);
+        // Derivatives of the model a + b r(xx - d) by (d, a, b).
+        const double j[3] = {-b * gx, 1.0, rv};
+        for (int p = 0; p < 3; ++p) {
+          u[p] += j[p] * res;
+          for (int q = 0; q < 3; ++q) n[p][q] += j[p] * j[q];
+        }
+      }
+    }
+    Eigen::Matrix3d nm;
+    for (int p = 0; p < 3; ++p)
+      for (int q = 0; q < 3; ++q) nm(p, q) = n[p][q];
+    const Eigen::Vector3d dx = nm.ldlt().solve(Eigen::Vector3d(u[0], u[1], u[2]));
+    if (!dx.allFinite()) return kNaN;
+    d += dx[0];
+    a += dx[1];
+    b += dx[2];
+    if (std::abs(d - d0) > 1.0 || !(b > 0.0)) return kNaN;
+    if (std::abs(dx[0]) < 1e-3) break;
+  }
+  return static_cast<float>(d);
+}
+
 // The scale-normalised LoG of matching::LaplacianOfGaussian (same kernels,
 // separable: g'' x g + g x g''), written into `out` (kept between calls).
 void LogInto(const cv::Mat& image, double sigma, cv::Mat* out, cv::Mat* tmp) {
@@ -651,6 +695,8 @@ void CorrelationOptions::Check() const {
           "max_disparity", Message("= ", max_disparity, " must be finite and > min_disparity = ", min_disparity));
   Require(min_correlation >= -1 && min_correlation < 1, "min_correlation",
           Message("= ", min_correlation, " must be in [-1, 1)"));
+  Require(lsc_iterations >= 0 && lsc_iterations <= 20, "lsc_iterations",
+          Message("= ", lsc_iterations, " must be in [0, 20]"));
   Require(lr_tolerance > 0, "lr_tolerance", Message("= ", lr_tolerance, " must be > 0"));
   Require(order_tolerance >= 0, "order_tolerance", Message("= ", order_tolerance, " must be >= 0"));
 }
@@ -793,6 +839,19 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
       sum.valid_nodes = CountFinite(averaged);
       final_grid = averaged.clone();
       final_corr = corr_l.clone();
+      if (options.lsc_iterations > 0) {
+        const int half = window / 2;
+        cv::parallel_for_(cv::Range(0, final_grid.rows), [&](const cv::Range& rows) {
+          for (int i = rows.start; i < rows.end; ++i) {
+            float* row = final_grid.ptr<float>(i);
+            for (int j = 0; j < final_grid.cols; ++j) {
+              if (!Finite(row[j])) continue;
+              const float refined = RefineLsc(l, r, j * g, i * g, row[j], half, options.lsc_iterations);
+              if (Finite(refined)) row[j] = refined;
+            }
+          }
+        });
+      }
       for (int i = 0; i < final_grid.rows; ++i)
         for (int j = 0; j < final_grid.cols; ++j)
           if (!Finite(final_grid.at<float>(i, j))) final_corr.at<float>(i, j) = kNaN;

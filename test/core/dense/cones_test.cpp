@@ -3,6 +3,7 @@
 // non-occluded pixels. Bounds are the rates measured with the default options
 // (DESIGN.md sizes, per-pixel final grid) plus a margin; bench_dense_vs_sgbm
 // puts them beside OpenCV's StereoSGBM.
+#include <cmath>
 #include <limits>
 #include <string>
 
@@ -76,6 +77,45 @@ TEST(Cones, TunedSettingsStayUnderTheMeasuredBound) {
   EXPECT_LT(e.bad_fraction[1], 0.13);
   EXPECT_LT(e.bad_fraction_valid[0], 0.055);
   EXPECT_GT(density, 0.90);
+}
+
+TEST(Cones, LscRefinementSharpensTheSubPixelParallax) {
+  // The constant 5.4 px shift of a smooth random texture (as below):
+  // least squares on the LoG images against the parabola through the ZNCC
+  // peak (measured: 0.0116 px vs 0.0139 px RMS on the same 399 nodes).
+  cv::Mat tex(96, 128, CV_32F);
+  cv::RNG rng(7);
+  rng.fill(tex, cv::RNG::UNIFORM, 0, 255);
+  cv::Mat smooth;
+  cv::GaussianBlur(tex, smooth, cv::Size(0, 0), 1.2);
+  cv::Mat shifted;
+  const cv::Mat m = (cv::Mat_<double>(2, 3) << 1, 0, -5.4, 0, 1, 0);
+  cv::warpAffine(smooth, shifted, m, smooth.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT_101);
+  CorrelationOptions o;
+  o.levels = 2;
+  o.final_grid_spacing = 4;
+  o.max_disparity = 12;
+  auto rms = [&](const ParallaxGrid& g, int* n) {
+    double s2 = 0;
+    *n = 0;
+    for (int i = 0; i < g.disparity.rows; ++i)
+      for (int j = 0; j < g.disparity.cols; ++j)
+        if (g.Valid(i, j) && j * 4 > 20 && j * 4 < 108 && i * 4 > 10 && i * 4 < 86) {
+          s2 += std::pow(g.disparity.at<float>(i, j) - 5.4, 2);
+          ++*n;
+        }
+    return std::sqrt(s2 / std::max(1, *n));
+  };
+  int n0 = 0, n1 = 0;
+  const double rms_parabola = rms(MatchRectified(smooth, shifted, o), &n0);
+  o.lsc_iterations = 5;
+  const double rms_lsc = rms(MatchRectified(smooth, shifted, o), &n1);
+  std::printf("constant 5.4 px shift: parabola RMS %.4f px (%d nodes), LSC RMS %.4f px (%d nodes)\n", rms_parabola,
+              n0, rms_lsc, n1);
+  ASSERT_GT(n1, 100);
+  EXPECT_EQ(n0, n1);
+  EXPECT_LT(rms_lsc, 0.9 * rms_parabola);
+  EXPECT_LT(rms_lsc, 0.013);
 }
 
 TEST(Cones, EvaluationCountsHolesAsErrors) {

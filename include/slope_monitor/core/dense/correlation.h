@@ -65,6 +65,12 @@ struct CorrelationOptions {
   bool median_filter = true;      // 3 x 3 median of parallaxes
   bool order_check = true;        // order-consistency per line
   bool two_way = true;            // left->right and right->left; false: left->right only
+  // Least-squares refinement of each final parallax (0: off, parabola only):
+  // Gauss-Newton iterations of  l(x) = a + b r(x - d)  over the final window
+  // (shift d, gain b, offset a; r linear along the line); a node whose
+  // refinement moves by more than 1 px or does not converge keeps the
+  // parabola value. [0, 20]
+  int lsc_iterations = 0;
   // Throws ConfigError naming the first bad field.
   void Check() const;
 };
