@@ -1,14 +1,23 @@
 // Plays a simulated survey bag through the whole graph (replay.launch, with
 // --clock) and checks the deformation estimator's stored history against the
 // simulator's truth. Expected values and tolerances come in as parameters
-// (test/rostest/full_graph_replay.test).
+// (test/rostest/full_graph_replay.test). It also listens to every fixed
+// camera's target observations and checks them against the truth: every
+// visible target observed in every image, each observed ID where the truth
+// projects that target, no false IDs.
+#include <map>
+#include <mutex>
+#include <set>
+
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <ros/ros.h>
 
 #include <gtest/gtest.h>
 
+#include "slope_monitor/TargetObservationArray.h"
 #include "slope_monitor/core/evaluation/deformation_truth.h"
+#include "slope_monitor/core/sim/truth.h"
 
 namespace slope_monitor {
 namespace {
@@ -17,6 +26,79 @@ double Param(const ros::NodeHandle& nh, const std::string& key, double fallback)
   double v = fallback;
   nh.param(key, v, fallback);
   return v;
+}
+
+// Target observations of one image, as published by a centroider.
+struct SeenImage {
+  std::string camera;
+  double stamp = 0.0;
+  std::map<std::string, Eigen::Vector2d> identified;  // key -> pixel
+  int unknown = 0;
+};
+
+class TargetRecorder {
+ public:
+  explicit TargetRecorder(ros::NodeHandle& nh, const std::vector<std::string>& cameras) {
+    for (const std::string& c : cameras)
+      subs_.push_back(nh.subscribe("/" + c + "/targets", 100, &TargetRecorder::On, this));
+  }
+  std::vector<SeenImage> Images() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return images_;
+  }
+
+ private:
+  void On(const slope_monitor::TargetObservationArrayConstPtr& msg) {
+    SeenImage im;
+    im.camera = msg->camera_name;
+    im.stamp = msg->header.stamp.toSec();
+    for (const auto& o : msg->observations) {
+      if (o.id < 0)
+        ++im.unknown;
+      else
+        im.identified[o.family + "/" + std::to_string(o.id)] = Eigen::Vector2d(o.x, o.y);
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    images_.push_back(im);
+  }
+  std::vector<ros::Subscriber> subs_;
+  std::mutex mutex_;
+  std::vector<SeenImage> images_;
+};
+
+std::unique_ptr<TargetRecorder> recorder;
+
+// Every fixed-camera image of the bag: its targets observed, IDs where the
+// truth projects them (within max_id_px), nothing identified that is not there.
+void CheckTargetObservations(const sim::SurveyTruth& truth, const std::vector<SeenImage>& seen, double max_id_px) {
+  int images = 0, checked_ids = 0;
+  for (const sim::CameraTruth& cam : truth.cameras) {
+    if (cam.kind != "fixed") continue;
+    for (const sim::ImageTruth& im : cam.images) {
+      ++images;
+      const SeenImage* s = nullptr;
+      for (const SeenImage& x : seen)
+        if (x.camera == cam.name && std::abs(x.stamp - im.stamp) < 1e-3) s = &x;
+      ASSERT_NE(s, nullptr) << cam.name << " image at " << im.stamp << ": no target observations published";
+      for (const std::string& key : im.visible)
+        EXPECT_TRUE(s->identified.count(key)) << cam.name << "@" << im.stamp << ": visible target " << key
+                                              << " not observed";
+      for (const auto& [key, px] : s->identified) {
+        const sim::TargetTruth* t = truth.FindTarget(key);
+        ASSERT_NE(t, nullptr) << cam.name << "@" << im.stamp << ": false ID " << key << " (no such target)";
+        Eigen::Vector2d expect;
+        ASSERT_TRUE(cam.model.Project(im.exterior, t->positions.at(im.epoch), &expect)) << key;
+        EXPECT_LT((px - expect).norm(), max_id_px)
+            << cam.name << "@" << im.stamp << ": " << key << " observed at " << px.transpose() << ", truth projects it to "
+            << expect.transpose();
+        ++checked_ids;
+      }
+      EXPECT_EQ(s->unknown, 0) << cam.name << "@" << im.stamp << ": unidentified targets";
+    }
+  }
+  std::cout << "target observations: " << images << " fixed-camera images, " << checked_ids
+            << " identified observations checked against the truth\n";
+  EXPECT_GT(images, 0);
 }
 
 TEST(FullGraphReplay, FusedDeformationMatchesTruth) {
@@ -56,6 +138,7 @@ TEST(FullGraphReplay, FusedDeformationMatchesTruth) {
   ros::WallDuration(settle).sleep();
 
   const sim::SurveyTruth truth = sim::SurveyTruth::Load(truth_path);
+  CheckTargetObservations(truth, recorder->Images(), Param(pnh, "max_id_px", 1.0));
   const evaluation::DeformationEvaluation e = evaluation::EvaluateHistory(database, truth);
   std::cout << evaluation::FormatTable(e);
 
@@ -95,7 +178,12 @@ TEST(FullGraphReplay, FusedDeformationMatchesTruth) {
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "full_graph_replay_test");
+  ros::NodeHandle nh;
+  slope_monitor::recorder = std::make_unique<slope_monitor::TargetRecorder>(
+      nh, std::vector<std::string>{"fixed_cam_1", "fixed_cam_2"});
   ros::AsyncSpinner spinner(1);
   spinner.start();
-  return RUN_ALL_TESTS();
+  const int result = RUN_ALL_TESTS();
+  slope_monitor::recorder.reset();
+  return result;
 }
