@@ -164,7 +164,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     o->alerts.confirm_points = p.Int("confirm_points", 2, 1, 1000);
     o->alerts.confirm_sources = p.Int("confirm_sources", 2, 1, 10);
     o->alerts.hysteresis = p.Double("hysteresis", 0.8, 0.01, 1.0);
-    o->filter.jerk_spectral_density = p.Double("jerk_spectral_density", 1e-26, 0.0, 1e-20, "m^2/s^5");
+    o->filter.jerk_spectral_density = p.Double("jerk_spectral_density", 1e-25, 0.0, 1e-20, "m^2/s^5");
     o->filter.initial_velocity_sigma = p.Double("initial_velocity_sigma", 1e-6, 1e-12, 1.0, "m/s");
     o->filter.initial_acceleration_sigma = p.Double("initial_acceleration_sigma", 1e-10, 1e-18, 1.0, "m/s^2");
     o->reorder_window = p.Double("reorder_window", 3 * 86400.0, 0.0, 365 * 86400.0, "s");
