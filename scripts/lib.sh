@@ -54,7 +54,16 @@ sm_build() {
   sm_workspace
   local jobs="${SM_JOBS:-$(nproc)}"
   sm_say "building with catkin_make (-j$jobs, Release)"
-  (cd "$SM_WS" && catkin_make -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=ON -j"$jobs" >"$SM_WS/build.log" 2>&1) || {
+  # "sm_build demo": only what the replay graph and the demo tools need (the
+  # benchmarks, offline tools and the other nodelets wait for scripts/test).
+  local targets=()
+  if [ "${1:-}" = demo ]; then
+    targets=(slope_monitor_target_centroider_nodelet slope_monitor_bundle_adjuster_nodelet
+             slope_monitor_radio_phase_solver_nodelet slope_monitor_deformation_estimator_nodelet
+             make_survey_bag deformation_summary)
+  fi
+  (cd "$SM_WS" && catkin_make -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=ON -j"$jobs" "${targets[@]}" \
+     >"$SM_WS/build.log" 2>&1) || {
     tail -n 60 "$SM_WS/build.log" >&2
     sm_die "build failed; full log: $SM_WS/build.log"
   }
