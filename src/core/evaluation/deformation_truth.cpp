@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/sim/survey.h"
 
 namespace slope_monitor {
 namespace evaluation {
@@ -140,7 +141,6 @@ DeformationEvaluation EvaluateHistory(const std::string& database, const sim::Su
         reference[o.id] =
             Eigen::Vector3d(sqlite3_column_double(s, 3), sqlite3_column_double(s, 4), sqlite3_column_double(s, 5));
       }
-      ++counts[o.id][o.source];
       observations.push_back(o);
     }
     sqlite3_finalize(s);
@@ -159,6 +159,19 @@ DeformationEvaluation EvaluateHistory(const std::string& database, const sim::Su
           Eigen::Vector3d(sqlite3_column_double(s, 2), sqlite3_column_double(s, 3), sqlite3_column_double(s, 4));
     }
     sqlite3_finalize(s);
+  }
+
+  // Measurements per estimated point and source. A measured id the estimator
+  // fused under another point's id (an alias: a transmitter on a target's
+  // post, as the simulator's site overlay declares) counts for that point.
+  {
+    std::map<std::string, std::string> fused_as;
+    for (const auto& [tx, key] : sim::ColocatedPoints(truth, 0.5)) fused_as[tx] = key;
+    for (const Obs& o : observations) {
+      std::string id = o.id;
+      if (!fused.count(id) && fused_as.count(id) && fused.count(fused_as[id])) id = fused_as[id];
+      ++counts[id][o.source];
+    }
   }
 
   // Latest estimate of each point.
