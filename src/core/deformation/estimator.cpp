@@ -180,11 +180,32 @@ void Estimator::Validate(const Measurement& m) const {
     throw InvalidArgument(Message(who, ": covariance is not positive definite"));
 }
 
+namespace {
+
+// Identity of a measurement: the same values from the same source again are a re-delivery.
+std::string MeasurementKey(const Measurement& m) {
+  std::ostringstream k;
+  k << std::setprecision(17) << m.point_id << '|' << static_cast<int>(m.source) << '|' << m.source_name << '|'
+    << m.stamp << '|' << m.displacement.x() << '|' << m.displacement.y() << '|' << m.displacement.z();
+  for (int i = 0; i < 9; ++i) k << '|' << m.covariance(i);
+  return k.str();
+}
+
+}  // namespace
+
 BatchSummary Estimator::AddBatch(const Batch& batch_in) {
   BatchSummary summary;
   Batch batch = batch_in;
   batch.measurements.clear();
   for (const Measurement& m : batch_in.measurements) {
+    if (received_.count(MeasurementKey(m))) {
+      ++summary.refused;
+      summary.messages.push_back(Message("point '", m.point_id, "' from '", m.source_name, "' at stamp ",
+                                         Fixed(m.stamp, 3),
+                                         ": identical to a measurement already received (a latched topic re-delivered"
+                                         " after a restart?); not stored or fused again"));
+      continue;
+    }
     try {
       Validate(m);
       batch.measurements.push_back(m);
@@ -215,6 +236,7 @@ BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>&
     const Measurement& m = batch.measurements[i];
     const uint64_t seq = i < sequences.size() ? sequences[i] : next_sequence_;
     next_sequence_ = std::max(next_sequence_, seq + 1);
+    received_.insert(MeasurementKey(m));
     if (replay) {  // rows of older schemas or edited files: refuse, never delete
       try {
         Validate(m);

@@ -192,6 +192,10 @@ class Estimator {
   // Throws InvalidArgument for a batch that cannot be used at all (NaN,
   // non-positive-definite covariance: naming the point); refusals of single
   // measurements (other datum, too late) are reported in the summary.
+  // A measurement identical to one already received (same point, source,
+  // source name, stamp, displacement and covariance) is a re-delivery, e.g.
+  // of a latched topic's last message when a restarted node subscribes
+  // again: it is refused (reported in the summary), not stored or fused twice.
   BatchSummary AddBatch(const Batch& batch);
 
   // Re-bases displacements on epoch `epoch` (which must have been seen), or
@@ -227,6 +231,7 @@ class Estimator {
   double newest_stamp_ = 0.0;
   uint32_t newest_epoch_ = 0;
   uint64_t next_sequence_ = 1;
+  std::set<std::string> received_;  // keys of every measurement received (duplicate check)
 };
 
 }  // namespace deformation
