@@ -46,7 +46,13 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   ~DeformationEstimatorNodelet() override {
     // End of a replay / shutdown: write the reports once more.
     std::lock_guard<std::mutex> lock(mutex_);
-    if (estimator_ && report_on_shutdown_ && !report_dir_.empty()) {
+    if (estimator_ && report_on_shutdown_ && !report_dir_.empty() && estimator_->GetSnapshot().points.empty()) {
+      // An empty, unreadable or truncated bag, or one without the input
+      // topics: empty report files would look like a result.
+      ROS_WARN("deformation_estimator: no point was ever measured (history '%s'); no reports written to %s "
+               "(was the bag empty, unreadable, or without the topics %s?)",
+               database_.c_str(), report_dir_.c_str(), TopicList().c_str());
+    } else if (estimator_ && report_on_shutdown_ && !report_dir_.empty()) {
       try {
         const auto files = deformation::WriteReports(*estimator_, report_dir_, report_formats_, report_options_);
         ROS_INFO("deformation_estimator: wrote %zu report file(s) to %s at shutdown", files.size(),
@@ -107,6 +113,12 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
       h.stamp = ros::Time(resumed.stamp);
       Publish(resumed, h);
     }
+  }
+
+  std::string TopicList() const {
+    std::string t;
+    for (const std::string& x : input_topics_) t += (t.empty() ? "" : ", ") + x;
+    return t;
   }
 
   void ReadParameters(ros::NodeHandle& pnh, deformation::EstimatorOptions* o) {
