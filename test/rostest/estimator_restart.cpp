@@ -146,9 +146,14 @@ void CheckCorruptDatabase(const std::string& manager, const std::string& path) {
   ros::param::set(name + "/input_topics", std::vector<std::string>{"/bundle_adjuster/displacements"});
   ASSERT_TRUE(Load(manager, name)) << "load_nodelet " << name;  // onInit logs and returns; the load itself succeeds
   std::vector<std::string> hits;
-  for (int i = 0; i < 100 && hits.empty(); ++i) {
+  // The refusal travels through the manager's /rosout publisher; on a loaded
+  // machine (CI building beside it) that can take a while.
+  for (int i = 0; i < 600 && hits.empty(); ++i) {
     ros::WallDuration(0.1).sleep();
     hits = log_listener->Find(path);
+  }
+  if (hits.empty()) {
+    for (const std::string& l : log_listener->Find("deformation_estimator")) std::cout << "log: " << l << "\n";
   }
   ASSERT_FALSE(hits.empty()) << "no log message names the corrupt database " << path;
   std::cout << "corrupt database message: " << hits.front() << "\n";
