@@ -196,6 +196,14 @@ TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
       },
       30.0))
       << "the capture did not finish";
+  // The end marker travels on its own connection and can overtake the last
+  // (0.9 MB) image on a loaded machine: give the images a moment to arrive.
+  WaitFor(
+      [&] {
+        std::lock_guard<std::mutex> l(mutex);
+        return published >= 6;
+      },
+      10.0);
   EXPECT_EQ(published, 6);
   ros::WallDuration(1.5).sleep();  // the recorder writes its queue
   ASSERT_TRUE(stopper.Stop(20.0)) << "roslaunch did not stop on SIGINT";
