@@ -36,6 +36,7 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/target_list.h"
 #include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/parameters.h"
 
 namespace slope_monitor {
@@ -568,20 +569,9 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     msg.header = header;
     msg.epoch = static_cast<uint32_t>(current.epoch);
     for (const adjustment::Displacement& d : cmp.displacements) {
-      slope_monitor::PointDisplacement p;
-      p.point_id = d.id;
-      p.source = slope_monitor::PointDisplacement::SOURCE_TARGET;
-      p.source_name = getName();
-      p.reference_stamp = ros::Time(ref->second.stamp);
-      p.stamp = header.stamp;
-      p.reference_position.x = d.reference_position.x();
-      p.reference_position.y = d.reference_position.y();
-      p.reference_position.z = d.reference_position.z();
-      p.displacement.x = d.displacement.x();
-      p.displacement.y = d.displacement.y();
-      p.displacement.z = d.displacement.z();
-      const auto cov = ros_adapters::ToRowMajor<3>(d.covariance);
-      std::copy(cov.begin(), cov.end(), p.covariance.begin());
+      slope_monitor::PointDisplacement p = ros_adapters::MakePointDisplacement(
+          d.id, slope_monitor::PointDisplacement::SOURCE_TARGET, getName(), ref->second.stamp, header.stamp,
+          d.reference_position, d.displacement, d.covariance);
       p.significance = d.significance;
       msg.displacements.push_back(p);
     }

@@ -27,6 +27,7 @@
 #include "slope_monitor/core/radio/phase_solver.h"
 #include "slope_monitor/core/sim/truth.h"
 #include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/parameters.h"
 
 namespace slope_monitor {
@@ -182,20 +183,9 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
       if (t.displacement_covariance.diagonal().minCoeff() <= 0.0 ||
           Eigen::LLT<Eigen::Matrix3d>(t.displacement_covariance).info() != Eigen::Success)
         continue;
-      slope_monitor::PointDisplacement d;
-      d.point_id = t.id;
-      d.source = slope_monitor::PointDisplacement::SOURCE_RADIO;
-      d.source_name = "radio_phase_solver";
-      d.reference_stamp = ros::Time(t.reference_stamp);
-      d.stamp = header.stamp;
-      d.reference_position.x = t.reference_position.x();
-      d.reference_position.y = t.reference_position.y();
-      d.reference_position.z = t.reference_position.z();
-      d.displacement.x = t.displacement.x();
-      d.displacement.y = t.displacement.y();
-      d.displacement.z = t.displacement.z();
-      const auto cov = ros_adapters::ToRowMajor<3>(t.displacement_covariance);
-      std::copy(cov.begin(), cov.end(), d.covariance.begin());
+      slope_monitor::PointDisplacement d = ros_adapters::MakePointDisplacement(
+          t.id, slope_monitor::PointDisplacement::SOURCE_RADIO, "radio_phase_solver", t.reference_stamp, header.stamp,
+          t.reference_position, t.displacement, t.displacement_covariance);
       const double n = t.displacement.norm();
       if (n > 0.0) {
         const Eigen::Vector3d u = t.displacement / n;

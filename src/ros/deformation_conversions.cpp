@@ -77,6 +77,28 @@ deformation::Batch FromMsg(const slope_monitor::PointDisplacementArray& msg, con
   return b;
 }
 
+slope_monitor::PointDisplacement MakePointDisplacement(const std::string& point_id, uint8_t source,
+                                                       const std::string& source_name, double reference_stamp,
+                                                       const ros::Time& stamp, const Eigen::Vector3d& reference_position,
+                                                       const Eigen::Vector3d& displacement,
+                                                       const Eigen::Matrix3d& covariance) {
+  slope_monitor::PointDisplacement p;
+  p.point_id = point_id;
+  p.source = source;
+  p.source_name = source_name;
+  p.reference_stamp = ros::Time(reference_stamp);
+  p.stamp = stamp;
+  p.reference_position.x = reference_position.x();
+  p.reference_position.y = reference_position.y();
+  p.reference_position.z = reference_position.z();
+  p.displacement.x = displacement.x();
+  p.displacement.y = displacement.y();
+  p.displacement.z = displacement.z();
+  const auto cov = ToRowMajor<3>(covariance);
+  std::copy(cov.begin(), cov.end(), p.covariance.begin());
+  return p;
+}
+
 slope_monitor::SlopeDeformation ToMsg(const deformation::Snapshot& s, const std_msgs::Header& header) {
   slope_monitor::SlopeDeformation msg;
   msg.header = header;

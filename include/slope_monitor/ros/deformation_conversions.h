@@ -22,6 +22,14 @@ deformation::Batch FromMsg(const slope_monitor::PointDisplacementArray& msg, con
 
 slope_monitor::SlopeDeformation ToMsg(const deformation::Snapshot& snapshot, const std_msgs::Header& header);
 
+// One point's displacement as a source publishes it (significance left 0 for
+// the caller): positions and displacement [m] in site, covariance [m^2].
+slope_monitor::PointDisplacement MakePointDisplacement(const std::string& point_id, uint8_t source,
+                                                       const std::string& source_name, double reference_stamp,
+                                                       const ros::Time& stamp, const Eigen::Vector3d& reference_position,
+                                                       const Eigen::Vector3d& displacement,
+                                                       const Eigen::Matrix3d& covariance);
+
 struct MarkerOptions {
   double arrow_scale = 100.0;  // [m of arrow per m of displacement]
   double text_size = 0.8;      // [m]
