@@ -165,7 +165,8 @@ RenderResult Renderer::Render(const Scene::State& state, const camera::ExteriorO
   for (size_t k = 0; k < state.obstacles.size(); ++k) {
     const Obstacle& o = state.obstacles[k];
     const double r = std::max(o.radius, 0.5 * o.height) + 0.2;
-    add_item(static_cast<int>(k), false, o.base + Eigen::Vector3d(0, 0, 0.5 * o.height), std::hypot(r, 0.5 * o.height));
+    add_item(static_cast<int>(k), false, o.base + Eigen::Vector3d(0, 0, 0.5 * o.height) + o.crown_offset,
+             std::hypot(r, 0.5 * o.height));
   }
 
   // ---- 4. shade ----------------------------------------------------------

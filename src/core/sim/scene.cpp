@@ -220,7 +220,7 @@ double IntersectObstacle(const Obstacle& o, const Eigen::Vector3d& origin, const
   // and a trunk cylinder (radius 0.06 h, at least 0.1 m) from the base to 0.4 h.
   double best = -1.0;
   const double cz = 0.35 * o.height;
-  const Eigen::Vector3d cc = o.base + Eigen::Vector3d(0, 0, 0.65 * o.height);
+  const Eigen::Vector3d cc = o.base + Eigen::Vector3d(0, 0, 0.65 * o.height) + o.crown_offset;
   const Eigen::Vector3d scale(1.0 / o.radius, 1.0 / o.radius, 1.0 / cz);
   const Eigen::Vector3d os = (origin - cc).cwiseProduct(scale);
   const Eigen::Vector3d ds = d.cwiseProduct(scale);
@@ -270,6 +270,9 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
     throw InvalidArgument("scene extent must have xmax > xmin and ymax > ymin");
   }
   if (!(t.grid_spacing > 0.0)) throw InvalidArgument("scene grid_spacing must be > 0");
+  if (!(spec_.foliage_sway >= 0.0 && spec_.foliage_sway <= 1.0)) {
+    throw InvalidArgument(Message("scene foliage_sway ", spec_.foliage_sway, " outside [0, 1]"));
+  }
   reference_.xmin = t.extent[0];
   reference_.ymin = t.extent[2];
   reference_.spacing = t.grid_spacing;
@@ -441,6 +444,20 @@ Scene::State Scene::AtTime(double t) const {
   st.obstacles = obstacles_;
   for (Obstacle& o : st.obstacles)
     if (o.moves) o.base += l.DisplacementAt(o.base, t);
+  if (spec_.foliage_motion) {
+    // Wind: a new sway and leaf pattern per stamp (1 ms), from seed and t.
+    const std::uint64_t stamp = static_cast<std::uint64_t>(std::llround(t * 1000.0));
+    for (size_t k = 0; k < st.obstacles.size(); ++k) {
+      Obstacle& o = st.obstacles[k];
+      if (o.kind != Obstacle::Kind::kTree) continue;
+      const std::uint64_t h = SplitMix(SplitMix(stamp ^ (static_cast<std::uint64_t>(spec_.seed) << 40)) + k);
+      const double angle = 2.0 * M_PI * static_cast<double>(h & 0xffff) / 65536.0;
+      const double amount = 0.3 + 0.7 * static_cast<double>((h >> 16) & 0xffff) / 65535.0;
+      const double sway = spec_.foliage_sway * o.radius * amount;
+      o.crown_offset = Eigen::Vector3d(sway * std::cos(angle), sway * std::sin(angle), 0.0);
+      o.foliage_phase = static_cast<std::uint32_t>(h >> 32) | 1u;  // never 0
+    }
+  }
   return st;
 }
 
@@ -498,6 +515,16 @@ Rgb Scene::ObstacleAlbedo(const Obstacle& o, const Eigen::Vector3d& p, int epoch
   }
   if (q.z() < 0.4 * o.height && q.head<2>().norm() < std::max(0.1, 0.06 * o.height) + 1e-3) {
     return Rgb(0.25f, 0.18f, 0.12f);  // trunk
+  }
+  if (o.foliage_phase != 0) {
+    // Foliage in the wind: leaf clusters (~0.12 m) with dark gaps, a new
+    // pattern at every stamp, attached to the swaying crown.
+    const Eigen::Vector3d c = q - o.crown_offset;
+    const double n1 = ValueNoise(c.x() / 0.12 + c.z() * 5.0, c.y() / 0.12 - c.z() * 3.0, o.foliage_phase);
+    const double n2 = ValueNoise(c.x() / 0.05 - c.z() * 9.0, c.y() / 0.05, o.foliage_phase ^ 0x5bd1e995u);
+    const double leaf = std::clamp(1.0 + 0.7 * n1 + 0.3 * n2, 0.15, 2.0);
+    const double gap = Smoothstep(-0.55, -0.35, n1);  // 0 in the gaps between clusters
+    return Rgb(0.12f, 0.25f, 0.09f) * static_cast<float>(leaf * (0.35 + 0.65 * gap));
   }
   // Foliage: its pattern changes every epoch (wind) - matching must fail here.
   const double n = ValueNoise(q.x() / 0.08 + q.z() * 7.0, q.y() / 0.08, spec_.seed + 1000 + epoch_salt);

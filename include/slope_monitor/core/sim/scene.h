@@ -116,6 +116,14 @@ struct SceneSpec {
   LandslideModel landslide;
   Scarp scarp;
   std::vector<Obstacle> obstacles;  // base z is filled from the terrain when NaN
+  // Wind in the tree crowns (off by default: every image as before). On:
+  // Scene::AtTime(t) sways each crown horizontally by up to
+  // foliage_sway * radius (its silhouette edge moves) and gives it a leaf
+  // pattern (clusters ~0.12 m with gaps) that is new at every stamp;
+  // deterministic from the seed and t (rounded to 1 ms). The crowns are then
+  // unmatchable between any two images of different stamps.
+  bool foliage_motion = false;
+  double foliage_sway = 0.15;  // [-] largest crown displacement / crown radius, [0, 1]
   std::vector<TargetPlacement> targets;
 };
 

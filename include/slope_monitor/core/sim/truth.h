@@ -15,6 +15,7 @@
 // stamps in seconds; angles radians; camera parameters in camera_model.h units.
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <string>
@@ -91,6 +92,12 @@ struct Obstacle {
   double radius = 1.0;            // [m] boulder sphere / tree crown radius
   double height = 1.0;            // [m] boulder: sphere centre height above base; tree: total height
   bool moves = false;             // true when it stands on the landslide body and moves with it
+  // Tree crowns in the wind (SceneSpec::foliage_motion; Scene::AtTime fills
+  // both, zero otherwise): the crown's horizontal displacement at the
+  // instant [m] (moves its silhouette), and the foliage phase (0 = the static
+  // foliage texture, else a leaf pattern that is new at every stamp).
+  Eigen::Vector3d crown_offset{0, 0, 0};
+  std::uint32_t foliage_phase = 0;
   static std::string KindName(Kind k);
   static Kind KindFromName(const std::string& name);
 };
