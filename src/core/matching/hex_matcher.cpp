@@ -20,6 +20,11 @@ struct SearchResult {
   double score = 0.0;
 };
 
+double Median(std::vector<double>* v) {
+  std::nth_element(v->begin(), v->begin() + v->size() / 2, v->end());
+  return (*v)[v->size() / 2];
+}
+
 double Dot(const std::vector<float>& a, const std::vector<float>& b) {
   double s = 0;
   for (size_t i = 0; i < a.size(); ++i) s += double(a[i]) * b[i];
@@ -133,8 +138,31 @@ void HexMatcherOptions::Check() const {
   if (!(lsc_prefilter_sigma >= 0 && lsc_prefilter_sigma <= 5)) {
     fail("lsc_prefilter_sigma", lsc_prefilter_sigma, "[0, 5]");
   }
+  if (!(quality.min_correlation >= -1 && quality.min_correlation <= 1)) {
+    fail("quality.min_correlation", quality.min_correlation, "[-1, 1]");
+  }
+  if (!(quality.max_residual_ratio > 1)) fail("quality.max_residual_ratio", quality.max_residual_ratio, "(1, inf)");
+  if (!(quality.max_two_way > 0)) fail("quality.max_two_way", quality.max_two_way, "(0, inf)");
+  if (!(quality.neighbour_radius > 0)) fail("quality.neighbour_radius", quality.neighbour_radius, "(0, inf)");
+  if (!(quality.max_neighbour_deviation > 0)) {
+    fail("quality.max_neighbour_deviation", quality.max_neighbour_deviation, "(0, inf)");
+  }
   interest.Check();
   lsc.Check();
+}
+
+std::string QualityFlagNames(unsigned flags) {
+  std::string out;
+  auto add = [&](unsigned bit, const char* name) {
+    if (!(flags & bit)) return;
+    if (!out.empty()) out += "+";
+    out += name;
+  };
+  add(kFlagLowCorrelation, "low_correlation");
+  add(kFlagHighResidual, "high_residual");
+  add(kFlagTwoWay, "two_way");
+  add(kFlagNeighbours, "neighbours");
+  return out;
 }
 
 const char* RejectReasonName(RejectReason reason) {
@@ -199,7 +227,15 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
   const Eigen::Matrix3d ft = prior.fundamental.transpose();
   const Eigen::Matrix3d* f_back = prior.has_epipolar ? &ft : nullptr;
 
-  auto match_one = [&](const Eigen::Vector2d& xa, const Eigen::Vector2d& shift, double radius, HexMatch* m) {
+  LscOptions lsc_back = lsc;
+  lsc_back.search_radius = 0;  // plain LSC from xa: the forward solution is already sub-pixel
+  // The texture tests were passed by window a; b's window at a sub-pixel
+  // position may fall just below them without being a different surface.
+  lsc_back.min_eigen_ratio = 0.0;
+  lsc_back.min_gradient_energy = 0.0;
+  const HexMatcherOptions::Quality& q = options_.quality;
+  auto match_one = [&](const Eigen::Vector2d& xa, const Eigen::Vector2d& shift, double radius, HexMatch* m,
+                       bool final_pass) {
     const SearchResult fw = Search(pa, pb, xa, xa + shift, radius, f, prior.epipolar_band, options_);
     if (fw.reason != RejectReason::kNone) return std::string(RejectReasonName(fw.reason));
     const SearchResult bw = Search(pb, pa, fw.x, fw.x - shift, radius, f_back, prior.epipolar_band, options_);
@@ -217,6 +253,16 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
     m->score = fw.score;
     m->correlation = s.correlation;
     m->quality = std::max(0.0, std::min(1.0, s.correlation)) * std::max(0.0, std::min(1.0, fw.score));
+    m->sigma0 = s.sigma0;
+    m->flags = 0;
+    if (final_pass && q.enabled) {
+      if (s.correlation < q.min_correlation) m->flags |= kFlagLowCorrelation;
+      if (q.two_way) {
+        const LscSummary back = MatchLsc(lb, la, s.xb, xa, lsc_back);
+        m->two_way_error = back.IsSolutionUsable() ? (back.xb - xa).norm() : -1.0;
+        if (m->two_way_error < 0 || m->two_way_error > q.max_two_way) m->flags |= kFlagTwoWay;
+      }
+    }
     return std::string();
   };
 
@@ -227,7 +273,7 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
     for (const InterestPoint& p : points) {
       if (prior.moving && prior.moving(p.x)) continue;
       HexMatch m;
-      if (match_one(p.x, prior.shift, prior.radius, &m).empty()) {
+      if (match_one(p.x, prior.shift, prior.radius, &m, false).empty()) {
         dx.push_back(m.xb.x() - m.xa.x());
         dy.push_back(m.xb.y() - m.xa.y());
       }
@@ -243,12 +289,58 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
     ++result.summary.candidates;
     const bool moving = prior.moving && prior.moving(p.x);
     HexMatch m;
-    const std::string reason = match_one(p.x, shift, moving ? prior.moving_radius : prior.radius, &m);
+    const std::string reason = match_one(p.x, shift, moving ? prior.moving_radius : prior.radius, &m, true);
     if (reason.empty()) {
       result.matches.push_back(m);
     } else {
       ++result.summary.rejects[reason];
     }
+  }
+  if (q.enabled && !result.matches.empty()) {
+    // Residual against the pair's noise level (median sigma0 of all matches).
+    std::vector<double> s0;
+    for (const HexMatch& m : result.matches) s0.push_back(m.sigma0);
+    std::nth_element(s0.begin(), s0.begin() + s0.size() / 2, s0.end());
+    const double noise = s0[s0.size() / 2];
+    // Displacement consistency with the neighbours (median of each component).
+    const double r2 = q.neighbour_radius * q.neighbour_radius;
+    std::vector<double> nx, ny;
+    for (HexMatch& m : result.matches) {
+      if (m.sigma0 > q.max_residual_ratio * noise) m.flags |= kFlagHighResidual;
+      nx.clear();
+      ny.clear();
+      for (const HexMatch& o : result.matches) {
+        if (&o == &m || (o.xa - m.xa).squaredNorm() > r2) continue;
+        nx.push_back(o.xb.x() - o.xa.x());
+        ny.push_back(o.xb.y() - o.xa.y());
+      }
+      if (nx.size() < 3) continue;
+      const Eigen::Vector2d median(Median(&nx), Median(&ny));
+      // Spread of the neighbours (MAD): a real displacement gradient (the
+      // margin of a moving body) widens the tolerance.
+      for (double& v : nx) v = std::fabs(v - median.x());
+      for (double& v : ny) v = std::fabs(v - median.y());
+      const double spread = 1.4826 * std::hypot(Median(&nx), Median(&ny));
+      if ((m.xb - m.xa - median).norm() > q.max_neighbour_deviation + 3.0 * spread) m.flags |= kFlagNeighbours;
+    }
+    std::vector<HexMatch> kept;
+    for (HexMatch& m : result.matches) {
+      if (m.flags == 0) {
+        kept.push_back(m);
+        continue;
+      }
+      ++result.summary.low_quality;
+      for (unsigned bit = 1; bit <= kFlagNeighbours; bit <<= 1) {
+        if (m.flags & bit) ++result.summary.flags[QualityFlagNames(bit)];
+      }
+      if (q.reject) {
+        ++result.summary.rejects["low_quality"];
+        continue;
+      }
+      m.quality = std::min(kLowQuality, 0.25 * m.quality);
+      kept.push_back(m);
+    }
+    result.matches.swap(kept);
   }
   result.summary.matched = static_cast<int>(result.matches.size());
   result.summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -19,6 +19,25 @@
 //      is the reject reason);
 //   6. with an epipolar prior the final point must lie within epipolar_band
 //      of the line (else kEpipolar).
+//   7. quality control (HexMatcherOptions::quality) of the match a crew
+//      cannot trust, typically on occluding objects (swaying foliage, a
+//      window straddling a silhouette): flags set when
+//        kFlagLowCorrelation  LSC NCC < quality.min_correlation;
+//        kFlagHighResidual    LSC residual sigma0 > quality.max_residual_ratio
+//                             x the median sigma0 of all matches of the pair
+//                             (the pair's noise level);
+//        kFlagTwoWay          LSC back from xb into a (window of b, start xa)
+//                             lands more than quality.max_two_way px from xa
+//                             (or fails): the window is not the same surface
+//                             in both images;
+//        kFlagNeighbours      the displacement xb - xa differs by more than
+//                             quality.max_neighbour_deviation px from the
+//                             median of the matches within
+//                             quality.neighbour_radius px (>= 3 of them).
+//      A flagged match is low quality: HexMatch::quality <= kLowQuality
+//      (0.25 x its normal value; normal matches have quality >= 0.42 with
+//      min_score 0.6 and lsc min_correlation 0.7), or it is dropped
+//      (quality.reject, reason "low_quality").
 // Epochs: with MatchPrior::estimate_global_shift the stable points (not
 // prior.moving) are matched first, the median of their displacements
 // becomes the global shift, and then all points are matched around it
@@ -53,6 +72,16 @@ struct HexMatcherOptions {
   // weak texture whose gradient is comparable to the noise (the simulator's
   // ground: 2.4 DN/px vs 2.7 DN noise), 1 px.
   double lsc_prefilter_sigma = 0.0;
+  struct Quality {
+    bool enabled = true;
+    double min_correlation = 0.8;          // [-1, 1] LSC NCC
+    double max_residual_ratio = 2.0;       // [-] sigma0 / median sigma0 of the pair, > 1
+    double max_two_way = 0.5;              // [px] > 0, back-matching error; checked when two_way
+    bool two_way = true;                   // run the b -> a LSC check (about doubles the LSC time)
+    double neighbour_radius = 40.0;        // [px] > 0
+    double max_neighbour_deviation = 1.5;  // [px] > 0
+    bool reject = false;                   // drop flagged matches instead of marking them
+  } quality;
   InterestPointOptions interest;   // interest points in image a
   LscOptions lsc;                  // refinement (search_radius set from lsc_search_radius)
   void Check() const;              // throws ConfigError naming the field
@@ -90,19 +119,35 @@ enum class RejectReason {
 };
 const char* RejectReasonName(RejectReason reason);
 
+// HexMatch::flags bits (quality control, step 7).
+constexpr unsigned kFlagLowCorrelation = 1u;
+constexpr unsigned kFlagHighResidual = 2u;
+constexpr unsigned kFlagTwoWay = 4u;
+constexpr unsigned kFlagNeighbours = 8u;
+// Flagged matches have quality <= kLowQuality; unflagged ones more.
+constexpr double kLowQuality = 0.25;
+// "low_correlation+two_way" etc.; "" for 0.
+std::string QualityFlagNames(unsigned flags);
+
 struct HexMatch {
   Eigen::Vector2d xa = Eigen::Vector2d::Zero();  // [px]
   Eigen::Vector2d xb = Eigen::Vector2d::Zero();  // [px]
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();  // [px^2] of xb
   double score = 0.0;        // descriptor correlation (coarsest level)
   double correlation = 0.0;  // LSC NCC at the solution
-  double quality = 0.0;      // [0, 1]
+  double quality = 0.0;      // [0, 1]; <= kLowQuality when flagged
+  double sigma0 = 0.0;       // [grey] LSC residual RMS
+  double two_way_error = 0.0;  // [px] back-matching error (-1 when the back LSC failed; 0 when not run)
+  unsigned flags = 0;        // kFlag* (0 = normal quality)
+  bool IsLowQuality() const { return flags != 0; }
 };
 
 struct HexMatchSummary {
   int candidates = 0;
   int matched = 0;
   std::map<std::string, int> rejects;  // reason name -> count (LSC: "lsc_<status>")
+  int low_quality = 0;                 // matches flagged by quality control (kept when !quality.reject)
+  std::map<std::string, int> flags;    // flag name -> count of matches carrying it
   Eigen::Vector2d global_shift = Eigen::Vector2d::Zero();  // [px] used for the final pass
   double seconds = 0.0;
   bool IsSolutionUsable() const { return matched > 0; }
