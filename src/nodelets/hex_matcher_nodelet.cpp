@@ -85,6 +85,14 @@ class HexMatcherNodelet : public nodelet::Nodelet {
     options_.lsc.min_correlation = p.Double("lsc_min_correlation", 0.7, -1.0, 1.0);
     options_.lsc.max_sigma = p.Double("lsc_max_sigma", 0.5, 1e-6, 100.0, "px");
     options_.lsc.min_eigen_ratio = p.Double("lsc_min_eigen_ratio", 0.1, 0.0, 0.999);
+    options_.quality.enabled = p.Bool("quality_control", true);
+    options_.quality.min_correlation = p.Double("quality_min_correlation", 0.8, -1.0, 1.0);
+    options_.quality.max_residual_ratio = p.Double("quality_max_residual_ratio", 2.0, 1.0001, 1e6);
+    options_.quality.two_way = p.Bool("quality_two_way", true);
+    options_.quality.max_two_way = p.Double("quality_max_two_way", 0.5, 1e-6, 100.0, "px");
+    options_.quality.neighbour_radius = p.Double("quality_neighbour_radius", 40.0, 1.0, 10000.0, "px");
+    options_.quality.max_neighbour_deviation = p.Double("quality_max_neighbour_deviation", 1.5, 1e-6, 1000.0, "px");
+    options_.quality.reject = p.Bool("quality_reject", false);
     prior_.radius = p.Double("search_radius", 24.0, 1.0, 1000.0, "px");
     prior_.moving_radius = p.Double("moving_radius", 48.0, 1.0, 1000.0, "px");
     const std::vector<double> shift = p.DoubleList("prior_shift", {0.0, 0.0});
@@ -178,6 +186,8 @@ class HexMatcherNodelet : public nodelet::Nodelet {
     stat.add("dropped", errors_);
     stat.add("candidates", last_summary_.candidates);
     stat.add("matches", last_summary_.matched);
+    stat.add("low quality", last_summary_.low_quality);
+    for (const auto& kv : last_summary_.flags) stat.add("flag " + kv.first, kv.second);
     stat.add("time [s]", last_summary_.seconds);
     for (const auto& kv : last_summary_.rejects) stat.add("reject " + kv.first, kv.second);
   }
