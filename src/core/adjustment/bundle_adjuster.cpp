@@ -77,6 +77,7 @@ void Options::Check() const {
   if (min_control_points < 0) fail("min_control_points", "must be >= 0");
   if (min_position_priors < 0) fail("min_position_priors", "must be >= 0");
   if (min_observations_per_image < 1) fail("min_observations_per_image", "must be >= 1");
+  if (min_observations_with_prior < 2) fail("min_observations_with_prior", "must be >= 2");
   if (!(max_sigma0 > 0.0)) fail("max_sigma0", "must be > 0");
   if (!(max_outlier_fraction >= 0.0 && max_outlier_fraction <= 1.0)) fail("max_outlier_fraction", "must be in [0, 1]");
 }
@@ -175,9 +176,12 @@ std::string BundleAdjuster::CheckInput(const Scene& scene) const {
   }
   for (size_t i = 0; i < scene.images.size(); ++i) {
     if (obs_per_image[i] == 0) return Message("image '", scene.images[i].name, "' has no observations");
-    if (obs_per_image[i] < options_.min_observations_per_image && !config_.fixed_images.count(i))
-      return Message("image '", scene.images[i].name, "' has only ", obs_per_image[i],
-                     " usable observations (min_observations_per_image = ", options_.min_observations_per_image, ")");
+    const bool prior = config_.use_position_priors && scene.images[i].position_prior.has_value();
+    const int min_obs = prior ? std::min(options_.min_observations_with_prior, options_.min_observations_per_image)
+                              : options_.min_observations_per_image;
+    if (obs_per_image[i] < min_obs && !config_.fixed_images.count(i))
+      return Message("image '", scene.images[i].name, "' has only ", obs_per_image[i], " usable observations (",
+                     prior ? "min_observations_with_prior = " : "min_observations_per_image = ", min_obs, ")");
   }
   for (const ObjectPoint& p : scene.points) {
     if (!p.position.allFinite()) return Message("point '", p.id, "' has a non-finite initial position");

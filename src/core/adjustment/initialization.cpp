@@ -139,7 +139,9 @@ std::string PruneReport::Summary() const {
   return out;
 }
 
-Scene PruneScene(const Scene& scene, int min_observations_per_image, PruneReport* report) {
+Scene PruneScene(const Scene& scene, int min_observations_per_image, PruneReport* report,
+                 int min_observations_with_prior) {
+  if (min_observations_with_prior < 0) min_observations_with_prior = min_observations_per_image;
   scene.CheckIndices();
   PruneReport local;
   PruneReport& rep = report ? *report : local;
@@ -165,12 +167,12 @@ Scene PruneScene(const Scene& scene, int min_observations_per_image, PruneReport
       ++per_point[o.point];
     }
     for (size_t i = 0; i < scene.images.size(); ++i) {
-      if (keep_image[i] && per_image[i] < min_observations_per_image) {
+      const int min_obs = scene.images[i].position_prior ? min_observations_with_prior : min_observations_per_image;
+      if (keep_image[i] && per_image[i] < min_obs) {
         keep_image[i] = false;
         changed = true;
         rep.dropped_images.push_back(Message("image '", scene.images[i].name, "': ", per_image[i],
-                                             " observations of initialised points (min ", min_observations_per_image,
-                                             ")"));
+                                             " observations of initialised points (min ", min_obs, ")"));
       }
     }
     for (size_t j = 0; j < scene.points.size(); ++j) {

@@ -64,6 +64,10 @@ struct ObjectPoint {
   // only (check points stay unconstrained so they can check the result).
   std::optional<Eigen::Vector3d> surveyed;                          // [m] site
   Eigen::Matrix3d surveyed_covariance = Eigen::Matrix3d::Identity() * 1e-4;  // [m^2]
+  // Approximate coordinates (a monitoring target's hand-held GNSS position in
+  // the target list): only for orienting GNSS-prior images that see no known
+  // point (OrientFromApproximatePoints), never a prior of the adjustment.
+  std::optional<Eigen::Vector3d> approximate;  // [m] site
 };
 
 struct Observation {
@@ -107,6 +111,9 @@ struct Options {
   int min_control_points = 3;         // control points observed in >= 2 images (or GNSS images, see below)
   int min_position_priors = 3;        // images with GNSS priors that can replace control points
   int min_observations_per_image = 4;
+  // Images with a GNSS position prior (used): the prior fixes the centre, two
+  // points the attitude; this many observations are enough (>= 2).
+  int min_observations_with_prior = 3;
   double max_sigma0 = 5.0;            // [-] a posteriori sigma0 above this: not usable
   double max_outlier_fraction = 0.2;  // [-]
   bool minimizer_progress = false;

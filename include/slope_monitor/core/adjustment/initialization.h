@@ -45,7 +45,10 @@ struct PruneReport {
 // fewer than `min_observations_per_image` observations, points no image sees
 // any more, and cameras with no image left; re-indexes what stays. One weak
 // image (a UAV photo with three targets) no longer sinks the whole epoch.
-Scene PruneScene(const Scene& scene, int min_observations_per_image, PruneReport* report = nullptr);
+// Images with a position prior need min_observations_with_prior instead
+// (-1: the same as min_observations_per_image).
+Scene PruneScene(const Scene& scene, int min_observations_per_image, PruneReport* report = nullptr,
+                 int min_observations_with_prior = -1);
 
 }  // namespace adjustment
 }  // namespace slope_monitor

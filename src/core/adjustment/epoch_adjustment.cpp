@@ -1,0 +1,436 @@
+#include "slope_monitor/core/adjustment/epoch_adjustment.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+#include <utility>
+
+#include <Eigen/Geometry>
+
+#include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/rigid3.h"
+
+namespace slope_monitor {
+namespace adjustment {
+
+void NamingOptions::Check() const {
+  auto fail = [](const std::string& key, const std::string& what) {
+    throw ConfigError(Message("naming option '", key, "' ", what));
+  };
+  if (!(gate_sigma > 0.0)) fail("gate_sigma", Message("must be > 0, got ", gate_sigma));
+  if (!(gate_extra_px >= 0.0)) fail("gate_extra_px", Message("must be >= 0, got ", gate_extra_px));
+  if (!(min_gate_px > 0.0)) fail("min_gate_px", Message("must be > 0, got ", min_gate_px));
+  if (!(ambiguity_factor >= 1.0)) fail("ambiguity_factor", Message("must be >= 1, got ", ambiguity_factor));
+  if (!(coarse_extra_px >= 0.0)) fail("coarse_extra_px", Message("must be >= 0, got ", coarse_extra_px));
+}
+
+void EpochAdjustmentOptions::Check() const {
+  adjustment.Check();
+  naming.Check();
+}
+
+std::string NamingReport::Brief() const {
+  return Message("named ", named, " of ", considered, " unidentified (", ambiguous, " ambiguous, ", unmatched,
+                 " unmatched, ", not_oriented, " more in unoriented images)");
+}
+
+std::string PhotoStats::Brief() const {
+  return Message("UAV photos: ", kept, " of ", total, " kept (", not_oriented, " not oriented, ", too_few_observations,
+                 " too few observations)");
+}
+
+NamingReport NameUnidentified(Scene* scene, const std::vector<UnidentifiedObservation>& unidentified,
+                              const std::vector<ListedTarget>& targets, const NamingOptions& options,
+                              const std::vector<bool>* coarse) {
+  options.Check();
+  scene->CheckIndices();
+  NamingReport report;
+  std::vector<std::vector<int>> per_image(scene->images.size());
+  for (size_t k = 0; k < unidentified.size(); ++k) {
+    const int i = unidentified[k].image;
+    if (i < 0 || i >= static_cast<int>(scene->images.size()))
+      throw InvalidArgument(Message("unidentified observation ", k, " refers to image ", i, " of ",
+                                    scene->images.size()));
+    if (!unidentified[k].pixel.allFinite()) continue;
+    per_image[i].push_back(static_cast<int>(k));
+  }
+  std::vector<std::set<int>> observed(scene->images.size());
+  for (const Observation& o : scene->observations) observed[o.image].insert(o.point);
+
+  struct Projection {
+    int target;
+    Eigen::Vector2d px;
+    double gate;  // [px]
+  };
+  for (size_t i = 0; i < scene->images.size(); ++i) {
+    if (per_image[i].empty()) continue;
+    const Image& im = scene->images[i];
+    if (!im.exterior_known) {
+      report.not_oriented += static_cast<int>(per_image[i].size());
+      continue;
+    }
+    const camera::CameraModel& model = scene->cameras[im.camera].model;
+    const double c_px = model.interior()[camera::kC] / model.sensor().pixel_size;
+    const bool is_coarse = coarse != nullptr && i < coarse->size() && (*coarse)[i];
+    const double extra = is_coarse ? options.coarse_extra_px : options.gate_extra_px;
+    std::vector<Projection> proj;
+    for (size_t t = 0; t < targets.size(); ++t) {
+      const int existing = scene->FindPoint(targets[t].id);
+      const Eigen::Vector3d x = existing >= 0 && scene->points[existing].position_known
+                                    ? scene->points[existing].position
+                                    : targets[t].position;
+      Eigen::Vector2d px;
+      if (!x.allFinite() || !model.Project(im.exterior, x, &px)) continue;
+      const double distance = (x - im.exterior.position).norm();
+      const double sigma_px = targets[t].position_sigma * c_px / std::max(distance, 1e-6);
+      const double gate = std::max(options.min_gate_px, options.gate_sigma * sigma_px + extra);
+      const double margin = options.ambiguity_factor * gate;
+      if (px.x() < -margin || px.y() < -margin || px.x() > model.sensor().width + margin ||
+          px.y() > model.sensor().height + margin)
+        continue;
+      proj.push_back({static_cast<int>(t), px, gate});
+    }
+    for (int k : per_image[i]) {
+      const UnidentifiedObservation& u = unidentified[k];
+      ++report.considered;
+      std::vector<const Projection*> inside, near;
+      for (const Projection& p : proj) {
+        if (targets[p.target].family != u.family) continue;
+        const double d = (p.px - u.pixel).norm();
+        if (d <= p.gate) inside.push_back(&p);
+        if (d <= options.ambiguity_factor * p.gate) near.push_back(&p);
+      }
+      if (inside.empty()) {
+        ++report.unmatched;
+        continue;
+      }
+      const Projection& p = *inside.front();
+      const ListedTarget& t = targets[p.target];
+      std::string why;
+      if (inside.size() > 1 || near.size() > 1) {
+        why = Message(near.size(), " listed targets project near it");
+      } else {
+        int others = 0;
+        for (int k2 : per_image[i]) {
+          if (k2 != k && unidentified[k2].family == u.family &&
+              (unidentified[k2].pixel - p.px).norm() <= options.ambiguity_factor * p.gate)
+            ++others;
+        }
+        const int existing = scene->FindPoint(t.id);
+        if (others > 0) {
+          why = Message(others + 1, " unidentified observations near the projection of ", t.id);
+        } else if (existing >= 0 && observed[i].count(existing)) {
+          why = Message(t.id, " is already observed in this image");
+        }
+      }
+      if (!why.empty()) {
+        ++report.ambiguous;
+        report.notes.push_back(Message(u.family, " at (", u.pixel.x(), ", ", u.pixel.y(), ") in '", im.name,
+                                       "': ambiguous, ", why));
+        continue;
+      }
+      int j = scene->FindPoint(t.id);
+      if (j < 0) {
+        ObjectPoint np;
+        np.id = t.id;
+        np.role = t.role;
+        np.position = t.position;
+        np.position_known = false;
+        if (t.surveyed && (t.role == PointRole::kControl || t.role == PointRole::kCheck)) {
+          np.surveyed = t.surveyed;
+          np.surveyed_covariance = t.surveyed_covariance;
+        }
+        if (t.role != PointRole::kControl) np.approximate = t.position;
+        j = static_cast<int>(scene->points.size());
+        scene->points.push_back(np);
+      }
+      Observation o;
+      o.image = static_cast<int>(i);
+      o.point = j;
+      o.pixel = u.pixel;
+      o.covariance = u.covariance;
+      report.named_observations.push_back(static_cast<int>(scene->observations.size()));
+      report.named_inputs.push_back(k);
+      scene->observations.push_back(o);
+      observed[i].insert(j);
+      ++report.named;
+    }
+  }
+  return report;
+}
+
+int OrientFromApproximatePoints(Scene* scene, const InitializationOptions& options, std::vector<bool>* flags) {
+  scene->CheckIndices();
+  if (flags) flags->resize(scene->images.size(), false);
+  std::vector<int> wanted;
+  for (size_t i = 0; i < scene->images.size(); ++i)
+    if (!scene->images[i].exterior_known && scene->images[i].position_prior) wanted.push_back(static_cast<int>(i));
+  if (wanted.empty()) return 0;
+  Scene copy = *scene;
+  bool any = false;
+  for (ObjectPoint& p : copy.points) {
+    if (!p.position_known && p.approximate && p.approximate->allFinite()) {
+      p.position = *p.approximate;
+      p.position_known = true;
+      any = true;
+    }
+  }
+  if (!any) return 0;
+  InitializeScene(&copy, options);
+  // Photos seeing a single known or approximate point: the attitude of the
+  // photo of the same camera nearest in time, tilted so that the point's ray
+  // goes through the point (the heading stays the neighbour's).
+  std::vector<std::vector<int>> obs_of_image(copy.images.size());
+  for (size_t k = 0; k < copy.observations.size(); ++k) {
+    const Observation& o = copy.observations[k];
+    if (o.pixel.allFinite() && copy.points[o.point].position_known) obs_of_image[o.image].push_back(static_cast<int>(k));
+  }
+  std::vector<bool> oriented_before(copy.images.size());
+  for (size_t i = 0; i < copy.images.size(); ++i) oriented_before[i] = copy.images[i].exterior_known;
+  for (int i : wanted) {
+    Image& im = copy.images[i];
+    if (im.exterior_known || obs_of_image[i].empty()) continue;
+    int best = -1;
+    for (size_t n = 0; n < copy.images.size(); ++n) {
+      if (!oriented_before[n] || copy.images[n].camera != im.camera || static_cast<int>(n) == i) continue;
+      if (best < 0 || std::abs(copy.images[n].stamp - im.stamp) < std::abs(copy.images[best].stamp - im.stamp))
+        best = static_cast<int>(n);
+    }
+    if (best < 0) continue;
+    const camera::CameraModel& model = copy.cameras[im.camera].model;
+    const Observation& o = copy.observations[obs_of_image[i].front()];
+    const Rigid3 neighbour = copy.images[best].exterior.SiteFromOptical();
+    const Eigen::Vector3d ray = neighbour.rotation * model.PixelToOpticalDirection(o.pixel).normalized();
+    const Eigen::Vector3d want = (copy.points[o.point].position - *im.position_prior).normalized();
+    const Eigen::Matrix3d tilt = Eigen::Quaterniond::FromTwoVectors(ray, want).toRotationMatrix();
+    im.exterior = camera::ExteriorOrientation::FromOpticalFromSite(
+        Rigid3(tilt * neighbour.rotation.toRotationMatrix(), *im.position_prior).Inverse());
+    im.exterior_known = true;
+  }
+  int oriented = 0;
+  for (int i : wanted) {
+    if (!copy.images[i].exterior_known) continue;
+    scene->images[i].exterior = copy.images[i].exterior;
+    scene->images[i].exterior_known = true;
+    if (flags) (*flags)[i] = true;
+    ++oriented;
+  }
+  return oriented;
+}
+
+namespace {
+
+using ObservationKey = std::pair<std::string, std::string>;  // image name, point id
+
+ObservationKey KeyOf(const Scene& s, const Observation& o) {
+  return {s.images[o.image].name, s.points[o.point].id};
+}
+
+// Points that intersection left unknown (rays of coarsely oriented photos
+// miss each other) but that >= 2 oriented images see start from their
+// approximate coordinates; they stay free unknowns of the adjustment.
+void SeedFromApproximate(Scene* s) {
+  std::vector<std::set<int>> seen(s->points.size());
+  for (const Observation& o : s->observations)
+    if (s->images[o.image].exterior_known && o.pixel.allFinite()) seen[o.point].insert(o.image);
+  for (size_t j = 0; j < s->points.size(); ++j) {
+    ObjectPoint& p = s->points[j];
+    if (p.position_known || !p.approximate || seen[j].size() < 2) continue;
+    p.position = *p.approximate;
+    p.position_known = true;
+  }
+}
+
+}  // namespace
+
+EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<UnidentifiedObservation>& unidentified,
+                                  const std::vector<ListedTarget>& targets, const EpochAdjustmentOptions& options) {
+  options.Check();
+  scene.CheckIndices();
+  EpochAdjustmentResult r;
+  Scene s = scene;
+  const InitializationOptions& io = options.initialization;
+  r.initialization = InitializeScene(&s, io);
+  std::vector<bool> coarse(s.images.size(), false);
+  if (options.orient_from_approximate) {
+    r.oriented_from_approximate = OrientFromApproximatePoints(&s, io, &coarse);
+    if (r.oriented_from_approximate > 0) r.initialization = InitializeScene(&s, io);
+  }
+  std::set<ObservationKey> named;
+  std::vector<bool> input_named(unidentified.size(), false);
+  auto name = [&](bool first) {
+    std::vector<UnidentifiedObservation> rest;
+    std::vector<int> rest_index;
+    for (size_t k = 0; k < unidentified.size(); ++k) {
+      if (input_named[k]) continue;
+      rest.push_back(unidentified[k]);
+      rest_index.push_back(static_cast<int>(k));
+    }
+    const NamingReport n = NameUnidentified(&s, rest, targets, options.naming, &coarse);
+    for (int k : n.named_observations) named.insert(KeyOf(s, s.observations[k]));
+    for (int k : n.named_inputs) input_named[rest_index[k]] = true;
+    if (first) {
+      r.naming = n;
+    } else {  // the second pass counts what the first left
+      r.naming.named += n.named;
+      r.naming.ambiguous = n.ambiguous;
+      r.naming.unmatched = n.unmatched;
+      r.naming.not_oriented = n.not_oriented;
+      r.naming.notes = n.notes;
+    }
+    for (int k : n.named_inputs) r.naming.named_inputs.push_back(rest_index[k]);
+    if (n.named > 0) {
+      r.initialization = InitializeScene(&s, io);
+      // A photo that could not be oriented before may be now.
+      if (options.orient_from_approximate && OrientFromApproximatePoints(&s, io, &coarse) > 0)
+        r.initialization = InitializeScene(&s, io);
+    }
+    return n.named;
+  };
+  const bool naming = options.name_unidentified && !unidentified.empty();
+  if (naming) name(true);
+  if (options.orient_from_approximate) SeedFromApproximate(&s);
+
+  const Options& ao = options.adjustment;
+  Scene pruned;
+  std::string named_failure;
+  auto solve = [&]() {
+    for (int round = 0; round < 20; ++round) {
+      r.pruned = PruneReport();
+      pruned = PruneScene(s, ao.min_observations_per_image, &r.pruned,
+                          std::min(ao.min_observations_with_prior, ao.min_observations_per_image));
+      // A point that only one kept image sees ties nothing (unless it is a
+      // surveyed control point): drop it and prune again.
+      for (int pass = 0; pass < 10; ++pass) {
+        std::vector<std::set<int>> seen(pruned.points.size());
+        for (const Observation& o : pruned.observations) seen[o.point].insert(o.image);
+        std::vector<Observation> kept;
+        for (const Observation& o : pruned.observations) {
+          const ObjectPoint& p = pruned.points[o.point];
+          if (seen[o.point].size() >= 2 || (p.role == PointRole::kControl && p.surveyed)) kept.push_back(o);
+        }
+        if (kept.size() == pruned.observations.size()) break;
+        for (size_t j = 0; j < pruned.points.size(); ++j)
+          if (seen[j].size() == 1) r.pruned.dropped_points.push_back(Message("point '", pruned.points[j].id, "': seen by one image only"));
+        pruned.observations.swap(kept);
+        PruneReport more;
+        pruned = PruneScene(pruned, ao.min_observations_per_image, &more,
+                            std::min(ao.min_observations_with_prior, ao.min_observations_per_image));
+        for (auto& d : more.dropped_images) r.pruned.dropped_images.push_back(d);
+        for (auto& d : more.dropped_cameras) r.pruned.dropped_cameras.push_back(d);
+      }
+      if (pruned.images.empty()) {
+        r.summary = Summary();
+        r.summary.reason = Message("no image of the epoch could be oriented (", r.pruned.Summary(), ")");
+        return;
+      }
+      Config config;
+      if (!options.free_interior.empty())
+        config.FreeInteriorOfAll(static_cast<int>(pruned.cameras.size()), options.free_interior);
+      // Screening: adjust without the usability limits and test the named
+      // observations' residuals; the worst one above the outlier threshold
+      // is a wrong name: removed, reported, adjusted again.
+      if (!named.empty()) {
+        Options so = ao;
+        so.max_sigma0 = 1e12;
+        so.max_outlier_fraction = 1.0;
+        so.compute_covariance = false;
+        Scene trial = pruned;
+        const Summary ts = BundleAdjuster(so, config).Solve(&trial);
+        if (ts.IsSolutionUsable()) {
+          double worst = 0.0, worst_px = 0.0;
+          ObservationKey worst_key;
+          for (const Observation& o : trial.observations) {
+            const ObservationKey key = KeyOf(trial, o);
+            if (!named.count(key)) continue;
+            const Image& im = trial.images[o.image];
+            Eigen::Vector2d px;
+            if (!trial.cameras[im.camera].model.Project(im.exterior, trial.points[o.point].position, &px)) continue;
+            const Eigen::Vector2d e = px - o.pixel;
+            const double w = std::sqrt(e.dot(o.covariance.inverse() * e));
+            if (w > worst) {
+              worst = w;
+              worst_px = e.norm();
+              worst_key = key;
+            }
+          }
+          if (worst > ao.outlier_threshold) {
+            r.rejected_names.push_back(Message(worst_key.second, " in '", worst_key.first, "' (residual ", worst,
+                                               " sigma, ", worst_px, " px)"));
+            std::vector<Observation> kept;
+            for (const Observation& o : s.observations)
+              if (KeyOf(s, o) != worst_key) kept.push_back(o);
+            s.observations.swap(kept);
+            named.erase(worst_key);
+            continue;
+          }
+        }
+      }
+      const BundleAdjuster adjuster(ao, config);
+      r.summary = adjuster.Solve(&pruned);
+      if (!r.summary.IsSolutionUsable() && !named.empty() && !r.retried_without_names) {
+        // Not usable with the named observations: once more without any.
+        std::vector<Observation> kept;
+        for (const Observation& o : s.observations)
+          if (!named.count(KeyOf(s, o))) kept.push_back(o);
+        s.observations.swap(kept);
+        named.clear();
+        r.retried_without_names = true;
+        named_failure = r.summary.reason;
+        continue;
+      }
+      return;
+    }
+  };
+  solve();
+  if (naming && r.summary.IsSolutionUsable() && !r.retried_without_names &&
+      std::count(input_named.begin(), input_named.end(), false) > 0) {
+    // Second pass: the adjusted orientations and points name what is left.
+    for (const Image& im : pruned.images) {
+      const int i = s.FindImage(im.name);
+      s.images[i].exterior = im.exterior;
+      coarse[i] = false;
+    }
+    for (const ObjectPoint& p : pruned.points) {
+      const int j = s.FindPoint(p.id);
+      s.points[j].position = p.position;
+      s.points[j].position_known = true;
+    }
+    const EpochAdjustmentResult first = r;
+    const Scene first_scene = pruned;
+    if (name(false) > 0) {
+      if (options.orient_from_approximate) SeedFromApproximate(&s);
+      solve();
+      if (!r.summary.IsSolutionUsable()) {  // keep the first solution
+        r.summary = first.summary;
+        r.pruned = first.pruned;
+        pruned = first_scene;
+      }
+    }
+  }
+  r.scene = pruned;
+
+  for (const Image& im : s.images) {
+    if (!im.position_prior) continue;
+    ++r.photos.total;
+    if (pruned.FindImage(im.name) >= 0)
+      ++r.photos.kept;
+    else if (!im.exterior_known)
+      ++r.photos.not_oriented;
+    else
+      ++r.photos.too_few_observations;
+  }
+  if (!r.rejected_names.empty()) {
+    std::string list;
+    for (size_t i = 0; i < r.rejected_names.size() && i < 3; ++i) list += (i ? "; " : "") + r.rejected_names[i];
+    r.summary.reason += Message("; ", r.rejected_names.size(), " target name(s) given by projection rejected by the "
+                                "residual test and removed: ", list, r.rejected_names.size() > 3 ? "; ..." : "");
+  }
+  if (r.retried_without_names)
+    r.summary.reason += "; not usable with the targets named by projection (" + named_failure + "), adjusted without them";
+  return r;
+}
+
+}  // namespace adjustment
+}  // namespace slope_monitor
