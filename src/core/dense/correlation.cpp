@@ -192,13 +192,24 @@ struct SearchBuffers {
   std::vector<float> col;      // n offsets x 3 channels x (w + 2 r): column sums of w, w^2, l*w
   std::vector<float> box;      // 3 x w: window sums of the current row and offset
   std::vector<float> tmp;      // SlidingSum scratch
+  std::vector<float> col_small;  // the same for the small window near depth edges
   std::vector<float> scores;   // n x w: ZNCC of the current row per offset
+  std::vector<float> score_small;  // w: ZNCC of the small window
   std::vector<float> best_s;
   std::vector<int> best_k;
 };
 
+// Per-window quantities of a search (the main window, and the small window
+// used near depth edges): left window mean and 1 / sqrt(variance) (0 =
+// unusable), and the padded right "window on content" flags.
+struct WindowStats {
+  int window = 0;
+  cv::Mat sum_l, sum_ll, ok_l, ok_r, mean_l, inv_sd_l, bp;
+};
+
 struct SearchWorkspace {
-  cv::Mat sum_l, sum_ll, ok_l, ok_r, mean_l, inv_sd_l, rp, bp, idx;
+  WindowStats main, small;
+  cv::Mat rp, idx;
 };
 
 // Per pyramid level, per thread: the search workspaces and results, reused by
@@ -207,6 +218,7 @@ struct LevelWorkspace {
   SearchWorkspace ws_l, ws_r;
   DenseResult res_l, res_r;
   cv::Mat median_l, median_r;
+  cv::Mat edge_l, edge_r, e16, ehi, elo;
   cv::Mat down_l, down_r, log_l, log_r, log_tmp, log_tmp_r, mask_l, mask_r, base_l, base_r;
 };
 
@@ -236,6 +248,62 @@ LevelWorkspace& LevelCache(int level) {
 // 30 float images of this size would stay allocated per thread).
 constexpr double kMaxCachedPixels = 2.0e6;
 
+
+void ComputeWindowStats(const cv::Mat& left, const cv::Mat& mask_left, const cv::Mat& mask_right, int window,
+                        int off, int wp, WindowStats& st) {
+  const int w = left.cols, h = left.rows, r = window / 2;
+  const float count = static_cast<float>(window) * window, inv_count = 1.0f / count;
+  const float min_var = 1e-12f * count;
+  const cv::Size box(window, window);
+  st.window = window;
+  cv::boxFilter(left, st.sum_l, CV_32F, box, cv::Point(-1, -1), false, cv::BORDER_REFLECT_101);
+  cv::sqrBoxFilter(left, st.sum_ll, CV_32F, box, cv::Point(-1, -1), false, cv::BORDER_REFLECT_101);
+  // The whole window has content (pixels outside the image do not count).
+  cv::erode(mask_left, st.ok_l, cv::getStructuringElement(cv::MORPH_RECT, box), cv::Point(-1, -1), 1,
+            cv::BORDER_CONSTANT, cv::Scalar(1));
+  cv::erode(mask_right, st.ok_r, cv::getStructuringElement(cv::MORPH_RECT, box), cv::Point(-1, -1), 1,
+            cv::BORDER_CONSTANT, cv::Scalar(1));
+  st.mean_l.create(h, w, CV_32F);
+  st.inv_sd_l.create(h, w, CV_32F);
+  st.bp.create(h, wp, CV_32F);
+  cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const float* s = st.sum_l.ptr<float>(y);
+      const float* ss = st.sum_ll.ptr<float>(y);
+      const uchar* ok = st.ok_l.ptr<uchar>(y);
+      float* m = st.mean_l.ptr<float>(y);
+      float* is = st.inv_sd_l.ptr<float>(y);
+      for (int x = 0; x < w; ++x) {
+        m[x] = s[x] * inv_count;
+        const float var = ss[x] - s[x] * m[x];
+        is[x] = (ok[x] && var > min_var) ? 1.0f / std::sqrt(var) : 0.0f;
+      }
+      float* pb = st.bp.ptr<float>(y);
+      std::fill(pb, pb + wp, 0.0f);
+      const uchar* okr = st.ok_r.ptr<uchar>(y);
+      // Columns closer than r to the border: the window would leave the image.
+      for (int x = 0; x < w; ++x) pb[off + x] = (okr[x] && x >= r && x < w - r) ? 1.0f : 0.0f;
+    }
+  });
+}
+
+// Running column sums (w, w^2, l*w of the warped right image) of one window
+// height for one row and offset: set up at the first row of a stripe, then
+// one row in and one out.
+inline void ColumnSums(const cv::Mat& left, const cv::Mat& idx, const cv::Mat& rp, int y, int y0, int h, int r,
+                       int k, int w, float* c0, float* c1, float* c2) {
+  if (y == y0) {
+    for (int j = -r; j <= r; ++j) {
+      const int yy = Reflect101(y + j, h);
+      AccumulateRow(left.ptr<float>(yy), idx.ptr<int>(yy), rp.ptr<float>(yy), k, w, c0, c1, c2);
+    }
+  } else {
+    const int ya = Reflect101(y + r, h), ys = Reflect101(y - r - 1, h);
+    UpdateRows(left.ptr<float>(ya), idx.ptr<int>(ya), rp.ptr<float>(ya), left.ptr<float>(ys), idx.ptr<int>(ys),
+               rp.ptr<float>(ys), k, w, c0, c1, c2);
+  }
+}
+
 // ZNCC search of `left` against `right` for parallaxes base(x) + k, k in
 // [k_min, k_max] (base: per-pixel integer prediction, CV_32S, or empty = 0).
 // Masks: CV_8U 1 = content. The right image is warped by base + k and the
@@ -245,6 +313,10 @@ constexpr double kMaxCachedPixels = 2.0e6;
 // the cost per pixel and offset hardly depends on the window. Rows are split
 // into stripes processed in parallel.
 //
+// `edge` (CV_8U, optional) marks pixels whose window straddles a depth edge
+// of the prediction: there the ZNCC of the small `edge_window` replaces that
+// of `window` (computed only on rows that hold such a pixel).
+//
 // direction +1: `left` is the left image, a pixel x matches right x - (base + k);
 // direction -1: `left` is the RIGHT image and `right` the left one, a pixel x
 // matches x + (base + k) (the right-to-left search without mirroring).
@@ -252,126 +324,107 @@ constexpr double kMaxCachedPixels = 2.0e6;
 // memory, no page faults).
 void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int k_min, int k_max, int window,
             double min_correlation, const cv::Mat& mask_left, const cv::Mat& mask_right, int direction,
-            SearchWorkspace& ws, DenseResult& out) {
-  const int w = left.cols, h = left.rows, r = window / 2;
+            const cv::Mat& edge, int edge_window, SearchWorkspace& ws, DenseResult& out) {
+  const int w = left.cols, h = left.rows;
   const int n = k_max - k_min + 1;
-  const float count = static_cast<float>(window) * window, inv_count = 1.0f / count;
-  const float min_var = 1e-12f * count;
-  const cv::Size box(window, window);
-
-  // Left window statistics (independent of the offset).
-  cv::boxFilter(left, ws.sum_l, CV_32F, box, cv::Point(-1, -1), false, cv::BORDER_REFLECT_101);
-  cv::sqrBoxFilter(left, ws.sum_ll, CV_32F, box, cv::Point(-1, -1), false, cv::BORDER_REFLECT_101);
-  // The whole window has content (pixels outside the image do not count).
-  cv::erode(mask_left, ws.ok_l, cv::getStructuringElement(cv::MORPH_RECT, box), cv::Point(-1, -1), 1,
-            cv::BORDER_CONSTANT, cv::Scalar(1));
-  ws.mean_l.create(h, w, CV_32F);
-  ws.inv_sd_l.create(h, w, CV_32F);  // 0: window unusable
-  cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
-      const float* s = ws.sum_l.ptr<float>(y);
-      const float* ss = ws.sum_ll.ptr<float>(y);
-      const uchar* ok = ws.ok_l.ptr<uchar>(y);
-      float* m = ws.mean_l.ptr<float>(y);
-      float* is = ws.inv_sd_l.ptr<float>(y);
-      for (int x = 0; x < w; ++x) {
-        m[x] = s[x] * inv_count;
-        const float var = ss[x] - s[x] * m[x];
-        is[x] = (ok[x] && var > min_var) ? 1.0f / std::sqrt(var) : 0.0f;
-      }
-    }
-  });
-
-  // Padded right image and the padded right "window on content" flags (the
-  // mask eroded by the window; outside the image: no content).
-  // idx(y, x) = x - base(y, x) clamped to the padding, so v = right_padded[idx - k]
-  // needs no branch.
-  cv::erode(mask_right, ws.ok_r, cv::getStructuringElement(cv::MORPH_RECT, box), cv::Point(-1, -1), 1,
-            cv::BORDER_CONSTANT, cv::Scalar(1));
   const int pad = std::max(std::abs(k_min), std::abs(k_max)) + 1;
   const int off = 2 * pad, wp = w + 4 * pad;
+  const bool two_windows = !edge.empty() && edge_window > 0 && edge_window != window;
+  ComputeWindowStats(left, mask_left, mask_right, window, off, wp, ws.main);
+  if (two_windows) ComputeWindowStats(left, mask_left, mask_right, edge_window, off, wp, ws.small);
+  std::vector<char> row_has_edge(h, 0);
+  if (two_windows)
+    for (int y = 0; y < h; ++y) row_has_edge[y] = cv::countNonZero(edge.row(y)) > 0;
+
+  // Padded right image. idx(y, x) = x - base(y, x) clamped to the padding, so
+  // v = right_padded[idx - k] needs no branch.
   const bool right_all_valid = cv::countNonZero(mask_right) == w * h;
   ws.rp.create(h, wp, CV_32F);
-  ws.bp.create(h, wp, CV_32F);
   ws.idx.create(h, w, CV_32S);
   cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
-  for (int y = rows.start; y < rows.end; ++y) {
-    std::fill(ws.rp.ptr<float>(y), ws.rp.ptr<float>(y) + wp, 0.0f);
-    std::fill(ws.bp.ptr<float>(y), ws.bp.ptr<float>(y) + wp, 0.0f);
-    const float* rr = right.ptr<float>(y);
-    const uchar* mr = mask_right.ptr<uchar>(y);
-    const uchar* okr = ws.ok_r.ptr<uchar>(y);
-    float* o = ws.rp.ptr<float>(y) + off;
-    float* ob = ws.bp.ptr<float>(y) + off;
-    // Columns closer than r to the border: the window would leave the image.
-    for (int x = 0; x < w; ++x) {
-      o[x] = mr[x] ? rr[x] : 0.0f;
-      ob[x] = (okr[x] && x >= r && x < w - r) ? 1.0f : 0.0f;
+    for (int y = rows.start; y < rows.end; ++y) {
+      std::fill(ws.rp.ptr<float>(y), ws.rp.ptr<float>(y) + wp, 0.0f);
+      const float* rr = right.ptr<float>(y);
+      const uchar* mr = mask_right.ptr<uchar>(y);
+      float* o = ws.rp.ptr<float>(y) + off;
+      for (int x = 0; x < w; ++x) o[x] = mr[x] ? rr[x] : 0.0f;
+      const int* b = base.empty() ? nullptr : base.ptr<int>(y);
+      int* id = ws.idx.ptr<int>(y);
+      for (int x = 0; x < w; ++x) id[x] = std::clamp(x - direction * (b ? b[x] : 0), -pad, w - 1 + pad) + off;
     }
-    const int* b = base.empty() ? nullptr : base.ptr<int>(y);
-    int* id = ws.idx.ptr<int>(y);
-    for (int x = 0; x < w; ++x) id[x] = std::clamp(x - direction * (b ? b[x] : 0), -pad, w - 1 + pad) + off;
-  }
   });
 
   out.disparity.create(h, w, CV_32F);
   out.correlation.create(h, w, CV_32F);
   const float min_corr = static_cast<float>(min_correlation);
   const int stripes = std::max(1, std::min(h / 16, std::max(1, cv::getNumThreads())));
-  const int cw_len = w + 2 * r;
   const cv::Mat& idx = ws.idx;
   const cv::Mat& rp = ws.rp;
-  const cv::Mat& bp = ws.bp;
-  const cv::Mat& mean_l = ws.mean_l;
-  const cv::Mat& inv_sd_l = ws.inv_sd_l;
 
   cv::parallel_for_(cv::Range(0, stripes), [&](const cv::Range& range) {
     static thread_local SearchBuffers buf;
+    const int r_main = window / 2, r_small = edge_window / 2;
+    const int r_max = two_windows ? std::max(r_main, r_small) : r_main;
+    const int cw_len = w + 2 * r_max;
     buf.col.resize(static_cast<size_t>(n) * 3 * cw_len);
+    if (two_windows) buf.col_small.resize(static_cast<size_t>(n) * 3 * cw_len);
     buf.box.resize(3 * static_cast<size_t>(w));
-    buf.tmp.resize(2 * static_cast<size_t>(cw_len + window));
+    buf.tmp.resize(2 * static_cast<size_t>(cw_len + std::max(window, edge_window)));
     buf.scores.resize(static_cast<size_t>(n) * w);
+    buf.score_small.resize(w);
     buf.best_s.resize(w);
     buf.best_k.resize(w);
+    // Window sums of a row from column sums (columns reflected at the image border) and the ZNCC.
+    auto score_row = [&](std::vector<float>& col, int ki, int k, int y, const WindowStats& st, float* score) {
+      const int win = st.window, r = win / 2;
+      const float count = static_cast<float>(win) * win;
+      float* bx[3];
+      for (int ch = 0; ch < 3; ++ch) {
+        float* c = &col[(static_cast<size_t>(ki) * 3 + ch) * cw_len] + r_max;
+        for (int j = 1; j <= r; ++j) {
+          c[-j] = c[Reflect101(-j, w)];
+          c[w - 1 + j] = c[Reflect101(w - 1 + j, w)];
+        }
+        bx[ch] = buf.box.data() + static_cast<size_t>(ch) * w;
+        SlidingSum(c - r, w, win, bx[ch], buf.tmp.data());
+      }
+      ScoreRow(bx[0], bx[1], bx[2], right_all_valid ? nullptr : st.bp.ptr<float>(y), idx.ptr<int>(y), k, off + r,
+               off + w - r, st.mean_l.ptr<float>(y), st.inv_sd_l.ptr<float>(y), 1.0f / count, 1e-12f * count, w,
+               score);
+    };
     for (int stripe = range.start; stripe < range.end; ++stripe) {
       const int y0 = static_cast<int>(static_cast<long>(h) * stripe / stripes);
       const int y1 = static_cast<int>(static_cast<long>(h) * (stripe + 1) / stripes);
       std::fill(buf.col.begin(), buf.col.end(), 0.0f);
+      int small_y0 = -1;  // first row of the running small-window sums (restarted after rows without edges)
       for (int y = y0; y < y1; ++y) {
-        const float* ml = mean_l.ptr<float>(y);
-        const float* il = inv_sd_l.ptr<float>(y);
         float* best_s = buf.best_s.data();
         int* best_k = buf.best_k.data();
         std::fill(buf.best_s.begin(), buf.best_s.end(), -2.0f);
         std::fill(buf.best_k.begin(), buf.best_k.end(), -10);
+        const bool small_row = two_windows && row_has_edge[y];
+        if (small_row && small_y0 < 0) {
+          small_y0 = y;
+          std::fill(buf.col_small.begin(), buf.col_small.end(), 0.0f);
+        }
+        if (!small_row) small_y0 = -1;
+        const uchar* er = small_row ? edge.ptr<uchar>(y) : nullptr;
         for (int ki = 0; ki < n; ++ki) {
           const int k = direction * (k_min + ki);  // index shift in the padded row
           float* c[3];
-          for (int ch = 0; ch < 3; ++ch) c[ch] = &buf.col[(static_cast<size_t>(ki) * 3 + ch) * cw_len] + r;
-          // Column sums: the window of rows around y (rows reflected at the border).
-          if (y == y0) {
-            for (int j = -r; j <= r; ++j) {
-              const int yy = Reflect101(y + j, h);
-              AccumulateRow(left.ptr<float>(yy), idx.ptr<int>(yy), rp.ptr<float>(yy), k, w, c[0], c[1], c[2]);
-            }
-          } else {
-            const int ya = Reflect101(y + r, h), ys = Reflect101(y - r - 1, h);
-            UpdateRows(left.ptr<float>(ya), idx.ptr<int>(ya), rp.ptr<float>(ya), left.ptr<float>(ys),
-                       idx.ptr<int>(ys), rp.ptr<float>(ys), k, w, c[0], c[1], c[2]);
-          }
-          // Window sums along the row (columns reflected at the image border).
-          float* bx[3];
-          for (int ch = 0; ch < 3; ++ch) {
-            for (int j = 1; j <= r; ++j) {
-              c[ch][-j] = c[ch][Reflect101(-j, w)];
-              c[ch][w - 1 + j] = c[ch][Reflect101(w - 1 + j, w)];
-            }
-            bx[ch] = buf.box.data() + static_cast<size_t>(ch) * w;
-            SlidingSum(c[ch] - r, w, window, bx[ch], buf.tmp.data());
-          }
+          for (int ch = 0; ch < 3; ++ch) c[ch] = &buf.col[(static_cast<size_t>(ki) * 3 + ch) * cw_len] + r_max;
+          ColumnSums(left, idx, rp, y, y0, h, r_main, k, w, c[0], c[1], c[2]);
           float* score = buf.scores.data() + static_cast<size_t>(ki) * w;
-          ScoreRow(bx[0], bx[1], bx[2], right_all_valid ? nullptr : bp.ptr<float>(y), idx.ptr<int>(y), k, off + r,
-                   off + w - r, ml, il, inv_count, min_var, w, score);
+          score_row(buf.col, ki, k, y, ws.main, score);
+          if (small_row) {
+            for (int ch = 0; ch < 3; ++ch)
+              c[ch] = &buf.col_small[(static_cast<size_t>(ki) * 3 + ch) * cw_len] + r_max;
+            ColumnSums(left, idx, rp, y, small_y0, h, r_small, k, w, c[0], c[1], c[2]);
+            float* ss = buf.score_small.data();
+            score_row(buf.col_small, ki, k, y, ws.small, ss);
+            for (int x = 0; x < w; ++x)
+              if (er[x]) score[x] = ss[x];
+          }
           ArgMaxRow(score, ki, w, best_s, best_k);
         }
         const int* b = base.empty() ? nullptr : base.ptr<int>(y);
@@ -580,6 +633,17 @@ void PredictBase(const cv::Mat& filled_grid, int g, cv::Size size, cv::Mat* base
   });
 }
 
+// Pixels whose window (window x window) straddles a depth edge of the
+// prediction: the predicted parallaxes in it span more than `step` level px.
+void EdgeMask(const cv::Mat& base, int window, double step, cv::Mat* b16, cv::Mat* hi, cv::Mat* lo, cv::Mat* mask) {
+  base.convertTo(*b16, CV_16S);
+  const cv::Mat k = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(window, window));
+  cv::dilate(*b16, *hi, k, cv::Point(-1, -1), 1, cv::BORDER_REPLICATE);
+  cv::erode(*b16, *lo, k, cv::Point(-1, -1), 1, cv::BORDER_REPLICATE);
+  cv::subtract(*hi, *lo, *hi);
+  cv::compare(*hi, step, *mask, cv::CMP_GT);
+}
+
 // Least-squares refinement of the parallax d of left pixel (x, y): minimises
 // sum over the window of (l(q) - a - b r(q - d))^2 by Gauss-Newton in (d, a,
 // b), r sampled linearly along the line. Returns NaN when a window sample
@@ -697,6 +761,9 @@ void CorrelationOptions::Check() const {
           Message("= ", min_correlation, " must be in [-1, 1)"));
   Require(lsc_iterations >= 0 && lsc_iterations <= 20, "lsc_iterations",
           Message("= ", lsc_iterations, " must be in [0, 20]"));
+  Require(edge_window == 0 || (edge_window >= 3 && edge_window <= 51 && edge_window % 2 == 1), "edge_window",
+          Message("= ", edge_window, " must be 0 (off) or odd in [3, 51]"));
+  Require(edge_parallax_step > 0, "edge_parallax_step", Message("= ", edge_parallax_step, " must be > 0"));
   Require(lr_tolerance > 0, "lr_tolerance", Message("= ", lr_tolerance, " must be > 0"));
   Require(order_tolerance >= 0, "order_tolerance", Message("= ", order_tolerance, " must be >= 0"));
 }
@@ -784,7 +851,15 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
     // The extra +-1 lets the parabola use both neighbours of a maximum at the
     // edge of the nominal range; a maximum on the extended edge is rejected.
     DenseResult& res_l = lw.res_l;
-    Search(l, r, base_l, k_min, k_max, window, options.min_correlation, ml, mr, +1, lw.ws_l, res_l);
+    cv::Mat edge_l, edge_r;
+    if (!base_l.empty() && options.edge_window > 0) {
+      EdgeMask(base_l, window, options.edge_parallax_step, &lw.e16, &lw.ehi, &lw.elo, &lw.edge_l);
+      EdgeMask(base_r, window, options.edge_parallax_step, &lw.e16, &lw.ehi, &lw.elo, &lw.edge_r);
+      edge_l = lw.edge_l;
+      edge_r = lw.edge_r;
+    }
+    Search(l, r, base_l, k_min, k_max, window, options.min_correlation, ml, mr, +1, edge_l, options.edge_window,
+           lw.ws_l, res_l);
     cv::Mat grid_l = SampleGrid(res_l.disparity, g);
     cv::Mat corr_l = SampleGrid(res_l.correlation, g);
     const int nodes = grid_l.rows * grid_l.cols;
@@ -793,7 +868,8 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
     if (options.two_way) {
       // Right-to-left: a right pixel x matches the left x + d.
       DenseResult& res_r = lw.res_r;
-      Search(r, l, base_r, k_min, k_max, window, options.min_correlation, mr, ml, -1, lw.ws_r, res_r);
+      Search(r, l, base_r, k_min, k_max, window, options.min_correlation, mr, ml, -1, edge_r, options.edge_window,
+             lw.ws_r, res_r);
       grid_r = SampleGrid(res_r.disparity, g);
     }
     if (options.median_filter) {
@@ -871,6 +947,38 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
   if (static_cast<double>(left.total()) > kMaxCachedPixels) LevelCacheVector().clear();
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (summary) *summary = sum;
+  return out;
+}
+
+cv::Mat FillFromBackground(const cv::Mat& disparity, int max_gap, cv::Mat* filled) {
+  if (disparity.type() != CV_32F) throw InvalidArgument("FillFromBackground: the parallax map must be CV_32F");
+  cv::Mat out = disparity.clone();
+  if (filled) *filled = cv::Mat::zeros(disparity.size(), CV_8U);
+  for (int y = 0; y < out.rows; ++y) {
+    float* d = out.ptr<float>(y);
+    const int w = out.cols;
+    for (int x = 0; x < w;) {
+      if (Finite(d[x])) {
+        ++x;
+        continue;
+      }
+      int e = x;
+      while (e < w && !Finite(d[e])) ++e;  // hole [x, e)
+      const float a = x > 0 ? d[x - 1] : kNaN, b = e < w ? d[e] : kNaN;
+      float v = kNaN;
+      if (Finite(a) && Finite(b))
+        v = std::min(a, b);
+      else if (Finite(a))
+        v = a;
+      else if (Finite(b))
+        v = b;
+      if (Finite(v) && e - x <= max_gap) {
+        for (int i = x; i < e; ++i) d[i] = v;
+        if (filled) std::fill(filled->ptr<uchar>(y) + x, filled->ptr<uchar>(y) + e, 255);
+      }
+      x = e;
+    }
+  }
   return out;
 }
 

@@ -71,6 +71,13 @@ struct CorrelationOptions {
   // refinement moves by more than 1 px or does not converge keeps the
   // parabola value. [0, 20]
   int lsc_iterations = 0;
+  // Edge-aware window: on levels with a prediction, pixels whose window spans
+  // predicted parallaxes differing by more than edge_parallax_step [level
+  // px] (a depth edge of the coarser level) are correlated with the smaller
+  // edge_window instead (less fattening of foreground objects); 0: off.
+  // Odd, [3, 51].
+  int edge_window = 0;
+  double edge_parallax_step = 2.0;  // [level px] > 0
   // Throws ConfigError naming the first bad field.
   void Check() const;
 };
@@ -106,6 +113,16 @@ struct ParallaxGrid {
 ParallaxGrid MatchRectified(const cv::Mat& left, const cv::Mat& right, const CorrelationOptions& options,
                             CorrelationSummary* summary = nullptr, const cv::Mat& valid_left = cv::Mat(),
                             const cv::Mat& valid_right = cv::Mat());
+
+// A copy of a per-pixel parallax map (spacing 1) with the holes of each
+// line filled from the BACKGROUND side: a run of missing pixels takes the
+// smaller parallax (the farther surface) of its two valid ends (the only one
+// at the image border); runs longer than max_gap px stay missing. For a
+// disparity map to display or score like other stereo methods (occlusions
+// next to a foreground object show the background); never used for the
+// surface model, whose holes stay nodata. `filled` (optional): CV_8U, 255
+// where a value was filled.
+cv::Mat FillFromBackground(const cv::Mat& disparity, int max_gap, cv::Mat* filled = nullptr);
 
 }  // namespace dense
 }  // namespace slope_monitor
