@@ -85,6 +85,8 @@ class HexMatcherNodelet : public nodelet::Nodelet {
     options_.lsc.min_correlation = p.Double("lsc_min_correlation", 0.7, -1.0, 1.0);
     options_.lsc.max_sigma = p.Double("lsc_max_sigma", 0.5, 1e-6, 100.0, "px");
     options_.lsc.min_eigen_ratio = p.Double("lsc_min_eigen_ratio", 0.1, 0.0, 0.999);
+    options_.lsc.max_shift_affine_correlation = p.Double("lsc_max_shift_affine_correlation", 1.0, 1e-6, 1.0);
+    options_.lsc.fallback_affine_precision = p.Bool("lsc_fallback_affine_precision", false);
     options_.quality.enabled = p.Bool("quality_control", true);
     options_.quality.min_correlation = p.Double("quality_min_correlation", 0.8, -1.0, 1.0);
     options_.quality.max_residual_ratio = p.Double("quality_max_residual_ratio", 2.0, 1.0001, 1e6);

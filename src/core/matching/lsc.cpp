@@ -82,6 +82,7 @@ const char* LscStatusName(LscSummary::Status status) {
     case LscSummary::Status::kDiverged: return "diverged";
     case LscSummary::Status::kLowCorrelation: return "low_correlation";
     case LscSummary::Status::kImprecise: return "imprecise";
+    case LscSummary::Status::kIllConditioned: return "ill_conditioned";
   }
   return "unknown";
 }
@@ -102,6 +103,9 @@ void LscOptions::Check() const {
   if (!(min_gradient_energy >= 0)) fail("min_gradient_energy", min_gradient_energy, "[0, inf)");
   if (!(max_sigma > 0)) fail("max_sigma", max_sigma, "(0, inf)");
   if (!(min_eigen_ratio >= 0 && min_eigen_ratio < 1)) fail("min_eigen_ratio", min_eigen_ratio, "[0, 1)");
+  if (!(max_shift_affine_correlation > 0 && max_shift_affine_correlation <= 1)) {
+    fail("max_shift_affine_correlation", max_shift_affine_correlation, "(0, 1]");
+  }
   if (search_radius < 0 || search_radius > 200) fail("search_radius", search_radius, "[0, 200]");
   if (search_radius_y < -1 || search_radius_y > 200) fail("search_radius_y", search_radius_y, "[-1, 200]");
   if (search_half_window < 0 || search_half_window > 50) fail("search_half_window", search_half_window, "[0, 50]");
@@ -438,10 +442,14 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
   // Eq. 1: F test of the four affine parameters against eq. 2 (residual sum
   // of squares of both fits). Not significant -> the eq. 2 solution, whose
   // shift is better determined (the affine terms would fit the noise).
+  Eigen::Matrix2d fallback_cov = Eigen::Matrix2d::Zero();
+  bool fell_back = false;
   if (converged && affine && options.affine_min_f > 0 && ssr_shift >= 0) {
     const double ssr_affine = sum_r2;
     s.affine_f = ((ssr_shift - ssr_affine) / 4.0) / std::max(ssr_affine / std::max(1, n - m), 1e-12);
     if (s.affine_f < options.affine_min_f) {
+      fallback_cov = (ssr_affine / std::max(1, n - m)) * Mat(jtj.inverse()).topLeftCorner(2, 2);
+      fell_back = true;
       xb = xb_shift;
       g = g_shift;
       o = o_shift;
@@ -455,6 +463,7 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
     }
   }
   s.affine_used = affine;
+  if (affine && ssr_shift >= 0) s.model_difference = (xb - xb_shift).norm();
   s.iterations = it;
   s.xb = xb;
   s.affine = Eigen::Vector4d(p_aff[0], p_aff[1], p_aff[2], p_aff[3]);
@@ -468,6 +477,11 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
   s.covariance = cov.topLeftCorner<2, 2>();
   if (affine) {
     for (int i = 0; i < 4; ++i) s.affine_sigma(i) = std::sqrt(std::max(0.0, cov(2 + i, 2 + i)));
+    for (int i = 0; i < 2; ++i)
+      for (int j = 2; j < 6; ++j) {
+        const double d = std::sqrt(std::max(1e-300, cov(i, i) * cov(j, j)));
+        s.shift_affine_correlation = std::max(s.shift_affine_correlation, std::fabs(cov(i, j)) / d);
+      }
   }
   if (!converged) {
     s.status = Status::kNotConverged;
@@ -477,12 +491,19 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
     s.status = Status::kLowCorrelation;
     return s;
   }
-  // Larger eigenvalue of the symmetric 2 x 2 covariance, closed form.
-  const double tr = 0.5 * (s.covariance(0, 0) + s.covariance(1, 1));
-  const double df = 0.5 * (s.covariance(0, 0) - s.covariance(1, 1));
-  const double lmax = tr + std::sqrt(df * df + s.covariance(0, 1) * s.covariance(0, 1));
+  // Larger eigenvalue of the symmetric 2 x 2 covariance, closed form. After
+  // the F test fell back to eq. 2, optionally checked on eq. 1's covariance
+  // (the affine terms were not determined, not shown to be zero).
+  const Eigen::Matrix2d& check = fell_back && options.fallback_affine_precision ? fallback_cov : s.covariance;
+  const double tr = 0.5 * (check(0, 0) + check(1, 1));
+  const double df = 0.5 * (check(0, 0) - check(1, 1));
+  const double lmax = tr + std::sqrt(df * df + check(0, 1) * check(0, 1));
   if (!(std::sqrt(std::max(0.0, lmax)) <= options.max_sigma)) {
     s.status = Status::kImprecise;
+    return s;
+  }
+  if (affine && s.shift_affine_correlation > options.max_shift_affine_correlation) {
+    s.status = Status::kIllConditioned;
     return s;
   }
   s.status = Status::kConverged;

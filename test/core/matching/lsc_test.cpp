@@ -176,6 +176,40 @@ TEST(Lsc, SubPixelPrecisionOnWarpedRealTexture) {
   }
 }
 
+// Eq. 1 at 2 grey levels with the quality control a crew would use when it
+// asks for 0.05 px: reject matches whose predicted sigma (larger eigenvalue
+// of the shift covariance) exceeds 0.05 px, checked on eq. 1's covariance
+// also where the F test fell back to eq. 2 (fallback_affine_precision: the
+// affine terms were not determined, not shown to be zero), and windows where
+// the shift correlates with an affine term by more than 0.8 (kIllConditioned).
+// Checked on two noise seeds and three warps (two shifts, the rotation),
+// not tuned on one; the share of matches kept is printed and bounded below.
+TEST(Lsc, Eq1WithQualityControlWithinFiveHundredthsPixel) {
+  const cv::Matx23d kShift2(1, 0, -0.62, 0, 1, 0.27);
+  const struct {
+    const char* name;
+    const cv::Matx23d* m;
+  } warps[] = {{"shift (0.37, -0.81)", &kShift}, {"shift (-0.62, 0.27)", &kShift2}, {"rot 2deg scale 1.02", &kAffine}};
+  for (unsigned seed : {7u, 8u}) {
+    for (const auto& c : warps) {
+      const WarpCase w = MakeWarp(*c.m, 2.0, seed);
+      LscOptions plain;  // eq. 1 bicubic, defaults (max_sigma 0.5, no correlation test)
+      LscOptions qc = plain;
+      qc.max_sigma = 0.05;
+      qc.fallback_affine_precision = true;
+      qc.max_shift_affine_correlation = 0.8;
+      const PrecisionResult r0 = Precision(w, plain);
+      const PrecisionResult r = Precision(w, qc);
+      std::printf("LSC 11x11 eq. 1 noise 2 seed %u %-20s: without QC %3d usable, RMS %.4f px; with QC %3d kept "
+                  "(%.0f %%), RMS %.4f px, median %.4f px (predicted %.4f px)\n",
+                  seed, c.name, r0.n, r0.rms, r.n, 100.0 * r.n / std::max(1, r0.n), r.rms, r.median, r.predicted);
+      EXPECT_LE(r.rms, 0.05) << c.name << " seed " << seed;
+      EXPECT_LT(r.rms, r0.rms) << c.name << " seed " << seed;
+      EXPECT_GE(r.n, 0.4 * r0.n) << c.name << " seed " << seed;  // measured 45-59 %
+    }
+  }
+}
+
 // The two causes of the old eq. 1 imprecision, each measured against its fix
 // on the same data: the Jacobian from the resampled image b instead of the
 // template (noise-correlated gradient), and the F test that falls back to

@@ -41,6 +41,12 @@
 //                        [1/max_gain_ratio, max_gain_ratio]
 //   kLowCorrelation      NCC at the solution < min_correlation
 //   kImprecise           sqrt of the larger covariance eigenvalue > max_sigma
+//   kIllConditioned      eq. 1 kept the affine terms but the shift is not
+//                        separable from them: the largest |correlation|
+//                        between xb or yb and a1, a2, a4, a5 (from
+//                        (J^T J)^-1) exceeds max_shift_affine_correlation
+//                        (a straight edge with a corner near the window
+//                        border: shift trades against scale/shear)
 // Only kConverged is usable (Summary::IsSolutionUsable()).
 #pragma once
 
@@ -96,6 +102,14 @@ struct LscOptions {
   double min_correlation = 0.7;     // [-1, 1]
   double min_gradient_energy = 1.0; // [grey^2/px^2] mean squared gradient in window a, >= 0
   double max_sigma = 0.5;           // [px] > 0
+  // Eq. 1 quality control, (0, 1]: largest |correlation| between a shift
+  // parameter and an affine one in (J^T J)^-1 when the affine terms are
+  // kept; above it the match is kIllConditioned. 1 = off.
+  double max_shift_affine_correlation = 1.0;
+  // Eq. 1 falling back to eq. 2 (F test): check max_sigma on the eq. 1
+  // covariance of the shift (the affine terms were not determined, which
+  // does not show they are zero). The reported covariance stays eq. 2's.
+  bool fallback_affine_precision = false;
   // Smaller / larger eigenvalue of window a's structure tensor, [0, 1):
   // below it the window holds a single straight edge (aperture problem, the
   // shift along the edge is set by noise only) -> kTextureless.
@@ -123,6 +137,7 @@ struct LscSummary {
     kDiverged,
     kLowCorrelation,
     kImprecise,
+    kIllConditioned,
   };
   Status status = Status::kNotConverged;
   Eigen::Vector2d xb = Eigen::Vector2d::Zero();  // [px] matched position in b
@@ -131,6 +146,12 @@ struct LscSummary {
   Eigen::Vector4d affine_sigma = Eigen::Vector4d::Zero();  // [-] their standard deviations (eq. 1)
   bool affine_used = false;  // eq. 1 kept (false for eq. 2 and when the F test fell back to it)
   double affine_f = 0.0;     // F statistic of the affine parameters (eq. 1)
+  // Largest |correlation| of xb or yb with an affine parameter (eq. 1 with
+  // the affine terms kept; 0 otherwise).
+  double shift_affine_correlation = 0.0;
+  // |xb of eq. 1 - xb of the eq. 2 solution of the same window| [px] (eq. 1
+  // with the affine terms kept; 0 otherwise).
+  double model_difference = 0.0;
   double gain = 1.0;
   double offset = 0.0;
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();  // [px^2] of xb
