@@ -357,11 +357,10 @@ TEST(Lsc, PublishedTableOnCones) {
     EXPECT_LT(common[i], cells[i].published) << i;
   }
   // The published ordering eq. 1 < eq. 2 holds in each window on the common
-  // points. The window ordering (11 x 11 < 5 x 5) does not show on the
+  // points. The window ordering (11 x 11 < 5 x 5) does not show on these 21
   // common points (measured eq. 2: 0.136 vs 0.136 px, eq. 1: 0.107 vs 0.114
-  // px): where both windows find the match, both are equally precise; the
-  // small window instead finds fewer correct matches (usable, <= 1 px
-  // columns). Reported, not asserted.
+  // px): the pair's constant y offset (~ -0.08 px) dominates them; see
+  // PublishedTableWindowOrderingOnCones for the protocol that separates it.
   EXPECT_LT(common[0], common[1]);
   EXPECT_LT(common[2], common[3]);
   // Disparities against the ground truth (non-occluded, known disparity):
@@ -393,6 +392,97 @@ TEST(Lsc, BadInputGivesAClearOutcome) {
   o.half_window = 0;
   EXPECT_THROW(MatchLsc(flat, flat, {30, 30}, {30, 30}, o), ConfigError);
   EXPECT_THROW(LscModelFromName("projective"), InvalidArgument);
+}
+
+// The window ordering of the published table on Cones, with a protocol that
+// measures the matching, not the pair: (1) the same points in all four
+// cells: every interest point (spacing 4 px, up to 3000) that all four
+// cells match within 1 px of the ground-truth disparity, outside occlusions;
+// (2) the residual y-parallax (the published quantity, true 0) taken about
+// one constant for all four cells, the pooled mean over those points: the
+// rectified pair has a constant vertical offset of its own (measured
+// -0.07 .. -0.09 px in every cell, window and model alike) that a matcher
+// cannot remove and that would otherwise dominate the RMS. The raw RMS is
+// printed beside it. Two point spacings (4 px asserted, 6 px reported).
+TEST(Lsc, PublishedTableWindowOrderingOnCones) {
+  const cv::Mat left = ToFloat(Load("left.tif"));
+  const cv::Mat right = ToFloat(Load("right.tif"));
+  const cv::Mat gt = Load("disp_left_gt.tif");
+  const cv::Mat occl = Load("occl.png");
+  const struct {
+    LscModel model;
+    int h;
+    double published;
+  } cells[] = {{LscModel::kAffine, 2, 0.48}, {LscModel::kShift, 2, 0.76}, {LscModel::kAffine, 5, 0.40},
+               {LscModel::kShift, 5, 0.44}};
+  for (int spacing : {4, 6}) {
+    InterestPointOptions io;
+    io.border = 12;
+    io.min_distance = spacing;
+    io.max_points = 3000;
+    const std::vector<InterestPoint> pts = DetectInterestPoints(left, io);
+    const size_t np = pts.size();
+    std::vector<std::vector<double>> dy(4, std::vector<double>(np, 0.0));
+    std::vector<std::vector<char>> ok(4, std::vector<char>(np, 0));
+    for (int i = 0; i < 4; ++i) {
+      LscOptions o;
+      o.model = cells[i].model;
+      o.half_window = cells[i].h;
+      o.search_radius = 40;  // correlation to 1 px (11 x 11) along the row, then LSC
+      o.search_radius_y = 1;
+      o.search_half_window = 5;
+      o.max_shift = 3.0;
+      for (size_t k = 0; k < np; ++k) {
+        const InterestPoint& p = pts[k];
+        const int c = static_cast<int>(p.x.x()), r = static_cast<int>(p.x.y());
+        const LscSummary s = MatchLsc(left, right, p.x, p.x - Eigen::Vector2d(35, 0), o);
+        if (!s.IsSolutionUsable()) continue;
+        const float d = gt.at<float>(r, c);
+        if (d <= 0 || occl.at<uint8_t>(r, c) == 0) continue;
+        if (std::fabs((p.x.x() - s.xb.x()) - d) > 1.0) continue;
+        ok[i][k] = 1;
+        dy[i][k] = s.xb.y() - p.x.y();
+      }
+    }
+    std::vector<size_t> common;
+    for (size_t k = 0; k < np; ++k)
+      if (ok[0][k] && ok[1][k] && ok[2][k] && ok[3][k]) common.push_back(k);
+    ASSERT_GE(common.size(), 50u) << "spacing " << spacing;
+    double offset = 0;
+    for (int i = 0; i < 4; ++i)
+      for (size_t k : common) offset += dy[i][k];
+    offset /= 4.0 * common.size();
+    double raw[4], rel[4], mean[4];
+    for (int i = 0; i < 4; ++i) {
+      double s1 = 0, s2 = 0, s2o = 0;
+      for (size_t k : common) {
+        s1 += dy[i][k];
+        s2 += dy[i][k] * dy[i][k];
+        s2o += (dy[i][k] - offset) * (dy[i][k] - offset);
+      }
+      mean[i] = s1 / common.size();
+      raw[i] = std::sqrt(s2 / common.size());
+      rel[i] = std::sqrt(s2o / common.size());
+    }
+    std::printf("Cones y-parallax on %zu common points of %zu (spacing %d px), pair offset %.3f px\n"
+                "  window model   published  RMS about offset  raw RMS  mean\n",
+                common.size(), np, spacing, offset);
+    for (int i = 0; i < 4; ++i) {
+      std::printf("  %2dx%-2d  %-6s   %.2f       %.3f             %.3f    %.3f\n", 2 * cells[i].h + 1,
+                  2 * cells[i].h + 1, LscModelName(cells[i].model), cells[i].published, rel[i], raw[i], mean[i]);
+      EXPECT_LT(raw[i], cells[i].published) << i;
+    }
+    // The published orderings: 11 x 11 < 5 x 5 for each model, eq. 1 < eq. 2
+    // in each window. Asserted on the denser set (95 points: 0.069 < 0.083,
+    // 0.075 < 0.094, 0.083 < 0.094, 0.069 < 0.075 px). On the sparser set
+    // (72 points) they hold too but by 0.000-0.004 px, within the sampling
+    // error of an RMS of 72 values (~0.005 px): reported only.
+    if (spacing != 4) continue;
+    EXPECT_LT(rel[2], rel[0]) << "eq. 1, spacing " << spacing;
+    EXPECT_LT(rel[3], rel[1]) << "eq. 2, spacing " << spacing;
+    EXPECT_LT(rel[0], rel[1]) << "5x5, spacing " << spacing;
+    EXPECT_LT(rel[2], rel[3]) << "11x11, spacing " << spacing;
+  }
 }
 
 }  // namespace
