@@ -122,10 +122,12 @@ bool Apply(CorrelationOptions* o, const std::string& k, double v) {
   else if (k == "lr_tolerance") o->lr_tolerance = v;
   else if (k == "order_tolerance") o->order_tolerance = v;
   else if (k == "search_radius") o->search_radius = static_cast<int>(v);
+  else if (k == "final_search_radius") o->final_search_radius = static_cast<int>(v);
   else if (k == "grid_spacing") o->grid_spacing = static_cast<int>(v);
   else if (k == "median_filter") o->median_filter = v != 0;
   else if (k == "order_check") o->order_check = v != 0;
   else if (k == "two_way") o->two_way = v != 0;
+  else if (k == "full_right_search") o->full_right_search = v != 0;
   else if (k == "peak_frequency") o->peak_frequency = v;
   else if (k == "levels") o->levels = static_cast<int>(v);
   else if (k == "lsc_iterations") o->lsc_iterations = static_cast<int>(v);
@@ -179,6 +181,7 @@ int main(int argc, char** argv) {
   design.edge_window = 0;
   design.search_radius = 3;
   design.lr_tolerance = 1.0;
+  design.full_right_search = true;
   design.peak_frequency = 1.0;
   // OpenCV StereoSGBM with the parameters of OpenCV's own stereo_match sample:
   // 64 disparities, block 5, P1 = 8*5*5, P2 = 32*5*5, disp12MaxDiff 1,

@@ -197,6 +197,8 @@ struct SearchBuffers {
   std::vector<float> score_small;  // w: ZNCC of the small window
   std::vector<float> best_s;
   std::vector<int> best_k;
+  std::vector<float> best_rs;  // right-to-left from the volume: best score, parallax, offset index
+  std::vector<int> best_rd, best_rk;
 };
 
 // Per-window quantities of a search (the main window, and the small window
@@ -304,6 +306,51 @@ inline void ColumnSums(const cv::Mat& left, const cv::Mat& idx, const cv::Mat& r
   }
 }
 
+// The right-to-left matches of one row from the left search's scores
+// (scores[ki * w + x]: left pixel x, parallax base[x] + k_min + ki); see
+// Search.
+void RightFromVolume(const float* sc, const int* b, int k_min, int n, int w, float min_corr, SearchBuffers& buf,
+                     float* d, float* cc) {
+  float* rs = buf.best_rs.data();
+  int* rd = buf.best_rd.data();
+  int* rk = buf.best_rk.data();
+  // Slot w collects the candidates that fall outside the row (branch-free updates).
+  std::fill(rs, rs + w + 1, -2.0f);
+  for (int ki = 0; ki < n; ++ki) {
+    const float* s = sc + static_cast<size_t>(ki) * w;
+    for (int x = 0; x < w; ++x) {
+      const int D = (b ? b[x] : 0) + k_min + ki;
+      int xr = x - D;
+      xr = static_cast<unsigned>(xr) < static_cast<unsigned>(w) ? xr : w;
+      const float v = s[x], old = rs[xr];
+      const bool better = v > old;
+      rs[xr] = better ? v : old;
+      rd[xr] = better ? D : rd[xr];
+      rk[xr] = better ? ki : rk[xr];
+    }
+  }
+  auto score_at = [&](int xl, int D) {
+    if (xl < 0 || xl >= w) return -2.0f;
+    const int ki = D - (b ? b[xl] : 0) - k_min;
+    return (ki >= 0 && ki < n) ? sc[static_cast<size_t>(ki) * w + xl] : -2.0f;
+  };
+  for (int xr = 0; xr < w; ++xr) {
+    const float bs = rs[xr];
+    if (bs < min_corr || rk[xr] <= 0 || rk[xr] >= n - 1) {
+      d[xr] = kNaN;
+      cc[xr] = kNaN;
+      continue;
+    }
+    const int D = rd[xr];
+    const float sm = score_at(xr + D - 1, D - 1), sp = score_at(xr + D + 1, D + 1);
+    float delta = 0.0f;
+    const float curv = sm - 2.0f * bs + sp;
+    if (sm > -2.0f && sp > -2.0f && curv < 0.0f) delta = std::clamp(0.5f * (sm - sp) / curv, -0.5f, 0.5f);
+    d[xr] = static_cast<float>(D) + delta;
+    cc[xr] = bs;
+  }
+}
+
 // ZNCC search of `left` against `right` for parallaxes base(x) + k, k in
 // [k_min, k_max] (base: per-pixel integer prediction, CV_32S, or empty = 0).
 // Masks: CV_8U 1 = content. The right image is warped by base + k and the
@@ -320,11 +367,19 @@ inline void ColumnSums(const cv::Mat& left, const cv::Mat& idx, const cv::Mat& r
 // direction +1: `left` is the left image, a pixel x matches right x - (base + k);
 // direction -1: `left` is the RIGHT image and `right` the left one, a pixel x
 // matches x + (base + k) (the right-to-left search without mirroring).
+// `out_right` (direction +1 only, optional): the right-to-left matches taken
+// from the same correlation volume: each right pixel xr gets the parallax D
+// of the best score among all (left pixel x, parallax D) with x - D = xr
+// (the same pair of windows as a right-to-left search, up to the per-pixel
+// prediction inside the window), sub-pixel by the parabola through its
+// neighbours (xr + D - 1, D - 1) and (xr + D + 1, D + 1); a maximum at the
+// border of its left pixel's range is rejected as on the left.
 // `ws` and `out` are kept by the caller between calls (same sizes: no new
 // memory, no page faults).
 void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int k_min, int k_max, int window,
             double min_correlation, const cv::Mat& mask_left, const cv::Mat& mask_right, int direction,
-            const cv::Mat& edge, int edge_window, SearchWorkspace& ws, DenseResult& out) {
+            const cv::Mat& edge, int edge_window, SearchWorkspace& ws, DenseResult& out,
+            DenseResult* out_right = nullptr) {
   const int w = left.cols, h = left.rows;
   const int n = k_max - k_min + 1;
   const int pad = std::max(std::abs(k_min), std::abs(k_max)) + 1;
@@ -356,6 +411,10 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
 
   out.disparity.create(h, w, CV_32F);
   out.correlation.create(h, w, CV_32F);
+  if (out_right) {
+    out_right->disparity.create(h, w, CV_32F);
+    out_right->correlation.create(h, w, CV_32F);
+  }
   const float min_corr = static_cast<float>(min_correlation);
   const int stripes = std::max(1, std::min(h / 16, std::max(1, cv::getNumThreads())));
   const cv::Mat& idx = ws.idx;
@@ -374,6 +433,9 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
     buf.score_small.resize(w);
     buf.best_s.resize(w);
     buf.best_k.resize(w);
+    buf.best_rs.resize(w + 1);
+    buf.best_rd.resize(w + 1);
+    buf.best_rk.resize(w + 1);
     // Window sums of a row from column sums (columns reflected at the image border) and the ZNCC.
     auto score_row = [&](std::vector<float>& col, int ki, int k, int y, const WindowStats& st, float* score) {
       const int win = st.window, r = win / 2;
@@ -446,6 +508,8 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
           d[x] = static_cast<float>((b ? b[x] : 0) + k_min + best) + delta;
           cc[x] = bs;
         }
+        if (out_right) RightFromVolume(sc, b, k_min, n, w, min_corr, buf, out_right->disparity.ptr<float>(y),
+                                       out_right->correlation.ptr<float>(y));
       }
     }
   }, stripes);
@@ -479,32 +543,61 @@ inline float Median9(float p0, float p1, float p2, float p3, float p4, float p5,
   return p4;
 }
 
+inline float Lo(float a, float b) { return a < b ? a : b; }  // MINPS / MAXPS semantics: vectorises
+inline float Hi(float a, float b) { return a < b ? b : a; }
+
+// Median of nine values of nine rows of a 3 x 3 neighbourhood for a whole
+// line at once (the network of Median9 on min / max: vectorised); NaN
+// neighbourhoods give garbage that the caller replaces.
+SM_DENSE_CLONES void Median9Row(const float* __restrict up, const float* __restrict mid, const float* __restrict dn,
+                                int n, float* __restrict o) {
+  for (int j = 1; j < n - 1; ++j) {
+    float p0 = up[j - 1], p1 = up[j], p2 = up[j + 1], p3 = mid[j - 1], p4 = mid[j], p5 = mid[j + 1], p6 = dn[j - 1],
+          p7 = dn[j], p8 = dn[j + 1], t;
+#define SM_S2(a, b) t = Lo(a, b), b = Hi(a, b), a = t
+    SM_S2(p1, p2); SM_S2(p4, p5); SM_S2(p7, p8); SM_S2(p0, p1); SM_S2(p3, p4); SM_S2(p6, p7);
+    SM_S2(p1, p2); SM_S2(p4, p5); SM_S2(p7, p8); SM_S2(p0, p3); SM_S2(p5, p8); SM_S2(p4, p7);
+    SM_S2(p3, p6); SM_S2(p1, p4); SM_S2(p2, p5); SM_S2(p4, p7); SM_S2(p4, p2); SM_S2(p6, p4);
+    SM_S2(p4, p2);
+#undef SM_S2
+    o[j] = p4;
+  }
+}
+
+// Finite flags of three lines summed over 3 x 3: cnt[j] = valid neighbours of j (inner columns).
+SM_DENSE_CLONES void CountFinite3x3(const float* __restrict up, const float* __restrict mid,
+                                    const float* __restrict dn, int n, float* __restrict col, float* __restrict cnt) {
+  for (int j = 0; j < n; ++j)
+    col[j] = static_cast<float>(up[j] == up[j]) + static_cast<float>(mid[j] == mid[j]) +
+             static_cast<float>(dn[j] == dn[j]);
+  for (int j = 1; j < n - 1; ++j) cnt[j] = col[j - 1] + col[j] + col[j + 1];
+}
+
 // 3 x 3 median of the valid nodes around each valid node (invalid nodes stay
 // invalid; an even count takes the mean of the two middle values). Rows in
-// parallel; all-valid neighbourhoods take a sorting network.
+// parallel; all-valid neighbourhoods take a vectorised sorting network.
 void MedianFilter(const cv::Mat& in, cv::Mat* grid) {
   grid->create(in.size(), CV_32F);
   const int rows = in.rows, cols = in.cols;
   cv::parallel_for_(cv::Range(0, rows), [&](const cv::Range& range) {
     float v[9];
+    std::vector<float> col(cols), cnt(cols, 0.0f);
     for (int i = range.start; i < range.end; ++i) {
       const float* up = in.ptr<float>(std::max(i - 1, 0));
       const float* mid = in.ptr<float>(i);
       const float* dn = in.ptr<float>(std::min(i + 1, rows - 1));
       float* o = grid->ptr<float>(i);
       const bool inner_row = i > 0 && i < rows - 1;
+      if (inner_row && cols >= 3) {
+        Median9Row(up, mid, dn, cols, o);
+        CountFinite3x3(up, mid, dn, cols, col.data(), cnt.data());
+      }
       for (int j = 0; j < cols; ++j) {
-        o[j] = mid[j];
-        if (!Finite(mid[j])) continue;
-        if (inner_row && j > 0 && j < cols - 1) {
-          const float a0 = up[j - 1], a1 = up[j], a2 = up[j + 1], a3 = mid[j - 1], a5 = mid[j + 1], a6 = dn[j - 1],
-                      a7 = dn[j], a8 = dn[j + 1];
-          if (Finite(a0) && Finite(a1) && Finite(a2) && Finite(a3) && Finite(a5) && Finite(a6) && Finite(a7) &&
-              Finite(a8)) {
-            o[j] = Median9(a0, a1, a2, a3, mid[j], a5, a6, a7, a8);
-            continue;
-          }
+        if (!Finite(mid[j])) {
+          o[j] = mid[j];
+          continue;
         }
+        if (inner_row && j > 0 && j < cols - 1 && cnt[j] == 9.0f) continue;  // the network's value
         int n = 0;
         for (int di = -1; di <= 1; ++di) {
           const int a = i + di;
@@ -764,6 +857,8 @@ void CorrelationOptions::Check() const {
   Require(edge_window == 0 || (edge_window >= 3 && edge_window <= 51 && edge_window % 2 == 1), "edge_window",
           Message("= ", edge_window, " must be 0 (off) or odd in [3, 51]"));
   Require(edge_parallax_step > 0, "edge_parallax_step", Message("= ", edge_parallax_step, " must be > 0"));
+  Require(final_search_radius >= 0 && final_search_radius <= 16, "final_search_radius",
+          Message("= ", final_search_radius, " must be 0 (= search_radius) or in [1, 16]"));
   Require(lr_tolerance > 0, "lr_tolerance", Message("= ", lr_tolerance, " must be > 0"));
   Require(order_tolerance >= 0, "order_tolerance", Message("= ", order_tolerance, " must be >= 0"));
 }
@@ -841,12 +936,15 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
       k_min = static_cast<int>(std::floor(options.min_disparity / scale)) - 1;
       k_max = static_cast<int>(std::ceil(options.max_disparity / scale)) + 1;
     } else {
-      k_min = -options.search_radius - 1;
-      k_max = options.search_radius + 1;
+      const int radius = (last && options.final_search_radius > 0) ? options.final_search_radius : options.search_radius;
+      k_min = -radius - 1;
+      k_max = radius + 1;
       PredictBase(pred_left, prev_g, l.size(), &lw.base_l);
-      PredictBase(pred_right, prev_g, l.size(), &lw.base_r);
       base_l = lw.base_l;
-      base_r = lw.base_r;
+      if (options.full_right_search) {
+        PredictBase(pred_right, prev_g, l.size(), &lw.base_r);
+        base_r = lw.base_r;
+      }
     }
     // The extra +-1 lets the parabola use both neighbours of a maximum at the
     // edge of the nominal range; a maximum on the extended edge is rejected.
@@ -854,12 +952,15 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
     cv::Mat edge_l, edge_r;
     if (!base_l.empty() && options.edge_window > 0) {
       EdgeMask(base_l, window, options.edge_parallax_step, &lw.e16, &lw.ehi, &lw.elo, &lw.edge_l);
-      EdgeMask(base_r, window, options.edge_parallax_step, &lw.e16, &lw.ehi, &lw.elo, &lw.edge_r);
       edge_l = lw.edge_l;
-      edge_r = lw.edge_r;
+      if (!base_r.empty()) {
+        EdgeMask(base_r, window, options.edge_parallax_step, &lw.e16, &lw.ehi, &lw.elo, &lw.edge_r);
+        edge_r = lw.edge_r;
+      }
     }
+    const bool volume_right = options.two_way && !options.full_right_search;
     Search(l, r, base_l, k_min, k_max, window, options.min_correlation, ml, mr, +1, edge_l, options.edge_window,
-           lw.ws_l, res_l);
+           lw.ws_l, res_l, volume_right ? &lw.res_r : nullptr);
     cv::Mat grid_l = SampleGrid(res_l.disparity, g);
     cv::Mat corr_l = SampleGrid(res_l.correlation, g);
     const int nodes = grid_l.rows * grid_l.cols;
@@ -868,8 +969,9 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
     if (options.two_way) {
       // Right-to-left: a right pixel x matches the left x + d.
       DenseResult& res_r = lw.res_r;
-      Search(r, l, base_r, k_min, k_max, window, options.min_correlation, mr, ml, -1, edge_r, options.edge_window,
-             lw.ws_r, res_r);
+      if (options.full_right_search)
+        Search(r, l, base_r, k_min, k_max, window, options.min_correlation, mr, ml, -1, edge_r, options.edge_window,
+               lw.ws_r, res_r);
       grid_r = SampleGrid(res_r.disparity, g);
     }
     if (options.median_filter) {
@@ -934,7 +1036,7 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
     } else {
       const float fallback = static_cast<float>(0.5 * (options.min_disparity + options.max_disparity) / scale);
       pred_left = FillForPrediction(averaged, fallback);
-      pred_right = grid_r.empty() ? pred_left : FillForPrediction(grid_r, fallback);
+      if (options.full_right_search) pred_right = grid_r.empty() ? pred_left : FillForPrediction(grid_r, fallback);
       prev_g = g;
       // The next level's nodes are spaced g of ITS pixels; prediction uses
       // this level's grid (spacing g here = 2 g there).

@@ -57,6 +57,7 @@ struct CorrelationOptions {
   int window = 15;                // [px] correlation window (odd) of levels 0 .. levels-2; [3, 51]
   int final_window = 0;           // [px] window of the full-resolution level (odd, [3, 51]); 0: `window`
   int search_radius = 3;          // [level px] search around the prediction; [1, 16]
+  int final_search_radius = 0;    // [px] search of the full-resolution level; [1, 16]; 0: search_radius
   double min_disparity = 0.0;     // [px, full resolution] search range of the coarsest level
   double max_disparity = 64.0;    // [px, full resolution]; > min_disparity
   double min_correlation = 0.3;   // [-] ZNCC below this: invalid; [-1, 1)
@@ -65,6 +66,11 @@ struct CorrelationOptions {
   bool median_filter = true;      // 3 x 3 median of parallaxes
   bool order_check = true;        // order-consistency per line
   bool two_way = true;            // left->right and right->left; false: left->right only
+  // The right->left matches from a second ZNCC search over the right image
+  // (true), or from the left search's correlation volume (false: each right
+  // pixel takes its best-scoring left candidate; the same window pairs up to
+  // the per-pixel prediction, at half the cost).
+  bool full_right_search = false;
   // Least-squares refinement of each final parallax (0: off, parabola only):
   // Gauss-Newton iterations of  l(x) = a + b r(x - d)  over the final window
   // (shift d, gain b, offset a; r linear along the line); a node whose
