@@ -31,6 +31,7 @@
 #include "slope_monitor/TargetObservationArray.h"
 #include "slope_monitor/TiePointArray.h"
 #include "slope_monitor/core/adjustment/bundle_adjuster.h"
+#include "slope_monitor/core/adjustment/epoch_adjustment.h"
 #include "slope_monitor/core/adjustment/epochs.h"
 #include "slope_monitor/core/adjustment/initialization.h"
 #include "slope_monitor/core/common/error.h"
@@ -52,7 +53,8 @@ struct CollectedImage {
 
 struct CollectedObservation {
   std::string image_key;
-  std::string point_id;
+  std::string point_id;     // "" for an unidentified target (family in `family`)
+  std::string family;
   adjustment::PointRole role = adjustment::PointRole::kTie;
   Eigen::Vector2d pixel;
   Eigen::Matrix2d covariance;
@@ -141,8 +143,18 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     options_.min_control_points = p.Int("min_control_points", 3, 0, 1000);
     options_.max_sigma0 = p.Double("max_sigma0", 5.0, 0.01, 1e6);
     options_.max_outlier_fraction = p.Double("max_outlier_fraction", 0.2, 0.0, 1.0);
+    options_.min_observations_with_prior = p.Int("min_observations_with_prior", 3, 2, 1000);
     options_.compute_covariance = true;
     options_.Check();
+    epoch_options_.adjustment = options_;
+    epoch_options_.free_interior = free_interior_;
+    epoch_options_.name_unidentified = p.Bool("name_unidentified", true);
+    epoch_options_.orient_from_approximate = p.Bool("orient_from_approximate", true);
+    epoch_options_.naming.gate_sigma = p.Double("naming_gate_sigma", 3.0, 0.1, 100.0, "sigma");
+    epoch_options_.naming.gate_extra_px = p.Double("naming_gate_extra_px", 10.0, 0.0, 10000.0, "px");
+    epoch_options_.naming.coarse_extra_px = p.Double("naming_coarse_extra_px", 100.0, 0.0, 10000.0, "px");
+    epoch_options_.naming.ambiguity_factor = p.Double("naming_ambiguity_factor", 2.0, 1.0, 100.0);
+    epoch_options_.Check();
     displacement_options_.stable_threshold = p.Double("stable_threshold", 0.02, 1e-6, 100.0, "m");
     displacement_options_.significance_threshold = p.Double("significance_threshold", 3.0, 0.1, 100.0);
     displacement_options_.estimate_scale = p.Bool("coregistration_scale", false);
@@ -170,12 +182,18 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     im.header = msg->header;
     if (msg->epoch != 0) current_epoch_ = msg->epoch;
     for (const auto& o : msg->observations) {
-      if (o.id < 0) {  // unidentified (a circle the centroider could not name): it ties nothing
-        ++unidentified_;
-        continue;
-      }
       CollectedObservation c;
       c.image_key = key;
+      c.family = o.family;
+      if (o.id < 0) {  // unidentified (a circle the centroider could not name without a pose)
+        ++unidentified_;
+        c.pixel = Eigen::Vector2d(o.x, o.y);
+        c.covariance = ros_adapters::FromRowMajor<2>(o.covariance);
+        if (c.covariance.isZero()) c.covariance = Eigen::Matrix2d::Identity() * default_pixel_sigma_ * default_pixel_sigma_;
+        c.covariance += Eigen::Matrix2d::Identity() * pixel_sigma_floor_ * pixel_sigma_floor_;
+        unidentified_observations_.push_back(c);
+        continue;
+      }
       c.point_id = o.family + "/" + std::to_string(o.id);
       const io::TargetSpec* spec = targets_.Find(o.family, o.id);
       c.role = spec == nullptr ? adjustment::PointRole::kTie
@@ -213,10 +231,10 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       if (t.id == 0) continue;  // a match without a track cannot tie more than this pair
       const std::string id = "tie/" + std::to_string(t.id);
       const Eigen::Matrix2d cov = Eigen::Matrix2d::Identity() * default_pixel_sigma_ * default_pixel_sigma_;
-      observations_.push_back({ka, id, adjustment::PointRole::kTie, Eigen::Vector2d(t.xa, t.ya), cov});
+      observations_.push_back({ka, id, "tie", adjustment::PointRole::kTie, Eigen::Vector2d(t.xa, t.ya), cov});
       Eigen::Matrix2d cov_b = ros_adapters::FromRowMajor<2>(t.covariance);
       if (cov_b.isZero()) cov_b = cov;
-      observations_.push_back({kb, id, adjustment::PointRole::kTie, Eigen::Vector2d(t.xb, t.yb), cov_b});
+      observations_.push_back({kb, id, "tie", adjustment::PointRole::kTie, Eigen::Vector2d(t.xb, t.yb), cov_b});
     }
     last_input_ = ros::Time::now();
   }
@@ -314,9 +332,10 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     out.epoch = current_epoch_;
     out.usable = false;
     std::map<std::string, CollectedImage> images;
-    std::vector<CollectedObservation> observations;
+    std::vector<CollectedObservation> observations, unidentified;
     images.swap(images_);
     observations.swap(observations_);
+    unidentified.swap(unidentified_observations_);
     std::vector<geometry_msgs::PoseWithCovarianceStamped> priors;
     priors.swap(priors_);
     ended_sources_.clear();
@@ -394,6 +413,10 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
               p.position_known = true;
             }
           }
+          // A monitoring target's listed position is approximate (hand-held
+          // GNSS): it may orient a UAV photo, never constrain the adjustment.
+          if (spec != nullptr && spec->position && spec->role == io::TargetRole::kMonitoring)
+            p.approximate = *spec->position;
           scene.points.push_back(p);
         }
         adjustment::Observation o;
@@ -406,19 +429,34 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       // Check points must not help orient the images: start them unknown too.
       for (auto& p : scene.points)
         if (p.role == adjustment::PointRole::kCheck) p.position_known = false;
-      const std::string init = adjustment::InitializeScene(&scene);
-      if (!init.empty()) NODELET_WARN_THROTTLE(10.0, "bundle_adjuster: initialisation: %s", init.c_str());
-      // Drop points that could not be initialised (seen once, or not intersectable).
-      adjustment::Config config;
-      if (!free_interior_.empty()) config.FreeInteriorOfAll(static_cast<int>(scene.cameras.size()), free_interior_);
-      adjustment::PruneReport pruned;
-      adjustment::Scene usable_scene = adjustment::PruneScene(scene, options_.min_observations_per_image, &pruned);
-      if (!pruned.dropped_images.empty() || !pruned.dropped_cameras.empty())
-        NODELET_WARN_THROTTLE(10.0, "bundle_adjuster: epoch %u: %s", current_epoch_, pruned.Summary().c_str());
-      if (usable_scene.images.empty())
-        throw InvalidArgument(Message("no image of the epoch could be oriented (", pruned.Summary(), ")"));
-      adjustment::BundleAdjuster adjuster(options_, config);
-      const adjustment::Summary s = adjuster.Solve(&usable_scene);
+      // Unidentified targets (circles in UAV photos) and the listed targets
+      // that may name them.
+      std::vector<adjustment::UnidentifiedObservation> unknown;
+      for (const CollectedObservation& c : unidentified) {
+        auto ii = image_index.find(c.image_key);
+        if (ii == image_index.end()) continue;
+        unknown.push_back({ii->second, c.family, c.pixel, c.covariance});
+      }
+      const adjustment::EpochAdjustmentResult result =
+          adjustment::AdjustEpoch(scene, unknown, ListedTargets(), epoch_options_);
+      if (!result.initialization.empty())
+        NODELET_WARN_THROTTLE(10.0, "bundle_adjuster: initialisation: %s", result.initialization.c_str());
+      if (!result.pruned.dropped_images.empty() || !result.pruned.dropped_cameras.empty())
+        NODELET_WARN_THROTTLE(10.0, "bundle_adjuster: epoch %u: %s", current_epoch_, result.pruned.Summary().c_str());
+      for (const std::string& r : result.rejected_names)
+        NODELET_WARN("bundle_adjuster: epoch %u: target name given by projection rejected: %s", current_epoch_, r.c_str());
+      for (size_t i = 0; i < result.naming.notes.size() && i < 5; ++i)
+        NODELET_DEBUG("bundle_adjuster: epoch %u: %s", current_epoch_, result.naming.notes[i].c_str());
+      last_photos_ = result.photos;
+      last_naming_ = result.naming;
+      last_rejected_names_ = static_cast<int>(result.rejected_names.size());
+      if (result.photos.total > 0 || !unknown.empty())
+        NODELET_INFO("bundle_adjuster: epoch %u: %s; %s; %d oriented from approximate target coordinates; %zu names "
+                     "rejected by the residual test",
+                     current_epoch_, result.photos.Brief().c_str(), result.naming.Brief().c_str(),
+                     result.oriented_from_approximate, result.rejected_names.size());
+      adjustment::Scene usable_scene = result.scene;
+      const adjustment::Summary& s = result.summary;
       Fill(usable_scene, s, images, &out);
       last_message_ = s.reason;
       last_usable_ = s.IsSolutionUsable();
@@ -455,6 +493,31 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   }
 
   bool IsFixedCamera(const std::string& name) const { return name.find("uav") == std::string::npos; }
+
+  // Every listed target with coordinates: the survey of control / check
+  // points, the approximate position of monitoring targets (its sigma from
+  // the list), for naming unidentified targets by projection.
+  std::vector<adjustment::ListedTarget> ListedTargets() const {
+    std::vector<adjustment::ListedTarget> out;
+    for (const io::TargetSpec& t : targets_.targets()) {
+      if (!t.position) continue;
+      adjustment::ListedTarget l;
+      l.id = t.Key();
+      l.family = t.family;
+      l.role = t.role == io::TargetRole::kControl
+                   ? adjustment::PointRole::kControl
+                   : (t.role == io::TargetRole::kCheck ? adjustment::PointRole::kCheck : adjustment::PointRole::kMonitoring);
+      l.position = *t.position;
+      l.position_sigma = std::max({t.sigma(0), t.sigma(1), 1e-3});
+      if (t.role != io::TargetRole::kMonitoring) {
+        l.surveyed = *t.position;
+        l.surveyed_covariance =
+            Eigen::Vector3d(t.sigma(0) * t.sigma(0), t.sigma(0) * t.sigma(0), t.sigma(1) * t.sigma(1)).asDiagonal();
+      }
+      out.push_back(l);
+    }
+    return out;
+  }
 
   void Fill(const adjustment::Scene& scene, const adjustment::Summary& s,
             const std::map<std::string, CollectedImage>& images, slope_monitor::AdjustmentSolution* out) {
@@ -592,7 +655,16 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     stat.add("collected observations", observations_.size());
     stat.add("collected images", images_.size());
     stat.add("accepted epochs", accepted_);
-    stat.add("unidentified observations ignored", unidentified_);
+    stat.add("unidentified observations received", unidentified_);
+    stat.add("UAV photos last epoch", last_photos_.total);
+    stat.add("UAV photos kept", last_photos_.kept);
+    stat.add("UAV photos dropped: not oriented", last_photos_.not_oriented);
+    stat.add("UAV photos dropped: too few observations", last_photos_.too_few_observations);
+    stat.add("targets named by projection", last_naming_.named);
+    stat.add("targets left unnamed: ambiguous", last_naming_.ambiguous);
+    stat.add("targets left unnamed: no listed target near", last_naming_.unmatched);
+    stat.add("targets left unnamed: image not oriented", last_naming_.not_oriented);
+    stat.add("names rejected by the residual test", last_rejected_names_);
     stat.add("reference epoch", reference_epoch_);
   }
 
@@ -607,6 +679,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   int min_images_ = 2;
   std::vector<int> free_interior_;
   adjustment::Options options_;
+  adjustment::EpochAdjustmentOptions epoch_options_;
   adjustment::DisplacementOptions displacement_options_;
 
   // State.
@@ -614,7 +687,10 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   std::map<std::string, camera::CameraModel> models_, calibrated_;
   std::map<std::string, camera::ExteriorOrientation> last_pose_;
   std::map<std::string, CollectedImage> images_;
-  std::vector<CollectedObservation> observations_;
+  std::vector<CollectedObservation> observations_, unidentified_observations_;
+  adjustment::PhotoStats last_photos_;
+  adjustment::NamingReport last_naming_;
+  int last_rejected_names_ = 0;
   std::vector<geometry_msgs::PoseWithCovarianceStamped> priors_;
   std::set<std::string> ended_sources_;
   // Images each source announced in its epoch-end marker (EpochMarker.count),

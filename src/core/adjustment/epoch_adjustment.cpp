@@ -176,8 +176,7 @@ int OrientFromApproximatePoints(Scene* scene, const InitializationOptions& optio
       any = true;
     }
   }
-  if (!any) return 0;
-  InitializeScene(&copy, options);
+  if (any) InitializeScene(&copy, options);
   // Photos seeing a single known or approximate point: the attitude of the
   // photo of the same camera nearest in time, tilted so that the point's ray
   // goes through the point (the heading stays the neighbour's).

@@ -317,6 +317,42 @@ TEST(EpochAdjustment, AmbiguousCirclesStayUnnamed) {
   }
 }
 
+TEST(EpochAdjustment, PhotosSeeingOneKnownPointBorrowTheNeighboursAttitude) {
+  // The monitoring tags are known already (intersected from fixed cameras):
+  // no approximate coordinates are needed; photos that see a single known
+  // point take the attitude of the nearest oriented photo, tilted onto it.
+  Epoch e = MakeEpoch(0, 40);
+  const std::vector<TargetTruth> all = Targets();
+  for (ObjectPoint& p : e.scene.points) {
+    const TargetTruth& t = *std::find_if(all.begin(), all.end(), [&](const TargetTruth& x) { return x.id == p.id; });
+    p.position = t.position;
+    p.position_known = true;
+    p.approximate.reset();
+  }
+  Scene s = e.scene;
+  InitializeScene(&s);
+  int before = 0, one_point = 0;
+  std::vector<int> known_obs(s.images.size(), 0);
+  for (const Observation& o : s.observations) ++known_obs[o.image];
+  for (size_t i = 0; i < s.images.size(); ++i) {
+    before += s.images[i].exterior_known ? 1 : 0;
+    one_point += known_obs[i] == 1 ? 1 : 0;
+  }
+  ASSERT_GT(before, 0);
+  ASSERT_GT(one_point, 0);
+  std::vector<bool> flags;
+  const int n = OrientFromApproximatePoints(&s, {}, &flags);
+  EXPECT_EQ(n, one_point);
+  for (size_t i = 0; i < s.images.size(); ++i) {
+    if (!flags[i]) continue;
+    const Eigen::Quaterniond dq = s.images[i].exterior.SiteFromOptical().rotation.inverse() *
+                                  e.true_poses[i].SiteFromOptical().rotation;
+    std::printf("%s: borrowed attitude %.1f mrad from the truth\n", s.images[i].name.c_str(),
+                Eigen::AngleAxisd(dq).angle() * 1e3);
+    EXPECT_LT(Eigen::AngleAxisd(dq).angle(), 0.05);  // good enough for the coarse naming gate
+  }
+}
+
 }  // namespace
 }  // namespace adjustment
 }  // namespace slope_monitor
