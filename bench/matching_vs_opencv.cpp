@@ -5,7 +5,9 @@
 //     only points with known disparity outside occlusions are scored).
 // A match is correct when it is within 1 px of the truth. Prints per method
 // the number of matches, correct matches, precision, mean error of correct
-// matches and time, and ratios ours/ORB and ours/SIFT.
+// matches and time, and ratios ours/ORB and ours/SIFT. "ours" = defaults
+// (every match, low-quality ones included), "ours_q" = its normal-quality
+// matches only, "ours_0" = quality control off (its time cost).
 //   bench_matching_vs_opencv [data_dir]   (default test/data/stereo_middlebury_cones)
 #include <chrono>
 #include <cmath>
@@ -90,13 +92,23 @@ Score RunOpenCv(const Pair& p, cv::Ptr<cv::Feature2D> f, int norm) {
   return Evaluate(p, xa, xb, s);
 }
 
-Score RunOurs(const Pair& p) {
+// Our matcher with the defaults (quality control on, low-quality matches
+// kept and marked). normal_only: score only the matches of normal quality;
+// !quality_control: the matcher without quality control (its time cost).
+Score RunOurs(const Pair& p, bool quality_control = true, bool normal_only = false) {
   const auto t0 = std::chrono::steady_clock::now();
   HexMatcherOptions o;
+  o.quality.enabled = quality_control;
   const HexMatcher m(o);
   const HexMatchResult r = m.Match(p.a, p.b, p.prior);
+  if (quality_control && !normal_only) {
+    std::printf("%-22s ours   low quality %d of %d:", p.name.c_str(), r.summary.low_quality, r.summary.matched);
+    for (const auto& kv : r.summary.flags) std::printf(" %s %d", kv.first.c_str(), kv.second);
+    std::printf("\n");
+  }
   std::vector<cv::Point2d> xa, xb;
   for (const HexMatch& h : r.matches) {
+    if (normal_only && h.IsLowQuality()) continue;
     xa.emplace_back(h.xa.x(), h.xa.y());
     xb.emplace_back(h.xb.x(), h.xb.y());
   }
@@ -162,7 +174,11 @@ int main(int argc, char** argv) {
     const Score ours = RunOurs(p);
     const Score orb = RunOpenCv(p, cv::ORB::create(2000), cv::NORM_HAMMING);
     const Score sift = RunOpenCv(p, cv::SIFT::create(2000), cv::NORM_L2);
+    const Score ours_normal = RunOurs(p, true, true);
+    const Score ours_no_qc = RunOurs(p, false);
     Print(p.name.c_str(), "ours", ours);
+    Print(p.name.c_str(), "ours_q", ours_normal);  // normal quality only
+    Print(p.name.c_str(), "ours_0", ours_no_qc);   // quality control off
     Print(p.name.c_str(), "orb", orb);
     Print(p.name.c_str(), "sift", sift);
     auto ratio = [](double a, double b) { return b > 0 ? a / b : 0.0; };

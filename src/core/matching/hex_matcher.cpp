@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 
 #include <Eigen/Dense>
 
@@ -31,11 +32,54 @@ double Dot(const std::vector<float>& a, const std::vector<float>& b) {
   return s;
 }
 
+double Dot(const float* a, const float* b, size_t n) {
+  double s = 0;
+  for (size_t i = 0; i < n; ++i) s += double(a[i]) * b[i];
+  return s;
+}
+
+// Descriptors of one hex raster computed once per cell on first use (the
+// coarsest level is scanned by every search, forward and backward, so the
+// same cells were described hundreds of times). Falls back to computing on
+// the fly when the raster is too large to cache.
+class DescriptorCache {
+ public:
+  DescriptorCache(const HexRaster& raster, int length) : raster_(raster), length_(length), n_(6 * length + 1) {
+    const size_t cells = static_cast<size_t>(raster.rows()) * raster.cols();
+    if (cells * n_ <= kMaxFloats) {
+      values_.resize(cells * n_);
+      state_.assign(cells, 0);
+    }
+  }
+  // Descriptor of cell (i, k) or nullptr (outside, border, flat).
+  const float* Get(int i, int k) {
+    if (!raster_.Contains(i, k)) return nullptr;
+    if (state_.empty()) return raster_.Descriptor(i, k, length_, &scratch_) ? scratch_.data() : nullptr;
+    const size_t c = static_cast<size_t>(i) * raster_.cols() + k;
+    if (state_[c] == 0) {
+      state_[c] = raster_.Descriptor(i, k, length_, &scratch_) ? 1 : 2;
+      if (state_[c] == 1) std::copy(scratch_.begin(), scratch_.end(), values_.begin() + c * n_);
+    }
+    return state_[c] == 1 ? values_.data() + c * n_ : nullptr;
+  }
+  size_t size() const { return n_; }
+
+ private:
+  static constexpr size_t kMaxFloats = size_t(1) << 26;  // 256 MB
+  const HexRaster& raster_;
+  const int length_;
+  const size_t n_;
+  std::vector<float> values_;
+  std::vector<std::uint8_t> state_;  // 0 not computed, 1 valid, 2 no descriptor
+  std::vector<float> scratch_;
+};
+
 // Coarse-to-fine search of xa (in pyramid a) in pyramid b around centre_b.
-// `line` (if non-null) maps a point of a to its epipolar line in b.
-SearchResult Search(const HexPyramid& pa, const HexPyramid& pb, const Eigen::Vector2d& xa,
-                    const Eigen::Vector2d& centre_b, double radius, const Eigen::Matrix3d* f, double band,
-                    const HexMatcherOptions& o) {
+// `line` (if non-null) maps a point of a to its epipolar line in b. ca, cb:
+// descriptor caches of the coarsest levels of pa and pb.
+SearchResult Search(const HexPyramid& pa, const HexPyramid& pb, DescriptorCache* ca, DescriptorCache* cb,
+                    const Eigen::Vector2d& xa, const Eigen::Vector2d& centre_b, double radius,
+                    const Eigen::Matrix3d* f, double band, const HexMatcherOptions& o) {
   SearchResult res;
   const int top = pa.levels() - 1;
   std::vector<float> da, db;
@@ -43,7 +87,8 @@ SearchResult Search(const HexPyramid& pa, const HexPyramid& pb, const Eigen::Vec
   const HexRaster& hb = pb.level(top);
   int ia, ka;
   ha.NearestCell(xa, &ia, &ka);
-  if (!ha.Descriptor(ia, ka, o.profile_length, &da)) {
+  const float* dtop = ca->Get(ia, ka);
+  if (!dtop) {
     res.reason = RejectReason::kNoDescriptor;
     return res;
   }
@@ -67,8 +112,9 @@ SearchResult Search(const HexPyramid& pa, const HexPyramid& pb, const Eigen::Vec
       const Eigen::Vector2d c = hb.Centre(i, k);
       if ((c - centre_b).squaredNorm() > r2) continue;
       if (f && std::fabs(line.dot(Eigen::Vector3d(c.x(), c.y(), 1.0))) > band + hb.dx()) continue;
-      if (!hb.Descriptor(i, k, o.profile_length, &db)) continue;
-      cands.push_back({Dot(da, db), c});
+      const float* dc = cb->Get(i, k);
+      if (!dc) continue;
+      cands.push_back({Dot(dtop, dc, cb->size()), c});
     }
   }
   if (cands.empty()) {
@@ -227,6 +273,8 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
   const Eigen::Matrix3d ft = prior.fundamental.transpose();
   const Eigen::Matrix3d* f_back = prior.has_epipolar ? &ft : nullptr;
 
+  DescriptorCache cache_a(pa.level(pa.levels() - 1), options_.profile_length);
+  DescriptorCache cache_b(pb.level(pb.levels() - 1), options_.profile_length);
   LscOptions lsc_back = lsc;
   lsc_back.search_radius = 0;  // plain LSC from xa: the forward solution is already sub-pixel
   // The texture tests were passed by window a; b's window at a sub-pixel
@@ -236,9 +284,10 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
   const HexMatcherOptions::Quality& q = options_.quality;
   auto match_one = [&](const Eigen::Vector2d& xa, const Eigen::Vector2d& shift, double radius, HexMatch* m,
                        bool final_pass) {
-    const SearchResult fw = Search(pa, pb, xa, xa + shift, radius, f, prior.epipolar_band, options_);
+    const SearchResult fw = Search(pa, pb, &cache_a, &cache_b, xa, xa + shift, radius, f, prior.epipolar_band, options_);
     if (fw.reason != RejectReason::kNone) return std::string(RejectReasonName(fw.reason));
-    const SearchResult bw = Search(pb, pa, fw.x, fw.x - shift, radius, f_back, prior.epipolar_band, options_);
+    const SearchResult bw =
+        Search(pb, pa, &cache_b, &cache_a, fw.x, fw.x - shift, radius, f_back, prior.epipolar_band, options_);
     if (bw.reason != RejectReason::kNone || (bw.x - xa).norm() > options_.mutual_tolerance) {
       return std::string(RejectReasonName(RejectReason::kNotMutual));
     }
@@ -259,7 +308,13 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
       if (s.correlation < q.min_correlation) m->flags |= kFlagLowCorrelation;
       if (q.two_way) {
         const LscSummary back = MatchLsc(lb, la, s.xb, xa, lsc_back);
-        m->two_way_error = back.IsSolutionUsable() ? (back.xb - xa).norm() : -1.0;
+        // Its position is what counts: a back solution that ran out of
+        // iterations (measured: eq. 1 on a noise-free warp, still within
+        // 0.01 px) or is imprecise is still compared.
+        using St = LscSummary::Status;
+        const bool placed = back.status == St::kConverged || back.status == St::kNotConverged ||
+                            back.status == St::kImprecise;
+        m->two_way_error = placed ? (back.xb - xa).norm() : -1.0;
         if (m->two_way_error < 0 || m->two_way_error > q.max_two_way) m->flags |= kFlagTwoWay;
       }
     }

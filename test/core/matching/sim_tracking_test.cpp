@@ -350,7 +350,7 @@ TrackingStats TrackWith(bool foliage_motion, bool quality_control, unsigned seed
       ++st.crown;
       if (!m.IsLowQuality()) {
         ++st.crown_normal;
-        std::printf("  normal-quality match on a crown pixel: xa (%.1f, %.1f) xb (%.1f, %.1f) corr %.3f "
+        if (quality_control) std::printf("  normal-quality match on a crown pixel: xa (%.1f, %.1f) xb (%.1f, %.1f) corr %.3f "
                     "sigma0 %.2f two-way %.3f\n", m.xa.x(), m.xa.y(), m.xb.x(), m.xb.y(), m.correlation, m.sigma0,
                     m.two_way_error);
       }
