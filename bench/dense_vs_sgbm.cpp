@@ -3,13 +3,15 @@
 // pair, in the same process (ours on cv::getNumThreads() = 2 threads; SGBM's
 // MODE_SGBM runs on one).
 //
-//   bench_dense_vs_sgbm [data_dir] [repetitions] [key=value ...]
+//   bench_dense_vs_sgbm [data_dir] [repetitions] [config=FILE|none] [fill_gap=N] [threads=N] [key=value ...]
 //
-// Two settings of ours: "ours" = the defaults of CorrelationOptions (the
-// configuration of config/defaults/dense_matcher.yaml) with a per-pixel final
-// grid, and "design" = the plain DESIGN.md method (15x15 windows everywhere,
-// +-3 px search everywhere, lr 1 px, no edge-aware steps) for comparison;
-// key=value overrides CorrelationOptions fields of "ours". Prints, for each
+// Two settings of ours: "ours" = config/dense_cones.yaml (config=FILE: another
+// dense_matcher parameter file; none: the CorrelationOptions defaults) with a
+// per-pixel final grid, its disparity map's holes filled from the background
+// side (FillFromBackground; fill_gap=0: not filled), and "design" = the plain
+// DESIGN.md method (15x15 windows, +-3 px search, lr 1 px, second right->left
+// search, no edge window, no fill) for comparison; key=value overrides
+// CorrelationOptions fields of "ours". Prints, for each
 // method, the share of non-occluded pixels (occl.png white, reference known)
 // with |disparity error| > 1 px and > 2 px (missing estimates count as
 // errors), the same among estimated pixels, the density, the times per pair
@@ -20,10 +22,13 @@
 //   ratio throughput ours/sgbm = ...   (minimum times)
 //   ratio bad1 ours/sgbm = ...
 //   ratio bad2 ours/sgbm = ...
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
@@ -35,6 +40,7 @@
 
 #include "slope_monitor/core/dense/correlation.h"
 #include "slope_monitor/core/dense/evaluation.h"
+#include "slope_monitor/core/dense/options_yaml.h"
 
 using slope_monitor::dense::CorrelationOptions;
 using slope_monitor::dense::DisparityErrors;
@@ -46,6 +52,14 @@ namespace {
 
 double Seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// CPU time of the process (all threads) [s]: less disturbed by other
+// processes on a shared machine than the wall time.
+double CpuSeconds() {
+  rusage u;
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
 
 void Print(const char* name, const DisparityErrors& e, double t_min, double t_median, int pixels) {
@@ -152,16 +166,35 @@ int main(int argc, char** argv) {
   const int pixels = left.cols * left.rows;
   const std::vector<double> thresholds = {1.0, 2.0};
 
-  // "ours": the defaults, per-pixel parallaxes on the final level, the
-  // search range of the pair (0..64 px).
+  // "ours": config/dense_cones.yaml (or config=FILE), per-pixel parallaxes
+  // on the final level, the search range of the pair (0..64 px), the holes
+  // of the disparity map filled from the background (fill_gap=N: runs up to
+  // N px; 0: none).
   CorrelationOptions opt;
   opt.final_grid_spacing = 1;
   opt.min_disparity = 0;
   opt.max_disparity = 64;
-  int fill_gap = 0;  // holes of the disparity map filled from the background up to this length (0: none)
+  std::string config = std::string(SM_SOURCE_DIR) + "/config/dense_cones.yaml";
+  int fill_gap = left.cols;
   for (int i = 3; i < argc; ++i) {
     const std::string a = argv[i];
     const size_t eq = a.find('=');
+    if (eq != std::string::npos && a.substr(0, eq) == "config") config = a.substr(eq + 1);
+  }
+  try {
+    if (config != "none") slope_monitor::dense::ReadCorrelationOptions(config, &opt);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s\n", e.what());
+    return 1;
+  }
+  for (int i = 3; i < argc; ++i) {
+    const std::string a = argv[i];
+    const size_t eq = a.find('=');
+    if (eq != std::string::npos && a.substr(0, eq) == "config") continue;
+    if (eq != std::string::npos && a.substr(0, eq) == "threads") {
+      cv::setNumThreads(std::max(1, std::atoi(a.c_str() + eq + 1)));
+      continue;
+    }
     if (eq != std::string::npos && a.substr(0, eq) == "fill_gap") {
       fill_gap = std::atoi(a.c_str() + eq + 1);
       continue;
@@ -195,19 +228,27 @@ int main(int argc, char** argv) {
   cv::Mat ours, ours_raw, ours_design, raw;
   slope_monitor::dense::CorrelationSummary summary, summary_design;
   std::vector<double> times_ours, times_design, times_sgbm;
+  std::vector<double> cpu_ours, cpu_design, cpu_sgbm;
   for (int i = 0; i < reps; ++i) {
+    double c0 = CpuSeconds();
     auto t0 = std::chrono::steady_clock::now();
     ours_raw = MatchRectified(left, right, opt, &summary).disparity;
     ours = fill_gap > 0 ? FillFromBackground(ours_raw, fill_gap) : ours_raw;
     times_ours.push_back(Seconds(t0));
+    cpu_ours.push_back(CpuSeconds() - c0);
+    c0 = CpuSeconds();
     t0 = std::chrono::steady_clock::now();
     sgbm->compute(left, right, raw);
     times_sgbm.push_back(Seconds(t0));
+    cpu_sgbm.push_back(CpuSeconds() - c0);
+    c0 = CpuSeconds();
     t0 = std::chrono::steady_clock::now();
     ours_design = MatchRectified(left, right, design, &summary_design).disparity;
     times_design.push_back(Seconds(t0));
+    cpu_design.push_back(CpuSeconds() - c0);
   }
-  for (auto* t : {&times_ours, &times_design, &times_sgbm}) std::sort(t->begin(), t->end());
+  for (auto* t : {&times_ours, &times_design, &times_sgbm, &cpu_ours, &cpu_design, &cpu_sgbm})
+    std::sort(t->begin(), t->end());
   const double t_ours = times_ours.front(), t_design = times_design.front(), t_sgbm = times_sgbm.front();
   cv::Mat sgbm_disp;
   raw.convertTo(sgbm_disp, CV_32F, 1.0 / 16.0);
@@ -230,13 +271,22 @@ int main(int argc, char** argv) {
   }
   Print("design", e_design, t_design, times_design[reps / 2], pixels);
   Print("sgbm", e_sgbm, t_sgbm, times_sgbm[reps / 2], pixels);
+  {
+    // For reference only (not the baseline): SGBM's holes filled the same way.
+    cv::Mat s = sgbm_disp.clone();
+    s.setTo(std::numeric_limits<float>::quiet_NaN(), sgbm_disp < kSgbmInvalid);
+    const DisparityErrors e = EvaluateDisparity(FillFromBackground(s, left.cols), gt, occl, thresholds);
+    std::printf("sgbm with its holes filled from the background like ours (reference, not timed): bad>1px %.4f  "
+                "bad>2px %.4f  density %.4f\n",
+                e.bad_fraction[0], e.bad_fraction[1], 1.0 - static_cast<double>(e.missing) / e.evaluated);
+  }
   const Regions regions = MakeRegions(left, gt, occl);
   std::printf("errors > 1 px by cause (share of the region's pixels; in brackets share of all evaluated pixels):\n");
   PrintBreakdown("ours", ours, gt, regions, -1e30f, e_ours.evaluated);
   PrintBreakdown("design", ours_design, gt, regions, -1e30f, e_ours.evaluated);
   PrintBreakdown("sgbm", sgbm_disp, gt, regions, kSgbmInvalid, e_ours.evaluated);
-  // The same pixel set: non-occluded pixels both methods estimated.
-  for (const auto& [name, mine] : {std::make_pair("ours", &ours), std::make_pair("design", &ours_design)}) {
+  // The same pixel set: non-occluded pixels both methods estimated (ours before the fill).
+  for (const auto& [name, mine] : {std::make_pair("ours", &ours_raw), std::make_pair("design", &ours_design)}) {
     cv::Mat both = occl.clone();
     for (int y = 0; y < both.rows; ++y)
       for (int x = 0; x < both.cols; ++x) {
@@ -250,6 +300,8 @@ int main(int argc, char** argv) {
                 name, a.evaluated, static_cast<double>(a.evaluated) / e_ours.evaluated, name, a.bad_fraction[0],
                 a.bad_fraction[1], b.bad_fraction[0], b.bad_fraction[1]);
   }
+  std::printf("cpu time per pair (median, all threads): ours %.4f s, design %.4f s, sgbm %.4f s\n",
+              cpu_ours[reps / 2], cpu_design[reps / 2], cpu_sgbm[reps / 2]);
   std::printf("ratio throughput ours/sgbm = %.3f   (median times: %.3f)\n", t_sgbm / t_ours,
               times_sgbm[reps / 2] / times_ours[reps / 2]);
   std::printf("ratio bad1 ours/sgbm = %.3f\n", e_ours.bad_fraction[0] / e_sgbm.bad_fraction[0]);

@@ -67,12 +67,16 @@ void ReadOptions(const std::string& path, dense::SurfaceOptions* o, dense::Surfa
   o->correlation.final_window = p.Int("final_window", 0, 0, 51, "px");
   o->correlation.lsc_iterations = p.Int("lsc_iterations", 0, 0, 20);
   o->correlation.search_radius = p.Int("search_radius", 3, 1, 16, "px");
+  o->correlation.final_search_radius = p.Int("final_search_radius", 0, 0, 16, "px");
+  o->correlation.edge_window = p.Int("edge_window", 0, 0, 51, "px");
+  o->correlation.edge_parallax_step = p.Double("edge_parallax_step", 2.0, 0.01, 100.0, "px");
   o->correlation.min_correlation = p.Double("min_correlation", 0.3, -1.0, 0.999);
   o->correlation.lr_tolerance = p.Double("lr_tolerance", 1.0, 0.01, 10.0, "px");
   o->correlation.order_tolerance = p.Double("order_tolerance", 0.5, 0.0, 10.0, "px");
   o->correlation.median_filter = p.Bool("median_filter", true);
   o->correlation.order_check = p.Bool("order_check", true);
   o->correlation.two_way = p.Bool("two_way", true);
+  o->correlation.full_right_search = p.Bool("full_right_search", true);
   o->rectify.scale = p.Double("rectify_scale", 1.0, 0.05, 4.0);
   o->rectify.patch_size = p.Int("patch_size", 0, 0, 8192, "px");
   o->rectify.patch_overlap = p.Int("patch_overlap", 32, 0, 4096, "px");

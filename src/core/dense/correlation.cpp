@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 #include <sstream>
 #include <vector>
@@ -197,8 +199,8 @@ struct SearchBuffers {
   std::vector<float> score_small;  // w: ZNCC of the small window
   std::vector<float> best_s;
   std::vector<int> best_k;
-  std::vector<float> best_rs;  // right-to-left from the volume: best score, parallax, offset index
-  std::vector<int> best_rd, best_rk;
+  std::vector<uint64_t> best_key;  // right-to-left from the volume: best (score, parallax) per right pixel
+  std::vector<int> x0;
 };
 
 // Per-window quantities of a search (the main window, and the small window
@@ -308,25 +310,33 @@ inline void ColumnSums(const cv::Mat& left, const cv::Mat& idx, const cv::Mat& r
 
 // The right-to-left matches of one row from the left search's scores
 // (scores[ki * w + x]: left pixel x, parallax base[x] + k_min + ki); see
-// Search.
+// Search. The best candidate per right pixel is kept as one 64-bit key
+// (score bits in the high word, parallax in the low word), so the scatter is
+// a branch-free maximum.
 void RightFromVolume(const float* sc, const int* b, int k_min, int n, int w, float min_corr, SearchBuffers& buf,
                      float* d, float* cc) {
-  float* rs = buf.best_rs.data();
-  int* rd = buf.best_rd.data();
-  int* rk = buf.best_rk.data();
-  // Slot w collects the candidates that fall outside the row (branch-free updates).
-  std::fill(rs, rs + w + 1, -2.0f);
+  constexpr int kOffset = 1 << 30;  // parallax + kOffset >= 0 in the low word
+  auto key = [](float score, int parallax) {
+    const float pos = score + 3.0f;  // (0, 4]: the bit patterns of positive floats sort like the values
+    uint32_t bits;
+    std::memcpy(&bits, &pos, sizeof bits);
+    return (static_cast<uint64_t>(bits) << 32) | static_cast<uint32_t>(parallax + kOffset);
+  };
+  // Slot w collects the candidates that fall outside the row; x0[x] = x -
+  // base[x] - k_min is the right pixel of offset 0.
+  uint64_t* best = buf.best_key.data();
+  const uint64_t none = key(-2.0f, 0);
+  std::fill(best, best + w + 1, none);
+  int* x0 = buf.x0.data();
+  for (int x = 0; x < w; ++x) x0[x] = x - (b ? b[x] : 0) - k_min;
   for (int ki = 0; ki < n; ++ki) {
-    const float* s = sc + static_cast<size_t>(ki) * w;
+    const float* __restrict s = sc + static_cast<size_t>(ki) * w;
     for (int x = 0; x < w; ++x) {
-      const int D = (b ? b[x] : 0) + k_min + ki;
-      int xr = x - D;
-      xr = static_cast<unsigned>(xr) < static_cast<unsigned>(w) ? xr : w;
-      const float v = s[x], old = rs[xr];
-      const bool better = v > old;
-      rs[xr] = better ? v : old;
-      rd[xr] = better ? D : rd[xr];
-      rk[xr] = better ? ki : rk[xr];
+      const int xr0 = x0[x] - ki;
+      const int xr = static_cast<unsigned>(xr0) < static_cast<unsigned>(w) ? xr0 : w;
+      const uint64_t k = key(s[x], x - xr0);
+      const uint64_t old = best[xr];
+      best[xr] = k > old ? k : old;
     }
   }
   auto score_at = [&](int xl, int D) {
@@ -335,13 +345,19 @@ void RightFromVolume(const float* sc, const int* b, int k_min, int n, int w, flo
     return (ki >= 0 && ki < n) ? sc[static_cast<size_t>(ki) * w + xl] : -2.0f;
   };
   for (int xr = 0; xr < w; ++xr) {
-    const float bs = rs[xr];
-    if (bs < min_corr || rk[xr] <= 0 || rk[xr] >= n - 1) {
+    const uint64_t k = best[xr];
+    const uint32_t hi = static_cast<uint32_t>(k >> 32);
+    float pos;
+    std::memcpy(&pos, &hi, sizeof pos);
+    const float bs = pos - 3.0f;
+    const int D = static_cast<int>(static_cast<uint32_t>(k & 0xffffffffu)) - kOffset;
+    const int xl = xr + D;
+    const int ki = (xl >= 0 && xl < w) ? D - (b ? b[xl] : 0) - k_min : -1;
+    if (k == none || bs < min_corr || ki <= 0 || ki >= n - 1) {
       d[xr] = kNaN;
       cc[xr] = kNaN;
       continue;
     }
-    const int D = rd[xr];
     const float sm = score_at(xr + D - 1, D - 1), sp = score_at(xr + D + 1, D + 1);
     float delta = 0.0f;
     const float curv = sm - 2.0f * bs + sp;
@@ -433,9 +449,8 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
     buf.score_small.resize(w);
     buf.best_s.resize(w);
     buf.best_k.resize(w);
-    buf.best_rs.resize(w + 1);
-    buf.best_rd.resize(w + 1);
-    buf.best_rk.resize(w + 1);
+    buf.best_key.resize(w + 1);
+    buf.x0.resize(w);
     // Window sums of a row from column sums (columns reflected at the image border) and the ZNCC.
     auto score_row = [&](std::vector<float>& col, int ki, int k, int y, const WindowStats& st, float* score) {
       const int win = st.window, r = win / 2;
@@ -609,7 +624,8 @@ void MedianFilter(const cv::Mat& in, cv::Mat* grid) {
             if (Finite(row[b])) v[n++] = row[b];
           }
         }
-        std::sort(v, v + n);
+        for (int a = 1; a < n; ++a)  // insertion sort: at most nine values
+          for (int b = a; b > 0 && v[b] < v[b - 1]; --b) std::swap(v[b], v[b - 1]);
         o[j] = (n % 2 == 1) ? v[n / 2] : 0.5f * (v[n / 2 - 1] + v[n / 2]);
       }
     }

@@ -70,7 +70,7 @@ struct CorrelationOptions {
   // (true), or from the left search's correlation volume (false: each right
   // pixel takes its best-scoring left candidate; the same window pairs up to
   // the per-pixel prediction, at half the cost).
-  bool full_right_search = false;
+  bool full_right_search = true;
   // Least-squares refinement of each final parallax (0: off, parabola only):
   // Gauss-Newton iterations of  l(x) = a + b r(x - d)  over the final window
   // (shift d, gain b, offset a; r linear along the line); a node whose
