@@ -186,6 +186,83 @@ TEST(HexMatcher, ConesWithEpipolarPriorAgainstGroundTruth) {
   EXPECT_GT(double(w1) / valid, 0.85);
 }
 
+// Quality control on an occluder: image b is image a shifted by a known
+// amount t, except for an object in front (a square of texture taken from
+// the right image) that sways by another (4, 3) px between the images and
+// whose texture changes by a quarter (blended with a second piece, like
+// leaves in the wind; with half of it changed the descriptor search finds
+// no candidates on the object at all, which is the easy case). Truth: matches whose xa lies on the object in a, or whose true
+// position xa + t lies on the object in b (background hidden), are
+// unmatchable and must not have normal quality; windows reaching the object
+// must not be wrong with normal quality; the rest keeps its matches. With
+// quality.reject the flagged matches are dropped.
+TEST(HexMatcher, QualityControlFlagsASwayingOccluder) {
+  const cv::Mat left = GaussianBlur(ToFloat(Load("left.tif")), 0.7);
+  const cv::Mat right = GaussianBlur(ToFloat(Load("right.tif")), 0.7);
+  const Eigen::Vector2d t(7.3, -4.6);
+  const cv::Rect in_a(180, 140, 80, 80), in_b(180 + 7 + 4, 140 - 5 + 3, 80, 80);
+  const cv::Mat piece = right(cv::Rect(120, 120, 80, 80)).t();
+  const cv::Mat other = right(cv::Rect(280, 220, 80, 80)).t();
+  cv::Mat a_clean = left.clone(), b_clean = ShiftImage(left, t);
+  piece.copyTo(a_clean(in_a));
+  cv::Mat changed = 0.75 * piece + 0.25 * other;
+  changed.copyTo(b_clean(in_b));
+  const cv::Mat a = Noisy(a_clean, 1), b = Noisy(b_clean, 2);
+  HexMatcherOptions o;
+  const HexMatcher matcher(o);
+  const HexMatchResult r = matcher.Match(a, b, MatchPrior());
+  const int h = o.lsc.half_window;
+  auto in = [](const cv::Rect& rc, const Eigen::Vector2d& x, int margin) {
+    return x.x() >= rc.x - margin && x.y() >= rc.y - margin && x.x() <= rc.br().x - 1 + margin &&
+           x.y() <= rc.br().y - 1 + margin;
+  };
+  int on = 0, on_normal = 0, near = 0, near_normal_wrong = 0, clear = 0, clear_normal = 0, clear_normal_correct = 0;
+  for (const HexMatch& m : r.matches) {
+    const Eigen::Vector2d xt = m.xa + t;
+    const double e = (m.xb - xt).norm();
+    if (in(in_a, m.xa, 0) || in(in_b, xt, 0)) {
+      ++on;
+      if (!m.IsLowQuality()) ++on_normal;
+    } else if (in(in_a, m.xa, h + 1) || in(in_b, xt, h + 1)) {
+      ++near;
+      if (!m.IsLowQuality() && e > 0.5) ++near_normal_wrong;
+    } else {
+      ++clear;
+      if (!m.IsLowQuality()) {
+        ++clear_normal;
+        if (e < 0.2) ++clear_normal_correct;
+      }
+    }
+  }
+  std::printf("swaying occluder: %d matches (%d low quality", r.summary.matched, r.summary.low_quality);
+  for (const auto& kv : r.summary.flags) std::printf(", %s %d", kv.first.c_str(), kv.second);
+  for (const auto& kv : r.summary.rejects) std::printf("; reject %s %d", kv.first.c_str(), kv.second);
+  std::printf(")\n  on the object or hidden by it %d (%d normal quality), window reaching it %d (%d normal quality "
+              "> 0.5 px off), clear %d (%d normal quality, %d of them within 0.2 px)\n",
+              on, on_normal, near, near_normal_wrong, clear, clear_normal, clear_normal_correct);
+  EXPECT_GT(on, 3);  // the matcher does find candidates on the object
+  EXPECT_EQ(on_normal, 0);
+  EXPECT_EQ(near_normal_wrong, 0);
+  EXPECT_GT(clear, 100);
+  EXPECT_GE(clear_normal, 0.9 * clear);
+  EXPECT_GE(clear_normal_correct, 0.97 * clear_normal);
+  // Flagged matches carry quality <= kLowQuality, the others more.
+  for (const HexMatch& m : r.matches) {
+    if (m.IsLowQuality()) {
+      EXPECT_LE(m.quality, kLowQuality);
+    } else {
+      EXPECT_GT(m.quality, kLowQuality);
+    }
+  }
+  // quality.reject: the same matches without the flagged ones.
+  HexMatcherOptions rej = o;
+  rej.quality.reject = true;
+  const HexMatchResult rr = HexMatcher(rej).Match(a, b, MatchPrior());
+  EXPECT_EQ(rr.summary.matched, r.summary.matched - r.summary.low_quality);
+  if (r.summary.low_quality > 0) EXPECT_EQ(rr.summary.rejects.at("low_quality"), r.summary.low_quality);
+  for (const HexMatch& m : rr.matches) EXPECT_FALSE(m.IsLowQuality());
+}
+
 TEST(HexMatcher, BadInput) {
   const HexMatcher matcher{HexMatcherOptions()};
   const cv::Mat a(60, 80, CV_8U, cv::Scalar(5));
@@ -199,6 +276,14 @@ TEST(HexMatcher, BadInput) {
   HexMatcherOptions bad;
   bad.max_ratio = 0;
   EXPECT_THROW(HexMatcher{bad}, ConfigError);
+  HexMatcherOptions bad_quality;
+  bad_quality.quality.max_residual_ratio = 0.5;  // must be > 1
+  try {
+    HexMatcher{bad_quality};
+    ADD_FAILURE() << "quality.max_residual_ratio 0.5 accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("quality.max_residual_ratio"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
