@@ -199,7 +199,8 @@ struct SearchBuffers {
   std::vector<float> score_small;  // w: ZNCC of the small window
   std::vector<float> best_s;
   std::vector<int> best_k;
-  std::vector<uint64_t> best_key;  // right-to-left from the volume: best (score, parallax) per right pixel
+  std::vector<uint64_t> best_key;  // right-to-left from the volume: best (score, left pixel) per right pixel
+  std::vector<uint32_t> best_key32;
   std::vector<int> x0;
 };
 
@@ -223,6 +224,8 @@ struct LevelWorkspace {
   DenseResult res_l, res_r;
   cv::Mat median_l, median_r;
   cv::Mat edge_l, edge_r, e16, ehi, elo;
+  cv::Mat pred_l, pred_r;
+  cv::Mat out_disp[2], out_corr[2];  // output buffers (see OutputBuffer)
   cv::Mat down_l, down_r, log_l, log_r, log_tmp, log_tmp_r, mask_l, mask_r, base_l, base_r;
 };
 
@@ -310,54 +313,59 @@ inline void ColumnSums(const cv::Mat& left, const cv::Mat& idx, const cv::Mat& r
 
 // The right-to-left matches of one row from the left search's scores
 // (scores[ki * w + x]: left pixel x, parallax base[x] + k_min + ki); see
-// Search. The best candidate per right pixel is kept as one 64-bit key
-// (score bits in the high word, parallax in the low word), so the scatter is
-// a branch-free maximum.
-void RightFromVolume(const float* sc, const int* b, int k_min, int n, int w, float min_corr, SearchBuffers& buf,
-                     float* d, float* cc) {
-  constexpr int kOffset = 1 << 30;  // parallax + kOffset >= 0 in the low word
-  auto key = [](float score, int parallax) {
-    const float pos = score + 3.0f;  // (0, 4]: the bit patterns of positive floats sort like the values
-    uint32_t bits;
-    std::memcpy(&bits, &pos, sizeof bits);
-    return (static_cast<uint64_t>(bits) << 32) | static_cast<uint32_t>(parallax + kOffset);
-  };
-  // Slot w collects the candidates that fall outside the row; x0[x] = x -
-  // base[x] - k_min is the right pixel of offset 0.
-  uint64_t* best = buf.best_key.data();
-  const uint64_t none = key(-2.0f, 0);
-  std::fill(best, best + w + 1, none);
-  int* x0 = buf.x0.data();
-  for (int x = 0; x < w; ++x) x0[x] = x - (b ? b[x] : 0) - k_min;
+// Search. The best candidate per right pixel is kept as one integer key (the
+// score quantised to 19 bits above the left pixel's column, 13 bits; rows up
+// to 8192 px, else a 64-bit key with the parallax), so the scatter is a
+// branch-free maximum; the winner's exact score is read back.
+template <typename Key>
+void ScatterBest(const float* sc, const int* x0, int n, int w, Key* best) {
+  constexpr int kShift = sizeof(Key) == 4 ? 13 : 32;
+  constexpr float kScale = sizeof(Key) == 4 ? 131071.0f : 1.0e9f;  // (score + 2) in [0, 3] -> < 2^19 / < 2^32
+  std::fill(best, best + w + 1, Key(0));  // 0: nothing (score -2)
   for (int ki = 0; ki < n; ++ki) {
     const float* __restrict s = sc + static_cast<size_t>(ki) * w;
     for (int x = 0; x < w; ++x) {
       const int xr0 = x0[x] - ki;
       const int xr = static_cast<unsigned>(xr0) < static_cast<unsigned>(w) ? xr0 : w;
-      const uint64_t k = key(s[x], x - xr0);
-      const uint64_t old = best[xr];
+      const Key k = (static_cast<Key>((s[x] + 2.0f) * kScale) << kShift) | static_cast<Key>(x);
+      const Key old = best[xr];
       best[xr] = k > old ? k : old;
     }
   }
+}
+
+void RightFromVolume(const float* sc, const int* b, int k_min, int n, int w, float min_corr, SearchBuffers& buf,
+                     float* d, float* cc) {
+  // x0[x] = x - base[x] - k_min is the right pixel of offset 0; slot w
+  // collects the candidates that fall outside the row.
+  int* x0 = buf.x0.data();
+  for (int x = 0; x < w; ++x) x0[x] = x - (b ? b[x] : 0) - k_min;
+  const bool narrow = w <= 8192;
+  if (narrow)
+    ScatterBest<uint32_t>(sc, x0, n, w, buf.best_key32.data());
+  else
+    ScatterBest<uint64_t>(sc, x0, n, w, buf.best_key.data());
   auto score_at = [&](int xl, int D) {
     if (xl < 0 || xl >= w) return -2.0f;
     const int ki = D - (b ? b[xl] : 0) - k_min;
     return (ki >= 0 && ki < n) ? sc[static_cast<size_t>(ki) * w + xl] : -2.0f;
   };
   for (int xr = 0; xr < w; ++xr) {
-    const uint64_t k = best[xr];
-    const uint32_t hi = static_cast<uint32_t>(k >> 32);
-    float pos;
-    std::memcpy(&pos, &hi, sizeof pos);
-    const float bs = pos - 3.0f;
-    const int D = static_cast<int>(static_cast<uint32_t>(k & 0xffffffffu)) - kOffset;
-    const int xl = xr + D;
-    const int ki = (xl >= 0 && xl < w) ? D - (b ? b[xl] : 0) - k_min : -1;
-    if (k == none || bs < min_corr || ki <= 0 || ki >= n - 1) {
+    const uint64_t k = narrow ? buf.best_key32[xr] : buf.best_key[xr];
+    const int x = static_cast<int>(narrow ? (k & 8191u) : (k & 0xffffffffu));  // the left pixel
+    const int ki = x0[x] - xr;
+    if (k == 0 || ki <= 0 || ki >= n - 1) {
       d[xr] = kNaN;
       cc[xr] = kNaN;
       continue;
     }
+    const float bs = sc[static_cast<size_t>(ki) * w + x];
+    if (bs < min_corr) {
+      d[xr] = kNaN;
+      cc[xr] = kNaN;
+      continue;
+    }
+    const int D = x - xr;
     const float sm = score_at(xr + D - 1, D - 1), sp = score_at(xr + D + 1, D + 1);
     float delta = 0.0f;
     const float curv = sm - 2.0f * bs + sp;
@@ -449,7 +457,10 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
     buf.score_small.resize(w);
     buf.best_s.resize(w);
     buf.best_k.resize(w);
-    buf.best_key.resize(w + 1);
+    if (w <= 8192)
+      buf.best_key32.resize(w + 1);
+    else
+      buf.best_key.resize(w + 1);
     buf.x0.resize(w);
     // Window sums of a row from column sums (columns reflected at the image border) and the ZNCC.
     auto score_row = [&](std::vector<float>& col, int ki, int k, int y, const WindowStats& st, float* score) {
@@ -677,8 +688,9 @@ float LookupLine(const float* row, int cols, double u) {
 
 // Holes interpolated along lines, then along columns, then a constant: used
 // only to predict the next level.
-cv::Mat FillForPrediction(const cv::Mat& grid, float fallback) {
-  cv::Mat out = grid.clone();
+cv::Mat FillForPrediction(const cv::Mat& grid, float fallback, cv::Mat* store) {
+  grid.copyTo(*store);
+  cv::Mat out = *store;
   auto fill_line = [](std::vector<float>& v) {
     int last = -1;
     const int n = static_cast<int>(v.size());
@@ -740,6 +752,17 @@ void PredictBase(const cv::Mat& filled_grid, int g, cv::Size size, cv::Mat* base
       }
     }
   });
+}
+
+// A CV_32F matrix of `size` from one of two kept buffers that nobody else
+// references (reference count 1: only the cache), else a new one kept in the
+// place of a buffer still referenced by the caller.
+cv::Mat OutputBuffer(cv::Mat (&buffers)[2], cv::Size size) {
+  for (cv::Mat& b : buffers)
+    if (!b.empty() && b.u && b.u->refcount == 1 && b.size() == size) return b;
+  cv::Mat& slot = (!buffers[0].empty() && buffers[0].u && buffers[0].u->refcount > 1) ? buffers[1] : buffers[0];
+  slot = cv::Mat(size, CV_32F);
+  return slot;
 }
 
 // Pixels whose window (window x window) straddles a depth edge of the
@@ -1031,8 +1054,13 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
       sum.rejected_order = rejected_order;
       sum.rejected_left_right = rejected_lr;
       sum.valid_nodes = CountFinite(averaged);
-      final_grid = averaged.clone();
-      final_corr = corr_l.clone();
+      // The outputs go to one of two buffers kept between calls that the
+      // caller no longer holds (no fresh memory: page faults were a seventh
+      // of the time in this VM); a buffer still referenced is never reused.
+      final_grid = OutputBuffer(lw.out_disp, averaged.size());
+      final_corr = OutputBuffer(lw.out_corr, corr_l.size());
+      averaged.copyTo(final_grid);
+      corr_l.copyTo(final_corr);
       if (options.lsc_iterations > 0) {
         const int half = window / 2;
         cv::parallel_for_(cv::Range(0, final_grid.rows), [&](const cv::Range& rows) {
@@ -1051,8 +1079,9 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
           if (!Finite(final_grid.at<float>(i, j))) final_corr.at<float>(i, j) = kNaN;
     } else {
       const float fallback = static_cast<float>(0.5 * (options.min_disparity + options.max_disparity) / scale);
-      pred_left = FillForPrediction(averaged, fallback);
-      if (options.full_right_search) pred_right = grid_r.empty() ? pred_left : FillForPrediction(grid_r, fallback);
+      pred_left = FillForPrediction(averaged, fallback, &lw.pred_l);
+      if (options.full_right_search)
+        pred_right = grid_r.empty() ? pred_left : FillForPrediction(grid_r, fallback, &lw.pred_r);
       prev_g = g;
       // The next level's nodes are spaced g of ITS pixels; prediction uses
       // this level's grid (spacing g here = 2 g there).
@@ -1071,7 +1100,14 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
 cv::Mat FillFromBackground(const cv::Mat& disparity, int max_gap, cv::Mat* filled) {
   if (disparity.type() != CV_32F) throw InvalidArgument("FillFromBackground: the parallax map must be CV_32F");
   cv::Mat out = disparity.clone();
-  if (filled) *filled = cv::Mat::zeros(disparity.size(), CV_8U);
+  FillFromBackgroundInPlace(&out, max_gap, filled);
+  return out;
+}
+
+void FillFromBackgroundInPlace(cv::Mat* disparity, int max_gap, cv::Mat* filled) {
+  if (disparity->type() != CV_32F) throw InvalidArgument("FillFromBackground: the parallax map must be CV_32F");
+  cv::Mat& out = *disparity;
+  if (filled) *filled = cv::Mat::zeros(out.size(), CV_8U);
   for (int y = 0; y < out.rows; ++y) {
     float* d = out.ptr<float>(y);
     const int w = out.cols;
@@ -1097,7 +1133,6 @@ cv::Mat FillFromBackground(const cv::Mat& disparity, int max_gap, cv::Mat* fille
       x = e;
     }
   }
-  return out;
 }
 
 }  // namespace dense

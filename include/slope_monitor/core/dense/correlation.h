@@ -129,6 +129,8 @@ ParallaxGrid MatchRectified(const cv::Mat& left, const cv::Mat& right, const Cor
 // surface model, whose holes stay nodata. `filled` (optional): CV_8U, 255
 // where a value was filled.
 cv::Mat FillFromBackground(const cv::Mat& disparity, int max_gap, cv::Mat* filled = nullptr);
+// The same in place.
+void FillFromBackgroundInPlace(cv::Mat* disparity, int max_gap, cv::Mat* filled = nullptr);
 
 }  // namespace dense
 }  // namespace slope_monitor
