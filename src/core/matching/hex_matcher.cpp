@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 
 #include <Eigen/Dense>
 
@@ -26,12 +27,6 @@ double Median(std::vector<double>* v) {
   return (*v)[v->size() / 2];
 }
 
-double Dot(const std::vector<float>& a, const std::vector<float>& b) {
-  double s = 0;
-  for (size_t i = 0; i < a.size(); ++i) s += double(a[i]) * b[i];
-  return s;
-}
-
 double Dot(const float* a, const float* b, size_t n) {
   double s = 0;
   for (size_t i = 0; i < n; ++i) s += double(a[i]) * b[i];
@@ -39,15 +34,17 @@ double Dot(const float* a, const float* b, size_t n) {
 }
 
 // Descriptors of one hex raster computed once per cell on first use (the
-// coarsest level is scanned by every search, forward and backward, so the
-// same cells were described hundreds of times). Falls back to computing on
+// coarsest level is scanned by every search, forward and backward, and the
+// finer levels' refinement windows overlap, so the same cells were described
+// many times). Falls back to computing on
 // the fly when the raster is too large to cache.
 class DescriptorCache {
  public:
-  DescriptorCache(const HexRaster& raster, int length) : raster_(raster), length_(length), n_(6 * length + 1) {
+  DescriptorCache(const HexRaster& raster, int length, bool enabled)
+      : raster_(raster), length_(length), n_(6 * length + 1) {
     const size_t cells = static_cast<size_t>(raster.rows()) * raster.cols();
-    if (cells * n_ <= kMaxFloats) {
-      values_.resize(cells * n_);
+    if (enabled && cells * n_ <= kMaxFloats) {
+      values_.reset(new float[cells * n_]);  // uninitialised: only the pages used are touched
       state_.assign(cells, 0);
     }
   }
@@ -58,9 +55,9 @@ class DescriptorCache {
     const size_t c = static_cast<size_t>(i) * raster_.cols() + k;
     if (state_[c] == 0) {
       state_[c] = raster_.Descriptor(i, k, length_, &scratch_) ? 1 : 2;
-      if (state_[c] == 1) std::copy(scratch_.begin(), scratch_.end(), values_.begin() + c * n_);
+      if (state_[c] == 1) std::copy(scratch_.begin(), scratch_.end(), values_.get() + c * n_);
     }
-    return state_[c] == 1 ? values_.data() + c * n_ : nullptr;
+    return state_[c] == 1 ? values_.get() + c * n_ : nullptr;
   }
   size_t size() const { return n_; }
 
@@ -69,20 +66,33 @@ class DescriptorCache {
   const HexRaster& raster_;
   const int length_;
   const size_t n_;
-  std::vector<float> values_;
+  std::unique_ptr<float[]> values_;
   std::vector<std::uint8_t> state_;  // 0 not computed, 1 valid, 2 no descriptor
   std::vector<float> scratch_;
 };
 
+using Caches = std::vector<std::unique_ptr<DescriptorCache>>;  // one per pyramid level
+
+Caches MakeCaches(const HexPyramid& p, int length) {
+  Caches c;
+  // Level 0 is not cached: it is large, its refinement windows are visited
+  // once per search, and caching it measured slower (page faults).
+  for (int l = 0; l < p.levels(); ++l) {
+    c.push_back(std::make_unique<DescriptorCache>(p.level(l), length, l > 0 || p.levels() == 1));
+  }
+  return c;
+}
+
 // Coarse-to-fine search of xa (in pyramid a) in pyramid b around centre_b.
-// `line` (if non-null) maps a point of a to its epipolar line in b. ca, cb:
-// descriptor caches of the coarsest levels of pa and pb.
-SearchResult Search(const HexPyramid& pa, const HexPyramid& pb, DescriptorCache* ca, DescriptorCache* cb,
+// `line` (if non-null) maps a point of a to its epipolar line in b. cas,
+// cbs: descriptor caches of the levels of pa and pb.
+SearchResult Search(const HexPyramid& pa, const HexPyramid& pb, Caches& cas, Caches& cbs,
                     const Eigen::Vector2d& xa, const Eigen::Vector2d& centre_b, double radius,
                     const Eigen::Matrix3d* f, double band, const HexMatcherOptions& o) {
   SearchResult res;
   const int top = pa.levels() - 1;
-  std::vector<float> da, db;
+  DescriptorCache* ca = cas[top].get();
+  DescriptorCache* cb = cbs[top].get();
   const HexRaster& ha = pa.level(top);
   const HexRaster& hb = pb.level(top);
   int ia, ka;
@@ -145,7 +155,8 @@ SearchResult Search(const HexPyramid& pa, const HexPyramid& pb, DescriptorCache*
     const HexRaster& la = pa.level(l);
     const HexRaster& lb = pb.level(l);
     la.NearestCell(xa, &ia, &ka);
-    if (!la.Descriptor(ia, ka, o.profile_length, &da)) continue;
+    const float* da = cas[l]->Get(ia, ka);
+    if (!da) continue;
     int ib, kb;
     lb.NearestCell(x, &ib, &kb);
     double bs = -2.0;
@@ -156,8 +167,9 @@ SearchResult Search(const HexPyramid& pa, const HexPyramid& pb, DescriptorCache*
         if (!lb.Contains(i, k)) continue;
         const Eigen::Vector2d c = lb.Centre(i, k);
         if ((c - x).squaredNorm() > rr) continue;
-        if (!lb.Descriptor(i, k, o.profile_length, &db)) continue;
-        const double s = Dot(da, db);
+        const float* db = cbs[l]->Get(i, k);
+        if (!db) continue;
+        const double s = Dot(da, db, cbs[l]->size());
         if (s > bs) {
           bs = s;
           bx = c;
@@ -273,8 +285,8 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
   const Eigen::Matrix3d ft = prior.fundamental.transpose();
   const Eigen::Matrix3d* f_back = prior.has_epipolar ? &ft : nullptr;
 
-  DescriptorCache cache_a(pa.level(pa.levels() - 1), options_.profile_length);
-  DescriptorCache cache_b(pb.level(pb.levels() - 1), options_.profile_length);
+  Caches cache_a = MakeCaches(pa, options_.profile_length);
+  Caches cache_b = MakeCaches(pb, options_.profile_length);
   LscOptions lsc_back = lsc;
   lsc_back.search_radius = 0;  // plain LSC from xa: the forward solution is already sub-pixel
   // The texture tests were passed by window a; b's window at a sub-pixel
@@ -284,10 +296,10 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
   const HexMatcherOptions::Quality& q = options_.quality;
   auto match_one = [&](const Eigen::Vector2d& xa, const Eigen::Vector2d& shift, double radius, HexMatch* m,
                        bool final_pass) {
-    const SearchResult fw = Search(pa, pb, &cache_a, &cache_b, xa, xa + shift, radius, f, prior.epipolar_band, options_);
+    const SearchResult fw = Search(pa, pb, cache_a, cache_b, xa, xa + shift, radius, f, prior.epipolar_band, options_);
     if (fw.reason != RejectReason::kNone) return std::string(RejectReasonName(fw.reason));
     const SearchResult bw =
-        Search(pb, pa, &cache_b, &cache_a, fw.x, fw.x - shift, radius, f_back, prior.epipolar_band, options_);
+        Search(pb, pa, cache_b, cache_a, fw.x, fw.x - shift, radius, f_back, prior.epipolar_band, options_);
     if (bw.reason != RejectReason::kNone || (bw.x - xa).norm() > options_.mutual_tolerance) {
       return std::string(RejectReasonName(RejectReason::kNotMutual));
     }
