@@ -1,6 +1,7 @@
 #include "slope_monitor/core/dense/correlation.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -647,30 +648,34 @@ void MedianFilter(const cv::Mat& in, cv::Mat* grid) {
 // number of nodes invalidated.
 // sign = -1 for the right-to-left grid (matched position x + d).
 int OrderCheck(cv::Mat* grid, int g, double tolerance, float sign) {
-  int rejected = 0;
-  std::vector<int> kill;
-  for (int i = 0; i < grid->rows; ++i) {
-    float* row = grid->ptr<float>(i);
-    kill.clear();
-    int prev = -1;
-    for (int j = 0; j < grid->cols; ++j) {
-      if (!Finite(row[j])) continue;
-      if (prev >= 0) {
-        const double xp = prev * g - sign * row[prev], xc = j * g - sign * row[j];
-        if (xc < xp - tolerance) {
-          kill.push_back(prev);
-          kill.push_back(j);
+  std::atomic<int> rejected_total{0};
+  cv::parallel_for_(cv::Range(0, grid->rows), [&](const cv::Range& range) {
+    int rejected = 0;
+    std::vector<int> kill;
+    for (int i = range.start; i < range.end; ++i) {
+      float* row = grid->ptr<float>(i);
+      kill.clear();
+      int prev = -1;
+      for (int j = 0; j < grid->cols; ++j) {
+        if (!Finite(row[j])) continue;
+        if (prev >= 0) {
+          const double xp = prev * g - sign * row[prev], xc = j * g - sign * row[j];
+          if (xc < xp - tolerance) {
+            kill.push_back(prev);
+            kill.push_back(j);
+          }
         }
+        prev = j;
       }
-      prev = j;
+      for (int j : kill)
+        if (Finite(row[j])) {
+          row[j] = kNaN;
+          ++rejected;
+        }
     }
-    for (int j : kill)
-      if (Finite(row[j])) {
-        row[j] = kNaN;
-        ++rejected;
-      }
-  }
-  return rejected;
+    rejected_total += rejected;
+  });
+  return rejected_total;
 }
 
 // Linear look-up of a grid line at fractional node position u.
@@ -1031,22 +1036,28 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
     cv::Mat averaged = grid_l;  // in place
     if (!grid_r.empty()) {
       const float tol = static_cast<float>(options.lr_tolerance);
-      for (int i = 0; i < grid_l.rows; ++i) {
-        const float* rr = grid_r.ptr<float>(i);
-        const float* ll = grid_l.ptr<float>(i);
-        float* av = averaged.ptr<float>(i);
-        for (int j = 0; j < grid_l.cols; ++j) {
-          const float dl = ll[j];
-          if (!Finite(dl)) continue;
-          const float drv = LookupLine(rr, grid_r.cols, (j * g - dl) / g);
-          if (Finite(drv) && std::abs(drv - dl) <= tol) {
-            av[j] = 0.5f * (dl + drv);
-          } else {
-            av[j] = kNaN;
-            ++rejected_lr;
+      std::atomic<int> rejected{0};
+      cv::parallel_for_(cv::Range(0, grid_l.rows), [&](const cv::Range& range) {
+        int rej = 0;
+        for (int i = range.start; i < range.end; ++i) {
+          const float* rr = grid_r.ptr<float>(i);
+          const float* ll = grid_l.ptr<float>(i);
+          float* av = averaged.ptr<float>(i);
+          for (int j = 0; j < grid_l.cols; ++j) {
+            const float dl = ll[j];
+            if (!Finite(dl)) continue;
+            const float drv = LookupLine(rr, grid_r.cols, (static_cast<double>(j) * g - dl) / g);
+            if (Finite(drv) && std::abs(drv - dl) <= tol) {
+              av[j] = 0.5f * (dl + drv);
+            } else {
+              av[j] = kNaN;
+              ++rej;
+            }
           }
         }
-      }
+        rejected += rej;
+      });
+      rejected_lr = rejected;
     }
     if (last) {
       sum.nodes = nodes;
@@ -1074,9 +1085,12 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
           }
         });
       }
-      for (int i = 0; i < final_grid.rows; ++i)
+      for (int i = 0; i < final_grid.rows; ++i) {
+        const float* fg = final_grid.ptr<float>(i);
+        float* fc = final_corr.ptr<float>(i);
         for (int j = 0; j < final_grid.cols; ++j)
-          if (!Finite(final_grid.at<float>(i, j))) final_corr.at<float>(i, j) = kNaN;
+          if (!Finite(fg[j])) fc[j] = kNaN;
+      }
     } else {
       const float fallback = static_cast<float>(0.5 * (options.min_disparity + options.max_disparity) / scale);
       pred_left = FillForPrediction(averaged, fallback, &lw.pred_l);
