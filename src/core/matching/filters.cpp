@@ -236,7 +236,28 @@ float SampleBicubicGrad(const cv::Mat& image, double x, double y, float* dx, flo
 }
 
 float SampleBicubic(const cv::Mat& image, double x, double y) {
-  return SampleBicubicGrad(image, x, y, nullptr, nullptr);
+  // The value part of SampleBicubicGrad (same operations in the same order:
+  // identical results) without the derivative weights and sums, the LSC's
+  // inner loop.
+  CheckSampleImage(image);
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  const float tx = static_cast<float>(x - x0), ty = static_cast<float>(y - y0);
+  const int cm = image.cols - 1, rm = image.rows - 1;
+  float wx[4], wy[4];
+  int xs[4];
+  for (int i = 0; i < 4; ++i) {
+    wx[i] = Keys(tx - static_cast<float>(i - 1));
+    wy[i] = Keys(ty - static_cast<float>(i - 1));
+    xs[i] = Clamp(x0 + i - 1, cm);
+  }
+  float value = 0.0f;
+  for (int j = 0; j < 4; ++j) {
+    const float* row = image.ptr<float>(Clamp(y0 + j - 1, rm));
+    float rv = 0.0f;
+    for (int i = 0; i < 4; ++i) rv += wx[i] * row[xs[i]];
+    value += wy[j] * rv;
+  }
+  return value;
 }
 
 float Sample(const cv::Mat& image, double x, double y, Interpolation interpolation) {
