@@ -555,76 +555,92 @@ cv::Mat SampleGrid(const cv::Mat& dense_map, int g) {
   return grid;
 }
 
-inline void Sort2(float& a, float& b) {
-  const float lo = std::min(a, b), hi = std::max(a, b);
-  a = lo;
-  b = hi;
-}
+// The 3 x 3 median of the valid (finite) values around the inner nodes of a
+// line, branch-free (AVX2, 8 nodes at a time): with k missing values, the median of the
+// 9 - k valid ones is the middle of the nine after ceil(k/2) missing ones are
+// set to +inf and the rest to -inf (the upper middle when 9 - k is even), or
+// after floor(k/2) to +inf (the lower middle); the mean of both is the
+// median (the mean of the two middle values for an even count). Nodes that
+// are missing themselves stay missing. Returns the first column it did not
+// process (1: none; the caller sorts the rest).
+int MedianRowScalar(const float*, const float*, const float*, int, float*) { return 1; }
 
-// Median of nine finite values (Paeth's exchange network).
-inline float Median9(float p0, float p1, float p2, float p3, float p4, float p5, float p6, float p7, float p8) {
-  Sort2(p1, p2), Sort2(p4, p5), Sort2(p7, p8), Sort2(p0, p1), Sort2(p3, p4), Sort2(p6, p7);
-  Sort2(p1, p2), Sort2(p4, p5), Sort2(p7, p8), Sort2(p0, p3), Sort2(p5, p8), Sort2(p4, p7);
-  Sort2(p3, p6), Sort2(p1, p4), Sort2(p2, p5), Sort2(p4, p7), Sort2(p4, p2), Sort2(p6, p4);
-  Sort2(p4, p2);
-  return p4;
-}
-
-inline float Lo(float a, float b) { return a < b ? a : b; }  // MINPS / MAXPS semantics: vectorises
-inline float Hi(float a, float b) { return a < b ? b : a; }
-
-// Median of nine values of nine rows of a 3 x 3 neighbourhood for a whole
-// line at once (the network of Median9 on min / max: vectorised); NaN
-// neighbourhoods give garbage that the caller replaces.
-SM_DENSE_CLONES void Median9Row(const float* __restrict up, const float* __restrict mid, const float* __restrict dn,
-                                int n, float* __restrict o) {
-  for (int j = 1; j < n - 1; ++j) {
-    float p0 = up[j - 1], p1 = up[j], p2 = up[j + 1], p3 = mid[j - 1], p4 = mid[j], p5 = mid[j + 1], p6 = dn[j - 1],
-          p7 = dn[j], p8 = dn[j + 1], t;
-#define SM_S2(a, b) t = Lo(a, b), b = Hi(a, b), a = t
-    SM_S2(p1, p2); SM_S2(p4, p5); SM_S2(p7, p8); SM_S2(p0, p1); SM_S2(p3, p4); SM_S2(p6, p7);
-    SM_S2(p1, p2); SM_S2(p4, p5); SM_S2(p7, p8); SM_S2(p0, p3); SM_S2(p5, p8); SM_S2(p4, p7);
-    SM_S2(p3, p6); SM_S2(p1, p4); SM_S2(p2, p5); SM_S2(p4, p7); SM_S2(p4, p2); SM_S2(p6, p4);
-    SM_S2(p4, p2);
-#undef SM_S2
-    o[j] = p4;
+#ifdef SM_DENSE_HAVE_AVX2_PATH
+__attribute__((target("avx2"))) int MedianRowAvx2(const float* up, const float* mid, const float* dn, int n,
+                                                   float* o) {
+  const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity()), ninf = _mm256_sub_ps(_mm256_setzero_ps(), inf);
+  const __m256 one = _mm256_set1_ps(1.0f), two = _mm256_set1_ps(2.0f), half = _mm256_set1_ps(0.5f);
+  int j = 1;
+  for (; j + 8 <= n - 1; j += 8) {
+    __m256 v[9] = {_mm256_loadu_ps(up + j - 1),  _mm256_loadu_ps(up + j),  _mm256_loadu_ps(up + j + 1),
+                   _mm256_loadu_ps(mid + j - 1), _mm256_loadu_ps(mid + j), _mm256_loadu_ps(mid + j + 1),
+                   _mm256_loadu_ps(dn + j - 1),  _mm256_loadu_ps(dn + j),  _mm256_loadu_ps(dn + j + 1)};
+    __m256 miss[9], c[9];
+    __m256 k = _mm256_setzero_ps();
+    for (int q = 0; q < 9; ++q) {
+      miss[q] = _mm256_cmp_ps(v[q], v[q], _CMP_UNORD_Q);
+      c[q] = k;
+      k = _mm256_add_ps(k, _mm256_and_ps(miss[q], one));
+    }
+    __m256 a[9], b[9];
+    for (int q = 0; q < 9; ++q) {
+      const __m256 c2 = _mm256_mul_ps(two, c[q]);
+      const __m256 fa = _mm256_blendv_ps(ninf, inf, _mm256_cmp_ps(c2, k, _CMP_LT_OQ));
+      const __m256 fb = _mm256_blendv_ps(ninf, inf, _mm256_cmp_ps(_mm256_add_ps(c2, one), k, _CMP_LT_OQ));
+      a[q] = _mm256_blendv_ps(v[q], fa, miss[q]);
+      b[q] = _mm256_blendv_ps(v[q], fb, miss[q]);
+    }
+    for (__m256* p : {a, b}) {
+#define SM_V2(x, y)                          \
+  {                                          \
+    const __m256 lo = _mm256_min_ps(p[x], p[y]); \
+    p[y] = _mm256_max_ps(p[x], p[y]);        \
+    p[x] = lo;                               \
   }
+      SM_V2(1, 2) SM_V2(4, 5) SM_V2(7, 8) SM_V2(0, 1) SM_V2(3, 4) SM_V2(6, 7)
+      SM_V2(1, 2) SM_V2(4, 5) SM_V2(7, 8) SM_V2(0, 3) SM_V2(5, 8) SM_V2(4, 7)
+      SM_V2(3, 6) SM_V2(1, 4) SM_V2(2, 5) SM_V2(4, 7) SM_V2(4, 2) SM_V2(6, 4)
+      SM_V2(4, 2)
+#undef SM_V2
+    }
+    const __m256 m = _mm256_mul_ps(half, _mm256_add_ps(b[4], a[4]));
+    _mm256_storeu_ps(o + j, _mm256_blendv_ps(m, v[4], miss[4]));  // missing nodes stay missing
+  }
+  return j;
 }
+#endif
 
-// Finite flags of three lines summed over 3 x 3: cnt[j] = valid neighbours of j (inner columns).
-SM_DENSE_CLONES void CountFinite3x3(const float* __restrict up, const float* __restrict mid,
-                                    const float* __restrict dn, int n, float* __restrict col, float* __restrict cnt) {
-  for (int j = 0; j < n; ++j)
-    col[j] = static_cast<float>(up[j] == up[j]) + static_cast<float>(mid[j] == mid[j]) +
-             static_cast<float>(dn[j] == dn[j]);
-  for (int j = 1; j < n - 1; ++j) cnt[j] = col[j - 1] + col[j] + col[j + 1];
+// The 3 x 3 median of the inner nodes of a line from column 1 on as far as
+// the vector path goes (see above); returns the first column left to the caller.
+int MedianRow(const float* up, const float* mid, const float* dn, int n, float* o) {
+#ifdef SM_DENSE_HAVE_AVX2_PATH
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  if (avx2) return MedianRowAvx2(up, mid, dn, n, o);
+#endif
+  return MedianRowScalar(up, mid, dn, n, o);
 }
 
 // 3 x 3 median of the valid nodes around each valid node (invalid nodes stay
 // invalid; an even count takes the mean of the two middle values). Rows in
-// parallel; all-valid neighbourhoods take a vectorised sorting network.
+// parallel; inner nodes branch-free (MedianRow), the rest by sorting.
 void MedianFilter(const cv::Mat& in, cv::Mat* grid) {
   grid->create(in.size(), CV_32F);
   const int rows = in.rows, cols = in.cols;
   cv::parallel_for_(cv::Range(0, rows), [&](const cv::Range& range) {
     float v[9];
-    std::vector<float> col(cols), cnt(cols, 0.0f);
     for (int i = range.start; i < range.end; ++i) {
       const float* up = in.ptr<float>(std::max(i - 1, 0));
       const float* mid = in.ptr<float>(i);
       const float* dn = in.ptr<float>(std::min(i + 1, rows - 1));
       float* o = grid->ptr<float>(i);
       const bool inner_row = i > 0 && i < rows - 1;
-      if (inner_row && cols >= 3) {
-        Median9Row(up, mid, dn, cols, o);
-        CountFinite3x3(up, mid, dn, cols, col.data(), cnt.data());
-      }
+      const int done = (inner_row && cols >= 3) ? MedianRow(up, mid, dn, cols, o) : 1;
       for (int j = 0; j < cols; ++j) {
+        if (j >= 1 && j < done) continue;  // MedianRow's value
         if (!Finite(mid[j])) {
           o[j] = mid[j];
           continue;
         }
-        if (inner_row && j > 0 && j < cols - 1 && cnt[j] == 9.0f) continue;  // the network's value
         int n = 0;
         for (int di = -1; di <= 1; ++di) {
           const int a = i + di;
