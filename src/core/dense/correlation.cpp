@@ -201,7 +201,8 @@ struct SearchBuffers {
   std::vector<float> best_s;
   std::vector<int> best_k;
   std::vector<uint64_t> best_key;  // right-to-left from the volume: best (score, left pixel) per right pixel
-  std::vector<uint32_t> best_key32;
+  std::vector<uint32_t> best_key32, keys;
+  std::vector<int> slots;
   std::vector<int> x0;
 };
 
@@ -316,21 +317,42 @@ inline void ColumnSums(const cv::Mat& left, const cv::Mat& idx, const cv::Mat& r
 // (scores[ki * w + x]: left pixel x, parallax base[x] + k_min + ki); see
 // Search. The best candidate per right pixel is kept as one integer key (the
 // score quantised to 19 bits above the left pixel's column, 13 bits; rows up
-// to 8192 px, else a 64-bit key with the parallax), so the scatter is a
-// branch-free maximum; the winner's exact score is read back.
+// to 8192 px, else a 64-bit key), so the scatter is a branch-free maximum;
+// the winner's exact score is read back.
+
+// Keys and target slots of one offset for a whole row (vectorised).
+SM_DENSE_CLONES void KeysOfOffset(const float* __restrict s, const int* __restrict x0, int ki, int w,
+                                  uint32_t* __restrict key, int* __restrict slot) {
+  for (int x = 0; x < w; ++x) {
+    const int xr0 = x0[x] - ki;
+    slot[x] = static_cast<unsigned>(xr0) < static_cast<unsigned>(w) ? xr0 : w;
+    key[x] = (static_cast<uint32_t>((s[x] + 2.0f) * 131071.0f) << 13) | static_cast<uint32_t>(x);
+  }
+}
+
 template <typename Key>
-void ScatterBest(const float* sc, const int* x0, int n, int w, Key* best) {
-  constexpr int kShift = sizeof(Key) == 4 ? 13 : 32;
-  constexpr float kScale = sizeof(Key) == 4 ? 131071.0f : 1.0e9f;  // (score + 2) in [0, 3] -> < 2^19 / < 2^32
+void ScatterBest(const float* sc, const int* x0, int n, int w, Key* best, SearchBuffers& buf) {
   std::fill(best, best + w + 1, Key(0));  // 0: nothing (score -2)
-  for (int ki = 0; ki < n; ++ki) {
-    const float* __restrict s = sc + static_cast<size_t>(ki) * w;
-    for (int x = 0; x < w; ++x) {
-      const int xr0 = x0[x] - ki;
-      const int xr = static_cast<unsigned>(xr0) < static_cast<unsigned>(w) ? xr0 : w;
-      const Key k = (static_cast<Key>((s[x] + 2.0f) * kScale) << kShift) | static_cast<Key>(x);
-      const Key old = best[xr];
-      best[xr] = k > old ? k : old;
+  if constexpr (sizeof(Key) == 4) {
+    uint32_t* key = buf.keys.data();
+    int* slot = buf.slots.data();
+    for (int ki = 0; ki < n; ++ki) {
+      KeysOfOffset(sc + static_cast<size_t>(ki) * w, x0, ki, w, key, slot);
+      for (int x = 0; x < w; ++x) {
+        const uint32_t k = key[x], old = best[slot[x]];
+        best[slot[x]] = k > old ? k : old;
+      }
+    }
+  } else {
+    for (int ki = 0; ki < n; ++ki) {
+      const float* __restrict s = sc + static_cast<size_t>(ki) * w;
+      for (int x = 0; x < w; ++x) {
+        const int xr0 = x0[x] - ki;
+        const int xr = static_cast<unsigned>(xr0) < static_cast<unsigned>(w) ? xr0 : w;
+        const Key k = (static_cast<Key>((s[x] + 2.0f) * 1.0e9f) << 32) | static_cast<Key>(x);
+        const Key old = best[xr];
+        best[xr] = k > old ? k : old;
+      }
     }
   }
 }
@@ -343,9 +365,9 @@ void RightFromVolume(const float* sc, const int* b, int k_min, int n, int w, flo
   for (int x = 0; x < w; ++x) x0[x] = x - (b ? b[x] : 0) - k_min;
   const bool narrow = w <= 8192;
   if (narrow)
-    ScatterBest<uint32_t>(sc, x0, n, w, buf.best_key32.data());
+    ScatterBest<uint32_t>(sc, x0, n, w, buf.best_key32.data(), buf);
   else
-    ScatterBest<uint64_t>(sc, x0, n, w, buf.best_key.data());
+    ScatterBest<uint64_t>(sc, x0, n, w, buf.best_key.data(), buf);
   auto score_at = [&](int xl, int D) {
     if (xl < 0 || xl >= w) return -2.0f;
     const int ki = D - (b ? b[xl] : 0) - k_min;
@@ -458,9 +480,11 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
     buf.score_small.resize(w);
     buf.best_s.resize(w);
     buf.best_k.resize(w);
-    if (w <= 8192)
+    if (w <= 8192) {
       buf.best_key32.resize(w + 1);
-    else
+      buf.keys.resize(w);
+      buf.slots.resize(w);
+    } else
       buf.best_key.resize(w + 1);
     buf.x0.resize(w);
     // Window sums of a row from column sums (columns reflected at the image border) and the ZNCC.
