@@ -123,6 +123,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     pixel_size_ = p.Double("pixel_size", 1.0, 1e-6, 1.0, "mm/px");
     default_pixel_sigma_ = p.Double("pixel_sigma", 0.3, 1e-4, 100.0, "px");
     pixel_sigma_floor_ = p.Double("pixel_sigma_floor", 0.05, 0.0, 100.0, "px");
+    uav_pixel_sigma_floor_ = p.Double("uav_pixel_sigma_floor", 0.3, 0.0, 100.0, "px");
     epoch_gap_ = p.Double("epoch_gap", 600.0, 0.0, 1e7, "s");
     prior_max_dt_ = p.Double("position_prior_max_dt", 0.1, 0.0, 10.0, "s");
     gnss_sigma_floor_ = p.Double("position_prior_min_sigma", 0.01, 1e-4, 100.0, "m");
@@ -181,6 +182,10 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     im.stamp = msg->header.stamp;
     im.header = msg->header;
     if (msg->epoch != 0) current_epoch_ = msg->epoch;
+    // A UAV camera flies with its nominal interior (not calibrated on this
+    // site, not self-calibrated from a few photos): its model error is far
+    // above the centroid precision.
+    const double floor = IsFixedCamera(msg->camera_name) ? pixel_sigma_floor_ : uav_pixel_sigma_floor_;
     for (const auto& o : msg->observations) {
       CollectedObservation c;
       c.image_key = key;
@@ -190,7 +195,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
         c.pixel = Eigen::Vector2d(o.x, o.y);
         c.covariance = ros_adapters::FromRowMajor<2>(o.covariance);
         if (c.covariance.isZero()) c.covariance = Eigen::Matrix2d::Identity() * default_pixel_sigma_ * default_pixel_sigma_;
-        c.covariance += Eigen::Matrix2d::Identity() * pixel_sigma_floor_ * pixel_sigma_floor_;
+        c.covariance += Eigen::Matrix2d::Identity() * floor * floor;
         unidentified_observations_.push_back(c);
         continue;
       }
@@ -206,7 +211,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       if (c.covariance.isZero()) c.covariance = Eigen::Matrix2d::Identity() * default_pixel_sigma_ * default_pixel_sigma_;
       // The centroider's covariance is image noise only; calibration and model
       // errors of a real camera come on top (added in quadrature).
-      c.covariance += Eigen::Matrix2d::Identity() * pixel_sigma_floor_ * pixel_sigma_floor_;
+      c.covariance += Eigen::Matrix2d::Identity() * floor * floor;
       observations_.push_back(c);
     }
     last_input_ = ros::Time::now();
@@ -674,7 +679,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   std::vector<std::string> target_topics_, camera_names_;
   std::string frame_id_;
   uint64_t unidentified_ = 0;
-  double pixel_size_ = 1.0, default_pixel_sigma_ = 0.3, pixel_sigma_floor_ = 0.05, epoch_gap_ = 600.0, prior_max_dt_ = 0.1,
+  double pixel_size_ = 1.0, default_pixel_sigma_ = 0.3, pixel_sigma_floor_ = 0.05, uav_pixel_sigma_floor_ = 0.3, epoch_gap_ = 600.0, prior_max_dt_ = 0.1,
          gnss_sigma_floor_ = 0.01;
   int min_images_ = 2;
   std::vector<int> free_interior_;
