@@ -220,6 +220,7 @@ std::string QualityFlagNames(unsigned flags) {
   add(kFlagHighResidual, "high_residual");
   add(kFlagTwoWay, "two_way");
   add(kFlagNeighbours, "neighbours");
+  add(kFlagExcluded, "excluded");
   return out;
 }
 
@@ -318,6 +319,7 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
     m->flags = 0;
     if (final_pass && q.enabled) {
       if (s.correlation < q.min_correlation) m->flags |= kFlagLowCorrelation;
+      if (prior.excluded && prior.excluded(xa)) m->flags |= kFlagExcluded;
       if (q.two_way) {
         const LscSummary back = MatchLsc(lb, la, s.xb, xa, lsc_back);
         // Its position is what counts: a back solution that ran out of
@@ -397,7 +399,7 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
         continue;
       }
       ++result.summary.low_quality;
-      for (unsigned bit = 1; bit <= kFlagNeighbours; bit <<= 1) {
+      for (unsigned bit = 1; bit <= kFlagExcluded; bit <<= 1) {
         if (m.flags & bit) ++result.summary.flags[QualityFlagNames(bit)];
       }
       if (q.reject) {

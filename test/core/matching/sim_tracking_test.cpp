@@ -301,7 +301,22 @@ struct TrackingStats {
   int ground_low_quality = 0;
 };
 
-TrackingStats TrackWith(bool foliage_motion, bool quality_control, unsigned seed) {
+// The operator's outline of the obstacles in the image: pixels whose ray
+// hits an obstacle grown by 0.25 m (crown / boulder radius; a margin like
+// the one an operator leaves when drawing around a tree or a boulder).
+bool InObstacleOutline(const sim::Scene::State& state, const camera::CameraModel& model,
+                       const camera::ExteriorOrientation& pose, const Eigen::Vector2d& pixel) {
+  const camera::Ray ray = model.ImageToRay(pose, pixel);
+  const Eigen::Vector3d d = ray.direction.normalized();
+  for (sim::Obstacle o : state.obstacles) {
+    o.radius += 0.25;
+    if (o.kind == sim::Obstacle::Kind::kTree) o.height += 0.25;
+    if (sim::IntersectObstacle(o, ray.origin, d, nullptr) > 0) return true;
+  }
+  return false;
+}
+
+TrackingStats TrackWith(bool foliage_motion, bool quality_control, unsigned seed, bool outline = false) {
   const sim::Scene scene(Site(foliage_motion, seed));
   const camera::CameraModel model = Camera();
   const sim::Renderer renderer(scene, model);
@@ -322,6 +337,7 @@ TrackingStats TrackWith(bool foliage_motion, bool quality_control, unsigned seed
     const Eigen::Vector2d rel = x.head<2>() - slide.centre;
     return std::hypot(rel.x() / (slide.length + 3), rel.y() / (slide.width + 3)) < 1.0;
   };
+  if (outline) prior.excluded = [&](const Eigen::Vector2d& px) { return InObstacleOutline(s0, model, pose, px); };
   const HexMatchResult r = matcher.Match(img0, img1, prior);
   TrackingStats st;
   st.matches = r.summary.matched;
@@ -383,8 +399,9 @@ TrackingStats TrackWith(bool foliage_motion, bool quality_control, unsigned seed
     }
   }
   st.ground_rms = std::sqrt(sum2 / std::max(1, st.ground_correct));
-  std::printf("scene seed %u, foliage motion %s, quality control %s: %d matches (%d low quality", seed,
-              foliage_motion ? "on" : "off", quality_control ? "on" : "off", st.matches, st.low_quality);
+  std::printf("scene seed %u, foliage motion %s, quality control %s%s: %d matches (%d low quality", seed,
+              foliage_motion ? "on" : "off", quality_control ? "on" : "off", outline ? " + obstacle outline" : "",
+              st.matches, st.low_quality);
   for (const auto& kv : r.summary.flags) std::printf(", %s %d", kv.first.c_str(), kv.second);
   std::printf(")\n  crown pixels: %d matches, %d of normal quality\n", st.crown, st.crown_normal);
   std::printf("  trunk/boulder pixels: %d matches, %d of normal quality, %d of those > 1 px off\n", st.rigid,
@@ -409,6 +426,15 @@ TEST(SimTracking, OccludingFoliageIsNotReportedWithNormalQuality) {
     EXPECT_EQ(wind.near_normal_wrong, 0);
     EXPECT_GE(wind.ground_correct, 0.95 * base.ground_correct);
     EXPECT_LT(std::fabs(wind.ground_rms - base.ground_rms), 0.02);
+    // With the operator's outline of the obstacles (MatchPrior::excluded)
+    // the rigid ones are marked too: nothing on any obstacle has normal
+    // quality, and the ground keeps its matches.
+    const TrackingStats outlined = TrackWith(true, true, seed, true);
+    EXPECT_GT(outlined.crown + outlined.rigid, 5);
+    EXPECT_EQ(outlined.crown_normal, 0);
+    EXPECT_EQ(outlined.rigid_normal, 0);
+    EXPECT_GE(outlined.ground_correct, 0.95 * base.ground_correct);
+    EXPECT_LT(std::fabs(outlined.ground_rms - base.ground_rms), 0.02);
   }
 }
 

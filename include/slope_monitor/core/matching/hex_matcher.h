@@ -34,6 +34,8 @@
 //                             quality.max_neighbour_deviation px from the
 //                             median of the matches within
 //                             quality.neighbour_radius px (>= 3 of them).
+//        kFlagExcluded        xa inside MatchPrior::excluded (the operator's
+//                             outline of known obstacles), when given.
 //      A flagged match is low quality: HexMatch::quality <= kLowQuality
 //      (0.25 x its normal value; normal matches have quality >= 0.42 with
 //      min_score 0.6 and lsc min_correlation 0.7), or it is dropped
@@ -92,6 +94,11 @@ struct MatchPrior {
   Eigen::Vector2d shift = Eigen::Vector2d::Zero();  // [px] predicted xb - xa
   double radius = 24.0;                             // [px] search radius around xa + shift, > 0
   std::function<bool(const Eigen::Vector2d&)> moving;  // true where the ground may move (optional)
+  // The operator's outline of known non-ground objects in image a (trees,
+  // boulders, structures; optional): matches whose xa lies there are flagged
+  // kFlagExcluded (low quality). Rigid, static objects match perfectly well
+  // and no image-based test can tell them from the ground.
+  std::function<bool(const Eigen::Vector2d&)> excluded;
   double moving_radius = 48.0;                      // [px] search radius there
   bool estimate_global_shift = false;               // first match stable points, take their median shift
   bool has_epipolar = false;
@@ -124,6 +131,7 @@ constexpr unsigned kFlagLowCorrelation = 1u;
 constexpr unsigned kFlagHighResidual = 2u;
 constexpr unsigned kFlagTwoWay = 4u;
 constexpr unsigned kFlagNeighbours = 8u;
+constexpr unsigned kFlagExcluded = 16u;  // inside MatchPrior::excluded
 // Flagged matches have quality <= kLowQuality; unflagged ones more.
 constexpr double kLowQuality = 0.25;
 // "low_correlation+two_way" etc.; "" for 0.
