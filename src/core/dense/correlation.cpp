@@ -258,8 +258,10 @@ LevelWorkspace& LevelCache(int level) {
 constexpr double kMaxCachedPixels = 2.0e6;
 
 
+// left_all_valid / right_all_valid: the mask is all ones (no erosion needed;
+// no right flags: the search checks the warped centre instead).
 void ComputeWindowStats(const cv::Mat& left, const cv::Mat& mask_left, const cv::Mat& mask_right, int window,
-                        int off, int wp, WindowStats& st) {
+                        int off, int wp, bool left_all_valid, bool right_all_valid, WindowStats& st) {
   const int w = left.cols, h = left.rows, r = window / 2;
   const float count = static_cast<float>(window) * window, inv_count = 1.0f / count;
   const float min_var = 1e-12f * count;
@@ -268,25 +270,29 @@ void ComputeWindowStats(const cv::Mat& left, const cv::Mat& mask_left, const cv:
   cv::boxFilter(left, st.sum_l, CV_32F, box, cv::Point(-1, -1), false, cv::BORDER_REFLECT_101);
   cv::sqrBoxFilter(left, st.sum_ll, CV_32F, box, cv::Point(-1, -1), false, cv::BORDER_REFLECT_101);
   // The whole window has content (pixels outside the image do not count).
-  cv::erode(mask_left, st.ok_l, cv::getStructuringElement(cv::MORPH_RECT, box), cv::Point(-1, -1), 1,
-            cv::BORDER_CONSTANT, cv::Scalar(1));
-  cv::erode(mask_right, st.ok_r, cv::getStructuringElement(cv::MORPH_RECT, box), cv::Point(-1, -1), 1,
-            cv::BORDER_CONSTANT, cv::Scalar(1));
+  if (!left_all_valid)
+    cv::erode(mask_left, st.ok_l, cv::getStructuringElement(cv::MORPH_RECT, box), cv::Point(-1, -1), 1,
+              cv::BORDER_CONSTANT, cv::Scalar(1));
+  if (!right_all_valid) {
+    cv::erode(mask_right, st.ok_r, cv::getStructuringElement(cv::MORPH_RECT, box), cv::Point(-1, -1), 1,
+              cv::BORDER_CONSTANT, cv::Scalar(1));
+    st.bp.create(h, wp, CV_32F);
+  }
   st.mean_l.create(h, w, CV_32F);
   st.inv_sd_l.create(h, w, CV_32F);
-  st.bp.create(h, wp, CV_32F);
   cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const float* s = st.sum_l.ptr<float>(y);
       const float* ss = st.sum_ll.ptr<float>(y);
-      const uchar* ok = st.ok_l.ptr<uchar>(y);
+      const uchar* ok = left_all_valid ? nullptr : st.ok_l.ptr<uchar>(y);
       float* m = st.mean_l.ptr<float>(y);
       float* is = st.inv_sd_l.ptr<float>(y);
       for (int x = 0; x < w; ++x) {
         m[x] = s[x] * inv_count;
         const float var = ss[x] - s[x] * m[x];
-        is[x] = (ok[x] && var > min_var) ? 1.0f / std::sqrt(var) : 0.0f;
+        is[x] = ((!ok || ok[x]) && var > min_var) ? 1.0f / std::sqrt(var) : 0.0f;
       }
+      if (right_all_valid) continue;
       float* pb = st.bp.ptr<float>(y);
       std::fill(pb, pb + wp, 0.0f);
       const uchar* okr = st.ok_r.ptr<uchar>(y);
@@ -432,15 +438,17 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
   const int pad = std::max(std::abs(k_min), std::abs(k_max)) + 1;
   const int off = 2 * pad, wp = w + 4 * pad;
   const bool two_windows = !edge.empty() && edge_window > 0 && edge_window != window;
-  ComputeWindowStats(left, mask_left, mask_right, window, off, wp, ws.main);
-  if (two_windows) ComputeWindowStats(left, mask_left, mask_right, edge_window, off, wp, ws.small);
+  const bool left_all_valid = cv::countNonZero(mask_left) == w * h;
+  const bool right_all_valid = cv::countNonZero(mask_right) == w * h;
+  ComputeWindowStats(left, mask_left, mask_right, window, off, wp, left_all_valid, right_all_valid, ws.main);
+  if (two_windows)
+    ComputeWindowStats(left, mask_left, mask_right, edge_window, off, wp, left_all_valid, right_all_valid, ws.small);
   std::vector<char> row_has_edge(h, 0);
   if (two_windows)
     for (int y = 0; y < h; ++y) row_has_edge[y] = cv::countNonZero(edge.row(y)) > 0;
 
   // Padded right image. idx(y, x) = x - base(y, x) clamped to the padding, so
   // v = right_padded[idx - k] needs no branch.
-  const bool right_all_valid = cv::countNonZero(mask_right) == w * h;
   ws.rp.create(h, wp, CV_32F);
   ws.idx.create(h, w, CV_32S);
   cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
