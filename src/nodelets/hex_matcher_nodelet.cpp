@@ -101,6 +101,27 @@ class HexMatcherNodelet : public nodelet::Nodelet {
     if (shift.size() != 2) throw ConfigError(p.FullKey("prior_shift") + " must have 2 values [px]");
     prior_.shift = Eigen::Vector2d(shift[0], shift[1]);
     prior_.estimate_global_shift = p.Bool("estimate_global_shift", mode_ == "track");
+    // Operator's outline of known obstacles in image a: rectangles
+    // [x0, y0, x1, y1, ...] [px]; matches there are flagged low quality.
+    const std::vector<double> boxes = p.DoubleList("exclude_boxes", {});
+    if (boxes.size() % 4 != 0) {
+      throw ConfigError(p.FullKey("exclude_boxes") + " must hold 4 values per box (x0, y0, x1, y1) [px], got " +
+                        std::to_string(boxes.size()));
+    }
+    for (size_t i = 0; i < boxes.size(); i += 4) {
+      if (!(boxes[i] < boxes[i + 2] && boxes[i + 1] < boxes[i + 3])) {
+        throw ConfigError(p.FullKey("exclude_boxes") + ": box " + std::to_string(i / 4) +
+                          " needs x0 < x1 and y0 < y1");
+      }
+    }
+    if (!boxes.empty()) {
+      prior_.excluded = [boxes](const Eigen::Vector2d& x) {
+        for (size_t i = 0; i < boxes.size(); i += 4) {
+          if (x.x() >= boxes[i] && x.y() >= boxes[i + 1] && x.x() <= boxes[i + 2] && x.y() <= boxes[i + 3]) return true;
+        }
+        return false;
+      };
+    }
     p.CheckNoUnknownKeys();
     options_.Check();
   }

@@ -183,6 +183,48 @@ TEST_F(HexMatcherRos, KnownShiftBadInputAndRecovery) {
   GoodPair(500.0, 7);
 }
 
+// The operator's outline of an obstacle (exclude_boxes [100, 80, 200, 160]
+// on the second node): the matches with xa inside it are published with
+// quality <= 0.25, the others with normal quality and the known shift.
+TEST_F(HexMatcherRos, ExcludeBoxesMarkTheOutlinedMatches) {
+  ros::NodeHandle nh;
+  ros::Publisher pa = nh.advertise<sensor_msgs::Image>("/hm_boxes/image_a", 2);
+  ros::Publisher pb = nh.advertise<sensor_msgs::Image>("/hm_boxes/image_b", 2);
+  std::mutex m;
+  std::vector<slope_monitor::TiePointArray> got;
+  ros::Subscriber sub = nh.subscribe<slope_monitor::TiePointArray>(
+      "/hm_boxes/tie_points", 5, [&](const slope_monitor::TiePointArrayConstPtr& t) {
+        std::lock_guard<std::mutex> l(m);
+        got.push_back(*t);
+      });
+  ASSERT_TRUE(WaitFor([&] { return pa.getNumSubscribers() > 0 && pb.getNumSubscribers() > 0 &&
+                                   sub.getNumPublishers() > 0; },
+                      60.0));
+  std_msgs::Header h;
+  h.stamp = ros::Time(1000.0);
+  pa.publish(cv_bridge::CvImage(h, "mono8", Crop(40, 40, 11)).toImageMsg());
+  pb.publish(cv_bridge::CvImage(h, "mono8", Crop(40 - kShift.x, 40 - kShift.y, 12)).toImageMsg());
+  ASSERT_TRUE(WaitFor([&] {
+    std::lock_guard<std::mutex> l(m);
+    return !got.empty();
+  }, 30.0));
+  std::lock_guard<std::mutex> l(m);
+  int inside = 0, outside_normal = 0, outside = 0;
+  for (const auto& p : got.back().points) {
+    if (p.xa >= 100 && p.xa <= 200 && p.ya >= 80 && p.ya <= 160) {
+      ++inside;
+      EXPECT_LE(p.quality, 0.25) << "(" << p.xa << ", " << p.ya << ") inside the box";
+    } else {
+      ++outside;
+      if (p.quality > 0.25 && std::hypot(p.xb - p.xa - kShift.x, p.yb - p.ya - kShift.y) <= 0.2) ++outside_normal;
+    }
+  }
+  std::printf("exclude_boxes: %d tie points inside the box (all low quality), %d outside, %d of them normal and "
+              "within 0.2 px\n", inside, outside, outside_normal);
+  EXPECT_GT(inside, 10);
+  EXPECT_GE(outside_normal, 0.97 * outside);
+}
+
 }  // namespace
 }  // namespace slope_monitor
 
