@@ -81,8 +81,22 @@ SM_DENSE_CLONES void UpdateRows(const float* __restrict la, const int* __restric
 // out[x] = sum_{j = 0}^{len-1} in[x + j] for x in [0, n), by doubling:
 // partial sums of 1, 2, 4, ... elements combined by the binary digits of len
 // (about 2 log2(len) vector passes). tmp: 2 (n + len) floats.
+// Short windows (3, 5, 7) directly: one pass with len loads and one store
+// instead of about four passes.
+template <int L>
+SM_DENSE_CLONES void SlidingSumShort(const float* __restrict in, int n, float* __restrict out) {
+  for (int x = 0; x < n; ++x) {
+    float s = in[x];
+    for (int j = 1; j < L; ++j) s += in[x + j];
+    out[x] = s;
+  }
+}
+
 SM_DENSE_CLONES void SlidingSum(const float* __restrict in, int n, int len, float* __restrict out,
                                 float* __restrict tmp) {
+  if (len == 3) return SlidingSumShort<3>(in, n, out);
+  if (len == 5) return SlidingSumShort<5>(in, n, out);
+  if (len == 7) return SlidingSumShort<7>(in, n, out);
   const int total = n + len - 1;  // elements of `in` used
   const float* p = in;            // sums of `span` consecutive elements
   float* q = tmp;
