@@ -340,19 +340,23 @@ inline void ColumnSums(const cv::Mat& left, const cv::Mat& idx, const cv::Mat& r
 // to 8192 px, else a 64-bit key), so the scatter is a branch-free maximum;
 // the winner's exact score is read back.
 
+// Candidates outside the row go to one of these dummy slots after the row
+// (by column, so that consecutive stores do not wait for each other).
+constexpr int kDummySlots = 64;
+
 // Keys and target slots of one offset for a whole row (vectorised).
 SM_DENSE_CLONES void KeysOfOffset(const float* __restrict s, const int* __restrict x0, int ki, int w,
                                   uint32_t* __restrict key, int* __restrict slot) {
   for (int x = 0; x < w; ++x) {
     const int xr0 = x0[x] - ki;
-    slot[x] = static_cast<unsigned>(xr0) < static_cast<unsigned>(w) ? xr0 : w;
+    slot[x] = static_cast<unsigned>(xr0) < static_cast<unsigned>(w) ? xr0 : w + (x & (kDummySlots - 1));
     key[x] = (static_cast<uint32_t>((s[x] + 2.0f) * 131071.0f) << 13) | static_cast<uint32_t>(x);
   }
 }
 
 template <typename Key>
 void ScatterBest(const float* sc, const int* x0, int n, int w, Key* best, SearchBuffers& buf) {
-  std::fill(best, best + w + 1, Key(0));  // 0: nothing (score -2)
+  std::fill(best, best + w + kDummySlots, Key(0));  // 0: nothing (score -2)
   if constexpr (sizeof(Key) == 4) {
     uint32_t* key = buf.keys.data();
     int* slot = buf.slots.data();
@@ -368,7 +372,7 @@ void ScatterBest(const float* sc, const int* x0, int n, int w, Key* best, Search
       const float* __restrict s = sc + static_cast<size_t>(ki) * w;
       for (int x = 0; x < w; ++x) {
         const int xr0 = x0[x] - ki;
-        const int xr = static_cast<unsigned>(xr0) < static_cast<unsigned>(w) ? xr0 : w;
+        const int xr = static_cast<unsigned>(xr0) < static_cast<unsigned>(w) ? xr0 : w + (x & (kDummySlots - 1));
         const Key k = (static_cast<Key>((s[x] + 2.0f) * 1.0e9f) << 32) | static_cast<Key>(x);
         const Key old = best[xr];
         best[xr] = k > old ? k : old;
@@ -379,8 +383,7 @@ void ScatterBest(const float* sc, const int* x0, int n, int w, Key* best, Search
 
 void RightFromVolume(const float* sc, const int* b, int k_min, int n, int w, float min_corr, SearchBuffers& buf,
                      float* d, float* cc) {
-  // x0[x] = x - base[x] - k_min is the right pixel of offset 0; slot w
-  // collects the candidates that fall outside the row.
+  // x0[x] = x - base[x] - k_min is the right pixel of offset 0.
   int* x0 = buf.x0.data();
   for (int x = 0; x < w; ++x) x0[x] = x - (b ? b[x] : 0) - k_min;
   const bool narrow = w <= 8192;
@@ -503,11 +506,12 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
     buf.best_s.resize(w);
     buf.best_k.resize(w);
     if (w <= 8192) {
-      buf.best_key32.resize(w + 1);
+      buf.best_key32.resize(w + kDummySlots);
       buf.keys.resize(w);
       buf.slots.resize(w);
-    } else
-      buf.best_key.resize(w + 1);
+    } else {
+      buf.best_key.resize(w + kDummySlots);
+    }
     buf.x0.resize(w);
     // Window sums of a row from column sums (columns reflected at the image border) and the ZNCC.
     auto score_row = [&](std::vector<float>& col, int ki, int k, int y, const WindowStats& st, float* score) {
