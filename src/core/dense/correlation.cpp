@@ -488,7 +488,7 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
     out_right->correlation.create(h, w, CV_32F);
   }
   const float min_corr = static_cast<float>(min_correlation);
-  const int stripes = std::max(1, std::min(h / 16, std::max(1, cv::getNumThreads())));
+  const int stripes = std::max(1, std::min(h / 16, 4 * std::max(1, cv::getNumThreads())));
   const cv::Mat& idx = ws.idx;
   const cv::Mat& rp = ws.rp;
 
