@@ -79,6 +79,7 @@ void Options::Check() const {
   if (min_observations_per_image < 1) fail("min_observations_per_image", "must be >= 1");
   if (min_observations_with_prior < 2) fail("min_observations_with_prior", "must be >= 2");
   if (!(max_sigma0 > 0.0)) fail("max_sigma0", "must be > 0");
+  if (!(min_variance_factor >= 0.0)) fail("min_variance_factor", "must be >= 0");
   if (!(max_outlier_fraction >= 0.0 && max_outlier_fraction <= 1.0)) fail("max_outlier_fraction", "must be in [0, 1]");
 }
 
@@ -508,7 +509,9 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
                        "unobservable self-calibration parameters)";
       return summary;
     }
-    const double scale = options_.scale_covariance_by_sigma0 ? summary.sigma0 * summary.sigma0 : 1.0;
+    const double scale = options_.scale_covariance_by_sigma0
+                             ? std::max(summary.sigma0 * summary.sigma0, options_.min_variance_factor)
+                             : 1.0;
     pr.point_covariance.assign(scene.points.size(), Eigen::Matrix3d::Zero());
     pr.exterior_covariance.assign(scene.images.size(), Eigen::Matrix<double, 6, 6>::Zero());
     pr.interior_sigma.assign(scene.cameras.size(), std::array<double, camera::kNumInterior>{});

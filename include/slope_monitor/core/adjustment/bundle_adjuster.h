@@ -107,6 +107,10 @@ struct Options {
   bool compute_covariance = true;
   // Covariances are scaled by sigma0^2 (a posteriori) when true, else a priori.
   bool scale_covariance_by_sigma0 = true;
+  // ... by max(sigma0^2, min_variance_factor): 1 keeps a sigma0 < 1 (image
+  // weights pessimistic) from shrinking the part of the covariance that comes
+  // from the survey and GNSS priors, which are not better than stated.
+  double min_variance_factor = 0.0;   // [-] >= 0
   // Datum and sanity limits for IsSolutionUsable().
   int min_control_points = 3;         // control points observed in >= 2 images (or GNSS images, see below)
   int min_position_priors = 3;        // images with GNSS priors that can replace control points
