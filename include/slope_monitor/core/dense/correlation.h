@@ -23,8 +23,13 @@
 //      the three ZNCC values around the maximum; nodes whose best ZNCC is
 //      below min_correlation or that have the maximum at the border of the
 //      search are invalid;
-//   4. the same is done right -> left (both images mirrored, so the same code
-//      runs), giving a second parallax grid on the right image;
+//   4. the same is done right -> left, giving a second parallax grid on the
+//      right image (full_right_search = true: a second search with the
+//      right image's own prediction; false: each right pixel takes its
+//      best-scoring left candidate of step 2's correlation volume, at half
+//      the cost); where edge_window > 0, pixels whose window spans a depth
+//      edge of the prediction are correlated with that smaller window in
+//      step 2;
 //   5. each grid gets a 3 x 3 median filter (valid nodes only) and an
 //      order-consistency check per line: along a line the matched position
 //      x - d must not decrease (d(i+1) - d(i) <= node spacing + order_tolerance);
