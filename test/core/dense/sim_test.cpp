@@ -26,6 +26,8 @@
 #include "slope_monitor/core/sim/survey.h"
 #include "slope_monitor/core/sim/truth.h"
 
+#include "../sim/test_scene.h"  // the small simulated slope (header only)
+
 namespace slope_monitor {
 namespace dense {
 namespace {
@@ -34,43 +36,19 @@ constexpr double kEpochTime = 3600.0;  // [s] epoch 1; the body travels 2 m by t
 const Eigen::Vector4d kRegion(10.0, 30.0, 6.0, 24.0);
 
 sim::SceneSpec SiteSpec() {
-  sim::SceneSpec s;
-  s.seed = 11;
-  s.terrain.extent = Eigen::Vector4d(0, 40, 0, 30);
-  s.terrain.grid_spacing = 0.5;
-  s.terrain.relief = 6.0;
-  s.terrain.undulation = 0.3;
-  s.terrain.undulation_wavelength = 15.0;
-  s.landslide.centre = Eigen::Vector2d(20, 15);
-  s.landslide.length = 7.0;
-  s.landslide.width = 5.0;
-  s.landslide.azimuth = -M_PI / 2;  // downslope (south)
-  s.landslide.plunge = 0.3;  // steeper than the slope here: the body's surface drops
-  s.landslide.velocity0 = 2.0 / 3600.0;  // 2 m per hour
-  s.landslide.reference_time = 0.0;
+  sim::SceneSpec s = sim::testing::SmallSlope(11);
+  // Steeper than the slope here: the body's surface drops; 2 m per hour.
+  sim::testing::SetSouthwardBody(&s, Eigen::Vector2d(20, 15), 7.0, 5.0, 0.3, 2.0);
   s.scarp.depth = 1.0;
-  sim::Obstacle tree;
-  tree.kind = sim::Obstacle::Kind::kTree;
-  tree.base = Eigen::Vector3d(13.0, 20.0, std::numeric_limits<double>::quiet_NaN());
-  tree.radius = 1.5;
-  tree.height = 5.0;
-  s.obstacles.push_back(tree);
+  s.obstacles.push_back(sim::testing::Tree(13.0, 20.0));
   return s;
 }
 
-camera::CameraModel Camera() {
-  camera::Sensor sensor{640, 480, 0.01};
-  std::array<double, camera::kNumInterior> in{};
-  in[camera::kC] = 8.0;  // f = 800 px; at 35 m: 4.4 cm per pixel
-  in[camera::kX0] = 0.01;
-  in[camera::kY0] = -0.006;
-  in[camera::kK1] = -1.0e-3;
-  return camera::CameraModel(sensor, camera::DistortionModel::kBrownAffinity, in);
-}
+// f = 800 px; at 35 m: 4.4 cm per pixel.
+camera::CameraModel Camera() { return sim::testing::SmallCamera(640, 480, 8.0, 0.01, -0.006, -1.0e-3); }
 
 camera::ExteriorOrientation NadirAt(const sim::Scene& scene, double x, double y) {
-  const Eigen::Vector3d pos(x, y, scene.AnalyticHeight(20.0, 15.0) + 35.0);
-  return sim::LookAt(pos, pos - Eigen::Vector3d(0, 0, 1), Eigen::Vector3d::UnitY());
+  return sim::testing::NadirFrom(Eigen::Vector3d(x, y, scene.AnalyticHeight(20.0, 15.0) + 35.0));
 }
 
 OrientedImage Render(const sim::Scene& scene, const sim::Scene::State& state, const camera::CameraModel& model,
@@ -78,12 +56,9 @@ OrientedImage Render(const sim::Scene& scene, const sim::Scene::State& state, co
   const sim::Renderer renderer(scene, model);
   sim::RenderOptions ro;
   ro.threads = 2;
-  const sim::RenderResult rr = renderer.Render(state, pose, ro);
-  std::mt19937 rng(seed);
-  sim::ExposureOptions eo;
   OrientedImage im;
   im.name = name;
-  im.image = sim::Expose(rr.radiance, eo, &rng);
+  im.image = sim::testing::Photo(renderer, state, pose, ro, seed);
   im.camera = model;
   im.pose = pose;
   im.oriented = true;
@@ -124,6 +99,24 @@ Stats Summarise(std::vector<double> e) {
   return s;
 }
 
+// Half-metre cells from a 2 px grid of points; cameras 25-45 m above the
+// ground of kRegion.
+SurfaceOptions SimSurfaceOptions() {
+  SurfaceOptions o;
+  o.cell_size = 0.5;
+  o.min_points_per_cell = 2;
+  o.correlation.final_grid_spacing = 2;
+  return o;
+}
+
+SurfaceConfig SimSurfaceConfig() {
+  SurfaceConfig c;
+  c.min_depth = 25.0;
+  c.max_depth = 45.0;
+  c.region = kRegion;
+  return c;
+}
+
 class DenseSimTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -140,14 +133,8 @@ class DenseSimTest : public ::testing::Test {
                                              Render(*scene_, *before_, model, pr, "sim/right_e0", 2),
                                              Render(*scene_, *after_, model, pl, "sim/left_e1", 3),
                                              Render(*scene_, *after_, model, pr, "sim/right_e1", 4)};
-    SurfaceOptions o;
-    o.cell_size = 0.5;
-    o.min_points_per_cell = 2;
-    o.correlation.final_grid_spacing = 2;
-    SurfaceConfig c;
-    c.min_depth = 25.0;
-    c.max_depth = 45.0;
-    c.region = kRegion;
+    const SurfaceOptions o = SimSurfaceOptions();
+    const SurfaceConfig c = SimSurfaceConfig();
     model0_ = new SurfaceResult(MeasureSurface((*images_)[0], (*images_)[1], o, c, &summary0_));
     model1_ = new SurfaceResult(MeasureSurface((*images_)[2], (*images_)[3], o, c, &summary1_));
   }
@@ -222,15 +209,9 @@ TEST_F(DenseSimTest, ConesConfigurationOnTheSimulator) {
   // on this smooth, finely textured ground (measured: RMS 0.120 m, p95
   // 0.175 m against 0.044 m / 0.076 m), which is why it is a named
   // configuration, not the default.
-  SurfaceOptions o;
-  o.cell_size = 0.5;
-  o.min_points_per_cell = 2;
-  o.correlation.final_grid_spacing = 2;
+  SurfaceOptions o = SimSurfaceOptions();
   ReadCorrelationOptions(std::string(SM_SOURCE_DIR) + "/config/dense_cones.yaml", &o.correlation);
-  SurfaceConfig c;
-  c.min_depth = 25.0;
-  c.max_depth = 45.0;
-  c.region = kRegion;
+  const SurfaceConfig c = SimSurfaceConfig();
   SurfaceSummary summary;
   const io::GeoRaster m = MeasureSurface((*images_)[0], (*images_)[1], o, c, &summary).model;
   std::vector<double> bare;

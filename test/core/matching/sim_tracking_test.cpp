@@ -22,6 +22,8 @@
 #include "slope_monitor/core/sim/scene.h"
 #include "slope_monitor/core/sim/survey.h"
 
+#include "../sim/test_scene.h"  // the small simulated slope (header only)
+
 namespace slope_monitor {
 namespace matching {
 namespace {
@@ -32,47 +34,17 @@ constexpr double kEpoch1 = 3600.0;  // [s] the later epoch; the reference epoch 
 // 0.5 m per hour towards the south (down the slope, towards the cameras),
 // a boulder and a tree (unmatchable), no targets, no scarp.
 sim::SceneSpec Site(bool foliage_motion = false, unsigned seed = 5) {
-  sim::SceneSpec s;
+  sim::SceneSpec s = sim::testing::SmallSlope(seed);
   s.foliage_motion = foliage_motion;
-  s.seed = seed;
-  s.terrain.extent = Eigen::Vector4d(0, 40, 0, 30);
-  s.terrain.grid_spacing = 0.5;
-  s.terrain.relief = 6.0;
-  s.terrain.undulation = 0.3;
-  s.terrain.undulation_wavelength = 15.0;
   s.texture.coarsest_wavelength = 8.0;
-  s.landslide.centre = Eigen::Vector2d(20, 16);
-  s.landslide.length = 7.0;
-  s.landslide.width = 5.0;
+  sim::testing::SetSouthwardBody(&s, Eigen::Vector2d(20, 16), 7.0, 5.0, 0.2, 0.5);
   s.landslide.taper = 0.3;
-  s.landslide.azimuth = -M_PI / 2;
-  s.landslide.plunge = 0.2;
-  s.landslide.velocity0 = 0.5 / 3600.0;
-  s.landslide.reference_time = 0.0;
   s.scarp.depth = 0.0;
-  sim::Obstacle boulder;
-  boulder.kind = sim::Obstacle::Kind::kBoulder;
-  boulder.base = Eigen::Vector3d(12, 12, std::numeric_limits<double>::quiet_NaN());
-  boulder.radius = 0.9;
-  boulder.height = 0.5;
-  sim::Obstacle tree;
-  tree.kind = sim::Obstacle::Kind::kTree;
-  tree.base = Eigen::Vector3d(28, 19, std::numeric_limits<double>::quiet_NaN());
-  tree.radius = 1.5;
-  tree.height = 5.0;
-  s.obstacles = {boulder, tree};
+  s.obstacles = {sim::testing::Boulder(12, 12, 0.9, 0.5), sim::testing::Tree(28, 19)};
   return s;
 }
 
-camera::CameraModel Camera() {
-  camera::Sensor sensor{640, 480, 0.01};
-  std::array<double, camera::kNumInterior> in{};
-  in[camera::kC] = 8.0;
-  in[camera::kX0] = 0.02;
-  in[camera::kY0] = -0.01;
-  in[camera::kK1] = -1.0e-3;
-  return camera::CameraModel(sensor, camera::DistortionModel::kBrownAffinity, in);
-}
+camera::CameraModel Camera() { return sim::testing::SmallCamera(640, 480, 8.0, 0.02, -0.01, -1.0e-3); }
 
 // A fixed camera on the opposite side, x_offset [m] east of the axis.
 camera::ExteriorOrientation FixedPose(const sim::Scene& scene, double x_offset) {
@@ -87,35 +59,15 @@ cv::Mat Shoot(const sim::Renderer& renderer, const sim::Scene::State& state, con
   // their leaf pattern with the stamp.)
   sim::RenderOptions ro;
   ro.epoch_salt = epoch;  // the tree's foliage changes (wind)
-  const sim::RenderResult rr = renderer.Render(state, pose, ro);
-  sim::ExposureOptions eo;  // read noise 1.5 DN + shot noise, 8 bit
-  std::mt19937 rng(seed);
-  return sim::Expose(rr.radiance, eo, &rng);
+  return sim::testing::Photo(renderer, state, pose, ro, seed);
 }
 
-// What the pixel of camera (model, pose) sees in `state`: the ground point
-// (true) or an obstacle (false); *x the hit point in site.
-bool SeesGround(const sim::Scene::State& state, const camera::CameraModel& model,
-                const camera::ExteriorOrientation& pose, const Eigen::Vector2d& pixel, Eigen::Vector3d* x) {
-  const camera::Ray ray = model.ImageToRay(pose, pixel);
-  const Eigen::Vector3d d = ray.direction.normalized();
-  const double t_ground = state.grid.IntersectRay(ray.origin, d, 500.0);
-  double t_obstacle = std::numeric_limits<double>::infinity();
-  for (const sim::Obstacle& o : state.obstacles) {
-    Eigen::Vector3d n;
-    const double t = sim::IntersectObstacle(o, ray.origin, d, &n);
-    if (t > 0) t_obstacle = std::min(t_obstacle, t);
-  }
-  if (!std::isfinite(t_ground) && !std::isfinite(t_obstacle)) return false;
-  *x = ray.origin + std::min(t_ground, t_obstacle) * d;
-  return t_ground < t_obstacle;
-}
-
-// What the pixel sees: the ground, a tree crown (its foliage moves in the
-// wind), or a rigid obstacle (trunk, boulder).
+// What the pixel of camera (model, pose) sees in `state`: the ground, a tree
+// crown (its foliage moves in the wind), a rigid obstacle (trunk, boulder) or
+// nothing; *x (if given) the hit point in site, unset for the sky.
 enum class Seen { kGround, kCrown, kRigid, kSky };
 Seen WhatIsSeen(const sim::Scene::State& state, const camera::CameraModel& model,
-                const camera::ExteriorOrientation& pose, const Eigen::Vector2d& pixel) {
+                const camera::ExteriorOrientation& pose, const Eigen::Vector2d& pixel, Eigen::Vector3d* x = nullptr) {
   const camera::Ray ray = model.ImageToRay(pose, pixel);
   const Eigen::Vector3d d = ray.direction.normalized();
   const double t_ground = state.grid.IntersectRay(ray.origin, d, 500.0);
@@ -131,8 +83,16 @@ Seen WhatIsSeen(const sim::Scene::State& state, const camera::CameraModel& model
       what = o.kind == sim::Obstacle::Kind::kTree && !trunk ? Seen::kCrown : Seen::kRigid;
     }
   }
+  if (!std::isfinite(t_ground) && !std::isfinite(t_obstacle)) return Seen::kSky;
+  if (x != nullptr) *x = ray.origin + std::min(t_ground, t_obstacle) * d;
   if (std::isfinite(t_ground) && t_ground < t_obstacle) return Seen::kGround;
   return what;
+}
+
+// True when the pixel sees the ground; *x the hit point in site.
+bool SeesGround(const sim::Scene::State& state, const camera::CameraModel& model,
+                const camera::ExteriorOrientation& pose, const Eigen::Vector2d& pixel, Eigen::Vector3d* x) {
+  return WhatIsSeen(state, model, pose, pixel, x) == Seen::kGround;
 }
 
 // Pixels within `margin` px of an obstacle's image (the LSC window reaches
@@ -159,28 +119,51 @@ HexMatcherOptions SimOptions() {
   return o;
 }
 
+// One fixed camera (FixedPose(scene, 0)) photographing the scene at the
+// reference epoch (t = 0, noise seed 1) and at kEpoch1 (noise seed 2).
+struct FixedCameraRun {
+  explicit FixedCameraRun(const sim::SceneSpec& spec)
+      : scene(spec), model(Camera()), pose(FixedPose(scene, 0.0)), s0(scene.AtTime(0.0)), s1(scene.AtTime(kEpoch1)) {
+    const sim::Renderer renderer(scene, model);
+    img0 = Shoot(renderer, s0, pose, 0, 1);
+    img1 = Shoot(renderer, s1, pose, 1, 2);
+  }
+  const sim::LandslideModel& Slide() const { return scene.spec().landslide; }
+
+  // The tracking prior: the camera is fixed, so stable ground does not move
+  // (6 px, global shift estimated); the operator's outline of the unstable
+  // area (the body plus a 3 m margin) is searched 20 px wide. The prior
+  // refers to this run: it must outlive the match.
+  MatchPrior Prior() const {
+    MatchPrior prior;
+    prior.radius = 6.0;
+    prior.moving_radius = 20.0;
+    prior.estimate_global_shift = true;
+    prior.moving = [this](const Eigen::Vector2d& px) {
+      Eigen::Vector3d x;
+      if (!SeesGround(s0, model, pose, px, &x)) return false;
+      const Eigen::Vector2d rel = x.head<2>() - Slide().centre;
+      return std::hypot(rel.x() / (Slide().length + 3), rel.y() / (Slide().width + 3)) < 1.0;
+    };
+    return prior;
+  }
+
+  const sim::Scene scene;
+  const camera::CameraModel model;
+  const camera::ExteriorOrientation pose;
+  const sim::Scene::State s0, s1;
+  cv::Mat img0, img1;
+};
+
 TEST(SimTracking, NaturalFeaturesAcrossEpochsAgainstTruth) {
-  const sim::Scene scene(Site());
-  const camera::CameraModel model = Camera();
-  const sim::Renderer renderer(scene, model);
-  const camera::ExteriorOrientation pose = FixedPose(scene, 0.0);
-  const sim::Scene::State s0 = scene.AtTime(0.0), s1 = scene.AtTime(kEpoch1);
-  const cv::Mat img0 = Shoot(renderer, s0, pose, 0, 1), img1 = Shoot(renderer, s1, pose, 1, 2);
-  const sim::LandslideModel& slide = scene.spec().landslide;
+  const FixedCameraRun run(Site());
+  const camera::CameraModel& model = run.model;
+  const camera::ExteriorOrientation& pose = run.pose;
+  const sim::Scene::State& s0 = run.s0;
+  const sim::LandslideModel& slide = run.Slide();
 
   const HexMatcher matcher(SimOptions());
-  MatchPrior prior;
-  prior.radius = 6.0;  // fixed camera: stable ground does not move
-  prior.moving_radius = 20.0;
-  prior.estimate_global_shift = true;
-  // The operator's outline of the unstable area (the body plus a margin).
-  prior.moving = [&](const Eigen::Vector2d& px) {
-    Eigen::Vector3d x;
-    if (!SeesGround(s0, model, pose, px, &x)) return false;
-    const Eigen::Vector2d rel = x.head<2>() - slide.centre;
-    return std::hypot(rel.x() / (slide.length + 3), rel.y() / (slide.width + 3)) < 1.0;
-  };
-  const HexMatchResult r = matcher.Match(img0, img1, prior);
+  const HexMatchResult r = matcher.Match(run.img0, run.img1, run.Prior());
 
   int ground = 0, correct = 0, moving = 0, moving_correct = 0, on_obstacle = 0, on_obstacle_wrong = 0;
   double sum2 = 0, sum2_moving = 0, max_disp = 0;
@@ -301,6 +284,15 @@ struct TrackingStats {
   int ground_low_quality = 0;
 };
 
+// Counts a match on/at an obstacle (error e [px] against truth): all, those
+// of normal quality, and those of normal quality more than 1 px off.
+void CountOnObstacle(const HexMatch& m, double e, int* all, int* normal, int* normal_wrong) {
+  ++*all;
+  if (m.IsLowQuality()) return;
+  ++*normal;
+  if (e > 1.0) ++*normal_wrong;
+}
+
 // The operator's outline of the obstacles in the image: pixels whose ray
 // hits an obstacle grown by 0.25 m (crown / boulder radius; a margin like
 // the one an operator leaves when drawing around a tree or a boulder).
@@ -317,28 +309,17 @@ bool InObstacleOutline(const sim::Scene::State& state, const camera::CameraModel
 }
 
 TrackingStats TrackWith(bool foliage_motion, bool quality_control, unsigned seed, bool outline = false) {
-  const sim::Scene scene(Site(foliage_motion, seed));
-  const camera::CameraModel model = Camera();
-  const sim::Renderer renderer(scene, model);
-  const camera::ExteriorOrientation pose = FixedPose(scene, 0.0);
-  const sim::Scene::State s0 = scene.AtTime(0.0), s1 = scene.AtTime(kEpoch1);
-  const cv::Mat img0 = Shoot(renderer, s0, pose, 0, 1), img1 = Shoot(renderer, s1, pose, 1, 2);
-  const sim::LandslideModel& slide = scene.spec().landslide;
+  const FixedCameraRun run(Site(foliage_motion, seed));
+  const camera::CameraModel& model = run.model;
+  const camera::ExteriorOrientation& pose = run.pose;
+  const sim::Scene::State &s0 = run.s0, &s1 = run.s1;
+  const sim::LandslideModel& slide = run.Slide();
   HexMatcherOptions options = SimOptions();
   options.quality.enabled = quality_control;
   const HexMatcher matcher(options);
-  MatchPrior prior;
-  prior.radius = 6.0;
-  prior.moving_radius = 20.0;
-  prior.estimate_global_shift = true;
-  prior.moving = [&](const Eigen::Vector2d& px) {
-    Eigen::Vector3d x;
-    if (!SeesGround(s0, model, pose, px, &x)) return false;
-    const Eigen::Vector2d rel = x.head<2>() - slide.centre;
-    return std::hypot(rel.x() / (slide.length + 3), rel.y() / (slide.width + 3)) < 1.0;
-  };
+  MatchPrior prior = run.Prior();
   if (outline) prior.excluded = [&](const Eigen::Vector2d& px) { return InObstacleOutline(s0, model, pose, px); };
-  const HexMatchResult r = matcher.Match(img0, img1, prior);
+  const HexMatchResult r = matcher.Match(run.img0, run.img1, prior);
   TrackingStats st;
   st.matches = r.summary.matched;
   st.low_quality = r.summary.low_quality;
@@ -373,19 +354,11 @@ TrackingStats TrackWith(bool foliage_motion, bool quality_control, unsigned seed
       continue;
     }
     if (rigid) {
-      ++st.rigid;
-      if (!m.IsLowQuality()) {
-        ++st.rigid_normal;
-        if (e > 1.0) ++st.rigid_normal_wrong;
-      }
+      CountOnObstacle(m, e, &st.rigid, &st.rigid_normal, &st.rigid_normal_wrong);
       continue;
     }
     if (near) {
-      ++st.near;
-      if (!m.IsLowQuality()) {
-        ++st.near_normal;
-        if (e > 1.0) ++st.near_normal_wrong;
-      }
+      CountOnObstacle(m, e, &st.near, &st.near_normal, &st.near_normal_wrong);
       continue;
     }
     if (m.IsLowQuality()) {

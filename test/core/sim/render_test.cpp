@@ -6,6 +6,7 @@
 
 #include "slope_monitor/core/sim/renderer.h"
 #include "slope_monitor/core/sim/survey.h"
+#include "test_scene.h"  // the small simulated slope (header only)
 
 namespace slope_monitor {
 namespace sim {
@@ -14,23 +15,11 @@ namespace {
 // A 40 m x 30 m slope, untextured ground (so a centroid window sees only the
 // target), circles and tags; moving body in the middle.
 SceneSpec SmallScene() {
-  SceneSpec s;
-  s.seed = 3;
-  s.terrain.extent = Eigen::Vector4d(0, 40, 0, 30);
-  s.terrain.grid_spacing = 0.5;
-  s.terrain.relief = 6.0;
-  s.terrain.undulation = 0.3;
-  s.terrain.undulation_wavelength = 15.0;
+  SceneSpec s = testing::SmallSlope(3);
   s.texture.contrast = 0.0;
   s.texture.vegetation_fraction = 0.0;
   s.texture.rock_fraction = 0.0;
-  s.landslide.centre = Eigen::Vector2d(20, 15);
-  s.landslide.length = 8.0;
-  s.landslide.width = 6.0;
-  s.landslide.azimuth = -M_PI / 2;
-  s.landslide.plunge = 0.2;
-  s.landslide.velocity0 = 1.0 / 3600.0;  // 1 m per hour
-  s.landslide.reference_time = 0.0;
+  testing::SetSouthwardBody(&s, Eigen::Vector2d(20, 15), 8.0, 6.0, 0.2, 1.0);  // 1 m per hour
   s.scarp.depth = 0.0;
   const std::vector<Eigen::Vector2d> circles = {{20, 15}, {17, 12}, {23, 18}, {14, 20}, {26, 10}, {20, 21}};
   for (size_t k = 0; k < circles.size(); ++k) {
@@ -52,15 +41,7 @@ SceneSpec SmallScene() {
 }
 
 camera::CameraModel SmallCamera(double c_mm = 8.0) {
-  camera::Sensor sensor{320, 240, 0.01};
-  std::array<double, camera::kNumInterior> in{};
-  in[camera::kC] = c_mm;
-  in[camera::kX0] = 0.012;
-  in[camera::kY0] = -0.008;
-  in[camera::kK1] = -1.5e-3;
-  in[camera::kP1] = 2e-5;
-  in[camera::kB1] = 1e-4;
-  return camera::CameraModel(sensor, camera::DistortionModel::kBrownAffinity, in);
+  return testing::SmallCamera(320, 240, c_mm, 0.012, -0.008, -1.5e-3, 2e-5, 1e-4);
 }
 
 // Intensity centroid of a circle target: weights = radiance - ring radiance
@@ -122,8 +103,7 @@ double ProjectedArea(const Plate& p, const camera::CameraModel& m, const camera:
 }
 
 camera::ExteriorOrientation NadirOver(const Scene& scene, double x, double y, double agl) {
-  const Eigen::Vector3d pos(x, y, scene.AnalyticHeight(x, y) + agl);
-  return LookAt(pos, pos - Eigen::Vector3d(0, 0, 1), Eigen::Vector3d::UnitY());
+  return testing::NadirFrom(Eigen::Vector3d(x, y, scene.AnalyticHeight(x, y) + agl));
 }
 
 TEST(RenderTest, CircleCentroidsAgreeWithProjectedCentres) {
@@ -168,12 +148,7 @@ TEST(RenderTest, CircleCentroidsAgreeWithProjectedCentres) {
 TEST(RenderTest, VisibleTargetsMatchTheGeometricCount) {
   SceneSpec spec = SmallScene();
   // A boulder in front of target 3 (seen from the south-west) and a tree.
-  Obstacle boulder;
-  boulder.kind = Obstacle::Kind::kBoulder;
-  boulder.base = Eigen::Vector3d(14.0, 18.6, std::nan(""));
-  boulder.radius = 0.7;
-  boulder.height = 0.6;
-  spec.obstacles.push_back(boulder);
+  spec.obstacles.push_back(testing::Boulder(14.0, 18.6, 0.7, 0.6));
   const Scene scene(spec);
   const camera::CameraModel model = SmallCamera(5.0);
   const Renderer renderer(scene, model);
