@@ -316,6 +316,7 @@ void Options::Check() const {
   if (!(max_saturated_fraction >= 0.0 && max_saturated_fraction <= 1.0)) fail("max_saturated_fraction", "must be in [0, 1]");
   if (!(max_edge_blur > 0.0 && max_edge_blur <= 20.0)) fail("max_edge_blur", "must be in (0, 20] px");
   if (!(max_residual > 0.0 && max_residual <= 1.0)) fail("max_residual", "must be in (0, 1]");
+  if (!(max_dark_surround > 0.0 && max_dark_surround <= 1.0)) fail("max_dark_surround", "must be in (0, 1]");
   if (!(noise_floor >= 0.0 && noise_floor <= 50.0)) fail("noise_floor", "must be in [0, 50] DN");
 }
 
@@ -539,6 +540,51 @@ struct EdgeModel {
     return x[2] + k * pr.v;
   }
 };
+
+// The share of the tag's white surround (the quiet zone, one cell wide
+// around the black border) that is darker than halfway between the border's
+// black and white levels: a branch, crown or trunk in front of the plate. The
+// ring is sampled through the homography of the four outer corners (order
+// bottom-left, bottom-right, top-right, top-left; unit square (0,0) (1,0)
+// (1,1) (0,1)), from 0.3 to 0.8 cell outside the black border (clear of the
+// blurred edge and of the plate's rim); samples outside the image do not count.
+double DarkSurroundFraction(const ImageView& im, const std::array<Eigen::Vector2d, 4>& corners, int cells,
+                            double black, double white) {
+  Eigen::Matrix<double, 8, 8> a;
+  Eigen::Matrix<double, 8, 1> rhs;
+  const double uv[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+  for (int k = 0; k < 4; ++k) {
+    const double u = uv[k][0], v = uv[k][1], x = corners[k].x(), y = corners[k].y();
+    a.row(2 * k) << u, v, 1, 0, 0, 0, -u * x, -v * x;
+    a.row(2 * k + 1) << 0, 0, 0, u, v, 1, -u * y, -v * y;
+    rhs(2 * k) = x;
+    rhs(2 * k + 1) = y;
+  }
+  const Eigen::Matrix<double, 8, 1> h = a.fullPivLu().solve(rhs);
+  if (!h.allFinite()) return 0.0;
+  auto map = [&](double u, double v) {
+    const double w = h(6) * u + h(7) * v + 1.0;
+    return Eigen::Vector2d((h(0) * u + h(1) * v + h(2)) / w, (h(3) * u + h(4) * v + h(5)) / w);
+  };
+  const double cell = 1.0 / std::max(cells, 1);
+  const double threshold = black + 0.5 * (white - black);
+  int n = 0, dark = 0;
+  const int kAlong = 48;
+  for (const double off : {0.3, 0.55, 0.8}) {
+    const double lo = -off * cell, hi = 1.0 + off * cell;
+    for (int i = 0; i <= kAlong; ++i) {
+      const double f = lo + (hi - lo) * i / kAlong;
+      for (const Eigen::Vector2d& q : {Eigen::Vector2d(f, lo), Eigen::Vector2d(f, hi), Eigen::Vector2d(lo, f),
+                                       Eigen::Vector2d(hi, f)}) {
+        const Eigen::Vector2d p = map(q.x(), q.y());
+        if (p.x() < 0 || p.y() < 0 || p.x() > im.cols - 1 || p.y() > im.rows - 1) continue;
+        ++n;
+        if (im.Sample(p.x(), p.y()) < threshold) ++dark;
+      }
+    }
+  }
+  return n > 0 ? static_cast<double>(dark) / n : 0.0;
+}
 
 // Fits the edge from corner a to corner b (image coordinates); `inside` is a
 // point inside the tag (the black side); `cell` the tag's cell size [px].
@@ -888,6 +934,26 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       }
       std::array<Line, 4> lines;
       for (int k = 0; k < 4; ++k) lines[k] = ToLine(edges[k]);
+      {
+        // Something in front of part of the plate bends the edge fits without
+        // raising their residual much (the occluder sits in the white
+        // surround, next to the band): look at the whole surround.
+        std::array<Line, 4> l0 = lines;
+        std::array<Eigen::Vector2d, 4> outer;
+        double black = 0.0, white = 0.0;
+        for (int k = 0; k < 4; ++k) {
+          black += 0.25 * edges[k].b;
+          white += 0.25 * edges[k].w;
+        }
+        if (CornersFromEdges(l0, &outer)) {
+          const double dark = DarkSurroundFraction(im, outer, det->family->width_at_border, black, white);
+          if (dark > options_.max_dark_surround) {
+            reject(family, det->id, o.centre, RejectReason::kPartial,
+                   Message(std::lround(100.0 * dark), "% of the white surround dark (occluded)"));
+            continue;
+          }
+        }
+      }
       std::array<Eigen::Vector2d, 4> corners;
       Eigen::Vector2d centre;
       if (!CornersFromEdges(lines, &corners) || !CentreFromCorners(corners, &centre) ||

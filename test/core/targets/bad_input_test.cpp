@@ -169,6 +169,7 @@ TEST(OptionsReader, ShippedDefaultsEqualTheInClassDefaults) {
   EXPECT_EQ(o.max_saturated_fraction, d.max_saturated_fraction);
   EXPECT_EQ(o.max_edge_blur, d.max_edge_blur);
   EXPECT_EQ(o.max_residual, d.max_residual);
+  EXPECT_EQ(o.max_dark_surround, d.max_dark_surround);
   EXPECT_EQ(o.noise_floor, d.noise_floor);
   const NodeOptions nd;
   EXPECT_EQ(n.target_list, nd.target_list);

@@ -66,6 +66,7 @@ Options ReadOptions(Reader& r) {
   o.max_saturated_fraction = r.Double("max_saturated_fraction", o.max_saturated_fraction, 0.0, 1.0);
   o.max_edge_blur = r.Double("max_edge_blur", o.max_edge_blur, 0.01, 20.0, "px");
   o.max_residual = r.Double("max_residual", o.max_residual, 0.01, 1.0);
+  o.max_dark_surround = r.Double("max_dark_surround", o.max_dark_surround, 0.001, 1.0);
   o.noise_floor = r.Double("noise_floor", o.noise_floor, 0.0, 50.0, "DN");
   return o;
 }

@@ -79,6 +79,7 @@ struct Options {
   double max_saturated_fraction = 0.10;  // [-] of the bright part; more is "saturated"
   double max_edge_blur = 1.6;          // [px] fitted edge blur sigma; more is "blurred"
   double max_residual = 0.25;          // [-] fit residual RMS / contrast; more is "partial"
+  double max_dark_surround = 0.005;    // [-] tags: share of the white surround darker than mid-grey; more is "partial" (occluded)
   double noise_floor = 0.0;            // [DN] minimum image noise; 0: quantisation of the input (1/sqrt(12) LSB)
 
   void Check() const;
