@@ -19,18 +19,34 @@
 #include "slope_monitor/core/dense/evaluation.h"
 #include "slope_monitor/core/dense/options_yaml.h"
 
+#include "../matching/cones_images.h"  // the Middlebury Cones pair (header only)
+
 namespace slope_monitor {
 namespace dense {
 namespace {
 
-const std::string kDir = std::string(SM_TEST_DATA_DIR) + "/stereo_middlebury_cones/";
+// A smooth random texture (96 x 128, uniform 0..255 from cv::RNG(7),
+// Gaussian blur of 1.2 px) and the same shifted by a known 5.4 px (bilinear
+// resampling): right(x) = left(x + 5.4), a point at x_left is at
+// x_left - 5.4 on the right: disparity +5.4.
+constexpr double kShift = 5.4;  // [px]
+struct ShiftedTexture {
+  cv::Mat left, right;
+};
+ShiftedTexture SmoothTextureShifted() {
+  cv::Mat tex(96, 128, CV_32F);
+  cv::RNG rng(7);
+  rng.fill(tex, cv::RNG::UNIFORM, 0, 255);
+  ShiftedTexture t;
+  cv::GaussianBlur(tex, t.left, cv::Size(0, 0), 1.2);
+  const cv::Mat m = (cv::Mat_<double>(2, 3) << 1, 0, -kShift, 0, 1, 0);
+  cv::warpAffine(t.left, t.right, m, t.left.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT_101);
+  return t;
+}
 
 TEST(Cones, ErrorRatesStayUnderTheMeasuredBound) {
-  const cv::Mat left = cv::imread(kDir + "left.tif", cv::IMREAD_GRAYSCALE);
-  const cv::Mat right = cv::imread(kDir + "right.tif", cv::IMREAD_GRAYSCALE);
-  const cv::Mat gt = cv::imread(kDir + "disp_left_gt.tif", cv::IMREAD_UNCHANGED);
-  const cv::Mat occl = cv::imread(kDir + "occl.png", cv::IMREAD_GRAYSCALE);
-  ASSERT_FALSE(left.empty() || right.empty() || gt.empty() || occl.empty()) << kDir;
+  const testing::ConesPair cones = testing::LoadConesPair(cv::IMREAD_GRAYSCALE);
+  const cv::Mat &left = cones.left, &right = cones.right, &gt = cones.gt, &occl = cones.occl;
   ASSERT_EQ(gt.type(), CV_32F);
   CorrelationOptions o;
   o.final_grid_spacing = 1;
@@ -56,11 +72,8 @@ TEST(Cones, ConesConfigurationIsNoWorseThanSgbm) {
   // config/dense_cones.yaml with its disparity map's holes filled from the
   // background side, against OpenCV's StereoSGBM (stereo_match sample
   // settings, as bench_dense_vs_sgbm) on the same pair in this process.
-  const cv::Mat left = cv::imread(kDir + "left.tif", cv::IMREAD_GRAYSCALE);
-  const cv::Mat right = cv::imread(kDir + "right.tif", cv::IMREAD_GRAYSCALE);
-  const cv::Mat gt = cv::imread(kDir + "disp_left_gt.tif", cv::IMREAD_UNCHANGED);
-  const cv::Mat occl = cv::imread(kDir + "occl.png", cv::IMREAD_GRAYSCALE);
-  ASSERT_FALSE(left.empty() || right.empty() || gt.empty() || occl.empty()) << kDir;
+  const testing::ConesPair cones = testing::LoadConesPair(cv::IMREAD_GRAYSCALE);
+  const cv::Mat &left = cones.left, &right = cones.right, &gt = cones.gt, &occl = cones.occl;
   CorrelationOptions o;
   o.final_grid_spacing = 1;
   o.min_disparity = 0;
@@ -186,14 +199,8 @@ TEST(Cones, LscRefinementSharpensTheSubPixelParallax) {
   // The constant 5.4 px shift of a smooth random texture (as below):
   // least squares on the LoG images against the parabola through the ZNCC
   // peak (measured: 0.0116 px vs 0.0139 px RMS on the same 399 nodes).
-  cv::Mat tex(96, 128, CV_32F);
-  cv::RNG rng(7);
-  rng.fill(tex, cv::RNG::UNIFORM, 0, 255);
-  cv::Mat smooth;
-  cv::GaussianBlur(tex, smooth, cv::Size(0, 0), 1.2);
-  cv::Mat shifted;
-  const cv::Mat m = (cv::Mat_<double>(2, 3) << 1, 0, -5.4, 0, 1, 0);
-  cv::warpAffine(smooth, shifted, m, smooth.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT_101);
+  const ShiftedTexture texture = SmoothTextureShifted();
+  const cv::Mat &smooth = texture.left, &shifted = texture.right;
   CorrelationOptions o;
   o.levels = 2;
   o.final_grid_spacing = 4;
@@ -204,7 +211,7 @@ TEST(Cones, LscRefinementSharpensTheSubPixelParallax) {
     for (int i = 0; i < g.disparity.rows; ++i)
       for (int j = 0; j < g.disparity.cols; ++j)
         if (g.Valid(i, j) && j * 4 > 20 && j * 4 < 108 && i * 4 > 10 && i * 4 < 86) {
-          s2 += std::pow(g.disparity.at<float>(i, j) - 5.4, 2);
+          s2 += std::pow(g.disparity.at<float>(i, j) - kShift, 2);
           ++*n;
         }
     return std::sqrt(s2 / std::max(1, *n));
@@ -253,16 +260,9 @@ TEST(Cones, BlackOrMismatchedImagesAreRejected) {
 }
 
 TEST(Cones, ConstantShiftIsRecoveredToSubPixel) {
-  // A random texture shifted by a known 5.4 px (bilinear resampling).
-  cv::Mat tex(96, 128, CV_32F);
-  cv::RNG rng(7);
-  rng.fill(tex, cv::RNG::UNIFORM, 0, 255);
-  cv::Mat smooth;
-  cv::GaussianBlur(tex, smooth, cv::Size(0, 0), 1.2);
-  cv::Mat shifted;
-  const cv::Mat m = (cv::Mat_<double>(2, 3) << 1, 0, -5.4, 0, 1, 0);
-  cv::warpAffine(smooth, shifted, m, smooth.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT_101);
-  // right(x) = left(x + 5.4): a point at x_left is at x_left - 5.4 on the right: d = +5.4.
+  // A random texture shifted by a known 5.4 px (SmoothTextureShifted).
+  const ShiftedTexture texture = SmoothTextureShifted();
+  const cv::Mat &smooth = texture.left, &shifted = texture.right;
   // Both ways of getting the right-to-left matches (second search, or the
   // left search's correlation volume).
   for (const bool full_right : {true, false}) {
@@ -278,12 +278,12 @@ TEST(Cones, ConstantShiftIsRecoveredToSubPixel) {
     for (int i = 0; i < g.disparity.rows; ++i)
       for (int j = 0; j < g.disparity.cols; ++j)
         if (g.Valid(i, j) && j * 4 > 20 && j * 4 < 108) {
-          EXPECT_NEAR(g.disparity.at<float>(i, j), 5.4, 0.25) << "full_right_search " << full_right;
+          EXPECT_NEAR(g.disparity.at<float>(i, j), kShift, 0.25) << "full_right_search " << full_right;
           sum += g.disparity.at<float>(i, j);
           ++n;
         }
     ASSERT_GT(n, 100) << s.BriefReport();
-    EXPECT_NEAR(sum / n, 5.4, 0.1);
+    EXPECT_NEAR(sum / n, kShift, 0.1);
   }
 }
 

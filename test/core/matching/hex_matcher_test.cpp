@@ -14,17 +14,13 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/matching/filters.h"
 
+#include "cones_images.h"  // the Middlebury Cones pair (header only)
+
 namespace slope_monitor {
 namespace matching {
 namespace {
 
-const std::string kCones = std::string(SM_TEST_DATA_DIR) + "/stereo_middlebury_cones/";
-
-cv::Mat Load(const std::string& name) {
-  cv::Mat m = cv::imread(kCones + name, cv::IMREAD_UNCHANGED);
-  if (m.empty()) throw IoError("cannot read " + kCones + name);
-  return m;
-}
+using testing::LoadCones;
 
 TEST(HexRaster, GeometryAndSampling) {
   cv::Mat img(30, 40, CV_32F);
@@ -88,15 +84,11 @@ cv::Mat ShiftImage(const cv::Mat& f, const Eigen::Vector2d& t, const cv::Rect& m
   return out;
 }
 
-cv::Mat Noisy(const cv::Mat& f, unsigned seed) {
-  cv::Mat n(f.size(), CV_32F);
-  cv::RNG rng(seed);
-  rng.fill(n, cv::RNG::NORMAL, 0.0, 1.0);
-  return f + n;
-}
+// One grey level of Gaussian noise.
+cv::Mat Noisy(const cv::Mat& f, unsigned seed) { return testing::AddNoise(f, 1.0, seed); }
 
 TEST(HexMatcher, FindsKnownShiftOnRealTexture) {
-  const cv::Mat left = GaussianBlur(ToFloat(Load("left.tif")), 0.7);
+  const cv::Mat left = GaussianBlur(ToFloat(LoadCones("left.tif")), 0.7);
   const Eigen::Vector2d t(7.3, -4.6);
   const cv::Mat a = Noisy(left, 1), b = Noisy(ShiftImage(left, t), 2);
   HexMatcherOptions o;
@@ -121,7 +113,7 @@ TEST(HexMatcher, FindsKnownShiftOnRealTexture) {
 }
 
 TEST(HexMatcher, EpochsWithAMovingArea) {
-  const cv::Mat left = GaussianBlur(ToFloat(Load("left.tif")), 0.7);
+  const cv::Mat left = GaussianBlur(ToFloat(LoadCones("left.tif")), 0.7);
   const Eigen::Vector2d stable(3.2, 1.4), moving(3.2 + 14.5, 1.4 + 9.0);
   const cv::Rect roi(150, 120, 160, 150);
   const cv::Mat a = Noisy(left, 3), b = Noisy(ShiftImage(left, stable, roi, moving), 4);
@@ -155,8 +147,8 @@ TEST(HexMatcher, EpochsWithAMovingArea) {
 }
 
 TEST(HexMatcher, ConesWithEpipolarPriorAgainstGroundTruth) {
-  const cv::Mat left = Load("left.tif"), right = Load("right.tif");
-  const cv::Mat gt = Load("disp_left_gt.tif"), occl = Load("occl.png");
+  const cv::Mat left = LoadCones("left.tif"), right = LoadCones("right.tif");
+  const cv::Mat gt = LoadCones("disp_left_gt.tif"), occl = LoadCones("occl.png");
   HexMatcherOptions o;
   o.lsc.model = LscModel::kShift;
   const HexMatcher matcher(o);
@@ -197,8 +189,8 @@ TEST(HexMatcher, ConesWithEpipolarPriorAgainstGroundTruth) {
 // must not be wrong with normal quality; the rest keeps its matches. With
 // quality.reject the flagged matches are dropped.
 TEST(HexMatcher, QualityControlFlagsASwayingOccluder) {
-  const cv::Mat left = GaussianBlur(ToFloat(Load("left.tif")), 0.7);
-  const cv::Mat right = GaussianBlur(ToFloat(Load("right.tif")), 0.7);
+  const cv::Mat left = GaussianBlur(ToFloat(LoadCones("left.tif")), 0.7);
+  const cv::Mat right = GaussianBlur(ToFloat(LoadCones("right.tif")), 0.7);
   const Eigen::Vector2d t(7.3, -4.6);
   const cv::Rect in_a(180, 140, 80, 80), in_b(180 + 7 + 4, 140 - 5 + 3, 80, 80);
   const cv::Mat piece = right(cv::Rect(120, 120, 80, 80)).t();

@@ -20,24 +20,14 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/matching/interest_points.h"
 
+#include "cones_images.h"  // the Middlebury Cones pair (header only)
+
 namespace slope_monitor {
 namespace matching {
 namespace {
 
-const std::string kCones = std::string(SM_TEST_DATA_DIR) + "/stereo_middlebury_cones/";
-
-cv::Mat Load(const std::string& name) {
-  cv::Mat m = cv::imread(kCones + name, cv::IMREAD_UNCHANGED);
-  if (m.empty()) throw IoError("cannot read " + kCones + name);
-  return m;
-}
-
-cv::Mat AddNoise(const cv::Mat& f, double sigma, unsigned seed) {
-  cv::Mat noise(f.size(), CV_32F);
-  cv::RNG rng(seed);
-  rng.fill(noise, cv::RNG::NORMAL, 0.0, sigma);
-  return f + noise;
-}
+using testing::AddNoise;
+using testing::LoadCones;
 
 struct WarpCase {
   cv::Mat a, b;
@@ -53,7 +43,7 @@ struct WarpCase {
 // its own (noise-free floor of eq. 1: 0.05 px point-sampled, 0.03 px
 // integrated).
 WarpCase MakeWarp(const cv::Matx23d& m, double noise, unsigned seed) {
-  const cv::Mat left = GaussianBlur(ToFloat(Load("left.tif")), 0.7);
+  const cv::Mat left = GaussianBlur(ToFloat(LoadCones("left.tif")), 0.7);
   WarpCase w;
   w.m = m;
   const cv::Matx22d a(m(0, 0), m(0, 1), m(1, 0), m(1, 1));
@@ -263,6 +253,17 @@ TEST(Lsc, ModifiedLscConvergesFromFivePixels) {
   EXPECT_GT(r_mlsc, r_plain + 0.05);
 }
 
+// The cells of the published LSC table on Cones, in its order: eq. 1
+// (affine) / eq. 2 (shift) x 5x5 / 11x11 windows (half window h), with the
+// published y-parallax RMS [px].
+struct PublishedCell {
+  LscModel model;
+  int h;
+  double published;
+};
+const PublishedCell kPublishedCells[] = {
+    {LscModel::kAffine, 2, 0.48}, {LscModel::kShift, 2, 0.76}, {LscModel::kAffine, 5, 0.40}, {LscModel::kShift, 5, 0.44}};
+
 // The published LSC table on the real rectified pair, and disparities
 // against the ground truth outside occlusions.
 //
@@ -274,21 +275,15 @@ TEST(Lsc, ModifiedLscConvergesFromFivePixels) {
 // four configurations match within 1 px (the same points in every cell, so
 // the cells compare like with like).
 TEST(Lsc, PublishedTableOnCones) {
-  const cv::Mat left = ToFloat(Load("left.tif"));
-  const cv::Mat right = ToFloat(Load("right.tif"));
-  const cv::Mat gt = Load("disp_left_gt.tif");
-  const cv::Mat occl = Load("occl.png");
+  const testing::ConesPair cones = testing::LoadConesPair();
+  const cv::Mat left = ToFloat(cones.left), right = ToFloat(cones.right);
+  const cv::Mat &gt = cones.gt, &occl = cones.occl;
   ASSERT_EQ(gt.type(), CV_32FC1);
   ASSERT_EQ(gt.size(), left.size());
   const std::vector<InterestPoint> pts = PointsInside(left, 12);
   ASSERT_GT(pts.size(), 200u);
   // Cells in the published table's order: eq. 1 / eq. 2 x 5x5 / 11x11.
-  const struct {
-    LscModel model;
-    int h;
-    double published;
-  } cells[] = {{LscModel::kAffine, 2, 0.48}, {LscModel::kShift, 2, 0.76}, {LscModel::kAffine, 5, 0.40},
-               {LscModel::kShift, 5, 0.44}};
+  const auto& cells = kPublishedCells;
   const size_t np = pts.size();
   std::vector<std::vector<double>> dy(4, std::vector<double>(np, 0.0));
   std::vector<std::vector<char>> ok(4, std::vector<char>(np, 0));
@@ -374,7 +369,7 @@ TEST(Lsc, PublishedTableOnCones) {
 }
 
 TEST(Lsc, BadInputGivesAClearOutcome) {
-  const cv::Mat tex = ToFloat(Load("left.tif"));
+  const cv::Mat tex = ToFloat(LoadCones("left.tif"));
   LscOptions o;
   // Window larger than the image.
   o.half_window = 50;
@@ -405,16 +400,10 @@ TEST(Lsc, BadInputGivesAClearOutcome) {
 // cannot remove and that would otherwise dominate the RMS. The raw RMS is
 // printed beside it. Two point spacings (4 px asserted, 6 px reported).
 TEST(Lsc, PublishedTableWindowOrderingOnCones) {
-  const cv::Mat left = ToFloat(Load("left.tif"));
-  const cv::Mat right = ToFloat(Load("right.tif"));
-  const cv::Mat gt = Load("disp_left_gt.tif");
-  const cv::Mat occl = Load("occl.png");
-  const struct {
-    LscModel model;
-    int h;
-    double published;
-  } cells[] = {{LscModel::kAffine, 2, 0.48}, {LscModel::kShift, 2, 0.76}, {LscModel::kAffine, 5, 0.40},
-               {LscModel::kShift, 5, 0.44}};
+  const testing::ConesPair cones = testing::LoadConesPair();
+  const cv::Mat left = ToFloat(cones.left), right = ToFloat(cones.right);
+  const cv::Mat &gt = cones.gt, &occl = cones.occl;
+  const auto& cells = kPublishedCells;
   for (int spacing : {4, 6}) {
     InterestPointOptions io;
     io.border = 12;
