@@ -19,6 +19,31 @@ void ForecastOptions::Check() const {
   if (!(max_horizon > 0.0)) throw ConfigError(Message("forecast max_horizon = ", max_horizon, " s must be > 0"));
 }
 
+namespace {
+
+// The samples of the last `window` seconds up to the latest stamp (*t_last),
+// oldest first (samples_in is not empty).
+template <typename Sample>
+std::vector<Sample> SamplesInWindow(const std::vector<Sample>& samples_in, double window, double* t_last) {
+  std::vector<Sample> samples = samples_in;
+  std::sort(samples.begin(), samples.end(), [](const Sample& a, const Sample& b) { return a.stamp < b.stamp; });
+  *t_last = samples.back().stamp;
+  std::vector<Sample> in_window;
+  for (const Sample& s : samples)
+    if (!(s.stamp < *t_last - window)) in_window.push_back(s);
+  return in_window;
+}
+
+// The forecast's window from the first usable sample (t relative to t_last)
+// to the last stamp.
+void SetWindow(const std::vector<double>& t, double t_last, Forecast* f) {
+  f->window_start = t.front() + t_last;
+  f->window_end = t_last;
+  f->window = f->window_end - f->window_start;
+}
+
+}  // namespace
+
 Forecast ForecastFailure(const std::vector<VelocitySample>& samples_in, const ForecastOptions& options) {
   Forecast f;
   f.alpha = options.alpha;
@@ -26,13 +51,9 @@ Forecast ForecastFailure(const std::vector<VelocitySample>& samples_in, const Fo
     f.reason = "no velocity samples";
     return f;
   }
-  std::vector<VelocitySample> samples = samples_in;
-  std::sort(samples.begin(), samples.end(),
-            [](const VelocitySample& a, const VelocitySample& b) { return a.stamp < b.stamp; });
-  const double t_last = samples.back().stamp;
+  double t_last = 0.0;
   std::vector<double> t, y;
-  for (const VelocitySample& s : samples) {
-    if (s.stamp < t_last - options.window) continue;
+  for (const VelocitySample& s : SamplesInWindow(samples_in, options.window, &t_last)) {
     if (!(s.velocity > 0.0) || s.velocity < options.min_velocity || !std::isfinite(s.velocity)) continue;
     t.push_back(s.stamp - t_last);
     y.push_back(std::pow(s.velocity, 1.0 - options.alpha));
@@ -43,9 +64,7 @@ Forecast ForecastFailure(const std::vector<VelocitySample>& samples_in, const Fo
                        ")");
     return f;
   }
-  f.window_start = t.front() + t_last;
-  f.window_end = t_last;
-  f.window = f.window_end - f.window_start;
+  SetWindow(t, t_last, &f);
   const int n = f.num_samples;
   Eigen::MatrixXd A(n, 2);
   Eigen::VectorXd b(n);
@@ -129,13 +148,10 @@ Forecast ForecastFromDisplacements(const std::vector<DisplacementSample>& sample
     f.reason = "no displacement samples";
     return f;
   }
-  std::vector<DisplacementSample> samples = samples_in;
-  std::sort(samples.begin(), samples.end(),
-            [](const DisplacementSample& a, const DisplacementSample& b) { return a.stamp < b.stamp; });
-  const double t_last = samples.back().stamp;
+  double t_last = 0.0;
   std::vector<double> t, y, w;
-  for (const DisplacementSample& s : samples) {
-    if (s.stamp < t_last - options.window || !(s.sigma > 0.0) || !std::isfinite(s.displacement)) continue;
+  for (const DisplacementSample& s : SamplesInWindow(samples_in, options.window, &t_last)) {
+    if (!(s.sigma > 0.0) || !std::isfinite(s.displacement)) continue;
     t.push_back(s.stamp - t_last);
     y.push_back(s.displacement);
     w.push_back(1.0 / (s.sigma * s.sigma));
@@ -147,9 +163,7 @@ Forecast ForecastFromDisplacements(const std::vector<DisplacementSample>& sample
                        ")");
     return f;
   }
-  f.window_start = t.front() + t_last;
-  f.window_end = t_last;
-  f.window = f.window_end - f.window_start;
+  SetWindow(t, t_last, &f);
   const Fit line = LinearFit(t, y, w);
   std::vector<double> g(n);
   auto fit_at = [&](double log_h) {  // h = tf - t_last

@@ -11,38 +11,40 @@
 namespace slope_monitor {
 namespace sim {
 
-RadioFault RadioFault::BlockedPath(const std::string& tx, const std::string& rx, double start, double duration,
-                                   double attenuation) {
+namespace {
+
+// A fault of `kind` on the path tx -> rx (tx empty: every block of rx) from
+// `start` for `duration` [s]; no bias, amplitude unchanged.
+RadioFault FaultOn(RadioFault::Kind kind, const std::string& tx, const std::string& rx, double start,
+                   double duration) {
   RadioFault f;
-  f.kind = Kind::kBlockedPath;
+  f.kind = kind;
   f.transmitter_id = tx;
   f.receiver_id = rx;
   f.start = start;
   f.duration = duration;
+  return f;
+}
+
+}  // namespace
+
+RadioFault RadioFault::BlockedPath(const std::string& tx, const std::string& rx, double start, double duration,
+                                   double attenuation) {
+  RadioFault f = FaultOn(Kind::kBlockedPath, tx, rx, start, duration);
   f.attenuation = attenuation;
   return f;
 }
 
 RadioFault RadioFault::MultipathJump(const std::string& tx, const std::string& rx, double start, double duration,
                                      double bias, double attenuation) {
-  RadioFault f;
-  f.kind = Kind::kMultipathJump;
-  f.transmitter_id = tx;
-  f.receiver_id = rx;
-  f.start = start;
-  f.duration = duration;
+  RadioFault f = FaultOn(Kind::kMultipathJump, tx, rx, start, duration);
   f.bias = bias;
   f.attenuation = attenuation;
   return f;
 }
 
 RadioFault RadioFault::DroppedBlocks(const std::string& rx, double start, double duration) {
-  RadioFault f;
-  f.kind = Kind::kDroppedBlocks;
-  f.receiver_id = rx;
-  f.start = start;
-  f.duration = duration;
-  return f;
+  return FaultOn(Kind::kDroppedBlocks, "", rx, start, duration);
 }
 
 bool RadioFault::ActiveAt(double t) const {
