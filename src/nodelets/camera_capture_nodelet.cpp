@@ -23,6 +23,7 @@
 #include "slope_monitor/ros/capture_conversions.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/parameters.h"
+#include "slope_monitor/ros/setup.h"
 
 namespace slope_monitor {
 
@@ -41,10 +42,8 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    try {
-      ReadParameters(pnh);
-    } catch (const Error& e) {
-      NODELET_ERROR("camera_capture: %s; not advertising", e.what());
+    if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh); })) {
+      NODELET_ERROR("camera_capture: %s; not advertising", error->c_str());
       return;
     }
     camera_info_manager_ = std::make_unique<camera_info_manager::CameraInfoManager>(nh, camera_name_);

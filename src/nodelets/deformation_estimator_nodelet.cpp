@@ -28,6 +28,7 @@
 #include "slope_monitor/core/deformation/report.h"
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/parameters.h"
+#include "slope_monitor/ros/setup.h"
 
 namespace slope_monitor {
 
@@ -68,18 +69,16 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     deformation::EstimatorOptions options;
-    try {
-      ReadParameters(pnh, &options);
-    } catch (const Error& e) {
-      NODELET_ERROR("deformation_estimator: %s; not advertising", e.what());
+    if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh, &options); })) {
+      NODELET_ERROR("deformation_estimator: %s; not advertising", error->c_str());
       return;
     }
-    try {
-      if (!database_.empty()) history_ = std::make_unique<deformation::History>(database_);
-      estimator_ = std::make_unique<deformation::Estimator>(options, history_.get());
-    } catch (const Error& e) {
+    if (const auto error = ros_adapters::SetUpError([&] {
+          if (!database_.empty()) history_ = std::make_unique<deformation::History>(database_);
+          estimator_ = std::make_unique<deformation::Estimator>(options, history_.get());
+        })) {
       NODELET_ERROR("deformation_estimator: %s; refusing to start on it (nothing was written to it); not advertising",
-                    e.what());
+                    error->c_str());
       estimator_.reset();
       history_.reset();
       return;

@@ -35,6 +35,7 @@
 #include "slope_monitor/core/io/geotiff.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/parameters.h"
+#include "slope_monitor/ros/setup.h"
 
 namespace slope_monitor {
 
@@ -48,10 +49,8 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    try {
-      ReadParameters(pnh);
-    } catch (const Error& e) {
-      NODELET_ERROR("dense_matcher: %s; not advertising", e.what());
+    if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh); })) {
+      NODELET_ERROR("dense_matcher: %s; not advertising", error->c_str());
       return;
     }
     tf_buffer_ = std::make_unique<tf2_ros::Buffer>(ros::Duration(3600.0));

@@ -26,6 +26,7 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/matching/hex_matcher.h"
 #include "slope_monitor/ros/parameters.h"
+#include "slope_monitor/ros/setup.h"
 
 namespace slope_monitor {
 
@@ -34,11 +35,11 @@ class HexMatcherNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    try {
-      ReadParameters(pnh);
-      matcher_ = std::make_unique<matching::HexMatcher>(options_);
-    } catch (const Error& e) {
-      NODELET_ERROR("hex_matcher: %s; not advertising", e.what());
+    if (const auto error = ros_adapters::SetUpError([&] {
+          ReadParameters(pnh);
+          matcher_ = std::make_unique<matching::HexMatcher>(options_);
+        })) {
+      NODELET_ERROR("hex_matcher: %s; not advertising", error->c_str());
       return;
     }
     pub_ = nh.advertise<slope_monitor::TiePointArray>("tie_points", 5);

@@ -29,6 +29,7 @@
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/parameters.h"
+#include "slope_monitor/ros/setup.h"
 
 namespace slope_monitor {
 
@@ -37,11 +38,11 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    try {
-      ReadParameters(pnh);
-      solver_ = std::make_unique<radio::RadioPhaseSolver>(network_, options_);
-    } catch (const Error& e) {
-      NODELET_ERROR("radio_phase_solver: %s; not advertising", e.what());
+    if (const auto error = ros_adapters::SetUpError([&] {
+          ReadParameters(pnh);
+          solver_ = std::make_unique<radio::RadioPhaseSolver>(network_, options_);
+        })) {
+      NODELET_ERROR("radio_phase_solver: %s; not advertising", error->c_str());
       return;
     }
     std::vector<std::string> ids;

@@ -23,6 +23,7 @@
 #include "slope_monitor/core/targets/target_centroider.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/parameters.h"
+#include "slope_monitor/ros/setup.h"
 
 namespace slope_monitor {
 
@@ -33,17 +34,17 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     targets::NodeOptions node;
     targets::Options o;
-    try {
-      ros_adapters::ParamReader p(pnh);
-      o = targets::ReadOptions(p);  // the same reader as the centroid_targets tool's
-      node = targets::ReadNodeOptions(p);
-      p.CheckNoUnknownKeys();
-      o.Check();
-    } catch (const Error& e) {
+    if (const auto error = ros_adapters::SetUpError([&] {
+          ros_adapters::ParamReader p(pnh);
+          o = targets::ReadOptions(p);  // the same reader as the centroid_targets tool's
+          node = targets::ReadNodeOptions(p);
+          p.CheckNoUnknownKeys();
+          o.Check();
+        })) {
       // Bad parameters: nothing is measured, but the node stays up and says
       // why, throttled in the log and in diagnostics.
-      config_error_ = e.what();
-      NODELET_ERROR("target_centroider: %s; not advertising", e.what());
+      config_error_ = *error;
+      NODELET_ERROR("target_centroider: %s; not advertising", config_error_.c_str());
       updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
       updater_->setHardwareID(pnh.getNamespace());
       updater_->add("target_centroider", this, &TargetCentroiderNodelet::Diagnose);

@@ -1,0 +1,30 @@
+// The parameter-failure rule of every nodelet's onInit (STYLE.md): the
+// parameters are read and checked once, and the solver is built from them;
+// a slope_monitor::Error there is the user's configuration (it names the key
+// and the reason), so the nodelet logs it, does not advertise and stays
+// loaded, never ROS_ASSERT or exit(). Anything else is a bug and propagates.
+//
+//   if (const auto error = ros_adapters::SetUpError([&] {
+//         ReadParameters(pnh);
+//         solver_ = std::make_unique<Solver>(options_);
+//       })) {
+//     NODELET_ERROR("my_node: %s; not advertising", error->c_str());
+//     return;
+//   }
+//
+// The nodelet logs itself: NODELET_ERROR names the nodelet's own logger.
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <string>
+
+namespace slope_monitor {
+namespace ros_adapters {
+
+// Runs `set_up`; returns nothing when it succeeded, else the message of the
+// slope_monitor::Error it threw.
+std::optional<std::string> SetUpError(const std::function<void()>& set_up);
+
+}  // namespace ros_adapters
+}  // namespace slope_monitor
