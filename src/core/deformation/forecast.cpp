@@ -34,6 +34,16 @@ std::vector<Sample> SamplesInWindow(const std::vector<Sample>& samples_in, doubl
   return in_window;
 }
 
+// A forecast not made yet: alpha from the options, and the reason when
+// there are no `kind` samples at all.
+template <typename Sample>
+Forecast NewForecast(const std::vector<Sample>& samples, const char* kind, const ForecastOptions& options) {
+  Forecast f;
+  f.alpha = options.alpha;
+  if (samples.empty()) f.reason = Message("no ", kind, " samples");
+  return f;
+}
+
 // The forecast's window from the first usable sample (t relative to t_last)
 // to the last stamp.
 void SetWindow(const std::vector<double>& t, double t_last, Forecast* f) {
@@ -45,12 +55,8 @@ void SetWindow(const std::vector<double>& t, double t_last, Forecast* f) {
 }  // namespace
 
 Forecast ForecastFailure(const std::vector<VelocitySample>& samples_in, const ForecastOptions& options) {
-  Forecast f;
-  f.alpha = options.alpha;
-  if (samples_in.empty()) {
-    f.reason = "no velocity samples";
-    return f;
-  }
+  Forecast f = NewForecast(samples_in, "velocity", options);
+  if (samples_in.empty()) return f;
   double t_last = 0.0;
   std::vector<double> t, y;
   for (const VelocitySample& s : SamplesInWindow(samples_in, options.window, &t_last)) {
@@ -142,12 +148,8 @@ Fit LinearFit(const std::vector<double>& g, const std::vector<double>& y, const 
 }  // namespace
 
 Forecast ForecastFromDisplacements(const std::vector<DisplacementSample>& samples_in, const ForecastOptions& options) {
-  Forecast f;
-  f.alpha = options.alpha;
-  if (samples_in.empty()) {
-    f.reason = "no displacement samples";
-    return f;
-  }
+  Forecast f = NewForecast(samples_in, "displacement", options);
+  if (samples_in.empty()) return f;
   double t_last = 0.0;
   std::vector<double> t, y, w;
   for (const DisplacementSample& s : SamplesInWindow(samples_in, options.window, &t_last)) {
