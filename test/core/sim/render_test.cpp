@@ -61,6 +61,21 @@ Eigen::Vector2d Centroid(const cv::Mat& img, const Eigen::Vector2d& guess, doubl
   return Eigen::Vector2d(sx / sw, sy / sw);
 }
 
+// Shoelace sums of a closed polygon: returns twice its signed area; adds to
+// *cx, *cy the first moments times 6 (centroid = (cx, cy) / (3 * returned)).
+double TwiceSignedArea(const std::vector<Eigen::Vector2d>& poly, double* cx, double* cy) {
+  double area = 0;
+  for (size_t k = 0; k < poly.size(); ++k) {
+    const Eigen::Vector2d& a = poly[k];
+    const Eigen::Vector2d& b = poly[(k + 1) % poly.size()];
+    const double cr = a.x() * b.y() - b.x() * a.y();
+    area += cr;
+    *cx += (a.x() + b.x()) * cr;
+    *cy += (a.y() + b.y()) * cr;
+  }
+  return area;
+}
+
 // Area centroid of the projected disc (polygon of many projected rim points).
 Eigen::Vector2d ProjectedDiscCentroid(const Plate& p, const camera::CameraModel& m,
                                       const camera::ExteriorOrientation& pose) {
@@ -72,15 +87,8 @@ Eigen::Vector2d ProjectedDiscCentroid(const Plate& p, const camera::CameraModel&
     m.Project(pose, p.centre + p.disc_radius * (std::cos(a) * p.right + std::sin(a) * p.up), &px);
     poly.push_back(px);
   }
-  double area = 0, cx = 0, cy = 0;
-  for (int k = 0; k < n; ++k) {
-    const Eigen::Vector2d& a = poly[k];
-    const Eigen::Vector2d& b = poly[(k + 1) % n];
-    const double cr = a.x() * b.y() - b.x() * a.y();
-    area += cr;
-    cx += (a.x() + b.x()) * cr;
-    cy += (a.y() + b.y()) * cr;
-  }
+  double cx = 0, cy = 0;
+  const double area = TwiceSignedArea(poly, &cx, &cy);
   return Eigen::Vector2d(cx / (3 * area), cy / (3 * area));
 }
 
@@ -91,15 +99,10 @@ double RingRadiance(const Scene& scene, const Plate& p) {
 
 double ProjectedArea(const Plate& p, const camera::CameraModel& m, const camera::ExteriorOrientation& pose) {
   const std::vector<Eigen::Vector3d> outline = p.Outline(512);
-  double area = 0;
   std::vector<Eigen::Vector2d> px(outline.size());
   for (size_t k = 0; k < outline.size(); ++k) m.Project(pose, outline[k], &px[k]);
-  for (size_t k = 0; k < px.size(); ++k) {
-    const auto& a = px[k];
-    const auto& b = px[(k + 1) % px.size()];
-    area += a.x() * b.y() - b.x() * a.y();
-  }
-  return std::abs(0.5 * area);
+  double cx = 0, cy = 0;
+  return std::abs(0.5 * TwiceSignedArea(px, &cx, &cy));
 }
 
 camera::ExteriorOrientation NadirOver(const Scene& scene, double x, double y, double agl) {
