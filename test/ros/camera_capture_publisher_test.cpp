@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "../core/capture/test_images.h"
+#include "capture_test_util.h"
 #include "slope_monitor/core/capture/geodesy.h"
 #include "slope_monitor/ros/capture_conversions.h"
 #include "slope_monitor/ros/conversions.h"
@@ -19,32 +20,9 @@ using capture_test::ExifTags;
 constexpr double kMay1st10h = 1714557600.0;  // 2024-05-01 10:00:00 UTC
 constexpr double kOriginLat = 35.0, kOriginLon = 139.0, kOriginH = 100.0;
 
-struct Recorded {
-  std::vector<sensor_msgs::ImagePtr> images;
-  std::vector<sensor_msgs::CameraInfoPtr> infos;
-  std::vector<sensor_msgs::NavSatFix> fixes;
-  std::vector<geometry_msgs::PoseWithCovarianceStamped> priors;
-  std::vector<slope_monitor::EpochMarker> epochs;
-  std::vector<std::string> warnings;
-  std::vector<std::string> order;  // "S0", "I", "E0"
-};
+using capture_test::Recorded;
 
-ros_adapters::CaptureOutputs Outputs(Recorded* r) {
-  ros_adapters::CaptureOutputs out;
-  out.image = [r](const sensor_msgs::ImagePtr& i, const sensor_msgs::CameraInfoPtr& c) {
-    r->images.push_back(i);
-    r->infos.push_back(c);
-    r->order.push_back("I");
-  };
-  out.fix = [r](const sensor_msgs::NavSatFix& f) { r->fixes.push_back(f); };
-  out.prior = [r](const geometry_msgs::PoseWithCovarianceStamped& p) { r->priors.push_back(p); };
-  out.epoch = [r](const slope_monitor::EpochMarker& m) {
-    r->epochs.push_back(m);
-    r->order.push_back((m.end ? "E" : "S") + std::to_string(m.epoch));
-  };
-  out.warn = [r](const std::string& w) { r->warnings.push_back(w); };
-  return out;
-}
+ros_adapters::CaptureOutputs Outputs(Recorded* r) { return capture_test::RecordInto(r); }
 
 // Three photos of one flight (the second one 10 m north, 50 m up), a truncated
 // photo between them, and a fourth photo 2 h later (a second epoch).
@@ -69,18 +47,7 @@ class PublisherFixture : public ::testing::Test {
     return capture::kWgs84A * (1 - e2) / std::pow(1 - e2 * s * s, 1.5);
   }
   static ExifTags Tags(const std::string& hms, const std::string& subsec, double lat, double lon, double alt) {
-    ExifTags t;
-    t.date_time = "2024:05:01 " + hms;
-    t.subsec = subsec;
-    t.make = "SimCam";
-    t.model = "S1";
-    t.focal_num = 88;
-    t.focal_den = 10;
-    t.gps = true;
-    t.lat_deg = lat;
-    t.lon_deg = lon;
-    t.alt_m = alt;
-    return t;
+    return capture_test::UavPhotoTags("S1", hms, subsec, lat, lon, alt);
   }
   void Photo(const std::string& name, int channels, const std::string& hms, const std::string& subsec, double lat,
              double lon, double alt) {

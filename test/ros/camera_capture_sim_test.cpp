@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "../core/capture/test_images.h"
+#include "capture_test_util.h"
 #include "slope_monitor/core/capture/geodesy.h"
 #include "slope_monitor/core/sim/survey.h"
 #include "slope_monitor/ros/capture_conversions.h"
@@ -21,14 +22,7 @@
 namespace slope_monitor {
 namespace {
 
-struct Published {
-  std::vector<sensor_msgs::ImagePtr> images;
-  std::vector<sensor_msgs::CameraInfoPtr> infos;
-  std::vector<sensor_msgs::NavSatFix> fixes;
-  std::vector<geometry_msgs::PoseWithCovarianceStamped> priors;
-  std::vector<slope_monitor::EpochMarker> epochs;
-  std::vector<std::string> warnings;
-};
+using Published = capture_test::Recorded;
 
 // EXIF DateTimeOriginal + SubSecTimeOriginal (ms) of a UTC stamp.
 void SetExifTime(double stamp, capture_test::ExifTags* t) {
@@ -92,16 +86,7 @@ class SimImages : public ::testing::Test {
     o.gnss.sigma_horizontal = 0.03;
     o.gnss.sigma_vertical = 0.05;
     Published p;
-    ros_adapters::CaptureOutputs out;
-    out.image = [&p](const sensor_msgs::ImagePtr& i, const sensor_msgs::CameraInfoPtr& c) {
-      p.images.push_back(i);
-      p.infos.push_back(c);
-    };
-    out.fix = [&p](const sensor_msgs::NavSatFix& f) { p.fixes.push_back(f); };
-    out.prior = [&p](const geometry_msgs::PoseWithCovarianceStamped& m) { p.priors.push_back(m); };
-    out.epoch = [&p](const slope_monitor::EpochMarker& m) { p.epochs.push_back(m); };
-    out.warn = [&p](const std::string& w) { p.warnings.push_back(w); };
-    ros_adapters::FramePublisher publisher(o, out);
+    ros_adapters::FramePublisher publisher(o, capture_test::RecordInto(&p));
     capture::FolderSourceOptions fo;
     fo.folder = dir.path();
     capture::FolderSource source(fo);

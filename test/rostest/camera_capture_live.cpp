@@ -32,6 +32,8 @@
 #include <std_srvs/Trigger.h>
 
 #include "../core/capture/test_images.h"
+#include "../ros/capture_test_util.h"
+#include "test_node.h"
 #include "slope_monitor/EpochMarker.h"
 #include "slope_monitor/core/capture/geodesy.h"
 
@@ -41,15 +43,7 @@ namespace {
 constexpr double kMay1st10h = 1714557600.0;  // 2024-05-01 10:00:00 UTC
 constexpr int kWidth = 160, kHeight = 120;
 
-// Waits (wall time) until pred() holds; false on timeout.
-bool WaitFor(const std::function<bool()>& pred, double timeout) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    if (pred()) return true;
-    ros::WallDuration(0.05).sleep();
-  }
-  return pred();
-}
+using rostest_node::WaitFor;
 
 std::string ManagerName() {
   std::string m = "/capture_manager";
@@ -213,18 +207,7 @@ TEST(CameraCaptureLive, PhotoFolder) {
       {"img_d.jpg", "10:30:00", "", 1800.0, 35.0995, 139.1990, 1199.0},
   };
   auto tags = [](const std::string& hms, const std::string& subsec, double lat, double lon, double alt) {
-    capture_test::ExifTags t;
-    t.date_time = "2024:05:01 " + hms;
-    t.subsec = subsec;
-    t.make = "SimCam";
-    t.model = "UAV-1";
-    t.focal_num = 88;
-    t.focal_den = 10;
-    t.gps = true;
-    t.lat_deg = lat;
-    t.lon_deg = lon;
-    t.alt_m = alt;
-    return t;
+    return capture_test::UavPhotoTags("UAV-1", hms, subsec, lat, lon, alt);
   };
   for (size_t i = 0; i < photos.size(); ++i) {
     const Photo& p = photos[i];
@@ -535,10 +518,4 @@ TEST(CameraCaptureLive, MissingDeviceNodeStaysUpAndRetries) {
 }  // namespace
 }  // namespace slope_monitor
 
-int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "camera_capture_live_test");
-  ros::AsyncSpinner spinner(2);
-  spinner.start();
-  return RUN_ALL_TESTS();
-}
+int main(int argc, char** argv) { return slope_monitor::rostest_node::RunTests(argc, argv, "camera_capture_live_test"); }

@@ -27,6 +27,7 @@
 #include <XmlRpcValue.h>
 
 #include "../core/capture/test_images.h"
+#include "test_node.h"
 #include "slope_monitor/EpochMarker.h"
 #include "slope_monitor/RadioSampleBlock.h"
 #include "slope_monitor/ros/capture_conversions.h"
@@ -34,14 +35,7 @@
 namespace slope_monitor {
 namespace {
 
-bool WaitFor(const std::function<bool()>& pred, double timeout) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    if (pred()) return true;
-    ros::WallDuration(0.05).sleep();
-  }
-  return pred();
-}
+using rostest_node::WaitFor;
 
 // Nodes subscribed to `topic` (from the master's system state).
 std::vector<std::string> Subscribers(const std::string& topic) {
@@ -281,10 +275,4 @@ TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
 }  // namespace
 }  // namespace slope_monitor
 
-int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "camera_capture_record_test");
-  ros::AsyncSpinner spinner(2);
-  spinner.start();
-  return RUN_ALL_TESTS();
-}
+int main(int argc, char** argv) { return slope_monitor::rostest_node::RunTests(argc, argv, "camera_capture_record_test"); }
