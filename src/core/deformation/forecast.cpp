@@ -103,11 +103,6 @@ Forecast ForecastFailure(const std::vector<VelocitySample>& samples_in, const Fo
   return f;
 }
 
-}  // namespace deformation
-}  // namespace slope_monitor
-
-namespace slope_monitor {
-namespace deformation {
 namespace {
 
 struct Fit {
