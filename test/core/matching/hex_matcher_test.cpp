@@ -251,7 +251,9 @@ TEST(HexMatcher, QualityControlFlagsASwayingOccluder) {
   rej.quality.reject = true;
   const HexMatchResult rr = HexMatcher(rej).Match(a, b, MatchPrior());
   EXPECT_EQ(rr.summary.matched, r.summary.matched - r.summary.low_quality);
-  if (r.summary.low_quality > 0) EXPECT_EQ(rr.summary.rejects.at("low_quality"), r.summary.low_quality);
+  if (r.summary.low_quality > 0) {
+    EXPECT_EQ(rr.summary.rejects.at("low_quality"), r.summary.low_quality);
+  }
   for (const HexMatch& m : rr.matches) EXPECT_FALSE(m.IsLowQuality());
 }
 
