@@ -123,7 +123,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     pixel_size_ = p.Double("pixel_size", 1.0, 1e-6, 1.0, "mm/px");
     default_pixel_sigma_ = p.Double("pixel_sigma", 0.3, 1e-4, 100.0, "px");
     pixel_sigma_floor_ = p.Double("pixel_sigma_floor", 0.05, 0.0, 100.0, "px");
-    uav_pixel_sigma_floor_ = p.Double("uav_pixel_sigma_floor", 0.3, 0.0, 100.0, "px");
+    uav_pixel_sigma_floor_ = p.Double("uav_pixel_sigma_floor", 1.0, 0.0, 100.0, "px");
     epoch_gap_ = p.Double("epoch_gap", 600.0, 0.0, 1e7, "s");
     prior_max_dt_ = p.Double("position_prior_max_dt", 0.1, 0.0, 10.0, "s");
     gnss_sigma_floor_ = p.Double("position_prior_min_sigma", 0.01, 1e-4, 100.0, "m");
@@ -680,7 +680,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   std::vector<std::string> target_topics_, camera_names_;
   std::string frame_id_;
   uint64_t unidentified_ = 0;
-  double pixel_size_ = 1.0, default_pixel_sigma_ = 0.3, pixel_sigma_floor_ = 0.05, uav_pixel_sigma_floor_ = 0.3, epoch_gap_ = 600.0, prior_max_dt_ = 0.1,
+  double pixel_size_ = 1.0, default_pixel_sigma_ = 0.3, pixel_sigma_floor_ = 0.05, uav_pixel_sigma_floor_ = 1.0, epoch_gap_ = 600.0, prior_max_dt_ = 0.1,
          gnss_sigma_floor_ = 0.01;
   int min_images_ = 2;
   std::vector<int> free_interior_;
