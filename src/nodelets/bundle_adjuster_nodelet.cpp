@@ -146,6 +146,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     options_.max_outlier_fraction = p.Double("max_outlier_fraction", 0.2, 0.0, 1.0);
     options_.min_observations_with_prior = p.Int("min_observations_with_prior", 3, 2, 1000);
     options_.min_variance_factor = p.Double("min_variance_factor", 0.0, 0.0, 100.0);
+    options_.compute_datum_free_covariance = p.Bool("datum_free_displacements", true);
     options_.compute_covariance = true;
     options_.Check();
     epoch_options_.adjustment = options_;
@@ -476,7 +477,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       for (const auto& im : usable_scene.images) last_pose_[usable_scene.cameras[im.camera].name] = im.exterior;
       for (const auto& c : usable_scene.cameras) calibrated_[c.name] = c.model;
       const adjustment::EpochPoints ep =
-          adjustment::EpochPointsFromSolution(usable_scene, s, static_cast<int>(out.epoch), out.header.stamp.toSec());
+          adjustment::EpochPointsFromSolution(usable_scene, s, static_cast<int>(out.epoch), out.header.stamp.toSec(),
+                                              options_.compute_datum_free_covariance);
       epochs_[static_cast<int>(out.epoch)] = ep;
       if (reference_epoch_ < 0) reference_epoch_ = static_cast<int>(out.epoch);
       solution_pub_.publish(out);

@@ -533,6 +533,30 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
       covariance.GetCovarianceBlock(interior[k].data(), interior[k].data(), c.data());
       for (int i = 0; i < camera::kNumInterior; ++i) pr.interior_sigma[k][i] = std::sqrt(std::max(0.0, scale * c(i, i)));
     }
+    if (options_.compute_datum_free_covariance) {
+      std::vector<double*> held;
+      for (size_t j = 0; j < scene.points.size(); ++j) {
+        if (!point_used[j] || !IsConstrainedControl(scene.points[j]) || prob.IsParameterBlockConstant(point[j].data()))
+          continue;
+        prob.SetParameterBlockConstant(point[j].data());
+        held.push_back(point[j].data());
+      }
+      std::vector<std::pair<const double*, const double*>> free_points;
+      for (size_t j = 0; j < scene.points.size(); ++j)
+        if (point_used[j] && !prob.IsParameterBlockConstant(point[j].data()))
+          free_points.emplace_back(point[j].data(), point[j].data());
+      ceres::Covariance datum_free(co);
+      if (!held.empty() && datum_free.Compute(free_points, &prob)) {
+        pr.point_covariance_datum_free.assign(scene.points.size(), Eigen::Matrix3d::Zero());
+        for (size_t j = 0; j < scene.points.size(); ++j) {
+          if (!point_used[j] || prob.IsParameterBlockConstant(point[j].data())) continue;
+          Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c;
+          datum_free.GetCovarianceBlock(point[j].data(), point[j].data(), c.data());
+          pr.point_covariance_datum_free[j] = scale * c;
+        }
+      }
+      for (double* b : held) prob.SetParameterBlockVariable(b);
+    }
     pr.valid = true;
     pr.message = options_.scale_covariance_by_sigma0 ? "a posteriori (scaled by sigma0^2)" : "a priori";
   } else {

@@ -13,7 +13,8 @@ void DisplacementOptions::Check() const {
   if (!(significance_threshold > 0.0)) throw ConfigError(Message("significance_threshold must be > 0, got ", significance_threshold));
 }
 
-EpochPoints EpochPointsFromSolution(const Scene& scene, const Summary& summary, int epoch, double stamp) {
+EpochPoints EpochPointsFromSolution(const Scene& scene, const Summary& summary, int epoch, double stamp,
+                                   bool datum_free) {
   if (!summary.IsSolutionUsable())
     throw InvalidArgument(Message("epoch ", epoch, ": the adjustment is not usable (", summary.reason, ")"));
   EpochPoints e;
@@ -27,6 +28,8 @@ EpochPoints EpochPointsFromSolution(const Scene& scene, const Summary& summary, 
     s.position = p.position;
     if (summary.precision.valid && j < summary.precision.point_covariance.size())
       s.covariance = summary.precision.point_covariance[j];
+    if (datum_free && summary.precision.valid && j < summary.precision.point_covariance_datum_free.size())
+      s.covariance = summary.precision.point_covariance_datum_free[j];
     e.points[p.id] = s;
   }
   return e;

@@ -353,6 +353,35 @@ TEST(EpochAdjustment, PhotosSeeingOneKnownPointBorrowTheNeighboursAttitude) {
   }
 }
 
+TEST(EpochAdjustment, DatumFreeCovarianceLeavesTheSurveyOut) {
+  // Control points held: the monitoring points' covariance loses the part the
+  // control survey (1 cm here) contributes, which is common to every epoch.
+  Epoch e = MakeEpoch(0, 40);
+  EpochAdjustmentOptions o = Defaults();
+  o.adjustment.compute_datum_free_covariance = true;
+  const EpochAdjustmentResult r = AdjustEpoch(e.scene, e.unidentified, e.listed, o);
+  ASSERT_TRUE(r.summary.IsSolutionUsable()) << r.summary.reason;
+  const Precision& pr = r.summary.precision;
+  ASSERT_EQ(pr.point_covariance_datum_free.size(), r.scene.points.size());
+  int checked = 0;
+  for (size_t j = 0; j < r.scene.points.size(); ++j) {
+    const double full = pr.point_covariance[j].trace(), free = pr.point_covariance_datum_free[j].trace();
+    if (r.scene.points[j].role == PointRole::kControl) {
+      EXPECT_EQ(free, 0.0) << r.scene.points[j].id;
+      continue;
+    }
+    EXPECT_GT(free, 0.0) << r.scene.points[j].id;
+    EXPECT_LT(free, full) << r.scene.points[j].id;
+    ++checked;
+  }
+  EXPECT_GT(checked, 10);
+  const EpochPoints with = EpochPointsFromSolution(r.scene, r.summary, 0, 0.0, true);
+  const EpochPoints without = EpochPointsFromSolution(r.scene, r.summary, 0, 0.0, false);
+  const std::string id = "tag36h11/10";
+  ASSERT_TRUE(with.points.count(id));
+  EXPECT_LT(with.points.at(id).covariance.trace(), without.points.at(id).covariance.trace());
+}
+
 }  // namespace
 }  // namespace adjustment
 }  // namespace slope_monitor

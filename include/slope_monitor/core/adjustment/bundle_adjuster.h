@@ -111,6 +111,11 @@ struct Options {
   // weights pessimistic) from shrinking the part of the covariance that comes
   // from the survey and GNSS priors, which are not better than stated.
   double min_variance_factor = 0.0;   // [-] >= 0
+  // Also the point covariance with the surveyed control points held at their
+  // adjusted values (Precision::point_covariance_datum_free): the precision
+  // of the points relative to the control, without the survey's own error,
+  // which is the same in every epoch and cancels in displacements.
+  bool compute_datum_free_covariance = false;
   // Datum and sanity limits for IsSolutionUsable().
   int min_control_points = 3;         // control points observed in >= 2 images (or GNSS images, see below)
   int min_position_priors = 3;        // images with GNSS priors that can replace control points
@@ -146,6 +151,7 @@ struct Precision {
   std::string message;
   double sigma0 = 0.0;                                   // [-] a posteriori
   std::vector<Eigen::Matrix3d> point_covariance;         // [m^2] per point (zero when fixed)
+  std::vector<Eigen::Matrix3d> point_covariance_datum_free;  // [m^2] control held (Options); empty when not computed
   std::vector<Eigen::Matrix<double, 6, 6>> exterior_covariance;  // [m^2, rad^2] per image
   std::vector<std::array<double, camera::kNumInterior>> interior_sigma;  // per camera (0 = fixed)
 };

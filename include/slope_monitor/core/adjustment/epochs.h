@@ -30,7 +30,11 @@ struct EpochPoints {
 
 // The adjusted points of a usable solution (points without precision get a
 // zero covariance). Throws InvalidArgument when the summary is not usable.
-EpochPoints EpochPointsFromSolution(const Scene& scene, const Summary& summary, int epoch, double stamp);
+// With `datum_free` and Precision::point_covariance_datum_free computed, the
+// points carry that covariance (control survey error left out: it is the same
+// in every epoch and the co-registration removes it).
+EpochPoints EpochPointsFromSolution(const Scene& scene, const Summary& summary, int epoch, double stamp,
+                                   bool datum_free = false);
 
 struct DisplacementOptions {
   bool estimate_scale = false;         // co-registration: rigid (false) or similarity
