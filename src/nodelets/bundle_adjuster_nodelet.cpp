@@ -145,7 +145,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     options_.max_sigma0 = p.Double("max_sigma0", 5.0, 0.01, 1e6);
     options_.max_outlier_fraction = p.Double("max_outlier_fraction", 0.2, 0.0, 1.0);
     options_.min_observations_with_prior = p.Int("min_observations_with_prior", 3, 2, 1000);
-    options_.min_variance_factor = p.Double("min_variance_factor", 0.0, 0.0, 100.0);
+    options_.min_variance_factor = p.Double("min_variance_factor", 1.0, 0.0, 100.0);
     options_.compute_datum_free_covariance = p.Bool("datum_free_displacements", true);
     options_.compute_covariance = true;
     options_.Check();

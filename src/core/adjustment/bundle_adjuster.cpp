@@ -512,6 +512,9 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
     const double scale = options_.scale_covariance_by_sigma0
                              ? std::max(summary.sigma0 * summary.sigma0, options_.min_variance_factor)
                              : 1.0;
+    // With the control points held, what is left comes from the image (and
+    // GNSS) weights alone, whose scale sigma0 estimates: no floor there.
+    const double datum_free_scale = options_.scale_covariance_by_sigma0 ? summary.sigma0 * summary.sigma0 : 1.0;
     pr.point_covariance.assign(scene.points.size(), Eigen::Matrix3d::Zero());
     pr.exterior_covariance.assign(scene.images.size(), Eigen::Matrix<double, 6, 6>::Zero());
     pr.interior_sigma.assign(scene.cameras.size(), std::array<double, camera::kNumInterior>{});
@@ -552,7 +555,7 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
           if (!point_used[j] || prob.IsParameterBlockConstant(point[j].data())) continue;
           Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c;
           datum_free.GetCovarianceBlock(point[j].data(), point[j].data(), c.data());
-          pr.point_covariance_datum_free[j] = scale * c;
+          pr.point_covariance_datum_free[j] = datum_free_scale * c;
         }
       }
       for (double* b : held) prob.SetParameterBlockVariable(b);

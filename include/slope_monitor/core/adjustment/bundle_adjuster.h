@@ -109,7 +109,8 @@ struct Options {
   bool scale_covariance_by_sigma0 = true;
   // ... by max(sigma0^2, min_variance_factor): 1 keeps a sigma0 < 1 (image
   // weights pessimistic) from shrinking the part of the covariance that comes
-  // from the survey and GNSS priors, which are not better than stated.
+  // from the survey and GNSS priors, which are not better than stated. The
+  // datum-free covariance below is always scaled by sigma0^2 alone.
   double min_variance_factor = 0.0;   // [-] >= 0
   // Also the point covariance with the surveyed control points held at their
   // adjusted values (Precision::point_covariance_datum_free): the precision
