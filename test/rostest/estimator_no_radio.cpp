@@ -11,15 +11,12 @@
 
 #include "slope_monitor/core/evaluation/deformation_truth.h"
 #include "slope_monitor/core/sim/truth.h"
+#include "test_node.h"
 
 namespace slope_monitor {
 namespace {
 
-double Param(const ros::NodeHandle& nh, const std::string& key, double fallback) {
-  double v = fallback;
-  nh.param(key, v, fallback);
-  return v;
-}
+using rostest_node::Param;
 
 TEST(EstimatorNoRadio, TargetEstimatesWithoutTheRadioTopics) {
   ros::NodeHandle pnh("~");
@@ -43,11 +40,8 @@ TEST(EstimatorNoRadio, TargetEstimatesWithoutTheRadioTopics) {
       if (c->topic.rfind("/radio/", 0) == 0) ++radio_connections;
   }
   ASSERT_EQ(radio_connections, 0) << "the bag of this test must not have radio topics";
-  const ros::WallTime start = ros::WallTime::now();
-  while (ros::ok() && ros::Time::now() < bag_end - ros::Duration(end_margin)) {
-    ASSERT_LT((ros::WallTime::now() - start).toSec(), timeout) << "the bag did not finish playing";
-    ros::WallDuration(0.5).sleep();
-  }
+  ASSERT_TRUE(rostest_node::WaitForClock(bag_end - ros::Duration(end_margin), timeout))
+      << "the bag did not finish playing";
   ros::WallDuration(settle).sleep();
 
   const sim::SurveyTruth truth = sim::SurveyTruth::Load(truth_path);

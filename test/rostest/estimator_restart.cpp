@@ -29,15 +29,12 @@
 #include "slope_monitor/SlopeDeformation.h"
 #include "slope_monitor/core/evaluation/deformation_truth.h"
 #include "slope_monitor/core/sim/truth.h"
+#include "test_node.h"
 
 namespace slope_monitor {
 namespace {
 
-double Param(const ros::NodeHandle& nh, const std::string& key, double fallback) {
-  double v = fallback;
-  nh.param(key, v, fallback);
-  return v;
-}
+using rostest_node::Param;
 
 // The latest deformation message of one estimator, and how many came.
 class DeformationListener {

@@ -18,15 +18,12 @@
 #include "slope_monitor/TargetObservationArray.h"
 #include "slope_monitor/core/evaluation/deformation_truth.h"
 #include "slope_monitor/core/sim/truth.h"
+#include "test_node.h"
 
 namespace slope_monitor {
 namespace {
 
-double Param(const ros::NodeHandle& nh, const std::string& key, double fallback) {
-  double v = fallback;
-  nh.param(key, v, fallback);
-  return v;
-}
+using rostest_node::Param;
 
 // Target observations of one image, as published by a centroider.
 struct SeenImage {
@@ -129,12 +126,8 @@ TEST(FullGraphReplay, FusedDeformationMatchesTruth) {
   }
   // Wait for the simulated clock to reach the end of the bag, then let the
   // graph finish what it has queued.
-  const ros::WallTime start = ros::WallTime::now();
-  while (ros::ok() && (ros::Time::now() < bag_end - ros::Duration(end_margin))) {
-    ASSERT_LT((ros::WallTime::now() - start).toSec(), timeout)
-        << "the bag did not finish playing; clock at " << ros::Time::now() << ", end " << bag_end;
-    ros::WallDuration(0.5).sleep();
-  }
+  ASSERT_TRUE(rostest_node::WaitForClock(bag_end - ros::Duration(end_margin), timeout))
+      << "the bag did not finish playing; clock at " << ros::Time::now() << ", end " << bag_end;
   ros::WallDuration(settle).sleep();
 
   const sim::SurveyTruth truth = sim::SurveyTruth::Load(truth_path);

@@ -23,6 +23,7 @@
 #include <sensor_msgs/image_encodings.h>
 
 #include "slope_monitor/TiePointArray.h"
+#include "test_node.h"
 
 namespace slope_monitor {
 namespace {
@@ -30,14 +31,7 @@ namespace {
 const cv::Point kShift(9, -5);  // [px] xb - xa
 constexpr int kW = 360, kH = 300;
 
-bool WaitFor(const std::function<bool()>& pred, double timeout) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    if (pred()) return true;
-    ros::WallDuration(0.05).sleep();
-  }
-  return pred();
-}
+using slope_monitor::rostest_node::WaitFor;
 
 class HexMatcherRos : public ::testing::Test {
  protected:

@@ -1,5 +1,6 @@
 // What the rostest test nodes share (header only): waiting for a condition
-// in wall time, and the test node's main().
+// in wall time or for the bag's clock, reading a parameter, and the test
+// node's main().
 #pragma once
 
 #include <functional>
@@ -19,6 +20,25 @@ inline bool WaitFor(const std::function<bool()>& pred, double timeout) {
     ros::WallDuration(0.05).sleep();
   }
   return pred();
+}
+
+// Waits (wall time, polling every 0.5 s) until the ROS clock (the bag's
+// simulated time under rosbag play --clock) reaches `until`, or until done()
+// holds if given; false after `timeout` seconds of wall time.
+inline bool WaitForClock(const ros::Time& until, double timeout, const std::function<bool()>& done = {}) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
+  while (ros::ok() && ros::Time::now() < until && !(done && done())) {
+    if (ros::WallTime::now() >= end) return false;
+    ros::WallDuration(0.5).sleep();
+  }
+  return true;
+}
+
+// A private double parameter with its fallback.
+inline double Param(const ros::NodeHandle& nh, const std::string& key, double fallback) {
+  double v = fallback;
+  nh.param(key, v, fallback);
+  return v;
 }
 
 // The test node's main(): gtest, then the ROS node `node_name` with two

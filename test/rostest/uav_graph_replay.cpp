@@ -21,15 +21,12 @@
 #include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/PointDisplacementArray.h"
 #include "slope_monitor/core/sim/truth.h"
+#include "test_node.h"
 
 namespace slope_monitor {
 namespace {
 
-double Param(const ros::NodeHandle& nh, const std::string& key, double fallback) {
-  double v = fallback;
-  nh.param(key, v, fallback);
-  return v;
-}
+using rostest_node::Param;
 
 class Recorder {
  public:
@@ -92,14 +89,10 @@ TEST(UavGraphReplay, UavPhotosContribute) {
   // Wait for the end of the bag or the solution of the last epoch (without
   // the radio tail, the last messages are UAV photos after a gap, and rosbag
   // play may stop its clock before them).
-  const ros::WallTime start = ros::WallTime::now();
   const int last_epoch = truth.epochs.empty() ? 0 : truth.epochs.back().index;
-  while (ros::ok() && ros::Time::now() < bag_end - ros::Duration(end_margin) &&
-         !recorder->Solutions().count(last_epoch)) {
-    ASSERT_LT((ros::WallTime::now() - start).toSec(), timeout)
-        << "the bag did not finish playing; clock at " << ros::Time::now() << ", end " << bag_end;
-    ros::WallDuration(0.5).sleep();
-  }
+  ASSERT_TRUE(rostest_node::WaitForClock(bag_end - ros::Duration(end_margin), timeout,
+                                         [&] { return recorder->Solutions().count(last_epoch) > 0; }))
+      << "the bag did not finish playing; clock at " << ros::Time::now() << ", end " << bag_end;
   ros::WallDuration(settle).sleep();
 
   const sim::CameraTruth* uav = nullptr;
