@@ -39,6 +39,7 @@
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/parameters.h"
+#include "slope_monitor/ros/setup.h"
 
 namespace slope_monitor {
 
@@ -80,10 +81,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    try {
-      ReadParameters(pnh);
-    } catch (const Error& e) {
-      NODELET_ERROR("bundle_adjuster: %s; not advertising anything", e.what());
+    if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh); })) {
+      NODELET_ERROR("bundle_adjuster: %s; not advertising anything", error->c_str());
       return;
     }
     solution_pub_ = nh.advertise<slope_monitor::AdjustmentSolution>("solution", 5, true);
