@@ -341,6 +341,7 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
     std::vector<double> dx, dy;
     for (const InterestPoint& p : points) {
       if (prior.moving && prior.moving(p.x)) continue;
+      if (prior.within && !prior.within(p.x)) continue;
       HexMatch m;
       if (match_one(p.x, prior.shift, prior.radius, &m, false).empty()) {
         dx.push_back(m.xb.x() - m.xa.x());
@@ -355,6 +356,7 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
   }
   result.summary.global_shift = shift;
   for (const InterestPoint& p : points) {
+    if (prior.within && !prior.within(p.x)) continue;
     ++result.summary.candidates;
     const bool moving = prior.moving && prior.moving(p.x);
     HexMatch m;

@@ -100,6 +100,11 @@ struct MatchPrior {
   // and no image-based test can tell them from the ground.
   std::function<bool(const Eigen::Vector2d&)> excluded;
   double moving_radius = 48.0;                      // [px] search radius there
+  // Only the interest points xa with within(xa) true are matched (optional;
+  // e.g. the part of a that the global shift puts inside b). The points are
+  // still detected on the whole image a (same points, same positions for
+  // every b); the others are not counted as candidates.
+  std::function<bool(const Eigen::Vector2d&)> within;
   bool estimate_global_shift = false;               // first match stable points, take their median shift
   bool has_epipolar = false;
   Eigen::Matrix3d fundamental = Eigen::Matrix3d::Zero();  // xb^T F xa = 0 (homogeneous pixels)

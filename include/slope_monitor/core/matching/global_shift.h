@@ -1,0 +1,52 @@
+// Global translation between two overlapping photos of one moving camera
+// (UAV strips): the prior shift of the hexagonal matcher (MatchPrior::shift)
+// when the images are displaced by far more than its search radius.
+//
+// Method: phase correlation (cv::phaseCorrelate, Hanning window) of copies
+// downsampled by an integer factor so that their longer side is at most
+// `max_size` px (1280 x 960 -> factor 4, 320 x 240); the peak's sub-pixel
+// position times the factor is the coarse shift. With `refine`, the
+// overlapping parts of both images (cut at the rounded coarse shift) are
+// correlated again at factor `refine_factor` and the residual is added.
+// Phase correlation is cyclic: shifts up to half the image size in each axis
+// are found (overlap >= 50 %); assumes no large rotation or scale change
+// between the photos (strips flown in the same direction at one height).
+//
+// A low peak response (unrelated images, no overlap, textureless images)
+// makes the result unusable (`usable` false, `reason` says why).
+#pragma once
+
+#include <string>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+namespace slope_monitor {
+namespace matching {
+
+struct GlobalShiftOptions {
+  int max_size = 320;          // [px] longer side of the coarse copies, [32, 4096]
+  double min_response = 0.05;  // [0, 1] smallest phase-correlation peak for a usable shift
+  bool refine = true;          // correlate the overlap again at a finer scale
+  int refine_factor = 2;       // [-] downsampling of the refinement, [1, 16]
+  int min_overlap = 48;        // [px] smallest overlap (each axis, full resolution) for the shift to be usable
+  void Check() const;          // throws ConfigError naming the field
+};
+
+struct GlobalShiftResult {
+  Eigen::Vector2d shift = Eigen::Vector2d::Zero();  // [px] xb - xa at full resolution
+  double response = 0.0;   // [0, 1] peak of the coarse phase correlation
+  int factor = 1;          // coarse downsampling factor used
+  bool refined = false;    // the fine correlation was applied
+  bool usable = false;
+  std::string reason;      // why not usable ("" when usable)
+  bool IsSolutionUsable() const { return usable; }
+};
+
+// Throws InvalidArgument when an image is empty, multi-channel, of an
+// unsupported depth, or the two differ in size (naming both sizes).
+GlobalShiftResult EstimateGlobalShift(const cv::Mat& image_a, const cv::Mat& image_b,
+                                      const GlobalShiftOptions& options);
+
+}  // namespace matching
+}  // namespace slope_monitor

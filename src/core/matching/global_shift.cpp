@@ -1,0 +1,98 @@
+#include "slope_monitor/core/matching/global_shift.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/matching/filters.h"
+
+namespace slope_monitor {
+namespace matching {
+
+void GlobalShiftOptions::Check() const {
+  if (max_size < 32 || max_size > 4096) {
+    throw ConfigError(Message("GlobalShiftOptions.max_size must be in [32, 4096] px, got ", max_size));
+  }
+  if (!(min_response >= 0.0 && min_response <= 1.0)) {
+    throw ConfigError(Message("GlobalShiftOptions.min_response must be in [0, 1], got ", min_response));
+  }
+  if (refine_factor < 1 || refine_factor > 16) {
+    throw ConfigError(Message("GlobalShiftOptions.refine_factor must be in [1, 16], got ", refine_factor));
+  }
+  if (min_overlap < 8) throw ConfigError(Message("GlobalShiftOptions.min_overlap must be >= 8 px, got ", min_overlap));
+}
+
+namespace {
+
+cv::Mat Downsample(const cv::Mat& f, int factor) {
+  if (factor == 1) return f;
+  cv::Mat out;
+  cv::resize(f, out, cv::Size(f.cols / factor, f.rows / factor), 0, 0, cv::INTER_AREA);
+  return out;
+}
+
+// Phase correlation with a Hanning window: shift of b relative to a (b(x) =
+// a(x - d) gives d) in the pixels of the given images.
+cv::Point2d Correlate(const cv::Mat& a, const cv::Mat& b, double* response) {
+  cv::Mat window;
+  cv::createHanningWindow(window, a.size(), CV_32F);
+  // Zero-mean copies, so that the window does not correlate with itself.
+  cv::Mat za = a - cv::mean(a)[0], zb = b - cv::mean(b)[0];
+  return cv::phaseCorrelate(za, zb, window, response);
+}
+
+}  // namespace
+
+GlobalShiftResult EstimateGlobalShift(const cv::Mat& image_a, const cv::Mat& image_b,
+                                      const GlobalShiftOptions& options) {
+  options.Check();
+  if (image_a.empty() || image_b.empty()) throw InvalidArgument("EstimateGlobalShift: an input image is empty");
+  if (image_a.size() != image_b.size()) {
+    throw InvalidArgument(Message("EstimateGlobalShift: images differ in size (a ", image_a.cols, "x", image_a.rows,
+                                  ", b ", image_b.cols, "x", image_b.rows, ")"));
+  }
+  const cv::Mat fa = ToFloat(image_a, "EstimateGlobalShift image a");
+  const cv::Mat fb = ToFloat(image_b, "EstimateGlobalShift image b");
+  GlobalShiftResult r;
+  const int longer = std::max(fa.cols, fa.rows);
+  r.factor = std::max(1, (longer + options.max_size - 1) / options.max_size);
+  const cv::Mat ca = Downsample(fa, r.factor), cb = Downsample(fb, r.factor);
+  if (ca.cols < 8 || ca.rows < 8) {
+    r.reason = "image too small";
+    return r;
+  }
+  const cv::Point2d coarse = Correlate(ca, cb, &r.response);
+  r.shift = Eigen::Vector2d(coarse.x, coarse.y) * r.factor;
+  if (!std::isfinite(r.response) || !std::isfinite(coarse.x) || !std::isfinite(coarse.y) ||
+      r.response < options.min_response) {
+    r.reason = Message("phase-correlation peak ", r.response, " below min_response ", options.min_response);
+    return r;
+  }
+  const int sx = static_cast<int>(std::lround(r.shift.x())), sy = static_cast<int>(std::lround(r.shift.y()));
+  const int ow = fa.cols - std::abs(sx), oh = fa.rows - std::abs(sy);
+  if (ow < options.min_overlap || oh < options.min_overlap) {
+    r.reason = Message("overlap ", ow, "x", oh, " px smaller than min_overlap ", options.min_overlap);
+    return r;
+  }
+  r.usable = true;
+  if (!options.refine) return r;
+  // Overlap: a point xa of a at xa + s in b.
+  const cv::Rect ra(std::max(0, -sx), std::max(0, -sy), ow, oh);
+  const cv::Rect rb(std::max(0, sx), std::max(0, sy), ow, oh);
+  const int f = options.refine_factor;
+  if (ow / f < 16 || oh / f < 16) return r;
+  double response = 0;
+  const cv::Point2d fine = Correlate(Downsample(fa(ra), f), Downsample(fb(rb), f), &response);
+  const Eigen::Vector2d residual = Eigen::Vector2d(fine.x, fine.y) * f;
+  // The residual of a correct coarse shift is within a coarse pixel or two.
+  if (std::isfinite(response) && residual.allFinite() && residual.cwiseAbs().maxCoeff() <= 2.0 * r.factor) {
+    r.shift = Eigen::Vector2d(sx, sy) + residual;
+    r.refined = true;
+  }
+  return r;
+}
+
+}  // namespace matching
+}  // namespace slope_monitor

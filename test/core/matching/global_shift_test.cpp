@@ -1,0 +1,142 @@
+// EstimateGlobalShift on real texture (Middlebury Cones, test/data) with a
+// known shift: image b is a crop of the left image displaced by kShift from
+// image a's crop, so xb - xa = kShift exactly (both crops with independent
+// noise). Also: bad input, unusable pairs, and the sequence helpers
+// (PlanSequencePairs, SequenceTrackId) on hand-checkable cases.
+#include <cmath>
+#include <cstdio>
+
+#include <gtest/gtest.h>
+
+#include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/matching/global_shift.h"
+#include "slope_monitor/core/matching/sequence.h"
+
+#include "cones_images.h"
+
+namespace slope_monitor {
+namespace matching {
+namespace {
+
+// Crop of the Cones left image at (x0, y0), w x h, with noise 1.5 grey.
+cv::Mat Crop(const cv::Mat& left, int x0, int y0, int w, int h, unsigned seed) {
+  cv::Mat f;
+  left(cv::Rect(x0, y0, w, h)).convertTo(f, CV_32F);
+  cv::Mat out;
+  testing::AddNoise(f, 1.5, seed).convertTo(out, CV_8U);
+  return out;
+}
+
+TEST(GlobalShift, KnownShiftOfConesTexture) {
+  const cv::Mat left = testing::LoadCones("left.tif", cv::IMREAD_GRAYSCALE);
+  const int w = 320, h = 260;
+  // b at xb sees the scene point at xb + (x0 - dx) = xa + x0 -> xb = xa + d.
+  struct Case { int dx, dy; };
+  for (const Case c : {Case{97, -38}, Case{-41, 70}, Case{12, 5}}) {
+    const int x0 = c.dx < 0 ? 60 : 100, y0 = c.dy < 0 ? 60 : 100;
+    const cv::Mat a = Crop(left, x0, y0, w, h, 1);
+    const cv::Mat b = Crop(left, x0 - c.dx, y0 - c.dy, w, h, 2);
+    for (int max_size : {80, 160, 320}) {
+      GlobalShiftOptions o;
+      o.max_size = max_size;
+      const GlobalShiftResult r = EstimateGlobalShift(a, b, o);
+      std::printf("shift (%d, %d), max_size %d: found (%.3f, %.3f), response %.3f, factor %d, refined %d\n", c.dx,
+                  c.dy, max_size, r.shift.x(), r.shift.y(), r.response, r.factor, int(r.refined));
+      ASSERT_TRUE(r.usable) << r.reason;
+      EXPECT_TRUE(r.refined);
+      // Refinement at factor 2: well within a pixel (the matcher searches 24 px).
+      EXPECT_NEAR(r.shift.x(), c.dx, 0.5);
+      EXPECT_NEAR(r.shift.y(), c.dy, 0.5);
+    }
+    GlobalShiftOptions coarse_only;
+    coarse_only.refine = false;
+    coarse_only.max_size = 80;  // factor 4
+    const GlobalShiftResult r = EstimateGlobalShift(a, b, coarse_only);
+    ASSERT_TRUE(r.usable);
+    EXPECT_EQ(r.factor, 4);
+    EXPECT_NEAR(r.shift.x(), c.dx, 4.0);
+    EXPECT_NEAR(r.shift.y(), c.dy, 4.0);
+  }
+}
+
+TEST(GlobalShift, UnrelatedOrTexturelessImagesAreNotUsable) {
+  const cv::Mat left = testing::LoadCones("left.tif", cv::IMREAD_GRAYSCALE);
+  const cv::Mat a = Crop(left, 0, 0, 200, 160, 1);
+  // Pure noise against texture: no common content.
+  cv::Mat noise(160, 200, CV_8U);
+  cv::RNG rng(3);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+  const GlobalShiftResult r = EstimateGlobalShift(a, noise, GlobalShiftOptions());
+  std::printf("texture vs noise: response %.3f\n", r.response);
+  EXPECT_FALSE(r.usable);
+  EXPECT_NE(r.reason.find("min_response"), std::string::npos) << r.reason;
+  const GlobalShiftResult flat =
+      EstimateGlobalShift(cv::Mat(160, 200, CV_8U, cv::Scalar(100)), cv::Mat(160, 200, CV_8U, cv::Scalar(101)),
+                          GlobalShiftOptions());
+  EXPECT_FALSE(flat.usable);
+}
+
+TEST(GlobalShift, BadInputIsNamed) {
+  const cv::Mat a(100, 120, CV_8U, cv::Scalar(1)), b(100, 110, CV_8U, cv::Scalar(1));
+  try {
+    EstimateGlobalShift(a, b, GlobalShiftOptions());
+    FAIL() << "no exception";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("differ in size"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(EstimateGlobalShift(cv::Mat(), a, GlobalShiftOptions()), InvalidArgument);
+  EXPECT_THROW(EstimateGlobalShift(cv::Mat(100, 120, CV_8UC3), cv::Mat(100, 120, CV_8UC3), GlobalShiftOptions()),
+               InvalidArgument);
+  GlobalShiftOptions bad;
+  bad.max_size = 4;
+  EXPECT_THROW(EstimateGlobalShift(a, a, bad), ConfigError);
+}
+
+SequenceImage Img(std::uint32_t serial, double stamp, double x, double y, bool prior = true) {
+  SequenceImage s;
+  s.serial = serial;
+  s.stamp = stamp;
+  s.has_position = prior;
+  s.position = Eigen::Vector2d(x, y);
+  return s;
+}
+
+TEST(SequencePairs, NearestPriorsFirstAtMostMaxPairs) {
+  // Strip 1 northwards (y 0, 10, 20, 30), strip 2 southwards 25 m east.
+  const std::vector<SequenceImage> earlier = {Img(1, 0, 0, 0), Img(2, 2, 0, 10), Img(3, 4, 0, 20), Img(4, 6, 0, 30),
+                                              Img(5, 20, 25, 30)};
+  SequencePairOptions o;
+  // b at (25, 20): distances 5: 25.0 (y 30 -> sqrt(625+100)=26.9), 4: 26.9, 3: 25, 2: 26.9, 1: 32.0.
+  const std::vector<size_t> p = PlanSequencePairs(earlier, Img(6, 22, 25, 20), o);
+  // Nearest: image 5 (10 m), then image 3 (25 m), then 2 and 4 (26.9 m, later first: 4, 2); 1 is 32 m away.
+  ASSERT_EQ(p.size(), 4u);
+  EXPECT_EQ(p[0], 4u);
+  EXPECT_EQ(p[1], 2u);
+  EXPECT_EQ(p[2], 3u);
+  EXPECT_EQ(p[3], 1u);
+  o.max_pairs_per_image = 2;
+  EXPECT_EQ(PlanSequencePairs(earlier, Img(6, 22, 25, 20), o).size(), 2u);
+  // Nothing within reach: no pairs.
+  EXPECT_TRUE(PlanSequencePairs(earlier, Img(6, 22, 200, 200), o).empty());
+  // No prior for b: the previous sequence_depth images, latest first.
+  const std::vector<size_t> d = PlanSequencePairs(earlier, Img(6, 22, 0, 0, false), o);
+  ASSERT_EQ(d.size(), 2u);
+  EXPECT_EQ(d[0], 4u);
+  EXPECT_EQ(d[1], 3u);
+  // First image of an epoch: no partner.
+  EXPECT_TRUE(PlanSequencePairs({}, Img(1, 0, 0, 0), o).empty());
+  o.sequence_depth = 0;
+  EXPECT_THROW(PlanSequencePairs(earlier, Img(6, 22, 0, 0), o), ConfigError);
+}
+
+TEST(SequencePairs, TrackIdsAreUniqueAndNeverZero) {
+  EXPECT_EQ(SequenceTrackId(1, Eigen::Vector2d(0, 0), 1280), std::uint64_t(1) << 32);
+  EXPECT_EQ(SequenceTrackId(3, Eigen::Vector2d(5.2, 2.9), 1280), (std::uint64_t(3) << 32) | (3 * 1280 + 5));
+  EXPECT_NE(SequenceTrackId(1, Eigen::Vector2d(1279, 959), 1280), SequenceTrackId(2, Eigen::Vector2d(0, 0), 1280));
+  EXPECT_THROW(SequenceTrackId(0, Eigen::Vector2d(1, 1), 1280), InvalidArgument);
+  EXPECT_THROW(SequenceTrackId(1, Eigen::Vector2d(1300, 1), 1280), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace matching
+}  // namespace slope_monitor
