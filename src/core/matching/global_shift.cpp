@@ -21,6 +21,10 @@ void GlobalShiftOptions::Check() const {
   if (refine_factor < 1 || refine_factor > 16) {
     throw ConfigError(Message("GlobalShiftOptions.refine_factor must be in [1, 16], got ", refine_factor));
   }
+  if (!(min_overlap_correlation >= -1.0 && min_overlap_correlation <= 1.0)) {
+    throw ConfigError(Message("GlobalShiftOptions.min_overlap_correlation must be in [-1, 1], got ",
+                              min_overlap_correlation));
+  }
   if (min_overlap < 8) throw ConfigError(Message("GlobalShiftOptions.min_overlap must be >= 8 px, got ", min_overlap));
 }
 
@@ -41,6 +45,18 @@ cv::Point2d Correlate(const cv::Mat& a, const cv::Mat& b, double* response) {
   // Zero-mean copies, so that the window does not correlate with itself.
   cv::Mat za = a - cv::mean(a)[0], zb = b - cv::mean(b)[0];
   return cv::phaseCorrelate(za, zb, window, response);
+}
+
+// NCC of the parts of a and b that overlap under the integer shift (sx, sy)
+// (xb = xa + s); -2 when they overlap by less than min_overlap.
+double OverlapNcc(const cv::Mat& a, const cv::Mat& b, int sx, int sy, int min_overlap) {
+  const int ow = a.cols - std::abs(sx), oh = a.rows - std::abs(sy);
+  if (ow < min_overlap || oh < min_overlap) return -2.0;
+  const cv::Rect ra(std::max(0, -sx), std::max(0, -sy), ow, oh);
+  const cv::Rect rb(std::max(0, sx), std::max(0, sy), ow, oh);
+  cv::Mat r;
+  cv::matchTemplate(a(ra), b(rb), r, cv::TM_CCOEFF_NORMED);
+  return r.at<float>(0, 0);
 }
 
 }  // namespace
@@ -64,10 +80,33 @@ GlobalShiftResult EstimateGlobalShift(const cv::Mat& image_a, const cv::Mat& ima
     return r;
   }
   const cv::Point2d coarse = Correlate(ca, cb, &r.response);
-  r.shift = Eigen::Vector2d(coarse.x, coarse.y) * r.factor;
-  if (!std::isfinite(r.response) || !std::isfinite(coarse.x) || !std::isfinite(coarse.y) ||
-      r.response < options.min_response) {
+  // Phase correlation is cyclic: a peak at d also stands for d - size (in
+  // each axis). The candidate whose overlapping parts correlate best wins,
+  // so overlaps below 50 % (photos two apart, neighbouring strips) are found.
+  Eigen::Vector2d best(coarse.x, coarse.y);
+  double best_ncc = -3.0;
+  const int min_coarse = std::max(8, options.min_overlap / r.factor);
+  for (int kx = -1; kx <= 1; ++kx) {
+    for (int ky = -1; ky <= 1; ++ky) {
+      const double cx = coarse.x + kx * ca.cols, cy = coarse.y + ky * ca.rows;
+      if (std::fabs(cx) >= ca.cols || std::fabs(cy) >= ca.rows) continue;
+      const double ncc = OverlapNcc(ca, cb, static_cast<int>(std::lround(cx)), static_cast<int>(std::lround(cy)),
+                                   min_coarse);
+      if (ncc > best_ncc) {
+        best_ncc = ncc;
+        best = Eigen::Vector2d(cx, cy);
+      }
+    }
+  }
+  r.shift = best * r.factor;
+  r.overlap_correlation = best_ncc;
+  if (!std::isfinite(r.response) || !best.allFinite() || r.response < options.min_response) {
     r.reason = Message("phase-correlation peak ", r.response, " below min_response ", options.min_response);
+    return r;
+  }
+  if (!(best_ncc >= options.min_overlap_correlation)) {
+    r.reason = Message("overlap correlation ", best_ncc, " below min_overlap_correlation ",
+                       options.min_overlap_correlation);
     return r;
   }
   const int sx = static_cast<int>(std::lround(r.shift.x())), sy = static_cast<int>(std::lround(r.shift.y()));
@@ -81,7 +120,9 @@ GlobalShiftResult EstimateGlobalShift(const cv::Mat& image_a, const cv::Mat& ima
   // Overlap: a point xa of a at xa + s in b.
   const cv::Rect ra(std::max(0, -sx), std::max(0, -sy), ow, oh);
   const cv::Rect rb(std::max(0, sx), std::max(0, sy), ow, oh);
-  const int f = options.refine_factor;
+  // Small overlaps are refined at a finer scale (at least 64 px each axis).
+  int f = options.refine_factor;
+  while (f > 1 && (ow / f < 64 || oh / f < 64)) --f;
   if (ow / f < 16 || oh / f < 16) return r;
   double response = 0;
   const cv::Point2d fine = Correlate(Downsample(fa(ra), f), Downsample(fb(rb), f), &response);

@@ -40,8 +40,8 @@ TEST(GlobalShift, KnownShiftOfConesTexture) {
       GlobalShiftOptions o;
       o.max_size = max_size;
       const GlobalShiftResult r = EstimateGlobalShift(a, b, o);
-      std::printf("shift (%d, %d), max_size %d: found (%.3f, %.3f), response %.3f, factor %d, refined %d\n", c.dx,
-                  c.dy, max_size, r.shift.x(), r.shift.y(), r.response, r.factor, int(r.refined));
+      std::printf("shift (%d, %d), max_size %d: found (%.3f, %.3f), response %.3f, overlap NCC %.3f, factor %d\n",
+                  c.dx, c.dy, max_size, r.shift.x(), r.shift.y(), r.response, r.overlap_correlation, r.factor);
       ASSERT_TRUE(r.usable) << r.reason;
       EXPECT_TRUE(r.refined);
       // Refinement at factor 2: well within a pixel (the matcher searches 24 px).
@@ -59,6 +59,22 @@ TEST(GlobalShift, KnownShiftOfConesTexture) {
   }
 }
 
+// Overlap below 50 % in both axes: the phase-correlation peak wraps around;
+// the candidate whose overlap correlates best must be taken.
+TEST(GlobalShift, OverlapBelowHalfTheImage) {
+  const cv::Mat left = testing::LoadCones("left.tif", cv::IMREAD_GRAYSCALE);
+  const int w = 200, h = 160, dx = 125, dy = 90, x0 = 150, y0 = 100;
+  const cv::Mat a = Crop(left, x0, y0, w, h, 5);
+  const cv::Mat b = Crop(left, x0 - dx, y0 - dy, w, h, 6);
+  const GlobalShiftResult r = EstimateGlobalShift(a, b, GlobalShiftOptions());
+  std::printf("shift (%d, %d) on %dx%d: found (%.3f, %.3f), response %.3f, overlap correlation %.3f\n", dx, dy, w, h,
+              r.shift.x(), r.shift.y(), r.response, r.overlap_correlation);
+  ASSERT_TRUE(r.usable) << r.reason;
+  // A 75 x 70 px overlap: within a pixel (measured 0.48 px; the matcher searches 24 px).
+  EXPECT_NEAR(r.shift.x(), dx, 1.0);
+  EXPECT_NEAR(r.shift.y(), dy, 1.0);
+}
+
 TEST(GlobalShift, UnrelatedOrTexturelessImagesAreNotUsable) {
   const cv::Mat left = testing::LoadCones("left.tif", cv::IMREAD_GRAYSCALE);
   const cv::Mat a = Crop(left, 0, 0, 200, 160, 1);
@@ -67,9 +83,10 @@ TEST(GlobalShift, UnrelatedOrTexturelessImagesAreNotUsable) {
   cv::RNG rng(3);
   rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
   const GlobalShiftResult r = EstimateGlobalShift(a, noise, GlobalShiftOptions());
-  std::printf("texture vs noise: response %.3f\n", r.response);
+  std::printf("texture vs noise: response %.3f, overlap correlation %.3f (%s)\n", r.response, r.overlap_correlation,
+              r.reason.c_str());
   EXPECT_FALSE(r.usable);
-  EXPECT_NE(r.reason.find("min_response"), std::string::npos) << r.reason;
+  EXPECT_NE(r.reason.find("below min_"), std::string::npos) << r.reason;
   const GlobalShiftResult flat =
       EstimateGlobalShift(cv::Mat(160, 200, CV_8U, cv::Scalar(100)), cv::Mat(160, 200, CV_8U, cv::Scalar(101)),
                           GlobalShiftOptions());

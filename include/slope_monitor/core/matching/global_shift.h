@@ -12,8 +12,10 @@
 // are found (overlap >= 50 %); assumes no large rotation or scale change
 // between the photos (strips flown in the same direction at one height).
 //
-// A low peak response (unrelated images, no overlap, textureless images)
-// makes the result unusable (`usable` false, `reason` says why).
+// The shift is unusable (`usable` false, `reason` says why) when the peak
+// response is below min_response, the overlapping parts correlate below
+// min_overlap_correlation (unrelated images, textureless images) or they
+// overlap by less than min_overlap.
 #pragma once
 
 #include <string>
@@ -26,7 +28,11 @@ namespace matching {
 
 struct GlobalShiftOptions {
   int max_size = 320;          // [px] longer side of the coarse copies, [32, 4096]
-  double min_response = 0.05;  // [0, 1] smallest phase-correlation peak for a usable shift
+  double min_response = 0.02;  // [0, 1] smallest phase-correlation peak for a usable shift
+  // [-1, 1] smallest NCC of the overlapping parts (coarse copies) at the
+  // shift found: the real test of a shift (the peak shrinks with the overlap
+  // under the window: 0.04 at 16 % of the area on Cones).
+  double min_overlap_correlation = 0.4;
   bool refine = true;          // correlate the overlap again at a finer scale
   int refine_factor = 2;       // [-] downsampling of the refinement, [1, 16]
   int min_overlap = 48;        // [px] smallest overlap (each axis, full resolution) for the shift to be usable
@@ -36,6 +42,7 @@ struct GlobalShiftOptions {
 struct GlobalShiftResult {
   Eigen::Vector2d shift = Eigen::Vector2d::Zero();  // [px] xb - xa at full resolution
   double response = 0.0;   // [0, 1] peak of the coarse phase correlation
+  double overlap_correlation = -2.0;  // [-1, 1] NCC of the coarse overlapping parts (-2: none)
   int factor = 1;          // coarse downsampling factor used
   bool refined = false;    // the fine correlation was applied
   bool usable = false;
