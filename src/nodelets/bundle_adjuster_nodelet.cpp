@@ -118,6 +118,10 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     camera_names_ = p.StringList("cameras", {});
     epoch_topics_ = p.StringList("epoch_topics", {"epoch"});
     epoch_wait_ = p.Double("epoch_wait", 30.0, 0.0, 3600.0, "s");
+    tie_point_cameras_ = p.StringList("tie_point_cameras", {});
+    tie_point_wait_ = p.Double("tie_point_wait", 300.0, 0.0, 86400.0, "s");
+    tie_pixel_sigma_floor_ = p.Double("tie_pixel_sigma_floor", 0.2, 0.0, 100.0, "px");
+    min_tie_quality_ = p.Double("min_tie_quality", 0.25, 0.0, 1.0);
     frame_id_ = p.String("frame_id", "site");
     pixel_size_ = p.Double("pixel_size", 1.0, 1e-6, 1.0, "mm/px");
     default_pixel_sigma_ = p.Double("pixel_sigma", 0.3, 1e-4, 100.0, "px");
@@ -127,13 +131,19 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     prior_max_dt_ = p.Double("position_prior_max_dt", 0.1, 0.0, 10.0, "s");
     gnss_sigma_floor_ = p.Double("position_prior_min_sigma", 0.01, 1e-4, 100.0, "m");
     min_images_ = p.Int("min_images", 2, 1, 10000);
-    for (const std::string& name : p.StringList("free_interior", {})) {
-      int idx = -1;
-      for (int i = 0; i < camera::kNumInterior; ++i)
-        if (name == camera::InteriorNames()[i]) idx = i;
-      if (idx < 0) throw ConfigError("parameter '" + p.FullKey("free_interior") + "': unknown interior parameter '" + name + "'");
-      free_interior_.push_back(idx);
-    }
+    auto interior_list = [&p](const std::string& key) {
+      std::vector<int> out;
+      for (const std::string& name : p.StringList(key, {})) {
+        int idx = -1;
+        for (int i = 0; i < camera::kNumInterior; ++i)
+          if (name == camera::InteriorNames()[i]) idx = i;
+        if (idx < 0) throw ConfigError("parameter '" + p.FullKey(key) + "': unknown interior parameter '" + name + "'");
+        out.push_back(idx);
+      }
+      return out;
+    };
+    free_interior_ = interior_list("free_interior");
+    uav_free_interior_ = interior_list("uav_free_interior");
     options_.loss = p.String("loss", "huber", {"none", "huber", "cauchy"});
     options_.loss_scale = p.Double("loss_scale", 3.0, 1e-3, 1e3, "sigma");
     options_.outlier_threshold = p.Double("outlier_threshold", 5.0, 1e-3, 1e3, "sigma");
@@ -150,6 +160,11 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     options_.Check();
     epoch_options_.adjustment = options_;
     epoch_options_.free_interior = free_interior_;
+    // A UAV camera self-calibrated in every flight: its own list (the fixed
+    // cameras keep free_interior).
+    if (!uav_free_interior_.empty())
+      for (const std::string& c : camera_names_)
+        if (!IsFixedCamera(c)) epoch_options_.free_interior_by_camera[c] = uav_free_interior_;
     epoch_options_.name_unidentified = p.Bool("name_unidentified", true);
     epoch_options_.orient_from_approximate = p.Bool("orient_from_approximate", true);
     epoch_options_.naming.gate_sigma = p.Double("naming_gate_sigma", 3.0, 0.1, 100.0, "sigma");
@@ -182,7 +197,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     im.frame_id = msg->header.frame_id.empty() ? msg->camera_name + "_optical" : msg->header.frame_id;
     im.stamp = msg->header.stamp;
     im.header = msg->header;
-    if (msg->epoch != 0) current_epoch_ = msg->epoch;
+    if (msg->epoch != 0 && !end_pending_) current_epoch_ = msg->epoch;
     // A UAV camera flies with its nominal interior (not calibrated on this
     // site, not self-calibrated from a few photos): its model error is far
     // above the centroid precision.
@@ -222,27 +237,51 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   }
 
   void OnTiePoints(const slope_monitor::TiePointArrayConstPtr& msg) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    const std::string ka = ImageKey(msg->camera_a, msg->header_a.stamp);
+    std::unique_lock<std::mutex> lock(mutex_);
     const std::string kb = ImageKey(msg->camera_b, msg->header.stamp);
-    for (const auto& [key, cam, header] : {std::make_tuple(ka, msg->camera_a, msg->header_a),
-                                           std::make_tuple(kb, msg->camera_b, msg->header)}) {
+    const bool has_a = !msg->camera_a.empty();
+    const std::string ka = has_a ? ImageKey(msg->camera_a, msg->header_a.stamp) : std::string();
+    auto remember = [&](const std::string& key, const std::string& cam, const std_msgs::Header& header) {
       CollectedImage& im = images_[key];
       im.camera = cam;
       im.frame_id = header.frame_id.empty() ? cam + "_optical" : header.frame_id;
       im.stamp = header.stamp;
       im.header = header;
+    };
+    remember(kb, msg->camera_b, msg->header);
+    if (has_a) remember(ka, msg->camera_a, msg->header_a);
+    // A matcher in sequence mode says how many messages image b gets
+    // (pairs_b): the epoch waits until they are all in (tie_point_cameras).
+    if (msg->pairs_b > 0) {
+      TieCount& count = tie_counts_[kb];
+      ++count.received;
+      count.expected = msg->pairs_b;
     }
+    int used = 0, low = 0;
     for (const auto& t : msg->points) {
-      if (t.id == 0) continue;  // a match without a track cannot tie more than this pair
+      if (t.id == 0 || !has_a) continue;  // a match without a track cannot tie more than this pair
+      if (t.quality <= min_tie_quality_) {  // flagged by the matcher's quality control
+        ++low;
+        continue;
+      }
+      if (!(std::isfinite(t.xa) && std::isfinite(t.ya) && std::isfinite(t.xb) && std::isfinite(t.yb))) continue;
       const std::string id = "tie/" + std::to_string(t.id);
-      const Eigen::Matrix2d cov = Eigen::Matrix2d::Identity() * default_pixel_sigma_ * default_pixel_sigma_;
+      // The matcher's covariance is that of xb given xa (image noise of the
+      // correlation); xa carries the same. Model and calibration error come on top.
+      Eigen::Matrix2d cov = ros_adapters::FromRowMajor<2>(t.covariance);
+      if (cov.isZero() || !cov.allFinite())
+        cov = Eigen::Matrix2d::Identity() * default_pixel_sigma_ * default_pixel_sigma_;
+      cov += Eigen::Matrix2d::Identity() * tie_pixel_sigma_floor_ * tie_pixel_sigma_floor_;
       observations_.push_back({ka, id, "tie", adjustment::PointRole::kTie, Eigen::Vector2d(t.xa, t.ya), cov});
-      Eigen::Matrix2d cov_b = ros_adapters::FromRowMajor<2>(t.covariance);
-      if (cov_b.isZero()) cov_b = cov;
-      observations_.push_back({kb, id, "tie", adjustment::PointRole::kTie, Eigen::Vector2d(t.xb, t.yb), cov_b});
+      observations_.push_back({kb, id, "tie", adjustment::PointRole::kTie, Eigen::Vector2d(t.xb, t.yb), cov});
+      ++used;
     }
+    tie_points_used_ += used;
+    tie_points_low_quality_ += low;
     last_input_ = ros::Time::now();
+    if (!ReadyLocked(false)) return;
+    lock.unlock();
+    SolveEpoch();
   }
 
   void OnPositionPrior(const geometry_msgs::PoseWithCovarianceStampedConstPtr& msg) {
@@ -255,14 +294,59 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     bool ready;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      if (msg->epoch != 0) current_epoch_ = msg->epoch;
-      ended_sources_.insert(msg->source);
-      announced_images_[msg->source] = msg->count;
-      ended_at_ = ros::WallTime::now();
-      end_pending_ = true;
+      // The end of the NEXT epoch of a source while this one still waits (a
+      // slow matcher on a fast replay): kept until this epoch is solved.
+      auto ended = end_stamps_.find(msg->source);
+      if (end_pending_ && ended != end_stamps_.end() && msg->header.stamp > ended->second) {
+        deferred_ends_.push_back(*msg);
+        return;
+      }
+      ApplyEndLocked(*msg);
       ready = ReadyLocked(false);
     }
     if (ready) SolveEpoch();
+  }
+
+  void ApplyEndLocked(const slope_monitor::EpochMarker& msg) {
+    if (msg.epoch != 0) current_epoch_ = msg.epoch;
+    ended_sources_.insert(msg.source);
+    announced_images_[msg.source] = msg.count;
+    end_stamps_[msg.source] = msg.header.stamp;
+    ended_at_ = ros::WallTime::now();
+    end_pending_ = true;
+  }
+
+  // Images of this epoch: those up to the latest end marker's stamp (the
+  // next epoch's images may already be arriving); everything without markers.
+  ros::Time CutoffLocked() const {
+    ros::Time cutoff;
+    for (const auto& [source, stamp] : end_stamps_) cutoff = std::max(cutoff, stamp);
+    return cutoff;
+  }
+  bool InEpochLocked(const ros::Time& stamp) const {
+    const ros::Time cutoff = CutoffLocked();
+    return cutoff.isZero() || stamp <= cutoff;
+  }
+
+  // Every image of a camera in tie_point_cameras up to its end marker has all
+  // the tie-point messages its matcher announced (TiePointArray.pairs_b).
+  bool TiesCompleteLocked() const {
+    // No matcher publishing (not started, or it failed on its parameters):
+    // nothing to wait for.
+    if (tie_point_cameras_.empty() || tie_sub_.getNumPublishers() == 0) return true;
+    for (const std::string& c : tie_point_cameras_) {
+      auto announced = announced_images_.find(c);
+      auto end = end_stamps_.find(c);
+      if (announced == announced_images_.end() || end == end_stamps_.end()) continue;
+      uint32_t complete = 0;
+      for (const auto& [key, count] : tie_counts_) {
+        auto im = images_.find(key);
+        if (im == images_.end() || im->second.camera != c || im->second.stamp > end->second) continue;
+        if (count.received >= count.expected) ++complete;
+      }
+      if (complete < announced->second) return false;
+    }
+    return true;
   }
 
   // Every configured camera (or, with none configured, any source) has ended
@@ -274,10 +358,15 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     for (const std::string& c : camera_names_) {
       if (!ended_sources_.count(c)) return false;
     }
+    const double waited = (ros::WallTime::now() - ended_at_).toSec();
+    const bool ties = TiesCompleteLocked();
+    if (!ties && waited <= std::max(epoch_wait_, tie_point_wait_)) return false;
     if (timed_out) return true;
     for (const auto& [source, count] : announced_images_) {
+      auto end = end_stamps_.find(source);
       uint32_t have = 0;
-      for (const auto& [key, im] : images_) have += im.camera == source ? 1 : 0;
+      for (const auto& [key, im] : images_)
+        have += im.camera == source && (end == end_stamps_.end() || im.stamp <= end->second) ? 1 : 0;
       if (have < count) return false;
     }
     return true;
@@ -293,6 +382,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       gap = epoch_gap_ > 0.0 && !end_pending_ && !observations_.empty() && !last_input_.isZero() &&
             (ros::Time::now() - last_input_).toSec() > epoch_gap_;
       gap = gap || (end_pending_ && (ros::WallTime::now() - ended_at_).toSec() > epoch_wait_ && ReadyLocked(true));
+      // A deferred end marker (the next epoch) may have completed it already.
+      gap = gap || ReadyLocked(false);
     }
     if (gap) SolveEpoch();
     if (updater_) updater_->update();
@@ -337,17 +428,38 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     out.header.frame_id = frame_id_;
     out.epoch = current_epoch_;
     out.usable = false;
+    // This epoch's part of what was collected; later images (the next
+    // epoch, arriving while a slow matcher finished this one) stay.
     std::map<std::string, CollectedImage> images;
     std::vector<CollectedObservation> observations, unidentified;
-    images.swap(images_);
-    observations.swap(observations_);
-    unidentified.swap(unidentified_observations_);
     std::vector<geometry_msgs::PoseWithCovarianceStamped> priors;
-    priors.swap(priors_);
+    {
+      std::map<std::string, CollectedImage> later_images;
+      for (auto& [key, im] : images_) (InEpochLocked(im.stamp) ? images : later_images)[key] = im;
+      std::vector<CollectedObservation> later_obs, later_unidentified;
+      for (auto& o : observations_) (images.count(o.image_key) ? observations : later_obs).push_back(o);
+      for (auto& o : unidentified_observations_)
+        (images.count(o.image_key) ? unidentified : later_unidentified).push_back(o);
+      std::vector<geometry_msgs::PoseWithCovarianceStamped> later_priors;
+      for (auto& p : priors_) (InEpochLocked(p.header.stamp) ? priors : later_priors).push_back(p);
+      std::map<std::string, TieCount> later_ties;
+      for (auto& [key, count] : tie_counts_)
+        if (!images.count(key)) later_ties[key] = count;
+      images_.swap(later_images);
+      observations_.swap(later_obs);
+      unidentified_observations_.swap(later_unidentified);
+      priors_.swap(later_priors);
+      tie_counts_.swap(later_ties);
+    }
     ended_sources_.clear();
     announced_images_.clear();
+    end_stamps_.clear();
     end_pending_ = false;
-    last_input_ = ros::Time();
+    last_input_ = observations_.empty() ? ros::Time() : ros::Time::now();
+    // End markers of the next epoch that came while this one waited.
+    std::vector<slope_monitor::EpochMarker> deferred;
+    deferred.swap(deferred_ends_);
+    for (const auto& m : deferred) ApplyEndLocked(m);
     if (observations.empty()) {
       out.message = "no observations collected";
       last_message_ = out.message;
@@ -448,18 +560,18 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       if (!result.initialization.empty())
         NODELET_WARN_THROTTLE(10.0, "bundle_adjuster: initialisation: %s", result.initialization.c_str());
       if (!result.pruned.dropped_images.empty() || !result.pruned.dropped_cameras.empty())
-        NODELET_WARN_THROTTLE(10.0, "bundle_adjuster: epoch %u: %s", current_epoch_, result.pruned.Summary().c_str());
+        NODELET_WARN_THROTTLE(10.0, "bundle_adjuster: epoch %u: %s", out.epoch, result.pruned.Summary().c_str());
       for (const std::string& r : result.rejected_names)
-        NODELET_WARN("bundle_adjuster: epoch %u: target name given by projection rejected: %s", current_epoch_, r.c_str());
+        NODELET_WARN("bundle_adjuster: epoch %u: target name given by projection rejected: %s", out.epoch, r.c_str());
       for (size_t i = 0; i < result.naming.notes.size() && i < 5; ++i)
-        NODELET_DEBUG("bundle_adjuster: epoch %u: %s", current_epoch_, result.naming.notes[i].c_str());
+        NODELET_DEBUG("bundle_adjuster: epoch %u: %s", out.epoch, result.naming.notes[i].c_str());
       last_photos_ = result.photos;
       last_naming_ = result.naming;
       last_rejected_names_ = static_cast<int>(result.rejected_names.size());
       if (result.photos.total > 0 || !unknown.empty())
         NODELET_INFO("bundle_adjuster: epoch %u: %s; %s; %d oriented from approximate target coordinates; %zu names "
                      "rejected by the residual test",
-                     current_epoch_, result.photos.Brief().c_str(), result.naming.Brief().c_str(),
+                     out.epoch, result.photos.Brief().c_str(), result.naming.Brief().c_str(),
                      result.oriented_from_approximate, result.rejected_names.size());
       adjustment::Scene usable_scene = result.scene;
       const adjustment::Summary& s = result.summary;
@@ -672,6 +784,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     stat.add("targets left unnamed: no listed target near", last_naming_.unmatched);
     stat.add("targets left unnamed: image not oriented", last_naming_.not_oriented);
     stat.add("names rejected by the residual test", last_rejected_names_);
+    stat.add("tie-point observation pairs used", tie_points_used_);
+    stat.add("tie points skipped: low quality", tie_points_low_quality_);
     stat.add("reference epoch", reference_epoch_);
   }
 
@@ -684,7 +798,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   double pixel_size_ = 1.0, default_pixel_sigma_ = 0.3, pixel_sigma_floor_ = 0.05, uav_pixel_sigma_floor_ = 1.0, epoch_gap_ = 600.0, prior_max_dt_ = 0.1,
          gnss_sigma_floor_ = 0.01;
   int min_images_ = 2;
-  std::vector<int> free_interior_;
+  std::vector<int> free_interior_, uav_free_interior_;
   adjustment::Options options_;
   adjustment::EpochAdjustmentOptions epoch_options_;
   adjustment::DisplacementOptions displacement_options_;
@@ -707,6 +821,17 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   std::map<std::string, uint32_t> announced_images_;
   ros::WallTime ended_at_;
   bool end_pending_ = false;
+  // Stamp of each source's end marker: the epoch's images are those up to it.
+  std::map<std::string, ros::Time> end_stamps_;
+  std::vector<slope_monitor::EpochMarker> deferred_ends_;
+  // Tie-point messages received / announced (pairs_b) per image b.
+  struct TieCount {
+    uint32_t received = 0, expected = 0;
+  };
+  std::map<std::string, TieCount> tie_counts_;
+  std::vector<std::string> tie_point_cameras_;
+  double tie_point_wait_ = 300.0, tie_pixel_sigma_floor_ = 0.2, min_tie_quality_ = 0.25;
+  uint64_t tie_points_used_ = 0, tie_points_low_quality_ = 0;
   std::vector<std::string> epoch_topics_;
   double epoch_wait_ = 30.0;
   ros::Time last_input_;

@@ -327,6 +327,14 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
       Config config;
       if (!options.free_interior.empty())
         config.FreeInteriorOfAll(static_cast<int>(pruned.cameras.size()), options.free_interior);
+      for (size_t c = 0; c < pruned.cameras.size(); ++c) {
+        auto own = options.free_interior_by_camera.find(pruned.cameras[c].name);
+        if (own == options.free_interior_by_camera.end()) continue;
+        if (own->second.empty())
+          config.free_interior.erase(static_cast<int>(c));
+        else
+          config.free_interior[static_cast<int>(c)] = own->second;
+      }
       // Screening: adjust without the usability limits and test the named
       // observations' residuals; the worst one above the outlier threshold
       // is a wrong name: removed, reported, adjusted again.

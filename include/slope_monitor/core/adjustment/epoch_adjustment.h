@@ -25,6 +25,7 @@
 //      observations is tried once more without any of them.
 #pragma once
 
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -112,6 +113,10 @@ struct EpochAdjustmentOptions {
   InitializationOptions initialization;
   NamingOptions naming;
   std::vector<int> free_interior;     // self-calibrated interior parameters of every camera
+  // Per camera (Camera::name): these instead of free_interior (an empty list
+  // fixes that camera's interior), e.g. a UAV camera self-calibrated in
+  // every flight while the fixed cameras keep their calibration.
+  std::map<std::string, std::vector<int>> free_interior_by_camera;
   bool orient_from_approximate = true;  // step 2
   bool name_unidentified = true;        // step 3
   // Images with a GNSS position prior need adjustment.min_observations_with_prior
