@@ -3,19 +3,33 @@
 //
 // Thin wrapper: parameters -> HexMatcherOptions / MatchPrior; images ->
 // cv::Mat (single channel kept; colour converted to mono8); the core does
-// the rest. Two modes (parameter `mode`):
+// the rest. Three modes (parameter `mode`):
 //   pair:  image_a + image_b of the same epoch (two cameras) -> tie points;
 //          a pair is the latest a and b whose stamps differ by <= max_pair_dt.
 //   track: image (one camera); the first image received is the reference
 //          epoch, every later image is matched against it with the
 //          displacement prior (global shift from stable ground estimated).
+//   sequence: image (one moving camera, e.g. the UAV) + optional
+//          position_prior; each new image b is matched with earlier images a
+//          of its epoch (core/matching/sequence.h: nearest priors within
+//          max_pair_distance, else the previous sequence_depth images), the
+//          prior shift from EstimateGlobalShift (core/matching/global_shift.h),
+//          track IDs shared by all pairs of the same image a, pairs_b set.
+//          Callbacks only queue; one worker thread matches the images in
+//          arrival order (deterministic: no result depends on thread timing,
+//          only on the prior being in when the image's turn comes, see
+//          prior_wait).
 // Output: tie_points (slope_monitor/TiePointArray, header of image b,
 // per-match 2x2 covariance), diagnostics (matches, rejects by reason, time).
+#include <condition_variable>
+#include <deque>
 #include <memory>
 #include <mutex>
+#include <thread>
 
 #include <cv_bridge/cv_bridge.h>
 #include <diagnostic_updater/diagnostic_updater.h>
+#include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <nodelet/nodelet.h>
 #include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
@@ -24,13 +38,25 @@
 
 #include "slope_monitor/TiePointArray.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/matching/global_shift.h"
 #include "slope_monitor/core/matching/hex_matcher.h"
+#include "slope_monitor/core/matching/sequence.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
 
 namespace slope_monitor {
 
 class HexMatcherNodelet : public nodelet::Nodelet {
+ public:
+  ~HexMatcherNodelet() override {
+    {
+      std::lock_guard<std::mutex> lock(queue_mutex_);
+      stop_ = true;
+    }
+    queue_cv_.notify_all();
+    if (worker_.joinable()) worker_.join();
+  }
+
  private:
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
@@ -46,8 +72,14 @@ class HexMatcherNodelet : public nodelet::Nodelet {
     if (mode_ == "pair") {
       sub_a_ = nh.subscribe("image_a", 2, &HexMatcherNodelet::OnImageA, this);
       sub_b_ = nh.subscribe("image_b", 2, &HexMatcherNodelet::OnImageB, this);
-    } else {
+    } else if (mode_ == "track") {
       sub_a_ = nh.subscribe("image", 2, &HexMatcherNodelet::OnTrackImage, this);
+    } else {
+      // Large queues: a fast bag replay must lose no image (the callbacks
+      // only queue; the worker matches).
+      sub_a_ = nh.subscribe("image", image_queue_, &HexMatcherNodelet::OnSequenceImage, this);
+      sub_b_ = nh.subscribe("position_prior", image_queue_, &HexMatcherNodelet::OnPositionPrior, this);
+      worker_ = std::thread([this] { SequenceWorker(); });
     }
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh, getName());
     updater_->setHardwareID("hex_matcher");
@@ -57,7 +89,7 @@ class HexMatcherNodelet : public nodelet::Nodelet {
 
   void ReadParameters(ros::NodeHandle& pnh) {
     ros_adapters::ParamReader p(pnh);
-    mode_ = p.String("mode", "pair", {"pair", "track"});
+    mode_ = p.String("mode", "pair", {"pair", "track", "sequence"});
     max_pair_dt_ = p.Double("max_pair_dt", 0.5, 0.0, 3600.0, "s");
     camera_a_ = p.String("camera_a", "cam_a");
     camera_b_ = p.String("camera_b", "cam_b");
@@ -123,8 +155,27 @@ class HexMatcherNodelet : public nodelet::Nodelet {
         return false;
       };
     }
+    // Sequence mode (one moving camera).
+    camera_ = p.String("camera", "uav");
+    sequence_max_gap_ = p.Double("sequence_max_gap", 120.0, 0.0, 1e6, "s");
+    pairing_.max_pair_distance = p.Double("max_pair_distance", 30.0, 0.01, 1e5, "m");
+    pairing_.max_pairs_per_image = p.Int("max_pairs_per_image", 4, 1, 100);
+    pairing_.sequence_depth = p.Int("sequence_depth", 2, 1, 100);
+    position_prior_max_dt_ = p.Double("position_prior_max_dt", 0.1, 0.0, 60.0, "s");
+    site_frame_ = p.String("site_frame", "site");
+    prior_wait_ = p.Double("prior_wait", 2.0, 0.0, 600.0, "s");
+    image_queue_ = p.Int("image_queue", 200, 1, 100000);
+    sequence_border_ = p.Double("sequence_border", 12.0, 0.0, 1000.0, "px");
+    shift_options_.max_size = p.Int("shift_max_size", 320, 32, 4096, "px");
+    shift_options_.min_response = p.Double("shift_min_response", 0.02, 0.0, 1.0);
+    shift_options_.min_overlap_correlation = p.Double("shift_min_overlap_correlation", 0.4, -1.0, 1.0);
+    shift_options_.min_overlap = p.Int("shift_min_overlap", 48, 8, 100000, "px");
+    shift_options_.refine = p.Bool("shift_refine", true);
+    shift_options_.refine_factor = p.Int("shift_refine_factor", 2, 1, 16);
     p.CheckNoUnknownKeys();
     options_.Check();
+    pairing_.Check();
+    shift_options_.Check();
   }
 
   static cv::Mat ToMat(const sensor_msgs::ImageConstPtr& msg) {
@@ -196,6 +247,212 @@ class HexMatcherNodelet : public nodelet::Nodelet {
     ++pairs_;
   }
 
+  // ---- sequence mode ----
+  struct Pending {
+    sensor_msgs::ImageConstPtr msg;
+    ros::WallTime received;
+  };
+  struct Earlier {
+    sensor_msgs::ImageConstPtr msg;
+    cv::Mat image;
+    matching::SequenceImage info;
+  };
+
+  void OnSequenceImage(const sensor_msgs::ImageConstPtr& msg) {
+    {
+      std::lock_guard<std::mutex> lock(queue_mutex_);
+      pending_.push_back({msg, ros::WallTime::now()});
+    }
+    queue_cv_.notify_all();
+  }
+
+  void OnPositionPrior(const geometry_msgs::PoseWithCovarianceStampedConstPtr& msg) {
+    if (!msg->header.frame_id.empty() && msg->header.frame_id != site_frame_) {
+      NODELET_ERROR_THROTTLE(5.0, "hex_matcher: position_prior in frame '%s', expected '%s' (site_frame); ignored",
+                             msg->header.frame_id.c_str(), site_frame_.c_str());
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++bad_priors_;
+      return;
+    }
+    {
+      std::lock_guard<std::mutex> lock(queue_mutex_);
+      priors_.push_back(msg);
+      latest_prior_ = std::max(latest_prior_, msg->header.stamp.toSec());
+    }
+    queue_cv_.notify_all();
+  }
+
+  // The front image may be matched: its prior is in, the priors have moved
+  // past it, or it waited prior_wait (wall time) for one. Caller holds
+  // queue_mutex_.
+  bool FrontReady() const {
+    if (pending_.empty()) return false;
+    const double t = pending_.front().msg->header.stamp.toSec();
+    if (latest_prior_ > t + position_prior_max_dt_) return true;
+    for (const auto& p : priors_) {
+      if (std::fabs(p->header.stamp.toSec() - t) <= position_prior_max_dt_) return true;
+    }
+    return (ros::WallTime::now() - pending_.front().received).toSec() >= prior_wait_;
+  }
+
+  void SequenceWorker() {
+    while (true) {
+      Pending next;
+      geometry_msgs::PoseWithCovarianceStampedConstPtr prior;
+      {
+        std::unique_lock<std::mutex> lock(queue_mutex_);
+        while (!stop_ && !FrontReady()) queue_cv_.wait_for(lock, std::chrono::milliseconds(50));
+        if (stop_) return;
+        next = pending_.front();
+        pending_.pop_front();
+        const double t = next.msg->header.stamp.toSec();
+        double best = position_prior_max_dt_;
+        for (const auto& p : priors_) {
+          const double dt = std::fabs(p->header.stamp.toSec() - t);
+          if (dt <= best) {
+            best = dt;
+            prior = p;
+          }
+        }
+        // Priors older than this image (images arrive in time order) are done.
+        while (!priors_.empty() && priors_.front()->header.stamp.toSec() < t - position_prior_max_dt_) {
+          priors_.pop_front();
+        }
+      }
+      try {
+        ProcessSequenceImage(next.msg, prior);
+      } catch (const std::exception& e) {
+        // Not expected (pairs catch their own errors); keep the worker alive.
+        NODELET_ERROR_THROTTLE(5.0, "hex_matcher: sequence image at %.3f: %s", next.msg->header.stamp.toSec(),
+                               e.what());
+      }
+    }
+  }
+
+  slope_monitor::TiePointArray SequenceMessage(const sensor_msgs::ImageConstPtr& b, const Earlier* a,
+                                               uint32_t pairs_b) const {
+    slope_monitor::TiePointArray out;
+    out.header = b->header;
+    if (a != nullptr) {
+      out.header_a = a->msg->header;
+      out.camera_a = camera_;
+      out.epoch_a = epoch_;
+    }
+    out.camera_b = camera_;
+    out.epoch_b = epoch_;
+    out.pairs_b = pairs_b;
+    return out;
+  }
+
+  void ProcessSequenceImage(const sensor_msgs::ImageConstPtr& b,
+                            const geometry_msgs::PoseWithCovarianceStampedConstPtr& prior) {
+    const double t = b->header.stamp.toSec();
+    Earlier current;
+    current.msg = b;
+    current.info.serial = ++serial_;
+    current.info.stamp = t;
+    if (prior) {
+      current.info.has_position = true;
+      current.info.position = Eigen::Vector2d(prior->pose.pose.position.x, prior->pose.pose.position.y);
+    }
+    // A new epoch (flight) after a gap, or when the stamps run backwards (a bag replayed again).
+    if (history_.empty() || t - last_stamp_ > sequence_max_gap_ || t < last_stamp_) {
+      if (!history_.empty()) NODELET_INFO("hex_matcher: new sequence epoch at %.3f", t);
+      history_.clear();
+      ++epoch_;
+    }
+    last_stamp_ = t;
+    std::string convert_error;
+    try {
+      current.image = ToMat(b);
+    } catch (const std::exception& e) {
+      convert_error = std::string("image at ") + std::to_string(t) + ": " + e.what();
+    }
+    std::vector<matching::SequenceImage> infos;
+    for (const Earlier& e : history_) infos.push_back(e.info);
+    const std::vector<size_t> plan = matching::PlanSequencePairs(infos, current.info, pairing_);
+    const uint32_t n = static_cast<uint32_t>(std::max<size_t>(1, plan.size()));
+    if (plan.empty()) {
+      pub_.publish(SequenceMessage(b, nullptr, 1));
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++sequence_images_;
+      ++unpaired_;
+    }
+    for (size_t k : plan) {
+      const Earlier& a = history_[k];
+      slope_monitor::TiePointArray out = SequenceMessage(b, &a, n);
+      std::string failure, reason;
+      matching::HexMatchResult r;
+      matching::GlobalShiftResult gs;
+      try {
+        if (!convert_error.empty()) throw InvalidArgument(convert_error);
+        gs = matching::EstimateGlobalShift(a.image, current.image, shift_options_);
+        if (!gs.usable) {
+          reason = "shift_unusable";
+          failure = "global shift not usable: " + gs.reason;
+        } else {
+          matching::MatchPrior pr = prior_;
+          pr.shift = gs.shift;
+          const cv::Size size = current.image.size();
+          const double border = sequence_border_;
+          const Eigen::Vector2d shift = gs.shift;
+          // Only the points of a that the shift puts inside b.
+          pr.within = [size, border, shift](const Eigen::Vector2d& x) {
+            const Eigen::Vector2d y = x + shift;
+            return y.x() >= border && y.y() >= border && y.x() <= size.width - 1 - border &&
+                   y.y() <= size.height - 1 - border;
+          };
+          r = matcher_->Match(a.image, current.image, pr);
+          for (const matching::HexMatch& m : r.matches) {
+            slope_monitor::TiePoint tp;
+            tp.id = matching::SequenceTrackId(a.info.serial, m.xa, a.image.cols);
+            tp.xa = m.xa.x();
+            tp.ya = m.xa.y();
+            tp.xb = m.xb.x();
+            tp.yb = m.xb.y();
+            tp.covariance = {m.covariance(0, 0), m.covariance(0, 1), m.covariance(1, 0), m.covariance(1, 1)};
+            tp.correlation = m.correlation;
+            tp.quality = m.quality;
+            tp.method = slope_monitor::TiePoint::METHOD_LSC;
+            out.points.push_back(tp);
+          }
+        }
+      } catch (const std::exception& e) {
+        reason = "error";
+        failure = e.what();
+        out.points.clear();
+      }
+      if (!failure.empty()) {
+        NODELET_ERROR_THROTTLE(5.0, "hex_matcher: sequence pair %.3f / %.3f failed (empty tie points): %s",
+                               a.info.stamp, t, failure.c_str());
+      }
+      pub_.publish(out);
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++pairs_;
+      if (!failure.empty()) {
+        ++errors_;
+        ++failed_pairs_[reason];
+        last_error_ = failure;
+      } else {
+        last_summary_ = r.summary;
+        last_shift_ = gs;
+      }
+    }
+    if (!plan.empty()) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++sequence_images_;
+    }
+    // Keep b as a partner of later images unless it cannot be matched (its
+    // conversion failed, or its size or encoding differs from the epoch's).
+    const bool keep = convert_error.empty() &&
+                      (history_.empty() || (history_.front().image.size() == current.image.size() &&
+                                            history_.front().image.type() == current.image.type()));
+    if (keep) {
+      history_.push_back(current);
+      if (history_.size() > kMaxHistory) history_.erase(history_.begin());
+    }
+  }
+
   void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (errors_ > 0 && !last_error_.empty()) {
@@ -214,6 +471,16 @@ class HexMatcherNodelet : public nodelet::Nodelet {
     for (const auto& kv : last_summary_.flags) stat.add("flag " + kv.first, kv.second);
     stat.add("time [s]", last_summary_.seconds);
     for (const auto& kv : last_summary_.rejects) stat.add("reject " + kv.first, kv.second);
+    if (mode_ == "sequence") {
+      stat.add("images", sequence_images_);
+      stat.add("images without partner", unpaired_);
+      stat.add("bad position priors", bad_priors_);
+      for (const auto& kv : failed_pairs_) stat.add("failed pairs " + kv.first, kv.second);
+      stat.add("last shift x [px]", last_shift_.shift.x());
+      stat.add("last shift y [px]", last_shift_.shift.y());
+      stat.add("last shift response", last_shift_.response);
+      stat.add("last shift overlap correlation", last_shift_.overlap_correlation);
+    }
   }
 
   std::string mode_;
@@ -231,6 +498,28 @@ class HexMatcherNodelet : public nodelet::Nodelet {
   matching::HexMatchSummary last_summary_;
   int pairs_ = 0, errors_ = 0;
   std::string last_error_;
+  // Sequence mode.
+  static constexpr size_t kMaxHistory = 300;  // images kept per epoch (~1.2 MB each at 1280 x 960)
+  std::string camera_, site_frame_;
+  double sequence_max_gap_ = 120.0, position_prior_max_dt_ = 0.1, prior_wait_ = 2.0, sequence_border_ = 12.0;
+  int image_queue_ = 200;
+  matching::SequencePairOptions pairing_;
+  matching::GlobalShiftOptions shift_options_;
+  std::mutex queue_mutex_;  // pending_, priors_, latest_prior_, stop_
+  std::condition_variable queue_cv_;
+  std::deque<Pending> pending_;
+  std::deque<geometry_msgs::PoseWithCovarianceStampedConstPtr> priors_;
+  double latest_prior_ = -1e300;
+  bool stop_ = false;
+  std::thread worker_;
+  // Worker only.
+  std::vector<Earlier> history_;
+  uint32_t serial_ = 0, epoch_ = 0;
+  double last_stamp_ = 0.0;
+  // Diagnostics (mutex_).
+  int sequence_images_ = 0, unpaired_ = 0, bad_priors_ = 0;
+  std::map<std::string, int> failed_pairs_;
+  matching::GlobalShiftResult last_shift_;
 };
 
 }  // namespace slope_monitor
