@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 
@@ -25,6 +26,13 @@ void GlobalShiftOptions::Check() const {
     throw ConfigError(Message("GlobalShiftOptions.min_overlap_correlation must be in [-1, 1], got ",
                               min_overlap_correlation));
   }
+  if (candidates < 1 || candidates > 100) {
+    throw ConfigError(Message("GlobalShiftOptions.candidates must be in [1, 100], got ", candidates));
+  }
+  if (!(taper > 0.0 && taper <= 0.5)) throw ConfigError(Message("GlobalShiftOptions.taper must be in (0, 0.5], got ", taper));
+  if (!(min_overlap_fraction >= 0.0 && min_overlap_fraction < 1.0)) {
+    throw ConfigError(Message("GlobalShiftOptions.min_overlap_fraction must be in [0, 1), got ", min_overlap_fraction));
+  }
   if (min_overlap < 8) throw ConfigError(Message("GlobalShiftOptions.min_overlap must be >= 8 px, got ", min_overlap));
 }
 
@@ -47,11 +55,87 @@ cv::Point2d Correlate(const cv::Mat& a, const cv::Mat& b, double* response) {
   return cv::phaseCorrelate(za, zb, window, response);
 }
 
+// Tukey window: 1 inside, a Hanning-shaped (raised cosine) fall to 0 over
+// the outer `taper` of each side.
+cv::Mat TukeyWindow(cv::Size size, double taper) {
+  auto profile = [taper](int n) {
+    std::vector<float> w(n, 1.0f);
+    const int m = std::max(1, static_cast<int>(taper * n));
+    for (int i = 0; i < m && i < n; ++i) {
+      const float v = static_cast<float>(0.5 * (1.0 - std::cos(M_PI * (i + 0.5) / m)));
+      w[i] = std::min(w[i], v);
+      w[n - 1 - i] = std::min(w[n - 1 - i], v);
+    }
+    return w;
+  };
+  const std::vector<float> wx = profile(size.width), wy = profile(size.height);
+  cv::Mat w(size, CV_32F);
+  for (int r = 0; r < size.height; ++r)
+    for (int c = 0; c < size.width; ++c) w.at<float>(r, c) = wx[c] * wy[r];
+  return w;
+}
+
+// Phase-correlation surface of a and b (Tukey window, zero-mean copies):
+// the inverse DFT of the normalised cross-power spectrum B conj(A), whose
+// peak lies at d where b(x) = a(x - d) (cyclic: d modulo the size).
+// Returns its `count` highest local maxima (sub-pixel by the 3 x 3 centroid),
+// highest first; *surface_peak_value their values.
+struct Peak {
+  Eigen::Vector2d d;
+  double value;
+};
+std::vector<Peak> CorrelationPeaks(const cv::Mat& a, const cv::Mat& b, double taper, int count) {
+  const cv::Mat w = TukeyWindow(a.size(), taper);
+  cv::Mat za = (a - cv::mean(a)[0]).mul(w), zb = (b - cv::mean(b)[0]).mul(w);
+  cv::Mat fa, fb, cross;
+  cv::dft(za, fa, cv::DFT_COMPLEX_OUTPUT);
+  cv::dft(zb, fb, cv::DFT_COMPLEX_OUTPUT);
+  cv::mulSpectrums(fb, fa, cross, 0, true);
+  std::vector<cv::Mat> ri;
+  cv::split(cross, ri);
+  cv::Mat mag;
+  cv::magnitude(ri[0], ri[1], mag);
+  mag += 1e-12;
+  ri[0] /= mag;
+  ri[1] /= mag;
+  cv::merge(ri, cross);
+  cv::Mat surface;
+  cv::idft(cross, surface, cv::DFT_REAL_OUTPUT | cv::DFT_SCALE);
+  std::vector<Peak> peaks;
+  cv::Mat work = surface.clone();
+  const int rows = surface.rows, cols = surface.cols;
+  for (int k = 0; k < count; ++k) {
+    double value = 0;
+    cv::Point p;
+    cv::minMaxLoc(work, nullptr, &value, nullptr, &p);
+    if (!(value > 0)) break;
+    double sw = 0, sx = 0, sy = 0;
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const float v = std::max(0.0f, surface.at<float>((p.y + dy + rows) % rows, (p.x + dx + cols) % cols));
+        sw += v;
+        sx += v * dx;
+        sy += v * dy;
+      }
+    Eigen::Vector2d d(p.x + sx / sw, p.y + sy / sw);
+    // To (-size/2, size/2].
+    if (d.x() > cols / 2.0) d.x() -= cols;
+    if (d.y() > rows / 2.0) d.y() -= rows;
+    peaks.push_back({d, value});
+    // Suppress the neighbourhood (cyclic) before the next maximum.
+    for (int dy = -3; dy <= 3; ++dy)
+      for (int dx = -3; dx <= 3; ++dx) work.at<float>((p.y + dy + rows) % rows, (p.x + dx + cols) % cols) = 0.0f;
+  }
+  return peaks;
+}
+
 // NCC of the parts of a and b that overlap under the integer shift (sx, sy)
-// (xb = xa + s); -2 when they overlap by less than min_overlap.
-double OverlapNcc(const cv::Mat& a, const cv::Mat& b, int sx, int sy, int min_overlap) {
+// (xb = xa + s); -2 when they overlap by less than min_overlap in an axis or
+// less than min_fraction of the area.
+double OverlapNcc(const cv::Mat& a, const cv::Mat& b, int sx, int sy, int min_overlap, double min_fraction) {
   const int ow = a.cols - std::abs(sx), oh = a.rows - std::abs(sy);
   if (ow < min_overlap || oh < min_overlap) return -2.0;
+  if (double(ow) * oh < min_fraction * a.cols * a.rows) return -2.0;
   const cv::Rect ra(std::max(0, -sx), std::max(0, -sy), ow, oh);
   const cv::Rect rb(std::max(0, sx), std::max(0, sy), ow, oh);
   cv::Mat r;
@@ -79,22 +163,26 @@ GlobalShiftResult EstimateGlobalShift(const cv::Mat& image_a, const cv::Mat& ima
     r.reason = "image too small";
     return r;
   }
-  const cv::Point2d coarse = Correlate(ca, cb, &r.response);
-  // Phase correlation is cyclic: a peak at d also stands for d - size (in
-  // each axis). The candidate whose overlapping parts correlate best wins,
-  // so overlaps below 50 % (photos two apart, neighbouring strips) are found.
-  Eigen::Vector2d best(coarse.x, coarse.y);
+  // Phase correlation is cyclic, and with overlaps below ~50 % (photos two
+  // apart, neighbouring strips) the true peak need not be the highest: each
+  // of the highest peaks, at d and d - size in each axis, is checked by the
+  // NCC of the overlapping parts, and the best-correlating candidate wins.
+  const std::vector<Peak> peaks = CorrelationPeaks(ca, cb, options.taper, options.candidates);
+  Eigen::Vector2d best = Eigen::Vector2d::Zero();
   double best_ncc = -3.0;
   const int min_coarse = std::max(8, options.min_overlap / r.factor);
-  for (int kx = -1; kx <= 1; ++kx) {
-    for (int ky = -1; ky <= 1; ++ky) {
-      const double cx = coarse.x + kx * ca.cols, cy = coarse.y + ky * ca.rows;
-      if (std::fabs(cx) >= ca.cols || std::fabs(cy) >= ca.rows) continue;
-      const double ncc = OverlapNcc(ca, cb, static_cast<int>(std::lround(cx)), static_cast<int>(std::lround(cy)),
-                                   min_coarse);
-      if (ncc > best_ncc) {
-        best_ncc = ncc;
-        best = Eigen::Vector2d(cx, cy);
+  for (const Peak& peak : peaks) {
+    for (int kx = -1; kx <= 1; ++kx) {
+      for (int ky = -1; ky <= 1; ++ky) {
+        const double cx = peak.d.x() + kx * ca.cols, cy = peak.d.y() + ky * ca.rows;
+        if (std::fabs(cx) >= ca.cols || std::fabs(cy) >= ca.rows) continue;
+        const double ncc = OverlapNcc(ca, cb, static_cast<int>(std::lround(cx)), static_cast<int>(std::lround(cy)),
+                                     min_coarse, options.min_overlap_fraction);
+        if (ncc > best_ncc) {
+          best_ncc = ncc;
+          best = Eigen::Vector2d(cx, cy);
+          r.response = peak.value;
+        }
       }
     }
   }

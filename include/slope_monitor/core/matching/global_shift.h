@@ -2,15 +2,23 @@
 // (UAV strips): the prior shift of the hexagonal matcher (MatchPrior::shift)
 // when the images are displaced by far more than its search radius.
 //
-// Method: phase correlation (cv::phaseCorrelate, Hanning window) of copies
-// downsampled by an integer factor so that their longer side is at most
-// `max_size` px (1280 x 960 -> factor 4, 320 x 240); the peak's sub-pixel
-// position times the factor is the coarse shift. With `refine`, the
-// overlapping parts of both images (cut at the rounded coarse shift) are
-// correlated again at factor `refine_factor` and the residual is added.
-// Phase correlation is cyclic: shifts up to half the image size in each axis
-// are found (overlap >= 50 %); assumes no large rotation or scale change
-// between the photos (strips flown in the same direction at one height).
+// Method: phase correlation of copies downsampled by an integer factor so
+// that their longer side is at most `max_size` px (1280 x 960 -> factor 4,
+// 320 x 240): the normalised cross-power spectrum (cv::dft) of zero-mean
+// copies under a Tukey window (a Hanning-shaped raised-cosine fall over the
+// outer `taper` of each side; a full Hanning window suppresses the overlap
+// of photos two apart, which lies at the image edges: measured on the
+// uav_graph_replay bag, every such pair failed with it). The `candidates`
+// highest peaks, each at d and d - size in each axis (the correlation is
+// cyclic), are checked by the NCC of the overlapping parts of the coarse
+// copies, and the best-correlating one is the coarse shift (sub-pixel by the
+// peak's 3 x 3 centroid, times the factor). With `refine`, the overlapping
+// parts of both images (cut at the rounded coarse shift) are correlated
+// again by cv::phaseCorrelate with a Hanning window at factor
+// `refine_factor` (finer for small overlaps) and the residual is added.
+// Shifts up to the image size (overlap >= min_overlap_fraction of the area)
+// are found; assumes no large rotation or scale change between the photos
+// (strips flown in the same direction at one height).
 //
 // The shift is unusable (`usable` false, `reason` says why) when the peak
 // response is below min_response, the overlapping parts correlate below
@@ -33,9 +41,12 @@ struct GlobalShiftOptions {
   // shift found: the real test of a shift (the peak shrinks with the overlap
   // under the window: 0.04 at 16 % of the area on Cones).
   double min_overlap_correlation = 0.4;
+  int candidates = 8;          // [1, 100] highest correlation peaks checked by the overlap NCC
+  double taper = 0.1;          // (0, 0.5] coarse window: raised-cosine fall over this share of each side
   bool refine = true;          // correlate the overlap again at a finer scale
   int refine_factor = 2;       // [-] downsampling of the refinement, [1, 16]
   int min_overlap = 48;        // [px] smallest overlap (each axis, full resolution) for the shift to be usable
+  double min_overlap_fraction = 0.1;  // [0, 1) smallest overlap area / image area of a candidate shift
   void Check() const;          // throws ConfigError naming the field
 };
 
