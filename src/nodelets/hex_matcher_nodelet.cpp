@@ -446,9 +446,13 @@ class HexMatcherNodelet : public nodelet::Nodelet {
       std::lock_guard<std::mutex> lock(mutex_);
       ++pairs_;
       if (!failure.empty()) {
-        ++errors_;
         ++failed_pairs_[reason];
-        last_error_ = failure;
+        // An unusable shift (photos that hardly overlap) is normal in a
+        // flight; only errors (bad images) make the status WARN.
+        if (reason == "error") {
+          ++errors_;
+          last_error_ = failure;
+        }
       } else {
         last_summary_ = r.summary;
         last_shift_ = gs;
