@@ -45,7 +45,8 @@ struct Flight {
     const sim::Renderer renderer(scene, model);
     for (int i = 0; i < 3; ++i) {
       poses.push_back(sim::testing::NadirFrom(Eigen::Vector3d(30, 18.5 + i * base, z)));
-      images.push_back(sim::testing::Photo(renderer, state, poses.back(), sim::RenderOptions(), 100 + i));
+      images.push_back(
+          sim::testing::Photo(renderer, state, poses.back(), sim::RenderOptions(), 100 + i));
     }
   }
   static sim::SceneSpec Spec() {
@@ -60,7 +61,8 @@ struct Flight {
     std::array<double, camera::kNumInterior> in{};
     in[camera::kC] = 8.8;
     in[camera::kK1] = -1.0e-3;
-    return camera::CameraModel(camera::Sensor{kW, kH, 0.0048}, camera::DistortionModel::kBrownAffinity, in);
+    return camera::CameraModel(camera::Sensor{kW, kH, 0.0048},
+                               camera::DistortionModel::kBrownAffinity, in);
   }
   bool Transfer(int i, int j, const Eigen::Vector2d& x, Eigen::Vector2d* xj) const {
     const camera::Ray ray = model.ImageToRay(poses[i], x);
@@ -108,7 +110,8 @@ int main() {
       const auto t0 = std::chrono::steady_clock::now();
       const matching::GlobalShiftResult gs =
           matching::EstimateGlobalShift(f.images[a], f.images[b], matching::GlobalShiftOptions());
-      const double t_shift = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      const double t_shift =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       matching::MatchPrior prior;
       prior.shift = gs.shift;
       if (s.within) {
@@ -118,7 +121,8 @@ int main() {
         };
       }
       const matching::HexMatchResult r = matcher.Match(f.images[a], f.images[b], prior);
-      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      const double seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       total += seconds;
       ++pairs;
       int normal = 0, gross = 0;
@@ -135,10 +139,12 @@ int main() {
         ++normal;
         sum2 += e * e;
       }
-      std::printf("%-14s pair %d-%d: shift (%.1f, %.1f) in %.3f s, %d candidates, %zu matches, %d normal within 1 px "
-                  "of the truth (RMS %.3f px), %d beyond 1 px; %.2f s per pair\n",
-                  s.name.c_str(), a + 1, b + 1, gs.shift.x(), gs.shift.y(), t_shift, r.summary.candidates,
-                  r.matches.size(), normal, std::sqrt(sum2 / std::max(1, normal)), gross, seconds);
+      std::printf(
+          "%-14s pair %d-%d: shift (%.1f, %.1f) in %.3f s, %d candidates, %zu matches, %d normal "
+          "within 1 px "
+          "of the truth (RMS %.3f px), %d beyond 1 px; %.2f s per pair\n",
+          s.name.c_str(), a + 1, b + 1, gs.shift.x(), gs.shift.y(), t_shift, r.summary.candidates,
+          r.matches.size(), normal, std::sqrt(sum2 / std::max(1, normal)), gross, seconds);
     }
     std::printf("%-14s mean %.2f s per pair\n", s.name.c_str(), total / pairs);
     if (s.name == "defaults") t_defaults = total / pairs;

@@ -32,10 +32,10 @@
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Log.h>
 #include <sensor_msgs/Image.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "slope_monitor/TiePointArray.h"
 #include "test_node.h"
@@ -52,12 +52,13 @@ class HexMatcherSequenceRos : public ::testing::Test {
   void SetUp() override {
     ros::NodeHandle nh;
     pub_image_ = nh.advertise<sensor_msgs::Image>("/hs_test/image", 20);
-    pub_prior_ = nh.advertise<geometry_msgs::PoseWithCovarianceStamped>("/hs_test/position_prior", 20);
-    sub_ = nh.subscribe<slope_monitor::TiePointArray>("/hs_test/tie_points", 100,
-                                                      [this](const slope_monitor::TiePointArrayConstPtr& m) {
-                                                        std::lock_guard<std::mutex> l(mutex_);
-                                                        ties_.push_back(*m);
-                                                      });
+    pub_prior_ =
+        nh.advertise<geometry_msgs::PoseWithCovarianceStamped>("/hs_test/position_prior", 20);
+    sub_ = nh.subscribe<slope_monitor::TiePointArray>(
+        "/hs_test/tie_points", 100, [this](const slope_monitor::TiePointArrayConstPtr& m) {
+          std::lock_guard<std::mutex> l(mutex_);
+          ties_.push_back(*m);
+        });
     diag_ = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
         "/diagnostics", 100, [this](const diagnostic_msgs::DiagnosticArrayConstPtr& m) {
           std::lock_guard<std::mutex> l(mutex_);
@@ -65,10 +66,14 @@ class HexMatcherSequenceRos : public ::testing::Test {
             if (s.hardware_id == "hex_matcher") diags_.push_back(s);
         });
     spinner_.start();
-    ASSERT_TRUE(WaitFor([&] { return pub_image_.getNumSubscribers() > 0 && pub_prior_.getNumSubscribers() > 0 &&
-                                     sub_.getNumPublishers() > 0; },
-                        60.0))
-        << "hex_matcher did not subscribe to /hs_test/image, /hs_test/position_prior or advertise /hs_test/tie_points";
+    ASSERT_TRUE(WaitFor(
+        [&] {
+          return pub_image_.getNumSubscribers() > 0 && pub_prior_.getNumSubscribers() > 0 &&
+                 sub_.getNumPublishers() > 0;
+        },
+        60.0))
+        << "hex_matcher did not subscribe to /hs_test/image, /hs_test/position_prior or advertise "
+           "/hs_test/tie_points";
     const std::string path = std::string(SM_TEST_DATA_DIR) + "/stereo_middlebury_cones/left.tif";
     scene_ = cv::imread(path, cv::IMREAD_GRAYSCALE);
     ASSERT_FALSE(scene_.empty()) << "cannot read " << path;
@@ -105,7 +110,8 @@ class HexMatcherSequenceRos : public ::testing::Test {
     shifts_[t] = s;
     pub_image_.publish(cv_bridge::CvImage(h, "mono8", image).toImageMsg());
     ASSERT_TRUE(WaitFor([&] { return ForB(t).size() >= expected; }, 30.0))
-        << "image at " << t << ": " << ForB(t).size() << " of " << expected << " tie-point messages";
+        << "image at " << t << ": " << ForB(t).size() << " of " << expected
+        << " tie-point messages";
     ros::Duration(0.3).sleep();  // no extra message may follow
     EXPECT_EQ(ForB(t).size(), expected) << "image at " << t;
   }
@@ -125,9 +131,12 @@ class HexMatcherSequenceRos : public ::testing::Test {
     return false;
   }
 
-  // Checks a good pair message against the known shift; returns the ids of its normal-quality points.
-  std::map<std::uint64_t, std::pair<double, double>> CheckPair(const slope_monitor::TiePointArray& m) {
-    const cv::Point sa = shifts_.at(m.header_a.stamp.toSec()), sb = shifts_.at(m.header.stamp.toSec());
+  // Checks a good pair message against the known shift; returns the ids of its normal-quality
+  // points.
+  std::map<std::uint64_t, std::pair<double, double>> CheckPair(
+      const slope_monitor::TiePointArray& m) {
+    const cv::Point sa = shifts_.at(m.header_a.stamp.toSec()),
+                    sb = shifts_.at(m.header.stamp.toSec());
     const double ex = sb.x - sa.x, ey = sb.y - sa.y;
     std::map<std::uint64_t, std::pair<double, double>> ids;
     int normal = 0, correct = 0;
@@ -146,10 +155,13 @@ class HexMatcherSequenceRos : public ::testing::Test {
     }
     std::nth_element(dx.begin(), dx.begin() + dx.size() / 2, dx.end());
     std::nth_element(dy.begin(), dy.begin() + dy.size() / 2, dy.end());
-    std::printf("pair %.0f -> %.0f: pairs_b %u, %zu tie points, %d normal, %d within 0.2 px of the shift (%.0f, %.0f), "
-                "median shift (%.2f, %.2f)\n",
-                m.header_a.stamp.toSec(), m.header.stamp.toSec(), m.pairs_b, m.points.size(), normal, correct, ex, ey,
-                dx.empty() ? NAN : dx[dx.size() / 2], dy.empty() ? NAN : dy[dy.size() / 2]);
+    std::printf(
+        "pair %.0f -> %.0f: pairs_b %u, %zu tie points, %d normal, %d within 0.2 px of the shift "
+        "(%.0f, %.0f), "
+        "median shift (%.2f, %.2f)\n",
+        m.header_a.stamp.toSec(), m.header.stamp.toSec(), m.pairs_b, m.points.size(), normal,
+        correct, ex, ey, dx.empty() ? NAN : dx[dx.size() / 2],
+        dy.empty() ? NAN : dy[dy.size() / 2]);
     EXPECT_GT(normal, 50);
     EXPECT_GE(correct, 0.97 * normal);
     if (!dx.empty()) {
@@ -242,7 +254,8 @@ TEST_F(HexMatcherSequenceRos, PairsCountsTrackIdsAndBadImage) {
     ++four;
     EXPECT_EQ(i5->second, kv.second);
   }
-  std::printf("tracks of image 1: %zu in image 2, %d also in image 3, %d also in image 5\n", ids_12.size(), three, four);
+  std::printf("tracks of image 1: %zu in image 2, %d also in image 3, %d also in image 5\n",
+              ids_12.size(), three, four);
   EXPECT_GT(three, 30);
   EXPECT_GT(four, 10);
   // 6: 200 s later: a new epoch, no partner.

@@ -14,26 +14,33 @@ namespace matching {
 
 void GlobalShiftOptions::Check() const {
   if (max_size < 32 || max_size > 4096) {
-    throw ConfigError(Message("GlobalShiftOptions.max_size must be in [32, 4096] px, got ", max_size));
+    throw ConfigError(
+        Message("GlobalShiftOptions.max_size must be in [32, 4096] px, got ", max_size));
   }
   if (!(min_response >= 0.0 && min_response <= 1.0)) {
-    throw ConfigError(Message("GlobalShiftOptions.min_response must be in [0, 1], got ", min_response));
+    throw ConfigError(
+        Message("GlobalShiftOptions.min_response must be in [0, 1], got ", min_response));
   }
   if (refine_factor < 1 || refine_factor > 16) {
-    throw ConfigError(Message("GlobalShiftOptions.refine_factor must be in [1, 16], got ", refine_factor));
+    throw ConfigError(
+        Message("GlobalShiftOptions.refine_factor must be in [1, 16], got ", refine_factor));
   }
   if (!(min_overlap_correlation >= -1.0 && min_overlap_correlation <= 1.0)) {
     throw ConfigError(Message("GlobalShiftOptions.min_overlap_correlation must be in [-1, 1], got ",
                               min_overlap_correlation));
   }
   if (candidates < 1 || candidates > 100) {
-    throw ConfigError(Message("GlobalShiftOptions.candidates must be in [1, 100], got ", candidates));
+    throw ConfigError(
+        Message("GlobalShiftOptions.candidates must be in [1, 100], got ", candidates));
   }
-  if (!(taper > 0.0 && taper <= 0.5)) throw ConfigError(Message("GlobalShiftOptions.taper must be in (0, 0.5], got ", taper));
+  if (!(taper > 0.0 && taper <= 0.5))
+    throw ConfigError(Message("GlobalShiftOptions.taper must be in (0, 0.5], got ", taper));
   if (!(min_overlap_fraction >= 0.0 && min_overlap_fraction < 1.0)) {
-    throw ConfigError(Message("GlobalShiftOptions.min_overlap_fraction must be in [0, 1), got ", min_overlap_fraction));
+    throw ConfigError(Message("GlobalShiftOptions.min_overlap_fraction must be in [0, 1), got ",
+                              min_overlap_fraction));
   }
-  if (min_overlap < 8) throw ConfigError(Message("GlobalShiftOptions.min_overlap must be >= 8 px, got ", min_overlap));
+  if (min_overlap < 8)
+    throw ConfigError(Message("GlobalShiftOptions.min_overlap must be >= 8 px, got ", min_overlap));
 }
 
 namespace {
@@ -112,7 +119,8 @@ std::vector<Peak> CorrelationPeaks(const cv::Mat& a, const cv::Mat& b, double ta
     double sw = 0, sx = 0, sy = 0;
     for (int dy = -1; dy <= 1; ++dy)
       for (int dx = -1; dx <= 1; ++dx) {
-        const float v = std::max(0.0f, surface.at<float>((p.y + dy + rows) % rows, (p.x + dx + cols) % cols));
+        const float v =
+            std::max(0.0f, surface.at<float>((p.y + dy + rows) % rows, (p.x + dx + cols) % cols));
         sw += v;
         sx += v * dx;
         sy += v * dy;
@@ -124,7 +132,8 @@ std::vector<Peak> CorrelationPeaks(const cv::Mat& a, const cv::Mat& b, double ta
     peaks.push_back({d, value});
     // Suppress the neighbourhood (cyclic) before the next maximum.
     for (int dy = -3; dy <= 3; ++dy)
-      for (int dx = -3; dx <= 3; ++dx) work.at<float>((p.y + dy + rows) % rows, (p.x + dx + cols) % cols) = 0.0f;
+      for (int dx = -3; dx <= 3; ++dx)
+        work.at<float>((p.y + dy + rows) % rows, (p.x + dx + cols) % cols) = 0.0f;
   }
   return peaks;
 }
@@ -132,7 +141,8 @@ std::vector<Peak> CorrelationPeaks(const cv::Mat& a, const cv::Mat& b, double ta
 // NCC of the parts of a and b that overlap under the integer shift (sx, sy)
 // (xb = xa + s); -2 when they overlap by less than min_overlap in an axis or
 // less than min_fraction of the area.
-double OverlapNcc(const cv::Mat& a, const cv::Mat& b, int sx, int sy, int min_overlap, double min_fraction) {
+double OverlapNcc(const cv::Mat& a, const cv::Mat& b, int sx, int sy, int min_overlap,
+                  double min_fraction) {
   const int ow = a.cols - std::abs(sx), oh = a.rows - std::abs(sy);
   if (ow < min_overlap || oh < min_overlap) return -2.0;
   if (double(ow) * oh < min_fraction * a.cols * a.rows) return -2.0;
@@ -148,10 +158,11 @@ double OverlapNcc(const cv::Mat& a, const cv::Mat& b, int sx, int sy, int min_ov
 GlobalShiftResult EstimateGlobalShift(const cv::Mat& image_a, const cv::Mat& image_b,
                                       const GlobalShiftOptions& options) {
   options.Check();
-  if (image_a.empty() || image_b.empty()) throw InvalidArgument("EstimateGlobalShift: an input image is empty");
+  if (image_a.empty() || image_b.empty())
+    throw InvalidArgument("EstimateGlobalShift: an input image is empty");
   if (image_a.size() != image_b.size()) {
-    throw InvalidArgument(Message("EstimateGlobalShift: images differ in size (a ", image_a.cols, "x", image_a.rows,
-                                  ", b ", image_b.cols, "x", image_b.rows, ")"));
+    throw InvalidArgument(Message("EstimateGlobalShift: images differ in size (a ", image_a.cols,
+                                  "x", image_a.rows, ", b ", image_b.cols, "x", image_b.rows, ")"));
   }
   const cv::Mat fa = ToFloat(image_a, "EstimateGlobalShift image a");
   const cv::Mat fb = ToFloat(image_b, "EstimateGlobalShift image b");
@@ -176,8 +187,9 @@ GlobalShiftResult EstimateGlobalShift(const cv::Mat& image_a, const cv::Mat& ima
       for (int ky = -1; ky <= 1; ++ky) {
         const double cx = peak.d.x() + kx * ca.cols, cy = peak.d.y() + ky * ca.rows;
         if (std::fabs(cx) >= ca.cols || std::fabs(cy) >= ca.rows) continue;
-        const double ncc = OverlapNcc(ca, cb, static_cast<int>(std::lround(cx)), static_cast<int>(std::lround(cy)),
-                                     min_coarse, options.min_overlap_fraction);
+        const double ncc =
+            OverlapNcc(ca, cb, static_cast<int>(std::lround(cx)), static_cast<int>(std::lround(cy)),
+                       min_coarse, options.min_overlap_fraction);
         if (ncc > best_ncc) {
           best_ncc = ncc;
           best = Eigen::Vector2d(cx, cy);
@@ -189,7 +201,8 @@ GlobalShiftResult EstimateGlobalShift(const cv::Mat& image_a, const cv::Mat& ima
   r.shift = best * r.factor;
   r.overlap_correlation = best_ncc;
   if (!std::isfinite(r.response) || !best.allFinite() || r.response < options.min_response) {
-    r.reason = Message("phase-correlation peak ", r.response, " below min_response ", options.min_response);
+    r.reason = Message("phase-correlation peak ", r.response, " below min_response ",
+                       options.min_response);
     return r;
   }
   if (!(best_ncc >= options.min_overlap_correlation)) {
@@ -197,10 +210,12 @@ GlobalShiftResult EstimateGlobalShift(const cv::Mat& image_a, const cv::Mat& ima
                        options.min_overlap_correlation);
     return r;
   }
-  const int sx = static_cast<int>(std::lround(r.shift.x())), sy = static_cast<int>(std::lround(r.shift.y()));
+  const int sx = static_cast<int>(std::lround(r.shift.x())),
+            sy = static_cast<int>(std::lround(r.shift.y()));
   const int ow = fa.cols - std::abs(sx), oh = fa.rows - std::abs(sy);
   if (ow < options.min_overlap || oh < options.min_overlap) {
-    r.reason = Message("overlap ", ow, "x", oh, " px smaller than min_overlap ", options.min_overlap);
+    r.reason =
+        Message("overlap ", ow, "x", oh, " px smaller than min_overlap ", options.min_overlap);
     return r;
   }
   r.usable = true;
@@ -216,7 +231,8 @@ GlobalShiftResult EstimateGlobalShift(const cv::Mat& image_a, const cv::Mat& ima
   const cv::Point2d fine = Correlate(Downsample(fa(ra), f), Downsample(fb(rb), f), &response);
   const Eigen::Vector2d residual = Eigen::Vector2d(fine.x, fine.y) * f;
   // The residual of a correct coarse shift is within a coarse pixel or two.
-  if (std::isfinite(response) && residual.allFinite() && residual.cwiseAbs().maxCoeff() <= 2.0 * r.factor) {
+  if (std::isfinite(response) && residual.allFinite() &&
+      residual.cwiseAbs().maxCoeff() <= 2.0 * r.factor) {
     r.shift = Eigen::Vector2d(sx, sy) + residual;
     r.refined = true;
   }

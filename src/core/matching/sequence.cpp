@@ -11,22 +11,26 @@ namespace matching {
 
 void SequencePairOptions::Check() const {
   if (!(max_pair_distance > 0.0) || !std::isfinite(max_pair_distance)) {
-    throw ConfigError(Message("SequencePairOptions.max_pair_distance must be > 0 m, got ", max_pair_distance));
+    throw ConfigError(
+        Message("SequencePairOptions.max_pair_distance must be > 0 m, got ", max_pair_distance));
   }
   if (max_pairs_per_image < 1 || max_pairs_per_image > 100) {
-    throw ConfigError(Message("SequencePairOptions.max_pairs_per_image must be in [1, 100], got ", max_pairs_per_image));
+    throw ConfigError(Message("SequencePairOptions.max_pairs_per_image must be in [1, 100], got ",
+                              max_pairs_per_image));
   }
   if (sequence_depth < 1 || sequence_depth > 100) {
-    throw ConfigError(Message("SequencePairOptions.sequence_depth must be in [1, 100], got ", sequence_depth));
+    throw ConfigError(
+        Message("SequencePairOptions.sequence_depth must be in [1, 100], got ", sequence_depth));
   }
 }
 
-std::vector<size_t> PlanSequencePairs(const std::vector<SequenceImage>& earlier, const SequenceImage& b,
-                                      const SequencePairOptions& options) {
+std::vector<size_t> PlanSequencePairs(const std::vector<SequenceImage>& earlier,
+                                      const SequenceImage& b, const SequencePairOptions& options) {
   options.Check();
   std::vector<size_t> out;
   const bool any_prior =
-      b.has_position && std::any_of(earlier.begin(), earlier.end(), [](const SequenceImage& s) { return s.has_position; });
+      b.has_position && std::any_of(earlier.begin(), earlier.end(),
+                                    [](const SequenceImage& s) { return s.has_position; });
   if (any_prior) {
     std::vector<std::tuple<double, double, size_t>> c;  // distance, -stamp, index
     for (size_t i = 0; i < earlier.size(); ++i) {
@@ -51,8 +55,8 @@ std::uint64_t SequenceTrackId(std::uint32_t serial_a, const Eigen::Vector2d& xa,
   const long long col = std::llround(xa.x()), row = std::llround(xa.y());
   const long long index = row * width + col;
   if (width <= 0 || col < 0 || row < 0 || col >= width || index >= (1LL << 32)) {
-    throw InvalidArgument(Message("SequenceTrackId: pixel (", xa.x(), ", ", xa.y(), ") outside an image of width ",
-                                  width, " or beyond 2^32 pixels"));
+    throw InvalidArgument(Message("SequenceTrackId: pixel (", xa.x(), ", ", xa.y(),
+                                  ") outside an image of width ", width, " or beyond 2^32 pixels"));
   }
   return (static_cast<std::uint64_t>(serial_a) << 32) | static_cast<std::uint64_t>(index);
 }

@@ -31,7 +31,9 @@ TEST(GlobalShift, KnownShiftOfConesTexture) {
   const cv::Mat left = testing::LoadCones("left.tif", cv::IMREAD_GRAYSCALE);
   const int w = 320, h = 260;
   // b at xb sees the scene point at xb + (x0 - dx) = xa + x0 -> xb = xa + d.
-  struct Case { int dx, dy; };
+  struct Case {
+    int dx, dy;
+  };
   for (const Case c : {Case{97, -38}, Case{-41, 70}, Case{12, 5}}) {
     const int x0 = c.dx < 0 ? 60 : 100, y0 = c.dy < 0 ? 60 : 100;
     const cv::Mat a = Crop(left, x0, y0, w, h, 1);
@@ -40,8 +42,11 @@ TEST(GlobalShift, KnownShiftOfConesTexture) {
       GlobalShiftOptions o;
       o.max_size = max_size;
       const GlobalShiftResult r = EstimateGlobalShift(a, b, o);
-      std::printf("shift (%d, %d), max_size %d: found (%.3f, %.3f), response %.3f, overlap NCC %.3f, factor %d\n",
-                  c.dx, c.dy, max_size, r.shift.x(), r.shift.y(), r.response, r.overlap_correlation, r.factor);
+      std::printf(
+          "shift (%d, %d), max_size %d: found (%.3f, %.3f), response %.3f, overlap NCC %.3f, "
+          "factor %d\n",
+          c.dx, c.dy, max_size, r.shift.x(), r.shift.y(), r.response, r.overlap_correlation,
+          r.factor);
       ASSERT_TRUE(r.usable) << r.reason;
       EXPECT_TRUE(r.refined);
       // Refinement at factor 2: well within a pixel (the matcher searches 24 px).
@@ -67,8 +72,9 @@ TEST(GlobalShift, OverlapBelowHalfTheImage) {
   const cv::Mat a = Crop(left, x0, y0, w, h, 5);
   const cv::Mat b = Crop(left, x0 - dx, y0 - dy, w, h, 6);
   const GlobalShiftResult r = EstimateGlobalShift(a, b, GlobalShiftOptions());
-  std::printf("shift (%d, %d) on %dx%d: found (%.3f, %.3f), response %.3f, overlap correlation %.3f\n", dx, dy, w, h,
-              r.shift.x(), r.shift.y(), r.response, r.overlap_correlation);
+  std::printf(
+      "shift (%d, %d) on %dx%d: found (%.3f, %.3f), response %.3f, overlap correlation %.3f\n", dx,
+      dy, w, h, r.shift.x(), r.shift.y(), r.response, r.overlap_correlation);
   ASSERT_TRUE(r.usable) << r.reason;
   // A 75 x 70 px overlap: within a pixel (measured 0.48 px; the matcher searches 24 px).
   EXPECT_NEAR(r.shift.x(), dx, 1.0);
@@ -83,13 +89,13 @@ TEST(GlobalShift, UnrelatedOrTexturelessImagesAreNotUsable) {
   cv::RNG rng(3);
   rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
   const GlobalShiftResult r = EstimateGlobalShift(a, noise, GlobalShiftOptions());
-  std::printf("texture vs noise: response %.3f, overlap correlation %.3f (%s)\n", r.response, r.overlap_correlation,
-              r.reason.c_str());
+  std::printf("texture vs noise: response %.3f, overlap correlation %.3f (%s)\n", r.response,
+              r.overlap_correlation, r.reason.c_str());
   EXPECT_FALSE(r.usable);
   EXPECT_NE(r.reason.find("below min_"), std::string::npos) << r.reason;
   const GlobalShiftResult flat =
-      EstimateGlobalShift(cv::Mat(160, 200, CV_8U, cv::Scalar(100)), cv::Mat(160, 200, CV_8U, cv::Scalar(101)),
-                          GlobalShiftOptions());
+      EstimateGlobalShift(cv::Mat(160, 200, CV_8U, cv::Scalar(100)),
+                          cv::Mat(160, 200, CV_8U, cv::Scalar(101)), GlobalShiftOptions());
   EXPECT_FALSE(flat.usable);
 }
 
@@ -102,7 +108,8 @@ TEST(GlobalShift, BadInputIsNamed) {
     EXPECT_NE(std::string(e.what()).find("differ in size"), std::string::npos) << e.what();
   }
   EXPECT_THROW(EstimateGlobalShift(cv::Mat(), a, GlobalShiftOptions()), InvalidArgument);
-  EXPECT_THROW(EstimateGlobalShift(cv::Mat(100, 120, CV_8UC3), cv::Mat(100, 120, CV_8UC3), GlobalShiftOptions()),
+  EXPECT_THROW(EstimateGlobalShift(cv::Mat(100, 120, CV_8UC3), cv::Mat(100, 120, CV_8UC3),
+                                   GlobalShiftOptions()),
                InvalidArgument);
   GlobalShiftOptions bad;
   bad.max_size = 4;
@@ -120,12 +127,14 @@ SequenceImage Img(std::uint32_t serial, double stamp, double x, double y, bool p
 
 TEST(SequencePairs, NearestPriorsFirstAtMostMaxPairs) {
   // Strip 1 northwards (y 0, 10, 20, 30), strip 2 southwards 25 m east.
-  const std::vector<SequenceImage> earlier = {Img(1, 0, 0, 0), Img(2, 2, 0, 10), Img(3, 4, 0, 20), Img(4, 6, 0, 30),
-                                              Img(5, 20, 25, 30)};
+  const std::vector<SequenceImage> earlier = {Img(1, 0, 0, 0), Img(2, 2, 0, 10), Img(3, 4, 0, 20),
+                                              Img(4, 6, 0, 30), Img(5, 20, 25, 30)};
   SequencePairOptions o;
-  // b at (25, 20): distances 5: 25.0 (y 30 -> sqrt(625+100)=26.9), 4: 26.9, 3: 25, 2: 26.9, 1: 32.0.
+  // b at (25, 20): distances 5: 25.0 (y 30 -> sqrt(625+100)=26.9), 4: 26.9, 3: 25, 2: 26.9,
+  // 1: 32.0.
   const std::vector<size_t> p = PlanSequencePairs(earlier, Img(6, 22, 25, 20), o);
-  // Nearest: image 5 (10 m), then image 3 (25 m), then 2 and 4 (26.9 m, later first: 4, 2); 1 is 32 m away.
+  // Nearest: image 5 (10 m), then image 3 (25 m), then 2 and 4 (26.9 m, later first: 4, 2); 1 is 32
+  // m away.
   ASSERT_EQ(p.size(), 4u);
   EXPECT_EQ(p[0], 4u);
   EXPECT_EQ(p[1], 2u);
@@ -148,8 +157,10 @@ TEST(SequencePairs, NearestPriorsFirstAtMostMaxPairs) {
 
 TEST(SequencePairs, TrackIdsAreUniqueAndNeverZero) {
   EXPECT_EQ(SequenceTrackId(1, Eigen::Vector2d(0, 0), 1280), std::uint64_t(1) << 32);
-  EXPECT_EQ(SequenceTrackId(3, Eigen::Vector2d(5.2, 2.9), 1280), (std::uint64_t(3) << 32) | (3 * 1280 + 5));
-  EXPECT_NE(SequenceTrackId(1, Eigen::Vector2d(1279, 959), 1280), SequenceTrackId(2, Eigen::Vector2d(0, 0), 1280));
+  EXPECT_EQ(SequenceTrackId(3, Eigen::Vector2d(5.2, 2.9), 1280),
+            (std::uint64_t(3) << 32) | (3 * 1280 + 5));
+  EXPECT_NE(SequenceTrackId(1, Eigen::Vector2d(1279, 959), 1280),
+            SequenceTrackId(2, Eigen::Vector2d(0, 0), 1280));
   EXPECT_THROW(SequenceTrackId(0, Eigen::Vector2d(1, 1), 1280), InvalidArgument);
   EXPECT_THROW(SequenceTrackId(1, Eigen::Vector2d(1300, 1), 1280), InvalidArgument);
 }

@@ -38,9 +38,9 @@ namespace matching {
 namespace {
 
 constexpr int kW = 640, kH = 480;
-constexpr double kHeight = 60.0;   // [m] above the ground at the flight's centre
-constexpr double kC = 9.1667;      // [mm] 8.8 mm x 10 um / 9.6 um: the UAV camera's field of view
-constexpr double kOverlap = 0.7;   // forward overlap
+constexpr double kHeight = 60.0;  // [m] above the ground at the flight's centre
+constexpr double kC = 9.1667;     // [mm] 8.8 mm x 10 um / 9.6 um: the UAV camera's field of view
+constexpr double kOverlap = 0.7;  // forward overlap
 
 // A 60 m x 60 m slope (6 m relief), texture as the matcher's simulator test,
 // no body motion, no obstacles.
@@ -64,10 +64,11 @@ struct Flight {
     const sim::Renderer renderer(scene, model);
     for (int i = 0; i < 3; ++i) {
       poses.push_back(sim::testing::NadirFrom(Eigen::Vector3d(30, 18.5 + i * base, z)));
-      images.push_back(sim::testing::Photo(renderer, state, poses.back(), sim::RenderOptions(), 100 + i));
+      images.push_back(
+          sim::testing::Photo(renderer, state, poses.back(), sim::RenderOptions(), 100 + i));
     }
-    std::printf("flight: footprint %.1f m along track, base %.2f m, ground pixel %.3f m\n", footprint_y, base,
-                kHeight * 0.01 / kC);
+    std::printf("flight: footprint %.1f m along track, base %.2f m, ground pixel %.3f m\n",
+                footprint_y, base, kHeight * 0.01 / kC);
   }
   // Ground point seen by photo i at pixel x (false: misses the terrain).
   bool Ground(int i, const Eigen::Vector2d& x, Eigen::Vector3d* p) const {
@@ -126,11 +127,14 @@ TEST(UavSequence, GlobalShiftOfSimulatedPhotos) {
   for (const auto& ij : {std::make_pair(0, 1), std::make_pair(0, 2), std::make_pair(1, 2)}) {
     double spread = 0;
     const Eigen::Vector2d truth = TrueShift(f, ij.first, ij.second, &spread);
-    const GlobalShiftResult r = EstimateGlobalShift(f.images[ij.first], f.images[ij.second], GlobalShiftOptions());
-    std::printf("photos %d-%d: true median shift (%.2f, %.2f) (parallax: up to %.1f px from it), found (%.2f, %.2f), "
-                "response %.3f, overlap NCC %.3f\n",
-                ij.first + 1, ij.second + 1, truth.x(), truth.y(), spread, r.shift.x(), r.shift.y(), r.response,
-                r.overlap_correlation);
+    const GlobalShiftResult r =
+        EstimateGlobalShift(f.images[ij.first], f.images[ij.second], GlobalShiftOptions());
+    std::printf(
+        "photos %d-%d: true median shift (%.2f, %.2f) (parallax: up to %.1f px from it), found "
+        "(%.2f, %.2f), "
+        "response %.3f, overlap NCC %.3f\n",
+        ij.first + 1, ij.second + 1, truth.x(), truth.y(), spread, r.shift.x(), r.shift.y(),
+        r.response, r.overlap_correlation);
     ASSERT_TRUE(r.usable) << r.reason;
     // Well inside the matcher's 24 px search radius.
     EXPECT_LT((r.shift - truth).norm(), 3.0);
@@ -157,14 +161,16 @@ TEST(UavSequence, TiePointsAgainstTruthAndTracksOverThreePhotos) {
   int n_all = 0;
   for (const auto& ij : {std::make_pair(0, 1), std::make_pair(0, 2), std::make_pair(1, 2)}) {
     const int a = ij.first, b = ij.second;
-    const GlobalShiftResult gs = EstimateGlobalShift(f.images[a], f.images[b], GlobalShiftOptions());
+    const GlobalShiftResult gs =
+        EstimateGlobalShift(f.images[a], f.images[b], GlobalShiftOptions());
     ASSERT_TRUE(gs.usable) << gs.reason;
     MatchPrior prior;
     prior.shift = gs.shift;
     prior.within = [&gs](const Eigen::Vector2d& x) { return Inside(x + gs.shift, 12.0); };
     const auto t0 = std::chrono::steady_clock::now();
     const HexMatchResult r = matcher.Match(f.images[a], f.images[b], prior);
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     int normal = 0, gross = 0, low = 0;
     double sum2 = 0;
     Eigen::Vector2d bias = Eigen::Vector2d::Zero();
@@ -191,10 +197,12 @@ TEST(UavSequence, TiePointsAgainstTruthAndTracksOverThreePhotos) {
       track_xa[{id, b}] = m.xa;
     }
     const double rms = std::sqrt(sum2 / std::max(1, normal));
-    std::printf("pair %d-%d: %d candidates, %zu matches (%d low quality), %d normal within 1 px of the truth, RMS %.3f "
-                "px (mean error (%.3f, %.3f)), %d normal beyond 1 px; %.2f s\n",
-                a + 1, b + 1, r.summary.candidates, r.matches.size(), low, normal, rms, bias.x() / std::max(1, normal),
-                bias.y() / std::max(1, normal), gross, seconds);
+    std::printf(
+        "pair %d-%d: %d candidates, %zu matches (%d low quality), %d normal within 1 px of the "
+        "truth, RMS %.3f "
+        "px (mean error (%.3f, %.3f)), %d normal beyond 1 px; %.2f s\n",
+        a + 1, b + 1, r.summary.candidates, r.matches.size(), low, normal, rms,
+        bias.x() / std::max(1, normal), bias.y() / std::max(1, normal), gross, seconds);
     EXPECT_GT(normal, 150);
     EXPECT_LE(gross, 0.01 * (normal + gross));
     EXPECT_LT(rms, 0.2);

@@ -41,23 +41,25 @@ struct GlobalShiftOptions {
   // shift found: the real test of a shift (the peak shrinks with the overlap
   // under the window: 0.04 at 16 % of the area on Cones).
   double min_overlap_correlation = 0.4;
-  int candidates = 8;          // [1, 100] highest correlation peaks checked by the overlap NCC
-  double taper = 0.1;          // (0, 0.5] coarse window: raised-cosine fall over this share of each side
-  bool refine = true;          // correlate the overlap again at a finer scale
-  int refine_factor = 2;       // [-] downsampling of the refinement, [1, 16]
-  int min_overlap = 48;        // [px] smallest overlap (each axis, full resolution) for the shift to be usable
-  double min_overlap_fraction = 0.1;  // [0, 1) smallest overlap area / image area of a candidate shift
-  void Check() const;          // throws ConfigError naming the field
+  int candidates = 8;     // [1, 100] highest correlation peaks checked by the overlap NCC
+  double taper = 0.1;     // (0, 0.5] coarse window: raised-cosine fall over this share of each side
+  bool refine = true;     // correlate the overlap again at a finer scale
+  int refine_factor = 2;  // [-] downsampling of the refinement, [1, 16]
+  int min_overlap =
+      48;  // [px] smallest overlap (each axis, full resolution) for the shift to be usable
+  double min_overlap_fraction =
+      0.1;             // [0, 1) smallest overlap area / image area of a candidate shift
+  void Check() const;  // throws ConfigError naming the field
 };
 
 struct GlobalShiftResult {
   Eigen::Vector2d shift = Eigen::Vector2d::Zero();  // [px] xb - xa at full resolution
-  double response = 0.0;   // [0, 1] peak of the coarse phase correlation
+  double response = 0.0;                            // [0, 1] peak of the coarse phase correlation
   double overlap_correlation = -2.0;  // [-1, 1] NCC of the coarse overlapping parts (-2: none)
-  int factor = 1;          // coarse downsampling factor used
-  bool refined = false;    // the fine correlation was applied
+  int factor = 1;                     // coarse downsampling factor used
+  bool refined = false;               // the fine correlation was applied
   bool usable = false;
-  std::string reason;      // why not usable ("" when usable)
+  std::string reason;  // why not usable ("" when usable)
   bool IsSolutionUsable() const { return usable; }
 };
 

@@ -40,8 +40,8 @@ struct SequenceImage {
 
 // Indices into `earlier` (the epoch's earlier images, in time order) of
 // image b's partners, in the order they are to be matched.
-std::vector<size_t> PlanSequencePairs(const std::vector<SequenceImage>& earlier, const SequenceImage& b,
-                                      const SequencePairOptions& options);
+std::vector<size_t> PlanSequencePairs(const std::vector<SequenceImage>& earlier,
+                                      const SequenceImage& b, const SequencePairOptions& options);
 
 // Track ID of interest point xa [px] of image a (serial >= 1) of width
 // `width` [px]; throws InvalidArgument for serial 0 or xa outside 2^32 pixels.
