@@ -167,11 +167,11 @@ class HexMatcherNodelet : public nodelet::Nodelet {
     image_queue_ = p.Int("image_queue", 200, 1, 100000);
     sequence_border_ = p.Double("sequence_border", 12.0, 0.0, 1000.0, "px");
     shift_options_.max_size = p.Int("shift_max_size", 320, 32, 4096, "px");
-    shift_options_.min_response = p.Double("shift_min_response", 0.02, 0.0, 1.0);
-    shift_options_.min_overlap_correlation = p.Double("shift_min_overlap_correlation", 0.4, -1.0, 1.0);
+    shift_options_.min_response = p.Double("shift_min_response", 0.01, 0.0, 1.0);
+    shift_options_.min_overlap_correlation = p.Double("shift_min_overlap_correlation", 0.55, -1.0, 1.0);
     shift_options_.min_overlap = p.Int("shift_min_overlap", 48, 8, 100000, "px");
     shift_options_.min_overlap_fraction = p.Double("shift_min_overlap_fraction", 0.1, 0.0, 0.99);
-    shift_options_.candidates = p.Int("shift_candidates", 8, 1, 100);
+    shift_options_.candidates = p.Int("shift_candidates", 32, 1, 100);
     shift_options_.taper = p.Double("shift_taper", 0.1, 0.01, 0.5);
     shift_options_.refine = p.Bool("shift_refine", true);
     shift_options_.refine_factor = p.Int("shift_refine_factor", 2, 1, 16);
