@@ -89,18 +89,21 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("points", 5, true);
     displacements_pub_ = nh.advertise<slope_monitor::PointDisplacementArray>("displacements", 5, true);
     for (const std::string& topic : target_topics_)
-      target_subs_.push_back(nh.subscribe(topic, 50, &BundleAdjusterNodelet::OnTargets, this));
+      target_subs_.push_back(nh.subscribe(topic, 500, &BundleAdjusterNodelet::OnTargets, this));
     for (const std::string& cam : camera_names_) {
       info_subs_.push_back(nh.subscribe<sensor_msgs::CameraInfo>(
           cam + "/camera_info", 5, [this, cam](const sensor_msgs::CameraInfoConstPtr& m) { OnCameraInfo(cam, m); }));
     }
-    tie_sub_ = nh.subscribe("tie_points", 50, &BundleAdjusterNodelet::OnTiePoints, this);
-    prior_sub_ = nh.subscribe("position_prior", 50, &BundleAdjusterNodelet::OnPositionPrior, this);
+    // Large queues: a long solve holds the callbacks, and nothing may be lost.
+    tie_sub_ = nh.subscribe("tie_points", 2000, &BundleAdjusterNodelet::OnTiePoints, this);
+    prior_sub_ = nh.subscribe("position_prior", 500, &BundleAdjusterNodelet::OnPositionPrior, this);
     for (const std::string& topic : epoch_topics_)
       epoch_subs_.push_back(nh.subscribe(topic, 20, &BundleAdjusterNodelet::OnEpoch, this));
     run_srv_ = nh.advertiseService("run_adjustment", &BundleAdjusterNodelet::OnRun, this);
     reference_srv_ = nh.advertiseService("set_reference_epoch", &BundleAdjusterNodelet::OnSetReference, this);
-    gap_timer_ = nh.createTimer(ros::Duration(1.0), &BundleAdjusterNodelet::OnTimer, this);
+    // Wall time: on a replay the clock stops with the bag, and the waits for
+    // the last epoch's targets and tie points must still end.
+    gap_timer_ = nh.createWallTimer(ros::WallDuration(1.0), &BundleAdjusterNodelet::OnTimer, this);
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     updater_->setHardwareID("bundle_adjuster");
     updater_->add("adjustment", this, &BundleAdjusterNodelet::Diagnose);
@@ -150,6 +153,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     options_.linear_solver = p.String("linear_solver", "auto", {"auto", "dense_schur", "sparse_schur", "iterative_schur"});
     options_.max_iterations = p.Int("max_iterations", 100, 1, 10000);
     options_.num_threads = p.Int("num_threads", 1, 1, 64);
+    options_.minimizer_progress = p.Bool("minimizer_progress", false);
     options_.min_control_points = p.Int("min_control_points", 3, 0, 1000);
     options_.max_sigma0 = p.Double("max_sigma0", 5.0, 0.01, 1e6);
     options_.max_outlier_fraction = p.Double("max_outlier_fraction", 0.2, 0.0, 1.0);
@@ -372,7 +376,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     return true;
   }
 
-  void OnTimer(const ros::TimerEvent&) {
+  void OnTimer(const ros::WallTimerEvent&) {
     bool gap;
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -428,6 +432,9 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     out.header.frame_id = frame_id_;
     out.epoch = current_epoch_;
     out.usable = false;
+    if (end_pending_ && !TiesCompleteLocked())
+      NODELET_WARN("bundle_adjuster: epoch %u: solving without every photo's tie points (waited %.0f s; "
+                   "tie_point_wait %.0f s)", current_epoch_, (ros::WallTime::now() - ended_at_).toSec(), tie_point_wait_);
     // This epoch's part of what was collected; later images (the next
     // epoch, arriving while a slow matcher finished this one) stay.
     std::map<std::string, CollectedImage> images;
@@ -848,7 +855,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   ros::Subscriber tie_sub_, prior_sub_;
   std::vector<ros::Subscriber> epoch_subs_;
   ros::ServiceServer run_srv_, reference_srv_;
-  ros::Timer gap_timer_;
+  ros::WallTimer gap_timer_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
 };

@@ -189,7 +189,7 @@ int OrientFromApproximatePoints(Scene* scene, const InitializationOptions& optio
   for (size_t i = 0; i < copy.images.size(); ++i) oriented_before[i] = copy.images[i].exterior_known;
   for (int i : wanted) {
     Image& im = copy.images[i];
-    if (im.exterior_known || obs_of_image[i].empty()) continue;
+    if (im.exterior_known) continue;
     int best = -1;
     for (size_t n = 0; n < copy.images.size(); ++n) {
       if (!oriented_before[n] || copy.images[n].camera != im.camera || static_cast<int>(n) == i) continue;
@@ -197,9 +197,18 @@ int OrientFromApproximatePoints(Scene* scene, const InitializationOptions& optio
         best = static_cast<int>(n);
     }
     if (best < 0) continue;
+    const Rigid3 neighbour = copy.images[best].exterior.SiteFromOptical();
+    if (obs_of_image[i].empty()) {
+      // No known point at all (a photo tied to the block by tie points only):
+      // the neighbour's attitude (a strip is flown at a steady attitude) at
+      // the photo's own GNSS position; the tie points do the rest.
+      im.exterior = camera::ExteriorOrientation::FromOpticalFromSite(
+          Rigid3(neighbour.rotation.toRotationMatrix(), *im.position_prior).Inverse());
+      im.exterior_known = true;
+      continue;
+    }
     const camera::CameraModel& model = copy.cameras[im.camera].model;
     const Observation& o = copy.observations[obs_of_image[i].front()];
-    const Rigid3 neighbour = copy.images[best].exterior.SiteFromOptical();
     const Eigen::Vector3d ray = neighbour.rotation * model.PixelToOpticalDirection(o.pixel).normalized();
     const Eigen::Vector3d want = (copy.points[o.point].position - *im.position_prior).normalized();
     const Eigen::Matrix3d tilt = Eigen::Quaterniond::FromTwoVectors(ray, want).toRotationMatrix();
@@ -294,6 +303,7 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
   const Options& ao = options.adjustment;
   Scene pruned;
   std::string named_failure;
+  bool ties_screened = false;
   auto solve = [&]() {
     for (int round = 0; round < 20; ++round) {
       r.pruned = PruneReport();
@@ -334,6 +344,44 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
           config.free_interior.erase(static_cast<int>(c));
         else
           config.free_interior[static_cast<int>(c)] = own->second;
+      }
+      // Tie points: one screening adjustment removes the mismatches.
+      if (!ties_screened) {
+        ties_screened = true;
+        bool any_tie = false;
+        for (const Observation& o : pruned.observations) any_tie = any_tie || pruned.points[o.point].role == PointRole::kTie;
+        if (any_tie) {
+          Options so = ao;
+          so.max_sigma0 = 1e12;
+          so.max_outlier_fraction = 1.0;
+          so.compute_covariance = false;
+          so.max_iterations = std::min(ao.max_iterations, 50);
+          so.write_back_unconverged = true;  // a block creeping in the robust loss's linear range is still fitted
+          Scene trial = pruned;
+          const Summary ts = BundleAdjuster(so, config).Solve(&trial);
+          if (std::isfinite(ts.final_cost) && ts.final_cost < ts.initial_cost) {
+            std::set<ObservationKey> bad;
+            for (const Observation& o : trial.observations) {
+              if (trial.points[o.point].role != PointRole::kTie) continue;
+              const Image& im = trial.images[o.image];
+              Eigen::Vector2d px;
+              bool out = !trial.cameras[im.camera].model.Project(im.exterior, trial.points[o.point].position, &px);
+              if (!out) {
+                const Eigen::Vector2d e = px - o.pixel;
+                out = !(std::sqrt(e.dot(o.covariance.inverse() * e)) <= ao.outlier_threshold);
+              }
+              if (out) bad.insert(KeyOf(trial, o));
+            }
+            if (!bad.empty()) {
+              std::vector<Observation> kept;
+              for (const Observation& o : s.observations)
+                if (!bad.count(KeyOf(s, o))) kept.push_back(o);
+              r.tie_outliers_removed += static_cast<int>(s.observations.size() - kept.size());
+              s.observations.swap(kept);
+              continue;
+            }
+          }
+        }
       }
       // Screening: adjust without the usability limits and test the named
       // observations' residuals; the worst one above the outlier threshold
@@ -434,6 +482,9 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
     r.summary.reason += Message("; ", r.rejected_names.size(), " target name(s) given by projection rejected by the "
                                 "residual test and removed: ", list, r.rejected_names.size() > 3 ? "; ..." : "");
   }
+  if (r.tie_outliers_removed > 0)
+    r.summary.reason += Message("; ", r.tie_outliers_removed, " tie-point observation(s) removed as mismatches (residual above ",
+                                ao.outlier_threshold, " sigma in a screening adjustment)");
   if (r.retried_without_names)
     r.summary.reason += "; not usable with the targets named by projection (" + named_failure + "), adjusted without them";
   return r;

@@ -100,7 +100,7 @@ struct Options {
   std::string linear_solver = "auto";
   int dense_schur_max_images = 200;
   int max_iterations = 100;           // [-] > 0
-  double function_tolerance = 1e-10;  // [-] relative cost change
+  double function_tolerance = 1e-8;   // [-] relative cost change (1e-10 never ended a UAV block with 10^4 tie-point residuals: it crept on by 2e-9 a step)
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-10;
   int num_threads = 1;
@@ -127,6 +127,10 @@ struct Options {
   double max_sigma0 = 5.0;            // [-] a posteriori sigma0 above this: not usable
   double max_outlier_fraction = 0.2;  // [-]
   bool minimizer_progress = false;
+  // Screening adjustments: when the iterations run out, the parameters
+  // reached are still written back to the scene (the Summary still says not
+  // usable, and nothing else is filled in).
+  bool write_back_unconverged = false;
 
   // Throws ConfigError naming the first bad field.
   void Check() const;

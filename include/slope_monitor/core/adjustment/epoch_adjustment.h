@@ -18,7 +18,9 @@
 //      adjusted (PruneScene; photos with a GNSS prior need fewer image
 //      observations), adjust. Then, with the adjusted orientations, name
 //      what is still unnamed (tight gates) and adjust once more.
-//   5. Named observations whose whitened residual exceeds the outlier
+//   5. With tie points, a screening adjustment first removes the tie-point
+//      observations whose whitened residual exceeds the outlier threshold.
+//      Named observations whose whitened residual exceeds the outlier
 //      threshold are wrong names: they are removed, reported (Summary::reason
 //      and EpochAdjustmentResult::rejected_names), and the epoch is adjusted
 //      again without them. A solution that is not usable with the named
@@ -102,7 +104,9 @@ NamingReport NameUnidentified(Scene* scene, const std::vector<UnidentifiedObserv
 // Orients the images with a GNSS prior that InitializeScene() left without
 // an orientation from the approximate coordinates of the points they see
 // (step 2), or, when they see one such point only, with the attitude of the
-// photo of the same camera nearest in time tilted onto that point. Returns
+// photo of the same camera nearest in time tilted onto that point, or, when
+// they see none (tied to the block by tie points only), with that photo's
+// attitude at their own GNSS position. Returns
 // how many were oriented and flags them in *oriented (may be null; resized to
 // the images). The points are left unknown.
 int OrientFromApproximatePoints(Scene* scene, const InitializationOptions& options = {},
@@ -144,6 +148,11 @@ struct EpochAdjustmentResult {
   int oriented_from_approximate = 0;
   std::vector<std::string> rejected_names;  // "circle/12 in 'uav@...': 7.3 sigma (11.2 px)"
   bool retried_without_names = false;
+  // Tie-point observations removed before the final adjustment: whitened
+  // residual above the outlier threshold in a screening adjustment (a
+  // mismatch; tie points are plentiful, and a few gross ones in the robust
+  // loss's linear range keep the solver creeping for hundreds of steps).
+  int tie_outliers_removed = 0;
 };
 
 // Steps 1-5 on a copy of `scene`. Does not throw for bad observations (the

@@ -17,7 +17,7 @@ namespace adjustment {
 struct InitializationOptions {
   geometry::ResectionOptions resection;
   geometry::IntersectionOptions intersection;
-  int max_passes = 4;
+  int max_passes = 20;  // resection / intersection rounds (a strip of photos tied by tie points orients one more photo a round)
   // Images with a GNSS position prior that cannot be resected (fewer than four
   // known points, as a UAV photo seeing two or three targets): the attitude is
   // fitted to the known points seen (>= 2) with the prior as projection centre,
