@@ -62,8 +62,11 @@ TEST(ReorientCamera, RecoversAKnownMastRotationWithin0002Deg) {
     EXPECT_NEAR(s.exterior.angles.theta / kDeg, moved.angles.theta / kDeg, 0.002);
     EXPECT_NEAR(s.exterior.angles.phi / kDeg, moved.angles.phi / kDeg, 0.002);
     EXPECT_NEAR(s.exterior.angles.kappa / kDeg, moved.angles.kappa / kDeg, 0.002);
-    EXPECT_EQ(s.num_outliers, 30);  // exactly the mismatched ones
-    for (int i = 0; i < 300; ++i) EXPECT_EQ(s.inliers[i], i % 10 != 0) << i;
+    // Every mismatch removed; of the good points at most 1 % (3.3 sigma of a
+    // 2-D normal is exceeded with probability 0.4 %).
+    for (int i = 0; i < 300; i += 10) EXPECT_FALSE(s.inliers[i]) << i;
+    EXPECT_GE(s.num_outliers, 30);
+    EXPECT_LE(s.num_outliers, 33);
     EXPECT_NEAR(s.rms_px, 0.3 * std::sqrt(2.0), 0.06);
     for (int k = 0; k < 3; ++k) EXPECT_LT(s.sigma(k), 0.002 * kDeg / 3);
   }
