@@ -1,0 +1,213 @@
+// track_camera: re-orientation of a fixed camera on stable ground, photo by
+// photo (issue 19, offline), through the package's hex matcher (global shift
+// on, only stable points) and adjustment::ReorientCamera.
+//
+//   rosrun slope_monitor track_camera --camera PREFIX --reference A.jpg --image B.jpg [--image C.jpg ...]
+//       [--stable-mask M.png | --stable-polygons F] [--dem DEM.tif] --out DIR
+//
+// PREFIX.yaml / PREFIX.pose.yaml are what resect_camera writes (the camera and
+// the reference photo's pose). A stable mask is an 8-bit PNG of the image's
+// size, non-zero = stable; a polygons file has one polygon per line, vertices
+// as `u v` pairs in pixels (OpenCV convention), `#` comments. Without either,
+// the whole image is taken as stable. Prints per photo
+//   <image>: rotation <angle> deg (dtheta <a> dphi <b> dkappa <c> deg, sigma <s> deg) rms <r> px over <N> stable points
+// (sigma: the largest of the three angles' sigmas) and writes
+// DIR/reorientation.csv. The displacement field (--dem) is not implemented yet.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <camera_calibration_parsers/parse.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <yaml-cpp/yaml.h>
+
+#include "slope_monitor/core/adjustment/reorient_camera.h"
+#include "slope_monitor/core/capture/calibration.h"
+#include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/matching/hex_matcher.h"
+#include "slope_monitor/ros/conversions.h"
+
+using namespace slope_monitor;
+
+namespace {
+
+constexpr double kDeg = 180.0 / M_PI;
+
+int Usage() {
+  std::cerr << "usage: track_camera --camera PREFIX --reference A.jpg --image B.jpg [--image C.jpg ...] "
+               "[--stable-mask M.png | --stable-polygons F] [--dem DEM.tif] --out DIR\n";
+  return 2;
+}
+
+camera::CameraModel LoadCamera(const std::string& path) {
+  std::string name;
+  sensor_msgs::CameraInfo info;
+  if (!camera_calibration_parsers::readCalibration(path, name, info))
+    throw IoError(Message("--camera: cannot read a camera calibration from '", path, "'"));
+  return capture::CheckCameraInfo(ros_adapters::FromMsg(info), 1.0, 0, 0, path);
+}
+
+camera::ExteriorOrientation LoadPose(const std::string& path) {
+  YAML::Node n;
+  try {
+    n = YAML::LoadFile(path);
+  } catch (const YAML::Exception& e) {
+    throw IoError(Message("--camera: cannot read '", path, "': ", e.what()));
+  }
+  if (!n["position"] || n["position"].size() != 3 || !n["angles_deg"])
+    throw InvalidArgument(Message(path, ": needs position [X, Y, Z] and angles_deg {theta, phi, kappa}"));
+  camera::ExteriorOrientation e;
+  for (int k = 0; k < 3; ++k) e.position(k) = n["position"][k].as<double>();
+  e.angles.theta = n["angles_deg"]["theta"].as<double>() / kDeg;
+  e.angles.phi = n["angles_deg"]["phi"].as<double>() / kDeg;
+  e.angles.kappa = n["angles_deg"]["kappa"].as<double>() / kDeg;
+  return e;
+}
+
+std::vector<std::vector<cv::Point2f>> LoadPolygons(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw IoError(Message("--stable-polygons: cannot read '", path, "'"));
+  std::vector<std::vector<cv::Point2f>> polygons;
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    const size_t c = line.find('#');
+    if (c != std::string::npos) line.resize(c);
+    std::istringstream s(line);
+    std::vector<double> v;
+    for (std::string t; s >> t;) {
+      char* end = nullptr;
+      const double x = std::strtod(t.c_str(), &end);
+      if (*end != '\0' || !std::isfinite(x))
+        throw InvalidArgument(Message(path, ":", number, ": malformed number '", t, "'"));
+      v.push_back(x);
+    }
+    if (v.empty()) continue;
+    if (v.size() % 2 != 0 || v.size() < 6)
+      throw InvalidArgument(Message(path, ":", number, ": a polygon needs >= 3 `u v` pairs, got ", v.size(),
+                                    " numbers"));
+    std::vector<cv::Point2f> p;
+    for (size_t k = 0; k < v.size(); k += 2) p.emplace_back(v[k], v[k + 1]);
+    polygons.push_back(p);
+  }
+  if (polygons.empty()) throw InvalidArgument(Message(path, ": no polygon"));
+  return polygons;
+}
+
+// The stable area as a mask of the image's size (255 = stable).
+cv::Mat StableMask(const std::map<std::string, std::vector<std::string>>& a, const cv::Size& size) {
+  if (a.count("--stable-mask") && a.count("--stable-polygons"))
+    throw InvalidArgument("give --stable-mask or --stable-polygons, not both");
+  if (a.count("--stable-mask")) {
+    const std::string path = a.at("--stable-mask")[0];
+    cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);
+    if (m.empty()) throw IoError(Message("--stable-mask: cannot read '", path, "'"));
+    if (m.type() != CV_8UC1)
+      throw InvalidArgument(Message("--stable-mask '", path, "': not an 8-bit single-channel image"));
+    if (m.size() != size)
+      throw InvalidArgument(Message("--stable-mask '", path, "' is ", m.cols, "x", m.rows, " px, the images are ",
+                                    size.width, "x", size.height));
+    return m;
+  }
+  cv::Mat m(size, CV_8UC1, cv::Scalar(a.count("--stable-polygons") ? 0 : 255));
+  if (a.count("--stable-polygons")) {
+    for (const auto& p : LoadPolygons(a.at("--stable-polygons")[0])) {
+      std::vector<cv::Point> q;
+      for (const auto& v : p) q.emplace_back(cvRound(v.x), cvRound(v.y));
+      cv::fillPoly(m, std::vector<std::vector<cv::Point>>{q}, cv::Scalar(255));
+    }
+  }
+  return m;
+}
+
+cv::Mat Gray(const std::string& path, const std::string& flag) {
+  cv::Mat m = cv::imread(path, cv::IMREAD_GRAYSCALE);
+  if (m.empty()) throw IoError(Message(flag, ": cannot read '", path, "'"));
+  return m;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    std::map<std::string, std::vector<std::string>> a;
+    static const char* kKnown[] = {"--camera", "--reference", "--image", "--stable-mask", "--stable-polygons",
+                                   "--dem", "--out"};
+    for (int i = 1; i < argc; i += 2) {
+      const std::string flag = argv[i];
+      if (std::find(std::begin(kKnown), std::end(kKnown), flag) == std::end(kKnown))
+        throw InvalidArgument(Message("unknown argument '", flag, "'"));
+      if (i + 1 >= argc) throw InvalidArgument(Message(flag, " needs a value"));
+      a[flag].push_back(argv[i + 1]);
+    }
+    if (!a.count("--camera") || !a.count("--reference") || !a.count("--image") || !a.count("--out")) return Usage();
+    if (a.count("--dem"))
+      throw InvalidArgument("--dem: the displacement field is not implemented in this version (re-orientation only)");
+    const std::string prefix = a["--camera"][0];
+    const camera::CameraModel model = LoadCamera(prefix + ".yaml");
+    const camera::ExteriorOrientation reference = LoadPose(prefix + ".pose.yaml");
+    const cv::Mat ref = Gray(a["--reference"][0], "--reference");
+    if (ref.cols != model.sensor().width || ref.rows != model.sensor().height)
+      throw InvalidArgument(Message("--reference '", a["--reference"][0], "' is ", ref.cols, "x", ref.rows,
+                                    " px, the camera ", model.sensor().width, "x", model.sensor().height));
+    const cv::Mat stable = StableMask(a, ref.size());
+    auto is_stable = [&stable](const Eigen::Vector2d& x) {
+      const int c = cvRound(x.x()), r = cvRound(x.y());
+      return c >= 0 && r >= 0 && c < stable.cols && r < stable.rows && stable.at<unsigned char>(r, c) != 0;
+    };
+    std::filesystem::create_directories(a["--out"][0]);
+    const std::string csv_path = a["--out"][0] + "/reorientation.csv";
+    std::ofstream csv(csv_path);
+    if (!csv) throw IoError(Message("cannot write '", csv_path, "'"));
+    csv << "image,rotation_deg,dtheta_deg,dphi_deg,dkappa_deg,sigma_theta_deg,sigma_phi_deg,sigma_kappa_deg,rms_px,"
+           "stable_points,outliers,global_shift_u,global_shift_v\n";
+    matching::HexMatcherOptions mo;
+    mo.interest.max_points = 8000;  // detected on the whole photo; only the stable ones are matched
+    const matching::HexMatcher matcher(mo);
+    int failures = 0;
+    for (const auto& path : a["--image"]) {
+      const cv::Mat img = Gray(path, "--image");
+      if (img.size() != ref.size())
+        throw InvalidArgument(Message("--image '", path, "' is ", img.cols, "x", img.rows, " px, the reference ",
+                                      ref.cols, "x", ref.rows));
+      matching::MatchPrior prior;
+      prior.estimate_global_shift = true;
+      prior.radius = 64.0;
+      prior.within = is_stable;
+      prior.moving = [&](const Eigen::Vector2d& x) { return !is_stable(x); };
+      const auto m = matcher.Match(ref, img, prior);
+      std::vector<adjustment::StableTiePoint> ties;
+      for (const auto& h : m.matches) {
+        if (h.IsLowQuality() || !is_stable(h.xa)) continue;
+        ties.push_back({h.xa, h.xb});
+      }
+      const auto s = adjustment::ReorientCamera(model, reference, ties, adjustment::ReorientOptions());
+      const std::string name = std::filesystem::path(path).filename().string();
+      if (!s.success) {
+        std::printf("%s: no re-orientation: %s\n", name.c_str(), s.message.c_str());
+        ++failures;
+        continue;
+      }
+      const double sigma = s.sigma.maxCoeff() * kDeg;
+      std::printf("%s: rotation %.4f deg (dtheta %.4f dphi %.4f dkappa %.4f deg, sigma %.4f deg) rms %.2f px over %d "
+                  "stable points\n",
+                  name.c_str(), s.rotation_angle * kDeg, s.delta(0) * kDeg, s.delta(1) * kDeg, s.delta(2) * kDeg, sigma,
+                  s.rms_px, s.num_points);
+      csv << name << ',' << s.rotation_angle * kDeg << ',' << s.delta(0) * kDeg << ',' << s.delta(1) * kDeg << ','
+          << s.delta(2) * kDeg << ',' << s.sigma(0) * kDeg << ',' << s.sigma(1) * kDeg << ',' << s.sigma(2) * kDeg
+          << ',' << s.rms_px << ',' << s.num_points << ',' << s.num_outliers << ',' << m.summary.global_shift.x()
+          << ',' << m.summary.global_shift.y() << '\n';
+    }
+    return failures ? 1 : 0;
+  } catch (const std::exception& e) {
+    std::cerr << "track_camera: " << e.what() << "\n";
+    return 1;
+  }
+}
