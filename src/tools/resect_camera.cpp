@@ -103,7 +103,7 @@ camera::CameraModel NominalCamera(const std::map<std::string, std::vector<std::s
     exif.focal_length_mm = Number("--focal-mm", a.at("--focal-mm")[0]);
     if (!(exif.focal_length_mm > 0)) throw InvalidArgument("--focal-mm must be > 0");
   } else {
-    exif = ReadExif(image);
+    exif = capture::ReadExif(image);
   }
   return capture::NominalModelFromExif(exif, width, height, pitch, image);
 }

@@ -1,5 +1,6 @@
 #include "slope_monitor/core/io/surveyed_points.h"
 
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>

@@ -13,6 +13,7 @@
 // MAD of the residual norms) removed, and adjusted again without a loss.
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
