@@ -4,7 +4,8 @@
 //
 //   rosrun slope_monitor resect_camera --image IMG --gcp FILE [--crs EPSG:NNNN]
 //       [--position X Y Z [--position-sigma S]] [--camera-info YAML | --focal-mm F --sensor-mm W H]
-//       [--free c,k1,...] [--pixel-sigma S] [--point-sigma S] [--pixel-origin opencv|corner] --out PREFIX
+//       [--free c,k1,...] [--pixel-sigma S] [--point-sigma S] [--pixel-origin opencv|corner] --out
+//       PREFIX
 //
 // Without --camera-info the nominal camera is c = --focal-mm (or the EXIF
 // focal length), the principal point at the image centre, no distortion, with
@@ -42,7 +43,8 @@ constexpr double kDeg = 180.0 / M_PI;
 
 int Usage() {
   std::cerr << "usage: resect_camera --image IMG --gcp FILE [--crs EPSG:NNNN] [--position X Y Z "
-               "[--position-sigma S]] [--camera-info YAML | --focal-mm F --sensor-mm W H] [--free c,k1,...] "
+               "[--position-sigma S]] [--camera-info YAML | --focal-mm F --sensor-mm W H] [--free "
+               "c,k1,...] "
                "[--pixel-sigma S] [--point-sigma S] [--pixel-origin opencv|corner] --out PREFIX\n";
   return 2;
 }
@@ -58,16 +60,27 @@ double Number(const std::string& flag, const std::string& text) {
 // Flags with their values (a flag takes every following argument up to the
 // next "--" word); each known flag has a fixed count.
 std::map<std::string, std::vector<std::string>> ParseArgs(int argc, char** argv) {
-  static const std::map<std::string, int> kArity = {
-      {"--image", 1},        {"--gcp", 1},       {"--crs", 1},         {"--position", 3},    {"--position-sigma", 1},
-      {"--camera-info", 1},  {"--focal-mm", 1},  {"--sensor-mm", 2},   {"--free", 1},        {"--pixel-sigma", 1},
-      {"--point-sigma", 1},  {"--pixel-origin", 1}, {"--out", 1},      {"--site", 1}};
+  static const std::map<std::string, int> kArity = {{"--image", 1},
+                                                    {"--gcp", 1},
+                                                    {"--crs", 1},
+                                                    {"--position", 3},
+                                                    {"--position-sigma", 1},
+                                                    {"--camera-info", 1},
+                                                    {"--focal-mm", 1},
+                                                    {"--sensor-mm", 2},
+                                                    {"--free", 1},
+                                                    {"--pixel-sigma", 1},
+                                                    {"--point-sigma", 1},
+                                                    {"--pixel-origin", 1},
+                                                    {"--out", 1},
+                                                    {"--site", 1}};
   std::map<std::string, std::vector<std::string>> args;
   for (int i = 1; i < argc;) {
     const std::string flag = argv[i];
     const auto it = kArity.find(flag);
     if (it == kArity.end()) throw InvalidArgument(Message("unknown argument '", flag, "'"));
-    if (i + it->second >= argc) throw InvalidArgument(Message(flag, " needs ", it->second, " value(s)"));
+    if (i + it->second >= argc)
+      throw InvalidArgument(Message(flag, " needs ", it->second, " value(s)"));
     std::vector<std::string> v(argv + i + 1, argv + i + 1 + it->second);
     args[flag] = v;
     i += 1 + it->second;
@@ -75,8 +88,8 @@ std::map<std::string, std::vector<std::string>> ParseArgs(int argc, char** argv)
   return args;
 }
 
-camera::CameraModel NominalCamera(const std::map<std::string, std::vector<std::string>>& a, const std::string& image,
-                                  int width, int height) {
+camera::CameraModel NominalCamera(const std::map<std::string, std::vector<std::string>>& a,
+                                  const std::string& image, int width, int height) {
   if (a.count("--camera-info")) {
     if (a.count("--focal-mm") || a.count("--sensor-mm"))
       throw InvalidArgument("give either --camera-info or --focal-mm/--sensor-mm, not both");
@@ -88,17 +101,19 @@ camera::CameraModel NominalCamera(const std::map<std::string, std::vector<std::s
     return capture::CheckCameraInfo(ros_adapters::FromMsg(info), 1.0, width, height, path);
   }
   if (!a.count("--sensor-mm"))
-    throw InvalidArgument("no camera: give --camera-info YAML or --focal-mm F --sensor-mm W H (or --sensor-mm W H "
-                          "with the focal length in the image's EXIF)");
+    throw InvalidArgument(
+        "no camera: give --camera-info YAML or --focal-mm F --sensor-mm W H (or --sensor-mm W H "
+        "with the focal length in the image's EXIF)");
   const double w = Number("--sensor-mm", a.at("--sensor-mm")[0]);
   const double h = Number("--sensor-mm", a.at("--sensor-mm")[1]);
   if (!(w > 0 && h > 0)) throw InvalidArgument("--sensor-mm: width and height must be > 0");
   const double pitch = w / width;
   if (std::abs(h / height - pitch) > 0.02 * pitch) {
-    throw InvalidArgument(Message("--sensor-mm ", w, " x ", h, " mm does not match the image's ", width, " x ", height,
-                                  " px with square pixels (", w / width, " vs ", h / height, " mm/px)"));
+    throw InvalidArgument(Message("--sensor-mm ", w, " x ", h, " mm does not match the image's ",
+                                  width, " x ", height, " px with square pixels (", w / width,
+                                  " vs ", h / height, " mm/px)"));
   }
-  ExifInfo exif;
+  capture::ExifInfo exif;
   if (a.count("--focal-mm")) {
     exif.focal_length_mm = Number("--focal-mm", a.at("--focal-mm")[0]);
     if (!(exif.focal_length_mm > 0)) throw InvalidArgument("--focal-mm must be > 0");
@@ -111,27 +126,30 @@ camera::CameraModel NominalCamera(const std::map<std::string, std::vector<std::s
 void PrintPoints(const adjustment::ResectCameraSummary& s, double critical) {
   std::printf("%-14s %10s %10s %8s %8s %8s %7s\n", "point", "u", "v", "du", "dv", "|d|", "|w|");
   for (const auto& p : s.points) {
-    std::printf("%-14s %10.2f %10.2f %8.3f %8.3f %8.3f %7.2f%s\n", p.id.c_str(), p.observed.x(), p.observed.y(),
-                p.residual.x(), p.residual.y(), p.residual.norm(), p.w, p.snooping_failed ? "  FAIL" : "");
+    std::printf("%-14s %10.2f %10.2f %8.3f %8.3f %8.3f %7.2f%s\n", p.id.c_str(), p.observed.x(),
+                p.observed.y(), p.residual.x(), p.residual.y(), p.residual.norm(), p.w,
+                p.snooping_failed ? "  FAIL" : "");
   }
   std::printf("RMS %.3f px over %zu points\n", s.rms_px, s.points.size());
   std::printf("sigma0 %.3f (a posteriori, unit weight), redundancy %d\n", s.sigma0, s.redundancy);
   for (const auto& p : s.parameters) {
     const bool angle = p.name == "theta" || p.name == "phi" || p.name == "kappa";
     const double f = angle ? kDeg : 1.0;
-    std::printf("%-6s %18.8g +- %.4g %s\n", p.name.c_str(), p.value * f, p.sigma * f,
-                angle ? "deg" : (p.name[1] == '0' && p.name[0] != 'x' && p.name[0] != 'y' ? "m" : ""));
+    std::printf(
+        "%-6s %18.8g +- %.4g %s\n", p.name.c_str(), p.value * f, p.sigma * f,
+        angle ? "deg" : (p.name[1] == '0' && p.name[0] != 'x' && p.name[0] != 'y' ? "m" : ""));
   }
   for (const auto& w : s.correlation_warnings) std::printf("WARNING correlation %s\n", w.c_str());
   if (s.redundancy == 0) std::printf("no redundancy: the residuals cannot be tested\n");
   for (const auto& p : s.points) {
     if (p.snooping_failed)
-      std::printf("FLAG %s: fails data snooping (Baarda), |w| = %.2f > %.2f\n", p.id.c_str(), p.w, critical);
+      std::printf("FLAG %s: fails data snooping (Baarda), |w| = %.2f > %.2f\n", p.id.c_str(), p.w,
+                  critical);
   }
 }
 
-void WritePose(const std::string& path, const adjustment::ResectCameraSummary& s, const std::string& crs,
-               const std::string& image) {
+void WritePose(const std::string& path, const adjustment::ResectCameraSummary& s,
+               const std::string& crs, const std::string& image) {
   std::ofstream out(path);
   if (!out) throw IoError(Message("cannot write '", path, "'"));
   const auto& e = s.exterior;
@@ -140,7 +158,8 @@ void WritePose(const std::string& path, const adjustment::ResectCameraSummary& s
   out << "# resect_camera: pose of the camera in site (projected CRS coordinates as given)\n";
   out << "image: \"" << image << "\"\n";
   out << "crs: \"" << crs << "\"\n";
-  out << "position: [" << e.position.x() << ", " << e.position.y() << ", " << e.position.z() << "]  # X0 Y0 Z0 [m]\n";
+  out << "position: [" << e.position.x() << ", " << e.position.y() << ", " << e.position.z()
+      << "]  # X0 Y0 Z0 [m]\n";
   out << "angles_deg: {theta: " << e.angles.theta * kDeg << ", phi: " << e.angles.phi * kDeg
       << ", kappa: " << e.angles.kappa * kDeg << "}\n";
   out << "# site_from_optical (REP 103 optical frame), x y z w\n";
@@ -161,7 +180,8 @@ int main(int argc, char** argv) {
     const auto a = ParseArgs(argc, argv);
     if (!a.count("--image") || !a.count("--gcp") || !a.count("--out")) return Usage();
     if (a.count("--site"))
-      throw InvalidArgument("--site is not supported by this version: give the points in a projected CRS (metres)");
+      throw InvalidArgument(
+          "--site is not supported by this version: give the points in a projected CRS (metres)");
     const std::string image = a.at("--image")[0];
     const cv::Mat full = cv::imread(image, cv::IMREAD_GRAYSCALE);
     if (full.empty()) throw IoError(Message("--image: cannot read '", image, "'"));
@@ -172,7 +192,8 @@ int main(int argc, char** argv) {
       if (o == "corner") {
         origin = io::PixelOrigin::kCorner;
       } else if (o != "opencv") {
-        throw InvalidArgument(Message("--pixel-origin: '", o, "' is neither 'opencv' nor 'corner'"));
+        throw InvalidArgument(
+            Message("--pixel-origin: '", o, "' is neither 'opencv' nor 'corner'"));
       }
     }
     const auto points = io::ReadSurveyedPoints(a.at("--gcp")[0], origin);
@@ -183,8 +204,10 @@ int main(int argc, char** argv) {
       for (std::string n; std::getline(list, n, ',');)
         if (!n.empty()) options.free_interior.push_back(n);
     }
-    if (a.count("--pixel-sigma")) options.pixel_sigma = Number("--pixel-sigma", a.at("--pixel-sigma")[0]);
-    if (a.count("--point-sigma")) options.point_sigma = Number("--point-sigma", a.at("--point-sigma")[0]);
+    if (a.count("--pixel-sigma"))
+      options.pixel_sigma = Number("--pixel-sigma", a.at("--pixel-sigma")[0]);
+    if (a.count("--point-sigma"))
+      options.point_sigma = Number("--point-sigma", a.at("--point-sigma")[0]);
     if (a.count("--position")) {
       options.has_position = true;
       for (int k = 0; k < 3; ++k) options.position(k) = Number("--position", a.at("--position")[k]);

@@ -2,7 +2,8 @@
 // photo (issue 19, offline), through the package's hex matcher (global shift
 // on, only stable points) and adjustment::ReorientCamera.
 //
-//   rosrun slope_monitor track_camera --camera PREFIX --reference A.jpg --image B.jpg [--image C.jpg ...]
+//   rosrun slope_monitor track_camera --camera PREFIX --reference A.jpg --image B.jpg [--image
+//   C.jpg ...]
 //       [--stable-mask M.png | --stable-polygons F] [--dem DEM.tif] --out DIR
 //
 // PREFIX.yaml / PREFIX.pose.yaml are what resect_camera writes (the camera and
@@ -10,7 +11,8 @@
 // size, non-zero = stable; a polygons file has one polygon per line, vertices
 // as `u v` pairs in pixels (OpenCV convention), `#` comments. Without either,
 // the whole image is taken as stable. Prints per photo
-//   <image>: rotation <angle> deg (dtheta <a> dphi <b> dkappa <c> deg, sigma <s> deg) rms <r> px over <N> stable points
+//   <image>: rotation <angle> deg (dtheta <a> dphi <b> dkappa <c> deg, sigma <s> deg) rms <r> px
+//   over <N> stable points
 // (sigma: the largest of the three angles' sigmas) and writes
 // DIR/reorientation.csv. The displacement field (--dem) is not implemented yet.
 #include <algorithm>
@@ -25,9 +27,9 @@
 #include <vector>
 
 #include <camera_calibration_parsers/parse.h>
+#include <yaml-cpp/yaml.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <yaml-cpp/yaml.h>
 
 #include "slope_monitor/core/adjustment/reorient_camera.h"
 #include "slope_monitor/core/capture/calibration.h"
@@ -42,8 +44,9 @@ namespace {
 constexpr double kDeg = 180.0 / M_PI;
 
 int Usage() {
-  std::cerr << "usage: track_camera --camera PREFIX --reference A.jpg --image B.jpg [--image C.jpg ...] "
-               "[--stable-mask M.png | --stable-polygons F] [--dem DEM.tif] --out DIR\n";
+  std::cerr
+      << "usage: track_camera --camera PREFIX --reference A.jpg --image B.jpg [--image C.jpg ...] "
+         "[--stable-mask M.png | --stable-polygons F] [--dem DEM.tif] --out DIR\n";
   return 2;
 }
 
@@ -63,7 +66,8 @@ camera::ExteriorOrientation LoadPose(const std::string& path) {
     throw IoError(Message("--camera: cannot read '", path, "': ", e.what()));
   }
   if (!n["position"] || n["position"].size() != 3 || !n["angles_deg"])
-    throw InvalidArgument(Message(path, ": needs position [X, Y, Z] and angles_deg {theta, phi, kappa}"));
+    throw InvalidArgument(
+        Message(path, ": needs position [X, Y, Z] and angles_deg {theta, phi, kappa}"));
   camera::ExteriorOrientation e;
   for (int k = 0; k < 3; ++k) e.position(k) = n["position"][k].as<double>();
   e.angles.theta = n["angles_deg"]["theta"].as<double>() / kDeg;
@@ -91,8 +95,8 @@ std::vector<std::vector<cv::Point2f>> LoadPolygons(const std::string& path) {
     }
     if (v.empty()) continue;
     if (v.size() % 2 != 0 || v.size() < 6)
-      throw InvalidArgument(Message(path, ":", number, ": a polygon needs >= 3 `u v` pairs, got ", v.size(),
-                                    " numbers"));
+      throw InvalidArgument(Message(path, ":", number, ": a polygon needs >= 3 `u v` pairs, got ",
+                                    v.size(), " numbers"));
     std::vector<cv::Point2f> p;
     for (size_t k = 0; k < v.size(); k += 2) p.emplace_back(v[k], v[k + 1]);
     polygons.push_back(p);
@@ -110,10 +114,11 @@ cv::Mat StableMask(const std::map<std::string, std::vector<std::string>>& a, con
     cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);
     if (m.empty()) throw IoError(Message("--stable-mask: cannot read '", path, "'"));
     if (m.type() != CV_8UC1)
-      throw InvalidArgument(Message("--stable-mask '", path, "': not an 8-bit single-channel image"));
+      throw InvalidArgument(
+          Message("--stable-mask '", path, "': not an 8-bit single-channel image"));
     if (m.size() != size)
-      throw InvalidArgument(Message("--stable-mask '", path, "' is ", m.cols, "x", m.rows, " px, the images are ",
-                                    size.width, "x", size.height));
+      throw InvalidArgument(Message("--stable-mask '", path, "' is ", m.cols, "x", m.rows,
+                                    " px, the images are ", size.width, "x", size.height));
     return m;
   }
   cv::Mat m(size, CV_8UC1, cv::Scalar(a.count("--stable-polygons") ? 0 : 255));
@@ -138,8 +143,8 @@ cv::Mat Gray(const std::string& path, const std::string& flag) {
 int main(int argc, char** argv) {
   try {
     std::map<std::string, std::vector<std::string>> a;
-    static const char* kKnown[] = {"--camera", "--reference", "--image", "--stable-mask", "--stable-polygons",
-                                   "--dem", "--out"};
+    static const char* kKnown[] = {"--camera",          "--reference", "--image", "--stable-mask",
+                                   "--stable-polygons", "--dem",       "--out"};
     for (int i = 1; i < argc; i += 2) {
       const std::string flag = argv[i];
       if (std::find(std::begin(kKnown), std::end(kKnown), flag) == std::end(kKnown))
@@ -147,26 +152,31 @@ int main(int argc, char** argv) {
       if (i + 1 >= argc) throw InvalidArgument(Message(flag, " needs a value"));
       a[flag].push_back(argv[i + 1]);
     }
-    if (!a.count("--camera") || !a.count("--reference") || !a.count("--image") || !a.count("--out")) return Usage();
+    if (!a.count("--camera") || !a.count("--reference") || !a.count("--image") || !a.count("--out"))
+      return Usage();
     if (a.count("--dem"))
-      throw InvalidArgument("--dem: the displacement field is not implemented in this version (re-orientation only)");
+      throw InvalidArgument(
+          "--dem: the displacement field is not implemented in this version (re-orientation only)");
     const std::string prefix = a["--camera"][0];
     const camera::CameraModel model = LoadCamera(prefix + ".yaml");
     const camera::ExteriorOrientation reference = LoadPose(prefix + ".pose.yaml");
     const cv::Mat ref = Gray(a["--reference"][0], "--reference");
     if (ref.cols != model.sensor().width || ref.rows != model.sensor().height)
-      throw InvalidArgument(Message("--reference '", a["--reference"][0], "' is ", ref.cols, "x", ref.rows,
-                                    " px, the camera ", model.sensor().width, "x", model.sensor().height));
+      throw InvalidArgument(Message("--reference '", a["--reference"][0], "' is ", ref.cols, "x",
+                                    ref.rows, " px, the camera ", model.sensor().width, "x",
+                                    model.sensor().height));
     const cv::Mat stable = StableMask(a, ref.size());
     auto is_stable = [&stable](const Eigen::Vector2d& x) {
       const int c = cvRound(x.x()), r = cvRound(x.y());
-      return c >= 0 && r >= 0 && c < stable.cols && r < stable.rows && stable.at<unsigned char>(r, c) != 0;
+      return c >= 0 && r >= 0 && c < stable.cols && r < stable.rows &&
+             stable.at<unsigned char>(r, c) != 0;
     };
     std::filesystem::create_directories(a["--out"][0]);
     const std::string csv_path = a["--out"][0] + "/reorientation.csv";
     std::ofstream csv(csv_path);
     if (!csv) throw IoError(Message("cannot write '", csv_path, "'"));
-    csv << "image,rotation_deg,dtheta_deg,dphi_deg,dkappa_deg,sigma_theta_deg,sigma_phi_deg,sigma_kappa_deg,rms_px,"
+    csv << "image,rotation_deg,dtheta_deg,dphi_deg,dkappa_deg,sigma_theta_deg,sigma_phi_deg,sigma_"
+           "kappa_deg,rms_px,"
            "stable_points,outliers,global_shift_u,global_shift_v\n";
     matching::HexMatcherOptions mo;
     mo.interest.max_points = 8000;  // detected on the whole photo; only the stable ones are matched
@@ -175,8 +185,8 @@ int main(int argc, char** argv) {
     for (const auto& path : a["--image"]) {
       const cv::Mat img = Gray(path, "--image");
       if (img.size() != ref.size())
-        throw InvalidArgument(Message("--image '", path, "' is ", img.cols, "x", img.rows, " px, the reference ",
-                                      ref.cols, "x", ref.rows));
+        throw InvalidArgument(Message("--image '", path, "' is ", img.cols, "x", img.rows,
+                                      " px, the reference ", ref.cols, "x", ref.rows));
       matching::MatchPrior prior;
       prior.estimate_global_shift = true;
       prior.radius = 64.0;
@@ -188,7 +198,8 @@ int main(int argc, char** argv) {
         if (h.IsLowQuality() || !is_stable(h.xa)) continue;
         ties.push_back({h.xa, h.xb});
       }
-      const auto s = adjustment::ReorientCamera(model, reference, ties, adjustment::ReorientOptions());
+      const auto s =
+          adjustment::ReorientCamera(model, reference, ties, adjustment::ReorientOptions());
       const std::string name = std::filesystem::path(path).filename().string();
       if (!s.success) {
         std::printf("%s: no re-orientation: %s\n", name.c_str(), s.message.c_str());
@@ -196,14 +207,17 @@ int main(int argc, char** argv) {
         continue;
       }
       const double sigma = s.sigma.maxCoeff() * kDeg;
-      std::printf("%s: rotation %.4f deg (dtheta %.4f dphi %.4f dkappa %.4f deg, sigma %.4f deg) rms %.2f px over %d "
-                  "stable points\n",
-                  name.c_str(), s.rotation_angle * kDeg, s.delta(0) * kDeg, s.delta(1) * kDeg, s.delta(2) * kDeg, sigma,
-                  s.rms_px, s.num_points);
-      csv << name << ',' << s.rotation_angle * kDeg << ',' << s.delta(0) * kDeg << ',' << s.delta(1) * kDeg << ','
-          << s.delta(2) * kDeg << ',' << s.sigma(0) * kDeg << ',' << s.sigma(1) * kDeg << ',' << s.sigma(2) * kDeg
-          << ',' << s.rms_px << ',' << s.num_points << ',' << s.num_outliers << ',' << m.summary.global_shift.x()
-          << ',' << m.summary.global_shift.y() << '\n';
+      std::printf(
+          "%s: rotation %.4f deg (dtheta %.4f dphi %.4f dkappa %.4f deg, sigma %.4f deg) rms %.2f "
+          "px over %d "
+          "stable points\n",
+          name.c_str(), s.rotation_angle * kDeg, s.delta(0) * kDeg, s.delta(1) * kDeg,
+          s.delta(2) * kDeg, sigma, s.rms_px, s.num_points);
+      csv << name << ',' << s.rotation_angle * kDeg << ',' << s.delta(0) * kDeg << ','
+          << s.delta(1) * kDeg << ',' << s.delta(2) * kDeg << ',' << s.sigma(0) * kDeg << ','
+          << s.sigma(1) * kDeg << ',' << s.sigma(2) * kDeg << ',' << s.rms_px << ',' << s.num_points
+          << ',' << s.num_outliers << ',' << m.summary.global_shift.x() << ','
+          << m.summary.global_shift.y() << '\n';
     }
     return failures ? 1 : 0;
   } catch (const std::exception& e) {

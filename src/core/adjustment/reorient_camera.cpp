@@ -16,7 +16,8 @@ namespace slope_monitor {
 namespace adjustment {
 namespace {
 
-constexpr double kFar = 1000.0;  // [m] depth of the reference rays (any > 0 works with the position held)
+constexpr double kFar =
+    1000.0;  // [m] depth of the reference rays (any > 0 works with the position held)
 
 struct Pass {
   bool ok = false;
@@ -26,8 +27,8 @@ struct Pass {
 
 // One adjustment of the attitude in e (position held) over the inliers.
 Pass Adjust(const camera::CameraModel& model, const std::vector<Eigen::Vector3d>& points,
-            const std::vector<StableTiePoint>& ties, const std::vector<bool>& in, double sigma, double huber,
-            std::array<double, camera::kNumExterior>* e) {
+            const std::vector<StableTiePoint>& ties, const std::vector<bool>& in, double sigma,
+            double huber, std::array<double, camera::kNumExterior>* e) {
   std::array<double, camera::kNumInterior> interior = model.interior();
   std::vector<Eigen::Vector3d> pts = points;
   ceres::Problem problem;
@@ -35,8 +36,8 @@ Pass Adjust(const camera::CameraModel& model, const std::vector<Eigen::Vector3d>
   for (size_t i = 0; i < ties.size(); ++i) {
     if (!in[i]) continue;
     problem.AddResidualBlock(CollinearityError::Create(model.sensor(), ties[i].xb, sqrt_info),
-                             huber > 0 ? new ceres::HuberLoss(huber / sigma) : nullptr, e->data(), interior.data(),
-                             pts[i].data());
+                             huber > 0 ? new ceres::HuberLoss(huber / sigma) : nullptr, e->data(),
+                             interior.data(), pts[i].data());
     problem.SetParameterBlockConstant(pts[i].data());
   }
   problem.SetParameterBlockConstant(interior.data());
@@ -66,15 +67,20 @@ Pass Adjust(const camera::CameraModel& model, const std::vector<Eigen::Vector3d>
 }  // namespace
 
 void ReorientOptions::Check() const {
-  if (!(pixel_sigma > 0)) throw InvalidArgument(Message("reorient: pixel_sigma must be > 0, got ", pixel_sigma));
-  if (!(huber_px > 0)) throw InvalidArgument(Message("reorient: huber_px must be > 0, got ", huber_px));
+  if (!(pixel_sigma > 0))
+    throw InvalidArgument(Message("reorient: pixel_sigma must be > 0, got ", pixel_sigma));
+  if (!(huber_px > 0))
+    throw InvalidArgument(Message("reorient: huber_px must be > 0, got ", huber_px));
   if (!(outlier_factor > 0))
     throw InvalidArgument(Message("reorient: outlier_factor must be > 0, got ", outlier_factor));
-  if (min_points < 3) throw InvalidArgument(Message("reorient: min_points must be >= 3, got ", min_points));
+  if (min_points < 3)
+    throw InvalidArgument(Message("reorient: min_points must be >= 3, got ", min_points));
 }
 
-ReorientSummary ReorientCamera(const camera::CameraModel& model, const camera::ExteriorOrientation& reference,
-                               const std::vector<StableTiePoint>& ties, const ReorientOptions& options) {
+ReorientSummary ReorientCamera(const camera::CameraModel& model,
+                               const camera::ExteriorOrientation& reference,
+                               const std::vector<StableTiePoint>& ties,
+                               const ReorientOptions& options) {
   options.Check();
   model.Check();
   ReorientSummary out;

@@ -38,9 +38,9 @@ camera::DistortionModel ModelFor(camera::DistortionModel nominal, const std::vec
     if (i == camera::kP1 || i == camera::kP2) need = std::max(need, 2);
     if (i == camera::kB1 || i == camera::kB2) need = 3;
   }
-  const camera::DistortionModel models[4] = {camera::DistortionModel::kNone, camera::DistortionModel::kRadial,
-                                             camera::DistortionModel::kBrown,
-                                             camera::DistortionModel::kBrownAffinity};
+  const camera::DistortionModel models[4] = {
+      camera::DistortionModel::kNone, camera::DistortionModel::kRadial,
+      camera::DistortionModel::kBrown, camera::DistortionModel::kBrownAffinity};
   int have = 0;
   for (int k = 0; k < 4; ++k)
     if (models[k] == nominal) have = k;
@@ -48,7 +48,8 @@ camera::DistortionModel ModelFor(camera::DistortionModel nominal, const std::vec
 }
 
 // Start without a position: three-point resection, the other points choosing.
-bool StartFromResection(const camera::CameraModel& model, const std::vector<Eigen::Vector2d>& pixels,
+bool StartFromResection(const camera::CameraModel& model,
+                        const std::vector<Eigen::Vector2d>& pixels,
                         const std::vector<Eigen::Vector3d>& xyz, const ResectCameraOptions& o,
                         camera::ExteriorOrientation* start, std::string* how) {
   geometry::ResectionOptions ro;
@@ -65,7 +66,8 @@ bool StartFromResection(const camera::CameraModel& model, const std::vector<Eige
 // Start with a known position: the attitude from the directions.
 camera::ExteriorOrientation StartFromPosition(const camera::CameraModel& model,
                                               const std::vector<Eigen::Vector2d>& pixels,
-                                              const std::vector<Eigen::Vector3d>& xyz, const Eigen::Vector3d& x0) {
+                                              const std::vector<Eigen::Vector3d>& xyz,
+                                              const Eigen::Vector3d& x0) {
   std::vector<Eigen::Vector3d> d, b;
   for (size_t i = 0; i < xyz.size(); ++i) {
     d.push_back((xyz[i] - x0).normalized());
@@ -79,7 +81,8 @@ camera::ExteriorOrientation StartFromPosition(const camera::CameraModel& model,
 
 // Baarda's standardized residuals of the observation rows [0, rows) of the
 // whitened Jacobian: q_vv = 1 - h_ii with H the projector onto J's range.
-Eigen::VectorXd Standardized(const Eigen::MatrixXd& j, const Eigen::VectorXd& whitened, int rows, int* rank) {
+Eigen::VectorXd Standardized(const Eigen::MatrixXd& j, const Eigen::VectorXd& whitened, int rows,
+                             int* rank) {
   Eigen::JacobiSVD<Eigen::MatrixXd> svd(j, Eigen::ComputeThinU);
   const Eigen::VectorXd s = svd.singularValues();
   const double tol = s.size() ? s(0) * 1e-10 : 0.0;
@@ -99,36 +102,46 @@ Eigen::VectorXd Standardized(const Eigen::MatrixXd& j, const Eigen::VectorXd& wh
 
 void ResectCameraOptions::Check() const {
   for (const auto& n : free_interior) InteriorIndexOf(n);
-  if (!(pixel_sigma > 0.0)) throw InvalidArgument(Message("resect_camera: pixel_sigma must be > 0, got ", pixel_sigma));
-  if (!(point_sigma >= 0.0)) throw InvalidArgument(Message("resect_camera: point_sigma must be >= 0, got ", point_sigma));
+  if (!(pixel_sigma > 0.0))
+    throw InvalidArgument(Message("resect_camera: pixel_sigma must be > 0, got ", pixel_sigma));
+  if (!(point_sigma >= 0.0))
+    throw InvalidArgument(Message("resect_camera: point_sigma must be >= 0, got ", point_sigma));
   if (!(position_sigma >= 0.0))
-    throw InvalidArgument(Message("resect_camera: position_sigma must be >= 0, got ", position_sigma));
-  if (has_position && !position.allFinite()) throw InvalidArgument("resect_camera: position is not finite");
+    throw InvalidArgument(
+        Message("resect_camera: position_sigma must be >= 0, got ", position_sigma));
+  if (has_position && !position.allFinite())
+    throw InvalidArgument("resect_camera: position is not finite");
   if (!(snooping_critical > 0.0))
-    throw InvalidArgument(Message("resect_camera: snooping_critical must be > 0, got ", snooping_critical));
+    throw InvalidArgument(
+        Message("resect_camera: snooping_critical must be > 0, got ", snooping_critical));
   if (!(correlation_warning > 0.0 && correlation_warning <= 1.0))
-    throw InvalidArgument(Message("resect_camera: correlation_warning must be in (0, 1], got ", correlation_warning));
+    throw InvalidArgument(
+        Message("resect_camera: correlation_warning must be in (0, 1], got ", correlation_warning));
   if (!(start_inlier_fraction > 0.0))
-    throw InvalidArgument(Message("resect_camera: start_inlier_fraction must be > 0, got ", start_inlier_fraction));
+    throw InvalidArgument(
+        Message("resect_camera: start_inlier_fraction must be > 0, got ", start_inlier_fraction));
 }
 
 Eigen::Matrix3d RotationFromDirections(const std::vector<Eigen::Vector3d>& site_directions,
                                        const std::vector<Eigen::Vector3d>& bearings) {
   Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
-  for (size_t i = 0; i < site_directions.size(); ++i) h += bearings[i] * site_directions[i].transpose();
+  for (size_t i = 0; i < site_directions.size(); ++i)
+    h += bearings[i] * site_directions[i].transpose();
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(h, Eigen::ComputeFullU | Eigen::ComputeFullV);
   Eigen::Matrix3d fix = Eigen::Matrix3d::Identity();
   fix(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
   return svd.matrixU() * fix * svd.matrixV().transpose();
 }
 
-ResectCameraSummary ResectCamera(const std::vector<io::SurveyedPoint>& points, const camera::CameraModel& nominal,
+ResectCameraSummary ResectCamera(const std::vector<io::SurveyedPoint>& points,
+                                 const camera::CameraModel& nominal,
                                  const ResectCameraOptions& options) {
   options.Check();
   nominal.Check();
   const size_t n = points.size();
   if (n < 4) {
-    throw InvalidArgument(Message("resect_camera: ", n, " points; need at least 4 (three to solve, one to choose)"));
+    throw InvalidArgument(
+        Message("resect_camera: ", n, " points; need at least 4 (three to solve, one to choose)"));
   }
   ResectCameraSummary out;
   // Shift to the centroid for numerical safety.
@@ -162,14 +175,15 @@ ResectCameraSummary ResectCamera(const std::vector<io::SurveyedPoint>& points, c
   std::vector<ceres::ResidualBlockId> blocks;
   const Eigen::Matrix2d sqrt_px = Eigen::Matrix2d::Identity() / options.pixel_sigma;
   for (size_t i = 0; i < n; ++i) {
-    blocks.push_back(problem.AddResidualBlock(CollinearityError::Create(model.sensor(), pixels[i], sqrt_px), nullptr,
-                                              e.data(), in.data(), pts[i].data()));
+    blocks.push_back(
+        problem.AddResidualBlock(CollinearityError::Create(model.sensor(), pixels[i], sqrt_px),
+                                 nullptr, e.data(), in.data(), pts[i].data()));
   }
   for (size_t i = 0; i < n; ++i) {
     if (options.point_sigma > 0.0) {
       blocks.push_back(problem.AddResidualBlock(
-          ControlPointPrior::Create(xyz[i], Eigen::Matrix3d::Identity() / options.point_sigma), nullptr,
-          pts[i].data()));
+          ControlPointPrior::Create(xyz[i], Eigen::Matrix3d::Identity() / options.point_sigma),
+          nullptr, pts[i].data()));
     } else {
       problem.SetParameterBlockConstant(pts[i].data());
     }
@@ -179,7 +193,8 @@ ResectCameraSummary ResectCamera(const std::vector<io::SurveyedPoint>& points, c
     problem.SetManifold(e.data(), new ceres::SubsetManifold(camera::kNumExterior, {0, 1, 2}));
   } else if (options.has_position) {
     blocks.push_back(problem.AddResidualBlock(
-        PositionPrior::Create(options.position - centroid, Eigen::Matrix3d::Identity() / options.position_sigma),
+        PositionPrior::Create(options.position - centroid,
+                              Eigen::Matrix3d::Identity() / options.position_sigma),
         nullptr, e.data()));
   }
   std::vector<int> held;
@@ -211,7 +226,8 @@ ResectCameraSummary ResectCamera(const std::vector<io::SurveyedPoint>& points, c
   if (!behind.empty()) {
     std::string ids;
     for (const auto& b : behind) ids += (ids.empty() ? "" : ", ") + b;
-    throw InvalidArgument(Message("resect_camera: ", behind.size(), " point(s) behind the camera: ", ids,
+    throw InvalidArgument(Message("resect_camera: ", behind.size(),
+                                  " point(s) behind the camera: ", ids,
                                   " (check their coordinates, pixels and the camera position)"));
   }
   out.exterior = local;
@@ -271,7 +287,8 @@ ResectCameraSummary ResectCamera(const std::vector<io::SurveyedPoint>& points, c
       full.block<10, 10>(6, 6) = ii;
     }
   } else {
-    out.message = "covariance not computable (rank-deficient: too many free parameters for these points)";
+    out.message =
+        "covariance not computable (rank-deficient: too many free parameters for these points)";
   }
   out.exterior_covariance = full.topLeftCorner<6, 6>();
   std::vector<int> index;  // into `full`
@@ -294,8 +311,8 @@ ResectCameraSummary ResectCamera(const std::vector<io::SurveyedPoint>& points, c
       out.correlation(a, b) = out.correlation(b, a) = rho;
       if (std::abs(rho) > options.correlation_warning) {
         std::ostringstream s;
-        s << out.parameters[a].name << "-" << out.parameters[b].name << " " << std::fixed << std::setprecision(3)
-          << rho;
+        s << out.parameters[a].name << "-" << out.parameters[b].name << " " << std::fixed
+          << std::setprecision(3) << rho;
         out.correlation_warnings.push_back(s.str());
       }
     }

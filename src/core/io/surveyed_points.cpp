@@ -43,8 +43,9 @@ std::vector<SurveyedPoint> ParseSurveyedPoints(const std::string& text, const st
     p.line = number;
     double first;
     size_t k = 0;
-    if (!ParseNumber(tokens[0], &first) && !std::isdigit(static_cast<unsigned char>(tokens[0][0])) &&
-        tokens[0][0] != '-' && tokens[0][0] != '+' && tokens[0][0] != '.') {
+    if (!ParseNumber(tokens[0], &first) &&
+        !std::isdigit(static_cast<unsigned char>(tokens[0][0])) && tokens[0][0] != '-' &&
+        tokens[0][0] != '+' && tokens[0][0] != '.') {
       p.id = tokens[0];
       k = 1;
     } else {
@@ -52,20 +53,24 @@ std::vector<SurveyedPoint> ParseSurveyedPoints(const std::string& text, const st
     }
     const size_t columns = tokens.size() - k;
     if (columns < 5) {
-      throw InvalidArgument(Message(where(), "too few columns: ", columns, " numbers, need 5 (X Y Z u v)",
+      throw InvalidArgument(Message(where(), "too few columns: ", columns,
+                                    " numbers, need 5 (X Y Z u v)",
                                     k ? Message(" after the id '", p.id, "'") : std::string()));
     }
     if (columns > 5) {
-      throw InvalidArgument(Message(where(), "too many columns: ", columns, " numbers, need 5 (X Y Z u v)"));
+      throw InvalidArgument(
+          Message(where(), "too many columns: ", columns, " numbers, need 5 (X Y Z u v)"));
     }
     double v[5];
     for (int c = 0; c < 5; ++c) {
       const std::string& t = tokens[k + c];
       if (!ParseNumber(t, &v[c])) {
-        throw InvalidArgument(Message(where(), "malformed number '", t, "' in column ", kColumns[c]));
+        throw InvalidArgument(
+            Message(where(), "malformed number '", t, "' in column ", kColumns[c]));
       }
       if (!std::isfinite(v[c])) {
-        throw InvalidArgument(Message(where(), "non-finite value '", t, "' in column ", kColumns[c]));
+        throw InvalidArgument(
+            Message(where(), "non-finite value '", t, "' in column ", kColumns[c]));
       }
     }
     const double shift = origin == PixelOrigin::kCorner ? -0.5 : 0.0;

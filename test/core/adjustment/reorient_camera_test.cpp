@@ -4,8 +4,8 @@
 #include <random>
 #include <vector>
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include "slope_monitor/core/adjustment/reorient_camera.h"
 #include "slope_monitor/core/common/error.h"
@@ -40,7 +40,8 @@ TEST(ReorientCamera, RecoversAKnownMastRotationWithin0002Deg) {
   for (int epoch = 0; epoch < 5; ++epoch) {
     const double angle = (0.02 + 0.18 * u01(rng)) * kDeg;
     const Eigen::Vector3d axis = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
-    const Eigen::Matrix3d m = Eigen::AngleAxisd(angle, axis).toRotationMatrix() * camera::RotationFromAngles(ref.angles);
+    const Eigen::Matrix3d m =
+        Eigen::AngleAxisd(angle, axis).toRotationMatrix() * camera::RotationFromAngles(ref.angles);
     camera::ExteriorOrientation moved = ref;
     moved.angles = camera::AnglesFromRotation(m);
     std::vector<adjustment::StableTiePoint> ties;
@@ -57,7 +58,8 @@ TEST(ReorientCamera, RecoversAKnownMastRotationWithin0002Deg) {
     adjustment::ReorientOptions o;
     const auto s = adjustment::ReorientCamera(model, ref, ties, o);
     ASSERT_TRUE(s.success) << s.message;
-    SCOPED_TRACE("epoch " + std::to_string(epoch) + ", rotation " + std::to_string(angle / kDeg) + " deg");
+    SCOPED_TRACE("epoch " + std::to_string(epoch) + ", rotation " + std::to_string(angle / kDeg) +
+                 " deg");
     EXPECT_NEAR(s.rotation_angle / kDeg, angle / kDeg, 0.002);
     EXPECT_NEAR(s.exterior.angles.theta / kDeg, moved.angles.theta / kDeg, 0.002);
     EXPECT_NEAR(s.exterior.angles.phi / kDeg, moved.angles.phi / kDeg, 0.002);
@@ -81,7 +83,8 @@ TEST(ReorientCamera, TooFewPointsAndNonFiniteInput) {
   EXPECT_FALSE(s.success);
   EXPECT_NE(s.message.find("too few stable tie points: 3"), std::string::npos) << s.message;
   ties[1].xb.x() = NAN;
-  EXPECT_THROW(adjustment::ReorientCamera(model, ref, ties, adjustment::ReorientOptions()), InvalidArgument);
+  EXPECT_THROW(adjustment::ReorientCamera(model, ref, ties, adjustment::ReorientOptions()),
+               InvalidArgument);
 }
 
 }  // namespace

@@ -38,11 +38,12 @@ camera::ExteriorOrientation TruePose() {
 
 // A surveyed-point list as a crew would have it: points on the slope 150-200 m
 // away, surveyed with xyz_sigma noise and picked with pixel_sigma noise.
-std::vector<io::SurveyedPoint> Survey(const camera::CameraModel& truth, const camera::ExteriorOrientation& pose,
-                                      int n, double xyz_sigma, double pixel_sigma, unsigned seed) {
+std::vector<io::SurveyedPoint> Survey(const camera::CameraModel& truth,
+                                      const camera::ExteriorOrientation& pose, int n,
+                                      double xyz_sigma, double pixel_sigma, unsigned seed) {
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> col(100, truth.sensor().width - 100), row(100, truth.sensor().height - 100),
-      range(150, 200);
+  std::uniform_real_distribution<double> col(100, truth.sensor().width - 100),
+      row(100, truth.sensor().height - 100), range(150, 200);
   std::normal_distribution<double> g(0.0, 1.0);
   std::vector<io::SurveyedPoint> points;
   for (int i = 0; i < n; ++i) {
@@ -83,7 +84,8 @@ TEST(ResectCamera, SimulatedSurveyRecoversAttitudeAndFocalWithinThreeSigma) {
     EXPECT_LT(std::abs(s.exterior.angles.kappa - pose.angles.kappa), 3 * Sigma(s, "kappa"));
     EXPECT_LT(std::abs(s.model.principal_distance() - 16.0), 3 * Sigma(s, "c"));
     const char* xyz[3] = {"X0", "Y0", "Z0"};
-    for (int k = 0; k < 3; ++k) EXPECT_LT(std::abs(s.exterior.position(k) - pose.position(k)), 3 * Sigma(s, xyz[k]));
+    for (int k = 0; k < 3; ++k)
+      EXPECT_LT(std::abs(s.exterior.position(k) - pose.position(k)), 3 * Sigma(s, xyz[k]));
     // Sigmas that mean something: an angle to better than 0.05 deg, c to 1 %.
     EXPECT_LT(Sigma(s, "theta"), 0.05 * kDeg);
     EXPECT_LT(Sigma(s, "c"), 0.16);
@@ -140,7 +142,8 @@ TEST(ResectCamera, BadInputIsNamed) {
     adjustment::ResectCamera(three, truth, o);
     FAIL() << "3 points accepted";
   } catch (const InvalidArgument& e) {
-    EXPECT_NE(std::string(e.what()).find("3 points; need at least 4"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("3 points; need at least 4"), std::string::npos)
+        << e.what();
   }
   o.free_interior = {"c", "k9"};
   EXPECT_THROW(adjustment::ResectCamera(points, truth, o), InvalidArgument);
@@ -159,8 +162,8 @@ TEST(ResectCamera, BadInputIsNamed) {
 
 TEST(SurveyedPoints, ParsesIdsCommentsAndTheCornerConvention) {
   const auto p = io::ParseSurveyedPoints(
-      "% header\norb 498773.49 6775715.87 394.45 983.85 308.85  # picked\n\n1 2 3 10.5 20.5\n", "gcp.txt",
-      io::PixelOrigin::kCorner);
+      "% header\norb 498773.49 6775715.87 394.45 983.85 308.85  # picked\n\n1 2 3 10.5 20.5\n",
+      "gcp.txt", io::PixelOrigin::kCorner);
   ASSERT_EQ(p.size(), 2u);
   EXPECT_EQ(p[0].id, "orb");
   EXPECT_EQ(p[0].line, 2);
@@ -179,7 +182,8 @@ TEST(SurveyedPoints, BadLinesNameFileLineAndProblem) {
     }
     return std::string("accepted");
   };
-  EXPECT_EQ(message("a 1 2 3 4 5\n# c\nb 1 1951+9 3 4 5\n"), "gcp.txt:3: malformed number '1951+9' in column Y");
+  EXPECT_EQ(message("a 1 2 3 4 5\n# c\nb 1 1951+9 3 4 5\n"),
+            "gcp.txt:3: malformed number '1951+9' in column Y");
   EXPECT_EQ(message("1951+9 2 3 4 5\n"), "gcp.txt:1: malformed number '1951+9' in column X");
   EXPECT_NE(message("c 1 2 3 4\n").find("gcp.txt:1: too few columns: 4"), std::string::npos);
   EXPECT_NE(message("1 2 3 4 5 6\n").find("gcp.txt:1: too many columns: 6"), std::string::npos);
@@ -191,8 +195,9 @@ TEST(SurveyedPoints, BadLinesNameFileLineAndProblem) {
 // view direction and c free, from a nominal 20 mm lens on the D200's 23.6 mm wide
 // sensor (see doc/targetless_camera.md).
 TEST(ResectCamera, ColumbiaAk10FourControlPoints) {
-  const auto points = io::ReadSurveyedPoints(std::string(SM_TEST_DATA_DIR) + "/timelapse_columbia/AK10_20090821_gcp.txt",
-                                             io::PixelOrigin::kCorner);
+  const auto points = io::ReadSurveyedPoints(
+      std::string(SM_TEST_DATA_DIR) + "/timelapse_columbia/AK10_20090821_gcp.txt",
+      io::PixelOrigin::kCorner);
   ASSERT_EQ(points.size(), 4u);
   camera::Sensor s;
   s.width = 3872;
@@ -203,20 +208,23 @@ TEST(ResectCamera, ColumbiaAk10FourControlPoints) {
   adjustment::ResectCameraOptions o;
   o.has_position = true;
   o.position = Eigen::Vector3d(499211.336, 6783755.954, 478.96);  // cameras.csv, AK10
-  const auto r = adjustment::ResectCamera(points, camera::CameraModel(s, camera::DistortionModel::kNone, in), o);
+  const auto r = adjustment::ResectCamera(
+      points, camera::CameraModel(s, camera::DistortionModel::kNone, in), o);
   ASSERT_TRUE(r.success) << r.message;
   // cameras.csv gives the view direction as yaw -165 deg (clockwise from
   // north), pitch -10 deg; the optical axis in site:
-  const Eigen::Vector3d axis = camera::RotationFromAngles(r.exterior.angles).transpose() * Eigen::Vector3d(0, 0, -1);
+  const Eigen::Vector3d axis =
+      camera::RotationFromAngles(r.exterior.angles).transpose() * Eigen::Vector3d(0, 0, -1);
   const double yaw = std::atan2(axis.x(), axis.y()) / kDeg, pitch = std::asin(axis.z()) / kDeg;
   EXPECT_NEAR(yaw, -165.0, 5.0);
   EXPECT_NEAR(pitch, -10.0, 5.0);
   EXPECT_EQ(r.redundancy, 4);
   EXPECT_LT(r.rms_px, 5.0);
   RecordProperty("rms_px", std::to_string(r.rms_px));
-  std::printf("AK10: RMS %.3f px over 4 points, yaw %.3f pitch %.3f deg, c %.3f mm\n", r.rms_px, yaw, pitch,
-              r.model.principal_distance());
-  for (const auto& p : r.points) std::printf("  %s du %.3f dv %.3f\n", p.id.c_str(), p.residual.x(), p.residual.y());
+  std::printf("AK10: RMS %.3f px over 4 points, yaw %.3f pitch %.3f deg, c %.3f mm\n", r.rms_px,
+              yaw, pitch, r.model.principal_distance());
+  for (const auto& p : r.points)
+    std::printf("  %s du %.3f dv %.3f\n", p.id.c_str(), p.residual.x(), p.residual.y());
 }
 
 }  // namespace

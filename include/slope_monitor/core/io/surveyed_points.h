@@ -17,10 +17,10 @@ namespace slope_monitor {
 namespace io {
 
 struct SurveyedPoint {
-  std::string id;        // the file's id, or "#<line>" when the line has none
-  Eigen::Vector3d xyz;   // [m]
-  Eigen::Vector2d pixel; // [px], OpenCV convention
-  int line = 0;          // line number in the file (1-based)
+  std::string id;         // the file's id, or "#<line>" when the line has none
+  Eigen::Vector3d xyz;    // [m]
+  Eigen::Vector2d pixel;  // [px], OpenCV convention
+  int line = 0;           // line number in the file (1-based)
 };
 
 enum class PixelOrigin { kOpenCv, kCorner };
