@@ -56,7 +56,8 @@ Pass Adjust(const camera::CameraModel& model, const std::vector<Eigen::Vector3d>
   ceres::Covariance::Options co;
   co.algorithm_type = ceres::DENSE_SVD;
   ceres::Covariance cov(co);
-  if (!cov.Compute({{e->data(), e->data()}}, &problem)) return p;
+  const std::vector<std::pair<const double*, const double*>> pairs = {{e->data(), e->data()}};
+  if (!cov.Compute(pairs, &problem)) return p;
   Eigen::Matrix<double, 6, 6, Eigen::RowMajor> c;
   cov.GetCovarianceBlock(e->data(), e->data(), c.data());
   p.covariance = c.bottomRightCorner<3, 3>();
