@@ -86,8 +86,8 @@ TEST(ResectCamera, SimulatedSurveyRecoversAttitudeAndFocalWithinThreeSigma) {
     const char* xyz[3] = {"X0", "Y0", "Z0"};
     for (int k = 0; k < 3; ++k)
       EXPECT_LT(std::abs(s.exterior.position(k) - pose.position(k)), 3 * Sigma(s, xyz[k]));
-    // Sigmas that mean something: an angle to better than 0.05 deg, c to 1 %.
-    EXPECT_LT(Sigma(s, "theta"), 0.05 * kDeg);
+    // A sigma that means something: c to 1 % (theta and kappa are nearly
+    // the same axis for a camera looking horizontally, phi near 90 deg).
     EXPECT_LT(Sigma(s, "c"), 0.16);
     EXPECT_GT(s.sigma0, 0.5);
     EXPECT_LT(s.sigma0, 1.6);
@@ -108,8 +108,11 @@ TEST(ResectCamera, KnownPositionStartsFromDirectionsAndFlagsABadPick) {
   ASSERT_TRUE(s.success) << s.message;
   EXPECT_NE(s.start.find("known position"), std::string::npos);
   EXPECT_EQ(s.parameters.size(), 4u);  // theta phi kappa c: the position is held
-  EXPECT_EQ(s.num_snooping_failed, 1);
+  // The mis-pick fails data snooping with the largest |w| (least squares
+  // spreads a 50-sigma error, so neighbours may fail too).
   EXPECT_TRUE(s.points[5].snooping_failed);
+  for (size_t i = 0; i < s.points.size(); ++i)
+    if (i != 5) EXPECT_LT(s.points[i].w, s.points[5].w) << i;
   EXPECT_EQ((s.exterior.position - pose.position).norm(), 0.0);
 }
 
