@@ -135,9 +135,11 @@ void PrintPoints(const adjustment::ResectCameraSummary& s, double critical) {
   for (const auto& p : s.parameters) {
     const bool angle = p.name == "theta" || p.name == "phi" || p.name == "kappa";
     const double f = angle ? kDeg : 1.0;
-    std::printf(
-        "%-6s %18.8g +- %.4g %s\n", p.name.c_str(), p.value * f, p.sigma * f,
-        angle ? "deg" : (p.name[1] == '0' && p.name[0] != 'x' && p.name[0] != 'y' ? "m" : ""));
+    std::printf("%-6s %18.8g +- %.4g %s\n", p.name.c_str(), p.value * f, p.sigma * f,
+                angle                                                  ? "deg"
+                : (p.name == "X0" || p.name == "Y0" || p.name == "Z0") ? "m"
+                : (p.name == "c" || p.name == "x0" || p.name == "y0")  ? "mm"
+                                                                       : "");
   }
   for (const auto& w : s.correlation_warnings) std::printf("WARNING correlation %s\n", w.c_str());
   if (s.redundancy == 0) std::printf("no redundancy: the residuals cannot be tested\n");
