@@ -179,7 +179,9 @@ int main(int argc, char** argv) {
            "kappa_deg,rms_px,"
            "stable_points,outliers,global_shift_u,global_shift_v\n";
     matching::HexMatcherOptions mo;
-    mo.interest.max_points = 8000;  // detected on the whole photo; only the stable ones are matched
+    mo.interest.max_points =
+        40000;                     // detected on the whole photo; only the stable ones are matched
+    mo.lsc_prefilter_sigma = 1.0;  // JPEG noise and changing light on rock
     const matching::HexMatcher matcher(mo);
     int failures = 0;
     for (const auto& path : a["--image"]) {
@@ -201,6 +203,14 @@ int main(int argc, char** argv) {
       const auto s =
           adjustment::ReorientCamera(model, reference, ties, adjustment::ReorientOptions());
       const std::string name = std::filesystem::path(path).filename().string();
+      std::fprintf(
+          stderr,
+          "%s: %d stable candidates, %d matched, %zu normal quality; global shift (%.1f, %.1f) px;",
+          name.c_str(), m.summary.candidates, m.summary.matched, ties.size(),
+          m.summary.global_shift.x(), m.summary.global_shift.y());
+      for (const auto& r : m.summary.rejects)
+        std::fprintf(stderr, " %s %d", r.first.c_str(), r.second);
+      std::fprintf(stderr, "\n");
       if (!s.success) {
         std::printf("%s: no re-orientation: %s\n", name.c_str(), s.message.c_str());
         ++failures;
