@@ -141,6 +141,8 @@ void PrintPoints(const adjustment::ResectCameraSummary& s, double critical) {
                 : (p.name == "c" || p.name == "x0" || p.name == "y0")  ? "mm"
                                                                        : "");
   }
+  if (s.message.rfind("covariance", 0) == 0)
+    std::printf("WARNING %s: the sigmas are not known\n", s.message.c_str());
   for (const auto& w : s.correlation_warnings) std::printf("WARNING correlation %s\n", w.c_str());
   if (s.redundancy == 0) std::printf("no redundancy: the residuals cannot be tested\n");
   for (const auto& p : s.points) {
