@@ -335,39 +335,77 @@ PhotoPairResult MatchPhotoPair(const PhotoFeatures& a, const PhotoFeatures& b, c
   const double ra = a.reduce(), rb = b.reduce();
   const bool refine = ra < 1.0 || rb < 1.0;
   const cv::Size bs = b.size();
-  std::vector<std::pair<double, int>> scratch;
-  std::vector<cv::Point2f> pa, pb;
-  std::vector<PhotoTiePoint> found;
+  // Candidates: a's interest points (full-resolution position) predicted inside b.
+  std::vector<Eigen::Vector2d> candidates;
+  std::vector<int> todo;
   for (const InterestPoint& ip : a.interest_points()) {
-    if (s.candidates >= options.max_candidates) break;
-    const Eigen::Vector2d xa = Scaled(ip.x, 1.0 / ra);  // full resolution
+    if (static_cast<int>(candidates.size()) >= options.max_candidates) break;
+    const Eigen::Vector2d xa = Scaled(ip.x, 1.0 / ra);
     const Eigen::Vector2d xb_h = Apply(rel.b_from_a, xa);
     if (!std::isfinite(xb_h.x()) || xb_h.x() < options.border || xb_h.y() < options.border ||
         xb_h.x() > bs.width - 1 - options.border || xb_h.y() > bs.height - 1 - options.border) {
       continue;
     }
-    ++s.candidates;
-    const Eigen::Vector2d xb0 = xb_h + LocalCorrection(rel, xa, options.neighbours, &scratch);
-    // Local map in reduced pixels: b_reduced = rb * J * a_reduced / ra.
-    const Eigen::Matrix2d j = Jacobian(rel.b_from_a, xa) * (rb / ra);
-    PhotoTiePoint tp;
-    Eigen::Matrix2d local;
-    std::string status;
-    if (!MatchWindow(a.reduced(), b.reduced(), ip.x, Scaled(xb0, rb), j, options.lsc, &tp, &local, &status)) {
-      ++s.rejects[status];
-      continue;
-    }
-    if (refine) {
-      const Eigen::Vector2d xb1 = Scaled(tp.xb, 1.0 / rb);
-      const Eigen::Matrix2d j1 = local * (ra / rb);
-      if (!MatchWindow(a.grey(), b.grey(), xa, xb1, j1, options.refine_lsc, &tp, &local, &status)) {
-        ++s.rejects["refine_" + status];
+    todo.push_back(static_cast<int>(candidates.size()));
+    candidates.push_back(xa);
+  }
+  s.candidates = static_cast<int>(candidates.size());
+  std::vector<std::string> status(candidates.size());
+  std::vector<std::pair<double, int>> scratch;
+  std::vector<cv::Point2f> pa, pb;
+  std::vector<PhotoTiePoint> found;
+  // Pass 1 predicts from the coarse relation; pass 2 retries the failures
+  // from the relation of pass 1's tie points (many, precise, spread over the
+  // overlap: the relief between coarse matches is followed).
+  for (int pass = 0; pass < 2 && !todo.empty(); ++pass) {
+    std::vector<int> failed;
+    for (const int c : todo) {
+      const Eigen::Vector2d& xa = candidates[c];
+      const Eigen::Vector2d xb0 = Apply(rel.b_from_a, xa) + LocalCorrection(rel, xa, options.neighbours, &scratch);
+      // Local map in reduced pixels: b_reduced = rb * J * a_reduced / ra.
+      const Eigen::Matrix2d j = Jacobian(rel.b_from_a, xa) * (rb / ra);
+      PhotoTiePoint tp;
+      Eigen::Matrix2d local;
+      if (!MatchWindow(a.reduced(), b.reduced(), Scaled(xa, ra), Scaled(xb0, rb), j, options.lsc, &tp, &local,
+                       &status[c])) {
+        if (status[c] != "outside_a") failed.push_back(c);
         continue;
       }
+      if (refine) {
+        const Eigen::Vector2d xb1 = Scaled(tp.xb, 1.0 / rb);
+        const Eigen::Matrix2d j1 = local * (ra / rb);
+        if (!MatchWindow(a.grey(), b.grey(), xa, xb1, j1, options.refine_lsc, &tp, &local, &status[c])) {
+          status[c] = "refine_" + status[c];
+          failed.push_back(c);
+          continue;
+        }
+      } else {
+        tp.xa = xa;
+      }
+      status[c].clear();
+      found.push_back(tp);
+      pa.emplace_back(static_cast<float>(tp.xa.x()), static_cast<float>(tp.xa.y()));
+      pb.emplace_back(static_cast<float>(tp.xb.x()), static_cast<float>(tp.xb.y()));
     }
-    found.push_back(tp);
-    pa.emplace_back(static_cast<float>(tp.xa.x()), static_cast<float>(tp.xa.y()));
-    pb.emplace_back(static_cast<float>(tp.xb.x()), static_cast<float>(tp.xb.y()));
+    todo.clear();
+    if (pass == 0 && !failed.empty() && static_cast<int>(found.size()) >= options.min_coarse_inliers) {
+      std::vector<unsigned char> mask;
+      const cv::Mat h = cv::findHomography(pa, pb, cv::RANSAC, options.coarse_ransac_threshold, mask, 4000, 0.999);
+      if (h.empty()) break;
+      CoarseRelation dense;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) dense.b_from_a(r, c) = h.at<double>(r, c);
+      for (size_t i = 0; i < found.size(); ++i) {
+        if (!mask[i]) continue;
+        dense.xa.push_back(found[i].xa);
+        dense.residual.push_back(found[i].xb - Apply(dense.b_from_a, found[i].xa));
+      }
+      rel = std::move(dense);
+      todo = std::move(failed);
+    }
+  }
+  for (const std::string& st : status) {
+    if (!st.empty()) ++s.rejects[st];
   }
   std::vector<unsigned char> inliers;
   EpipolarRms(pa, pb, options.screen_threshold, &inliers);

@@ -174,8 +174,8 @@ TEST_P(RealPairs, TiePointsAgreeWithTheAutopilotHeadingAndOutnumberSift) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Snowpeak, RealPairs,
-                         ::testing::Values(RealPair{"IMG_2213", "IMG_2244", 300, 0.5},
-                                           RealPair{"IMG_2212", "IMG_2244", 250, 0.45}));
+                         ::testing::Values(RealPair{"IMG_2213", "IMG_2244", 330, 0.42},
+                                           RealPair{"IMG_2212", "IMG_2244", 320, 0.42}));
 
 TEST(PhotoPairMatcher, PhotosFarApartGiveNoTiePoints) {
   // IMG_2168 and IMG_2244: 540 m apart (geoinfo.txt), footprints ~230 m.
