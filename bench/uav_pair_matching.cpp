@@ -39,7 +39,8 @@ struct Result {
   double rms = 0.0, seconds = 0.0;
 };
 
-Result RunOpenCv(const cv::Mat& a, const cv::Mat& b, cv::Ptr<cv::Feature2D> f, cv::Ptr<cv::DescriptorMatcher> m) {
+Result RunOpenCv(const cv::Mat& a, const cv::Mat& b, cv::Ptr<cv::Feature2D> f,
+                 cv::Ptr<cv::DescriptorMatcher> m) {
   const double t0 = Now();
   std::vector<cv::KeyPoint> ka, kb;
   cv::Mat da, db;
@@ -71,17 +72,20 @@ int main(int argc, char** argv) {
       argc > 1 ? argv[1] : std::string(SM_SOURCE_DIR) + "/../shared/data/uav_real_snowpeak";
   // Overlapping pairs first (2213/2244 across a turn, 2212/2244 the same
   // direction), then the pairs the data README names (see doc/uav_real_matching.md).
-  const std::vector<std::pair<std::string, std::string>> pairs = {
-      {"IMG_2213", "IMG_2244"}, {"IMG_2212", "IMG_2244"}, {"IMG_2212", "IMG_2213"},
-      {"IMG_2171", "IMG_2186"}, {"IMG_2168", "IMG_2171"}};
-  std::printf("%-19s | %-31s | %-24s | %-24s | ours/SIFT: time count rms | ours/ORB: time count\n", "pair",
-              "ours: n rms[px] t[s] (match)", "SIFT: n rms[px] t[s]", "ORB: n rms[px] t[s]");
+  const std::vector<std::pair<std::string, std::string>> pairs = {{"IMG_2213", "IMG_2244"},
+                                                                  {"IMG_2212", "IMG_2244"},
+                                                                  {"IMG_2212", "IMG_2213"},
+                                                                  {"IMG_2171", "IMG_2186"},
+                                                                  {"IMG_2168", "IMG_2171"}};
+  std::printf("%-19s | %-31s | %-24s | %-24s | ours/SIFT: time count rms | ours/ORB: time count\n",
+              "pair", "ours: n rms[px] t[s] (match)", "SIFT: n rms[px] t[s]",
+              "ORB: n rms[px] t[s]");
   for (const auto& [na, nb] : pairs) {
     const cv::Mat a = cv::imread(dir + "/" + na + ".JPG", cv::IMREAD_COLOR);
     const cv::Mat b = cv::imread(dir + "/" + nb + ".JPG", cv::IMREAD_COLOR);
     if (a.empty() || b.empty()) {
-      std::fprintf(stderr, "bench_uav_pair_matching: cannot read %s/%s.JPG or %s.JPG\n", dir.c_str(), na.c_str(),
-                   nb.c_str());
+      std::fprintf(stderr, "bench_uav_pair_matching: cannot read %s/%s.JPG or %s.JPG\n",
+                   dir.c_str(), na.c_str(), nb.c_str());
       return 1;
     }
     cv::Mat ga, gb;
@@ -100,15 +104,20 @@ int main(int argc, char** argv) {
     const Result sift = RunOpenCv(ga, gb, cv::SIFT::create(), cv::FlannBasedMatcher::create());
     const Result orb =
         RunOpenCv(ga, gb, cv::ORB::create(10000), cv::BFMatcher::create(cv::NORM_HAMMING, false));
-    std::printf("%-8s %-10s | %5d %6.3f %6.2f (%5.2f)      | %5d %6.3f %6.2f       | %5d %6.3f %6.2f       |"
-                " %6.3f %6.2f %6.2f         | %6.3f %6.2f\n",
-                na.c_str(), nb.c_str(), ours.n, ours.rms, ours.seconds, r.summary.seconds, sift.n, sift.rms,
-                sift.seconds, orb.n, orb.rms, orb.seconds, Ratio(ours.seconds, sift.seconds), Ratio(ours.n, sift.n),
-                Ratio(ours.rms, sift.rms), Ratio(ours.seconds, orb.seconds), Ratio(ours.n, orb.n));
-    std::printf("    ours: coarse %d ratio matches, %d consistent, %d inliers, rotation %.1f deg, %d candidates%s%s\n",
-                r.summary.coarse_matches, r.summary.coarse_consistent, r.summary.coarse_inliers,
-                r.summary.rotation_deg, r.summary.candidates, r.summary.message.empty() ? "" : "; ",
-                r.summary.message.c_str());
+    std::printf(
+        "%-8s %-10s | %5d %6.3f %6.2f (%5.2f)      | %5d %6.3f %6.2f       | %5d %6.3f %6.2f       "
+        "|"
+        " %6.3f %6.2f %6.2f         | %6.3f %6.2f\n",
+        na.c_str(), nb.c_str(), ours.n, ours.rms, ours.seconds, r.summary.seconds, sift.n, sift.rms,
+        sift.seconds, orb.n, orb.rms, orb.seconds, Ratio(ours.seconds, sift.seconds),
+        Ratio(ours.n, sift.n), Ratio(ours.rms, sift.rms), Ratio(ours.seconds, orb.seconds),
+        Ratio(ours.n, orb.n));
+    std::printf(
+        "    ours: coarse %d ratio matches, %d consistent, %d inliers, rotation %.1f deg, %d "
+        "candidates%s%s\n",
+        r.summary.coarse_matches, r.summary.coarse_consistent, r.summary.coarse_inliers,
+        r.summary.rotation_deg, r.summary.candidates, r.summary.message.empty() ? "" : "; ",
+        r.summary.message.c_str());
     std::fflush(stdout);
   }
   return 0;

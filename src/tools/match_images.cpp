@@ -1,7 +1,8 @@
 // match_images: tie points between the overlapping photos of a crew's folder
 // with the package's photo pair matcher (core/matching/photo_pair_matcher.h).
 //
-//   rosrun slope_monitor match_images --image A.jpg --image B.jpg [--image C.jpg ...] [--out tie_points.csv]
+//   rosrun slope_monitor match_images --image A.jpg --image B.jpg [--image C.jpg ...] [--out
+//   tie_points.csv]
 //
 // Pairs: by footprint overlap from the EXIF GNSS position, the XMP heading
 // (sensefly / DJI / Camera yaw), the EXIF focal length and pixel size
@@ -42,13 +43,15 @@ namespace {
 
 int Usage(const std::string& why) {
   std::cerr << "match_images: " << why << "\n"
-            << "usage: match_images --image A.jpg --image B.jpg [--image C.jpg ...] [--out tie_points.csv]\n";
+            << "usage: match_images --image A.jpg --image B.jpg [--image C.jpg ...] [--out "
+               "tie_points.csv]\n";
   return 1;
 }
 
 struct Photo {
   std::string path;
-  matching::PhotoFootprint footprint;  // has_position false without GNSS, focal length or pixel size
+  matching::PhotoFootprint
+      footprint;  // has_position false without GNSS, focal length or pixel size
 };
 
 // Reads the EXIF/XMP pose of each photo; throws naming the file for a missing
@@ -70,7 +73,8 @@ std::vector<Photo> ReadPhotos(const std::vector<std::string>& paths,
     } catch (const Error& e) {
       std::cerr << "match_images: " << e.what() << " (paired with every other photo)\n";
     }
-    if (exif.has_gps && exif.focal_length_mm > 0.0 && att.has_pixel_size && att.width > 0 && att.height > 0) {
+    if (exif.has_gps && exif.focal_length_mm > 0.0 && att.has_pixel_size && att.width > 0 &&
+        att.height > 0) {
       const capture::Geodetic g{exif.gps.latitude_deg, exif.gps.longitude_deg, 0.0};
       if (!ltp) ltp.emplace(g);
       p.footprint = matching::NadirFootprint(ltp->ToSite(g).head<2>(), att.has_yaw, att.yaw_deg,
@@ -102,8 +106,9 @@ int main(int argc, char** argv) {
     }
   }
   if (paths.size() < 2) {
-    return Usage(paths.empty() ? "no --image given (two or more are needed)"
-                               : "only one --image given (" + paths[0] + "): two or more are needed");
+    return Usage(paths.empty()
+                     ? "no --image given (two or more are needed)"
+                     : "only one --image given (" + paths[0] + "): two or more are needed");
   }
   try {
     const matching::PhotoFeatureOptions feature_options;
@@ -116,15 +121,18 @@ int main(int argc, char** argv) {
     // A photo's features are computed at its first pair and released after
     // its last one: memory holds only the photos of pairs still to come.
     std::vector<size_t> last_use(photos.size(), 0);
-    for (size_t k = 0; k < pairs.size(); ++k) last_use[pairs[k].first] = last_use[pairs[k].second] = k;
+    for (size_t k = 0; k < pairs.size(); ++k)
+      last_use[pairs[k].first] = last_use[pairs[k].second] = k;
     std::vector<std::unique_ptr<matching::PhotoFeatures>> features(photos.size());
     double feature_seconds = 0.0;
     int featured = 0;
     auto get = [&](int i) -> const matching::PhotoFeatures& {
       if (!features[i]) {
         const cv::Mat image = cv::imread(photos[i].path, cv::IMREAD_COLOR);
-        if (image.empty()) throw IoError(Message(photos[i].path, ": cannot be decoded as an image"));
-        features[i] = std::make_unique<matching::PhotoFeatures>(image, photos[i].path, feature_options);
+        if (image.empty())
+          throw IoError(Message(photos[i].path, ": cannot be decoded as an image"));
+        features[i] =
+            std::make_unique<matching::PhotoFeatures>(image, photos[i].path, feature_options);
         feature_seconds += features[i]->seconds();
         ++featured;
       }
@@ -145,8 +153,8 @@ int main(int argc, char** argv) {
       if (last_use[i] == k) features[i].reset();
       if (last_use[j] == k) features[j].reset();
       const int n = static_cast<int>(r.tie_points.size());
-      std::printf("%s %s: %d tie points, epipolar rms %.3f px, %.2f s\n", paths[i].c_str(), paths[j].c_str(), n,
-                  r.summary.epipolar_rms, r.summary.seconds);
+      std::printf("%s %s: %d tie points, epipolar rms %.3f px, %.2f s\n", paths[i].c_str(),
+                  paths[j].c_str(), n, r.summary.epipolar_rms, r.summary.seconds);
       if (!r.summary.message.empty()) std::printf("  (%s)\n", r.summary.message.c_str());
       total += n;
       seconds += r.summary.seconds;
@@ -154,15 +162,17 @@ int main(int argc, char** argv) {
       for (const auto& t : r.tie_points) {
         if (!out) break;
         char line[512];
-        std::snprintf(line, sizeof(line), "%s,%s,%.3f,%.3f,%.3f,%.3f,%.4e,%.4e,%.4e,%.3f\n", paths[i].c_str(),
-                      paths[j].c_str(), t.xa.x(), t.xa.y(), t.xb.x(), t.xb.y(), t.covariance(0, 0),
-                      t.covariance(0, 1), t.covariance(1, 1), t.quality);
+        std::snprintf(line, sizeof(line), "%s,%s,%.3f,%.3f,%.3f,%.3f,%.4e,%.4e,%.4e,%.3f\n",
+                      paths[i].c_str(), paths[j].c_str(), t.xa.x(), t.xa.y(), t.xb.x(), t.xb.y(),
+                      t.covariance(0, 0), t.covariance(0, 1), t.covariance(1, 1), t.quality);
         out << line;
       }
     }
-    std::printf("total: %zu pairs, %d tie points, epipolar rms %.3f px, %.2f s (features %.2f s for %d photos)\n",
-                pairs.size(), total, total > 0 ? std::sqrt(sum_sq / total) : 0.0, seconds, feature_seconds,
-                featured);
+    std::printf(
+        "total: %zu pairs, %d tie points, epipolar rms %.3f px, %.2f s (features %.2f s for %d "
+        "photos)\n",
+        pairs.size(), total, total > 0 ? std::sqrt(sum_sq / total) : 0.0, seconds, feature_seconds,
+        featured);
     if (out_path.size() && !out) throw IoError(Message(out_path, ": write failed"));
   } catch (const Error& e) {
     std::cerr << "match_images: " << e.what() << "\n";

@@ -15,8 +15,8 @@ namespace capture {
 namespace {
 
 // One of the XMP keys as a number; false when none is present.
-bool XmpNumber(const Exiv2::XmpData& xmp, std::initializer_list<const char*> keys, const std::string& path,
-               double* out) {
+bool XmpNumber(const Exiv2::XmpData& xmp, std::initializer_list<const char*> keys,
+               const std::string& path, double* out) {
   for (const char* key : keys) {
     for (const auto& d : xmp) {
       if (d.key() != key) continue;
@@ -47,13 +47,14 @@ PhotoAttitude ReadPhotoAttitude(const std::string& path) {
   a.width = image->pixelWidth();
   a.height = image->pixelHeight();
   const Exiv2::XmpData& xmp = image->xmpData();
-  a.has_yaw = XmpNumber(xmp, {"Xmp.sensefly.Yaw", "Xmp.drone-dji.FlightYawDegree", "Xmp.Camera.Yaw"}, path,
-                        &a.yaw_deg);
+  a.has_yaw =
+      XmpNumber(xmp, {"Xmp.sensefly.Yaw", "Xmp.drone-dji.FlightYawDegree", "Xmp.Camera.Yaw"}, path,
+                &a.yaw_deg);
   a.has_pitch_roll =
-      XmpNumber(xmp, {"Xmp.sensefly.Pitch", "Xmp.drone-dji.FlightPitchDegree", "Xmp.Camera.Pitch"}, path,
-                &a.pitch_deg) &&
-      XmpNumber(xmp, {"Xmp.sensefly.Roll", "Xmp.drone-dji.FlightRollDegree", "Xmp.Camera.Roll"}, path,
-                &a.roll_deg);
+      XmpNumber(xmp, {"Xmp.sensefly.Pitch", "Xmp.drone-dji.FlightPitchDegree", "Xmp.Camera.Pitch"},
+                path, &a.pitch_deg) &&
+      XmpNumber(xmp, {"Xmp.sensefly.Roll", "Xmp.drone-dji.FlightRollDegree", "Xmp.Camera.Roll"},
+                path, &a.roll_deg);
   const Exiv2::ExifData& exif = image->exifData();
   const auto res = exif.findKey(Exiv2::ExifKey("Exif.Photo.FocalPlaneXResolution"));
   if (res != exif.end() && res->count() > 0) {

@@ -82,16 +82,22 @@ struct MatchShape {
 // The pair's rotation and log2 scale: the prior where given, else the peak
 // of the vote (bins of the tolerances, each match voting for its bin and the
 // 3 x 3 neighbourhood summed at the peak).
-MatchShape PairShape(const std::vector<MatchShape>& shapes, const PhotoPairOptions& o, const PhotoPairPrior& prior) {
+MatchShape PairShape(const std::vector<MatchShape>& shapes, const PhotoPairOptions& o,
+                     const PhotoPairPrior& prior) {
   const int na = std::max(1, static_cast<int>(std::lround(360.0 / o.rotation_tolerance_deg)));
   const double wa = 360.0 / na, ws = o.log2_scale_tolerance;
   const int ns = 2 * static_cast<int>(std::ceil(3.0 / ws)) + 1;  // log2 scale within +-3
-  auto sbin = [&](double l) { return std::clamp(static_cast<int>(std::floor(l / ws + 0.5)) + ns / 2, 0, ns - 1); };
+  auto sbin = [&](double l) {
+    return std::clamp(static_cast<int>(std::floor(l / ws + 0.5)) + ns / 2, 0, ns - 1);
+  };
   auto abin = [&](double r) { return static_cast<int>(std::floor((r + 180.0) / wa)) % na; };
   std::vector<int> votes(na * ns, 0);
   for (const MatchShape& m : shapes) {
-    if (prior.has_rotation && std::abs(Wrap(m.rotation - prior.rotation_deg)) > o.rotation_tolerance_deg) continue;
-    if (prior.has_scale && std::abs(m.log2_scale - std::log2(prior.scale)) > o.log2_scale_tolerance) continue;
+    if (prior.has_rotation &&
+        std::abs(Wrap(m.rotation - prior.rotation_deg)) > o.rotation_tolerance_deg)
+      continue;
+    if (prior.has_scale && std::abs(m.log2_scale - std::log2(prior.scale)) > o.log2_scale_tolerance)
+      continue;
     ++votes[sbin(m.log2_scale) * na + abin(m.rotation)];
   }
   int best = -1, best_votes = -1;
@@ -128,8 +134,9 @@ bool CoarseMatch(const PhotoFeatures& a, const PhotoFeatures& b, const PhotoPair
   for (const auto& m : knn) {
     if (m.size() == 2 && m[0].distance < o.coarse_ratio * m[1].distance) {
       ratio.push_back(m[0]);
-      shapes.push_back({Wrap(b.coarse_angles()[m[0].trainIdx] - a.coarse_angles()[m[0].queryIdx]),
-                        std::log2(b.coarse_sizes()[m[0].trainIdx] / a.coarse_sizes()[m[0].queryIdx])});
+      shapes.push_back(
+          {Wrap(b.coarse_angles()[m[0].trainIdx] - a.coarse_angles()[m[0].queryIdx]),
+           std::log2(b.coarse_sizes()[m[0].trainIdx] / a.coarse_sizes()[m[0].queryIdx])});
     }
   }
   s->coarse_matches = static_cast<int>(ratio.size());
@@ -149,7 +156,8 @@ bool CoarseMatch(const PhotoFeatures& a, const PhotoFeatures& b, const PhotoPair
     return false;
   }
   std::vector<unsigned char> mask;
-  const cv::Mat h = cv::findHomography(pa, pb, cv::RANSAC, o.coarse_ransac_threshold, mask, 4000, 0.999);
+  const cv::Mat h =
+      cv::findHomography(pa, pb, cv::RANSAC, o.coarse_ransac_threshold, mask, 4000, 0.999);
   if (h.empty()) {
     s->message = "no homography from the coarse matches";
     return false;
@@ -164,7 +172,8 @@ bool CoarseMatch(const PhotoFeatures& a, const PhotoFeatures& b, const PhotoPair
   }
   s->coarse_inliers = static_cast<int>(rel->xa.size());
   if (s->coarse_inliers < o.min_coarse_inliers) {
-    s->message = Message("only ", s->coarse_inliers, " coarse inliers (min_coarse_inliers ", o.min_coarse_inliers, ")");
+    s->message = Message("only ", s->coarse_inliers, " coarse inliers (min_coarse_inliers ",
+                         o.min_coarse_inliers, ")");
     return false;
   }
   const Eigen::Vector2d centre(0.5 * (a.size().width - 1), 0.5 * (a.size().height - 1));
@@ -179,7 +188,8 @@ bool CoarseMatch(const PhotoFeatures& a, const PhotoFeatures& b, const PhotoPair
 Eigen::Vector2d LocalCorrection(const CoarseRelation& rel, const Eigen::Vector2d& xa, int k,
                                 std::vector<std::pair<double, int>>* scratch) {
   scratch->clear();
-  for (size_t i = 0; i < rel.xa.size(); ++i) scratch->emplace_back((rel.xa[i] - xa).squaredNorm(), int(i));
+  for (size_t i = 0; i < rel.xa.size(); ++i)
+    scratch->emplace_back((rel.xa[i] - xa).squaredNorm(), int(i));
   const size_t n = std::min(scratch->size(), static_cast<size_t>(k));
   std::partial_sort(scratch->begin(), scratch->begin() + n, scratch->end());
   std::vector<double> dx, dy;
@@ -193,23 +203,26 @@ Eigen::Vector2d LocalCorrection(const CoarseRelation& rel, const Eigen::Vector2d
 }  // namespace
 
 void PhotoFeatureOptions::Check() const {
-  if (coarse_max_side < 200 || coarse_max_side > 10000) throw ConfigError("coarse_max_side must be in [200, 10000]");
+  if (coarse_max_side < 200 || coarse_max_side > 10000)
+    throw ConfigError("coarse_max_side must be in [200, 10000]");
   if (coarse_max_features < 10) throw ConfigError("coarse_max_features must be >= 10");
   interest.Check();
 }
 
-PhotoFeatures::PhotoFeatures(const cv::Mat& image, const std::string& name, const PhotoFeatureOptions& options)
+PhotoFeatures::PhotoFeatures(const cv::Mat& image, const std::string& name,
+                             const PhotoFeatureOptions& options)
     : name_(name) {
   options.Check();
   const auto start = std::chrono::steady_clock::now();
   grey_ = ToGrey8(image, name);
-  const double reduce =
-      std::min(1.0, static_cast<double>(options.coarse_max_side) / std::max(grey_.cols, grey_.rows));
+  const double reduce = std::min(
+      1.0, static_cast<double>(options.coarse_max_side) / std::max(grey_.cols, grey_.rows));
   reduce_ = reduce;
   reduced_ = grey_;
   if (reduce < 1.0) cv::resize(grey_, reduced_, cv::Size(), reduce, reduce, cv::INTER_AREA);
   std::vector<cv::KeyPoint> keys;
-  cv::SIFT::create(options.coarse_max_features)->detectAndCompute(reduced_, cv::noArray(), keys, coarse_descriptors_);
+  cv::SIFT::create(options.coarse_max_features)
+      ->detectAndCompute(reduced_, cv::noArray(), keys, coarse_descriptors_);
   for (const auto& k : keys) {
     // Pixel centres: x_full + 0.5 = (x_small + 0.5) / reduce.
     coarse_points_.emplace_back((k.pt.x + 0.5f) / reduce - 0.5f, (k.pt.y + 0.5f) / reduce - 0.5f);
@@ -223,14 +236,16 @@ PhotoFeatures::PhotoFeatures(const cv::Mat& image, const std::string& name, cons
 }
 
 size_t PhotoFeatures::MemoryBytes() const {
-  return grey_.total() * grey_.elemSize() + (reduce_ < 1.0 ? reduced_.total() * reduced_.elemSize() : 0) +
+  return grey_.total() * grey_.elemSize() +
+         (reduce_ < 1.0 ? reduced_.total() * reduced_.elemSize() : 0) +
          coarse_descriptors_.total() * coarse_descriptors_.elemSize() +
          coarse_points_.size() * (sizeof(cv::Point2f) + 2 * sizeof(float)) +
          interest_points_.size() * sizeof(InterestPoint);
 }
 
 void PhotoPairOptions::Check() const {
-  if (!(coarse_ratio > 0.0 && coarse_ratio <= 1.0)) throw ConfigError("coarse_ratio must be in (0, 1]");
+  if (!(coarse_ratio > 0.0 && coarse_ratio <= 1.0))
+    throw ConfigError("coarse_ratio must be in (0, 1]");
   if (!(rotation_tolerance_deg > 0.0 && rotation_tolerance_deg <= 180.0)) {
     throw ConfigError("rotation_tolerance_deg must be in (0, 180]");
   }
@@ -245,8 +260,8 @@ void PhotoPairOptions::Check() const {
   refine_lsc.Check();
 }
 
-double EpipolarRms(const std::vector<cv::Point2f>& xa, const std::vector<cv::Point2f>& xb, double threshold,
-                   std::vector<unsigned char>* inliers) {
+double EpipolarRms(const std::vector<cv::Point2f>& xa, const std::vector<cv::Point2f>& xb,
+                   double threshold, std::vector<unsigned char>* inliers) {
   std::vector<unsigned char> mask;
   if (inliers) inliers->clear();
   if (xa.size() < 8 || xa.size() != xb.size()) return 0.0;
@@ -274,14 +289,14 @@ namespace {
 // One window: a's window around xa against b warped into a's frame by the
 // local map xb = xb0 + j (x - xa); modified LSC; the solution mapped into b.
 // False (and the LSC status in *status) when LSC fails.
-bool MatchWindow(const cv::Mat& grey_a, const cv::Mat& grey_b, const Eigen::Vector2d& xa, const Eigen::Vector2d& xb0,
-                 const Eigen::Matrix2d& j, const LscOptions& lsc, PhotoTiePoint* tp, Eigen::Matrix2d* local,
-                 std::string* status) {
+bool MatchWindow(const cv::Mat& grey_a, const cv::Mat& grey_b, const Eigen::Vector2d& xa,
+                 const Eigen::Vector2d& xb0, const Eigen::Matrix2d& j, const LscOptions& lsc,
+                 PhotoTiePoint* tp, Eigen::Matrix2d* local, std::string* status) {
   const int half = std::max(lsc.half_window, lsc.search_half_window) + lsc.search_radius +
                    static_cast<int>(std::ceil(lsc.max_shift)) + 3;
   const int size = 2 * half + 1;
-  const cv::Rect win(static_cast<int>(std::lround(xa.x())) - half, static_cast<int>(std::lround(xa.y())) - half, size,
-                     size);
+  const cv::Rect win(static_cast<int>(std::lround(xa.x())) - half,
+                     static_cast<int>(std::lround(xa.y())) - half, size, size);
   if ((win & cv::Rect(0, 0, grey_a.cols, grey_a.rows)) != win) {
     *status = "outside_a";
     return false;
@@ -292,7 +307,8 @@ bool MatchWindow(const cv::Mat& grey_a, const cv::Mat& grey_b, const Eigen::Vect
   const cv::Matx23d m(j(0, 0), j(0, 1), t.x(), j(1, 0), j(1, 1), t.y());
   cv::Mat wa, wb;
   grey_a(win).convertTo(wa, CV_32F);
-  cv::warpAffine(grey_b, wb, m, cv::Size(size, size), cv::INTER_CUBIC | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
+  cv::warpAffine(grey_b, wb, m, cv::Size(size, size), cv::INTER_CUBIC | cv::WARP_INVERSE_MAP,
+                 cv::BORDER_REPLICATE);
   wb.convertTo(wb, CV_32F);
   const LscSummary r = MatchLsc(wa, wb, xa_in_win, xa_in_win, lsc);
   if (!r.IsSolutionUsable()) {
@@ -304,8 +320,10 @@ bool MatchWindow(const cv::Mat& grey_a, const cv::Mat& grey_b, const Eigen::Vect
   tp->covariance = j * r.covariance * j.transpose();
   tp->quality = std::clamp(r.correlation, 0.0, 1.0);
   // The affine LSC's map of a's window into the warped window, composed with j.
-  *local = j * (Eigen::Matrix2d::Identity() + Eigen::Map<const Eigen::Matrix2d>(r.affine.data()).transpose());
-  if (tp->xb.x() < 0 || tp->xb.y() < 0 || tp->xb.x() > grey_b.cols - 1 || tp->xb.y() > grey_b.rows - 1) {
+  *local = j * (Eigen::Matrix2d::Identity() +
+                Eigen::Map<const Eigen::Matrix2d>(r.affine.data()).transpose());
+  if (tp->xb.x() < 0 || tp->xb.y() < 0 || tp->xb.x() > grey_b.cols - 1 ||
+      tp->xb.y() > grey_b.rows - 1) {
     *status = "outside_b";
     return false;
   }
@@ -318,8 +336,8 @@ Eigen::Vector2d Scaled(const Eigen::Vector2d& x, double f) {  // pixel centres: 
 
 }  // namespace
 
-PhotoPairResult MatchPhotoPair(const PhotoFeatures& a, const PhotoFeatures& b, const PhotoPairOptions& options,
-                               const PhotoPairPrior& prior) {
+PhotoPairResult MatchPhotoPair(const PhotoFeatures& a, const PhotoFeatures& b,
+                               const PhotoPairOptions& options, const PhotoPairPrior& prior) {
   options.Check();
   const auto start = std::chrono::steady_clock::now();
   PhotoPairResult result;
@@ -361,20 +379,22 @@ PhotoPairResult MatchPhotoPair(const PhotoFeatures& a, const PhotoFeatures& b, c
     std::vector<int> failed;
     for (const int c : todo) {
       const Eigen::Vector2d& xa = candidates[c];
-      const Eigen::Vector2d xb0 = Apply(rel.b_from_a, xa) + LocalCorrection(rel, xa, options.neighbours, &scratch);
+      const Eigen::Vector2d xb0 =
+          Apply(rel.b_from_a, xa) + LocalCorrection(rel, xa, options.neighbours, &scratch);
       // Local map in reduced pixels: b_reduced = rb * J * a_reduced / ra.
       const Eigen::Matrix2d j = Jacobian(rel.b_from_a, xa) * (rb / ra);
       PhotoTiePoint tp;
       Eigen::Matrix2d local;
-      if (!MatchWindow(a.reduced(), b.reduced(), Scaled(xa, ra), Scaled(xb0, rb), j, options.lsc, &tp, &local,
-                       &status[c])) {
+      if (!MatchWindow(a.reduced(), b.reduced(), Scaled(xa, ra), Scaled(xb0, rb), j, options.lsc,
+                       &tp, &local, &status[c])) {
         if (status[c] != "outside_a") failed.push_back(c);
         continue;
       }
       if (refine) {
         const Eigen::Vector2d xb1 = Scaled(tp.xb, 1.0 / rb);
         const Eigen::Matrix2d j1 = local * (ra / rb);
-        if (!MatchWindow(a.grey(), b.grey(), xa, xb1, j1, options.refine_lsc, &tp, &local, &status[c])) {
+        if (!MatchWindow(a.grey(), b.grey(), xa, xb1, j1, options.refine_lsc, &tp, &local,
+                         &status[c])) {
           status[c] = "refine_" + status[c];
           failed.push_back(c);
           continue;
@@ -388,9 +408,11 @@ PhotoPairResult MatchPhotoPair(const PhotoFeatures& a, const PhotoFeatures& b, c
       pb.emplace_back(static_cast<float>(tp.xb.x()), static_cast<float>(tp.xb.y()));
     }
     todo.clear();
-    if (pass == 0 && !failed.empty() && static_cast<int>(found.size()) >= options.min_coarse_inliers) {
+    if (pass == 0 && !failed.empty() &&
+        static_cast<int>(found.size()) >= options.min_coarse_inliers) {
       std::vector<unsigned char> mask;
-      const cv::Mat h = cv::findHomography(pa, pb, cv::RANSAC, options.coarse_ransac_threshold, mask, 4000, 0.999);
+      const cv::Mat h = cv::findHomography(pa, pb, cv::RANSAC, options.coarse_ransac_threshold,
+                                           mask, 4000, 0.999);
       if (h.empty()) break;
       CoarseRelation dense;
       for (int r = 0; r < 3; ++r)
@@ -430,17 +452,18 @@ PhotoPairResult MatchPhotoPair(const PhotoFeatures& a, const PhotoFeatures& b, c
 }
 
 void PairSelectionOptions::Check() const {
-  if (!(min_overlap > 0.0 && min_overlap <= 1.0)) throw ConfigError("min_overlap must be in (0, 1]");
+  if (!(min_overlap > 0.0 && min_overlap <= 1.0))
+    throw ConfigError("min_overlap must be in (0, 1]");
   if (!(height_above_ground > 0.0)) throw ConfigError("height_above_ground must be > 0");
 }
 
-PhotoFootprint NadirFootprint(const Eigen::Vector2d& east_north, bool has_heading, double heading_deg,
-                              const cv::Size& image, double focal_mm, double pixel_size_mm,
-                              const PairSelectionOptions& options) {
+PhotoFootprint NadirFootprint(const Eigen::Vector2d& east_north, bool has_heading,
+                              double heading_deg, const cv::Size& image, double focal_mm,
+                              double pixel_size_mm, const PairSelectionOptions& options) {
   options.Check();
   if (!(focal_mm > 0.0) || !(pixel_size_mm > 0.0)) {
-    throw InvalidArgument(Message("NadirFootprint: focal length ", focal_mm, " mm and pixel size ", pixel_size_mm,
-                                  " mm must be > 0"));
+    throw InvalidArgument(Message("NadirFootprint: focal length ", focal_mm, " mm and pixel size ",
+                                  pixel_size_mm, " mm must be > 0"));
   }
   PhotoFootprint f;
   f.has_position = true;
@@ -462,7 +485,8 @@ double FootprintOverlap(const PhotoFootprint& a, const PhotoFootprint& b) {
       const Eigen::Vector2d along(std::sin(h), std::cos(h)), across(std::cos(h), -std::sin(h));
       for (const auto& c : {Eigen::Vector2d(-1, -1), Eigen::Vector2d(1, -1), Eigen::Vector2d(1, 1),
                             Eigen::Vector2d(-1, 1)}) {
-        const Eigen::Vector2d q = f.east_north + 0.5 * c.x() * f.width * across + 0.5 * c.y() * f.length * along;
+        const Eigen::Vector2d q =
+            f.east_north + 0.5 * c.x() * f.width * across + 0.5 * c.y() * f.length * along;
         p.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
       }
     } else {

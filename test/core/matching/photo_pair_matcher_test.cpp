@@ -21,8 +21,8 @@
 #include <sstream>
 #include <string>
 
-#include <Eigen/LU>
 #include <gtest/gtest.h>
+#include <Eigen/LU>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -95,7 +95,8 @@ TEST(PhotoPairMatcher, RotatedScaledRelitCopyOfARealPhotoAgainstItsMap) {
   // shifts by (60, -40) px.
   const double angle = 160.0, scale = 1.14;
   const cv::Point2f centre(0.5f * (a.cols - 1), 0.5f * (a.rows - 1));
-  cv::Mat t = cv::getRotationMatrix2D(centre, -angle, scale);  // OpenCV: positive = counter-clockwise on screen
+  cv::Mat t = cv::getRotationMatrix2D(centre, -angle,
+                                      scale);  // OpenCV: positive = counter-clockwise on screen
   t.at<double>(0, 2) += 60.0;
   t.at<double>(1, 2) -= 40.0;
   cv::Mat b;
@@ -110,8 +111,9 @@ TEST(PhotoPairMatcher, RotatedScaledRelitCopyOfARealPhotoAgainstItsMap) {
   double sum = 0.0, worst = 0.0;
   std::vector<double> errors;
   for (const PhotoTiePoint& p : r.tie_points) {
-    const Eigen::Vector2d truth(t.at<double>(0, 0) * p.xa.x() + t.at<double>(0, 1) * p.xa.y() + t.at<double>(0, 2),
-                                t.at<double>(1, 0) * p.xa.x() + t.at<double>(1, 1) * p.xa.y() + t.at<double>(1, 2));
+    const Eigen::Vector2d truth(
+        t.at<double>(0, 0) * p.xa.x() + t.at<double>(0, 1) * p.xa.y() + t.at<double>(0, 2),
+        t.at<double>(1, 0) * p.xa.x() + t.at<double>(1, 1) * p.xa.y() + t.at<double>(1, 2));
     const double e = (p.xb - truth).norm();
     sum += e * e;
     worst = std::max(worst, e);
@@ -122,10 +124,12 @@ TEST(PhotoPairMatcher, RotatedScaledRelitCopyOfARealPhotoAgainstItsMap) {
   const double rms = std::sqrt(sum / errors.size());
   std::sort(errors.begin(), errors.end());
   const double median = errors[errors.size() / 2], p99 = errors[errors.size() * 99 / 100];
-  std::printf("warped copy: %d tie points, rotation %.2f deg scale %.4f, error median %.3f px, rms %.3f px, "
-              "99 %% %.3f px, max %.3f px, epipolar rms %.3f px, %.2f s (+ features %.2f s, %.2f s)\n",
-              s.matched, s.rotation_deg, s.scale, median, rms, p99, worst, s.epipolar_rms, s.seconds, fa.seconds(),
-              fb.seconds());
+  std::printf(
+      "warped copy: %d tie points, rotation %.2f deg scale %.4f, error median %.3f px, rms %.3f "
+      "px, "
+      "99 %% %.3f px, max %.3f px, epipolar rms %.3f px, %.2f s (+ features %.2f s, %.2f s)\n",
+      s.matched, s.rotation_deg, s.scale, median, rms, p99, worst, s.epipolar_rms, s.seconds,
+      fa.seconds(), fb.seconds());
   EXPECT_NEAR(s.rotation_deg, angle, 1.0);
   EXPECT_NEAR(s.scale, scale, 0.02);
   EXPECT_GE(s.matched, 1500);
@@ -137,8 +141,8 @@ TEST(PhotoPairMatcher, RotatedScaledRelitCopyOfARealPhotoAgainstItsMap) {
 struct RealPair {
   const char* a;
   const char* b;
-  int min_tie_points;     // measured count minus a margin (see the printout)
-  double max_rms;         // [px] measured epipolar RMS plus a margin
+  int min_tie_points;  // measured count minus a margin (see the printout)
+  double max_rms;      // [px] measured epipolar RMS plus a margin
 };
 
 class RealPairs : public ::testing::TestWithParam<RealPair> {};
@@ -152,11 +156,15 @@ TEST_P(RealPairs, TiePointsAgreeWithTheAutopilotHeadingAndOutnumberSift) {
   const PhotoPairResult r = MatchPhotoPair(fa, fb, PhotoPairOptions());
   const PhotoPairSummary& s = r.summary;
   const auto headings = Headings();
-  const double heading_rotation = Wrap(headings.at(std::string(p.a) + ".JPG") - headings.at(std::string(p.b) + ".JPG"));
+  const double heading_rotation =
+      Wrap(headings.at(std::string(p.a) + ".JPG") - headings.at(std::string(p.b) + ".JPG"));
   const int sift = SiftInliers(a, b);
-  std::printf("%s %s: %d tie points (%d candidates), epipolar rms %.3f px, rotation %.1f deg (headings: %.1f), "
-              "%.2f s; OpenCV SIFT: %d RANSAC inliers\n",
-              p.a, p.b, s.matched, s.candidates, s.epipolar_rms, s.rotation_deg, heading_rotation, s.seconds, sift);
+  std::printf(
+      "%s %s: %d tie points (%d candidates), epipolar rms %.3f px, rotation %.1f deg (headings: "
+      "%.1f), "
+      "%.2f s; OpenCV SIFT: %d RANSAC inliers\n",
+      p.a, p.b, s.matched, s.candidates, s.epipolar_rms, s.rotation_deg, heading_rotation,
+      s.seconds, sift);
   EXPECT_GE(s.matched, p.min_tie_points);
   EXPECT_LT(s.epipolar_rms, p.max_rms);
   EXPECT_GT(s.epipolar_rms, 0.0);
@@ -180,7 +188,8 @@ INSTANTIATE_TEST_SUITE_P(Snowpeak, RealPairs,
 TEST(PhotoPairMatcher, PhotosFarApartGiveNoTiePoints) {
   // IMG_2168 and IMG_2244: 540 m apart (geoinfo.txt), footprints ~230 m.
   const PhotoFeatureOptions fo;
-  const PhotoFeatures fa(Load("IMG_2168_1152.jpg"), "IMG_2168", fo), fb(Load("IMG_2244_1152.jpg"), "IMG_2244", fo);
+  const PhotoFeatures fa(Load("IMG_2168_1152.jpg"), "IMG_2168", fo),
+      fb(Load("IMG_2244_1152.jpg"), "IMG_2244", fo);
   const PhotoPairResult r = MatchPhotoPair(fa, fb, PhotoPairOptions());
   std::printf("far apart: %d tie points (%s)\n", r.summary.matched, r.summary.message.c_str());
   EXPECT_EQ(r.summary.matched, 0);
@@ -223,7 +232,8 @@ TEST(PairSelection, FootprintOverlapByHand) {
   EXPECT_EQ(FootprintOverlap(Rect(0, 0, 0), Rect(0, 200, 0)), 0.0);
 
   PhotoFootprint unknown;  // no GNSS: paired with every photo
-  const std::vector<PhotoFootprint> photos = {Rect(0, 0, 0), Rect(0, 40, 0), Rect(0, 500, 0), unknown};
+  const std::vector<PhotoFootprint> photos = {Rect(0, 0, 0), Rect(0, 40, 0), Rect(0, 500, 0),
+                                              unknown};
   const auto pairs = SelectOverlappingPairs(photos, PairSelectionOptions());
   const std::vector<std::pair<int, int>> expected = {{0, 1}, {0, 3}, {1, 3}, {2, 3}};
   EXPECT_EQ(pairs, expected);
@@ -233,7 +243,8 @@ TEST(PairSelection, NadirFootprintFromCamera) {
   PairSelectionOptions o;
   o.height_above_ground = 100.0;
   // 4608 x 3456 px of 1.34 um behind 4.3 mm: 143.6 m x 107.7 m at 100 m.
-  const PhotoFootprint f = NadirFootprint({0, 0}, true, 30.0, cv::Size(4608, 3456), 4.3, 1.34e-3, o);
+  const PhotoFootprint f =
+      NadirFootprint({0, 0}, true, 30.0, cv::Size(4608, 3456), 4.3, 1.34e-3, o);
   EXPECT_NEAR(f.width, 4608 * 1.34e-3 / 4.3 * 100.0, 1e-9);
   EXPECT_NEAR(f.length, 3456 * 1.34e-3 / 4.3 * 100.0, 1e-9);
   EXPECT_THROW(NadirFootprint({0, 0}, false, 0.0, cv::Size(10, 10), 0.0, 1e-3, o), InvalidArgument);

@@ -25,7 +25,7 @@ namespace {
 
 constexpr int kW = 640, kH = 480;
 constexpr double kHeight = 60.0;  // [m] photo a above the ground
-constexpr double kC = 9.1667;     // [mm] the UAV camera's field of view on 640 x 480 pixels of 0.01 mm
+constexpr double kC = 9.1667;  // [mm] the UAV camera's field of view on 640 x 480 pixels of 0.01 mm
 constexpr double kHeading = 160.0;  // [deg] of photo b (a: 0)
 constexpr double kScale = 1.14;     // ground size in b / in a
 
@@ -46,8 +46,8 @@ TEST(PhotoPairSim, TurnedLowerPhotoAgainstTruth) {
   const double h = kHeading * M_PI / 180.0;
   const Eigen::Vector3d pa(30, 27, ground + kHeight), pb(30, 33, ground + kHeight / kScale);
   const camera::ExteriorOrientation a = sim::testing::NadirFrom(pa);
-  const camera::ExteriorOrientation b =
-      sim::LookAt(pb, pb - Eigen::Vector3d::UnitZ(), Eigen::Vector3d(std::sin(h), std::cos(h), 0.0));
+  const camera::ExteriorOrientation b = sim::LookAt(pb, pb - Eigen::Vector3d::UnitZ(),
+                                                    Eigen::Vector3d(std::sin(h), std::cos(h), 0.0));
   const sim::Renderer renderer(scene, model);
   const cv::Mat ia = sim::testing::Photo(renderer, state, a, sim::RenderOptions(), 100);
   const cv::Mat ib = sim::testing::Photo(renderer, state, b, sim::RenderOptions(), 101);
@@ -69,9 +69,12 @@ TEST(PhotoPairSim, TurnedLowerPhotoAgainstTruth) {
     if (e > 1.0) ++far;
   }
   const double rms = n > 0 ? std::sqrt(sum / n) : 1e9;
-  std::printf("simulated turn: %d tie points (%d with truth), rotation %.1f deg, scale %.3f, error rms %.3f px, "
-              "%d beyond 1 px, epipolar rms %.3f px\n",
-              r.summary.matched, n, r.summary.rotation_deg, r.summary.scale, rms, far, r.summary.epipolar_rms);
+  std::printf(
+      "simulated turn: %d tie points (%d with truth), rotation %.1f deg, scale %.3f, error rms "
+      "%.3f px, "
+      "%d beyond 1 px, epipolar rms %.3f px\n",
+      r.summary.matched, n, r.summary.rotation_deg, r.summary.scale, rms, far,
+      r.summary.epipolar_rms);
   EXPECT_NEAR(std::abs(r.summary.rotation_deg), kHeading, 3.0);
   EXPECT_NEAR(r.summary.scale, kScale, 0.05);
   EXPECT_GE(n, 300);

@@ -19,14 +19,14 @@ namespace capture {
 
 struct PhotoAttitude {
   bool has_yaw = false;
-  double yaw_deg = 0.0;    // [deg] heading, clockwise from north
+  double yaw_deg = 0.0;  // [deg] heading, clockwise from north
   bool has_pitch_roll = false;
   double pitch_deg = 0.0;  // [deg]
   double roll_deg = 0.0;   // [deg]
   bool has_pixel_size = false;
   double pixel_size_mm = 0.0;  // [mm]
-  int width = 0;   // [px] from the image header (exiv2), 0 when unknown
-  int height = 0;  // [px]
+  int width = 0;               // [px] from the image header (exiv2), 0 when unknown
+  int height = 0;              // [px]
 };
 
 // Throws IoError naming the file when exiv2 cannot open it, or when a tag

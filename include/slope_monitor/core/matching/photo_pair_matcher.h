@@ -51,8 +51,8 @@ namespace slope_monitor {
 namespace matching {
 
 struct PhotoFeatureOptions {
-  int coarse_max_side = 1200;     // [px] long side of the copy for SIFT, [200, 10000]
-  int coarse_max_features = 4000; // SIFT features on that copy, >= 10
+  int coarse_max_side = 1200;      // [px] long side of the copy for SIFT, [200, 10000]
+  int coarse_max_features = 4000;  // SIFT features on that copy, >= 10
   // Interest points on the reduced copy (more than the matcher's default:
   // the overlap is a part of the photo).
   InterestPointOptions interest = [] {
@@ -114,10 +114,10 @@ struct PhotoPairOptions {
   // [full-resolution px] RANSAC homography threshold; the ground is not a
   // plane, so it admits the relief parallax of the coarse matches, > 0.
   double coarse_ransac_threshold = 12.0;
-  int min_coarse_inliers = 12;          // fewer: no relation found (no tie points), >= 8
-  int neighbours = 8;                   // coarse inliers for the local correction, >= 1
-  int max_candidates = 8000;            // interest points of a tried (strongest), >= 1
-  int border = 16;                      // [px] predicted xb at least this far inside b, >= 0
+  int min_coarse_inliers = 12;  // fewer: no relation found (no tie points), >= 8
+  int neighbours = 8;           // coarse inliers for the local correction, >= 1
+  int max_candidates = 8000;    // interest points of a tried (strongest), >= 1
+  int border = 16;              // [px] predicted xb at least this far inside b, >= 0
   // Precise matching of a's window against the warped window of b. The
   // integer search radius covers the error of the coarse prediction.
   LscOptions lsc = [] {
@@ -164,14 +164,14 @@ struct PhotoTiePoint {
 };
 
 struct PhotoPairSummary {
-  int coarse_matches = 0;   // SIFT matches passing the ratio test
+  int coarse_matches = 0;     // SIFT matches passing the ratio test
   int coarse_consistent = 0;  // of them, consistent with the rotation/scale (prior or vote)
-  int coarse_inliers = 0;   // of the RANSAC homography
+  int coarse_inliers = 0;     // of the RANSAC homography
   Eigen::Matrix3d b_from_a = Eigen::Matrix3d::Identity();  // homography (full-resolution px)
-  double rotation_deg = 0.0;  // of b relative to a at a's centre, (-180, 180]
-  double scale = 1.0;         // size in b / size in a at a's centre
-  int candidates = 0;         // interest points of a predicted inside b
-  int matched = 0;            // tie points returned
+  double rotation_deg = 0.0;           // of b relative to a at a's centre, (-180, 180]
+  double scale = 1.0;                  // size in b / size in a at a's centre
+  int candidates = 0;                  // interest points of a predicted inside b
+  int matched = 0;                     // tie points returned
   std::map<std::string, int> rejects;  // "lsc_<status>", "epipolar"
   double epipolar_rms = 0.0;  // [px] of the returned tie points to their fundamental matrix
   double seconds = 0.0;       // this pair (features of the photos not included)
@@ -186,15 +186,16 @@ struct PhotoPairResult {
 
 // Tie points of the pair (a, b). Never throws on data: a pair without a
 // relation gives no tie points and Summary::message says why.
-PhotoPairResult MatchPhotoPair(const PhotoFeatures& a, const PhotoFeatures& b, const PhotoPairOptions& options,
+PhotoPairResult MatchPhotoPair(const PhotoFeatures& a, const PhotoFeatures& b,
+                               const PhotoPairOptions& options,
                                const PhotoPairPrior& prior = PhotoPairPrior());
 
 // RMS [px] of the symmetric distances of the pairs to the epipolar lines of
 // a RANSAC fundamental matrix (cv::findFundamentalMat, FM_RANSAC, threshold
 // px, confidence 0.999) fitted to them; its inliers in *inliers (optional).
 // Fewer than 8 pairs: 0 and no inliers. RMS over the inliers.
-double EpipolarRms(const std::vector<cv::Point2f>& xa, const std::vector<cv::Point2f>& xb, double threshold,
-                   std::vector<unsigned char>* inliers = nullptr);
+double EpipolarRms(const std::vector<cv::Point2f>& xa, const std::vector<cv::Point2f>& xb,
+                   double threshold, std::vector<unsigned char>* inliers = nullptr);
 
 // Pair selection. A photo's ground footprint from its GNSS position (local
 // east/north [m]) and heading, a rectangle `width` across the flight
@@ -221,9 +222,9 @@ struct PairSelectionOptions {
 // height along it; ground size = pixels x pixel_size_mm / focal_mm x
 // options.height_above_ground. Throws InvalidArgument when focal or pixel
 // size is not > 0.
-PhotoFootprint NadirFootprint(const Eigen::Vector2d& east_north, bool has_heading, double heading_deg,
-                              const cv::Size& image, double focal_mm, double pixel_size_mm,
-                              const PairSelectionOptions& options);
+PhotoFootprint NadirFootprint(const Eigen::Vector2d& east_north, bool has_heading,
+                              double heading_deg, const cv::Size& image, double focal_mm,
+                              double pixel_size_mm, const PairSelectionOptions& options);
 // Index pairs (i < j), sorted.
 std::vector<std::pair<int, int>> SelectOverlappingPairs(const std::vector<PhotoFootprint>& photos,
                                                         const PairSelectionOptions& options);
