@@ -1,0 +1,37 @@
+// What a UAV writes about a photo beyond exif.h, read with exiv2: the
+// autopilot's attitude in the XMP block and the sensor's pixel size.
+//
+//   * attitude: sensefly (Xmp.sensefly.Yaw/Pitch/Roll), DJI
+//     (Xmp.drone-dji.FlightYawDegree/FlightPitchDegree/FlightRollDegree) and
+//     Pix4D-style camera tags (Xmp.Camera.Yaw/Pitch/Roll) [deg], yaw = heading
+//     clockwise from north;
+//   * pixel size [mm] from Exif.Photo.FocalPlaneXResolution and
+//     FocalPlaneResolutionUnit (2 inch, 3 cm, 4 mm, 5 um), divided into the
+//     unit's length. Cameras write it for the full sensor width
+//     (Exif.Photo.PixelXDimension pixels);
+//   * the image size from its header (without decoding the pixels).
+#pragma once
+
+#include <string>
+
+namespace slope_monitor {
+namespace capture {
+
+struct PhotoAttitude {
+  bool has_yaw = false;
+  double yaw_deg = 0.0;  // [deg] heading, clockwise from north
+  bool has_pitch_roll = false;
+  double pitch_deg = 0.0;  // [deg]
+  double roll_deg = 0.0;   // [deg]
+  bool has_pixel_size = false;
+  double pixel_size_mm = 0.0;  // [mm]
+  int width = 0;               // [px] from the image header (exiv2), 0 when unknown
+  int height = 0;              // [px]
+};
+
+// Throws IoError naming the file when exiv2 cannot open it, or when a tag
+// present is not a number (naming the tag). Absent tags leave has_* false.
+PhotoAttitude ReadPhotoAttitude(const std::string& path);
+
+}  // namespace capture
+}  // namespace slope_monitor
