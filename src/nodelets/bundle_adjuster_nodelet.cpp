@@ -14,11 +14,11 @@
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_ros/transform_broadcaster.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/EpochMarker.h"
@@ -50,12 +50,14 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     }
     solution_pub_ = nh.advertise<slope_monitor::AdjustmentSolution>("solution", 5, true);
     points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("points", 5, true);
-    displacements_pub_ = nh.advertise<slope_monitor::PointDisplacementArray>("displacements", 5, true);
+    displacements_pub_ =
+        nh.advertise<slope_monitor::PointDisplacementArray>("displacements", 5, true);
     for (const std::string& topic : target_topics_)
       target_subs_.push_back(nh.subscribe(topic, 500, &BundleAdjusterNodelet::OnTargets, this));
     for (const std::string& cam : collector_options_.cameras) {
       info_subs_.push_back(nh.subscribe<sensor_msgs::CameraInfo>(
-          cam + "/camera_info", 5, [this, cam](const sensor_msgs::CameraInfoConstPtr& m) { OnCameraInfo(cam, m); }));
+          cam + "/camera_info", 5,
+          [this, cam](const sensor_msgs::CameraInfoConstPtr& m) { OnCameraInfo(cam, m); }));
     }
     // Large queues: a long solve holds the callbacks, and nothing may be lost.
     tie_sub_ = nh.subscribe("tie_points", 2000, &BundleAdjusterNodelet::OnTiePoints, this);
@@ -63,7 +65,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     for (const std::string& topic : epoch_topics_)
       epoch_subs_.push_back(nh.subscribe(topic, 20, &BundleAdjusterNodelet::OnEpoch, this));
     run_srv_ = nh.advertiseService("run_adjustment", &BundleAdjusterNodelet::OnRun, this);
-    reference_srv_ = nh.advertiseService("set_reference_epoch", &BundleAdjusterNodelet::OnSetReference, this);
+    reference_srv_ =
+        nh.advertiseService("set_reference_epoch", &BundleAdjusterNodelet::OnSetReference, this);
     // The collector's time-outs are for live sensors only (a complete epoch is
     // decided by the messages); wall time, so that they also end on a replay
     // whose clock stopped with the bag.
@@ -71,15 +74,17 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     updater_->setHardwareID("bundle_adjuster");
     updater_->add("adjustment", this, &BundleAdjusterNodelet::Diagnose);
-    NODELET_INFO("bundle_adjuster: %zu target topics, %zu cameras, %zu targets in '%s'", target_topics_.size(),
-                 collector_options_.cameras.size(), targets_.targets().size(), target_list_path_.c_str());
+    NODELET_INFO("bundle_adjuster: %zu target topics, %zu cameras, %zu targets in '%s'",
+                 target_topics_.size(), collector_options_.cameras.size(),
+                 targets_.targets().size(), target_list_path_.c_str());
   }
 
  private:
   void ReadParameters(ros::NodeHandle& pnh) {
     ros_adapters::ParamReader p(pnh);
     target_list_path_ = p.String("target_list", "");
-    if (target_list_path_.empty()) throw ConfigError("parameter '" + p.FullKey("target_list") + "' is required");
+    if (target_list_path_.empty())
+      throw ConfigError("parameter '" + p.FullKey("target_list") + "' is required");
     targets_ = io::TargetList::Load(target_list_path_);
     target_topics_ = p.StringList("target_topics", {"targets"});
     adjustment::EpochCollectorOptions& c = collector_options_;
@@ -98,7 +103,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     c.epoch_gap = p.Double("epoch_gap", 600.0, 0.0, 1e7, "s");
     c.Check();
     scene_options_.position_prior_max_dt = p.Double("position_prior_max_dt", 0.1, 0.0, 10.0, "s");
-    scene_options_.position_prior_min_sigma = p.Double("position_prior_min_sigma", 0.01, 1e-4, 100.0, "m");
+    scene_options_.position_prior_min_sigma =
+        p.Double("position_prior_min_sigma", 0.01, 1e-4, 100.0, "m");
     scene_options_.min_images = p.Int("min_images", 2, 1, 10000);
     scene_options_.Check();
     auto interior_list = [&p](const std::string& key) {
@@ -107,7 +113,9 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
         int idx = -1;
         for (int i = 0; i < camera::kNumInterior; ++i)
           if (name == camera::InteriorNames()[i]) idx = i;
-        if (idx < 0) throw ConfigError("parameter '" + p.FullKey(key) + "': unknown interior parameter '" + name + "'");
+        if (idx < 0)
+          throw ConfigError("parameter '" + p.FullKey(key) + "': unknown interior parameter '" +
+                            name + "'");
         out.push_back(idx);
       }
       return out;
@@ -119,7 +127,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     o.loss = p.String("loss", "huber", {"none", "huber", "cauchy"});
     o.loss_scale = p.Double("loss_scale", 3.0, 1e-3, 1e3, "sigma");
     o.outlier_threshold = p.Double("outlier_threshold", 5.0, 1e-3, 1e3, "sigma");
-    o.linear_solver = p.String("linear_solver", "auto", {"auto", "dense_schur", "sparse_schur", "iterative_schur"});
+    o.linear_solver = p.String("linear_solver", "auto",
+                               {"auto", "dense_schur", "sparse_schur", "iterative_schur"});
     o.max_iterations = p.Int("max_iterations", 100, 1, 10000);
     o.num_threads = p.Int("num_threads", 1, 1, 64);
     o.minimizer_progress = p.Bool("minimizer_progress", false);
@@ -144,7 +153,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     e.naming.ambiguity_factor = p.Double("naming_ambiguity_factor", 2.0, 1.0, 100.0);
     e.Check();
     displacement_options_.stable_threshold = p.Double("stable_threshold", 0.02, 1e-6, 100.0, "m");
-    displacement_options_.significance_threshold = p.Double("significance_threshold", 3.0, 0.1, 100.0);
+    displacement_options_.significance_threshold =
+        p.Double("significance_threshold", 3.0, 0.1, 100.0);
     displacement_options_.estimate_scale = p.Bool("coregistration_scale", false);
     displacement_options_.Check();
     p.CheckNoUnknownKeys();
@@ -159,7 +169,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     try {
       models_[camera_name] = ros_adapters::CameraModelFromCameraInfo(*msg, pixel_size_);
     } catch (const Error& e) {
-      NODELET_ERROR_THROTTLE(10.0, "bundle_adjuster: camera_info of '%s': %s", camera_name.c_str(), e.what());
+      NODELET_ERROR_THROTTLE(10.0, "bundle_adjuster: camera_info of '%s': %s", camera_name.c_str(),
+                             e.what());
     }
   }
 
@@ -199,12 +210,13 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     if (updater_) updater_->update();
   }
 
-  bool OnRun(slope_monitor::RunAdjustment::Request& req, slope_monitor::RunAdjustment::Response& res) {
+  bool OnRun(slope_monitor::RunAdjustment::Request& req,
+             slope_monitor::RunAdjustment::Response& res) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (req.epoch != 0 && req.epoch != collector_->current_epoch()) {
       res.success = false;
-      res.message =
-          "only the epoch being collected (" + std::to_string(collector_->current_epoch()) + ") can be solved";
+      res.message = "only the epoch being collected (" +
+                    std::to_string(collector_->current_epoch()) + ") can be solved";
       return true;
     }
     res.solution = SolveOne(collector_->TakeNow());
@@ -213,10 +225,12 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     return true;
   }
 
-  bool OnSetReference(slope_monitor::SetReferenceEpoch::Request& req, slope_monitor::SetReferenceEpoch::Response& res) {
+  bool OnSetReference(slope_monitor::SetReferenceEpoch::Request& req,
+                      slope_monitor::SetReferenceEpoch::Response& res) {
     std::lock_guard<std::mutex> lock(mutex_);
     int chosen = -1;
-    const std::string error = store_.SetReference(req.use_latest, static_cast<int>(req.epoch), &chosen);
+    const std::string error =
+        store_.SetReference(req.use_latest, static_cast<int>(req.epoch), &chosen);
     res.success = error.empty();
     res.message = error.empty() ? "reference epoch set to " + std::to_string(chosen) : error;
     if (res.success) res.reference_epoch = chosen;
@@ -231,8 +245,10 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   slope_monitor::AdjustmentSolution SolveOne(const adjustment::CollectedEpoch& epoch) {
     const uint32_t n = epoch.epoch;
     for (const std::string& line : epoch.incomplete)
-      NODELET_WARN("bundle_adjuster: epoch %u (%s): incomplete: %s", n, epoch.reason.c_str(), line.c_str());
-    for (const std::string& line : epoch.dropped) NODELET_WARN("bundle_adjuster: epoch %u: %s", n, line.c_str());
+      NODELET_WARN("bundle_adjuster: epoch %u (%s): incomplete: %s", n, epoch.reason.c_str(),
+                   line.c_str());
+    for (const std::string& line : epoch.dropped)
+      NODELET_WARN("bundle_adjuster: epoch %u: %s", n, line.c_str());
     slope_monitor::AdjustmentSolution out;
     out.header.frame_id = frame_id_;
     out.epoch = n;
@@ -243,7 +259,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       return out;
     }
     try {
-      const adjustment::BuiltScene built = adjustment::BuildScene(epoch, models_, store_, targets_, scene_options_);
+      const adjustment::BuiltScene built =
+          adjustment::BuildScene(epoch, models_, store_, targets_, scene_options_);
       const adjustment::EpochAdjustmentResult result = adjustment::AdjustEpoch(
           built.scene, built.unidentified, adjustment::ListedTargets(targets_), epoch_options_);
       LogResult(n, result, built.unidentified.empty());
@@ -252,54 +269,66 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       last_message_ = s.reason;
       last_usable_ = s.IsSolutionUsable();
       if (!s.IsSolutionUsable()) {
-        NODELET_ERROR_THROTTLE(10.0, "bundle_adjuster: epoch %u not usable: %s (previous solution kept)", n,
-                               s.reason.c_str());
+        NODELET_ERROR_THROTTLE(10.0,
+                               "bundle_adjuster: epoch %u not usable: %s (previous solution kept)",
+                               n, s.reason.c_str());
         solution_pub_.publish(out);
         return out;
       }
       // Accepted: the store keeps poses and calibration; publish everything.
-      const adjustment::EpochPoints ep = store_.Accept(result.scene, s, static_cast<int>(n),
-                                                       out.header.stamp.toSec(),
-                                                       epoch_options_.adjustment.compute_datum_free_covariance);
+      const adjustment::EpochPoints ep =
+          store_.Accept(result.scene, s, static_cast<int>(n), out.header.stamp.toSec(),
+                        epoch_options_.adjustment.compute_datum_free_covariance);
       solution_pub_.publish(out);
-      tf_broadcaster_.sendTransform(ros_adapters::MakeTransforms(result.scene, epoch, frame_id_, out.header.stamp));
+      tf_broadcaster_.sendTransform(
+          ros_adapters::MakeTransforms(result.scene, epoch, frame_id_, out.header.stamp));
       points_pub_.publish(ros_adapters::MakePointCloud(result.scene, s, out.header));
       PublishDisplacements(ep, out.header);
       ++accepted_;
-      NODELET_INFO("bundle_adjuster: epoch %u accepted: %zu images, %zu points, %d observations, sigma0 %.2f, rms %.3f px",
-                   n, result.scene.images.size(), result.scene.points.size(), s.num_observations, s.sigma0,
-                   s.rms_residual_px);
+      NODELET_INFO(
+          "bundle_adjuster: epoch %u accepted: %zu images, %zu points, %d observations, sigma0 "
+          "%.2f, rms %.3f px",
+          n, result.scene.images.size(), result.scene.points.size(), s.num_observations, s.sigma0,
+          s.rms_residual_px);
     } catch (const std::exception& e) {
       out.usable = false;
       out.message = std::string("adjustment failed: ") + e.what();
       last_message_ = out.message;
       last_usable_ = false;
-      NODELET_ERROR_THROTTLE(10.0, "bundle_adjuster: %s (previous solution kept)", out.message.c_str());
+      NODELET_ERROR_THROTTLE(10.0, "bundle_adjuster: %s (previous solution kept)",
+                             out.message.c_str());
       solution_pub_.publish(out);
     }
     return out;
   }
 
-  void LogResult(uint32_t n, const adjustment::EpochAdjustmentResult& result, bool no_unidentified) {
+  void LogResult(uint32_t n, const adjustment::EpochAdjustmentResult& result,
+                 bool no_unidentified) {
     if (!result.initialization.empty())
-      NODELET_WARN_THROTTLE(10.0, "bundle_adjuster: initialisation: %s", result.initialization.c_str());
+      NODELET_WARN_THROTTLE(10.0, "bundle_adjuster: initialisation: %s",
+                            result.initialization.c_str());
     if (!result.pruned.dropped_images.empty() || !result.pruned.dropped_cameras.empty())
-      NODELET_WARN_THROTTLE(10.0, "bundle_adjuster: epoch %u: %s", n, result.pruned.Summary().c_str());
+      NODELET_WARN_THROTTLE(10.0, "bundle_adjuster: epoch %u: %s", n,
+                            result.pruned.Summary().c_str());
     for (const std::string& r : result.rejected_names)
-      NODELET_WARN("bundle_adjuster: epoch %u: target name given by projection rejected: %s", n, r.c_str());
+      NODELET_WARN("bundle_adjuster: epoch %u: target name given by projection rejected: %s", n,
+                   r.c_str());
     for (size_t i = 0; i < result.naming.notes.size() && i < 5; ++i)
       NODELET_DEBUG("bundle_adjuster: epoch %u: %s", n, result.naming.notes[i].c_str());
     last_photos_ = result.photos;
     last_naming_ = result.naming;
     last_rejected_names_ = static_cast<int>(result.rejected_names.size());
     if (result.photos.total > 0 || !no_unidentified)
-      NODELET_INFO("bundle_adjuster: epoch %u: %s; %s; %d oriented from approximate target coordinates; %zu names "
-                   "rejected by the residual test",
-                   n, result.photos.Brief().c_str(), result.naming.Brief().c_str(), result.oriented_from_approximate,
-                   result.rejected_names.size());
+      NODELET_INFO(
+          "bundle_adjuster: epoch %u: %s; %s; %d oriented from approximate target coordinates; %zu "
+          "names "
+          "rejected by the residual test",
+          n, result.photos.Brief().c_str(), result.naming.Brief().c_str(),
+          result.oriented_from_approximate, result.rejected_names.size());
   }
 
-  void PublishDisplacements(const adjustment::EpochPoints& current, const std_msgs::Header& header) {
+  void PublishDisplacements(const adjustment::EpochPoints& current,
+                            const std_msgs::Header& header) {
     const std::optional<adjustment::EpochComparison> cmp =
         store_.CompareWithReference(current, displacement_options_);
     if (!cmp) return;
@@ -308,9 +337,10 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       return;
     }
     const adjustment::EpochPoints& ref = *store_.Reference();
-    NODELET_INFO("bundle_adjuster: epoch %d vs reference %d: %zu monitoring displacements", current.epoch, ref.epoch,
-                 cmp->displacements.size());
-    displacements_pub_.publish(ros_adapters::MakeDisplacements(*cmp, ref, current.epoch, getName(), header));
+    NODELET_INFO("bundle_adjuster: epoch %d vs reference %d: %zu monitoring displacements",
+                 current.epoch, ref.epoch, cmp->displacements.size());
+    displacements_pub_.publish(
+        ros_adapters::MakeDisplacements(*cmp, ref, current.epoch, getName(), header));
   }
 
   void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
@@ -320,7 +350,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     } else if (last_usable_) {
       stat.summary(diagnostic_msgs::DiagnosticStatus::OK, last_message_);
     } else {
-      stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "last epoch not usable: " + last_message_);
+      stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                   "last epoch not usable: " + last_message_);
     }
     stat.add("collected observations", collector_->num_observations());
     stat.add("collected images", collector_->num_images());

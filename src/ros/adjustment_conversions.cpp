@@ -17,10 +17,14 @@ namespace {
 
 uint8_t RoleToMsg(adjustment::PointRole r) {
   switch (r) {
-    case adjustment::PointRole::kControl: return slope_monitor::PointEstimate::ROLE_CONTROL;
-    case adjustment::PointRole::kMonitoring: return slope_monitor::PointEstimate::ROLE_MONITORING;
-    case adjustment::PointRole::kCheck: return slope_monitor::PointEstimate::ROLE_CHECK;
-    default: return slope_monitor::PointEstimate::ROLE_TIE;
+    case adjustment::PointRole::kControl:
+      return slope_monitor::PointEstimate::ROLE_CONTROL;
+    case adjustment::PointRole::kMonitoring:
+      return slope_monitor::PointEstimate::ROLE_MONITORING;
+    case adjustment::PointRole::kCheck:
+      return slope_monitor::PointEstimate::ROLE_CHECK;
+    default:
+      return slope_monitor::PointEstimate::ROLE_TIE;
   }
 }
 
@@ -42,7 +46,8 @@ adjustment::ImageTargets FromMsg(const slope_monitor::TargetObservationArray& ms
   out.epoch = msg.epoch;
   out.targets.reserve(msg.observations.size());
   for (const auto& o : msg.observations)
-    out.targets.push_back({o.id, o.family, Eigen::Vector2d(o.x, o.y), FromRowMajor<2>(o.covariance)});
+    out.targets.push_back(
+        {o.id, o.family, Eigen::Vector2d(o.x, o.y), FromRowMajor<2>(o.covariance)});
   return out;
 }
 
@@ -65,20 +70,23 @@ adjustment::ImageTies FromMsg(const slope_monitor::TiePointArray& msg) {
 adjustment::PositionPrior FromMsg(const geometry_msgs::PoseWithCovarianceStamped& msg) {
   adjustment::PositionPrior out;
   out.stamp = ToStamp(msg.header.stamp);
-  out.position = Eigen::Vector3d(msg.pose.pose.position.x, msg.pose.pose.position.y, msg.pose.pose.position.z);
+  out.position =
+      Eigen::Vector3d(msg.pose.pose.position.x, msg.pose.pose.position.y, msg.pose.pose.position.z);
   for (int r = 0; r < 3; ++r)
     for (int k = 0; k < 3; ++k) out.covariance(r, k) = msg.pose.covariance[6 * r + k];
   return out;
 }
 
 adjustment::EpochEnd FromMsg(const slope_monitor::EpochMarker& msg) {
-  if (!msg.end) throw InvalidArgument("EpochMarker of '" + msg.source + "' is a start marker, not an end");
+  if (!msg.end)
+    throw InvalidArgument("EpochMarker of '" + msg.source + "' is a start marker, not an end");
   return {msg.source, ToStamp(msg.header.stamp), msg.epoch, msg.count};
 }
 
 slope_monitor::AdjustmentSolution MakeSolution(const adjustment::CollectedEpoch& epoch,
-                                                const adjustment::Scene& scene,
-                                                const adjustment::Summary& s, const std::string& frame_id) {
+                                               const adjustment::Scene& scene,
+                                               const adjustment::Summary& s,
+                                               const std::string& frame_id) {
   slope_monitor::AdjustmentSolution out;
   out.header.frame_id = frame_id;
   out.header.stamp = ToRosTime(epoch.latest_stamp);
@@ -111,7 +119,8 @@ slope_monitor::AdjustmentSolution MakeSolution(const adjustment::CollectedEpoch&
     }
     c.site_from_optical = ToPose(im.exterior.SiteFromOptical());
     for (int r = 0; r < 6; ++r)
-      for (int k = 0; k < 6; ++k) c.pose_covariance[6 * r + k] = s.precision.exterior_covariance[i](r, k);
+      for (int k = 0; k < 6; ++k)
+        c.pose_covariance[6 * r + k] = s.precision.exterior_covariance[i](r, k);
     c.theta = im.exterior.angles.theta;
     c.phi = im.exterior.angles.phi;
     c.kappa = im.exterior.angles.kappa;
@@ -141,18 +150,19 @@ slope_monitor::AdjustmentSolution MakeSolution(const adjustment::CollectedEpoch&
   return out;
 }
 
-sensor_msgs::PointCloud2 MakePointCloud(const adjustment::Scene& scene, const adjustment::Summary& s,
+sensor_msgs::PointCloud2 MakePointCloud(const adjustment::Scene& scene,
+                                        const adjustment::Summary& s,
                                         const std_msgs::Header& header) {
   sensor_msgs::PointCloud2 cloud;
   cloud.header = header;
   sensor_msgs::PointCloud2Modifier mod(cloud);
-  mod.setPointCloud2Fields(6, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
-                           "z", 1, sensor_msgs::PointField::FLOAT32, "sigma_x", 1,
-                           sensor_msgs::PointField::FLOAT32, "sigma_y", 1, sensor_msgs::PointField::FLOAT32,
-                           "sigma_z", 1, sensor_msgs::PointField::FLOAT32);
+  mod.setPointCloud2Fields(
+      6, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z", 1,
+      sensor_msgs::PointField::FLOAT32, "sigma_x", 1, sensor_msgs::PointField::FLOAT32, "sigma_y",
+      1, sensor_msgs::PointField::FLOAT32, "sigma_z", 1, sensor_msgs::PointField::FLOAT32);
   mod.resize(scene.points.size());
-  sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"), sx(cloud, "sigma_x"),
-      sy(cloud, "sigma_y"), sz(cloud, "sigma_z");
+  sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"),
+      sx(cloud, "sigma_x"), sy(cloud, "sigma_y"), sz(cloud, "sigma_z");
   for (size_t j = 0; j < scene.points.size(); ++j, ++x, ++y, ++z, ++sx, ++sy, ++sz) {
     const Eigen::Matrix3d& c = s.precision.point_covariance[j];
     *x = static_cast<float>(scene.points[j].position.x());
@@ -174,8 +184,9 @@ std::vector<geometry_msgs::TransformStamped> MakeTransforms(const adjustment::Sc
   // The latest image of each camera defines its frame.
   for (auto it = scene.images.rbegin(); it != scene.images.rend(); ++it) {
     auto ci = epoch.images.find(it->name);
-    const std::string frame =
-        ci != epoch.images.end() ? ci->second.frame_id : scene.cameras[it->camera].name + "_optical";
+    const std::string frame = ci != epoch.images.end()
+                                  ? ci->second.frame_id
+                                  : scene.cameras[it->camera].name + "_optical";
     if (!done.insert(frame).second) continue;
     geometry_msgs::TransformStamped t;
     t.header.stamp = stamp;
@@ -187,17 +198,16 @@ std::vector<geometry_msgs::TransformStamped> MakeTransforms(const adjustment::Sc
   return tfs;
 }
 
-slope_monitor::PointDisplacementArray MakeDisplacements(const adjustment::EpochComparison& comparison,
-                                                        const adjustment::EpochPoints& reference,
-                                                        int epoch, const std::string& source_name,
-                                                        const std_msgs::Header& header) {
+slope_monitor::PointDisplacementArray MakeDisplacements(
+    const adjustment::EpochComparison& comparison, const adjustment::EpochPoints& reference,
+    int epoch, const std::string& source_name, const std_msgs::Header& header) {
   slope_monitor::PointDisplacementArray msg;
   msg.header = header;
   msg.epoch = static_cast<uint32_t>(epoch);
   for (const adjustment::Displacement& d : comparison.displacements) {
     slope_monitor::PointDisplacement p = MakePointDisplacement(
-        d.id, slope_monitor::PointDisplacement::SOURCE_TARGET, source_name, reference.stamp, header.stamp,
-        d.reference_position, d.displacement, d.covariance);
+        d.id, slope_monitor::PointDisplacement::SOURCE_TARGET, source_name, reference.stamp,
+        header.stamp, d.reference_position, d.displacement, d.covariance);
     p.significance = d.significance;
     msg.displacements.push_back(p);
   }

@@ -35,21 +35,21 @@ adjustment::EpochEnd FromMsg(const slope_monitor::EpochMarker& msg);  // msg.end
 // The solution of an epoch (header stamp: its latest image; cameras and
 // points only when the summary is usable).
 slope_monitor::AdjustmentSolution MakeSolution(const adjustment::CollectedEpoch& epoch,
-                                                const adjustment::Scene& scene,
-                                                const adjustment::Summary& summary,
-                                                const std::string& frame_id);
+                                               const adjustment::Scene& scene,
+                                               const adjustment::Summary& summary,
+                                               const std::string& frame_id);
 // Adjusted points with their sigma (fields x y z sigma_x sigma_y sigma_z).
-sensor_msgs::PointCloud2 MakePointCloud(const adjustment::Scene& scene, const adjustment::Summary& summary,
+sensor_msgs::PointCloud2 MakePointCloud(const adjustment::Scene& scene,
+                                        const adjustment::Summary& summary,
                                         const std_msgs::Header& header);
 // site_from_optical of every camera's latest image.
 std::vector<geometry_msgs::TransformStamped> MakeTransforms(const adjustment::Scene& scene,
                                                             const adjustment::CollectedEpoch& epoch,
                                                             const std::string& frame_id,
                                                             const ros::Time& stamp);
-slope_monitor::PointDisplacementArray MakeDisplacements(const adjustment::EpochComparison& comparison,
-                                                        const adjustment::EpochPoints& reference,
-                                                        int epoch, const std::string& source_name,
-                                                        const std_msgs::Header& header);
+slope_monitor::PointDisplacementArray MakeDisplacements(
+    const adjustment::EpochComparison& comparison, const adjustment::EpochPoints& reference,
+    int epoch, const std::string& source_name, const std_msgs::Header& header);
 
 }  // namespace ros_adapters
 }  // namespace slope_monitor

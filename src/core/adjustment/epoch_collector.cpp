@@ -19,11 +19,13 @@ std::string Seconds(double s) { return Message(static_cast<long long>(std::llrou
 StampNs MakeStamp(int64_t sec, int64_t nsec) { return sec * kNsPerSecond + nsec; }
 
 double StampSeconds(StampNs stamp) {
-  return static_cast<double>(stamp / kNsPerSecond) + 1e-9 * static_cast<double>(stamp % kNsPerSecond);
+  return static_cast<double>(stamp / kNsPerSecond) +
+         1e-9 * static_cast<double>(stamp % kNsPerSecond);
 }
 
 std::string ImageKey(const std::string& camera, StampNs stamp) {
-  return camera + "@" + std::to_string(stamp / kNsPerSecond) + "." + std::to_string(stamp % kNsPerSecond);
+  return camera + "@" + std::to_string(stamp / kNsPerSecond) + "." +
+         std::to_string(stamp % kNsPerSecond);
 }
 
 bool IsUavCamera(const std::string& camera) { return camera.find("uav") != std::string::npos; }
@@ -31,9 +33,12 @@ bool IsUavCamera(const std::string& camera) { return camera.find("uav") != std::
 PointRole RoleOf(const io::TargetSpec* spec) {
   if (spec == nullptr) return PointRole::kTie;
   switch (spec->role) {
-    case io::TargetRole::kControl: return PointRole::kControl;
-    case io::TargetRole::kCheck: return PointRole::kCheck;
-    default: return PointRole::kMonitoring;
+    case io::TargetRole::kControl:
+      return PointRole::kControl;
+    case io::TargetRole::kCheck:
+      return PointRole::kCheck;
+    default:
+      return PointRole::kMonitoring;
   }
 }
 
@@ -42,17 +47,20 @@ void EpochCollectorOptions::Check() const {
     throw ConfigError(Message("epoch collector option '", key, "' ", what));
   };
   if (!(pixel_sigma > 0.0)) fail("pixel_sigma", Message("must be > 0, got ", pixel_sigma));
-  if (!(pixel_sigma_floor >= 0.0)) fail("pixel_sigma_floor", Message("must be >= 0, got ", pixel_sigma_floor));
+  if (!(pixel_sigma_floor >= 0.0))
+    fail("pixel_sigma_floor", Message("must be >= 0, got ", pixel_sigma_floor));
   if (!(uav_pixel_sigma_floor >= 0.0))
     fail("uav_pixel_sigma_floor", Message("must be >= 0, got ", uav_pixel_sigma_floor));
   if (!(tie_pixel_sigma_floor >= 0.0))
     fail("tie_pixel_sigma_floor", Message("must be >= 0, got ", tie_pixel_sigma_floor));
   if (!(min_tie_quality >= 0.0 && min_tie_quality <= 1.0))
     fail("min_tie_quality", Message("must be in [0, 1], got ", min_tie_quality));
-  if (!(max_pixel_sigma > 0.0)) fail("max_pixel_sigma", Message("must be > 0, got ", max_pixel_sigma));
+  if (!(max_pixel_sigma > 0.0))
+    fail("max_pixel_sigma", Message("must be > 0, got ", max_pixel_sigma));
   if (!(epoch_gap >= 0.0)) fail("epoch_gap", Message("must be >= 0, got ", epoch_gap));
   if (!(epoch_wait >= 0.0)) fail("epoch_wait", Message("must be >= 0, got ", epoch_wait));
-  if (!(tie_point_wait >= 0.0)) fail("tie_point_wait", Message("must be >= 0, got ", tie_point_wait));
+  if (!(tie_point_wait >= 0.0))
+    fail("tie_point_wait", Message("must be >= 0, got ", tie_point_wait));
 }
 
 EpochCollector::EpochCollector(const EpochCollectorOptions& options, const io::TargetList* targets)
@@ -71,8 +79,8 @@ void EpochCollector::RememberImage(const std::string& key, const std::string& ca
   im.stamp = stamp;
 }
 
-std::optional<Eigen::Matrix2d> EpochCollector::Covariance(const Eigen::Matrix2d& given, double floor,
-                                                          std::string* why) const {
+std::optional<Eigen::Matrix2d> EpochCollector::Covariance(const Eigen::Matrix2d& given,
+                                                          double floor, std::string* why) const {
   Eigen::Matrix2d c = given;
   if (c.isZero()) {
     c = Eigen::Matrix2d::Identity() * options_.pixel_sigma * options_.pixel_sigma;
@@ -80,8 +88,8 @@ std::optional<Eigen::Matrix2d> EpochCollector::Covariance(const Eigen::Matrix2d&
     *why = "covariance not finite";
     return std::nullopt;
   } else if (!(c(0, 0) > 0.0 && c(1, 1) > 0.0 && c.determinant() > 0.0)) {
-    *why = Message("covariance not positive definite ([", c(0, 0), ", ", c(0, 1), "; ", c(1, 0), ", ",
-                   c(1, 1), "] px^2)");
+    *why = Message("covariance not positive definite ([", c(0, 0), ", ", c(0, 1), "; ", c(1, 0),
+                   ", ", c(1, 1), "] px^2)");
     return std::nullopt;
   } else if (std::max(c(0, 0), c(1, 1)) > options_.max_pixel_sigma * options_.max_pixel_sigma) {
     *why = Message("sigma ", std::sqrt(std::max(c(0, 0), c(1, 1))), " px above max_pixel_sigma ",
@@ -99,9 +107,10 @@ std::vector<CollectedEpoch> EpochCollector::AddTargets(const ImageTargets& image
     StampNs latest = 0;
     for (const auto& [key, im] : images_) latest = std::max(latest, im.stamp);
     if (StampSeconds(image.stamp) - StampSeconds(latest) > options_.epoch_gap)
-      done.push_back(Take(Message("an image ", Seconds(StampSeconds(image.stamp) - StampSeconds(latest)),
-                                  " after the previous one (epoch_gap)"),
-                          {}, now));
+      done.push_back(
+          Take(Message("an image ", Seconds(StampSeconds(image.stamp) - StampSeconds(latest)),
+                       " after the previous one (epoch_gap)"),
+               {}, now));
   }
   const std::string key = ImageKey(image.camera, image.stamp);
   RememberImage(key, image.camera, image.frame_id, image.stamp);
@@ -110,13 +119,15 @@ std::vector<CollectedEpoch> EpochCollector::AddTargets(const ImageTargets& image
   if (image.epoch != 0 && ends_.empty()) current_epoch_ = image.epoch;
   // A UAV camera flies with its nominal interior: its model error is far
   // above the centroid precision.
-  const double floor = IsUavCamera(image.camera) ? options_.uav_pixel_sigma_floor : options_.pixel_sigma_floor;
+  const double floor =
+      IsUavCamera(image.camera) ? options_.uav_pixel_sigma_floor : options_.pixel_sigma_floor;
   for (const TargetInput& t : image.targets) {
     CollectedObservation c;
     c.image_key = key;
     c.family = t.family;
     c.pixel = t.pixel;
-    const std::string name = t.id < 0 ? "unidentified " + t.family : t.family + "/" + std::to_string(t.id);
+    const std::string name =
+        t.id < 0 ? "unidentified " + t.family : t.family + "/" + std::to_string(t.id);
     std::string why;
     std::optional<Eigen::Matrix2d> cov = Covariance(t.covariance, floor, &why);
     if (!t.pixel.allFinite()) why = "pixel not finite";
@@ -153,7 +164,7 @@ std::vector<CollectedEpoch> EpochCollector::AddTies(const ImageTies& ties, doubl
     count.expected = ties.pairs_b;
   }
   for (const TieInput& t : ties.points) {
-    if (t.id == 0 || !has_a) continue;  // a match without a track ties this pair only
+    if (t.id == 0 || !has_a) continue;            // a match without a track ties this pair only
     if (t.quality <= options_.min_tie_quality) {  // flagged by the matcher's quality control
       ++tie_points_low_quality_;
       continue;
@@ -161,7 +172,8 @@ std::vector<CollectedEpoch> EpochCollector::AddTies(const ImageTies& ties, doubl
     const std::string id = "tie/" + std::to_string(t.id);
     std::string why;
     // The matcher's covariance is that of xb given xa; xa carries the same.
-    std::optional<Eigen::Matrix2d> cov = Covariance(t.covariance, options_.tie_pixel_sigma_floor, &why);
+    std::optional<Eigen::Matrix2d> cov =
+        Covariance(t.covariance, options_.tie_pixel_sigma_floor, &why);
     if (!(t.a.allFinite() && t.b.allFinite())) why = "pixel not finite";
     if (!why.empty()) {
       dropped_.push_back({kb, kb + ": " + id + " (with " + ka + "): " + why + " (dropped)"});
@@ -186,8 +198,8 @@ std::vector<CollectedEpoch> EpochCollector::AddEnd(const EpochEnd& end, double n
 void EpochCollector::Route(const EpochEnd& end, double now) {
   auto current = ends_.find(end.source);
   auto solved = solved_end_.find(end.source);
-  const std::string what = Message("end marker of '", end.source, "' (epoch ", end.epoch, ", stamp ",
-                                   StampSeconds(end.stamp), " s)");
+  const std::string what = Message("end marker of '", end.source, "' (epoch ", end.epoch,
+                                   ", stamp ", StampSeconds(end.stamp), " s)");
   if (current != ends_.end() && end.stamp == current->second.stamp) {
     ignored_.push_back(what + ": duplicate, ignored");
   } else if (current != ends_.end() && end.stamp < current->second.stamp) {
@@ -229,7 +241,8 @@ bool EpochCollector::InEpoch(const std::string& camera, StampNs stamp) const {
 
 bool EpochCollector::LeftOut(const std::string& camera) const {
   if (ends_.empty() || ends_.count(camera)) return false;
-  return std::find(options_.cameras.begin(), options_.cameras.end(), camera) != options_.cameras.end();
+  return std::find(options_.cameras.begin(), options_.cameras.end(), camera) !=
+         options_.cameras.end();
 }
 
 std::vector<std::string> EpochCollector::MissingEnds() const {
@@ -243,7 +256,8 @@ std::vector<std::string> EpochCollector::MissingImages(bool blocking_only) const
   std::vector<std::string> out;
   for (const auto& [source, end] : ends_) {
     uint32_t have = 0;
-    for (const auto& [key, im] : images_) have += im.camera == source && im.stamp <= end.stamp ? 1 : 0;
+    for (const auto& [key, im] : images_)
+      have += im.camera == source && im.stamp <= end.stamp ? 1 : 0;
     if (have >= end.count) continue;
     // A camera's images arrive in order: once a later one is in, the missing
     // one is not coming.
@@ -265,16 +279,18 @@ std::vector<std::string> EpochCollector::MissingTies() const {
     std::string first_short;
     for (const auto& [key, count] : tie_counts_) {
       auto im = images_.find(key);
-      if (im == images_.end() || im->second.camera != c || im->second.stamp > end->second.stamp) continue;
+      if (im == images_.end() || im->second.camera != c || im->second.stamp > end->second.stamp)
+        continue;
       if (count.received >= count.expected) {
         ++complete;
       } else if (first_short.empty()) {
-        first_short = Message(", e.g. '", key, "' ", count.received, " of ", count.expected, " messages");
+        first_short =
+            Message(", e.g. '", key, "' ", count.received, " of ", count.expected, " messages");
       }
     }
     if (complete < end->second.count)
-      out.push_back(Message("tie points of ", c, ": ", complete, " of ", end->second.count, " images complete",
-                            first_short));
+      out.push_back(Message("tie points of ", c, ": ", complete, " of ", end->second.count,
+                            " images complete", first_short));
   }
   return out;
 }
@@ -298,18 +314,22 @@ std::vector<CollectedEpoch> EpochCollector::TakeReady(double now) {
 std::vector<CollectedEpoch> EpochCollector::Poll(double now) {
   std::vector<CollectedEpoch> done;
   if (ends_.empty()) {
-    if (options_.epoch_gap > 0.0 && !observations_.empty() && now - last_input_at_ > options_.epoch_gap)
-      done.push_back(Take(Message("no input for ", Seconds(now - last_input_at_), " (epoch_gap)"), {}, now));
+    if (options_.epoch_gap > 0.0 && !observations_.empty() &&
+        now - last_input_at_ > options_.epoch_gap)
+      done.push_back(
+          Take(Message("no input for ", Seconds(now - last_input_at_), " (epoch_gap)"), {}, now));
     return done;
   }
   done = TakeReady(now);
   if (!done.empty() || ends_.empty()) return done;
   const double waited = now - ended_at_;
   const bool ties = MissingTies().empty();
-  if (waited > options_.epoch_wait && (ties || waited > std::max(options_.epoch_wait, options_.tie_point_wait)))
-    done.push_back(Take(Message("time-out ", Seconds(waited), " after the last end marker (epoch_wait ",
-                                options_.epoch_wait, " s, tie_point_wait ", options_.tie_point_wait, " s)"),
-                        AllMissing(), now));
+  if (waited > options_.epoch_wait &&
+      (ties || waited > std::max(options_.epoch_wait, options_.tie_point_wait)))
+    done.push_back(
+        Take(Message("time-out ", Seconds(waited), " after the last end marker (epoch_wait ",
+                     options_.epoch_wait, " s, tie_point_wait ", options_.tie_point_wait, " s)"),
+             AllMissing(), now));
   return done;
 }
 
@@ -353,21 +373,28 @@ CollectedEpoch EpochCollector::Take(const std::string& reason, std::vector<std::
   }
   for (const auto& [camera, n] : left_out) {
     const std::string line = Message(camera, ": no end marker (", n, " images left out)");
+    const std::string prefix = camera + ": no end marker";
     auto same = std::find_if(out.incomplete.begin(), out.incomplete.end(),
-                             [&](const std::string& s) { return s.rfind(camera + ": no end marker", 0) == 0; });
-    if (same != out.incomplete.end()) *same = line;
-    else out.incomplete.push_back(line);
+                             [&prefix](const std::string& s) { return s.rfind(prefix, 0) == 0; });
+    if (same != out.incomplete.end())
+      *same = line;
+    else
+      out.incomplete.push_back(line);
   }
   if (!ends_.empty())
     for (const std::string& c : cut_short_)
       if (!left_out.count(c) && !ends_.count(c))
-        if (std::find(out.incomplete.begin(), out.incomplete.end(), c + ": no end marker") == out.incomplete.end())
+        if (std::find(out.incomplete.begin(), out.incomplete.end(), c + ": no end marker") ==
+            out.incomplete.end())
           out.incomplete.push_back(c + ": no end marker");
-  auto split = [&](std::vector<CollectedObservation>* all, std::vector<CollectedObservation>* mine) {
+  auto split = [&](std::vector<CollectedObservation>* all,
+                   std::vector<CollectedObservation>* mine) {
     std::vector<CollectedObservation> rest;
     for (CollectedObservation& o : *all) {
-      if (out.images.count(o.image_key)) mine->push_back(std::move(o));
-      else if (!left_out_keys.count(o.image_key)) rest.push_back(std::move(o));
+      if (out.images.count(o.image_key))
+        mine->push_back(std::move(o));
+      else if (!left_out_keys.count(o.image_key))
+        rest.push_back(std::move(o));
     }
     all->swap(rest);
   };
@@ -375,13 +402,16 @@ CollectedEpoch EpochCollector::Take(const std::string& reason, std::vector<std::
   split(&unidentified_, &out.unidentified);
   std::vector<std::pair<std::string, std::string>> dropped_later;
   for (auto& [key, line] : dropped_) {
-    if (later.count(key)) dropped_later.push_back({key, line});
-    else out.dropped.push_back(line);
+    if (later.count(key))
+      dropped_later.push_back({key, line});
+    else
+      out.dropped.push_back(line);
   }
   dropped_.swap(dropped_later);
   const StampNs cutoff = Cutoff();
   std::vector<PositionPrior> later_priors;
-  for (PositionPrior& p : priors_) (cutoff == 0 || p.stamp <= cutoff ? out.priors : later_priors).push_back(p);
+  for (PositionPrior& p : priors_)
+    (cutoff == 0 || p.stamp <= cutoff ? out.priors : later_priors).push_back(p);
   priors_.swap(later_priors);
   std::map<std::string, TieCount> later_ties;
   for (auto& [key, count] : tie_counts_)
@@ -426,9 +456,10 @@ ObjectPoint MakePoint(const CollectedObservation& c, const io::TargetList& targe
   if (spec == nullptr || !spec->position) return p;
   if (spec->role == io::TargetRole::kControl || spec->role == io::TargetRole::kCheck) {
     p.surveyed = *spec->position;
-    p.surveyed_covariance = Eigen::Vector3d(spec->sigma(0) * spec->sigma(0), spec->sigma(0) * spec->sigma(0),
-                                            spec->sigma(1) * spec->sigma(1))
-                                .asDiagonal();
+    p.surveyed_covariance =
+        Eigen::Vector3d(spec->sigma(0) * spec->sigma(0), spec->sigma(0) * spec->sigma(0),
+                        spec->sigma(1) * spec->sigma(1))
+            .asDiagonal();
     // A check point starts at its survey but unknown: it must not help orient the images.
     if (spec->role == io::TargetRole::kCheck) p.position = *spec->position;
   }
@@ -440,7 +471,8 @@ ObjectPoint MakePoint(const CollectedObservation& c, const io::TargetList& targe
 
 }  // namespace
 
-BuiltScene BuildScene(const CollectedEpoch& epoch, const std::map<std::string, camera::CameraModel>& models,
+BuiltScene BuildScene(const CollectedEpoch& epoch,
+                      const std::map<std::string, camera::CameraModel>& models,
                       const EpochStore& store, const io::TargetList& targets,
                       const BuildSceneOptions& options) {
   options.Check();
@@ -450,8 +482,8 @@ BuiltScene BuildScene(const CollectedEpoch& epoch, const std::map<std::string, c
   for (const auto& [key, im] : epoch.images) {
     auto model = models.find(im.camera);
     if (model == models.end()) {
-      if (std::find(out.cameras_without_model.begin(), out.cameras_without_model.end(), im.camera) ==
-          out.cameras_without_model.end())
+      if (std::find(out.cameras_without_model.begin(), out.cameras_without_model.end(),
+                    im.camera) == out.cameras_without_model.end())
         out.cameras_without_model.push_back(im.camera);
       continue;
     }
@@ -468,7 +500,9 @@ BuiltScene BuildScene(const CollectedEpoch& epoch, const std::map<std::string, c
     image.exterior_known = last != nullptr && !IsUavCamera(im.camera);
     if (image.exterior_known) image.exterior = *last;
     for (const PositionPrior& prior : epoch.priors) {
-      if (std::abs(StampSeconds(prior.stamp) - StampSeconds(im.stamp)) > options.position_prior_max_dt) continue;
+      if (std::abs(StampSeconds(prior.stamp) - StampSeconds(im.stamp)) >
+          options.position_prior_max_dt)
+        continue;
       image.position_prior = prior.position;
       Eigen::Matrix3d c = prior.covariance;
       const double floor = options.position_prior_min_sigma * options.position_prior_min_sigma;
@@ -479,8 +513,9 @@ BuiltScene BuildScene(const CollectedEpoch& epoch, const std::map<std::string, c
     scene.images.push_back(image);
   }
   if (static_cast<int>(scene.images.size()) < options.min_images) {
-    throw InvalidArgument(Message("only ", scene.images.size(), " images with camera_info (min_images = ",
-                                  options.min_images, ")",
+    throw InvalidArgument(Message("only ", scene.images.size(),
+                                  " images with camera_info (min_images = ", options.min_images,
+                                  ")",
                                   out.cameras_without_model.empty()
                                       ? ""
                                       : "; no camera_info for " + out.cameras_without_model[0]));
@@ -520,7 +555,8 @@ std::vector<ListedTarget> ListedTargets(const io::TargetList& targets) {
     if (t.role != io::TargetRole::kMonitoring) {
       l.surveyed = *t.position;
       l.surveyed_covariance =
-          Eigen::Vector3d(t.sigma(0) * t.sigma(0), t.sigma(0) * t.sigma(0), t.sigma(1) * t.sigma(1)).asDiagonal();
+          Eigen::Vector3d(t.sigma(0) * t.sigma(0), t.sigma(0) * t.sigma(0), t.sigma(1) * t.sigma(1))
+              .asDiagonal();
     }
     out.push_back(l);
   }
@@ -554,8 +590,8 @@ const EpochPoints* EpochStore::Reference() const {
   return it == epochs_.end() ? nullptr : &it->second;
 }
 
-std::optional<EpochComparison> EpochStore::CompareWithReference(const EpochPoints& current,
-                                                                const DisplacementOptions& options) const {
+std::optional<EpochComparison> EpochStore::CompareWithReference(
+    const EpochPoints& current, const DisplacementOptions& options) const {
   const EpochPoints* ref = Reference();
   if (ref == nullptr || ref->epoch == current.epoch) return std::nullopt;
   return CompareEpochs(*ref, current, options);
@@ -564,7 +600,8 @@ std::optional<EpochComparison> EpochStore::CompareWithReference(const EpochPoint
 std::string EpochStore::SetReference(bool use_latest, int epoch, int* chosen) {
   if (epochs_.empty()) return "no accepted epoch yet";
   const int wanted = use_latest ? epochs_.rbegin()->first : epoch;
-  if (!epochs_.count(wanted)) return "epoch " + std::to_string(wanted) + " has no accepted solution";
+  if (!epochs_.count(wanted))
+    return "epoch " + std::to_string(wanted) + " has no accepted solution";
   reference_epoch_ = wanted;
   *chosen = wanted;
   return "";

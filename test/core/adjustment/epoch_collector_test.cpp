@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <limits>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -22,14 +23,17 @@ namespace {
 
 constexpr int64_t kT0 = 1700000000;  // [s] start of the hand-made sequences
 
-StampNs At(double seconds) { return MakeStamp(kT0, 0) + static_cast<StampNs>(std::llround(seconds * 1e9)); }
+StampNs At(double seconds) {
+  return MakeStamp(kT0, 0) + static_cast<StampNs>(std::llround(seconds * 1e9));
+}
 
-ImageTargets Image(const std::string& camera, double t, int n_targets = 3) {
+ImageTargets Shot(const std::string& camera, double t, int n_targets = 3) {
   ImageTargets im;
   im.camera = camera;
   im.stamp = At(t);
   for (int k = 0; k < n_targets; ++k)
-    im.targets.push_back({k, "tag36h11", Eigen::Vector2d(100.0 + 10 * k, 200.0), Eigen::Matrix2d::Zero()});
+    im.targets.push_back(
+        {k, "tag36h11", Eigen::Vector2d(100.0 + 10 * k, 200.0), Eigen::Matrix2d::Zero()});
   return im;
 }
 
@@ -51,10 +55,10 @@ bool Mentions(const std::vector<std::string>& lines, const std::string& text) {
 
 TEST(EpochCollector, InterleavedCamerasMakeOneEpochWhenBothEnded) {
   EpochCollector c(TwoCameras(), nullptr);
-  EXPECT_TRUE(c.AddTargets(Image("fixed_cam_1", 0), 0).empty());
-  EXPECT_TRUE(c.AddTargets(Image("fixed_cam_2", 1), 0).empty());
-  EXPECT_TRUE(c.AddTargets(Image("fixed_cam_1", 2), 0).empty());
-  EXPECT_TRUE(c.AddTargets(Image("fixed_cam_2", 3), 0).empty());
+  EXPECT_TRUE(c.AddTargets(Shot("fixed_cam_1", 0), 0).empty());
+  EXPECT_TRUE(c.AddTargets(Shot("fixed_cam_2", 1), 0).empty());
+  EXPECT_TRUE(c.AddTargets(Shot("fixed_cam_1", 2), 0).empty());
+  EXPECT_TRUE(c.AddTargets(Shot("fixed_cam_2", 3), 0).empty());
   EXPECT_TRUE(c.AddEnd(End("fixed_cam_1", 2.5, 2), 0).empty());  // fixed_cam_2 has not ended
   const std::vector<CollectedEpoch> done = c.AddEnd(End("fixed_cam_2", 3.5, 2), 0);
   ASSERT_EQ(done.size(), 1u);
@@ -71,10 +75,10 @@ TEST(EpochCollector, EndMarkerBeforeItsImagesWaitsForTheAnnouncedCount) {
   // The markers come straight from the cameras; the centroider lags.
   EXPECT_TRUE(c.AddEnd(End("fixed_cam_1", 2.5, 2), 0).empty());
   EXPECT_TRUE(c.AddEnd(End("fixed_cam_2", 3.5, 2), 0).empty());
-  EXPECT_TRUE(c.AddTargets(Image("fixed_cam_1", 0), 0).empty());
-  EXPECT_TRUE(c.AddTargets(Image("fixed_cam_2", 1), 0).empty());
-  EXPECT_TRUE(c.AddTargets(Image("fixed_cam_1", 2), 0).empty());
-  const std::vector<CollectedEpoch> done = c.AddTargets(Image("fixed_cam_2", 3), 0);
+  EXPECT_TRUE(c.AddTargets(Shot("fixed_cam_1", 0), 0).empty());
+  EXPECT_TRUE(c.AddTargets(Shot("fixed_cam_2", 1), 0).empty());
+  EXPECT_TRUE(c.AddTargets(Shot("fixed_cam_1", 2), 0).empty());
+  const std::vector<CollectedEpoch> done = c.AddTargets(Shot("fixed_cam_2", 3), 0);
   ASSERT_EQ(done.size(), 1u);
   EXPECT_EQ(done[0].images.size(), 4u);
   EXPECT_TRUE(done[0].incomplete.empty());
@@ -82,27 +86,90 @@ TEST(EpochCollector, EndMarkerBeforeItsImagesWaitsForTheAnnouncedCount) {
 
 TEST(EpochCollector, NextEpochImagesStayForTheNextEpoch) {
   EpochCollector c(TwoCameras(), nullptr);
-  c.AddTargets(Image("fixed_cam_1", 0), 0);
+  c.AddTargets(Shot("fixed_cam_1", 0), 0);
   c.AddEnd(End("fixed_cam_1", 0.5, 1), 0);
   c.AddEnd(End("fixed_cam_2", 1.5, 1), 0);
   // fixed_cam_1's next epoch arrives before fixed_cam_2's late image.
-  EXPECT_TRUE(c.AddTargets(Image("fixed_cam_1", 3600), 0).empty());
-  const std::vector<CollectedEpoch> done = c.AddTargets(Image("fixed_cam_2", 1), 0);
+  EXPECT_TRUE(c.AddTargets(Shot("fixed_cam_1", 3600), 0).empty());
+  const std::vector<CollectedEpoch> done = c.AddTargets(Shot("fixed_cam_2", 1), 0);
   ASSERT_EQ(done.size(), 1u);
   EXPECT_EQ(done[0].images.size(), 2u);
   EXPECT_FALSE(done[0].images.count(ImageKey("fixed_cam_1", At(3600))));
   EXPECT_EQ(c.num_images(), 1u);  // the next epoch's image
 }
 
+// Any arrival order a graph can produce (each camera's stream in order, its
+// end marker anywhere among its epoch's images since the centroider lags the
+// camera, the markers in stamp order, the two cameras' streams interleaved at
+// random) gives the same epochs.
+TEST(EpochCollector, ArrivalOrderDoesNotChangeTheEpochs) {
+  struct Input {
+    bool end = false;
+    ImageTargets image;
+    EpochEnd marker;
+  };
+  std::mt19937 rng(42);
+  for (int trial = 0; trial < 50; ++trial) {
+    std::vector<std::vector<Input>> streams;
+    for (const std::string camera : {"fixed_cam_1", "fixed_cam_2"}) {
+      std::vector<Input> stream;
+      for (uint32_t epoch = 1; epoch <= 2; ++epoch) {
+        const double t0 = 10800.0 * (epoch - 1) + (camera == "fixed_cam_1" ? 0.0 : 0.5);
+        std::vector<Input> part;
+        for (int k = 0; k < 3; ++k) part.push_back({false, Shot(camera, t0 + k), {}});
+        const size_t at = std::uniform_int_distribution<size_t>(0, part.size())(rng);
+        part.insert(part.begin() + static_cast<long>(at),
+                    Input{true, {}, End(camera, t0 + 2.9, 3, epoch)});
+        stream.insert(stream.end(), part.begin(), part.end());
+      }
+      streams.push_back(stream);
+    }
+    EpochCollector c(TwoCameras(), nullptr);
+    std::vector<CollectedEpoch> done;
+    size_t next[2] = {0, 0};
+    while (next[0] < streams[0].size() || next[1] < streams[1].size()) {
+      int s = std::uniform_int_distribution<int>(0, 1)(rng);
+      if (next[s] == streams[s].size()) s = 1 - s;
+      // The markers come straight from the cameras: in stamp order across
+      // cameras (only the centroider's output lags).
+      const int o = 1 - s;
+      if (streams[s][next[s]].end && next[o] < streams[o].size() &&
+          (!streams[o][next[o]].end ||
+           streams[o][next[o]].marker.stamp < streams[s][next[s]].marker.stamp)) {
+        bool earlier_marker_pending = false;
+        for (size_t k = next[o]; k < streams[o].size(); ++k)
+          if (streams[o][k].end) {
+            earlier_marker_pending = streams[o][k].marker.stamp < streams[s][next[s]].marker.stamp;
+            break;
+          }
+        if (earlier_marker_pending) s = o;
+      }
+      const Input& in = streams[s][next[s]++];
+      for (CollectedEpoch& e : in.end ? c.AddEnd(in.marker, 0) : c.AddTargets(in.image, 0))
+        done.push_back(std::move(e));
+    }
+    ASSERT_EQ(done.size(), 2u) << "trial " << trial;
+    for (uint32_t k = 0; k < 2; ++k) {
+      EXPECT_EQ(done[k].epoch, k + 1);
+      ASSERT_EQ(done[k].images.size(), 6u) << "trial " << trial;
+      for (const auto& [key, im] : done[k].images)
+        EXPECT_EQ(static_cast<int>(StampSeconds(im.stamp - At(0)) / 10800.0), static_cast<int>(k))
+            << key;
+      EXPECT_EQ(done[k].observations.size(), 18u);
+      EXPECT_TRUE(done[k].incomplete.empty());
+    }
+  }
+}
+
 TEST(EpochCollector, MissingImageIsGivenUpWhenTheCamerasNextImageComes) {
   EpochCollector c(TwoCameras(), nullptr);
-  c.AddTargets(Image("fixed_cam_1", 0), 0);
-  c.AddTargets(Image("fixed_cam_2", 1), 0);
+  c.AddTargets(Shot("fixed_cam_1", 0), 0);
+  c.AddTargets(Shot("fixed_cam_2", 1), 0);
   c.AddEnd(End("fixed_cam_1", 2.5, 2), 0);  // announces 2, its second image never comes
   EXPECT_TRUE(c.AddEnd(End("fixed_cam_2", 3.5, 1), 0).empty());
   // fixed_cam_1's images arrive in order: its next epoch's image means the
   // missing one is not coming.
-  const std::vector<CollectedEpoch> done = c.AddTargets(Image("fixed_cam_1", 3600), 0);
+  const std::vector<CollectedEpoch> done = c.AddTargets(Shot("fixed_cam_1", 3600), 0);
   ASSERT_EQ(done.size(), 1u);
   EXPECT_EQ(done[0].images.size(), 2u);
   ASSERT_EQ(done[0].incomplete.size(), 1u);
@@ -112,8 +179,8 @@ TEST(EpochCollector, MissingImageIsGivenUpWhenTheCamerasNextImageComes) {
 
 TEST(EpochCollector, MissingImageAtTheEndOfInputIsNamed) {
   EpochCollector c(TwoCameras(), nullptr);
-  c.AddTargets(Image("fixed_cam_1", 0), 0);
-  c.AddTargets(Image("fixed_cam_2", 1), 0);
+  c.AddTargets(Shot("fixed_cam_1", 0), 0);
+  c.AddTargets(Shot("fixed_cam_2", 1), 0);
   c.AddEnd(End("fixed_cam_1", 2.5, 2), 0);
   EXPECT_TRUE(c.AddEnd(End("fixed_cam_2", 3.5, 1), 0).empty());
   const std::optional<CollectedEpoch> last = c.Finish();
@@ -126,15 +193,15 @@ TEST(EpochCollector, MissingImageAtTheEndOfInputIsNamed) {
 
 TEST(EpochCollector, DuplicatedAndStaleMarkersAreIgnoredAndNamed) {
   EpochCollector c(TwoCameras(), nullptr);
-  c.AddTargets(Image("fixed_cam_1", 0), 0);
-  c.AddTargets(Image("fixed_cam_2", 1), 0);
+  c.AddTargets(Shot("fixed_cam_1", 0), 0);
+  c.AddTargets(Shot("fixed_cam_2", 1), 0);
   EXPECT_TRUE(c.AddEnd(End("fixed_cam_1", 0.5, 1), 0).empty());
   EXPECT_TRUE(c.AddEnd(End("fixed_cam_1", 0.5, 1), 0).empty());  // duplicate
   EXPECT_EQ(c.AddEnd(End("fixed_cam_2", 1.5, 1), 0).size(), 1u);
   // The same marker again, after its epoch was solved (a re-sent latched topic).
   EXPECT_TRUE(c.AddEnd(End("fixed_cam_2", 1.5, 1), 0).empty());
   // An out-of-order marker older than the one being collected.
-  c.AddTargets(Image("fixed_cam_1", 3600), 0);
+  c.AddTargets(Shot("fixed_cam_1", 3600), 0);
   EXPECT_TRUE(c.AddEnd(End("fixed_cam_1", 3600.5, 1, 2), 0).empty());
   EXPECT_TRUE(c.AddEnd(End("fixed_cam_1", 3000, 1, 2), 0).empty());
   ASSERT_EQ(c.ignored().size(), 3u);
@@ -150,14 +217,14 @@ TEST(EpochCollector, IncompleteUavFlightDoesNotBlockTheFixedCameras) {
   EpochCollectorOptions o = TwoCameras();
   o.cameras.push_back("uav");
   EpochCollector c(o, nullptr);
-  c.AddTargets(Image("fixed_cam_1", 0), 0);
-  c.AddTargets(Image("fixed_cam_2", 1), 0);
-  c.AddTargets(Image("uav", 2), 0);
-  c.AddTargets(Image("uav", 3), 0);  // the flight is cut short: no end marker
+  c.AddTargets(Shot("fixed_cam_1", 0), 0);
+  c.AddTargets(Shot("fixed_cam_2", 1), 0);
+  c.AddTargets(Shot("uav", 2), 0);
+  c.AddTargets(Shot("uav", 3), 0);  // the flight is cut short: no end marker
   c.AddEnd(End("fixed_cam_1", 10, 1), 0);
   EXPECT_TRUE(c.AddEnd(End("fixed_cam_2", 11, 1), 0).empty());  // waits for the UAV
   // The fixed cameras' next epoch: the UAV will not end epoch 1 any more.
-  c.AddTargets(Image("fixed_cam_1", 3600), 0);
+  c.AddTargets(Shot("fixed_cam_1", 3600), 0);
   const std::vector<CollectedEpoch> done = c.AddEnd(End("fixed_cam_1", 3600.5, 1, 2), 0);
   ASSERT_EQ(done.size(), 1u);
   EXPECT_EQ(done[0].epoch, 1u);
@@ -175,8 +242,8 @@ TEST(EpochCollector, UavEpochWaitsForItsTiePoints) {
   o.cameras = {"uav"};
   o.tie_point_cameras = {"uav"};
   EpochCollector c(o, nullptr);
-  c.AddTargets(Image("uav", 0), 0);
-  c.AddTargets(Image("uav", 1), 0);
+  c.AddTargets(Shot("uav", 0), 0);
+  c.AddTargets(Shot("uav", 1), 0);
   EXPECT_TRUE(c.AddEnd(End("uav", 1.5, 2), 0).empty());
   ImageTies first;  // image 0: no partner, one message
   first.camera_b = "uav";
@@ -189,11 +256,13 @@ TEST(EpochCollector, UavEpochWaitsForItsTiePoints) {
   second.stamp_a = At(0);
   second.stamp_b = At(1);
   second.pairs_b = 2;
-  second.points.push_back({7, 0.9, Eigen::Vector2d(10, 10), Eigen::Vector2d(12, 10), Eigen::Matrix2d::Zero()});
+  second.points.push_back(
+      {7, 0.9, Eigen::Vector2d(10, 10), Eigen::Vector2d(12, 10), Eigen::Matrix2d::Zero()});
   EXPECT_TRUE(c.AddTies(second, 0).empty());
   const std::vector<CollectedEpoch> done = c.AddTies(second, 0);
   ASSERT_EQ(done.size(), 1u);
-  EXPECT_EQ(done[0].observations.size(), 2u * 3u + 2u * 2u);  // 3 targets per image, tie 7 twice in both
+  EXPECT_EQ(done[0].observations.size(),
+            2u * 3u + 2u * 2u);  // 3 targets per image, tie 7 twice in both
   EXPECT_EQ(c.tie_points_used(), 2u);
 }
 
@@ -203,7 +272,7 @@ TEST(EpochCollector, TiePointsAreNotAwaitedWhenNoMatcherPublishes) {
   o.tie_point_cameras = {"uav"};
   EpochCollector c(o, nullptr);
   c.SetTiePointsExpected(false);
-  c.AddTargets(Image("uav", 0), 0);
+  c.AddTargets(Shot("uav", 0), 0);
   EXPECT_EQ(c.AddEnd(End("uav", 0.5, 1), 0).size(), 1u);
 }
 
@@ -211,7 +280,7 @@ TEST(EpochCollector, LiveTimeOutNamesTheInputItGaveUpOn) {
   EpochCollectorOptions o = TwoCameras();
   o.epoch_wait = 30.0;
   EpochCollector c(o, nullptr);
-  c.AddTargets(Image("fixed_cam_1", 0), 100.0);
+  c.AddTargets(Shot("fixed_cam_1", 0), 100.0);
   c.AddEnd(End("fixed_cam_1", 0.5, 1), 100.0);
   c.AddEnd(End("fixed_cam_2", 1.5, 1), 100.0);  // its image never comes
   EXPECT_TRUE(c.Poll(129.0).empty());
@@ -226,9 +295,9 @@ TEST(EpochCollector, WithoutMarkersAGapInTheImageStampsEndsTheEpoch) {
   EpochCollectorOptions o;
   o.epoch_gap = 600.0;
   EpochCollector c(o, nullptr);
-  EXPECT_TRUE(c.AddTargets(Image("fixed_cam_1", 0), 0).empty());
-  EXPECT_TRUE(c.AddTargets(Image("fixed_cam_2", 599), 0).empty());
-  const std::vector<CollectedEpoch> done = c.AddTargets(Image("fixed_cam_1", 1200), 0);
+  EXPECT_TRUE(c.AddTargets(Shot("fixed_cam_1", 0), 0).empty());
+  EXPECT_TRUE(c.AddTargets(Shot("fixed_cam_2", 599), 0).empty());
+  const std::vector<CollectedEpoch> done = c.AddTargets(Shot("fixed_cam_1", 1200), 0);
   ASSERT_EQ(done.size(), 1u);
   EXPECT_EQ(done[0].images.size(), 2u);
   EXPECT_EQ(c.num_images(), 1u);
@@ -236,13 +305,13 @@ TEST(EpochCollector, WithoutMarkersAGapInTheImageStampsEndsTheEpoch) {
 
 TEST(EpochCollector, BadObservationsAreDroppedAndNamed) {
   EpochCollector c(TwoCameras(), nullptr);
-  ImageTargets im = Image("fixed_cam_1", 0, 5);
+  ImageTargets im = Shot("fixed_cam_1", 0, 5);
   im.targets[1].pixel.x() = std::numeric_limits<double>::quiet_NaN();
   im.targets[2].covariance << -1.0, 0.0, 0.0, 1.0;
   im.targets[3].covariance = Eigen::Matrix2d::Identity() * 1e8;  // 10000 px sigma
   im.targets[4].covariance(0, 1) = std::numeric_limits<double>::infinity();
   c.AddTargets(im, 0);
-  c.AddTargets(Image("fixed_cam_2", 1), 0);
+  c.AddTargets(Shot("fixed_cam_2", 1), 0);
   c.AddEnd(End("fixed_cam_1", 0.5, 1), 0);
   const std::vector<CollectedEpoch> done = c.AddEnd(End("fixed_cam_2", 1.5, 1), 0);
   ASSERT_EQ(done.size(), 1u);
@@ -250,14 +319,17 @@ TEST(EpochCollector, BadObservationsAreDroppedAndNamed) {
   ASSERT_EQ(done[0].dropped.size(), 4u);
   const std::string key = ImageKey("fixed_cam_1", At(0));
   EXPECT_EQ(done[0].dropped[0], key + ": tag36h11/1: pixel not finite (dropped)");
-  EXPECT_NE(done[0].dropped[1].find("tag36h11/2: covariance not positive definite"), std::string::npos);
-  EXPECT_NE(done[0].dropped[2].find("tag36h11/3: sigma 10000 px above max_pixel_sigma"), std::string::npos);
+  EXPECT_NE(done[0].dropped[1].find("tag36h11/2: covariance not positive definite"),
+            std::string::npos);
+  EXPECT_NE(done[0].dropped[2].find("tag36h11/3: sigma 10000 px above max_pixel_sigma"),
+            std::string::npos);
   EXPECT_NE(done[0].dropped[3].find("tag36h11/4: covariance not finite"), std::string::npos);
   EXPECT_EQ(c.observations_dropped(), 4u);
 }
 
 TEST(EpochCollector, ImageKeyAndStampsAreExact) {
-  EXPECT_EQ(ImageKey("fixed_cam_1", MakeStamp(1700000000, 500000000)), "fixed_cam_1@1700000000.500000000");
+  EXPECT_EQ(ImageKey("fixed_cam_1", MakeStamp(1700000000, 500000000)),
+            "fixed_cam_1@1700000000.500000000");
   EXPECT_EQ(ImageKey("c", MakeStamp(12, 5)), "c@12.5");
   EXPECT_DOUBLE_EQ(StampSeconds(MakeStamp(12, 500000000)), 12.5);
   EXPECT_TRUE(IsUavCamera("uav"));
@@ -296,10 +368,14 @@ FixedEpoch MakeFixedEpoch() {
     const int id = std::stoi(p.id.substr(p.id.find('/') + 1));
     const bool surveyed = p.role == PointRole::kControl || p.role == PointRole::kCheck;
     const Eigen::Vector3d x = surveyed ? *p.surveyed : p.position;
-    yaml += Message("  - {id: ", id, ", family: tag36h11, size: 0.6, role: ",
-                    p.role == PointRole::kControl ? "control" : (p.role == PointRole::kCheck ? "check" : "monitoring"),
-                    surveyed ? Message(", position: [", x.x(), ", ", x.y(), ", ", x.z(), "], sigma: [0.003, 0.003]") : "",
-                    "}\n");
+    yaml += Message(
+        "  - {id: ", id, ", family: tag36h11, size: 0.6, role: ",
+        p.role == PointRole::kControl ? "control"
+                                      : (p.role == PointRole::kCheck ? "check" : "monitoring"),
+        surveyed
+            ? Message(", position: [", x.x(), ", ", x.y(), ", ", x.z(), "], sigma: [0.003, 0.003]")
+            : "",
+        "}\n");
   }
   f.targets = io::TargetList::FromYaml(yaml, "epoch_collector_test targets");
   for (const Camera& cam : f.scene.observed.cameras) f.models[cam.name] = cam.model;
@@ -332,20 +408,23 @@ TEST(EpochCollector, BadObservationIsDroppedAndTheRestOfTheEpochIsSolved) {
     c.AddTargets(im, 0);
   }
   for (size_t i = 0; i < observed.images.size(); ++i) {
-    for (CollectedEpoch& e : c.AddEnd(End(observed.cameras[observed.images[i].camera].name,
-                                          static_cast<double>(i) + 0.5, 1), 0))
+    for (CollectedEpoch& e : c.AddEnd(
+             End(observed.cameras[observed.images[i].camera].name, static_cast<double>(i) + 0.5, 1),
+             0))
       done.push_back(std::move(e));
   }
   ASSERT_EQ(done.size(), 1u);
   ASSERT_EQ(done[0].dropped.size(), 1u);
-  EXPECT_NE(done[0].dropped[0].find(bad + ": covariance not finite (dropped)"), std::string::npos) << done[0].dropped[0];
+  EXPECT_NE(done[0].dropped[0].find(bad + ": covariance not finite (dropped)"), std::string::npos)
+      << done[0].dropped[0];
   EXPECT_EQ(done[0].observations.size(), observed.observations.size() - 1);
 
   EpochStore store;
   const BuiltScene built = BuildScene(done[0], f.models, store, f.targets, BuildSceneOptions());
   EXPECT_EQ(built.scene.images.size(), 3u);
   EpochAdjustmentOptions options;
-  const EpochAdjustmentResult result = AdjustEpoch(built.scene, built.unidentified, ListedTargets(f.targets), options);
+  const EpochAdjustmentResult result =
+      AdjustEpoch(built.scene, built.unidentified, ListedTargets(f.targets), options);
   ASSERT_TRUE(result.summary.IsSolutionUsable()) << result.summary.reason;
   // Every monitoring point (the bad one still seen by the other cameras)
   // within 1 cm of the truth (0.1 px noise at 100-200 m: a few mm).

@@ -58,10 +58,10 @@ bool IsUavCamera(const std::string& camera);
 
 // One target observation of an image (TargetObservation).
 struct TargetInput {
-  int id = -1;                // -1: unidentified (a circle the centroider could not name)
-  std::string family;         // "tag36h11", "circle"
-  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();          // [px]
-  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();     // [px^2]; zero: not given (pixel_sigma)
+  int id = -1;         // -1: unidentified (a circle the centroider could not name)
+  std::string family;  // "tag36h11", "circle"
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();       // [px]
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();  // [px^2]; zero: not given (pixel_sigma)
 };
 
 // All targets of one image (TargetObservationArray).
@@ -78,7 +78,7 @@ struct TieInput {
   int64_t id = 0;  // track id; 0: no track
   double quality = 1.0;
   Eigen::Vector2d a = Eigen::Vector2d::Zero(), b = Eigen::Vector2d::Zero();  // [px]
-  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();                      // [px^2]; zero: not given
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();  // [px^2]; zero: not given
 };
 
 // The matches of one image pair (TiePointArray).
@@ -129,23 +129,25 @@ struct CollectedEpoch {
   // Inputs given up on: "uav_1: no end marker (3 images left out)",
   // "fixed_cam_2: 1 of 2 announced images", "tie points of 'uav_1@...': 1 of 3 messages".
   std::vector<std::string> incomplete;
-  std::vector<std::string> dropped;  // bad observations: "fixed_cam_1@...: tag36h11/3: covariance not finite"
-  std::string reason;                // what completed it: "end markers", "time-out", "end of input", ...
+  std::vector<std::string>
+      dropped;         // bad observations: "fixed_cam_1@...: tag36h11/3: covariance not finite"
+  std::string reason;  // what completed it: "end markers", "time-out", "end of input", ...
 };
 
 struct EpochCollectorOptions {
   std::vector<std::string> cameras;            // cameras that must end an epoch; empty: any source
   std::vector<std::string> tie_point_cameras;  // cameras whose images wait for their tie points
-  double pixel_sigma = 0.3;            // [px] observations without a covariance, > 0
-  double pixel_sigma_floor = 0.05;     // [px] added in quadrature, fixed cameras, >= 0
-  double uav_pixel_sigma_floor = 1.0;  // [px] added in quadrature, UAV cameras, >= 0
-  double tie_pixel_sigma_floor = 0.2;  // [px] added in quadrature to tie points, >= 0
-  double min_tie_quality = 0.25;       // [0..1] tie points at or below are skipped
-  double max_pixel_sigma = 100.0;      // [px] an observation with a larger sigma is absurd: dropped, > 0
-  double epoch_gap = 600.0;            // [s] message gap ending an epoch without markers; 0: off
-  double epoch_wait = 30.0;            // [s] live time-out after the last end marker, >= 0
-  double tie_point_wait = 300.0;       // [s] live time-out for tie points, >= 0
-  void Check() const;                  // throws ConfigError naming the field
+  double pixel_sigma = 0.3;                    // [px] observations without a covariance, > 0
+  double pixel_sigma_floor = 0.05;             // [px] added in quadrature, fixed cameras, >= 0
+  double uav_pixel_sigma_floor = 1.0;          // [px] added in quadrature, UAV cameras, >= 0
+  double tie_pixel_sigma_floor = 0.2;          // [px] added in quadrature to tie points, >= 0
+  double min_tie_quality = 0.25;               // [0..1] tie points at or below are skipped
+  double max_pixel_sigma =
+      100.0;                      // [px] an observation with a larger sigma is absurd: dropped, > 0
+  double epoch_gap = 600.0;       // [s] message gap ending an epoch without markers; 0: off
+  double epoch_wait = 30.0;       // [s] live time-out after the last end marker, >= 0
+  double tie_point_wait = 300.0;  // [s] live time-out for tie points, >= 0
+  void Check() const;             // throws ConfigError naming the field
 };
 
 class EpochCollector {
@@ -196,8 +198,8 @@ class EpochCollector {
   void Route(const EpochEnd& end, double now);
   bool InEpoch(const std::string& camera, StampNs stamp) const;
   bool LeftOut(const std::string& camera) const;  // a configured camera without an end marker
-  StampNs Cutoff() const;                          // latest end marker stamp
-  std::vector<std::string> MissingEnds() const;    // configured cameras without an end marker
+  StampNs Cutoff() const;                         // latest end marker stamp
+  std::vector<std::string> MissingEnds() const;   // configured cameras without an end marker
   // Ended sources short of their announced count (blocking_only: and no later
   // image of that camera has come).
   std::vector<std::string> MissingImages(bool blocking_only) const;
@@ -219,8 +221,8 @@ class EpochCollector {
   std::map<std::string, TieCount> tie_counts_;  // per image b
   // The epoch's end markers: stamp and announced count per source.
   std::map<std::string, EpochEnd> ends_;
-  std::vector<EpochEnd> deferred_ends_;  // next epoch's markers, while this one waits
-  std::set<std::string> cut_short_;      // cameras declared incomplete by a next-epoch marker
+  std::vector<EpochEnd> deferred_ends_;        // next epoch's markers, while this one waits
+  std::set<std::string> cut_short_;            // cameras declared incomplete by a next-epoch marker
   std::map<std::string, StampNs> solved_end_;  // last solved end marker per source
   std::map<std::string, StampNs> latest_image_;  // per camera
   double ended_at_ = 0.0, last_input_at_ = 0.0;
@@ -231,10 +233,10 @@ class EpochCollector {
 };
 
 struct BuildSceneOptions {
-  double position_prior_max_dt = 0.1;     // [s] prior to image stamp, >= 0
-  double position_prior_min_sigma = 0.01; // [m] floor of the prior's sigma, > 0
-  int min_images = 2;                     // images with a camera model, >= 1
-  void Check() const;                     // throws ConfigError naming the field
+  double position_prior_max_dt = 0.1;      // [s] prior to image stamp, >= 0
+  double position_prior_min_sigma = 0.01;  // [m] floor of the prior's sigma, > 0
+  int min_images = 2;                      // images with a camera model, >= 1
+  void Check() const;                      // throws ConfigError naming the field
 };
 
 // Accepted epochs: the poses and calibration the next epoch starts from, the
@@ -275,7 +277,8 @@ struct BuiltScene {
 // accepted pose; GNSS priors within position_prior_max_dt), points with their
 // role and survey from the target list. Throws InvalidArgument when fewer than
 // min_images images have a camera model (naming a camera without one).
-BuiltScene BuildScene(const CollectedEpoch& epoch, const std::map<std::string, camera::CameraModel>& models,
+BuiltScene BuildScene(const CollectedEpoch& epoch,
+                      const std::map<std::string, camera::CameraModel>& models,
                       const EpochStore& store, const io::TargetList& targets,
                       const BuildSceneOptions& options);
 
