@@ -520,7 +520,20 @@ BuiltScene BuildScene(const CollectedEpoch& epoch,
                                       ? ""
                                       : "; no camera_info for " + out.cameras_without_model[0]));
   }
-  for (const CollectedObservation& c : epoch.observations) {
+  // In image order (each image's observations as its message gave them): the
+  // scene, and so the solution to the last bit, does not depend on the order
+  // in which the cameras' messages arrived.
+  auto by_image = [](const std::vector<CollectedObservation>& all) {
+    std::vector<const CollectedObservation*> out;
+    for (const CollectedObservation& c : all) out.push_back(&c);
+    std::stable_sort(out.begin(), out.end(),
+                     [](const CollectedObservation* a, const CollectedObservation* b) {
+                       return a->image_key < b->image_key;
+                     });
+    return out;
+  };
+  for (const CollectedObservation* in : by_image(epoch.observations)) {
+    const CollectedObservation& c = *in;
     auto ii = image_index.find(c.image_key);
     if (ii == image_index.end()) continue;
     if (!point_index.count(c.point_id)) {
@@ -534,7 +547,8 @@ BuiltScene BuildScene(const CollectedEpoch& epoch,
     o.covariance = c.covariance;
     scene.observations.push_back(o);
   }
-  for (const CollectedObservation& c : epoch.unidentified) {
+  for (const CollectedObservation* in : by_image(epoch.unidentified)) {
+    const CollectedObservation& c = *in;
     auto ii = image_index.find(c.image_key);
     if (ii == image_index.end()) continue;
     out.unidentified.push_back({ii->second, c.family, c.pixel, c.covariance});

@@ -347,6 +347,44 @@ TEST(EpochCollector, OptionsNameTheBadField) {
   }
 }
 
+// The scene of an epoch does not depend on which camera's messages came
+// first (two centroiders run in parallel): same points, same observations in
+// the same order.
+TEST(EpochCollector, SceneDoesNotDependOnTheCamerasArrivalOrder) {
+  io::TargetList targets = io::TargetList::FromYaml(
+      "frame: site\ntargets:\n  - {id: 0, family: tag36h11, size: 0.6, role: control, position: "
+      "[0, 0, 0]}\n",
+      "scene order test");
+  std::map<std::string, camera::CameraModel> models;
+  models["fixed_cam_1"] = models["fixed_cam_2"] = camera::CameraModel();
+  std::vector<BuiltScene> scenes;
+  for (const bool first_camera_first : {true, false}) {
+    EpochCollector c(TwoCameras(), &targets);
+    ImageTargets a = Shot("fixed_cam_1", 0, 3), b = Shot("fixed_cam_2", 1, 4);
+    b.targets[0].id = 9;  // a point only fixed_cam_2 sees, listed first there
+    c.AddTargets(first_camera_first ? a : b, 0);
+    c.AddTargets(first_camera_first ? b : a, 0);
+    c.AddEnd(End("fixed_cam_1", 0.5, 1), 0);
+    const std::vector<CollectedEpoch> done = c.AddEnd(End("fixed_cam_2", 1.5, 1), 0);
+    EXPECT_EQ(done.size(), 1u);
+    if (done.size() == 1u)
+      scenes.push_back(BuildScene(done[0], models, EpochStore(), targets, BuildSceneOptions()));
+  }
+  ASSERT_EQ(scenes.size(), 2u);
+  const Scene &s0 = scenes[0].scene, &s1 = scenes[1].scene;
+  ASSERT_EQ(s0.points.size(), s1.points.size());
+  for (size_t j = 0; j < s0.points.size(); ++j) EXPECT_EQ(s0.points[j].id, s1.points[j].id);
+  ASSERT_EQ(s0.observations.size(), 7u);
+  ASSERT_EQ(s1.observations.size(), 7u);
+  for (size_t k = 0; k < s0.observations.size(); ++k) {
+    EXPECT_EQ(s0.observations[k].image, s1.observations[k].image);
+    EXPECT_EQ(s0.observations[k].point, s1.observations[k].point);
+    EXPECT_EQ(s0.observations[k].pixel, s1.observations[k].pixel);
+  }
+  EXPECT_EQ(s0.points[0].id, "tag36h11/0");
+  ASSERT_TRUE(s0.points[0].surveyed.has_value());  // the control point's survey from the list
+}
+
 // ----------------------------------------------------------------------------
 // The whole path of the bundle_adjuster for one epoch of three fixed cameras
 // with one bad observation: collected, built, adjusted against the truth.
