@@ -176,6 +176,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
 
   void OnTargets(const slope_monitor::TargetObservationArrayConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
+    collector_->SetTiePointsExpected(tie_sub_.getNumPublishers() > 0);
     Solve(collector_->AddTargets(ros_adapters::FromMsg(*msg), Now()));
   }
 
