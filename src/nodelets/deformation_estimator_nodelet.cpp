@@ -130,7 +130,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     report_on_shutdown_ = p.Bool("report_on_shutdown", true);
     report_formats_ = p.StringList("report_formats", {});
     for (const std::string& f : report_formats_)
-      if (f != "csv" && f != "geojson" && f != "geotiff" && f != "png")
+      if (f != "csv" && f != "geojson" && f != "geotiff" && f != "gpkg" && f != "png")
         throw ConfigError(Message("parameter '", p.FullKey("report_formats"), "' has unknown format '", f, "'"));
     const std::string unit = p.String("velocity_unit", "mm/day", {"mm/day", "mm/h"});
     const double to_si = unit == "mm/day" ? 1e-3 / 86400.0 : 1e-3 / 3600.0;
