@@ -63,7 +63,7 @@ std::vector<std::string> MissingPaths(const std::string& text) {
 }
 
 std::set<std::string> DeclaredArgs(const std::string& launch_text) {
-  static const std::regex kArg(R"(<arg\s+name="([A-Za-z0-9_]+)"\s*(default=|/>|>))");
+  static const std::regex kArg(R"re(<arg\s+name="([A-Za-z0-9_]+)"\s*(default=|/>|>))re");
   std::set<std::string> args;
   for (auto it = std::sregex_iterator(launch_text.begin(), launch_text.end(), kArg); it != std::sregex_iterator();
        ++it) {
