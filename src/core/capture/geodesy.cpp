@@ -15,9 +15,9 @@ Eigen::Matrix3d EnuAxes(double latitude_deg, double longitude_deg) {
   const double lon = longitude_deg * M_PI / 180.0;
   const double sl = std::sin(lat), cl = std::cos(lat), so = std::sin(lon), co = std::cos(lon);
   Eigen::Matrix3d r;
-  r << -so, co, 0.0,             // east
-      -sl * co, -sl * so, cl,    // north
-      cl * co, cl * so, sl;      // up
+  r << -so, co, 0.0,           // east
+      -sl * co, -sl * so, cl,  // north
+      cl * co, cl * so, sl;    // up
   return r;
 }
 
@@ -28,7 +28,8 @@ void CheckGeodetic(const Geodetic& g, const char* what) {
     throw InvalidArgument(Message(what, " latitude ", g.latitude_deg, " deg is outside [-90, 90]"));
   }
   if (!std::isfinite(g.longitude_deg) || std::abs(g.longitude_deg) > 180.0) {
-    throw InvalidArgument(Message(what, " longitude ", g.longitude_deg, " deg is outside [-180, 180]"));
+    throw InvalidArgument(
+        Message(what, " longitude ", g.longitude_deg, " deg is outside [-180, 180]"));
   }
   if (!std::isfinite(g.height_m) || std::abs(g.height_m) > 1e5) {
     throw InvalidArgument(Message(what, " height ", g.height_m, " m is outside [-1e5, 1e5]"));
@@ -50,7 +51,8 @@ Geodetic LocalTangentPlane::ToGeodetic(const Eigen::Vector3d& x_in_site) const {
   return Geodetic{lon_lat_h.y(), lon_lat_h.x(), lon_lat_h.z()};
 }
 
-Eigen::Matrix3d LocalTangentPlane::CovarianceToSite(const Geodetic& g, const Eigen::Matrix3d& cov) const {
+Eigen::Matrix3d LocalTangentPlane::CovarianceToSite(const Geodetic& g,
+                                                    const Eigen::Matrix3d& cov) const {
   const Eigen::Matrix3d site_from_local = EnuAxes(origin_.latitude_deg, origin_.longitude_deg) *
                                           EnuAxes(g.latitude_deg, g.longitude_deg).transpose();
   return site_from_local * cov * site_from_local.transpose();

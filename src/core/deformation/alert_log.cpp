@@ -10,7 +10,8 @@ namespace {
 
 std::string Text(const PointState& p, AlertLevel from) {
   char speed[96];
-  std::snprintf(speed, sizeof(speed), "speed %.2f +- %.2f mm/day", p.speed * 86400e3, p.speed_sigma * 86400e3);
+  std::snprintf(speed, sizeof(speed), "speed %.2f +- %.2f mm/day", p.speed * 86400e3,
+                p.speed_sigma * 86400e3);
   std::string forecast;
   if (p.forecast.valid) {
     const std::time_t t = static_cast<std::time_t>(std::floor(p.forecast.failure_time));
@@ -21,10 +22,11 @@ std::string Text(const PointState& p, AlertLevel from) {
     std::snprintf(sigma, sizeof(sigma), "%.1f", p.forecast.sigma / 3600.0);
     forecast = std::string("failure forecast ") + when + " +- " + sigma + " h";
   } else {
-    forecast = "no failure forecast" + (p.forecast.reason.empty() ? "" : " (" + p.forecast.reason + ")");
+    forecast =
+        "no failure forecast" + (p.forecast.reason.empty() ? "" : " (" + p.forecast.reason + ")");
   }
-  return "point " + p.id + ": alert " + AlertName(from) + " -> " + AlertName(p.alert) + ", " + speed + ", " +
-         forecast + (p.alert_reason.empty() ? "" : "; " + p.alert_reason);
+  return "point " + p.id + ": alert " + AlertName(from) + " -> " + AlertName(p.alert) + ", " +
+         speed + ", " + forecast + (p.alert_reason.empty() ? "" : "; " + p.alert_reason);
 }
 
 }  // namespace

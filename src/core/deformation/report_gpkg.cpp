@@ -45,26 +45,32 @@ OGRSpatialReference ReportSrs(const ReportOptions& options, const std::string& p
   return srs;
 }
 
-OGRLayer* NewLayer(GDALDataset* ds, const char* name, OGRSpatialReference* srs, const std::string& path) {
+OGRLayer* NewLayer(GDALDataset* ds, const char* name, OGRSpatialReference* srs,
+                   const std::string& path) {
   OGRLayer* layer = ds->CreateLayer(name, srs, wkbPoint25D, nullptr);
-  if (!layer) throw IoError(Message("GeoPackage '", path, "': cannot create layer ", name, ": ", CPLGetLastErrorMsg()));
+  if (!layer)
+    throw IoError(
+        Message("GeoPackage '", path, "': cannot create layer ", name, ": ", CPLGetLastErrorMsg()));
   return layer;
 }
 
 void AddField(OGRLayer* layer, const char* name, OGRFieldType type, const std::string& path) {
   OGRFieldDefn f(name, type);
   if (layer->CreateField(&f) != OGRERR_NONE)
-    throw IoError(Message("GeoPackage '", path, "': cannot add field ", name, ": ", CPLGetLastErrorMsg()));
+    throw IoError(
+        Message("GeoPackage '", path, "': cannot add field ", name, ": ", CPLGetLastErrorMsg()));
 }
 
 void AddPoint(OGRLayer* layer, OGRFeature* f, const Eigen::Vector3d& x, const std::string& path) {
   OGRPoint pt(x.x(), x.y(), x.z());
   f->SetGeometry(&pt);
   if (layer->CreateFeature(f) != OGRERR_NONE)
-    throw IoError(Message("GeoPackage '", path, "': cannot write a feature: ", CPLGetLastErrorMsg()));
+    throw IoError(
+        Message("GeoPackage '", path, "': cannot write a feature: ", CPLGetLastErrorMsg()));
 }
 
-void WritePointsLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* srs, const std::string& path) {
+void WritePointsLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* srs,
+                      const std::string& path) {
   OGRLayer* layer = NewLayer(ds, "points", srs, path);
   AddField(layer, "point_id", OFTString, path);
   AddField(layer, "sources", OFTString, path);
@@ -78,11 +84,21 @@ void WritePointsLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* s
   }
 }
 
-void WriteDisplacementLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* srs, const std::string& path) {
+void WriteDisplacementLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* srs,
+                            const std::string& path) {
   OGRLayer* layer = NewLayer(ds, "latest_displacement", srs, path);
-  const char* reals[] = {"dx_mm",         "dy_mm",         "dz_mm",         "d_mm",
-                         "sigma_dx_mm",   "sigma_dy_mm",   "sigma_dz_mm",   "vx_mm_per_day",
-                         "vy_mm_per_day", "vz_mm_per_day", "speed_mm_per_day", "sigma_speed_mm_per_day",
+  const char* reals[] = {"dx_mm",
+                         "dy_mm",
+                         "dz_mm",
+                         "d_mm",
+                         "sigma_dx_mm",
+                         "sigma_dy_mm",
+                         "sigma_dz_mm",
+                         "vx_mm_per_day",
+                         "vy_mm_per_day",
+                         "vz_mm_per_day",
+                         "speed_mm_per_day",
+                         "sigma_speed_mm_per_day",
                          "forecast_sigma_h"};
   AddField(layer, "point_id", OFTString, path);
   AddField(layer, "time_utc", OFTString, path);
@@ -114,14 +130,16 @@ void WriteDisplacementLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialRefere
     f.SetField("alert", AlertName(p.alert).c_str());
     f.SetField("alert_level", static_cast<int>(p.alert));
     f.SetField("forecast_valid", p.forecast.valid ? 1 : 0);
-    if (p.forecast.valid) f.SetField("forecast_failure_time_utc", Utc(p.forecast.failure_time).c_str());
+    if (p.forecast.valid)
+      f.SetField("forecast_failure_time_utc", Utc(p.forecast.failure_time).c_str());
     AddPoint(layer, &f, p.reference_position, path);
   }
 }
 
 }  // namespace
 
-std::string WriteGeoPackage(const Snapshot& s, const std::string& path, const ReportOptions& options) {
+std::string WriteGeoPackage(const Snapshot& s, const std::string& path,
+                            const ReportOptions& options) {
   GDALAllRegister();
   GDALDriver* driver = GetGDALDriverManager()->GetDriverByName("GPKG");
   if (!driver) throw IoError(Message("GeoPackage '", path, "': GDAL has no GPKG driver"));

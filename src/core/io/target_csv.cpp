@@ -29,7 +29,9 @@ std::vector<std::string> SplitCsv(const std::string& line) {
   return fields;
 }
 
-bool IsWgs84(const std::string& crs) { return crs == "WGS 84" || crs == "EPSG:4326" || crs == "EPSG:4979"; }
+bool IsWgs84(const std::string& crs) {
+  return crs == "WGS 84" || crs == "EPSG:4326" || crs == "EPSG:4979";
+}
 
 // A CRS other than the site's, as a shifted frame with zero origin (its
 // "site" coordinates are its own).
@@ -65,8 +67,8 @@ struct ListFrame {
   }
 };
 
-SurveyedPoint ParseRow(const std::vector<std::string>& f, const std::string& where, const ListFrame& frame,
-                       const std::string& default_family) {
+SurveyedPoint ParseRow(const std::vector<std::string>& f, const std::string& where,
+                       const ListFrame& frame, const std::string& default_family) {
   if (f.size() != 7) {
     throw ConfigError(Message(where, ": ", f.size(), " columns, expected 7 (", kColumns, ")"));
   }
@@ -76,7 +78,8 @@ SurveyedPoint ParseRow(const std::vector<std::string>& f, const std::string& whe
   const std::string number = slash == std::string::npos ? f[0] : f[0].substr(slash + 1);
   const double id = Number(number, where, "id");
   if (id < 0 || id != std::floor(id) || id > 1e9) {
-    throw ConfigError(Message(where, ": id '", f[0], "' is not <family>/<number> or a number >= 0"));
+    throw ConfigError(
+        Message(where, ": id '", f[0], "' is not <family>/<number> or a number >= 0"));
   }
   p.id = static_cast<int>(id);
   try {
@@ -84,9 +87,11 @@ SurveyedPoint ParseRow(const std::vector<std::string>& f, const std::string& whe
   } catch (const ConfigError& e) {
     throw ConfigError(Message(where, ": column role: ", e.what()));
   }
-  const Eigen::Vector3d x(Number(f[2], where, "x"), Number(f[3], where, "y"), Number(f[4], where, "z"));
+  const Eigen::Vector3d x(Number(f[2], where, "x"), Number(f[3], where, "y"),
+                          Number(f[4], where, "z"));
   p.sigma = Eigen::Vector2d(Number(f[5], where, "sigma_h"), Number(f[6], where, "sigma_v"));
-  if (p.sigma.minCoeff() <= 0.0) throw ConfigError(Message(where, ": sigma_h and sigma_v must be > 0 [m]"));
+  if (p.sigma.minCoeff() <= 0.0)
+    throw ConfigError(Message(where, ": sigma_h and sigma_v must be > 0 [m]"));
   try {
     p.position_in_site = frame.ToSite(x);
   } catch (const InvalidArgument& e) {
@@ -97,30 +102,34 @@ SurveyedPoint ParseRow(const std::vector<std::string>& f, const std::string& whe
 
 }  // namespace
 
-Eigen::Vector3d SiteFromListCrs(const SiteCrs& site, const std::string& crs, const Eigen::Vector3d& x) {
+Eigen::Vector3d SiteFromListCrs(const SiteCrs& site, const std::string& crs,
+                                const Eigen::Vector3d& x) {
   if (crs == "site") return x;
   if (crs == site.options().crs) return site.SiteFromCrs(x);
   if (IsWgs84(crs)) return site.SiteFromWgs84(x);
   return site.SiteFromWgs84(OtherCrs(crs).Wgs84FromSite(x));
 }
 
-Eigen::Vector3d ListCrsFromSite(const SiteCrs& site, const std::string& crs, const Eigen::Vector3d& x_in_site) {
+Eigen::Vector3d ListCrsFromSite(const SiteCrs& site, const std::string& crs,
+                                const Eigen::Vector3d& x_in_site) {
   if (crs == "site") return x_in_site;
   if (crs == site.options().crs) return site.CrsFromSite(x_in_site);
   if (IsWgs84(crs)) return site.Wgs84FromSite(x_in_site);
   return OtherCrs(crs).SiteFromWgs84(site.Wgs84FromSite(x_in_site));
 }
 
-std::vector<SurveyedPoint> ParseTargetCsv(const std::string& text, const std::string& context, const SiteCrs& site,
-                                          const std::string& default_family) {
+std::vector<SurveyedPoint> ParseTargetCsv(const std::string& text, const std::string& context,
+                                          const SiteCrs& site, const std::string& default_family) {
   std::stringstream in(text);
   std::string line;
   std::getline(in, line);
   line = Trim(line);
   const std::string prefix = "# crs:";
   if (line.compare(0, prefix.size(), prefix) != 0 || Trim(line.substr(prefix.size())).empty()) {
-    throw ConfigError(Message(context, ":1: the first line must name the CRS, e.g. '# crs: EPSG:6677', "
-                                       "'# crs: WGS 84' or '# crs: site'; found '", line, "'"));
+    throw ConfigError(Message(context,
+                              ":1: the first line must name the CRS, e.g. '# crs: EPSG:6677', "
+                              "'# crs: WGS 84' or '# crs: site'; found '",
+                              line, "'"));
   }
   ListFrame frame{site, Trim(line.substr(prefix.size())), nullptr};
   if (frame.crs != "site" && frame.crs != site.options().crs && !IsWgs84(frame.crs)) {
@@ -132,7 +141,8 @@ std::vector<SurveyedPoint> ParseTargetCsv(const std::string& text, const std::st
   }
   std::getline(in, line);
   if (Trim(line) != kColumns) {
-    throw ConfigError(Message(context, ":2: the second line must be '", kColumns, "'; found '", Trim(line), "'"));
+    throw ConfigError(
+        Message(context, ":2: the second line must be '", kColumns, "'; found '", Trim(line), "'"));
   }
   std::vector<SurveyedPoint> points;
   std::map<std::string, int> seen;
@@ -142,7 +152,8 @@ std::vector<SurveyedPoint> ParseTargetCsv(const std::string& text, const std::st
     const std::string where = Message(context, ":", number);
     points.push_back(ParseRow(SplitCsv(t), where, frame, default_family));
     const std::string key = points.back().family + "/" + std::to_string(points.back().id);
-    if (seen.count(key)) throw ConfigError(Message(where, ": target ", key, " already on line ", seen[key]));
+    if (seen.count(key))
+      throw ConfigError(Message(where, ": target ", key, " already on line ", seen[key]));
     seen[key] = number;
   }
   return points;
@@ -174,7 +185,9 @@ void ApplySurveyedPoints(const std::vector<SurveyedPoint>& points, double size, 
   for (const SurveyedPoint& p : points) {
     const std::string key = p.family + "/" + std::to_string(p.id);
     if (!by_key.count(key)) continue;
-    if (!(size > 0.0)) throw InvalidArgument(Message("target ", key, " is new to the list and size ", size, " <= 0"));
+    if (!(size > 0.0))
+      throw InvalidArgument(
+          Message("target ", key, " is new to the list and size ", size, " <= 0"));
     TargetSpec spec;
     spec.family = p.family;
     spec.id = p.id;

@@ -14,17 +14,20 @@ namespace {
 // conversion uses).
 Eigen::Vector3d Ecef(const Geodetic& g) {
   const double e2 = kWgs84F * (2.0 - kWgs84F);
-  const double lat = g.latitude_deg * M_PI / 180.0, lon = g.longitude_deg * M_PI / 180.0, s = std::sin(lat);
+  const double lat = g.latitude_deg * M_PI / 180.0, lon = g.longitude_deg * M_PI / 180.0,
+               s = std::sin(lat);
   const double n = kWgs84A / std::sqrt(1.0 - e2 * s * s);
   return Eigen::Vector3d((n + g.height_m) * std::cos(lat) * std::cos(lon),
-                         (n + g.height_m) * std::cos(lat) * std::sin(lon), (n * (1.0 - e2) + g.height_m) * s);
+                         (n + g.height_m) * std::cos(lat) * std::sin(lon),
+                         (n * (1.0 - e2) + g.height_m) * s);
 }
 
 TEST(Geodesy, RoundTripEverywhere) {
   for (double lat : {-89.9, -45.0, 0.0, 35.6, 60.0, 89.99}) {
     for (double lon : {-179.0, -30.0, 0.0, 139.7}) {
       const LocalTangentPlane ltp({lat, lon, 100.0});
-      for (const Eigen::Vector3d& p : {Eigen::Vector3d(10.0, -20.0, 3.0), Eigen::Vector3d(-3000.0, 2500.0, 29000.0)}) {
+      for (const Eigen::Vector3d& p :
+           {Eigen::Vector3d(10.0, -20.0, 3.0), Eigen::Vector3d(-3000.0, 2500.0, 29000.0)}) {
         const Geodetic g = ltp.ToGeodetic(p);
         // PROJ's closed-form inverse of +proj=cart: ~10 um at 29 km above the origin.
         EXPECT_LT((ltp.ToSite(g) - p).norm(), p.z() > 1000.0 ? 1e-4 : 1e-6) << lat << " " << lon;
@@ -56,7 +59,7 @@ TEST(Geodesy, EnuAxesAtTheOrigin) {
 TEST(Geodesy, SiteRoundTripAndDistances) {
   const LocalTangentPlane ltp({35.36, 138.73, 1200.0});
   for (const Eigen::Vector3d& p : {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(120.5, -80.25, 35.0),
-                                  Eigen::Vector3d(-2000.0, 1500.0, -300.0)}) {
+                                   Eigen::Vector3d(-2000.0, 1500.0, -300.0)}) {
     const Geodetic g = ltp.ToGeodetic(p);
     EXPECT_LT((ltp.ToSite(g) - p).norm(), 1e-6);
   }

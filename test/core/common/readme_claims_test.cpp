@@ -53,9 +53,11 @@ std::vector<std::string> MissingPaths(const std::string& text) {
   static const std::regex kPath(
       R"((^|[\s`(|,])((config|launch|src|include|test|doc|scripts|bench|rviz|msg|srv)/[A-Za-z0-9_./<>*-]*|CONTRIBUTING\.md|package\.xml|CMakeLists\.txt|nodelet_plugins\.xml))");
   std::vector<std::string> missing;
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), kPath); it != std::sregex_iterator(); ++it) {
+  for (auto it = std::sregex_iterator(text.begin(), text.end(), kPath);
+       it != std::sregex_iterator(); ++it) {
     std::string path = (*it)[2];
-    if (path.find_first_of("<>*") != std::string::npos || path.find("...") != std::string::npos) continue;
+    if (path.find_first_of("<>*") != std::string::npos || path.find("...") != std::string::npos)
+      continue;
     while (!path.empty() && (path.back() == '.' || path.back() == ',')) path.pop_back();
     if (!fs::exists(kRoot / path)) missing.push_back(path);
   }
@@ -65,18 +67,20 @@ std::vector<std::string> MissingPaths(const std::string& text) {
 std::set<std::string> DeclaredArgs(const std::string& launch_text) {
   static const std::regex kArg(R"re(<arg\s+name="([A-Za-z0-9_]+)"\s*(default=|/>|>))re");
   std::set<std::string> args;
-  for (auto it = std::sregex_iterator(launch_text.begin(), launch_text.end(), kArg); it != std::sregex_iterator();
-       ++it) {
+  for (auto it = std::sregex_iterator(launch_text.begin(), launch_text.end(), kArg);
+       it != std::sregex_iterator(); ++it) {
     args.insert((*it)[1]);
   }
   return args;
 }
 
 std::vector<std::string> UndeclaredLaunchArgs(const std::string& text) {
-  const std::set<std::string> declared = DeclaredArgs(TextUnder(kRoot / "launch", {".launch", ".xml"}));
+  const std::set<std::string> declared =
+      DeclaredArgs(TextUnder(kRoot / "launch", {".launch", ".xml"}));
   static const std::regex kUse(R"(([A-Za-z0-9_]+):=)");
   std::vector<std::string> undeclared;
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), kUse); it != std::sregex_iterator(); ++it) {
+  for (auto it = std::sregex_iterator(text.begin(), text.end(), kUse); it != std::sregex_iterator();
+       ++it) {
     if (!declared.count((*it)[1])) undeclared.push_back((*it)[1]);
   }
   return undeclared;
@@ -87,10 +91,12 @@ std::vector<std::string> ReplayTableArgs(const std::string& text) {
   const size_t start = text.find("## The replay graph");
   if (start == std::string::npos) return {};
   const size_t end = text.find("\n## ", start + 1);
-  const std::string section = text.substr(start, end == std::string::npos ? std::string::npos : end - start);
+  const std::string section =
+      text.substr(start, end == std::string::npos ? std::string::npos : end - start);
   static const std::regex kRow(R"(\n\| `([A-Za-z0-9_]+)` \|)");
   std::vector<std::string> args;
-  for (auto it = std::sregex_iterator(section.begin(), section.end(), kRow); it != std::sregex_iterator(); ++it) {
+  for (auto it = std::sregex_iterator(section.begin(), section.end(), kRow);
+       it != std::sregex_iterator(); ++it) {
     args.push_back((*it)[1]);
   }
   return args;
@@ -117,7 +123,8 @@ std::vector<fs::path> NodeletsIn(const std::string& ns) {
   const std::regex kDecl("(ns|name)=\"" + ns + "\"");
   static const std::regex kLoad(R"(load slope_monitor/([A-Za-z]+))");
   bool declared = false;
-  for (auto it = std::sregex_iterator(launch.begin(), launch.end(), kDecl); it != std::sregex_iterator(); ++it) {
+  for (auto it = std::sregex_iterator(launch.begin(), launch.end(), kDecl);
+       it != std::sregex_iterator(); ++it) {
     declared = true;
     // The nodelet loaded right there (within the group or node element).
     const std::string after = launch.substr(it->position(), 600);
@@ -137,18 +144,21 @@ std::vector<std::string> UnknownTopics(const std::string& text) {
   const std::string src = TextUnder(kRoot / "src", {".cpp", ".h"});
   const std::string launch = TextUnder(kRoot / "launch", {".launch", ".xml"});
   std::vector<std::string> unknown;
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), kTopic); it != std::sregex_iterator(); ++it) {
+  for (auto it = std::sregex_iterator(text.begin(), text.end(), kTopic);
+       it != std::sregex_iterator(); ++it) {
     const std::string topic = (*it)[1];
     const size_t leaf_at = topic.rfind('/');
     const std::string leaf = topic.substr(leaf_at + 1);
     bool found = false;
     if (leaf_at == 0) {
-      found = src.find("\"" + topic + "\"") != std::string::npos || src.find("\"" + leaf + "\"") != std::string::npos ||
+      found = src.find("\"" + topic + "\"") != std::string::npos ||
+              src.find("\"" + leaf + "\"") != std::string::npos ||
               launch.find(topic) != std::string::npos;
     } else {
       const std::string ns = topic.substr(1, topic.find('/', 1) - 1);
       for (const fs::path& source : NodeletsIn(ns)) {
-        if (fs::exists(source) && ReadFile(source).find("\"" + leaf + "\"") != std::string::npos) found = true;
+        if (fs::exists(source) && ReadFile(source).find("\"" + leaf + "\"") != std::string::npos)
+          found = true;
       }
     }
     if (!found) unknown.push_back(topic);
@@ -183,7 +193,8 @@ TEST_F(ReadmeClaims, NamedFilesExist) {
 
 TEST_F(ReadmeClaims, LaunchArgumentsAreDeclared) {
   const std::vector<std::string> undeclared = UndeclaredLaunchArgs(readme_);
-  EXPECT_TRUE(undeclared.empty()) << "README.md uses launch arguments no launch file declares: " << Join(undeclared);
+  EXPECT_TRUE(undeclared.empty()) << "README.md uses launch arguments no launch file declares: "
+                                  << Join(undeclared);
   const std::vector<std::string> table = ReplayTableArgs(readme_);
   EXPECT_GE(table.size(), 10u) << "the argument table of 'The replay graph' was not found";
   const std::set<std::string> replay = DeclaredArgs(ReadFile(kRoot / "launch/replay.launch"));
@@ -195,7 +206,8 @@ TEST_F(ReadmeClaims, LaunchArgumentsAreDeclared) {
 
 TEST_F(ReadmeClaims, TopicsExist) {
   const std::vector<std::string> unknown = UnknownTopics(readme_);
-  EXPECT_TRUE(unknown.empty()) << "README.md names topics no nodelet publishes there: " << Join(unknown);
+  EXPECT_TRUE(unknown.empty()) << "README.md names topics no nodelet publishes there: "
+                               << Join(unknown);
 }
 
 // The checks catch the README's former wrong claims (issue 18).
@@ -205,9 +217,12 @@ TEST(ReadmeClaimChecks, CatchWrongClaims) {
   EXPECT_TRUE(MissingPaths("`launch/replay.launch`, `config/sites/<name>.yaml`").empty());
   EXPECT_EQ(UnknownTopics("`/radio_phase_solver/displacements` and `/radio/radio_displacements`"),
             (std::vector<std::string>{"/radio_phase_solver/displacements"}));
-  EXPECT_EQ(UnknownTopics("`/deformation_estimator/alarms`"), (std::vector<std::string>{"/deformation_estimator/alarms"}));
-  EXPECT_EQ(UndeclaredLaunchArgs("replay.launch bag:=x bagg:=demo.bag"), (std::vector<std::string>{"bagg"}));
-  EXPECT_EQ(ReplayTableArgs("## The replay graph\n\n| arg |\n|---|\n| `bag` | x |\n| `rviz` | y |\n\n## Next\n| `z` |"),
+  EXPECT_EQ(UnknownTopics("`/deformation_estimator/alarms`"),
+            (std::vector<std::string>{"/deformation_estimator/alarms"}));
+  EXPECT_EQ(UndeclaredLaunchArgs("replay.launch bag:=x bagg:=demo.bag"),
+            (std::vector<std::string>{"bagg"}));
+  EXPECT_EQ(ReplayTableArgs("## The replay graph\n\n| arg |\n|---|\n| `bag` | x |\n| `rviz` | y "
+                            "|\n\n## Next\n| `z` |"),
             (std::vector<std::string>{"bag", "rviz"}));
 }
 

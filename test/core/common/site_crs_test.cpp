@@ -12,7 +12,7 @@
 namespace slope_monitor {
 namespace {
 
-constexpr double kA = 6378137.0;                          // WGS 84 semi-major axis [m]
+constexpr double kA = 6378137.0;                         // WGS 84 semi-major axis [m]
 constexpr double kB = kA * (1.0 - 1.0 / 298.257223563);  // semi-minor axis [m]
 
 TEST(SiteCrs, LocalEnuAtTheEquatorMatchesTheEllipsoidsCircleAndAxis) {

@@ -24,9 +24,11 @@ TEST(AlertLog, OneLinePerChangeWithPointLevelSpeedAndForecast) {
   std::vector<AlertChange> c = tracker.Update(s);
   ASSERT_EQ(c.size(), 1u);  // the standing watch is announced, the quiet rock is not
   EXPECT_EQ(c[0].point_id, "tag36h11/3");
-  EXPECT_EQ(c[0].text.rfind("point tag36h11/3: alert none -> watch, speed 3.00 +- 0.50 mm/day, no failure forecast",
-                            0),
-            0u)
+  EXPECT_EQ(
+      c[0].text.rfind(
+          "point tag36h11/3: alert none -> watch, speed 3.00 +- 0.50 mm/day, no failure forecast",
+          0),
+      0u)
       << c[0].text;
   EXPECT_TRUE(tracker.Update(s).empty());  // no change, no line
 

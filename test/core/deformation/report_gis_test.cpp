@@ -43,7 +43,8 @@ Snapshot Scenario() {
   testing::SourceSpec radio;
   radio.interval = 3600.0;
   radio.sigma = Eigen::Vector3d(0.002, 0.002, 0.002);
-  for (const Batch& b : testing::MakeBatches(radio, {"tag36h11/1", "tag36h11/2", "rock"}, motions, kT0 + 2 * kDay))
+  for (const Batch& b :
+       testing::MakeBatches(radio, {"tag36h11/1", "tag36h11/2", "rock"}, motions, kT0 + 2 * kDay))
     e.AddBatch(b);
   return e.GetSnapshot();
 }
@@ -77,7 +78,8 @@ float Sample(GDALDataset* ds, double x, double y) {
   const int row = static_cast<int>(std::floor((y - gt[3]) / gt[5]));
   float v = NAN;
   if (col < 0 || row < 0 || col >= ds->GetRasterXSize() || row >= ds->GetRasterYSize()) return v;
-  EXPECT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, col, row, 1, 1, &v, 1, 1, GDT_Float32, 0, 0), CE_None);
+  EXPECT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, col, row, 1, 1, &v, 1, 1, GDT_Float32, 0, 0),
+            CE_None);
   return v;
 }
 
@@ -93,7 +95,8 @@ TEST(ReportGis, GeoTiffWarpsToWgs84WithThePointsInPlace) {
   ASSERT_NE(info, nullptr);
   EXPECT_NE(std::string(info).find("Orthographic"), std::string::npos) << info;
   CPLFree(info);
-  // Masked: the corner cell (13.4 m from the nearest point, margin 10 m) is nodata, the points' cells are not.
+  // Masked: the corner cell (13.4 m from the nearest point, margin 10 m) is nodata, the points'
+  // cells are not.
   GDALDataset* tif = GDALDataset::FromHandle(src);
   EXPECT_EQ(Sample(tif, -9.5, 59.5), -9999.0f);
   EXPECT_NE(Sample(tif, 10.25, 50.25), -9999.0f);
@@ -109,7 +112,8 @@ TEST(ReportGis, GeoTiffWarpsToWgs84WithThePointsInPlace) {
   for (const char* id : {"tag36h11/1", "tag36h11/2", "rock"}) {
     const PointState& p = PointById(s, id);
     const float v = Sample(w, Lon(p.reference_position.x()), Lat());
-    EXPECT_NEAR(v, p.displacement.norm(), 0.002) << id << " at " << Lon(p.reference_position.x()) << ", " << Lat();
+    EXPECT_NEAR(v, p.displacement.norm(), 0.002)
+        << id << " at " << Lon(p.reference_position.x()) << ", " << Lat();
   }
   GDALClose(warped);
   GDALClose(src);
@@ -117,7 +121,8 @@ TEST(ReportGis, GeoTiffWarpsToWgs84WithThePointsInPlace) {
 
 TEST(ReportGis, GeoJsonPropertiesAreFlat) {
   const Snapshot s = Scenario();
-  const std::string path = WriteGeoJson(s, TempDir("json") + "/deformation.geojson", Georeferenced());
+  const std::string path =
+      WriteGeoJson(s, TempDir("json") + "/deformation.geojson", Georeferenced());
   const YAML::Node root = YAML::LoadFile(path);
   ASSERT_EQ(root["features"].size(), 3u);
   for (const YAML::Node& f : root["features"]) {
@@ -127,8 +132,10 @@ TEST(ReportGis, GeoJsonPropertiesAreFlat) {
       const std::string key = kv.first.as<std::string>();
       ASSERT_TRUE(kv.second.IsScalar()) << key << " is not a number or a word";
       const std::string v = kv.second.as<std::string>();
-      EXPECT_TRUE(v.empty() || (v[0] != '{' && v[0] != '[')) << key << " holds JSON in a string: " << v;
-      if (key.size() > 3 && (key.find("_mm") != std::string::npos || key.find("forecast_valid") == 0)) {
+      EXPECT_TRUE(v.empty() || (v[0] != '{' && v[0] != '['))
+          << key << " holds JSON in a string: " << v;
+      if (key.size() > 3 &&
+          (key.find("_mm") != std::string::npos || key.find("forecast_valid") == 0)) {
         EXPECT_NO_THROW(kv.second.as<double>()) << key << " = " << v;
       }
     }
@@ -137,10 +144,12 @@ TEST(ReportGis, GeoJsonPropertiesAreFlat) {
 
 TEST(ReportGis, GeoPackageHasBothLayersInTheSiteCrs) {
   const Snapshot s = Scenario();
-  const std::string path = WriteGeoPackage(s, TempDir("gpkg") + "/deformation.gpkg", Georeferenced());
+  const std::string path =
+      WriteGeoPackage(s, TempDir("gpkg") + "/deformation.gpkg", Georeferenced());
   GDALAllRegister();
   std::unique_ptr<GDALDataset, void (*)(GDALDataset*)> ds(
-      GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY), [](GDALDataset* d) { GDALClose(d); });
+      GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY),
+      [](GDALDataset* d) { GDALClose(d); });
   ASSERT_NE(ds, nullptr);
   ASSERT_EQ(ds->GetLayerCount(), 2);
   OGRLayer* points = ds->GetLayerByName("points");

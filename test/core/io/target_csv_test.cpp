@@ -39,17 +39,20 @@ struct TransverseMercator {
   double a, f, k0, lon0_deg, lat0_deg, false_easting;
 };
 const TransverseMercator kUtm54{6378137.0, 1.0 / 298.257223563, 0.9996, 141.0, 0.0, 500000.0};
-const TransverseMercator kZoneIX{6378137.0, 1.0 / 298.257222101, 0.9999, 139.0 + 50.0 / 60.0, 36.0, 0.0};
+const TransverseMercator kZoneIX{6378137.0, 1.0 / 298.257222101, 0.9999, 139.0 + 50.0 / 60.0, 36.0,
+                                 0.0};
 
 // Krüger's series: (xi, eta) on the sphere of radius A for latitude `lat`,
 // longitude difference `dlon` [rad].
 Eigen::Vector2d XiEta(const TransverseMercator& tm, double lat, double dlon) {
   const double f = tm.f, n = f / (2.0 - f), e = std::sqrt(f * (2.0 - f));
   const double n2 = n * n, n3 = n2 * n, n4 = n3 * n;
-  const double alpha[4] = {n / 2 - 2 * n2 / 3 + 5 * n3 / 16 + 41 * n4 / 180, 13 * n2 / 48 - 3 * n3 / 5 + 557 * n4 / 1440,
+  const double alpha[4] = {n / 2 - 2 * n2 / 3 + 5 * n3 / 16 + 41 * n4 / 180,
+                           13 * n2 / 48 - 3 * n3 / 5 + 557 * n4 / 1440,
                            61 * n3 / 240 - 103 * n4 / 140, 49561 * n4 / 161280};
   const double s = std::sin(lat);
-  const double t = std::sinh(std::atanh(s) - e * std::atanh(e * s));  // tan of the conformal latitude
+  const double t =
+      std::sinh(std::atanh(s) - e * std::atanh(e * s));  // tan of the conformal latitude
   const double xi1 = std::atan2(t, std::cos(dlon));
   const double eta1 = std::atanh(std::sin(dlon) / std::sqrt(1.0 + t * t));
   Eigen::Vector2d xe(xi1, eta1);
@@ -66,14 +69,16 @@ Eigen::Vector3d GridFromGeodetic(const TransverseMercator& tm, const Eigen::Vect
   const double A = tm.a / (1.0 + n) * (1.0 + n * n / 4.0 + n * n * n * n / 64.0);
   const Eigen::Vector2d p = XiEta(tm, llh.y() * kDeg, (llh.x() - tm.lon0_deg) * kDeg);
   const Eigen::Vector2d p0 = XiEta(tm, tm.lat0_deg * kDeg, 0.0);
-  return Eigen::Vector3d(tm.false_easting + tm.k0 * A * p.y(), tm.k0 * A * (p.x() - p0.x()), llh.z());
+  return Eigen::Vector3d(tm.false_easting + tm.k0 * A * p.y(), tm.k0 * A * (p.x() - p0.x()),
+                         llh.z());
 }
 
 Eigen::Vector3d Ecef(const Eigen::Vector3d& llh) {
   const double a = 6378137.0, f = 1.0 / 298.257223563, e2 = f * (2.0 - f);
   const double lat = llh.y() * kDeg, lon = llh.x() * kDeg, s = std::sin(lat);
   const double nu = a / std::sqrt(1.0 - e2 * s * s);
-  return Eigen::Vector3d((nu + llh.z()) * std::cos(lat) * std::cos(lon), (nu + llh.z()) * std::cos(lat) * std::sin(lon),
+  return Eigen::Vector3d((nu + llh.z()) * std::cos(lat) * std::cos(lon),
+                         (nu + llh.z()) * std::cos(lat) * std::sin(lon),
                          (nu * (1.0 - e2) + llh.z()) * s);
 }
 
@@ -81,8 +86,9 @@ Eigen::Vector3d Ecef(const Eigen::Vector3d& llh) {
 Eigen::Vector3d Enu(const Eigen::Vector3d& origin, const Eigen::Vector3d& llh) {
   const double lat = origin.y() * kDeg, lon = origin.x() * kDeg;
   Eigen::Matrix3d r;
-  r << -std::sin(lon), std::cos(lon), 0.0, -std::sin(lat) * std::cos(lon), -std::sin(lat) * std::sin(lon),
-      std::cos(lat), std::cos(lat) * std::cos(lon), std::cos(lat) * std::sin(lon), std::sin(lat);
+  r << -std::sin(lon), std::cos(lon), 0.0, -std::sin(lat) * std::cos(lon),
+      -std::sin(lat) * std::sin(lon), std::cos(lat), std::cos(lat) * std::cos(lon),
+      std::cos(lat) * std::sin(lon), std::sin(lat);
   return r * (Ecef(llh) - Ecef(origin));
 }
 
@@ -91,7 +97,8 @@ const Eigen::Vector3d kOrigin(139.05, 36.40, 600.0);
 std::vector<Eigen::Vector3d> SurveyedLlh() {
   std::vector<Eigen::Vector3d> points;
   for (int i = 0; i < 12; ++i) {
-    points.emplace_back(139.05 + 0.004 * (i % 4 - 1.5), 36.40 + 0.003 * (i / 4 - 1.0), 550.0 + 13.0 * i);
+    points.emplace_back(139.05 + 0.004 * (i % 4 - 1.5), 36.40 + 0.003 * (i / 4 - 1.0),
+                        550.0 + 13.0 * i);
   }
   return points;
 }
@@ -100,8 +107,8 @@ std::string Csv(const std::string& crs, const std::vector<Eigen::Vector3d>& xyz)
   std::string text = "# crs: " + crs + "\nid,role,x,y,z,sigma_h,sigma_v\n";
   char line[200];
   for (size_t i = 0; i < xyz.size(); ++i) {
-    std::snprintf(line, sizeof(line), "tag36h11/%zu,%s,%.9f,%.9f,%.4f,0.01,0.02\n", i, i < 8 ? "control" : "check",
-                  xyz[i].x(), xyz[i].y(), xyz[i].z());
+    std::snprintf(line, sizeof(line), "tag36h11/%zu,%s,%.9f,%.9f,%.4f,0.01,0.02\n", i,
+                  i < 8 ? "control" : "check", xyz[i].x(), xyz[i].y(), xyz[i].z());
     text += line;
   }
   return text;
@@ -128,29 +135,33 @@ TEST(TargetCsv, UtmAndJgd2011ZoneIXListsToSiteAndBackWithin1mm) {
     std::string crs;
     const TransverseMercator* tm;
   };
-  for (const List& list : {List{"EPSG:6677", &kZoneIX}, List{"EPSG:32654", &kUtm54}, List{"WGS 84", nullptr}}) {
+  for (const List& list :
+       {List{"EPSG:6677", &kZoneIX}, List{"EPSG:32654", &kUtm54}, List{"WGS 84", nullptr}}) {
     std::vector<Eigen::Vector3d> given;
-    for (const Eigen::Vector3d& p : llh) given.push_back(list.tm ? GridFromGeodetic(*list.tm, p) : p);
-    const std::vector<SurveyedPoint> points = ParseTargetCsv(Csv(list.crs, given), list.crs + ".csv", site);
+    for (const Eigen::Vector3d& p : llh)
+      given.push_back(list.tm ? GridFromGeodetic(*list.tm, p) : p);
+    const std::vector<SurveyedPoint> points =
+        ParseTargetCsv(Csv(list.crs, given), list.crs + ".csv", site);
     ASSERT_EQ(points.size(), llh.size());
     double worst_site = 0.0, worst_back = 0.0;
     for (size_t i = 0; i < llh.size(); ++i) {
       const Eigen::Vector3d truth = Enu(kOrigin, llh[i]);
       EXPECT_LT((points[i].position_in_site - truth).norm(), 1e-3)
-          << list.crs << " point " << i << ": site " << points[i].position_in_site.transpose() << " reference "
-          << truth.transpose();
+          << list.crs << " point " << i << ": site " << points[i].position_in_site.transpose()
+          << " reference " << truth.transpose();
       const Eigen::Vector3d back = ListCrsFromSite(site, list.crs, points[i].position_in_site);
       worst_site = std::max(worst_site, (points[i].position_in_site - truth).norm());
       if (list.tm) worst_back = std::max(worst_back, (back - given[i]).norm());
       if (list.tm) {
-        EXPECT_LT((back - given[i]).norm(), 1e-3) << list.crs << " point " << i << " back " << back.transpose();
+        EXPECT_LT((back - given[i]).norm(), 1e-3)
+            << list.crs << " point " << i << " back " << back.transpose();
       } else {
         EXPECT_LT((back.head<2>() - given[i].head<2>()).norm(), 1e-10) << "WGS 84 point " << i;
         EXPECT_NEAR(back.z(), given[i].z(), 1e-3);
       }
     }
-    std::printf("%s: worst |site - reference| %.6f mm, worst |back - given| %.6f mm\n", list.crs.c_str(),
-                worst_site * 1e3, worst_back * 1e3);
+    std::printf("%s: worst |site - reference| %.6f mm, worst |back - given| %.6f mm\n",
+                list.crs.c_str(), worst_site * 1e3, worst_back * 1e3);
     EXPECT_EQ(points[0].family, "tag36h11");
     EXPECT_EQ(points[8].role, TargetRole::kCheck);
     EXPECT_DOUBLE_EQ(points[3].sigma.y(), 0.02);
@@ -164,14 +175,15 @@ TEST(TargetCsv, SiteListsAndShiftedCrsSites) {
   o.frame = SiteCrsOptions::Frame::kShiftedCrs;
   const SiteCrs site(o);
   const auto points = ParseTargetCsv(
-      "# crs: EPSG:6677\nid,role,x,y,z,sigma_h,sigma_v\n\n5,control,-69990.5,44020.25,612.5,0.01,0.01\n", "a.csv",
-      site, "circle");
+      "# crs: "
+      "EPSG:6677\nid,role,x,y,z,sigma_h,sigma_v\n\n5,control,-69990.5,44020.25,612.5,0.01,0.01\n",
+      "a.csv", site, "circle");
   ASSERT_EQ(points.size(), 1u);
   EXPECT_EQ(points[0].family, "circle");
   EXPECT_EQ(points[0].id, 5);
   EXPECT_LT((points[0].position_in_site - Eigen::Vector3d(9.5, 20.25, 612.5)).norm(), 1e-9);
-  const auto local = ParseTargetCsv("# crs: site\nid,role,x,y,z,sigma_h,sigma_v\n1,monitoring,1,2,3,0.1,0.2\n",
-                                    "b.csv", site);
+  const auto local = ParseTargetCsv(
+      "# crs: site\nid,role,x,y,z,sigma_h,sigma_v\n1,monitoring,1,2,3,0.1,0.2\n", "b.csv", site);
   EXPECT_LT((local[0].position_in_site - Eigen::Vector3d(1, 2, 3)).norm(), 1e-12);
 
   TargetList list;
@@ -191,15 +203,19 @@ TEST(TargetCsv, BadInputNamesFileLineAndColumn) {
     return std::string("no error");
   };
   const std::string head = "# crs: WGS 84\nid,role,x,y,z,sigma_h,sigma_v\n";
-  EXPECT_NE(message("id,role,x,y,z,sigma_h,sigma_v\n").find("crew.csv:1: the first line must name the CRS"),
+  EXPECT_NE(message("id,role,x,y,z,sigma_h,sigma_v\n")
+                .find("crew.csv:1: the first line must name the CRS"),
             std::string::npos);
   EXPECT_NE(message("# crs: WGS 84\nid,x,y,z\n").find("crew.csv:2:"), std::string::npos);
-  EXPECT_NE(message(head + "1,control,139.05,36.4,abc,0.01,0.01\n").find("crew.csv:3: column z 'abc'"),
+  EXPECT_NE(
+      message(head + "1,control,139.05,36.4,abc,0.01,0.01\n").find("crew.csv:3: column z 'abc'"),
+      std::string::npos);
+  EXPECT_NE(message(head + "1,boss,139.05,36.4,1,0.01,0.01\n").find("crew.csv:3: column role"),
             std::string::npos);
-  EXPECT_NE(message(head + "1,boss,139.05,36.4,1,0.01,0.01\n").find("crew.csv:3: column role"), std::string::npos);
   EXPECT_NE(message(head + "1,control,139.05,36.4,1,0.01\n").find("6 columns"), std::string::npos);
-  EXPECT_NE(message(head + "1,control,139.05,36.4,1,0,0.01\n").find("sigma_h and sigma_v must be > 0"),
-            std::string::npos);
+  EXPECT_NE(
+      message(head + "1,control,139.05,36.4,1,0,0.01\n").find("sigma_h and sigma_v must be > 0"),
+      std::string::npos);
   EXPECT_NE(message(head + "1,control,139.05,36.4,1,0.1,0.1\n1,check,139.05,36.4,1,0.1,0.1\n")
                 .find("crew.csv:4: target tag36h11/1 already on line 3"),
             std::string::npos);

@@ -29,8 +29,8 @@ namespace slope_monitor {
 namespace capture {
 
 // WGS84 ellipsoid.
-constexpr double kWgs84A = 6378137.0;                  // semi-major axis [m]
-constexpr double kWgs84F = 1.0 / 298.257223563;        // flattening [-]
+constexpr double kWgs84A = 6378137.0;            // semi-major axis [m]
+constexpr double kWgs84F = 1.0 / 298.257223563;  // flattening [-]
 
 struct Geodetic {
   double latitude_deg = 0.0;   // [deg], north positive, [-90, 90]
@@ -55,7 +55,8 @@ class LocalTangentPlane {
   // Rotates a covariance given in the ENU axes at point g (e.g. a
   // NavSatFix position_covariance) into the site axes. For points within a few
   // km of the origin this is close to the identity rotation.
-  Eigen::Matrix3d CovarianceToSite(const Geodetic& g, const Eigen::Matrix3d& cov_in_local_enu) const;
+  Eigen::Matrix3d CovarianceToSite(const Geodetic& g,
+                                   const Eigen::Matrix3d& cov_in_local_enu) const;
 
  private:
   Geodetic origin_;

@@ -38,7 +38,7 @@ namespace slope_monitor {
 
 struct SiteCrsOptions {
   enum class Frame { kLocalEnu, kShiftedCrs };
-  std::string crs = "EPSG:4979";                    // site CRS: "EPSG:NNNN" or a PROJ string
+  std::string crs = "EPSG:4979";                     // site CRS: "EPSG:NNNN" or a PROJ string
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();  // `site` origin in the CRS (x, y, z as above)
   Frame frame = Frame::kLocalEnu;
   // Throws InvalidArgument naming the value: empty CRS, non-finite origin.

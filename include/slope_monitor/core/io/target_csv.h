@@ -33,18 +33,21 @@ struct SurveyedPoint {
   int id = 0;
   TargetRole role = TargetRole::kControl;
   Eigen::Vector3d position_in_site = Eigen::Vector3d::Zero();  // [m]
-  Eigen::Vector2d sigma{0.01, 0.01};                            // [m] horizontal, vertical
+  Eigen::Vector2d sigma{0.01, 0.01};                           // [m] horizontal, vertical
 };
 
 // Throws ConfigError naming the file (context), line and column.
 std::vector<SurveyedPoint> ReadTargetCsv(const std::string& path, const SiteCrs& site,
                                          const std::string& default_family = "tag36h11");
-std::vector<SurveyedPoint> ParseTargetCsv(const std::string& text, const std::string& context, const SiteCrs& site,
+std::vector<SurveyedPoint> ParseTargetCsv(const std::string& text, const std::string& context,
+                                          const SiteCrs& site,
                                           const std::string& default_family = "tag36h11");
 
 // A point given in `crs` ("site", "WGS 84" or a CRS PROJ knows) <-> site.
-Eigen::Vector3d SiteFromListCrs(const SiteCrs& site, const std::string& crs, const Eigen::Vector3d& x_in_crs);
-Eigen::Vector3d ListCrsFromSite(const SiteCrs& site, const std::string& crs, const Eigen::Vector3d& x_in_site);
+Eigen::Vector3d SiteFromListCrs(const SiteCrs& site, const std::string& crs,
+                                const Eigen::Vector3d& x_in_crs);
+Eigen::Vector3d ListCrsFromSite(const SiteCrs& site, const std::string& crs,
+                                const Eigen::Vector3d& x_in_site);
 
 // Sets position and sigma of every listed target in `list` (a target not in
 // the list yet is added with `size` [m]).
