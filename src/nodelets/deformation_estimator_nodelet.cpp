@@ -23,6 +23,7 @@
 #include "slope_monitor/SetReferenceEpoch.h"
 #include "slope_monitor/SlopeDeformation.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/deformation/alert_log.h"
 #include "slope_monitor/core/deformation/estimator.h"
 #include "slope_monitor/core/deformation/history.h"
 #include "slope_monitor/core/deformation/report.h"
@@ -130,7 +131,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     report_on_shutdown_ = p.Bool("report_on_shutdown", true);
     report_formats_ = p.StringList("report_formats", {});
     for (const std::string& f : report_formats_)
-      if (f != "csv" && f != "geojson" && f != "geotiff" && f != "png")
+      if (f != "csv" && f != "geojson" && f != "geotiff" && f != "gpkg" && f != "png")
         throw ConfigError(Message("parameter '", p.FullKey("report_formats"), "' has unknown format '", f, "'"));
     const std::string unit = p.String("velocity_unit", "mm/day", {"mm/day", "mm/h"});
     const double to_si = unit == "mm/day" ? 1e-3 / 86400.0 : 1e-3 / 3600.0;
@@ -232,6 +233,15 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   }
 
   void Publish(const deformation::Snapshot& s, const std_msgs::Header& h) {
+    for (const deformation::AlertChange& c : alert_changes_.Update(s)) {
+      if (c.to == deformation::AlertLevel::kAlarm) {
+        NODELET_ERROR("deformation_estimator: %s", c.text.c_str());
+      } else if (c.to == deformation::AlertLevel::kNone) {
+        NODELET_INFO("deformation_estimator: %s", c.text.c_str());
+      } else {
+        NODELET_WARN("deformation_estimator: %s", c.text.c_str());
+      }
+    }
     last_alert_ = s.alert;
     num_points_ = s.points.size();
     deformation_pub_.publish(ros_adapters::ToMsg(s, h));
@@ -308,6 +318,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   uint64_t messages_ = 0, accepted_ = 0, refused_ = 0, errors_ = 0;
   size_t num_points_ = 0;
   deformation::AlertLevel last_alert_ = deformation::AlertLevel::kNone;
+  deformation::AlertChangeTracker alert_changes_;  // logs each point's level change (WARN / ERROR)
   std::string last_problem_;
 };
 

@@ -6,6 +6,7 @@
 #include <memory>
 #include <tuple>
 
+#include <boost/make_shared.hpp>
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <rosbag/bag.h>
@@ -100,7 +101,16 @@ SurveyBagSummary WriteSurveyBag(const sim::Survey& survey, const std::string& pa
         }
       }
       if (!tf.transforms.empty()) {
-        bag.write("/tf_static", Stamp(t0), tf);
+        // Latched as tf2_ros' static broadcaster publishes it, so rosbag play
+        // republishes it latched and a tf listener (rviz, tf_echo) started
+        // after playback begins still sees `site`.
+        auto header = boost::make_shared<ros::M_string>();
+        (*header)["callerid"] = "/make_survey_bag";
+        (*header)["latching"] = "1";
+        (*header)["type"] = ros::message_traits::datatype(tf);
+        (*header)["md5sum"] = ros::message_traits::md5sum(tf);
+        (*header)["message_definition"] = ros::message_traits::definition(tf);
+        bag.write("/tf_static", Stamp(t0), tf, header);
         ++summary.tf_static;
       }
     }

@@ -103,6 +103,11 @@ TEST(SimBagTest, BagHasTheDocumentedTopicsAndTruthLoads) {
     if (auto tf = m.instantiate<tf2_msgs::TFMessage>()) {
       EXPECT_EQ(m.getTopic(), "/tf_static");
       EXPECT_EQ(tf->transforms.size(), 1u + 3u);  // fixed_cam_1_optical + 3 antennas
+      // Latched, so rosbag play republishes it latched (rviz started late sees `site`).
+      ASSERT_NE(m.getConnectionHeader(), nullptr);
+      const auto latching = m.getConnectionHeader()->find("latching");
+      ASSERT_NE(latching, m.getConnectionHeader()->end());
+      EXPECT_EQ(latching->second, "1");
     }
   }
   bag.close();

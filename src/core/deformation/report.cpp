@@ -19,6 +19,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/io/geotiff.h"
 
 namespace slope_monitor {
@@ -83,6 +84,13 @@ std::string Utc(double stamp) {
   char buf[32];
   std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
   return buf;
+}
+
+// The site frame's PROJ definition when the options georeference it.
+std::optional<SiteCrs> SiteOf(const ReportOptions& options) {
+  if (!options.geodetic_origin) return std::nullopt;
+  const Eigen::Vector3d& g = *options.geodetic_origin;
+  return SiteCrs::LocalEnuAtWgs84(g(0), g(1), g(2));
 }
 
 std::string SourcesText(const PointState& p) {
@@ -158,42 +166,33 @@ void WriteFileAtomically(const std::string& path, const std::string& content) {
 }
 
 Eigen::Vector3d SiteToGeodetic(const Eigen::Vector3d& enu, const Eigen::Vector3d& origin) {
-  // WGS 84 ellipsoid; ENU -> ECEF around the origin, then ECEF -> geodetic (Bowring iteration).
-  const double a = 6378137.0, f = 1.0 / 298.257223563, e2 = f * (2 - f);
-  const double lat0 = origin(0) * M_PI / 180.0, lon0 = origin(1) * M_PI / 180.0, h0 = origin(2);
-  const double N0 = a / std::sqrt(1 - e2 * std::sin(lat0) * std::sin(lat0));
-  const Eigen::Vector3d x0((N0 + h0) * std::cos(lat0) * std::cos(lon0), (N0 + h0) * std::cos(lat0) * std::sin(lon0),
-                           (N0 * (1 - e2) + h0) * std::sin(lat0));
-  Eigen::Matrix3d R;  // columns: east, north, up in ECEF
-  R.col(0) << -std::sin(lon0), std::cos(lon0), 0;
-  R.col(1) << -std::sin(lat0) * std::cos(lon0), -std::sin(lat0) * std::sin(lon0), std::cos(lat0);
-  R.col(2) << std::cos(lat0) * std::cos(lon0), std::cos(lat0) * std::sin(lon0), std::sin(lat0);
-  const Eigen::Vector3d x = x0 + R * enu;
-  const double lon = std::atan2(x(1), x(0));
-  const double p = std::hypot(x(0), x(1));
-  double lat = std::atan2(x(2), p * (1 - e2)), h = 0.0;
-  for (int i = 0; i < 10; ++i) {
-    const double N = a / std::sqrt(1 - e2 * std::sin(lat) * std::sin(lat));
-    h = p / std::cos(lat) - N;
-    lat = std::atan2(x(2), p * (1 - e2 * N / (N + h)));
-  }
-  return Eigen::Vector3d(lon * 180.0 / M_PI, lat * 180.0 / M_PI, h);
+  return SiteCrs::LocalEnuAtWgs84(origin(0), origin(1), origin(2)).Wgs84FromSite(enu);
 }
 
-std::string WriteCsv(const Snapshot& s, const std::string& path) {
+std::string WriteCsv(const Snapshot& s, const std::string& path) { return WriteCsv(s, path, ReportOptions()); }
+
+std::string WriteCsv(const Snapshot& s, const std::string& path, const ReportOptions& options) {
+  const std::optional<SiteCrs> site = SiteOf(options);
   std::ostringstream o;
-  o << "id,x,y,z,dx_mm,dy_mm,dz_mm,d_mm,sigma_dx_mm,sigma_dy_mm,sigma_dz_mm,vx_mm_per_day,vy_mm_per_day,"
-       "vz_mm_per_day,speed_mm_per_day,sigma_speed_mm_per_day,alert,forecast_valid,forecast_failure_time,"
-       "forecast_sigma_h,forecast_window_h,sources,sources_disagree,reason\n";
+  o << "id,x,y,z,lon,lat,h,time_utc,dx_mm,dy_mm,dz_mm,d_mm,sigma_dx_mm,sigma_dy_mm,sigma_dz_mm,vx_mm_per_day,"
+       "vy_mm_per_day,vz_mm_per_day,speed_mm_per_day,sigma_speed_mm_per_day,alert,forecast_valid,"
+       "forecast_failure_time_utc,forecast_sigma_h,forecast_window_h,sources,sources_disagree,reason\n";
   for (const PointState& p : s.points) {
     o << CsvQuote(p.id) << ',' << Num(p.reference_position.x(), 4) << ',' << Num(p.reference_position.y(), 4) << ','
       << Num(p.reference_position.z(), 4);
+    if (site) {
+      const Eigen::Vector3d g = site->Wgs84FromSite(p.reference_position);
+      o << ',' << Num(g.x(), 9) << ',' << Num(g.y(), 9) << ',' << Num(g.z(), 4);
+    } else {
+      o << ",,,";
+    }
+    o << ',' << Utc(s.stamp);
     for (int k = 0; k < 3; ++k) o << ',' << Num(p.displacement(k) * 1e3, 3);
     o << ',' << Num(p.displacement.norm() * 1e3, 3);
     for (int k = 0; k < 3; ++k) o << ',' << Num(std::sqrt(p.displacement_covariance(k, k)) * 1e3, 3);
     for (int k = 0; k < 3; ++k) o << ',' << Num(p.velocity(k) * kMmPerDay, 3);
     o << ',' << Num(p.speed * kMmPerDay, 3) << ',' << Num(p.speed_sigma * kMmPerDay, 3) << ',' << AlertName(p.alert)
-      << ',' << (p.forecast.valid ? 1 : 0) << ',' << (p.forecast.valid ? Num(p.forecast.failure_time, 1) : "")
+      << ',' << (p.forecast.valid ? 1 : 0) << ',' << (p.forecast.valid ? Utc(p.forecast.failure_time) : "")
       << ',' << (p.forecast.valid ? Num(p.forecast.sigma / 3600.0, 2) : "") << ','
       << (p.forecast.valid ? Num(p.forecast.window / 3600.0, 2) : "") << ',' << SourcesText(p) << ','
       << (p.sources_disagree ? 1 : 0) << ',' << CsvQuote(p.alert_reason) << '\n';
@@ -203,9 +202,10 @@ std::string WriteCsv(const Snapshot& s, const std::string& path) {
 }
 
 std::string WriteGeoJson(const Snapshot& s, const std::string& path, const ReportOptions& options) {
+  const std::optional<SiteCrs> site = SiteOf(options);
   std::ostringstream o;
   o << "{\n  \"type\": \"FeatureCollection\",\n";
-  if (options.geodetic_origin) {
+  if (site) {
     o << "  \"crs_note\": \"WGS 84 longitude, latitude [deg], ellipsoidal height [m] (RFC 7946), from the site "
          "frame origin "
       << Num((*options.geodetic_origin)(0), 8) << ", " << Num((*options.geodetic_origin)(1), 8) << ", "
@@ -214,38 +214,42 @@ std::string WriteGeoJson(const Snapshot& s, const std::string& path, const Repor
     o << "  \"crs_note\": \"local site frame: x east, y north, z up, metres (not geodetic)\",\n";
   }
   o << "  \"reference_epoch\": " << s.reference_epoch << ",\n  \"reference_stamp\": " << Num(s.reference_stamp, 3)
-    << ",\n  \"stamp\": " << Num(s.stamp, 3) << ",\n  \"alert\": \"" << AlertName(s.alert) << "\",\n"
+    << ",\n  \"stamp\": " << Num(s.stamp, 3) << ",\n  \"time_utc\": \"" << Utc(s.stamp) << "\",\n  \"alert\": \""
+    << AlertName(s.alert) << "\",\n"
     << "  \"summary\": \"" << JsonEscape(s.summary) << "\",\n  \"features\": [";
   for (size_t i = 0; i < s.points.size(); ++i) {
     const PointState& p = s.points[i];
     Eigen::Vector3d c = p.reference_position;
     int digits = 4;
-    if (options.geodetic_origin) {
-      c = SiteToGeodetic(p.reference_position, *options.geodetic_origin);
+    if (site) {
+      c = site->Wgs84FromSite(p.reference_position);
       digits = 9;
     }
+    // Flat properties: one number or word each (no lists, no nested objects).
     o << (i ? "," : "") << "\n    {\"type\": \"Feature\", \"geometry\": {\"type\": \"Point\", \"coordinates\": ["
       << Num(c(0), digits) << ", " << Num(c(1), digits) << ", " << Num(c(2), 4) << "]},\n     \"properties\": {"
-      << "\"id\": \"" << JsonEscape(p.id) << "\", \"displacement_mm\": [" << Num(p.displacement.x() * 1e3, 3) << ", "
-      << Num(p.displacement.y() * 1e3, 3) << ", " << Num(p.displacement.z() * 1e3, 3)
-      << "], \"displacement_magnitude_mm\": " << Num(p.displacement.norm() * 1e3, 3) << ", \"velocity_mm_per_day\": ["
-      << Num(p.velocity.x() * kMmPerDay, 3) << ", " << Num(p.velocity.y() * kMmPerDay, 3) << ", "
-      << Num(p.velocity.z() * kMmPerDay, 3) << "], \"speed_mm_per_day\": " << Num(p.speed * kMmPerDay, 3)
-      << ", \"sigma_mm\": [" << Num(std::sqrt(p.displacement_covariance(0, 0)) * 1e3, 3) << ", "
-      << Num(std::sqrt(p.displacement_covariance(1, 1)) * 1e3, 3) << ", "
-      << Num(std::sqrt(p.displacement_covariance(2, 2)) * 1e3, 3)
-      << "], \"sigma_speed_mm_per_day\": " << Num(p.speed_sigma * kMmPerDay, 3) << ", \"alert\": \""
-      << AlertName(p.alert) << "\", \"alert_reason\": \"" << JsonEscape(p.alert_reason) << "\", \"sources\": \""
-      << SourcesText(p) << "\", \"sources_disagree\": " << (p.sources_disagree ? "true" : "false")
-      << ", \"forecast\": {\"valid\": " << (p.forecast.valid ? "true" : "false");
+      << "\"id\": \"" << JsonEscape(p.id) << "\", \"time_utc\": \"" << Utc(s.stamp) << "\"";
+    const char* axes = "xyz";
+    for (int k = 0; k < 3; ++k) o << ", \"d" << axes[k] << "_mm\": " << Num(p.displacement(k) * 1e3, 3);
+    o << ", \"d_mm\": " << Num(p.displacement.norm() * 1e3, 3);
+    for (int k = 0; k < 3; ++k)
+      o << ", \"sigma_d" << axes[k] << "_mm\": " << Num(std::sqrt(p.displacement_covariance(k, k)) * 1e3, 3);
+    for (int k = 0; k < 3; ++k) o << ", \"v" << axes[k] << "_mm_per_day\": " << Num(p.velocity(k) * kMmPerDay, 3);
+    o << ", \"speed_mm_per_day\": " << Num(p.speed * kMmPerDay, 3)
+      << ", \"sigma_speed_mm_per_day\": " << Num(p.speed_sigma * kMmPerDay, 3) << ", \"alert\": \""
+      << AlertName(p.alert) << "\", \"alert_level\": " << static_cast<int>(p.alert) << ", \"alert_reason\": \""
+      << JsonEscape(p.alert_reason) << "\", \"sources\": \"" << SourcesText(p)
+      << "\", \"sources_disagree\": " << (p.sources_disagree ? 1 : 0)
+      << ", \"forecast_valid\": " << (p.forecast.valid ? 1 : 0);
     if (p.forecast.valid) {
-      o << ", \"failure_time\": " << Num(p.forecast.failure_time, 1) << ", \"failure_time_utc\": \""
-        << Utc(p.forecast.failure_time) << "\", \"sigma_h\": " << Num(p.forecast.sigma / 3600.0, 2)
-        << ", \"window_h\": " << Num(p.forecast.window / 3600.0, 2) << ", \"alpha\": " << Num(p.forecast.alpha, 2);
+      o << ", \"forecast_failure_time_utc\": \"" << Utc(p.forecast.failure_time)
+        << "\", \"forecast_sigma_h\": " << Num(p.forecast.sigma / 3600.0, 2)
+        << ", \"forecast_window_h\": " << Num(p.forecast.window / 3600.0, 2)
+        << ", \"forecast_alpha\": " << Num(p.forecast.alpha, 2);
     } else {
-      o << ", \"reason\": \"" << JsonEscape(p.forecast.reason) << "\"";
+      o << ", \"forecast_reason\": \"" << JsonEscape(p.forecast.reason) << "\"";
     }
-    o << "}}}";
+    o << "}}";
   }
   o << "\n  ]\n}\n";
   WriteFileAtomically(path, o.str());
@@ -269,6 +273,11 @@ std::string WriteDisplacementGeoTiff(const Snapshot& s, const std::string& path,
                                   " cells; increase grid_resolution"));
   io::GeoRaster r(std::max(1, width), std::max(1, height), x0, y1, cell);
   r.nodata = -9999.0;
+  if (const std::optional<SiteCrs> site = SiteOf(options)) r.srs_wkt = site->CrsWkt();
+  // Cells farther than grid_margin outside the points' convex hull stay nodata.
+  std::vector<cv::Point2f> xy, hull;
+  for (const PointState& p : s.points) xy.emplace_back(p.reference_position.x(), p.reference_position.y());
+  cv::convexHull(xy, hull);
   r.AddBand("displacement_magnitude_m");
   r.AddBand("dx_m");
   r.AddBand("dy_m");
@@ -276,6 +285,7 @@ std::string WriteDisplacementGeoTiff(const Snapshot& s, const std::string& path,
   for (int row = 0; row < r.height; ++row) {
     for (int col = 0; col < r.width; ++col) {
       const Eigen::Vector2d c = r.CellCentre(row, col);
+      if (cv::pointPolygonTest(hull, cv::Point2f(c.x(), c.y()), true) < -options.grid_margin) continue;
       Eigen::Vector3d sum = Eigen::Vector3d::Zero();
       double wsum = 0.0;
       bool exact = false;
@@ -485,10 +495,10 @@ std::vector<std::string> WriteReports(const Estimator& estimator, const std::str
                                       const std::vector<std::string>& formats_in, const ReportOptions& options) {
   options.Check();
   std::vector<std::string> formats = formats_in;
-  if (formats.empty()) formats = {"csv", "geojson", "geotiff", "png"};
+  if (formats.empty()) formats = {"csv", "geojson", "geotiff", "gpkg", "png"};
   for (const std::string& f : formats)
-    if (f != "csv" && f != "geojson" && f != "geotiff" && f != "png")
-      throw InvalidArgument(Message("unknown report format '", f, "' (csv, geojson, geotiff, png)"));
+    if (f != "csv" && f != "geojson" && f != "geotiff" && f != "gpkg" && f != "png")
+      throw InvalidArgument(Message("unknown report format '", f, "' (csv, geojson, geotiff, gpkg, png)"));
   if (directory.empty()) throw InvalidArgument("report directory is empty");
   // mkdir -p
   for (size_t pos = 1; pos <= directory.size(); ++pos) {
@@ -502,7 +512,8 @@ std::vector<std::string> WriteReports(const Estimator& estimator, const std::str
   const std::string base = directory + "/deformation";
   std::vector<std::string> files;
   for (const std::string& f : formats) {
-    if (f == "csv") files.push_back(WriteCsv(s, base + ".csv"));
+    if (f == "csv") files.push_back(WriteCsv(s, base + ".csv", options));
+    if (f == "gpkg") files.push_back(WriteGeoPackage(s, base + ".gpkg", options));
     if (f == "geojson") files.push_back(WriteGeoJson(s, base + ".geojson", options));
     if (f == "geotiff" && !s.points.empty()) files.push_back(WriteDisplacementGeoTiff(s, base + ".tif", options));
     if (f == "png") {

@@ -112,7 +112,10 @@ void WriteGeoTiff(const std::string& path, const GeoRaster& raster) {
   if (!driver) throw IoError(Message(path, ": GDAL has no GTiff driver"));
 
   OGRSpatialReference srs;
-  if (raster.epsg > 0) {
+  if (!raster.srs_wkt.empty()) {
+    if (srs.importFromWkt(raster.srs_wkt.c_str()) != OGRERR_NONE)
+      throw InvalidArgument(Message(path, ": srs_wkt is not a CRS GDAL reads", QuietGdal::Last()));
+  } else if (raster.epsg > 0) {
     if (srs.importFromEPSG(raster.epsg) != OGRERR_NONE)
       throw InvalidArgument(Message(path, ": unknown EPSG code ", raster.epsg, QuietGdal::Last()));
   } else {

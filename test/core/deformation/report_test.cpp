@@ -129,12 +129,12 @@ TEST(Report, GeoJsonIsAFeatureCollection) {
       ASSERT_EQ(f["geometry"]["coordinates"].size(), 3u);
       const YAML::Node p = f["properties"];
       EXPECT_EQ(p["id"].as<std::string>(), s.points[i].id);
-      EXPECT_NEAR(p["displacement_magnitude_mm"].as<double>(), s.points[i].displacement.norm() * 1e3, 1e-3);
-      EXPECT_EQ(p["displacement_mm"].size(), 3u);
-      EXPECT_TRUE(p["velocity_mm_per_day"].IsSequence());
-      EXPECT_TRUE(p["sigma_mm"].IsSequence());
+      EXPECT_NEAR(p["d_mm"].as<double>(), s.points[i].displacement.norm() * 1e3, 1e-3);
+      EXPECT_NEAR(p["dx_mm"].as<double>(), s.points[i].displacement.x() * 1e3, 1e-3);
+      EXPECT_TRUE(p["vz_mm_per_day"].IsScalar());
+      EXPECT_TRUE(p["sigma_dz_mm"].IsScalar());
       EXPECT_TRUE(p["alert"].IsScalar());
-      EXPECT_TRUE(p["forecast"]["valid"].IsScalar());
+      EXPECT_TRUE(p["forecast_valid"].IsScalar());
       const double x = f["geometry"]["coordinates"][0].as<double>();
       const double y = f["geometry"]["coordinates"][1].as<double>();
       const double east = s.points[i].reference_position.x();

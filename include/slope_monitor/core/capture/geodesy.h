@@ -1,14 +1,14 @@
-// Geodetic (WGS84) <-> local `site` frame conversion.
+// Geodetic (WGS84) <-> local `site` frame conversion, by PROJ.
 //
 // `site` is a local tangent plane: x east, y north, z up (ENU), with its
 // origin at a geodetic point (latitude, longitude in degrees, height above
-// the WGS84 ellipsoid in metres). The conversion is exact (no flat-earth
-// approximation): geodetic -> ECEF (WGS84) -> rotate into the ENU axes of the
-// origin. The inverse goes ENU -> ECEF -> geodetic with Bowring's iteration
-// (converged to < 1e-9 m for heights from -10 km to 100 km).
+// the WGS84 ellipsoid in metres). This is SiteCrs (common/site_crs.h) with
+// a WGS 84 origin, in the latitude-first form camera_capture and the
+// simulator use; the conversion itself is PROJ's (no flat-earth
+// approximation).
 //
-// Used by camera_capture (GNSS fix -> position prior in site) and usable by
-// the simulator (site -> NavSatFix):
+// Used by camera_capture (GNSS fix -> position prior in site) and by the
+// simulator (site -> NavSatFix):
 //
 //   capture::LocalTangentPlane ltp({35.0, 139.0, 100.0});   // site.origin
 //   Eigen::Vector3d x_in_site = ltp.ToSite({35.001, 139.002, 120.0});
@@ -19,14 +19,18 @@
 // the ellipsoidal height: h = H_msl + N).
 #pragma once
 
+#include <memory>
+
 #include <Eigen/Core>
+
+#include "slope_monitor/core/common/site_crs.h"
 
 namespace slope_monitor {
 namespace capture {
 
 // WGS84 ellipsoid.
-constexpr double kWgs84A = 6378137.0;                  // semi-major axis [m]
-constexpr double kWgs84F = 1.0 / 298.257223563;        // flattening [-]
+constexpr double kWgs84A = 6378137.0;            // semi-major axis [m]
+constexpr double kWgs84F = 1.0 / 298.257223563;  // flattening [-]
 
 struct Geodetic {
   double latitude_deg = 0.0;   // [deg], north positive, [-90, 90]
@@ -37,13 +41,6 @@ struct Geodetic {
 // Throws InvalidArgument naming the value when latitude/longitude are out of
 // range or any value is not finite.
 void CheckGeodetic(const Geodetic& g, const char* what);
-
-Eigen::Vector3d GeodeticToEcef(const Geodetic& g);
-Geodetic EcefToGeodetic(const Eigen::Vector3d& x_in_ecef);
-
-// Rotation from ECEF axes to the ENU axes at a geodetic point
-// (x_in_enu = R * (x_in_ecef - origin_in_ecef)).
-Eigen::Matrix3d EnuFromEcefRotation(double latitude_deg, double longitude_deg);
 
 class LocalTangentPlane {
  public:
@@ -58,12 +55,12 @@ class LocalTangentPlane {
   // Rotates a covariance given in the ENU axes at point g (e.g. a
   // NavSatFix position_covariance) into the site axes. For points within a few
   // km of the origin this is close to the identity rotation.
-  Eigen::Matrix3d CovarianceToSite(const Geodetic& g, const Eigen::Matrix3d& cov_in_local_enu) const;
+  Eigen::Matrix3d CovarianceToSite(const Geodetic& g,
+                                   const Eigen::Matrix3d& cov_in_local_enu) const;
 
  private:
   Geodetic origin_;
-  Eigen::Vector3d origin_in_ecef_;
-  Eigen::Matrix3d site_from_ecef_;
+  std::shared_ptr<const SiteCrs> site_;
 };
 
 }  // namespace capture

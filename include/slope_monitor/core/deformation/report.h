@@ -10,11 +10,13 @@
 //
 // CSV columns (one row per point, header line first):
 //   id, x, y, z                      [m] reference position (site)
-//   dx, dy, dz, d                    [mm] displacement and its magnitude
-//   sigma_dx, sigma_dy, sigma_dz     [mm] 1-sigma
+//   lon, lat, h                      [deg, deg, m] WGS 84 (empty without a geodetic origin)
+//   time_utc                         ISO 8601 UTC time of the snapshot
+//   dx_mm, dy_mm, dz_mm, d_mm        displacement and its magnitude
+//   sigma_dx_mm, sigma_dy_mm, sigma_dz_mm  1-sigma
 //   vx, vy, vz, speed, sigma_speed   [mm/day]
 //   alert                            none | watch | warning | alarm
-//   forecast_valid, forecast_failure_time [s, stamp], forecast_sigma [h], forecast_window [h]
+//   forecast_valid (0/1), forecast_failure_time_utc (ISO 8601), forecast_sigma_h, forecast_window_h
 //   sources                          "target+radio", ...
 //   sources_disagree                 0 | 1
 //   reason                           alert reason and disagreements (quoted)
@@ -23,11 +25,23 @@
 // origin, coordinates are local site metres [x, y, z] and the collection
 // carries "crs_note": "local site frame ..."; with an origin (lat, lon, h of
 // the site frame's origin, x east, y north, z up), coordinates are WGS 84
-// [lon, lat, h] (RFC 7946) computed through ECEF. Properties: id,
-// displacement_mm [dx, dy, dz], displacement_magnitude_mm, velocity_mm_per_day
-// [vx, vy, vz], speed_mm_per_day, sigma_mm [sx, sy, sz], sigma_speed_mm_per_day,
-// alert, alert_reason, sources, sources_disagree, forecast {valid,
-// failure_time (s), failure_time_utc, sigma_h, window_h, alpha}.
+// [lon, lat, h] (RFC 7946) computed by PROJ (common/site_crs.h). Properties
+// are flat, one number or word each, named like the CSV columns (id,
+// time_utc, dx_mm ... d_mm, sigma_dx_mm ..., vx_mm_per_day ...,
+// speed_mm_per_day, sigma_speed_mm_per_day, alert, alert_level 0-3,
+// alert_reason, sources, sources_disagree 0/1, forecast_valid 0/1 and, when
+// valid, forecast_failure_time_utc, forecast_sigma_h, forecast_window_h,
+// forecast_alpha, else forecast_reason).
+//
+// GeoTIFF: with a geodetic origin its CRS is the site frame as a projected
+// CRS PROJ and GDAL know (an orthographic projection at the origin, so
+// gdalwarp can take it to EPSG:4326 or any map CRS); without one a local
+// engineering CRS "site". Cells farther than grid_margin outside the points'
+// convex hull are nodata.
+//
+// GeoPackage (OGR): layer "points" (id, reference position) and layer
+// "latest_displacement" (the CSV's numbers per point), both Point layers in
+// the GeoTIFF's CRS.
 #pragma once
 
 #include <map>
@@ -57,7 +71,9 @@ struct ReportOptions {
 
 // The largest displacement of the field in metres per pixel etc. is not
 // needed by callers; each writer returns the path it wrote.
-std::string WriteCsv(const Snapshot& snapshot, const std::string& path);
+std::string WriteCsv(const Snapshot& snapshot, const std::string& path);  // lon, lat empty
+std::string WriteCsv(const Snapshot& snapshot, const std::string& path, const ReportOptions& options);
+std::string WriteGeoPackage(const Snapshot& snapshot, const std::string& path, const ReportOptions& options);
 std::string WriteGeoJson(const Snapshot& snapshot, const std::string& path, const ReportOptions& options);
 // Displacement magnitude [m] (band 1) and dx, dy, dz (bands 2-4), float32,
 // north-up grid in the site frame (x east, y north), nodata -9999.
@@ -68,7 +84,7 @@ std::string WriteDisplacementMap(const Snapshot& snapshot, const std::string& pa
 std::string WriteTimeSeries(const std::string& point_id, const std::vector<SeriesSample>& series,
                             const Thresholds& thresholds, const std::string& path, const ReportOptions& options);
 
-// Writes every requested format ("csv", "geojson", "geotiff", "png"; empty:
+// Writes every requested format ("csv", "geojson", "geotiff", "gpkg", "png"; empty:
 // all) into `directory` (created if absent) and returns the files written.
 std::vector<std::string> WriteReports(const Estimator& estimator, const std::string& directory,
                                       const std::vector<std::string>& formats, const ReportOptions& options);

@@ -21,7 +21,8 @@
 // (LOCAL_CS named "site", metres), because `site` is a local slope frame; with
 // epsg > 0 it carries that EPSG code (e.g. a UTM zone when the site is
 // georeferenced). On reading, epsg is the EPSG code of the file's CRS when it
-// has one, else 0; srs_wkt is the file's CRS as WKT (empty when none).
+// has one, else 0; srs_wkt is the file's CRS as WKT (empty when none). On
+// writing, a non-empty srs_wkt is the CRS written (it wins over epsg).
 //
 // Writing goes to a temporary file in the same directory, which is renamed
 // over `path` only after GDAL has closed it without error, so a half-written
@@ -54,7 +55,7 @@ struct GeoRaster {
   double cell_size = 1.0;     // [m] square cells, > 0
   double nodata = std::numeric_limits<double>::quiet_NaN();  // marks missing cells (NaN or finite)
   int epsg = 0;               // 0: local engineering CRS "site"; > 0: EPSG code
-  std::string srs_wkt;        // filled on read (informative); ignored on write
+  std::string srs_wkt;        // filled on read; on write, when not empty, the CRS written
   std::vector<std::string> band_names;     // one description per band
   std::vector<std::vector<float>> bands;   // [band][row * width + col]
 

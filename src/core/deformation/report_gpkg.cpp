@@ -1,0 +1,169 @@
+// GeoPackage report through OGR: layers "points" and "latest_displacement".
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <iterator>
+
+#include <gdal_priv.h>
+#include <ogrsf_frmts.h>
+
+#include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/site_crs.h"
+#include "slope_monitor/core/deformation/report.h"
+
+namespace slope_monitor {
+namespace deformation {
+namespace {
+
+constexpr double kMmPerDay = 1e3 * 86400.0;  // m/s -> mm/day
+
+std::string Utc(double stamp) {
+  const std::time_t t = static_cast<std::time_t>(std::floor(stamp));
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+OGRSpatialReference ReportSrs(const ReportOptions& options, const std::string& path) {
+  OGRSpatialReference srs;
+  if (options.geodetic_origin) {
+    const Eigen::Vector3d& g = *options.geodetic_origin;
+    const std::string wkt = SiteCrs::LocalEnuAtWgs84(g(0), g(1), g(2)).CrsWkt();
+    if (srs.importFromWkt(wkt.c_str()) != OGRERR_NONE)
+      throw IoError(Message("GeoPackage '", path, "': GDAL cannot read the site CRS"));
+  } else {
+    srs.SetLocalCS("site");
+    srs.SetLinearUnits(SRS_UL_METER, 1.0);
+  }
+  srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  return srs;
+}
+
+OGRLayer* NewLayer(GDALDataset* ds, const char* name, OGRSpatialReference* srs,
+                   const std::string& path) {
+  OGRLayer* layer = ds->CreateLayer(name, srs, wkbPoint25D, nullptr);
+  if (!layer)
+    throw IoError(
+        Message("GeoPackage '", path, "': cannot create layer ", name, ": ", CPLGetLastErrorMsg()));
+  return layer;
+}
+
+void AddField(OGRLayer* layer, const char* name, OGRFieldType type, const std::string& path) {
+  OGRFieldDefn f(name, type);
+  if (layer->CreateField(&f) != OGRERR_NONE)
+    throw IoError(
+        Message("GeoPackage '", path, "': cannot add field ", name, ": ", CPLGetLastErrorMsg()));
+}
+
+void AddPoint(OGRLayer* layer, OGRFeature* f, const Eigen::Vector3d& x, const std::string& path) {
+  OGRPoint pt(x.x(), x.y(), x.z());
+  f->SetGeometry(&pt);
+  if (layer->CreateFeature(f) != OGRERR_NONE)
+    throw IoError(
+        Message("GeoPackage '", path, "': cannot write a feature: ", CPLGetLastErrorMsg()));
+}
+
+void WritePointsLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* srs,
+                      const std::string& path) {
+  OGRLayer* layer = NewLayer(ds, "points", srs, path);
+  AddField(layer, "point_id", OFTString, path);
+  AddField(layer, "sources", OFTString, path);
+  for (const PointState& p : s.points) {
+    OGRFeature f(layer->GetLayerDefn());
+    f.SetField("point_id", p.id.c_str());
+    std::string sources;
+    for (Source src : p.sources) sources += (sources.empty() ? "" : "+") + SourceName(src);
+    f.SetField("sources", sources.c_str());
+    AddPoint(layer, &f, p.reference_position, path);
+  }
+}
+
+void WriteDisplacementLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* srs,
+                            const std::string& path) {
+  OGRLayer* layer = NewLayer(ds, "latest_displacement", srs, path);
+  const char* reals[] = {"dx_mm",
+                         "dy_mm",
+                         "dz_mm",
+                         "d_mm",
+                         "sigma_dx_mm",
+                         "sigma_dy_mm",
+                         "sigma_dz_mm",
+                         "vx_mm_per_day",
+                         "vy_mm_per_day",
+                         "vz_mm_per_day",
+                         "speed_mm_per_day",
+                         "sigma_speed_mm_per_day",
+                         "forecast_sigma_h"};
+  AddField(layer, "point_id", OFTString, path);
+  AddField(layer, "time_utc", OFTString, path);
+  for (const char* r : reals) AddField(layer, r, OFTReal, path);
+  AddField(layer, "alert", OFTString, path);
+  AddField(layer, "alert_level", OFTInteger, path);
+  AddField(layer, "forecast_valid", OFTInteger, path);
+  AddField(layer, "forecast_failure_time_utc", OFTString, path);
+  for (const PointState& p : s.points) {
+    OGRFeature f(layer->GetLayerDefn());
+    f.SetField("point_id", p.id.c_str());
+    f.SetField("time_utc", Utc(s.stamp).c_str());
+    const double values[] = {p.displacement.x() * 1e3,
+                             p.displacement.y() * 1e3,
+                             p.displacement.z() * 1e3,
+                             p.displacement.norm() * 1e3,
+                             std::sqrt(p.displacement_covariance(0, 0)) * 1e3,
+                             std::sqrt(p.displacement_covariance(1, 1)) * 1e3,
+                             std::sqrt(p.displacement_covariance(2, 2)) * 1e3,
+                             p.velocity.x() * kMmPerDay,
+                             p.velocity.y() * kMmPerDay,
+                             p.velocity.z() * kMmPerDay,
+                             p.speed * kMmPerDay,
+                             p.speed_sigma * kMmPerDay,
+                             p.forecast.valid ? p.forecast.sigma / 3600.0 : NAN};
+    for (size_t k = 0; k < std::size(reals); ++k) {
+      if (std::isfinite(values[k])) f.SetField(reals[k], values[k]);
+    }
+    f.SetField("alert", AlertName(p.alert).c_str());
+    f.SetField("alert_level", static_cast<int>(p.alert));
+    f.SetField("forecast_valid", p.forecast.valid ? 1 : 0);
+    if (p.forecast.valid)
+      f.SetField("forecast_failure_time_utc", Utc(p.forecast.failure_time).c_str());
+    AddPoint(layer, &f, p.reference_position, path);
+  }
+}
+
+}  // namespace
+
+std::string WriteGeoPackage(const Snapshot& s, const std::string& path,
+                            const ReportOptions& options) {
+  GDALAllRegister();
+  GDALDriver* driver = GetGDALDriverManager()->GetDriverByName("GPKG");
+  if (!driver) throw IoError(Message("GeoPackage '", path, "': GDAL has no GPKG driver"));
+  OGRSpatialReference srs = ReportSrs(options, path);
+  const std::string tmp = path + ".tmp-" + std::to_string(getpid()) + ".gpkg";
+  std::remove(tmp.c_str());
+  GDALDataset* ds = driver->Create(tmp.c_str(), 0, 0, 0, GDT_Unknown, nullptr);
+  if (!ds) throw IoError(Message("cannot create GeoPackage '", path, "': ", CPLGetLastErrorMsg()));
+  try {
+    WritePointsLayer(ds, s, &srs, path);
+    WriteDisplacementLayer(ds, s, &srs, path);
+  } catch (...) {
+    GDALClose(ds);
+    std::remove(tmp.c_str());
+    throw;
+  }
+  GDALClose(ds);
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string why = std::strerror(errno);
+    std::remove(tmp.c_str());
+    throw IoError(Message("cannot rename '", tmp, "' to report '", path, "': ", why));
+  }
+  return path;
+}
+
+}  // namespace deformation
+}  // namespace slope_monitor

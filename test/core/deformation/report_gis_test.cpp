@@ -1,0 +1,210 @@
+// The reports as GIS tools see them (GDAL's own utilities through its API,
+// the equivalents of gdalinfo, gdalwarp -t_srs EPSG:4326 and ogrinfo):
+//  * the GeoTIFF carries a CRS that gdalwarp takes to EPSG:4326, and the
+//    warped raster holds each point's displacement at the point's longitude
+//    and latitude (hand values: at 35 N one degree of latitude is 110.94 km
+//    and one of longitude 91.29 km on WGS 84); cells beyond the points'
+//    convex hull plus the margin are nodata;
+//  * the GeoJSON's properties are flat: a number or a word each;
+//  * the GeoPackage has layers points and latest_displacement in the site
+//    CRS; a feature transformed by OGR to EPSG:4326 lands on the hand values;
+//  * the CSV has lon/lat and ISO 8601 UTC times.
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <fstream>
+#include <memory>
+#include <regex>
+#include <sstream>
+
+#include <gdal_priv.h>
+#include <gdal_utils.h>
+#include <gtest/gtest.h>
+#include <ogrsf_frmts.h>
+#include <yaml-cpp/yaml.h>
+
+#include "slope_monitor/core/deformation/report.h"
+#include "test_scenario.h"
+
+namespace slope_monitor {
+namespace deformation {
+namespace {
+
+using testing::kDay;
+using testing::kT0;
+
+// tag36h11/1 at x = 0, tag36h11/2 at x = 10 (both 10 mm/day), rock at x = 20
+// (stable), all y = 50 (test_scenario.h); site origin 35 N 139 E, 100 m.
+Snapshot Scenario() {
+  Estimator e{EstimatorOptions()};
+  std::vector<testing::Motion> motions(3);
+  motions[0].v0 = motions[1].v0 = 10e-3 / kDay;
+  testing::SourceSpec radio;
+  radio.interval = 3600.0;
+  radio.sigma = Eigen::Vector3d(0.002, 0.002, 0.002);
+  for (const Batch& b :
+       testing::MakeBatches(radio, {"tag36h11/1", "tag36h11/2", "rock"}, motions, kT0 + 2 * kDay))
+    e.AddBatch(b);
+  return e.GetSnapshot();
+}
+
+ReportOptions Georeferenced() {
+  ReportOptions o;
+  o.geodetic_origin = Eigen::Vector3d(35.0, 139.0, 100.0);
+  return o;
+}
+
+// Hand values: longitude, latitude of site (x, 50).
+double Lon(double x) { return 139.0 + x / 91288.0; }
+double Lat() { return 35.0 + 50.0 / 110941.0; }
+
+std::string TempDir(const std::string& name) {
+  const std::string d = "/tmp/sm_report_gis_" + std::to_string(getpid()) + "_" + name;
+  mkdir(d.c_str(), 0755);
+  return d;
+}
+
+const PointState& PointById(const Snapshot& s, const std::string& id) {
+  for (const PointState& p : s.points)
+    if (p.id == id) return p;
+  throw std::runtime_error("no point " + id);
+}
+
+float Sample(GDALDataset* ds, double x, double y) {
+  double gt[6];
+  EXPECT_EQ(ds->GetGeoTransform(gt), CE_None);
+  const int col = static_cast<int>(std::floor((x - gt[0]) / gt[1]));
+  const int row = static_cast<int>(std::floor((y - gt[3]) / gt[5]));
+  float v = NAN;
+  if (col < 0 || row < 0 || col >= ds->GetRasterXSize() || row >= ds->GetRasterYSize()) return v;
+  EXPECT_EQ(ds->GetRasterBand(1)->RasterIO(GF_Read, col, row, 1, 1, &v, 1, 1, GDT_Float32, 0, 0),
+            CE_None);
+  return v;
+}
+
+TEST(ReportGis, GeoTiffWarpsToWgs84WithThePointsInPlace) {
+  const Snapshot s = Scenario();
+  const std::string dir = TempDir("tif");
+  const std::string path = WriteDisplacementGeoTiff(s, dir + "/deformation.tif", Georeferenced());
+  GDALAllRegister();
+  GDALDatasetH src = GDALOpen(path.c_str(), GA_ReadOnly);
+  ASSERT_NE(src, nullptr);
+  // gdalinfo: a projected CRS.
+  char* info = GDALInfo(src, nullptr);
+  ASSERT_NE(info, nullptr);
+  EXPECT_NE(std::string(info).find("Orthographic"), std::string::npos) << info;
+  CPLFree(info);
+  // Masked: the corner cell (13.4 m from the nearest point, margin 10 m) is nodata, the points'
+  // cells are not.
+  GDALDataset* tif = GDALDataset::FromHandle(src);
+  EXPECT_EQ(Sample(tif, -9.5, 59.5), -9999.0f);
+  EXPECT_NE(Sample(tif, 10.25, 50.25), -9999.0f);
+  // gdalwarp -t_srs EPSG:4326 -r near
+  const char* args[] = {"-t_srs", "EPSG:4326", "-r", "near", nullptr};
+  GDALWarpAppOptions* wo = GDALWarpAppOptionsNew(const_cast<char**>(args), nullptr);
+  int failed = 0;
+  GDALDatasetH warped = GDALWarp((dir + "/wgs84.tif").c_str(), nullptr, 1, &src, wo, &failed);
+  GDALWarpAppOptionsFree(wo);
+  ASSERT_NE(warped, nullptr);
+  EXPECT_EQ(failed, 0);
+  GDALDataset* w = GDALDataset::FromHandle(warped);
+  for (const char* id : {"tag36h11/1", "tag36h11/2", "rock"}) {
+    const PointState& p = PointById(s, id);
+    const float v = Sample(w, Lon(p.reference_position.x()), Lat());
+    EXPECT_NEAR(v, p.displacement.norm(), 0.002)
+        << id << " at " << Lon(p.reference_position.x()) << ", " << Lat();
+  }
+  GDALClose(warped);
+  GDALClose(src);
+}
+
+TEST(ReportGis, GeoJsonPropertiesAreFlat) {
+  const Snapshot s = Scenario();
+  const std::string path =
+      WriteGeoJson(s, TempDir("json") + "/deformation.geojson", Georeferenced());
+  const YAML::Node root = YAML::LoadFile(path);
+  ASSERT_EQ(root["features"].size(), 3u);
+  for (const YAML::Node& f : root["features"]) {
+    const YAML::Node c = f["geometry"]["coordinates"];
+    EXPECT_NEAR(c[1].as<double>(), Lat(), 2e-7);
+    for (const auto& kv : f["properties"]) {
+      const std::string key = kv.first.as<std::string>();
+      ASSERT_TRUE(kv.second.IsScalar()) << key << " is not a number or a word";
+      const std::string v = kv.second.as<std::string>();
+      EXPECT_TRUE(v.empty() || (v[0] != '{' && v[0] != '['))
+          << key << " holds JSON in a string: " << v;
+      if (key.size() > 3 &&
+          (key.find("_mm") != std::string::npos || key.find("forecast_valid") == 0)) {
+        EXPECT_NO_THROW(kv.second.as<double>()) << key << " = " << v;
+      }
+    }
+  }
+}
+
+TEST(ReportGis, GeoPackageHasBothLayersInTheSiteCrs) {
+  const Snapshot s = Scenario();
+  const std::string path =
+      WriteGeoPackage(s, TempDir("gpkg") + "/deformation.gpkg", Georeferenced());
+  GDALAllRegister();
+  std::unique_ptr<GDALDataset, void (*)(GDALDataset*)> ds(
+      GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY),
+      [](GDALDataset* d) { GDALClose(d); });
+  ASSERT_NE(ds, nullptr);
+  ASSERT_EQ(ds->GetLayerCount(), 2);
+  OGRLayer* points = ds->GetLayerByName("points");
+  OGRLayer* latest = ds->GetLayerByName("latest_displacement");
+  ASSERT_NE(points, nullptr);
+  ASSERT_NE(latest, nullptr);
+  EXPECT_EQ(points->GetFeatureCount(), 3);
+  EXPECT_EQ(latest->GetFeatureCount(), 3);
+  ASSERT_NE(latest->GetSpatialRef(), nullptr);
+  EXPECT_TRUE(latest->GetSpatialRef()->IsProjected());
+  OGRSpatialReference wgs84;
+  wgs84.importFromEPSG(4326);
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRCoordinateTransformation> to_wgs84(
+      OGRCreateCoordinateTransformation(latest->GetSpatialRef(), &wgs84));
+  ASSERT_NE(to_wgs84, nullptr);
+  int n = 0;
+  for (auto& f : *latest) {
+    const PointState& p = PointById(s, f->GetFieldAsString("point_id"));
+    EXPECT_NEAR(f->GetFieldAsDouble("d_mm"), p.displacement.norm() * 1e3, 1e-9);
+    EXPECT_STREQ(f->GetFieldAsString("alert"), AlertName(p.alert).c_str());
+    const OGRPoint* g = f->GetGeometryRef()->toPoint();
+    EXPECT_NEAR(g->getX(), p.reference_position.x(), 1e-9);
+    double x = g->getX(), y = g->getY();
+    ASSERT_TRUE(to_wgs84->Transform(1, &x, &y));
+    EXPECT_NEAR(x, Lon(p.reference_position.x()), 2e-7);
+    EXPECT_NEAR(y, Lat(), 2e-7);
+    ++n;
+  }
+  EXPECT_EQ(n, 3);
+}
+
+TEST(ReportGis, CsvHasLonLatAndIsoTimes) {
+  const Snapshot s = Scenario();
+  const std::string path = WriteCsv(s, TempDir("csv") + "/deformation.csv", Georeferenced());
+  std::ifstream in(path);
+  std::string header, line;
+  std::getline(in, header);
+  EXPECT_EQ(header.rfind("id,x,y,z,lon,lat,h,time_utc,", 0), 0u) << header;
+  const std::regex iso(R"(\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}Z)");
+  int rows = 0;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+    ASSERT_GE(f.size(), 8u);
+    const PointState& p = PointById(s, f[0].substr(1, f[0].size() - 2));
+    EXPECT_NEAR(std::stod(f[4]), Lon(p.reference_position.x()), 2e-7);
+    EXPECT_NEAR(std::stod(f[5]), Lat(), 2e-7);
+    EXPECT_TRUE(std::regex_match(f[7], iso)) << f[7];
+    ++rows;
+  }
+  EXPECT_EQ(rows, 3);
+}
+
+}  // namespace
+}  // namespace deformation
+}  // namespace slope_monitor
