@@ -55,7 +55,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
                database_.c_str(), report_dir_.c_str(), TopicList().c_str());
     } else if (estimator_ && report_on_shutdown_ && !report_dir_.empty()) {
       try {
-        const auto files = deformation::WriteReports(*estimator_, report_dir_, report_formats_, report_options_);
+        const auto files = deformation::WriteReports(*estimator_, report_dir_, "", report_formats_, report_options_);
         ROS_INFO("deformation_estimator: wrote %zu report file(s) to %s at shutdown", files.size(),
                  report_dir_.c_str());
       } catch (const std::exception& e) {
@@ -95,8 +95,12 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("markers", 2, true);
     points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("points", 2, true);
     alerts_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("alerts", 4, true);
-    reference_srv_ = nh.advertiseService("set_reference_epoch", &DeformationEstimatorNodelet::OnSetReference, this);
-    export_srv_ = nh.advertiseService("export_report", &DeformationEstimatorNodelet::OnExport, this);
+    // A live installation may switch off the services that change state or
+    // write files (ROS 1 has no authentication; doc/security.md).
+    if (enable_set_reference_epoch_)
+      reference_srv_ = nh.advertiseService("set_reference_epoch", &DeformationEstimatorNodelet::OnSetReference, this);
+    if (enable_export_report_)
+      export_srv_ = nh.advertiseService("export_report", &DeformationEstimatorNodelet::OnExport, this);
     for (const std::string& topic : input_topics_) {
       const boost::function<void(const slope_monitor::PointDisplacementArray::ConstPtr&)> callback =
           [this, topic](const slope_monitor::PointDisplacementArray::ConstPtr& msg) { OnDisplacements(msg, topic); };
@@ -129,6 +133,8 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     report_dir_ = p.String("report_dir", "");
     report_on_shutdown_ = p.Bool("report_on_shutdown", true);
     report_formats_ = p.StringList("report_formats", {});
+    enable_export_report_ = p.Bool("enable_export_report", true);
+    enable_set_reference_epoch_ = p.Bool("enable_set_reference_epoch", true);
     for (const std::string& f : report_formats_)
       if (f != "csv" && f != "geojson" && f != "geotiff" && f != "png")
         throw ConfigError(Message("parameter '", p.FullKey("report_formats"), "' has unknown format '", f, "'"));
@@ -260,13 +266,14 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
 
   bool OnExport(slope_monitor::ExportReport::Request& req, slope_monitor::ExportReport::Response& res) {
     std::lock_guard<std::mutex> lock(mutex_);
-    const std::string dir = req.output_dir.empty() ? report_dir_ : req.output_dir;
     try {
-      if (dir.empty()) throw InvalidArgument("no output_dir given and parameter 'report_dir' is empty");
-      res.files = deformation::WriteReports(*estimator_, dir, req.formats, report_options_);
+      // output_dir names a subfolder of report_dir, never a path of its own.
+      if (report_dir_.empty())
+        throw InvalidArgument("parameter 'report_dir' is empty: export_report writes only inside it");
+      res.files = deformation::WriteReports(*estimator_, report_dir_, req.output_dir, req.formats, report_options_);
       res.success = true;
-      res.message = Message("wrote ", res.files.size(), " file(s) to ", dir);
-    } catch (const Error& e) {
+      res.message = Message("wrote ", res.files.size(), " file(s) to ", report_dir_, "/", req.output_dir);
+    } catch (const std::exception& e) {
       res.success = false;
       res.files.clear();  // never present a partial set as complete
       res.message = e.what();
@@ -295,6 +302,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   std::vector<std::string> input_topics_;
   std::string frame_id_, database_, report_dir_;
   bool report_on_shutdown_ = true;
+  bool enable_export_report_ = true, enable_set_reference_epoch_ = true;
   std::vector<std::string> report_formats_;
   deformation::ReportOptions report_options_;
   ros_adapters::MarkerOptions marker_options_;
