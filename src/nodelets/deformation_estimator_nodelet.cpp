@@ -29,6 +29,7 @@
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
+#include "slope_monitor/ros/validation.h"
 
 namespace slope_monitor {
 
@@ -219,8 +220,14 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   void OnDisplacements(const slope_monitor::PointDisplacementArray::ConstPtr& msg, const std::string& topic) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++messages_;
+    const slope_monitor::PointDisplacementArray valid = validator_.Filter(*msg, topic, ros::Time::now().toSec());
+    for (const std::string& problem : validator_.last_problems()) {
+      NODELET_WARN_THROTTLE(10.0, "deformation_estimator: rejected %s", problem.c_str());
+      last_problem_ = problem;
+    }
+    if (valid.displacements.empty() && !msg->displacements.empty()) return;
     try {
-      const deformation::BatchSummary s = estimator_->AddBatch(ros_adapters::FromMsg(*msg, topic));
+      const deformation::BatchSummary s = estimator_->AddBatch(ros_adapters::FromMsg(valid, topic));
       accepted_ += s.accepted;
       refused_ += s.refused;
       for (const std::string& m : s.messages) {
@@ -294,6 +301,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     stat.add("measurements accepted", accepted_);
     stat.add("measurements refused", refused_);
     stat.add("messages dropped", errors_);
+    for (const auto& [reason, count] : validator_.rejected()) stat.add("rejected: " + reason, count);
     stat.add("database", database_.empty() ? "(none)" : database_);
     stat.add("last problem", last_problem_);
   }
@@ -306,6 +314,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   std::vector<std::string> report_formats_;
   deformation::ReportOptions report_options_;
   ros_adapters::MarkerOptions marker_options_;
+  ros_adapters::MessageValidator validator_;
   std::unique_ptr<deformation::History> history_;
   std::unique_ptr<deformation::Estimator> estimator_;
   std::vector<ros::Subscriber> subscribers_;
