@@ -72,6 +72,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     deformation::EstimatorOptions options;
     if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh, &options); })) {
       NODELET_ERROR("deformation_estimator: %s; not advertising", error->c_str());
+      ReportSetUpFailure("parameters rejected: " + *error);
       return;
     }
     if (const auto error = ros_adapters::SetUpError([&] {
@@ -82,6 +83,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
                     error->c_str());
       estimator_.reset();
       history_.reset();
+      ReportSetUpFailure("history database refused: " + *error);
       return;
     }
     const deformation::Snapshot resumed = estimator_->GetSnapshot();
@@ -117,6 +119,17 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
       h.stamp = ros::Time(resumed.stamp);
       Publish(resumed, h);
     }
+  }
+
+  // A node that cannot do its job says so: ERROR on /diagnostics every
+  // second until it is restarted with the cause fixed.
+  void ReportSetUpFailure(const std::string& cause) {
+    setup_error_ = cause;
+    updater_ = std::make_unique<diagnostic_updater::Updater>(getNodeHandle(), getPrivateNodeHandle());
+    updater_->setHardwareID("deformation_estimator");
+    updater_->add("deformation_estimator", this, &DeformationEstimatorNodelet::Diagnose);
+    diag_timer_ = getNodeHandle().createWallTimer(ros::WallDuration(1.0),
+                                                  [this](const ros::WallTimerEvent&) { updater_->force_update(); });
   }
 
   std::string TopicList() const {
@@ -291,6 +304,11 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
 
   void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (!setup_error_.empty()) {
+      stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "not running: " + setup_error_);
+      stat.add("database", database_.empty() ? "(none)" : database_);
+      return;
+    }
     if (errors_ > 0 && !last_problem_.empty()) {
       stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "dropped messages: " + last_problem_);
     } else {
@@ -326,6 +344,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   size_t num_points_ = 0;
   deformation::AlertLevel last_alert_ = deformation::AlertLevel::kNone;
   std::string last_problem_;
+  std::string setup_error_;  // why the node is not running; "" when it is
 };
 
 }  // namespace slope_monitor
