@@ -4,12 +4,24 @@
 // the tail). Same seed, same inputs: a failure is reproducible by its index.
 #pragma once
 
+#include <cstdlib>
 #include <random>
 #include <string>
 #include <vector>
 
 namespace slope_monitor {
 namespace fuzz {
+
+// The suite runs the defaults; scripts/fuzz_long sets SM_FUZZ_ITERATIONS and
+// SM_FUZZ_SEED for deeper runs.
+inline int Iterations(int suite_default) {
+  const char* v = std::getenv("SM_FUZZ_ITERATIONS");
+  return v ? std::atoi(v) : suite_default;
+}
+inline unsigned Seed() {
+  const char* v = std::getenv("SM_FUZZ_SEED");
+  return v ? static_cast<unsigned>(std::strtoul(v, nullptr, 10)) : 22u;
+}
 
 class Mutator {
  public:
