@@ -48,7 +48,7 @@ TEST(ValidationFuzz, WhatPassesIsUsable) {
     slope_monitor::PointDisplacementArray a;
     a.header.stamp = ros::Time(kNow - h.Below(100000));
     a.epoch = static_cast<uint32_t>(i / 10);  // message-level checks: validation_test.cpp
-    for (size_t k = 0, n = h.Below(6); k < n; ++k) {
+    for (size_t k = 0, count = h.Below(6); k < count; ++k) {
       slope_monitor::PointDisplacement d;
       d.point_id = h.Id();
       d.source_name = "fuzz";
