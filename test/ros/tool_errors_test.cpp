@@ -22,14 +22,14 @@ std::string BinDir() {
   return exe.substr(0, exe.rfind('/'));
 }
 
-struct Run {
+struct ToolRun {
   int status = -1;  // exit status; 128 + signal when killed
   std::string output;
 };
 
 // Runs `tool args` with stderr folded into the output.
-Run Tool(const std::string& tool, const std::string& args) {
-  Run r;
+ToolRun Tool(const std::string& tool, const std::string& args) {
+  ToolRun r;
   const std::string cmd = BinDir() + "/" + tool + " " + args + " 2>&1";
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
@@ -44,20 +44,20 @@ Run Tool(const std::string& tool, const std::string& args) {
 const std::string kTmp = "/tmp/sm_tool_errors_" + std::to_string(getpid());
 
 TEST(ToolErrors, CentroidTargetsMissingImageFolder) {
-  const Run r = Tool("centroid_targets", "--images /nonexistent --out " + kTmp + ".csv");
+  const ToolRun r = Tool("centroid_targets", "--images /nonexistent --out " + kTmp + ".csv");
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("/nonexistent"), std::string::npos) << r.output;
   std::remove((kTmp + ".csv").c_str());
 }
 
 TEST(ToolErrors, DenseSurfaceEpochNotANumber) {
-  const Run r = Tool("dense_surface", "--truth " + kTmp + ".truth.yaml --bag x.bag --epoch abc --out-dir " + kTmp);
+  const ToolRun r = Tool("dense_surface", "--truth " + kTmp + ".truth.yaml --bag x.bag --epoch abc --out-dir " + kTmp);
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("--epoch 'abc'"), std::string::npos) << r.output;
 }
 
 TEST(ToolErrors, MakeSurveyBagNegativeSeed) {
-  const Run r = Tool("make_survey_bag", "--config " + kTmp + ".yaml --out " + kTmp + ".bag --seed -5");
+  const ToolRun r = Tool("make_survey_bag", "--config " + kTmp + ".yaml --out " + kTmp + ".bag --seed -5");
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("--seed '-5'"), std::string::npos) << r.output;
 }
@@ -65,7 +65,7 @@ TEST(ToolErrors, MakeSurveyBagNegativeSeed) {
 TEST(ToolErrors, SolveBalHugeDeclaredCounts) {
   const std::string path = kTmp + ".bal";
   std::ofstream(path) << "2000000000 2000000000 200000";  // 28 bytes
-  const Run r = Tool("solve_bal", path);
+  const ToolRun r = Tool("solve_bal", path);
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find(path), std::string::npos) << r.output;
   std::remove(path.c_str());
