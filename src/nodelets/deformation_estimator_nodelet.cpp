@@ -233,7 +233,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   void OnDisplacements(const slope_monitor::PointDisplacementArray::ConstPtr& msg, const std::string& topic) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++messages_;
-    const slope_monitor::PointDisplacementArray valid = validator_.Filter(*msg, topic, ros::Time::now().toSec());
+    const slope_monitor::PointDisplacementArray valid = validator_.Filter(*msg, topic, ros::WallTime::now().toSec());
     for (const std::string& problem : validator_.last_problems()) {
       NODELET_WARN_THROTTLE(10.0, "deformation_estimator: rejected %s", problem.c_str());
       last_problem_ = problem;

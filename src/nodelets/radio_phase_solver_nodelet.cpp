@@ -134,7 +134,7 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
   void OnBlock(const slope_monitor::RadioSampleBlockConstPtr& msg, const std::string& receiver) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++blocks_received_;
-    if (!validator_.Accept(*msg, receiver, ros::Time::now().toSec())) {
+    if (!validator_.Accept(*msg, receiver, ros::WallTime::now().toSec())) {
       last_error_ = validator_.last_problems().front();
       NODELET_WARN_THROTTLE(10.0, "radio_phase_solver: rejected %s", last_error_.c_str());
       return;

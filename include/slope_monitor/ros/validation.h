@@ -11,8 +11,8 @@
 //     |x|, |y|, |z| <= max_coordinate), displacements <= max_displacement;
 //   * covariance symmetric, positive definite, every sigma (square root of
 //     an eigenvalue) within [min_sigma, max_sigma] metres;
-//   * stamps not later than now + future_tolerance (skipped while the clock
-//     reads 0) and not before min_stamp;
+//   * stamps not later than wall-clock now + future_tolerance (skipped when
+//     now is 0) and not before min_stamp;
 //   * epoch numbers per source (topic) never decrease and never jump by more
 //     than max_epoch_step;
 //   * a radio sample block's receiver_id equals the receiver of its topic.
@@ -53,7 +53,9 @@ class MessageValidator {
   explicit MessageValidator(const ValidationOptions& options = ValidationOptions());
 
   // The valid part of `msg` (same header and epoch); an empty array when the
-  // whole message is refused (bad epoch, stamp). `now` [s]: the node's clock.
+  // whole message is refused (bad epoch, stamp). `now` [s]: wall-clock time
+  // (a replay's simulated clock lags the bag's stamps at high rates; "the
+  // future" is real time).
   slope_monitor::PointDisplacementArray Filter(const slope_monitor::PointDisplacementArray& msg,
                                                const std::string& topic, double now);
   // True when the block may be used; `expected_receiver` is the receiver the
