@@ -11,6 +11,11 @@ else
 fi
 # ROS's Python tools run under the system interpreter.
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:$PATH"
+# The master and the nodes of a demo, replay or test bind and advertise
+# loopback only unless the caller chose an address (doc/security.md: ROS 1
+# has no authentication; scripts/check_listeners shows what listens).
+export ROS_IP="${ROS_IP:-127.0.0.1}"
+export ROS_HOSTNAME="${ROS_HOSTNAME:-127.0.0.1}"
 
 sm_say() { printf '[slope_monitor] %s\n' "$*" >&2; }
 sm_die() { printf '[slope_monitor] ERROR: %s\n' "$*" >&2; exit 1; }

@@ -30,6 +30,7 @@
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
+#include "slope_monitor/ros/validation.h"
 
 namespace slope_monitor {
 
@@ -56,7 +57,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
                database_.c_str(), report_dir_.c_str(), TopicList().c_str());
     } else if (estimator_ && report_on_shutdown_ && !report_dir_.empty()) {
       try {
-        const auto files = deformation::WriteReports(*estimator_, report_dir_, report_formats_, report_options_);
+        const auto files = deformation::WriteReports(*estimator_, report_dir_, "", report_formats_, report_options_);
         ROS_INFO("deformation_estimator: wrote %zu report file(s) to %s at shutdown", files.size(),
                  report_dir_.c_str());
       } catch (const std::exception& e) {
@@ -72,6 +73,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     deformation::EstimatorOptions options;
     if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh, &options); })) {
       NODELET_ERROR("deformation_estimator: %s; not advertising", error->c_str());
+      ReportSetUpFailure("parameters rejected: " + *error);
       return;
     }
     if (const auto error = ros_adapters::SetUpError([&] {
@@ -82,6 +84,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
                     error->c_str());
       estimator_.reset();
       history_.reset();
+      ReportSetUpFailure("history database refused: " + *error);
       return;
     }
     const deformation::Snapshot resumed = estimator_->GetSnapshot();
@@ -96,8 +99,12 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("markers", 2, true);
     points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("points", 2, true);
     alerts_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("alerts", 4, true);
-    reference_srv_ = nh.advertiseService("set_reference_epoch", &DeformationEstimatorNodelet::OnSetReference, this);
-    export_srv_ = nh.advertiseService("export_report", &DeformationEstimatorNodelet::OnExport, this);
+    // A live installation may switch off the services that change state or
+    // write files (ROS 1 has no authentication; doc/security.md).
+    if (enable_set_reference_epoch_)
+      reference_srv_ = nh.advertiseService("set_reference_epoch", &DeformationEstimatorNodelet::OnSetReference, this);
+    if (enable_export_report_)
+      export_srv_ = nh.advertiseService("export_report", &DeformationEstimatorNodelet::OnExport, this);
     for (const std::string& topic : input_topics_) {
       const boost::function<void(const slope_monitor::PointDisplacementArray::ConstPtr&)> callback =
           [this, topic](const slope_monitor::PointDisplacementArray::ConstPtr& msg) { OnDisplacements(msg, topic); };
@@ -115,6 +122,17 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     }
   }
 
+  // A node that cannot do its job says so: ERROR on /diagnostics every
+  // second until it is restarted with the cause fixed.
+  void ReportSetUpFailure(const std::string& cause) {
+    setup_error_ = cause;
+    updater_ = std::make_unique<diagnostic_updater::Updater>(getNodeHandle(), getPrivateNodeHandle());
+    updater_->setHardwareID("deformation_estimator");
+    updater_->add("deformation_estimator", this, &DeformationEstimatorNodelet::Diagnose);
+    diag_timer_ = getNodeHandle().createWallTimer(ros::WallDuration(1.0),
+                                                  [this](const ros::WallTimerEvent&) { updater_->force_update(); });
+  }
+
   std::string TopicList() const {
     std::string t;
     for (const std::string& x : input_topics_) t += (t.empty() ? "" : ", ") + x;
@@ -130,6 +148,8 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     report_dir_ = p.String("report_dir", "");
     report_on_shutdown_ = p.Bool("report_on_shutdown", true);
     report_formats_ = p.StringList("report_formats", {});
+    enable_export_report_ = p.Bool("enable_export_report", true);
+    enable_set_reference_epoch_ = p.Bool("enable_set_reference_epoch", true);
     for (const std::string& f : report_formats_)
       if (f != "csv" && f != "geojson" && f != "geotiff" && f != "gpkg" && f != "png")
         throw ConfigError(Message("parameter '", p.FullKey("report_formats"), "' has unknown format '", f, "'"));
@@ -214,8 +234,14 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   void OnDisplacements(const slope_monitor::PointDisplacementArray::ConstPtr& msg, const std::string& topic) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++messages_;
+    const slope_monitor::PointDisplacementArray valid = validator_.Filter(*msg, topic, ros::WallTime::now().toSec());
+    for (const std::string& problem : validator_.last_problems()) {
+      NODELET_WARN_THROTTLE(10.0, "deformation_estimator: rejected %s", problem.c_str());
+      last_problem_ = problem;
+    }
+    if (valid.displacements.empty() && !msg->displacements.empty()) return;
     try {
-      const deformation::BatchSummary s = estimator_->AddBatch(ros_adapters::FromMsg(*msg, topic));
+      const deformation::BatchSummary s = estimator_->AddBatch(ros_adapters::FromMsg(valid, topic));
       accepted_ += s.accepted;
       refused_ += s.refused;
       for (const std::string& m : s.messages) {
@@ -270,13 +296,14 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
 
   bool OnExport(slope_monitor::ExportReport::Request& req, slope_monitor::ExportReport::Response& res) {
     std::lock_guard<std::mutex> lock(mutex_);
-    const std::string dir = req.output_dir.empty() ? report_dir_ : req.output_dir;
     try {
-      if (dir.empty()) throw InvalidArgument("no output_dir given and parameter 'report_dir' is empty");
-      res.files = deformation::WriteReports(*estimator_, dir, req.formats, report_options_);
+      // output_dir names a subfolder of report_dir, never a path of its own.
+      if (report_dir_.empty())
+        throw InvalidArgument("parameter 'report_dir' is empty: export_report writes only inside it");
+      res.files = deformation::WriteReports(*estimator_, report_dir_, req.output_dir, req.formats, report_options_);
       res.success = true;
-      res.message = Message("wrote ", res.files.size(), " file(s) to ", dir);
-    } catch (const Error& e) {
+      res.message = Message("wrote ", res.files.size(), " file(s) to ", report_dir_, "/", req.output_dir);
+    } catch (const std::exception& e) {
       res.success = false;
       res.files.clear();  // never present a partial set as complete
       res.message = e.what();
@@ -287,6 +314,11 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
 
   void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (!setup_error_.empty()) {
+      stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "not running: " + setup_error_);
+      stat.add("database", database_.empty() ? "(none)" : database_);
+      return;
+    }
     if (errors_ > 0 && !last_problem_.empty()) {
       stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "dropped messages: " + last_problem_);
     } else {
@@ -297,6 +329,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     stat.add("measurements accepted", accepted_);
     stat.add("measurements refused", refused_);
     stat.add("messages dropped", errors_);
+    for (const auto& [reason, count] : validator_.rejected()) stat.add("rejected: " + reason, count);
     stat.add("database", database_.empty() ? "(none)" : database_);
     stat.add("last problem", last_problem_);
   }
@@ -305,9 +338,11 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   std::vector<std::string> input_topics_;
   std::string frame_id_, database_, report_dir_;
   bool report_on_shutdown_ = true;
+  bool enable_export_report_ = true, enable_set_reference_epoch_ = true;
   std::vector<std::string> report_formats_;
   deformation::ReportOptions report_options_;
   ros_adapters::MarkerOptions marker_options_;
+  ros_adapters::MessageValidator validator_;
   std::unique_ptr<deformation::History> history_;
   std::unique_ptr<deformation::Estimator> estimator_;
   std::vector<ros::Subscriber> subscribers_;
@@ -320,6 +355,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   deformation::AlertLevel last_alert_ = deformation::AlertLevel::kNone;
   deformation::AlertChangeTracker alert_changes_;  // logs each point's level change (WARN / ERROR)
   std::string last_problem_;
+  std::string setup_error_;  // why the node is not running; "" when it is
 };
 
 }  // namespace slope_monitor

@@ -30,6 +30,7 @@
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
+#include "slope_monitor/ros/validation.h"
 
 namespace slope_monitor {
 
@@ -52,7 +53,8 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
     disp_pub_ = nh.advertise<slope_monitor::PointDisplacementArray>("radio_displacements", 10, true);
     for (const auto& r : network_.receivers)
       subs_.push_back(nh.subscribe<slope_monitor::RadioSampleBlock>(
-          r.id + "/samples", 20, [this](const slope_monitor::RadioSampleBlockConstPtr& m) { OnBlock(m); }));
+          r.id + "/samples", 20,
+          [this, id = r.id](const slope_monitor::RadioSampleBlockConstPtr& m) { OnBlock(m, id); }));
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     updater_->setHardwareID("radio_phase_solver");
     updater_->add("radio_phase_solver", this, &RadioPhaseSolverNodelet::Diagnose);
@@ -129,9 +131,14 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
     return b;
   }
 
-  void OnBlock(const slope_monitor::RadioSampleBlockConstPtr& msg) {
+  void OnBlock(const slope_monitor::RadioSampleBlockConstPtr& msg, const std::string& receiver) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++blocks_received_;
+    if (!validator_.Accept(*msg, receiver, ros::WallTime::now().toSec())) {
+      last_error_ = validator_.last_problems().front();
+      NODELET_WARN_THROTTLE(10.0, "radio_phase_solver: rejected %s", last_error_.c_str());
+      return;
+    }
     try {
       for (auto& epoch : assembler_->Add(FromMsg(*msg))) Process(epoch, msg->header);
     } catch (const std::exception& e) {
@@ -213,6 +220,7 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
                                           std::to_string(t.ratio) + ", epoch " + radio::FixStateName(t.epoch_fix_state) +
                                           ", links " + std::to_string(t.links_used));
     stat.add("blocks received", blocks_received_);
+    for (const auto& [reason, count] : validator_.rejected()) stat.add("rejected: " + reason, count);
     stat.add("epochs", epochs_);
     stat.add("errors", errors_);
     stat.add("last error", last_error_);
@@ -233,6 +241,7 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
   radio::RadioSolverOptions options_;
   std::unique_ptr<radio::RadioPhaseSolver> solver_;
   std::unique_ptr<radio::EpochAssembler> assembler_;
+  ros_adapters::MessageValidator validator_;
   double stamp_tolerance_ = 1e-3, max_wait_ = 2.5;
   std::string frame_id_ = "site";
   ros::Publisher obs_pub_, disp_pub_;

@@ -131,6 +131,12 @@ int main(int argc, char** argv) {
   } catch (const Error& e) {
     std::cerr << "centroid_targets: " << e.what() << "\n";
     return 1;
+  } catch (const std::filesystem::filesystem_error& e) {
+    std::cerr << "centroid_targets: cannot read '" << e.path1().string() << "': " << e.code().message() << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "centroid_targets: " << e.what() << "\n";
+    return 1;
   }
   return 0;
 }

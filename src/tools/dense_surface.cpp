@@ -199,6 +199,21 @@ void CompareWithTruth(const io::GeoRaster& model, const io::GeoRaster& true_surf
   report("  near scarp / trees / boulders (Unmatchable)", hard);
 }
 
+// An integer flag, or an InvalidArgument naming the flag and its value.
+int IntArg(const Args& a, const std::string& flag, const std::string& default_value) {
+  const std::string v = a.Get(flag, default_value);
+  size_t used = 0;
+  int n = 0;
+  try {
+    n = std::stoi(v, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (v.empty() || used != v.size() || n < 0)
+    throw InvalidArgument(Message(flag, " '", v, "' must be a non-negative integer (an epoch number)"));
+  return n;
+}
+
 int Run(const Args& a) {
   dense::SurfaceOptions options;
   options.correlation.final_grid_spacing = 2;
@@ -215,8 +230,8 @@ int Run(const Args& a) {
   std::unique_ptr<sim::SurveyTruth> truth;
   int epoch = 0;
   if (a.Has("--truth")) {
+    epoch = IntArg(a, "--epoch", "0");  // before loading anything
     truth = std::make_unique<sim::SurveyTruth>(sim::SurveyTruth::Load(a.Get("--truth")));
-    epoch = std::stoi(a.Get("--epoch", "0"));
     left = ImageFromTruth(*truth, a.Get("--bag"), a.Get("--left-camera", "fixed_cam_1"), epoch);
     right = ImageFromTruth(*truth, a.Get("--bag"), a.Get("--right-camera", "fixed_cam_2"), epoch);
     if (config.region.isZero())
@@ -246,7 +261,7 @@ int Run(const Args& a) {
 
   std::unique_ptr<io::GeoRaster> reference;
   if (truth && a.Has("--reference-epoch")) {
-    const int ref_epoch = std::stoi(a.Get("--reference-epoch"));
+    const int ref_epoch = IntArg(a, "--reference-epoch", "");
     const dense::OrientedImage l0 =
         ImageFromTruth(*truth, a.Get("--bag"), a.Get("--left-camera", "fixed_cam_1"), ref_epoch);
     const dense::OrientedImage r0 =
@@ -261,7 +276,7 @@ int Run(const Args& a) {
     io::WriteGeoTiff((fs::path(out_dir) / "change.tif").string(), c.change);
     if (truth && a.Has("--reference-epoch")) {
       const io::GeoRaster true_ref =
-          io::ReadGeoTiff(TruthSurfacePath(*truth, a.Get("--truth"), std::stoi(a.Get("--reference-epoch"))));
+          io::ReadGeoTiff(TruthSurfacePath(*truth, a.Get("--truth"), IntArg(a, "--reference-epoch", "")));
       // True cut and fill over the whole model grid and over the significant cells.
       double gain = 0, loss = 0, gain_sig = 0, loss_sig = 0;
       const double area = c.change.cell_size * c.change.cell_size;

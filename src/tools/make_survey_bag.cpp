@@ -45,11 +45,16 @@ int main(int argc, char** argv) {
     } else if (a == "--compression") {
       compression = value("--compression");
     } else if (a == "--seed") {
+      const std::string v = value("--seed");
+      size_t used = 0;
       try {
-        seed = std::stol(value("--seed"));
+        seed = std::stol(v, &used);
       } catch (const std::exception&) {
-        std::cerr << "make_survey_bag: --seed needs a non-negative integer\n";
-        return 2;
+        used = 0;
+      }
+      if (v.empty() || used != v.size() || seed < 0 || seed > 4294967295L) {
+        std::cerr << "make_survey_bag: --seed '" << v << "' must be an integer in [0, 4294967295]\n";
+        return 1;
       }
     } else if (a == "--quiet") {
       quiet = true;
@@ -92,8 +97,8 @@ int main(int argc, char** argv) {
                 bag_path.c_str(), s.images, s.gnss_fixes, s.radio_blocks, s.epoch_markers, secs);
     std::printf("truth: %s.truth.yaml  targets: %s.targets.yaml  surfaces: %s.surface_eNN.tif\n", stem.c_str(),
                 stem.c_str(), stem.c_str());
-  } catch (const slope_monitor::Error& e) {
-    std::cerr << "make_survey_bag: " << e.what() << "\n";
+  } catch (const std::exception& e) {
+    std::cerr << "make_survey_bag: " << config_path << ": " << e.what() << "\n";
     return 1;
   }
   return 0;

@@ -16,6 +16,7 @@
 #include <iterator>
 #include <mutex>
 
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/NodeletLoad.h>
 #include <nodelet/NodeletUnload.h>
 #include <rosbag/bag.h>
@@ -141,7 +142,32 @@ void CheckCorruptDatabase(const std::string& manager, const std::string& path) {
   ros::param::set(name + "/database", path);
   ros::param::set(name + "/report_dir", path + ".reports");
   ros::param::set(name + "/input_topics", std::vector<std::string>{"/bundle_adjuster/displacements"});
+  // Loud failure (issue 22): the refused node publishes ERROR diagnostics naming the file.
+  std::mutex diag_mutex;
+  std::string diag_error;
+  ros::NodeHandle nh;
+  ros::Subscriber diag_sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 10, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
+        for (const auto& st : m->status)
+          if (st.level == diagnostic_msgs::DiagnosticStatus::ERROR && st.message.find(path) != std::string::npos) {
+            std::lock_guard<std::mutex> lock(diag_mutex);
+            diag_error = st.message;
+          }
+      });
   ASSERT_TRUE(Load(manager, name)) << "load_nodelet " << name;  // onInit logs and returns; the load itself succeeds
+  for (int i = 0; i < 600; ++i) {
+    {
+      std::lock_guard<std::mutex> lock(diag_mutex);
+      if (!diag_error.empty()) break;
+    }
+    ros::WallDuration(0.1).sleep();
+  }
+  {
+    std::lock_guard<std::mutex> lock(diag_mutex);
+    EXPECT_NE(diag_error.find("history database refused"), std::string::npos)
+        << "no ERROR diagnostics name the refused database " << path << " ('" << diag_error << "')";
+  }
+  diag_sub.shutdown();
   std::vector<std::string> hits;
   // The refusal travels through the manager's /rosout publisher; on a loaded
   // machine (CI building beside it) that can take a while.

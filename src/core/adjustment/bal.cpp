@@ -17,6 +17,17 @@ BalProblem BalProblem::Load(const std::string& path) {
   long nc = 0, np = 0, no = 0;
   if (!(in >> nc >> np >> no) || nc <= 0 || np <= 0 || no <= 0)
     throw IoError(Message("BAL file '", path, "': bad header (need three positive counts)"));
+  // Every number takes at least one character and one separator: a file too
+  // short for its declared counts is refused before anything is allocated.
+  const std::streampos header_end = in.tellg();
+  in.seekg(0, std::ios::end);
+  const long long remaining = static_cast<long long>(in.tellg() - header_end);
+  in.seekg(header_end);
+  const long double needed = 2.0L * (4.0L * no + 9.0L * nc + 3.0L * np) - 1.0L;
+  if (needed > remaining)
+    throw IoError(Message("BAL file '", path, "': header declares ", nc, " cameras, ", np, " points, ", no,
+                          " observations, which need at least ", static_cast<double>(needed), " bytes; the file has ",
+                          remaining, " after the header"));
   BalProblem p;
   p.cameras.resize(nc);
   p.points.resize(np);

@@ -121,6 +121,9 @@ History::History(const std::string& path) : path_(path) {
       if (!check.Step() || check.Text(0) != "ok")
         Fail(Message("integrity check failed (", check.Text(0), "); the file is left untouched"));
     }
+    if (version < 0)
+      Fail(Message("unknown schema version ", version, " (this program knows 0..", kSchemaVersion,
+                   "); the file is left untouched"));
     if (version > kSchemaVersion)
       Fail(Message("schema version ", version, " is newer than this program's ", kSchemaVersion,
                    "; the file is left untouched"));

@@ -1,11 +1,10 @@
 #include "slope_monitor/core/deformation/report.h"
 
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <ctime>
@@ -21,22 +20,13 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/core/io/safe_file.h"
 
 namespace slope_monitor {
 namespace deformation {
 namespace {
 
 constexpr double kMmPerDay = 1e3 * 86400.0;  // m/s -> mm/day
-
-std::string TempName(const std::string& path) { return path + ".tmp-" + std::to_string(getpid()); }
-
-void Rename(const std::string& tmp, const std::string& path) {
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string why = std::strerror(errno);
-    std::remove(tmp.c_str());
-    throw IoError(Message("cannot rename '", tmp, "' to report '", path, "': ", why));
-  }
-}
 
 std::string JsonEscape(const std::string& s) {
   std::string out;
@@ -109,19 +99,28 @@ cv::Scalar AlertColour(AlertLevel a) {  // BGR
 }
 
 void WriteImage(const std::string& path, const cv::Mat& image) {
-  const std::string tmp = TempName(path) + ".png";
-  bool ok = false;
+  std::vector<uchar> png;
   try {
-    ok = cv::imwrite(tmp, image);
+    if (!cv::imencode(".png", image, png)) throw IoError(Message("cannot encode PNG '", path, "'"));
   } catch (const cv::Exception& e) {
-    std::remove(tmp.c_str());
-    throw IoError(Message("cannot write PNG '", path, "': ", e.what()));
+    throw IoError(Message("cannot encode PNG '", path, "': ", e.what()));
   }
-  if (!ok) {
-    std::remove(tmp.c_str());
-    throw IoError(Message("cannot write PNG '", path, "'"));
-  }
-  Rename(tmp, path);
+  io::WriteFileAtomically(path, std::string(png.begin(), png.end()));
+}
+
+// A file name part for a point id: [A-Za-z0-9_-] kept, the rest '_'. An id
+// longer than io::kMaxIdLength (refused at the message boundary, but perhaps
+// stored by an older version) is cut and made unique by an FNV-1a hash.
+std::string FileNamePart(const std::string& id) {
+  std::string safe = id;
+  for (char& c : safe)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '_';
+  if (safe.size() <= io::kMaxIdLength) return safe;
+  uint64_t hash = 1469598103934665603ull;
+  for (unsigned char c : id) hash = (hash ^ c) * 1099511628211ull;
+  char hex[17];
+  std::snprintf(hex, sizeof(hex), "%016llx", static_cast<unsigned long long>(hash));
+  return safe.substr(0, io::kMaxIdLength - 17) + "_" + hex;
 }
 
 // A "nice" number near x (1, 2, 5 x 10^n).
@@ -148,21 +147,6 @@ void ReportOptions::Check() const {
   if (series_width < 200 || series_height < 150)
     throw ConfigError(Message("report series size ", series_width, "x", series_height, " px is too small"));
   if (!(arrow_scale >= 0.0)) throw ConfigError(Message("report arrow_scale = ", arrow_scale, " must be >= 0"));
-}
-
-void WriteFileAtomically(const std::string& path, const std::string& content) {
-  const std::string tmp = TempName(path);
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw IoError(Message("cannot write report '", path, "' (temporary '", tmp, "'): ", std::strerror(errno)));
-    out << content;
-    out.flush();
-    if (!out) {
-      std::remove(tmp.c_str());
-      throw IoError(Message("cannot write report '", path, "': write failed"));
-    }
-  }
-  Rename(tmp, path);
 }
 
 Eigen::Vector3d SiteToGeodetic(const Eigen::Vector3d& enu, const Eigen::Vector3d& origin) {
@@ -197,7 +181,7 @@ std::string WriteCsv(const Snapshot& s, const std::string& path, const ReportOpt
       << (p.forecast.valid ? Num(p.forecast.window / 3600.0, 2) : "") << ',' << SourcesText(p) << ','
       << (p.sources_disagree ? 1 : 0) << ',' << CsvQuote(p.alert_reason) << '\n';
   }
-  WriteFileAtomically(path, o.str());
+  io::WriteFileAtomically(path, o.str());
   return path;
 }
 
@@ -252,7 +236,7 @@ std::string WriteGeoJson(const Snapshot& s, const std::string& path, const Repor
     o << "}}";
   }
   o << "\n  ]\n}\n";
-  WriteFileAtomically(path, o.str());
+  io::WriteFileAtomically(path, o.str());
   return path;
 }
 
@@ -491,23 +475,17 @@ std::string WriteTimeSeries(const std::string& point_id, const std::vector<Serie
   return path;
 }
 
-std::vector<std::string> WriteReports(const Estimator& estimator, const std::string& directory,
-                                      const std::vector<std::string>& formats_in, const ReportOptions& options) {
+std::vector<std::string> WriteReports(const Estimator& estimator, const std::string& root,
+                                      const std::string& subfolder, const std::vector<std::string>& formats_in,
+                                      const ReportOptions& options) {
   options.Check();
   std::vector<std::string> formats = formats_in;
   if (formats.empty()) formats = {"csv", "geojson", "geotiff", "gpkg", "png"};
   for (const std::string& f : formats)
     if (f != "csv" && f != "geojson" && f != "geotiff" && f != "gpkg" && f != "png")
       throw InvalidArgument(Message("unknown report format '", f, "' (csv, geojson, geotiff, gpkg, png)"));
-  if (directory.empty()) throw InvalidArgument("report directory is empty");
-  // mkdir -p
-  for (size_t pos = 1; pos <= directory.size(); ++pos) {
-    if (pos == directory.size() || directory[pos] == '/') {
-      const std::string d = directory.substr(0, pos);
-      if (mkdir(d.c_str(), 0755) != 0 && errno != EEXIST)
-        throw IoError(Message("cannot create report directory '", d, "': ", std::strerror(errno)));
-    }
-  }
+  if (root.empty()) throw InvalidArgument("report folder is empty");
+  const std::string directory = io::ResolveSubfolder(root, subfolder);
   const Snapshot s = estimator.GetSnapshot();
   const std::string base = directory + "/deformation";
   std::vector<std::string> files;
@@ -518,13 +496,9 @@ std::vector<std::string> WriteReports(const Estimator& estimator, const std::str
     if (f == "geotiff" && !s.points.empty()) files.push_back(WriteDisplacementGeoTiff(s, base + ".tif", options));
     if (f == "png") {
       files.push_back(WriteDisplacementMap(s, base + "_map.png", options));
-      for (const auto& [id, series] : estimator.Series()) {
-        std::string safe = id;
-        for (char& c : safe)
-          if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '_';
-        files.push_back(
-            WriteTimeSeries(id, series, estimator.ThresholdsOf(id), base + "_series_" + safe + ".png", options));
-      }
+      for (const auto& [id, series] : estimator.Series())
+        files.push_back(WriteTimeSeries(id, series, estimator.ThresholdsOf(id),
+                                        base + "_series_" + FileNamePart(id) + ".png", options));
     }
   }
   return files;

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/deformation/history.h"
 #include "slope_monitor/core/sim/survey.h"
 
 namespace slope_monitor {
@@ -25,8 +26,26 @@ class Db {
       sqlite3_close(db_);
       throw IoError(Message("cannot open deformation history '", path, "': ", why));
     }
+    // A damaged file or one written by an unknown schema is refused, not read.
+    const std::string integrity = Scalar("PRAGMA integrity_check");
+    if (integrity != "ok")
+      throw IoError(Message("deformation history '", path, "' fails PRAGMA integrity_check: ", integrity));
+    const std::string version = Scalar("PRAGMA user_version");
+    if (version != std::to_string(deformation::History::kSchemaVersion))
+      throw IoError(Message("deformation history '", path, "' has schema version ", version, "; this program reads ",
+                            deformation::History::kSchemaVersion));
   }
   ~Db() { sqlite3_close(db_); }
+
+  // The first column of the first row of `sql` as text ("" without a row).
+  std::string Scalar(const std::string& sql) const {
+    sqlite3_stmt* s = Prepare(sql);
+    std::string out;
+    if (sqlite3_step(s) == SQLITE_ROW && sqlite3_column_text(s, 0))
+      out = reinterpret_cast<const char*>(sqlite3_column_text(s, 0));
+    sqlite3_finalize(s);
+    return out;
+  }
   Db(const Db&) = delete;
   Db& operator=(const Db&) = delete;
 

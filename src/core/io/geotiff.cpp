@@ -8,11 +8,13 @@
 
 #include <cpl_conv.h>
 #include <cpl_error.h>
+#include <cpl_vsi.h>
 #include <gdal.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/safe_file.h"
 
 namespace slope_monitor {
 namespace io {
@@ -38,11 +40,12 @@ class QuietGdal {
   }
 };
 
-std::string TempNameFor(const std::string& path) {
+// GDAL writes into memory; the bytes reach the disk through
+// io::WriteFileAtomically (exclusive temporary + rename, safe_file.h).
+std::string MemoryNameFor() {
   static std::atomic<unsigned> counter{0};
-  std::random_device rd;
   std::ostringstream s;
-  s << path << ".tmp" << std::hex << rd() << "_" << counter++ << ".tif";
+  s << "/vsimem/slope_monitor_geotiff_" << counter++ << ".tif";
   return s.str();
 }
 
@@ -123,7 +126,7 @@ void WriteGeoTiff(const std::string& path, const GeoRaster& raster) {
     srs.SetLinearUnits(SRS_UL_METER, 1.0);
   }
 
-  const std::string tmp = TempNameFor(path);
+  const std::string tmp = MemoryNameFor();
   char** create_options = nullptr;
   create_options = CSLSetNameValue(create_options, "COMPRESS", "DEFLATE");
   create_options = CSLSetNameValue(create_options, "PREDICTOR", "3");
@@ -153,13 +156,15 @@ void WriteGeoTiff(const std::string& path, const GeoRaster& raster) {
     why = QuietGdal::Last();
   }
   if (!ok) {
-    std::remove(tmp.c_str());
+    VSIUnlink(tmp.c_str());
     throw IoError(Message(path, ": writing the GeoTIFF failed", why));
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw IoError(Message(path, ": cannot rename the temporary file ", tmp, " over it"));
-  }
+  vsi_l_offset size = 0;
+  GByte* bytes = VSIGetMemFileBuffer(tmp.c_str(), &size, TRUE);  // takes ownership, unlinks
+  if (!bytes) throw IoError(Message(path, ": GDAL produced no GeoTIFF in memory"));
+  const std::string content(reinterpret_cast<const char*>(bytes), static_cast<size_t>(size));
+  CPLFree(bytes);
+  WriteFileAtomically(path, content);
 }
 
 GeoRaster ReadGeoTiff(const std::string& path) {

@@ -52,8 +52,24 @@ std::vector<std::string> TargetList::Families() const {
 
 namespace {
 
+constexpr double kMaxCoordinate = 1e5;  // [m] |x|, |y|, |z| in the site frame (100 km)
+constexpr double kMinSigma = 1e-6;      // [m]
+constexpr double kMaxSigma = 1e3;       // [m]
+constexpr double kSamePosition = 1e-3;  // [m] two targets closer than this are one position written twice
+
+// Two surveyed targets at the same position are a copy-paste error.
+void CheckDistinctPositions(const TargetList& list, const YamlMap& root) {
+  const auto& t = list.targets();
+  for (size_t i = 0; i < t.size(); ++i)
+    for (size_t j = i + 1; j < t.size(); ++j)
+      if (t[i].position && t[j].position && (*t[i].position - *t[j].position).norm() < kSamePosition)
+        root.Fail("targets", Message("targets ", t[i].Key(), " and ", t[j].Key(), " have the same position (",
+                                     t[i].position->x(), ", ", t[i].position->y(), ", ", t[i].position->z(), ")"));
+}
+
 TargetList FromMap(YamlMap root) {
   root.String("frame", "site", {"site"});
+  if (!root.Has("targets")) root.Fail("targets", "is missing (a list of targets; [] for none)");
   TargetList list;
   for (YamlMap t : root.List("targets")) {
     TargetSpec s;
@@ -64,12 +80,17 @@ TargetList FromMap(YamlMap root) {
     if (t.Has("position")) {
       const auto p = t.RequiredDoubles("position", 3);
       s.position = Eigen::Vector3d(p[0], p[1], p[2]);
+      if (!s.position->allFinite() || s.position->cwiseAbs().maxCoeff() > kMaxCoordinate)
+        t.Fail("position", Message("of target ", s.Key(), " (", p[0], ", ", p[1], ", ", p[2], ") m is beyond ",
+                                   kMaxCoordinate, " m from the site origin"));
     } else if (s.role != TargetRole::kMonitoring) {
       t.Fail("position", Message("is missing: target ", s.Key(), " is a ", TargetRoleName(s.role),
                                  " point and needs surveyed coordinates"));
     }
     const auto sigma = t.Doubles("sigma", {0.01, 0.01}, 2);
-    if (sigma[0] <= 0.0 || sigma[1] <= 0.0) t.Fail("sigma", "must be positive [m]");
+    for (double v : sigma)
+      if (!(v >= kMinSigma && v <= kMaxSigma))
+        t.Fail("sigma", Message("of target ", s.Key(), ": ", v, " m is outside [", kMinSigma, ", ", kMaxSigma, "] m"));
     s.sigma = Eigen::Vector2d(sigma[0], sigma[1]);
     if (t.Has("normal")) {
       const auto n = t.RequiredDoubles("normal", 3);
@@ -81,6 +102,7 @@ TargetList FromMap(YamlMap root) {
     if (list.Find(s.family, s.id)) t.Fail("id", Message("duplicates target ", s.Key()));
     list.Add(s);
   }
+  CheckDistinctPositions(list, root);
   root.CheckNoUnknownKeys();
   return list;
 }

@@ -3,10 +3,10 @@
 // displacement map with arrows coloured by alert level and a scale bar;
 // a time series per point with the alert thresholds).
 //
-// Every file is written atomically: to "<name>.tmp-<pid>" in the same
-// directory, flushed, then renamed over <name>, so a reader never sees a
-// half-written report under the final name. Errors throw IoError naming the
-// file.
+// Every file is written atomically by io::WriteFileAtomically (an exclusive
+// mkstemp temporary in the same folder, fsync, rename over <name>), so a
+// reader never sees a half-written report and a link planted in the folder is
+// never followed. Errors throw IoError naming the file.
 //
 // CSV columns (one row per point, header line first):
 //   id, x, y, z                      [m] reference position (site)
@@ -85,15 +85,18 @@ std::string WriteTimeSeries(const std::string& point_id, const std::vector<Serie
                             const Thresholds& thresholds, const std::string& path, const ReportOptions& options);
 
 // Writes every requested format ("csv", "geojson", "geotiff", "gpkg", "png"; empty:
-// all) into `directory` (created if absent) and returns the files written.
-std::vector<std::string> WriteReports(const Estimator& estimator, const std::string& directory,
-                                      const std::vector<std::string>& formats, const ReportOptions& options);
+// all) into root/subfolder and returns the files written. `root` is the
+// configured report folder (created if absent); `subfolder` ("" = the root)
+// comes from a request and must stay inside it (io::ResolveSubfolder: no
+// "..", no absolute path, no link, no control character; InvalidArgument
+// says why). A time series is named after its point id, cut to
+// io::kMaxIdLength characters.
+std::vector<std::string> WriteReports(const Estimator& estimator, const std::string& root,
+                                      const std::string& subfolder, const std::vector<std::string>& formats,
+                                      const ReportOptions& options);
 
 // ENU (site, metres) -> WGS 84 [lon, lat, h] for the given origin [lat, lon, h].
 Eigen::Vector3d SiteToGeodetic(const Eigen::Vector3d& x_in_site, const Eigen::Vector3d& origin);
-
-// Atomic write helper: writes `content` to path via a temporary file + rename.
-void WriteFileAtomically(const std::string& path, const std::string& content);
 
 }  // namespace deformation
 }  // namespace slope_monitor
