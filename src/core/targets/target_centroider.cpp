@@ -615,10 +615,13 @@ struct EdgeModel {
 // black and white levels: a branch, crown or trunk in front of the plate. The
 // ring is sampled through the homography of the four outer corners (order
 // bottom-left, bottom-right, top-right, top-left; unit square (0,0) (1,0)
-// (1,1) (0,1)), from 0.3 to 0.8 cell outside the black border (clear of the
-// blurred edge and of the plate's rim); samples outside the image do not count.
+// (1,1) (0,1)), at 0.3, 0.55 and 0.8 cell outside the black border; only the
+// offsets at least `clear` px [the edge blur's reach] away from both the
+// black border and the quiet zone's outer rim count (a small tag's quiet zone
+// a few px wide, blurred, has no such offset: nothing to judge, 0 returned).
+// Samples outside the image do not count.
 double DarkSurroundFraction(const ImageView& im, const std::array<Eigen::Vector2d, 4>& corners,
-                            int cells, double black, double white) {
+                            int cells, double cell_px, double clear, double black, double white) {
   Eigen::Matrix<double, 8, 8> a;
   Eigen::Matrix<double, 8, 1> rhs;
   const double uv[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
@@ -640,6 +643,7 @@ double DarkSurroundFraction(const ImageView& im, const std::array<Eigen::Vector2
   int n = 0, dark = 0;
   const int kAlong = 48;
   for (const double off : {0.3, 0.55, 0.8}) {
+    if (off * cell_px < clear || (1.0 - off) * cell_px < clear) continue;
     const double lo = -off * cell, hi = 1.0 + off * cell;
     for (int i = 0; i <= kAlong; ++i) {
       const double f = lo + (hi - lo) * i / kAlong;
@@ -1122,14 +1126,12 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
                Message(100 * sat / tot, "% of the white border saturated"));
         continue;
       }
-      if (blur > options_.max_edge_blur) {
-        reject(family, det->id, o.centre, RejectReason::kBlurred,
-               Message("edge blur sigma ", blur, " px"));
-        continue;
-      }
-      if (worst_rel > options_.max_residual) {
-        reject(family, det->id, o.centre, RejectReason::kPartial,
-               Message("edge fit residual ", worst_rel, " of the contrast (occluded or damaged)"));
+      // An edge the model does not explain (blurred beyond max_edge_blur, a
+      // residual over max_residual: a neighbouring tag or texture in the band,
+      // JPEG blocks): the decoded quad stands, with the detector's corners.
+      if (blur > options_.max_edge_blur || worst_rel > options_.max_residual) {
+        o.quality = 0.0;
+        publish_detector(o, Eigen::Matrix2d::Zero());
         continue;
       }
       std::array<Line, 4> lines;
@@ -1146,8 +1148,8 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
           white += 0.25 * edges[k].w;
         }
         if (CornersFromEdges(l0, &outer)) {
-          const double dark =
-              DarkSurroundFraction(im, outer, det->family->width_at_border, black, white);
+          const double dark = DarkSurroundFraction(im, outer, det->family->width_at_border, cell,
+                                                   1.5 * blur + 0.5, black, white);
           if (dark > options_.max_dark_surround) {
             reject(family, det->id, o.centre, RejectReason::kPartial,
                    Message(std::lround(100.0 * dark), "% of the white surround dark (occluded)"));
@@ -1355,10 +1357,35 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
                 Message("eccentricity ", 1.0 - blob.b / blob.a));
         continue;
       }
+      // Identification against the listed circles.
+      int id = -1;
+      const io::TargetSpec* spec = nullptr;
+      int best = -1;
+      double best_d = 1e18;
+      for (size_t k = 0; k < expected.size(); ++k) {
+        const double d = (expected[k].px - blob.centre).norm();
+        if (d < best_d) {
+          best_d = d;
+          best = static_cast<int>(k);
+        }
+      }
+      if (best >= 0 &&
+          best_d < options_.circle_id_gate * std::max(expected[best].radius_px, 2.0) + 1.0) {
+        spec = expected[best].spec;
+        id = spec->id;
+      }
+      // A listed circle expected here is a target that cannot be measured (a
+      // rejection); an unlisted candidate that fails is not a target
+      // (discarded, debug output only).
+      auto fail = [&](RejectReason reason, const std::string& detail) {
+        if (spec) {
+          reject("circle", id, blob.centre, reason, detail);
+        } else {
+          discard(blob.centre, reason, detail);
+        }
+      };
       if (near_border(blob.centre, 1.7 * blob.a)) {
-        // A bright blob at the border: only report it when it looks like a disc.
-        reject("circle", -1, blob.centre, RejectReason::kBorder,
-               "disc and its ring reach the image border");
+        fail(RejectReason::kBorder, "disc and its ring reach the image border");
         continue;
       }
       // Surround: 16 sectors of the annulus 1.3..1.6 radii must be dark.
@@ -1393,55 +1420,31 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
         continue;
       }
       const double worst_sector = *std::max_element(sectors.begin(), sectors.end());
-      // Identification against the listed circles.
-      int id = -1;
-      const io::TargetSpec* spec = nullptr;
-      int best = -1;
-      double best_d = 1e18;
-      for (size_t k = 0; k < expected.size(); ++k) {
-        const double d = (expected[k].px - blob.centre).norm();
-        if (d < best_d) {
-          best_d = d;
-          best = static_cast<int>(k);
-        }
-      }
-      if (best >= 0 &&
-          best_d < options_.circle_id_gate * std::max(expected[best].radius_px, 2.0) + 1.0) {
-        spec = expected[best].spec;
-        id = spec->id;
-      }
       // The design: the dark ring ends at circle_ring_ratio disc radii.
       double ring_ratio = 0.0;
       std::string design_fault;
       if (!MeasureRingRatio(im, blob, ring, options_, &ring_ratio, &design_fault)) {
-        // A listed circle expected here is a target that cannot be measured.
-        if (spec) {
-          reject("circle", id, blob.centre, RejectReason::kDesign, design_fault);
-        } else {
-          discard(blob.centre, RejectReason::kDesign, design_fault);
-        }
+        fail(RejectReason::kDesign, design_fault);
         continue;
       }
       // With a pose: the listed target's projected size.
       if (spec && expected[best].major_px > 0.0) {
         const double rel = blob.a / expected[best].major_px - 1.0;
         if (std::abs(rel) > options_.circle_size_tolerance) {
-          discard(blob.centre, RejectReason::kSize,
-                  Message("semi-major axis ", blob.a, " px, circle/", spec->id, " projects to ",
-                          expected[best].major_px, " px"));
+          fail(RejectReason::kSize, Message("semi-major axis ", blob.a, " px, circle/", spec->id,
+                                            " projects to ", expected[best].major_px, " px"));
           continue;
         }
       }
       if (worst_sector > disc - 0.5 * contrast) {
-        reject("circle", id, blob.centre, RejectReason::kPartial,
-               "dark ring interrupted (occluded or partial target)");
+        fail(RejectReason::kPartial, "dark ring interrupted (occluded or partial target)");
         continue;
       }
       int sat = 0;
       for (double v : inner) sat += v >= options_.saturation_level;
       if (sat > options_.max_saturated_fraction * inner.size()) {
-        reject("circle", id, blob.centre, RejectReason::kSaturated,
-               Message(100 * sat / static_cast<int>(inner.size()), "% of the disc saturated"));
+        fail(RejectReason::kSaturated,
+             Message(100 * sat / static_cast<int>(inner.size()), "% of the disc saturated"));
         continue;
       }
       Observation o;
@@ -1501,8 +1504,7 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       EllipseModel model;
       const LmResult<8> fit = FitModel<8>(px, x0, model, 30);
       if (!fit.ok || (fit.x.head<2>() - o.gray_centroid).norm() > 0.25 * rmean) {
-        reject("circle", id, blob.centre, RejectReason::kFitFailed,
-               "ellipse model fit did not converge");
+        fail(RejectReason::kFitFailed, "ellipse model fit did not converge");
         continue;
       }
       const double fit_contrast = fit.x[6] - fit.x[5];
@@ -1510,19 +1512,16 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       o.fit_residual = rel;
       o.edge_blur = std::max(fit.x[7], kMinBlur);
       if (o.edge_blur > options_.max_edge_blur) {
-        reject("circle", id, blob.centre, RejectReason::kBlurred,
-               Message("edge blur sigma ", o.edge_blur, " px"));
+        fail(RejectReason::kBlurred, Message("edge blur sigma ", o.edge_blur, " px"));
         continue;
       }
       if (rel > options_.max_residual) {
-        reject("circle", id, blob.centre, RejectReason::kPartial,
-               Message("ellipse fit residual ", rel, " of the contrast"));
+        fail(RejectReason::kPartial, Message("ellipse fit residual ", rel, " of the contrast"));
         continue;
       }
       if (rel > options_.circle_max_residual) {
-        discard(blob.centre, RejectReason::kResidual,
-                Message("ellipse fit residual ", rel, " of the contrast > ",
-                        options_.circle_max_residual));
+        fail(RejectReason::kResidual, Message("ellipse fit residual ", rel, " of the contrast > ",
+                                              options_.circle_max_residual));
         continue;
       }
       const double noise = NoiseOf(fit.rms, noise_floor);
@@ -1535,7 +1534,7 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       }
       o.covariance = cov.block<2, 2>(0, 0);
       if (!o.covariance.allFinite()) {
-        reject("circle", id, blob.centre, RejectReason::kFitFailed, "singular ellipse fit");
+        fail(RejectReason::kFitFailed, "singular ellipse fit");
         continue;
       }
       if (options_.correct_perspective && view && spec && spec->position && spec->normal) {

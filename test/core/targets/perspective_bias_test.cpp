@@ -1,7 +1,7 @@
 // The perspective bias of circle centres: the centre of the imaged ellipse
 // is not the image of the circle's centre. Exact renders
 // (planar_target_renderer.h) of circular targets 30, 45 and 60 px across,
-// tilted 60 degrees, at 8 azimuths, seen by a short-focal camera (strong
+// tilted 60 degrees, at 4 azimuths, seen by a short-focal camera (strong
 // perspective) with realistic noise; measured with the defaults a user gets,
 // once with the correction (correct_perspective, the default: from the
 // camera model, the pose and the listed position and normal) and once
@@ -66,7 +66,6 @@ bool Measure(double size_px, double azimuth, bool correct, unsigned seed, Measur
   const ViewGeometry view{cam, pose};
   const Result r = centroider.Detect(img, "mono8", &view);
   for (const auto& rj : r.rejections) std::printf("  rejected: %s\n", rj.detail.c_str());
-  for (const auto& rj : r.discarded) std::printf("  discarded: %s\n", rj.detail.c_str());
   if (r.observations.size() != 1u || r.observations[0].id != 3) return false;
   m->error = r.observations[0].centre - testing::Apply(h, 0.0, 0.0);
   m->correction = r.observations[0].perspective_correction;
@@ -82,8 +81,8 @@ TEST(PerspectiveBias, CorrectionRemovesTheBiasAt60Degrees) {
   for (double size : {30.0, 45.0, 60.0}) {
     double s_with = 0, s_without = 0, s_corr = 0;
     int k = 0;
-    for (int a = 0; a < 8; ++a) {
-      const double azimuth = 2 * M_PI * a / 8;
+    for (int a = 0; a < 4; ++a) {
+      const double azimuth = 2 * M_PI * a / 4 + 0.4;
       const unsigned seed = 100 + 10 * a + static_cast<unsigned>(size);
       Measured with, without;
       ASSERT_TRUE(Measure(size, azimuth, true, seed, &with)) << size << " px, azimuth " << a;

@@ -61,19 +61,20 @@ struct Options {
   // detection (decimation 2 loses tags under ~25 px), 2 corrected bits (the
   // library's own default for tag36h11, minimum distance 11).
   std::vector<std::string> families{"tag36h11"};  // tag36h11 tag25h9 tag16h5 tagStandard41h12 ...
-  double quad_decimate = 1.0;       // [-] >= 1: quad detection on an image decimated by this factor
-  double quad_sigma = 0.0;          // [px] Gaussian blur before quad detection (0 = none)
-  bool refine_edges = true;         // libapriltag's own edge refinement of the quads
-  double decode_sharpening = 0.25;  // [-] libapriltag's decode sharpening
-  int threads = 1;                  // [-] libapriltag worker threads, 1..64
-  int max_hamming = 2;              // [bits] error bits corrected at most, 0..3
+  double quad_decimate = 1.0;  // [-] >= 1: quad detection on an image decimated by this factor
+  double quad_sigma = 0.0;     // [px] Gaussian blur before quad detection (0 = none)
+  bool refine_edges =
+      false;  // libapriltag's own edge refinement of the quads (on: 1 of 37 real tags lost)
+  double decode_sharpening = 0.25;    // [-] libapriltag's decode sharpening
+  int threads = 1;                    // [-] libapriltag worker threads, 1..64
+  int max_hamming = 2;                // [bits] error bits corrected at most, 0..3
   double min_decision_margin = 25.0;  // [-] weaker decodes are rejected ("weak_decode")
   bool refine_tags = true;            // our edge-model refinement of corners and centre
   // The refined corners replace the detector's only where the edge model
   // explains the pixels: every edge's fit residual RMS / contrast at most
   // this; otherwise (JPEG blocks, texture, a print that is not a step) the
   // detector's corners are kept (Observation::method "detector").
-  double tag_refine_max_residual = 0.06;  // [-]
+  double tag_refine_max_residual = 0.03;  // [-]
   // ... and where the refined centre is this precise at least (sqrt of the
   // largest eigenvalue of its covariance).
   double tag_refine_max_sigma = 0.1;  // [px]
@@ -100,8 +101,8 @@ struct Options {
   double max_saturated_fraction = 0.10;  // [-] of the bright part; more is "saturated"
   double max_edge_blur = 1.6;            // [px] fitted edge blur sigma; more is "blurred"
   double max_residual = 0.25;            // [-] fit residual RMS / contrast; more is "partial"
-  double max_dark_surround = 0.005;  // [-] tags: share of the white surround darker than mid-grey;
-                                     // more is "partial" (occluded)
+  double max_dark_surround = 0.03;  // [-] tags: share of the white surround darker than mid-grey;
+                                    // more is "partial" (occluded)
   double noise_floor =
       0.0;  // [DN] minimum image noise; 0: quantisation of the input (1/sqrt(12) LSB)
 
