@@ -129,6 +129,28 @@ int main(int argc, char** argv) {
   }
   if (args.count("--images") == args.count("--bag")) return Usage();
   try {
+    // The input first: a bad one is named before anything is written.
+    std::vector<std::filesystem::path> files;
+    if (args.count("--images")) {
+      const std::filesystem::path dir = args["--images"];
+      std::error_code ec;
+      if (!std::filesystem::is_directory(dir, ec)) {
+        throw IoError(
+            Message("--images '", dir.string(), "' ",
+                    std::filesystem::exists(dir, ec) ? "is not a folder" : "does not exist"));
+      }
+      for (const auto& e : std::filesystem::directory_iterator(dir)) {
+        std::string ext = e.path().extension().string();
+        std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+        if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" ||
+            ext == ".pgm")
+          files.push_back(e.path());
+      }
+      if (files.empty()) {
+        throw IoError(Message("--images '", dir.string(),
+                              "' holds no image (.png .jpg .jpeg .tif .tiff .pgm)"));
+      }
+    }
     targets::NodeOptions node;
     const targets::Options options =
         LoadOptions(args.count("--config") ? args["--config"] : "", &node);
@@ -154,25 +176,6 @@ int main(int argc, char** argv) {
       ++images;
     };
     if (args.count("--images")) {
-      const std::filesystem::path dir = args["--images"];
-      std::error_code ec;
-      if (!std::filesystem::is_directory(dir, ec)) {
-        throw IoError(
-            Message("--images '", dir.string(), "' ",
-                    std::filesystem::exists(dir, ec) ? "is not a folder" : "does not exist"));
-      }
-      std::vector<std::filesystem::path> files;
-      for (const auto& e : std::filesystem::directory_iterator(dir)) {
-        std::string ext = e.path().extension().string();
-        std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
-        if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" ||
-            ext == ".pgm")
-          files.push_back(e.path());
-      }
-      if (files.empty()) {
-        throw IoError(Message("--images '", dir.string(),
-                              "' holds no image (.png .jpg .jpeg .tif .tiff .pgm)"));
-      }
       std::sort(files.begin(), files.end());
       for (const auto& f : files) {
         const cv::Mat img = cv::imread(f.string(), cv::IMREAD_UNCHANGED);
