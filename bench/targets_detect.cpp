@@ -167,6 +167,10 @@ void Run(int w, int h, int n_tags, int n_circles, int reps) {
   Options full;
   TargetCentroider ours_full(full, s.list);
   const Result r = ours_full.Detect(s.image, "mono8", &view);
+  for (const auto& rj : r.rejections) {
+    std::printf("%dx%d: rejected %s/%d at (%.1f, %.1f): %s: %s\n", w, h, rj.family.c_str(), rj.id,
+                rj.where.x(), rj.where.y(), RejectReasonName(rj.reason).c_str(), rj.detail.c_str());
+  }
   Accuracy tag_acc, circ_acc, gray_acc;
   int unidentified = 0;
   for (const auto& o : r.observations) {
@@ -181,6 +185,20 @@ void Run(int w, int h, int n_tags, int n_circles, int reps) {
       tag_acc.Add(o.centre - s.tag_truth[o.id]);
     } else {
       ++tag_acc.wrong;
+    }
+  }
+  for (size_t k = 0; k < s.circle_truth.size(); ++k) {
+    bool seen = false;
+    for (const auto& o : r.observations)
+      seen = seen || (o.family == "circle" && o.id == static_cast<int>(k));
+    if (!seen) {
+      std::printf("%dx%d: circle %zu at (%.1f, %.1f) not measured; candidates within 20 px:", w, h,
+                  k, s.circle_truth[k].x(), s.circle_truth[k].y());
+      for (const auto& d : r.discarded) {
+        if ((d.where - s.circle_truth[k]).norm() < 20.0)
+          std::printf(" %s (%s)", RejectReasonName(d.reason).c_str(), d.detail.c_str());
+      }
+      std::printf("\n");
     }
   }
   std::vector<double> t_bare, t_tags, t_full, w_bare, w_tags, w_full;
