@@ -20,7 +20,11 @@
 // grey levels, blur), the corners are the intersections of adjacent edges,
 // and the centre is the intersection of the diagonals (the image of the tag
 // centre under the tag's homography, not the corner mean). The covariance of
-// the centre is propagated from the covariances of the four line fits.
+// the centre is propagated from the covariances of the four line fits. Per
+// tag, these corners replace libapriltag's only where the edge model explains
+// the pixels (residual, covariance: Options::tag_refine_max_residual,
+// tag_refine_max_sigma); otherwise libapriltag's corners are published
+// (Observation::method says which; doc/targets_real_photos.md).
 //
 // Circles: blobs of a locally thresholded image with a dark surround; then
 // the gray-weighted centroid of DESIGN.md (automatic threshold halfway
@@ -99,8 +103,10 @@ struct Options {
   double border_margin = 2.0;            // [px] targets closer to the image border are "border"
   double saturation_level = 250.0;       // [DN, 8-bit scale] pixels at or above are saturated
   double max_saturated_fraction = 0.10;  // [-] of the bright part; more is "saturated"
-  double max_edge_blur = 1.6;            // [px] fitted edge blur sigma; more is "blurred"
-  double max_residual = 0.25;            // [-] fit residual RMS / contrast; more is "partial"
+  double max_edge_blur =
+      1.6;  // [px] fitted edge blur sigma; more is "blurred" (tags: the detector's corners)
+  double max_residual =
+      0.25;  // [-] fit residual RMS / contrast; more is "partial" (tags: the detector's corners)
   double max_dark_surround = 0.03;  // [-] tags: share of the white surround darker than mid-grey;
                                     // more is "partial" (occluded)
   double noise_floor =
