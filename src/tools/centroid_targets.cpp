@@ -1,13 +1,21 @@
 // centroid_targets: run the target centroider over an image folder or a bag
-// topic and write CSV (image, stamp, id, family, role, x, y, cov_xx, cov_xy,
-// cov_yy, quality).
+// topic and write CSV, one row per observation: image, stamp, id, family,
+// role, method (what gave the centre: edge_model / detector for tags,
+// ellipse_model / gray_centroid for circles), x, y, cov_xx, cov_xy, cov_yy,
+// quality, fit residual, the perspective correction subtracted from a
+// circle's centre, and the four corners of a tag. The header lines (starting
+// with '#') state the pixel convention.
 //
-//   centroid_targets --images DIR --out targets.csv [--targets list.yaml] [--config target_centroider.yaml]
-//   centroid_targets --bag survey.bag --topic /fixed_cam_1/camera/image_raw --out targets.csv [...]
+//   centroid_targets --images DIR [--out targets.csv] [--targets list.yaml] [--config
+//   target_centroider.yaml] [--explain] centroid_targets --bag survey.bag --topic
+//   /fixed_cam_1/camera/image_raw [--out targets.csv] [...]
 //
-// --config reads the same keys as config/defaults/target_centroider.yaml
+// Without --out the CSV goes to stdout. --explain prints one line per
+// rejected target and per discarded circle candidate with its reason to
+// stderr. --config reads the same keys as config/defaults/target_centroider.yaml
 // through the reader the nodelet uses (targets/options_reader.h; unknown keys
-// are an error naming the file and key).
+// are an error naming the file and key); without it the in-class defaults
+// (the values of that file) are used.
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -18,10 +26,10 @@
 #include <string>
 
 #include <cv_bridge/cv_bridge.h>
-#include <opencv2/imgcodecs.hpp>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/Image.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/yaml_map.h"
@@ -48,18 +56,56 @@ std::string RoleName(const targets::Observation& o) {
   return o.role ? io::TargetRoleName(*o.role) : "unknown";
 }
 
-void WriteRows(std::ostream& out, const std::string& image, double stamp, const targets::Result& r) {
+void WriteHeader(std::ostream& out) {
+  out << "# centroid_targets: pixel convention OpenCV: x = column (right), y = row (down), (0, 0) "
+         "= centre of the "
+         "top-left pixel (libapriltag's coordinates minus 0.5 px)\n"
+         "# method: edge_model (tag corners from the edge-model fit), detector (libapriltag's "
+         "corners), ellipse_model, "
+         "gray_centroid; cov in px^2; persp_dx/dy: perspective bias subtracted from a circle's "
+         "centre [px]\n"
+         "# c0..c3: tag corners in libapriltag order (tag's bottom-left, bottom-right, top-right, "
+         "top-left); empty for "
+         "circles\n"
+         "image,stamp,id,family,role,method,x,y,cov_xx,cov_xy,cov_yy,quality,fit_residual,persp_dx,"
+         "persp_dy,c0x,c0y,"
+         "c1x,c1y,c2x,c2y,c3x,c3y\n";
+}
+
+void WriteRows(std::ostream& out, const std::string& image, double stamp,
+               const targets::Result& r) {
   for (const auto& o : r.observations) {
-    out << image << ',' << std::fixed << std::setprecision(6) << stamp << ',' << o.id << ',' << o.family << ','
-        << RoleName(o) << ',' << std::setprecision(4) << o.centre.x() << ',' << o.centre.y() << ','
-        << std::scientific << std::setprecision(4) << o.covariance(0, 0) << ',' << o.covariance(0, 1) << ','
-        << o.covariance(1, 1) << ',' << std::fixed << std::setprecision(3) << o.quality << '\n';
+    out << image << ',' << std::fixed << std::setprecision(6) << stamp << ',' << o.id << ','
+        << o.family << ',' << RoleName(o) << ',' << targets::CentreMethodName(o.method) << ','
+        << std::setprecision(4) << o.centre.x() << ',' << o.centre.y() << ',' << std::scientific
+        << std::setprecision(4) << o.covariance(0, 0) << ',' << o.covariance(0, 1) << ','
+        << o.covariance(1, 1) << ',' << std::fixed << std::setprecision(3) << o.quality << ','
+        << std::setprecision(4) << o.fit_residual << ',' << o.perspective_correction.x() << ','
+        << o.perspective_correction.y();
+    for (int k = 0; k < 4; ++k) {
+      if (o.has_corners) {
+        out << ',' << o.corners[k].x() << ',' << o.corners[k].y();
+      } else {
+        out << ",,";
+      }
+    }
+    out << '\n';
   }
 }
 
+void Explain(const std::string& image, const targets::Result& r) {
+  auto line = [&](const char* what, const targets::Rejection& rj) {
+    std::fprintf(stderr, "explain: %s: %s %s/%d at (%.1f, %.1f): %s: %s\n", image.c_str(), what,
+                 rj.family.c_str(), rj.id, rj.where.x(), rj.where.y(),
+                 targets::RejectReasonName(rj.reason).c_str(), rj.detail.c_str());
+  };
+  for (const auto& rj : r.rejections) line("rejected", rj);
+  for (const auto& rj : r.discarded) line("not a target:", rj);
+}
+
 int Usage() {
-  std::cerr << "usage: centroid_targets (--images DIR | --bag FILE --topic TOPIC) --out FILE.csv "
-               "[--targets LIST.yaml] [--config OPTIONS.yaml]\n";
+  std::cerr << "usage: centroid_targets (--images DIR | --bag FILE --topic TOPIC) [--out FILE.csv] "
+               "[--targets LIST.yaml] [--config OPTIONS.yaml] [--explain]\n";
   return 2;
 }
 
@@ -67,35 +113,83 @@ int Usage() {
 
 int main(int argc, char** argv) {
   std::map<std::string, std::string> args;
-  for (int i = 1; i + 1 < argc; i += 2) args[argv[i]] = argv[i + 1];
-  if ((argc - 1) % 2 != 0 || !args.count("--out") || (args.count("--images") == args.count("--bag"))) return Usage();
+  bool explain = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--explain") {
+      explain = true;
+    } else if ((a == "--images" || a == "--bag" || a == "--topic" || a == "--out" ||
+                a == "--targets" || a == "--config") &&
+               i + 1 < argc) {
+      args[a] = argv[++i];
+    } else {
+      std::cerr << "centroid_targets: unknown or incomplete argument '" << a << "'\n";
+      return Usage();
+    }
+  }
+  if (args.count("--images") == args.count("--bag")) return Usage();
   try {
-    targets::NodeOptions node;
-    const targets::Options options = LoadOptions(args.count("--config") ? args["--config"] : "", &node);
-    const std::string list_path = args.count("--targets") ? args["--targets"] : node.target_list;
-    const io::TargetList list = list_path.empty() ? io::TargetList() : io::TargetList::Load(list_path);
-    targets::TargetCentroider centroider(options, list);
-    std::ofstream out(args["--out"]);
-    if (!out) throw IoError(Message("cannot write '", args["--out"], "'"));
-    out << "image,stamp,id,family,role,x,y,cov_xx,cov_xy,cov_yy,quality\n";
-    int images = 0, observations = 0, failed = 0;
+    // The input first: a bad one is named before anything is written.
+    std::vector<std::filesystem::path> files;
     if (args.count("--images")) {
-      std::vector<std::filesystem::path> files;
-      for (const auto& e : std::filesystem::directory_iterator(args["--images"])) {
+      const std::filesystem::path dir = args["--images"];
+      std::error_code ec;
+      if (!std::filesystem::is_directory(dir, ec)) {
+        throw IoError(
+            Message("--images '", dir.string(), "' ",
+                    std::filesystem::exists(dir, ec) ? "is not a folder" : "does not exist"));
+      }
+      for (const auto& e : std::filesystem::directory_iterator(dir)) {
         std::string ext = e.path().extension().string();
         std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
-        if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" || ext == ".pgm")
+        if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" ||
+            ext == ".pgm")
           files.push_back(e.path());
       }
+      if (files.empty()) {
+        throw IoError(Message("--images '", dir.string(),
+                              "' holds no image (.png .jpg .jpeg .tif .tiff .pgm)"));
+      }
+    }
+    targets::NodeOptions node;
+    const targets::Options options =
+        LoadOptions(args.count("--config") ? args["--config"] : "", &node);
+    const std::string list_path = args.count("--targets") ? args["--targets"] : node.target_list;
+    const io::TargetList list =
+        list_path.empty() ? io::TargetList() : io::TargetList::Load(list_path);
+    targets::TargetCentroider centroider(options, list);
+    std::ofstream file;
+    if (args.count("--out")) {
+      file.open(args["--out"]);
+      if (!file) throw IoError(Message("cannot write '", args["--out"], "'"));
+    }
+    std::ostream& out = args.count("--out") ? file : std::cout;
+    WriteHeader(out);
+    int images = 0, tags = 0, circles = 0, rejected = 0, discarded = 0, failed = 0;
+    auto take = [&](const std::string& name, double stamp, const targets::Result& r) {
+      WriteRows(out, name, stamp, r);
+      if (explain) Explain(name, r);
+      tags += r.summary.num_tags;
+      circles += r.summary.num_circles;
+      rejected += r.rejections.size();
+      discarded += r.discarded.size();
+      ++images;
+    };
+    if (args.count("--images")) {
       std::sort(files.begin(), files.end());
       for (const auto& f : files) {
         const cv::Mat img = cv::imread(f.string(), cv::IMREAD_UNCHANGED);
+        if (img.empty()) {
+          std::cerr << "centroid_targets: skipped " << f << ": not a readable image\n";
+          ++failed;
+          continue;
+        }
         try {
-          std::string enc = img.depth() == CV_16U ? "mono16" : img.channels() == 3 ? "bgr8" : img.channels() == 4 ? "bgra8" : "mono8";
-          const targets::Result r = centroider.Detect(img, enc);
-          WriteRows(out, f.filename().string(), 0.0, r);
-          observations += r.observations.size();
-          ++images;
+          const std::string enc = img.depth() == CV_16U ? "mono16"
+                                  : img.channels() == 3 ? "bgr8"
+                                  : img.channels() == 4 ? "bgra8"
+                                                        : "mono8";
+          take(f.filename().string(), 0.0, centroider.Detect(img, enc));
         } catch (const Error& e) {
           std::cerr << "centroid_targets: skipped " << f << ": " << e.what() << "\n";
           ++failed;
@@ -110,25 +204,28 @@ int main(int argc, char** argv) {
         throw IoError(Message("cannot read bag '", args["--bag"], "': ", e.what()));
       }
       rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{args["--topic"]}));
-      if (view.size() == 0) throw IoError(Message("bag '", args["--bag"], "' has no messages on topic '", args["--topic"], "'"));
+      if (view.size() == 0)
+        throw IoError(
+            Message("bag '", args["--bag"], "' has no messages on topic '", args["--topic"], "'"));
       for (const rosbag::MessageInstance& m : view) {
         sensor_msgs::ImageConstPtr img = m.instantiate<sensor_msgs::Image>();
         if (!img) throw IoError(Message("topic '", args["--topic"], "' is not sensor_msgs/Image"));
         try {
           const cv_bridge::CvImageConstPtr cv_img = cv_bridge::toCvShare(img);
-          const targets::Result r = centroider.Detect(cv_img->image, img->encoding);
-          WriteRows(out, args["--topic"] + "#" + std::to_string(img->header.seq), img->header.stamp.toSec(), r);
-          observations += r.observations.size();
-          ++images;
+          take(args["--topic"] + "#" + std::to_string(img->header.seq), img->header.stamp.toSec(),
+               centroider.Detect(cv_img->image, img->encoding));
         } catch (const std::exception& e) {
-          std::cerr << "centroid_targets: skipped image at " << img->header.stamp.toSec() << ": " << e.what() << "\n";
+          std::cerr << "centroid_targets: skipped image at " << img->header.stamp.toSec() << ": "
+                    << e.what() << "\n";
           ++failed;
         }
       }
     }
-    std::cerr << "centroid_targets: " << images << " images, " << observations << " observations, " << failed
-              << " skipped -> " << args["--out"] << "\n";
-  } catch (const Error& e) {
+    std::cerr << "centroid_targets: " << images << " images, " << tags << " tags, " << circles
+              << " circles, " << rejected << " rejected, " << discarded
+              << " circle candidates discarded, " << failed << " skipped -> "
+              << (args.count("--out") ? args["--out"] : std::string("stdout")) << "\n";
+  } catch (const std::exception& e) {
     std::cerr << "centroid_targets: " << e.what() << "\n";
     return 1;
   } catch (const std::filesystem::filesystem_error& e) {

@@ -77,8 +77,10 @@ inline void PhiAndDensity(double u, double* Phi, double* phi) {
   const double x = std::abs(u) * kInvSqrt2;
   const double e = std::exp(-x * x);
   const double t = 1.0 / (1.0 + 0.3275911 * x);
-  const double q =
-      t * (0.254829592 + t * (-0.284496736 + t * (1.421413741 + t * (-1.453152027 + t * 1.061405429)))) * e;
+  const double q = t *
+                   (0.254829592 +
+                    t * (-0.284496736 + t * (1.421413741 + t * (-1.453152027 + t * 1.061405429)))) *
+                   e;
   *Phi = u >= 0 ? 1.0 - 0.5 * q : 0.5 * q;
   *phi = kInvSqrt2Pi * e;
 }
@@ -132,7 +134,8 @@ inline void Footprint(double nx, double ny, double* a, double* b) {
 // CV_32FC1 (deeper inputs on the 8-bit scale).
 class ImageView {
  public:
-  explicit ImageView(const cv::Mat& m) : m_(m), is8_(m.depth() == CV_8U), cols(m.cols), rows(m.rows) {}
+  explicit ImageView(const cv::Mat& m)
+      : m_(m), is8_(m.depth() == CV_8U), cols(m.cols), rows(m.rows) {}
   float At(int x, int y) const { return is8_ ? m_.ptr<uint8_t>(y)[x] : m_.ptr<float>(y)[x]; }
   // Bilinear sample (clamped to the image).
   double Sample(double x, double y) const {
@@ -267,8 +270,8 @@ bool Intersect(const Line& a, const Line& b, Eigen::Vector2d* p) {
   return true;
 }
 
-bool IntersectSegments(const Eigen::Vector2d& a0, const Eigen::Vector2d& a1, const Eigen::Vector2d& b0,
-                       const Eigen::Vector2d& b1, Eigen::Vector2d* p) {
+bool IntersectSegments(const Eigen::Vector2d& a0, const Eigen::Vector2d& a1,
+                       const Eigen::Vector2d& b0, const Eigen::Vector2d& b1, Eigen::Vector2d* p) {
   const Eigen::Vector2d da = a1 - a0, db = b1 - b0;
   const double den = da.x() * db.y() - da.y() * db.x();
   if (std::abs(den) < 1e-12) return false;
@@ -295,48 +298,104 @@ void Options::Check() const {
   auto fail = [](const std::string& key, const std::string& what) {
     throw ConfigError(Message("targets option '", key, "' ", what));
   };
-  if (families.empty() && !detect_circles) fail("families", "is empty and detect_circles is false: nothing to detect");
+  if (families.empty() && !detect_circles)
+    fail("families", "is empty and detect_circles is false: nothing to detect");
   for (const auto& f : families) {
     if (!Factories().count(f)) fail("families", "has unknown tag family '" + f + "'");
   }
-  if (!(quad_decimate >= 1.0 && quad_decimate <= 8.0)) fail("quad_decimate", Message("= ", quad_decimate, " is outside [1, 8]"));
-  if (!(quad_sigma >= 0.0 && quad_sigma <= 10.0)) fail("quad_sigma", Message("= ", quad_sigma, " px is outside [0, 10]"));
-  if (!(decode_sharpening >= 0.0 && decode_sharpening <= 10.0)) fail("decode_sharpening", Message("= ", decode_sharpening, " is outside [0, 10]"));
+  if (!(quad_decimate >= 1.0 && quad_decimate <= 8.0))
+    fail("quad_decimate", Message("= ", quad_decimate, " is outside [1, 8]"));
+  if (!(quad_sigma >= 0.0 && quad_sigma <= 10.0))
+    fail("quad_sigma", Message("= ", quad_sigma, " px is outside [0, 10]"));
+  if (!(decode_sharpening >= 0.0 && decode_sharpening <= 10.0))
+    fail("decode_sharpening", Message("= ", decode_sharpening, " is outside [0, 10]"));
   if (threads < 1 || threads > 64) fail("threads", Message("= ", threads, " is outside [1, 64]"));
-  if (max_hamming < 0 || max_hamming > 3) fail("max_hamming", Message("= ", max_hamming, " is outside [0, 3]"));
+  if (max_hamming < 0 || max_hamming > 3)
+    fail("max_hamming", Message("= ", max_hamming, " is outside [0, 3]"));
   if (!(min_decision_margin >= 0.0)) fail("min_decision_margin", "must be >= 0");
   if (!(circle_min_diameter >= 4.0 && circle_min_diameter <= circle_max_diameter))
-    fail("circle_min_diameter", Message("= ", circle_min_diameter, " px must be in [4, circle_max_diameter]"));
-  if (!(circle_max_diameter <= 2000.0)) fail("circle_max_diameter", Message("= ", circle_max_diameter, " px is over 2000"));
-  if (!(circle_max_eccentricity > 0.0 && circle_max_eccentricity < 1.0)) fail("circle_max_eccentricity", "must be in (0, 1)");
+    fail("circle_min_diameter",
+         Message("= ", circle_min_diameter, " px must be in [4, circle_max_diameter]"));
+  if (!(circle_max_diameter <= 2000.0))
+    fail("circle_max_diameter", Message("= ", circle_max_diameter, " px is over 2000"));
+  if (!(circle_max_eccentricity > 0.0 && circle_max_eccentricity < 1.0))
+    fail("circle_max_eccentricity", "must be in (0, 1)");
   if (!(circle_id_gate > 0.0 && circle_id_gate <= 5.0)) fail("circle_id_gate", "must be in (0, 5]");
-  if (!(min_contrast > 0.0 && min_contrast < 255.0)) fail("min_contrast", Message("= ", min_contrast, " DN is outside (0, 255)"));
-  if (!(border_margin >= 0.0 && border_margin <= 100.0)) fail("border_margin", "must be in [0, 100] px");
-  if (!(saturation_level > 0.0 && saturation_level <= 255.0)) fail("saturation_level", "must be in (0, 255] DN");
-  if (!(max_saturated_fraction >= 0.0 && max_saturated_fraction <= 1.0)) fail("max_saturated_fraction", "must be in [0, 1]");
-  if (!(max_edge_blur > 0.0 && max_edge_blur <= 20.0)) fail("max_edge_blur", "must be in (0, 20] px");
+  if (!(min_contrast > 0.0 && min_contrast < 255.0))
+    fail("min_contrast", Message("= ", min_contrast, " DN is outside (0, 255)"));
+  if (!(border_margin >= 0.0 && border_margin <= 100.0))
+    fail("border_margin", "must be in [0, 100] px");
+  if (!(saturation_level > 0.0 && saturation_level <= 255.0))
+    fail("saturation_level", "must be in (0, 255] DN");
+  if (!(max_saturated_fraction >= 0.0 && max_saturated_fraction <= 1.0))
+    fail("max_saturated_fraction", "must be in [0, 1]");
+  if (!(max_edge_blur > 0.0 && max_edge_blur <= 20.0))
+    fail("max_edge_blur", "must be in (0, 20] px");
   if (!(max_residual > 0.0 && max_residual <= 1.0)) fail("max_residual", "must be in (0, 1]");
-  if (!(max_dark_surround > 0.0 && max_dark_surround <= 1.0)) fail("max_dark_surround", "must be in (0, 1]");
+  if (!(max_dark_surround > 0.0 && max_dark_surround <= 1.0))
+    fail("max_dark_surround", "must be in (0, 1]");
   if (!(noise_floor >= 0.0 && noise_floor <= 50.0)) fail("noise_floor", "must be in [0, 50] DN");
+  if (!(tag_refine_max_residual > 0.0 && tag_refine_max_residual <= 1.0))
+    fail("tag_refine_max_residual", "must be in (0, 1]");
+  if (!(tag_refine_max_sigma > 0.0 && tag_refine_max_sigma <= 10.0))
+    fail("tag_refine_max_sigma", "must be in (0, 10] px");
+  if (!(circle_ring_ratio > 1.0 && circle_ring_ratio <= 10.0))
+    fail("circle_ring_ratio", Message("= ", circle_ring_ratio, " is outside (1, 10]"));
+  if (!(circle_ring_ratio_tolerance > 0.0 && circle_ring_ratio_tolerance <= 1.0))
+    fail("circle_ring_ratio_tolerance", "must be in (0, 1]");
+  if (!(circle_max_residual > 0.0 && circle_max_residual <= 1.0))
+    fail("circle_max_residual", "must be in (0, 1]");
+  if (!(circle_size_tolerance > 0.0 && circle_size_tolerance <= 1.0))
+    fail("circle_size_tolerance", "must be in (0, 1]");
 }
 
 std::string RejectReasonName(RejectReason reason) {
   switch (reason) {
-    case RejectReason::kBorder: return "border";
-    case RejectReason::kSaturated: return "saturated";
-    case RejectReason::kBlurred: return "blurred";
-    case RejectReason::kPartial: return "partial";
-    case RejectReason::kLowContrast: return "low_contrast";
-    case RejectReason::kWeakDecode: return "weak_decode";
-    case RejectReason::kFitFailed: return "fit_failed";
+    case RejectReason::kBorder:
+      return "border";
+    case RejectReason::kSaturated:
+      return "saturated";
+    case RejectReason::kBlurred:
+      return "blurred";
+    case RejectReason::kPartial:
+      return "partial";
+    case RejectReason::kLowContrast:
+      return "low_contrast";
+    case RejectReason::kWeakDecode:
+      return "weak_decode";
+    case RejectReason::kFitFailed:
+      return "fit_failed";
+    case RejectReason::kNotDisc:
+      return "not_disc";
+    case RejectReason::kDesign:
+      return "design";
+    case RejectReason::kResidual:
+      return "residual";
+    case RejectReason::kSize:
+      return "size";
+  }
+  return "unknown";
+}
+
+std::string CentreMethodName(CentreMethod method) {
+  switch (method) {
+    case CentreMethod::kEdgeModel:
+      return "edge_model";
+    case CentreMethod::kDetector:
+      return "detector";
+    case CentreMethod::kEllipseModel:
+      return "ellipse_model";
+    case CentreMethod::kGrayCentroid:
+      return "gray_centroid";
   }
   return "unknown";
 }
 
 const std::vector<std::string>& SupportedEncodings() {
-  static const std::vector<std::string> e = {"mono8", "mono16", "bgr8", "rgb8", "bgra8", "rgba8",
-                                             "bayer_rggb8", "bayer_bggr8", "bayer_gbrg8", "bayer_grbg8",
-                                             "bayer_rggb16", "bayer_bggr16", "bayer_gbrg16", "bayer_grbg16"};
+  static const std::vector<std::string> e = {
+      "mono8",        "mono16",       "bgr8",         "rgb8",        "bgra8",
+      "rgba8",        "bayer_rggb8",  "bayer_bggr8",  "bayer_gbrg8", "bayer_grbg8",
+      "bayer_rggb16", "bayer_bggr16", "bayer_gbrg16", "bayer_grbg16"};
   return e;
 }
 
@@ -345,20 +404,24 @@ MonoImage ToMono(const cv::Mat& image, const std::string& encoding) {
   if (std::find(enc.begin(), enc.end(), encoding) == enc.end()) {
     std::string list;
     for (const auto& e : enc) list += (list.empty() ? "" : ", ") + e;
-    throw InvalidArgument(Message("image encoding '", encoding, "' is not supported (supported: ", list, ")"));
+    throw InvalidArgument(
+        Message("image encoding '", encoding, "' is not supported (supported: ", list, ")"));
   }
   if (image.empty() || image.cols < 2 || image.rows < 2) {
-    throw InvalidArgument(Message("image is empty (", image.cols, "x", image.rows, ", encoding '", encoding, "')"));
+    throw InvalidArgument(
+        Message("image is empty (", image.cols, "x", image.rows, ", encoding '", encoding, "')"));
   }
   auto need = [&](int type) {
     if (image.type() != type) {
-      throw InvalidArgument(Message("image of encoding '", encoding, "' has ", image.channels(), " channel(s) of depth ",
-                                    image.depth(), ", which does not match the encoding"));
+      throw InvalidArgument(Message("image of encoding '", encoding, "' has ", image.channels(),
+                                    " channel(s) of depth ", image.depth(),
+                                    ", which does not match the encoding"));
     }
   };
   MonoImage out;
   cv::Mat gray;  // 8U or 16U
-  const bool is16 = encoding == "mono16" || (encoding.size() > 2 && encoding.substr(encoding.size() - 2) == "16");
+  const bool is16 =
+      encoding == "mono16" || (encoding.size() > 2 && encoding.substr(encoding.size() - 2) == "16");
   if (encoding == "mono8" || encoding == "mono16") {
     need(is16 ? CV_16UC1 : CV_8UC1);
     gray = image;  // no copy
@@ -393,21 +456,23 @@ MonoImage ToMono(const cv::Mat& image, const std::string& encoding) {
   return out;
 }
 
-void CheckImageInput(const std::string& topic, int width, int height, const std::string& encoding, int info_width,
-                     int info_height) {
+void CheckImageInput(const std::string& topic, int width, int height, const std::string& encoding,
+                     int info_width, int info_height) {
   if (width <= 0 || height <= 0) {
-    throw InvalidArgument(Message("image on '", topic, "' is empty (", width, "x", height, ", encoding '", encoding, "')"));
+    throw InvalidArgument(Message("image on '", topic, "' is empty (", width, "x", height,
+                                  ", encoding '", encoding, "')"));
   }
   const auto& enc = SupportedEncodings();
   if (std::find(enc.begin(), enc.end(), encoding) == enc.end()) {
     std::string list;
     for (const auto& e : enc) list += (list.empty() ? "" : ", ") + e;
-    throw InvalidArgument(
-        Message("image on '", topic, "' has encoding '", encoding, "', which is not supported (supported: ", list, ")"));
+    throw InvalidArgument(Message("image on '", topic, "' has encoding '", encoding,
+                                  "', which is not supported (supported: ", list, ")"));
   }
   if (width != info_width || height != info_height) {
-    throw InvalidArgument(Message("image on '", topic, "' is ", width, "x", height, " px but its camera_info is ",
-                                  info_width, "x", info_height, " px"));
+    throw InvalidArgument(Message("image on '", topic, "' is ", width, "x", height,
+                                  " px but its camera_info is ", info_width, "x", info_height,
+                                  " px"));
   }
 }
 
@@ -419,7 +484,7 @@ struct TargetCentroider::Detector {
   std::vector<std::pair<apriltag_family_t*, void (*)(apriltag_family_t*)>> families;
   std::mutex mutex;  // libapriltag's detector is not re-entrant; guards the buffers too
   cv::Mat small, thr, bright, labels, stats, centroids;  // circle candidates (one pyramid level)
-  Pixels px;  // fit pixels
+  Pixels px;                                             // fit pixels
 };
 
 TargetCentroider::TargetCentroider(const Options& options, const io::TargetList& targets)
@@ -447,16 +512,20 @@ TargetCentroider::~TargetCentroider() {
   delete detector_;
 }
 
-Result TargetCentroider::Detect(const cv::Mat& image, const std::string& encoding, const ViewGeometry* view) const {
+Result TargetCentroider::Detect(const cv::Mat& image, const std::string& encoding,
+                                const ViewGeometry* view) const {
   return DetectMono(ToMono(image, encoding), view);
 }
 
-bool TargetCentroider::GrayWeightedCentroid(const cv::Mat& intensity, const Eigen::Vector2d& seed, double radius,
-                                            Eigen::Vector2d* centroid) {
-  if (intensity.channels() != 1 || (intensity.depth() != CV_8U && intensity.depth() != CV_32F)) return false;
+bool TargetCentroider::GrayWeightedCentroid(const cv::Mat& intensity, const Eigen::Vector2d& seed,
+                                            double radius, Eigen::Vector2d* centroid) {
+  if (intensity.channels() != 1 || (intensity.depth() != CV_8U && intensity.depth() != CV_32F))
+    return false;
   const ImageView im(intensity);
-  const int x0 = static_cast<int>(std::floor(seed.x() - radius)), x1 = static_cast<int>(std::ceil(seed.x() + radius));
-  const int y0 = static_cast<int>(std::floor(seed.y() - radius)), y1 = static_cast<int>(std::ceil(seed.y() + radius));
+  const int x0 = static_cast<int>(std::floor(seed.x() - radius)),
+            x1 = static_cast<int>(std::ceil(seed.x() + radius));
+  const int y0 = static_cast<int>(std::floor(seed.y() - radius)),
+            y1 = static_cast<int>(std::ceil(seed.y() + radius));
   if (x0 < 0 || y0 < 0 || x1 >= intensity.cols || y1 >= intensity.rows) return false;
   std::vector<float> sorted;
   sorted.reserve((x1 - x0 + 1) * (y1 - y0 + 1));
@@ -486,8 +555,8 @@ namespace {
 // Calls f(x, y) for every pixel centre within the rectangle |t.(p - o)| <= hl,
 // |n.(p - o)| <= hw (t, n unit and orthogonal), clipped to the image.
 template <typename F>
-void ForEachPixelInRect(const Eigen::Vector2d& o, const Eigen::Vector2d& t, const Eigen::Vector2d& n, double hl,
-                        double hw, int cols, int rows, F f) {
+void ForEachPixelInRect(const Eigen::Vector2d& o, const Eigen::Vector2d& t,
+                        const Eigen::Vector2d& n, double hl, double hw, int cols, int rows, F f) {
   const double ext = std::abs(t.y()) * hl + std::abs(n.y()) * hw;
   const int ya = std::max(0, static_cast<int>(std::ceil(o.y() - ext)));
   const int yb = std::min(rows - 1, static_cast<int>(std::floor(o.y() + ext)));
@@ -546,10 +615,13 @@ struct EdgeModel {
 // black and white levels: a branch, crown or trunk in front of the plate. The
 // ring is sampled through the homography of the four outer corners (order
 // bottom-left, bottom-right, top-right, top-left; unit square (0,0) (1,0)
-// (1,1) (0,1)), from 0.3 to 0.8 cell outside the black border (clear of the
-// blurred edge and of the plate's rim); samples outside the image do not count.
-double DarkSurroundFraction(const ImageView& im, const std::array<Eigen::Vector2d, 4>& corners, int cells,
-                            double black, double white) {
+// (1,1) (0,1)), at 0.3, 0.55 and 0.8 cell outside the black border; only the
+// offsets at least `clear` px [the edge blur's reach] away from both the
+// black border and the quiet zone's outer rim count (a small tag's quiet zone
+// a few px wide, blurred, has no such offset: nothing to judge, 0 returned).
+// Samples outside the image do not count.
+double DarkSurroundFraction(const ImageView& im, const std::array<Eigen::Vector2d, 4>& corners,
+                            int cells, double cell_px, double clear, double black, double white) {
   Eigen::Matrix<double, 8, 8> a;
   Eigen::Matrix<double, 8, 1> rhs;
   const double uv[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
@@ -571,11 +643,12 @@ double DarkSurroundFraction(const ImageView& im, const std::array<Eigen::Vector2
   int n = 0, dark = 0;
   const int kAlong = 48;
   for (const double off : {0.3, 0.55, 0.8}) {
+    if (off * cell_px < clear || (1.0 - off) * cell_px < clear) continue;
     const double lo = -off * cell, hi = 1.0 + off * cell;
     for (int i = 0; i <= kAlong; ++i) {
       const double f = lo + (hi - lo) * i / kAlong;
-      for (const Eigen::Vector2d& q : {Eigen::Vector2d(f, lo), Eigen::Vector2d(f, hi), Eigen::Vector2d(lo, f),
-                                       Eigen::Vector2d(hi, f)}) {
+      for (const Eigen::Vector2d& q : {Eigen::Vector2d(f, lo), Eigen::Vector2d(f, hi),
+                                       Eigen::Vector2d(lo, f), Eigen::Vector2d(hi, f)}) {
         const Eigen::Vector2d p = map(q.x(), q.y());
         if (p.x() < 0 || p.y() < 0 || p.x() > im.cols - 1 || p.y() > im.rows - 1) continue;
         ++n;
@@ -588,8 +661,9 @@ double DarkSurroundFraction(const ImageView& im, const std::array<Eigen::Vector2
 
 // Fits the edge from corner a to corner b (image coordinates); `inside` is a
 // point inside the tag (the black side); `cell` the tag's cell size [px].
-EdgeFit FitEdge(const ImageView& im, const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& inside,
-                double cell, int width_at_border, double noise_floor, Pixels* buffer) {
+EdgeFit FitEdge(const ImageView& im, const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                const Eigen::Vector2d& inside, double cell, int width_at_border, double noise_floor,
+                Pixels* buffer) {
   EdgeFit e;
   const double len = (b - a).norm();
   if (len < 4) return e;
@@ -606,15 +680,16 @@ EdgeFit FitEdge(const ImageView& im, const Eigen::Vector2d& a, const Eigen::Vect
   Pixels& px = *buffer;
   px.clear();
   std::vector<double> wv, bv;
-  ForEachPixelInRect(e.origin, t, n, 0.5 * len - end_gap, band, im.cols, im.rows, [&](int x, int y) {
-    const Eigen::Vector2d p(x - e.origin.x(), y - e.origin.y());
-    const double v = im.At(x, y);
-    px.p.push_back(p);
-    px.v.push_back(v);
-    const double d = n.dot(p);
-    if (d > 0.7) wv.push_back(v);
-    if (d < -0.7) bv.push_back(v);
-  });
+  ForEachPixelInRect(e.origin, t, n, 0.5 * len - end_gap, band, im.cols, im.rows,
+                     [&](int x, int y) {
+                       const Eigen::Vector2d p(x - e.origin.x(), y - e.origin.y());
+                       const double v = im.At(x, y);
+                       px.p.push_back(p);
+                       px.v.push_back(v);
+                       const double d = n.dot(p);
+                       if (d > 0.7) wv.push_back(v);
+                       if (d < -0.7) bv.push_back(v);
+                     });
   // A border under ~1.5 px (small or oblique tag): the band may hold no
   // clearly white or black pixel; start the levels from the extremes.
   if (px.p.size() >= 8 && wv.empty()) wv.push_back(*std::max_element(px.v.begin(), px.v.end()));
@@ -660,6 +735,31 @@ bool CentreFromCorners(const std::array<Eigen::Vector2d, 4>& c, Eigen::Vector2d*
   return IntersectSegments(c[0], c[2], c[1], c[3], centre);
 }
 
+// Covariance of the tag centre (diagonal intersection) from the covariances
+// of the four line fits (numeric Jacobian).
+Eigen::Matrix2d CentreCovariance(const std::array<EdgeFit, 4>& edges,
+                                 const std::array<Line, 4>& lines) {
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+  for (int k = 0; k < 4; ++k) {
+    Eigen::Matrix2d jac;
+    for (int j = 0; j < 2; ++j) {
+      const double h = 1e-6;
+      std::array<Line, 4> lp = lines, lm = lines;
+      lp[k] = ToLine(edges[k], j == 0 ? h : 0, j == 1 ? h : 0);
+      lm[k] = ToLine(edges[k], j == 0 ? -h : 0, j == 1 ? -h : 0);
+      std::array<Eigen::Vector2d, 4> cp, cm;
+      Eigen::Vector2d xp = Eigen::Vector2d::Zero(), xm = Eigen::Vector2d::Zero();
+      CornersFromEdges(lp, &cp);
+      CornersFromEdges(lm, &cm);
+      CentreFromCorners(cp, &xp);
+      CentreFromCorners(cm, &xm);
+      jac.col(j) = (xp - xm) / (2 * h);
+    }
+    cov += jac * edges[k].cov * jac.transpose();
+  }
+  return cov;
+}
+
 // ---------------------------------------------------------------------------
 // Circles.
 // ---------------------------------------------------------------------------
@@ -677,7 +777,8 @@ struct Blob {
 };
 
 // An ellipse from first and second moments; false when degenerate.
-bool BlobFromMoments(double n, double sx, double sy, double sxx, double sxy, double syy, Blob* blob) {
+bool BlobFromMoments(double n, double sx, double sy, double sxx, double sxy, double syy,
+                     Blob* blob) {
   if (n < 3) return false;
   blob->centre = Eigen::Vector2d(sx / n, sy / n);
   Eigen::Matrix2d m2;
@@ -692,6 +793,82 @@ bool BlobFromMoments(double n, double sx, double sy, double sxx, double sxy, dou
   blob->minor = es.eigenvectors().col(0);
   blob->area = n;
   return true;
+}
+
+// The target design seen in the image: along 32 rays from the disc's centre
+// (in disc radii s, s = 1 on the disc's edge), the dark ring must end where
+// the design says (s = circle_ring_ratio) and the surround beyond must be
+// brighter than the ring (by min_contrast / 2). Per ray the edge is the first crossing of the
+// midpoint between the ring level and that ray's level just outside the
+// tolerance band. A ray with no visible step (surround as dark as the ring,
+// outside the image) does not count; at least 16 of 32 rays must count and
+// their median and 60 % of them must be within the tolerance.
+bool MeasureRingRatio(const ImageView& im, const Blob& blob, double ring, const Options& o,
+                      double* ratio, std::string* fault) {
+  const double design = o.circle_ring_ratio, tol = o.circle_ring_ratio_tolerance;
+  const double s_out = design * (1.0 + tol) + 0.25;
+  const double ds = 0.5 / std::max(blob.a, 1.0);
+  const double min_step = 0.5 * o.min_contrast;
+  std::vector<double> ratios;
+  auto inside = [&](const Eigen::Vector2d& p) {
+    return p.x() >= 0 && p.y() >= 0 && p.x() <= im.cols - 1 && p.y() <= im.rows - 1;
+  };
+  for (int k = 0; k < 32; ++k) {
+    const double ang = 2 * M_PI * (k + 0.5) / 32;
+    double outside = 0;
+    bool in_image = true;
+    for (double e : {0.0, 0.1, 0.2}) {
+      const Eigen::Vector2d p = blob.At(ang, s_out + e);
+      in_image = in_image && inside(p);
+      if (in_image) outside += im.Sample(p.x(), p.y()) / 3.0;
+    }
+    if (!in_image || outside - ring < min_step) continue;
+    const double thr = ring + 0.5 * (outside - ring);
+    double prev_s = 1.15, prev_v = 1e9;
+    for (double s = 1.15; s <= s_out; s += ds) {
+      const Eigen::Vector2d p = blob.At(ang, s);
+      const double v = im.Sample(p.x(), p.y());
+      if (v >= thr && prev_v < thr) {
+        ratios.push_back(prev_s + (s - prev_s) * (thr - prev_v) / (v - prev_v));
+        break;
+      }
+      prev_s = s;
+      prev_v = v;
+    }
+  }
+  if (ratios.size() < 16) {
+    *fault = Message("outer edge of the dark ring seen on ", ratios.size(),
+                     " of 32 rays (design: ring to ", design, " disc diameters)");
+    return false;
+  }
+  int within = 0;
+  for (double r : ratios) within += std::abs(r / design - 1.0) <= tol;
+  *ratio = Percentile(ratios, 0.5);
+  if (std::abs(*ratio / design - 1.0) > tol || within < 0.6 * ratios.size()) {
+    *fault = Message("ring outer / disc diameter ", *ratio, " (", within, " of ", ratios.size(),
+                     " rays within tolerance), design ", design, " +- ", 100 * tol, " %");
+    return false;
+  }
+  return true;
+}
+
+// Semi-major axis [px] of the image of a circle (diameter [m], centre and
+// normal in site): half the longest chord between 36 projected rim points;
+// 0 when a rim point does not project.
+double ProjectedSemiMajor(const ViewGeometry& view, const Eigen::Vector3d& centre,
+                          const Eigen::Vector3d& normal, double diameter) {
+  const Eigen::Vector3d n = normal.normalized(), u = n.unitOrthogonal(), v = n.cross(u);
+  std::array<Eigen::Vector2d, 36> p;
+  for (int i = 0; i < 36; ++i) {
+    const double a = 2 * M_PI * i / 36;
+    if (!view.camera.Project(view.pose,
+                             centre + 0.5 * diameter * (std::cos(a) * u + std::sin(a) * v), &p[i]))
+      return 0.0;
+  }
+  double longest = 0.0;
+  for (int i = 0; i < 36; ++i)
+    for (int j = i + 1; j < 36; ++j) longest = std::max(longest, (p[i] - p[j]).norm());
+  return 0.5 * longest;
 }
 
 // Ellipse intensity model: parameters cx, cy, A11, A12, A22 (shape matrix,
@@ -757,19 +934,22 @@ Eigen::Vector3d FitConicCentre(const std::vector<Eigen::Vector2d>& pts, Eigen::V
 
 }  // namespace
 
-Eigen::Vector2d CirclePerspectiveBias(const ViewGeometry& view, const Eigen::Vector3d& centre_in_site,
+Eigen::Vector2d CirclePerspectiveBias(const ViewGeometry& view,
+                                      const Eigen::Vector3d& centre_in_site,
                                       const Eigen::Vector3d& normal_in_site, double diameter) {
   Eigen::Vector3d n = normal_in_site.normalized();
   Eigen::Vector3d u = n.unitOrthogonal();
   Eigen::Vector3d v = n.cross(u);
   Eigen::Vector2d projected_centre;
-  if (!view.camera.Project(view.pose, centre_in_site, &projected_centre)) return Eigen::Vector2d::Zero();
+  if (!view.camera.Project(view.pose, centre_in_site, &projected_centre))
+    return Eigen::Vector2d::Zero();
   std::vector<Eigen::Vector2d> pts;
   const int k = 72;
   for (int i = 0; i < k; ++i) {
     const double a = 2 * M_PI * i / k;
     Eigen::Vector2d px;
-    if (!view.camera.Project(view.pose, centre_in_site + 0.5 * diameter * (std::cos(a) * u + std::sin(a) * v), &px))
+    if (!view.camera.Project(
+            view.pose, centre_in_site + 0.5 * diameter * (std::cos(a) * u + std::sin(a) * v), &px))
       return Eigen::Vector2d::Zero();
     pts.push_back(px);
   }
@@ -781,7 +961,8 @@ Eigen::Vector2d CirclePerspectiveBias(const ViewGeometry& view, const Eigen::Vec
 Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* view) const {
   if (mono.mono8.empty() && mono.intensity.empty()) throw InvalidArgument("image is empty");
   if (!mono.intensity.empty() && mono.intensity.type() != CV_32FC1) {
-    throw InvalidArgument(Message("MonoImage.intensity must be CV_32FC1, got type ", mono.intensity.type()));
+    throw InvalidArgument(
+        Message("MonoImage.intensity must be CV_32FC1, got type ", mono.intensity.type()));
   }
   if (!mono.mono8.empty() && mono.mono8.type() != CV_8UC1) {
     throw InvalidArgument(Message("MonoImage.mono8 must be CV_8UC1, got type ", mono.mono8.type()));
@@ -794,8 +975,9 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
     throw InvalidArgument(Message("image is empty (", meas.cols, "x", meas.rows, ")"));
   }
   if (!mono.intensity.empty() && mono.intensity.size() != mono8.size()) {
-    throw InvalidArgument(Message("MonoImage.mono8 is ", mono8.cols, "x", mono8.rows, " but intensity is ",
-                                  mono.intensity.cols, "x", mono.intensity.rows));
+    throw InvalidArgument(Message("MonoImage.mono8 is ", mono8.cols, "x", mono8.rows,
+                                  " but intensity is ", mono.intensity.cols, "x",
+                                  mono.intensity.rows));
   }
   const ImageView im(meas);
   Result res;
@@ -804,20 +986,22 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
   if (view) {
     const auto& s = view->camera.sensor();
     if (s.width != im.cols || s.height != im.rows) {
-      throw InvalidArgument(Message("image is ", im.cols, "x", im.rows, " px but the camera model (camera_info) is ",
-                                    s.width, "x", s.height, " px"));
+      throw InvalidArgument(Message("image is ", im.cols, "x", im.rows,
+                                    " px but the camera model (camera_info) is ", s.width, "x",
+                                    s.height, " px"));
     }
   }
   Detector& D = *detector_;
   std::lock_guard<std::mutex> lock(D.mutex);
-  const double noise_floor = options_.noise_floor > 0 ? options_.noise_floor : mono.quantisation / std::sqrt(12.0);
+  const double noise_floor =
+      options_.noise_floor > 0 ? options_.noise_floor : mono.quantisation / std::sqrt(12.0);
   const double margin = options_.border_margin;
   auto near_border = [&](const Eigen::Vector2d& p, double extra) {
-    return p.x() < margin + extra || p.y() < margin + extra || p.x() > im.cols - 1 - margin - extra ||
-           p.y() > im.rows - 1 - margin - extra;
+    return p.x() < margin + extra || p.y() < margin + extra ||
+           p.x() > im.cols - 1 - margin - extra || p.y() > im.rows - 1 - margin - extra;
   };
-  auto reject = [&](const std::string& family, int id, const Eigen::Vector2d& where, RejectReason reason,
-                    const std::string& detail) {
+  auto reject = [&](const std::string& family, int id, const Eigen::Vector2d& where,
+                    RejectReason reason, const std::string& detail) {
     Rejection r;
     r.family = family;
     r.id = id;
@@ -826,6 +1010,15 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
     r.detail = detail;
     res.rejections.push_back(r);
     res.summary.rejects_by_reason[RejectReasonName(reason)]++;
+  };
+  // A circle candidate that is not a target of the design (debug output).
+  auto discard = [&](const Eigen::Vector2d& where, RejectReason reason, const std::string& detail) {
+    Rejection r;
+    r.family = "circle";
+    r.where = where;
+    r.reason = reason;
+    r.detail = detail;
+    res.discarded.push_back(r);
   };
   std::vector<double> residuals;
   std::vector<std::array<Eigen::Vector2d, 4>> tag_quads;
@@ -846,9 +1039,11 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       o.hamming = det->hamming;
       o.has_corners = true;
       for (int k = 0; k < 4; ++k) {
-        o.corners[k] = Eigen::Vector2d(det->p[k][0] - kAprilTagPixelOffset, det->p[k][1] - kAprilTagPixelOffset);
+        o.corners[k] = Eigen::Vector2d(det->p[k][0] - kAprilTagPixelOffset,
+                                       det->p[k][1] - kAprilTagPixelOffset);
       }
-      o.detector_centre = Eigen::Vector2d(det->c[0] - kAprilTagPixelOffset, det->c[1] - kAprilTagPixelOffset);
+      o.detector_centre =
+          Eigen::Vector2d(det->c[0] - kAprilTagPixelOffset, det->c[1] - kAprilTagPixelOffset);
       o.centre = o.detector_centre;
       tag_quads.push_back(o.corners);
       if (const io::TargetSpec* spec = targets_.Find(family, det->id)) o.role = spec->role;
@@ -856,24 +1051,43 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       for (int k = 0; k < 4; ++k) edge_sum += (o.corners[(k + 1) % 4] - o.corners[k]).norm();
       o.size_px = edge_sum / 4;
       if (det->decision_margin < options_.min_decision_margin) {
-        reject(family, det->id, o.centre, RejectReason::kWeakDecode,
-               Message("decision margin ", det->decision_margin, " < ", options_.min_decision_margin));
+        reject(
+            family, det->id, o.centre, RejectReason::kWeakDecode,
+            Message("decision margin ", det->decision_margin, " < ", options_.min_decision_margin));
         continue;
       }
       bool at_border = false;
       for (const auto& c : o.corners) at_border = at_border || near_border(c, 1.0);
       if (at_border) {
-        reject(family, det->id, o.centre, RejectReason::kBorder, "a corner within the border margin");
+        reject(family, det->id, o.centre, RejectReason::kBorder,
+               "a corner within the border margin");
         continue;
       }
+      // The detector's corners as published when the edge model cannot do
+      // better (see below): the covariance then follows the decode contrast
+      // (decision margin, about the black/white difference in DN) and the tag
+      // size: an edge of L px at noise s and contrast C places a line to
+      // ~ s / C / sqrt(L).
+      auto publish_detector = [&](Observation o, const Eigen::Matrix2d& extra_cov) {
+        const double contrast_proxy = std::max(static_cast<double>(det->decision_margin), 1.0);
+        const double sigma =
+            std::max(noise_floor, 2.0) / contrast_proxy * std::sqrt(8.0 / std::max(o.size_px, 1.0));
+        o.method = CentreMethod::kDetector;
+        o.centre = o.detector_centre;
+        o.covariance = Eigen::Matrix2d::Identity() * sigma * sigma + extra_cov;
+        if (o.quality <= 0.0) o.quality = 0.5 * std::clamp(det->decision_margin / 100.0, 0.0, 1.0);
+        res.observations.push_back(o);
+        res.summary.num_tags++;
+        if (!o.role) res.summary.num_unknown++;
+      };
       // Edge-model fits on the pixels of a narrow band along each edge only.
       const double cell = o.size_px / det->family->width_at_border;
       std::array<EdgeFit, 4> edges;
       bool fits_ok = true;
       double worst_rel = 0, blur = 0, contrast = 1e9;
       for (int k = 0; k < 4; ++k) {
-        edges[k] = FitEdge(im, o.corners[k], o.corners[(k + 1) % 4], o.centre, cell, det->family->width_at_border,
-                           noise_floor, &D.px);
+        edges[k] = FitEdge(im, o.corners[k], o.corners[(k + 1) % 4], o.centre, cell,
+                           det->family->width_at_border, noise_floor, &D.px);
         if (!edges[k].ok) {
           fits_ok = false;
           break;
@@ -884,25 +1098,13 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
         blur = std::max(blur, edges[k].sigma);
       }
       if (!fits_ok) {
-        if (options_.refine_tags) {
-          reject(family, det->id, o.centre, RejectReason::kFitFailed, "edge model fit did not converge");
-          continue;
-        }
-        // Refinement off: keep libapriltag's corners and centre; the
-        // covariance then follows the decode contrast (decision margin, about
-        // the black/white difference in DN) and the tag size: an edge of L px
-        // at noise s and contrast C places a line to ~ s / C / sqrt(L).
-        const double contrast_proxy = std::max(static_cast<double>(det->decision_margin), 1.0);
-        const double sigma = std::max(noise_floor, 2.0) / contrast_proxy * std::sqrt(8.0 / std::max(o.size_px, 1.0));
-        o.covariance = Eigen::Matrix2d::Identity() * sigma * sigma;
-        o.quality = 0.5 * std::clamp(det->decision_margin / 100.0, 0.0, 1.0);
-        res.observations.push_back(o);
-        res.summary.num_tags++;
-        if (!o.role) res.summary.num_unknown++;
+        // The tag was decoded: its quad stands; no edge model to check it by.
+        publish_detector(o, Eigen::Matrix2d::Zero());
         continue;
       }
       o.contrast = contrast;
       o.edge_blur = blur;
+      o.fit_residual = worst_rel;
       // Saturation of the white surround along the edges.
       int sat = 0, tot = 0;
       for (int k = 0; k < 4; ++k) {
@@ -915,7 +1117,8 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
         }
       }
       if (contrast < options_.min_contrast) {
-        reject(family, det->id, o.centre, RejectReason::kLowContrast, Message("edge contrast ", contrast, " DN"));
+        reject(family, det->id, o.centre, RejectReason::kLowContrast,
+               Message("edge contrast ", contrast, " DN"));
         continue;
       }
       if (sat > options_.max_saturated_fraction * tot) {
@@ -923,13 +1126,12 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
                Message(100 * sat / tot, "% of the white border saturated"));
         continue;
       }
-      if (blur > options_.max_edge_blur) {
-        reject(family, det->id, o.centre, RejectReason::kBlurred, Message("edge blur sigma ", blur, " px"));
-        continue;
-      }
-      if (worst_rel > options_.max_residual) {
-        reject(family, det->id, o.centre, RejectReason::kPartial,
-               Message("edge fit residual ", worst_rel, " of the contrast (occluded or damaged)"));
+      // An edge the model does not explain (blurred beyond max_edge_blur, a
+      // residual over max_residual: a neighbouring tag or texture in the band,
+      // JPEG blocks): the decoded quad stands, with the detector's corners.
+      if (blur > options_.max_edge_blur || worst_rel > options_.max_residual) {
+        o.quality = 0.0;
+        publish_detector(o, Eigen::Matrix2d::Zero());
         continue;
       }
       std::array<Line, 4> lines;
@@ -946,7 +1148,8 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
           white += 0.25 * edges[k].w;
         }
         if (CornersFromEdges(l0, &outer)) {
-          const double dark = DarkSurroundFraction(im, outer, det->family->width_at_border, black, white);
+          const double dark = DarkSurroundFraction(im, outer, det->family->width_at_border, cell,
+                                                   1.5 * blur + 0.5, black, white);
           if (dark > options_.max_dark_surround) {
             reject(family, det->id, o.centre, RejectReason::kPartial,
                    Message(std::lround(100.0 * dark), "% of the white surround dark (occluded)"));
@@ -954,40 +1157,34 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
           }
         }
       }
+      o.quality = std::clamp(det->decision_margin / 100.0, 0.0, 1.0) *
+                  std::clamp(1.0 - worst_rel / options_.max_residual, 0.0, 1.0);
       std::array<Eigen::Vector2d, 4> corners;
       Eigen::Vector2d centre;
       if (!CornersFromEdges(lines, &corners) || !CentreFromCorners(corners, &centre) ||
           (centre - o.detector_centre).norm() > 0.25 * o.size_px) {
-        reject(family, det->id, o.centre, RejectReason::kFitFailed, "refined corners inconsistent with the quad");
+        publish_detector(o, Eigen::Matrix2d::Zero());  // the edge lines do not make this quad
         continue;
       }
-      // Covariance of the centre from the four line fits (numeric Jacobian).
-      Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
-      for (int k = 0; k < 4; ++k) {
-        Eigen::Matrix2d jac;
-        for (int j = 0; j < 2; ++j) {
-          const double h = 1e-6;
-          std::array<Line, 4> lp = lines, lm = lines;
-          lp[k] = ToLine(edges[k], j == 0 ? h : 0, j == 1 ? h : 0);
-          lm[k] = ToLine(edges[k], j == 0 ? -h : 0, j == 1 ? -h : 0);
-          std::array<Eigen::Vector2d, 4> cp, cm;
-          Eigen::Vector2d xp = Eigen::Vector2d::Zero(), xm = Eigen::Vector2d::Zero();
-          CornersFromEdges(lp, &cp);
-          CornersFromEdges(lm, &cm);
-          CentreFromCorners(cp, &xp);
-          CentreFromCorners(cm, &xm);
-          jac.col(j) = (xp - xm) / (2 * h);
-        }
-        cov += jac * edges[k].cov * jac.transpose();
-      }
-      if (options_.refine_tags) {
-        o.corners = corners;
-        o.centre = centre;
-      }
-      o.covariance = cov;
+      const Eigen::Matrix2d cov = CentreCovariance(edges, lines);
       for (const auto& e : edges) residuals.push_back(e.rms);
-      o.quality = std::clamp(det->decision_margin / 100.0, 0.0, 1.0) *
-                  std::clamp(1.0 - worst_rel / options_.max_residual, 0.0, 1.0);
+      // Per tag: the refined corners replace the detector's only where the
+      // edge model explains the pixels (residual) and places the centre
+      // precisely (covariance). Otherwise the detector's corners stand, with
+      // the disagreement of the two added to their covariance.
+      const double sigma_max = std::sqrt(
+          std::max(Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(cov).eigenvalues()(1), 0.0));
+      if (!options_.refine_tags || worst_rel > options_.tag_refine_max_residual ||
+          !(sigma_max <= options_.tag_refine_max_sigma)) {
+        const Eigen::Vector2d d = centre - o.detector_centre;
+        publish_detector(
+            o, options_.refine_tags ? Eigen::Matrix2d(d * d.transpose()) : Eigen::Matrix2d(cov));
+        continue;
+      }
+      o.method = CentreMethod::kEdgeModel;
+      o.corners = corners;
+      o.centre = centre;
+      o.covariance = cov;
       res.observations.push_back(o);
       res.summary.num_tags++;
       if (!o.role) res.summary.num_unknown++;
@@ -1017,10 +1214,13 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
     D.bright.setTo(0);
     // Window sizes from 3 dmin to 1.5 dmax, at most a factor 4 apart.
     const double kmin = 3 * dmin, kmax = std::max(kmin, 1.5 * dmax);
-    const int nscales = 1 + static_cast<int>(std::ceil(std::log(kmax / kmin) / std::log(4.0) - 1e-9));
+    const int nscales =
+        1 + static_cast<int>(std::ceil(std::log(kmax / kmin) / std::log(4.0) - 1e-9));
     const int kcap = std::max(3, 2 * ((std::min(small.cols, small.rows) - 1) / 2) + 1);
     for (int i = 0; i < nscales; ++i) {
-      const double k = nscales == 1 ? kmin : kmin * std::pow(kmax / kmin, static_cast<double>(i) / (nscales - 1));
+      const double k = nscales == 1
+                           ? kmin
+                           : kmin * std::pow(kmax / kmin, static_cast<double>(i) / (nscales - 1));
       const int ks = std::clamp(2 * static_cast<int>(k / f / 2) + 1, 3, kcap);
       cv::blur(small, D.thr, cv::Size(ks, ks), cv::Point(-1, -1), cv::BORDER_REPLICATE);
       cv::subtract(small, D.thr, D.thr);  // saturating: max(0, image - local mean)
@@ -1032,18 +1232,23 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       std::vector<cv::Point> poly;
       Eigen::Vector2d c = 0.25 * (q[0] + q[1] + q[2] + q[3]);
       for (const auto& p : q) {
-        const Eigen::Vector2d g = (c + 1.3 * (p - c) - Eigen::Vector2d::Constant(0.5 * (f - 1))) / f;
-        poly.emplace_back(static_cast<int>(std::lround(g.x())), static_cast<int>(std::lround(g.y())));
+        const Eigen::Vector2d g =
+            (c + 1.3 * (p - c) - Eigen::Vector2d::Constant(0.5 * (f - 1))) / f;
+        poly.emplace_back(static_cast<int>(std::lround(g.x())),
+                          static_cast<int>(std::lround(g.y())));
       }
       cv::fillConvexPoly(D.bright, poly, cv::Scalar(0));
     }
-    const int nl = cv::connectedComponentsWithStats(D.bright, D.labels, D.stats, D.centroids, 8, CV_32S);
-    const double amin = M_PI / 4 * dmin * dmin * 0.4 / (f * f), amax = M_PI / 4 * dmax * dmax * 1.5 / (f * f);
+    const int nl =
+        cv::connectedComponentsWithStats(D.bright, D.labels, D.stats, D.centroids, 8, CV_32S);
+    const double amin = M_PI / 4 * dmin * dmin * 0.4 / (f * f),
+                 amax = M_PI / 4 * dmax * dmax * 1.5 / (f * f);
     // Listed circles projected into the image (when the view is known).
     struct Expected {
       const io::TargetSpec* spec;
       Eigen::Vector2d px;
       double radius_px;
+      double major_px;  // semi-major axis of the projected disc (0: unknown)
     };
     std::vector<Expected> expected;
     if (view) {
@@ -1054,7 +1259,8 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
         Eigen::Vector3d n = s.normal ? *s.normal : Eigen::Vector3d(0, 0, 1);
         Eigen::Vector2d edge;
         view->camera.Project(view->pose, *s.position + 0.5 * s.size * n.unitOrthogonal(), &edge);
-        expected.push_back({&s, px, (edge - px).norm()});
+        expected.push_back({&s, px, (edge - px).norm(),
+                            s.normal ? ProjectedSemiMajor(*view, *s.position, n, s.size) : 0.0});
       }
     }
     std::vector<double> inner, sectors, vals;
@@ -1063,7 +1269,8 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       const int area = D.stats.at<int>(l, cv::CC_STAT_AREA);
       if (area < amin || area > amax) continue;
       const int bx = D.stats.at<int>(l, cv::CC_STAT_LEFT), by = D.stats.at<int>(l, cv::CC_STAT_TOP);
-      const int bw = D.stats.at<int>(l, cv::CC_STAT_WIDTH), bh = D.stats.at<int>(l, cv::CC_STAT_HEIGHT);
+      const int bw = D.stats.at<int>(l, cv::CC_STAT_WIDTH),
+                bh = D.stats.at<int>(l, cv::CC_STAT_HEIGHT);
       if (f * std::max(bw, bh) > 1.3 * dmax + 2 * f) continue;
       // Coarse ellipse from the component's moments on the reduced level.
       double sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, cnt = 0;
@@ -1084,8 +1291,12 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       // Not disc-like (a ring of bright background around a dark target, a
       // streak): the component fills its moment ellipse badly.
       const double coarse_fill = cnt / (M_PI * coarse.a * coarse.b);
-      if (coarse_fill < 0.6 || coarse_fill > 1.6) continue;
       coarse.centre = Eigen::Vector2d(to_full(coarse.centre.x()), to_full(coarse.centre.y()));
+      if (coarse_fill < 0.6 || coarse_fill > 1.6) {
+        discard(coarse.centre, RejectReason::kNotDisc,
+                Message("bright blob fills ", coarse_fill, " of its moment ellipse"));
+        continue;
+      }
       coarse.a = std::max(f * coarse.a, 1.0);
       coarse.b = std::max(f * coarse.b, 1.0);
       // Full resolution, ROI only: disc level (median within half the coarse
@@ -1125,14 +1336,56 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
         }
       }
       Blob blob;
-      if (!BlobFromMoments(cnt, sx, sy, sxx, sxy, syy, &blob)) continue;
+      if (!BlobFromMoments(cnt, sx, sy, sxx, sxy, syy, &blob)) {
+        discard(coarse.centre, RejectReason::kNotDisc,
+                "no bright pixels above the disc/surround midpoint");
+        continue;
+      }
       const double fill = cnt / (M_PI * blob.a * blob.b);
-      if (fill < 0.8 || fill > 1.2) continue;
-      if (2 * blob.a < 0.8 * dmin || 2 * blob.a > dmax) continue;
-      if (1.0 - blob.b / blob.a > options_.circle_max_eccentricity) continue;
+      if (fill < 0.8 || fill > 1.2) {
+        discard(blob.centre, RejectReason::kNotDisc,
+                Message("thresholded blob fills ", fill, " of its moment ellipse"));
+        continue;
+      }
+      if (2 * blob.a < 0.8 * dmin || 2 * blob.a > dmax) {
+        discard(blob.centre, RejectReason::kSize,
+                Message("diameter ", 2 * blob.a, " px outside [", dmin, ", ", dmax, "]"));
+        continue;
+      }
+      if (1.0 - blob.b / blob.a > options_.circle_max_eccentricity) {
+        discard(blob.centre, RejectReason::kNotDisc,
+                Message("eccentricity ", 1.0 - blob.b / blob.a));
+        continue;
+      }
+      // Identification against the listed circles.
+      int id = -1;
+      const io::TargetSpec* spec = nullptr;
+      int best = -1;
+      double best_d = 1e18;
+      for (size_t k = 0; k < expected.size(); ++k) {
+        const double d = (expected[k].px - blob.centre).norm();
+        if (d < best_d) {
+          best_d = d;
+          best = static_cast<int>(k);
+        }
+      }
+      if (best >= 0 &&
+          best_d < options_.circle_id_gate * std::max(expected[best].radius_px, 2.0) + 1.0) {
+        spec = expected[best].spec;
+        id = spec->id;
+      }
+      // A listed circle expected here is a target that cannot be measured (a
+      // rejection); an unlisted candidate that fails is not a target
+      // (discarded, debug output only).
+      auto fail = [&](RejectReason reason, const std::string& detail) {
+        if (spec) {
+          reject("circle", id, blob.centre, reason, detail);
+        } else {
+          discard(blob.centre, reason, detail);
+        }
+      };
       if (near_border(blob.centre, 1.7 * blob.a)) {
-        // A bright blob at the border: only report it when it looks like a disc.
-        reject("circle", -1, blob.centre, RejectReason::kBorder, "disc and its ring reach the image border");
+        fail(RejectReason::kBorder, "disc and its ring reach the image border");
         continue;
       }
       // Surround: 16 sectors of the annulus 1.3..1.6 radii must be dark.
@@ -1161,38 +1414,43 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       const double disc = Percentile(inner, 0.5);
       const double ring = Percentile(sectors, 0.5);
       const double contrast = disc - ring;
-      if (contrast < options_.min_contrast) continue;  // not a target (bright texture)
+      if (contrast < options_.min_contrast) {  // not a target (bright texture)
+        discard(blob.centre, RejectReason::kLowContrast,
+                Message("disc/ring contrast ", contrast, " DN"));
+        continue;
+      }
       const double worst_sector = *std::max_element(sectors.begin(), sectors.end());
-      // Identification against the listed circles.
-      int id = -1;
-      const io::TargetSpec* spec = nullptr;
-      int best = -1;
-      double best_d = 1e18;
-      for (size_t k = 0; k < expected.size(); ++k) {
-        const double d = (expected[k].px - blob.centre).norm();
-        if (d < best_d) {
-          best_d = d;
-          best = static_cast<int>(k);
+      // The design: the dark ring ends at circle_ring_ratio disc radii.
+      double ring_ratio = 0.0;
+      std::string design_fault;
+      if (!MeasureRingRatio(im, blob, ring, options_, &ring_ratio, &design_fault)) {
+        fail(RejectReason::kDesign, design_fault);
+        continue;
+      }
+      // With a pose: the listed target's projected size.
+      if (spec && expected[best].major_px > 0.0) {
+        const double rel = blob.a / expected[best].major_px - 1.0;
+        if (std::abs(rel) > options_.circle_size_tolerance) {
+          fail(RejectReason::kSize, Message("semi-major axis ", blob.a, " px, circle/", spec->id,
+                                            " projects to ", expected[best].major_px, " px"));
+          continue;
         }
       }
-      if (best >= 0 && best_d < options_.circle_id_gate * std::max(expected[best].radius_px, 2.0) + 1.0) {
-        spec = expected[best].spec;
-        id = spec->id;
-      }
       if (worst_sector > disc - 0.5 * contrast) {
-        reject("circle", id, blob.centre, RejectReason::kPartial, "dark ring interrupted (occluded or partial target)");
+        fail(RejectReason::kPartial, "dark ring interrupted (occluded or partial target)");
         continue;
       }
       int sat = 0;
       for (double v : inner) sat += v >= options_.saturation_level;
       if (sat > options_.max_saturated_fraction * inner.size()) {
-        reject("circle", id, blob.centre, RejectReason::kSaturated,
-               Message(100 * sat / static_cast<int>(inner.size()), "% of the disc saturated"));
+        fail(RejectReason::kSaturated,
+             Message(100 * sat / static_cast<int>(inner.size()), "% of the disc saturated"));
         continue;
       }
       Observation o;
       o.family = "circle";
       o.id = id;
+      o.ring_ratio = ring_ratio;
       if (spec) o.role = spec->role;
       o.contrast = contrast;
       const Eigen::Matrix2d shape = blob.Shape();
@@ -1224,7 +1482,8 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       const double rmean = 0.5 * (blob.a + blob.b);
       const double band = std::clamp(0.25 * rmean, 1.5, 4.0);
       EllipseParams x0;
-      x0 << o.gray_centroid.x(), o.gray_centroid.y(), shape(0, 0), shape(0, 1), shape(1, 1), ring, disc, 0.4;
+      x0 << o.gray_centroid.x(), o.gray_centroid.y(), shape(0, 0), shape(0, 1), shape(1, 1), ring,
+          disc, 0.4;
       px.clear();
       {
         const double rout = 1.0 + band / blob.b, rin = std::max(0.0, 1.0 - band / blob.b);
@@ -1245,34 +1504,47 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       EllipseModel model;
       const LmResult<8> fit = FitModel<8>(px, x0, model, 30);
       if (!fit.ok || (fit.x.head<2>() - o.gray_centroid).norm() > 0.25 * rmean) {
-        reject("circle", id, blob.centre, RejectReason::kFitFailed, "ellipse model fit did not converge");
+        fail(RejectReason::kFitFailed, "ellipse model fit did not converge");
         continue;
       }
       const double fit_contrast = fit.x[6] - fit.x[5];
       const double rel = fit.rms / std::max(fit_contrast, 1e-9);
+      o.fit_residual = rel;
       o.edge_blur = std::max(fit.x[7], kMinBlur);
       if (o.edge_blur > options_.max_edge_blur) {
-        reject("circle", id, blob.centre, RejectReason::kBlurred, Message("edge blur sigma ", o.edge_blur, " px"));
+        fail(RejectReason::kBlurred, Message("edge blur sigma ", o.edge_blur, " px"));
         continue;
       }
       if (rel > options_.max_residual) {
-        reject("circle", id, blob.centre, RejectReason::kPartial, Message("ellipse fit residual ", rel, " of the contrast"));
+        fail(RejectReason::kPartial, Message("ellipse fit residual ", rel, " of the contrast"));
+        continue;
+      }
+      if (rel > options_.circle_max_residual) {
+        fail(RejectReason::kResidual, Message("ellipse fit residual ", rel, " of the contrast > ",
+                                              options_.circle_max_residual));
         continue;
       }
       const double noise = NoiseOf(fit.rms, noise_floor);
       const Eigen::Matrix<double, 7, 7> cov = noise * noise * fit.jtj.block<7, 7>(0, 0).inverse();
       residuals.push_back(fit.rms);
-      if (options_.refine_circles) o.centre = fit.x.head<2>();
+      o.method = CentreMethod::kGrayCentroid;
+      if (options_.refine_circles) {
+        o.centre = fit.x.head<2>();
+        o.method = CentreMethod::kEllipseModel;
+      }
       o.covariance = cov.block<2, 2>(0, 0);
       if (!o.covariance.allFinite()) {
-        reject("circle", id, blob.centre, RejectReason::kFitFailed, "singular ellipse fit");
+        fail(RejectReason::kFitFailed, "singular ellipse fit");
         continue;
       }
       if (options_.correct_perspective && view && spec && spec->position && spec->normal) {
-        o.centre -= CirclePerspectiveBias(*view, *spec->position, *spec->normal, spec->size);
+        o.perspective_correction =
+            CirclePerspectiveBias(*view, *spec->position, *spec->normal, spec->size);
+        o.centre -= o.perspective_correction;
         o.perspective_corrected = true;
       }
-      o.quality = std::clamp(fit_contrast / 100.0, 0.0, 1.0) * std::clamp(1.0 - rel / options_.max_residual, 0.0, 1.0);
+      o.quality = std::clamp(fit_contrast / 100.0, 0.0, 1.0) *
+                  std::clamp(1.0 - rel / options_.max_residual, 0.0, 1.0);
       res.observations.push_back(o);
       res.summary.num_circles++;
       if (!o.role) res.summary.num_unknown++;
@@ -1289,21 +1561,25 @@ cv::Mat DrawResult(const cv::Mat& mono8, const Result& result) {
   } else {
     out = mono8.clone();
   }
-  auto pt = [](const Eigen::Vector2d& p) { return cv::Point(static_cast<int>(std::lround(p.x())), static_cast<int>(std::lround(p.y()))); };
+  auto pt = [](const Eigen::Vector2d& p) {
+    return cv::Point(static_cast<int>(std::lround(p.x())), static_cast<int>(std::lround(p.y())));
+  };
   for (const auto& o : result.observations) {
     const cv::Scalar colour = o.role ? cv::Scalar(0, 220, 0) : cv::Scalar(0, 220, 220);
     if (o.has_corners) {
-      for (int k = 0; k < 4; ++k) cv::line(out, pt(o.corners[k]), pt(o.corners[(k + 1) % 4]), colour, 1);
+      for (int k = 0; k < 4; ++k)
+        cv::line(out, pt(o.corners[k]), pt(o.corners[(k + 1) % 4]), colour, 1);
     } else {
       cv::circle(out, pt(o.centre), static_cast<int>(std::lround(0.5 * o.size_px)), colour, 1);
     }
     cv::drawMarker(out, pt(o.centre), colour, cv::MARKER_CROSS, 7, 1);
-    cv::putText(out, o.Key(), pt(o.centre + Eigen::Vector2d(4, -4)), cv::FONT_HERSHEY_SIMPLEX, 0.4, colour, 1);
+    cv::putText(out, o.Key(), pt(o.centre + Eigen::Vector2d(4, -4)), cv::FONT_HERSHEY_SIMPLEX, 0.4,
+                colour, 1);
   }
   for (const auto& r : result.rejections) {
     cv::drawMarker(out, pt(r.where), cv::Scalar(0, 0, 255), cv::MARKER_TILTED_CROSS, 9, 1);
-    cv::putText(out, RejectReasonName(r.reason), pt(r.where + Eigen::Vector2d(4, 10)), cv::FONT_HERSHEY_SIMPLEX, 0.4,
-                cv::Scalar(0, 0, 255), 1);
+    cv::putText(out, RejectReasonName(r.reason), pt(r.where + Eigen::Vector2d(4, 10)),
+                cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 255), 1);
   }
   return out;
 }

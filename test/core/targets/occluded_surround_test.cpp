@@ -23,7 +23,8 @@ Result Render(bool occluded, double* cell_px) {
   const camera::CameraModel cam = testing::NadirCamera(w, w, focal);
   camera::ExteriorOrientation pose;
   pose.position = Eigen::Vector3d(0, 0, height);
-  const testing::Plate plate = testing::TiltedPlate(Eigen::Vector3d(0.013, -0.021, 0.0), 0.0, 0.0, 0.0);
+  const testing::Plate plate =
+      testing::TiltedPlate(Eigen::Vector3d(0.013, -0.021, 0.0), 0.0, 0.0, 0.0);
   const Eigen::Matrix3d h = testing::PlaneToPixel(cam, pose, plate);
   testing::RenderOptions ro;
   ro.read_noise = 1.0;
@@ -64,7 +65,8 @@ TEST(OccludedSurround, CoveredSurroundIsRejectedAsPartial) {
   EXPECT_EQ(covered.rejections[0].reason, RejectReason::kPartial);
   EXPECT_NE(covered.rejections[0].detail.find("white surround dark"), std::string::npos)
       << covered.rejections[0].detail;
-  std::printf("cell %.1f px; covered tag rejected: %s\n", cell_px, covered.rejections[0].detail.c_str());
+  std::printf("cell %.1f px; covered tag rejected: %s\n", cell_px,
+              covered.rejections[0].detail.c_str());
 }
 
 TEST(OccludedSurround, OptionIsChecked) {

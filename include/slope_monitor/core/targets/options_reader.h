@@ -22,21 +22,23 @@ namespace targets {
 // The node's own keys (inputs, queue); the tool reads them too so the one
 // defaults file serves both.
 struct NodeOptions {
-  std::string target_list;   // path of the target list; "" = none (every target unknown)
-  std::string camera_name;   // "" = the parent namespace of the node
+  std::string target_list;  // path of the target list; "" = none (every target unknown)
+  std::string camera_name;  // "" = the parent namespace of the node
   std::string site_frame = "site";
   bool use_tf_pose = true;
-  double pixel_size = 1.0;   // [mm/px]
-  int queue_size = 100;      // [images]
+  double pixel_size = 1.0;  // [mm/px]
+  int queue_size = 100;     // [images]
 };
 
 namespace detail {
 template <typename R>
-auto ReadStrings(R& r, const std::string& key, const std::vector<std::string>& d, int) -> decltype(r.StringList(key, d)) {
+auto ReadStrings(R& r, const std::string& key, const std::vector<std::string>& d, int)
+    -> decltype(r.StringList(key, d)) {
   return r.StringList(key, d);
 }
 template <typename R>
-auto ReadStrings(R& r, const std::string& key, const std::vector<std::string>& d, long) -> decltype(r.Strings(key, d)) {
+auto ReadStrings(R& r, const std::string& key, const std::vector<std::string>& d, long)
+    -> decltype(r.Strings(key, d)) {
   return r.Strings(key, d);
 }
 }  // namespace detail
@@ -53,11 +55,21 @@ Options ReadOptions(Reader& r) {
   o.max_hamming = r.Int("max_hamming", o.max_hamming, 0, 3, "bits");
   o.min_decision_margin = r.Double("min_decision_margin", o.min_decision_margin, 0.0, 1000.0);
   o.refine_tags = r.Bool("refine_tags", o.refine_tags);
+  o.tag_refine_max_residual =
+      r.Double("tag_refine_max_residual", o.tag_refine_max_residual, 1e-6, 1.0);
+  o.tag_refine_max_sigma =
+      r.Double("tag_refine_max_sigma", o.tag_refine_max_sigma, 1e-6, 10.0, "px");
   o.detect_circles = r.Bool("detect_circles", o.detect_circles);
   o.circle_min_diameter = r.Double("circle_min_diameter", o.circle_min_diameter, 4.0, 2000.0, "px");
   o.circle_max_diameter = r.Double("circle_max_diameter", o.circle_max_diameter, 4.0, 2000.0, "px");
-  o.circle_max_eccentricity = r.Double("circle_max_eccentricity", o.circle_max_eccentricity, 0.01, 0.99);
+  o.circle_max_eccentricity =
+      r.Double("circle_max_eccentricity", o.circle_max_eccentricity, 0.01, 0.99);
   o.circle_id_gate = r.Double("circle_id_gate", o.circle_id_gate, 0.01, 5.0);
+  o.circle_ring_ratio = r.Double("circle_ring_ratio", o.circle_ring_ratio, 1.01, 10.0);
+  o.circle_ring_ratio_tolerance =
+      r.Double("circle_ring_ratio_tolerance", o.circle_ring_ratio_tolerance, 0.01, 1.0);
+  o.circle_max_residual = r.Double("circle_max_residual", o.circle_max_residual, 0.01, 1.0);
+  o.circle_size_tolerance = r.Double("circle_size_tolerance", o.circle_size_tolerance, 0.01, 1.0);
   o.refine_circles = r.Bool("refine_circles", o.refine_circles);
   o.correct_perspective = r.Bool("correct_perspective", o.correct_perspective);
   o.min_contrast = r.Double("min_contrast", o.min_contrast, 0.1, 254.0, "DN");

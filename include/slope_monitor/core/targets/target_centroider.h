@@ -4,7 +4,8 @@
 //
 //   targets::TargetCentroider centroider(options, target_list);
 //   targets::Result r = centroider.Detect(image, "mono8");            // no pose known
-//   targets::Result r = centroider.Detect(image, "bgr8", &view);      // with camera + approximate pose
+//   targets::Result r = centroider.Detect(image, "bgr8", &view);      // with camera + approximate
+//   pose
 //
 // Pixel convention (everywhere in this module): OpenCV's, column right, row
 // down, (0, 0) the centre of the top-left pixel. libapriltag uses a
@@ -19,7 +20,11 @@
 // grey levels, blur), the corners are the intersections of adjacent edges,
 // and the centre is the intersection of the diagonals (the image of the tag
 // centre under the tag's homography, not the corner mean). The covariance of
-// the centre is propagated from the covariances of the four line fits.
+// the centre is propagated from the covariances of the four line fits. Per
+// tag, these corners replace libapriltag's only where the edge model explains
+// the pixels (residual, covariance: Options::tag_refine_max_residual,
+// tag_refine_max_sigma); otherwise libapriltag's corners are published
+// (Observation::method says which; doc/targets_real_photos.md).
 //
 // Circles: blobs of a locally thresholded image with a dark surround; then
 // the gray-weighted centroid of DESIGN.md (automatic threshold halfway
@@ -55,67 +60,119 @@ namespace targets {
 // ConfigError naming the field.
 struct Options {
   // --- AprilTags (libapriltag) ---
+  // Chosen on the real photographs of test/data/apriltag_real/ and on the
+  // renders together (doc/targets_real_photos.md): full-resolution quad
+  // detection (decimation 2 loses tags under ~25 px), 2 corrected bits (the
+  // library's own default for tag36h11, minimum distance 11).
   std::vector<std::string> families{"tag36h11"};  // tag36h11 tag25h9 tag16h5 tagStandard41h12 ...
-  double quad_decimate = 2.0;      // [-] >= 1: quad detection on an image decimated by this factor
-  double quad_sigma = 0.0;         // [px] Gaussian blur before quad detection (0 = none)
-  bool refine_edges = true;        // libapriltag's own edge refinement of the quads
-  double decode_sharpening = 0.25; // [-] libapriltag's decode sharpening
-  int threads = 1;                 // [-] libapriltag worker threads, 1..64
-  int max_hamming = 1;             // [bits] error bits corrected at most, 0..3
+  double quad_decimate = 1.0;  // [-] >= 1: quad detection on an image decimated by this factor
+  double quad_sigma = 0.0;     // [px] Gaussian blur before quad detection (0 = none)
+  bool refine_edges =
+      false;  // libapriltag's own edge refinement of the quads (on: 1 of 37 real tags lost)
+  double decode_sharpening = 0.25;    // [-] libapriltag's decode sharpening
+  int threads = 1;                    // [-] libapriltag worker threads, 1..64
+  int max_hamming = 2;                // [bits] error bits corrected at most, 0..3
   double min_decision_margin = 25.0;  // [-] weaker decodes are rejected ("weak_decode")
-  bool refine_tags = true;         // our edge-model refinement of corners and centre
+  bool refine_tags = true;            // our edge-model refinement of corners and centre
+  // The refined corners replace the detector's only where the edge model
+  // explains the pixels: every edge's fit residual RMS / contrast at most
+  // this; otherwise (JPEG blocks, texture, a print that is not a step) the
+  // detector's corners are kept (Observation::method "detector").
+  double tag_refine_max_residual = 0.03;  // [-]
+  // ... and where the refined centre is this precise at least (sqrt of the
+  // largest eigenvalue of its covariance).
+  double tag_refine_max_sigma = 0.1;  // [px]
   // --- circular targets ---
   bool detect_circles = true;
-  double circle_min_diameter = 8.0;    // [px] apparent disc diameter range
-  double circle_max_diameter = 150.0;  // [px]
+  double circle_min_diameter = 8.0;      // [px] apparent disc diameter range
+  double circle_max_diameter = 150.0;    // [px]
   double circle_max_eccentricity = 0.9;  // [-] 1 - minor/major; 0.9 ~ 84 deg obliquity
-  double circle_id_gate = 0.5;         // [-] max distance to a projected listed circle, in its radii
-  bool refine_circles = true;          // intensity-model ellipse fit after the centroid
-  bool correct_perspective = true;     // remove the perspective bias when the geometry is known
+  double circle_id_gate = 0.5;  // [-] max distance to a projected listed circle, in its radii
+  // Target design: outer diameter of the dark ring / diameter of the bright
+  // disc. A candidate is a circle only when the ring's outer edge is seen at
+  // this ratio (within the tolerance) on most rays from the centre.
+  double circle_ring_ratio = 2.0;             // [-] > 1
+  double circle_ring_ratio_tolerance = 0.15;  // [-] relative
+  double circle_max_residual = 0.08;  // [-] ellipse fit residual RMS / contrast; more is "residual"
+  double circle_size_tolerance =
+      0.25;  // [-] relative; with a pose: measured vs projected listed diameter ("size")
+  bool refine_circles = true;       // intensity-model ellipse fit after the centroid
+  bool correct_perspective = true;  // remove the perspective bias when the geometry is known
   // --- acceptance ---
-  double min_contrast = 20.0;          // [DN, 8-bit scale] disc/ring or white/black difference
-  double border_margin = 2.0;          // [px] targets closer to the image border are "border"
-  double saturation_level = 250.0;     // [DN, 8-bit scale] pixels at or above are saturated
+  double min_contrast = 20.0;            // [DN, 8-bit scale] disc/ring or white/black difference
+  double border_margin = 2.0;            // [px] targets closer to the image border are "border"
+  double saturation_level = 250.0;       // [DN, 8-bit scale] pixels at or above are saturated
   double max_saturated_fraction = 0.10;  // [-] of the bright part; more is "saturated"
-  double max_edge_blur = 1.6;          // [px] fitted edge blur sigma; more is "blurred"
-  double max_residual = 0.25;          // [-] fit residual RMS / contrast; more is "partial"
-  double max_dark_surround = 0.005;    // [-] tags: share of the white surround darker than mid-grey; more is "partial" (occluded)
-  double noise_floor = 0.0;            // [DN] minimum image noise; 0: quantisation of the input (1/sqrt(12) LSB)
+  double max_edge_blur =
+      1.6;  // [px] fitted edge blur sigma; more is "blurred" (tags: the detector's corners)
+  double max_residual =
+      0.25;  // [-] fit residual RMS / contrast; more is "partial" (tags: the detector's corners)
+  double max_dark_surround = 0.03;  // [-] tags: share of the white surround darker than mid-grey;
+                                    // more is "partial" (occluded)
+  double noise_floor =
+      0.0;  // [DN] minimum image noise; 0: quantisation of the input (1/sqrt(12) LSB)
 
   void Check() const;
 };
 
 // Why a target was seen but not measured.
-enum class RejectReason { kBorder, kSaturated, kBlurred, kPartial, kLowContrast, kWeakDecode, kFitFailed };
-std::string RejectReasonName(RejectReason reason);  // "border", "saturated", ...
-constexpr int kNumRejectReasons = 7;
+// The last four are circle candidates that are not targets of the design
+// (Result::discarded).
+enum class RejectReason {
+  kBorder,
+  kSaturated,
+  kBlurred,
+  kPartial,
+  kLowContrast,
+  kWeakDecode,
+  kFitFailed,
+  kNotDisc,
+  kDesign,
+  kResidual,
+  kSize
+};
+std::string RejectReasonName(
+    RejectReason reason);  // "border", "saturated", ..., "not_disc", "design", "residual", "size"
+constexpr int kNumRejectReasons = 11;
+
+// Which measurement gave an observation's centre.
+enum class CentreMethod { kEdgeModel, kDetector, kEllipseModel, kGrayCentroid };
+std::string CentreMethodName(
+    CentreMethod method);  // "edge_model", "detector", "ellipse_model", "gray_centroid"
 
 struct Observation {
-  int id = -1;                        // tag ID; circle: list ID, -1 when not identified
-  std::string family;                 // "tag36h11", ..., "circle"
-  std::optional<io::TargetRole> role; // nullopt: unknown (not in the target list)
-  Eigen::Vector2d centre{0, 0};       // [px] OpenCV convention
+  int id = -1;                         // tag ID; circle: list ID, -1 when not identified
+  std::string family;                  // "tag36h11", ..., "circle"
+  std::optional<io::TargetRole> role;  // nullopt: unknown (not in the target list)
+  Eigen::Vector2d centre{0, 0};        // [px] OpenCV convention
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();  // [px^2]
   bool has_corners = false;
-  std::array<Eigen::Vector2d, 4> corners{};  // [px] libapriltag order (bottom-left, bottom-right, top-right, top-left of the tag)
-  double size_px = 0.0;               // [px] tag edge / disc diameter (mean)
-  double quality = 0.0;               // [0..1]
-  double contrast = 0.0;              // [DN, 8-bit scale]
-  double edge_blur = 0.0;             // [px] fitted blur sigma
-  double decision_margin = 0.0;       // tags: libapriltag decision margin
-  int hamming = 0;                    // tags: corrected bits
-  Eigen::Vector2d gray_centroid{0, 0};  // circles: the plain gray-weighted centroid [px]
-  Eigen::Vector2d detector_centre{0, 0};  // tags: libapriltag's centre, converted to OpenCV convention [px]
+  std::array<Eigen::Vector2d, 4> corners{};  // [px] libapriltag order (bottom-left, bottom-right,
+                                             // top-right, top-left of the tag)
+  double size_px = 0.0;                      // [px] tag edge / disc diameter (mean)
+  double quality = 0.0;                      // [0..1]
+  double contrast = 0.0;                     // [DN, 8-bit scale]
+  double edge_blur = 0.0;                    // [px] fitted blur sigma
+  double decision_margin = 0.0;              // tags: libapriltag decision margin
+  int hamming = 0;                           // tags: corrected bits
+  Eigen::Vector2d gray_centroid{0, 0};       // circles: the plain gray-weighted centroid [px]
+  Eigen::Vector2d detector_centre{
+      0, 0};  // tags: libapriltag's centre, converted to OpenCV convention [px]
   bool perspective_corrected = false;  // circles: the perspective bias was removed
+  Eigen::Vector2d perspective_correction{
+      0, 0};  // circles: what was subtracted [px] (0 when not corrected)
+  CentreMethod method = CentreMethod::kDetector;  // what gave the centre (and corners)
+  double fit_residual = 0.0;  // [-] tags: worst edge, circles: ellipse fit residual RMS / contrast
+  double ring_ratio = 0.0;    // circles: measured ring outer / disc diameter
   std::string Key() const { return family + "/" + std::to_string(id); }
 };
 
 struct Rejection {
-  std::string family;   // "tag36h11", "circle"
+  std::string family;  // "tag36h11", "circle"
   int id = -1;
   Eigen::Vector2d where{0, 0};  // [px]
   RejectReason reason = RejectReason::kFitFailed;
-  std::string detail;   // e.g. "23% of the disc saturated"
+  std::string detail;  // e.g. "23% of the disc saturated"
 };
 
 struct Summary {
@@ -131,7 +188,11 @@ struct Result {
   int width = 0;
   int height = 0;
   std::vector<Observation> observations;
-  std::vector<Rejection> rejections;
+  std::vector<Rejection> rejections;  // targets seen but not measured
+  // Circle candidates (bright disc-sized blobs with a darker surround) that
+  // are not targets of the configured design, each with its reason: the
+  // debug output (centroid_targets --explain). Not counted in the summary.
+  std::vector<Rejection> discarded;
   Summary summary;
 };
 
@@ -148,8 +209,8 @@ struct ViewGeometry {
 // directly: mono8 input is not copied (mono8 shares its data), colour and
 // bayer inputs are converted once, and no float image is made.
 struct MonoImage {
-  cv::Mat mono8;       // CV_8UC1
-  cv::Mat intensity;   // CV_32FC1, 0..255; empty for 8-bit inputs (then mono8 is measured)
+  cv::Mat mono8;              // CV_8UC1
+  cv::Mat intensity;          // CV_32FC1, 0..255; empty for 8-bit inputs (then mono8 is measured)
   double quantisation = 1.0;  // [DN, 8-bit scale] size of one input level
 };
 
@@ -162,8 +223,8 @@ MonoImage ToMono(const cv::Mat& image, const std::string& encoding);
 // empty, its encoding is supported and its size equals the camera_info's.
 // Throws InvalidArgument naming `topic` and what is wrong (the encoding, both
 // sizes).
-void CheckImageInput(const std::string& topic, int width, int height, const std::string& encoding, int info_width,
-                     int info_height);
+void CheckImageInput(const std::string& topic, int width, int height, const std::string& encoding,
+                     int info_width, int info_height);
 
 class TargetCentroider {
  public:
@@ -176,7 +237,8 @@ class TargetCentroider {
   // Finds and measures all targets. Throws InvalidArgument for an empty
   // image, an unsupported encoding, or a view whose sensor size differs from
   // the image size (naming both sizes).
-  Result Detect(const cv::Mat& image, const std::string& encoding, const ViewGeometry* view = nullptr) const;
+  Result Detect(const cv::Mat& image, const std::string& encoding,
+                const ViewGeometry* view = nullptr) const;
   // The same on a converted image.
   Result DetectMono(const MonoImage& mono, const ViewGeometry* view = nullptr) const;
 
@@ -189,8 +251,8 @@ class TargetCentroider {
   // halfway between the window's dark and bright levels (automatic), pixels
   // under it set to 0, intensity-weighted mean. Returns false when the window
   // leaves the image or has no contrast.
-  static bool GrayWeightedCentroid(const cv::Mat& intensity, const Eigen::Vector2d& seed, double radius,
-                                   Eigen::Vector2d* centroid);
+  static bool GrayWeightedCentroid(const cv::Mat& intensity, const Eigen::Vector2d& seed,
+                                   double radius, Eigen::Vector2d* centroid);
 
  private:
   struct Detector;
@@ -202,7 +264,8 @@ class TargetCentroider {
 // Perspective bias of a circle's centre: the centre of the imaged ellipse
 // minus the image of the circle's centre [px], from the camera model and pose.
 // diameter [m], centre and unit normal in site.
-Eigen::Vector2d CirclePerspectiveBias(const ViewGeometry& view, const Eigen::Vector3d& centre_in_site,
+Eigen::Vector2d CirclePerspectiveBias(const ViewGeometry& view,
+                                      const Eigen::Vector3d& centre_in_site,
                                       const Eigen::Vector3d& normal_in_site, double diameter);
 
 // An annotated copy of the image (bgr8): observations (green: known, yellow:
