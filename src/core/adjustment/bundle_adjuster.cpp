@@ -343,7 +343,7 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
     const Observation& o = scene.observations[k];
     if (!point_used[o.point]) continue;
     const Image& im = scene.images[o.image];
-    ceres::CostFunction* cost = CollinearityError::Create(scene.cameras[im.camera].model.sensor(), o.pixel,
+    ceres::CostFunction* cost = new CollinearityErrorAnalytic(scene.cameras[im.camera].model.sensor(), o.pixel,
                                                           SqrtInformation<2>(o.covariance));
     obs_blocks.push_back(prob.AddResidualBlock(cost, loss, exterior[o.image].data(), interior[im.camera].data(),
                                                point[o.point].data()));
