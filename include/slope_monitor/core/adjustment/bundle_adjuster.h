@@ -178,6 +178,7 @@ struct Summary {
   double final_cost = 0.0;
   int iterations = 0;
   double solve_time = 0.0;        // [s] wall clock of the Ceres solve
+  double covariance_time = 0.0;   // [s] wall clock of the covariance (schur_covariance.h)
   int num_observations = 0;       // image observations
   int num_residuals = 0;
   int num_parameters = 0;         // free (tangent) parameters
