@@ -33,15 +33,17 @@ namespace {
 using namespace slope_monitor;
 using namespace slope_monitor::adjustment;
 
-constexpr double kFly = 80.0;            // [m] above the datum
-constexpr double kForward = 16.0;        // [m] between shots
-constexpr double kSide = 36.0;           // [m] between strips
-constexpr double kTieSpacing = 6.0;      // [m]
-constexpr double kControlSpacing = 50.0; // [m]
-constexpr double kPixelSigma = 0.5;      // [px]
-constexpr double kMotion = 0.10;         // [m] body displacement per epoch
+constexpr double kFly = 80.0;             // [m] above the datum
+constexpr double kForward = 16.0;         // [m] between shots
+constexpr double kSide = 36.0;            // [m] between strips
+constexpr double kTieSpacing = 6.0;       // [m]
+constexpr double kControlSpacing = 50.0;  // [m]
+constexpr double kPixelSigma = 0.5;       // [px]
+constexpr double kMotion = 0.10;          // [m] body displacement per epoch
 
-double Ground(double x, double y) { return 0.15 * y + 1.5 * std::sin(0.05 * x) * std::cos(0.04 * y); }
+double Ground(double x, double y) {
+  return 0.15 * y + 1.5 * std::sin(0.05 * x) * std::cos(0.04 * y);
+}
 
 struct Block {
   Scene scene;
@@ -68,7 +70,8 @@ Block MakeBlock(int n, int epoch) {
   truth_in[camera::kK1] = -1.5e-4;
   const camera::Sensor sensor{5472, 3648, 0.0024};
   const camera::CameraModel truth_model(sensor, camera::DistortionModel::kRadial, truth_in);
-  b.scene.cameras.push_back({"uav", camera::CameraModel(sensor, camera::DistortionModel::kRadial, nominal)});
+  b.scene.cameras.push_back(
+      {"uav", camera::CameraModel(sensor, camera::DistortionModel::kRadial, nominal)});
 
   const Eigen::Vector2d centre(0.5 * length, 0.5 * width);
   auto add_point = [&](const std::string& id, PointRole role, double x, double y, double h) {
@@ -81,7 +84,8 @@ Block MakeBlock(int n, int epoch) {
       p.surveyed = t + 0.003 * Eigen::Vector3d(n01(survey_rng), n01(survey_rng), n01(survey_rng));
       p.surveyed_covariance = Eigen::Matrix3d::Identity() * 0.003 * 0.003;
     }
-    if (role == PointRole::kMonitoring) t += epoch * kMotion * Eigen::Vector3d(0.1, -0.9, -0.42).normalized();
+    if (role == PointRole::kMonitoring)
+      t += epoch * kMotion * Eigen::Vector3d(0.1, -0.9, -0.42).normalized();
     b.scene.points.push_back(p);
     b.truth.push_back(t);
   };
@@ -89,32 +93,36 @@ Block MakeBlock(int n, int epoch) {
   for (double x = -20.0; x <= length + 20.0; x += kControlSpacing)
     for (double y = -20.0; y <= width + 20.0; y += kControlSpacing) {
       // The body (middle third) carries no control.
-      if (std::abs(x - centre.x()) < length / 6 + 10 && std::abs(y - centre.y()) < width / 6 + 10) continue;
+      if (std::abs(x - centre.x()) < length / 6 + 10 && std::abs(y - centre.y()) < width / 6 + 10)
+        continue;
       add_point("tag36h11/" + std::to_string(id++), PointRole::kControl, x, y, 0.5);
     }
   for (int i = 0; i < 20; ++i) {
     const double a = 2 * M_PI * i / 20.0, r = 6.0 + 2.0 * (i % 5);
-    add_point("circle/" + std::to_string(100 + i), PointRole::kMonitoring, centre.x() + r * std::cos(a),
-              centre.y() + r * std::sin(a), 0.5);
+    add_point("circle/" + std::to_string(100 + i), PointRole::kMonitoring,
+              centre.x() + r * std::cos(a), centre.y() + r * std::sin(a), 0.5);
   }
   std::uniform_real_distribution<double> jitter(-0.4 * kTieSpacing, 0.4 * kTieSpacing);
   int tie = 0;
   for (double x = -40.0; x <= length + 40.0; x += kTieSpacing)
     for (double y = -30.0; y <= width + 30.0; y += kTieSpacing)
-      add_point("tie/" + std::to_string(tie++), PointRole::kTie, x + jitter(tie_rng), y + jitter(tie_rng), 0.0);
+      add_point("tie/" + std::to_string(tie++), PointRole::kTie, x + jitter(tie_rng),
+                y + jitter(tie_rng), 0.0);
 
   for (int s = 0; s < strips; ++s)
     for (int k = 0; k < shots && static_cast<int>(b.scene.images.size()) < n; ++k) {
       const double x = kForward * k, y = kSide * s;
       camera::ExteriorOrientation pose;
-      pose.position = Eigen::Vector3d(x + 0.5 * n01(rng), y + 0.5 * n01(rng), Ground(centre.x(), centre.y()) + kFly);
+      pose.position = Eigen::Vector3d(x + 0.5 * n01(rng), y + 0.5 * n01(rng),
+                                      Ground(centre.x(), centre.y()) + kFly);
       const double kappa = (s % 2) ? M_PI : 0.0;
       const double a = 1.0 * M_PI / 180.0;
       pose.angles = {a * n01(rng), a * n01(rng), kappa + a * n01(rng)};
       Image im;
       im.name = "uav@" + std::to_string(b.scene.images.size());
       im.camera = 0;
-      im.exterior.position = pose.position + Eigen::Vector3d(0.03 * n01(rng), 0.03 * n01(rng), 0.03 * n01(rng));
+      im.exterior.position =
+          pose.position + Eigen::Vector3d(0.03 * n01(rng), 0.03 * n01(rng), 0.03 * n01(rng));
       im.exterior.angles = {0.0, 0.0, kappa};  // flight plan
       im.exterior_known = true;
       im.position_prior = im.exterior.position;
@@ -124,7 +132,8 @@ Block MakeBlock(int n, int epoch) {
       for (size_t j = 0; j < b.truth.size(); ++j) {
         Eigen::Vector2d px;
         if (!truth_model.Project(pose, b.truth[j], &px)) continue;
-        if (px.x() < 20 || px.y() < 20 || px.x() > sensor.width - 21 || px.y() > sensor.height - 21) continue;
+        if (px.x() < 20 || px.y() < 20 || px.x() > sensor.width - 21 || px.y() > sensor.height - 21)
+          continue;
         Observation o;
         o.image = i;
         o.point = static_cast<int>(j);
@@ -188,8 +197,10 @@ int main(int argc, char** argv) {
     sizes.clear();
     for (int i = 1; i < argc; ++i) sizes.push_back(std::atoi(argv[i]));
   }
-  std::printf("| photos | kept | points | observations | orientation [s] | solve [s] | iterations | covariance [s] | "
-              "peak memory [MB] | displacement RMS [m] |\n|---|---|---|---|---|---|---|---|---|---|\n");
+  std::printf(
+      "| photos | kept | points | observations | orientation [s] | solve [s] | iterations | "
+      "covariance [s] | "
+      "peak memory [MB] | displacement RMS [m] |\n|---|---|---|---|---|---|---|---|---|---|\n");
   for (const int n : sizes) {
     EpochResult e[2] = {RunEpoch(n, 0), RunEpoch(n, 1)};
     if (!e[0].ok || !e[1].ok) {
@@ -203,17 +214,19 @@ int main(int argc, char** argv) {
     int count = 0;
     for (size_t j = 0; j < truth0.scene.points.size(); ++j) {
       if (truth0.scene.points[j].role != PointRole::kMonitoring) continue;
-      const int a = e[0].scene.FindPoint(truth0.scene.points[j].id), b = e[1].scene.FindPoint(truth0.scene.points[j].id);
+      const int a = e[0].scene.FindPoint(truth0.scene.points[j].id),
+                b = e[1].scene.FindPoint(truth0.scene.points[j].id);
       if (a < 0 || b < 0) continue;
-      const Eigen::Vector3d measured = e[1].scene.points[b].position - e[0].scene.points[a].position;
+      const Eigen::Vector3d measured =
+          e[1].scene.points[b].position - e[0].scene.points[a].position;
       sum2 += (measured - (truth1.truth[j] - truth0.truth[j])).squaredNorm();
       ++count;
     }
     const double rms = count ? std::sqrt(sum2 / count) : NAN;
-    std::printf("| %d | %d+%d | %d | %d | %.2f | %.2f | %d+%d | %.2f | %.0f | %.4f (%d points) |\n", n, e[0].photos_kept,
-                e[1].photos_kept, e[0].points, e[0].observations, e[0].orientation + e[1].orientation,
-                e[0].solve + e[1].solve, e[0].iterations, e[1].iterations, e[0].covariance + e[1].covariance,
-                PeakMemoryMb(), rms, count);
+    std::printf("| %d | %d+%d | %d | %d | %.2f | %.2f | %d+%d | %.2f | %.0f | %.4f (%d points) |\n",
+                n, e[0].photos_kept, e[1].photos_kept, e[0].points, e[0].observations,
+                e[0].orientation + e[1].orientation, e[0].solve + e[1].solve, e[0].iterations,
+                e[1].iterations, e[0].covariance + e[1].covariance, PeakMemoryMb(), rms, count);
     std::fflush(stdout);
   }
   return 0;

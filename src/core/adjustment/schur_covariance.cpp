@@ -54,7 +54,8 @@ NormalBlocks AssembleNormal(const ceres::CRSMatrix& j, int nc, int np) {
       }
       const int pj = (col - nc) / 3;
       if (point >= 0 && pj != point) {
-        n.error = Message("residual row ", r, " touches two points: the Schur covariance needs one at most");
+        n.error = Message("residual row ", r,
+                          " touches two points: the Schur covariance needs one at most");
         return n;
       }
       point = pj;
@@ -73,7 +74,8 @@ NormalBlocks AssembleNormal(const ceres::CRSMatrix& j, int nc, int np) {
 }
 
 // W = Hcj (k x 3 over the cameras that see point j) and their columns.
-void CouplingOf(const std::map<int, Eigen::RowVector3d>& hpc, std::vector<int>* cols, Eigen::MatrixX3d* w) {
+void CouplingOf(const std::map<int, Eigen::RowVector3d>& hpc, std::vector<int>* cols,
+                Eigen::MatrixX3d* w) {
   cols->clear();
   w->resize(static_cast<Eigen::Index>(hpc.size()), 3);
   int i = 0;
@@ -84,16 +86,16 @@ void CouplingOf(const std::map<int, Eigen::RowVector3d>& hpc, std::vector<int>* 
 }
 
 // S -= sign * W Hjj^-1 W^T over the columns of W.
-void AddPointTerm(const std::vector<int>& cols, const Eigen::MatrixX3d& w, const Eigen::Matrix3d& hjj_inv, double sign,
-                  Eigen::MatrixXd* s) {
+void AddPointTerm(const std::vector<int>& cols, const Eigen::MatrixX3d& w,
+                  const Eigen::Matrix3d& hjj_inv, double sign, Eigen::MatrixXd* s) {
   const Eigen::MatrixXd t = w * hjj_inv * w.transpose();
   for (size_t a = 0; a < cols.size(); ++a)
     for (size_t b = 0; b < cols.size(); ++b) (*s)(cols[a], cols[b]) += sign * t(a, b);
 }
 
 // Sjj = Hjj^-1 + Hjj^-1 W^T Scc[cols] W Hjj^-1.
-Eigen::Matrix3d PointCovariance(const std::vector<int>& cols, const Eigen::MatrixX3d& w, const Eigen::Matrix3d& hjj_inv,
-                                const Eigen::MatrixXd& scc) {
+Eigen::Matrix3d PointCovariance(const std::vector<int>& cols, const Eigen::MatrixX3d& w,
+                                const Eigen::Matrix3d& hjj_inv, const Eigen::MatrixXd& scc) {
   const Eigen::Index k = static_cast<Eigen::Index>(cols.size());
   Eigen::MatrixXd sub(k, k);
   for (Eigen::Index a = 0; a < k; ++a)
@@ -117,7 +119,8 @@ bool InvertSpd(const Eigen::MatrixXd& s, double min_rcond, Eigen::MatrixXd* inve
 
 SchurCovarianceResult ComputeSchurCovariance(const SchurCovarianceOptions& options,
                                              const std::vector<double*>& camera_blocks,
-                                             const std::vector<double*>& point_blocks, const std::vector<int>& held,
+                                             const std::vector<double*>& point_blocks,
+                                             const std::vector<int>& held,
                                              ceres::Problem* problem) {
   std::string error;
   if (!options.Check(&error)) throw InvalidArgument(error);
@@ -130,7 +133,8 @@ SchurCovarianceResult ComputeSchurCovariance(const SchurCovarianceOptions& optio
   }
   const int np = static_cast<int>(point_blocks.size());
   for (double* b : point_blocks) {
-    if (problem->ParameterBlockTangentSize(b) != 3) throw InvalidArgument("ComputeSchurCovariance: a point block is not 3-d");
+    if (problem->ParameterBlockTangentSize(b) != 3)
+      throw InvalidArgument("ComputeSchurCovariance: a point block is not 3-d");
   }
   ceres::Problem::EvaluateOptions eo;
   eo.parameter_blocks = camera_blocks;
@@ -156,7 +160,8 @@ SchurCovarianceResult ComputeSchurCovariance(const SchurCovarianceOptions& optio
   for (int j = 0; j < np; ++j) {
     Eigen::LLT<Eigen::Matrix3d> llt(n.hpp[j]);
     if (llt.info() != Eigen::Success || !(llt.rcond() >= options.min_reciprocal_condition)) {
-      result.message = Message("point block ", j, " is not determined (seen from fewer than two directions)");
+      result.message =
+          Message("point block ", j, " is not determined (seen from fewer than two directions)");
       return result;
     }
     hpp_inv[j] = llt.solve(Eigen::Matrix3d::Identity());
@@ -165,7 +170,9 @@ SchurCovarianceResult ComputeSchurCovariance(const SchurCovarianceOptions& optio
   }
   Eigen::MatrixXd scc;
   if (!InvertSpd(s, options.min_reciprocal_condition, &scc)) {
-    result.message = "the reduced camera system is singular (datum defect or unobservable self-calibration parameters)";
+    result.message =
+        "the reduced camera system is singular (datum defect or unobservable self-calibration "
+        "parameters)";
     return result;
   }
 
@@ -177,17 +184,20 @@ SchurCovarianceResult ComputeSchurCovariance(const SchurCovarianceOptions& optio
       result.camera_covariance.push_back(tangent);
       continue;
     }
-    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> plus(m->AmbientSize(), t);
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> plus(m->AmbientSize(),
+                                                                                t);
     m->PlusJacobian(camera_blocks[b], plus.data());
     result.camera_covariance.push_back(plus * tangent * plus.transpose());
   }
   result.point_covariance.resize(np);
-  for (int j = 0; j < np; ++j) result.point_covariance[j] = PointCovariance(cols[j], w[j], hpp_inv[j], scc);
+  for (int j = 0; j < np; ++j)
+    result.point_covariance[j] = PointCovariance(cols[j], w[j], hpp_inv[j], scc);
 
   if (!held.empty()) {
     std::vector<bool> is_held(np, false);
     for (const int j : held) {
-      if (j < 0 || j >= np) throw InvalidArgument(Message("ComputeSchurCovariance: held index ", j, " out of range"));
+      if (j < 0 || j >= np)
+        throw InvalidArgument(Message("ComputeSchurCovariance: held index ", j, " out of range"));
       is_held[j] = true;
       AddPointTerm(cols[j], w[j], hpp_inv[j], +1.0, &s);
     }
@@ -195,9 +205,11 @@ SchurCovarianceResult ComputeSchurCovariance(const SchurCovarianceOptions& optio
     if (InvertSpd(s, options.min_reciprocal_condition, &scc_held)) {
       result.point_covariance_held.assign(np, Eigen::Matrix3d::Zero());
       for (int j = 0; j < np; ++j)
-        if (!is_held[j]) result.point_covariance_held[j] = PointCovariance(cols[j], w[j], hpp_inv[j], scc_held);
+        if (!is_held[j])
+          result.point_covariance_held[j] = PointCovariance(cols[j], w[j], hpp_inv[j], scc_held);
     } else {
-      result.message = "the reduced camera system with the held points is singular: no held covariance";
+      result.message =
+          "the reduced camera system with the held points is singular: no held covariance";
     }
   }
   result.ok = true;

@@ -33,9 +33,11 @@ struct Case {
 Case RandomCase(std::mt19937* rng, double phi) {
   std::uniform_real_distribution<double> uni(-1.0, 1.0);
   Case k;
-  k.ext = {20 * uni(*rng), 20 * uni(*rng), 100 + 10 * uni(*rng), M_PI * uni(*rng), phi, M_PI * uni(*rng)};
-  k.in = {50.0 + uni(*rng), 0.05 * uni(*rng), 0.05 * uni(*rng), 3e-5 * uni(*rng), 1e-8 * uni(*rng),
-          1e-11 * uni(*rng), 5e-6 * uni(*rng), 5e-6 * uni(*rng), 1e-4 * uni(*rng), 1e-4 * uni(*rng)};
+  k.ext = {20 * uni(*rng),  20 * uni(*rng), 100 + 10 * uni(*rng), M_PI * uni(*rng), phi,
+           M_PI * uni(*rng)};
+  k.in = {50.0 + uni(*rng), 0.05 * uni(*rng),  0.05 * uni(*rng), 3e-5 * uni(*rng),
+          1e-8 * uni(*rng), 1e-11 * uni(*rng), 5e-6 * uni(*rng), 5e-6 * uni(*rng),
+          1e-4 * uni(*rng), 1e-4 * uni(*rng)};
   // Object point on the optical axis (-w in the camera frame) plus a lateral offset.
   const Eigen::Matrix3d m = camera::RotationFromAngles(k.ext[3], k.ext[4], k.ext[5]);
   const Eigen::Vector3d in_cam(15 * uni(*rng), 10 * uni(*rng), -(100 + 50 * uni(*rng)));
@@ -58,8 +60,10 @@ TEST(CollinearityErrorAnalyticTest, MatchesAutodiffAndNumericOnRandomPosesInclud
   std::mt19937 rng(17);
   std::uniform_real_distribution<double> obs(-40.0, 40.0);
   const double half_pi = 0.5 * M_PI;
-  std::vector<double> phis = {half_pi, -half_pi, half_pi - 1e-7, -half_pi + 1e-7, half_pi - 1e-3, 1.2, -0.7, 0.0};
-  for (int i = 0; i < 12; ++i) phis.push_back(std::uniform_real_distribution<double>(-half_pi, half_pi)(rng));
+  std::vector<double> phis = {half_pi,        -half_pi, half_pi - 1e-7, -half_pi + 1e-7,
+                              half_pi - 1e-3, 1.2,      -0.7,           0.0};
+  for (int i = 0; i < 12; ++i)
+    phis.push_back(std::uniform_real_distribution<double>(-half_pi, half_pi)(rng));
   int checked = 0;
   for (const double phi : phis) {
     const Case k = RandomCase(&rng, phi);
@@ -67,7 +71,8 @@ TEST(CollinearityErrorAnalyticTest, MatchesAutodiffAndNumericOnRandomPosesInclud
     // Observation near the prediction (residuals of a few pixels).
     Eigen::Vector2d predicted;
     {
-      const CollinearityErrorAnalytic zero(kSensor, Eigen::Vector2d::Zero(), Eigen::Matrix2d::Identity());
+      const CollinearityErrorAnalytic zero(kSensor, Eigen::Vector2d::Zero(),
+                                           Eigen::Matrix2d::Identity());
       ASSERT_TRUE(zero.Evaluate(params, predicted.data(), nullptr));
     }
     const Eigen::Vector2d observed = predicted + Eigen::Vector2d(obs(rng), obs(rng)) * 0.1;
@@ -102,7 +107,8 @@ TEST(CollinearityErrorAnalyticTest, MatchesAutodiffAndNumericOnRandomPosesInclud
     const std::vector<const ceres::Manifold*>* none = nullptr;
     ceres::GradientChecker checker(&analytic, none, ceres::NumericDiffOptions());
     ceres::GradientChecker::ProbeResults results;
-    EXPECT_TRUE(checker.Probe(params, 1e-5, &results)) << "phi " << phi << "\n" << results.error_log;
+    EXPECT_TRUE(checker.Probe(params, 1e-5, &results)) << "phi " << phi << "\n"
+                                                       << results.error_log;
     ++checked;
   }
   EXPECT_EQ(checked, static_cast<int>(phis.size()));
@@ -115,7 +121,8 @@ TEST(CollinearityErrorAnalyticTest, PointInTheCameraPlaneIsRejectedLikeAutodiff)
   const std::array<double, 3> x = {10, 0, 100};  // u_z = 0
   const double* params[] = {ext.data(), in.data(), x.data()};
   double r[2];
-  const CollinearityErrorAnalytic analytic(kSensor, Eigen::Vector2d(0, 0), Eigen::Matrix2d::Identity());
+  const CollinearityErrorAnalytic analytic(kSensor, Eigen::Vector2d(0, 0),
+                                           Eigen::Matrix2d::Identity());
   std::unique_ptr<ceres::CostFunction> autodiff(
       CollinearityError::Create(kSensor, Eigen::Vector2d(0, 0), Eigen::Matrix2d::Identity()));
   EXPECT_FALSE(analytic.Evaluate(params, r, nullptr));

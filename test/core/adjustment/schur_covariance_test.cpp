@@ -34,7 +34,9 @@ TEST(SchurCovarianceTest, EqualsCeresCovarianceOnASmallBlockAndWithControlHeld) 
   interior[camera::kC] = 24.0;
   interior[camera::kK1] = 1e-4;
   std::vector<std::array<double, 6>> exterior;
-  for (int i = 0; i < 4; ++i) exterior.push_back({-30.0 + 20.0 * i, 5.0 * (i % 2), 60.0, 0.02 * uni(rng), 0.02 * uni(rng), 0.1 * uni(rng)});
+  for (int i = 0; i < 4; ++i)
+    exterior.push_back(
+        {-30.0 + 20.0 * i, 5.0 * (i % 2), 60.0, 0.02 * uni(rng), 0.02 * uni(rng), 0.1 * uni(rng)});
   std::vector<std::array<double, 3>> points;
   for (int j = 0; j < 40; ++j) points.push_back({40.0 * uni(rng), 25.0 * uni(rng), 3.0 * uni(rng)});
 
@@ -47,7 +49,8 @@ TEST(SchurCovarianceTest, EqualsCeresCovarianceOnASmallBlockAndWithControlHeld) 
     for (size_t j = 0; j < points.size(); ++j) {
       const double* params[] = {exterior[i].data(), interior.data(), points[j].data()};
       Eigen::Vector2d predicted;
-      const CollinearityErrorAnalytic zero(sensor, Eigen::Vector2d::Zero(), Eigen::Matrix2d::Identity());
+      const CollinearityErrorAnalytic zero(sensor, Eigen::Vector2d::Zero(),
+                                           Eigen::Matrix2d::Identity());
       ASSERT_TRUE(zero.Evaluate(params, predicted.data(), nullptr));
       // 0.5 px noise, so some residuals are in the Huber linear range.
       const Eigen::Vector2d observed = predicted + 0.5 * Eigen::Vector2d(noise(rng), noise(rng));
@@ -59,8 +62,9 @@ TEST(SchurCovarianceTest, EqualsCeresCovarianceOnASmallBlockAndWithControlHeld) 
   for (const int j : control) {
     const Eigen::Vector3d surveyed = Eigen::Vector3d(points[j][0], points[j][1], points[j][2]) +
                                      0.01 * Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
-    problem.AddResidualBlock(ControlPointPrior::Create(surveyed, SqrtInformation<3>(Eigen::Matrix3d::Identity() * 1e-4)),
-                             nullptr, points[j].data());
+    problem.AddResidualBlock(
+        ControlPointPrior::Create(surveyed, SqrtInformation<3>(Eigen::Matrix3d::Identity() * 1e-4)),
+        nullptr, points[j].data());
   }
   // c and k1 free, the rest held.
   std::vector<int> fixed;
@@ -74,7 +78,8 @@ TEST(SchurCovarianceTest, EqualsCeresCovarianceOnASmallBlockAndWithControlHeld) 
   std::vector<double*> point_blocks;
   for (auto& p : points) point_blocks.push_back(p.data());
 
-  const SchurCovarianceResult schur = ComputeSchurCovariance(SchurCovarianceOptions(), cameras, point_blocks, control, &problem);
+  const SchurCovarianceResult schur =
+      ComputeSchurCovariance(SchurCovarianceOptions(), cameras, point_blocks, control, &problem);
   ASSERT_TRUE(schur.ok) << schur.message;
   ASSERT_EQ(schur.camera_covariance.size(), cameras.size());
   ASSERT_EQ(schur.point_covariance.size(), points.size());
@@ -97,7 +102,8 @@ TEST(SchurCovarianceTest, EqualsCeresCovarianceOnASmallBlockAndWithControlHeld) 
     Eigen::Matrix<double, camera::kNumInterior, camera::kNumInterior, Eigen::RowMajor> ci;
     full.GetCovarianceBlock(interior.data(), interior.data(), ci.data());
     EXPECT_LT(RelativeError(ci, schur.camera_covariance.back()), 1e-8);
-    EXPECT_EQ(schur.camera_covariance.back()(camera::kX0, camera::kX0), 0.0);  // held: zero variance
+    EXPECT_EQ(schur.camera_covariance.back()(camera::kX0, camera::kX0),
+              0.0);  // held: zero variance
     for (size_t j = 0; j < points.size(); ++j) {
       Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c;
       full.GetCovarianceBlock(point_blocks[j], point_blocks[j], c.data());
@@ -108,7 +114,8 @@ TEST(SchurCovarianceTest, EqualsCeresCovarianceOnASmallBlockAndWithControlHeld) 
   for (const int j : control) problem.SetParameterBlockConstant(point_blocks[j]);
   ceres::Covariance held(co);
   std::vector<std::pair<const double*, const double*>> free_points;
-  for (size_t j = 4; j < points.size(); ++j) free_points.emplace_back(point_blocks[j], point_blocks[j]);
+  for (size_t j = 4; j < points.size(); ++j)
+    free_points.emplace_back(point_blocks[j], point_blocks[j]);
   ASSERT_TRUE(held.Compute(free_points, &problem));
   for (size_t j = 0; j < points.size(); ++j) {
     if (j < 4) {
@@ -130,22 +137,26 @@ TEST(SchurCovarianceTest, DatumDefectIsReportedNotInverted) {
   interior[camera::kC] = 24.0;
   std::vector<std::array<double, 6>> exterior = {{0, 0, 60, 0, 0, 0}, {20, 0, 60, 0, 0, 0}};
   std::vector<std::array<double, 3>> points;
-  for (int j = 0; j < 12; ++j) points.push_back({-10.0 + 4.0 * (j % 4), -6.0 + 5.0 * (j / 4), 0.5 * (j % 3)});
+  for (int j = 0; j < 12; ++j)
+    points.push_back({-10.0 + 4.0 * (j % 4), -6.0 + 5.0 * (j / 4), 0.5 * (j % 3)});
   ceres::Problem problem;
   for (auto& e : exterior)
     for (auto& p : points) {
       const double* params[] = {e.data(), interior.data(), p.data()};
       Eigen::Vector2d predicted;
-      const CollinearityErrorAnalytic zero(sensor, Eigen::Vector2d::Zero(), Eigen::Matrix2d::Identity());
+      const CollinearityErrorAnalytic zero(sensor, Eigen::Vector2d::Zero(),
+                                           Eigen::Matrix2d::Identity());
       ASSERT_TRUE(zero.Evaluate(params, predicted.data(), nullptr));
-      problem.AddResidualBlock(new CollinearityErrorAnalytic(sensor, predicted, Eigen::Matrix2d::Identity()), nullptr,
-                               e.data(), interior.data(), p.data());
+      problem.AddResidualBlock(
+          new CollinearityErrorAnalytic(sensor, predicted, Eigen::Matrix2d::Identity()), nullptr,
+          e.data(), interior.data(), p.data());
     }
   problem.SetParameterBlockConstant(interior.data());
   std::vector<double*> cameras = {exterior[0].data(), exterior[1].data()};
   std::vector<double*> point_blocks;
   for (auto& p : points) point_blocks.push_back(p.data());
-  const SchurCovarianceResult r = ComputeSchurCovariance(SchurCovarianceOptions(), cameras, point_blocks, {}, &problem);
+  const SchurCovarianceResult r =
+      ComputeSchurCovariance(SchurCovarianceOptions(), cameras, point_blocks, {}, &problem);
   EXPECT_FALSE(r.ok);
   EXPECT_NE(r.message.find("singular"), std::string::npos) << r.message;
 }

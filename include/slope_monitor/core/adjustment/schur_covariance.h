@@ -52,8 +52,8 @@ struct SchurCovarianceResult {
 // of them; held: indices into point_blocks for the second covariance.
 SchurCovarianceResult ComputeSchurCovariance(const SchurCovarianceOptions& options,
                                              const std::vector<double*>& camera_blocks,
-                                             const std::vector<double*>& point_blocks, const std::vector<int>& held,
-                                             ceres::Problem* problem);
+                                             const std::vector<double*>& point_blocks,
+                                             const std::vector<int>& held, ceres::Problem* problem);
 
 }  // namespace adjustment
 }  // namespace slope_monitor
