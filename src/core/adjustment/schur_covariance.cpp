@@ -104,14 +104,21 @@ Eigen::Matrix3d PointCovariance(const std::vector<int>& cols, const Eigen::Matri
   return hjj_inv + g * sub * g.transpose();
 }
 
+// Inverse of a symmetric positive definite matrix, Jacobi-scaled first (the
+// parameters differ by orders of magnitude in scale: metres, radians, k1
+// [mm^-2]) so that the condition test sees the geometry, not the units.
 bool InvertSpd(const Eigen::MatrixXd& s, double min_rcond, Eigen::MatrixXd* inverse) {
   if (s.rows() == 0) {
     inverse->resize(0, 0);
     return true;
   }
-  Eigen::LLT<Eigen::MatrixXd> llt(s);
+  const Eigen::ArrayXd diagonal = s.diagonal().array();
+  if (!(diagonal > 0.0).all()) return false;
+  const Eigen::VectorXd d = diagonal.rsqrt().matrix();
+  const Eigen::MatrixXd scaled = d.asDiagonal() * s * d.asDiagonal();
+  Eigen::LLT<Eigen::MatrixXd> llt(scaled);
   if (llt.info() != Eigen::Success || !(llt.rcond() >= min_rcond)) return false;
-  *inverse = llt.solve(Eigen::MatrixXd::Identity(s.rows(), s.cols()));
+  *inverse = d.asDiagonal() * llt.solve(Eigen::MatrixXd::Identity(s.rows(), s.cols())) * d.asDiagonal();
   return true;
 }
 

@@ -29,7 +29,7 @@ namespace slope_monitor {
 namespace adjustment {
 
 struct SchurCovarianceOptions {
-  // Reciprocal condition number of S (and of each Hjj) below which the
+  // Reciprocal condition number of S (Jacobi-scaled) and of each Hjj below which the
   // system is reported singular (datum defect, unobservable parameter).
   double min_reciprocal_condition = 1e-14;
   int num_threads = 1;  // for the Jacobian evaluation
