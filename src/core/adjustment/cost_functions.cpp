@@ -138,7 +138,9 @@ bool CollinearityErrorAnalytic::Evaluate(double const* const* parameters, double
   const double y_mm = in[camera::kY0] + yl;
   const Eigen::Vector2d e(0.5 * (sensor_.width - 1) + x_mm / sensor_.pixel_size - observed_.x(),
                           0.5 * (sensor_.height - 1) - y_mm / sensor_.pixel_size - observed_.y());
-  Eigen::Map<Eigen::Vector2d>(residuals) = sqrt_information_ * e;
+  const Eigen::Vector2d whitened = sqrt_information_ * e;
+  residuals[0] = whitened(0);
+  residuals[1] = whitened(1);
   if (jacobians == nullptr) return true;
 
   // residual = S P (x_mm, y_mm): P the pixel scale (row axis down), S the whitening.

@@ -36,9 +36,9 @@ TEST(SchurCovarianceTest, EqualsCeresCovarianceOnASmallBlockAndWithControlHeld) 
   std::vector<std::array<double, 6>> exterior;
   for (int i = 0; i < 4; ++i)
     exterior.push_back(
-        {-30.0 + 20.0 * i, 5.0 * (i % 2), 60.0, 0.02 * uni(rng), 0.02 * uni(rng), 0.1 * uni(rng)});
+        {-30.0 + 20.0 * i, 5.0 * (i % 2), 60.0, 0.1 * uni(rng), 0.1 * uni(rng), 0.1 * uni(rng)});
   std::vector<std::array<double, 3>> points;
-  for (int j = 0; j < 40; ++j) points.push_back({40.0 * uni(rng), 25.0 * uni(rng), 3.0 * uni(rng)});
+  for (int j = 0; j < 40; ++j) points.push_back({40.0 * uni(rng), 25.0 * uni(rng), 15.0 * uni(rng)});
 
   ceres::Problem::Options po;
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
