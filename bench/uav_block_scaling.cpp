@@ -8,7 +8,7 @@
 // the interior (c, k1) differing from the nominal and self-calibrated. Two
 // epochs (the body moves 0.10 m between them); per block and epoch:
 //   orientation  InitializeScene (photos start at their GNSS position and the
-//                flight plan's attitude; points intersected)
+//                flight log's IMU attitude, 0.3 deg; points intersected)
 //   solve        BundleAdjuster's Ceres solve (Options defaults)
 //   covariance   the reduced-camera-system covariance incl. the datum-free one
 // then the monitoring displacement RMS vs the truth [m], the photos kept,
@@ -123,7 +123,10 @@ Block MakeBlock(int n, int epoch) {
       im.camera = 0;
       im.exterior.position =
           pose.position + Eigen::Vector3d(0.03 * n01(rng), 0.03 * n01(rng), 0.03 * n01(rng));
-      im.exterior.angles = {0.0, 0.0, kappa};  // flight plan
+      // The flight log's IMU attitude (0.3 deg noise).
+      const double imu = 0.3 * M_PI / 180.0;
+      im.exterior.angles = {pose.angles.theta + imu * n01(rng), pose.angles.phi + imu * n01(rng),
+                            pose.angles.kappa + imu * n01(rng)};
       im.exterior_known = true;
       im.position_prior = im.exterior.position;
       im.position_prior_covariance = Eigen::Matrix3d::Identity() * 0.03 * 0.03;
