@@ -118,7 +118,8 @@ bool InvertSpd(const Eigen::MatrixXd& s, double min_rcond, Eigen::MatrixXd* inve
   const Eigen::MatrixXd scaled = d.asDiagonal() * s * d.asDiagonal();
   Eigen::LLT<Eigen::MatrixXd> llt(scaled);
   if (llt.info() != Eigen::Success || !(llt.rcond() >= min_rcond)) return false;
-  *inverse = d.asDiagonal() * llt.solve(Eigen::MatrixXd::Identity(s.rows(), s.cols())) * d.asDiagonal();
+  *inverse =
+      d.asDiagonal() * llt.solve(Eigen::MatrixXd::Identity(s.rows(), s.cols())) * d.asDiagonal();
   return true;
 }
 

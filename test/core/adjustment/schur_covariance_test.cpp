@@ -38,7 +38,8 @@ TEST(SchurCovarianceTest, EqualsCeresCovarianceOnASmallBlockAndWithControlHeld) 
     exterior.push_back(
         {-30.0 + 20.0 * i, 5.0 * (i % 2), 60.0, 0.1 * uni(rng), 0.1 * uni(rng), 0.1 * uni(rng)});
   std::vector<std::array<double, 3>> points;
-  for (int j = 0; j < 40; ++j) points.push_back({40.0 * uni(rng), 25.0 * uni(rng), 15.0 * uni(rng)});
+  for (int j = 0; j < 40; ++j)
+    points.push_back({40.0 * uni(rng), 25.0 * uni(rng), 15.0 * uni(rng)});
 
   ceres::Problem::Options po;
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
