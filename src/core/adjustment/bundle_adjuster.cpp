@@ -14,6 +14,7 @@
 #include "slope_monitor/core/adjustment/cost_functions/collinearity_error.h"
 #include "slope_monitor/core/adjustment/cost_functions/control_point_prior.h"
 #include "slope_monitor/core/adjustment/cost_functions/position_prior.h"
+#include "slope_monitor/core/adjustment/schur_covariance.h"
 #include "slope_monitor/core/common/error.h"
 
 namespace slope_monitor {
@@ -343,7 +344,7 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
     const Observation& o = scene.observations[k];
     if (!point_used[o.point]) continue;
     const Image& im = scene.images[o.image];
-    ceres::CostFunction* cost = CollinearityError::Create(scene.cameras[im.camera].model.sensor(), o.pixel,
+    ceres::CostFunction* cost = new CollinearityErrorAnalytic(scene.cameras[im.camera].model.sensor(), o.pixel,
                                                           SqrtInformation<2>(o.covariance));
     obs_blocks.push_back(prob.AddResidualBlock(cost, loss, exterior[o.image].data(), interior[im.camera].data(),
                                                point[o.point].data()));
@@ -514,24 +515,35 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
   Precision& pr = summary.precision;
   pr.sigma0 = summary.sigma0;
   if (options_.compute_covariance) {
-    ceres::Covariance::Options co;
-    co.algorithm_type = ceres::SPARSE_QR;
+    // Reduced camera system (schur_covariance.h): one factorisation for the
+    // cameras, points by back-substitution, the datum-free variant by adding
+    // the held control points' terms back.
+    std::vector<double*> camera_blocks, point_blocks_free;
+    std::vector<int> camera_image(scene.images.size(), -1), camera_interior(scene.cameras.size(), -1);
+    std::vector<int> point_index(scene.points.size(), -1), held;
+    for (size_t i = 0; i < scene.images.size(); ++i) {
+      if (!prob.HasParameterBlock(exterior[i].data()) || prob.IsParameterBlockConstant(exterior[i].data())) continue;
+      camera_image[i] = static_cast<int>(camera_blocks.size());
+      camera_blocks.push_back(exterior[i].data());
+    }
+    for (size_t c = 0; c < scene.cameras.size(); ++c) {
+      if (!prob.HasParameterBlock(interior[c].data()) || prob.IsParameterBlockConstant(interior[c].data())) continue;
+      camera_interior[c] = static_cast<int>(camera_blocks.size());
+      camera_blocks.push_back(interior[c].data());
+    }
+    for (size_t j = 0; j < scene.points.size(); ++j) {
+      if (!point_used[j] || prob.IsParameterBlockConstant(point[j].data())) continue;
+      point_index[j] = static_cast<int>(point_blocks_free.size());
+      if (options_.compute_datum_free_covariance && IsConstrainedControl(scene.points[j])) held.push_back(point_index[j]);
+      point_blocks_free.push_back(point[j].data());
+    }
+    SchurCovarianceOptions co;
     co.num_threads = options_.num_threads;
-    co.apply_loss_function = true;
-    ceres::Covariance covariance(co);
-    std::vector<std::pair<const double*, const double*>> blocks;
-    for (size_t j = 0; j < scene.points.size(); ++j)
-      if (point_used[j] && !prob.IsParameterBlockConstant(point[j].data()))
-        blocks.emplace_back(point[j].data(), point[j].data());
-    for (size_t i = 0; i < scene.images.size(); ++i)
-      if (prob.HasParameterBlock(exterior[i].data()) && !prob.IsParameterBlockConstant(exterior[i].data()))
-        blocks.emplace_back(exterior[i].data(), exterior[i].data());
-    for (size_t c = 0; c < scene.cameras.size(); ++c)
-      if (prob.HasParameterBlock(interior[c].data()) && !prob.IsParameterBlockConstant(interior[c].data()))
-        blocks.emplace_back(interior[c].data(), interior[c].data());
-    if (!covariance.Compute(blocks, &prob)) {
-      summary.reason = "covariance could not be computed: the normal equations are singular (datum defect or "
-                       "unobservable self-calibration parameters)";
+    const auto covariance_start = std::chrono::steady_clock::now();
+    const SchurCovarianceResult cov = ComputeSchurCovariance(co, camera_blocks, point_blocks_free, held, &prob);
+    summary.covariance_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - covariance_start).count();
+    if (!cov.ok) {
+      summary.reason = "covariance could not be computed: " + cov.message;
       return summary;
     }
     const double scale = options_.scale_covariance_by_sigma0
@@ -543,47 +555,19 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
     pr.point_covariance.assign(scene.points.size(), Eigen::Matrix3d::Zero());
     pr.exterior_covariance.assign(scene.images.size(), Eigen::Matrix<double, 6, 6>::Zero());
     pr.interior_sigma.assign(scene.cameras.size(), std::array<double, camera::kNumInterior>{});
-    for (size_t j = 0; j < scene.points.size(); ++j) {
-      if (!point_used[j] || prob.IsParameterBlockConstant(point[j].data())) continue;
-      Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c;
-      covariance.GetCovarianceBlock(point[j].data(), point[j].data(), c.data());
-      pr.point_covariance[j] = scale * c;
-    }
-    for (size_t i = 0; i < scene.images.size(); ++i) {
-      if (!prob.HasParameterBlock(exterior[i].data()) || prob.IsParameterBlockConstant(exterior[i].data())) continue;
-      Eigen::Matrix<double, 6, 6, Eigen::RowMajor> c;
-      covariance.GetCovarianceBlock(exterior[i].data(), exterior[i].data(), c.data());
-      pr.exterior_covariance[i] = scale * c;
-    }
+    for (size_t j = 0; j < scene.points.size(); ++j)
+      if (point_index[j] >= 0) pr.point_covariance[j] = scale * cov.point_covariance[point_index[j]];
+    for (size_t i = 0; i < scene.images.size(); ++i)
+      if (camera_image[i] >= 0) pr.exterior_covariance[i] = scale * cov.camera_covariance[camera_image[i]];
     for (size_t k = 0; k < scene.cameras.size(); ++k) {
-      if (!prob.HasParameterBlock(interior[k].data()) || prob.IsParameterBlockConstant(interior[k].data())) continue;
-      Eigen::Matrix<double, camera::kNumInterior, camera::kNumInterior, Eigen::RowMajor> c;
-      covariance.GetCovarianceBlock(interior[k].data(), interior[k].data(), c.data());
+      if (camera_interior[k] < 0) continue;
+      const Eigen::MatrixXd& c = cov.camera_covariance[camera_interior[k]];
       for (int i = 0; i < camera::kNumInterior; ++i) pr.interior_sigma[k][i] = std::sqrt(std::max(0.0, scale * c(i, i)));
     }
-    if (options_.compute_datum_free_covariance) {
-      std::vector<double*> held;
-      for (size_t j = 0; j < scene.points.size(); ++j) {
-        if (!point_used[j] || !IsConstrainedControl(scene.points[j]) || prob.IsParameterBlockConstant(point[j].data()))
-          continue;
-        prob.SetParameterBlockConstant(point[j].data());
-        held.push_back(point[j].data());
-      }
-      std::vector<std::pair<const double*, const double*>> free_points;
+    if (!cov.point_covariance_held.empty()) {
+      pr.point_covariance_datum_free.assign(scene.points.size(), Eigen::Matrix3d::Zero());
       for (size_t j = 0; j < scene.points.size(); ++j)
-        if (point_used[j] && !prob.IsParameterBlockConstant(point[j].data()))
-          free_points.emplace_back(point[j].data(), point[j].data());
-      ceres::Covariance datum_free(co);
-      if (!held.empty() && datum_free.Compute(free_points, &prob)) {
-        pr.point_covariance_datum_free.assign(scene.points.size(), Eigen::Matrix3d::Zero());
-        for (size_t j = 0; j < scene.points.size(); ++j) {
-          if (!point_used[j] || prob.IsParameterBlockConstant(point[j].data())) continue;
-          Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c;
-          datum_free.GetCovarianceBlock(point[j].data(), point[j].data(), c.data());
-          pr.point_covariance_datum_free[j] = datum_free_scale * c;
-        }
-      }
-      for (double* b : held) prob.SetParameterBlockVariable(b);
+        if (point_index[j] >= 0) pr.point_covariance_datum_free[j] = datum_free_scale * cov.point_covariance_held[point_index[j]];
     }
     pr.valid = true;
     pr.message = options_.scale_covariance_by_sigma0 ? "a posteriori (scaled by sigma0^2)" : "a priori";

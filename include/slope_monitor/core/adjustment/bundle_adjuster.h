@@ -17,11 +17,13 @@
 // (priors). The datum comes from the control points (and GNSS priors).
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <map>
 #include <optional>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <Eigen/Core>
@@ -103,7 +105,8 @@ struct Options {
   double function_tolerance = 1e-8;   // [-] relative cost change (1e-10 never ended a UAV block with 10^4 tie-point residuals: it crept on by 2e-9 a step)
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-10;
-  int num_threads = 1;
+  // Ceres threads (solve, Jacobians, covariance): the hardware threads.
+  int num_threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   bool compute_covariance = true;
   // Covariances are scaled by sigma0^2 (a posteriori) when true, else a priori.
   bool scale_covariance_by_sigma0 = true;
@@ -178,6 +181,7 @@ struct Summary {
   double final_cost = 0.0;
   int iterations = 0;
   double solve_time = 0.0;        // [s] wall clock of the Ceres solve
+  double covariance_time = 0.0;   // [s] wall clock of the covariance (schur_covariance.h)
   int num_observations = 0;       // image observations
   int num_residuals = 0;
   int num_parameters = 0;         // free (tangent) parameters
