@@ -315,7 +315,10 @@ DemChangeResult DemChange(const io::GeoRaster& reference, const io::GeoRaster& a
   ch.AddBand("change");
   ch.AddBand("lod");
   ch.AddBand("class");
-  const std::vector<uint8_t> outside = StableMask(reference, outlines, {}, "");
+  // No outline: the whole DEM is the monitored area.
+  const std::vector<uint8_t> outside = outlines.empty()
+                                           ? std::vector<uint8_t>(ch.bands[kChange].size(), 0)
+                                           : StableMask(reference, outlines, {}, "");
   const double area = reference.cell_size * reference.cell_size;
   double var_net = 0, var_fill = 0, var_cut = 0;
   int n_fill = 0, n_cut = 0;

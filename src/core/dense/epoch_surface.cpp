@@ -257,6 +257,11 @@ EpochSurfaceResult MeasureEpochSurface(const EpochSurfaceInput& in, const EpochS
   return result;
 }
 
+Eigen::Vector4d RegionOf(const io::GeoRaster& dem) {
+  return Eigen::Vector4d(dem.origin_x, dem.origin_x + dem.width * dem.cell_size,
+                         dem.origin_y - dem.height * dem.cell_size, dem.origin_y);
+}
+
 std::string EpochSurfaceFileName(int epoch) {
   char b[32];
   std::snprintf(b, sizeof b, "surface_e%02d.tif", epoch);

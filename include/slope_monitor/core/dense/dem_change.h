@@ -18,7 +18,8 @@
 //    residual variance that the matching uncertainty does not explain), the
 //    level of detection LoD = lod_factor * sigma_dz, and the class
 //    +-1 (|dz| > LoD) or +-2 (|dz| > 2 LoD), 0 otherwise.
-// 4. Volumes inside the outlines: net over every compared cell; fill and cut
+// 4. Volumes inside the outlines (no outline: the whole DEM): net over every compared cell; fill
+// and cut
 //    over the significant cells. Their 1-sigma uncertainty adds a random part,
 //    correlated with an exponential covariance of range L (estimated from the
 //    stable residuals' autocorrelation): var = sum(sigma_dz^2 a^2) * min(n,

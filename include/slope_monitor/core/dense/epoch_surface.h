@@ -115,6 +115,10 @@ EpochSurfaceResult MeasureEpochSurface(
     const EpochSurfaceInput& input, const EpochSurfaceOptions& options,
     const std::function<void(const std::string&)>& progress = {});
 
+// The region (xmin, xmax, ymin, ymax) a DEM covers: later epochs use the
+// reference epoch's grid so their DEMs can be differenced.
+Eigen::Vector4d RegionOf(const io::GeoRaster& dem);
+
 // "surface_e03.tif", "change_e03.tif".
 std::string EpochSurfaceFileName(int epoch);
 std::string EpochChangeFileName(int epoch);
