@@ -16,6 +16,7 @@
 // are kept: a DoD that fails still leaves the cloud and surface_eNN.tif.
 #include <condition_variable>
 #include <deque>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -213,7 +214,10 @@ class DenseEpochNodelet : public nodelet::Nodelet {
     }
   }
 
-  std::string ReportPath(const std::string& name) const { return report_dir_ + "/" + name; }
+  std::string ReportPath(const std::string& name) const {
+    std::filesystem::create_directories(report_dir_);
+    return report_dir_ + "/" + name;
+  }
 
   void Process(const Job& job) {
     const int epoch = job.input.epoch;
