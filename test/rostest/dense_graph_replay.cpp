@@ -6,6 +6,7 @@
 #include <mutex>
 #include <set>
 
+#include <boost/function.hpp>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
@@ -28,15 +29,17 @@ TEST(DenseGraphReplay, ACloudPerEpochAndTheGeoTiffs) {
   std::string report_dir;
   pnh.getParam("report_dir", report_dir);
   ros::Subscriber s1 = nh.subscribe<slope_monitor::AdjustmentSolution>(
-      "/bundle_adjuster/solution", 10, [](const slope_monitor::AdjustmentSolutionConstPtr& m) {
+      "/bundle_adjuster/solution", 10,
+      boost::function<void(const slope_monitor::AdjustmentSolutionConstPtr&)>([](const auto& m) {
         std::lock_guard<std::mutex> lock(mutex);
         if (m->usable) solutions.insert(m->header.stamp.toSec());
-      });
+      }));
   ros::Subscriber s2 = nh.subscribe<sensor_msgs::PointCloud2>(
-      "/dense/surface_cloud", 10, [](const sensor_msgs::PointCloud2ConstPtr& m) {
+      "/dense/surface_cloud", 10,
+      boost::function<void(const sensor_msgs::PointCloud2ConstPtr&)>([](const auto& m) {
         std::lock_guard<std::mutex> lock(mutex);
         clouds[m->header.stamp.toSec()] = m;
-      });
+      }));
   const bool done = slope_monitor::rostest_node::WaitFor(
       [&] {
         std::lock_guard<std::mutex> lock(mutex);
