@@ -1,6 +1,7 @@
 #include "slope_monitor/ros/dense_conversions.h"
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 
 #include <cv_bridge/cv_bridge.h>
@@ -20,7 +21,9 @@ dense::EpochImage EpochImageFromEstimate(const slope_monitor::CameraEstimate& e,
   out.kind = kind;
   out.camera = e.camera_name;
   dense::OrientedImage& im = out.image;
-  im.name = Message(e.camera_name, "@", e.image_header.stamp.toSec());
+  char stamp[32];
+  std::snprintf(stamp, sizeof stamp, "%.3f", e.image_header.stamp.toSec());
+  im.name = e.camera_name + "@" + stamp;
   im.image = cv_bridge::toCvCopy(image)->image;
   const camera::CameraModel from_info = CameraModelFromCameraInfo(info, pixel_size);
   std::array<double, camera::kNumInterior> interior = from_info.interior();

@@ -6,11 +6,11 @@
 #include <mutex>
 #include <set>
 
-#include <boost/function.hpp>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
+#include <boost/function.hpp>
 
 #include "slope_monitor/AdjustmentSolution.h"
 #include "test_node.h"
@@ -18,14 +18,15 @@
 namespace {
 
 std::mutex mutex;
-std::set<double> solutions;                            // stamps of usable solutions
+std::set<double> solutions;                                 // stamps of usable solutions
 std::map<double, sensor_msgs::PointCloud2ConstPtr> clouds;  // by header stamp
 
 TEST(DenseGraphReplay, ACloudPerEpochAndTheGeoTiffs) {
   ros::NodeHandle nh, pnh("~");
   const int epochs = static_cast<int>(slope_monitor::rostest_node::Param(pnh, "epochs", 2));
   const double timeout = slope_monitor::rostest_node::Param(pnh, "timeout", 500);
-  const size_t min_points = static_cast<size_t>(slope_monitor::rostest_node::Param(pnh, "min_points", 10000));
+  const size_t min_points =
+      static_cast<size_t>(slope_monitor::rostest_node::Param(pnh, "min_points", 10000));
   std::string report_dir;
   pnh.getParam("report_dir", report_dir);
   ros::Subscriber s1 = nh.subscribe<slope_monitor::AdjustmentSolution>(
@@ -47,8 +48,8 @@ TEST(DenseGraphReplay, ACloudPerEpochAndTheGeoTiffs) {
       },
       timeout);
   std::lock_guard<std::mutex> lock(mutex);
-  ASSERT_TRUE(done) << clouds.size() << " clouds for " << solutions.size() << " usable solutions after " << timeout
-                    << " s";
+  ASSERT_TRUE(done) << clouds.size() << " clouds for " << solutions.size()
+                    << " usable solutions after " << timeout << " s";
   EXPECT_EQ(static_cast<int>(solutions.size()), epochs);
   int with_change = 0;
   for (const auto& [stamp, c] : clouds) {
@@ -78,4 +79,6 @@ TEST(DenseGraphReplay, ACloudPerEpochAndTheGeoTiffs) {
 
 }  // namespace
 
-int main(int argc, char** argv) { return slope_monitor::rostest_node::RunTests(argc, argv, "dense_graph_replay_test"); }
+int main(int argc, char** argv) {
+  return slope_monitor::rostest_node::RunTests(argc, argv, "dense_graph_replay_test");
+}
