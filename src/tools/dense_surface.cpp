@@ -324,11 +324,11 @@ int RunBagEpochs(const Args& a) {
       const double t = e.image_header.stamp.toSec();
       sensor_msgs::Image::ConstPtr image;
       sensor_msgs::CameraInfo::ConstPtr info;
-      const ros::Time t0(std::max(0.0, t - 0.5)), t1(t + 0.5);
+      // By header stamp, not bag time: a recorded bag carries the receive time.
       for (const rosbag::MessageInstance& m :
            rosbag::View(bag, rosbag::TopicQuery({"/" + e.camera_name + "/camera/image_raw",
-                                                 "/" + e.camera_name + "/camera/camera_info"}),
-                        t0, t1)) {
+                                                 "/" + e.camera_name + "/camera/camera_info"}))) {
+        if (image && info) break;
         if (auto i = m.instantiate<sensor_msgs::Image>())
           if (std::abs(i->header.stamp.toSec() - t) < 1e-3) image = i;
         if (auto c = m.instantiate<sensor_msgs::CameraInfo>()) info = c;
