@@ -23,7 +23,7 @@
 // written by process_bag --output-bag): no depth is guessed, the ground comes
 // from the adjusted points (doc/dense_change.md):
 //   dense_surface --bag run.bag --out-dir DIR [--config config/defaults/dense_epoch.yaml]
-//                 [--epoch K] [--solution-topic /bundle_adjuster/solution]
+//                 [--epoch K] [--solution-topic /bundle_adjuster/solution] [--compare-truth T.truth.yaml]
 //   prints progress per pair and writes DIR/surface_eNN.tif per epoch and
 //   DIR/change_eNN.tif per later epoch (against the first epoch measured).
 //
@@ -359,6 +359,11 @@ int RunBagEpochs(const Args& a) {
     }
     std::printf("%s\n", r.summary.BriefReport().c_str());
     io::WriteGeoTiff((fs::path(out_dir) / dense::EpochSurfaceFileName(in.epoch)).string(), r.dem);
+    if (a.Has("--compare-truth")) {
+      const std::string truth_path = a.Get("--compare-truth");
+      const sim::SurveyTruth truth = sim::SurveyTruth::Load(truth_path);
+      CompareWithTruth(r.dem, io::ReadGeoTiff(TruthSurfacePath(truth, truth_path, in.epoch)), truth);
+    }
     if (!reference) {
       reference = std::make_unique<io::GeoRaster>(r.dem);
       continue;
@@ -469,7 +474,7 @@ int main(int argc, char** argv) {
     const std::string k = argv[i];
     if (k == "-h" || k == "--help") {
       std::printf("usage: dense_surface --bag B.bag --out-dir DIR [--config config/defaults/dense_epoch.yaml] "
-                  "[--epoch K] [--solution-topic T]\n"
+                  "[--epoch K] [--solution-topic T] [--compare-truth T.truth.yaml]\n"
                   "       dense_surface --pair pair.yaml --out-dir DIR [--config FILE] [--reference surface.tif]\n"
                   "       dense_surface --truth T.truth.yaml --bag T.bag --left-camera C1 --right-camera C2 "
                   "--epoch K [--reference-epoch K0] --out-dir DIR [--config FILE]\n");
