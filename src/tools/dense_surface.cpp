@@ -18,7 +18,16 @@
 //   percentile on bare ground, and near the scarp / obstacles separately) and,
 //   with --reference-epoch, the measured cut-and-fill against the true one.
 //
-// Writes DIR/dense_surface.tif (height, uncertainty, count, spread),
+// Every epoch of a bag, with the bag's ADJUSTED orientations (the bundle
+// adjuster's /bundle_adjuster/solution, as recorded by record.launch or
+// written by process_bag --output-bag): no depth is guessed, the ground comes
+// from the adjusted points (doc/dense_change.md):
+//   dense_surface --bag run.bag --out-dir DIR [--config config/defaults/dense_epoch.yaml]
+//                 [--epoch K] [--solution-topic /bundle_adjuster/solution] [--compare-truth T.truth.yaml]
+//   prints progress per pair and writes DIR/surface_eNN.tif per epoch and
+//   DIR/change_eNN.tif per later epoch (against the first epoch measured).
+//
+// The pair modes write DIR/dense_surface.tif (height, uncertainty, count, spread),
 // DIR/dense_ortho.tif and, with a reference, DIR/change.tif. Exit status 0 on success, 1 on an
 // error (message on stderr naming the file or key; nothing half-written).
 #include <algorithm>
@@ -33,14 +42,19 @@
 #include <opencv2/imgcodecs.hpp>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
+#include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/dense/change.h"
+#include "slope_monitor/core/dense/dem_change.h"
+#include "slope_monitor/core/dense/epoch_surface.h"
 #include "slope_monitor/core/dense/surface.h"
 #include "slope_monitor/core/io/geotiff.h"
 #include "slope_monitor/core/io/yaml_map.h"
+#include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/core/sim/truth.h"
+#include "slope_monitor/ros/dense_conversions.h"
 
 using namespace slope_monitor;
 namespace fs = std::filesystem;
@@ -214,7 +228,160 @@ int IntArg(const Args& a, const std::string& flag, const std::string& default_va
   return n;
 }
 
+struct EpochConfig {
+  dense::EpochSurfaceOptions surface;
+  dense::DemChangeOptions change;
+  std::vector<dense::Polygon> outlines;
+  std::vector<std::string> uav_cameras{"uav"};
+  std::vector<std::pair<std::string, std::string>> stereo_pairs;
+  double pixel_size = 0.0048;
+};
+
+// The keys of config/defaults/dense_epoch.yaml (defaults: the Options' own).
+EpochConfig ReadEpochConfig(const std::string& path) {
+  EpochConfig e;
+  if (path.empty()) return e;
+  io::YamlMap p = io::YamlMap::Load(path);
+  dense::SurfaceOptions& s = e.surface.surface;
+  dense::CorrelationOptions& c = s.correlation;
+  c.levels = p.Int("levels", c.levels, 1, 5);
+  c.peak_frequency = p.Double("peak_frequency", c.peak_frequency, 0.01, 3.0, "rad/px");
+  c.grid_spacing = p.Int("grid_spacing", c.grid_spacing, 1, 64, "px");
+  c.final_grid_spacing = p.Int("final_grid_spacing", c.final_grid_spacing, 1, 64, "px");
+  c.window = p.Int("window", c.window, 3, 51, "px");
+  c.final_window = p.Int("final_window", c.final_window, 0, 51, "px");
+  c.lsc_iterations = p.Int("lsc_iterations", c.lsc_iterations, 0, 20);
+  c.search_radius = p.Int("search_radius", c.search_radius, 1, 16, "px");
+  c.min_correlation = p.Double("min_correlation", c.min_correlation, -1.0, 0.999);
+  s.rectify.scale = p.Double("rectify_scale", s.rectify.scale, 0.05, 4.0);
+  s.rectify.patch_size = p.Int("patch_size", s.rectify.patch_size, 0, 8192, "px");
+  s.cell_size = p.Double("cell_size", s.cell_size, 1e-3, 100.0, "m");
+  s.min_points_per_cell = p.Int("min_points_per_cell", s.min_points_per_cell, 1, 1000);
+  s.parallax_sigma = p.Double("parallax_sigma", s.parallax_sigma, 1e-3, 10.0, "px");
+  e.surface.min_pair_overlap = p.Double("min_pair_overlap", e.surface.min_pair_overlap, 0.01, 1.0);
+  e.surface.depth_margin = p.Double("depth_margin", e.surface.depth_margin, 0.0, 10.0);
+  e.surface.max_pairs_per_image = p.Int("max_pairs_per_image", e.surface.max_pairs_per_image, 1, 100);
+  e.surface.max_dem_megabytes = p.Double("max_dem_megabytes", e.surface.max_dem_megabytes, 1e-3, 1e5, "MB");
+  const std::vector<double> r = p.Doubles("region", {0, 0, 0, 0}, 4);
+  e.surface.region = Eigen::Vector4d(r[0], r[1], r[2], r[3]);
+  e.change.lod_factor = p.Double("lod_factor", e.change.lod_factor, 0.01, 10.0);
+  e.change.coregistration_iterations =
+      p.Int("coregistration_iterations", e.change.coregistration_iterations, 0, 20);
+  e.change.min_stable_cells = p.Int("min_stable_cells", e.change.min_stable_cells, 4, 1000000000);
+  const std::vector<double> outline = p.Doubles("monitored_outline", {});
+  if (outline.size() % 2 != 0 || (!outline.empty() && outline.size() < 6))
+    throw ConfigError(Message(path, ": 'monitored_outline' must be [x1, y1, x2, y2, x3, y3, ...] (m, site)"));
+  if (!outline.empty()) {
+    e.outlines.emplace_back();
+    for (size_t i = 0; i < outline.size(); i += 2) e.outlines.back().emplace_back(outline[i], outline[i + 1]);
+  }
+  e.uav_cameras = p.Strings("uav_cameras", e.uav_cameras);
+  const std::vector<std::string> pairs = p.Strings("stereo_pairs", {});
+  if (pairs.size() % 2 != 0) throw ConfigError(Message(path, ": 'stereo_pairs' must list cameras in pairs"));
+  for (size_t i = 0; i < pairs.size(); i += 2) e.stereo_pairs.push_back({pairs[i], pairs[i + 1]});
+  e.pixel_size = p.Double("pixel_size", e.pixel_size, 1e-6, 1.0, "mm/px");
+  // Node-only keys, accepted so the same file serves both.
+  p.Strings("cameras", {});
+  p.Int("max_cached_images", 64, 1, 10000);
+  p.String("stable_mask", "");
+  p.String("frame_id", "site");
+  p.String("report_dir", "");
+  p.CheckNoUnknownKeys();
+  e.surface.Check();
+  e.change.Check();
+  return e;
+}
+
+// Every adjusted epoch of the bag (see the file header).
+int RunBagEpochs(const Args& a) {
+  const EpochConfig cfg = ReadEpochConfig(a.Get("--config"));
+  const std::string bag_path = a.Get("--bag"), topic = a.Get("--solution-topic", "/bundle_adjuster/solution");
+  const std::string out_dir = a.Get("--out-dir", ".");
+  const int only_epoch = a.Has("--epoch") ? IntArg(a, "--epoch", "") : -1;
+  rosbag::Bag bag;
+  try {
+    bag.open(bag_path, rosbag::bagmode::Read);
+  } catch (const std::exception& e) {
+    throw IoError(Message(bag_path, ": cannot open bag (", e.what(), ")"));
+  }
+  std::vector<slope_monitor::AdjustmentSolution> solutions;
+  for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery(topic))) {
+    const auto s = m.instantiate<slope_monitor::AdjustmentSolution>();
+    if (s && s->usable && (only_epoch < 0 || static_cast<int>(s->epoch) == only_epoch)) solutions.push_back(*s);
+  }
+  if (solutions.empty())
+    throw InvalidArgument(Message(bag_path, ": no usable adjustment on ", topic,
+                                  (only_epoch >= 0 ? Message(" for epoch ", only_epoch) : std::string()),
+                                  " (record a replay with record.launch, or run process_bag --output-bag)"));
+  fs::create_directories(out_dir);
+  std::unique_ptr<io::GeoRaster> reference;
+  for (const slope_monitor::AdjustmentSolution& sol : solutions) {
+    dense::EpochSurfaceInput in;
+    in.epoch = static_cast<int>(sol.epoch);
+    in.stereo_pairs = cfg.stereo_pairs;
+    in.adjusted_points = ros_adapters::AdjustedPoints(sol);
+    for (const slope_monitor::CameraEstimate& e : sol.cameras) {
+      const double t = e.image_header.stamp.toSec();
+      sensor_msgs::Image::ConstPtr image;
+      sensor_msgs::CameraInfo::ConstPtr info;
+      // By header stamp, not bag time: a recorded bag carries the receive time.
+      for (const rosbag::MessageInstance& m :
+           rosbag::View(bag, rosbag::TopicQuery({"/" + e.camera_name + "/camera/image_raw",
+                                                 "/" + e.camera_name + "/camera/camera_info"}))) {
+        if (image && info) break;
+        if (auto i = m.instantiate<sensor_msgs::Image>())
+          if (std::abs(i->header.stamp.toSec() - t) < 1e-3) image = i;
+        if (auto c = m.instantiate<sensor_msgs::CameraInfo>()) info = c;
+      }
+      if (!image || !info) {
+        std::printf("epoch %u: no image/camera_info of '%s' at %.3f in the bag; skipped\n", sol.epoch,
+                    e.camera_name.c_str(), t);
+        continue;
+      }
+      const bool uav = std::find(cfg.uav_cameras.begin(), cfg.uav_cameras.end(), e.camera_name) != cfg.uav_cameras.end();
+      in.images.push_back(ros_adapters::EpochImageFromEstimate(e, *image, *info, cfg.pixel_size,
+                                                               uav ? dense::ImageKind::kUav : dense::ImageKind::kFixed));
+    }
+    std::printf("epoch %d: %zu oriented images, %zu adjusted points\n", in.epoch, in.images.size(),
+                in.adjusted_points.size());
+    std::fflush(stdout);
+    dense::EpochSurfaceOptions o = cfg.surface;
+    if (reference) o.region = dense::RegionOf(*reference);
+    dense::EpochSurfaceResult r;
+    try {
+      r = dense::MeasureEpochSurface(in, o, [](const std::string& step) {
+        std::printf("  %s\n", step.c_str());
+        std::fflush(stdout);
+      });
+    } catch (const InvalidArgument& e) {
+      std::fprintf(stderr, "dense_surface: epoch %d skipped: %s\n", in.epoch, e.what());
+      continue;
+    }
+    std::printf("%s\n", r.summary.BriefReport().c_str());
+    io::WriteGeoTiff((fs::path(out_dir) / dense::EpochSurfaceFileName(in.epoch)).string(), r.dem);
+    if (a.Has("--compare-truth")) {
+      const std::string truth_path = a.Get("--compare-truth");
+      const sim::SurveyTruth truth = sim::SurveyTruth::Load(truth_path);
+      CompareWithTruth(r.dem, io::ReadGeoTiff(TruthSurfacePath(truth, truth_path, in.epoch)), truth);
+    }
+    if (!reference) {
+      reference = std::make_unique<io::GeoRaster>(r.dem);
+      continue;
+    }
+    try {
+      const std::vector<uint8_t> stable = dense::StableMask(*reference, cfg.outlines, {}, "");
+      const dense::DemChangeResult c = dense::DemChange(*reference, r.dem, cfg.outlines, stable, cfg.change);
+      std::printf("epoch %d change: %s\n", in.epoch, c.summary.BriefReport().c_str());
+      io::WriteGeoTiff((fs::path(out_dir) / dense::EpochChangeFileName(in.epoch)).string(), c.change);
+    } catch (const InvalidArgument& e) {
+      std::fprintf(stderr, "dense_surface: epoch %d change not computed (surface kept): %s\n", in.epoch, e.what());
+    }
+  }
+  return reference ? 0 : 1;
+}
+
 int Run(const Args& a) {
+  if (a.Has("--bag") && !a.Has("--truth")) return RunBagEpochs(a);
   dense::SurfaceOptions options;
   options.correlation.final_grid_spacing = 2;
   options.min_points_per_cell = 2;
@@ -306,7 +473,9 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
     if (k == "-h" || k == "--help") {
-      std::printf("usage: dense_surface --pair pair.yaml --out-dir DIR [--config FILE] [--reference surface.tif]\n"
+      std::printf("usage: dense_surface --bag B.bag --out-dir DIR [--config config/defaults/dense_epoch.yaml] "
+                  "[--epoch K] [--solution-topic T] [--compare-truth T.truth.yaml]\n"
+                  "       dense_surface --pair pair.yaml --out-dir DIR [--config FILE] [--reference surface.tif]\n"
                   "       dense_surface --truth T.truth.yaml --bag T.bag --left-camera C1 --right-camera C2 "
                   "--epoch K [--reference-epoch K0] --out-dir DIR [--config FILE]\n");
       return 0;

@@ -1,0 +1,37 @@
+// Conversions for the epoch surface (core/dense/epoch_surface.h,
+// core/dense/dem_change.h): the adjuster's CameraEstimate + the image and its
+// camera_info -> dense::EpochImage, and an epoch's surface -> PointCloud2.
+#pragma once
+
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <std_msgs/Header.h>
+
+#include "slope_monitor/AdjustmentSolution.h"
+#include "slope_monitor/core/dense/dem_change.h"
+#include "slope_monitor/core/dense/epoch_surface.h"
+
+namespace slope_monitor {
+namespace ros_adapters {
+
+// The image with the ADJUSTED orientation and interior orientation of
+// `estimate` (sensor size and distortion model from `info`). Throws
+// InvalidArgument naming the camera when the distortion vector is too long.
+dense::EpochImage EpochImageFromEstimate(const slope_monitor::CameraEstimate& estimate,
+                                         const sensor_msgs::Image& image,
+                                         const sensor_msgs::CameraInfo& info, double pixel_size,
+                                         dense::ImageKind kind);
+
+// The adjusted points of a solution [m, site].
+std::vector<Eigen::Vector3d> AdjustedPoints(const slope_monitor::AdjustmentSolution& solution);
+
+// Cloud in header.frame_id with fields x y z rgb sigma_z change lod (FLOAT32;
+// rgb packed as PCL does). change / lod: the DoD cell of the point, NaN when
+// there is no change (reference epoch, or the cell is a hole).
+sensor_msgs::PointCloud2 MakeSurfaceCloud(const dense::EpochSurfaceResult& surface,
+                                          const dense::DemChangeResult* change,
+                                          const std_msgs::Header& header);
+
+}  // namespace ros_adapters
+}  // namespace slope_monitor

@@ -1,0 +1,84 @@
+// Plays the dense_graph_replay survey through the whole graph and checks the
+// dense_matcher's per-epoch cloud and GeoTIFFs (dense_graph_replay.test.in).
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <set>
+
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
+#include <boost/function.hpp>
+
+#include "slope_monitor/AdjustmentSolution.h"
+#include "test_node.h"
+
+namespace {
+
+std::mutex mutex;
+std::set<double> solutions;                                 // stamps of usable solutions
+std::map<double, sensor_msgs::PointCloud2ConstPtr> clouds;  // by header stamp
+
+TEST(DenseGraphReplay, ACloudPerEpochAndTheGeoTiffs) {
+  ros::NodeHandle nh, pnh("~");
+  const int epochs = static_cast<int>(slope_monitor::rostest_node::Param(pnh, "epochs", 2));
+  const double timeout = slope_monitor::rostest_node::Param(pnh, "timeout", 500);
+  const size_t min_points =
+      static_cast<size_t>(slope_monitor::rostest_node::Param(pnh, "min_points", 10000));
+  std::string report_dir;
+  pnh.getParam("report_dir", report_dir);
+  ros::Subscriber s1 = nh.subscribe<slope_monitor::AdjustmentSolution>(
+      "/bundle_adjuster/solution", 10,
+      boost::function<void(const slope_monitor::AdjustmentSolutionConstPtr&)>([](const auto& m) {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (m->usable) solutions.insert(m->header.stamp.toSec());
+      }));
+  ros::Subscriber s2 = nh.subscribe<sensor_msgs::PointCloud2>(
+      "/dense/surface_cloud", 10,
+      boost::function<void(const sensor_msgs::PointCloud2ConstPtr&)>([](const auto& m) {
+        std::lock_guard<std::mutex> lock(mutex);
+        clouds[m->header.stamp.toSec()] = m;
+      }));
+  const bool done = slope_monitor::rostest_node::WaitFor(
+      [&] {
+        std::lock_guard<std::mutex> lock(mutex);
+        return static_cast<int>(clouds.size()) >= epochs;
+      },
+      timeout);
+  std::lock_guard<std::mutex> lock(mutex);
+  ASSERT_TRUE(done) << clouds.size() << " clouds for " << solutions.size()
+                    << " usable solutions after " << timeout << " s";
+  EXPECT_EQ(static_cast<int>(solutions.size()), epochs);
+  int with_change = 0;
+  for (const auto& [stamp, c] : clouds) {
+    EXPECT_EQ(solutions.count(stamp), 1u) << "cloud at " << stamp << " without a solution";
+    EXPECT_EQ(c->header.frame_id, "site");
+    std::vector<std::string> names;
+    for (const auto& f : c->fields) names.push_back(f.name);
+    EXPECT_EQ(names, (std::vector<std::string>{"x", "y", "z", "rgb", "sigma_z", "change", "lod"}));
+    const size_t n = static_cast<size_t>(c->width) * c->height;
+    std::printf("cloud at %.1f: %zu points\n", stamp, n);
+    EXPECT_GE(n, min_points);
+    size_t finite_change = 0;
+    for (sensor_msgs::PointCloud2ConstIterator<float> ch(*c, "change"); ch != ch.end(); ++ch)
+      finite_change += std::isfinite(*ch);
+    with_change += finite_change > n / 2;
+  }
+  EXPECT_EQ(with_change, epochs - 1);  // every epoch but the reference
+  int surfaces = 0, changes = 0;
+  for (const auto& f : std::filesystem::directory_iterator(report_dir)) {
+    const std::string name = f.path().filename().string();
+    surfaces += name.rfind("surface_e", 0) == 0 && f.path().extension() == ".tif";
+    changes += name.rfind("change_e", 0) == 0 && f.path().extension() == ".tif";
+  }
+  EXPECT_EQ(surfaces, epochs);
+  EXPECT_EQ(changes, epochs - 1);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  return slope_monitor::rostest_node::RunTests(argc, argv, "dense_graph_replay_test");
+}
