@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,7 @@
 #include "slope_monitor/core/adjustment/epoch_collector.h"
 #include "slope_monitor/core/adjustment/epochs.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/core/io/target_list.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
 #include "slope_monitor/ros/conversions.h"
@@ -82,10 +84,24 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
  private:
   void ReadParameters(ros::NodeHandle& pnh) {
     ros_adapters::ParamReader p(pnh);
+    // The site file (io::LoadSiteFile) gives the targets when target_list is
+    // empty, and each camera's pixel size.
+    const std::string site_file = p.String("site_file", "");
+    std::optional<io::SiteFile> site;
+    if (!site_file.empty()) site = io::LoadSiteFile(site_file);
     target_list_path_ = p.String("target_list", "");
-    if (target_list_path_.empty())
-      throw ConfigError("parameter '" + p.FullKey("target_list") + "' is required");
-    targets_ = io::TargetList::Load(target_list_path_);
+    if (!target_list_path_.empty()) {
+      targets_ = io::TargetList::Load(target_list_path_);
+    } else if (site && site->targets) {
+      targets_ = *site->targets;
+      target_list_path_ = site->targets_file.empty() ? site_file + " (inline targets)" : site->targets_file;
+    } else {
+      throw ConfigError("parameter '" + p.FullKey("target_list") + "' is required (or '" + p.FullKey("site_file") +
+                        "' naming a site file with targets)");
+    }
+    if (site)
+      for (const io::SiteCamera& cam : site->cameras)
+        if (cam.pixel_size > 0.0) pixel_size_by_camera_[cam.name] = cam.pixel_size;
     target_topics_ = p.StringList("target_topics", {"targets"});
     adjustment::EpochCollectorOptions& c = collector_options_;
     c.cameras = p.StringList("cameras", {});
@@ -167,7 +183,9 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   void OnCameraInfo(const std::string& camera_name, const sensor_msgs::CameraInfoConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     try {
-      models_[camera_name] = ros_adapters::CameraModelFromCameraInfo(*msg, pixel_size_);
+      const auto size = pixel_size_by_camera_.find(camera_name);
+      models_[camera_name] = ros_adapters::CameraModelFromCameraInfo(
+          *msg, size == pixel_size_by_camera_.end() ? pixel_size_ : size->second);
     } catch (const Error& e) {
       NODELET_ERROR_THROTTLE(10.0, "bundle_adjuster: camera_info of '%s': %s", camera_name.c_str(),
                              e.what());
@@ -379,6 +397,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   std::vector<std::string> target_topics_, epoch_topics_;
   std::string frame_id_;
   double pixel_size_ = 1.0;
+  std::map<std::string, double> pixel_size_by_camera_;  // [mm/px] from the site file
   adjustment::EpochCollectorOptions collector_options_;
   adjustment::BuildSceneOptions scene_options_;
   adjustment::EpochAdjustmentOptions epoch_options_;
