@@ -1,28 +1,19 @@
 #include "slope_monitor/core/deformation/alert_hook.h"
 
-#include <fcntl.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
-#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <ctime>
 #include <sstream>
 
 #include "slope_monitor/core/common/error.h"
-
-extern char** environ;
+#include "slope_monitor/core/common/subprocess.h"
 
 namespace slope_monitor {
 namespace deformation {
 namespace {
 
-constexpr size_t kMaxJson = 4096;  // <= PIPE_BUF: the write never blocks
+constexpr size_t kMaxJson = 4096;  // RunProgram's input limit
 constexpr double kMmPerDay = 86400e3;
 
 std::string Escape(const std::string& s) {
@@ -157,48 +148,9 @@ void AlertHook::Work() {
 }
 
 std::string AlertHook::RunOnce(const std::string& json) const {
-  int fds[2];
-  if (pipe2(fds, O_CLOEXEC) != 0) return Message("cannot create a pipe: ", std::strerror(errno));
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_adddup2(&actions, fds[0], STDIN_FILENO);
-  char* argv[] = {const_cast<char*>(options_.hook.c_str()), nullptr};
-  pid_t pid = 0;
-  const int spawn_error =
-      posix_spawnp(&pid, options_.hook.c_str(), &actions, nullptr, argv, environ);
-  posix_spawn_file_actions_destroy(&actions);
-  if (spawn_error != 0) {
-    close(fds[0]);
-    close(fds[1]);
-    return Message("cannot start it: ", std::strerror(spawn_error));
-  }
-  // The read end stays open here until the JSON is in the pipe, so the write
-  // cannot raise SIGPIPE even when the hook exits without reading.
-  const ssize_t written = write(fds[1], json.data(), json.size());
-  close(fds[1]);
-  close(fds[0]);
-  const auto deadline =
-      std::chrono::steady_clock::now() + std::chrono::duration<double>(options_.timeout);
-  int status = 0;
-  while (true) {
-    const pid_t r = waitpid(pid, &status, WNOHANG);
-    if (r == pid) break;
-    if (r < 0) return Message("waiting for it failed: ", std::strerror(errno));
-    if (std::chrono::steady_clock::now() >= deadline) {
-      kill(pid, SIGKILL);
-      waitpid(pid, &status, 0);
-      return Message("no exit within ", options_.timeout, " s (killed)");
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  if (written != static_cast<ssize_t>(json.size()))
-    return "the alert could not be written to its stdin";
-  if (WIFSIGNALED(status)) return Message("killed by signal ", WTERMSIG(status));
-  if (WIFEXITED(status) && WEXITSTATUS(status) == 127)
-    return "exit status 127 (command not found?)";
-  if (WIFEXITED(status) && WEXITSTATUS(status) != 0)
-    return Message("exit status ", WEXITSTATUS(status));
-  return "";
+  const RunResult r = RunProgram({options_.hook}, json, options_.timeout);
+  if (r.failure == "exit status 127") return "exit status 127 (command not found?)";
+  return r.failure;
 }
 
 }  // namespace deformation

@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include "slope_monitor/core/common/error.h"
 #include "test_scenario.h"
 
 namespace slope_monitor {
