@@ -6,6 +6,7 @@
 //
 // The subscriptions are not lazy: the history must record every measurement
 // whether or not anyone listens to the outputs.
+#include <algorithm>
 #include <memory>
 #include <mutex>
 #include <sstream>
@@ -27,7 +28,9 @@
 #include "slope_monitor/core/deformation/alert_log.h"
 #include "slope_monitor/core/deformation/estimator.h"
 #include "slope_monitor/core/deformation/history.h"
+#include "slope_monitor/core/deformation/plot_report.h"
 #include "slope_monitor/core/deformation/report.h"
+#include "slope_monitor/core/io/safe_file.h"
 #include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/parameters.h"
@@ -59,7 +62,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
                database_.c_str(), report_dir_.c_str(), TopicList().c_str());
     } else if (estimator_ && report_on_shutdown_ && !report_dir_.empty()) {
       try {
-        const auto files = deformation::WriteReports(*estimator_, report_dir_, "", report_formats_, report_options_);
+        const auto files = WriteAllReports("", report_formats_);
         ROS_INFO("deformation_estimator: wrote %zu report file(s) to %s at shutdown", files.size(),
                  report_dir_.c_str());
       } catch (const std::exception& e) {
@@ -235,12 +238,16 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     marker_options_.text_size = p.Double("marker_text_size", 0.8, 0.01, 100.0, "m");
     marker_options_.point_size = p.Double("marker_point_size", 0.5, 0.01, 100.0, "m");
     report_interval_ = p.Double("report_interval", 0.0, 0.0, 30 * 86400.0, "s");
+    plot_options_.script = p.String("plot_script", "");
+    plot_options_.dem = p.String("report_dem", "");
     report_on_alert_change_ = p.Bool("report_on_alert_change", false);
     const std::string site_file = p.String("site_file", "");
     if (!site_file.empty()) ApplySiteFile(site_file, o);
     p.CheckNoUnknownKeys();
     report_options_.Check();
     o->Check();
+    thresholds_ = o->alerts.thresholds;
+    plot_options_.site = site_name_;
   }
 
   // The site file (io::LoadSiteFile) overrides the thresholds, adds its
@@ -274,11 +281,30 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
                  path.c_str(), site.notification.hook.empty() ? "none" : site.notification.hook.c_str());
   }
 
+  // Caller holds mutex_. With a history and a plot script the pictures
+  // ("png") are drawn by scripts/plot_report (matplotlib, deformation/plot_report.h)
+  // from the history file; without a history by report.h (OpenCV).
+  std::vector<std::string> WriteAllReports(const std::string& subfolder, std::vector<std::string> formats) {
+    if (formats.empty()) formats = {"csv", "geojson", "geotiff", "gpkg", "png"};
+    const auto png = std::find(formats.begin(), formats.end(), "png");
+    const bool plot = png != formats.end() && history_ && !plot_options_.script.empty();
+    if (plot) formats.erase(png);
+    std::vector<std::string> files;
+    if (!formats.empty())
+      files = deformation::WriteReports(*estimator_, report_dir_, subfolder, formats, report_options_);
+    if (plot) {
+      const std::vector<std::string> pictures = deformation::RunPlotReport(
+          plot_options_, database_, io::ResolveSubfolder(report_dir_, subfolder), thresholds_);
+      files.insert(files.end(), pictures.begin(), pictures.end());
+    }
+    return files;
+  }
+
   // Caller holds mutex_.
   void WriteReportsNow(const char* why) {
     if (!estimator_ || report_dir_.empty() || estimator_->GetSnapshot().points.empty()) return;
     try {
-      const auto files = deformation::WriteReports(*estimator_, report_dir_, "", report_formats_, report_options_);
+      const auto files = WriteAllReports("", report_formats_);
       NODELET_INFO("deformation_estimator: wrote %zu report file(s) to %s %s", files.size(), report_dir_.c_str(), why);
     } catch (const std::exception& e) {
       last_problem_ = e.what();
@@ -361,7 +387,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
       // output_dir names a subfolder of report_dir, never a path of its own.
       if (report_dir_.empty())
         throw InvalidArgument("parameter 'report_dir' is empty: export_report writes only inside it");
-      res.files = deformation::WriteReports(*estimator_, report_dir_, req.output_dir, req.formats, report_options_);
+      res.files = WriteAllReports(req.output_dir, req.formats);
       res.success = true;
       res.message = Message("wrote ", res.files.size(), " file(s) to ", report_dir_, "/", req.output_dir);
     } catch (const std::exception& e) {
@@ -404,6 +430,8 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   std::string site_name_;                // from the site file ("" without one)
   std::unique_ptr<deformation::AlertHook> hook_;  // the site's notification hook (none without one)
   ros::WallTimer report_timer_;
+  deformation::PlotReportOptions plot_options_;  // script "" = OpenCV pictures
+  deformation::Thresholds thresholds_;           // drawn in the plots
   bool enable_export_report_ = true, enable_set_reference_epoch_ = true;
   std::vector<std::string> report_formats_;
   deformation::ReportOptions report_options_;
