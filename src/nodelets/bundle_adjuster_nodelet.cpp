@@ -9,6 +9,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,7 @@
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/PointCloud2.h>
+#include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <pluginlib/class_list_macros.hpp>
 
@@ -84,24 +86,32 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
  private:
   void ReadParameters(ros::NodeHandle& pnh) {
     ros_adapters::ParamReader p(pnh);
-    // The site file (io::LoadSiteFile) gives the targets when target_list is
-    // empty, and each camera's pixel size.
+    // The site file (io::LoadSiteFile) gives the targets when it lists them
+    // (target_list is then not read: replay.launch defaults it to the bag's),
+    // and each camera's pixel size and kind.
     const std::string site_file = p.String("site_file", "");
     std::optional<io::SiteFile> site;
     if (!site_file.empty()) site = io::LoadSiteFile(site_file);
     target_list_path_ = p.String("target_list", "");
-    if (!target_list_path_.empty()) {
-      targets_ = io::TargetList::Load(target_list_path_);
-    } else if (site && site->targets) {
+    if (site && site->targets) {
+      if (!target_list_path_.empty())
+        NODELET_INFO("bundle_adjuster: the targets come from the site file %s; parameter '%s' (%s) is not used",
+                     site_file.c_str(), p.FullKey("target_list").c_str(), target_list_path_.c_str());
       targets_ = *site->targets;
       target_list_path_ = site->targets_file.empty() ? site_file + " (inline targets)" : site->targets_file;
+    } else if (!target_list_path_.empty()) {
+      targets_ = io::TargetList::Load(target_list_path_);
     } else {
       throw ConfigError("parameter '" + p.FullKey("target_list") + "' is required (or '" + p.FullKey("site_file") +
                         "' naming a site file with targets)");
     }
-    if (site)
-      for (const io::SiteCamera& cam : site->cameras)
+    if (site) {
+      site_cameras_known_ = true;
+      for (const io::SiteCamera& cam : site->cameras) {
         if (cam.pixel_size > 0.0) pixel_size_by_camera_[cam.name] = cam.pixel_size;
+        if (cam.kind == io::CameraKind::kUav) uav_cameras_.insert(cam.name);
+      }
+    }
     target_topics_ = p.StringList("target_topics", {"targets"});
     adjustment::EpochCollectorOptions& c = collector_options_;
     c.cameras = p.StringList("cameras", {});
@@ -175,6 +185,16 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     displacement_options_.Check();
     p.CheckNoUnknownKeys();
     collector_ = std::make_unique<adjustment::EpochCollector>(collector_options_, &targets_);
+  }
+
+  // Cameras whose every photo has its own pose: the site file's kind uav;
+  // without a site file, the collector's rule (adjustment::IsUavCamera).
+  std::set<std::string> MovingCameras() const {
+    if (site_cameras_known_) return uav_cameras_;
+    std::set<std::string> moving;
+    for (const std::string& cam : collector_options_.cameras)
+      if (adjustment::IsUavCamera(cam)) moving.insert(cam);
+    return moving;
   }
 
   // ---------------------------------------------------------------- input
@@ -299,8 +319,11 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
           store_.Accept(result.scene, s, static_cast<int>(n), out.header.stamp.toSec(),
                         epoch_options_.adjustment.compute_datum_free_covariance);
       solution_pub_.publish(out);
-      tf_broadcaster_.sendTransform(
-          ros_adapters::MakeTransforms(result.scene, epoch, frame_id_, out.header.stamp));
+      // Fixed cameras on /tf_static (latched), each UAV photo as its own stamped transform on /tf.
+      const ros_adapters::CameraTransforms tfs =
+          ros_adapters::MakeTransforms(result.scene, epoch, frame_id_, out.header.stamp, MovingCameras());
+      if (!tfs.fixed.empty()) static_broadcaster_.sendTransform(tfs.fixed);
+      if (!tfs.moving.empty()) tf_broadcaster_.sendTransform(tfs.moving);
       points_pub_.publish(ros_adapters::MakePointCloud(result.scene, s, out.header));
       PublishDisplacements(ep, out.header);
       ++accepted_;
@@ -424,6 +447,9 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   ros::ServiceServer run_srv_, reference_srv_;
   ros::WallTimer gap_timer_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
+  tf2_ros::StaticTransformBroadcaster static_broadcaster_;
+  bool site_cameras_known_ = false;   // a site file listed the cameras and their kinds
+  std::set<std::string> uav_cameras_;  // its cameras of kind uav
   std::unique_ptr<diagnostic_updater::Updater> updater_;
 };
 

@@ -71,8 +71,8 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
   // False when no radio network is configured anywhere (the node stays idle).
   bool ReadParameters(ros::NodeHandle& pnh) {
     ros_adapters::ParamReader p(pnh);
-    std::string network_file = p.String("network_file", "");
-    const std::string site_file = p.String("site_file", "");  // its radio_network, when network_file is empty
+    const std::string network_file = p.String("network_file", "");
+    const std::string site_file = p.String("site_file", "");  // its radio_network, when it names one
     const std::string truth_file = p.String("truth_file", "");
     const double truth_sigma = p.Double("truth_initial_sigma", 0.005, 1e-5, 10.0, "m");
     const double truth_rate = p.Double("truth_sample_rate", 20000.0, 1.0, 1e10, "Hz");
@@ -92,8 +92,16 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
     max_wait_ = p.Double("max_wait", 2.5, 0.0, 86400.0, "s");
     frame_id_ = p.String("frame_id", "site");
     p.CheckNoUnknownKeys();
-    if (network_file.empty() && truth_file.empty() && !site_file.empty())
-      network_file = io::LoadSiteFile(site_file).radio_network;
+    // A site file's radio network wins over network_file / truth_file (replay.launch defaults
+    // truth_file to the bag's); a site without one leaves them in charge.
+    const std::string site_network = site_file.empty() ? "" : io::LoadSiteFile(site_file).radio_network;
+    if (!site_network.empty()) {
+      if (!network_file.empty() || !truth_file.empty())
+        NODELET_INFO("radio_phase_solver: the radio network comes from the site file %s; network_file / "
+                     "truth_file are not used", site_file.c_str());
+      network_ = radio::NetworkConfig::Load(site_network);
+      return true;
+    }
     if (network_file.empty() && truth_file.empty()) return false;
     if (network_file.empty() == truth_file.empty())
       throw ConfigError(p.FullKey("network_file") + " / " + p.FullKey("truth_file") + ": set exactly one of them");

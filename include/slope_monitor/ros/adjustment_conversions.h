@@ -4,6 +4,7 @@
 #pragma once
 
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -42,11 +43,16 @@ slope_monitor::AdjustmentSolution MakeSolution(const adjustment::CollectedEpoch&
 sensor_msgs::PointCloud2 MakePointCloud(const adjustment::Scene& scene,
                                         const adjustment::Summary& summary,
                                         const std_msgs::Header& header);
-// site_from_optical of every camera's latest image.
-std::vector<geometry_msgs::TransformStamped> MakeTransforms(const adjustment::Scene& scene,
-                                                            const adjustment::CollectedEpoch& epoch,
-                                                            const std::string& frame_id,
-                                                            const ros::Time& stamp);
+// site_from_optical of the cameras: `fixed` holds each fixed camera's latest
+// image, stamped `stamp` (for /tf_static); `moving` every image of a camera
+// in moving_cameras (UAV photos), each stamped with its own photo time (for
+// /tf: the camera's frame moves from photo to photo).
+struct CameraTransforms {
+  std::vector<geometry_msgs::TransformStamped> fixed, moving;
+};
+CameraTransforms MakeTransforms(const adjustment::Scene& scene, const adjustment::CollectedEpoch& epoch,
+                                const std::string& frame_id, const ros::Time& stamp,
+                                const std::set<std::string>& moving_cameras);
 slope_monitor::PointDisplacementArray MakeDisplacements(
     const adjustment::EpochComparison& comparison, const adjustment::EpochPoints& reference,
     int epoch, const std::string& source_name, const std_msgs::Header& header);
