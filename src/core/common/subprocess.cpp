@@ -31,15 +31,19 @@ struct Fd {
 
 }  // namespace
 
-RunResult RunProgram(const std::vector<std::string>& argv, const std::string& input, double timeout) {
+RunResult RunProgram(const std::vector<std::string>& argv, const std::string& input,
+                     double timeout) {
   if (argv.empty() || argv[0].empty()) throw InvalidArgument("RunProgram: no program given");
   if (input.size() > kMaxInput)
-    throw InvalidArgument(Message("RunProgram: input of ", input.size(), " bytes exceeds ", kMaxInput));
+    throw InvalidArgument(
+        Message("RunProgram: input of ", input.size(), " bytes exceeds ", kMaxInput));
   RunResult result;
   int in_fds[2], out_fds[2];
-  if (pipe2(in_fds, O_CLOEXEC) != 0) return {"", Message("cannot create a pipe: ", std::strerror(errno))};
+  if (pipe2(in_fds, O_CLOEXEC) != 0)
+    return {"", Message("cannot create a pipe: ", std::strerror(errno))};
   Fd in_read{in_fds[0]}, in_write{in_fds[1]};
-  if (pipe2(out_fds, O_CLOEXEC) != 0) return {"", Message("cannot create a pipe: ", std::strerror(errno))};
+  if (pipe2(out_fds, O_CLOEXEC) != 0)
+    return {"", Message("cannot create a pipe: ", std::strerror(errno))};
   Fd out_read{out_fds[0]}, out_write{out_fds[1]};
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
@@ -49,7 +53,8 @@ RunResult RunProgram(const std::vector<std::string>& argv, const std::string& in
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
   pid_t pid = 0;
-  const int spawn_error = posix_spawnp(&pid, argv[0].c_str(), &actions, nullptr, args.data(), environ);
+  const int spawn_error =
+      posix_spawnp(&pid, argv[0].c_str(), &actions, nullptr, args.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   if (spawn_error != 0) return {"", Message("cannot start it: ", std::strerror(spawn_error))};
   out_write.Close();
@@ -79,7 +84,8 @@ RunResult RunProgram(const std::vector<std::string>& argv, const std::string& in
     if (r == pid) {  // exited: drain what is left
       char buffer[4096];
       ssize_t n;
-      while ((n = read(out_read.fd, buffer, sizeof(buffer))) > 0) result.output.append(buffer, static_cast<size_t>(n));
+      while ((n = read(out_read.fd, buffer, sizeof(buffer))) > 0)
+        result.output.append(buffer, static_cast<size_t>(n));
       break;
     }
     if (r < 0) return {result.output, Message("waiting for it failed: ", std::strerror(errno))};
@@ -90,9 +96,12 @@ RunResult RunProgram(const std::vector<std::string>& argv, const std::string& in
       return result;
     }
   }
-  if (written != static_cast<ssize_t>(input.size())) result.failure = "its input could not be written to its stdin";
-  else if (WIFSIGNALED(status)) result.failure = Message("killed by signal ", WTERMSIG(status));
-  else if (WIFEXITED(status) && WEXITSTATUS(status) != 0) result.failure = Message("exit status ", WEXITSTATUS(status));
+  if (written != static_cast<ssize_t>(input.size()))
+    result.failure = "its input could not be written to its stdin";
+  else if (WIFSIGNALED(status))
+    result.failure = Message("killed by signal ", WTERMSIG(status));
+  else if (WIFEXITED(status) && WEXITSTATUS(status) != 0)
+    result.failure = Message("exit status ", WEXITSTATUS(status));
   return result;
 }
 

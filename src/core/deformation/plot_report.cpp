@@ -20,14 +20,16 @@ std::vector<std::string> RunPlotReport(const PlotReportOptions& options, const s
   options.Check();
   char t[96];
   constexpr double kMmPerDay = 86400e3;
-  std::snprintf(t, sizeof(t), "%.6g,%.6g,%.6g", thresholds.watch * kMmPerDay, thresholds.warning * kMmPerDay,
-                thresholds.alarm * kMmPerDay);
-  std::vector<std::string> argv = {options.script, "--history", history, "--out", folder, "--thresholds", t};
+  std::snprintf(t, sizeof(t), "%.6g,%.6g,%.6g", thresholds.watch * kMmPerDay,
+                thresholds.warning * kMmPerDay, thresholds.alarm * kMmPerDay);
+  std::vector<std::string> argv = {options.script, "--history",    history, "--out",
+                                   folder,         "--thresholds", t};
   if (!options.dem.empty()) argv.insert(argv.end(), {"--dem", options.dem});
   if (!options.site.empty()) argv.insert(argv.end(), {"--site", options.site});
   const RunResult r = RunProgram(argv, "", options.timeout);
   if (!r.ok())
-    throw IoError(Message("plot report '", options.script, "' on history '", history, "' failed: ", r.failure));
+    throw IoError(Message("plot report '", options.script, "' on history '", history,
+                          "' failed: ", r.failure));
   std::vector<std::string> files;
   std::istringstream lines(r.output);
   for (std::string line; std::getline(lines, line);)

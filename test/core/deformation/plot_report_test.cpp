@@ -53,7 +53,8 @@ void FillHistory(const std::string& db) {
   radio.interval = 7200.0;
   radio.sigma = Eigen::Vector3d(0.003, 0.003, 0.003);
   radio.seed = 5;
-  for (const Batch& b : testing::MakeBatches(radio, ids, motions, kT0 + 2.5 * kDay)) est.AddBatch(b);
+  for (const Batch& b : testing::MakeBatches(radio, ids, motions, kT0 + 2.5 * kDay))
+    est.AddBatch(b);
 }
 
 // Pixels that are not (near) white.
@@ -73,7 +74,8 @@ TEST(PlotReport, ThreePicturesOfTheExpectedSize) {
   for (int r = 0; r < dem.height; ++r)
     for (int c = 0; c < dem.width; ++c) {
       const Eigen::Vector2d x = dem.CellCentre(r, c);
-      dem.At(0, r, c) = static_cast<float>(0.3 * x.y() + 5.0 * std::exp(-(x - Eigen::Vector2d(10, 50)).squaredNorm() / 50));
+      dem.At(0, r, c) = static_cast<float>(
+          0.3 * x.y() + 5.0 * std::exp(-(x - Eigen::Vector2d(10, 50)).squaredNorm() / 50));
     }
   io::WriteGeoTiff(dir.path + "/dem.tif", dem);
 
@@ -96,17 +98,20 @@ TEST(PlotReport, ThreePicturesOfTheExpectedSize) {
     EXPECT_GT(Drawn(image), image.total() / 50) << files[k] << " looks blank";
   }
   // The hillshade fills the map's background: far more grey than the bare map.
-  const std::vector<std::string> bare = RunPlotReport([&] {
-    PlotReportOptions p = o;
-    p.dem.clear();
-    return p;
-  }(), db, dir.path + "/bare", Thresholds());
+  const std::vector<std::string> bare = RunPlotReport(
+      [&] {
+        PlotReportOptions p = o;
+        p.dem.clear();
+        return p;
+      }(),
+      db, dir.path + "/bare", Thresholds());
   EXPECT_GT(Drawn(cv::imread(files[2])), 2 * Drawn(cv::imread(bare[2])));
 }
 
 std::string StderrOf(const std::string& history) {
   const std::string err = history + ".stderr";
-  const std::string cmd = "'" + kScript + "' --history '" + history + "' --out '" + history + ".out' 2> '" + err + "'";
+  const std::string cmd =
+      "'" + kScript + "' --history '" + history + "' --out '" + history + ".out' 2> '" + err + "'";
   const int status = std::system(cmd.c_str());
   EXPECT_EQ(WEXITSTATUS(status), 2) << cmd;
   std::ifstream in(err);
@@ -118,11 +123,14 @@ std::string StderrOf(const std::string& history) {
 TEST(PlotReport, MissingOrCorruptHistoryIsNamed) {
   TempDir dir;
   const std::string missing = dir.path + "/none.db";
-  EXPECT_NE(StderrOf(missing).find("plot_report: history file '" + missing + "' does not exist"), std::string::npos);
+  EXPECT_NE(StderrOf(missing).find("plot_report: history file '" + missing + "' does not exist"),
+            std::string::npos);
   const std::string corrupt = dir.path + "/corrupt.db";
   std::ofstream(corrupt) << std::string(4096, 'x');
   const std::string e = StderrOf(corrupt);
-  EXPECT_NE(e.find("history file '" + corrupt + "' cannot be read: file is not a database"), std::string::npos) << e;
+  EXPECT_NE(e.find("history file '" + corrupt + "' cannot be read: file is not a database"),
+            std::string::npos)
+      << e;
   PlotReportOptions o;
   o.script = kScript;
   try {

@@ -14,12 +14,14 @@ namespace slope_monitor {
 
 struct RunResult {
   std::string output;   // what it wrote to stdout
-  std::string failure;  // "" when it exited 0; else why not ("exit status 2", "no exit within 5 s (killed)", ...)
+  std::string failure;  // "" when it exited 0; else why not ("exit status 2", "no exit within 5 s
+                        // (killed)", ...)
   bool ok() const { return failure.empty(); }
 };
 
 // argv[0] is the program. `input` goes to its stdin (then closed); at most
 // 4096 bytes (InvalidArgument otherwise), so writing it never blocks.
-RunResult RunProgram(const std::vector<std::string>& argv, const std::string& input, double timeout);
+RunResult RunProgram(const std::vector<std::string>& argv, const std::string& input,
+                     double timeout);
 
 }  // namespace slope_monitor
