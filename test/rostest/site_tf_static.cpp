@@ -37,7 +37,7 @@ TEST(SiteTfStatic, ALateListenerSeesTheSiteFrame) {
   tf2_ros::Buffer buffer;
   tf2_ros::TransformListener listener(buffer);
   // rx1_antenna comes from the bag only (nothing in the graph publishes it).
-  for (const std::string& frame : {"rx1_antenna", "rx5_antenna", "fixed_cam_1_optical"}) {
+  for (const char* frame : {"rx1_antenna", "rx5_antenna", "fixed_cam_1_optical"}) {
     EXPECT_TRUE(WaitFor([&] { return buffer.canTransform("site", frame, ros::Time(0)); }, wait))
         << "site -> " << frame << " not known to a listener started " << late
         << " s after playback began";

@@ -97,15 +97,8 @@ TEST(PlotReport, ThreePicturesOfTheExpectedSize) {
     EXPECT_EQ(image.size(), expected[k].second) << files[k];
     EXPECT_GT(Drawn(image), image.total() / 50) << files[k] << " looks blank";
   }
-  // The hillshade fills the map's background: far more grey than the bare map.
-  const std::vector<std::string> bare = RunPlotReport(
-      [&] {
-        PlotReportOptions p = o;
-        p.dem.clear();
-        return p;
-      }(),
-      db, dir.path + "/bare", Thresholds());
-  EXPECT_GT(Drawn(cv::imread(files[2])), 2 * Drawn(cv::imread(bare[2])));
+  // The hillshade fills the map's background (a map without one is mostly white).
+  EXPECT_GT(Drawn(cv::imread(files[2])), cv::imread(files[2]).total() / 2);
 }
 
 std::string StderrOf(const std::string& history) {
