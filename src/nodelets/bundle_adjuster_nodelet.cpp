@@ -105,12 +105,13 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       throw ConfigError("parameter '" + p.FullKey("target_list") + "' is required (or '" + p.FullKey("site_file") +
                         "' naming a site file with targets)");
     }
-    if (site) {
-      site_cameras_known_ = true;
+    if (site && !site->cameras.empty()) {  // the kind is the site file's field, not the name
+      std::vector<std::string> uav;
       for (const io::SiteCamera& cam : site->cameras) {
         if (cam.pixel_size > 0.0) pixel_size_by_camera_[cam.name] = cam.pixel_size;
-        if (cam.kind == io::CameraKind::kUav) uav_cameras_.insert(cam.name);
+        if (cam.kind == io::CameraKind::kUav) uav.push_back(cam.name);
       }
+      collector_options_.uav_cameras = uav;
     }
     target_topics_ = p.StringList("target_topics", {"targets"});
     adjustment::EpochCollectorOptions& c = collector_options_;
@@ -132,6 +133,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     scene_options_.position_prior_min_sigma =
         p.Double("position_prior_min_sigma", 0.01, 1e-4, 100.0, "m");
     scene_options_.min_images = p.Int("min_images", 2, 1, 10000);
+    scene_options_.uav_cameras = c.uav_cameras;
     scene_options_.Check();
     auto interior_list = [&p](const std::string& key) {
       std::vector<int> out;
@@ -170,7 +172,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     // cameras keep free_interior).
     if (!uav_free_interior.empty())
       for (const std::string& cam : c.cameras)
-        if (adjustment::IsUavCamera(cam)) e.free_interior_by_camera[cam] = uav_free_interior;
+        if (adjustment::IsUavCamera(cam, c.uav_cameras)) e.free_interior_by_camera[cam] = uav_free_interior;
     e.name_unidentified = p.Bool("name_unidentified", true);
     e.orient_from_approximate = p.Bool("orient_from_approximate", true);
     e.naming.gate_sigma = p.Double("naming_gate_sigma", 3.0, 0.1, 100.0, "sigma");
@@ -189,11 +191,10 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
 
   // Cameras whose every photo has its own pose: the site file's kind uav;
   // without a site file, the collector's rule (adjustment::IsUavCamera).
-  std::set<std::string> MovingCameras() const {
-    if (site_cameras_known_) return uav_cameras_;
+  std::set<std::string> MovingCameras(const adjustment::Scene& scene) const {
     std::set<std::string> moving;
-    for (const std::string& cam : collector_options_.cameras)
-      if (adjustment::IsUavCamera(cam)) moving.insert(cam);
+    for (const auto& camera : scene.cameras)
+      if (adjustment::IsUavCamera(camera.name, collector_options_.uav_cameras)) moving.insert(camera.name);
     return moving;
   }
 
@@ -321,7 +322,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       solution_pub_.publish(out);
       // Fixed cameras on /tf_static (latched), each UAV photo as its own stamped transform on /tf.
       const ros_adapters::CameraTransforms tfs =
-          ros_adapters::MakeTransforms(result.scene, epoch, frame_id_, out.header.stamp, MovingCameras());
+          ros_adapters::MakeTransforms(result.scene, epoch, frame_id_, out.header.stamp, MovingCameras(result.scene));
       if (!tfs.fixed.empty()) static_broadcaster_.sendTransform(tfs.fixed);
       if (!tfs.moving.empty()) tf_broadcaster_.sendTransform(tfs.moving);
       points_pub_.publish(ros_adapters::MakePointCloud(result.scene, s, out.header));
@@ -448,8 +449,6 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   ros::WallTimer gap_timer_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   tf2_ros::StaticTransformBroadcaster static_broadcaster_;
-  bool site_cameras_known_ = false;   // a site file listed the cameras and their kinds
-  std::set<std::string> uav_cameras_;  // its cameras of kind uav
   std::unique_ptr<diagnostic_updater::Updater> updater_;
 };
 
