@@ -34,6 +34,7 @@
 #include "slope_monitor/core/adjustment/epoch_collector.h"
 #include "slope_monitor/core/adjustment/epochs.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/adjustment/site_options.h"
 #include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/core/io/target_list.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
@@ -105,14 +106,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       throw ConfigError("parameter '" + p.FullKey("target_list") + "' is required (or '" + p.FullKey("site_file") +
                         "' naming a site file with targets)");
     }
-    if (site && !site->cameras.empty()) {  // the kind is the site file's field, not the name
-      std::vector<std::string> uav;
-      for (const io::SiteCamera& cam : site->cameras) {
-        if (cam.pixel_size > 0.0) pixel_size_by_camera_[cam.name] = cam.pixel_size;
-        if (cam.kind == io::CameraKind::kUav) uav.push_back(cam.name);
-      }
-      collector_options_.uav_cameras = uav;
-    }
+    // The camera kind is the site file's field, not the name.
+    if (site) pixel_size_by_camera_ = adjustment::ApplySite(*site, &collector_options_, &scene_options_);
     target_topics_ = p.StringList("target_topics", {"targets"});
     adjustment::EpochCollectorOptions& c = collector_options_;
     c.cameras = p.StringList("cameras", {});
@@ -133,7 +128,6 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     scene_options_.position_prior_min_sigma =
         p.Double("position_prior_min_sigma", 0.01, 1e-4, 100.0, "m");
     scene_options_.min_images = p.Int("min_images", 2, 1, 10000);
-    scene_options_.uav_cameras = c.uav_cameras;
     scene_options_.Check();
     auto interior_list = [&p](const std::string& key) {
       std::vector<int> out;

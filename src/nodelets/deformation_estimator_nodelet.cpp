@@ -30,6 +30,7 @@
 #include "slope_monitor/core/deformation/history.h"
 #include "slope_monitor/core/deformation/plot_report.h"
 #include "slope_monitor/core/deformation/report.h"
+#include "slope_monitor/core/deformation/site_options.h"
 #include "slope_monitor/core/io/safe_file.h"
 #include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/ros/deformation_conversions.h"
@@ -256,18 +257,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   void ApplySiteFile(const std::string& path, deformation::EstimatorOptions* o) {
     const io::SiteFile site = io::LoadSiteFile(path);
     site_name_ = site.name;
-    const double to_si = site.thresholds.unit == "mm/day" ? 1e-3 / 86400.0 : 1e-3 / 3600.0;
-    if (site.thresholds.watch) o->alerts.thresholds.watch = *site.thresholds.watch * to_si;
-    if (site.thresholds.warning) o->alerts.thresholds.warning = *site.thresholds.warning * to_si;
-    if (site.thresholds.alarm) o->alerts.thresholds.alarm = *site.thresholds.alarm * to_si;
-    for (const std::string& entry : site.aliases) {
-      const size_t eq = entry.find('=');
-      o->aliases[Trim(entry.substr(0, eq))] = Trim(entry.substr(eq + 1));
-    }
-    if (!report_options_.geodetic_origin && site.crs.frame == SiteCrsOptions::Frame::kLocalEnu) {
-      const Eigen::Vector3d lon_lat_h = SiteCrs(site.crs).origin_wgs84();
-      report_options_.geodetic_origin = Eigen::Vector3d(lon_lat_h.y(), lon_lat_h.x(), lon_lat_h.z());
-    }
+    deformation::ApplySite(site, o, &report_options_);
     if (!site.notification.hook.empty()) {
       hook_ = std::make_unique<deformation::AlertHook>(site.notification, [](bool error, const std::string& m) {
         if (error) {

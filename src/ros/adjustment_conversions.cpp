@@ -201,6 +201,13 @@ CameraTransforms MakeTransforms(const adjustment::Scene& scene, const adjustment
   return tfs;
 }
 
+std::vector<geometry_msgs::TransformStamped> MakeTransforms(const adjustment::Scene& scene,
+                                                            const adjustment::CollectedEpoch& epoch,
+                                                            const std::string& frame_id,
+                                                            const ros::Time& stamp) {
+  return MakeTransforms(scene, epoch, frame_id, stamp, {}).fixed;
+}
+
 slope_monitor::PointDisplacementArray MakeDisplacements(
     const adjustment::EpochComparison& comparison, const adjustment::EpochPoints& reference,
     int epoch, const std::string& source_name, const std_msgs::Header& header) {

@@ -53,6 +53,11 @@ struct CameraTransforms {
 CameraTransforms MakeTransforms(const adjustment::Scene& scene, const adjustment::CollectedEpoch& epoch,
                                 const std::string& frame_id, const ros::Time& stamp,
                                 const std::set<std::string>& moving_cameras);
+// Every camera's latest image, all stamped `stamp` (no moving cameras).
+std::vector<geometry_msgs::TransformStamped> MakeTransforms(const adjustment::Scene& scene,
+                                                            const adjustment::CollectedEpoch& epoch,
+                                                            const std::string& frame_id,
+                                                            const ros::Time& stamp);
 slope_monitor::PointDisplacementArray MakeDisplacements(
     const adjustment::EpochComparison& comparison, const adjustment::EpochPoints& reference,
     int epoch, const std::string& source_name, const std_msgs::Header& header);
