@@ -8,6 +8,8 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -17,6 +19,7 @@
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/PointCloud2.h>
+#include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <pluginlib/class_list_macros.hpp>
 
@@ -31,6 +34,8 @@
 #include "slope_monitor/core/adjustment/epoch_collector.h"
 #include "slope_monitor/core/adjustment/epochs.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/adjustment/site_options.h"
+#include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/core/io/target_list.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
 #include "slope_monitor/ros/conversions.h"
@@ -82,10 +87,27 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
  private:
   void ReadParameters(ros::NodeHandle& pnh) {
     ros_adapters::ParamReader p(pnh);
+    // The site file (io::LoadSiteFile) gives the targets when it lists them
+    // (target_list is then not read: replay.launch defaults it to the bag's),
+    // and each camera's pixel size and kind.
+    const std::string site_file = p.String("site_file", "");
+    std::optional<io::SiteFile> site;
+    if (!site_file.empty()) site = io::LoadSiteFile(site_file);
     target_list_path_ = p.String("target_list", "");
-    if (target_list_path_.empty())
-      throw ConfigError("parameter '" + p.FullKey("target_list") + "' is required");
-    targets_ = io::TargetList::Load(target_list_path_);
+    if (site && site->targets) {
+      if (!target_list_path_.empty())
+        NODELET_INFO("bundle_adjuster: the targets come from the site file %s; parameter '%s' (%s) is not used",
+                     site_file.c_str(), p.FullKey("target_list").c_str(), target_list_path_.c_str());
+      targets_ = *site->targets;
+      target_list_path_ = site->targets_file.empty() ? site_file + " (inline targets)" : site->targets_file;
+    } else if (!target_list_path_.empty()) {
+      targets_ = io::TargetList::Load(target_list_path_);
+    } else {
+      throw ConfigError("parameter '" + p.FullKey("target_list") + "' is required (or '" + p.FullKey("site_file") +
+                        "' naming a site file with targets)");
+    }
+    // The camera kind is the site file's field, not the name.
+    if (site) pixel_size_by_camera_ = adjustment::ApplySite(*site, &collector_options_, &scene_options_);
     target_topics_ = p.StringList("target_topics", {"targets"});
     adjustment::EpochCollectorOptions& c = collector_options_;
     c.cameras = p.StringList("cameras", {});
@@ -144,7 +166,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     // cameras keep free_interior).
     if (!uav_free_interior.empty())
       for (const std::string& cam : c.cameras)
-        if (adjustment::IsUavCamera(cam)) e.free_interior_by_camera[cam] = uav_free_interior;
+        if (adjustment::IsUavCamera(cam, c.uav_cameras)) e.free_interior_by_camera[cam] = uav_free_interior;
     e.name_unidentified = p.Bool("name_unidentified", true);
     e.orient_from_approximate = p.Bool("orient_from_approximate", true);
     e.naming.gate_sigma = p.Double("naming_gate_sigma", 3.0, 0.1, 100.0, "sigma");
@@ -161,13 +183,24 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     collector_ = std::make_unique<adjustment::EpochCollector>(collector_options_, &targets_);
   }
 
+  // Cameras whose every photo has its own pose: the site file's kind uav;
+  // without a site file, the collector's rule (adjustment::IsUavCamera).
+  std::set<std::string> MovingCameras(const adjustment::Scene& scene) const {
+    std::set<std::string> moving;
+    for (const auto& camera : scene.cameras)
+      if (adjustment::IsUavCamera(camera.name, collector_options_.uav_cameras)) moving.insert(camera.name);
+    return moving;
+  }
+
   // ---------------------------------------------------------------- input
   static double Now() { return ros::WallTime::now().toSec(); }
 
   void OnCameraInfo(const std::string& camera_name, const sensor_msgs::CameraInfoConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     try {
-      models_[camera_name] = ros_adapters::CameraModelFromCameraInfo(*msg, pixel_size_);
+      const auto size = pixel_size_by_camera_.find(camera_name);
+      models_[camera_name] = ros_adapters::CameraModelFromCameraInfo(
+          *msg, size == pixel_size_by_camera_.end() ? pixel_size_ : size->second);
     } catch (const Error& e) {
       NODELET_ERROR_THROTTLE(10.0, "bundle_adjuster: camera_info of '%s': %s", camera_name.c_str(),
                              e.what());
@@ -281,8 +314,11 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
           store_.Accept(result.scene, s, static_cast<int>(n), out.header.stamp.toSec(),
                         epoch_options_.adjustment.compute_datum_free_covariance);
       solution_pub_.publish(out);
-      tf_broadcaster_.sendTransform(
-          ros_adapters::MakeTransforms(result.scene, epoch, frame_id_, out.header.stamp));
+      // Fixed cameras on /tf_static (latched), each UAV photo as its own stamped transform on /tf.
+      const ros_adapters::CameraTransforms tfs =
+          ros_adapters::MakeTransforms(result.scene, epoch, frame_id_, out.header.stamp, MovingCameras(result.scene));
+      if (!tfs.fixed.empty()) static_broadcaster_.sendTransform(tfs.fixed);
+      if (!tfs.moving.empty()) tf_broadcaster_.sendTransform(tfs.moving);
       points_pub_.publish(ros_adapters::MakePointCloud(result.scene, s, out.header));
       PublishDisplacements(ep, out.header);
       ++accepted_;
@@ -379,6 +415,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   std::vector<std::string> target_topics_, epoch_topics_;
   std::string frame_id_;
   double pixel_size_ = 1.0;
+  std::map<std::string, double> pixel_size_by_camera_;  // [mm/px] from the site file
   adjustment::EpochCollectorOptions collector_options_;
   adjustment::BuildSceneOptions scene_options_;
   adjustment::EpochAdjustmentOptions epoch_options_;
@@ -405,6 +442,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   ros::ServiceServer run_srv_, reference_srv_;
   ros::WallTimer gap_timer_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
+  tf2_ros::StaticTransformBroadcaster static_broadcaster_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
 };
 

@@ -6,6 +6,7 @@
 //
 // The subscriptions are not lazy: the history must record every measurement
 // whether or not anyone listens to the outputs.
+#include <algorithm>
 #include <memory>
 #include <mutex>
 #include <sstream>
@@ -23,10 +24,15 @@
 #include "slope_monitor/SetReferenceEpoch.h"
 #include "slope_monitor/SlopeDeformation.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/deformation/alert_hook.h"
 #include "slope_monitor/core/deformation/alert_log.h"
 #include "slope_monitor/core/deformation/estimator.h"
 #include "slope_monitor/core/deformation/history.h"
+#include "slope_monitor/core/deformation/plot_report.h"
 #include "slope_monitor/core/deformation/report.h"
+#include "slope_monitor/core/deformation/site_options.h"
+#include "slope_monitor/core/io/safe_file.h"
+#include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
@@ -57,7 +63,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
                database_.c_str(), report_dir_.c_str(), TopicList().c_str());
     } else if (estimator_ && report_on_shutdown_ && !report_dir_.empty()) {
       try {
-        const auto files = deformation::WriteReports(*estimator_, report_dir_, "", report_formats_, report_options_);
+        const auto files = WriteAllReports("", report_formats_);
         ROS_INFO("deformation_estimator: wrote %zu report file(s) to %s at shutdown", files.size(),
                  report_dir_.c_str());
       } catch (const std::exception& e) {
@@ -114,6 +120,12 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     updater_->setHardwareID("deformation_estimator");
     updater_->add("deformation_estimator", this, &DeformationEstimatorNodelet::Diagnose);
     diag_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_->update(); });
+    if (report_interval_ > 0.0 && !report_dir_.empty()) {
+      report_timer_ = nh.createWallTimer(ros::WallDuration(report_interval_), [this](const ros::WallTimerEvent&) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        WriteReportsNow("on the report timer");
+      });
+    }
     if (!resumed.points.empty()) {
       std_msgs::Header h;
       h.frame_id = frame_id_;
@@ -226,9 +238,68 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     marker_options_.arrow_scale = p.Double("marker_arrow_scale", 100.0, 0.0, 1e6);
     marker_options_.text_size = p.Double("marker_text_size", 0.8, 0.01, 100.0, "m");
     marker_options_.point_size = p.Double("marker_point_size", 0.5, 0.01, 100.0, "m");
+    report_interval_ = p.Double("report_interval", 0.0, 0.0, 30 * 86400.0, "s");
+    plot_options_.script = p.String("plot_script", "");
+    plot_options_.dem = p.String("report_dem", "");
+    report_on_alert_change_ = p.Bool("report_on_alert_change", false);
+    const std::string site_file = p.String("site_file", "");
+    if (!site_file.empty()) ApplySiteFile(site_file, o);
     p.CheckNoUnknownKeys();
     report_options_.Check();
     o->Check();
+    thresholds_ = o->alerts.thresholds;
+    plot_options_.site = site_name_;
+  }
+
+  // The site file (io::LoadSiteFile) overrides the thresholds, adds its
+  // aliases, gives the geodetic origin (a local_enu site) and the
+  // notification hook.
+  void ApplySiteFile(const std::string& path, deformation::EstimatorOptions* o) {
+    const io::SiteFile site = io::LoadSiteFile(path);
+    site_name_ = site.name;
+    deformation::ApplySite(site, o, &report_options_);
+    if (!site.notification.hook.empty()) {
+      hook_ = std::make_unique<deformation::AlertHook>(site.notification, [](bool error, const std::string& m) {
+        if (error) {
+          ROS_ERROR("deformation_estimator: %s", m.c_str());
+        } else {
+          ROS_INFO("deformation_estimator: %s", m.c_str());
+        }
+      });
+    }
+    NODELET_INFO("deformation_estimator: site '%s' from %s (notification hook: %s)", site.name.c_str(),
+                 path.c_str(), site.notification.hook.empty() ? "none" : site.notification.hook.c_str());
+  }
+
+  // Caller holds mutex_. With a history and a plot script the pictures
+  // ("png") are drawn by scripts/plot_report (matplotlib, deformation/plot_report.h)
+  // from the history file; without a history by report.h (OpenCV).
+  std::vector<std::string> WriteAllReports(const std::string& subfolder, std::vector<std::string> formats) {
+    if (formats.empty()) formats = {"csv", "geojson", "geotiff", "gpkg", "png"};
+    const auto png = std::find(formats.begin(), formats.end(), "png");
+    const bool plot = png != formats.end() && history_ && !plot_options_.script.empty();
+    if (plot) formats.erase(png);
+    std::vector<std::string> files;
+    if (!formats.empty())
+      files = deformation::WriteReports(*estimator_, report_dir_, subfolder, formats, report_options_);
+    if (plot) {
+      const std::vector<std::string> pictures = deformation::RunPlotReport(
+          plot_options_, database_, io::ResolveSubfolder(report_dir_, subfolder), thresholds_);
+      files.insert(files.end(), pictures.begin(), pictures.end());
+    }
+    return files;
+  }
+
+  // Caller holds mutex_.
+  void WriteReportsNow(const char* why) {
+    if (!estimator_ || report_dir_.empty() || estimator_->GetSnapshot().points.empty()) return;
+    try {
+      const auto files = WriteAllReports("", report_formats_);
+      NODELET_INFO("deformation_estimator: wrote %zu report file(s) to %s %s", files.size(), report_dir_.c_str(), why);
+    } catch (const std::exception& e) {
+      last_problem_ = e.what();
+      NODELET_ERROR("deformation_estimator: reports %s failed: %s", why, e.what());
+    }
   }
 
   void OnDisplacements(const slope_monitor::PointDisplacementArray::ConstPtr& msg, const std::string& topic) {
@@ -259,7 +330,12 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   }
 
   void Publish(const deformation::Snapshot& s, const std_msgs::Header& h) {
-    for (const deformation::AlertChange& c : alert_changes_.Update(s)) {
+    const std::vector<deformation::AlertChange> changes = alert_changes_.Update(s);
+    for (const deformation::AlertChange& c : changes) {
+      if (hook_) {
+        for (const deformation::PointState& p : s.points)
+          if (p.id == c.point_id) hook_->Notify(deformation::AlertJson(site_name_, p, c));
+      }
       if (c.to == deformation::AlertLevel::kAlarm) {
         NODELET_ERROR("deformation_estimator: %s", c.text.c_str());
       } else if (c.to == deformation::AlertLevel::kNone) {
@@ -270,6 +346,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     }
     last_alert_ = s.alert;
     num_points_ = s.points.size();
+    if (report_on_alert_change_ && !changes.empty()) WriteReportsNow("on an alert-level change");
     deformation_pub_.publish(ros_adapters::ToMsg(s, h));
     if (markers_pub_.getNumSubscribers() > 0) markers_pub_.publish(ros_adapters::ToMarkers(s, h, marker_options_));
     if (points_pub_.getNumSubscribers() > 0) points_pub_.publish(ros_adapters::ToCloud(s, h));
@@ -300,7 +377,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
       // output_dir names a subfolder of report_dir, never a path of its own.
       if (report_dir_.empty())
         throw InvalidArgument("parameter 'report_dir' is empty: export_report writes only inside it");
-      res.files = deformation::WriteReports(*estimator_, report_dir_, req.output_dir, req.formats, report_options_);
+      res.files = WriteAllReports(req.output_dir, req.formats);
       res.success = true;
       res.message = Message("wrote ", res.files.size(), " file(s) to ", report_dir_, "/", req.output_dir);
     } catch (const std::exception& e) {
@@ -338,6 +415,13 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   std::vector<std::string> input_topics_;
   std::string frame_id_, database_, report_dir_;
   bool report_on_shutdown_ = true;
+  double report_interval_ = 0.0;         // [s] live mode: reports on a wall timer; 0 = off
+  bool report_on_alert_change_ = false;  // live mode: reports at every alert-level change
+  std::string site_name_;                // from the site file ("" without one)
+  std::unique_ptr<deformation::AlertHook> hook_;  // the site's notification hook (none without one)
+  ros::WallTimer report_timer_;
+  deformation::PlotReportOptions plot_options_;  // script "" = OpenCV pictures
+  deformation::Thresholds thresholds_;           // drawn in the plots
   bool enable_export_report_ = true, enable_set_reference_epoch_ = true;
   std::vector<std::string> report_formats_;
   deformation::ReportOptions report_options_;

@@ -24,6 +24,7 @@
 #include "slope_monitor/RadioPhaseObservationArray.h"
 #include "slope_monitor/RadioSampleBlock.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/core/radio/phase_solver.h"
 #include "slope_monitor/core/sim/truth.h"
 #include "slope_monitor/ros/conversions.h"
@@ -40,10 +41,14 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     if (const auto error = ros_adapters::SetUpError([&] {
-          ReadParameters(pnh);
-          solver_ = std::make_unique<radio::RadioPhaseSolver>(network_, options_);
+          if (ReadParameters(pnh)) solver_ = std::make_unique<radio::RadioPhaseSolver>(network_, options_);
         })) {
       NODELET_ERROR("radio_phase_solver: %s; not advertising", error->c_str());
+      return;
+    }
+    if (!solver_) {  // radio is optional: a site without a radio network
+      NODELET_INFO("radio_phase_solver: no radio network (network_file, truth_file and the site file's "
+                   "radio_network are empty): idle");
       return;
     }
     std::vector<std::string> ids;
@@ -63,9 +68,11 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
                  network_.transmitters.size(), network_.wavelength);
   }
 
-  void ReadParameters(ros::NodeHandle& pnh) {
+  // False when no radio network is configured anywhere (the node stays idle).
+  bool ReadParameters(ros::NodeHandle& pnh) {
     ros_adapters::ParamReader p(pnh);
     const std::string network_file = p.String("network_file", "");
+    const std::string site_file = p.String("site_file", "");  // its radio_network, when it names one
     const std::string truth_file = p.String("truth_file", "");
     const double truth_sigma = p.Double("truth_initial_sigma", 0.005, 1e-5, 10.0, "m");
     const double truth_rate = p.Double("truth_sample_rate", 20000.0, 1.0, 1e10, "Hz");
@@ -85,6 +92,17 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
     max_wait_ = p.Double("max_wait", 2.5, 0.0, 86400.0, "s");
     frame_id_ = p.String("frame_id", "site");
     p.CheckNoUnknownKeys();
+    // A site file's radio network wins over network_file / truth_file (replay.launch defaults
+    // truth_file to the bag's); a site without one leaves them in charge.
+    const std::string site_network = site_file.empty() ? "" : io::LoadSiteFile(site_file).radio_network;
+    if (!site_network.empty()) {
+      if (!network_file.empty() || !truth_file.empty())
+        NODELET_INFO("radio_phase_solver: the radio network comes from the site file %s; network_file / "
+                     "truth_file are not used", site_file.c_str());
+      network_ = radio::NetworkConfig::Load(site_network);
+      return true;
+    }
+    if (network_file.empty() && truth_file.empty()) return false;
     if (network_file.empty() == truth_file.empty())
       throw ConfigError(p.FullKey("network_file") + " / " + p.FullKey("truth_file") + ": set exactly one of them");
     if (!network_file.empty()) {
@@ -92,6 +110,7 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
     } else {
       network_ = NetworkFromTruth(sim::SurveyTruth::Load(truth_file), truth_sigma, truth_rate, truth_file);
     }
+    return true;
   }
 
   // The simulator's truth as a network file: receivers as surveyed, the

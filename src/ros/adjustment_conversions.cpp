@@ -175,27 +175,37 @@ sensor_msgs::PointCloud2 MakePointCloud(const adjustment::Scene& scene,
   return cloud;
 }
 
+CameraTransforms MakeTransforms(const adjustment::Scene& scene, const adjustment::CollectedEpoch& epoch,
+                                const std::string& frame_id, const ros::Time& stamp,
+                                const std::set<std::string>& moving_cameras) {
+  CameraTransforms tfs;
+  std::set<std::string> done;
+  // The latest image of each fixed camera defines its frame; every image of a
+  // moving camera is its own stamped transform.
+  for (auto it = scene.images.rbegin(); it != scene.images.rend(); ++it) {
+    auto ci = epoch.images.find(it->name);
+    const std::string& camera = scene.cameras[it->camera].name;
+    const std::string frame = ci != epoch.images.end() ? ci->second.frame_id : camera + "_optical";
+    const bool moving = moving_cameras.count(camera) > 0;
+    if (!moving && !done.insert(frame).second) continue;
+    geometry_msgs::TransformStamped t;
+    t.header.stamp = stamp;
+    if (moving && ci != epoch.images.end()) t.header.stamp.fromNSec(static_cast<uint64_t>(ci->second.stamp));
+    t.header.frame_id = frame_id;
+    t.child_frame_id = frame;
+    t.transform = ToTransform(it->exterior.SiteFromOptical());
+    (moving ? tfs.moving : tfs.fixed).push_back(t);
+  }
+  // Time order for the moving ones (a tf buffer accepts them in any order; readers prefer it).
+  std::reverse(tfs.moving.begin(), tfs.moving.end());
+  return tfs;
+}
+
 std::vector<geometry_msgs::TransformStamped> MakeTransforms(const adjustment::Scene& scene,
                                                             const adjustment::CollectedEpoch& epoch,
                                                             const std::string& frame_id,
                                                             const ros::Time& stamp) {
-  std::vector<geometry_msgs::TransformStamped> tfs;
-  std::set<std::string> done;
-  // The latest image of each camera defines its frame.
-  for (auto it = scene.images.rbegin(); it != scene.images.rend(); ++it) {
-    auto ci = epoch.images.find(it->name);
-    const std::string frame = ci != epoch.images.end()
-                                  ? ci->second.frame_id
-                                  : scene.cameras[it->camera].name + "_optical";
-    if (!done.insert(frame).second) continue;
-    geometry_msgs::TransformStamped t;
-    t.header.stamp = stamp;
-    t.header.frame_id = frame_id;
-    t.child_frame_id = frame;
-    t.transform = ToTransform(it->exterior.SiteFromOptical());
-    tfs.push_back(t);
-  }
-  return tfs;
+  return MakeTransforms(scene, epoch, frame_id, stamp, {}).fixed;
 }
 
 slope_monitor::PointDisplacementArray MakeDisplacements(

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -42,7 +43,17 @@ slope_monitor::AdjustmentSolution MakeSolution(const adjustment::CollectedEpoch&
 sensor_msgs::PointCloud2 MakePointCloud(const adjustment::Scene& scene,
                                         const adjustment::Summary& summary,
                                         const std_msgs::Header& header);
-// site_from_optical of every camera's latest image.
+// site_from_optical of the cameras: `fixed` holds each fixed camera's latest
+// image, stamped `stamp` (for /tf_static); `moving` every image of a camera
+// in moving_cameras (UAV photos), each stamped with its own photo time (for
+// /tf: the camera's frame moves from photo to photo).
+struct CameraTransforms {
+  std::vector<geometry_msgs::TransformStamped> fixed, moving;
+};
+CameraTransforms MakeTransforms(const adjustment::Scene& scene, const adjustment::CollectedEpoch& epoch,
+                                const std::string& frame_id, const ros::Time& stamp,
+                                const std::set<std::string>& moving_cameras);
+// Every camera's latest image, all stamped `stamp` (no moving cameras).
 std::vector<geometry_msgs::TransformStamped> MakeTransforms(const adjustment::Scene& scene,
                                                             const adjustment::CollectedEpoch& epoch,
                                                             const std::string& frame_id,

@@ -30,6 +30,11 @@ std::string ImageKey(const std::string& camera, StampNs stamp) {
 
 bool IsUavCamera(const std::string& camera) { return camera.find("uav") != std::string::npos; }
 
+bool IsUavCamera(const std::string& camera, const std::optional<std::vector<std::string>>& uav_cameras) {
+  if (!uav_cameras) return IsUavCamera(camera);
+  return std::find(uav_cameras->begin(), uav_cameras->end(), camera) != uav_cameras->end();
+}
+
 PointRole RoleOf(const io::TargetSpec* spec) {
   if (spec == nullptr) return PointRole::kTie;
   switch (spec->role) {
@@ -120,7 +125,7 @@ std::vector<CollectedEpoch> EpochCollector::AddTargets(const ImageTargets& image
   // A UAV camera flies with its nominal interior: its model error is far
   // above the centroid precision.
   const double floor =
-      IsUavCamera(image.camera) ? options_.uav_pixel_sigma_floor : options_.pixel_sigma_floor;
+      IsUavCamera(image.camera, options_.uav_cameras) ? options_.uav_pixel_sigma_floor : options_.pixel_sigma_floor;
   for (const TargetInput& t : image.targets) {
     CollectedObservation c;
     c.image_key = key;
@@ -497,7 +502,7 @@ BuiltScene BuildScene(const CollectedEpoch& epoch,
     image.camera = camera_index[im.camera];
     image.stamp = StampSeconds(im.stamp);
     const camera::ExteriorOrientation* last = store.LastPose(im.camera);
-    image.exterior_known = last != nullptr && !IsUavCamera(im.camera);
+    image.exterior_known = last != nullptr && !IsUavCamera(im.camera, options.uav_cameras);
     if (image.exterior_known) image.exterior = *last;
     for (const PositionPrior& prior : epoch.priors) {
       if (std::abs(StampSeconds(prior.stamp) - StampSeconds(im.stamp)) >

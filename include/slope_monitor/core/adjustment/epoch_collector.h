@@ -55,6 +55,9 @@ std::string ImageKey(const std::string& camera, StampNs stamp);
 // A UAV camera (self-calibrated per flight, never keeps a pose between
 // epochs): its name contains "uav", as the graph's configuration names them.
 bool IsUavCamera(const std::string& camera);
+// The same from a list of the site's UAV cameras (site file: kind uav);
+// without a list, the name rule above.
+bool IsUavCamera(const std::string& camera, const std::optional<std::vector<std::string>>& uav_cameras);
 
 // One target observation of an image (TargetObservation).
 struct TargetInput {
@@ -137,6 +140,7 @@ struct CollectedEpoch {
 struct EpochCollectorOptions {
   std::vector<std::string> cameras;            // cameras that must end an epoch; empty: any source
   std::vector<std::string> tie_point_cameras;  // cameras whose images wait for their tie points
+  std::optional<std::vector<std::string>> uav_cameras;  // the UAV cameras (site file); none: IsUavCamera(name)
   double pixel_sigma = 0.3;                    // [px] observations without a covariance, > 0
   double pixel_sigma_floor = 0.05;             // [px] added in quadrature, fixed cameras, >= 0
   double uav_pixel_sigma_floor = 1.0;          // [px] added in quadrature, UAV cameras, >= 0
@@ -236,6 +240,7 @@ struct BuildSceneOptions {
   double position_prior_max_dt = 0.1;      // [s] prior to image stamp, >= 0
   double position_prior_min_sigma = 0.01;  // [m] floor of the prior's sigma, > 0
   int min_images = 2;                      // images with a camera model, >= 1
+  std::optional<std::vector<std::string>> uav_cameras;  // the UAV cameras (site file); none: IsUavCamera(name)
   void Check() const;                      // throws ConfigError naming the field
 };
 

@@ -45,6 +45,9 @@ class YamlMap {
   YamlMap OptionalMap(const std::string& key);
   // A list of maps (absent: empty list).
   std::vector<YamlMap> List(const std::string& key);
+  // The raw node of a key (marked as read; undefined when absent), for
+  // shapes the typed readers do not cover (lists of coordinate pairs).
+  YAML::Node Node(const std::string& key) { return Get(key); }
 
   // Throws ConfigError naming the first key of this map (with its path) that
   // was never read. Sub-maps and list elements check their own keys.

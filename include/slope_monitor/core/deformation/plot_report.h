@@ -1,0 +1,39 @@
+// The report pictures drawn by matplotlib: scripts/plot_report run on the
+// history file (SQLite) writes deformation_series.png (every point's |d| and
+// speed on one shared time axis, markers at the measurements, 1-sigma bands,
+// thresholds labelled), deformation_inverse_velocity.png (1/v, the fitted
+// line, the forecast failure time with its band) and deformation_map.png
+// (arrows with 95 % ellipses, over a DEM's hillshade when one is given).
+// The estimator calls it for the report format "png" when it keeps a
+// history; without one the OpenCV pictures of report.h are drawn.
+//
+//   PlotReportOptions o;
+//   o.script = "/opt/ros/.../share/slope_monitor/scripts/plot_report";
+//   std::vector<std::string> files = RunPlotReport(o, "slope.db", "reports", Thresholds());
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "slope_monitor/core/deformation/estimator.h"
+
+namespace slope_monitor {
+namespace deformation {
+
+struct PlotReportOptions {
+  std::string script;      // path of scripts/plot_report (required)
+  std::string dem;         // GeoTIFF DEM in site coordinates for the map's hillshade; "" = none
+  std::string site;        // site name for the titles; "" = none
+  double timeout = 120.0;  // [s] the script is killed after this (1..3600)
+  // Throws InvalidArgument naming the value.
+  void Check() const;
+};
+
+// Runs the script on `history` writing into `folder`; returns the files it
+// wrote. Throws IoError naming the script and why it failed (its own message
+// is on stderr, which the caller's process shares).
+std::vector<std::string> RunPlotReport(const PlotReportOptions& options, const std::string& history,
+                                       const std::string& folder, const Thresholds& thresholds);
+
+}  // namespace deformation
+}  // namespace slope_monitor

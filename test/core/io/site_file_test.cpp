@@ -1,0 +1,151 @@
+// The site file: the shipped demo reads back as the simulated demo survey;
+// coordinates given in a projected site CRS land in `site` where a hand
+// subtraction puts them; every mistake names the file and the key.
+#include "slope_monitor/core/io/site_file.h"
+
+#include <unistd.h>
+
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "slope_monitor/core/common/error.h"
+
+namespace slope_monitor {
+namespace io {
+namespace {
+
+// UTM zone 32N with the `site` frame as the CRS's own coordinates minus the
+// origin: a point's site coordinates are its easting, northing and height
+// minus the origin's, checkable by hand.
+constexpr char kUtmSite[] = R"(
+name: utm_test
+crs: EPSG:32632
+origin: [500000.0, 5150000.0, 400.0]
+frame: shifted_crs
+cameras:
+  - {name: uav_left, kind: fixed, pixel_size: 0.0039}
+  - {name: north_cam, kind: fixed_targetless, calibration_url: "file:///site/north.yaml"}
+  - {name: drone, kind: uav, pixel_size: 0.0024}
+targets:
+  size: 0.5
+  list:
+    - {id: tag36h11/3, role: control, position: [500010.0, 5150020.0, 405.0], sigma: [0.02, 0.03]}
+    - {id: circle/12, role: check, position: [500050.5, 5150075.25, 398.0]}
+areas:
+  outline: [[500000, 5150000], [500100, 5150000], [500100, 5150100], [500000, 5150100]]
+  stable: [[[500000, 5150000], [500020, 5150000], [500020, 5150020]]]
+thresholds: {unit: mm/h, alarm: 4}
+notification: {hook: hooks/notify, timeout: 5, retries: 1}
+)";
+
+TEST(SiteFile, ProjectedCrsShiftedFrameByHand) {
+  const SiteFile s = ParseSiteFile(kUtmSite, "utm.yaml", "/sites");
+  EXPECT_EQ(s.name, "utm_test");
+  ASSERT_EQ(s.cameras.size(), 3u);
+  // The kind is the field, whatever the name says.
+  EXPECT_EQ(s.cameras[0].kind, CameraKind::kFixed);
+  EXPECT_EQ(s.cameras[1].kind, CameraKind::kFixedTargetless);
+  EXPECT_EQ(s.cameras[2].kind, CameraKind::kUav);
+  EXPECT_DOUBLE_EQ(s.cameras[0].pixel_size, 0.0039);
+  EXPECT_EQ(s.cameras[1].calibration_url, "file:///site/north.yaml");
+  ASSERT_TRUE(s.targets.has_value());
+  const TargetSpec* t = s.targets->Find("tag36h11", 3);
+  ASSERT_NE(t, nullptr);
+  EXPECT_EQ(t->role, TargetRole::kControl);
+  EXPECT_DOUBLE_EQ(t->size, 0.5);
+  EXPECT_NEAR((*t->position - Eigen::Vector3d(10.0, 20.0, 5.0)).norm(), 0.0, 1e-6);
+  EXPECT_NEAR(t->sigma.y(), 0.03, 1e-12);
+  const TargetSpec* c = s.targets->Find("circle", 12);
+  ASSERT_NE(c, nullptr);
+  EXPECT_NEAR((*c->position - Eigen::Vector3d(50.5, 75.25, -2.0)).norm(), 0.0, 1e-6);
+  ASSERT_EQ(s.outline.size(), 4u);
+  EXPECT_NEAR((s.outline[2] - Eigen::Vector2d(100.0, 100.0)).norm(), 0.0, 1e-6);
+  ASSERT_EQ(s.stable_areas.size(), 1u);
+  EXPECT_NEAR((s.stable_areas[0][1] - Eigen::Vector2d(20.0, 0.0)).norm(), 0.0, 1e-6);
+  EXPECT_EQ(s.thresholds.unit, "mm/h");
+  EXPECT_FALSE(s.thresholds.watch.has_value());
+  EXPECT_DOUBLE_EQ(*s.thresholds.alarm, 4.0);
+  EXPECT_EQ(s.notification.hook, "/sites/hooks/notify");  // relative to the site file's folder
+  EXPECT_DOUBLE_EQ(s.notification.timeout, 5.0);
+  EXPECT_EQ(s.notification.retries, 1);
+  EXPECT_DOUBLE_EQ(s.notification.retry_delay, NotificationOptions().retry_delay);
+  EXPECT_TRUE(s.radio_network.empty());  // radio is optional
+}
+
+// The shipped demo site matches config/sim/demo_site.yaml: origin 46.5 N 8 E
+// 1200 m, cameras fixed_cam_1, fixed_cam_2 (fixed) and uav (uav), 4.8 um pixels.
+TEST(SiteFile, ShippedDemoSite) {
+  const SiteFile s = LoadSiteFile(std::string(SM_SOURCE_DIR) + "/config/sites/demo.yaml");
+  EXPECT_EQ(s.name, "demo");
+  EXPECT_EQ(s.crs.crs, "EPSG:4979");
+  EXPECT_EQ(s.crs.origin, Eigen::Vector3d(8.0, 46.5, 1200.0));
+  ASSERT_EQ(s.cameras.size(), 3u);
+  EXPECT_EQ(s.FindCamera("fixed_cam_2")->kind, CameraKind::kFixed);
+  EXPECT_EQ(s.FindCamera("uav")->kind, CameraKind::kUav);
+  for (const SiteCamera& c : s.cameras) EXPECT_DOUBLE_EQ(c.pixel_size, 0.0048) << c.name;
+  EXPECT_FALSE(s.targets.has_value());
+  EXPECT_EQ(s.outline.size(), 4u);
+  EXPECT_EQ(s.stable_areas.size(), 2u);
+  EXPECT_EQ(s.aliases.size(), 3u);
+  EXPECT_TRUE(s.notification.hook.empty());
+  const SiteCrs crs(s.crs);
+  const Eigen::Vector3d o = crs.origin_wgs84();
+  EXPECT_NEAR(o.x(), 8.0, 1e-12);
+  EXPECT_NEAR(o.y(), 46.5, 1e-12);
+}
+
+TEST(SiteFile, TargetCsvBesideTheSiteFile) {
+  char tmpl[] = "/tmp/site_file_test_XXXXXX";
+  const std::string dir = mkdtemp(tmpl);
+  std::ofstream(dir + "/points.csv") << "# crs: site\nid,role,x,y,z,sigma_h,sigma_v\n"
+                                     << "tag36h11/0,control,1.5,2.5,3.5,0.01,0.02\n";
+  std::ofstream(dir + "/site.yaml") << "name: csv\ncrs: EPSG:32632\norigin: [500000, 5150000, 0]\n"
+                                    << "targets: {file: points.csv, size: 2.0}\n";
+  const SiteFile s = LoadSiteFile(dir + "/site.yaml");
+  EXPECT_EQ(s.targets_file, dir + "/points.csv");
+  ASSERT_TRUE(s.targets.has_value());
+  ASSERT_EQ(s.targets->targets().size(), 1u);
+  EXPECT_EQ(*s.targets->targets()[0].position, Eigen::Vector3d(1.5, 2.5, 3.5));
+  EXPECT_DOUBLE_EQ(s.targets->targets()[0].size, 2.0);
+  std::system(("rm -rf '" + dir + "'").c_str());
+}
+
+std::string ErrorOf(const std::string& text) {
+  try {
+    ParseSiteFile(text, "bad.yaml", "/sites");
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(SiteFile, MistakesNameTheFileAndTheKey) {
+  const std::string head = "name: x\ncrs: EPSG:32632\norigin: [500000, 5150000, 0]\n";
+  auto expect = [&](const std::string& body, const std::vector<std::string>& parts) {
+    const std::string e = ErrorOf(head + body);
+    EXPECT_NE(e.find("bad.yaml"), std::string::npos) << e;
+    for (const std::string& p : parts)
+      EXPECT_NE(e.find(p), std::string::npos) << "'" << p << "' not in: " << e;
+  };
+  expect("cameras: [{name: c1, kind: drone, pixel_size: 0.004}]", {"cameras[0]", "kind", "drone"});
+  expect("cameras: [{name: c1, kind: fixed}]", {"cameras[0]", "pixel_size"});
+  expect(
+      "cameras: [{name: c1, kind: fixed, pixel_size: 0.004}, {name: c1, kind: uav, pixel_size: "
+      "0.004}]",
+      {"cameras[1]", "c1", "twice"});
+  expect("thresholds: {alarn: 3}", {"alarn"});
+  expect("thresholds: {watch: 20, warning: 10}", {"watch", "below warning"});
+  expect("radio_network: nowhere.yaml", {"radio_network", "/sites/nowhere.yaml"});
+  expect("areas: {outline: [[0, 0], [1, 1]]}", {"outline", "at least 3"});
+  expect("targets: {list: [{id: tag36h11/x, position: [0, 0, 0]}]}", {"id", "tag36h11/x"});
+  expect("notification: {hook: h, retries: 99}", {"retries"});
+  expect("colour: red", {"colour"});
+  EXPECT_NE(ErrorOf("name: x\ncrs: EPSG:999999\norigin: [0, 0, 0]\n").find("crs"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("name: x\ncrs: EPSG:32632\n").find("origin"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace io
+}  // namespace slope_monitor
