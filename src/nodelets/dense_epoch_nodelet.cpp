@@ -14,6 +14,7 @@
 // epoch measured is the reference; its grid is the grid of later epochs.
 // A failing step is named (log, diagnostics) and the epoch's other outputs
 // are kept: a DoD that fails still leaves the cloud and surface_eNN.tif.
+#include <algorithm>
 #include <condition_variable>
 #include <deque>
 #include <filesystem>
@@ -193,6 +194,16 @@ class DenseEpochNodelet : public nodelet::Nodelet {
     if (!missing.empty())
       NODELET_WARN("dense_matcher: epoch %u: %zu oriented image(s) not available (first: %s)",
                    msg->epoch, missing.size(), missing.front().c_str());
+    const auto uav_images =
+        std::count_if(job.input.images.begin(), job.input.images.end(),
+                      [](const dense::EpochImage& i) { return i.kind == dense::ImageKind::kUav; });
+    if (uav_images < 2 && stereo_pairs_.empty()) {
+      // A survey without a UAV flight and without configured stereo pairs has
+      // no surface to measure: not an error.
+      NODELET_INFO("dense_matcher: epoch %u: no surface (fewer than two UAV photos, no stereo pair configured)",
+                   msg->epoch);
+      return;
+    }
     {
       std::lock_guard<std::mutex> lock(queue_mutex_);
       jobs_.push_back(std::move(job));
