@@ -27,6 +27,7 @@
 
 #include "slope_monitor/core/adjustment/bundle_adjuster.h"
 #include "slope_monitor/core/adjustment/initialization.h"
+#include "slope_monitor/core/sim/survey.h"
 
 namespace {
 
@@ -134,9 +135,7 @@ Block MakeBlock(int n, int epoch) {
       b.scene.images.push_back(im);
       for (size_t j = 0; j < b.truth.size(); ++j) {
         Eigen::Vector2d px;
-        if (!truth_model.Project(pose, b.truth[j], &px)) continue;
-        if (px.x() < 20 || px.y() < 20 || px.x() > sensor.width - 21 || px.y() > sensor.height - 21)
-          continue;
+        if (!sim::ImagedAt(truth_model, pose, b.truth[j], 20.0, &px)) continue;
         Observation o;
         o.image = i;
         o.point = static_cast<int>(j);
@@ -162,7 +161,8 @@ struct EpochResult {
   bool ok = false;
   std::string reason;
   double orientation = 0.0, solve = 0.0, covariance = 0.0;
-  int iterations = 0, photos_in = 0, photos_kept = 0, points = 0, observations = 0;
+  int iterations = 0, undetermined = 0, photos_in = 0, photos_kept = 0, points = 0,
+      observations = 0;
   Scene scene;
 };
 
@@ -188,6 +188,23 @@ EpochResult RunEpoch(int n, int epoch) {
   r.iterations = s.iterations;
   r.ok = s.usable;
   r.reason = s.usable ? s.termination : s.reason;
+  r.undetermined = static_cast<int>(s.undetermined_points.size());
+  if (std::getenv("SM_BENCH_DIAG")) {
+    std::fprintf(stderr, "n=%d epoch %d: %s\n", n, epoch, s.BriefReport().c_str());
+    for (const std::string& id : s.undetermined_points) {
+      const int j = scene.FindPoint(id), t = b.scene.FindPoint(id);
+      std::fprintf(stderr, "  %s truth (%.2f %.2f %.2f) start (%.2f %.2f %.2f):", id.c_str(),
+                   b.truth[t].x(), b.truth[t].y(), b.truth[t].z(), scene.points[j].position.x(),
+                   scene.points[j].position.y(), scene.points[j].position.z());
+      for (const Observation& o : scene.observations)
+        if (o.point == j)
+          std::fprintf(stderr, " [%s (%.1f %.1f) px (%.1f %.1f)]",
+                       scene.images[o.image].name.c_str(),
+                       scene.images[o.image].exterior.position.x(),
+                       scene.images[o.image].exterior.position.y(), o.pixel.x(), o.pixel.y());
+      std::fprintf(stderr, "\n");
+    }
+  }
   r.scene = scene;
   return r;
 }

@@ -52,10 +52,27 @@ camera::ExteriorOrientation LookAt(const Eigen::Vector3d& position, const Eigen:
   return camera::ExteriorOrientation::FromOpticalFromSite(Rigid3(optical_from_site, -(optical_from_site * position)));
 }
 
+bool ImagedAt(const camera::CameraModel& model, const camera::ExteriorOrientation& pose, const Eigen::Vector3d& x,
+              double margin_px, Eigen::Vector2d* pixel) {
+  const int w = model.sensor().width, h = model.sensor().height;
+  Eigen::Vector2d px;
+  if (!model.Project(pose, x, &px) || !px.allFinite() || px.x() < margin_px || px.y() < margin_px ||
+      px.x() > w - 1 - margin_px || px.y() > h - 1 - margin_px)
+    return false;
+  // The projection of a far-off-axis point can fold back under strong
+  // distortion (the radial polynomial turns over): require the ideal
+  // coordinates to be near the image too.
+  const Eigen::Vector3d u = camera::RotationFromAngles(pose.angles) * (x - pose.position);
+  const double xu = -model.principal_distance() * u.x() / u.z(), yu = -model.principal_distance() * u.y() / u.z();
+  if (std::abs(xu) > 0.8 * w * model.sensor().pixel_size || std::abs(yu) > 0.8 * h * model.sensor().pixel_size)
+    return false;
+  *pixel = px;
+  return true;
+}
+
 std::vector<int> VisiblePlates(const Scene::State& state, const camera::CameraModel& model,
                                const camera::ExteriorOrientation& pose, double margin_px, double tolerance) {
   std::vector<int> out;
-  const int w = model.sensor().width, h = model.sensor().height;
   const Eigen::Vector3d cam = pose.position;
   for (size_t k = 0; k < state.plates.size(); ++k) {
     const Plate& p = state.plates[k];
@@ -65,16 +82,7 @@ std::vector<int> VisiblePlates(const Scene::State& state, const camera::CameraMo
     bool ok = true;
     for (const Eigen::Vector3d& x : pts) {
       Eigen::Vector2d px;
-      if (!model.Project(pose, x, &px) || !px.allFinite() || px.x() < margin_px || px.y() < margin_px ||
-          px.x() > w - 1 - margin_px || px.y() > h - 1 - margin_px) {
-        ok = false;
-        break;
-      }
-      // The projection of a far-off-axis point can fold back under strong
-      // distortion: require the ideal coordinates to be near the image too.
-      const Eigen::Vector3d u = camera::RotationFromAngles(pose.angles) * (x - cam);
-      const double xu = -model.principal_distance() * u.x() / u.z(), yu = -model.principal_distance() * u.y() / u.z();
-      if (std::abs(xu) > 0.8 * w * model.sensor().pixel_size || std::abs(yu) > 0.8 * h * model.sensor().pixel_size) {
+      if (!ImagedAt(model, pose, x, margin_px, &px)) {
         ok = false;
         break;
       }

@@ -119,6 +119,13 @@ struct Survey {
 camera::ExteriorOrientation LookAt(const Eigen::Vector3d& position, const Eigen::Vector3d& look_at,
                                    const Eigen::Vector3d& up_hint, double roll = 0.0);
 
+// Whether a camera images the point `x` (site): in front, inside the image
+// by `margin_px`, and not folded back into it by the lens distortion (the
+// radial polynomial of a far-off-axis point turns over: the ideal image
+// coordinates must lie near the image too). *pixel: where.
+bool ImagedAt(const camera::CameraModel& model, const camera::ExteriorOrientation& pose, const Eigen::Vector3d& x,
+              double margin_px, Eigen::Vector2d* pixel);
+
 // Plates fully visible in an image: every outline point (and the centre)
 // inside the image by `margin_px`, in front, the plate facing the camera, and
 // no ground (up to `tolerance` before the point) or obstacle on the way.
