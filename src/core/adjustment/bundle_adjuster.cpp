@@ -138,8 +138,8 @@ bool PointUsed(const ObjectPoint& p, int num_images, bool control_prior) {
 // Removes from *problem the free points that FindUndeterminedPoints finds at
 // the solution (with their residual blocks), marks them unused, drops their
 // observations from *used_obs and names them in the Summary; the free
-// parameter count shrinks by 3 each.
-void DropUndeterminedPoints(const SchurCovarianceOptions& co, const Scene& scene,
+// parameter count shrinks by 3 each. Returns their indices.
+std::vector<int> DropUndeterminedPoints(const SchurCovarianceOptions& co, const Scene& scene,
                             std::vector<std::array<double, 3>>* point, std::vector<bool>* point_used,
                             std::vector<int>* used_obs, ceres::Problem* problem, Summary* summary) {
   std::vector<double*> blocks;
@@ -149,10 +149,10 @@ void DropUndeterminedPoints(const SchurCovarianceOptions& co, const Scene& scene
     blocks.push_back((*point)[j].data());
     index.push_back(static_cast<int>(j));
   }
-  const std::vector<int> undetermined = FindUndeterminedPoints(co, blocks, problem);
-  if (undetermined.empty()) return;
-  for (const int u : undetermined) {
+  std::vector<int> dropped;
+  for (const int u : FindUndeterminedPoints(co, blocks, problem)) {
     const int j = index[u];
+    dropped.push_back(j);
     problem->RemoveParameterBlock((*point)[j].data());
     (*point_used)[j] = false;
     summary->undetermined_points.push_back(scene.points[j].id);
@@ -162,6 +162,7 @@ void DropUndeterminedPoints(const SchurCovarianceOptions& co, const Scene& scene
                                  [&](int k) { return !(*point_used)[scene.observations[k].point]; }),
                   used_obs->end());
   summary->num_observations = static_cast<int>(used_obs->size());
+  return dropped;
 }
 
 }  // namespace
@@ -447,6 +448,7 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
     summary.reason = "solver failed: " + report.termination;
     return summary;
   }
+  std::vector<int> undetermined;  // points dropped after the solve (below)
   auto WriteBack = [&]() {
     for (size_t i = 0; i < scene.images.size(); ++i)
       scene_in->images[i].exterior = camera::ExteriorOrientation::FromArray(exterior[i].data());
@@ -456,6 +458,7 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
       scene_in->points[j].position = Eigen::Vector3d(point[j][0], point[j][1], point[j][2]);
       scene_in->points[j].position_known = true;
     }
+    for (const int j : undetermined) scene_in->points[j].position_known = false;
   };
   if (!report.converged) {
     summary.reason = "solver did not converge (diverging or too few iterations): " + report.termination;
@@ -468,7 +471,7 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
   // one such tie point does not refuse the whole epoch's covariance.
   SchurCovarianceOptions co;
   co.num_threads = options_.num_threads;
-  DropUndeterminedPoints(co, scene, &point, &point_used, &used_obs, &prob, &summary);
+  undetermined = DropUndeterminedPoints(co, scene, &point, &point_used, &used_obs, &prob, &summary);
 
   // Residuals, outliers, sigma0.
   summary.image_rms_px.assign(scene.images.size(), 0.0);
