@@ -97,7 +97,8 @@ struct Options {
   std::string loss = "huber";
   double loss_scale = 3.0;            // [sigma] where the loss turns robust, > 0
   double outlier_threshold = 5.0;     // [sigma] whitened residual norm above which an observation is reported as outlier
-  // "auto" (dense_schur for <= dense_schur_max_images images, else sparse_schur)
+  // "auto" (dense_schur for <= dense_schur_max_images images, else sparse_schur:
+  // measured on UAV blocks of 150 / 300 photos, doc/uav_block_scaling.md)
   // | "dense_schur" | "sparse_schur" | "iterative_schur" | "dense_qr" | "sparse_normal_cholesky".
   std::string linear_solver = "auto";
   int dense_schur_max_images = 200;
