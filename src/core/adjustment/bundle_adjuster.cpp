@@ -96,6 +96,14 @@ ErrorEllipsoid ErrorEllipsoidOf(const Eigen::Matrix3d& covariance, double k) {
   return e;
 }
 
+std::string Summary::UndeterminedList() const {
+  std::string list;
+  const auto& u = undetermined_points;
+  for (size_t i = 0; i < u.size() && i < 5; ++i) list += (i ? ", " : "") + u[i];
+  if (u.size() > 5) list += ", ...";
+  return list;
+}
+
 std::string Summary::BriefReport() const {
   std::ostringstream out;
   out << (usable ? "usable" : "NOT usable") << ": " << reason << "; cost " << initial_cost << " -> " << final_cost
@@ -125,6 +133,36 @@ std::vector<int> CountImagesPerPoint(const Scene& scene) {
 
 bool PointUsed(const ObjectPoint& p, int num_images, bool control_prior) {
   return num_images >= 2 || (num_images >= 1 && IsConstrainedControl(p) && control_prior);
+}
+
+// Removes from *problem the free points that FindUndeterminedPoints finds at
+// the solution (with their residual blocks), marks them unused, drops their
+// observations from *used_obs and names them in the Summary; the free
+// parameter count shrinks by 3 each. Returns their indices.
+std::vector<int> DropUndeterminedPoints(const SchurCovarianceOptions& co, const Scene& scene,
+                            std::vector<std::array<double, 3>>* point, std::vector<bool>* point_used,
+                            std::vector<int>* used_obs, ceres::Problem* problem, Summary* summary) {
+  std::vector<double*> blocks;
+  std::vector<int> index;
+  for (size_t j = 0; j < scene.points.size(); ++j) {
+    if (!(*point_used)[j] || problem->IsParameterBlockConstant((*point)[j].data())) continue;
+    blocks.push_back((*point)[j].data());
+    index.push_back(static_cast<int>(j));
+  }
+  std::vector<int> dropped;
+  for (const int u : FindUndeterminedPoints(co, blocks, problem)) {
+    const int j = index[u];
+    dropped.push_back(j);
+    problem->RemoveParameterBlock((*point)[j].data());
+    (*point_used)[j] = false;
+    summary->undetermined_points.push_back(scene.points[j].id);
+    summary->num_parameters -= 3;
+  }
+  used_obs->erase(std::remove_if(used_obs->begin(), used_obs->end(),
+                                 [&](int k) { return !(*point_used)[scene.observations[k].point]; }),
+                  used_obs->end());
+  summary->num_observations = static_cast<int>(used_obs->size());
+  return dropped;
 }
 
 }  // namespace
@@ -410,6 +448,7 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
     summary.reason = "solver failed: " + report.termination;
     return summary;
   }
+  std::vector<int> undetermined;  // points dropped after the solve (below)
   auto WriteBack = [&]() {
     for (size_t i = 0; i < scene.images.size(); ++i)
       scene_in->images[i].exterior = camera::ExteriorOrientation::FromArray(exterior[i].data());
@@ -419,12 +458,20 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
       scene_in->points[j].position = Eigen::Vector3d(point[j][0], point[j][1], point[j][2]);
       scene_in->points[j].position_known = true;
     }
+    for (const int j : undetermined) scene_in->points[j].position_known = false;
   };
   if (!report.converged) {
     summary.reason = "solver did not converge (diverging or too few iterations): " + report.termination;
     if (options_.write_back_unconverged && std::isfinite(report.final_cost)) WriteBack();
     return summary;
   }
+
+  // Points the solution leaves undetermined (their 3x3 normal block singular,
+  // schur_covariance.h): dropped with their observations and named, so that
+  // one such tie point does not refuse the whole epoch's covariance.
+  SchurCovarianceOptions co;
+  co.num_threads = options_.num_threads;
+  undetermined = DropUndeterminedPoints(co, scene, &point, &point_used, &used_obs, &prob, &summary);
 
   // Residuals, outliers, sigma0.
   summary.image_rms_px.assign(scene.images.size(), 0.0);
@@ -537,8 +584,6 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
       if (options_.compute_datum_free_covariance && IsConstrainedControl(scene.points[j])) held.push_back(point_index[j]);
       point_blocks_free.push_back(point[j].data());
     }
-    SchurCovarianceOptions co;
-    co.num_threads = options_.num_threads;
     const auto covariance_start = std::chrono::steady_clock::now();
     const SchurCovarianceResult cov = ComputeSchurCovariance(co, camera_blocks, point_blocks_free, held, &prob);
     summary.covariance_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - covariance_start).count();
@@ -578,7 +623,11 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
   WriteBack();
   summary.usable = true;
   summary.reason = Message("converged; sigma0 = ", summary.sigma0, ", ", summary.num_outliers, " outliers of ",
-                           summary.num_observations);
+                           summary.num_observations,
+                           summary.undetermined_points.empty()
+                               ? std::string()
+                               : Message("; ", summary.undetermined_points.size(),
+                                         " undetermined point(s) dropped (", summary.UndeterminedList(), ")"));
   return summary;
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <map>
 
+#include <ceres/cost_function.h>
 #include <ceres/crs_matrix.h>
 #include <ceres/manifold.h>
 #include <Eigen/Cholesky>
@@ -222,6 +223,46 @@ SchurCovarianceResult ComputeSchurCovariance(const SchurCovarianceOptions& optio
   }
   result.ok = true;
   return result;
+}
+
+std::vector<int> FindUndeterminedPoints(const SchurCovarianceOptions& options,
+                                        const std::vector<double*>& point_blocks,
+                                        ceres::Problem* problem) {
+  std::string error;
+  if (!options.Check(&error)) throw InvalidArgument(error);
+  std::vector<int> undetermined;
+  std::vector<ceres::ResidualBlockId> residual_blocks;
+  std::vector<double*> blocks;
+  std::vector<double> residuals, jacobian;
+  for (size_t j = 0; j < point_blocks.size(); ++j) {
+    if (problem->ParameterBlockTangentSize(point_blocks[j]) != 3)
+      throw InvalidArgument("FindUndeterminedPoints: a point block is not 3-d");
+    Eigen::Matrix3d hjj = Eigen::Matrix3d::Zero();
+    bool evaluated = true;
+    problem->GetResidualBlocksForParameterBlock(point_blocks[j], &residual_blocks);
+    for (const ceres::ResidualBlockId id : residual_blocks) {
+      problem->GetParameterBlocksForResidualBlock(id, &blocks);
+      const int m = problem->GetCostFunctionForResidualBlock(id)->num_residuals();
+      residuals.resize(m);
+      jacobian.resize(3 * m);
+      std::vector<double*> jacobians(blocks.size(), nullptr);
+      for (size_t b = 0; b < blocks.size(); ++b)
+        if (blocks[b] == point_blocks[j]) jacobians[b] = jacobian.data();
+      double cost = 0.0;
+      if (!problem->EvaluateResidualBlock(id, true, &cost, residuals.data(), jacobians.data())) {
+        evaluated = false;
+        break;
+      }
+      const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> jp(
+          jacobian.data(), m, 3);
+      hjj += jp.transpose() * jp;
+    }
+    const Eigen::LLT<Eigen::Matrix3d> llt(hjj);
+    if (!evaluated || !hjj.allFinite() || llt.info() != Eigen::Success ||
+        !(llt.rcond() >= options.min_reciprocal_condition))
+      undetermined.push_back(static_cast<int>(j));
+  }
+  return undetermined;
 }
 
 }  // namespace adjustment

@@ -8,6 +8,8 @@
 #include <random>
 #include <sstream>
 
+#include <Eigen/Geometry>
+
 #include "slope_monitor/core/camera/rotation.h"
 #include "slope_monitor/core/common/error.h"
 
@@ -52,10 +54,27 @@ camera::ExteriorOrientation LookAt(const Eigen::Vector3d& position, const Eigen:
   return camera::ExteriorOrientation::FromOpticalFromSite(Rigid3(optical_from_site, -(optical_from_site * position)));
 }
 
+bool ImagedAt(const camera::CameraModel& model, const camera::ExteriorOrientation& pose, const Eigen::Vector3d& x,
+              double margin_px, Eigen::Vector2d* pixel) {
+  const int w = model.sensor().width, h = model.sensor().height;
+  Eigen::Vector2d px;
+  if (!model.Project(pose, x, &px) || !px.allFinite() || px.x() < margin_px || px.y() < margin_px ||
+      px.x() > w - 1 - margin_px || px.y() > h - 1 - margin_px)
+    return false;
+  // The projection of a far-off-axis point can fold back under strong
+  // distortion (the radial polynomial turns over): require the ideal
+  // coordinates to be near the image too.
+  const Eigen::Vector3d u = camera::RotationFromAngles(pose.angles) * (x - pose.position);
+  const double xu = -model.principal_distance() * u.x() / u.z(), yu = -model.principal_distance() * u.y() / u.z();
+  if (std::abs(xu) > 0.8 * w * model.sensor().pixel_size || std::abs(yu) > 0.8 * h * model.sensor().pixel_size)
+    return false;
+  *pixel = px;
+  return true;
+}
+
 std::vector<int> VisiblePlates(const Scene::State& state, const camera::CameraModel& model,
                                const camera::ExteriorOrientation& pose, double margin_px, double tolerance) {
   std::vector<int> out;
-  const int w = model.sensor().width, h = model.sensor().height;
   const Eigen::Vector3d cam = pose.position;
   for (size_t k = 0; k < state.plates.size(); ++k) {
     const Plate& p = state.plates[k];
@@ -65,16 +84,7 @@ std::vector<int> VisiblePlates(const Scene::State& state, const camera::CameraMo
     bool ok = true;
     for (const Eigen::Vector3d& x : pts) {
       Eigen::Vector2d px;
-      if (!model.Project(pose, x, &px) || !px.allFinite() || px.x() < margin_px || px.y() < margin_px ||
-          px.x() > w - 1 - margin_px || px.y() > h - 1 - margin_px) {
-        ok = false;
-        break;
-      }
-      // The projection of a far-off-axis point can fold back under strong
-      // distortion: require the ideal coordinates to be near the image too.
-      const Eigen::Vector3d u = camera::RotationFromAngles(pose.angles) * (x - cam);
-      const double xu = -model.principal_distance() * u.x() / u.z(), yu = -model.principal_distance() * u.y() / u.z();
-      if (std::abs(xu) > 0.8 * w * model.sensor().pixel_size || std::abs(yu) > 0.8 * h * model.sensor().pixel_size) {
+      if (!ImagedAt(model, pose, x, margin_px, &px)) {
         ok = false;
         break;
       }
@@ -202,12 +212,24 @@ SurveyGenerator::SurveyGenerator(const SurveyConfig& config) : config_(config) {
           const double footprint = st.altitude * along_mm / c_mm / std::max(0.2, std::cos(st.tilt));
           const double base = std::max(0.5, (1.0 - st.overlap) * footprint);
           const int n = static_cast<int>(std::floor(length / base + 1e-9)) + 1;
+          // Into a constant cross wind: the crab's sign flips with the direction.
+          const Eigen::Vector2d g0 = (s.strips[0].end - s.strips[0].start).normalized();
+          const double crab = g.dot(g0) >= 0.0 ? s.crab : -s.crab;
+          const Eigen::Vector2d heading = Eigen::Rotation2Dd(crab) * g;
+          std::uniform_real_distribution<double> u11(-1.0, 1.0);
           for (int q = 0; q < n; ++q) {
             const Eigen::Vector2d xy = st.start + (q * base) * g;
-            const Eigen::Vector3d planned(xy.x(), xy.y(), z);
+            // Within +-altitude_variation: two thirds a slow wander, one third from shot to shot.
+            const double dz = s.altitude_variation > 0.0
+                                  ? st.altitude * s.altitude_variation *
+                                        ((2.0 / 3.0) * std::sin(2.0 * M_PI * q / std::max(n, 2) + si) +
+                                         (1.0 / 3.0) * u11(rng))
+                                  : 0.0;
+            const Eigen::Vector3d planned(xy.x(), xy.y(), z + dz);
             const Eigen::Vector3d tilt_dir(std::cos(st.tilt_azimuth), std::sin(st.tilt_azimuth), 0.0);
             const Eigen::Vector3d forward = std::cos(st.tilt) * Eigen::Vector3d(0, 0, -1) + std::sin(st.tilt) * tilt_dir;
-            const Eigen::Vector3d up_hint = st.tilt > 1e-3 ? Eigen::Vector3d(tilt_dir) : Eigen::Vector3d(g.x(), g.y(), 0.0);
+            const Eigen::Vector3d up_hint =
+                st.tilt > 1e-3 ? Eigen::Vector3d(tilt_dir) : Eigen::Vector3d(heading.x(), heading.y(), 0.0);
             camera::ExteriorOrientation planned_pose = LookAt(planned, planned + forward, up_hint);
             if (k == 0 && q == 0) {
               const camera::Ray ray = s.model.ImageToRay(planned_pose, centre_px);
@@ -230,6 +252,33 @@ SurveyGenerator::SurveyGenerator(const SurveyConfig& config) : config_(config) {
             im.gnss = im.exterior.position + Eigen::Vector3d(Gauss(&rng, s.gnss_sigma.x()), Gauss(&rng, s.gnss_sigma.x()),
                                                              Gauss(&rng, s.gnss_sigma.y()));
             ct.images.push_back(im);
+          }
+          // The turn to the next strip (30 s): photos on the half circle from
+          // this strip's end to the next one's start, bulging ahead.
+          if (s.turn_images > 0 && si + 1 < s.strips.size()) {
+            const Eigen::Vector2d e = st.start + ((n - 1) * base) * g, next = s.strips[si + 1].start;
+            const Eigen::Vector2d m = 0.5 * (e + next);
+            const double r = 0.5 * (next - e).norm();
+            const Eigen::Vector2d u = r > 1e-6 ? Eigen::Vector2d((e - m) / r) : Eigen::Vector2d(-g.y(), g.x());
+            const double bank = CameraSpec::kTurnBankDeg * M_PI / 180.0;
+            for (int q = 1; q <= s.turn_images; ++q) {
+              const double a = M_PI * q / (s.turn_images + 1);
+              const Eigen::Vector2d radial = std::cos(a) * u + std::sin(a) * g;
+              const Eigen::Vector2d xy = m + r * radial, tangent = -std::sin(a) * u + std::cos(a) * g;
+              const Eigen::Vector3d planned(xy.x(), xy.y(), z);
+              const Eigen::Vector3d forward = std::cos(bank) * Eigen::Vector3d(0, 0, -1) -
+                                              std::sin(bank) * Eigen::Vector3d(radial.x(), radial.y(), 0.0);
+              ImageTruth im;
+              im.epoch = k;
+              im.stamp = t + 30.0 * q / (s.turn_images + 1);
+              im.exterior = LookAt(planned, planned + forward, Eigen::Vector3d(tangent.x(), tangent.y(), 0.0));
+              im.exterior.position += Eigen::Vector3d(Gauss(&rng, s.track_sigma), Gauss(&rng, s.track_sigma),
+                                                      Gauss(&rng, 0.5 * s.track_sigma));
+              im.gnss = im.exterior.position + Eigen::Vector3d(Gauss(&rng, s.gnss_sigma.x()),
+                                                               Gauss(&rng, s.gnss_sigma.x()),
+                                                               Gauss(&rng, s.gnss_sigma.y()));
+              ct.images.push_back(im);
+            }
           }
           t += 30.0;  // turn between strips
         }

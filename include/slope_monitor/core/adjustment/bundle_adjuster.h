@@ -97,7 +97,8 @@ struct Options {
   std::string loss = "huber";
   double loss_scale = 3.0;            // [sigma] where the loss turns robust, > 0
   double outlier_threshold = 5.0;     // [sigma] whitened residual norm above which an observation is reported as outlier
-  // "auto" (dense_schur for <= dense_schur_max_images images, else sparse_schur)
+  // "auto" (dense_schur for <= dense_schur_max_images images, else sparse_schur:
+  // measured on UAV blocks of 150 / 300 photos, doc/uav_block_scaling.md)
   // | "dense_schur" | "sparse_schur" | "iterative_schur" | "dense_qr" | "sparse_normal_cholesky".
   std::string linear_solver = "auto";
   int dense_schur_max_images = 200;
@@ -191,10 +192,18 @@ struct Summary {
   double rms_residual_px = 0.0;   // [px] of the inlier image observations
   double sigma0 = 0.0;            // [-] sqrt(2 final_cost_unrobustified / redundancy)
   std::vector<double> image_rms_px;  // [px] per image
+  // Ids of the points the solution leaves undetermined (the 3x3 normal block
+  // of the point singular at the solution: rays parallel, or all but one
+  // image weighted to nothing by the robust loss): dropped with their
+  // observations before the covariance, not written back, not counted in the
+  // statistics above; the rest of the epoch stays usable.
+  std::vector<std::string> undetermined_points;
   Precision precision;
 
   bool IsSolutionUsable() const { return usable; }
   std::string BriefReport() const;
+  // "tie/3, tie/17, ..." (the first five of undetermined_points).
+  std::string UndeterminedList() const;
 };
 
 class BundleAdjuster {

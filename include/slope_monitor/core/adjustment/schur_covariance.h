@@ -55,5 +55,17 @@ SchurCovarianceResult ComputeSchurCovariance(const SchurCovarianceOptions& optio
                                              const std::vector<double*>& point_blocks,
                                              const std::vector<int>& held, ceres::Problem* problem);
 
+// The point blocks (indices into point_blocks) that the problem does not
+// determine at their current values: the 3x3 normal block Hjj = sum J^T J
+// over the point's residual blocks (robust loss applied, as above) is not
+// positive definite or its reciprocal condition is below
+// options.min_reciprocal_condition -- exactly the blocks ComputeSchurCovariance
+// would refuse. A point observed by one image only, or whose other
+// observations the robust loss has weighted to nothing, or whose rays are
+// parallel, is such a block.
+std::vector<int> FindUndeterminedPoints(const SchurCovarianceOptions& options,
+                                        const std::vector<double*>& point_blocks,
+                                        ceres::Problem* problem);
+
 }  // namespace adjustment
 }  // namespace slope_monitor

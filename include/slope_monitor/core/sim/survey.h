@@ -60,6 +60,15 @@ struct CameraSpec {
   Eigen::Vector2d gnss_sigma{0.03, 0.05};  // [m] horizontal, vertical
   double attitude_sigma = 0.01;      // [rad] deviation of the true attitude from the plan
   double track_sigma = 0.3;          // [m] deviation of the true position from the plan
+  // A real flight (all 0 = the ideal plan): the heading off the track into a
+  // constant cross wind (its sign flips on strips flown the other way), the
+  // height wandering within +-altitude_variation of the strip's altitude
+  // (barometer, terrain follow), and photos taken in the turns between strips
+  // (on a half circle, banked kTurnBankDeg toward its centre).
+  double crab = 0.0;                 // [rad]
+  double altitude_variation = 0.0;   // [-] of the strip altitude
+  int turn_images = 0;               // per turn
+  static constexpr double kTurnBankDeg = 15.0;
 };
 
 struct RadioNetworkSpec {
@@ -118,6 +127,13 @@ struct Survey {
 // direction as close as possible to `up_hint` (site), then rolled by `roll`.
 camera::ExteriorOrientation LookAt(const Eigen::Vector3d& position, const Eigen::Vector3d& look_at,
                                    const Eigen::Vector3d& up_hint, double roll = 0.0);
+
+// Whether a camera images the point `x` (site): in front, inside the image
+// by `margin_px`, and not folded back into it by the lens distortion (the
+// radial polynomial of a far-off-axis point turns over: the ideal image
+// coordinates must lie near the image too). *pixel: where.
+bool ImagedAt(const camera::CameraModel& model, const camera::ExteriorOrientation& pose, const Eigen::Vector3d& x,
+              double margin_px, Eigen::Vector2d* pixel);
 
 // Plates fully visible in an image: every outline point (and the centre)
 // inside the image by `margin_px`, in front, the plate facing the camera, and
