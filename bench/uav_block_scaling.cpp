@@ -59,7 +59,7 @@ double Ground(double x, double y) {
 // How the bench runs (command line).
 struct Setup {
   std::string solver = "auto";  // Options::linear_solver
-  int threads = 0;              // 0: Options' default
+  int threads = 0;              // 0: the hardware threads
   std::string start =
       "imu";  // imu | plan (attitude 0, 0, strip heading) | resect (InitializeScene orients)
   bool real_flight = false;   // crab, altitude, turns (see MakeBlock)
@@ -256,7 +256,7 @@ EpochResult RunEpoch(int n, int epoch) {
   Options options;
   options.compute_datum_free_covariance = true;
   options.linear_solver = g_setup.solver;
-  if (g_setup.threads > 0) options.num_threads = g_setup.threads;
+  options.num_threads = g_setup.threads > 0 ? g_setup.threads : Options::HardwareThreads();
   Config config;
   config.FreeInteriorOfAll(1, {camera::kC, camera::kK1});
   const double cpu0 = CpuSeconds();

@@ -152,8 +152,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     o.linear_solver = p.String("linear_solver", "auto",
                                {"auto", "dense_schur", "sparse_schur", "iterative_schur"});
     o.max_iterations = p.Int("max_iterations", 100, 1, 10000);
-    // 0: adjustment::Options' default (the hardware threads), written there only.
-    if (const int threads = p.Int("num_threads", 0, 0, 64); threads > 0) o.num_threads = threads;
+    const int threads = p.Int("num_threads", 1, 0, 64);
+    o.num_threads = threads > 0 ? threads : adjustment::Options::HardwareThreads();
     o.minimizer_progress = p.Bool("minimizer_progress", false);
     o.min_control_points = p.Int("min_control_points", 3, 0, 1000);
     o.max_sigma0 = p.Double("max_sigma0", 5.0, 0.01, 1e6);

@@ -106,8 +106,11 @@ struct Options {
   double function_tolerance = 1e-8;   // [-] relative cost change (1e-10 never ended a UAV block with 10^4 tie-point residuals: it crept on by 2e-9 a step)
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-10;
-  // Ceres threads (solve, Jacobians, covariance): the hardware threads.
-  int num_threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  // Ceres threads (solve, Jacobians, covariance). 1 keeps every run's numbers
+  // bit-identical (with more, Ceres sums per-thread partial costs and
+  // gradients in scheduling order); HardwareThreads() for big blocks.
+  int num_threads = 1;
+  static int HardwareThreads() { return static_cast<int>(std::max(1u, std::thread::hardware_concurrency())); }
   bool compute_covariance = true;
   // Covariances are scaled by sigma0^2 (a posteriori) when true, else a priori.
   bool scale_covariance_by_sigma0 = true;
