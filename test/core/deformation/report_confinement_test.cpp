@@ -104,8 +104,8 @@ TEST_F(ReportConfinementTest, LongPointIdDoesNotBreakReports) {
   const std::string long_id(250, 'L');
   Fill(&e, {"rock", long_id});
   const auto files = WriteReports(e, root_, "", {}, ReportOptions());
-  // csv, geojson, tif, map, one series per point.
-  ASSERT_EQ(files.size(), 6u);
+  // csv, geojson, tif, gpkg, map, one series per point.
+  ASSERT_EQ(files.size(), 7u);
   for (const std::string& f : files) {
     EXPECT_TRUE(fs::exists(f)) << f;
     EXPECT_LE(fs::path(f).filename().string().size(), 100u) << f;
