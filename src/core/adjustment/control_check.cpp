@@ -132,7 +132,8 @@ Fit RobustFit(const std::vector<ControlPointPair>& points, const std::vector<int
     double* jacobians[3] = {j_update.data(), j_translation.data(), j_scale.data()};
     costs[k]->Evaluate(parameters, l[k].data(), jacobians);
     j[k].resize(3, p);
-    j[k] << j_update, j_translation;
+    j[k].leftCols<3>() = j_update;
+    j[k].middleCols<3>(3) = j_translation;
     if (options.estimate_scale) j[k].col(6) = j_scale;
     weight[k] = 1.0 / (1.0 + l[k].squaredNorm() / (options.loss_scale * options.loss_scale));
     normal += weight[k] * j[k].transpose() * j[k];

@@ -120,6 +120,19 @@ TEST(ControlBlunder, Planted5cmBlunderIsNamedAndNoNeighbour) {
   EXPECT_GE(tried, 11);
 }
 
+TEST(ControlBlunder, RigidFitNamesTheBlunderToo) {
+  const sim::SurveyTruth truth = SimulatedSite();
+  geometry::Similarity3 block = Block();
+  block.scale = 1.0;
+  ControlCheckOptions rigid;
+  rigid.estimate_scale = false;
+  const ControlCheckSummary s = CheckControlPoints(Pairs(truth, "tag36h11/5", block), rigid);
+  ASSERT_TRUE(s.success) << s.message;
+  ASSERT_EQ(s.blunders.size(), 1u) << s.message;
+  EXPECT_EQ(s.blunders[0], "tag36h11/5");
+  EXPECT_DOUBLE_EQ(s.surveyed_from_measured.scale, 1.0);
+}
+
 TEST(ControlBlunder, OneKilometreBlunderIsNamed) {
   const sim::SurveyTruth truth = SimulatedSite();
   std::vector<ControlPointPair> pairs = Pairs(truth, "", Block());
