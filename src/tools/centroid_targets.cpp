@@ -118,6 +118,9 @@ int main(int argc, char** argv) {
     const std::string a = argv[i];
     if (a == "--explain") {
       explain = true;
+    } else if (a == "-h" || a == "--help") {
+      Usage();
+      return 0;
     } else if ((a == "--images" || a == "--bag" || a == "--topic" || a == "--out" ||
                 a == "--targets" || a == "--config") &&
                i + 1 < argc) {
@@ -225,9 +228,6 @@ int main(int argc, char** argv) {
               << " circles, " << rejected << " rejected, " << discarded
               << " circle candidates discarded, " << failed << " skipped -> "
               << (args.count("--out") ? args["--out"] : std::string("stdout")) << "\n";
-  } catch (const std::exception& e) {
-    std::cerr << "centroid_targets: " << e.what() << "\n";
-    return 1;
   } catch (const std::filesystem::filesystem_error& e) {
     std::cerr << "centroid_targets: cannot read '" << e.path1().string() << "': " << e.code().message() << "\n";
     return 1;

@@ -19,6 +19,9 @@ int main(int argc, char** argv) {
       database = argv[++i];
     } else if (a == "--truth" && i + 1 < argc) {
       truth_path = argv[++i];
+    } else if (a == "-h" || a == "--help") {
+      std::cout << "usage: deformation_summary --database FILE.db --truth FILE.truth.yaml\n";
+      return 0;
     } else {
       std::cerr << "usage: deformation_summary --database FILE.db --truth FILE.truth.yaml\n";
       return 2;

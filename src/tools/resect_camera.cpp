@@ -181,6 +181,10 @@ void WritePose(const std::string& path, const adjustment::ResectCameraSummary& s
 int main(int argc, char** argv) {
   try {
     if (argc < 2) return Usage();
+    if (std::string(argv[1]) == "-h" || std::string(argv[1]) == "--help") {
+      Usage();
+      return 0;
+    }
     const auto a = ParseArgs(argc, argv);
     if (!a.count("--image") || !a.count("--gcp") || !a.count("--out")) return Usage();
     if (a.count("--site"))

@@ -12,12 +12,13 @@
 
 int main(int argc, char** argv) {
   using namespace slope_monitor;
-  if (argc < 2) {
+  const bool help = argc >= 2 && (std::string(argv[1]) == "-h" || std::string(argv[1]) == "--help");
+  if (argc < 2 || help) {
     std::fprintf(stderr,
                  "usage: %s <problem.txt> [--solver auto|dense_schur|sparse_schur|iterative_schur] [--autodiff]\n"
                  "          [--iterations N] [--threads N] [--loss none|huber|cauchy] [--progress]\n",
                  argv[0]);
-    return 2;
+    return help ? 0 : 2;
   }
   adjustment::Options options;
   options.loss = "none";

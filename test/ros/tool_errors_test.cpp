@@ -1,11 +1,10 @@
 // Tools fail cleanly on bad input (issue 22): exit status 1 (no abort, no
 // silent acceptance) and a message naming the input. The tools are run as
-// the user runs them (rosrun).
+// the user runs them, from the folder rosrun finds them in.
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <array>
-#include <climits>
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -13,6 +12,9 @@
 #include <gtest/gtest.h>
 
 namespace {
+
+// The tools as rosrun finds them (tests are built elsewhere: CMakeLists.txt).
+std::string BinDir() { return SM_TOOL_DIR; }
 
 struct ToolRun {
   int status = -1;  // exit status; 128 + signal when killed
@@ -22,8 +24,7 @@ struct ToolRun {
 // Runs `tool args` with stderr folded into the output.
 ToolRun Tool(const std::string& tool, const std::string& args) {
   ToolRun r;
-  // rosrun: the tools are in the devel space (the test binary is not).
-  const std::string cmd = "rosrun slope_monitor " + tool + " " + args + " 2>&1";
+  const std::string cmd = BinDir() + "/" + tool + " " + args + " 2>&1";
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
   std::array<char, 4096> buf;
