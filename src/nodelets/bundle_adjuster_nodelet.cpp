@@ -51,6 +51,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh); })) {
       NODELET_ERROR("bundle_adjuster: %s; not advertising anything", error->c_str());
+      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(nh, pnh, "bundle_adjuster",
+                                                                               "parameters rejected: " + *error);
       return;
     }
     solution_pub_ = nh.advertise<slope_monitor::AdjustmentSolution>("solution", 5, true);
@@ -69,9 +71,13 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     prior_sub_ = nh.subscribe("position_prior", 500, &BundleAdjusterNodelet::OnPositionPrior, this);
     for (const std::string& topic : epoch_topics_)
       epoch_subs_.push_back(nh.subscribe(topic, 20, &BundleAdjusterNodelet::OnEpoch, this));
-    run_srv_ = nh.advertiseService("run_adjustment", &BundleAdjusterNodelet::OnRun, this);
-    reference_srv_ =
-        nh.advertiseService("set_reference_epoch", &BundleAdjusterNodelet::OnSetReference, this);
+    // A live installation may switch off the services that change state (ROS 1
+    // has no authentication; doc/security.md).
+    if (enable_run_adjustment_)
+      run_srv_ = nh.advertiseService("run_adjustment", &BundleAdjusterNodelet::OnRun, this);
+    if (enable_set_reference_epoch_)
+      reference_srv_ =
+          nh.advertiseService("set_reference_epoch", &BundleAdjusterNodelet::OnSetReference, this);
     // The collector's time-outs are for live sensors only (a complete epoch is
     // decided by the messages); wall time, so that they also end on a replay
     // whose clock stopped with the bag.
@@ -118,6 +124,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     c.tie_pixel_sigma_floor = p.Double("tie_pixel_sigma_floor", 0.2, 0.0, 100.0, "px");
     c.min_tie_quality = p.Double("min_tie_quality", 0.25, 0.0, 1.0);
     frame_id_ = p.String("frame_id", "site");
+    enable_run_adjustment_ = p.Bool("enable_run_adjustment", true);
+    enable_set_reference_epoch_ = p.Bool("enable_set_reference_epoch", true);
     pixel_size_ = p.Double("pixel_size", 1.0, 1e-6, 1.0, "mm/px");
     c.pixel_sigma = p.Double("pixel_sigma", 0.3, 1e-4, 100.0, "px");
     c.pixel_sigma_floor = p.Double("pixel_sigma_floor", 0.05, 0.0, 100.0, "px");
@@ -415,6 +423,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   io::TargetList targets_;
   std::vector<std::string> target_topics_, epoch_topics_;
   std::string frame_id_;
+  bool enable_run_adjustment_ = true, enable_set_reference_epoch_ = true;
   double pixel_size_ = 1.0;
   std::map<std::string, double> pixel_size_by_camera_;  // [mm/px] from the site file
   adjustment::EpochCollectorOptions collector_options_;
@@ -445,6 +454,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   tf2_ros::StaticTransformBroadcaster static_broadcaster_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
+  std::unique_ptr<ros_adapters::SetUpFailureDiagnostics> setup_failure_;  // onInit failed: ERROR diagnostics
 };
 
 }  // namespace slope_monitor

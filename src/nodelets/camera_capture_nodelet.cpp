@@ -44,6 +44,8 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh); })) {
       NODELET_ERROR("camera_capture: %s; not advertising", error->c_str());
+      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(nh, pnh, "camera_capture",
+                                                                               "parameters rejected: " + *error);
       return;
     }
     camera_info_manager_ = std::make_unique<camera_info_manager::CameraInfoManager>(nh, camera_name_);
@@ -52,6 +54,8 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
           !camera_info_manager_->loadCameraInfo(camera_info_url_) || !camera_info_manager_->isCalibrated()) {
         NODELET_ERROR("camera_capture: parameter '%s' = '%s' cannot be loaded as a calibration; not advertising",
                       pnh.resolveName("camera_info_url").c_str(), camera_info_url_.c_str());
+        setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(
+            nh, pnh, "camera_capture", "camera_info_url '" + camera_info_url_ + "' is not a calibration");
         return;
       }
       publisher_options_.has_camera_info = true;
@@ -87,6 +91,7 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
       publisher_ = std::make_unique<ros_adapters::FramePublisher>(publisher_options_, out);
     } catch (const Error& e) {
       NODELET_ERROR("camera_capture: %s; not advertising", e.what());
+      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(nh, pnh, "camera_capture", e.what());
       return;
     }
 
@@ -374,6 +379,7 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
   uint64_t skipped_ = 0;
   std::atomic<uint64_t> published_{0};
   std::string status_, last_warning_;
+  std::unique_ptr<ros_adapters::SetUpFailureDiagnostics> setup_failure_;  // onInit failed: ERROR diagnostics
 };
 
 }  // namespace slope_monitor

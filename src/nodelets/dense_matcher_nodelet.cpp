@@ -51,6 +51,8 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh); })) {
       NODELET_ERROR("dense_matcher: %s; not advertising", error->c_str());
+      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(nh, pnh, "dense_matcher",
+                                                                               "parameters rejected: " + *error);
       return;
     }
     tf_buffer_ = std::make_unique<tf2_ros::Buffer>(ros::Duration(3600.0));
@@ -288,6 +290,7 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
   int pairs_ = 0;
   int failed_pairs_ = 0;
   std::string last_summary_, last_change_, last_error_;
+  std::unique_ptr<ros_adapters::SetUpFailureDiagnostics> setup_failure_;  // onInit failed: ERROR diagnostics
 };
 
 }  // namespace slope_monitor

@@ -66,6 +66,8 @@ class HexMatcherNodelet : public nodelet::Nodelet {
           matcher_ = std::make_unique<matching::HexMatcher>(options_);
         })) {
       NODELET_ERROR("hex_matcher: %s; not advertising", error->c_str());
+      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(nh, pnh, "hex_matcher",
+                                                                               "parameters rejected: " + *error);
       return;
     }
     pub_ = nh.advertise<slope_monitor::TiePointArray>("tie_points", 5);
@@ -540,6 +542,7 @@ class HexMatcherNodelet : public nodelet::Nodelet {
   int sequence_images_ = 0, unpaired_ = 0, bad_priors_ = 0;
   std::map<std::string, int> failed_pairs_;
   matching::GlobalShiftResult last_shift_;
+  std::unique_ptr<ros_adapters::SetUpFailureDiagnostics> setup_failure_;  // onInit failed: ERROR diagnostics
 };
 
 }  // namespace slope_monitor

@@ -44,6 +44,8 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
           if (ReadParameters(pnh)) solver_ = std::make_unique<radio::RadioPhaseSolver>(network_, options_);
         })) {
       NODELET_ERROR("radio_phase_solver: %s; not advertising", error->c_str());
+      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(nh, pnh, "radio_phase_solver",
+                                                                               "parameters rejected: " + *error);
       return;
     }
     if (!solver_) {  // radio is optional: a site without a radio network
@@ -272,6 +274,7 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
   long blocks_received_ = 0, errors_ = 0;
   unsigned int epochs_ = 0;
   std::string last_error_, last_event_;
+  std::unique_ptr<ros_adapters::SetUpFailureDiagnostics> setup_failure_;  // onInit failed: ERROR diagnostics
 };
 
 }  // namespace slope_monitor

@@ -14,5 +14,19 @@ std::optional<std::string> SetUpError(const std::function<void()>& set_up) {
   return std::nullopt;
 }
 
+SetUpFailureDiagnostics::SetUpFailureDiagnostics(const ros::NodeHandle& nh,
+                                                 const ros::NodeHandle& pnh,
+                                                 const std::string& name, const std::string& cause)
+    : cause_(cause), updater_(nh, pnh) {
+  updater_.setHardwareID(name);
+  updater_.add(name, [this](diagnostic_updater::DiagnosticStatusWrapper& stat) {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "not running: " + cause_);
+  });
+  ros::NodeHandle timer_nh(nh);
+  timer_ = timer_nh.createWallTimer(
+      ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_.force_update(); });
+  updater_.force_update();
+}
+
 }  // namespace ros_adapters
 }  // namespace slope_monitor

@@ -9,6 +9,7 @@
 //         solver_ = std::make_unique<Solver>(options_);
 //       })) {
 //     NODELET_ERROR("my_node: %s; not advertising", error->c_str());
+//     setup_failure_ = std::make_unique<SetUpFailureDiagnostics>(nh, pnh, "my_node", *error);
 //     return;
 //   }
 //
@@ -19,12 +20,33 @@
 #include <optional>
 #include <string>
 
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <ros/ros.h>
+
 namespace slope_monitor {
 namespace ros_adapters {
 
 // Runs `set_up`; returns nothing when it succeeded, else the message of the
 // slope_monitor::Error it threw.
 std::optional<std::string> SetUpError(const std::function<void()>& set_up);
+
+// A nodelet that cannot do its job says so until it is restarted with the
+// cause fixed: ERROR "not running: <cause>" under `name` on /diagnostics
+// every second (wall time, so also under a stopped sim clock). Held by the
+// nodelet from its failed onInit:
+//
+//   setup_failure_ = std::make_unique<SetUpFailureDiagnostics>(nh, pnh, "my_node",
+//                                                              "parameters rejected: " + *error);
+class SetUpFailureDiagnostics {
+ public:
+  SetUpFailureDiagnostics(const ros::NodeHandle& nh, const ros::NodeHandle& pnh,
+                          const std::string& name, const std::string& cause);
+
+ private:
+  std::string cause_;
+  diagnostic_updater::Updater updater_;
+  ros::WallTimer timer_;
+};
 
 }  // namespace ros_adapters
 }  // namespace slope_monitor

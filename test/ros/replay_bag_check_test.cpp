@@ -1,0 +1,67 @@
+// replay.launch on a bag that rosbag play cannot play (issue 22): roslaunch
+// stops at load time, before the master or any node starts, with status 1
+// and bag_check's message naming the bag. Before, the required player died,
+// roslaunch shut the graph down and ended with status 0.
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+#include <gtest/gtest.h>
+
+namespace {
+
+struct LaunchRun {
+  int status = -1;  // exit status; 128 + signal when killed
+  std::string output;
+};
+
+// roslaunch replay.launch bag:=<bag>, stderr folded into the output; a
+// launch that gets past the check is ended by `timeout` (status 124).
+LaunchRun Replay(const std::string& bag) {
+  LaunchRun r;
+  const std::string cmd = "timeout -s INT 60 roslaunch --skip-log-check " +
+                          std::string(SM_SOURCE_DIR) + "/launch/replay.launch bag:=" + bag +
+                          " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
+  const int w = pclose(p);
+  r.status = WIFEXITED(w) ? WEXITSTATUS(w) : 128 + WTERMSIG(w);
+  return r;
+}
+
+const std::string kTmp = "/tmp/sm_replay_bag_check_" + std::to_string(getpid());
+
+TEST(ReplayBagCheck, MissingBagEndsTheLaunchWithStatus1NamingIt) {
+  const std::string bag = kTmp + "_missing.bag";
+  const LaunchRun r = Replay(bag);
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("bag_check: " + bag + ": no such file"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("started roslaunch server"), std::string::npos) << r.output;
+}
+
+TEST(ReplayBagCheck, TruncatedBagEndsTheLaunchWithStatus1NamingIt) {
+  // The first 300 kB of a real 868 kB bag: no index, the last chunk cut.
+  std::ifstream in(std::string(SM_TEST_DATA_DIR) + "/rosbag_turtlesim/example.bag",
+                   std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_GT(bytes.size(), 300000u);
+  const std::string bag = kTmp + "_truncated.bag";
+  std::ofstream(bag, std::ios::binary) << bytes.substr(0, 300000);
+  const LaunchRun r = Replay(bag);
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("bag_check: " + bag + ": not a readable bag, or truncated"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("started roslaunch server"), std::string::npos) << r.output;
+  std::remove(bag.c_str());
+}
+
+}  // namespace

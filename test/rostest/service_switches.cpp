@@ -1,0 +1,42 @@
+// Test node of service_switches.test: with enable_run_adjustment,
+// enable_set_reference_epoch and enable_export_report false the services are
+// not advertised; with the defaults they are (issue 22).
+#include <string>
+
+#include <ros/master.h>
+#include <ros/service.h>
+
+#include "test_node.h"
+
+namespace slope_monitor {
+namespace {
+
+TEST(ServiceSwitches, DefaultsAdvertiseSwitchedOffDoNot) {
+  // The switched-on services show that the nodes are up.
+  for (const std::string& s : {"/adjuster_on/run_adjustment", "/adjuster_on/set_reference_epoch",
+                               "/estimator_on/export_report", "/estimator_on/set_reference_epoch"})
+    ASSERT_TRUE(ros::service::waitForService(s, ros::Duration(30.0))) << s << " not advertised";
+  // Both "off" nodes started alongside; their other outputs show that they are up.
+  ASSERT_TRUE(rostest_node::WaitFor(
+      [] {
+        ros::master::V_TopicInfo topics;
+        ros::master::getTopics(topics);
+        int up = 0;
+        for (const auto& t : topics)
+          up += t.name == "/adjuster_off/solution" || t.name == "/estimator_off/deformation";
+        return up == 2;
+      },
+      30.0))
+      << "the switched-off nodes did not come up";
+  for (const std::string& s :
+       {"/adjuster_off/run_adjustment", "/adjuster_off/set_reference_epoch",
+        "/estimator_off/export_report", "/estimator_off/set_reference_epoch"})
+    EXPECT_FALSE(ros::service::exists(s, false)) << s << " is advertised although switched off";
+}
+
+}  // namespace
+}  // namespace slope_monitor
+
+int main(int argc, char** argv) {
+  return slope_monitor::rostest_node::RunTests(argc, argv, "service_switches_test");
+}
