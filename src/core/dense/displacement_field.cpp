@@ -143,7 +143,7 @@ void Project(const io::GeoRaster& dem, const FieldInput& in, const DisplacementF
     pose.angles.theta = angles(0);
     pose.angles.phi = angles(1);
     pose.angles.kappa = angles(2);
-    return PixelOnDem(dem, in.model, pose, xb, dh, max_range, x);
+    return PixelOnDem(in.current_dem ? *in.current_dem : dem, in.model, pose, xb, dh, max_range, x);
   };
   const Eigen::Vector3d angles(in.current.angles.theta, in.current.angles.phi,
                                in.current.angles.kappa);
@@ -210,6 +210,25 @@ void Project(const io::GeoRaster& dem, const FieldInput& in, const DisplacementF
   if (p->incidence_deg < o.min_incidence_deg) p->flag = "grazing";
 }
 
+// The LSC covariance scaled to what the stable ground shows: the median of
+// r^T C^-1 r (r = xb - predicted, C the LSC covariance) over the usable probes
+// on stable ground, over the median of chi^2 with 2 degrees of freedom
+// (2 ln 2); at least 1, and 1 with fewer than min_stable_probes of them.
+double StableVarianceFactor(const std::vector<FieldPoint>& points, const std::vector<Eigen::Vector2d>& predicted,
+                            const FieldInput& in, const DisplacementFieldOptions& o) {
+  if (!in.stable) return 1.0;
+  std::vector<double> q;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const FieldPoint& p = points[i];
+    if (!p.IsUsable() || !in.stable(p.xa) || p.covariance_px.determinant() <= 0) continue;
+    const Eigen::Vector2d r = p.xb - predicted[i];
+    q.push_back(r.dot(p.covariance_px.inverse() * r));
+  }
+  if (static_cast<int>(q.size()) < o.min_stable_probes) return 1.0;
+  std::nth_element(q.begin(), q.begin() + q.size() / 2, q.end());
+  return std::max(1.0, q[q.size() / 2] / (2.0 * std::log(2.0)));
+}
+
 }  // namespace
 
 void DisplacementFieldOptions::Check() const {
@@ -236,6 +255,8 @@ void DisplacementFieldOptions::Check() const {
   if (!(min_los_angle_deg >= 0 && min_los_angle_deg < 90))
     throw InvalidArgument(Message("displacement field: min_los_angle_deg must be in [0, 90), got ",
                                   min_los_angle_deg));
+  if (min_stable_probes < 1)
+    throw InvalidArgument(Message("displacement field: min_stable_probes must be >= 1, got ", min_stable_probes));
   if (!(max_range > 0))
     throw InvalidArgument(Message("displacement field: max_range must be > 0, got ", max_range));
 }
@@ -253,6 +274,10 @@ DisplacementField ComputeDisplacementField(const cv::Mat& reference_image, const
   in.model.Check();
   dem.Check(in.dem_name);
   if (dem.num_bands() < 1) throw InvalidArgument(Message(in.dem_name, ": no height band"));
+  if (in.current_dem) {
+    in.current_dem->Check(in.dem_name + " (new epoch)");
+    if (in.current_dem->num_bands() < 1) throw InvalidArgument(Message(in.dem_name, " (new epoch): no height band"));
+  }
   const camera::Sensor& s = in.model.sensor();
   for (const auto& [image, name] : {std::make_pair(&reference_image, "reference image"),
                                     std::make_pair(&new_image, "new image")})
@@ -275,32 +300,38 @@ DisplacementField ComputeDisplacementField(const cv::Mat& reference_image, const
   lsc.max_shift = o.search_radius + 2.0;
 
   DisplacementField field;
+  std::vector<Eigen::Vector2d> predicted;  // where stable ground is in the new photo
   for (const Eigen::Vector2d& xa : Probes(dem, in, o)) {
     Eigen::Vector3d x_ref;
     if (!PixelOnDem(dem, in.model, in.reference, xa, 0.0, o.max_range, &x_ref)) continue;
     FieldPoint p;
     p.xa = xa;
     p.x_ref = x_ref;
-    ++field.summary.probes;
-    Eigen::Vector2d predicted;  // where the stable ground is in the new photo
-    if (!in.model.Project(in.current, x_ref, &predicted) || predicted.x() < 0 ||
-        predicted.y() < 0 || predicted.x() > s.width - 1 || predicted.y() > s.height - 1) {
+    Eigen::Vector2d x;
+    if (!in.model.Project(in.current, x_ref, &x) || x.x() < 0 || x.y() < 0 || x.x() > s.width - 1 ||
+        x.y() > s.height - 1) {
       p.flag = "off_image";
     } else {
-      const matching::LscSummary m = matching::MatchLsc(a, b, xa, predicted, lsc);
+      const matching::LscSummary m = matching::MatchLsc(a, b, xa, x, lsc);
       p.xb = m.xb;
       p.covariance_px = m.covariance;
       p.correlation = m.correlation;
-      if (!m.IsSolutionUsable())
-        p.flag = std::string("lsc_") + matching::LscStatusName(m.status);
-      else
-        Project(dem, in, o, x_ref, &p);
+      if (!m.IsSolutionUsable()) p.flag = std::string("lsc_") + matching::LscStatusName(m.status);
+    }
+    field.points.push_back(p);
+    predicted.push_back(x);
+  }
+  field.summary.probes = static_cast<int>(field.points.size());
+  field.summary.lsc_variance_factor = StableVarianceFactor(field.points, predicted, in, o);
+  for (FieldPoint& p : field.points) {
+    if (p.IsUsable()) {
+      p.covariance_px *= field.summary.lsc_variance_factor;
+      Project(dem, in, o, p.x_ref, &p);
     }
     if (p.IsUsable())
       ++field.summary.usable;
     else
       ++field.summary.flags[p.flag];
-    field.points.push_back(p);
   }
   if (field.summary.probes == 0)
     throw InvalidArgument(

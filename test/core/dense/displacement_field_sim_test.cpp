@@ -50,8 +50,8 @@ sim::SceneSpec Site() {
   return s;
 }
 
-// 960 x 540 px, 10 um pixels, c = 35 mm (3500 px): ~5 cm per pixel at 175 m.
-camera::CameraModel Camera() { return sim::testing::SmallCamera(960, 540, 35.0, 0.03, -0.02, -2.0e-5); }
+// 1280 x 720 px, 10 um pixels, c = 50 mm (5000 px): ~3 cm per pixel at 155 m.
+camera::CameraModel Camera() { return sim::testing::SmallCamera(1280, 720, 50.0, 0.03, -0.02, -1.0e-5); }
 
 // The DEM a crew has: the scene's reference mesh, one cell per vertex.
 io::GeoRaster DemOf(const sim::HeightGrid& g) {
@@ -68,7 +68,7 @@ TEST(DisplacementFieldSim, GridAgainstTruthWithMastRotation) {
   const camera::CameraModel model = Camera();
   const Eigen::Vector3d look(20, 15, scene.AnalyticHeight(20, 15));
   const camera::ExteriorOrientation ref =
-      sim::LookAt(Eigen::Vector3d(20, -145, look.z() + 80), look, Eigen::Vector3d::UnitZ());
+      sim::LookAt(Eigen::Vector3d(20, -120, look.z() + 70), look, Eigen::Vector3d::UnitZ());
   // The mast turns by a random 0.02-0.2 deg between the epochs (fixed seed).
   std::mt19937 rng(19);
   std::uniform_real_distribution<double> uni(-1.0, 1.0);
@@ -128,11 +128,15 @@ TEST(DisplacementFieldSim, GridAgainstTruthWithMastRotation) {
   in.current = ro.exterior;
   in.attitude_covariance = ro.covariance;
   in.dt = kDt;
+  in.stable = stable;
   const io::GeoRaster dem = DemOf(scene.reference_grid());
+  const io::GeoRaster dem1 = DemOf(s1.grid);  // the surface of the new epoch (dense matching)
+  in.current_dem = &dem1;
   DisplacementFieldOptions o;
-  o.spacing_px = 24.0;
+  o.spacing_px = 32.0;
   const DisplacementField f = ComputeDisplacementField(img0, img1, dem, in, o);
-  std::printf("field: %d probes, %d usable, %.2f s;", f.summary.probes, f.summary.usable, f.summary.seconds);
+  std::printf("field: %d probes, %d usable, %.2f s, LSC variance factor %.2f;", f.summary.probes, f.summary.usable,
+              f.summary.seconds, f.summary.lsc_variance_factor);
   for (const auto& kv : f.summary.flags) std::printf(" %s %d", kv.first.c_str(), kv.second);
   std::printf("\n");
 
@@ -153,6 +157,14 @@ TEST(DisplacementFieldSim, GridAgainstTruthWithMastRotation) {
     max_true = std::max(max_true, truth.norm());
     const Eigen::Vector3d e = p.displacement - truth;
     const Eigen::Vector3d s = p.Sigma();
+    if (getenv("SM_DEBUG")) {
+      Eigen::Vector2d xb_true;
+      model.Project(now, x + truth, &xb_true);
+      Eigen::Vector3d xr = p.x_ref;
+      std::printf("DBG %7.1f %7.1f px_err %7.3f %7.3f sig_px %.3f e %7.4f %7.4f %7.4f s %.4f %.4f %.4f xref_err %.4f w %.2f\n",
+                  p.xa.x(), p.xa.y(), (p.xb - xb_true).x(), (p.xb - xb_true).y(), std::sqrt(p.covariance_px.trace()),
+                  e.x(), e.y(), e.z(), s.x(), s.y(), s.z(), (xr - x).norm(), slide.Weight(x.head<2>()));
+    }
     ++n;
     sum2 += e.head<2>().squaredNorm();
     for (int k = 0; k < 2; ++k) {
@@ -181,12 +193,12 @@ TEST(DisplacementFieldSim, BadInputIsNamed) {
   const camera::CameraModel model = Camera();
   FieldInput in;
   in.model = model;
-  in.reference = sim::LookAt(Eigen::Vector3d(20, -145, 90), Eigen::Vector3d(20, 15, 3), Eigen::Vector3d::UnitZ());
+  in.reference = sim::LookAt(Eigen::Vector3d(20, -120, 75), Eigen::Vector3d(20, 15, 3), Eigen::Vector3d::UnitZ());
   in.current = in.reference;
   in.dem_name = "far.tif";
   io::GeoRaster far(40, 30, 1000.0, 2000.0, 1.0);  // a km away from what the camera sees
   far.AddBand("height", 0.0f);
-  const cv::Mat img(540, 960, CV_8UC1, cv::Scalar(100));
+  const cv::Mat img(720, 1280, CV_8UC1, cv::Scalar(100));
   try {
     ComputeDisplacementField(img, img, far, in, DisplacementFieldOptions());
     FAIL() << "a DEM outside the view was accepted";
@@ -198,7 +210,7 @@ TEST(DisplacementFieldSim, BadInputIsNamed) {
     ComputeDisplacementField(img, small, far, in, DisplacementFieldOptions());
     FAIL() << "an image of the wrong size was accepted";
   } catch (const InvalidArgument& e) {
-    EXPECT_NE(std::string(e.what()).find("new image is 640x480x1, the camera 960x540x1"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("new image is 640x480x1, the camera 1280x720x1"), std::string::npos)
         << e.what();
   }
 }

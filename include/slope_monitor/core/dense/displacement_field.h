@@ -9,9 +9,17 @@
 // attitude, see adjustment::ReorientCamera):
 //   x_ref = first intersection of the ray of xa (reference pose) with the DEM
 //   x_new = first intersection of the ray of xb (current pose) with the DEM
+//           (FieldInput::current_dem when given: the surface of that epoch)
 //   d = x_new - x_ref [m, site],  v = d / dt [m/s]
 // The DEM is the surface of the reference epoch; the moved point is taken on
 // it (a body that slides along its surface stays on it).
+//
+// LSC's covariance is that of white noise in a perfect image; resampling,
+// interpolation and texture that changes with the view make the real scatter
+// larger (measured on the simulator: 3.8 x in sigma). With FieldInput::stable
+// the probes on stable ground, whose true displacement is zero, give the
+// factor: median of r^T C^-1 r over 2 ln 2 (the median of chi^2(2)), applied
+// to every probe's LSC covariance when > 1 (Summary::lsc_variance_factor).
 //
 // Covariance of d (numeric Jacobians, central differences):
 //   J_xb Cov_LSC J_xb^T  +  J_att Cov_att J_att^T  +  J_h sigma_h^2 J_h^T
@@ -59,6 +67,9 @@ struct DisplacementFieldOptions {
   double min_incidence_deg =
       8.0;  // [deg] grazing below this angle between ray and surface, [0, 90)
   double min_los_angle_deg = 30.0;  // [deg] "line_of_sight" within this of the ray, [0, 90)
+  // Probes on stable ground (FieldInput::stable) needed to scale the LSC
+  // covariance to their scatter, >= 1 (fewer: the LSC covariance as it is).
+  int min_stable_probes = 20;
   double max_range = 20000.0;       // [m] rays are followed this far, > 0
   void Check() const;               // throws InvalidArgument naming the field
 };
@@ -83,6 +94,9 @@ struct FieldPoint {
 struct DisplacementFieldSummary {
   int probes = 0;                    // grid points seen on the DEM inside the monitored area
   int usable = 0;                    // without a flag
+  // Factor applied to every LSC covariance (>= 1): the scatter of the probes
+  // on stable ground against the LSC covariance (see the file comment).
+  double lsc_variance_factor = 1.0;
   std::map<std::string, int> flags;  // flag -> count
   double seconds = 0.0;
   bool IsSolutionUsable() const { return usable > 0; }
@@ -100,9 +114,17 @@ struct FieldInput {
   Eigen::Matrix3d attitude_covariance =
       Eigen::Matrix3d::Zero();  // [rad^2] theta phi kappa of current
   double dt = 0.0;              // [s] new photo's time - reference's, >= 0
+  // Stable ground in the reference photo (optional): its probes do not move,
+  // their scatter scales the LSC covariance.
+  std::function<bool(const Eigen::Vector2d&)> stable;
   // The monitored area in the reference photo (optional; default: everywhere).
   std::function<bool(const Eigen::Vector2d&)> monitored;
   std::string dem_name = "DEM";  // for messages (e.g. the file name)
+  // The surface of the new photo's epoch (optional, e.g. the dense matcher's
+  // DEM of that epoch): x_new is intersected with it; without it, with the
+  // reference DEM (a body that does not slide along its own surface then
+  // errs along the ray by its height change / tan(incidence)).
+  const io::GeoRaster* current_dem = nullptr;
 };
 
 // First intersection of a ray with the DEM's first band (bilinear surface),
