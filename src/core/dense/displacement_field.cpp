@@ -214,8 +214,9 @@ void Project(const io::GeoRaster& dem, const FieldInput& in, const DisplacementF
 // r^T C^-1 r (r = xb - predicted, C the LSC covariance) over the usable probes
 // on stable ground, over the median of chi^2 with 2 degrees of freedom
 // (2 ln 2); at least 1, and 1 with fewer than min_stable_probes of them.
-double StableVarianceFactor(const std::vector<FieldPoint>& points, const std::vector<Eigen::Vector2d>& predicted,
-                            const FieldInput& in, const DisplacementFieldOptions& o) {
+double StableVarianceFactor(const std::vector<FieldPoint>& points,
+                            const std::vector<Eigen::Vector2d>& predicted, const FieldInput& in,
+                            const DisplacementFieldOptions& o) {
   if (!in.stable) return 1.0;
   std::vector<double> q;
   for (size_t i = 0; i < points.size(); ++i) {
@@ -256,7 +257,8 @@ void DisplacementFieldOptions::Check() const {
     throw InvalidArgument(Message("displacement field: min_los_angle_deg must be in [0, 90), got ",
                                   min_los_angle_deg));
   if (min_stable_probes < 1)
-    throw InvalidArgument(Message("displacement field: min_stable_probes must be >= 1, got ", min_stable_probes));
+    throw InvalidArgument(
+        Message("displacement field: min_stable_probes must be >= 1, got ", min_stable_probes));
   if (!(max_range > 0))
     throw InvalidArgument(Message("displacement field: max_range must be > 0, got ", max_range));
 }
@@ -276,7 +278,8 @@ DisplacementField ComputeDisplacementField(const cv::Mat& reference_image, const
   if (dem.num_bands() < 1) throw InvalidArgument(Message(in.dem_name, ": no height band"));
   if (in.current_dem) {
     in.current_dem->Check(in.dem_name + " (new epoch)");
-    if (in.current_dem->num_bands() < 1) throw InvalidArgument(Message(in.dem_name, " (new epoch): no height band"));
+    if (in.current_dem->num_bands() < 1)
+      throw InvalidArgument(Message(in.dem_name, " (new epoch): no height band"));
   }
   const camera::Sensor& s = in.model.sensor();
   for (const auto& [image, name] : {std::make_pair(&reference_image, "reference image"),

@@ -62,7 +62,7 @@ struct DisplacementFieldOptions {
   int border_px = 20;            // [px] probes keep this far from the image edge, >= 0
   int search_radius = 12;        // [px] integer NCC search around the prediction, [0, 50]
   double prefilter_sigma = 1.0;  // [px] Gaussian low-pass before LSC, [0, 5]; 0 = none
-  int half_window = 7;           // [px] LSC window (2 h + 1)^2, [2, 50]
+  int half_window = 10;          // [px] LSC window (2 h + 1)^2, [2, 50]
   double dem_sigma = 0.1;        // [m] height std of the DEM when it has no "sigma" band, >= 0
   double min_incidence_deg =
       8.0;  // [deg] grazing below this angle between ray and surface, [0, 90)
@@ -70,8 +70,8 @@ struct DisplacementFieldOptions {
   // Probes on stable ground (FieldInput::stable) needed to scale the LSC
   // covariance to their scatter, >= 1 (fewer: the LSC covariance as it is).
   int min_stable_probes = 20;
-  double max_range = 20000.0;       // [m] rays are followed this far, > 0
-  void Check() const;               // throws InvalidArgument naming the field
+  double max_range = 20000.0;  // [m] rays are followed this far, > 0
+  void Check() const;          // throws InvalidArgument naming the field
 };
 
 struct FieldPoint {
@@ -92,8 +92,8 @@ struct FieldPoint {
 };
 
 struct DisplacementFieldSummary {
-  int probes = 0;                    // grid points seen on the DEM inside the monitored area
-  int usable = 0;                    // without a flag
+  int probes = 0;  // grid points seen on the DEM inside the monitored area
+  int usable = 0;  // without a flag
   // Factor applied to every LSC covariance (>= 1): the scatter of the probes
   // on stable ground against the LSC covariance (see the file comment).
   double lsc_variance_factor = 1.0;
