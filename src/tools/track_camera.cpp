@@ -19,9 +19,10 @@
 // the displacement field of each photo (dense::ComputeDisplacementField; the
 // monitored area is the image minus the stable area, or the whole image
 // without a stable area; the stable area scales the LSC covariance):
-//   DIR/field_<image stem>.csv  id,u,v,x,y,z,dx,dy,dz,sigma_x,sigma_y,sigma_z,vx,vy,vz,flag
+//   DIR/field_<image stem>.csv  id,u,v,x,y,z,dx,dy,dz,sigma_x,sigma_y,sigma_z,vx,vy,vz,stable,flag
 //                               (site metres, m/s from the photos' EXIF times;
-//                               flag empty = usable)
+//                               stable 1 = a probe on stable ground (a check,
+//                               d ~ 0), flag empty = usable)
 //   DIR/field_<image stem>.png  the new photo with an arrow per usable probe
 //                               (scale printed on it), flagged probes as red dots
 #include <algorithm>
@@ -160,16 +161,17 @@ double PhotoTime(const std::string& path) {
 void WriteFieldCsv(const std::string& path, const dense::DisplacementField& f) {
   std::ofstream out(path);
   if (!out) throw IoError(Message("cannot write '", path, "'"));
-  out << "id,u,v,x,y,z,dx,dy,dz,sigma_x,sigma_y,sigma_z,vx,vy,vz,flag\n";
+  out << "id,u,v,x,y,z,dx,dy,dz,sigma_x,sigma_y,sigma_z,vx,vy,vz,stable,flag\n";
   char line[512];
   for (size_t i = 0; i < f.points.size(); ++i) {
     const dense::FieldPoint& p = f.points[i];
     const Eigen::Vector3d s = p.Sigma();
-    std::snprintf(line, sizeof(line),
-                  "%zu,%.2f,%.2f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.6g,%.6g,%.6g,%s\n",
-                  i, p.xa.x(), p.xa.y(), p.x_ref.x(), p.x_ref.y(), p.x_ref.z(), p.displacement.x(),
-                  p.displacement.y(), p.displacement.z(), s.x(), s.y(), s.z(), p.velocity.x(),
-                  p.velocity.y(), p.velocity.z(), p.flag.c_str());
+    std::snprintf(
+        line, sizeof(line),
+        "%zu,%.2f,%.2f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.6g,%.6g,%.6g,%d,%s\n", i,
+        p.xa.x(), p.xa.y(), p.x_ref.x(), p.x_ref.y(), p.x_ref.z(), p.displacement.x(),
+        p.displacement.y(), p.displacement.z(), s.x(), s.y(), s.z(), p.velocity.x(), p.velocity.y(),
+        p.velocity.z(), p.stable ? 1 : 0, p.flag.c_str());
     out << line;
   }
   if (!out) throw IoError(Message("cannot write '", path, "'"));

@@ -110,7 +110,8 @@ std::vector<Eigen::Vector2d> Probes(const io::GeoRaster& dem, const FieldInput& 
   const camera::Sensor& s = in.model.sensor();
   auto inside = [&](const Eigen::Vector2d& x) {
     return x.x() >= o.border_px && x.y() >= o.border_px && x.x() <= s.width - 1 - o.border_px &&
-           x.y() <= s.height - 1 - o.border_px && (!in.monitored || in.monitored(x));
+           x.y() <= s.height - 1 - o.border_px &&
+           (!in.monitored || in.monitored(x) || (in.stable && in.stable(x)));
   };
   std::vector<Eigen::Vector2d> probes;
   if (o.spacing_m > 0) {
@@ -221,7 +222,7 @@ double StableVarianceFactor(const std::vector<FieldPoint>& points,
   std::vector<double> q;
   for (size_t i = 0; i < points.size(); ++i) {
     const FieldPoint& p = points[i];
-    if (!p.IsUsable() || !in.stable(p.xa) || p.covariance_px.determinant() <= 0) continue;
+    if (!p.IsUsable() || !p.stable || p.covariance_px.determinant() <= 0) continue;
     const Eigen::Vector2d r = p.xb - predicted[i];
     q.push_back(r.dot(p.covariance_px.inverse() * r));
   }
@@ -310,6 +311,7 @@ DisplacementField ComputeDisplacementField(const cv::Mat& reference_image, const
     FieldPoint p;
     p.xa = xa;
     p.x_ref = x_ref;
+    p.stable = in.stable && in.stable(xa);
     Eigen::Vector2d x;
     if (!in.model.Project(in.current, x_ref, &x) || x.x() < 0 || x.y() < 0 || x.x() > s.width - 1 ||
         x.y() > s.height - 1) {

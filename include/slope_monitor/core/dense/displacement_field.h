@@ -85,6 +85,7 @@ struct FieldPoint {
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();       // [m/s] (0 when dt == 0)
   double incidence_deg = 0.0;  // angle between the reference ray and the surface
   double los_angle_deg = 0.0;  // angle between the displacement and the line of sight
+  bool stable = false;         // on stable ground (FieldInput::stable): a check, d ~ 0
   std::string flag;            // "" = usable, else the reason (see the file comment)
   bool IsUsable() const { return flag.empty(); }
   // sqrt of the diagonal of `covariance`.
@@ -114,8 +115,9 @@ struct FieldInput {
   Eigen::Matrix3d attitude_covariance =
       Eigen::Matrix3d::Zero();  // [rad^2] theta phi kappa of current
   double dt = 0.0;              // [s] new photo's time - reference's, >= 0
-  // Stable ground in the reference photo (optional): its probes do not move,
-  // their scatter scales the LSC covariance.
+  // Stable ground in the reference photo (optional): probes are laid there
+  // too (FieldPoint::stable); they do not move, their scatter scales the LSC
+  // covariance.
   std::function<bool(const Eigen::Vector2d&)> stable;
   // The monitored area in the reference photo (optional; default: everywhere).
   std::function<bool(const Eigen::Vector2d&)> monitored;
