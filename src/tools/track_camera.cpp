@@ -312,7 +312,7 @@ int main(int argc, char** argv) {
       in.current = s.exterior;
       in.attitude_covariance = s.covariance;
       const double t = PhotoTime(path);
-      in.dt = std::isfinite(t) && std::isfinite(ref_time) ? std::abs(t - ref_time) : 0.0;
+      in.dt = std::isfinite(t) && std::isfinite(ref_time) ? t - ref_time : 0.0;
       in.dem_name = a["--dem"][0];
       if (has_stable_area) {
         in.stable = is_stable;

@@ -194,7 +194,7 @@ void Project(const io::GeoRaster& dem, const FieldInput& in, const DisplacementF
   p->covariance = j_xb * p->covariance_px * j_xb.transpose() +
                   j_att * in.attitude_covariance * j_att.transpose() +
                   j_h * j_h.transpose() * dem_sigma * dem_sigma;
-  if (in.dt > 0) p->velocity = p->displacement / in.dt;
+  if (in.dt != 0) p->velocity = p->displacement / in.dt;
 
   // Geometry of the view: incidence on the surface, displacement vs line of sight.
   const Eigen::Vector3d los = (x_ref - in.reference.position).normalized();
@@ -289,8 +289,8 @@ DisplacementField ComputeDisplacementField(const cv::Mat& reference_image, const
       throw InvalidArgument(Message("displacement field: the ", name, " is ", image->cols, "x",
                                     image->rows, "x", image->channels(), ", the camera ", s.width,
                                     "x", s.height, "x1"));
-  if (!(in.dt >= 0))
-    throw InvalidArgument(Message("displacement field: dt must be >= 0, got ", in.dt));
+  if (!std::isfinite(in.dt))
+    throw InvalidArgument(Message("displacement field: dt must be finite, got ", in.dt));
 
   cv::Mat a = matching::ToFloat(reference_image, "reference image");
   cv::Mat b = matching::ToFloat(new_image, "new image");

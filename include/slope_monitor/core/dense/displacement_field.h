@@ -114,7 +114,7 @@ struct FieldInput {
   camera::ExteriorOrientation current;    // pose of the new photo (re-oriented)
   Eigen::Matrix3d attitude_covariance =
       Eigen::Matrix3d::Zero();  // [rad^2] theta phi kappa of current
-  double dt = 0.0;              // [s] new photo's time - reference's, >= 0
+  double dt = 0.0;  // [s] new photo's time - reference's (< 0: an earlier photo); 0 = unknown
   // Stable ground in the reference photo (optional): probes are laid there
   // too (FieldPoint::stable); they do not move, their scatter scales the LSC
   // covariance.
