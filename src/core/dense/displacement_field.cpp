@@ -4,6 +4,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "slope_monitor/core/common/error.h"
@@ -17,6 +18,13 @@ constexpr double kDeg = 180.0 / M_PI;
 constexpr double kPixelStep = 0.25;   // [px] numeric derivative steps
 constexpr double kAngleStep = 1e-6;   // [rad]
 constexpr double kHeightStep = 0.05;  // [m]
+
+// A coordinate for messages: metres with one decimal, never in exponent form.
+std::string Metres(double v) {
+  char b[64];
+  std::snprintf(b, sizeof(b), "%.1f", v);
+  return b;
+}
 
 // Surface height at (x, y) shifted by dh; NaN outside or on nodata.
 double Height(const io::GeoRaster& dem, double x, double y, double dh) {
@@ -342,8 +350,10 @@ DisplacementField ComputeDisplacementField(const cv::Mat& reference_image, const
     throw InvalidArgument(
         Message(in.dem_name, " does not cover the view: no probe ray of the ",
                 in.monitored ? "monitored area" : "photo", " meets its surface (DEM x ",
-                dem.origin_x, "..", dem.origin_x + dem.width * dem.cell_size, ", y ",
-                dem.origin_y - dem.height * dem.cell_size, "..", dem.origin_y, ")"));
+                Metres(dem.origin_x), "..", Metres(dem.origin_x + dem.width * dem.cell_size),
+                ", y ", Metres(dem.origin_y - dem.height * dem.cell_size), "..",
+                Metres(dem.origin_y), "; camera at ", Metres(in.reference.position.x()), ", ",
+                Metres(in.reference.position.y()), ")"));
   field.summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return field;
