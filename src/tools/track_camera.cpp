@@ -14,13 +14,24 @@
 //   <image>: rotation <angle> deg (dtheta <a> dphi <b> dkappa <c> deg, sigma <s> deg) rms <r> px
 //   over <N> stable points
 // (sigma: the largest of the three angles' sigmas) and writes
-// DIR/reorientation.csv. The displacement field (--dem) is not implemented yet.
+// DIR/reorientation.csv. With --dem DEM.tif (a GeoTIFF in the camera's site
+// coordinates, band 1 height, an optional band "sigma" its height std) also
+// the displacement field of each photo (dense::ComputeDisplacementField; the
+// monitored area is the image minus the stable area, or the whole image
+// without a stable area; the stable area scales the LSC covariance):
+//   DIR/field_<image stem>.csv  id,u,v,x,y,z,dx,dy,dz,sigma_x,sigma_y,sigma_z,vx,vy,vz,stable,flag
+//                               (site metres, m/s from the photos' EXIF times;
+//                               stable 1 = a probe on stable ground (a check,
+//                               d ~ 0), flag empty = usable)
+//   DIR/field_<image stem>.png  the new photo with an arrow per usable probe
+//                               (scale printed on it), flagged probes as red dots
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <string>
@@ -33,7 +44,10 @@
 
 #include "slope_monitor/core/adjustment/reorient_camera.h"
 #include "slope_monitor/core/capture/calibration.h"
+#include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/dense/displacement_field.h"
+#include "slope_monitor/core/io/geotiff.h"
 #include "slope_monitor/core/matching/hex_matcher.h"
 #include "slope_monitor/ros/conversions.h"
 
@@ -138,6 +152,68 @@ cv::Mat Gray(const std::string& path, const std::string& flag) {
   return m;
 }
 
+// Capture time of a photo [s] from its EXIF, or NaN.
+double PhotoTime(const std::string& path) {
+  const capture::ExifInfo e = capture::ReadExif(path);
+  return e.has_time ? e.time : std::numeric_limits<double>::quiet_NaN();
+}
+
+void WriteFieldCsv(const std::string& path, const dense::DisplacementField& f) {
+  std::ofstream out(path);
+  if (!out) throw IoError(Message("cannot write '", path, "'"));
+  out << "id,u,v,x,y,z,dx,dy,dz,sigma_x,sigma_y,sigma_z,vx,vy,vz,stable,flag\n";
+  char line[512];
+  for (size_t i = 0; i < f.points.size(); ++i) {
+    const dense::FieldPoint& p = f.points[i];
+    const Eigen::Vector3d s = p.Sigma();
+    std::snprintf(
+        line, sizeof(line),
+        "%zu,%.2f,%.2f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.6g,%.6g,%.6g,%d,%s\n", i,
+        p.xa.x(), p.xa.y(), p.x_ref.x(), p.x_ref.y(), p.x_ref.z(), p.displacement.x(),
+        p.displacement.y(), p.displacement.z(), s.x(), s.y(), s.z(), p.velocity.x(), p.velocity.y(),
+        p.velocity.z(), p.stable ? 1 : 0, p.flag.c_str());
+    out << line;
+  }
+  if (!out) throw IoError(Message("cannot write '", path, "'"));
+}
+
+// Arrows over the photo: from each usable probe along its displacement
+// projected into the photo, scaled so the largest is 80 px.
+void WriteFieldPng(const std::string& path, const cv::Mat& photo, const dense::DisplacementField& f,
+                   const camera::CameraModel& model, const camera::ExteriorOrientation& pose) {
+  double largest = 0.0;
+  for (const auto& p : f.points)
+    if (p.IsUsable()) largest = std::max(largest, p.displacement.norm());
+  const double metres_per_80px = largest > 0 ? largest : 1.0;
+  cv::Mat out;
+  cv::cvtColor(photo, out, cv::COLOR_GRAY2BGR);
+  const int thick = std::max(1, photo.cols / 1000);
+  for (const auto& p : f.points) {
+    const cv::Point a(cvRound(p.xa.x()), cvRound(p.xa.y()));
+    if (!p.IsUsable()) {
+      cv::circle(out, a, 2 * thick, cv::Scalar(0, 0, 255), cv::FILLED);
+      continue;
+    }
+    // Direction in the image: the projection of x_ref + d (exaggerated).
+    Eigen::Vector2d x0, x1;
+    const Eigen::Vector3d dir = p.displacement / metres_per_80px;
+    if (!model.Project(pose, p.x_ref, &x0) || !model.Project(pose, p.x_ref + 0.01 * dir, &x1))
+      continue;
+    Eigen::Vector2d v = x1 - x0;
+    const double n = v.norm();
+    if (n <= 0) continue;
+    // Length proportional to |d| (80 px for the largest).
+    v *= 80.0 * p.displacement.norm() / metres_per_80px / n;
+    cv::arrowedLine(out, a, cv::Point(cvRound(p.xa.x() + v.x()), cvRound(p.xa.y() + v.y())),
+                    cv::Scalar(0, 255, 0), thick, cv::LINE_AA, 0, 0.25);
+  }
+  char label[128];
+  std::snprintf(label, sizeof(label), "80 px = %.3f m", metres_per_80px);
+  cv::putText(out, label, cv::Point(20, 40 * thick), cv::FONT_HERSHEY_SIMPLEX, thick,
+              cv::Scalar(0, 255, 255), 2 * thick);
+  if (!cv::imwrite(path, out)) throw IoError(Message("cannot write '", path, "'"));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -154,9 +230,8 @@ int main(int argc, char** argv) {
     }
     if (!a.count("--camera") || !a.count("--reference") || !a.count("--image") || !a.count("--out"))
       return Usage();
-    if (a.count("--dem"))
-      throw InvalidArgument(
-          "--dem: the displacement field is not implemented in this version (re-orientation only)");
+    io::GeoRaster dem;
+    if (a.count("--dem")) dem = io::ReadGeoTiff(a["--dem"][0]);
     const std::string prefix = a["--camera"][0];
     const camera::CameraModel model = LoadCamera(prefix + ".yaml");
     const camera::ExteriorOrientation reference = LoadPose(prefix + ".pose.yaml");
@@ -166,6 +241,8 @@ int main(int argc, char** argv) {
                                     ref.rows, " px, the camera ", model.sensor().width, "x",
                                     model.sensor().height));
     const cv::Mat stable = StableMask(a, ref.size());
+    const bool has_stable_area = a.count("--stable-mask") || a.count("--stable-polygons");
+    const double ref_time = a.count("--dem") ? PhotoTime(a["--reference"][0]) : 0.0;
     auto is_stable = [&stable](const Eigen::Vector2d& x) {
       const int c = cvRound(x.x()), r = cvRound(x.y());
       return c >= 0 && r >= 0 && c < stable.cols && r < stable.rows &&
@@ -228,6 +305,31 @@ int main(int argc, char** argv) {
           << s.sigma(1) * kDeg << ',' << s.sigma(2) * kDeg << ',' << s.rms_px << ',' << s.num_points
           << ',' << s.num_outliers << ',' << m.summary.global_shift.x() << ','
           << m.summary.global_shift.y() << '\n';
+      if (!a.count("--dem")) continue;
+      dense::FieldInput in;
+      in.model = model;
+      in.reference = reference;
+      in.current = s.exterior;
+      in.attitude_covariance = s.covariance;
+      const double t = PhotoTime(path);
+      in.dt = std::isfinite(t) && std::isfinite(ref_time) ? t - ref_time : 0.0;
+      in.dem_name = a["--dem"][0];
+      if (has_stable_area) {
+        in.stable = is_stable;
+        in.monitored = [&](const Eigen::Vector2d& x) { return !is_stable(x); };
+      }
+      const dense::DisplacementField f =
+          dense::ComputeDisplacementField(ref, img, dem, in, dense::DisplacementFieldOptions());
+      const std::string stem =
+          a["--out"][0] + "/field_" + std::filesystem::path(path).stem().string();
+      WriteFieldCsv(stem + ".csv", f);
+      WriteFieldPng(stem + ".png", img, f, model, s.exterior);
+      std::fprintf(
+          stderr, "%s: field of %d probes, %d usable, LSC variance factor %.2f, dt %.0f s;",
+          name.c_str(), f.summary.probes, f.summary.usable, f.summary.lsc_variance_factor, in.dt);
+      for (const auto& kv : f.summary.flags)
+        std::fprintf(stderr, " %s %d", kv.first.c_str(), kv.second);
+      std::fprintf(stderr, "\n");
     }
     return failures ? 1 : 0;
   } catch (const std::exception& e) {
