@@ -158,7 +158,7 @@ std::unique_ptr<rosbag::Bag> OpenBag(const std::string& path, std::vector<fs::pa
 }
 
 // Cameras of the survey: every /<name>/camera/image_raw topic of the bags.
-std::vector<std::string> CamerasOf(const rosbag::View& view) {
+std::vector<std::string> CamerasOf(rosbag::View& view) {
   std::set<std::string> names;
   for (const rosbag::ConnectionInfo* c : view.getConnections()) {
     const std::string& t = c->topic;
@@ -587,7 +587,15 @@ int Run(const Args& args) {
     std::cout << "\nDeformation summary (fused estimate against the simulator's truth):\n"
               << evaluation::FormatTable(evaluation);
   }
-  std::cout << "\nReports in " << args.report_dir << "\nHistory (SQLite): " << args.database << "\n";
+  // As scripts/demo ends.
+  std::cout << "\nReports in " << args.report_dir << ":\n";
+  std::vector<std::string> files;
+  if (fs::is_directory(args.report_dir))
+    for (const fs::directory_entry& f : fs::directory_iterator(args.report_dir))
+      files.push_back(f.path().filename().string());
+  std::sort(files.begin(), files.end());
+  for (const std::string& f : files) std::cout << "  " << f << "\n";
+  std::cout << "History (SQLite): " << args.database << "\n";
   if (output) std::cout << "Outputs (rosbag play --clock): " << args.output_bag << "\n";
   return 0;
 }
