@@ -29,9 +29,8 @@ void LogResult(uint32_t n, const adjustment::EpochAdjustmentResult& result, bool
   if (result.photos.total > 0 || !no_unidentified)
     Log(out, LogLine::kInfo,
         Message("epoch ", n, ": ", result.photos.Brief(), "; ", result.naming.Brief(), "; ",
-                result.oriented_from_approximate,
-                " oriented from approximate target coordinates; ", result.rejected_names.size(),
-                " names rejected by the residual test"));
+                result.oriented_from_approximate, " oriented from approximate target coordinates; ",
+                result.rejected_names.size(), " names rejected by the residual test"));
 }
 
 }  // namespace

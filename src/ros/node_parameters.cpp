@@ -19,8 +19,8 @@ std::string Trim(const std::string& s) {
 
 // The simulator's truth as a network file: receivers as surveyed, the
 // transmitters' epoch-0 positions as the installation survey.
-radio::NetworkConfig NetworkFromTruth(const sim::SurveyTruth& truth, double sigma, double sample_rate,
-                                             const std::string& path) {
+radio::NetworkConfig NetworkFromTruth(const sim::SurveyTruth& truth, double sigma,
+                                      double sample_rate, const std::string& path) {
   radio::NetworkConfig n;
   if (truth.radio.Empty()) throw ConfigError(path + ": radio: the truth has no radio network");
   n.wavelength = truth.radio.wavelength;
@@ -28,7 +28,8 @@ radio::NetworkConfig NetworkFromTruth(const sim::SurveyTruth& truth, double sigm
   n.sample_rate = sample_rate;  // the truth does not hold it: parameter truth_sample_rate
   for (const auto& r : truth.radio.receivers) n.receivers.push_back({r.id, r.position});
   for (const auto& t : truth.radio.transmitters) {
-    if (t.positions.empty()) throw ConfigError(path + ": radio.transmitters '" + t.id + "' has no positions");
+    if (t.positions.empty())
+      throw ConfigError(path + ": radio.transmitters '" + t.id + "' has no positions");
     radio::TransmitterConfig c;
     c.id = t.id;
     c.frequency_offset = t.frequency - n.center_frequency;
@@ -65,8 +66,7 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   c.epoch_gap = p.Double("epoch_gap", 600.0, 0.0, 1e7, "s");
   c.Check();
   a.scene.position_prior_max_dt = p.Double("position_prior_max_dt", 0.1, 0.0, 10.0, "s");
-  a.scene.position_prior_min_sigma =
-      p.Double("position_prior_min_sigma", 0.01, 1e-4, 100.0, "m");
+  a.scene.position_prior_min_sigma = p.Double("position_prior_min_sigma", 0.01, 1e-4, 100.0, "m");
   a.scene.min_images = p.Int("min_images", 2, 1, 10000);
   a.scene.Check();
   auto interior_list = [&p](const std::string& key) {
@@ -89,8 +89,8 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   o.loss = p.String("loss", "huber", {"none", "huber", "cauchy"});
   o.loss_scale = p.Double("loss_scale", 3.0, 1e-3, 1e3, "sigma");
   o.outlier_threshold = p.Double("outlier_threshold", 5.0, 1e-3, 1e3, "sigma");
-  o.linear_solver = p.String("linear_solver", "auto",
-                             {"auto", "dense_schur", "sparse_schur", "iterative_schur"});
+  o.linear_solver =
+      p.String("linear_solver", "auto", {"auto", "dense_schur", "sparse_schur", "iterative_schur"});
   o.max_iterations = p.Int("max_iterations", 100, 1, 10000);
   o.num_threads = p.Int("num_threads", 1, 1, 64);
   o.minimizer_progress = p.Bool("minimizer_progress", false);
@@ -115,8 +115,7 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   e.naming.ambiguity_factor = p.Double("naming_ambiguity_factor", 2.0, 1.0, 100.0);
   e.Check();
   a.displacement.stable_threshold = p.Double("stable_threshold", 0.02, 1e-6, 100.0, "m");
-  a.displacement.significance_threshold =
-      p.Double("significance_threshold", 3.0, 0.1, 100.0);
+  a.displacement.significance_threshold = p.Double("significance_threshold", 3.0, 0.1, 100.0);
   a.displacement.estimate_scale = p.Bool("coregistration_scale", false);
   a.displacement.Check();
   p.CheckNoUnknownKeys();
@@ -146,11 +145,13 @@ RadioParameters ReadRadioParameters(ParamReader& p) {
   r.frame_id = p.String("frame_id", "site");
   p.CheckNoUnknownKeys();
   if (network_file.empty() == truth_file.empty())
-    throw ConfigError(p.FullKey("network_file") + " / " + p.FullKey("truth_file") + ": set exactly one of them");
+    throw ConfigError(p.FullKey("network_file") + " / " + p.FullKey("truth_file") +
+                      ": set exactly one of them");
   if (!network_file.empty()) {
     r.network = radio::NetworkConfig::Load(network_file);
   } else {
-    r.network = NetworkFromTruth(sim::SurveyTruth::Load(truth_file), truth_sigma, truth_rate, truth_file);
+    r.network =
+        NetworkFromTruth(sim::SurveyTruth::Load(truth_file), truth_sigma, truth_rate, truth_file);
   }
   return r;
 }
@@ -159,7 +160,8 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
   EstimatorParameters e;
   deformation::EstimatorOptions* o = &e.options;
   e.input_topics = p.StringList("input_topics", {"displacements"});
-  if (e.input_topics.empty()) throw ConfigError(Message("parameter '", p.FullKey("input_topics"), "' is empty"));
+  if (e.input_topics.empty())
+    throw ConfigError(Message("parameter '", p.FullKey("input_topics"), "' is empty"));
   e.frame_id = p.String("frame_id", "site");
   e.database = p.String("database", "");
   e.report_dir = p.String("report_dir", "");
@@ -169,13 +171,15 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
   e.enable_set_reference_epoch = p.Bool("enable_set_reference_epoch", true);
   for (const std::string& f : e.report_formats)
     if (f != "csv" && f != "geojson" && f != "geotiff" && f != "gpkg" && f != "png")
-      throw ConfigError(Message("parameter '", p.FullKey("report_formats"), "' has unknown format '", f, "'"));
+      throw ConfigError(
+          Message("parameter '", p.FullKey("report_formats"), "' has unknown format '", f, "'"));
   const std::string unit = p.String("velocity_unit", "mm/day", {"mm/day", "mm/h"});
   const double to_si = unit == "mm/day" ? 1e-3 / 86400.0 : 1e-3 / 3600.0;
   // Defaults 2 / 10 / 50 mm/day, expressed in the chosen unit.
   const double per_day = unit == "mm/day" ? 1.0 : 1.0 / 24.0;
   o->alerts.thresholds.watch = p.Double("threshold_watch", 2.0 * per_day, 0.0, 1e6, unit) * to_si;
-  o->alerts.thresholds.warning = p.Double("threshold_warning", 10.0 * per_day, 0.0, 1e6, unit) * to_si;
+  o->alerts.thresholds.warning =
+      p.Double("threshold_warning", 10.0 * per_day, 0.0, 1e6, unit) * to_si;
   o->alerts.thresholds.alarm = p.Double("threshold_alarm", 50.0 * per_day, 0.0, 1e6, unit) * to_si;
   for (const std::string& entry : p.StringList("point_thresholds", {})) {
     // "point_id: watch, warning, alarm" in velocity_unit
@@ -204,7 +208,8 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
   }
   for (const std::string& entry : p.StringList("aliases", {})) {
     const size_t eq = entry.find('=');
-    if (eq == std::string::npos || Trim(entry.substr(0, eq)).empty() || Trim(entry.substr(eq + 1)).empty())
+    if (eq == std::string::npos || Trim(entry.substr(0, eq)).empty() ||
+        Trim(entry.substr(eq + 1)).empty())
       throw ConfigError(Message("parameter '", p.FullKey("aliases"), "' entry '", entry,
                                 "' must read 'measured_id = monitoring_point_id'"));
     o->aliases[Trim(entry.substr(0, eq))] = Trim(entry.substr(eq + 1));
@@ -215,7 +220,8 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
   o->alerts.hysteresis = p.Double("hysteresis", 0.8, 0.01, 1.0);
   o->filter.jerk_spectral_density = p.Double("jerk_spectral_density", 1e-25, 0.0, 1e-20, "m^2/s^5");
   o->filter.initial_velocity_sigma = p.Double("initial_velocity_sigma", 1e-6, 1e-12, 1.0, "m/s");
-  o->filter.initial_acceleration_sigma = p.Double("initial_acceleration_sigma", 1e-10, 1e-18, 1.0, "m/s^2");
+  o->filter.initial_acceleration_sigma =
+      p.Double("initial_acceleration_sigma", 1e-10, 1e-18, 1.0, "m/s^2");
   o->reorder_window = p.Double("reorder_window", 3 * 86400.0, 0.0, 365 * 86400.0, "s");
   o->reference_tolerance = p.Double("reference_tolerance", 3600.0, 0.0, 30 * 86400.0, "s");
   o->disagreement_threshold = p.Double("disagreement_threshold", 16.27, 0.1, 1e6, "chi2(3)");

@@ -65,7 +65,8 @@ XmlRpc::XmlRpcValue LoadParamFile(const std::string& path) {
     empty.begin();
     return empty;
   }
-  if (!root.IsMap()) throw ConfigError(Message("parameter file '", path, "': the top level is not a map"));
+  if (!root.IsMap())
+    throw ConfigError(Message("parameter file '", path, "': the top level is not a map"));
   return FromYaml(root, path);
 }
 
@@ -83,7 +84,8 @@ void MergeParams(XmlRpc::XmlRpcValue* into, const XmlRpc::XmlRpcValue& from) {
   }
 }
 
-void SetParam(XmlRpc::XmlRpcValue* params, const std::string& key, const XmlRpc::XmlRpcValue& value) {
+void SetParam(XmlRpc::XmlRpcValue* params, const std::string& key,
+              const XmlRpc::XmlRpcValue& value) {
   if (params->getType() != XmlRpc::XmlRpcValue::TypeStruct) params->begin();
   (*params)[key] = value;
 }

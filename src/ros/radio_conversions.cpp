@@ -49,10 +49,10 @@ RadioOutputs MakeRadioOutputs(const radio::RadioEpochSummary& s, const std_msgs:
     if (t.displacement_covariance.diagonal().minCoeff() <= 0.0 ||
         Eigen::LLT<Eigen::Matrix3d>(t.displacement_covariance).info() != Eigen::Success)
       continue;
-    slope_monitor::PointDisplacement d = MakePointDisplacement(
-        t.id, slope_monitor::PointDisplacement::SOURCE_RADIO, "radio_phase_solver",
-        t.reference_stamp, header.stamp, t.reference_position, t.displacement,
-        t.displacement_covariance);
+    slope_monitor::PointDisplacement d =
+        MakePointDisplacement(t.id, slope_monitor::PointDisplacement::SOURCE_RADIO,
+                              "radio_phase_solver", t.reference_stamp, header.stamp,
+                              t.reference_position, t.displacement, t.displacement_covariance);
     const double n = t.displacement.norm();
     if (n > 0.0) {
       const Eigen::Vector3d u = t.displacement / n;

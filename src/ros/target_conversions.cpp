@@ -19,7 +19,8 @@ CentroidedImage CentroidImage(const targets::TargetCentroider& centroider,
   targets::CheckImageInput(topic, image.width, image.height, image.encoding, info.width,
                            info.height);
   // No tracked object owns the image: a plain (shared-data) conversion.
-  cv_bridge::CvImageConstPtr cv_image = cv_bridge::toCvShare(image, boost::shared_ptr<void const>());
+  cv_bridge::CvImageConstPtr cv_image =
+      cv_bridge::toCvShare(image, boost::shared_ptr<void const>());
   std::optional<targets::ViewGeometry> view;
   if (site_from_optical && info.K[0] > 0) {
     const Rigid3 optical_from_site = Rigid3(Eigen::Matrix3d(site_from_optical->rotation()),
@@ -41,7 +42,7 @@ CentroidedImage CentroidImage(const targets::TargetCentroider& centroider,
     TargetObservation m;
     m.id = o.id;
     m.family = o.family;
-    m.role = !o.role                                 ? TargetObservation::ROLE_UNKNOWN
+    m.role = !o.role                               ? TargetObservation::ROLE_UNKNOWN
              : *o.role == io::TargetRole::kControl ? TargetObservation::ROLE_CONTROL
              : *o.role == io::TargetRole::kCheck   ? TargetObservation::ROLE_CHECK
                                                    : TargetObservation::ROLE_MONITORING;

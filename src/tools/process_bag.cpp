@@ -89,9 +89,9 @@ struct Args {
 Args ParseArgs(int argc, char** argv) {
   Args a;
   const std::map<std::string, std::string*> with_value = {
-      {"--site-config", &a.site_config},   {"--target-list", &a.target_list},
+      {"--site-config", &a.site_config},     {"--target-list", &a.target_list},
       {"--radio-network", &a.radio_network}, {"--adjuster-config", &a.adjuster_config},
-      {"--database", &a.database},         {"--report-dir", &a.report_dir},
+      {"--database", &a.database},           {"--report-dir", &a.report_dir},
       {"--output-bag", &a.output_bag}};
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
@@ -110,6 +110,13 @@ Args ParseArgs(int argc, char** argv) {
       *it->second = argv[++i];
   }
   if (a.bags.empty()) throw InvalidArgument("--bag FILE is required");
+  // The hex matcher's sequence logic (pairing, prior association) still
+  // lives in hex_matcher_nodelet.cpp, not in the core: until it moves to
+  // matching::SequenceMatcher, tie points need replay.launch uav_tie_points:=true.
+  if (a.uav_tie_points)
+    throw InvalidArgument(
+        "--uav-tie-points is not available yet: the UAV sequence matcher is not in the core; use "
+        "roslaunch slope_monitor replay.launch uav_tie_points:=true");
   // The defaults of replay.launch.
   const std::string stem = a.bags.front().substr(0, a.bags.front().size() - 4);
   if (a.target_list.empty()) a.target_list = stem + ".targets.yaml";
@@ -117,8 +124,10 @@ Args ParseArgs(int argc, char** argv) {
   const std::string ros_dir = std::string(home ? home : ".") + "/.ros/slope_monitor";
   if (a.database.empty()) a.database = ros_dir + "/replay.db";
   if (a.report_dir.empty()) a.report_dir = ros_dir + "/reports";
-  for (const std::string* f : {&a.site_config, &a.target_list, &a.radio_network, &a.adjuster_config})
-    if (!f->empty() && !fs::is_regular_file(*f)) throw InvalidArgument("file '" + *f + "' not found");
+  for (const std::string* f :
+       {&a.site_config, &a.target_list, &a.radio_network, &a.adjuster_config})
+    if (!f->empty() && !fs::is_regular_file(*f))
+      throw InvalidArgument("file '" + *f + "' not found");
   return a;
 }
 
@@ -137,7 +146,8 @@ std::unique_ptr<rosbag::Bag> OpenBag(const std::string& path, std::vector<fs::pa
     throw InvalidArgument("'" + path + "' is not a readable bag: " + e.what());
   }
   char pattern[] = "/tmp/process_bag_XXXXXX";
-  if (!mkdtemp(pattern)) throw IoError("cannot make a temporary directory for reindexing '" + path + "'");
+  if (!mkdtemp(pattern))
+    throw IoError("cannot make a temporary directory for reindexing '" + path + "'");
   const fs::path dir = pattern;
   temporaries->push_back(dir);
   const fs::path copy = dir / fs::path(path).filename();
@@ -201,7 +211,7 @@ struct Centroider {
   std::string camera;
   targets::NodeOptions node;
   std::unique_ptr<targets::TargetCentroider> centroider;
-  std::map<ros::Time, sensor_msgs::Image::ConstPtr> images;  // waiting for their camera_info
+  std::map<ros::Time, sensor_msgs::Image::ConstPtr> images;      // waiting for their camera_info
   std::map<ros::Time, sensor_msgs::CameraInfo::ConstPtr> infos;  // waiting for their image
 };
 
@@ -236,7 +246,8 @@ class OfflineGraph {
     } else if (const auto marker = m.instantiate<slope_monitor::EpochMarker>()) {
       if (marker->end) OnEpochEnd(*marker);
     } else if (const auto prior = m.instantiate<geometry_msgs::PoseWithCovarianceStamped>()) {
-      if (topic == "/uav/camera/position_prior") collector_->AddPrior(ros_adapters::FromMsg(*prior));
+      if (topic == "/uav/camera/position_prior")
+        collector_->AddPrior(ros_adapters::FromMsg(*prior));
     } else if (const auto block = m.instantiate<slope_monitor::RadioSampleBlock>()) {
       OnRadioBlock(*block, topic);
     }
@@ -252,15 +263,15 @@ class OfflineGraph {
       Log("no point was ever measured: no reports written to " + estimator_params_.report_dir);
       return;
     }
-    const auto files = deformation::WriteReports(*estimator_, estimator_params_.report_dir, "",
-                                                 estimator_params_.report_formats,
-                                                 estimator_params_.report);
-    Log("wrote " + std::to_string(files.size()) + " report file(s) to " + estimator_params_.report_dir);
+    const auto files =
+        deformation::WriteReports(*estimator_, estimator_params_.report_dir, "",
+                                  estimator_params_.report_formats, estimator_params_.report);
+    Log("wrote " + std::to_string(files.size()) + " report file(s) to " +
+        estimator_params_.report_dir);
   }
 
   int epochs_solved() const { return adjuster_accepted_ + radio_epochs_; }
   bool has_points() const { return !estimator_->GetSnapshot().points.empty(); }
-
 
  private:
   void Log(const std::string& line) const { log_(line); }
@@ -277,7 +288,8 @@ class OfflineGraph {
     c.node = targets::ReadNodeOptions(r);
     r.CheckNoUnknownKeys();
     o.Check();
-    c.centroider = std::make_unique<targets::TargetCentroider>(o, io::TargetList::Load(args_.target_list));
+    c.centroider =
+        std::make_unique<targets::TargetCentroider>(o, io::TargetList::Load(args_.target_list));
     centroiders_[cam] = std::move(c);
   }
 
@@ -310,7 +322,8 @@ class OfflineGraph {
       Log(std::string("radio_phase_solver not running: ") + e.what());
       return;
     }
-    radio_solver_ = std::make_unique<radio::RadioPhaseSolver>(radio_params_.network, radio_params_.options);
+    radio_solver_ =
+        std::make_unique<radio::RadioPhaseSolver>(radio_params_.network, radio_params_.options);
     std::vector<std::string> ids;
     for (const auto& rx : radio_params_.network.receivers) ids.push_back(rx.id);
     assembler_ = std::make_unique<radio::EpochAssembler>(ids, radio_params_.stamp_tolerance,
@@ -328,7 +341,8 @@ class OfflineGraph {
     ros_adapters::ParamReader r(p, "/deformation_estimator/deformation_estimator");
     estimator_params_ = ros_adapters::ReadEstimatorParameters(r);
     history_ = std::make_unique<deformation::History>(estimator_params_.database);
-    estimator_ = std::make_unique<deformation::Estimator>(estimator_params_.options, history_.get());
+    estimator_ =
+        std::make_unique<deformation::Estimator>(estimator_params_.options, history_.get());
   }
 
   // ---- inputs.
@@ -340,7 +354,8 @@ class OfflineGraph {
   }
 
   void OnTf(const tf2_msgs::TFMessage& tf, bool is_static) {
-    for (const geometry_msgs::TransformStamped& t : tf.transforms) tf_.setTransform(t, "bag", is_static);
+    for (const geometry_msgs::TransformStamped& t : tf.transforms)
+      tf_.setTransform(t, "bag", is_static);
     Write(is_static ? "/tf_static" : "/tf", tf);
   }
 
@@ -367,9 +382,9 @@ class OfflineGraph {
         } catch (const tf2::TransformException&) {
         }
       }
-      const ros_adapters::CentroidedImage out = ros_adapters::CentroidImage(
-          *c->centroider, *image->second, *info->second, site_from_optical, c->camera,
-          c->node.pixel_size, topic);
+      const ros_adapters::CentroidedImage out =
+          ros_adapters::CentroidImage(*c->centroider, *image->second, *info->second,
+                                      site_from_optical, c->camera, c->node.pixel_size, topic);
       Write("/" + c->camera + "/targets", out.targets);
       Solve(collector_->AddTargets(ros_adapters::FromMsg(out.targets), now_.toSec()));
     } catch (const std::exception& e) {
@@ -390,23 +405,27 @@ class OfflineGraph {
     if (!assembler_) return;
     // The receiver this topic belongs to: /radio/<id>/samples.
     const std::string prefix = "/radio/", suffix = "/samples";
-    if (topic.compare(0, prefix.size(), prefix) != 0 || topic.size() <= prefix.size() + suffix.size())
+    if (topic.compare(0, prefix.size(), prefix) != 0 ||
+        topic.size() <= prefix.size() + suffix.size())
       return;
-    const std::string receiver = topic.substr(prefix.size(), topic.size() - prefix.size() - suffix.size());
+    const std::string receiver =
+        topic.substr(prefix.size(), topic.size() - prefix.size() - suffix.size());
     // A recording: no wall-clock test of the stamps (now = 0).
     if (!radio_validator_.Accept(block, receiver, 0.0)) {
       Log("radio_phase_solver: rejected " + radio_validator_.last_problems().front());
       return;
     }
     try {
-      for (const radio::EpochAssembler::Epoch& epoch : assembler_->Add(ros_adapters::FromMsg(block))) {
+      for (const radio::EpochAssembler::Epoch& epoch :
+           assembler_->Add(ros_adapters::FromMsg(block))) {
         const radio::RadioEpochSummary s = radio_solver_->ProcessEpoch(epoch.stamp, epoch.blocks);
         ++radio_epochs_;
         for (const auto& p : s.problems) Log("radio_phase_solver: " + p);
         std_msgs::Header header = block.header;
         header.stamp = ros::Time(epoch.stamp);
         header.frame_id = radio_params_.frame_id;
-        const ros_adapters::RadioOutputs out = ros_adapters::MakeRadioOutputs(s, header, radio_epochs_);
+        const ros_adapters::RadioOutputs out =
+            ros_adapters::MakeRadioOutputs(s, header, radio_epochs_);
         Write("/radio/phase_observations", out.observations);
         if (out.displacements) {
           Write(kRadioDisplacements, *out.displacements);
@@ -443,23 +462,27 @@ class OfflineGraph {
 
   // ---- the deformation estimator.
   void Fuse(const slope_monitor::PointDisplacementArray& msg, const std::string& topic) {
-    const slope_monitor::PointDisplacementArray valid = estimator_validator_.Filter(msg, topic, 0.0);
+    const slope_monitor::PointDisplacementArray valid =
+        estimator_validator_.Filter(msg, topic, 0.0);
     for (const std::string& problem : estimator_validator_.last_problems())
       Log("deformation_estimator: rejected " + problem);
     if (valid.displacements.empty() && !msg.displacements.empty()) return;
     try {
       const deformation::BatchSummary s = estimator_->AddBatch(ros_adapters::FromMsg(valid, topic));
-      for (const std::string& m : s.messages) Log("deformation_estimator: topic '" + topic + "': " + m);
+      for (const std::string& m : s.messages)
+        Log("deformation_estimator: topic '" + topic + "': " + m);
     } catch (const Error& e) {
       Log("deformation_estimator: topic '" + topic + "': " + e.what() + "; message dropped");
       return;
     }
     const deformation::Snapshot s = estimator_->GetSnapshot();
-    for (const deformation::AlertChange& c : alert_changes_.Update(s)) Log("deformation_estimator: " + c.text);
+    for (const deformation::AlertChange& c : alert_changes_.Update(s))
+      Log("deformation_estimator: " + c.text);
     std_msgs::Header h = msg.header;
     h.frame_id = estimator_params_.frame_id;
     Write("/deformation_estimator/deformation", ros_adapters::ToMsg(s, h));
-    Write("/deformation_estimator/markers", ros_adapters::ToMarkers(s, h, estimator_params_.markers));
+    Write("/deformation_estimator/markers",
+          ros_adapters::ToMarkers(s, h, estimator_params_.markers));
     Write("/deformation_estimator/points", ros_adapters::ToCloud(s, h));
     Write("/deformation_estimator/alerts", ros_adapters::ToAlerts(s, h));
   }
@@ -512,12 +535,13 @@ class Progress {
     const double done = span > 0 ? std::clamp((t - begin_).toSec() / span, 0.0, 1.0) : 1.0;
     const double elapsed = std::chrono::duration<double>(now - start_).count();
     char line[160];
-    std::snprintf(line, sizeof(line), "\rprocess_bag: bag time %.1f s (%.0f %%), %d epochs solved, %s",
-                  (t - begin_).toSec(), 100.0 * done, epochs,
-                  done > 0.01 ? (std::to_string(static_cast<int>(elapsed * (1 - done) / done + 0.5)) +
-                                 " s left")
-                                    .c_str()
-                              : "time left unknown");
+    std::snprintf(
+        line, sizeof(line), "\rprocess_bag: bag time %.1f s (%.0f %%), %d epochs solved, %s",
+        (t - begin_).toSec(), 100.0 * done, epochs,
+        done > 0.01
+            ? (std::to_string(static_cast<int>(elapsed * (1 - done) / done + 0.5)) + " s left")
+                  .c_str()
+            : "time left unknown");
     std::fprintf(stderr, "%-90s", line);
     drawn_ = true;
   }
@@ -530,7 +554,9 @@ class Progress {
     if (drawn_) std::fprintf(stderr, "\n");
     drawn_ = false;
   }
-  double elapsed() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count(); }
+  double elapsed() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
 
  private:
   ros::Time begin_, end_;
@@ -565,8 +591,9 @@ int Run(const Args& args) {
     }
   }
   Progress progress(view.getBeginTime(), view.getEndTime());
-  OfflineGraph graph(args, cameras, output.get(),
-                     [&progress](const std::string& line) { progress.Print("process_bag: " + line); });
+  OfflineGraph graph(args, cameras, output.get(), [&progress](const std::string& line) {
+    progress.Print("process_bag: " + line);
+  });
   for (const rosbag::MessageInstance& m : view) {
     graph.OnMessage(m);
     progress.Update(m.getTime(), graph.epochs_solved());

@@ -51,7 +51,8 @@ std::string ReadFile(const fs::path& p) {
 
 // A fresh directory for one run's outputs.
 fs::path Scratch(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("process_bag_test_" + std::to_string(getpid())) / name;
+  const fs::path dir =
+      fs::temp_directory_path() / ("process_bag_test_" + std::to_string(getpid())) / name;
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
@@ -61,8 +62,10 @@ fs::path Scratch(const std::string& name) {
 pid_t Spawn(const std::vector<std::string>& argv, const fs::path& dir) {
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, (dir / "stdout").c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_addopen(&actions, 2, (dir / "stderr").c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&actions, 1, (dir / "stdout").c_str(),
+                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&actions, 2, (dir / "stderr").c_str(),
+                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
   std::vector<char*> args;
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
@@ -80,8 +83,13 @@ int Wait(pid_t pid) {
 
 // process_bag on `name`'s survey, outputs in `dir` (history.db, reports/, out.bag).
 std::vector<std::string> ProcessBagArgs(const std::string& name, const fs::path& dir) {
-  std::vector<std::string> a = {SM_PROCESS_BAG, "--bag", Survey(name, ".bag"), "--database",
-                                (dir / "history.db").string(), "--report-dir", (dir / "reports").string()};
+  std::vector<std::string> a = {SM_PROCESS_BAG,
+                                "--bag",
+                                Survey(name, ".bag"),
+                                "--database",
+                                (dir / "history.db").string(),
+                                "--report-dir",
+                                (dir / "reports").string()};
   if (fs::exists(Survey(name, ".site.yaml"))) {
     a.push_back("--site-config");
     a.push_back(Survey(name, ".site.yaml"));
@@ -140,7 +148,8 @@ std::map<std::string, int> ObservationKeys(const fs::path& db) {
   sqlite3_exec(
       h, "SELECT source, epoch, point_id FROM observations",
       [](void* out, int, char** v, char**) {
-        ++(*static_cast<std::map<std::string, int>*>(out))[std::string(v[0]) + "/" + v[1] + "/" + v[2]];
+        ++(*static_cast<std::map<std::string, int>*>(
+            out))[std::string(v[0]) + "/" + v[1] + "/" + v[2]];
         return 0;
       },
       &keys, nullptr);
@@ -185,23 +194,29 @@ TEST(ProcessBag, FullGraphReplayMatchesTruth) {
       ASSERT_NE(target, nullptr) << "false ID " << key;
       Eigen::Vector2d expect;
       ASSERT_TRUE(cam->model.Project(im->exterior, target->positions.at(im->epoch), &expect));
-      EXPECT_LT((Eigen::Vector2d(o.x, o.y) - expect).norm(), 1.0) << cam->name << "@" << im->stamp << " " << key;
+      EXPECT_LT((Eigen::Vector2d(o.x, o.y) - expect).norm(), 1.0)
+          << cam->name << "@" << im->stamp << " " << key;
       ++checked;
     }
-    for (const std::string& key : im->visible) EXPECT_TRUE(seen.count(key)) << key << " not observed";
+    for (const std::string& key : im->visible)
+      EXPECT_TRUE(seen.count(key)) << key << " not observed";
   }
   int truth_images = 0;
-  for (const sim::CameraTruth& c : truth.cameras) truth_images += c.kind == "fixed" ? c.images.size() : 0;
+  for (const sim::CameraTruth& c : truth.cameras)
+    truth_images += c.kind == "fixed" ? c.images.size() : 0;
   EXPECT_EQ(images, truth_images);
-  std::cout << images << " images, " << checked << " identified observations checked against the truth\n";
+  std::cout << images << " images, " << checked
+            << " identified observations checked against the truth\n";
   // Every output topic is in the output bag.
-  for (const char* topic : {"/bundle_adjuster/solution", "/bundle_adjuster/points", "/bundle_adjuster/displacements",
-                            "/tf", "/tf_static", "/radio/radio_displacements", "/radio/phase_observations",
-                            "/deformation_estimator/deformation", "/deformation_estimator/markers",
-                            "/deformation_estimator/points", "/deformation_estimator/alerts"})
+  for (const char* topic :
+       {"/bundle_adjuster/solution", "/bundle_adjuster/points", "/bundle_adjuster/displacements",
+        "/tf", "/tf_static", "/radio/radio_displacements", "/radio/phase_observations",
+        "/deformation_estimator/deformation", "/deformation_estimator/markers",
+        "/deformation_estimator/points", "/deformation_estimator/alerts"})
     EXPECT_GT(messages[topic], 0) << topic;
 
-  const evaluation::DeformationEvaluation e = evaluation::EvaluateHistory((dir / "history.db").string(), truth);
+  const evaluation::DeformationEvaluation e =
+      evaluation::EvaluateHistory((dir / "history.db").string(), truth);
   std::cout << evaluation::FormatTable(e);
   int monitoring = 0, radio = 0;
   double sum2 = 0.0;
@@ -240,13 +255,15 @@ TEST(ProcessBag, NoRadioSurveyMatchesTruth) {
   const fs::path dir = Scratch(name);
   ASSERT_EQ(RunProcessBag(name, dir), 0);
   const sim::SurveyTruth truth = sim::SurveyTruth::Load(Survey(name, ".truth.yaml"));
-  const evaluation::DeformationEvaluation e = evaluation::EvaluateHistory((dir / "history.db").string(), truth);
+  const evaluation::DeformationEvaluation e =
+      evaluation::EvaluateHistory((dir / "history.db").string(), truth);
   std::cout << evaluation::FormatTable(e);
   int monitoring = 0;
   for (const auto& p : e.points) {
     EXPECT_NE(p.role, "radio") << p.id;
     for (const auto& [source, count] : p.measurements)
-      EXPECT_EQ(evaluation::SourceName(source), "target") << p.id << ": " << count << " measurement(s)";
+      EXPECT_EQ(evaluation::SourceName(source), "target")
+          << p.id << ": " << count << " measurement(s)";
     if (p.role == "monitoring") {
       ++monitoring;
       EXPECT_LE(p.NormalisedError(), 3.0) << p.id;
@@ -261,7 +278,8 @@ TEST(ProcessBag, NoRadioSurveyMatchesTruth) {
 class CpuLoad {
  public:
   CpuLoad() {
-    for (int i = 0; i < 2; ++i) pids_.push_back(Spawn({"/bin/sh", "-c", "while :; do :; done"}, "/tmp"));
+    for (int i = 0; i < 2; ++i)
+      pids_.push_back(Spawn({"/bin/sh", "-c", "while :; do :; done"}, "/tmp"));
   }
   ~CpuLoad() {
     for (pid_t p : pids_) {
@@ -286,13 +304,16 @@ TEST(ProcessBag, SameResultsUnderCpuLoad) {
     ASSERT_EQ(RunProcessBag(name, loaded), 0);
   }
   std::vector<std::string> files;
-  for (const auto& f : fs::directory_iterator(quiet / "reports")) files.push_back(f.path().filename().string());
+  for (const auto& f : fs::directory_iterator(quiet / "reports"))
+    files.push_back(f.path().filename().string());
   ASSERT_FALSE(files.empty());
   for (const std::string& f : files) {
     ASSERT_TRUE(fs::exists(loaded / "reports" / f)) << f;
-    EXPECT_EQ(ReadFile(quiet / "reports" / f), ReadFile(loaded / "reports" / f)) << "report " << f << " differs";
+    EXPECT_EQ(ReadFile(quiet / "reports" / f), ReadFile(loaded / "reports" / f))
+        << "report " << f << " differs";
   }
-  EXPECT_EQ(std::distance(fs::directory_iterator(loaded / "reports"), fs::directory_iterator()), files.size());
+  EXPECT_EQ(std::distance(fs::directory_iterator(loaded / "reports"), fs::directory_iterator()),
+            files.size());
   const std::set<std::string> wall_clock = {"batches.received"};
   const std::string dump = DumpHistory(quiet / "history.db", wall_clock);
   EXPECT_GT(dump.size(), 1000u);
@@ -356,6 +377,50 @@ TEST(ProcessBag, KillAndRerunGivesUninterruptedNumbers) {
   const auto keys_b = ObservationKeys(killed / "history.db");
   EXPECT_EQ(keys_a, keys_b);
   for (const auto& [key, n] : keys_b) EXPECT_EQ(n, 1) << key << " fused " << n << " times";
+}
+
+// ------------------------------------------------------------ bad input
+
+TEST(ProcessBag, BadInputIsNamed) {
+  const fs::path dir = Scratch("bad_input");
+  std::ofstream(dir / "not_a_bag.bag") << "this is not a bag\n";
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{SM_PROCESS_BAG, "--bag", (dir / "missing.bag").string()}, "missing.bag' not found"},
+      {{SM_PROCESS_BAG, "--bag", (dir / "not_a_bag.bag").string()}, "not_a_bag.bag"},
+      {{SM_PROCESS_BAG, "--bag", Survey("full_graph_replay", ".bag"), "--frobnicate"},
+       "unknown argument '--frobnicate'"},
+      {{SM_PROCESS_BAG}, "--bag FILE is required"},
+      {{SM_PROCESS_BAG, "--bag", Survey("full_graph_replay", ".bag"), "--target-list",
+        (dir / "none.yaml").string()},
+       "none.yaml' not found"}};
+  for (const auto& [args, expected] : cases) {
+    EXPECT_EQ(Wait(Spawn(args, dir)), 1) << args.back();
+    EXPECT_NE(ReadFile(dir / "stderr").find(expected), std::string::npos)
+        << "expected '" << expected << "' in: " << ReadFile(dir / "stderr");
+  }
+}
+
+// A bag cut in the middle (no index): reindexed in a temporary copy, said
+// with the file's name, processed up to the break.
+TEST(ProcessBag, TruncatedBagIsProcessedUpToTheBreak) {
+  const fs::path dir = Scratch("truncated");
+  const fs::path cut = dir / "cut.bag";
+  fs::copy_file(Survey("full_graph_replay", ".bag"), cut);
+  fs::resize_file(cut, fs::file_size(cut) * 6 / 10);
+  const std::vector<std::string> args = {SM_PROCESS_BAG,
+                                         "--bag",
+                                         cut.string(),
+                                         "--target-list",
+                                         Survey("full_graph_replay", ".targets.yaml"),
+                                         "--database",
+                                         (dir / "history.db").string(),
+                                         "--report-dir",
+                                         (dir / "reports").string()};
+  ASSERT_EQ(Wait(Spawn(args, dir)), 0) << ReadFile(dir / "stderr");
+  const std::string err = ReadFile(dir / "stderr");
+  EXPECT_NE(err.find("'" + cut.string() + "' is not indexed"), std::string::npos) << err;
+  EXPECT_NE(err.find("reindexing a temporary copy"), std::string::npos) << err;
+  EXPECT_GT(ObservationKeys(dir / "history.db").size(), 0u) << "nothing processed before the break";
 }
 
 }  // namespace

@@ -23,7 +23,8 @@ XmlRpc::XmlRpcValue LoadParamFile(const std::string& path);
 // merged key by key, as `rosparam load` does).
 void MergeParams(XmlRpc::XmlRpcValue* into, const XmlRpc::XmlRpcValue& from);
 
-void SetParam(XmlRpc::XmlRpcValue* params, const std::string& key, const XmlRpc::XmlRpcValue& value);
+void SetParam(XmlRpc::XmlRpcValue* params, const std::string& key,
+              const XmlRpc::XmlRpcValue& value);
 
 }  // namespace ros_adapters
 }  // namespace slope_monitor

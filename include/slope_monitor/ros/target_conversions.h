@@ -7,9 +7,9 @@
 #include <optional>
 #include <string>
 
-#include <Eigen/Geometry>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+#include <Eigen/Geometry>
 
 #include "slope_monitor/TargetObservationArray.h"
 #include "slope_monitor/core/targets/target_centroider.h"
