@@ -4,6 +4,7 @@
 // the same reports and history byte for byte with both cores busy; and a
 // kill -9 in the middle followed by a second run on the same history giving
 // the numbers of an uninterrupted run, with nothing fused twice.
+#include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sqlite3.h>
