@@ -25,6 +25,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <iostream>
 #include <map>
@@ -110,6 +111,8 @@ Args ParseArgs(int argc, char** argv) {
       *it->second = argv[++i];
   }
   if (a.bags.empty()) throw InvalidArgument("--bag FILE is required");
+  for (const std::string& bag : a.bags)
+    if (!fs::is_regular_file(bag)) throw InvalidArgument("bag '" + bag + "' not found");
   // The hex matcher's sequence logic (pairing, prior association) still
   // lives in hex_matcher_nodelet.cpp, not in the core: until it moves to
   // matching::SequenceMatcher, tie points need replay.launch uav_tie_points:=true.
@@ -124,11 +127,15 @@ Args ParseArgs(int argc, char** argv) {
   const std::string ros_dir = std::string(home ? home : ".") + "/.ros/slope_monitor";
   if (a.database.empty()) a.database = ros_dir + "/replay.db";
   if (a.report_dir.empty()) a.report_dir = ros_dir + "/reports";
+  return a;
+}
+
+// The other input files (after the bags: a bag that is not one is named first).
+void CheckInputFiles(const Args& a) {
   for (const std::string* f :
        {&a.site_config, &a.target_list, &a.radio_network, &a.adjuster_config})
     if (!f->empty() && !fs::is_regular_file(*f))
       throw InvalidArgument("file '" + *f + "' not found");
-  return a;
 }
 
 // ------------------------------------------------------------------ bags
@@ -141,9 +148,13 @@ std::unique_ptr<rosbag::Bag> OpenBag(const std::string& path, std::vector<fs::pa
   try {
     bag->open(path, rosbag::bagmode::Read);
     return bag;
-  } catch (const rosbag::BagUnindexedException&) {
   } catch (const rosbag::BagException& e) {
-    throw InvalidArgument("'" + path + "' is not a readable bag: " + e.what());
+    // A bag 2.0 header but no usable index (cut while recording or copying):
+    // reindex. Anything else is not a bag.
+    char magic[13] = {};
+    std::ifstream(path, std::ios::binary).read(magic, sizeof(magic));
+    if (std::string(magic, sizeof(magic)) != "#ROSBAG V2.0\n")
+      throw InvalidArgument("'" + path + "' is not a bag (" + e.what() + ")");
   }
   char pattern[] = "/tmp/process_bag_XXXXXX";
   if (!mkdtemp(pattern))
@@ -159,6 +170,7 @@ std::unique_ptr<rosbag::Bag> OpenBag(const std::string& path, std::vector<fs::pa
   fs::create_directories(dir / "out");
   if (std::system(command.c_str()) != 0 || !fs::exists(dir / "out" / copy.filename()))
     throw IoError("cannot reindex bag '" + path + "' (see " + (dir / "reindex.log").string() + ")");
+  bag = std::make_unique<rosbag::Bag>();  // the failed one stays "open"
   try {
     bag->open((dir / "out" / copy.filename()).string(), rosbag::bagmode::Read);
   } catch (const rosbag::BagException& e) {
@@ -576,6 +588,7 @@ int Run(const Args& args) {
   } cleanup{&temporaries};
   std::vector<std::unique_ptr<rosbag::Bag>> bags;
   for (const std::string& path : args.bags) bags.push_back(OpenBag(path, &temporaries));
+  CheckInputFiles(args);
   rosbag::View view;
   for (const auto& bag : bags) view.addQuery(*bag);
   if (view.size() == 0) throw InvalidArgument("bag '" + args.bags.front() + "' holds no messages");
