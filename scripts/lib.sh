@@ -65,7 +65,7 @@ sm_build() {
   if [ "${1:-}" = demo ]; then
     targets=(slope_monitor_target_centroider_nodelet slope_monitor_bundle_adjuster_nodelet
              slope_monitor_radio_phase_solver_nodelet slope_monitor_deformation_estimator_nodelet
-             make_survey_bag deformation_summary)
+             make_survey_bag deformation_summary process_bag)
   fi
   (cd "$SM_WS" && catkin_make -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=ON -j"$jobs" "${targets[@]}" \
      >"$SM_WS/build.log" 2>&1) || {

@@ -34,11 +34,11 @@
 #include "slope_monitor/core/adjustment/epoch_collector.h"
 #include "slope_monitor/core/adjustment/epochs.h"
 #include "slope_monitor/core/common/error.h"
-#include "slope_monitor/core/adjustment/site_options.h"
-#include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/core/io/target_list.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
 #include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/ros/epoch_solver.h"
+#include "slope_monitor/ros/node_parameters.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
 
@@ -59,9 +59,9 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("points", 5, true);
     displacements_pub_ =
         nh.advertise<slope_monitor::PointDisplacementArray>("displacements", 5, true);
-    for (const std::string& topic : target_topics_)
+    for (const std::string& topic : params_.target_topics)
       target_subs_.push_back(nh.subscribe(topic, 500, &BundleAdjusterNodelet::OnTargets, this));
-    for (const std::string& cam : collector_options_.cameras) {
+    for (const std::string& cam : params_.collector.cameras) {
       info_subs_.push_back(nh.subscribe<sensor_msgs::CameraInfo>(
           cam + "/camera_info", 5,
           [this, cam](const sensor_msgs::CameraInfoConstPtr& m) { OnCameraInfo(cam, m); }));
@@ -69,13 +69,13 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     // Large queues: a long solve holds the callbacks, and nothing may be lost.
     tie_sub_ = nh.subscribe("tie_points", 2000, &BundleAdjusterNodelet::OnTiePoints, this);
     prior_sub_ = nh.subscribe("position_prior", 500, &BundleAdjusterNodelet::OnPositionPrior, this);
-    for (const std::string& topic : epoch_topics_)
+    for (const std::string& topic : params_.epoch_topics)
       epoch_subs_.push_back(nh.subscribe(topic, 20, &BundleAdjusterNodelet::OnEpoch, this));
     // A live installation may switch off the services that change state (ROS 1
     // has no authentication; doc/security.md).
-    if (enable_run_adjustment_)
+    if (params_.enable_run_adjustment)
       run_srv_ = nh.advertiseService("run_adjustment", &BundleAdjusterNodelet::OnRun, this);
-    if (enable_set_reference_epoch_)
+    if (params_.enable_set_reference_epoch)
       reference_srv_ =
           nh.advertiseService("set_reference_epoch", &BundleAdjusterNodelet::OnSetReference, this);
     // The collector's time-outs are for live sensors only (a complete epoch is
@@ -86,119 +86,15 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     updater_->setHardwareID("bundle_adjuster");
     updater_->add("adjustment", this, &BundleAdjusterNodelet::Diagnose);
     NODELET_INFO("bundle_adjuster: %zu target topics, %zu cameras, %zu targets in '%s'",
-                 target_topics_.size(), collector_options_.cameras.size(),
-                 targets_.targets().size(), target_list_path_.c_str());
+                 params_.target_topics.size(), params_.collector.cameras.size(),
+                 params_.targets.targets().size(), params_.target_list_path.c_str());
   }
 
  private:
   void ReadParameters(ros::NodeHandle& pnh) {
     ros_adapters::ParamReader p(pnh);
-    // The site file (io::LoadSiteFile) gives the targets when it lists them
-    // (target_list is then not read: replay.launch defaults it to the bag's),
-    // and each camera's pixel size and kind.
-    const std::string site_file = p.String("site_file", "");
-    std::optional<io::SiteFile> site;
-    if (!site_file.empty()) site = io::LoadSiteFile(site_file);
-    target_list_path_ = p.String("target_list", "");
-    if (site && site->targets) {
-      if (!target_list_path_.empty())
-        NODELET_INFO("bundle_adjuster: the targets come from the site file %s; parameter '%s' (%s) is not used",
-                     site_file.c_str(), p.FullKey("target_list").c_str(), target_list_path_.c_str());
-      targets_ = *site->targets;
-      target_list_path_ = site->targets_file.empty() ? site_file + " (inline targets)" : site->targets_file;
-    } else if (!target_list_path_.empty()) {
-      targets_ = io::TargetList::Load(target_list_path_);
-    } else {
-      throw ConfigError("parameter '" + p.FullKey("target_list") + "' is required (or '" + p.FullKey("site_file") +
-                        "' naming a site file with targets)");
-    }
-    // The camera kind is the site file's field, not the name.
-    if (site) pixel_size_by_camera_ = adjustment::ApplySite(*site, &collector_options_, &scene_options_);
-    target_topics_ = p.StringList("target_topics", {"targets"});
-    adjustment::EpochCollectorOptions& c = collector_options_;
-    c.cameras = p.StringList("cameras", {});
-    epoch_topics_ = p.StringList("epoch_topics", {"epoch"});
-    c.epoch_wait = p.Double("epoch_wait", 30.0, 0.0, 3600.0, "s");
-    c.tie_point_cameras = p.StringList("tie_point_cameras", {});
-    c.tie_point_wait = p.Double("tie_point_wait", 300.0, 0.0, 86400.0, "s");
-    c.tie_pixel_sigma_floor = p.Double("tie_pixel_sigma_floor", 0.2, 0.0, 100.0, "px");
-    c.min_tie_quality = p.Double("min_tie_quality", 0.25, 0.0, 1.0);
-    frame_id_ = p.String("frame_id", "site");
-    enable_run_adjustment_ = p.Bool("enable_run_adjustment", true);
-    enable_set_reference_epoch_ = p.Bool("enable_set_reference_epoch", true);
-    pixel_size_ = p.Double("pixel_size", 1.0, 1e-6, 1.0, "mm/px");
-    c.pixel_sigma = p.Double("pixel_sigma", 0.3, 1e-4, 100.0, "px");
-    c.pixel_sigma_floor = p.Double("pixel_sigma_floor", 0.05, 0.0, 100.0, "px");
-    c.uav_pixel_sigma_floor = p.Double("uav_pixel_sigma_floor", 1.0, 0.0, 100.0, "px");
-    c.epoch_gap = p.Double("epoch_gap", 600.0, 0.0, 1e7, "s");
-    c.Check();
-    scene_options_.position_prior_max_dt = p.Double("position_prior_max_dt", 0.1, 0.0, 10.0, "s");
-    scene_options_.position_prior_min_sigma =
-        p.Double("position_prior_min_sigma", 0.01, 1e-4, 100.0, "m");
-    scene_options_.min_images = p.Int("min_images", 2, 1, 10000);
-    scene_options_.Check();
-    auto interior_list = [&p](const std::string& key) {
-      std::vector<int> out;
-      for (const std::string& name : p.StringList(key, {})) {
-        int idx = -1;
-        for (int i = 0; i < camera::kNumInterior; ++i)
-          if (name == camera::InteriorNames()[i]) idx = i;
-        if (idx < 0)
-          throw ConfigError("parameter '" + p.FullKey(key) + "': unknown interior parameter '" +
-                            name + "'");
-        out.push_back(idx);
-      }
-      return out;
-    };
-    adjustment::EpochAdjustmentOptions& e = epoch_options_;
-    e.free_interior = interior_list("free_interior");
-    const std::vector<int> uav_free_interior = interior_list("uav_free_interior");
-    adjustment::Options& o = e.adjustment;
-    o.loss = p.String("loss", "huber", {"none", "huber", "cauchy"});
-    o.loss_scale = p.Double("loss_scale", 3.0, 1e-3, 1e3, "sigma");
-    o.outlier_threshold = p.Double("outlier_threshold", 5.0, 1e-3, 1e3, "sigma");
-    o.linear_solver = p.String("linear_solver", "auto",
-                               {"auto", "dense_schur", "sparse_schur", "iterative_schur"});
-    o.max_iterations = p.Int("max_iterations", 100, 1, 10000);
-    const int threads = p.Int("num_threads", 1, 0, 64);
-    o.num_threads = threads > 0 ? threads : adjustment::Options::HardwareThreads();
-    o.minimizer_progress = p.Bool("minimizer_progress", false);
-    o.min_control_points = p.Int("min_control_points", 3, 0, 1000);
-    o.max_sigma0 = p.Double("max_sigma0", 5.0, 0.01, 1e6);
-    o.max_outlier_fraction = p.Double("max_outlier_fraction", 0.2, 0.0, 1.0);
-    o.min_observations_with_prior = p.Int("min_observations_with_prior", 3, 2, 1000);
-    o.min_variance_factor = p.Double("min_variance_factor", 1.0, 0.0, 100.0);
-    o.compute_datum_free_covariance = p.Bool("datum_free_displacements", true);
-    o.compute_covariance = true;
-    o.Check();
-    // A UAV camera self-calibrated in every flight: its own list (the fixed
-    // cameras keep free_interior).
-    if (!uav_free_interior.empty())
-      for (const std::string& cam : c.cameras)
-        if (adjustment::IsUavCamera(cam, c.uav_cameras)) e.free_interior_by_camera[cam] = uav_free_interior;
-    e.name_unidentified = p.Bool("name_unidentified", true);
-    e.orient_from_approximate = p.Bool("orient_from_approximate", true);
-    e.naming.gate_sigma = p.Double("naming_gate_sigma", 3.0, 0.1, 100.0, "sigma");
-    e.naming.gate_extra_px = p.Double("naming_gate_extra_px", 10.0, 0.0, 10000.0, "px");
-    e.naming.coarse_extra_px = p.Double("naming_coarse_extra_px", 100.0, 0.0, 10000.0, "px");
-    e.naming.ambiguity_factor = p.Double("naming_ambiguity_factor", 2.0, 1.0, 100.0);
-    e.Check();
-    displacement_options_.stable_threshold = p.Double("stable_threshold", 0.02, 1e-6, 100.0, "m");
-    displacement_options_.significance_threshold =
-        p.Double("significance_threshold", 3.0, 0.1, 100.0);
-    displacement_options_.estimate_scale = p.Bool("coregistration_scale", false);
-    displacement_options_.Check();
-    p.CheckNoUnknownKeys();
-    collector_ = std::make_unique<adjustment::EpochCollector>(collector_options_, &targets_);
-  }
-
-  // Cameras whose every photo has its own pose: the site file's kind uav;
-  // without a site file, the collector's rule (adjustment::IsUavCamera).
-  std::set<std::string> MovingCameras(const adjustment::Scene& scene) const {
-    std::set<std::string> moving;
-    for (const auto& camera : scene.cameras)
-      if (adjustment::IsUavCamera(camera.name, collector_options_.uav_cameras)) moving.insert(camera.name);
-    return moving;
+    params_ = ros_adapters::ReadAdjusterParameters(p);
+    collector_ = std::make_unique<adjustment::EpochCollector>(params_.collector, &params_.targets);
   }
 
   // ---------------------------------------------------------------- input
@@ -207,9 +103,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   void OnCameraInfo(const std::string& camera_name, const sensor_msgs::CameraInfoConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     try {
-      const auto size = pixel_size_by_camera_.find(camera_name);
-      models_[camera_name] = ros_adapters::CameraModelFromCameraInfo(
-          *msg, size == pixel_size_by_camera_.end() ? pixel_size_ : size->second);
+      models_[camera_name] = ros_adapters::CameraModelFromCameraInfo(*msg, params_.PixelSizeOf(camera_name));
     } catch (const Error& e) {
       NODELET_ERROR_THROTTLE(10.0, "bundle_adjuster: camera_info of '%s': %s", camera_name.c_str(),
                              e.what());
@@ -286,107 +180,32 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   }
 
   slope_monitor::AdjustmentSolution SolveOne(const adjustment::CollectedEpoch& epoch) {
-    const uint32_t n = epoch.epoch;
-    for (const std::string& line : epoch.incomplete)
-      NODELET_WARN("bundle_adjuster: epoch %u (%s): incomplete: %s", n, epoch.reason.c_str(),
-                   line.c_str());
-    for (const std::string& line : epoch.dropped)
-      NODELET_WARN("bundle_adjuster: epoch %u: %s", n, line.c_str());
-    slope_monitor::AdjustmentSolution out;
-    out.header.frame_id = frame_id_;
-    out.epoch = n;
-    out.usable = false;
-    if (epoch.observations.empty()) {
-      out.message = "no observations collected";
-      last_message_ = out.message;
-      return out;
-    }
-    try {
-      const adjustment::BuiltScene built =
-          adjustment::BuildScene(epoch, models_, store_, targets_, scene_options_);
-      const adjustment::EpochAdjustmentResult result = adjustment::AdjustEpoch(
-          built.scene, built.unidentified, adjustment::ListedTargets(targets_), epoch_options_);
-      LogResult(n, result, built.unidentified.empty());
-      const adjustment::Summary& s = result.summary;
-      out = ros_adapters::MakeSolution(epoch, result.scene, s, frame_id_);
-      last_message_ = s.reason;
-      last_usable_ = s.IsSolutionUsable();
-      if (!s.IsSolutionUsable()) {
-        NODELET_ERROR_THROTTLE(10.0,
-                               "bundle_adjuster: epoch %u not usable: %s (previous solution kept)",
-                               n, s.reason.c_str());
-        solution_pub_.publish(out);
-        return out;
+    const ros_adapters::SolvedEpoch out =
+        ros_adapters::SolveCollectedEpoch(epoch, models_, params_, getName(), &store_);
+    for (const ros_adapters::LogLine& line : out.log) {
+      switch (line.level) {
+        case ros_adapters::LogLine::kDebug: NODELET_DEBUG("bundle_adjuster: %s", line.text.c_str()); break;
+        case ros_adapters::LogLine::kInfo: NODELET_INFO("bundle_adjuster: %s", line.text.c_str()); break;
+        case ros_adapters::LogLine::kWarn: NODELET_WARN("bundle_adjuster: %s", line.text.c_str()); break;
+        case ros_adapters::LogLine::kError: NODELET_ERROR("bundle_adjuster: %s", line.text.c_str()); break;
       }
-      // Accepted: the store keeps poses and calibration; publish everything.
-      const adjustment::EpochPoints ep =
-          store_.Accept(result.scene, s, static_cast<int>(n), out.header.stamp.toSec(),
-                        epoch_options_.adjustment.compute_datum_free_covariance);
-      solution_pub_.publish(out);
-      // Fixed cameras on /tf_static (latched), each UAV photo as its own stamped transform on /tf.
-      const ros_adapters::CameraTransforms tfs =
-          ros_adapters::MakeTransforms(result.scene, epoch, frame_id_, out.header.stamp, MovingCameras(result.scene));
-      if (!tfs.fixed.empty()) static_broadcaster_.sendTransform(tfs.fixed);
-      if (!tfs.moving.empty()) tf_broadcaster_.sendTransform(tfs.moving);
-      points_pub_.publish(ros_adapters::MakePointCloud(result.scene, s, out.header));
-      PublishDisplacements(ep, out.header);
-      ++accepted_;
-      NODELET_INFO(
-          "bundle_adjuster: epoch %u accepted: %zu images, %zu points, %d observations, sigma0 "
-          "%.2f, rms %.3f px",
-          n, result.scene.images.size(), result.scene.points.size(), s.num_observations, s.sigma0,
-          s.rms_residual_px);
-    } catch (const std::exception& e) {
-      out.usable = false;
-      out.message = std::string("adjustment failed: ") + e.what();
-      last_message_ = out.message;
-      last_usable_ = false;
-      NODELET_ERROR_THROTTLE(10.0, "bundle_adjuster: %s (previous solution kept)",
-                             out.message.c_str());
-      solution_pub_.publish(out);
     }
-    return out;
-  }
-
-  void LogResult(uint32_t n, const adjustment::EpochAdjustmentResult& result,
-                 bool no_unidentified) {
-    if (!result.initialization.empty())
-      NODELET_WARN_THROTTLE(10.0, "bundle_adjuster: initialisation: %s",
-                            result.initialization.c_str());
-    if (!result.pruned.dropped_images.empty() || !result.pruned.dropped_cameras.empty())
-      NODELET_WARN_THROTTLE(10.0, "bundle_adjuster: epoch %u: %s", n,
-                            result.pruned.Summary().c_str());
-    for (const std::string& r : result.rejected_names)
-      NODELET_WARN("bundle_adjuster: epoch %u: target name given by projection rejected: %s", n,
-                   r.c_str());
-    for (size_t i = 0; i < result.naming.notes.size() && i < 5; ++i)
-      NODELET_DEBUG("bundle_adjuster: epoch %u: %s", n, result.naming.notes[i].c_str());
-    last_photos_ = result.photos;
-    last_naming_ = result.naming;
-    last_rejected_names_ = static_cast<int>(result.rejected_names.size());
-    if (result.photos.total > 0 || !no_unidentified)
-      NODELET_INFO(
-          "bundle_adjuster: epoch %u: %s; %s; %d oriented from approximate target coordinates; %zu "
-          "names "
-          "rejected by the residual test",
-          n, result.photos.Brief().c_str(), result.naming.Brief().c_str(),
-          result.oriented_from_approximate, result.rejected_names.size());
-  }
-
-  void PublishDisplacements(const adjustment::EpochPoints& current,
-                            const std_msgs::Header& header) {
-    const std::optional<adjustment::EpochComparison> cmp =
-        store_.CompareWithReference(current, displacement_options_);
-    if (!cmp) return;
-    if (!cmp->success) {
-      NODELET_ERROR_THROTTLE(10.0, "bundle_adjuster: %s", cmp->message.c_str());
-      return;
+    if (out.adjusted) {
+      last_photos_ = out.photos;
+      last_naming_ = out.naming;
+      last_rejected_names_ = out.rejected_names;
     }
-    const adjustment::EpochPoints& ref = *store_.Reference();
-    NODELET_INFO("bundle_adjuster: epoch %d vs reference %d: %zu monitoring displacements",
-                 current.epoch, ref.epoch, cmp->displacements.size());
-    displacements_pub_.publish(
-        ros_adapters::MakeDisplacements(*cmp, ref, current.epoch, getName(), header));
+    last_message_ = out.solution.message;
+    last_usable_ = out.accepted;
+    solution_pub_.publish(out.solution);
+    if (!out.accepted) return out.solution;
+    // Fixed cameras on /tf_static (latched), each UAV photo as its own stamped transform on /tf.
+    if (!out.fixed_transforms.empty()) static_broadcaster_.sendTransform(out.fixed_transforms);
+    if (!out.moving_transforms.empty()) tf_broadcaster_.sendTransform(out.moving_transforms);
+    points_pub_.publish(out.points);
+    if (out.displacements) displacements_pub_.publish(*out.displacements);
+    ++accepted_;
+    return out.solution;
   }
 
   void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
@@ -418,18 +237,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     stat.add("reference epoch", store_.reference_epoch());
   }
 
-  // Parameters.
-  std::string target_list_path_;
-  io::TargetList targets_;
-  std::vector<std::string> target_topics_, epoch_topics_;
-  std::string frame_id_;
-  bool enable_run_adjustment_ = true, enable_set_reference_epoch_ = true;
-  double pixel_size_ = 1.0;
-  std::map<std::string, double> pixel_size_by_camera_;  // [mm/px] from the site file
-  adjustment::EpochCollectorOptions collector_options_;
-  adjustment::BuildSceneOptions scene_options_;
-  adjustment::EpochAdjustmentOptions epoch_options_;
-  adjustment::DisplacementOptions displacement_options_;
+  ros_adapters::AdjusterParameters params_;
 
   // State (guarded by mutex_; a solve holds it, as the callbacks wait anyway).
   std::mutex mutex_;

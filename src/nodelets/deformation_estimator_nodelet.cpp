@@ -30,25 +30,16 @@
 #include "slope_monitor/core/deformation/history.h"
 #include "slope_monitor/core/deformation/plot_report.h"
 #include "slope_monitor/core/deformation/report.h"
-#include "slope_monitor/core/deformation/site_options.h"
 #include "slope_monitor/core/io/safe_file.h"
 #include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/ros/deformation_conversions.h"
+#include "slope_monitor/ros/node_parameters.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
 #include "slope_monitor/ros/validation.h"
 
 namespace slope_monitor {
 
-namespace {
-
-std::string Trim(const std::string& s) {
-  const size_t a = s.find_first_not_of(" \t");
-  const size_t b = s.find_last_not_of(" \t");
-  return a == std::string::npos ? "" : s.substr(a, b - a + 1);
-}
-
-}  // namespace
 
 class DeformationEstimatorNodelet : public nodelet::Nodelet {
  public:
@@ -153,111 +144,28 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
 
   void ReadParameters(ros::NodeHandle& pnh, deformation::EstimatorOptions* o) {
     ros_adapters::ParamReader p(pnh);
-    input_topics_ = p.StringList("input_topics", {"displacements"});
-    if (input_topics_.empty()) throw ConfigError(Message("parameter '", p.FullKey("input_topics"), "' is empty"));
-    frame_id_ = p.String("frame_id", "site");
-    database_ = p.String("database", "");
-    report_dir_ = p.String("report_dir", "");
-    report_on_shutdown_ = p.Bool("report_on_shutdown", true);
-    report_formats_ = p.StringList("report_formats", {});
-    enable_export_report_ = p.Bool("enable_export_report", true);
-    enable_set_reference_epoch_ = p.Bool("enable_set_reference_epoch", true);
-    for (const std::string& f : report_formats_)
-      if (f != "csv" && f != "geojson" && f != "geotiff" && f != "gpkg" && f != "png")
-        throw ConfigError(Message("parameter '", p.FullKey("report_formats"), "' has unknown format '", f, "'"));
-    const std::string unit = p.String("velocity_unit", "mm/day", {"mm/day", "mm/h"});
-    const double to_si = unit == "mm/day" ? 1e-3 / 86400.0 : 1e-3 / 3600.0;
-    // Defaults 2 / 10 / 50 mm/day, expressed in the chosen unit.
-    const double per_day = unit == "mm/day" ? 1.0 : 1.0 / 24.0;
-    o->alerts.thresholds.watch = p.Double("threshold_watch", 2.0 * per_day, 0.0, 1e6, unit) * to_si;
-    o->alerts.thresholds.warning = p.Double("threshold_warning", 10.0 * per_day, 0.0, 1e6, unit) * to_si;
-    o->alerts.thresholds.alarm = p.Double("threshold_alarm", 50.0 * per_day, 0.0, 1e6, unit) * to_si;
-    for (const std::string& entry : p.StringList("point_thresholds", {})) {
-      // "point_id: watch, warning, alarm" in velocity_unit
-      const size_t colon = entry.rfind(':');
-      std::vector<double> v;
-      if (colon != std::string::npos) {
-        std::stringstream ss(entry.substr(colon + 1));
-        std::string item;
-        while (std::getline(ss, item, ',')) {
-          try {
-            v.push_back(std::stod(item));
-          } catch (const std::exception&) {
-            v.clear();
-            break;
-          }
-        }
-      }
-      if (colon == std::string::npos || v.size() != 3 || Trim(entry.substr(0, colon)).empty())
-        throw ConfigError(Message("parameter '", p.FullKey("point_thresholds"), "' entry '", entry,
-                                  "' must read 'point_id: watch, warning, alarm' (", unit, ")"));
-      deformation::Thresholds t;
-      t.watch = v[0] * to_si;
-      t.warning = v[1] * to_si;
-      t.alarm = v[2] * to_si;
-      o->alerts.point_thresholds[Trim(entry.substr(0, colon))] = t;
-    }
-    for (const std::string& entry : p.StringList("aliases", {})) {
-      const size_t eq = entry.find('=');
-      if (eq == std::string::npos || Trim(entry.substr(0, eq)).empty() || Trim(entry.substr(eq + 1)).empty())
-        throw ConfigError(Message("parameter '", p.FullKey("aliases"), "' entry '", entry,
-                                  "' must read 'measured_id = monitoring_point_id'"));
-      o->aliases[Trim(entry.substr(0, eq))] = Trim(entry.substr(eq + 1));
-    }
-    o->alerts.significance = p.Double("alert_significance", 3.0, 0.0, 10.0, "sigma");
-    o->alerts.confirm_points = p.Int("confirm_points", 2, 1, 1000);
-    o->alerts.confirm_sources = p.Int("confirm_sources", 2, 1, 10);
-    o->alerts.hysteresis = p.Double("hysteresis", 0.8, 0.01, 1.0);
-    o->filter.jerk_spectral_density = p.Double("jerk_spectral_density", 1e-25, 0.0, 1e-20, "m^2/s^5");
-    o->filter.initial_velocity_sigma = p.Double("initial_velocity_sigma", 1e-6, 1e-12, 1.0, "m/s");
-    o->filter.initial_acceleration_sigma = p.Double("initial_acceleration_sigma", 1e-10, 1e-18, 1.0, "m/s^2");
-    o->reorder_window = p.Double("reorder_window", 3 * 86400.0, 0.0, 365 * 86400.0, "s");
-    o->reference_tolerance = p.Double("reference_tolerance", 3600.0, 0.0, 30 * 86400.0, "s");
-    o->disagreement_threshold = p.Double("disagreement_threshold", 16.27, 0.1, 1e6, "chi2(3)");
-    o->comparison_max_gap = p.Double("comparison_max_gap", 86400.0, 1.0, 365 * 86400.0, "s");
-    o->innovation_gate = p.Double("innovation_gate", 0.0, 0.0, 1e6, "chi2(3)");
-    o->velocity_sample_interval = p.Double("velocity_sample_interval", 3600.0, 1.0, 86400.0, "s");
-    o->forecast.window = p.Double("forecast_window", 48.0, 0.1, 24.0 * 365, "h") * 3600.0;
-    o->forecast.alpha = p.Double("forecast_alpha", 2.0, 1.01, 10.0);
-    o->forecast.min_samples = p.Int("forecast_min_samples", 6, 4, 100000);
-    o->forecast.min_velocity = p.Double("forecast_min_velocity", 0.0, 0.0, 1e6, unit) * to_si;
-    o->forecast.significance = p.Double("forecast_significance", 3.0, 0.0, 100.0, "sigma");
-    o->forecast.max_horizon = p.Double("forecast_max_horizon", 365.0, 0.01, 3650.0, "days") * 86400.0;
-    const std::vector<double> origin = p.DoubleList("geodetic_origin", {});
-    if (!origin.empty()) {
-      if (origin.size() != 3 || std::abs(origin[0]) > 90 || std::abs(origin[1]) > 180)
-        throw ConfigError(Message("parameter '", p.FullKey("geodetic_origin"),
-                                  "' must be [] or [lat_deg, lon_deg, height_m]"));
-      report_options_.geodetic_origin = Eigen::Vector3d(origin[0], origin[1], origin[2]);
-    }
-    report_options_.grid_resolution = p.Double("report_grid_resolution", 1.0, 0.01, 1000.0, "m");
-    report_options_.grid_margin = p.Double("report_grid_margin", 10.0, 0.0, 10000.0, "m");
-    report_options_.idw_power = p.Double("report_idw_power", 2.0, 0.1, 10.0);
-    report_options_.idw_radius = p.Double("report_idw_radius", 50.0, 0.1, 1e5, "m");
-    report_options_.map_width = p.Int("report_map_width", 1200, 200, 8000, "px");
-    marker_options_.arrow_scale = p.Double("marker_arrow_scale", 100.0, 0.0, 1e6);
-    marker_options_.text_size = p.Double("marker_text_size", 0.8, 0.01, 100.0, "m");
-    marker_options_.point_size = p.Double("marker_point_size", 0.5, 0.01, 100.0, "m");
-    report_interval_ = p.Double("report_interval", 0.0, 0.0, 30 * 86400.0, "s");
-    plot_options_.script = p.String("plot_script", "");
-    plot_options_.dem = p.String("report_dem", "");
-    report_on_alert_change_ = p.Bool("report_on_alert_change", false);
-    const std::string site_file = p.String("site_file", "");
-    if (!site_file.empty()) ApplySiteFile(site_file, o);
-    p.CheckNoUnknownKeys();
-    report_options_.Check();
-    o->Check();
+    ros_adapters::EstimatorParameters e = ros_adapters::ReadEstimatorParameters(p);
+    *o = e.options;
+    input_topics_ = e.input_topics;
+    frame_id_ = e.frame_id;
+    database_ = e.database;
+    report_dir_ = e.report_dir;
+    report_on_shutdown_ = e.report_on_shutdown;
+    report_formats_ = e.report_formats;
+    enable_export_report_ = e.enable_export_report;
+    enable_set_reference_epoch_ = e.enable_set_reference_epoch;
+    report_options_ = e.report;
+    marker_options_ = e.markers;
+    report_interval_ = e.report_interval;
+    report_on_alert_change_ = e.report_on_alert_change;
+    plot_options_ = e.plot;
     thresholds_ = o->alerts.thresholds;
-    plot_options_.site = site_name_;
+    if (e.site) StartHook(*e.site);
   }
 
-  // The site file (io::LoadSiteFile) overrides the thresholds, adds its
-  // aliases, gives the geodetic origin (a local_enu site) and the
-  // notification hook.
-  void ApplySiteFile(const std::string& path, deformation::EstimatorOptions* o) {
-    const io::SiteFile site = io::LoadSiteFile(path);
+  // The site file's notification hook (deformation/alert_hook.h), when it names one.
+  void StartHook(const io::SiteFile& site) {
     site_name_ = site.name;
-    deformation::ApplySite(site, o, &report_options_);
     if (!site.notification.hook.empty()) {
       hook_ = std::make_unique<deformation::AlertHook>(site.notification, [](bool error, const std::string& m) {
         if (error) {
@@ -267,8 +175,8 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
         }
       });
     }
-    NODELET_INFO("deformation_estimator: site '%s' from %s (notification hook: %s)", site.name.c_str(),
-                 path.c_str(), site.notification.hook.empty() ? "none" : site.notification.hook.c_str());
+    NODELET_INFO("deformation_estimator: site '%s' (notification hook: %s)", site.name.c_str(),
+                 site.notification.hook.empty() ? "none" : site.notification.hook.c_str());
   }
 
   // Caller holds mutex_. With a history and a plot script the pictures

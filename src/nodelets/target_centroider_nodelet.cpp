@@ -5,6 +5,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 
 #include <cv_bridge/cv_bridge.h>
 #include <diagnostic_updater/diagnostic_updater.h>
@@ -24,6 +25,7 @@
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
+#include "slope_monitor/ros/target_conversions.h"
 
 namespace slope_monitor {
 
@@ -103,62 +105,22 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
       NODELET_ERROR_THROTTLE(30.0, "target_centroider: %s", target_list_error_.c_str());
     }
     try {
-      // Encoding, empty image, size against camera_info: named with the topic.
-      targets::CheckImageInput(sub_.getTopic(), image->width, image->height, image->encoding, info->width,
-                               info->height);
-      cv_bridge::CvImageConstPtr cv_image = cv_bridge::toCvShare(image);
-      std::unique_ptr<targets::ViewGeometry> view;
+      std::optional<Eigen::Isometry3d> site_from_optical;
       if (use_tf_pose_ && info->K[0] > 0) {
-        geometry_msgs::TransformStamped tf;
         try {
-          tf = tf_buffer_->lookupTransform(site_frame_, image->header.frame_id, image->header.stamp);
-          const Eigen::Isometry3d site_from_optical = tf2::transformToEigen(tf);
-          const Rigid3 optical_from_site = Rigid3(Eigen::Matrix3d(site_from_optical.rotation()),
-                                                  Eigen::Vector3d(site_from_optical.translation())).Inverse();
-          view = std::make_unique<targets::ViewGeometry>();
-          view->camera = ros_adapters::CameraModelFromCameraInfo(*info, pixel_size_);
-          view->pose = camera::ExteriorOrientation::FromOpticalFromSite(optical_from_site);
+          site_from_optical = tf2::transformToEigen(
+              tf_buffer_->lookupTransform(site_frame_, image->header.frame_id, image->header.stamp));
         } catch (const tf2::TransformException&) {
-          view.reset();  // no pose: circles stay unidentified, no perspective correction
+          // no pose: circles stay unidentified, no perspective correction
         }
       }
-      const targets::MonoImage mono = targets::ToMono(cv_image->image, image->encoding);
-      const targets::Result r = centroider_->DetectMono(mono, view.get());
-      TargetObservationArray out;
-      out.header = image->header;
-      out.camera_name = camera_name_;
-      out.image_width = image->width;
-      out.image_height = image->height;
-      for (const auto& o : r.observations) {
-        TargetObservation m;
-        m.id = o.id;
-        m.family = o.family;
-        m.role = !o.role ? TargetObservation::ROLE_UNKNOWN
-                 : *o.role == io::TargetRole::kControl ? TargetObservation::ROLE_CONTROL
-                 : *o.role == io::TargetRole::kCheck ? TargetObservation::ROLE_CHECK
-                                                      : TargetObservation::ROLE_MONITORING;
-        m.x = o.centre.x();
-        m.y = o.centre.y();
-        const auto cov = ros_adapters::ToRowMajor<2>(o.covariance);
-        std::copy(cov.begin(), cov.end(), m.covariance.begin());
-        if (o.has_corners) {
-          for (int k = 0; k < 4; ++k) {
-            m.corners[2 * k] = o.corners[k].x();
-            m.corners[2 * k + 1] = o.corners[k].y();
-          }
-        }
-        m.size_px = o.size_px;
-        m.quality = o.quality;
-        out.observations.push_back(m);
-      }
-      out.rejected = r.rejections.size();
-      for (const auto& rj : r.rejections) {
-        out.reject_reasons.push_back(targets::RejectReasonName(rj.reason) + ": " + rj.family + "/" +
-                                     std::to_string(rj.id) + " " + rj.detail);
-      }
+      const ros_adapters::CentroidedImage c = ros_adapters::CentroidImage(
+          *centroider_, *image, *info, site_from_optical, camera_name_, pixel_size_, sub_.getTopic());
+      const targets::Result& r = c.result;
+      const TargetObservationArray& out = c.targets;
       targets_pub_.publish(out);
       if (debug_pub_.getNumSubscribers() > 0) {
-        cv_bridge::CvImage dbg(image->header, sensor_msgs::image_encodings::BGR8, targets::DrawResult(mono.mono8, r));
+        cv_bridge::CvImage dbg(image->header, sensor_msgs::image_encodings::BGR8, targets::DrawResult(c.mono.mono8, r));
         debug_pub_.publish(dbg.toImageMsg());
       }
       std::lock_guard<std::mutex> lock(stats_mutex_);

@@ -38,13 +38,25 @@ std::string UnitSuffix(const std::string& unit) { return unit.empty() ? "" : " "
 
 }  // namespace
 
-std::string ParamReader::FullKey(const std::string& key) const { return nh_.resolveName(key); }
+ParamReader::ParamReader(const XmlRpc::XmlRpcValue& params, const std::string& ns)
+    : use_tree_(true), tree_(params), tree_ns_(ns) {}
+
+std::string ParamReader::FullKey(const std::string& key) const {
+  return use_tree_ ? tree_ns_ + "/" + key : nh_->resolveName(key);
+}
+
+bool ParamReader::Get(const std::string& key, XmlRpc::XmlRpcValue* v) const {
+  if (!use_tree_) return nh_->getParam(key, *v);
+  if (tree_.getType() != XmlRpc::XmlRpcValue::TypeStruct || !tree_.hasMember(key)) return false;
+  *v = const_cast<XmlRpc::XmlRpcValue&>(tree_)[key];
+  return true;
+}
 
 double ParamReader::Double(const std::string& key, double default_value, double min, double max,
                            const std::string& unit) {
   read_.insert(FullKey(key));
   XmlRpc::XmlRpcValue v;
-  if (!nh_.getParam(key, v)) return default_value;
+  if (!Get(key, &v)) return default_value;
   double value;
   if (!ToDouble(v, &value)) {
     throw ConfigError(Message("parameter '", FullKey(key), "' must be a number", UnitSuffix(unit), ", got a ",
@@ -60,7 +72,7 @@ double ParamReader::Double(const std::string& key, double default_value, double 
 int ParamReader::Int(const std::string& key, int default_value, int min, int max, const std::string& unit) {
   read_.insert(FullKey(key));
   XmlRpc::XmlRpcValue v;
-  if (!nh_.getParam(key, v)) return default_value;
+  if (!Get(key, &v)) return default_value;
   if (v.getType() != XmlRpc::XmlRpcValue::TypeInt) {
     throw ConfigError(Message("parameter '", FullKey(key), "' must be an integer", UnitSuffix(unit), ", got a ",
                               TypeName(v)));
@@ -76,7 +88,7 @@ int ParamReader::Int(const std::string& key, int default_value, int min, int max
 bool ParamReader::Bool(const std::string& key, bool default_value) {
   read_.insert(FullKey(key));
   XmlRpc::XmlRpcValue v;
-  if (!nh_.getParam(key, v)) return default_value;
+  if (!Get(key, &v)) return default_value;
   if (v.getType() != XmlRpc::XmlRpcValue::TypeBoolean) {
     throw ConfigError(Message("parameter '", FullKey(key), "' must be true or false, got a ", TypeName(v)));
   }
@@ -88,7 +100,7 @@ std::string ParamReader::String(const std::string& key, const std::string& defau
   read_.insert(FullKey(key));
   XmlRpc::XmlRpcValue v;
   std::string value = default_value;
-  if (nh_.getParam(key, v)) {
+  if (Get(key, &v)) {
     if (v.getType() != XmlRpc::XmlRpcValue::TypeString) {
       throw ConfigError(Message("parameter '", FullKey(key), "' must be a string, got a ", TypeName(v)));
     }
@@ -109,7 +121,7 @@ std::string ParamReader::String(const std::string& key, const std::string& defau
 std::vector<double> ParamReader::DoubleList(const std::string& key, const std::vector<double>& default_value) {
   read_.insert(FullKey(key));
   XmlRpc::XmlRpcValue v;
-  if (!nh_.getParam(key, v)) return default_value;
+  if (!Get(key, &v)) return default_value;
   if (v.getType() != XmlRpc::XmlRpcValue::TypeArray) {
     throw ConfigError(Message("parameter '", FullKey(key), "' must be a list of numbers, got a ", TypeName(v)));
   }
@@ -128,7 +140,7 @@ std::vector<std::string> ParamReader::StringList(const std::string& key,
                                                  const std::vector<std::string>& default_value) {
   read_.insert(FullKey(key));
   XmlRpc::XmlRpcValue v;
-  if (!nh_.getParam(key, v)) return default_value;
+  if (!Get(key, &v)) return default_value;
   if (v.getType() != XmlRpc::XmlRpcValue::TypeArray) {
     throw ConfigError(Message("parameter '", FullKey(key), "' must be a list of strings, got a ", TypeName(v)));
   }
@@ -144,8 +156,15 @@ std::vector<std::string> ParamReader::StringList(const std::string& key,
 
 void ParamReader::CheckNoUnknownKeys(const std::set<std::string>& ignored) const {
   std::vector<std::string> all;
-  if (!nh_.getParamNames(all)) return;
-  const std::string prefix = nh_.getNamespace() + "/";
+  std::string prefix;
+  if (use_tree_) {
+    prefix = tree_ns_ + "/";
+    if (tree_.getType() == XmlRpc::XmlRpcValue::TypeStruct)
+      for (auto it = tree_.begin(); it != tree_.end(); ++it) all.push_back(prefix + it->first);
+  } else {
+    if (!nh_->getParamNames(all)) return;
+    prefix = nh_->getNamespace() + "/";
+  }
   std::string unknown;
   for (const std::string& name : all) {
     if (name.compare(0, prefix.size(), prefix) != 0) continue;

@@ -9,11 +9,13 @@
 // Every getter throws slope_monitor::ConfigError naming the full key.
 #pragma once
 
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
 
 #include <ros/node_handle.h>
+#include <xmlrpcpp/XmlRpcValue.h>
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -21,6 +23,9 @@ namespace ros_adapters {
 class ParamReader {
  public:
   explicit ParamReader(const ros::NodeHandle& nh) : nh_(nh) {}
+  // Without a master (process_bag): the keys of `params` (a dictionary, see
+  // ros/param_files.h), named in messages as "<ns>/<key>".
+  ParamReader(const XmlRpc::XmlRpcValue& params, const std::string& ns);
 
   double Double(const std::string& key, double default_value, double min, double max, const std::string& unit = "");
   int Int(const std::string& key, int default_value, int min, int max, const std::string& unit = "");
@@ -38,7 +43,12 @@ class ParamReader {
   std::string FullKey(const std::string& key) const;
 
  private:
-  ros::NodeHandle nh_;
+  bool Get(const std::string& key, XmlRpc::XmlRpcValue* v) const;
+
+  std::optional<ros::NodeHandle> nh_;  // empty: read `tree_`
+  bool use_tree_ = false;  // read `tree_`, not the parameter server
+  XmlRpc::XmlRpcValue tree_;
+  std::string tree_ns_;
   std::set<std::string> read_;
 };
 

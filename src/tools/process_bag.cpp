@@ -1,0 +1,675 @@
+// process_bag: a recorded (or simulated) survey through the whole processing
+// graph, offline, at CPU speed:
+//
+//   rosrun slope_monitor process_bag --bag FILE [--bag FILE2 ...] [--site-config FILE]
+//       [--target-list FILE] [--radio-network FILE] [--adjuster-config FILE]
+//       [--uav-tie-points] [--database FILE] [--report-dir DIR] [--output-bag FILE]
+//
+// The bags are read with rosbag::View in bag-time order (several bags, e.g.
+// the split files of one recording, merged by time) and every message goes,
+// in that order, to the same core components and ROS adapters the nodelets of
+// launch/replay.launch use: a target centroider per camera, the bundle
+// adjuster's EpochCollector and epoch solver, the radio phase solver with its
+// epoch assembler, the deformation estimator with its SQLite history and
+// reports. One process, no ROS master, no sleeps; completion of an epoch is
+// decided by the messages only, so the result does not depend on the CPU load.
+// Parameters: config/defaults/<node>.yaml, then config/process_bag/<node>.yaml
+// (what the launch files add), then the command line and overlays, as
+// replay.launch loads them. Defaults of the options: those of replay.launch
+// (target list and truth beside the bag, database and reports under
+// ~/.ros/slope_monitor). See doc/process_bag.md.
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <geometry_msgs/PoseWithCovarianceStamped.h>
+#include <ros/package.h>
+#include <rosbag/bag.h>
+#include <rosbag/exceptions.h>
+#include <rosbag/view.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <tf2/buffer_core.h>
+#include <tf2/exceptions.h>
+#include <tf2_eigen/tf2_eigen.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include "slope_monitor/EpochMarker.h"
+#include "slope_monitor/RadioSampleBlock.h"
+#include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/deformation/alert_log.h"
+#include "slope_monitor/core/deformation/history.h"
+#include "slope_monitor/core/deformation/report.h"
+#include "slope_monitor/core/evaluation/deformation_truth.h"
+#include "slope_monitor/core/targets/options_reader.h"
+#include "slope_monitor/ros/adjustment_conversions.h"
+#include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/ros/deformation_conversions.h"
+#include "slope_monitor/ros/epoch_solver.h"
+#include "slope_monitor/ros/node_parameters.h"
+#include "slope_monitor/ros/param_files.h"
+#include "slope_monitor/ros/radio_conversions.h"
+#include "slope_monitor/ros/target_conversions.h"
+#include "slope_monitor/ros/validation.h"
+
+namespace fs = std::filesystem;
+
+namespace slope_monitor {
+namespace {
+
+constexpr char kUsage[] =
+    "usage: process_bag --bag FILE [--bag FILE2 ...] [--site FILE] [--site-config FILE] [--target-list FILE]\n"
+    "                   [--radio-network FILE] [--adjuster-config FILE] [--uav-tie-points]\n"
+    "                   [--database FILE] [--report-dir DIR] [--output-bag FILE]\n";
+
+// Topics of the replay graph (launch/include/processing_graph.xml).
+constexpr char kAdjusterDisplacements[] = "/bundle_adjuster/displacements";
+constexpr char kRadioDisplacements[] = "/radio/radio_displacements";
+
+struct Args {
+  std::vector<std::string> bags;
+  std::string site, site_config, target_list, radio_network, adjuster_config;
+  bool uav_tie_points = false;
+  std::string database, report_dir, output_bag;
+};
+
+// Throws InvalidArgument naming the flag.
+Args ParseArgs(int argc, char** argv) {
+  Args a;
+  const std::map<std::string, std::string*> with_value = {
+      {"--site", &a.site},                   {"--site-config", &a.site_config},
+      {"--target-list", &a.target_list},
+      {"--radio-network", &a.radio_network}, {"--adjuster-config", &a.adjuster_config},
+      {"--database", &a.database},           {"--report-dir", &a.report_dir},
+      {"--output-bag", &a.output_bag}};
+  for (int i = 1; i < argc; ++i) {
+    const std::string flag = argv[i];
+    if (flag == "-h" || flag == "--help") {
+      std::cout << kUsage;
+      std::exit(0);
+    }
+    if (flag == "--uav-tie-points") {
+      a.uav_tie_points = true;
+      continue;
+    }
+    const bool is_bag = flag == "--bag";
+    const auto it = with_value.find(flag);
+    if (!is_bag && it == with_value.end()) throw InvalidArgument("unknown argument '" + flag + "'");
+    if (i + 1 >= argc || std::string(argv[i + 1]).rfind("--", 0) == 0)
+      throw InvalidArgument(flag + " needs a value");
+    if (is_bag)
+      a.bags.push_back(argv[++i]);
+    else
+      *it->second = argv[++i];
+  }
+  if (a.bags.empty()) throw InvalidArgument("--bag FILE is required");
+  for (const std::string& bag : a.bags)
+    if (!fs::is_regular_file(bag)) throw InvalidArgument("bag '" + bag + "' not found");
+  // The hex matcher's sequence logic (pairing, prior association) still
+  // lives in hex_matcher_nodelet.cpp, not in the core: until it moves to
+  // matching::SequenceMatcher, tie points need replay.launch uav_tie_points:=true.
+  if (a.uav_tie_points)
+    throw InvalidArgument(
+        "--uav-tie-points is not available yet: the UAV sequence matcher is not in the core; use "
+        "roslaunch slope_monitor replay.launch uav_tie_points:=true");
+  // The defaults of replay.launch.
+  const std::string stem = a.bags.front().substr(0, a.bags.front().size() - 4);
+  if (a.target_list.empty()) a.target_list = stem + ".targets.yaml";
+  const char* home = std::getenv("HOME");
+  const std::string ros_dir = std::string(home ? home : ".") + "/.ros/slope_monitor";
+  if (a.database.empty()) a.database = ros_dir + "/replay.db";
+  if (a.report_dir.empty()) a.report_dir = ros_dir + "/reports";
+  return a;
+}
+
+// The other input files (after the bags: a bag that is not one is named first).
+void CheckInputFiles(const Args& a) {
+  for (const std::string* f :
+       {&a.site, &a.site_config, &a.target_list, &a.radio_network, &a.adjuster_config})
+    if (!f->empty() && !fs::is_regular_file(*f))
+      throw InvalidArgument("file '" + *f + "' not found");
+}
+
+// ------------------------------------------------------------------ bags
+
+// Opens `path`; an unindexed or truncated bag is reindexed in a temporary
+// copy (rosbag reindex), said on stderr, and read up to its break.
+std::unique_ptr<rosbag::Bag> OpenBag(const std::string& path, std::vector<fs::path>* temporaries) {
+  if (!fs::is_regular_file(path)) throw InvalidArgument("bag '" + path + "' not found");
+  auto bag = std::make_unique<rosbag::Bag>();
+  try {
+    bag->open(path, rosbag::bagmode::Read);
+    return bag;
+  } catch (const rosbag::BagException& e) {
+    // A bag 2.0 header but no usable index (cut while recording or copying):
+    // reindex. Anything else is not a bag.
+    char magic[13] = {};
+    std::ifstream(path, std::ios::binary).read(magic, sizeof(magic));
+    if (std::string(magic, sizeof(magic)) != "#ROSBAG V2.0\n")
+      throw InvalidArgument("'" + path + "' is not a bag (" + e.what() + ")");
+  }
+  char pattern[] = "/tmp/process_bag_XXXXXX";
+  if (!mkdtemp(pattern))
+    throw IoError("cannot make a temporary directory for reindexing '" + path + "'");
+  const fs::path dir = pattern;
+  temporaries->push_back(dir);
+  const fs::path copy = dir / fs::path(path).filename();
+  fs::copy_file(path, copy);
+  std::cerr << "process_bag: bag '" << path << "' is not indexed (truncated or not closed): "
+            << "reindexing a temporary copy " << copy.string() << "; it is read up to its break\n";
+  const std::string command = "rosbag reindex --quiet --output-dir '" + dir.string() + "/out' '" +
+                              copy.string() + "' > '" + dir.string() + "/reindex.log' 2>&1";
+  fs::create_directories(dir / "out");
+  if (std::system(command.c_str()) != 0 || !fs::exists(dir / "out" / copy.filename()))
+    throw IoError("cannot reindex bag '" + path + "' (see " + (dir / "reindex.log").string() + ")");
+  bag = std::make_unique<rosbag::Bag>();  // the failed one stays "open"
+  try {
+    bag->open((dir / "out" / copy.filename()).string(), rosbag::bagmode::Read);
+  } catch (const rosbag::BagException& e) {
+    throw IoError("bag '" + path + "' reindexed but still unreadable: " + e.what());
+  }
+  return bag;
+}
+
+// Cameras of the survey: every /<name>/camera/image_raw topic of the bags.
+std::vector<std::string> CamerasOf(rosbag::View& view) {
+  std::set<std::string> names;
+  for (const rosbag::ConnectionInfo* c : view.getConnections()) {
+    const std::string& t = c->topic;
+    const std::string suffix = "/camera/image_raw";
+    if (t.size() > suffix.size() + 1 && t[0] == '/' &&
+        t.compare(t.size() - suffix.size(), suffix.size(), suffix) == 0)
+      names.insert(t.substr(1, t.size() - suffix.size() - 1));
+  }
+  return {names.begin(), names.end()};
+}
+
+// ------------------------------------------------------------ parameters
+
+std::string ConfigDir() {
+  const std::string pkg = ros::package::getPath("slope_monitor");
+  if (pkg.empty())
+    throw ConfigError("package 'slope_monitor' not found (source the workspace's setup.bash)");
+  return pkg + "/config";
+}
+
+// config/defaults/<node>.yaml, then config/process_bag/<node>.yaml if any.
+XmlRpc::XmlRpcValue NodeParams(const std::string& node) {
+  const std::string config = ConfigDir();
+  XmlRpc::XmlRpcValue p = ros_adapters::LoadParamFile(config + "/defaults/" + node + ".yaml");
+  const std::string extra = config + "/process_bag/" + node + ".yaml";
+  if (fs::exists(extra)) ros_adapters::MergeParams(&p, ros_adapters::LoadParamFile(extra));
+  return p;
+}
+
+XmlRpc::XmlRpcValue StringList(const std::vector<std::string>& v) {
+  XmlRpc::XmlRpcValue list;
+  list.setSize(static_cast<int>(v.size()));
+  for (size_t i = 0; i < v.size(); ++i) list[static_cast<int>(i)] = v[i];
+  return list;
+}
+
+// ------------------------------------------------------------------ graph
+
+struct Centroider {
+  std::string camera;
+  targets::NodeOptions node;
+  std::unique_ptr<targets::TargetCentroider> centroider;
+  std::map<ros::Time, sensor_msgs::Image::ConstPtr> images;      // waiting for their camera_info
+  std::map<ros::Time, sensor_msgs::CameraInfo::ConstPtr> infos;  // waiting for their image
+};
+
+class OfflineGraph {
+ public:
+  // `log`: a line for the user (stderr, with the progress line redrawn).
+  OfflineGraph(const Args& args, const std::vector<std::string>& cameras, rosbag::Bag* output,
+               std::function<void(const std::string&)> log)
+      : log_(std::move(log)), args_(args), output_(output), tf_(ros::Duration(1e6)) {
+    for (const std::string& cam : cameras) SetUpCentroider(cam);
+    SetUpAdjuster(cameras);
+    SetUpRadio();
+    SetUpEstimator();
+  }
+
+  void OnMessage(const rosbag::MessageInstance& m) {
+    now_ = m.getTime();
+    const std::string& topic = m.getTopic();
+    if (topic == "/tf" || topic == "/tf_static") {
+      if (const auto tf = m.instantiate<tf2_msgs::TFMessage>()) OnTf(*tf, topic == "/tf_static");
+    } else if (const auto image = m.instantiate<sensor_msgs::Image>()) {
+      if (Centroider* c = CameraOf(topic, "/camera/image_raw")) {
+        c->images[image->header.stamp] = image;
+        Pair(c, image->header.stamp);
+      }
+    } else if (const auto info = m.instantiate<sensor_msgs::CameraInfo>()) {
+      if (Centroider* c = CameraOf(topic, "/camera/camera_info")) {
+        OnCameraInfo(c->camera, *info);
+        c->infos[info->header.stamp] = info;
+        Pair(c, info->header.stamp);
+      }
+    } else if (const auto marker = m.instantiate<slope_monitor::EpochMarker>()) {
+      if (marker->end) OnEpochEnd(*marker);
+    } else if (const auto prior = m.instantiate<geometry_msgs::PoseWithCovarianceStamped>()) {
+      if (topic == "/uav/camera/position_prior")
+        collector_->AddPrior(ros_adapters::FromMsg(*prior));
+    } else if (const auto block = m.instantiate<slope_monitor::RadioSampleBlock>()) {
+      OnRadioBlock(*block, topic);
+    }
+  }
+
+  // End of the bags: an epoch still open is solved with what it has (the
+  // live graph's time-out), then the reports are written.
+  void Finish() {
+    if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) Solve(*e);
+    Log("end of input: " + std::to_string(adjuster_accepted_) + " adjustment epoch(s) accepted, " +
+        std::to_string(radio_epochs_) + " radio epoch(s) solved");
+    if (estimator_->GetSnapshot().points.empty()) {
+      Log("no point was ever measured: no reports written to " + estimator_params_.report_dir);
+      return;
+    }
+    const auto files =
+        deformation::WriteReports(*estimator_, estimator_params_.report_dir, "",
+                                  estimator_params_.report_formats, estimator_params_.report);
+    Log("wrote " + std::to_string(files.size()) + " report file(s) to " +
+        estimator_params_.report_dir);
+  }
+
+  int epochs_solved() const { return adjuster_accepted_ + radio_epochs_; }
+  bool has_points() const { return !estimator_->GetSnapshot().points.empty(); }
+
+ private:
+  void Log(const std::string& line) const { log_(line); }
+
+  // ---- set-up: the parameters replay.launch gives every node.
+  void SetUpCentroider(const std::string& cam) {
+    XmlRpc::XmlRpcValue p = NodeParams("target_centroider");
+    ros_adapters::SetParam(&p, "target_list", args_.target_list);
+    ros_adapters::SetParam(&p, "camera_name", cam);
+    ros_adapters::ParamReader r(p, "/" + cam + "/target_centroider");
+    Centroider c;
+    c.camera = cam;
+    const targets::Options o = targets::ReadOptions(r);
+    c.node = targets::ReadNodeOptions(r);
+    r.CheckNoUnknownKeys();
+    o.Check();
+    c.centroider =
+        std::make_unique<targets::TargetCentroider>(o, io::TargetList::Load(args_.target_list));
+    centroiders_[cam] = std::move(c);
+  }
+
+  void SetUpAdjuster(const std::vector<std::string>& cameras) {
+    XmlRpc::XmlRpcValue p = NodeParams("bundle_adjuster");
+    ros_adapters::SetParam(&p, "target_list", args_.target_list);
+    ros_adapters::SetParam(&p, "cameras", StringList(cameras));
+    if (!args_.site.empty()) ros_adapters::SetParam(&p, "site_file", args_.site);
+    if (!args_.adjuster_config.empty())
+      ros_adapters::MergeParams(&p, ros_adapters::LoadParamFile(args_.adjuster_config));
+    if (args_.uav_tie_points) ros_adapters::SetParam(&p, "tie_point_cameras", StringList({"uav"}));
+    ros_adapters::ParamReader r(p, "/bundle_adjuster/bundle_adjuster");
+    adjuster_params_ = ros_adapters::ReadAdjusterParameters(r);
+    collector_ = std::make_unique<adjustment::EpochCollector>(adjuster_params_.collector,
+                                                              &adjuster_params_.targets);
+    collector_->SetTiePointsExpected(args_.uav_tie_points);
+  }
+
+  void SetUpRadio() {
+    XmlRpc::XmlRpcValue p = NodeParams("radio_phase_solver");
+    const std::string stem = args_.bags.front().substr(0, args_.bags.front().size() - 4);
+    if (args_.radio_network.empty())
+      ros_adapters::SetParam(&p, "truth_file", stem + ".truth.yaml");
+    else
+      ros_adapters::SetParam(&p, "network_file", args_.radio_network);
+    if (!args_.site.empty()) ros_adapters::SetParam(&p, "site_file", args_.site);
+    ros_adapters::ParamReader r(p, "/radio/radio_phase_solver");
+    try {
+      radio_params_ = ros_adapters::ReadRadioParameters(r);
+    } catch (const Error& e) {
+      // As the graph: without a radio network the radio solver does not run.
+      Log(std::string("radio_phase_solver not running: ") + e.what());
+      return;
+    }
+    if (!radio_params_.has_network) {
+      Log("radio_phase_solver not running: no radio network");
+      return;
+    }
+    radio_solver_ =
+        std::make_unique<radio::RadioPhaseSolver>(radio_params_.network, radio_params_.options);
+    std::vector<std::string> ids;
+    for (const auto& rx : radio_params_.network.receivers) ids.push_back(rx.id);
+    assembler_ = std::make_unique<radio::EpochAssembler>(ids, radio_params_.stamp_tolerance,
+                                                         radio_params_.max_wait);
+  }
+
+  void SetUpEstimator() {
+    XmlRpc::XmlRpcValue p = NodeParams("deformation_estimator");
+    if (!args_.site_config.empty())
+      ros_adapters::MergeParams(&p, ros_adapters::LoadParamFile(args_.site_config));
+    if (!args_.site.empty()) ros_adapters::SetParam(&p, "site_file", args_.site);
+    ros_adapters::SetParam(&p, "database", args_.database);
+    ros_adapters::SetParam(&p, "report_dir", args_.report_dir);
+    ros_adapters::SetParam(&p, "input_topics",
+                           StringList({kAdjusterDisplacements, kRadioDisplacements}));
+    ros_adapters::ParamReader r(p, "/deformation_estimator/deformation_estimator");
+    estimator_params_ = ros_adapters::ReadEstimatorParameters(r);
+    history_ = std::make_unique<deformation::History>(estimator_params_.database);
+    estimator_ =
+        std::make_unique<deformation::Estimator>(estimator_params_.options, history_.get());
+  }
+
+  // ---- inputs.
+  Centroider* CameraOf(const std::string& topic, const std::string& suffix) {
+    if (topic.size() <= suffix.size() + 1) return nullptr;
+    const std::string cam = topic.substr(1, topic.size() - suffix.size() - 1);
+    const auto it = centroiders_.find(cam);
+    return it != centroiders_.end() && "/" + cam + suffix == topic ? &it->second : nullptr;
+  }
+
+  void OnTf(const tf2_msgs::TFMessage& tf, bool is_static) {
+    for (const geometry_msgs::TransformStamped& t : tf.transforms)
+      tf_.setTransform(t, "bag", is_static);
+    Write(is_static ? "/tf_static" : "/tf", tf);
+  }
+
+  void OnCameraInfo(const std::string& cam, const sensor_msgs::CameraInfo& info) {
+    try {
+      models_[cam] = ros_adapters::CameraModelFromCameraInfo(info, adjuster_params_.PixelSizeOf(cam));
+    } catch (const Error& e) {
+      Log("bundle_adjuster: camera_info of '" + cam + "': " + e.what());
+    }
+  }
+
+  // An image and its camera_info (same stamp, in either order): centroid it.
+  void Pair(Centroider* c, const ros::Time& stamp) {
+    const auto image = c->images.find(stamp);
+    const auto info = c->infos.find(stamp);
+    if (image == c->images.end() || info == c->infos.end()) return;
+    const std::string topic = "/" + c->camera + "/camera/image_raw";
+    try {
+      std::optional<Eigen::Isometry3d> site_from_optical;
+      if (c->node.use_tf_pose && info->second->K[0] > 0) {
+        try {
+          site_from_optical = tf2::transformToEigen(
+              tf_.lookupTransform(c->node.site_frame, image->second->header.frame_id, stamp));
+        } catch (const tf2::TransformException&) {
+        }
+      }
+      const ros_adapters::CentroidedImage out =
+          ros_adapters::CentroidImage(*c->centroider, *image->second, *info->second,
+                                      site_from_optical, c->camera, c->node.pixel_size, topic);
+      Write("/" + c->camera + "/targets", out.targets);
+      Solve(collector_->AddTargets(ros_adapters::FromMsg(out.targets), now_.toSec()));
+    } catch (const std::exception& e) {
+      Log("target_centroider: dropped image (topic " + topic + ", stamp " +
+          std::to_string(stamp.toSec()) + "): " + e.what());
+    }
+    c->images.erase(c->images.begin(), std::next(image));
+    c->infos.erase(c->infos.begin(), std::next(info));
+  }
+
+  void OnEpochEnd(const slope_monitor::EpochMarker& marker) {
+    Solve(collector_->AddEnd(ros_adapters::FromMsg(marker), now_.toSec()));
+    for (; reported_ignored_ < collector_->ignored().size(); ++reported_ignored_)
+      Log("bundle_adjuster: " + collector_->ignored()[reported_ignored_]);
+  }
+
+  void OnRadioBlock(const slope_monitor::RadioSampleBlock& block, const std::string& topic) {
+    if (!assembler_) return;
+    // The receiver this topic belongs to: /radio/<id>/samples.
+    const std::string prefix = "/radio/", suffix = "/samples";
+    if (topic.compare(0, prefix.size(), prefix) != 0 ||
+        topic.size() <= prefix.size() + suffix.size())
+      return;
+    const std::string receiver =
+        topic.substr(prefix.size(), topic.size() - prefix.size() - suffix.size());
+    // A recording: no wall-clock test of the stamps (now = 0).
+    if (!radio_validator_.Accept(block, receiver, 0.0)) {
+      Log("radio_phase_solver: rejected " + radio_validator_.last_problems().front());
+      return;
+    }
+    try {
+      for (const radio::EpochAssembler::Epoch& epoch :
+           assembler_->Add(ros_adapters::FromMsg(block))) {
+        const radio::RadioEpochSummary s = radio_solver_->ProcessEpoch(epoch.stamp, epoch.blocks);
+        ++radio_epochs_;
+        for (const auto& p : s.problems) Log("radio_phase_solver: " + p);
+        std_msgs::Header header = block.header;
+        header.stamp = ros::Time(epoch.stamp);
+        header.frame_id = radio_params_.frame_id;
+        const ros_adapters::RadioOutputs out =
+            ros_adapters::MakeRadioOutputs(s, header, radio_epochs_);
+        Write("/radio/phase_observations", out.observations);
+        if (out.displacements) {
+          Write(kRadioDisplacements, *out.displacements);
+          Fuse(*out.displacements, kRadioDisplacements);
+        }
+      }
+    } catch (const std::exception& e) {
+      Log("radio_phase_solver: block of '" + block.receiver_id + "' dropped: " + e.what());
+    }
+  }
+
+  // ---- the bundle adjuster's epochs.
+  void Solve(const std::vector<adjustment::CollectedEpoch>& epochs) {
+    for (const adjustment::CollectedEpoch& e : epochs) Solve(e);
+  }
+
+  void Solve(const adjustment::CollectedEpoch& epoch) {
+    const ros_adapters::SolvedEpoch out = ros_adapters::SolveCollectedEpoch(
+        epoch, models_, adjuster_params_, "/bundle_adjuster/bundle_adjuster", &store_);
+    for (const ros_adapters::LogLine& line : out.log)
+      if (line.level >= ros_adapters::LogLine::kWarn) Log("bundle_adjuster: " + line.text);
+    Write("/bundle_adjuster/solution", out.solution);
+    if (!out.accepted) return;
+    ++adjuster_accepted_;
+    if (!out.fixed_transforms.empty()) {
+      tf2_msgs::TFMessage tf;
+      tf.transforms = out.fixed_transforms;
+      Write("/tf_static", tf);
+    }
+    if (!out.moving_transforms.empty()) {
+      tf2_msgs::TFMessage tf;
+      tf.transforms = out.moving_transforms;
+      Write("/tf", tf);
+    }
+    Write("/bundle_adjuster/points", out.points);
+    if (out.displacements) {
+      Write(kAdjusterDisplacements, *out.displacements);
+      Fuse(*out.displacements, kAdjusterDisplacements);
+    }
+  }
+
+  // ---- the deformation estimator.
+  void Fuse(const slope_monitor::PointDisplacementArray& msg, const std::string& topic) {
+    const slope_monitor::PointDisplacementArray valid =
+        estimator_validator_.Filter(msg, topic, 0.0);
+    for (const std::string& problem : estimator_validator_.last_problems())
+      Log("deformation_estimator: rejected " + problem);
+    if (valid.displacements.empty() && !msg.displacements.empty()) return;
+    try {
+      const deformation::BatchSummary s = estimator_->AddBatch(ros_adapters::FromMsg(valid, topic));
+      for (const std::string& m : s.messages)
+        Log("deformation_estimator: topic '" + topic + "': " + m);
+    } catch (const Error& e) {
+      Log("deformation_estimator: topic '" + topic + "': " + e.what() + "; message dropped");
+      return;
+    }
+    const deformation::Snapshot s = estimator_->GetSnapshot();
+    for (const deformation::AlertChange& c : alert_changes_.Update(s))
+      Log("deformation_estimator: " + c.text);
+    std_msgs::Header h = msg.header;
+    h.frame_id = estimator_params_.frame_id;
+    Write("/deformation_estimator/deformation", ros_adapters::ToMsg(s, h));
+    Write("/deformation_estimator/markers",
+          ros_adapters::ToMarkers(s, h, estimator_params_.markers));
+    Write("/deformation_estimator/points", ros_adapters::ToCloud(s, h));
+    Write("/deformation_estimator/alerts", ros_adapters::ToAlerts(s, h));
+  }
+
+  template <typename M>
+  void Write(const std::string& topic, const M& msg) {
+    if (output_) output_->write(topic, now_, msg);
+  }
+
+  std::function<void(const std::string&)> log_;
+  const Args& args_;
+  rosbag::Bag* output_;
+  ros::Time now_;  // bag time of the message being processed
+  tf2::BufferCore tf_;
+  std::map<std::string, Centroider> centroiders_;
+  // bundle_adjuster
+  ros_adapters::AdjusterParameters adjuster_params_;
+  std::unique_ptr<adjustment::EpochCollector> collector_;
+  adjustment::EpochStore store_;
+  std::map<std::string, camera::CameraModel> models_;
+  size_t reported_ignored_ = 0;
+  int adjuster_accepted_ = 0;
+  // radio_phase_solver
+  ros_adapters::RadioParameters radio_params_;
+  std::unique_ptr<radio::RadioPhaseSolver> radio_solver_;
+  std::unique_ptr<radio::EpochAssembler> assembler_;
+  ros_adapters::MessageValidator radio_validator_;
+  unsigned int radio_epochs_ = 0;
+  // deformation_estimator
+  ros_adapters::EstimatorParameters estimator_params_;
+  ros_adapters::MessageValidator estimator_validator_;
+  std::unique_ptr<deformation::History> history_;
+  std::unique_ptr<deformation::Estimator> estimator_;
+  deformation::AlertChangeTracker alert_changes_;
+};
+
+// ---------------------------------------------------------------- progress
+
+// One line on stderr, redrawn: bag time reached, percent, epochs solved,
+// time left (from the wall time so far).
+class Progress {
+ public:
+  Progress(const ros::Time& begin, const ros::Time& end) : begin_(begin), end_(end) {}
+
+  void Update(const ros::Time& t, int epochs, bool force = false) {
+    const auto now = std::chrono::steady_clock::now();
+    if (!force && now - last_ < std::chrono::milliseconds(200)) return;
+    last_ = now;
+    const double span = (end_ - begin_).toSec();
+    const double done = span > 0 ? std::clamp((t - begin_).toSec() / span, 0.0, 1.0) : 1.0;
+    const double elapsed = std::chrono::duration<double>(now - start_).count();
+    char line[160];
+    std::snprintf(
+        line, sizeof(line), "\rprocess_bag: bag time %.1f s (%.0f %%), %d epochs solved, %s",
+        (t - begin_).toSec(), 100.0 * done, epochs,
+        done > 0.01
+            ? (std::to_string(static_cast<int>(elapsed * (1 - done) / done + 0.5)) + " s left")
+                  .c_str()
+            : "time left unknown");
+    std::fprintf(stderr, "%-90s", line);
+    drawn_ = true;
+  }
+  // A log line: on a line of its own, the progress line redrawn after.
+  void Print(const std::string& text) {
+    std::fprintf(stderr, "%s%s\n", drawn_ ? "\r\033[K" : "", text.c_str());
+    drawn_ = false;
+  }
+  void End() {
+    if (drawn_) std::fprintf(stderr, "\n");
+    drawn_ = false;
+  }
+  double elapsed() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+
+ private:
+  ros::Time begin_, end_;
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  std::chrono::steady_clock::time_point last_{};
+  bool drawn_ = false;
+};
+
+int Run(const Args& args) {
+  std::vector<fs::path> temporaries;
+  struct Cleanup {
+    std::vector<fs::path>* dirs;
+    ~Cleanup() {
+      std::error_code ec;
+      for (const fs::path& d : *dirs) fs::remove_all(d, ec);
+    }
+  } cleanup{&temporaries};
+  std::vector<std::unique_ptr<rosbag::Bag>> bags;
+  for (const std::string& path : args.bags) bags.push_back(OpenBag(path, &temporaries));
+  CheckInputFiles(args);
+  rosbag::View view;
+  for (const auto& bag : bags) view.addQuery(*bag);
+  if (view.size() == 0) throw InvalidArgument("bag '" + args.bags.front() + "' holds no messages");
+  const std::vector<std::string> cameras = CamerasOf(view);
+
+  std::unique_ptr<rosbag::Bag> output;
+  if (!args.output_bag.empty()) {
+    output = std::make_unique<rosbag::Bag>();
+    try {
+      output->open(args.output_bag, rosbag::bagmode::Write);
+    } catch (const rosbag::BagException& e) {
+      throw IoError("cannot write --output-bag '" + args.output_bag + "': " + e.what());
+    }
+  }
+  Progress progress(view.getBeginTime(), view.getEndTime());
+  OfflineGraph graph(args, cameras, output.get(), [&progress](const std::string& line) {
+    progress.Print("process_bag: " + line);
+  });
+  for (const rosbag::MessageInstance& m : view) {
+    graph.OnMessage(m);
+    progress.Update(m.getTime(), graph.epochs_solved());
+  }
+  progress.Update(view.getEndTime(), graph.epochs_solved(), true);
+  progress.End();
+  graph.Finish();
+  if (output) output->close();
+  std::cerr << "process_bag: " << view.size() << " messages of " << args.bags.size() << " bag(s) ("
+            << cameras.size() << " cameras) processed in " << progress.elapsed() << " s\n";
+
+  // The summary scripts/demo prints (the deformation_summary tool's table).
+  const std::string stem = args.bags.front().substr(0, args.bags.front().size() - 4);
+  const std::string truth_path = stem + ".truth.yaml";
+  if (graph.has_points() && fs::exists(truth_path)) {
+    const auto evaluation =
+        evaluation::EvaluateHistory(args.database, sim::SurveyTruth::Load(truth_path));
+    std::cout << "\nDeformation summary (fused estimate against the simulator's truth):\n"
+              << evaluation::FormatTable(evaluation);
+  }
+  // As scripts/demo ends.
+  std::cout << "\nReports in " << args.report_dir << ":\n";
+  std::vector<std::string> files;
+  if (fs::is_directory(args.report_dir))
+    for (const fs::directory_entry& f : fs::directory_iterator(args.report_dir))
+      files.push_back(f.path().filename().string());
+  std::sort(files.begin(), files.end());
+  for (const std::string& f : files) std::cout << "  " << f << "\n";
+  std::cout << "History (SQLite): " << args.database << "\n";
+  if (output) std::cout << "Outputs (rosbag play --clock): " << args.output_bag << "\n";
+  return 0;
+}
+
+}  // namespace
+}  // namespace slope_monitor
+
+int main(int argc, char** argv) {
+  try {
+    return slope_monitor::Run(slope_monitor::ParseArgs(argc, argv));
+  } catch (const slope_monitor::Error& e) {
+    std::cerr << "process_bag: " << e.what() << "\n" << slope_monitor::kUsage;
+    return 1;
+  } catch (const rosbag::BagException& e) {
+    std::cerr << "process_bag: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,457 @@
+// process_bag on the simulated surveys the rostests replay (rendered at build
+// time from test/rostest/<name>.sim.yaml): the truth checks of the
+// full_graph_replay and estimator_no_radio rostests, without ROS transport;
+// the same reports and history byte for byte with both cores busy; and a
+// kill -9 in the middle followed by a second run on the same history giving
+// the numbers of an uninterrupted run, with nothing fused twice.
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sqlite3.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
+#include "slope_monitor/AdjustmentSolution.h"
+#include "slope_monitor/SlopeDeformation.h"
+#include "slope_monitor/TargetObservationArray.h"
+#include "slope_monitor/core/evaluation/deformation_truth.h"
+#include "slope_monitor/core/sim/truth.h"
+
+extern char** environ;
+
+namespace slope_monitor {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Survey(const std::string& name, const std::string& ext) {
+  return std::string(SM_ROSTEST_DATA_DIR) + "/" + name + "/" + name + ext;
+}
+
+std::string ReadFile(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// A fresh directory for one run's outputs.
+fs::path Scratch(const std::string& name) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("process_bag_test_" + std::to_string(getpid())) / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// Starts a process with stdout and stderr to files in `dir`.
+pid_t Spawn(const std::vector<std::string>& argv, const fs::path& dir) {
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, (dir / "stdout").c_str(),
+                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&actions, 2, (dir / "stderr").c_str(),
+                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  return rc == 0 ? pid : -1;
+}
+
+int Wait(pid_t pid) {
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// process_bag on `name`'s survey, outputs in `dir` (history.db, reports/, out.bag).
+std::vector<std::string> ProcessBagArgs(const std::string& name, const fs::path& dir) {
+  std::vector<std::string> a = {SM_PROCESS_BAG,
+                                "--bag",
+                                Survey(name, ".bag"),
+                                "--database",
+                                (dir / "history.db").string(),
+                                "--report-dir",
+                                (dir / "reports").string()};
+  if (fs::exists(Survey(name, ".site.yaml"))) {
+    a.push_back("--site-config");
+    a.push_back(Survey(name, ".site.yaml"));
+  }
+  return a;
+}
+
+int RunProcessBag(const std::string& name, const fs::path& dir, bool output_bag = false) {
+  std::vector<std::string> args = ProcessBagArgs(name, dir);
+  if (output_bag) {
+    args.push_back("--output-bag");
+    args.push_back((dir / "out.bag").string());
+  }
+  const int status = Wait(Spawn(args, dir));
+  if (status != 0) std::cerr << ReadFile(dir / "stderr");
+  return status;
+}
+
+// Every table of an SQLite file (history, GeoPackage) as text, rows in key
+// order. Wall-clock fields are left out: `excluded` names them as
+// "table.column" (a column) or "table:key" (the row whose first column is key).
+std::string DumpSqlite(const fs::path& db, const std::set<std::string>& excluded) {
+  sqlite3* h = nullptr;
+  EXPECT_EQ(sqlite3_open_v2(db.c_str(), &h, SQLITE_OPEN_READONLY, nullptr), SQLITE_OK) << db;
+  std::vector<std::string> tables;
+  sqlite3_exec(
+      h, "SELECT name FROM sqlite_master WHERE type='table' ORDER BY name",
+      [](void* out, int, char** v, char**) {
+        static_cast<std::vector<std::string>*>(out)->push_back(v[0]);
+        return 0;
+      },
+      &tables, nullptr);
+  std::string dump;
+  for (const std::string& t : tables) {
+    sqlite3_stmt* st = nullptr;
+    if (sqlite3_prepare_v2(h, ("SELECT * FROM \"" + t + "\" ORDER BY 1").c_str(), -1, &st,
+                           nullptr) != SQLITE_OK)
+      continue;  // virtual tables of a GeoPackage (rtree) without their module
+    dump += "table " + t + "\n";
+    while (sqlite3_step(st) == SQLITE_ROW) {
+      std::string row;
+      for (int c = 0; c < sqlite3_column_count(st); ++c) {
+        if (excluded.count(t + "." + sqlite3_column_name(st, c))) continue;
+        const void* blob = sqlite3_column_blob(st, c);
+        row += std::string(static_cast<const char*>(blob), sqlite3_column_bytes(st, c)) + "|";
+      }
+      const unsigned char* key = sqlite3_column_text(st, 0);
+      if (key && excluded.count(t + ":" + reinterpret_cast<const char*>(key))) continue;
+      dump += row + "\n";
+    }
+    sqlite3_finalize(st);
+  }
+  sqlite3_close(h);
+  return dump;
+}
+
+// (source, epoch, point) -> how many observations of it the history holds.
+std::map<std::string, int> ObservationKeys(const fs::path& db) {
+  sqlite3* h = nullptr;
+  EXPECT_EQ(sqlite3_open_v2(db.c_str(), &h, SQLITE_OPEN_READONLY, nullptr), SQLITE_OK) << db;
+  std::map<std::string, int> keys;
+  sqlite3_exec(
+      h, "SELECT source, epoch, point_id FROM observations",
+      [](void* out, int, char** v, char**) {
+        ++(*static_cast<std::map<std::string, int>*>(
+            out))[std::string(v[0]) + "/" + v[1] + "/" + v[2]];
+        return 0;
+      },
+      &keys, nullptr);
+  sqlite3_close(h);
+  return keys;
+}
+
+// ------------------------------------------------ full_graph_replay's truth
+
+// The checks of test/rostest/full_graph_replay.cpp, with its tolerances
+// (full_graph_replay.test.in).
+TEST(ProcessBag, FullGraphReplayMatchesTruth) {
+  const std::string name = "full_graph_replay";
+  const fs::path dir = Scratch(name);
+  ASSERT_EQ(RunProcessBag(name, dir, true), 0);
+  const sim::SurveyTruth truth = sim::SurveyTruth::Load(Survey(name, ".truth.yaml"));
+
+  // Target observations of every fixed-camera image (the rostest's
+  // CheckTargetObservations, max_id_px 1), from the output bag.
+  rosbag::Bag out((dir / "out.bag").string(), rosbag::bagmode::Read);
+  std::map<std::string, int> messages;
+  int images = 0, checked = 0;
+  for (const rosbag::MessageInstance& m : rosbag::View(out)) {
+    ++messages[m.getTopic()];
+    const auto t = m.instantiate<slope_monitor::TargetObservationArray>();
+    if (!t) continue;
+    const sim::CameraTruth* cam = nullptr;
+    for (const sim::CameraTruth& c : truth.cameras)
+      if (c.name == t->camera_name) cam = &c;
+    ASSERT_NE(cam, nullptr) << t->camera_name;
+    const sim::ImageTruth* im = nullptr;
+    for (const sim::ImageTruth& i : cam->images)
+      if (std::abs(i.stamp - t->header.stamp.toSec()) < 1e-3) im = &i;
+    ASSERT_NE(im, nullptr) << cam->name << "@" << t->header.stamp;
+    ++images;
+    std::set<std::string> seen;
+    for (const auto& o : t->observations) {
+      ASSERT_GE(o.id, 0) << cam->name << "@" << im->stamp << ": unidentified target";
+      const std::string key = o.family + "/" + std::to_string(o.id);
+      seen.insert(key);
+      const sim::TargetTruth* target = truth.FindTarget(key);
+      ASSERT_NE(target, nullptr) << "false ID " << key;
+      Eigen::Vector2d expect;
+      ASSERT_TRUE(cam->model.Project(im->exterior, target->positions.at(im->epoch), &expect));
+      EXPECT_LT((Eigen::Vector2d(o.x, o.y) - expect).norm(), 1.0)
+          << cam->name << "@" << im->stamp << " " << key;
+      ++checked;
+    }
+    for (const std::string& key : im->visible)
+      EXPECT_TRUE(seen.count(key)) << key << " not observed";
+  }
+  int truth_images = 0;
+  for (const sim::CameraTruth& c : truth.cameras)
+    truth_images += c.kind == "fixed" ? c.images.size() : 0;
+  EXPECT_EQ(images, truth_images);
+  std::cout << images << " images, " << checked
+            << " identified observations checked against the truth\n";
+  // Every output topic is in the output bag.
+  for (const char* topic :
+       {"/bundle_adjuster/solution", "/bundle_adjuster/points", "/bundle_adjuster/displacements",
+        "/tf", "/tf_static", "/radio/radio_displacements", "/radio/phase_observations",
+        "/deformation_estimator/deformation", "/deformation_estimator/markers",
+        "/deformation_estimator/points", "/deformation_estimator/alerts"})
+    EXPECT_GT(messages[topic], 0) << topic;
+
+  const evaluation::DeformationEvaluation e =
+      evaluation::EvaluateHistory((dir / "history.db").string(), truth);
+  std::cout << evaluation::FormatTable(e);
+  int monitoring = 0, radio = 0;
+  double sum2 = 0.0;
+  for (const auto& p : e.points) {
+    const bool moving = p.truth.norm() > 0.01;
+    if (p.role == "monitoring") {
+      ++monitoring;
+      sum2 += p.Error().squaredNorm();
+      EXPECT_LE(p.NormalisedError(), 3.0) << p.id;
+    }
+    if (p.role == "monitoring" || p.role == "radio") {
+      if (moving) EXPECT_GE(p.alert_level, 1) << p.id << " moves " << p.truth.norm() * 1e3 << " mm";
+      if (!moving) EXPECT_LE(p.alert_level, 0) << p.id << " is stable";
+      if (p.forecast_valid && e.true_failure_time > 0.0)
+        EXPECT_LE(std::abs(p.forecast_time - e.true_failure_time), 3.0 * p.forecast_sigma) << p.id;
+    }
+    if (p.role == "control" || p.role == "check") EXPECT_LE(p.alert_level, 0) << p.id;
+    if (p.role == "radio") {
+      ++radio;
+      EXPECT_LE(p.Error().norm(), 0.005) << p.id;
+    }
+  }
+  EXPECT_GE(radio, 2);
+  EXPECT_GE(monitoring, 6);
+  if (monitoring > 0) EXPECT_LE(std::sqrt(sum2 / monitoring), 0.005);
+  // The summary scripts/demo prints, on stdout.
+  EXPECT_NE(ReadFile(dir / "stdout").find(evaluation::FormatTable(e)), std::string::npos);
+}
+
+// ----------------------------------------------- estimator_no_radio's truth
+
+// The checks of test/rostest/estimator_no_radio.cpp: a survey without radio
+// topics; only targets are fused, each monitoring target within 3 sigma.
+TEST(ProcessBag, NoRadioSurveyMatchesTruth) {
+  const std::string name = "estimator_no_radio";
+  const fs::path dir = Scratch(name);
+  ASSERT_EQ(RunProcessBag(name, dir), 0);
+  const sim::SurveyTruth truth = sim::SurveyTruth::Load(Survey(name, ".truth.yaml"));
+  const evaluation::DeformationEvaluation e =
+      evaluation::EvaluateHistory((dir / "history.db").string(), truth);
+  std::cout << evaluation::FormatTable(e);
+  int monitoring = 0;
+  for (const auto& p : e.points) {
+    EXPECT_NE(p.role, "radio") << p.id;
+    for (const auto& [source, count] : p.measurements)
+      EXPECT_EQ(evaluation::SourceName(source), "target")
+          << p.id << ": " << count << " measurement(s)";
+    if (p.role == "monitoring") {
+      ++monitoring;
+      EXPECT_LE(p.NormalisedError(), 3.0) << p.id;
+    }
+  }
+  EXPECT_GE(monitoring, 6);
+}
+
+// ------------------------------------------------------------- determinism
+
+// One uninterrupted run on an idle machine of the survey the determinism and
+// kill tests use (made once, shared by both).
+const fs::path& QuietRun() {
+  static const fs::path dir = [] {
+    const fs::path d = Scratch("quiet");
+    EXPECT_EQ(RunProcessBag("estimator_restart", d), 0);
+    return d;
+  }();
+  return dir;
+}
+
+// Keeps both cores busy while it lives.
+class CpuLoad {
+ public:
+  CpuLoad() {
+    for (int i = 0; i < 2; ++i)
+      pids_.push_back(Spawn({"/bin/sh", "-c", "while :; do :; done"}, "/tmp"));
+  }
+  ~CpuLoad() {
+    for (pid_t p : pids_) {
+      kill(p, SIGKILL);
+      Wait(p);
+    }
+  }
+
+ private:
+  std::vector<pid_t> pids_;
+};
+
+// The same bag twice, the second time with both cores busy: every report
+// file and the history byte for byte the same (less the wall-clock fields
+// named below).
+TEST(ProcessBag, SameResultsUnderCpuLoad) {
+  const std::string name = "estimator_restart";
+  const fs::path& quiet = QuietRun();
+  const fs::path loaded = Scratch("loaded");
+  {
+    CpuLoad load;
+    ASSERT_EQ(RunProcessBag(name, loaded), 0);
+  }
+  // Wall-clock fields, left out: the GeoPackage's gpkg_contents.last_change
+  // (GDAL writes the time of writing), the history's meta 'created' and
+  // batches.received.
+  const std::set<std::string> wall_clock = {"gpkg_contents.last_change", "meta:created",
+                                            "batches.received"};
+  std::vector<std::string> files;
+  for (const auto& f : fs::directory_iterator(quiet / "reports"))
+    files.push_back(f.path().filename().string());
+  ASSERT_GT(files.size(), 5u);
+  for (const std::string& f : files) {
+    ASSERT_TRUE(fs::exists(loaded / "reports" / f)) << f;
+    if (fs::path(f).extension() == ".gpkg") {
+      const std::string dump = DumpSqlite(quiet / "reports" / f, wall_clock);
+      EXPECT_GT(dump.size(), 1000u) << f;
+      EXPECT_TRUE(dump == DumpSqlite(loaded / "reports" / f, wall_clock))
+          << "report " << f << " differs";
+    } else {
+      EXPECT_TRUE(ReadFile(quiet / "reports" / f) == ReadFile(loaded / "reports" / f))
+          << "report " << f << " differs";
+    }
+  }
+  EXPECT_EQ(std::distance(fs::directory_iterator(loaded / "reports"), fs::directory_iterator()),
+            files.size());
+  const std::string dump = DumpSqlite(quiet / "history.db", wall_clock);
+  EXPECT_GT(dump.size(), 1000u);
+  EXPECT_TRUE(dump == DumpSqlite(loaded / "history.db", wall_clock)) << "the histories differ";
+}
+
+// ------------------------------------------------------------------ kill -9
+
+// The last "N epochs solved" of the progress line in `stderr_file`.
+int EpochsSolved(const fs::path& stderr_file) {
+  const std::string text = ReadFile(stderr_file);
+  const size_t at = text.rfind(" epochs solved");
+  if (at == std::string::npos) return 0;
+  const size_t start = text.rfind(' ', at - 1) + 1;
+  return std::stoi(text.substr(start, at - start));
+}
+
+// kill -9 half-way, then a second run on the same history: the final
+// numbers of an uninterrupted run (difference 0), the same observation
+// counts, every (source, epoch, point) once.
+TEST(ProcessBag, KillAndRerunGivesUninterruptedNumbers) {
+  const std::string name = "estimator_restart";
+  const fs::path& whole = QuietRun();
+  const fs::path killed = Scratch("killed");
+  const int total = EpochsSolved(whole / "stderr");
+  ASSERT_GT(total, 4);
+
+  const pid_t pid = Spawn(ProcessBagArgs(name, killed), killed);
+  ASSERT_GT(pid, 0);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(5);
+  while (EpochsSolved(killed / "stderr") < total / 2 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  kill(pid, SIGKILL);
+  EXPECT_EQ(Wait(pid), -1) << "process_bag ended before it was killed";
+  const int at_kill = EpochsSolved(killed / "stderr");
+  std::cout << "killed after " << at_kill << " of " << total << " epochs\n";
+  EXPECT_GT(at_kill, 0);
+  EXPECT_LT(at_kill, total);
+  fs::rename(killed / "stderr", killed / "stderr.killed");
+  ASSERT_EQ(Wait(Spawn(ProcessBagArgs(name, killed), killed)), 0) << ReadFile(killed / "stderr");
+
+  const sim::SurveyTruth truth = sim::SurveyTruth::Load(Survey(name, ".truth.yaml"));
+  const auto a = evaluation::EvaluateHistory((whole / "history.db").string(), truth);
+  const auto b = evaluation::EvaluateHistory((killed / "history.db").string(), truth);
+  ASSERT_EQ(a.points.size(), b.points.size());
+  ASSERT_FALSE(a.points.empty());
+  for (size_t i = 0; i < a.points.size(); ++i) {
+    const auto& p = a.points[i];
+    const auto& q = b.points[i];
+    ASSERT_EQ(p.id, q.id);
+    EXPECT_EQ(p.stamp, q.stamp) << p.id;
+    EXPECT_EQ((p.estimate - q.estimate).norm(), 0.0) << p.id;
+    EXPECT_EQ((p.covariance - q.covariance).norm(), 0.0) << p.id;
+    EXPECT_EQ((p.velocity - q.velocity).norm(), 0.0) << p.id;
+    EXPECT_EQ(p.alert_level, q.alert_level) << p.id;
+    EXPECT_EQ(p.forecast_time, q.forecast_time) << p.id;
+    EXPECT_EQ(p.measurements, q.measurements) << p.id;
+  }
+  EXPECT_EQ(a.fused_rms, b.fused_rms);
+  const auto keys_a = ObservationKeys(whole / "history.db");
+  const auto keys_b = ObservationKeys(killed / "history.db");
+  EXPECT_EQ(keys_a, keys_b);
+  for (const auto& [key, n] : keys_b) EXPECT_EQ(n, 1) << key << " fused " << n << " times";
+}
+
+// ------------------------------------------------------------ bad input
+
+TEST(ProcessBag, BadInputIsNamed) {
+  const fs::path dir = Scratch("bad_input");
+  std::ofstream(dir / "not_a_bag.bag") << "this is not a bag\n";
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{SM_PROCESS_BAG, "--bag", (dir / "missing.bag").string()}, "missing.bag' not found"},
+      {{SM_PROCESS_BAG, "--bag", (dir / "not_a_bag.bag").string()}, "not_a_bag.bag"},
+      {{SM_PROCESS_BAG, "--bag", Survey("full_graph_replay", ".bag"), "--frobnicate"},
+       "unknown argument '--frobnicate'"},
+      {{SM_PROCESS_BAG}, "--bag FILE is required"},
+      {{SM_PROCESS_BAG, "--bag", Survey("full_graph_replay", ".bag"), "--target-list",
+        (dir / "none.yaml").string()},
+       "none.yaml' not found"}};
+  for (const auto& [args, expected] : cases) {
+    EXPECT_EQ(Wait(Spawn(args, dir)), 1) << args.back();
+    EXPECT_NE(ReadFile(dir / "stderr").find(expected), std::string::npos)
+        << "expected '" << expected << "' in: " << ReadFile(dir / "stderr");
+  }
+}
+
+// A bag cut in the middle (no index): reindexed in a temporary copy, said
+// with the file's name, processed up to the break.
+TEST(ProcessBag, TruncatedBagIsProcessedUpToTheBreak) {
+  const fs::path dir = Scratch("truncated");
+  const fs::path cut = dir / "cut.bag";
+  fs::copy_file(Survey("full_graph_replay", ".bag"), cut);
+  fs::resize_file(cut, fs::file_size(cut) * 6 / 10);
+  // The target list and truth (radio network) beside it, as the simulator writes them.
+  fs::copy_file(Survey("full_graph_replay", ".targets.yaml"), dir / "cut.targets.yaml");
+  fs::copy_file(Survey("full_graph_replay", ".truth.yaml"), dir / "cut.truth.yaml");
+  const std::vector<std::string> args = {SM_PROCESS_BAG,
+                                         "--bag",
+                                         cut.string(),
+                                         "--database",
+                                         (dir / "history.db").string(),
+                                         "--report-dir",
+                                         (dir / "reports").string()};
+  ASSERT_EQ(Wait(Spawn(args, dir)), 0) << ReadFile(dir / "stderr");
+  const std::string err = ReadFile(dir / "stderr");
+  EXPECT_NE(err.find("'" + cut.string() + "' is not indexed"), std::string::npos) << err;
+  EXPECT_NE(err.find("reindexing a temporary copy"), std::string::npos) << err;
+  EXPECT_GT(ObservationKeys(dir / "history.db").size(), 0u) << "nothing processed before the break";
+}
+
+}  // namespace
+}  // namespace slope_monitor
