@@ -1,6 +1,7 @@
-// process_bag on the simulated surveys the rostests replay (rendered at build
-// time from test/rostest/<name>.sim.yaml): the truth checks of the
-// full_graph_replay and estimator_no_radio rostests, without ROS transport;
+// process_bag on simulated surveys (rendered at build time from
+// test/replay/<name>.sim.yaml and test/rostest/<name>.sim.yaml): the truth
+// checks of the former full_graph_replay and estimator_no_radio rostests,
+// without ROS transport;
 // the same reports and history byte for byte with both cores busy; and a
 // kill -9 in the middle followed by a second run on the same history giving
 // the numbers of an uninterrupted run, with nothing fused twice.
@@ -166,8 +167,8 @@ std::map<std::string, int> ObservationKeys(const fs::path& db) {
 
 // ------------------------------------------------ full_graph_replay's truth
 
-// The checks of test/rostest/full_graph_replay.cpp, with its tolerances
-// (full_graph_replay.test.in).
+// The checks the full_graph_replay rostest made (dropped: doc/testing.md),
+// with its tolerances.
 TEST(ProcessBag, FullGraphReplayMatchesTruth) {
   const std::string name = "full_graph_replay";
   const fs::path dir = Scratch(name);
