@@ -64,7 +64,11 @@ TEST(DenseGraphReplay, ACloudPerEpochAndTheGeoTiffs) {
     size_t finite_change = 0;
     for (sensor_msgs::PointCloud2ConstIterator<float> ch(*c, "change"); ch != ch.end(); ++ch)
       finite_change += std::isfinite(*ch);
-    with_change += finite_change > n / 2;
+    // A later epoch has a change wherever the reference surface exists (the
+    // reference DEM covers about half of the later flights' cells); the
+    // reference epoch has none.
+    std::printf("  %zu points with a change\n", finite_change);
+    with_change += finite_change > n / 4;
   }
   EXPECT_EQ(with_change, epochs - 1);  // every epoch but the reference
   int surfaces = 0, changes = 0;

@@ -122,6 +122,8 @@ std::vector<fs::path> NodeletsIn(const std::string& ns) {
   std::vector<fs::path> sources;
   const std::regex kDecl("(ns|name)=\"" + ns + "\"");
   static const std::regex kLoad(R"(load slope_monitor/([A-Za-z]+))");
+  // A node of its own process: type "<x>_node" runs src/nodelets/<x>_nodelet.cpp.
+  static const std::regex kNode(R"re(type="([a-z_]+)_node")re");
   bool declared = false;
   for (auto it = std::sregex_iterator(launch.begin(), launch.end(), kDecl);
        it != std::sregex_iterator(); ++it) {
@@ -132,6 +134,8 @@ std::vector<fs::path> NodeletsIn(const std::string& ns) {
     const std::string element = after.substr(0, after.find("</group>"));
     if (std::regex_search(element, load, kLoad)) {
       sources.push_back(kRoot / "src/nodelets" / (CamelToSnake(load[1]) + "_nodelet.cpp"));
+    } else if (std::regex_search(element, load, kNode)) {
+      sources.push_back(kRoot / "src/nodelets" / (std::string(load[1]) + "_nodelet.cpp"));
     }
   }
   if (!declared) return {};
