@@ -90,63 +90,18 @@ class DenseEpochNodelet : public nodelet::Nodelet {
 
   void ReadParameters(ros::NodeHandle& pnh) {
     ros_adapters::ParamReader p(pnh);
-    dense::SurfaceOptions& s = options_.surface;
-    dense::CorrelationOptions& c = s.correlation;
-    c.levels = p.Int("levels", c.levels, 1, 5);
-    c.peak_frequency = p.Double("peak_frequency", c.peak_frequency, 0.01, 3.0, "rad/px");
-    c.grid_spacing = p.Int("grid_spacing", c.grid_spacing, 1, 64, "px");
-    c.final_grid_spacing = p.Int("final_grid_spacing", c.final_grid_spacing, 1, 64, "px");
-    c.window = p.Int("window", c.window, 3, 51, "px");
-    c.final_window = p.Int("final_window", c.final_window, 0, 51, "px");
-    c.lsc_iterations = p.Int("lsc_iterations", c.lsc_iterations, 0, 20);
-    c.search_radius = p.Int("search_radius", c.search_radius, 1, 16, "px");
-    c.min_correlation = p.Double("min_correlation", c.min_correlation, -1.0, 0.999);
-    s.rectify.scale = p.Double("rectify_scale", s.rectify.scale, 0.05, 4.0);
-    s.rectify.patch_size = p.Int("patch_size", s.rectify.patch_size, 0, 8192, "px");
-    s.cell_size = p.Double("cell_size", s.cell_size, 1e-3, 100.0, "m");
-    s.min_points_per_cell = p.Int("min_points_per_cell", s.min_points_per_cell, 1, 1000);
-    s.parallax_sigma = p.Double("parallax_sigma", s.parallax_sigma, 1e-3, 10.0, "px");
-    options_.min_pair_overlap = p.Double("min_pair_overlap", options_.min_pair_overlap, 0.01, 1.0);
-    options_.depth_margin = p.Double("depth_margin", options_.depth_margin, 0.0, 10.0);
-    options_.max_pairs_per_image =
-        p.Int("max_pairs_per_image", options_.max_pairs_per_image, 1, 100);
-    options_.max_dem_megabytes =
-        p.Double("max_dem_megabytes", options_.max_dem_megabytes, 1e-3, 1e5, "MB");
-    const std::vector<double> region = p.DoubleList("region", {0.0, 0.0, 0.0, 0.0});
-    if (region.size() != 4)
-      throw ConfigError(
-          Message("parameter '", p.FullKey("region"), "' must be [xmin, xmax, ymin, ymax] (m)"));
-    options_.region = Eigen::Vector4d(region[0], region[1], region[2], region[3]);
-    change_options_.lod_factor = p.Double("lod_factor", change_options_.lod_factor, 0.01, 10.0);
-    change_options_.coregistration_iterations =
-        p.Int("coregistration_iterations", change_options_.coregistration_iterations, 0, 20);
-    change_options_.min_stable_cells =
-        p.Int("min_stable_cells", change_options_.min_stable_cells, 4, 1000000000);
-    const std::vector<double> outline = p.DoubleList("monitored_outline", {});
-    if (outline.size() % 2 != 0 || (!outline.empty() && outline.size() < 6))
-      throw ConfigError(
-          Message("parameter '", p.FullKey("monitored_outline"),
-                  "' must be [x1, y1, x2, y2, x3, y3, ...] (m, site; at least 3 vertices)"));
-    if (!outline.empty()) {
-      outlines_.emplace_back();
-      for (size_t i = 0; i < outline.size(); i += 2)
-        outlines_.back().emplace_back(outline[i], outline[i + 1]);
-    }
-    stable_mask_path_ = p.String("stable_mask", "");
-    cameras_ = p.StringList("cameras", {"fixed_cam_1", "fixed_cam_2", "uav"});
-    uav_cameras_ = p.StringList("uav_cameras", {"uav"});
-    const std::vector<std::string> pairs = p.StringList("stereo_pairs", {});
-    if (pairs.size() % 2 != 0)
-      throw ConfigError(Message("parameter '", p.FullKey("stereo_pairs"),
-                                "' must list cameras in pairs (left, right)"));
-    for (size_t i = 0; i < pairs.size(); i += 2) stereo_pairs_.push_back({pairs[i], pairs[i + 1]});
-    pixel_size_ = p.Double("pixel_size", 0.0048, 1e-6, 1.0, "mm/px");
-    max_cached_images_ = p.Int("max_cached_images", 64, 1, 10000);
-    frame_id_ = p.String("frame_id", "site");
-    report_dir_ = p.String("report_dir", "");
-    p.CheckNoUnknownKeys();
-    options_.Check();
-    change_options_.Check();
+    ros_adapters::DenseEpochParameters d = ros_adapters::ReadDenseEpochParameters(p);
+    options_ = d.surface;
+    change_options_ = d.change;
+    outlines_ = std::move(d.outlines);
+    stable_mask_path_ = d.stable_mask;
+    cameras_ = d.cameras;
+    uav_cameras_ = d.uav_cameras;
+    stereo_pairs_ = d.stereo_pairs;
+    pixel_size_ = d.pixel_size;
+    max_cached_images_ = d.max_cached_images;
+    frame_id_ = d.frame_id;
+    report_dir_ = d.report_dir;
   }
 
   void OnImage(const std::string& camera, const sensor_msgs::ImageConstPtr& msg) {
@@ -301,9 +256,9 @@ class DenseEpochNodelet : public nodelet::Nodelet {
   std::string stable_mask_path_;
   std::vector<std::string> cameras_, uav_cameras_;
   std::vector<std::pair<std::string, std::string>> stereo_pairs_;
-  double pixel_size_ = 0.0048;
-  int max_cached_images_ = 64;
-  std::string frame_id_ = "site";
+  double pixel_size_ = 0.0;
+  int max_cached_images_ = 0;
+  std::string frame_id_;
   std::string report_dir_;
   ros::Publisher cloud_pub_;
   std::vector<ros::Subscriber> subs_;

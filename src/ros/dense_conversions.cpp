@@ -82,5 +82,66 @@ sensor_msgs::PointCloud2 MakeSurfaceCloud(const dense::EpochSurfaceResult& surfa
   return cloud;
 }
 
+DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
+  DenseEpochParameters d;
+  dense::SurfaceOptions& s = d.surface.surface;
+  dense::CorrelationOptions& c = s.correlation;
+  c.levels = p.Int("levels", c.levels, 1, 5);
+  c.peak_frequency = p.Double("peak_frequency", c.peak_frequency, 0.01, 3.0, "rad/px");
+  c.grid_spacing = p.Int("grid_spacing", c.grid_spacing, 1, 64, "px");
+  c.final_grid_spacing = p.Int("final_grid_spacing", c.final_grid_spacing, 1, 64, "px");
+  c.window = p.Int("window", c.window, 3, 51, "px");
+  c.final_window = p.Int("final_window", c.final_window, 0, 51, "px");
+  c.lsc_iterations = p.Int("lsc_iterations", c.lsc_iterations, 0, 20);
+  c.search_radius = p.Int("search_radius", c.search_radius, 1, 16, "px");
+  c.min_correlation = p.Double("min_correlation", c.min_correlation, -1.0, 0.999);
+  s.rectify.scale = p.Double("rectify_scale", s.rectify.scale, 0.05, 4.0);
+  s.rectify.patch_size = p.Int("patch_size", s.rectify.patch_size, 0, 8192, "px");
+  s.cell_size = p.Double("cell_size", s.cell_size, 1e-3, 100.0, "m");
+  s.min_points_per_cell = p.Int("min_points_per_cell", s.min_points_per_cell, 1, 1000);
+  s.parallax_sigma = p.Double("parallax_sigma", s.parallax_sigma, 1e-3, 10.0, "px");
+  d.surface.min_pair_overlap = p.Double("min_pair_overlap", d.surface.min_pair_overlap, 0.01, 1.0);
+  d.surface.depth_margin = p.Double("depth_margin", d.surface.depth_margin, 0.0, 10.0);
+  d.surface.max_pairs_per_image =
+      p.Int("max_pairs_per_image", d.surface.max_pairs_per_image, 1, 100);
+  d.surface.max_dem_megabytes =
+      p.Double("max_dem_megabytes", d.surface.max_dem_megabytes, 1e-3, 1e5, "MB");
+  const std::vector<double> region = p.DoubleList("region", {0.0, 0.0, 0.0, 0.0});
+  if (region.size() != 4)
+    throw ConfigError(
+        Message("parameter '", p.FullKey("region"), "' must be [xmin, xmax, ymin, ymax] (m)"));
+  d.surface.region = Eigen::Vector4d(region[0], region[1], region[2], region[3]);
+  d.change.lod_factor = p.Double("lod_factor", d.change.lod_factor, 0.01, 10.0);
+  d.change.coregistration_iterations =
+      p.Int("coregistration_iterations", d.change.coregistration_iterations, 0, 20);
+  d.change.min_stable_cells = p.Int("min_stable_cells", d.change.min_stable_cells, 4, 1000000000);
+  const std::vector<double> outline = p.DoubleList("monitored_outline", {});
+  if (outline.size() % 2 != 0 || (!outline.empty() && outline.size() < 6))
+    throw ConfigError(
+        Message("parameter '", p.FullKey("monitored_outline"),
+                "' must be [x1, y1, x2, y2, x3, y3, ...] (m, site; at least 3 vertices)"));
+  if (!outline.empty()) {
+    d.outlines.emplace_back();
+    for (size_t i = 0; i < outline.size(); i += 2)
+      d.outlines.back().emplace_back(outline[i], outline[i + 1]);
+  }
+  d.stable_mask = p.String("stable_mask", "");
+  d.cameras = p.StringList("cameras", {"fixed_cam_1", "fixed_cam_2", "uav"});
+  d.uav_cameras = p.StringList("uav_cameras", {"uav"});
+  const std::vector<std::string> pairs = p.StringList("stereo_pairs", {});
+  if (pairs.size() % 2 != 0)
+    throw ConfigError(Message("parameter '", p.FullKey("stereo_pairs"),
+                              "' must list cameras in pairs (left, right)"));
+  for (size_t i = 0; i < pairs.size(); i += 2) d.stereo_pairs.push_back({pairs[i], pairs[i + 1]});
+  d.pixel_size = p.Double("pixel_size", 0.0048, 1e-6, 1.0, "mm/px");
+  d.max_cached_images = p.Int("max_cached_images", 64, 1, 10000);
+  d.frame_id = p.String("frame_id", "site");
+  d.report_dir = p.String("report_dir", "");
+  p.CheckNoUnknownKeys();
+  d.surface.Check();
+  d.change.Check();
+  return d;
+}
+
 }  // namespace ros_adapters
 }  // namespace slope_monitor

@@ -55,6 +55,7 @@
 #include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/core/sim/truth.h"
 #include "slope_monitor/ros/dense_conversions.h"
+#include "slope_monitor/ros/param_files.h"
 
 using namespace slope_monitor;
 namespace fs = std::filesystem;
@@ -228,73 +229,18 @@ int IntArg(const Args& a, const std::string& flag, const std::string& default_va
   return n;
 }
 
-struct EpochConfig {
-  dense::EpochSurfaceOptions surface;
-  dense::DemChangeOptions change;
-  std::vector<dense::Polygon> outlines;
-  std::vector<std::string> uav_cameras{"uav"};
-  std::vector<std::pair<std::string, std::string>> stereo_pairs;
-  double pixel_size = 0.0048;
-};
-
-// The keys of config/defaults/dense_epoch.yaml (defaults: the Options' own).
-EpochConfig ReadEpochConfig(const std::string& path) {
-  EpochConfig e;
-  if (path.empty()) return e;
-  io::YamlMap p = io::YamlMap::Load(path);
-  dense::SurfaceOptions& s = e.surface.surface;
-  dense::CorrelationOptions& c = s.correlation;
-  c.levels = p.Int("levels", c.levels, 1, 5);
-  c.peak_frequency = p.Double("peak_frequency", c.peak_frequency, 0.01, 3.0, "rad/px");
-  c.grid_spacing = p.Int("grid_spacing", c.grid_spacing, 1, 64, "px");
-  c.final_grid_spacing = p.Int("final_grid_spacing", c.final_grid_spacing, 1, 64, "px");
-  c.window = p.Int("window", c.window, 3, 51, "px");
-  c.final_window = p.Int("final_window", c.final_window, 0, 51, "px");
-  c.lsc_iterations = p.Int("lsc_iterations", c.lsc_iterations, 0, 20);
-  c.search_radius = p.Int("search_radius", c.search_radius, 1, 16, "px");
-  c.min_correlation = p.Double("min_correlation", c.min_correlation, -1.0, 0.999);
-  s.rectify.scale = p.Double("rectify_scale", s.rectify.scale, 0.05, 4.0);
-  s.rectify.patch_size = p.Int("patch_size", s.rectify.patch_size, 0, 8192, "px");
-  s.cell_size = p.Double("cell_size", s.cell_size, 1e-3, 100.0, "m");
-  s.min_points_per_cell = p.Int("min_points_per_cell", s.min_points_per_cell, 1, 1000);
-  s.parallax_sigma = p.Double("parallax_sigma", s.parallax_sigma, 1e-3, 10.0, "px");
-  e.surface.min_pair_overlap = p.Double("min_pair_overlap", e.surface.min_pair_overlap, 0.01, 1.0);
-  e.surface.depth_margin = p.Double("depth_margin", e.surface.depth_margin, 0.0, 10.0);
-  e.surface.max_pairs_per_image = p.Int("max_pairs_per_image", e.surface.max_pairs_per_image, 1, 100);
-  e.surface.max_dem_megabytes = p.Double("max_dem_megabytes", e.surface.max_dem_megabytes, 1e-3, 1e5, "MB");
-  const std::vector<double> r = p.Doubles("region", {0, 0, 0, 0}, 4);
-  e.surface.region = Eigen::Vector4d(r[0], r[1], r[2], r[3]);
-  e.change.lod_factor = p.Double("lod_factor", e.change.lod_factor, 0.01, 10.0);
-  e.change.coregistration_iterations =
-      p.Int("coregistration_iterations", e.change.coregistration_iterations, 0, 20);
-  e.change.min_stable_cells = p.Int("min_stable_cells", e.change.min_stable_cells, 4, 1000000000);
-  const std::vector<double> outline = p.Doubles("monitored_outline", {});
-  if (outline.size() % 2 != 0 || (!outline.empty() && outline.size() < 6))
-    throw ConfigError(Message(path, ": 'monitored_outline' must be [x1, y1, x2, y2, x3, y3, ...] (m, site)"));
-  if (!outline.empty()) {
-    e.outlines.emplace_back();
-    for (size_t i = 0; i < outline.size(); i += 2) e.outlines.back().emplace_back(outline[i], outline[i + 1]);
-  }
-  e.uav_cameras = p.Strings("uav_cameras", e.uav_cameras);
-  const std::vector<std::string> pairs = p.Strings("stereo_pairs", {});
-  if (pairs.size() % 2 != 0) throw ConfigError(Message(path, ": 'stereo_pairs' must list cameras in pairs"));
-  for (size_t i = 0; i < pairs.size(); i += 2) e.stereo_pairs.push_back({pairs[i], pairs[i + 1]});
-  e.pixel_size = p.Double("pixel_size", e.pixel_size, 1e-6, 1.0, "mm/px");
-  // Node-only keys, accepted so the same file serves both.
-  p.Strings("cameras", {});
-  p.Int("max_cached_images", 64, 1, 10000);
-  p.String("stable_mask", "");
-  p.String("frame_id", "site");
-  p.String("report_dir", "");
-  p.CheckNoUnknownKeys();
-  e.surface.Check();
-  e.change.Check();
-  return e;
+// The keys of config/defaults/dense_epoch.yaml, read as the dense matcher
+// node reads them (ros_adapters::ReadDenseEpochParameters); no file: the
+// defaults.
+ros_adapters::DenseEpochParameters ReadEpochConfig(const std::string& path) {
+  const XmlRpc::XmlRpcValue params = path.empty() ? XmlRpc::XmlRpcValue() : ros_adapters::LoadParamFile(path);
+  ros_adapters::ParamReader reader(params, path);
+  return ros_adapters::ReadDenseEpochParameters(reader);
 }
 
 // Every adjusted epoch of the bag (see the file header).
 int RunBagEpochs(const Args& a) {
-  const EpochConfig cfg = ReadEpochConfig(a.Get("--config"));
+  const ros_adapters::DenseEpochParameters cfg = ReadEpochConfig(a.Get("--config"));
   const std::string bag_path = a.Get("--bag"), topic = a.Get("--solution-topic", "/bundle_adjuster/solution");
   const std::string out_dir = a.Get("--out-dir", ".");
   const int only_epoch = a.Has("--epoch") ? IntArg(a, "--epoch", "") : -1;

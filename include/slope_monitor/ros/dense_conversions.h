@@ -11,9 +11,27 @@
 #include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/core/dense/dem_change.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
+#include "slope_monitor/ros/parameters.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
+
+// The keys of config/defaults/dense_epoch.yaml, read once for the dense
+// matcher node (parameter server) and for `dense_surface --bag` (the same
+// file, ros/param_files.h). Defaults: the core Options' own. Throws
+// ConfigError naming the key (CheckNoUnknownKeys is called).
+struct DenseEpochParameters {
+  dense::EpochSurfaceOptions surface;
+  dense::DemChangeOptions change;
+  std::vector<dense::Polygon> outlines;  // monitored_outline (site)
+  std::string stable_mask;               // GeoTIFF, "" = none
+  std::vector<std::string> cameras, uav_cameras;
+  std::vector<std::pair<std::string, std::string>> stereo_pairs;
+  double pixel_size = 0.0;  // [mm/px]
+  int max_cached_images = 0;
+  std::string frame_id, report_dir;
+};
+DenseEpochParameters ReadDenseEpochParameters(ParamReader& p);
 
 // The image with the ADJUSTED orientation and interior orientation of
 // `estimate` (sensor size and distortion model from `info`). Throws
