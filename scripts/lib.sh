@@ -54,31 +54,40 @@ sm_workspace() {
   sm_say "workspace: $SM_WS (set SLOPE_MONITOR_WS to choose another)"
 }
 
-# Build the package (and its tests when $1 = tests).
+# Build the package (and its tests when $1 = tests) with Ninja: it compiles a
+# target's objects as soon as the headers they need exist, not after every
+# library they link to, so both cores stay busy through the whole build
+# (doc/testing.md). A workspace configured with make before is reconfigured.
 sm_build() {
   sm_workspace
   local jobs="${SM_JOBS:-$(nproc)}"
-  sm_say "building with catkin_make (-j$jobs, Release)"
+  if [ -f "$SM_WS/build/CMakeCache.txt" ] && ! grep -q '^CMAKE_GENERATOR:INTERNAL=Ninja$' "$SM_WS/build/CMakeCache.txt"; then
+    sm_say "workspace $SM_WS was configured for make; reconfiguring it for Ninja (a full rebuild)"
+    rm -rf "$SM_WS/build" "$SM_WS/devel"
+  fi
+  sm_say "building with catkin_make --use-ninja (-j$jobs, Release)"
   # "sm_build demo": only what the replay graph and the demo tools need (the
-  # benchmarks, offline tools and the other nodelets wait for scripts/test).
+  # benchmarks, offline tools and the other nodelets wait for scripts/test);
+  # "sm_build tests": everything and the tests in one go.
   local targets=()
   if [ "${1:-}" = demo ]; then
     targets=(slope_monitor_target_centroider_nodelet slope_monitor_bundle_adjuster_nodelet
              slope_monitor_radio_phase_solver_nodelet slope_monitor_deformation_estimator_nodelet
              make_survey_bag deformation_summary process_bag)
+  elif [ "${1:-}" = tests ]; then
+    targets=(all tests)
   fi
-  (cd "$SM_WS" && catkin_make -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=ON -j"$jobs" "${targets[@]}" \
-     >"$SM_WS/build.log" 2>&1) || {
+  (cd "$SM_WS" && catkin_make --use-ninja -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=ON -j"$jobs" \
+     "${targets[@]}" >"$SM_WS/build.log" 2>&1) || {
     tail -n 60 "$SM_WS/build.log" >&2
     sm_die "build failed; full log: $SM_WS/build.log"
   }
-  if [ "${1:-}" = tests ]; then
-    (cd "$SM_WS" && catkin_make -j"$jobs" tests >>"$SM_WS/build.log" 2>&1) || {
-      tail -n 60 "$SM_WS/build.log" >&2
-      sm_die "building the tests failed; full log: $SM_WS/build.log"
-    }
-  fi
   sm_say "build ok"
+}
+
+# Build single targets of an already configured workspace: sm_build_targets T1 [T2 ...]
+sm_build_targets() {
+  cmake --build "$SM_WS/build" -j "${SM_JOBS:-$(nproc)}" --target "$@" >>"$SM_WS/build.log" 2>&1
 }
 
 sm_source_ws() {
