@@ -48,7 +48,9 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/dense/displacement_field.h"
 #include "slope_monitor/core/dense/targetless_camera.h"
+#include "slope_monitor/core/io/camera_pose_file.h"
 #include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/core/io/image_polygons.h"
 #include "slope_monitor/core/matching/hex_matcher.h"
 #include "slope_monitor/ros/conversions.h"
 
@@ -73,53 +75,6 @@ camera::CameraModel LoadCamera(const std::string& path) {
   return capture::CheckCameraInfo(ros_adapters::FromMsg(info), 1.0, 0, 0, path);
 }
 
-camera::ExteriorOrientation LoadPose(const std::string& path) {
-  YAML::Node n;
-  try {
-    n = YAML::LoadFile(path);
-  } catch (const YAML::Exception& e) {
-    throw IoError(Message("--camera: cannot read '", path, "': ", e.what()));
-  }
-  if (!n["position"] || n["position"].size() != 3 || !n["angles_deg"])
-    throw InvalidArgument(
-        Message(path, ": needs position [X, Y, Z] and angles_deg {theta, phi, kappa}"));
-  camera::ExteriorOrientation e;
-  for (int k = 0; k < 3; ++k) e.position(k) = n["position"][k].as<double>();
-  e.angles.theta = n["angles_deg"]["theta"].as<double>() / kDeg;
-  e.angles.phi = n["angles_deg"]["phi"].as<double>() / kDeg;
-  e.angles.kappa = n["angles_deg"]["kappa"].as<double>() / kDeg;
-  return e;
-}
-
-std::vector<std::vector<cv::Point2f>> LoadPolygons(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw IoError(Message("--stable-polygons: cannot read '", path, "'"));
-  std::vector<std::vector<cv::Point2f>> polygons;
-  std::string line;
-  for (int number = 1; std::getline(in, line); ++number) {
-    const size_t c = line.find('#');
-    if (c != std::string::npos) line.resize(c);
-    std::istringstream s(line);
-    std::vector<double> v;
-    for (std::string t; s >> t;) {
-      char* end = nullptr;
-      const double x = std::strtod(t.c_str(), &end);
-      if (*end != '\0' || !std::isfinite(x))
-        throw InvalidArgument(Message(path, ":", number, ": malformed number '", t, "'"));
-      v.push_back(x);
-    }
-    if (v.empty()) continue;
-    if (v.size() % 2 != 0 || v.size() < 6)
-      throw InvalidArgument(Message(path, ":", number, ": a polygon needs >= 3 `u v` pairs, got ",
-                                    v.size(), " numbers"));
-    std::vector<cv::Point2f> p;
-    for (size_t k = 0; k < v.size(); k += 2) p.emplace_back(v[k], v[k + 1]);
-    polygons.push_back(p);
-  }
-  if (polygons.empty()) throw InvalidArgument(Message(path, ": no polygon"));
-  return polygons;
-}
-
 // The stable area as a mask of the image's size (255 = stable).
 cv::Mat StableMask(const std::map<std::string, std::vector<std::string>>& a, const cv::Size& size) {
   if (a.count("--stable-mask") && a.count("--stable-polygons"))
@@ -138,9 +93,9 @@ cv::Mat StableMask(const std::map<std::string, std::vector<std::string>>& a, con
   }
   cv::Mat m(size, CV_8UC1, cv::Scalar(a.count("--stable-polygons") ? 0 : 255));
   if (a.count("--stable-polygons")) {
-    for (const auto& p : LoadPolygons(a.at("--stable-polygons")[0])) {
+    for (const auto& p : io::ReadImagePolygons(a.at("--stable-polygons")[0], "--stable-polygons")) {
       std::vector<cv::Point> q;
-      for (const auto& v : p) q.emplace_back(cvRound(v.x), cvRound(v.y));
+      for (const auto& v : p) q.emplace_back(cvRound(v.x()), cvRound(v.y()));
       cv::fillPoly(m, std::vector<std::vector<cv::Point>>{q}, cv::Scalar(255));
     }
   }
@@ -235,7 +190,7 @@ int main(int argc, char** argv) {
     if (a.count("--dem")) dem = io::ReadGeoTiff(a["--dem"][0]);
     const std::string prefix = a["--camera"][0];
     const camera::CameraModel model = LoadCamera(prefix + ".yaml");
-    const camera::ExteriorOrientation reference = LoadPose(prefix + ".pose.yaml");
+    const camera::ExteriorOrientation reference = io::ReadCameraPoseFile(prefix + ".pose.yaml", "--camera");
     const cv::Mat ref = Gray(a["--reference"][0], "--reference");
     if (ref.cols != model.sensor().width || ref.rows != model.sensor().height)
       throw InvalidArgument(Message("--reference '", a["--reference"][0], "' is ", ref.cols, "x",
