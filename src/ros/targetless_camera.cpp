@@ -32,19 +32,6 @@ diagnostic_msgs::KeyValue Kv(const std::string& key, const std::string& value) {
   return kv;
 }
 
-// Even-odd rule, pixels.
-bool InsidePixels(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& p) {
-  bool in = false;
-  for (size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
-    const Eigen::Vector2d& a = polygon[i];
-    const Eigen::Vector2d& b = polygon[j];
-    if ((a.y() > p.y()) != (b.y() > p.y()) &&
-        p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x())
-      in = !in;
-  }
-  return in;
-}
-
 geometry_msgs::TransformStamped PoseTf(const camera::ExteriorOrientation& pose,
                                        const std::string& frame_id, const std::string& camera,
                                        const ros::Time& stamp) {
@@ -157,11 +144,7 @@ TargetlessOutputs TargetlessCameraRunner::Reference(const sensor_msgs::Image& im
   dense::ImageAreas areas;
   if (!stable_polygons_.empty()) {
     const auto polygons = stable_polygons_;
-    areas.stable = [polygons](const Eigen::Vector2d& x) {
-      for (const auto& p : polygons)
-        if (InsidePixels(p, x)) return true;
-      return false;
-    };
+    areas.stable = [polygons](const Eigen::Vector2d& x) { return io::InsideAny(polygons, x); };
   } else {
     areas = dense::AreasFromSitePolygons(model, reference_pose_, dem_, params_.site.outline,
                                          params_.site.stable_areas,

@@ -4,25 +4,13 @@
 #include <utility>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/image_polygons.h"
 
 namespace slope_monitor {
 namespace dense {
 namespace {
 
 constexpr double kDeg = 180.0 / M_PI;
-
-// Even-odd rule.
-bool Inside(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& p) {
-  bool in = false;
-  for (size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
-    const Eigen::Vector2d& a = polygon[i];
-    const Eigen::Vector2d& b = polygon[j];
-    if ((a.y() > p.y()) != (b.y() > p.y()) &&
-        p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x())
-      in = !in;
-  }
-  return in;
-}
 
 }  // namespace
 
@@ -64,23 +52,18 @@ ImageAreas AreasFromSitePolygons(const camera::CameraModel& model,
     return true;
   };
   auto in_outline = [outline](const Eigen::Vector2d& xy) {
-    return outline.empty() || Inside(outline, xy);
+    return outline.empty() || io::InsidePolygon(outline, xy);
   };
   ImageAreas a;
   a.stable = [ground, stable, in_outline](const Eigen::Vector2d& px) {
     Eigen::Vector2d xy;
     if (!ground(px, &xy)) return false;
     if (stable.empty()) return !in_outline(xy);
-    for (const auto& p : stable)
-      if (Inside(p, xy)) return true;
-    return false;
+    return io::InsideAny(stable, xy);
   };
   a.monitored = [ground, stable, in_outline](const Eigen::Vector2d& px) {
     Eigen::Vector2d xy;
-    if (!ground(px, &xy) || !in_outline(xy)) return false;
-    for (const auto& p : stable)
-      if (Inside(p, xy)) return false;
-    return true;
+    return ground(px, &xy) && in_outline(xy) && !io::InsideAny(stable, xy);
   };
   return a;
 }

@@ -40,5 +40,23 @@ std::vector<std::vector<Eigen::Vector2d>> ReadImagePolygons(const std::string& p
   return polygons;
 }
 
+bool InsidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& p) {
+  bool in = false;
+  for (size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
+    const Eigen::Vector2d& a = polygon[i];
+    const Eigen::Vector2d& b = polygon[j];
+    if ((a.y() > p.y()) != (b.y() > p.y()) &&
+        p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x())
+      in = !in;
+  }
+  return in;
+}
+
+bool InsideAny(const std::vector<std::vector<Eigen::Vector2d>>& polygons, const Eigen::Vector2d& p) {
+  for (const auto& polygon : polygons)
+    if (InsidePolygon(polygon, p)) return true;
+  return false;
+}
+
 }  // namespace io
 }  // namespace slope_monitor

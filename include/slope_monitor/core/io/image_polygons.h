@@ -17,5 +17,11 @@ namespace io {
 std::vector<std::vector<Eigen::Vector2d>> ReadImagePolygons(const std::string& path,
                                                             const std::string& what);
 
+// Even-odd rule: p inside the polygon (any units; pixels here, metres for the
+// site's ground polygons).
+bool InsidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& p);
+// Inside any of them.
+bool InsideAny(const std::vector<std::vector<Eigen::Vector2d>>& polygons, const Eigen::Vector2d& p);
+
 }  // namespace io
 }  // namespace slope_monitor
