@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include <Eigen/Eigenvalues>
 #include <cv_bridge/cv_bridge.h>
 #include <opencv2/imgcodecs.hpp>
 
@@ -30,6 +31,18 @@ diagnostic_msgs::KeyValue Kv(const std::string& key, const std::string& value) {
   kv.key = key;
   kv.value = value;
   return kv;
+}
+
+// The field's covariance is nearly singular: the displacement of a point
+// held on the DEM hardly varies across the surface, so one eigenvalue is
+// ~1e-13 m^2. Floored at (0.1 mm)^2, far below the sigmas along the surface
+// (mm to cm), so the estimator's covariance check (sigma >= 1e-6 m) and its
+// filters stay well conditioned.
+Eigen::Matrix3d Conditioned(const Eigen::Matrix3d& c) {
+  constexpr double kMinVariance = 1e-8;  // [m^2]
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(0.5 * (c + c.transpose()));
+  const Eigen::Vector3d e = es.eigenvalues().cwiseMax(kMinVariance);
+  return es.eigenvectors() * e.asDiagonal() * es.eigenvectors().transpose();
 }
 
 geometry_msgs::TransformStamped PoseTf(const camera::ExteriorOrientation& pose,
@@ -66,10 +79,11 @@ slope_monitor::PointDisplacementArray ToDisplacements(const dense::DisplacementF
     d.displacement.x = p.displacement.x();
     d.displacement.y = p.displacement.y();
     d.displacement.z = p.displacement.z();
+    const Eigen::Matrix3d cov = Conditioned(p.covariance);
     for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) d.covariance[3 * r + c] = p.covariance(r, c);
+      for (int c = 0; c < 3; ++c) d.covariance[3 * r + c] = cov(r, c);
     const double n = p.displacement.norm();
-    const double var = n > 0 ? p.displacement.dot(p.covariance * p.displacement) / (n * n) : 0.0;
+    const double var = n > 0 ? p.displacement.dot(cov * p.displacement) / (n * n) : 0.0;
     d.significance = var > 0 ? n / std::sqrt(var) : 0.0;
     out.displacements.push_back(d);
   }

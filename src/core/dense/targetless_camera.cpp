@@ -42,12 +42,14 @@ ImageAreas AreasFromSitePolygons(const camera::CameraModel& model,
         "the site gives neither stable areas nor a monitored outline: a fixed_targetless camera "
         "needs one of them (areas.stable / areas.outline) or a stable_polygons file");
   // Where the reference ray of a pixel meets the DEM (x, y), or false.
-  auto ground = [&model, &reference, &dem, max_range](const Eigen::Vector2d& px,
-                                                      Eigen::Vector2d* xy) {
+  // The model and the pose are copied; the DEM must outlive the predicates.
+  const io::GeoRaster* surface = &dem;
+  auto ground = [model, reference, surface, max_range](const Eigen::Vector2d& px,
+                                                       Eigen::Vector2d* xy) {
     const camera::Ray ray = model.ImageToRay(reference, px);
     const Eigen::Vector3d d = ray.direction.normalized();
     double t = 0.0;
-    if (!IntersectDem(dem, ray.origin, d, max_range, &t)) return false;
+    if (!IntersectDem(*surface, ray.origin, d, max_range, &t)) return false;
     *xy = (ray.origin + t * d).head<2>();
     return true;
   };

@@ -60,7 +60,8 @@ struct ImageAreas {
 // monitored when it meets it inside the outline (every pixel on the DEM
 // when the outline is empty) and is not stable. Without stable polygons,
 // stable = on the DEM and outside the outline (the image minus the monitored
-// area). Throws InvalidArgument when neither is given.
+// area). Throws InvalidArgument when neither is given. The predicates keep a
+// pointer to `dem`: it must outlive them.
 ImageAreas AreasFromSitePolygons(const camera::CameraModel& model,
                                  const camera::ExteriorOrientation& reference,
                                  const io::GeoRaster& dem,
