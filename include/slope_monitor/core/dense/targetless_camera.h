@@ -39,7 +39,9 @@ struct TargetlessCameraOptions {
   // matched) and LSC on images low-passed by 1 px (JPEG noise, changing
   // light on rock). See TrackingMatcherOptions().
   matching::HexMatcherOptions matcher = TrackingMatcherOptions();
-  double match_radius = 64.0;     // [px] search radius around the global shift, > 0
+  // [px] search radius of the stable tie points, > 0: first around no shift (it must
+  // cover the mast's turn: 24 px = 0.27 deg at c = 5000 px), then around their median shift.
+  double match_radius = 24.0;
   double max_rotation_deg = 0.5;     // [deg] WARN above (total angle or one angle's change), > 0
   adjustment::ReorientOptions reorient;
   DisplacementFieldOptions field;
