@@ -164,7 +164,12 @@ TEST_F(TargetlessCameraReplay, ReorientationFieldAndEstimatorAgainstTruth) {
       for (int k = 0; k < 2; ++k) {
         const double s = std::sqrt(p.covariance[4 * k]);
         z.push_back(std::abs(e(k)) / s);
-        if (std::abs(e(k)) > 3.0 * s) ++outside3;
+        if (std::abs(e(k)) > 3.0 * s) {
+          ++outside3;
+          std::printf("beyond 3 sigma: %s comp %d err %.4f sigma %.4f weight %.2f truth %.3f\n",
+                      p.point_id.c_str(), k, e(k), s, truth_.landslide.Weight(x.head<2>()),
+                      truth.norm());
+        }
       }
     }
   }
