@@ -20,9 +20,9 @@
 
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <tf2_ros/transform_broadcaster.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/ros/parameters.h"
@@ -58,8 +58,7 @@ class TargetlessCameraNodelet : public nodelet::Nodelet {
             Handle(c, [&] { return cameras_->AddImage(c, m); });
           }));
       subs_.push_back(nh.subscribe<sensor_msgs::CameraInfo>(
-          "/" + c + "/camera/camera_info", 2,
-          [this, c](const sensor_msgs::CameraInfoConstPtr& m) {
+          "/" + c + "/camera/camera_info", 2, [this, c](const sensor_msgs::CameraInfoConstPtr& m) {
             Handle(c, [&] { return cameras_->AddCameraInfo(c, m); });
           }));
     }

@@ -8,7 +8,8 @@ int main(int argc, char** argv) {
   nodelet::Loader loader(false);
   nodelet::M_string remappings(ros::names::getRemappings());
   nodelet::V_string my_argv(argv + 1, argv + argc);
-  if (!loader.load(ros::this_node::getName(), "slope_monitor/TargetlessCamera", remappings, my_argv)) {
+  if (!loader.load(ros::this_node::getName(), "slope_monitor/TargetlessCamera", remappings,
+                   my_argv)) {
     ROS_FATAL("targetless_camera_node: cannot load the nodelet slope_monitor/TargetlessCamera");
     return 1;
   }

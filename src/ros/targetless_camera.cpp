@@ -3,8 +3,8 @@
 #include <cmath>
 #include <cstdio>
 
-#include <Eigen/Eigenvalues>
 #include <cv_bridge/cv_bridge.h>
+#include <Eigen/Eigenvalues>
 #include <opencv2/imgcodecs.hpp>
 
 #include "slope_monitor/PointDisplacement.h"
@@ -96,8 +96,9 @@ TargetlessParameters ReadTargetlessParameters(ParamReader& p) {
   TargetlessParameters t;
   t.site_file = p.String("site_file", "");
   if (t.site_file.empty())
-    throw ConfigError(Message(p.FullKey("site_file"),
-                              ": required (the site file that lists the fixed_targetless cameras)"));
+    throw ConfigError(
+        Message(p.FullKey("site_file"),
+                ": required (the site file that lists the fixed_targetless cameras)"));
   t.site = io::LoadSiteFile(t.site_file);
   for (const std::string& r : p.StringList("reference_images", {})) {
     const size_t eq = r.find('=');
@@ -145,8 +146,9 @@ TargetlessCameraRunner::TargetlessCameraRunner(const TargetlessParameters& param
   if (!camera.stable_polygons.empty())
     stable_polygons_ = io::ReadImagePolygons(camera.stable_polygons, key + " stable_polygons");
   else if (params.site.stable_areas.empty() && params.site.outline.empty())
-    throw ConfigError(Message(key, ": no stable_polygons, and the site has no areas.stable nor "
-                                   "areas.outline: the stable ground is unknown"));
+    throw ConfigError(Message(key,
+                              ": no stable_polygons, and the site has no areas.stable nor "
+                              "areas.outline: the stable ground is unknown"));
 }
 
 TargetlessOutputs TargetlessCameraRunner::Reference(const sensor_msgs::Image& image,
@@ -160,9 +162,9 @@ TargetlessOutputs TargetlessCameraRunner::Reference(const sensor_msgs::Image& im
     const auto polygons = stable_polygons_;
     areas.stable = [polygons](const Eigen::Vector2d& x) { return io::InsideAny(polygons, x); };
   } else {
-    areas = dense::AreasFromSitePolygons(model, reference_pose_, dem_, params_.site.outline,
-                                         params_.site.stable_areas,
-                                         params_.options.field.max_range);
+    areas =
+        dense::AreasFromSitePolygons(model, reference_pose_, dem_, params_.site.outline,
+                                     params_.site.stable_areas, params_.options.field.max_range);
   }
   tracker_ = std::make_unique<dense::TargetlessCamera>(camera_.name, model, reference_pose_, &dem_,
                                                        areas, params_.options);
@@ -198,8 +200,7 @@ TargetlessOutputs TargetlessCameraRunner::OnImage(const sensor_msgs::Image& imag
                                                   const sensor_msgs::CameraInfo& info) {
   if (!tracker_) return Reference(image, info);
   const cv::Mat img = cv_bridge::toCvCopy(image, "mono8")->image;
-  const dense::TargetlessEpoch e =
-      tracker_->Process(img, image.header.stamp.toSec(), camera_.dem);
+  const dense::TargetlessEpoch e = tracker_->Process(img, image.header.stamp.toSec(), camera_.dem);
   TargetlessOutputs out;
   out.warnings = e.warnings;
   diagnostic_msgs::DiagnosticStatus& s = out.status;

@@ -35,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <ros/package.h>
 #include <rosbag/bag.h>
@@ -45,7 +46,6 @@
 #include <tf2/buffer_core.h>
 #include <tf2/exceptions.h>
 #include <tf2_eigen/tf2_eigen.h>
-#include <diagnostic_msgs/DiagnosticArray.h>
 #include <tf2_msgs/TFMessage.h>
 
 #include "slope_monitor/EpochMarker.h"

@@ -190,7 +190,8 @@ int main(int argc, char** argv) {
     if (a.count("--dem")) dem = io::ReadGeoTiff(a["--dem"][0]);
     const std::string prefix = a["--camera"][0];
     const camera::CameraModel model = LoadCamera(prefix + ".yaml");
-    const camera::ExteriorOrientation reference = io::ReadCameraPoseFile(prefix + ".pose.yaml", "--camera");
+    const camera::ExteriorOrientation reference =
+        io::ReadCameraPoseFile(prefix + ".pose.yaml", "--camera");
     const cv::Mat ref = Gray(a["--reference"][0], "--reference");
     if (ref.cols != model.sensor().width || ref.rows != model.sensor().height)
       throw InvalidArgument(Message("--reference '", a["--reference"][0], "' is ", ref.cols, "x",
@@ -233,8 +234,8 @@ int main(int argc, char** argv) {
       std::fprintf(
           stderr,
           "%s: %d stable candidates, %d matched, %d normal quality; global shift (%.1f, %.1f) px;",
-          name.c_str(), e.matches.candidates, e.matches.matched, e.ties,
-          e.matches.global_shift.x(), e.matches.global_shift.y());
+          name.c_str(), e.matches.candidates, e.matches.matched, e.ties, e.matches.global_shift.x(),
+          e.matches.global_shift.y());
       for (const auto& r : e.matches.rejects)
         std::fprintf(stderr, " %s %d", r.first.c_str(), r.second);
       std::fprintf(stderr, "\n");

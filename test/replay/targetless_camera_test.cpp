@@ -90,8 +90,8 @@ class TargetlessCameraReplay : public ::testing::Test {
          << "pose_file: north_cam.pose.yaml, dem: " << Survey(".surface_e00.tif") << "}\n"
          << "areas:\n  crs: site\n  outline: [[89, 71], [111, 71], [111, 89], [89, 89]]\n";
     site.close();
-    const std::string cmd = std::string(SM_PROCESS_BAG) + " --bag " + Survey(".bag") +
-                            " --site " + (dir_ / "site.yaml").string() + " --database " +
+    const std::string cmd = std::string(SM_PROCESS_BAG) + " --bag " + Survey(".bag") + " --site " +
+                            (dir_ / "site.yaml").string() + " --database " +
                             (dir_ / "history.db").string() + " --report-dir " +
                             (dir_ / "reports").string() + " --output-bag " +
                             (dir_ / "out.bag").string() + " > " + (dir_ / "stdout").string() +
@@ -193,10 +193,12 @@ TEST_F(TargetlessCameraReplay, ReorientationFieldAndEstimatorAgainstTruth) {
   ASSERT_EQ(sqlite3_open_v2((dir_ / "history.db").c_str(), &db, SQLITE_OPEN_READONLY, nullptr),
             SQLITE_OK);
   sqlite3_stmt* st = nullptr;
-  ASSERT_EQ(sqlite3_prepare_v2(
-                db, "SELECT COUNT(DISTINCT point_id) FROM observations WHERE point_id LIKE 'north_cam/p%'",
-                -1, &st, nullptr),
-            SQLITE_OK)
+  ASSERT_EQ(
+      sqlite3_prepare_v2(
+          db,
+          "SELECT COUNT(DISTINCT point_id) FROM observations WHERE point_id LIKE 'north_cam/p%'",
+          -1, &st, nullptr),
+      SQLITE_OK)
       << sqlite3_errmsg(db);
   ASSERT_EQ(sqlite3_step(st), SQLITE_ROW);
   const int in_history = sqlite3_column_int(st, 0);

@@ -41,9 +41,9 @@ namespace ros_adapters {
 
 // config/defaults/targetless_camera.yaml.
 struct TargetlessParameters {
-  std::string site_file;                           // required
-  io::SiteFile site;                               // read from site_file
-  std::map<std::string, std::string> references;   // camera -> reference photo file
+  std::string site_file;                          // required
+  io::SiteFile site;                              // read from site_file
+  std::map<std::string, std::string> references;  // camera -> reference photo file
   std::string frame_id = "site";
   dense::TargetlessCameraOptions options;
 };

@@ -288,8 +288,8 @@ void DisplacementFieldOptions::Check() const {
   if (!(spacing_px > 0))
     throw InvalidArgument(Message("displacement field: spacing_px must be > 0, got ", spacing_px));
   if (!(max_neighbour_sigma >= 0))
-    throw InvalidArgument(Message("displacement field: max_neighbour_sigma must be >= 0, got ",
-                                  max_neighbour_sigma));
+    throw InvalidArgument(
+        Message("displacement field: max_neighbour_sigma must be >= 0, got ", max_neighbour_sigma));
   if (!(spacing_m >= 0))
     throw InvalidArgument(Message("displacement field: spacing_m must be >= 0, got ", spacing_m));
   if (border_px < 0)

@@ -20,8 +20,8 @@ camera::ExteriorOrientation ReadCameraPoseFile(const std::string& path, const st
   const YAML::Node a = n["angles_deg"];
   if (!n["position"] || !n["position"].IsSequence() || n["position"].size() != 3 || !a ||
       !a["theta"] || !a["phi"] || !a["kappa"])
-    throw InvalidArgument(Message(what, " '", path,
-                                  "': needs position [X, Y, Z] and angles_deg {theta, phi, kappa}"));
+    throw InvalidArgument(Message(
+        what, " '", path, "': needs position [X, Y, Z] and angles_deg {theta, phi, kappa}"));
   camera::ExteriorOrientation e;
   try {
     for (int k = 0; k < 3; ++k) e.position(k) = n["position"][k].as<double>();

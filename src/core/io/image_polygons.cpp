@@ -52,7 +52,8 @@ bool InsidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vec
   return in;
 }
 
-bool InsideAny(const std::vector<std::vector<Eigen::Vector2d>>& polygons, const Eigen::Vector2d& p) {
+bool InsideAny(const std::vector<std::vector<Eigen::Vector2d>>& polygons,
+               const Eigen::Vector2d& p) {
   for (const auto& polygon : polygons)
     if (InsidePolygon(polygon, p)) return true;
   return false;

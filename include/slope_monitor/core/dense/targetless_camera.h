@@ -42,7 +42,7 @@ struct TargetlessCameraOptions {
   // [px] search radius of the stable tie points, > 0: first around no shift (it must
   // cover the mast's turn: 24 px = 0.27 deg at c = 5000 px), then around their median shift.
   double match_radius = 24.0;
-  double max_rotation_deg = 0.5;     // [deg] WARN above (total angle or one angle's change), > 0
+  double max_rotation_deg = 0.5;  // [deg] WARN above (total angle or one angle's change), > 0
   adjustment::ReorientOptions reorient;
   DisplacementFieldOptions field;
   void Check() const;  // throws InvalidArgument naming the field

@@ -50,8 +50,8 @@ struct SiteCamera {
   std::string calibration_url;  // camera_info_manager URL; "" = CameraInfo from the driver / bag
   double pixel_size = 0.0;      // [mm/px]; 0 = not given (CameraInfo does not carry it)
   // fixed_targetless only (absolute paths; doc/targetless_camera.md):
-  std::string pose_file;        // reference photo's pose, resect_camera's PREFIX.pose.yaml (required)
-  std::string dem;              // GeoTIFF in `site` the field is projected onto (required)
+  std::string pose_file;  // reference photo's pose, resect_camera's PREFIX.pose.yaml (required)
+  std::string dem;        // GeoTIFF in `site` the field is projected onto (required)
   std::string stable_polygons;  // stable area in pixels of the reference photo ("" = areas.stable)
 };
 
