@@ -38,6 +38,7 @@
 
 #include "slope_monitor/TiePointArray.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/image_polygons.h"
 #include "slope_monitor/core/matching/global_shift.h"
 #include "slope_monitor/core/matching/hex_matcher.h"
 #include "slope_monitor/core/matching/sequence.h"
@@ -156,6 +157,18 @@ class HexMatcherNodelet : public nodelet::Nodelet {
         }
         return false;
       };
+    }
+    // Track mode: the operator's stable area of the reference image
+    // (polygons in pixels, io/image_polygons.h); the rest may move
+    // (moving_radius) and only stable points give the global shift.
+    const std::string stable_file = p.String("stable_polygons", "");
+    if (!stable_file.empty()) {
+      const auto stable = io::ReadImagePolygons(stable_file, p.FullKey("stable_polygons"));
+      prior_.moving = [stable](const Eigen::Vector2d& x) { return !io::InsideAny(stable, x); };
+      if (p.Bool("match_only_stable", false))
+        prior_.within = [stable](const Eigen::Vector2d& x) { return io::InsideAny(stable, x); };
+    } else if (p.Bool("match_only_stable", false)) {
+      throw ConfigError(p.FullKey("match_only_stable") + " needs stable_polygons");
     }
     // Sequence mode (one moving camera).
     camera_ = p.String("camera", "uav");

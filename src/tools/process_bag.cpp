@@ -35,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <ros/package.h>
 #include <rosbag/bag.h>
@@ -63,6 +64,7 @@
 #include "slope_monitor/ros/param_files.h"
 #include "slope_monitor/ros/radio_conversions.h"
 #include "slope_monitor/ros/target_conversions.h"
+#include "slope_monitor/ros/targetless_camera.h"
 #include "slope_monitor/ros/validation.h"
 
 namespace fs = std::filesystem;
@@ -78,6 +80,7 @@ constexpr char kUsage[] =
 // Topics of the replay graph (launch/include/processing_graph.xml).
 constexpr char kAdjusterDisplacements[] = "/bundle_adjuster/displacements";
 constexpr char kRadioDisplacements[] = "/radio/radio_displacements";
+constexpr char kTargetlessDisplacements[] = "/targetless_camera/displacements";
 
 struct Args {
   std::vector<std::string> bags;
@@ -238,8 +241,12 @@ class OfflineGraph {
   OfflineGraph(const Args& args, const std::vector<std::string>& cameras, rosbag::Bag* output,
                std::function<void(const std::string&)> log)
       : log_(std::move(log)), args_(args), output_(output), tf_(ros::Duration(1e6)) {
-    for (const std::string& cam : cameras) SetUpCentroider(cam);
-    SetUpAdjuster(cameras);
+    SetUpTargetless();
+    std::vector<std::string> with_targets;
+    for (const std::string& cam : cameras)
+      if (!targetless_ || !targetless_->Handles(cam)) with_targets.push_back(cam);
+    for (const std::string& cam : with_targets) SetUpCentroider(cam);
+    SetUpAdjuster(with_targets);
     SetUpRadio();
     SetUpEstimator();
   }
@@ -249,6 +256,7 @@ class OfflineGraph {
     const std::string& topic = m.getTopic();
     if (topic == "/tf" || topic == "/tf_static") {
       if (const auto tf = m.instantiate<tf2_msgs::TFMessage>()) OnTf(*tf, topic == "/tf_static");
+    } else if (OnTargetlessMessage(m)) {
     } else if (const auto image = m.instantiate<sensor_msgs::Image>()) {
       if (Centroider* c = CameraOf(topic, "/camera/image_raw")) {
         c->images[image->header.stamp] = image;
@@ -360,13 +368,72 @@ class OfflineGraph {
     if (!args_.site.empty()) ros_adapters::SetParam(&p, "site_file", args_.site);
     ros_adapters::SetParam(&p, "database", args_.database);
     ros_adapters::SetParam(&p, "report_dir", args_.report_dir);
-    ros_adapters::SetParam(&p, "input_topics",
-                           StringList({kAdjusterDisplacements, kRadioDisplacements}));
+    std::vector<std::string> inputs = {kAdjusterDisplacements, kRadioDisplacements};
+    if (targetless_) inputs.push_back(kTargetlessDisplacements);
+    ros_adapters::SetParam(&p, "input_topics", StringList(inputs));
     ros_adapters::ParamReader r(p, "/deformation_estimator/deformation_estimator");
     estimator_params_ = ros_adapters::ReadEstimatorParameters(r);
     history_ = std::make_unique<deformation::History>(estimator_params_.database);
     estimator_ =
         std::make_unique<deformation::Estimator>(estimator_params_.options, history_.get());
+  }
+
+  // The fixed_targetless cameras of --site (launch/include/processing_graph.xml
+  // runs the targetless_camera nodelet for them): config/defaults/targetless_camera.yaml.
+  void SetUpTargetless() {
+    if (args_.site.empty()) return;
+    XmlRpc::XmlRpcValue p = NodeParams("targetless_camera");
+    ros_adapters::SetParam(&p, "site_file", args_.site);
+    ros_adapters::ParamReader r(p, "/targetless_camera/targetless_camera");
+    const ros_adapters::TargetlessParameters params = ros_adapters::ReadTargetlessParameters(r);
+    r.CheckNoUnknownKeys();
+    targetless_ = std::make_unique<ros_adapters::TargetlessCameras>(params);
+    if (targetless_->cameras().empty()) targetless_.reset();
+  }
+
+  // A photo or camera_info of a fixed_targetless camera: re-orientation,
+  // field, fused. False for any other message.
+  bool OnTargetlessMessage(const rosbag::MessageInstance& m) {
+    if (!targetless_) return false;
+    const std::string& topic = m.getTopic();
+    for (const std::string& cam : targetless_->cameras()) {
+      std::optional<ros_adapters::TargetlessOutputs> out;
+      try {
+        if (topic == "/" + cam + "/camera/image_raw") {
+          if (const auto image = m.instantiate<sensor_msgs::Image>())
+            out = targetless_->AddImage(cam, image);
+        } else if (topic == "/" + cam + "/camera/camera_info") {
+          if (const auto info = m.instantiate<sensor_msgs::CameraInfo>())
+            out = targetless_->AddCameraInfo(cam, info);
+        } else {
+          continue;
+        }
+      } catch (const std::exception& e) {
+        Log("targetless_camera: dropped photo of '" + cam + "' (topic " + topic + "): " + e.what());
+        return true;
+      }
+      if (out) PublishTargetless(*out);
+      return true;
+    }
+    return false;
+  }
+
+  void PublishTargetless(const ros_adapters::TargetlessOutputs& out) {
+    Log("targetless_camera: " + out.info);
+    for (const std::string& w : out.warnings) Log("targetless_camera: WARN " + w);
+    diagnostic_msgs::DiagnosticArray d;
+    d.header.stamp = now_;
+    d.status.push_back(out.status);
+    Write("/diagnostics", d);
+    if (out.site_from_optical) {
+      tf2_msgs::TFMessage tf;
+      tf.transforms.push_back(*out.site_from_optical);
+      Write("/tf", tf);
+    }
+    if (out.displacements) {
+      Write(kTargetlessDisplacements, *out.displacements);
+      Fuse(*out.displacements, kTargetlessDisplacements);
+    }
   }
 
   // ---- inputs.
@@ -529,6 +596,7 @@ class OfflineGraph {
   ros::Time now_;  // bag time of the message being processed
   tf2::BufferCore tf_;
   std::map<std::string, Centroider> centroiders_;
+  std::unique_ptr<ros_adapters::TargetlessCameras> targetless_;  // fixed_targetless cameras
   // bundle_adjuster
   ros_adapters::AdjusterParameters adjuster_params_;
   std::unique_ptr<adjustment::EpochCollector> collector_;

@@ -47,7 +47,10 @@
 #include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/dense/displacement_field.h"
+#include "slope_monitor/core/dense/targetless_camera.h"
+#include "slope_monitor/core/io/camera_pose_file.h"
 #include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/core/io/image_polygons.h"
 #include "slope_monitor/core/matching/hex_matcher.h"
 #include "slope_monitor/ros/conversions.h"
 
@@ -72,53 +75,6 @@ camera::CameraModel LoadCamera(const std::string& path) {
   return capture::CheckCameraInfo(ros_adapters::FromMsg(info), 1.0, 0, 0, path);
 }
 
-camera::ExteriorOrientation LoadPose(const std::string& path) {
-  YAML::Node n;
-  try {
-    n = YAML::LoadFile(path);
-  } catch (const YAML::Exception& e) {
-    throw IoError(Message("--camera: cannot read '", path, "': ", e.what()));
-  }
-  if (!n["position"] || n["position"].size() != 3 || !n["angles_deg"])
-    throw InvalidArgument(
-        Message(path, ": needs position [X, Y, Z] and angles_deg {theta, phi, kappa}"));
-  camera::ExteriorOrientation e;
-  for (int k = 0; k < 3; ++k) e.position(k) = n["position"][k].as<double>();
-  e.angles.theta = n["angles_deg"]["theta"].as<double>() / kDeg;
-  e.angles.phi = n["angles_deg"]["phi"].as<double>() / kDeg;
-  e.angles.kappa = n["angles_deg"]["kappa"].as<double>() / kDeg;
-  return e;
-}
-
-std::vector<std::vector<cv::Point2f>> LoadPolygons(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw IoError(Message("--stable-polygons: cannot read '", path, "'"));
-  std::vector<std::vector<cv::Point2f>> polygons;
-  std::string line;
-  for (int number = 1; std::getline(in, line); ++number) {
-    const size_t c = line.find('#');
-    if (c != std::string::npos) line.resize(c);
-    std::istringstream s(line);
-    std::vector<double> v;
-    for (std::string t; s >> t;) {
-      char* end = nullptr;
-      const double x = std::strtod(t.c_str(), &end);
-      if (*end != '\0' || !std::isfinite(x))
-        throw InvalidArgument(Message(path, ":", number, ": malformed number '", t, "'"));
-      v.push_back(x);
-    }
-    if (v.empty()) continue;
-    if (v.size() % 2 != 0 || v.size() < 6)
-      throw InvalidArgument(Message(path, ":", number, ": a polygon needs >= 3 `u v` pairs, got ",
-                                    v.size(), " numbers"));
-    std::vector<cv::Point2f> p;
-    for (size_t k = 0; k < v.size(); k += 2) p.emplace_back(v[k], v[k + 1]);
-    polygons.push_back(p);
-  }
-  if (polygons.empty()) throw InvalidArgument(Message(path, ": no polygon"));
-  return polygons;
-}
-
 // The stable area as a mask of the image's size (255 = stable).
 cv::Mat StableMask(const std::map<std::string, std::vector<std::string>>& a, const cv::Size& size) {
   if (a.count("--stable-mask") && a.count("--stable-polygons"))
@@ -137,9 +93,9 @@ cv::Mat StableMask(const std::map<std::string, std::vector<std::string>>& a, con
   }
   cv::Mat m(size, CV_8UC1, cv::Scalar(a.count("--stable-polygons") ? 0 : 255));
   if (a.count("--stable-polygons")) {
-    for (const auto& p : LoadPolygons(a.at("--stable-polygons")[0])) {
+    for (const auto& p : io::ReadImagePolygons(a.at("--stable-polygons")[0], "--stable-polygons")) {
       std::vector<cv::Point> q;
-      for (const auto& v : p) q.emplace_back(cvRound(v.x), cvRound(v.y));
+      for (const auto& v : p) q.emplace_back(cvRound(v.x()), cvRound(v.y()));
       cv::fillPoly(m, std::vector<std::vector<cv::Point>>{q}, cv::Scalar(255));
     }
   }
@@ -234,7 +190,8 @@ int main(int argc, char** argv) {
     if (a.count("--dem")) dem = io::ReadGeoTiff(a["--dem"][0]);
     const std::string prefix = a["--camera"][0];
     const camera::CameraModel model = LoadCamera(prefix + ".yaml");
-    const camera::ExteriorOrientation reference = LoadPose(prefix + ".pose.yaml");
+    const camera::ExteriorOrientation reference =
+        io::ReadCameraPoseFile(prefix + ".pose.yaml", "--camera");
     const cv::Mat ref = Gray(a["--reference"][0], "--reference");
     if (ref.cols != model.sensor().width || ref.rows != model.sensor().height)
       throw InvalidArgument(Message("--reference '", a["--reference"][0], "' is ", ref.cols, "x",
@@ -255,39 +212,34 @@ int main(int argc, char** argv) {
     csv << "image,rotation_deg,dtheta_deg,dphi_deg,dkappa_deg,sigma_theta_deg,sigma_phi_deg,sigma_"
            "kappa_deg,rms_px,"
            "stable_points,outliers,global_shift_u,global_shift_v\n";
-    matching::HexMatcherOptions mo;
-    mo.interest.max_points =
-        40000;                     // detected on the whole photo; only the stable ones are matched
-    mo.lsc_prefilter_sigma = 1.0;  // JPEG noise and changing light on rock
-    const matching::HexMatcher matcher(mo);
+    dense::ImageAreas areas;
+    if (has_stable_area) areas.stable = is_stable;
+    dense::TargetlessCamera camera("--camera " + prefix, model, reference,
+                                   a.count("--dem") ? &dem : nullptr, areas,
+                                   dense::TargetlessCameraOptions());
+    const double ref_t = std::isfinite(ref_time) ? ref_time : 0.0;  // 0: times unknown
+    camera.SetReference(ref, ref_t);
     int failures = 0;
     for (const auto& path : a["--image"]) {
       const cv::Mat img = Gray(path, "--image");
       if (img.size() != ref.size())
         throw InvalidArgument(Message("--image '", path, "' is ", img.cols, "x", img.rows,
                                       " px, the reference ", ref.cols, "x", ref.rows));
-      matching::MatchPrior prior;
-      prior.estimate_global_shift = true;
-      prior.radius = 64.0;
-      prior.within = is_stable;
-      prior.moving = [&](const Eigen::Vector2d& x) { return !is_stable(x); };
-      const auto m = matcher.Match(ref, img, prior);
-      std::vector<adjustment::StableTiePoint> ties;
-      for (const auto& h : m.matches) {
-        if (h.IsLowQuality() || !is_stable(h.xa)) continue;
-        ties.push_back({h.xa, h.xb});
-      }
-      const auto s =
-          adjustment::ReorientCamera(model, reference, ties, adjustment::ReorientOptions());
+      const double t = a.count("--dem") ? PhotoTime(path) : 0.0;
+      const dense::TargetlessEpoch e =
+          camera.Process(img, std::isfinite(t) && std::isfinite(ref_time) ? t : ref_t,
+                         a.count("--dem") ? a["--dem"][0] : "DEM");
+      const auto& s = e.reorientation;
       const std::string name = std::filesystem::path(path).filename().string();
       std::fprintf(
           stderr,
-          "%s: %d stable candidates, %d matched, %zu normal quality; global shift (%.1f, %.1f) px;",
-          name.c_str(), m.summary.candidates, m.summary.matched, ties.size(),
-          m.summary.global_shift.x(), m.summary.global_shift.y());
-      for (const auto& r : m.summary.rejects)
+          "%s: %d stable candidates, %d matched, %d normal quality; global shift (%.1f, %.1f) px;",
+          name.c_str(), e.matches.candidates, e.matches.matched, e.ties, e.matches.global_shift.x(),
+          e.matches.global_shift.y());
+      for (const auto& r : e.matches.rejects)
         std::fprintf(stderr, " %s %d", r.first.c_str(), r.second);
       std::fprintf(stderr, "\n");
+      for (const auto& w : e.warnings) std::fprintf(stderr, "WARN %s\n", w.c_str());
       if (!s.success) {
         std::printf("%s: no re-orientation: %s\n", name.c_str(), s.message.c_str());
         ++failures;
@@ -303,30 +255,17 @@ int main(int argc, char** argv) {
       csv << name << ',' << s.rotation_angle * kDeg << ',' << s.delta(0) * kDeg << ','
           << s.delta(1) * kDeg << ',' << s.delta(2) * kDeg << ',' << s.sigma(0) * kDeg << ','
           << s.sigma(1) * kDeg << ',' << s.sigma(2) * kDeg << ',' << s.rms_px << ',' << s.num_points
-          << ',' << s.num_outliers << ',' << m.summary.global_shift.x() << ','
-          << m.summary.global_shift.y() << '\n';
-      if (!a.count("--dem")) continue;
-      dense::FieldInput in;
-      in.model = model;
-      in.reference = reference;
-      in.current = s.exterior;
-      in.attitude_covariance = s.covariance;
-      const double t = PhotoTime(path);
-      in.dt = std::isfinite(t) && std::isfinite(ref_time) ? t - ref_time : 0.0;
-      in.dem_name = a["--dem"][0];
-      if (has_stable_area) {
-        in.stable = is_stable;
-        in.monitored = [&](const Eigen::Vector2d& x) { return !is_stable(x); };
-      }
-      const dense::DisplacementField f =
-          dense::ComputeDisplacementField(ref, img, dem, in, dense::DisplacementFieldOptions());
+          << ',' << s.num_outliers << ',' << e.matches.global_shift.x() << ','
+          << e.matches.global_shift.y() << '\n';
+      if (!e.has_field) continue;
+      const dense::DisplacementField& f = e.field;
       const std::string stem =
           a["--out"][0] + "/field_" + std::filesystem::path(path).stem().string();
       WriteFieldCsv(stem + ".csv", f);
       WriteFieldPng(stem + ".png", img, f, model, s.exterior);
       std::fprintf(
           stderr, "%s: field of %d probes, %d usable, LSC variance factor %.2f, dt %.0f s;",
-          name.c_str(), f.summary.probes, f.summary.usable, f.summary.lsc_variance_factor, in.dt);
+          name.c_str(), f.summary.probes, f.summary.usable, f.summary.lsc_variance_factor, e.dt);
       for (const auto& kv : f.summary.flags)
         std::fprintf(stderr, " %s %d", kv.first.c_str(), kv.second);
       std::fprintf(stderr, "\n");

@@ -239,11 +239,57 @@ double StableVarianceFactor(const std::vector<FieldPoint>& points,
   return std::max(1.0, q[q.size() / 2] / (2.0 * std::log(2.0)));
 }
 
+// "inconsistent": a usable probe whose horizontal displacement differs from
+// the median of its usable neighbours on the ground (within 1.5 x the median
+// nearest-neighbour distance; at least 3) by more than max_sigma x its sigma
+// in x or y. Such a probe sees motion that differs from its surroundings: a
+// match pulled by the moving part of its window at a body's margin, or a
+// blunder; its LSC covariance does not know it.
+void FlagInconsistent(double max_sigma, std::vector<FieldPoint>* points) {
+  if (max_sigma <= 0) return;
+  std::vector<size_t> usable;
+  for (size_t i = 0; i < points->size(); ++i)
+    if ((*points)[i].IsUsable()) usable.push_back(i);
+  if (usable.size() < 4) return;
+  auto ground = [&](size_t i) { return (*points)[i].x_ref.head<2>(); };
+  std::vector<double> nearest;
+  for (size_t i : usable) {
+    double best = std::numeric_limits<double>::infinity();
+    for (size_t j : usable)
+      if (j != i) best = std::min(best, (ground(i) - ground(j)).norm());
+    nearest.push_back(best);
+  }
+  std::nth_element(nearest.begin(), nearest.begin() + nearest.size() / 2, nearest.end());
+  const double radius = 1.5 * nearest[nearest.size() / 2];
+  std::vector<std::string> flags(points->size());
+  for (size_t i : usable) {
+    std::vector<double> dx, dy;
+    for (size_t j : usable) {
+      if (j == i || (ground(i) - ground(j)).norm() > radius) continue;
+      dx.push_back((*points)[j].displacement.x());
+      dy.push_back((*points)[j].displacement.y());
+    }
+    if (dx.size() < 3) continue;
+    std::nth_element(dx.begin(), dx.begin() + dx.size() / 2, dx.end());
+    std::nth_element(dy.begin(), dy.begin() + dy.size() / 2, dy.end());
+    const FieldPoint& p = (*points)[i];
+    const Eigen::Vector3d s = p.Sigma();
+    if (std::abs(p.displacement.x() - dx[dx.size() / 2]) > max_sigma * s.x() ||
+        std::abs(p.displacement.y() - dy[dy.size() / 2]) > max_sigma * s.y())
+      flags[i] = "inconsistent";
+  }
+  for (size_t i : usable)
+    if (!flags[i].empty()) (*points)[i].flag = flags[i];
+}
+
 }  // namespace
 
 void DisplacementFieldOptions::Check() const {
   if (!(spacing_px > 0))
     throw InvalidArgument(Message("displacement field: spacing_px must be > 0, got ", spacing_px));
+  if (!(max_neighbour_sigma >= 0))
+    throw InvalidArgument(
+        Message("displacement field: max_neighbour_sigma must be >= 0, got ", max_neighbour_sigma));
   if (!(spacing_m >= 0))
     throw InvalidArgument(Message("displacement field: spacing_m must be >= 0, got ", spacing_m));
   if (border_px < 0)
@@ -341,6 +387,9 @@ DisplacementField ComputeDisplacementField(const cv::Mat& reference_image, const
       p.covariance_px *= field.summary.lsc_variance_factor;
       Project(dem, in, o, p.x_ref, &p);
     }
+  }
+  FlagInconsistent(o.max_neighbour_sigma, &field.points);
+  for (FieldPoint& p : field.points) {
     if (p.IsUsable())
       ++field.summary.usable;
     else

@@ -47,7 +47,7 @@ std::vector<Eigen::Vector2d> ReadPolygon(const YAML::Node& node, const std::stri
   return polygon;
 }
 
-void ReadCameras(YamlMap& root, SiteFile* s) {
+void ReadCameras(YamlMap& root, const std::string& folder, SiteFile* s) {
   std::set<std::string> names;
   std::vector<YamlMap> list = root.List("cameras");
   for (size_t k = 0; k < list.size(); ++k) {
@@ -63,6 +63,14 @@ void ReadCameras(YamlMap& root, SiteFile* s) {
     cam.pixel_size = c.Double("pixel_size", 0.0, 0.0, 1.0, "mm/px");
     if (cam.calibration_url.empty() && cam.pixel_size == 0.0)
       c.Fail("pixel_size", "is required when no calibration_url is given [mm/px]");
+    if (cam.kind == CameraKind::kFixedTargetless) {
+      cam.pose_file = Resolve(folder, c.RequiredString("pose_file"));
+      cam.dem = Resolve(folder, c.RequiredString("dem"));
+      cam.stable_polygons = Resolve(folder, c.String("stable_polygons", ""));
+    } else {
+      for (const char* key : {"pose_file", "dem", "stable_polygons"})
+        if (c.Has(key)) c.Fail(key, "is a key of fixed_targetless cameras only");
+    }
     c.CheckNoUnknownKeys();
     s->cameras.push_back(cam);
   }
@@ -215,7 +223,7 @@ SiteFile ParseSiteFile(const std::string& text, const std::string& context,
   } catch (const InvalidArgument& e) {
     throw ConfigError(Message(context, ": 'crs' / 'origin': ", e.what()));
   }
-  ReadCameras(root, &s);
+  ReadCameras(root, folder, &s);
   s.radio_network = Resolve(folder, root.String("radio_network", ""));
   if (!s.radio_network.empty() && !std::ifstream(s.radio_network))
     root.Fail("radio_network", Message("names '", s.radio_network, "', which cannot be opened"));

@@ -178,7 +178,7 @@ SurveyGenerator::SurveyGenerator(const SurveyConfig& config) : config_(config) {
     std::mt19937 rng = Stream(c.seed, 2, static_cast<unsigned>(ci));
     const int w = s.model.sensor().width, h = s.model.sensor().height;
     const Eigen::Vector2d centre_px(0.5 * (w - 1), 0.5 * (h - 1));
-    if (s.kind == "fixed") {
+    if (s.kind != "uav") {  // fixed, fixed_targetless
       ct.nominal_pose = s.pose;
       const camera::Ray ray = s.model.ImageToRay(s.pose, centre_px);
       if (!std::isfinite(ref.grid.IntersectRay(ray.origin, ray.direction, 20000.0))) {
@@ -291,8 +291,9 @@ SurveyGenerator::SurveyGenerator(const SurveyConfig& config) : config_(config) {
         if (im.epoch >= epoch) factor *= f;
       im.exposure = factor;
     }
-    // At least one control point in view in the reference epoch.
-    bool control = false;
+    // At least one control point in view in the reference epoch (a
+    // fixed_targetless camera is re-oriented on stable ground instead).
+    bool control = s.kind == "fixed_targetless";
     for (const ImageTruth& im : ct.images) {
       if (im.epoch != 0 || control) continue;
       for (int p : VisiblePlates(ref, s.model, im.exterior)) {

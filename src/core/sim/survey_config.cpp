@@ -223,7 +223,7 @@ SurveyConfig FromRoot(io::YamlMap& root) {
       CameraSpec s;
       s.key = cm.context();
       s.name = cm.RequiredString("name");
-      s.kind = cm.String("kind", "fixed", {"fixed", "uav"});
+      s.kind = cm.String("kind", "fixed", {"fixed", "fixed_targetless", "uav"});
       s.encoding = cm.String("encoding", "mono8", {"mono8", "bgr8"});
       io::YamlMap sensor_map = cm.Map("sensor");
       camera::Sensor sensor;
@@ -244,7 +244,7 @@ SurveyConfig FromRoot(io::YamlMap& root) {
         s.nominal = camera::CameraModel(sensor, dm, a);
       }
       s.exposure = ReadExposure(cm, &s);
-      if (s.kind == "fixed") {
+      if (s.kind != "uav") {  // fixed, fixed_targetless
         const Eigen::Vector3d position = Vec3(cm, "position");
         const Eigen::Vector3d look_at = Vec3(cm, "look_at");
         if ((look_at - position).norm() < 1.0) cm.Fail("look_at", "is less than 1 m from the camera position");

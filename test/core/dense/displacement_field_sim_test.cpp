@@ -9,7 +9,8 @@
 //  * horizontal RMS of the displacement error <= 1 cm over the usable probes
 //    whose true motion is >= 30 deg off the line of sight (or zero);
 //  * at most 1.5 % of the horizontal components beyond 3 sigma (the issue
-//    asks for none; measured 1.1 %, a heavier tail than Gaussian);
+//    asks for none; measured 0.8 % with the "inconsistent" flag, 1.1 %
+//    without; the rest sit at the body's margin, doc/targetless_camera.md);
 //  * median |err| / sigma in [0.5, 0.9] (the stated sigma is honest).
 // Links slope_monitor_core_sim and slope_monitor_core_adjustment
 // (CMakeLists.txt: this test only).
@@ -186,9 +187,9 @@ TEST(DisplacementFieldSim, GridAgainstTruthWithMastRotation) {
   EXPECT_GT(moving, 30);
   EXPECT_GT(max_true, 0.2);
   EXPECT_LE(rms, 0.01);
-  // Not every probe: measured 16 of 1392 components (1.1 %) beyond 3 sigma
-  // (a Gaussian gives 0.27 %): the errors have a heavier tail than the
-  // scaled LSC covariance (see doc/targetless_camera.md).
+  // Not every probe: measured 11 of 1332 components (0.8 %) beyond 3 sigma
+  // (a Gaussian gives 0.27 %), at the body's margin (see
+  // doc/targetless_camera.md).
   EXPECT_LE(outside3, 0.015 * z.size());
   EXPECT_GE(median, 0.5);
   EXPECT_LE(median, 0.9);

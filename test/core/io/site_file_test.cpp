@@ -25,7 +25,8 @@ origin: [500000.0, 5150000.0, 400.0]
 frame: shifted_crs
 cameras:
   - {name: uav_left, kind: fixed, pixel_size: 0.0039}
-  - {name: north_cam, kind: fixed_targetless, calibration_url: "file:///site/north.yaml"}
+  - {name: north_cam, kind: fixed_targetless, calibration_url: "file:///site/north.yaml",
+     pose_file: north.pose.yaml, dem: /data/dem.tif}
   - {name: drone, kind: uav, pixel_size: 0.0024}
 targets:
   size: 0.5
@@ -49,6 +50,9 @@ TEST(SiteFile, ProjectedCrsShiftedFrameByHand) {
   EXPECT_EQ(s.cameras[2].kind, CameraKind::kUav);
   EXPECT_DOUBLE_EQ(s.cameras[0].pixel_size, 0.0039);
   EXPECT_EQ(s.cameras[1].calibration_url, "file:///site/north.yaml");
+  EXPECT_EQ(s.cameras[1].pose_file, "/sites/north.pose.yaml");  // relative to the site file
+  EXPECT_EQ(s.cameras[1].dem, "/data/dem.tif");
+  EXPECT_EQ(s.cameras[1].stable_polygons, "");  // the site's areas.stable
   ASSERT_TRUE(s.targets.has_value());
   const TargetSpec* t = s.targets->Find("tag36h11", 3);
   ASSERT_NE(t, nullptr);
@@ -134,6 +138,10 @@ TEST(SiteFile, MistakesNameTheFileAndTheKey) {
       "cameras: [{name: c1, kind: fixed, pixel_size: 0.004}, {name: c1, kind: uav, pixel_size: "
       "0.004}]",
       {"cameras[1]", "c1", "twice"});
+  expect("cameras: [{name: c1, kind: fixed_targetless, pixel_size: 0.004, dem: d.tif}]",
+         {"cameras[0]", "pose_file"});
+  expect("cameras: [{name: c1, kind: fixed, pixel_size: 0.004, dem: d.tif}]",
+         {"cameras[0]", "dem", "fixed_targetless cameras only"});
   expect("thresholds: {alarn: 3}", {"alarn"});
   expect("thresholds: {watch: 20, warning: 10}", {"watch", "below warning"});
   expect("radio_network: nowhere.yaml", {"radio_network", "/sites/nowhere.yaml"});

@@ -35,6 +35,12 @@
 //                    and within min_los_angle_deg of the line of sight: the
 //                    camera hardly sees it, the DEM's slope makes it
 //   "lsc_<status>"   LSC did not converge (lsc.h status name)
+//   "inconsistent"   the horizontal displacement differs from the median of
+//                    the usable neighbours on the ground (1.5 x the median
+//                    grid distance, >= 3 of them) by > max_neighbour_sigma x
+//                    its sigma in x or y: motion unlike its surroundings (a
+//                    match pulled by the moving part of its window at a
+//                    body's margin, or a blunder)
 //   "off_image"      the predicted position leaves the new photo
 #pragma once
 
@@ -67,6 +73,8 @@ struct DisplacementFieldOptions {
   double min_incidence_deg =
       8.0;  // [deg] grazing below this angle between ray and surface, [0, 90)
   double min_los_angle_deg = 30.0;  // [deg] "line_of_sight" within this of the ray, [0, 90)
+  // "inconsistent" beyond this x sigma from the median of the neighbours, >= 0; 0 = off.
+  double max_neighbour_sigma = 3.0;
   // Probes on stable ground (FieldInput::stable) needed to scale the LSC
   // covariance to their scatter, >= 1 (fewer: the LSC covariance as it is).
   int min_stable_probes = 20;

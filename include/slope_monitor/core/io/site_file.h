@@ -49,6 +49,10 @@ struct SiteCamera {
   CameraKind kind = CameraKind::kFixed;
   std::string calibration_url;  // camera_info_manager URL; "" = CameraInfo from the driver / bag
   double pixel_size = 0.0;      // [mm/px]; 0 = not given (CameraInfo does not carry it)
+  // fixed_targetless only (absolute paths; doc/targetless_camera.md):
+  std::string pose_file;  // reference photo's pose, resect_camera's PREFIX.pose.yaml (required)
+  std::string dem;        // GeoTIFF in `site` the field is projected onto (required)
+  std::string stable_polygons;  // stable area in pixels of the reference photo ("" = areas.stable)
 };
 
 // Alert thresholds given by the site; absent values keep the estimator's.

@@ -132,7 +132,7 @@ struct ImageTruth {
 
 struct CameraTruth {
   std::string name;                         // fixed_cam_1, ..., uav
-  std::string kind = "fixed";               // fixed | uav
+  std::string kind = "fixed";               // fixed | fixed_targetless | uav
   std::string encoding = "mono8";           // mono8 | bgr8
   camera::CameraModel model;                // true interior + distortion
   camera::CameraModel nominal;              // what camera_info says

@@ -1,0 +1,223 @@
+// process_bag with a fixed camera without targets (issue 19, item 5): the
+// survey test/replay/targetless_camera.sim.yaml (one fixed camera ~165 m from
+// a small body moving east across its line of sight, the mast turned by a
+// random ~0.1 deg at every epoch), a site file naming the camera
+// fixed_targetless with the reference photo's true pose as its pose file (the
+// resection is tested in test/core/adjustment/resect_camera_test.cpp) and the
+// simulator's reference surface as its DEM, the operator's outline = the body
+// + 3 m. Asserted against the simulator's truth, from process_bag's output bag:
+//  * every later photo re-oriented within 0.002 deg of its true attitude
+//    (the camera's pose on /tf);
+//  * the grid points' displacements (/targetless_camera/displacements, source
+//    feature): horizontal RMS <= 1 cm over the points whose true motion is
+//    >= 30 deg off the line of sight (or zero), median |err|/sigma in
+//    [0.5, 0.9], at most 1.5 % of the components beyond 3 sigma
+//    (doc/targetless_camera.md: the tail of the LSC errors);
+//  * the grid points reach the estimator: its history holds them and the
+//    GeoJSON report lists them.
+#include <sqlite3.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <tf2_msgs/TFMessage.h>
+
+#include "slope_monitor/PointDisplacementArray.h"
+#include "slope_monitor/core/camera/rotation.h"
+#include "slope_monitor/core/sim/truth.h"
+
+namespace slope_monitor {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kDeg = 180.0 / M_PI;
+constexpr char kName[] = "targetless_camera";
+constexpr char kCamera[] = "north_cam";
+
+std::string Survey(const std::string& ext) {
+  return std::string(SM_ROSTEST_DATA_DIR) + "/" + kName + "/" + kName + ext;
+}
+
+std::string ReadFile(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Angle [deg] of the rotation between two site_from_optical attitudes.
+double AngleBetween(const camera::ExteriorOrientation& a, const Eigen::Quaterniond& b) {
+  const Eigen::Quaterniond qa = a.SiteFromOptical().rotation;
+  return qa.angularDistance(b) * kDeg;
+}
+
+class TargetlessCameraReplay : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("targetless_camera_test_" + std::to_string(getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    truth_ = sim::SurveyTruth::Load(Survey(".truth.yaml"));
+    for (const auto& c : truth_.cameras)
+      if (c.name == kCamera) camera_ = &c;
+    ASSERT_NE(camera_, nullptr);
+    ASSERT_EQ(camera_->images.size(), 3u);
+    // The reference photo's pose, as resect_camera writes it.
+    const camera::ExteriorOrientation& e = camera_->images[0].exterior;
+    std::ofstream pose(dir_ / "north_cam.pose.yaml");
+    pose.precision(12);
+    pose << "position: [" << e.position.x() << ", " << e.position.y() << ", " << e.position.z()
+         << "]\nangles_deg: {theta: " << e.angles.theta * kDeg << ", phi: " << e.angles.phi * kDeg
+         << ", kappa: " << e.angles.kappa * kDeg << "}\n";
+    pose.close();
+    // The site: the simulator's origin; the operator's outline around the body.
+    std::ofstream site(dir_ / "site.yaml");
+    site << "name: targetless_test\ncrs: EPSG:4979\norigin: [8.0, 46.5, 1200.0]\n"
+         << "cameras:\n  - {name: north_cam, kind: fixed_targetless, pixel_size: 0.01, "
+         << "pose_file: north_cam.pose.yaml, dem: " << Survey(".surface_e00.tif") << "}\n"
+         << "areas:\n  crs: site\n  outline: [[89, 71], [111, 71], [111, 89], [89, 89]]\n";
+    site.close();
+    const std::string cmd = std::string(SM_PROCESS_BAG) + " --bag " + Survey(".bag") + " --site " +
+                            (dir_ / "site.yaml").string() + " --database " +
+                            (dir_ / "history.db").string() + " --report-dir " +
+                            (dir_ / "reports").string() + " --output-bag " +
+                            (dir_ / "out.bag").string() + " > " + (dir_ / "stdout").string() +
+                            " 2> " + (dir_ / "stderr").string();
+    const int rc = std::system(cmd.c_str());
+    std::printf("%s", ReadFile(dir_ / "stderr").c_str());
+    ASSERT_TRUE(WIFEXITED(rc) && WEXITSTATUS(rc) == 0) << ReadFile(dir_ / "stderr");
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  fs::path dir_;
+  sim::SurveyTruth truth_;
+  const sim::CameraTruth* camera_ = nullptr;
+};
+
+TEST_F(TargetlessCameraReplay, ReorientationFieldAndEstimatorAgainstTruth) {
+  rosbag::Bag bag(dir_ / "out.bag");
+  std::map<double, Eigen::Quaterniond> poses;  // stamp -> site_from_optical
+  std::vector<slope_monitor::PointDisplacementArray> fields;
+  for (const rosbag::MessageInstance& m : rosbag::View(bag)) {
+    if (m.getTopic() == "/tf") {
+      if (const auto tf = m.instantiate<tf2_msgs::TFMessage>())
+        for (const auto& t : tf->transforms)
+          if (t.child_frame_id == std::string(kCamera) + "_optical") {
+            const auto& q = t.transform.rotation;
+            poses[t.header.stamp.toSec()] = Eigen::Quaterniond(q.w, q.x, q.y, q.z);
+          }
+    } else if (m.getTopic() == "/targetless_camera/displacements") {
+      if (const auto d = m.instantiate<slope_monitor::PointDisplacementArray>())
+        fields.push_back(*d);
+    }
+  }
+  // Re-orientation of each later photo.
+  ASSERT_EQ(poses.size(), 3u);
+  for (size_t k = 1; k < camera_->images.size(); ++k) {
+    const sim::ImageTruth& im = camera_->images[k];
+    const auto it = poses.find(im.stamp);
+    ASSERT_NE(it, poses.end()) << "no pose of photo " << k;
+    const double turned = AngleBetween(camera_->images[0].exterior, it->second);
+    const double error = AngleBetween(im.exterior, it->second);
+    std::printf("photo %zu: mast turned %.4f deg, re-orientation error %.5f deg\n", k, turned,
+                error);
+    EXPECT_LE(error, 0.002);
+  }
+  // The field against the truth.
+  ASSERT_EQ(fields.size(), 2u);
+  std::set<std::string> published;
+  for (const auto& f : fields)
+    for (const auto& p : f.displacements) published.insert(p.point_id);
+  int n = 0, moving = 0, outside3 = 0;
+  double sum2 = 0.0, max_true = 0.0;
+  std::vector<double> z;
+  for (const auto& f : fields) {
+    for (const auto& p : f.displacements) {
+      EXPECT_EQ(p.source, slope_monitor::PointDisplacement::SOURCE_FEATURE);
+      const Eigen::Vector3d x(p.reference_position.x, p.reference_position.y,
+                              p.reference_position.z);
+      const Eigen::Vector3d d(p.displacement.x, p.displacement.y, p.displacement.z);
+      const Eigen::Vector3d truth = truth_.DisplacementAt(x, p.stamp.toSec());
+      const Eigen::Vector3d los = (x - camera_->images[0].exterior.position).normalized();
+      if (truth.norm() > 1e-3) {
+        const double angle = std::acos(std::min(1.0, std::abs(truth.normalized().dot(los)))) * kDeg;
+        if (angle < 30.0) continue;
+        ++moving;
+      }
+      max_true = std::max(max_true, truth.norm());
+      const Eigen::Vector3d e = d - truth;
+      ++n;
+      sum2 += e.head<2>().squaredNorm();
+      for (int k = 0; k < 2; ++k) {
+        const double s = std::sqrt(p.covariance[4 * k]);
+        z.push_back(std::abs(e(k)) / s);
+        if (std::abs(e(k)) > 3.0 * s) {
+          ++outside3;
+          std::printf("beyond 3 sigma: %s comp %d err %.4f sigma %.4f weight %.2f truth %.3f\n",
+                      p.point_id.c_str(), k, e(k), s, truth_.landslide.Weight(x.head<2>()),
+                      truth.norm());
+        }
+      }
+    }
+  }
+  ASSERT_GT(n, 100);  // over both photos
+  std::sort(z.begin(), z.end());
+  const double rms = std::sqrt(sum2 / n);
+  const double median = z[z.size() / 2];
+  std::printf(
+      "grid points >= 30 deg off the line of sight: %d (%d moving, up to %.3f m); horizontal "
+      "RMS %.4f m; median |err|/sigma %.3f; beyond 3 sigma %d of %zu components\n",
+      n, moving, max_true, rms, median, outside3, z.size());
+  EXPECT_GT(moving, 30);
+  EXPECT_GT(max_true, 0.2);
+  EXPECT_LE(rms, 0.01);
+  EXPECT_GE(median, 0.5);
+  EXPECT_LE(median, 0.9);
+  EXPECT_LE(outside3, 0.015 * z.size());
+
+  // The estimator fused them: its history and its GeoJSON report.
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open_v2((dir_ / "history.db").c_str(), &db, SQLITE_OPEN_READONLY, nullptr),
+            SQLITE_OK);
+  sqlite3_stmt* st = nullptr;
+  ASSERT_EQ(
+      sqlite3_prepare_v2(
+          db,
+          "SELECT COUNT(DISTINCT point_id) FROM observations WHERE point_id LIKE 'north_cam/p%'",
+          -1, &st, nullptr),
+      SQLITE_OK)
+      << sqlite3_errmsg(db);
+  ASSERT_EQ(sqlite3_step(st), SQLITE_ROW);
+  const int in_history = sqlite3_column_int(st, 0);
+  sqlite3_finalize(st);
+  sqlite3_close(db);
+  std::printf("grid points published: %zu, in the estimator's history: %d\n", published.size(),
+              in_history);
+  EXPECT_GT(published.size(), 50u);
+  EXPECT_EQ(in_history, static_cast<int>(published.size()));
+  int in_report = 0;
+  for (const fs::directory_entry& f : fs::directory_iterator(dir_ / "reports"))
+    if (f.path().extension() == ".geojson") {
+      const std::string text = ReadFile(f.path());
+      for (size_t at = text.find("north_cam/p"); at != std::string::npos;
+           at = text.find("north_cam/p", at + 1))
+        ++in_report;
+    }
+  EXPECT_GE(in_report, static_cast<int>(published.size()));
+}
+
+}  // namespace
+}  // namespace slope_monitor
