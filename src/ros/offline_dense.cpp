@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/ros/parameters.h"
@@ -57,8 +58,10 @@ void OfflineDense::Finish() {
 void OfflineDense::Measure(const std::vector<dense::PhotoEpoch>& epochs) {
   for (const dense::PhotoEpoch& e : epochs) {
     const auto start = std::chrono::steady_clock::now();
+    const std::clock_t cpu_start = std::clock();
     const DenseEpochOutput out = step_->Measure(e);
     seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    cpu_seconds_ += static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
     Log(out.log);
     if (!out.cloud) continue;
     ++epochs_;

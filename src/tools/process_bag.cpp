@@ -286,8 +286,10 @@ class OfflineGraph {
     if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) Solve(*e);
     if (dense_) {
       dense_->Finish();
-      Log("dense step: " + std::to_string(dense_->epochs_measured()) + " surface(s) in " +
-          std::to_string(dense_->seconds()) + " s");
+      char line[120];
+      std::snprintf(line, sizeof line, "dense step: %d surface(s) in %.1f s (%.1f s CPU)",
+                    dense_->epochs_measured(), dense_->seconds(), dense_->cpu_seconds());
+      Log(line);
     }
     Log("end of input: " + std::to_string(adjuster_accepted_) + " adjustment epoch(s) accepted, " +
         std::to_string(radio_epochs_) + " radio epoch(s) solved");

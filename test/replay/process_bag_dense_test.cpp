@@ -24,7 +24,7 @@
 #include <sensor_msgs/point_cloud2_iterator.h>
 
 #include "slope_monitor/AdjustmentSolution.h"
-#include "slope_monitor/core/dense/surface.h"
+#include "slope_monitor/core/dense/epoch_surface.h"
 #include "slope_monitor/core/io/geotiff.h"
 #include "slope_monitor/core/sim/truth.h"
 

@@ -41,7 +41,8 @@ class OfflineDense {
   void Finish();  // end of the bags
 
   int epochs_measured() const { return epochs_; }
-  double seconds() const { return seconds_; }  // wall time spent measuring
+  double seconds() const { return seconds_; }          // wall time spent measuring
+  double cpu_seconds() const { return cpu_seconds_; }  // process CPU time spent measuring
 
  private:
   bool Camera(const std::string& camera) const;
@@ -53,7 +54,7 @@ class OfflineDense {
   std::function<void(const sensor_msgs::PointCloud2&)> write_;
   std::function<void(const std::string&)> log_;
   int epochs_ = 0;
-  double seconds_ = 0.0;
+  double seconds_ = 0.0, cpu_seconds_ = 0.0;
 };
 
 }  // namespace ros_adapters
