@@ -101,8 +101,9 @@ DenseEpochOutput DenseEpochStep::Measure(const dense::PhotoEpoch& e,
                                                " oriented photo(s) not used (", e.reason,
                                                "; first: ", e.missing.front(), ")")});
   if (!e.no_surface.empty()) {
-    // A survey without a UAV flight and without stereo pairs: not an error.
-    out.log.push_back({LogLine::kInfo, e.no_surface});
+    // A survey without a UAV flight and without stereo pairs: not an error
+    // (debug: process_bag does not print it for each epoch; the node does).
+    out.log.push_back({LogLine::kDebug, e.no_surface});
     return out;
   }
   const dense::SeriesEpoch s = series_.Measure(e.input, progress);
