@@ -391,7 +391,10 @@ class OfflineGraph {
     XmlRpc::XmlRpcValue p = NodeParams("dense_epoch");
     ros_adapters::SetParam(&p, "report_dir", args_.report_dir);
     dense_ = std::make_unique<ros_adapters::OfflineDense>(
-        p, [this](const sensor_msgs::PointCloud2& c) { Write(ros_adapters::OfflineDense::kCloudTopic, c); },
+        p,
+        [this](const sensor_msgs::PointCloud2& c) {
+          Write(ros_adapters::OfflineDense::kCloudTopic, c);
+        },
         log_);
   }
 
