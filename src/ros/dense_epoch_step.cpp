@@ -12,6 +12,8 @@ namespace {
 
 int64_t Nanoseconds(const ros::Time& t) { return static_cast<int64_t>(t.toNSec()); }
 
+}  // namespace
+
 dense::SurfaceSeriesOptions SeriesOptions(const DenseEpochParameters& p) {
   dense::SurfaceSeriesOptions o;
   o.surface = p.surface;
@@ -21,8 +23,6 @@ dense::SurfaceSeriesOptions SeriesOptions(const DenseEpochParameters& p) {
   o.report_dir = p.report_dir;
   return o;
 }
-
-}  // namespace
 
 dense::EpochOrientations OrientationsOf(const slope_monitor::AdjustmentSolution& s) {
   dense::EpochOrientations out;

@@ -28,6 +28,10 @@
 namespace slope_monitor {
 namespace ros_adapters {
 
+// The series' options from the node's parameters (surface, change,
+// outlines, stable_mask, report_dir).
+dense::SurfaceSeriesOptions SeriesOptions(const DenseEpochParameters& parameters);
+
 // A usable solution's orientations for the photo collector.
 dense::EpochOrientations OrientationsOf(const slope_monitor::AdjustmentSolution& solution);
 
