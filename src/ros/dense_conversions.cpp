@@ -9,6 +9,7 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/ros/dense_epoch_step.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -17,29 +18,14 @@ dense::EpochImage EpochImageFromEstimate(const slope_monitor::CameraEstimate& e,
                                          const sensor_msgs::Image& image,
                                          const sensor_msgs::CameraInfo& info, double pixel_size,
                                          dense::ImageKind kind) {
-  dense::EpochImage out;
-  out.kind = kind;
-  out.camera = e.camera_name;
-  dense::OrientedImage& im = out.image;
-  char stamp[32];
-  std::snprintf(stamp, sizeof stamp, "%.3f", e.image_header.stamp.toSec());
-  im.name = e.camera_name + "@" + stamp;
-  im.image = cv_bridge::toCvCopy(image)->image;
-  const camera::CameraModel from_info = CameraModelFromCameraInfo(info, pixel_size);
-  std::array<double, camera::kNumInterior> interior = from_info.interior();
-  if (e.distortion.size() > camera::kNumInterior - 3)
-    throw InvalidArgument(Message("camera '", e.camera_name, "': ", e.distortion.size(),
-                                  " distortion terms in the solution, at most ",
-                                  camera::kNumInterior - 3));
-  interior[camera::kC] = e.principal_distance;
-  interior[camera::kX0] = e.x0;
-  interior[camera::kY0] = e.y0;
-  for (size_t i = 0; i < e.distortion.size(); ++i) interior[camera::kK1 + i] = e.distortion[i];
-  im.camera = camera::CameraModel(from_info.sensor(), from_info.model(), interior);
-  im.pose =
-      camera::ExteriorOrientation::FromOpticalFromSite(FromPose(e.site_from_optical).Inverse());
-  im.oriented = true;
-  return out;
+  dense::Photo photo;
+  photo.camera = e.camera_name;
+  photo.stamp_ns = static_cast<int64_t>(e.image_header.stamp.toNSec());
+  photo.image = cv_bridge::toCvCopy(image)->image;
+  slope_monitor::AdjustmentSolution one;
+  one.cameras.push_back(e);
+  return dense::OrientPhoto(photo, CameraModelFromCameraInfo(info, pixel_size),
+                            OrientationsOf(one).photos.front(), kind);
 }
 
 std::vector<Eigen::Vector3d> AdjustedPoints(const slope_monitor::AdjustmentSolution& solution) {
@@ -134,12 +120,18 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
                               "' must list cameras in pairs (left, right)"));
   for (size_t i = 0; i < pairs.size(); i += 2) d.stereo_pairs.push_back({pairs[i], pairs[i + 1]});
   d.pixel_size = p.Double("pixel_size", 0.0048, 1e-6, 1.0, "mm/px");
-  d.max_cached_images = p.Int("max_cached_images", 64, 1, 10000);
+  dense::PhotoCollectorOptions& ph = d.photos;
+  ph.uav_cameras = d.uav_cameras;
+  ph.stereo_pairs = d.stereo_pairs;
+  ph.max_photos = p.Int("max_cached_images", ph.max_photos, 1, 10000);
+  ph.max_megabytes = p.Double("max_cached_megabytes", ph.max_megabytes, 1e-3, 1e5, "MB");
+  ph.photo_wait = p.Double("photo_wait", ph.photo_wait, 0.0, 1e6, "s");
   d.frame_id = p.String("frame_id", "site");
   d.report_dir = p.String("report_dir", "");
   p.CheckNoUnknownKeys();
   d.surface.Check();
   d.change.Check();
+  d.photos.Check();
   return d;
 }
 

@@ -50,11 +50,13 @@
 #include "slope_monitor/core/dense/dem_change.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
 #include "slope_monitor/core/dense/surface.h"
+#include "slope_monitor/core/dense/surface_series.h"
 #include "slope_monitor/core/io/geotiff.h"
 #include "slope_monitor/core/io/yaml_map.h"
 #include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/core/sim/truth.h"
 #include "slope_monitor/ros/dense_conversions.h"
+#include "slope_monitor/ros/dense_epoch_step.h"
 #include "slope_monitor/ros/param_files.h"
 
 using namespace slope_monitor;
@@ -260,7 +262,10 @@ int RunBagEpochs(const Args& a) {
                                   (only_epoch >= 0 ? Message(" for epoch ", only_epoch) : std::string()),
                                   " (record a replay with record.launch, or run process_bag --output-bag)"));
   fs::create_directories(out_dir);
-  std::unique_ptr<io::GeoRaster> reference;
+  // The node's epoch series (reference, DoD, surface_eNN.tif / change_eNN.tif in --out-dir).
+  ros_adapters::DenseEpochParameters series_cfg = cfg;
+  series_cfg.report_dir = out_dir;
+  dense::SurfaceSeries series(ros_adapters::SeriesOptions(series_cfg));
   for (const slope_monitor::AdjustmentSolution& sol : solutions) {
     dense::EpochSurfaceInput in;
     in.epoch = static_cast<int>(sol.epoch);
@@ -291,39 +296,21 @@ int RunBagEpochs(const Args& a) {
     std::printf("epoch %d: %zu oriented images, %zu adjusted points\n", in.epoch, in.images.size(),
                 in.adjusted_points.size());
     std::fflush(stdout);
-    dense::EpochSurfaceOptions o = cfg.surface;
-    if (reference) o.region = dense::RegionOf(*reference);
-    dense::EpochSurfaceResult r;
-    try {
-      r = dense::MeasureEpochSurface(in, o, [](const std::string& step) {
-        std::printf("  %s\n", step.c_str());
-        std::fflush(stdout);
-      });
-    } catch (const InvalidArgument& e) {
-      std::fprintf(stderr, "dense_surface: epoch %d skipped: %s\n", in.epoch, e.what());
-      continue;
-    }
-    std::printf("%s\n", r.summary.BriefReport().c_str());
-    io::WriteGeoTiff((fs::path(out_dir) / dense::EpochSurfaceFileName(in.epoch)).string(), r.dem);
+    const dense::SeriesEpoch r = series.Measure(in, [](const std::string& step) {
+      std::printf("  %s\n", step.c_str());
+      std::fflush(stdout);
+    });
+    for (const std::string& e : r.errors) std::fprintf(stderr, "dense_surface: %s\n", e.c_str());
+    if (!r.surface) continue;
+    std::printf("%s\n", r.surface->summary.BriefReport().c_str());
     if (a.Has("--compare-truth")) {
       const std::string truth_path = a.Get("--compare-truth");
       const sim::SurveyTruth truth = sim::SurveyTruth::Load(truth_path);
-      CompareWithTruth(r.dem, io::ReadGeoTiff(TruthSurfacePath(truth, truth_path, in.epoch)), truth);
+      CompareWithTruth(r.surface->dem, io::ReadGeoTiff(TruthSurfacePath(truth, truth_path, in.epoch)), truth);
     }
-    if (!reference) {
-      reference = std::make_unique<io::GeoRaster>(r.dem);
-      continue;
-    }
-    try {
-      const std::vector<uint8_t> stable = dense::StableMask(*reference, cfg.outlines, {}, "");
-      const dense::DemChangeResult c = dense::DemChange(*reference, r.dem, cfg.outlines, stable, cfg.change);
-      std::printf("epoch %d change: %s\n", in.epoch, c.summary.BriefReport().c_str());
-      io::WriteGeoTiff((fs::path(out_dir) / dense::EpochChangeFileName(in.epoch)).string(), c.change);
-    } catch (const InvalidArgument& e) {
-      std::fprintf(stderr, "dense_surface: epoch %d change not computed (surface kept): %s\n", in.epoch, e.what());
-    }
+    if (r.change) std::printf("epoch %d change: %s\n", in.epoch, r.change->summary.BriefReport().c_str());
   }
-  return reference ? 0 : 1;
+  return series.reference() ? 0 : 1;
 }
 
 int Run(const Args& a) {

@@ -4,6 +4,7 @@
 //   rosrun slope_monitor process_bag --bag FILE [--bag FILE2 ...] [--site-config FILE]
 //       [--target-list FILE] [--radio-network FILE] [--adjuster-config FILE]
 //       [--uav-tie-points] [--database FILE] [--report-dir DIR] [--output-bag FILE]
+//       [--no-dense]
 //
 // The bags are read with rosbag::View in bag-time order (several bags, e.g.
 // the split files of one recording, merged by time) and every message goes,
@@ -61,6 +62,7 @@
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/epoch_solver.h"
 #include "slope_monitor/ros/node_parameters.h"
+#include "slope_monitor/ros/offline_dense.h"
 #include "slope_monitor/ros/param_files.h"
 #include "slope_monitor/ros/radio_conversions.h"
 #include "slope_monitor/ros/target_conversions.h"
@@ -75,7 +77,7 @@ namespace {
 constexpr char kUsage[] =
     "usage: process_bag --bag FILE [--bag FILE2 ...] [--site FILE] [--site-config FILE] [--target-list FILE]\n"
     "                   [--radio-network FILE] [--adjuster-config FILE] [--uav-tie-points]\n"
-    "                   [--database FILE] [--report-dir DIR] [--output-bag FILE]\n";
+    "                   [--database FILE] [--report-dir DIR] [--output-bag FILE] [--no-dense]\n";
 
 // Topics of the replay graph (launch/include/processing_graph.xml).
 constexpr char kAdjusterDisplacements[] = "/bundle_adjuster/displacements";
@@ -86,6 +88,7 @@ struct Args {
   std::vector<std::string> bags;
   std::string site, site_config, target_list, radio_network, adjuster_config;
   bool uav_tie_points = false;
+  bool dense = true;  // the dense epoch step (replay.launch dense:=true)
   std::string database, report_dir, output_bag;
 };
 
@@ -106,6 +109,10 @@ Args ParseArgs(int argc, char** argv) {
     }
     if (flag == "--uav-tie-points") {
       a.uav_tie_points = true;
+      continue;
+    }
+    if (flag == "--no-dense") {
+      a.dense = false;
       continue;
     }
     const bool is_bag = flag == "--bag";
@@ -249,6 +256,7 @@ class OfflineGraph {
     SetUpAdjuster(with_targets);
     SetUpRadio();
     SetUpEstimator();
+    if (args.dense) SetUpDense();
   }
 
   void OnMessage(const rosbag::MessageInstance& m) {
@@ -260,11 +268,13 @@ class OfflineGraph {
     } else if (const auto image = m.instantiate<sensor_msgs::Image>()) {
       if (Centroider* c = CameraOf(topic, "/camera/image_raw")) {
         c->images[image->header.stamp] = image;
+        if (dense_) dense_->OnImage(c->camera, *image, now_.toSec());
         Pair(c, image->header.stamp);
       }
     } else if (const auto info = m.instantiate<sensor_msgs::CameraInfo>()) {
       if (Centroider* c = CameraOf(topic, "/camera/camera_info")) {
         OnCameraInfo(c->camera, *info);
+        if (dense_) dense_->OnCameraInfo(c->camera, *info);
         c->infos[info->header.stamp] = info;
         Pair(c, info->header.stamp);
       }
@@ -282,6 +292,13 @@ class OfflineGraph {
   // live graph's time-out), then the reports are written.
   void Finish() {
     if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) Solve(*e);
+    if (dense_) {
+      dense_->Finish();
+      char line[120];
+      std::snprintf(line, sizeof line, "dense step: %d surface(s) in %.1f s (%.1f s CPU)",
+                    dense_->epochs_measured(), dense_->seconds(), dense_->cpu_seconds());
+      Log(line);
+    }
     Log("end of input: " + std::to_string(adjuster_accepted_) + " adjustment epoch(s) accepted, " +
         std::to_string(radio_epochs_) + " radio epoch(s) solved");
     if (estimator_->GetSnapshot().points.empty()) {
@@ -436,6 +453,18 @@ class OfflineGraph {
     }
   }
 
+  // The dense_epoch node's parameters as processing_graph.xml sets them.
+  void SetUpDense() {
+    XmlRpc::XmlRpcValue p = NodeParams("dense_epoch");
+    ros_adapters::SetParam(&p, "report_dir", args_.report_dir);
+    dense_ = std::make_unique<ros_adapters::OfflineDense>(
+        p,
+        [this](const sensor_msgs::PointCloud2& c) {
+          Write(ros_adapters::OfflineDense::kCloudTopic, c);
+        },
+        log_);
+  }
+
   // ---- inputs.
   Centroider* CameraOf(const std::string& topic, const std::string& suffix) {
     if (topic.size() <= suffix.size() + 1) return nullptr;
@@ -539,6 +568,7 @@ class OfflineGraph {
     for (const ros_adapters::LogLine& line : out.log)
       if (line.level >= ros_adapters::LogLine::kWarn) Log("bundle_adjuster: " + line.text);
     Write("/bundle_adjuster/solution", out.solution);
+    if (dense_) dense_->OnSolution(out.solution, now_.toSec());
     if (!out.accepted) return;
     ++adjuster_accepted_;
     if (!out.fixed_transforms.empty()) {
@@ -616,6 +646,7 @@ class OfflineGraph {
   std::unique_ptr<deformation::History> history_;
   std::unique_ptr<deformation::Estimator> estimator_;
   deformation::AlertChangeTracker alert_changes_;
+  std::unique_ptr<ros_adapters::OfflineDense> dense_;  // dense_matcher
 };
 
 // ---------------------------------------------------------------- progress

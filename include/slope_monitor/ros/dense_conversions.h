@@ -10,6 +10,7 @@
 
 #include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/core/dense/dem_change.h"
+#include "slope_monitor/core/dense/epoch_photos.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
 #include "slope_monitor/ros/parameters.h"
 
@@ -28,7 +29,8 @@ struct DenseEpochParameters {
   std::vector<std::string> cameras, uav_cameras;
   std::vector<std::pair<std::string, std::string>> stereo_pairs;
   double pixel_size = 0.0;  // [mm/px]
-  int max_cached_images = 0;
+  // uav_cameras, stereo_pairs as above; max_cached_images, max_cached_megabytes, photo_wait.
+  dense::PhotoCollectorOptions photos;
   std::string frame_id, report_dir;
 };
 DenseEpochParameters ReadDenseEpochParameters(ParamReader& p);

@@ -1,0 +1,179 @@
+// process_bag's dense epoch step on a survey with a UAV flight (the demo site
+// with its UAV strip, two epochs: test/replay/dense_graph_replay.sim.yaml,
+// rendered at build time): a cloud of the expected size and fields in `site`
+// for every adjusted epoch in --output-bag, a change on the later epoch,
+// surface_eNN.tif and change_eNN.tif in --report-dir, every oriented photo
+// used, and the DEMs against the simulator's true surfaces on bare ground.
+// --no-dense turns the step off.
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
+
+#include "slope_monitor/AdjustmentSolution.h"
+#include "slope_monitor/core/dense/epoch_surface.h"
+#include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/core/sim/truth.h"
+
+namespace slope_monitor {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kSurvey = "dense_graph_replay";
+
+std::string Survey(const std::string& ext) {
+  return std::string(SM_ROSTEST_DATA_DIR) + "/" + kSurvey + "/" + kSurvey + ext;
+}
+
+std::string ReadFile(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+fs::path Scratch(const std::string& name) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("process_bag_dense_test_" + std::to_string(getpid())) / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// process_bag on the survey with `extra` flags; outputs in `dir`.
+int RunProcessBag(const fs::path& dir, const std::string& extra) {
+  const std::string cmd =
+      std::string(SM_PROCESS_BAG) + " --bag " + Survey(".bag") + " --site-config " +
+      Survey(".site.yaml") + " --database " + (dir / "history.db").string() + " --report-dir " +
+      (dir / "reports").string() + " --output-bag " + (dir / "out.bag").string() + " " + extra +
+      " > " + (dir / "stdout").string() + " 2> " + (dir / "stderr").string();
+  const int status = std::system(cmd.c_str());
+  if (status != 0) std::cerr << ReadFile(dir / "stderr");
+  return status;
+}
+
+struct Outputs {
+  std::map<double, int> solutions;  // usable: stamp -> epoch
+  std::map<double, sensor_msgs::PointCloud2::ConstPtr> clouds;
+};
+
+Outputs ReadOutputs(const fs::path& bag_path) {
+  Outputs out;
+  rosbag::Bag bag(bag_path.string(), rosbag::bagmode::Read);
+  for (const rosbag::MessageInstance& m : rosbag::View(bag)) {
+    if (const auto s = m.instantiate<slope_monitor::AdjustmentSolution>())
+      if (s->usable) out.solutions[s->header.stamp.toSec()] = static_cast<int>(s->epoch);
+    if (m.getTopic() == "/dense/surface_cloud")
+      if (const auto c = m.instantiate<sensor_msgs::PointCloud2>())
+        out.clouds[c->header.stamp.toSec()] = c;
+  }
+  return out;
+}
+
+// |height error| of the DEM's cells on bare ground (not unmatchable in the
+// truth) against the true surface, sorted.
+std::vector<double> BareGroundErrors(const io::GeoRaster& dem, const io::GeoRaster& truth_dem,
+                                     const sim::SurveyTruth& truth) {
+  std::vector<double> e;
+  for (int r = 0; r < dem.height; ++r)
+    for (int c = 0; c < dem.width; ++c) {
+      const float z = dem.At(dense::kHeight, r, c);
+      if (dem.IsNoData(z)) continue;
+      const Eigen::Vector2d xy = dem.CellCentre(r, c);
+      const double zt = truth_dem.Interpolate(0, xy.x(), xy.y());
+      if (std::isnan(zt) || truth.Unmatchable(Eigen::Vector3d(xy.x(), xy.y(), zt))) continue;
+      e.push_back(std::abs(z - zt));
+    }
+  std::sort(e.begin(), e.end());
+  return e;
+}
+
+double Quantile(const std::vector<double>& sorted, double q) {
+  return sorted.empty() ? NAN : sorted[static_cast<size_t>(q * (sorted.size() - 1))];
+}
+
+TEST(ProcessBagDense, ACloudPerEpochTheGeoTiffsAndTheTruth) {
+  const fs::path dir = Scratch("dense");
+  ASSERT_EQ(RunProcessBag(dir, ""), 0);
+  const sim::SurveyTruth truth = sim::SurveyTruth::Load(Survey(".truth.yaml"));
+  const std::string err = ReadFile(dir / "stderr");
+  // Every photo the adjustment oriented was measured (collected by message).
+  EXPECT_EQ(err.find("not used"), std::string::npos) << err;
+
+  const Outputs out = ReadOutputs(dir / "out.bag");
+  ASSERT_EQ(out.solutions.size(), truth.surfaces.size()) << err;  // every epoch adjusted
+  ASSERT_EQ(out.clouds.size(), out.solutions.size()) << err;      // and measured
+  const int reference = out.solutions.begin()->second;
+  for (const auto& [stamp, cloud] : out.clouds) {
+    ASSERT_EQ(out.solutions.count(stamp), 1u) << "cloud at " << stamp << " without a solution";
+    const int epoch = out.solutions.at(stamp);
+    EXPECT_EQ(cloud->header.frame_id, "site");
+    std::vector<std::string> names;
+    for (const auto& f : cloud->fields) names.push_back(f.name);
+    EXPECT_EQ(names, (std::vector<std::string>{"x", "y", "z", "rgb", "sigma_z", "change", "lod"}));
+    const size_t n = static_cast<size_t>(cloud->width) * cloud->height;
+    EXPECT_GE(n, 100000u) << "epoch " << epoch;  // 4..7 pairs of 1280 x 960 photos
+    size_t finite_change = 0, positive_sigma = 0;
+    for (sensor_msgs::PointCloud2ConstIterator<float> ch(*cloud, "change"), sz(*cloud, "sigma_z");
+         ch != ch.end(); ++ch, ++sz) {
+      finite_change += std::isfinite(*ch);
+      positive_sigma += *sz > 0.0f;
+    }
+    EXPECT_EQ(positive_sigma, n) << "epoch " << epoch;
+    std::printf("epoch %d: %zu points, %zu with a change\n", epoch, n, finite_change);
+    // A later epoch has a change wherever the reference surface exists (it
+    // covers about half of the later flight's cells); the reference none.
+    if (epoch == reference)
+      EXPECT_EQ(finite_change, 0u);
+    else
+      EXPECT_GT(finite_change, n / 4) << "epoch " << epoch;
+  }
+
+  // The GeoTIFFs, and each DEM against the true surface on bare ground.
+  for (const auto& [stamp, epoch] : out.solutions) {
+    const fs::path surface = dir / "reports" / dense::EpochSurfaceFileName(epoch);
+    ASSERT_TRUE(fs::exists(surface)) << surface;
+    EXPECT_EQ(fs::exists(dir / "reports" / dense::EpochChangeFileName(epoch)), epoch != reference)
+        << epoch;
+    const sim::SurfaceTruth* t = nullptr;
+    for (const sim::SurfaceTruth& s : truth.surfaces)
+      if (s.epoch == epoch) t = &s;
+    ASSERT_NE(t, nullptr) << "no true surface for epoch " << epoch;
+    const std::vector<double> e = BareGroundErrors(
+        io::ReadGeoTiff(surface.string()),
+        io::ReadGeoTiff((fs::path(Survey(".truth.yaml")).parent_path() / t->geotiff).string()),
+        truth);
+    std::printf("epoch %d DEM vs truth, bare ground: %zu cells, median |e| %.3f m, p90 %.3f m\n",
+                epoch, e.size(), Quantile(e, 0.5), Quantile(e, 0.9));
+    EXPECT_GE(e.size(), 5000u);
+    EXPECT_LE(Quantile(e, 0.5), 0.10) << "epoch " << epoch;
+    EXPECT_LE(Quantile(e, 0.9), 0.30) << "epoch " << epoch;
+  }
+}
+
+TEST(ProcessBagDense, NoDenseTurnsTheStepOff) {
+  const fs::path dir = Scratch("no_dense");
+  ASSERT_EQ(RunProcessBag(dir, "--no-dense"), 0);
+  const Outputs out = ReadOutputs(dir / "out.bag");
+  EXPECT_EQ(out.solutions.size(), 2u);
+  EXPECT_TRUE(out.clouds.empty());
+  for (const auto& f : fs::directory_iterator(dir / "reports"))
+    EXPECT_EQ(f.path().filename().string().rfind("surface_e", 0), std::string::npos) << f.path();
+}
+
+}  // namespace
+}  // namespace slope_monitor
