@@ -50,6 +50,7 @@
 #include "slope_monitor/EpochMarker.h"
 #include "slope_monitor/RadioSampleBlock.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/input_order.h"
 #include "slope_monitor/core/deformation/alert_log.h"
 #include "slope_monitor/core/deformation/history.h"
 #include "slope_monitor/core/deformation/report.h"
@@ -71,7 +72,8 @@ namespace slope_monitor {
 namespace {
 
 constexpr char kUsage[] =
-    "usage: process_bag --bag FILE [--bag FILE2 ...] [--site FILE] [--site-config FILE] [--target-list FILE]\n"
+    "usage: process_bag --bag FILE [--bag FILE2 ...] [--site FILE] [--site-config FILE] "
+    "[--target-list FILE]\n"
     "                   [--radio-network FILE] [--adjuster-config FILE] [--uav-tie-points]\n"
     "                   [--database FILE] [--report-dir DIR] [--output-bag FILE]\n";
 
@@ -89,12 +91,14 @@ struct Args {
 // Throws InvalidArgument naming the flag.
 Args ParseArgs(int argc, char** argv) {
   Args a;
-  const std::map<std::string, std::string*> with_value = {
-      {"--site", &a.site},                   {"--site-config", &a.site_config},
-      {"--target-list", &a.target_list},
-      {"--radio-network", &a.radio_network}, {"--adjuster-config", &a.adjuster_config},
-      {"--database", &a.database},           {"--report-dir", &a.report_dir},
-      {"--output-bag", &a.output_bag}};
+  const std::map<std::string, std::string*> with_value = {{"--site", &a.site},
+                                                          {"--site-config", &a.site_config},
+                                                          {"--target-list", &a.target_list},
+                                                          {"--radio-network", &a.radio_network},
+                                                          {"--adjuster-config", &a.adjuster_config},
+                                                          {"--database", &a.database},
+                                                          {"--report-dir", &a.report_dir},
+                                                          {"--output-bag", &a.output_bag}};
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
     if (flag == "-h" || flag == "--help") {
@@ -274,6 +278,8 @@ class OfflineGraph {
   // live graph's time-out), then the reports are written.
   void Finish() {
     if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) Solve(*e);
+    // The inputs have ended: what waits for a later stamp of another input is fused.
+    for (auto& r : order_->Flush()) FuseNow(r.item, r.input);
     Log("end of input: " + std::to_string(adjuster_accepted_) + " adjustment epoch(s) accepted, " +
         std::to_string(radio_epochs_) + " radio epoch(s) solved");
     if (estimator_->GetSnapshot().points.empty()) {
@@ -367,6 +373,10 @@ class OfflineGraph {
     history_ = std::make_unique<deformation::History>(estimator_params_.database);
     estimator_ =
         std::make_unique<deformation::Estimator>(estimator_params_.options, history_.get());
+    // Without a radio network the radio solver does not run: nothing to wait for.
+    std::vector<std::string> inputs = {kAdjusterDisplacements};
+    if (assembler_) inputs.push_back(kRadioDisplacements);
+    order_ = std::make_unique<InputOrder<slope_monitor::PointDisplacementArray>>(inputs);
   }
 
   // ---- inputs.
@@ -385,7 +395,8 @@ class OfflineGraph {
 
   void OnCameraInfo(const std::string& cam, const sensor_msgs::CameraInfo& info) {
     try {
-      models_[cam] = ros_adapters::CameraModelFromCameraInfo(info, adjuster_params_.PixelSizeOf(cam));
+      models_[cam] =
+          ros_adapters::CameraModelFromCameraInfo(info, adjuster_params_.PixelSizeOf(cam));
     } catch (const Error& e) {
       Log("bundle_adjuster: camera_info of '" + cam + "': " + e.what());
     }
@@ -491,8 +502,13 @@ class OfflineGraph {
     }
   }
 
-  // ---- the deformation estimator.
+  // ---- the deformation estimator: its inputs in one stamp order, as the
+  // nodelet fuses them (core/common/input_order.h); no time-out.
   void Fuse(const slope_monitor::PointDisplacementArray& msg, const std::string& topic) {
+    for (auto& r : order_->Add(topic, msg.header.stamp.toSec(), msg, 0.0)) FuseNow(r.item, r.input);
+  }
+
+  void FuseNow(const slope_monitor::PointDisplacementArray& msg, const std::string& topic) {
     const slope_monitor::PointDisplacementArray valid =
         estimator_validator_.Filter(msg, topic, 0.0);
     for (const std::string& problem : estimator_validator_.last_problems())
@@ -547,6 +563,7 @@ class OfflineGraph {
   ros_adapters::MessageValidator estimator_validator_;
   std::unique_ptr<deformation::History> history_;
   std::unique_ptr<deformation::Estimator> estimator_;
+  std::unique_ptr<InputOrder<slope_monitor::PointDisplacementArray>> order_;
   deformation::AlertChangeTracker alert_changes_;
 };
 
