@@ -73,8 +73,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     prior_sub_ = nh.subscribe("position_prior", 500, &BundleAdjusterNodelet::OnPositionPrior, this);
     for (const std::string& topic : params_.epoch_topics)
       epoch_subs_.push_back(nh.subscribe(topic, 20, &BundleAdjusterNodelet::OnEpoch, this));
-    // The configured cameras' markers in one stamp order: each camera's topic
-    // is in order, but on a fast replay or a busy machine one camera's next
+    // The configured cameras' markers in epoch order: each camera's topic is
+    // in order, but on a fast replay or a busy machine one camera's next
     // epoch can overtake another's end marker, which would cut that one short.
     if (!params_.collector.cameras.empty())
       marker_order_ = std::make_unique<InputOrder<slope_monitor::EpochMarkerConstPtr>>(
@@ -142,12 +142,14 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   void OnEpoch(const slope_monitor::EpochMarkerConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     const auto& cameras = params_.collector.cameras;
-    if (!marker_order_ || std::find(cameras.begin(), cameras.end(), msg->source) == cameras.end()) {
+    // A camera's marker of epoch k waits until every camera has begun epoch k
+    // (unnumbered markers, epoch 0, are not held).
+    if (!marker_order_ || msg->epoch == 0 ||
+        std::find(cameras.begin(), cameras.end(), msg->source) == cameras.end()) {
       RouteEnd(msg);
       return;
     }
-    for (auto& r : marker_order_->Add(msg->source, msg->header.stamp.toSec(), msg, Now()))
-      RouteEnd(r.item);
+    for (auto& r : marker_order_->Add(msg->source, msg->epoch, msg, Now())) RouteEnd(r.item);
   }
 
   // Caller holds mutex_.
