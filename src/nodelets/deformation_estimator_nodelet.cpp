@@ -277,12 +277,14 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
       Fuse(r.item, r.input, true);
     std::string names;
     for (const std::string& t : given_up) names += (names.empty() ? "'" : ", '") + t + "'";
-    if (!names.empty())
-      NODELET_WARN_THROTTLE(
-          60.0,
+    // Said when the inputs given up on change (a live camera graph gives up
+    // on the adjuster between its epochs, hours apart: once, not every time).
+    if (!names.empty() && names != given_up_names_)
+      NODELET_WARN(
           "deformation_estimator: gave up waiting for %s (nothing newer for order_timeout %.0f s); "
           "fused the other inputs' batches without it",
           names.c_str(), order_timeout_);
+    if (!names.empty()) given_up_names_ = names;
   }
 
   // Caller holds mutex_.
@@ -411,6 +413,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   double order_timeout_ = 0.0;  // [s] wall, from the parameter order_timeout; 0 = arrival order
   std::unique_ptr<InputOrder<Incoming>> order_;  // null with order_timeout 0
   ros::WallTimer order_timer_;
+  std::string given_up_names_;                   // the inputs the order last gave up on
   deformation::PlotReportOptions plot_options_;  // script "" = OpenCV pictures
   deformation::Thresholds thresholds_;           // drawn in the plots
   bool enable_export_report_ = true, enable_set_reference_epoch_ = true;
