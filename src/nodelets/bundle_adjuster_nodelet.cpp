@@ -5,6 +5,7 @@
 // each complete epoch: the solution, tf of every camera, the adjusted points
 // with their sigma, and displacements of monitoring points against the
 // reference epoch. The process_bag tool drives the same core the same way.
+#include <algorithm>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -34,6 +35,7 @@
 #include "slope_monitor/core/adjustment/epoch_collector.h"
 #include "slope_monitor/core/adjustment/epochs.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/input_order.h"
 #include "slope_monitor/core/io/target_list.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
 #include "slope_monitor/ros/conversions.h"
@@ -51,8 +53,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh); })) {
       NODELET_ERROR("bundle_adjuster: %s; not advertising anything", error->c_str());
-      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(nh, pnh, "bundle_adjuster",
-                                                                               "parameters rejected: " + *error);
+      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(
+          nh, pnh, "bundle_adjuster", "parameters rejected: " + *error);
       return;
     }
     solution_pub_ = nh.advertise<slope_monitor::AdjustmentSolution>("solution", 5, true);
@@ -71,6 +73,12 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     prior_sub_ = nh.subscribe("position_prior", 500, &BundleAdjusterNodelet::OnPositionPrior, this);
     for (const std::string& topic : params_.epoch_topics)
       epoch_subs_.push_back(nh.subscribe(topic, 20, &BundleAdjusterNodelet::OnEpoch, this));
+    // The configured cameras' markers in epoch order: each camera's topic is
+    // in order, but on a fast replay or a busy machine one camera's next
+    // epoch can overtake another's end marker, which would cut that one short.
+    if (!params_.collector.cameras.empty())
+      marker_order_ = std::make_unique<InputOrder<slope_monitor::EpochMarkerConstPtr>>(
+          params_.collector.cameras);
     // A live installation may switch off the services that change state (ROS 1
     // has no authentication; doc/security.md).
     if (params_.enable_run_adjustment)
@@ -103,7 +111,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   void OnCameraInfo(const std::string& camera_name, const sensor_msgs::CameraInfoConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     try {
-      models_[camera_name] = ros_adapters::CameraModelFromCameraInfo(*msg, params_.PixelSizeOf(camera_name));
+      models_[camera_name] =
+          ros_adapters::CameraModelFromCameraInfo(*msg, params_.PixelSizeOf(camera_name));
     } catch (const Error& e) {
       NODELET_ERROR_THROTTLE(10.0, "bundle_adjuster: camera_info of '%s': %s", camera_name.c_str(),
                              e.what());
@@ -129,9 +138,23 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     collector_->AddPrior(ros_adapters::FromMsg(*msg));
   }
 
+  // Begin and end markers: both move their camera on in the marker order.
   void OnEpoch(const slope_monitor::EpochMarkerConstPtr& msg) {
-    if (!msg->end) return;
     std::lock_guard<std::mutex> lock(mutex_);
+    const auto& cameras = params_.collector.cameras;
+    // A camera's marker of epoch k waits until every camera has begun epoch k
+    // (unnumbered markers, epoch 0, are not held).
+    if (!marker_order_ || msg->epoch == 0 ||
+        std::find(cameras.begin(), cameras.end(), msg->source) == cameras.end()) {
+      RouteEnd(msg);
+      return;
+    }
+    for (auto& r : marker_order_->Add(msg->source, msg->epoch, msg, Now())) RouteEnd(r.item);
+  }
+
+  // Caller holds mutex_.
+  void RouteEnd(const slope_monitor::EpochMarkerConstPtr& msg) {
+    if (!msg->end) return;
     collector_->SetTiePointsExpected(tie_sub_.getNumPublishers() > 0);
     Solve(collector_->AddEnd(ros_adapters::FromMsg(*msg), Now()));
     for (; reported_ignored_ < collector_->ignored().size(); ++reported_ignored_)
@@ -141,6 +164,18 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   void OnTimer(const ros::WallTimerEvent&) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
+      if (marker_order_) {
+        // Live: a camera silent for epoch_wait no longer holds the others' markers.
+        std::vector<std::string> given_up;
+        for (auto& r : marker_order_->Expire(Now(), params_.collector.epoch_wait, &given_up))
+          RouteEnd(r.item);
+        for (const std::string& c : given_up)
+          NODELET_WARN(
+              "bundle_adjuster: no epoch marker of '%s' for epoch_wait %.0f s: the other cameras' "
+              "markers "
+              "go on without it",
+              c.c_str(), params_.collector.epoch_wait);
+      }
       collector_->SetTiePointsExpected(tie_sub_.getNumPublishers() > 0);
       Solve(collector_->Poll(Now()));
     }
@@ -184,10 +219,18 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
         ros_adapters::SolveCollectedEpoch(epoch, models_, params_, getName(), &store_);
     for (const ros_adapters::LogLine& line : out.log) {
       switch (line.level) {
-        case ros_adapters::LogLine::kDebug: NODELET_DEBUG("bundle_adjuster: %s", line.text.c_str()); break;
-        case ros_adapters::LogLine::kInfo: NODELET_INFO("bundle_adjuster: %s", line.text.c_str()); break;
-        case ros_adapters::LogLine::kWarn: NODELET_WARN("bundle_adjuster: %s", line.text.c_str()); break;
-        case ros_adapters::LogLine::kError: NODELET_ERROR("bundle_adjuster: %s", line.text.c_str()); break;
+        case ros_adapters::LogLine::kDebug:
+          NODELET_DEBUG("bundle_adjuster: %s", line.text.c_str());
+          break;
+        case ros_adapters::LogLine::kInfo:
+          NODELET_INFO("bundle_adjuster: %s", line.text.c_str());
+          break;
+        case ros_adapters::LogLine::kWarn:
+          NODELET_WARN("bundle_adjuster: %s", line.text.c_str());
+          break;
+        case ros_adapters::LogLine::kError:
+          NODELET_ERROR("bundle_adjuster: %s", line.text.c_str());
+          break;
       }
     }
     if (out.adjusted) {
@@ -259,10 +302,13 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   std::vector<ros::Subscriber> epoch_subs_;
   ros::ServiceServer run_srv_, reference_srv_;
   ros::WallTimer gap_timer_;
+  std::unique_ptr<InputOrder<slope_monitor::EpochMarkerConstPtr>>
+      marker_order_;  // null without cameras
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   tf2_ros::StaticTransformBroadcaster static_broadcaster_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
-  std::unique_ptr<ros_adapters::SetUpFailureDiagnostics> setup_failure_;  // onInit failed: ERROR diagnostics
+  std::unique_ptr<ros_adapters::SetUpFailureDiagnostics>
+      setup_failure_;  // onInit failed: ERROR diagnostics
 };
 
 }  // namespace slope_monitor

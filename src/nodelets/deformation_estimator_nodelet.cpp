@@ -14,16 +14,17 @@
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <visualization_msgs/MarkerArray.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include "slope_monitor/ExportReport.h"
 #include "slope_monitor/PointDisplacementArray.h"
 #include "slope_monitor/SetReferenceEpoch.h"
 #include "slope_monitor/SlopeDeformation.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/input_order.h"
 #include "slope_monitor/core/deformation/alert_hook.h"
 #include "slope_monitor/core/deformation/alert_log.h"
 #include "slope_monitor/core/deformation/estimator.h"
@@ -40,18 +41,24 @@
 
 namespace slope_monitor {
 
-
 class DeformationEstimatorNodelet : public nodelet::Nodelet {
  public:
   ~DeformationEstimatorNodelet() override {
-    // End of a replay / shutdown: write the reports once more.
+    // End of a replay / shutdown: fuse what still waits for the other
+    // inputs (they have ended), then write the reports once more.
     std::lock_guard<std::mutex> lock(mutex_);
-    if (estimator_ && report_on_shutdown_ && !report_dir_.empty() && estimator_->GetSnapshot().points.empty()) {
+    if (estimator_ && order_) {
+      for (auto& r : order_->Flush()) Fuse(r.item, r.input, false);
+    }
+    if (estimator_ && report_on_shutdown_ && !report_dir_.empty() &&
+        estimator_->GetSnapshot().points.empty()) {
       // An empty, unreadable or truncated bag, or one without the input
       // topics: empty report files would look like a result.
-      ROS_WARN("deformation_estimator: no point was ever measured (history '%s'); no reports written to %s "
-               "(was the bag empty, unreadable, or without the topics %s?)",
-               database_.c_str(), report_dir_.c_str(), TopicList().c_str());
+      ROS_WARN(
+          "deformation_estimator: no point was ever measured (history '%s'); no reports written to "
+          "%s "
+          "(was the bag empty, unreadable, or without the topics %s?)",
+          database_.c_str(), report_dir_.c_str(), TopicList().c_str());
     } else if (estimator_ && report_on_shutdown_ && !report_dir_.empty()) {
       try {
         const auto files = WriteAllReports("", report_formats_);
@@ -77,8 +84,10 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
           if (!database_.empty()) history_ = std::make_unique<deformation::History>(database_);
           estimator_ = std::make_unique<deformation::Estimator>(options, history_.get());
         })) {
-      NODELET_ERROR("deformation_estimator: %s; refusing to start on it (nothing was written to it); not advertising",
-                    error->c_str());
+      NODELET_ERROR(
+          "deformation_estimator: %s; refusing to start on it (nothing was written to it); not "
+          "advertising",
+          error->c_str());
       estimator_.reset();
       history_.reset();
       ReportSetUpFailure("history database refused: " + *error);
@@ -86,10 +95,15 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     }
     const deformation::Snapshot resumed = estimator_->GetSnapshot();
     if (history_) {
-      NODELET_INFO("deformation_estimator: history '%s': %zu point(s) resumed, reference epoch %u (stamp %.3f)",
-                   database_.c_str(), resumed.points.size(), resumed.reference_epoch, resumed.reference_stamp);
+      NODELET_INFO(
+          "deformation_estimator: history '%s': %zu point(s) resumed, reference epoch %u (stamp "
+          "%.3f)",
+          database_.c_str(), resumed.points.size(), resumed.reference_epoch,
+          resumed.reference_stamp);
     } else {
-      NODELET_WARN("deformation_estimator: parameter 'database' is empty: no history is kept (a restart loses it)");
+      NODELET_WARN(
+          "deformation_estimator: parameter 'database' is empty: no history is kept (a restart "
+          "loses it)");
     }
 
     deformation_pub_ = nh.advertise<slope_monitor::SlopeDeformation>("deformation", 4, true);
@@ -99,23 +113,35 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     // A live installation may switch off the services that change state or
     // write files (ROS 1 has no authentication; doc/security.md).
     if (enable_set_reference_epoch_)
-      reference_srv_ = nh.advertiseService("set_reference_epoch", &DeformationEstimatorNodelet::OnSetReference, this);
+      reference_srv_ = nh.advertiseService("set_reference_epoch",
+                                           &DeformationEstimatorNodelet::OnSetReference, this);
     if (enable_export_report_)
-      export_srv_ = nh.advertiseService("export_report", &DeformationEstimatorNodelet::OnExport, this);
+      export_srv_ =
+          nh.advertiseService("export_report", &DeformationEstimatorNodelet::OnExport, this);
     for (const std::string& topic : input_topics_) {
       const boost::function<void(const slope_monitor::PointDisplacementArray::ConstPtr&)> callback =
-          [this, topic](const slope_monitor::PointDisplacementArray::ConstPtr& msg) { OnDisplacements(msg, topic); };
-      subscribers_.push_back(nh.subscribe<slope_monitor::PointDisplacementArray>(topic, 64, callback));
+          [this, topic](const slope_monitor::PointDisplacementArray::ConstPtr& msg) {
+            OnDisplacements(msg, topic);
+          };
+      subscribers_.push_back(
+          nh.subscribe<slope_monitor::PointDisplacementArray>(topic, 64, callback));
     }
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     updater_->setHardwareID("deformation_estimator");
     updater_->add("deformation_estimator", this, &DeformationEstimatorNodelet::Diagnose);
-    diag_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_->update(); });
+    diag_timer_ = nh.createWallTimer(ros::WallDuration(1.0),
+                                     [this](const ros::WallTimerEvent&) { updater_->update(); });
+    if (order_timeout_ > 0.0) {
+      order_ = std::make_unique<InputOrder<Incoming>>(input_topics_);
+      order_timer_ = nh.createWallTimer(ros::WallDuration(1.0),
+                                        [this](const ros::WallTimerEvent&) { OnOrderTimer(); });
+    }
     if (report_interval_ > 0.0 && !report_dir_.empty()) {
-      report_timer_ = nh.createWallTimer(ros::WallDuration(report_interval_), [this](const ros::WallTimerEvent&) {
-        std::lock_guard<std::mutex> lock(mutex_);
-        WriteReportsNow("on the report timer");
-      });
+      report_timer_ = nh.createWallTimer(ros::WallDuration(report_interval_),
+                                         [this](const ros::WallTimerEvent&) {
+                                           std::lock_guard<std::mutex> lock(mutex_);
+                                           WriteReportsNow("on the report timer");
+                                         });
     }
     if (!resumed.points.empty()) {
       std_msgs::Header h;
@@ -129,11 +155,12 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   // second until it is restarted with the cause fixed.
   void ReportSetUpFailure(const std::string& cause) {
     setup_error_ = cause;
-    updater_ = std::make_unique<diagnostic_updater::Updater>(getNodeHandle(), getPrivateNodeHandle());
+    updater_ =
+        std::make_unique<diagnostic_updater::Updater>(getNodeHandle(), getPrivateNodeHandle());
     updater_->setHardwareID("deformation_estimator");
     updater_->add("deformation_estimator", this, &DeformationEstimatorNodelet::Diagnose);
-    diag_timer_ = getNodeHandle().createWallTimer(ros::WallDuration(1.0),
-                                                  [this](const ros::WallTimerEvent&) { updater_->force_update(); });
+    diag_timer_ = getNodeHandle().createWallTimer(
+        ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_->force_update(); });
   }
 
   std::string TopicList() const {
@@ -157,6 +184,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     report_options_ = e.report;
     marker_options_ = e.markers;
     report_interval_ = e.report_interval;
+    order_timeout_ = e.order_timeout;
     report_on_alert_change_ = e.report_on_alert_change;
     plot_options_ = e.plot;
     thresholds_ = o->alerts.thresholds;
@@ -167,13 +195,14 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   void StartHook(const io::SiteFile& site) {
     site_name_ = site.name;
     if (!site.notification.hook.empty()) {
-      hook_ = std::make_unique<deformation::AlertHook>(site.notification, [](bool error, const std::string& m) {
-        if (error) {
-          ROS_ERROR("deformation_estimator: %s", m.c_str());
-        } else {
-          ROS_INFO("deformation_estimator: %s", m.c_str());
-        }
-      });
+      hook_ = std::make_unique<deformation::AlertHook>(
+          site.notification, [](bool error, const std::string& m) {
+            if (error) {
+              ROS_ERROR("deformation_estimator: %s", m.c_str());
+            } else {
+              ROS_INFO("deformation_estimator: %s", m.c_str());
+            }
+          });
     }
     NODELET_INFO("deformation_estimator: site '%s' (notification hook: %s)", site.name.c_str(),
                  site.notification.hook.empty() ? "none" : site.notification.hook.c_str());
@@ -182,14 +211,16 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   // Caller holds mutex_. With a history and a plot script the pictures
   // ("png") are drawn by scripts/plot_report (matplotlib, deformation/plot_report.h)
   // from the history file; without a history by report.h (OpenCV).
-  std::vector<std::string> WriteAllReports(const std::string& subfolder, std::vector<std::string> formats) {
+  std::vector<std::string> WriteAllReports(const std::string& subfolder,
+                                           std::vector<std::string> formats) {
     if (formats.empty()) formats = {"csv", "geojson", "geotiff", "gpkg", "png"};
     const auto png = std::find(formats.begin(), formats.end(), "png");
     const bool plot = png != formats.end() && history_ && !plot_options_.script.empty();
     if (plot) formats.erase(png);
     std::vector<std::string> files;
     if (!formats.empty())
-      files = deformation::WriteReports(*estimator_, report_dir_, subfolder, formats, report_options_);
+      files =
+          deformation::WriteReports(*estimator_, report_dir_, subfolder, formats, report_options_);
     if (plot) {
       const std::vector<std::string> pictures = deformation::RunPlotReport(
           plot_options_, database_, io::ResolveSubfolder(report_dir_, subfolder), thresholds_);
@@ -203,37 +234,81 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     if (!estimator_ || report_dir_.empty() || estimator_->GetSnapshot().points.empty()) return;
     try {
       const auto files = WriteAllReports("", report_formats_);
-      NODELET_INFO("deformation_estimator: wrote %zu report file(s) to %s %s", files.size(), report_dir_.c_str(), why);
+      NODELET_INFO("deformation_estimator: wrote %zu report file(s) to %s %s", files.size(),
+                   report_dir_.c_str(), why);
     } catch (const std::exception& e) {
       last_problem_ = e.what();
       NODELET_ERROR("deformation_estimator: reports %s failed: %s", why, e.what());
     }
   }
 
-  void OnDisplacements(const slope_monitor::PointDisplacementArray::ConstPtr& msg, const std::string& topic) {
+  // A message as it arrived, validated; `fuse` false when every entry was rejected.
+  struct Incoming {
+    slope_monitor::PointDisplacementArray valid;
+    bool fuse = true;
+  };
+
+  void OnDisplacements(const slope_monitor::PointDisplacementArray::ConstPtr& msg,
+                       const std::string& topic) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++messages_;
-    const slope_monitor::PointDisplacementArray valid = validator_.Filter(*msg, topic, ros::WallTime::now().toSec());
+    Incoming in;
+    in.valid = validator_.Filter(*msg, topic, ros::WallTime::now().toSec());
     for (const std::string& problem : validator_.last_problems()) {
       NODELET_WARN_THROTTLE(10.0, "deformation_estimator: rejected %s", problem.c_str());
       last_problem_ = problem;
     }
-    if (valid.displacements.empty() && !msg->displacements.empty()) return;
+    in.fuse = !(in.valid.displacements.empty() && !msg->displacements.empty());
+    if (!order_) {
+      Fuse(in, topic, true);
+      return;
+    }
+    // In stamp order across the inputs (core/common/input_order.h).
+    for (auto& r :
+         order_->Add(topic, msg->header.stamp.toSec(), std::move(in), ros::WallTime::now().toSec()))
+      Fuse(r.item, r.input, true);
+  }
+
+  // Live: a batch that waited order_timeout for a silent input is fused without it.
+  void OnOrderTimer() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::vector<std::string> given_up;
+    for (auto& r : order_->Expire(ros::WallTime::now().toSec(), order_timeout_, &given_up))
+      Fuse(r.item, r.input, true);
+    std::string names;
+    for (const std::string& t : given_up) names += (names.empty() ? "'" : ", '") + t + "'";
+    // Said when the inputs given up on change (a live camera graph gives up
+    // on the adjuster between its epochs, hours apart: once, not every time).
+    if (!names.empty() && names != given_up_names_)
+      NODELET_WARN(
+          "deformation_estimator: gave up waiting for %s (nothing newer for order_timeout %.0f s); "
+          "fused the other inputs' batches without it",
+          names.c_str(), order_timeout_);
+    if (!names.empty()) given_up_names_ = names;
+  }
+
+  // Caller holds mutex_.
+  void Fuse(const Incoming& in, const std::string& topic, bool publish) {
+    if (!in.fuse) return;
     try {
-      const deformation::BatchSummary s = estimator_->AddBatch(ros_adapters::FromMsg(valid, topic));
+      const deformation::BatchSummary s =
+          estimator_->AddBatch(ros_adapters::FromMsg(in.valid, topic));
       accepted_ += s.accepted;
       refused_ += s.refused;
       for (const std::string& m : s.messages) {
-        NODELET_WARN_THROTTLE(10.0, "deformation_estimator: topic '%s': %s", topic.c_str(), m.c_str());
+        NODELET_WARN_THROTTLE(10.0, "deformation_estimator: topic '%s': %s", topic.c_str(),
+                              m.c_str());
         last_problem_ = m;
       }
-      std_msgs::Header h = msg->header;
+      if (!publish) return;
+      std_msgs::Header h = in.valid.header;
       h.frame_id = frame_id_;
       Publish(estimator_->GetSnapshot(), h);
     } catch (const Error& e) {
       ++errors_;
       last_problem_ = e.what();
-      NODELET_ERROR_THROTTLE(5.0, "deformation_estimator: topic '%s': %s; message dropped", topic.c_str(), e.what());
+      NODELET_ERROR_THROTTLE(5.0, "deformation_estimator: topic '%s': %s; message dropped",
+                             topic.c_str(), e.what());
     }
   }
 
@@ -256,12 +331,14 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     num_points_ = s.points.size();
     if (report_on_alert_change_ && !changes.empty()) WriteReportsNow("on an alert-level change");
     deformation_pub_.publish(ros_adapters::ToMsg(s, h));
-    if (markers_pub_.getNumSubscribers() > 0) markers_pub_.publish(ros_adapters::ToMarkers(s, h, marker_options_));
+    if (markers_pub_.getNumSubscribers() > 0)
+      markers_pub_.publish(ros_adapters::ToMarkers(s, h, marker_options_));
     if (points_pub_.getNumSubscribers() > 0) points_pub_.publish(ros_adapters::ToCloud(s, h));
     alerts_pub_.publish(ros_adapters::ToAlerts(s, h));
   }
 
-  bool OnSetReference(slope_monitor::SetReferenceEpoch::Request& req, slope_monitor::SetReferenceEpoch::Response& res) {
+  bool OnSetReference(slope_monitor::SetReferenceEpoch::Request& req,
+                      slope_monitor::SetReferenceEpoch::Response& res) {
     std::lock_guard<std::mutex> lock(mutex_);
     try {
       res.reference_epoch = estimator_->SetReferenceEpoch(req.epoch, req.use_latest);
@@ -279,15 +356,18 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     return true;
   }
 
-  bool OnExport(slope_monitor::ExportReport::Request& req, slope_monitor::ExportReport::Response& res) {
+  bool OnExport(slope_monitor::ExportReport::Request& req,
+                slope_monitor::ExportReport::Response& res) {
     std::lock_guard<std::mutex> lock(mutex_);
     try {
       // output_dir names a subfolder of report_dir, never a path of its own.
       if (report_dir_.empty())
-        throw InvalidArgument("parameter 'report_dir' is empty: export_report writes only inside it");
+        throw InvalidArgument(
+            "parameter 'report_dir' is empty: export_report writes only inside it");
       res.files = WriteAllReports(req.output_dir, req.formats);
       res.success = true;
-      res.message = Message("wrote ", res.files.size(), " file(s) to ", report_dir_, "/", req.output_dir);
+      res.message =
+          Message("wrote ", res.files.size(), " file(s) to ", report_dir_, "/", req.output_dir);
     } catch (const std::exception& e) {
       res.success = false;
       res.files.clear();  // never present a partial set as complete
@@ -307,14 +387,16 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     if (errors_ > 0 && !last_problem_.empty()) {
       stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "dropped messages: " + last_problem_);
     } else {
-      stat.summary(diagnostic_msgs::DiagnosticStatus::OK,
-                   Message(num_points_, " points, slope alert ", deformation::AlertName(last_alert_)));
+      stat.summary(
+          diagnostic_msgs::DiagnosticStatus::OK,
+          Message(num_points_, " points, slope alert ", deformation::AlertName(last_alert_)));
     }
     stat.add("messages", messages_);
     stat.add("measurements accepted", accepted_);
     stat.add("measurements refused", refused_);
     stat.add("messages dropped", errors_);
-    for (const auto& [reason, count] : validator_.rejected()) stat.add("rejected: " + reason, count);
+    for (const auto& [reason, count] : validator_.rejected())
+      stat.add("rejected: " + reason, count);
     stat.add("database", database_.empty() ? "(none)" : database_);
     stat.add("last problem", last_problem_);
   }
@@ -323,11 +405,15 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   std::vector<std::string> input_topics_;
   std::string frame_id_, database_, report_dir_;
   bool report_on_shutdown_ = true;
-  double report_interval_ = 0.0;         // [s] live mode: reports on a wall timer; 0 = off
-  bool report_on_alert_change_ = false;  // live mode: reports at every alert-level change
-  std::string site_name_;                // from the site file ("" without one)
+  double report_interval_ = 0.0;                  // [s] live mode: reports on a wall timer; 0 = off
+  bool report_on_alert_change_ = false;           // live mode: reports at every alert-level change
+  std::string site_name_;                         // from the site file ("" without one)
   std::unique_ptr<deformation::AlertHook> hook_;  // the site's notification hook (none without one)
   ros::WallTimer report_timer_;
+  double order_timeout_ = 0.0;  // [s] wall, from the parameter order_timeout; 0 = arrival order
+  std::unique_ptr<InputOrder<Incoming>> order_;  // null with order_timeout 0
+  ros::WallTimer order_timer_;
+  std::string given_up_names_;                   // the inputs the order last gave up on
   deformation::PlotReportOptions plot_options_;  // script "" = OpenCV pictures
   deformation::Thresholds thresholds_;           // drawn in the plots
   bool enable_export_report_ = true, enable_set_reference_epoch_ = true;

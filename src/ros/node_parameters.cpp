@@ -285,6 +285,7 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
   e.markers.text_size = p.Double("marker_text_size", 0.8, 0.01, 100.0, "m");
   e.markers.point_size = p.Double("marker_point_size", 0.5, 0.01, 100.0, "m");
   e.report_interval = p.Double("report_interval", 0.0, 0.0, 30 * 86400.0, "s");
+  e.order_timeout = p.Double("order_timeout", 300.0, 0.0, 86400.0, "s");
   e.report_on_alert_change = p.Bool("report_on_alert_change", false);
   e.plot.script = p.String("plot_script", "");
   e.plot.dem = p.String("report_dem", "");

@@ -52,6 +52,7 @@
 #include "slope_monitor/EpochMarker.h"
 #include "slope_monitor/RadioSampleBlock.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/input_order.h"
 #include "slope_monitor/core/deformation/alert_log.h"
 #include "slope_monitor/core/deformation/history.h"
 #include "slope_monitor/core/deformation/report.h"
@@ -75,7 +76,8 @@ namespace slope_monitor {
 namespace {
 
 constexpr char kUsage[] =
-    "usage: process_bag --bag FILE [--bag FILE2 ...] [--site FILE] [--site-config FILE] [--target-list FILE]\n"
+    "usage: process_bag --bag FILE [--bag FILE2 ...] [--site FILE] [--site-config FILE] "
+    "[--target-list FILE]\n"
     "                   [--radio-network FILE] [--adjuster-config FILE] [--uav-tie-points]\n"
     "                   [--database FILE] [--report-dir DIR] [--output-bag FILE] [--no-dense]\n";
 
@@ -95,12 +97,14 @@ struct Args {
 // Throws InvalidArgument naming the flag.
 Args ParseArgs(int argc, char** argv) {
   Args a;
-  const std::map<std::string, std::string*> with_value = {
-      {"--site", &a.site},                   {"--site-config", &a.site_config},
-      {"--target-list", &a.target_list},
-      {"--radio-network", &a.radio_network}, {"--adjuster-config", &a.adjuster_config},
-      {"--database", &a.database},           {"--report-dir", &a.report_dir},
-      {"--output-bag", &a.output_bag}};
+  const std::map<std::string, std::string*> with_value = {{"--site", &a.site},
+                                                          {"--site-config", &a.site_config},
+                                                          {"--target-list", &a.target_list},
+                                                          {"--radio-network", &a.radio_network},
+                                                          {"--adjuster-config", &a.adjuster_config},
+                                                          {"--database", &a.database},
+                                                          {"--report-dir", &a.report_dir},
+                                                          {"--output-bag", &a.output_bag}};
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
     if (flag == "-h" || flag == "--help") {
@@ -292,6 +296,8 @@ class OfflineGraph {
   // live graph's time-out), then the reports are written.
   void Finish() {
     if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) Solve(*e);
+    // The inputs have ended: what waits for a later stamp of another input is fused.
+    for (auto& r : order_->Flush()) FuseNow(r.item, r.input);
     if (dense_) {
       dense_->Finish();
       char line[120];
@@ -393,6 +399,12 @@ class OfflineGraph {
     history_ = std::make_unique<deformation::History>(estimator_params_.database);
     estimator_ =
         std::make_unique<deformation::Estimator>(estimator_params_.options, history_.get());
+    // Fused in stamp order over the inputs that run (without a radio network
+    // the radio solver does not: nothing to wait for).
+    std::vector<std::string> ordered = {kAdjusterDisplacements};
+    if (assembler_) ordered.push_back(kRadioDisplacements);
+    if (targetless_) ordered.push_back(kTargetlessDisplacements);
+    order_ = std::make_unique<InputOrder<slope_monitor::PointDisplacementArray>>(ordered);
   }
 
   // The fixed_targetless cameras of --site (launch/include/processing_graph.xml
@@ -481,7 +493,8 @@ class OfflineGraph {
 
   void OnCameraInfo(const std::string& cam, const sensor_msgs::CameraInfo& info) {
     try {
-      models_[cam] = ros_adapters::CameraModelFromCameraInfo(info, adjuster_params_.PixelSizeOf(cam));
+      models_[cam] =
+          ros_adapters::CameraModelFromCameraInfo(info, adjuster_params_.PixelSizeOf(cam));
     } catch (const Error& e) {
       Log("bundle_adjuster: camera_info of '" + cam + "': " + e.what());
     }
@@ -588,8 +601,13 @@ class OfflineGraph {
     }
   }
 
-  // ---- the deformation estimator.
+  // ---- the deformation estimator: its inputs in one stamp order, as the
+  // nodelet fuses them (core/common/input_order.h); no time-out.
   void Fuse(const slope_monitor::PointDisplacementArray& msg, const std::string& topic) {
+    for (auto& r : order_->Add(topic, msg.header.stamp.toSec(), msg, 0.0)) FuseNow(r.item, r.input);
+  }
+
+  void FuseNow(const slope_monitor::PointDisplacementArray& msg, const std::string& topic) {
     const slope_monitor::PointDisplacementArray valid =
         estimator_validator_.Filter(msg, topic, 0.0);
     for (const std::string& problem : estimator_validator_.last_problems())
@@ -645,6 +663,7 @@ class OfflineGraph {
   ros_adapters::MessageValidator estimator_validator_;
   std::unique_ptr<deformation::History> history_;
   std::unique_ptr<deformation::Estimator> estimator_;
+  std::unique_ptr<InputOrder<slope_monitor::PointDisplacementArray>> order_;
   deformation::AlertChangeTracker alert_changes_;
   std::unique_ptr<ros_adapters::OfflineDense> dense_;  // dense_matcher
 };

@@ -5,9 +5,7 @@
 // the same reports and history byte for byte with both cores busy; and a
 // kill -9 in the middle followed by a second run on the same history giving
 // the numbers of an uninterrupted run, with nothing fused twice.
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sqlite3.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -27,77 +25,26 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
+#include "replay_test_util.h"
 #include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/SlopeDeformation.h"
 #include "slope_monitor/TargetObservationArray.h"
 #include "slope_monitor/core/evaluation/deformation_truth.h"
 #include "slope_monitor/core/sim/truth.h"
 
-extern char** environ;
-
 namespace slope_monitor {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string Survey(const std::string& name, const std::string& ext) {
-  return std::string(SM_ROSTEST_DATA_DIR) + "/" + name + "/" + name + ext;
-}
-
-std::string ReadFile(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using replay_test::DumpSqlite;
+using replay_test::ProcessBagArgs;
+using replay_test::ReadFile;
+using replay_test::Spawn;
+using replay_test::Survey;
+using replay_test::Wait;
 
 // A fresh directory for one run's outputs.
-fs::path Scratch(const std::string& name) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("process_bag_test_" + std::to_string(getpid())) / name;
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-// Starts a process with stdout and stderr to files in `dir`.
-pid_t Spawn(const std::vector<std::string>& argv, const fs::path& dir) {
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, (dir / "stdout").c_str(),
-                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_addopen(&actions, 2, (dir / "stderr").c_str(),
-                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  std::vector<char*> args;
-  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-  args.push_back(nullptr);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  return rc == 0 ? pid : -1;
-}
-
-int Wait(pid_t pid) {
-  int status = 0;
-  waitpid(pid, &status, 0);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-// process_bag on `name`'s survey, outputs in `dir` (history.db, reports/, out.bag).
-std::vector<std::string> ProcessBagArgs(const std::string& name, const fs::path& dir) {
-  std::vector<std::string> a = {SM_PROCESS_BAG,
-                                "--bag",
-                                Survey(name, ".bag"),
-                                "--database",
-                                (dir / "history.db").string(),
-                                "--report-dir",
-                                (dir / "reports").string()};
-  if (fs::exists(Survey(name, ".site.yaml"))) {
-    a.push_back("--site-config");
-    a.push_back(Survey(name, ".site.yaml"));
-  }
-  return a;
-}
+fs::path Scratch(const std::string& name) { return replay_test::Scratch("process_bag_test", name); }
 
 int RunProcessBag(const std::string& name, const fs::path& dir, bool output_bag = false) {
   std::vector<std::string> args = ProcessBagArgs(name, dir);
@@ -108,44 +55,6 @@ int RunProcessBag(const std::string& name, const fs::path& dir, bool output_bag 
   const int status = Wait(Spawn(args, dir));
   if (status != 0) std::cerr << ReadFile(dir / "stderr");
   return status;
-}
-
-// Every table of an SQLite file (history, GeoPackage) as text, rows in key
-// order. Wall-clock fields are left out: `excluded` names them as
-// "table.column" (a column) or "table:key" (the row whose first column is key).
-std::string DumpSqlite(const fs::path& db, const std::set<std::string>& excluded) {
-  sqlite3* h = nullptr;
-  EXPECT_EQ(sqlite3_open_v2(db.c_str(), &h, SQLITE_OPEN_READONLY, nullptr), SQLITE_OK) << db;
-  std::vector<std::string> tables;
-  sqlite3_exec(
-      h, "SELECT name FROM sqlite_master WHERE type='table' ORDER BY name",
-      [](void* out, int, char** v, char**) {
-        static_cast<std::vector<std::string>*>(out)->push_back(v[0]);
-        return 0;
-      },
-      &tables, nullptr);
-  std::string dump;
-  for (const std::string& t : tables) {
-    sqlite3_stmt* st = nullptr;
-    if (sqlite3_prepare_v2(h, ("SELECT * FROM \"" + t + "\" ORDER BY 1").c_str(), -1, &st,
-                           nullptr) != SQLITE_OK)
-      continue;  // virtual tables of a GeoPackage (rtree) without their module
-    dump += "table " + t + "\n";
-    while (sqlite3_step(st) == SQLITE_ROW) {
-      std::string row;
-      for (int c = 0; c < sqlite3_column_count(st); ++c) {
-        if (excluded.count(t + "." + sqlite3_column_name(st, c))) continue;
-        const void* blob = sqlite3_column_blob(st, c);
-        row += std::string(static_cast<const char*>(blob), sqlite3_column_bytes(st, c)) + "|";
-      }
-      const unsigned char* key = sqlite3_column_text(st, 0);
-      if (key && excluded.count(t + ":" + reinterpret_cast<const char*>(key))) continue;
-      dump += row + "\n";
-    }
-    sqlite3_finalize(st);
-  }
-  sqlite3_close(h);
-  return dump;
 }
 
 // (source, epoch, point) -> how many observations of it the history holds.
@@ -323,32 +232,9 @@ TEST(ProcessBag, SameResultsUnderCpuLoad) {
     CpuLoad load;
     ASSERT_EQ(RunProcessBag(name, loaded), 0);
   }
-  // Wall-clock fields, left out: the GeoPackage's gpkg_contents.last_change
-  // (GDAL writes the time of writing), the history's meta 'created' and
-  // batches.received.
-  const std::set<std::string> wall_clock = {"gpkg_contents.last_change", "meta:created",
-                                            "batches.received"};
-  std::vector<std::string> files;
-  for (const auto& f : fs::directory_iterator(quiet / "reports"))
-    files.push_back(f.path().filename().string());
-  ASSERT_GT(files.size(), 5u);
-  for (const std::string& f : files) {
-    ASSERT_TRUE(fs::exists(loaded / "reports" / f)) << f;
-    if (fs::path(f).extension() == ".gpkg") {
-      const std::string dump = DumpSqlite(quiet / "reports" / f, wall_clock);
-      EXPECT_GT(dump.size(), 1000u) << f;
-      EXPECT_TRUE(dump == DumpSqlite(loaded / "reports" / f, wall_clock))
-          << "report " << f << " differs";
-    } else {
-      EXPECT_TRUE(ReadFile(quiet / "reports" / f) == ReadFile(loaded / "reports" / f))
-          << "report " << f << " differs";
-    }
-  }
-  EXPECT_EQ(std::distance(fs::directory_iterator(loaded / "reports"), fs::directory_iterator()),
-            files.size());
-  const std::string dump = DumpSqlite(quiet / "history.db", wall_clock);
-  EXPECT_GT(dump.size(), 1000u);
-  EXPECT_TRUE(dump == DumpSqlite(loaded / "history.db", wall_clock)) << "the histories differ";
+  // Every report file and the history, less the wall-clock fields
+  // (replay_test::WallClockFields, doc/testing.md).
+  replay_test::ExpectSameResults(quiet, loaded, "idle vs loaded");
 }
 
 // ------------------------------------------------------------------ kill -9

@@ -67,6 +67,9 @@ struct EstimatorParameters {
   deformation::ReportOptions report;
   MarkerOptions markers;
   double report_interval = 0.0;  // [s] live: reports on a wall-clock timer; 0 = off
+  // [s] wall: how long a batch waits for the other inputs to pass its stamp
+  // (core/common/input_order.h) before it is fused without them; 0 = arrival order
+  double order_timeout = 0.0;  // (default: ReadEstimatorParameters)
   bool report_on_alert_change = false;
   deformation::PlotReportOptions plot;  // plot.script "" = the OpenCV pictures
   // The site file's contents when `site_file` is set (thresholds, aliases and

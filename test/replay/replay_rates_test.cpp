@@ -1,0 +1,143 @@
+// replay.launch, run as a user does (roslaunch, its own master), on one
+// small simulated survey (test/replay/replay_rates.sim.yaml: two fixed
+// cameras, five radio transmitters, three epochs in four minutes of bag
+// time) at two rates: the reports and the history are byte for byte the
+// same, and the same as process_bag's on that bag (the graph and the
+// offline processor are one product). Issue 16, "Determinism".
+#include <netinet/in.h>
+#include <signal.h>
+#include <sqlite3.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "replay_test_util.h"
+
+namespace slope_monitor {
+namespace {
+
+namespace fs = std::filesystem;
+using replay_test::ReadFile;
+using replay_test::Spawn;
+using replay_test::Survey;
+
+const char kSurvey[] = "replay_rates";
+
+// A TCP port no one listens on now (for the run's own ROS master).
+int FreePort() {
+  const int s = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = 0;
+  socklen_t len = sizeof(a);
+  const bool ok = bind(s, reinterpret_cast<sockaddr*>(&a), sizeof(a)) == 0 &&
+                  getsockname(s, reinterpret_cast<sockaddr*>(&a), &len) == 0;
+  close(s);
+  return ok ? ntohs(a.sin_port) : -1;
+}
+
+// Waits for `pid` at most `timeout`; a process still running then gets
+// SIGINT (roslaunch then stops its nodes), later SIGKILL. The exit status,
+// -1 when it did not exit by itself in time.
+int WaitAtMost(pid_t pid, std::chrono::seconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  int status = 0;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (waitpid(pid, &status, WNOHANG) == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  kill(pid, SIGINT);
+  std::this_thread::sleep_for(std::chrono::seconds(10));
+  if (waitpid(pid, &status, WNOHANG) != pid) {
+    kill(pid, SIGKILL);
+    waitpid(pid, &status, 0);
+  }
+  return -1;
+}
+
+// `roslaunch slope_monitor replay.launch` on the survey at `rate`, with the
+// launch file's defaults but for the survey's cameras (no UAV flight, so no
+// dense surface either) and the outputs in `dir` (history.db, reports/).
+// Its own master on a free port and its own log folder, so that it meets
+// no other test's graph.
+int RunReplayLaunch(const fs::path& dir, int rate) {
+  const int port = FreePort();
+  EXPECT_GT(port, 0);
+  std::vector<std::string> args = {"roslaunch",
+                                   "-p",
+                                   std::to_string(port),
+                                   "slope_monitor",
+                                   "replay.launch",
+                                   "bag:=" + Survey(kSurvey, ".bag"),
+                                   "rate:=" + std::to_string(rate),
+                                   "uav:=false",
+                                   "dense:=false",
+                                   "database:=" + (dir / "history.db").string(),
+                                   "report_dir:=" + (dir / "reports").string()};
+  if (fs::exists(Survey(kSurvey, ".site.yaml")))
+    args.push_back("site_config:=" + Survey(kSurvey, ".site.yaml"));
+  const std::vector<std::string> env = {"ROS_MASTER_URI=http://127.0.0.1:" + std::to_string(port),
+                                        "ROS_LOG_DIR=" + (dir / "log").string(),
+                                        "ROS_HOME=" + (dir / "ros_home").string()};
+  const auto start = std::chrono::steady_clock::now();
+  const int status = WaitAtMost(Spawn(args, dir, env), std::chrono::seconds(180));
+  std::cout << "replay.launch rate " << rate << ": exit " << status << " after "
+            << std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()
+            << " s\n";
+  if (status != 0) std::cerr << ReadFile(dir / "stdout") << ReadFile(dir / "stderr");
+  return status;
+}
+
+// Observations in the history per source (1 target, 3 radio).
+std::map<int, int> ObservationsBySource(const fs::path& db) {
+  sqlite3* h = nullptr;
+  EXPECT_EQ(sqlite3_open_v2(db.c_str(), &h, SQLITE_OPEN_READONLY, nullptr), SQLITE_OK) << db;
+  std::map<int, int> n;
+  sqlite3_exec(
+      h, "SELECT source, COUNT(*) FROM observations GROUP BY source",
+      [](void* out, int, char** v, char**) {
+        (*static_cast<std::map<int, int>*>(out))[std::stoi(v[0])] = std::stoi(v[1]);
+        return 0;
+      },
+      &n, nullptr);
+  sqlite3_close(h);
+  return n;
+}
+
+TEST(ReplayLaunch, TwoRatesGiveTheReportsOfProcessBag) {
+  const fs::path offline = replay_test::Scratch("replay_rates_test", "process_bag");
+  ASSERT_EQ(replay_test::Wait(Spawn(replay_test::ProcessBagArgs(kSurvey, offline), offline)), 0)
+      << ReadFile(offline / "stderr");
+  // Both sources measured: targets in the two epochs after the reference,
+  // radio in every block after the first.
+  const std::map<int, int> sources = ObservationsBySource(offline / "history.db");
+  EXPECT_GT(sources.count(1) ? sources.at(1) : 0, 0) << "no target observation";
+  EXPECT_GT(sources.count(3) ? sources.at(3) : 0, 0) << "no radio observation";
+
+  const fs::path fast = replay_test::Scratch("replay_rates_test", "rate_200");
+  ASSERT_EQ(RunReplayLaunch(fast, 200), 0);
+  const fs::path slow = replay_test::Scratch("replay_rates_test", "rate_20");
+  ASSERT_EQ(RunReplayLaunch(slow, 20), 0);
+
+  replay_test::ExpectSameResults(slow, fast, "replay.launch rate 20 vs rate 200");
+  // The pictures are drawn by another renderer: replay.launch gives the
+  // estimator scripts/plot_report (matplotlib, from the history), process_bag
+  // draws them with OpenCV. Every other report and the history: byte for byte.
+  replay_test::ExpectSameResults(offline, slow, "process_bag vs replay.launch rate 20", {".png"});
+  EXPECT_EQ(ObservationsBySource(offline / "history.db"),
+            ObservationsBySource(fast / "history.db"));
+}
+
+}  // namespace
+}  // namespace slope_monitor

@@ -1,0 +1,180 @@
+// Helpers of the replay tests (process_bag_test.cpp, replay_rates_test.cpp):
+// the surveys rendered at build time, starting a program as a user does
+// (stdout and stderr to files), and the byte-for-byte comparison of two
+// runs' reports and histories.
+#pragma once
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sqlite3.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+extern char** environ;
+
+namespace slope_monitor {
+namespace replay_test {
+
+namespace fs = std::filesystem;
+
+// A survey rendered at build time: rostest_data/<name>/<name><ext>.
+inline std::string Survey(const std::string& name, const std::string& ext) {
+  return std::string(SM_ROSTEST_DATA_DIR) + "/" + name + "/" + name + ext;
+}
+
+inline std::string ReadFile(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// A fresh directory <tmp>/<prefix>_<pid>/<name> for one run's outputs.
+inline fs::path Scratch(const std::string& prefix, const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / (prefix + "_" + std::to_string(getpid())) / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// Starts argv[0] (a path, or a name looked up in PATH) with stdout and
+// stderr to files in `dir`; `env` entries ("KEY=value") are added to the
+// environment. Returns the process id, -1 if it could not start.
+inline pid_t Spawn(const std::vector<std::string>& argv, const fs::path& dir,
+                   const std::vector<std::string>& env = {}) {
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, (dir / "stdout").c_str(),
+                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&actions, 2, (dir / "stderr").c_str(),
+                                   O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  std::vector<std::string> env_strings(env);
+  for (char** e = environ; *e; ++e) env_strings.push_back(*e);  // the first of a key wins
+  std::vector<char*> envp;
+  for (const std::string& e : env_strings) envp.push_back(const_cast<char*>(e.c_str()));
+  envp.push_back(nullptr);
+  pid_t pid = -1;
+  const int rc = posix_spawnp(&pid, args[0], &actions, nullptr, args.data(), envp.data());
+  posix_spawn_file_actions_destroy(&actions);
+  return rc == 0 ? pid : -1;
+}
+
+// Exit status, -1 if the process did not exit normally (killed).
+inline int Wait(pid_t pid) {
+  int status = 0;
+  if (pid <= 0 || waitpid(pid, &status, 0) != pid) return -1;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// process_bag on `name`'s survey, outputs in `dir` (history.db, reports/).
+inline std::vector<std::string> ProcessBagArgs(const std::string& name, const fs::path& dir) {
+  std::vector<std::string> a = {SM_PROCESS_BAG,
+                                "--bag",
+                                Survey(name, ".bag"),
+                                "--database",
+                                (dir / "history.db").string(),
+                                "--report-dir",
+                                (dir / "reports").string()};
+  if (fs::exists(Survey(name, ".site.yaml"))) {
+    a.push_back("--site-config");
+    a.push_back(Survey(name, ".site.yaml"));
+  }
+  return a;
+}
+
+// The wall-clock fields of the reports and the history (doc/testing.md), the
+// only ones left out of the byte comparison: the GeoPackage's
+// gpkg_contents.last_change (GDAL writes the time of writing), the history's
+// meta 'created' and batches.received.
+inline const std::set<std::string>& WallClockFields() {
+  static const std::set<std::string> fields = {"gpkg_contents.last_change", "meta:created",
+                                               "batches.received"};
+  return fields;
+}
+
+// Every table of an SQLite file (history, GeoPackage) as text, rows in key
+// order. Wall-clock fields are left out: `excluded` names them as
+// "table.column" (a column) or "table:key" (the row whose first column is key).
+inline std::string DumpSqlite(const fs::path& db, const std::set<std::string>& excluded) {
+  sqlite3* h = nullptr;
+  EXPECT_EQ(sqlite3_open_v2(db.c_str(), &h, SQLITE_OPEN_READONLY, nullptr), SQLITE_OK) << db;
+  std::vector<std::string> tables;
+  sqlite3_exec(
+      h, "SELECT name FROM sqlite_master WHERE type='table' ORDER BY name",
+      [](void* out, int, char** v, char**) {
+        static_cast<std::vector<std::string>*>(out)->push_back(v[0]);
+        return 0;
+      },
+      &tables, nullptr);
+  std::string dump;
+  for (const std::string& t : tables) {
+    sqlite3_stmt* st = nullptr;
+    if (sqlite3_prepare_v2(h, ("SELECT * FROM \"" + t + "\" ORDER BY 1").c_str(), -1, &st,
+                           nullptr) != SQLITE_OK)
+      continue;  // virtual tables of a GeoPackage (rtree) without their module
+    dump += "table " + t + "\n";
+    while (sqlite3_step(st) == SQLITE_ROW) {
+      std::string row;
+      for (int c = 0; c < sqlite3_column_count(st); ++c) {
+        if (excluded.count(t + "." + sqlite3_column_name(st, c))) continue;
+        const void* blob = sqlite3_column_blob(st, c);
+        row += std::string(static_cast<const char*>(blob), sqlite3_column_bytes(st, c)) + "|";
+      }
+      const unsigned char* key = sqlite3_column_text(st, 0);
+      if (key && excluded.count(t + ":" + reinterpret_cast<const char*>(key))) continue;
+      dump += row + "\n";
+    }
+    sqlite3_finalize(st);
+  }
+  sqlite3_close(h);
+  return dump;
+}
+
+// Two runs' outputs (`a` and `b`, each with history.db and reports/): every
+// report file byte for byte (a GeoPackage as its SQL dump), the same set of
+// files, and the history dump, less the wall-clock fields. Report files
+// whose extension is in `skip` are left out of both. `what` names the pair
+// in the failure messages.
+inline void ExpectSameResults(const fs::path& a, const fs::path& b, const std::string& what,
+                              const std::set<std::string>& skip = {}) {
+  const auto list = [&skip](const fs::path& dir) {
+    std::set<std::string> files;
+    for (const auto& f : fs::directory_iterator(dir))
+      if (!skip.count(f.path().extension().string())) files.insert(f.path().filename().string());
+    return files;
+  };
+  const std::set<std::string> files = list(a / "reports");
+  EXPECT_GE(files.size(), 4u) << what << ": reports in " << a / "reports";
+  EXPECT_EQ(files, list(b / "reports")) << what << ": another set of report files";
+  for (const std::string& f : files) {
+    if (!fs::exists(b / "reports" / f)) continue;
+    if (fs::path(f).extension() == ".gpkg") {
+      const std::string dump = DumpSqlite(a / "reports" / f, WallClockFields());
+      EXPECT_GT(dump.size(), 1000u) << f;
+      EXPECT_TRUE(dump == DumpSqlite(b / "reports" / f, WallClockFields()))
+          << what << ": report " << f << " differs";
+    } else {
+      EXPECT_TRUE(ReadFile(a / "reports" / f) == ReadFile(b / "reports" / f))
+          << what << ": report " << f << " differs";
+    }
+  }
+  const std::string dump = DumpSqlite(a / "history.db", WallClockFields());
+  EXPECT_GT(dump.size(), 1000u);
+  EXPECT_TRUE(dump == DumpSqlite(b / "history.db", WallClockFields()))
+      << what << ": the histories differ";
+}
+
+}  // namespace replay_test
+}  // namespace slope_monitor
