@@ -190,19 +190,24 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
   std::string error;
   try {
     const auto start = std::chrono::steady_clock::now();
+    // One camera's photos of a flight have one size (one camera model in the
+    // adjustment): another size is a wrong image.
+    if (!history_.empty() && !next.image.empty() && history_.front().size != next.image.size())
+      throw InvalidArgument(
+          Message("the image and the epoch's images differ in size: ", next.image.cols, " x ",
+                  next.image.rows, ", not ", history_.front().size.width, " x ",
+                  history_.front().size.height));
     if (options_.method == SequencePairMethod::kPhoto) {
       b.features = std::make_shared<PhotoFeatures>(next.image, ImageName(b.stamp_ns, b.frame_id),
                                                    options_.photo);
       b.bytes = b.features->MemoryBytes();
     } else {
       b.image = GreyCopy(next.image);
-      if (!history_.empty() && (history_.front().image.size() != b.image.size() ||
-                                history_.front().image.type() != b.image.type()))
-        throw InvalidArgument(Message(
-            "size ", b.image.cols, " x ", b.image.rows, " or type differs from the epoch's (",
-            history_.front().image.cols, " x ", history_.front().image.rows, ")"));
+      if (!history_.empty() && history_.front().image.type() != b.image.type())
+        throw InvalidArgument("the image and the epoch's images differ in depth");
       b.bytes = b.image.total() * b.image.elemSize();
     }
+    b.size = next.image.size();
     summary_.feature_seconds += Seconds(start);
   } catch (const std::exception& e) {
     error = ImageName(b.stamp_ns, b.frame_id) + ": " + e.what();

@@ -219,14 +219,24 @@ TEST(SequenceMatcher, BadImageIsNamedAndNeverAPartner) {
   }
 }
 
-TEST(SequenceMatcher, HexMethodNamesAnImageOfAnotherSize) {
-  SequenceMatcher m(Options(SequencePairMethod::kGlobalShiftHex));
-  m.SetPriorsExpected(false);
-  m.AddImage(1 * kSecond, "cam", Photo(0));
-  const SequenceStep s = m.AddImage(2 * kSecond, "cam", Photo(1)(cv::Rect(0, 0, 200, 100)).clone());
-  ASSERT_EQ(s.pairs.size(), 1u);
-  EXPECT_EQ(s.pairs[0].reason, "error");
-  EXPECT_NE(s.pairs[0].message.find("size 200 x 100"), std::string::npos) << s.pairs[0].message;
+// One camera's photos of a flight share one camera model: another size is named.
+TEST(SequenceMatcher, ImageOfAnotherSizeIsNamed) {
+  for (const SequencePairMethod method :
+       {SequencePairMethod::kPhoto, SequencePairMethod::kGlobalShiftHex}) {
+    SCOPED_TRACE(SequencePairMethodName(method));
+    SequenceMatcher m(Options(method));
+    m.SetPriorsExpected(false);
+    m.AddImage(1 * kSecond, "cam", Photo(0));
+    const SequenceStep s =
+        m.AddImage(2 * kSecond, "cam", Photo(1)(cv::Rect(0, 0, 200, 100)).clone());
+    ASSERT_EQ(s.pairs.size(), 1u);
+    EXPECT_EQ(s.pairs[0].reason, "error");
+    EXPECT_NE(s.pairs[0].message.find(
+                  "image at 2.000 (frame 'cam'): the image and the epoch's images differ in "
+                  "size: 200 x 100, not 320 x 240"),
+              std::string::npos)
+        << s.pairs[0].message;
+  }
 }
 
 TEST(SequenceMatcher, PhotosNoLaterImageCanPairWithAreReleased) {

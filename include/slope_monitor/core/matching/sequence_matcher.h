@@ -149,7 +149,7 @@ class SequenceMatcher {
 
   void SetPriorsExpected(bool expected) { priors_expected_ = expected; }
   // image: 8 or 16 bit, 1, 3 or 4 channels (BGR). A bad image (empty,
-  // unsupported, another size than the epoch's for kGlobalShiftHex) gives its
+  // unsupported, another size than the epoch's images) gives its
   // pairs reason "error" with a message naming it; it is never a partner.
   // now: the caller's clock [s] (Poll's time-out only).
   SequenceStep AddImage(std::int64_t stamp_ns, const std::string& frame_id, const cv::Mat& image,
@@ -176,6 +176,7 @@ class SequenceMatcher {
     cv::Mat image;                            // kGlobalShiftHex: grey
     std::shared_ptr<PhotoFeatures> features;  // kPhoto
     std::size_t bytes = 0;
+    cv::Size size;
   };
 
   bool FrontReady() const;
