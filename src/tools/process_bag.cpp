@@ -73,8 +73,7 @@ namespace slope_monitor {
 namespace {
 
 constexpr char kUsage[] =
-    "usage: process_bag --bag FILE [--bag FILE2 ...] [--site FILE] [--site-config FILE] "
-    "[--target-list FILE]\n"
+    "usage: process_bag --bag FILE [--bag FILE2 ...] [--site FILE] [--site-config FILE] [--target-list FILE]\n"
     "                   [--radio-network FILE] [--adjuster-config FILE] [--uav-tie-points]\n"
     "                   [--database FILE] [--report-dir DIR] [--output-bag FILE]\n";
 
@@ -95,14 +94,12 @@ struct Args {
 // Throws InvalidArgument naming the flag.
 Args ParseArgs(int argc, char** argv) {
   Args a;
-  const std::map<std::string, std::string*> with_value = {{"--site", &a.site},
-                                                          {"--site-config", &a.site_config},
-                                                          {"--target-list", &a.target_list},
-                                                          {"--radio-network", &a.radio_network},
-                                                          {"--adjuster-config", &a.adjuster_config},
-                                                          {"--database", &a.database},
-                                                          {"--report-dir", &a.report_dir},
-                                                          {"--output-bag", &a.output_bag}};
+  const std::map<std::string, std::string*> with_value = {
+      {"--site", &a.site},                   {"--site-config", &a.site_config},
+      {"--target-list", &a.target_list},
+      {"--radio-network", &a.radio_network}, {"--adjuster-config", &a.adjuster_config},
+      {"--database", &a.database},           {"--report-dir", &a.report_dir},
+      {"--output-bag", &a.output_bag}};
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
     if (flag == "-h" || flag == "--help") {
