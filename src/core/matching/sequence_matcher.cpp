@@ -89,7 +89,9 @@ SequenceMatcher::SequenceMatcher(const SequenceMatcherOptions& options)
 
 SequenceStep SequenceMatcher::AddImage(std::int64_t stamp_ns, const std::string& frame_id,
                                        const cv::Mat& image, double now) {
-  pending_.push_back({stamp_ns, frame_id, image, now});
+  // A copy that owns its pixels: the image may wait for its prior, and the
+  // caller's (e.g. a view of a ROS message) may not outlive this call.
+  pending_.push_back({stamp_ns, frame_id, image.clone(), now});
   SequenceStep step;
   Drain(&step);
   return step;

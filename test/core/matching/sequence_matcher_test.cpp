@@ -157,6 +157,21 @@ TEST(SequenceMatcher, ImageWaitsForItsPriorThatComesAfterIt) {
   EXPECT_FALSE(s2.pairs[0].has_a);
 }
 
+// An image waiting for its prior is the matcher's copy: the caller's buffer
+// (e.g. a ROS message's pixels) may be gone or reused by then.
+TEST(SequenceMatcher, WaitingImageIsCopied) {
+  SequenceMatcher m(Options(SequencePairMethod::kGlobalShiftHex));
+  m.AddPrior(1 * kSecond, Eigen::Vector2d(0, 0));
+  m.AddImage(1 * kSecond, "cam", Photo(0));
+  cv::Mat buffer = Photo(1);
+  EXPECT_TRUE(m.AddImage(2 * kSecond, "cam", buffer).pairs.empty());
+  buffer.setTo(0);
+  const SequenceStep s = m.AddPrior(2 * kSecond, Eigen::Vector2d(0, 5));
+  ASSERT_EQ(s.pairs.size(), 1u);
+  EXPECT_EQ(s.pairs[0].reason, "") << s.pairs[0].message;
+  EXPECT_GT(s.pairs[0].points.size(), 50u) << s.pairs[0].message;
+}
+
 TEST(SequenceMatcher, MissingPriorIsGivenUpWhenThePriorsMovePastIt) {
   SequenceMatcher m(Options(SequencePairMethod::kGlobalShiftHex));
   m.AddPrior(1 * kSecond, Eigen::Vector2d(0, 0));

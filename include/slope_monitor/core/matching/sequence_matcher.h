@@ -158,6 +158,7 @@ class SequenceMatcher {
   // image: 8 or 16 bit, 1, 3 or 4 channels (BGR). A bad image (empty,
   // unsupported, another size than the epoch's images) gives its
   // pairs reason "error" with a message naming it; it is never a partner.
+  // The image is copied (the caller's may be a view of a message).
   // now: the caller's clock [s] (Poll's time-out only).
   SequenceStep AddImage(std::int64_t stamp_ns, const std::string& frame_id, const cv::Mat& image,
                         double now = 0.0);
