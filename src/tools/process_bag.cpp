@@ -62,10 +62,12 @@
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/epoch_solver.h"
+#include "slope_monitor/ros/hex_matcher_parameters.h"
 #include "slope_monitor/ros/node_parameters.h"
 #include "slope_monitor/ros/offline_dense.h"
 #include "slope_monitor/ros/param_files.h"
 #include "slope_monitor/ros/radio_conversions.h"
+#include "slope_monitor/ros/sequence_conversions.h"
 #include "slope_monitor/ros/target_conversions.h"
 #include "slope_monitor/ros/targetless_camera.h"
 #include "slope_monitor/ros/validation.h"
@@ -85,6 +87,9 @@ constexpr char kUsage[] =
 constexpr char kAdjusterDisplacements[] = "/bundle_adjuster/displacements";
 constexpr char kRadioDisplacements[] = "/radio/radio_displacements";
 constexpr char kTargetlessDisplacements[] = "/targetless_camera/displacements";
+constexpr char kUavImage[] = "/uav/camera/image_raw";
+constexpr char kUavPrior[] = "/uav/camera/position_prior";
+constexpr char kUavTiePoints[] = "/uav/tie_points";
 
 struct Args {
   std::vector<std::string> bags;
@@ -132,13 +137,6 @@ Args ParseArgs(int argc, char** argv) {
   if (a.bags.empty()) throw InvalidArgument("--bag FILE is required");
   for (const std::string& bag : a.bags)
     if (!fs::is_regular_file(bag)) throw InvalidArgument("bag '" + bag + "' not found");
-  // The hex matcher's sequence logic (pairing, prior association) still
-  // lives in hex_matcher_nodelet.cpp, not in the core: until it moves to
-  // matching::SequenceMatcher, tie points need replay.launch uav_tie_points:=true.
-  if (a.uav_tie_points)
-    throw InvalidArgument(
-        "--uav-tie-points is not available yet: the UAV sequence matcher is not in the core; use "
-        "roslaunch slope_monitor replay.launch uav_tie_points:=true");
   // The defaults of replay.launch.
   const std::string stem = a.bags.front().substr(0, a.bags.front().size() - 4);
   if (a.target_list.empty()) a.target_list = stem + ".targets.yaml";
@@ -211,6 +209,12 @@ std::vector<std::string> CamerasOf(rosbag::View& view) {
   return {names.begin(), names.end()};
 }
 
+bool HasTopic(rosbag::View& view, const std::string& topic) {
+  for (const rosbag::ConnectionInfo* c : view.getConnections())
+    if (c->topic == topic) return true;
+  return false;
+}
+
 // ------------------------------------------------------------ parameters
 
 std::string ConfigDir() {
@@ -270,6 +274,7 @@ class OfflineGraph {
       if (const auto tf = m.instantiate<tf2_msgs::TFMessage>()) OnTf(*tf, topic == "/tf_static");
     } else if (OnTargetlessMessage(m)) {
     } else if (const auto image = m.instantiate<sensor_msgs::Image>()) {
+      if (sequence_ && topic == kUavImage) OnUavImage(image);
       if (Centroider* c = CameraOf(topic, "/camera/image_raw")) {
         c->images[image->header.stamp] = image;
         if (dense_) dense_->OnImage(c->camera, *image, now_.toSec());
@@ -285,8 +290,10 @@ class OfflineGraph {
     } else if (const auto marker = m.instantiate<slope_monitor::EpochMarker>()) {
       if (marker->end) OnEpochEnd(*marker);
     } else if (const auto prior = m.instantiate<geometry_msgs::PoseWithCovarianceStamped>()) {
-      if (topic == "/uav/camera/position_prior")
+      if (topic == kUavPrior) {
         collector_->AddPrior(ros_adapters::FromMsg(*prior));
+        if (sequence_) OnUavPrior(*prior);
+      }
     } else if (const auto block = m.instantiate<slope_monitor::RadioSampleBlock>()) {
       OnRadioBlock(*block, topic);
     }
@@ -295,6 +302,7 @@ class OfflineGraph {
   // End of the bags: an epoch still open is solved with what it has (the
   // live graph's time-out), then the reports are written.
   void Finish() {
+    if (sequence_) OnSequenceStep(sequence_->Finish());
     if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) Solve(*e);
     // The inputs have ended: what waits for a later stamp of another input is fused.
     for (auto& r : order_->Flush()) FuseNow(r.item, r.input);
@@ -316,6 +324,20 @@ class OfflineGraph {
                                   estimator_params_.report_formats, estimator_params_.report);
     Log("wrote " + std::to_string(files.size()) + " report file(s) to " +
         estimator_params_.report_dir);
+  }
+
+  // --uav-tie-points: the hex matcher of the graph (mode sequence, camera
+  // uav) on /uav/camera/image_raw and position_prior; its tie points go to
+  // the collector as /uav/tie_points. priors_in_bag: the bag has priors (an
+  // image waits for its own); else every image is matched when it comes.
+  void SetUpUavTiePoints(bool priors_in_bag) {
+    XmlRpc::XmlRpcValue p = NodeParams("hex_matcher");
+    ros_adapters::SetParam(&p, "mode", std::string("sequence"));
+    ros_adapters::SetParam(&p, "camera", std::string("uav"));
+    ros_adapters::ParamReader r(p, "/uav/hex_matcher");
+    hex_params_ = ros_adapters::ReadHexMatcherParameters(r);
+    sequence_ = std::make_unique<matching::SequenceMatcher>(hex_params_.sequence);
+    sequence_->SetPriorsExpected(priors_in_bag);
   }
 
   int epochs_solved() const { return adjuster_accepted_ + radio_epochs_; }
@@ -570,6 +592,40 @@ class OfflineGraph {
     }
   }
 
+  // ---- the hex matcher (mode sequence).
+  void OnUavImage(const sensor_msgs::Image::ConstPtr& image) {
+    cv::Mat grey;
+    try {
+      grey = ros_adapters::ImageForMatching(image);
+    } catch (const std::exception& e) {
+      Log(std::string("hex_matcher: image on ") + kUavImage + " not converted: " + e.what());
+    }
+    OnSequenceStep(sequence_->AddImage(ros_adapters::ToStamp(image->header.stamp),
+                                       image->header.frame_id, grey));
+  }
+
+  void OnUavPrior(const geometry_msgs::PoseWithCovarianceStamped& prior) {
+    if (!prior.header.frame_id.empty() && prior.header.frame_id != hex_params_.site_frame) {
+      Log("hex_matcher: position_prior in frame '" + prior.header.frame_id + "', expected '" +
+          hex_params_.site_frame + "' (site_frame); ignored");
+      return;
+    }
+    OnSequenceStep(sequence_->AddPrior(
+        ros_adapters::ToStamp(prior.header.stamp),
+        Eigen::Vector2d(prior.pose.pose.position.x, prior.pose.pose.position.y)));
+  }
+
+  void OnSequenceStep(const matching::SequenceStep& step) {
+    for (const std::string& line : step.log) Log("hex_matcher: " + line);
+    for (const matching::SequencePair& pair : step.pairs) {
+      if (!pair.reason.empty())
+        Log("hex_matcher: sequence " + pair.message + " (empty tie points)");
+      const slope_monitor::TiePointArray msg = ros_adapters::ToMsg(pair, hex_params_.camera);
+      Write(kUavTiePoints, msg);
+      Solve(collector_->AddTies(ros_adapters::FromMsg(msg), now_.toSec()));
+    }
+  }
+
   // ---- the bundle adjuster's epochs.
   void Solve(const std::vector<adjustment::CollectedEpoch>& epochs) {
     for (const adjustment::CollectedEpoch& e : epochs) Solve(e);
@@ -652,6 +708,9 @@ class OfflineGraph {
   std::map<std::string, camera::CameraModel> models_;
   size_t reported_ignored_ = 0;
   int adjuster_accepted_ = 0;
+  // hex_matcher (mode sequence; --uav-tie-points)
+  ros_adapters::HexMatcherParameters hex_params_;
+  std::unique_ptr<matching::SequenceMatcher> sequence_;
   // radio_phase_solver
   ros_adapters::RadioParameters radio_params_;
   std::unique_ptr<radio::RadioPhaseSolver> radio_solver_;
@@ -744,6 +803,7 @@ int Run(const Args& args) {
   OfflineGraph graph(args, cameras, output.get(), [&progress](const std::string& line) {
     progress.Print("process_bag: " + line);
   });
+  if (args.uav_tie_points) graph.SetUpUavTiePoints(HasTopic(view, kUavPrior));
   for (const rosbag::MessageInstance& m : view) {
     graph.OnMessage(m);
     progress.Update(m.getTime(), graph.epochs_solved());

@@ -1,0 +1,37 @@
+// The hex_matcher node's parameters, read once into typed options: used by
+// the nodelet (parameter server) and by process_bag --uav-tie-points (the
+// same config/defaults/hex_matcher.yaml), so both match with the same
+// settings. Keys, units and ranges: config/defaults/hex_matcher.yaml; the
+// defaults of the reader are the options' in-class values (one place).
+// Throws ConfigError naming the key (CheckNoUnknownKeys is called).
+#pragma once
+
+#include <string>
+
+#include "slope_monitor/core/matching/hex_matcher.h"
+#include "slope_monitor/core/matching/sequence_matcher.h"
+#include "slope_monitor/ros/parameters.h"
+
+namespace slope_monitor {
+namespace ros_adapters {
+
+struct HexMatcherParameters {
+  std::string mode = "pair";  // pair | track | sequence
+  // Pair mode: largest stamp difference of a and b [s]; camera names written
+  // into the messages.
+  double max_pair_dt = 0.5;
+  std::string camera_a = "cam_a", camera_b = "cam_b";
+  matching::HexMatcherOptions hex;  // pair and track modes
+  matching::MatchPrior prior;       // pair and track modes
+  // Sequence mode.
+  std::string camera = "uav";       // written into camera_a and camera_b
+  std::string site_frame = "site";  // frame of position_prior (others ignored)
+  int image_queue = 200;            // subscriber queues (a fast replay must lose none)
+  matching::SequenceMatcherOptions sequence;
+};
+
+// `p` reads the node's private namespace.
+HexMatcherParameters ReadHexMatcherParameters(ParamReader& p);
+
+}  // namespace ros_adapters
+}  // namespace slope_monitor

@@ -1,0 +1,29 @@
+// The UAV sequence matcher (core/matching/sequence_matcher.h) at the ROS
+// boundary, shared by the hex_matcher nodelet (mode sequence) and process_bag
+// --uav-tie-points: images in, TiePointArray messages out.
+#pragma once
+
+#include <string>
+
+#include <sensor_msgs/Image.h>
+#include <opencv2/core.hpp>
+
+#include "slope_monitor/TiePointArray.h"
+#include "slope_monitor/core/matching/sequence_matcher.h"
+
+namespace slope_monitor {
+namespace ros_adapters {
+
+// The image as the matchers take it: one channel kept (shared with the
+// message), colour converted to mono8. Throws cv_bridge's exception for an
+// encoding it cannot convert.
+cv::Mat ImageForMatching(const sensor_msgs::ImageConstPtr& msg);
+
+// One pair as the graph publishes it on tie_points: header of image b,
+// header_a of image a (none when image b has no partner: camera_a ""),
+// camera_a/_b `camera`, epochs, pairs_b, points (id, pixels, covariance
+// row-major, correlation, quality, METHOD_LSC).
+slope_monitor::TiePointArray ToMsg(const matching::SequencePair& pair, const std::string& camera);
+
+}  // namespace ros_adapters
+}  // namespace slope_monitor

@@ -1,0 +1,48 @@
+#include "slope_monitor/ros/sequence_conversions.h"
+
+#include <cv_bridge/cv_bridge.h>
+#include <sensor_msgs/image_encodings.h>
+
+#include "slope_monitor/ros/adjustment_conversions.h"
+
+namespace slope_monitor {
+namespace ros_adapters {
+
+cv::Mat ImageForMatching(const sensor_msgs::ImageConstPtr& msg) {
+  if (sensor_msgs::image_encodings::numChannels(msg->encoding) == 1)
+    return cv_bridge::toCvShare(msg)->image;
+  return cv_bridge::toCvShare(msg, sensor_msgs::image_encodings::MONO8)->image;
+}
+
+slope_monitor::TiePointArray ToMsg(const matching::SequencePair& pair, const std::string& camera) {
+  slope_monitor::TiePointArray out;
+  out.header.stamp = ToRosTime(pair.stamp_b);
+  out.header.frame_id = pair.frame_b;
+  if (pair.has_a) {
+    out.header_a.stamp = ToRosTime(pair.stamp_a);
+    out.header_a.frame_id = pair.frame_a;
+    out.camera_a = camera;
+    out.epoch_a = pair.epoch;
+  }
+  out.camera_b = camera;
+  out.epoch_b = pair.epoch;
+  out.pairs_b = pair.pairs_b;
+  out.points.reserve(pair.points.size());
+  for (const matching::SequenceTie& t : pair.points) {
+    slope_monitor::TiePoint p;
+    p.id = t.id;
+    p.xa = t.xa.x();
+    p.ya = t.xa.y();
+    p.xb = t.xb.x();
+    p.yb = t.xb.y();
+    p.covariance = {t.covariance(0, 0), t.covariance(0, 1), t.covariance(1, 0), t.covariance(1, 1)};
+    p.correlation = t.correlation;
+    p.quality = t.quality;
+    p.method = slope_monitor::TiePoint::METHOD_LSC;
+    out.points.push_back(p);
+  }
+  return out;
+}
+
+}  // namespace ros_adapters
+}  // namespace slope_monitor
