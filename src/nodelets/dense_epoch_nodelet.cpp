@@ -10,7 +10,9 @@
 // worker thread of its own measures the epoch, so neither the bundle
 // adjuster nor the estimator waits for it. Outputs: a latched PointCloud2
 // `surface_cloud` in `site` per epoch (fields x y z rgb sigma_z change lod)
-// and, with report_dir, surface_eNN.tif and change_eNN.tif there. The first
+// and, with report_dir, surface_eNN.tif and change_eNN.tif there; per later
+// epoch the polygons of significant change (ChangeAreaArray `change_areas`,
+// latched) for the deformation estimator. The first
 // epoch measured is the reference; its grid is the grid of later epochs.
 // A failing step is named (log, diagnostics) and the epoch's other outputs
 // are kept: a DoD that fails still leaves the cloud and surface_eNN.tif.
@@ -33,9 +35,11 @@
 
 #include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/dense/change_polygons.h"
 #include "slope_monitor/core/dense/dem_change.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
 #include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/ros/change_area_conversions.h"
 #include "slope_monitor/ros/dense_conversions.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
@@ -67,6 +71,7 @@ class DenseEpochNodelet : public nodelet::Nodelet {
       return;
     }
     cloud_pub_ = nh.advertise<sensor_msgs::PointCloud2>("surface_cloud", 1, true);
+    areas_pub_ = nh.advertise<slope_monitor::ChangeAreaArray>("change_areas", 2, true);
     for (const std::string& c : cameras_) {
       subs_.push_back(nh.subscribe<sensor_msgs::Image>(
           "/" + c + "/camera/image_raw", 4,
@@ -204,6 +209,7 @@ class DenseEpochNodelet : public nodelet::Nodelet {
     std::unique_ptr<dense::DemChangeResult> change;
     if (!reference_) {
       reference_ = std::make_unique<io::GeoRaster>(surface.dem);
+      reference_epoch_ = epoch;
     } else {
       try {
         std::vector<uint8_t> mask;
@@ -225,10 +231,27 @@ class DenseEpochNodelet : public nodelet::Nodelet {
       }
     }
     cloud_pub_.publish(ros_adapters::MakeSurfaceCloud(surface, change.get(), job.header));
+    if (change) PublishAreas(change->change, epoch, job.header);
     std::lock_guard<std::mutex> lock(state_mutex_);
     ++epochs_;
     last_summary_ = surface.summary.BriefReport();
     last_change_ = change ? change->summary.BriefReport() : "";
+  }
+
+  // The polygons of significant change (core/dense/change_polygons.h) to the
+  // deformation estimator, as an area measurement (source surface).
+  void PublishAreas(const io::GeoRaster& dod, int epoch, const std_msgs::Header& header) {
+    try {
+      const std::vector<dense::ChangePolygon> polygons =
+          dense::ChangePolygons(dod, dense::ChangePolygonOptions());
+      NODELET_INFO("dense_matcher: epoch %d: %zu area(s) of significant change", epoch,
+                   polygons.size());
+      areas_pub_.publish(ros_adapters::ToChangeAreaMsg(polygons, static_cast<uint32_t>(epoch),
+                                                       static_cast<uint32_t>(reference_epoch_),
+                                                       header));
+    } catch (const std::exception& e) {
+      Fail(Message("epoch ", epoch, " change polygons (the DoD is kept): ", e.what()));
+    }
   }
 
   void Fail(const std::string& what) {
@@ -260,7 +283,7 @@ class DenseEpochNodelet : public nodelet::Nodelet {
   int max_cached_images_ = 0;
   std::string frame_id_;
   std::string report_dir_;
-  ros::Publisher cloud_pub_;
+  ros::Publisher cloud_pub_, areas_pub_;
   std::vector<ros::Subscriber> subs_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diag_timer_;
@@ -273,6 +296,7 @@ class DenseEpochNodelet : public nodelet::Nodelet {
   bool stop_ = false;
   std::thread worker_;
   std::unique_ptr<io::GeoRaster> reference_;  // worker thread only
+  int reference_epoch_ = 0;                   // worker thread only
   std::mutex state_mutex_;                    // counters and reports
   int epochs_ = 0, failures_ = 0;
   std::string last_summary_, last_change_, last_error_;

@@ -50,8 +50,10 @@
 #include "slope_monitor/EpochMarker.h"
 #include "slope_monitor/RadioSampleBlock.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/deformation/alert_hook.h"
 #include "slope_monitor/core/deformation/alert_log.h"
 #include "slope_monitor/core/deformation/history.h"
+#include "slope_monitor/core/deformation/plot_report.h"
 #include "slope_monitor/core/deformation/report.h"
 #include "slope_monitor/core/evaluation/deformation_truth.h"
 #include "slope_monitor/core/targets/options_reader.h"
@@ -280,11 +282,7 @@ class OfflineGraph {
       Log("no point was ever measured: no reports written to " + estimator_params_.report_dir);
       return;
     }
-    const auto files =
-        deformation::WriteReports(*estimator_, estimator_params_.report_dir, "",
-                                  estimator_params_.report_formats, estimator_params_.report);
-    Log("wrote " + std::to_string(files.size()) + " report file(s) to " +
-        estimator_params_.report_dir);
+    WriteReportFiles();
   }
 
   int epochs_solved() const { return adjuster_accepted_ + radio_epochs_; }
@@ -362,11 +360,36 @@ class OfflineGraph {
     ros_adapters::SetParam(&p, "report_dir", args_.report_dir);
     ros_adapters::SetParam(&p, "input_topics",
                            StringList({kAdjusterDisplacements, kRadioDisplacements}));
+    // As deformation_estimator.launch: the pictures by scripts/plot_report.
+    ros_adapters::SetParam(&p, "plot_script", fs::path(ConfigDir()).parent_path().string() +
+                                                  "/scripts/plot_report");
     ros_adapters::ParamReader r(p, "/deformation_estimator/deformation_estimator");
     estimator_params_ = ros_adapters::ReadEstimatorParameters(r);
     history_ = std::make_unique<deformation::History>(estimator_params_.database);
     estimator_ =
         std::make_unique<deformation::Estimator>(estimator_params_.options, history_.get());
+    StartHook();
+  }
+
+  // The site file's notification hook (the estimator nodelet's: deformation/alert_hook.h).
+  void StartHook() {
+    if (!estimator_params_.site || estimator_params_.site->notification.hook.empty()) return;
+    hook_ = std::make_unique<deformation::AlertHook>(
+        estimator_params_.site->notification,
+        // From the hook's worker thread: straight to stderr, not through the progress line.
+        [](bool, const std::string& m) { std::cerr << "deformation_estimator: " << m << std::endl; });
+  }
+
+  // The reports at the end of the input, written as the estimator nodelet
+  // writes them (deformation::WriteAllReports); the hook's queue is drained first.
+  void WriteReportFiles() {
+    if (hook_) hook_->Flush();
+    const auto files = deformation::WriteAllReports(
+        *estimator_, estimator_params_.database, estimator_params_.plot,
+        estimator_params_.report_dir, "", estimator_params_.report_formats,
+        estimator_params_.report);
+    Log("wrote " + std::to_string(files.size()) + " report file(s) to " +
+        estimator_params_.report_dir);
   }
 
   // ---- inputs.
@@ -507,8 +530,11 @@ class OfflineGraph {
       return;
     }
     const deformation::Snapshot s = estimator_->GetSnapshot();
-    for (const deformation::AlertChange& c : alert_changes_.Update(s))
-      Log("deformation_estimator: " + c.text);
+    deformation::AnnounceAlertChanges(
+        s, estimator_params_.site ? estimator_params_.site->name : "", &alert_changes_, hook_.get(),
+        [this](deformation::LogLevel, const std::string& text) {
+          Log("deformation_estimator: " + text);
+        });
     std_msgs::Header h = msg.header;
     h.frame_id = estimator_params_.frame_id;
     Write("/deformation_estimator/deformation", ros_adapters::ToMsg(s, h));
@@ -548,6 +574,7 @@ class OfflineGraph {
   std::unique_ptr<deformation::History> history_;
   std::unique_ptr<deformation::Estimator> estimator_;
   deformation::AlertChangeTracker alert_changes_;
+  std::unique_ptr<deformation::AlertHook> hook_;  // the site's notification hook, if any
 };
 
 // ---------------------------------------------------------------- progress

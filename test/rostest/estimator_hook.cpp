@@ -14,6 +14,7 @@
 #include "slope_monitor/SlopeDeformation.h"
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "test_node.h"
+#include "../core/deformation/hook_json.h"
 
 namespace slope_monitor {
 namespace {
@@ -25,22 +26,8 @@ using rostest_node::WaitFor;
 constexpr double kMmPerDay = 1e-3 / kDay;
 const char* kLevels[] = {"none", "watch", "warning", "alarm"};
 
-std::vector<std::string> Lines(const std::string& path) {
-  std::ifstream in(path);
-  std::vector<std::string> lines;
-  for (std::string l; std::getline(in, l);)
-    if (!l.empty()) lines.push_back(l);
-  return lines;
-}
-
-std::string Field(const std::string& json, const std::string& key) {
-  const std::string k = "\"" + key + "\": ";
-  const size_t a = json.find(k);
-  if (a == std::string::npos) return "<absent>";
-  const size_t b = a + k.size();
-  if (json[b] == '"') return json.substr(b + 1, json.find('"', b + 1) - b - 1);
-  return json.substr(b, json.find_first_of(",}", b) - b);
-}
+using hook_json::Field;
+using hook_json::Lines;
 
 struct Change {
   std::string point, from, to;
