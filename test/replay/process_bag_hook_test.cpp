@@ -13,7 +13,6 @@
 #include <gtest/gtest.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
-#include <Eigen/Core>
 
 #include "../core/deformation/hook_json.h"
 #include "process_bag_run.h"
@@ -26,33 +25,13 @@ using namespace process_bag_run;  // NOLINT: the test helpers
 using hook_json::Field;
 using hook_json::Lines;
 
-const char* kLevels[] = {"none", "watch", "warning", "alarm"};
-constexpr double kMmPerDay = 1e-3 / 86400.0;
-
-struct Change {
-  std::string point, from, to;
-  double speed_mm_per_day;
-};
-
-std::vector<Change> ChangesInOutputBag(const fs::path& bag_path) {
+std::vector<hook_json::LevelChange> ChangesInOutputBag(const fs::path& bag_path) {
   rosbag::Bag bag(bag_path.string(), rosbag::bagmode::Read);
-  std::map<std::string, uint8_t> level;
-  std::vector<Change> changes;
+  hook_json::LevelChanges changes;
   for (const rosbag::MessageInstance& m :
-       rosbag::View(bag, rosbag::TopicQuery("/deformation_estimator/deformation"))) {
-    const auto d = m.instantiate<slope_monitor::SlopeDeformation>();
-    if (!d) continue;
-    for (const auto& p : d->points) {
-      const uint8_t from = level.count(p.point_id) ? level[p.point_id] : 0;
-      if (p.alert_level != from) {
-        const Eigen::Vector3d v(p.velocity.x, p.velocity.y, p.velocity.z);
-        changes.push_back(
-            {p.point_id, kLevels[from], kLevels[p.alert_level], v.norm() / kMmPerDay});
-      }
-      level[p.point_id] = p.alert_level;
-    }
-  }
-  return changes;
+       rosbag::View(bag, rosbag::TopicQuery("/deformation_estimator/deformation")))
+    if (const auto d = m.instantiate<slope_monitor::SlopeDeformation>()) changes.Add(*d);
+  return changes.changes();
 }
 
 TEST(ProcessBagHook, OneHookRunPerLevelChangeWithItsJson) {
@@ -67,7 +46,7 @@ TEST(ProcessBagHook, OneHookRunPerLevelChangeWithItsJson) {
   const int status = Wait(Spawn(args, dir));
   ASSERT_EQ(status, 0) << ReadFile(dir / "stderr");
 
-  const std::vector<Change> expected = ChangesInOutputBag(dir / "out.bag");
+  const std::vector<hook_json::LevelChange> expected = ChangesInOutputBag(dir / "out.bag");
   ASSERT_GE(expected.size(), 2u) << "the survey raised no alerts: nothing to check";
   const std::vector<std::string> got = Lines(hook_out.string());
   ASSERT_EQ(got.size(), expected.size()) << ReadFile(dir / "stderr");
@@ -81,7 +60,7 @@ TEST(ProcessBagHook, OneHookRunPerLevelChangeWithItsJson) {
   }
   // Each change is also on stderr, as the node logs it.
   const std::string err = ReadFile(dir / "stderr");
-  for (const Change& c : expected)
+  for (const hook_json::LevelChange& c : expected)
     EXPECT_NE(err.find("point " + c.point + ": alert " + c.from + " -> " + c.to), std::string::npos)
         << c.point;
 }

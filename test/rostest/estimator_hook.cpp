@@ -24,15 +24,10 @@ using deformation::testing::kT0;
 using rostest_node::Param;
 using rostest_node::WaitFor;
 constexpr double kMmPerDay = 1e-3 / kDay;
-const char* kLevels[] = {"none", "watch", "warning", "alarm"};
 
 using hook_json::Field;
 using hook_json::Lines;
 
-struct Change {
-  std::string point, from, to;
-  double speed_mm_per_day;
-};
 
 TEST(EstimatorHook, OneRunPerPublishedLevelChange) {
   ros::NodeHandle nh, pnh("~");
@@ -42,22 +37,13 @@ TEST(EstimatorHook, OneRunPerPublishedLevelChange) {
 
   // What the estimator publishes: each point's level, message by message.
   std::mutex mutex;
-  std::map<std::string, uint8_t> level;
-  std::vector<Change> changes;
+  hook_json::LevelChanges changes;
   double last_stamp = 0.0;
   ros::Subscriber sub = nh.subscribe<slope_monitor::SlopeDeformation>(
       "/deformation_estimator/deformation", 5000,
       [&](const slope_monitor::SlopeDeformation::ConstPtr& m) {
         std::lock_guard<std::mutex> lock(mutex);
-        for (const auto& p : m->points) {
-          const uint8_t from = level.count(p.point_id) ? level[p.point_id] : 0;
-          if (p.alert_level != from) {
-            const Eigen::Vector3d v(p.velocity.x, p.velocity.y, p.velocity.z);
-            changes.push_back(
-                {p.point_id, kLevels[from], kLevels[p.alert_level], v.norm() / kMmPerDay});
-          }
-          level[p.point_id] = p.alert_level;
-        }
+        changes.Add(*m);
         last_stamp = m->header.stamp.toSec();
       });
   ros::Publisher pub = nh.advertise<slope_monitor::PointDisplacementArray>(
@@ -99,10 +85,10 @@ TEST(EstimatorHook, OneRunPerPublishedLevelChange) {
         timeout))
         << "the estimator did not publish the batch at " << b.stamp;
   }
-  std::vector<Change> expected;
+  std::vector<hook_json::LevelChange> expected;
   {
     std::lock_guard<std::mutex> lock(mutex);
-    expected = changes;
+    expected = changes.changes();
   }
   // The body accelerates to 144 mm/day: its points raise alerts (with the
   // node's defaults measured: body2 and body3 none -> watch -> warning in the
