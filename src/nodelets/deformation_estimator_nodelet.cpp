@@ -110,7 +110,9 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     }
     for (const std::string& topic : area_topics_) {
       const boost::function<void(const slope_monitor::ChangeAreaArray::ConstPtr&)> callback =
-          [this, topic](const slope_monitor::ChangeAreaArray::ConstPtr& msg) { OnAreas(*msg, topic); };
+          [this, topic](const slope_monitor::ChangeAreaArray::ConstPtr& msg) {
+            OnAreas(*msg, topic);
+          };
       subscribers_.push_back(nh.subscribe<slope_monitor::ChangeAreaArray>(topic, 8, callback));
     }
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
@@ -186,9 +188,10 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   }
 
   // Caller holds mutex_. The pictures: deformation/plot_report.h.
-  std::vector<std::string> WriteAllReports(const std::string& subfolder, const std::vector<std::string>& formats) {
-    return deformation::WriteAllReports(*estimator_, history_ ? database_ : "", plot_options_, report_dir_, subfolder,
-                                        formats, report_options_);
+  std::vector<std::string> WriteAllReports(const std::string& subfolder,
+                                           const std::vector<std::string>& formats) {
+    return deformation::WriteAllReports(*estimator_, history_ ? database_ : "", plot_options_,
+                                        report_dir_, subfolder, formats, report_options_);
   }
 
   // Caller holds mutex_.
@@ -230,8 +233,10 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     ++messages_;
     Update(topic, msg.header, [&] {
       if (estimator_->AddAreas(ros_adapters::AreaBatchFromMsg(msg, topic))) return true;
-      NODELET_WARN("deformation_estimator: topic '%s': areas of epoch %u are not newer than the last; ignored",
-                   topic.c_str(), msg.epoch);
+      NODELET_WARN(
+          "deformation_estimator: topic '%s': areas of epoch %u are not newer than the last; "
+          "ignored",
+          topic.c_str(), msg.epoch);
       return false;
     });
   }
@@ -255,7 +260,8 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
 
   void Publish(const deformation::Snapshot& s, const std_msgs::Header& h) {
     const std::vector<deformation::AlertChange> changes = deformation::AnnounceAlertChanges(
-        s, site_name_, &alert_changes_, hook_.get(), [this](deformation::LogLevel level, const std::string& text) {
+        s, site_name_, &alert_changes_, hook_.get(),
+        [this](deformation::LogLevel level, const std::string& text) {
           if (level == deformation::LogLevel::kError) {
             NODELET_ERROR("deformation_estimator: %s", text.c_str());
           } else if (level == deformation::LogLevel::kWarn) {

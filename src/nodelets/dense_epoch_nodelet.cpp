@@ -246,9 +246,8 @@ class DenseEpochNodelet : public nodelet::Nodelet {
           dense::ChangePolygons(dod, dense::ChangePolygonOptions());
       NODELET_INFO("dense_matcher: epoch %d: %zu area(s) of significant change", epoch,
                    polygons.size());
-      areas_pub_.publish(ros_adapters::ToChangeAreaMsg(polygons, static_cast<uint32_t>(epoch),
-                                                       static_cast<uint32_t>(reference_epoch_),
-                                                       header));
+      areas_pub_.publish(ros_adapters::ToChangeAreaMsg(
+          polygons, static_cast<uint32_t>(epoch), static_cast<uint32_t>(reference_epoch_), header));
     } catch (const std::exception& e) {
       Fail(Message("epoch ", epoch, " change polygons (the DoD is kept): ", e.what()));
     }

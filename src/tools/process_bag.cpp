@@ -361,8 +361,8 @@ class OfflineGraph {
     ros_adapters::SetParam(&p, "input_topics",
                            StringList({kAdjusterDisplacements, kRadioDisplacements}));
     // As deformation_estimator.launch: the pictures by scripts/plot_report.
-    ros_adapters::SetParam(&p, "plot_script", fs::path(ConfigDir()).parent_path().string() +
-                                                  "/scripts/plot_report");
+    ros_adapters::SetParam(&p, "plot_script",
+                           fs::path(ConfigDir()).parent_path().string() + "/scripts/plot_report");
     ros_adapters::ParamReader r(p, "/deformation_estimator/deformation_estimator");
     estimator_params_ = ros_adapters::ReadEstimatorParameters(r);
     history_ = std::make_unique<deformation::History>(estimator_params_.database);
@@ -377,17 +377,19 @@ class OfflineGraph {
     hook_ = std::make_unique<deformation::AlertHook>(
         estimator_params_.site->notification,
         // From the hook's worker thread: straight to stderr, not through the progress line.
-        [](bool, const std::string& m) { std::cerr << "deformation_estimator: " << m << std::endl; });
+        [](bool, const std::string& m) {
+          std::cerr << "deformation_estimator: " << m << std::endl;
+        });
   }
 
   // The reports at the end of the input, written as the estimator nodelet
   // writes them (deformation::WriteAllReports); the hook's queue is drained first.
   void WriteReportFiles() {
     if (hook_) hook_->Flush();
-    const auto files = deformation::WriteAllReports(
-        *estimator_, estimator_params_.database, estimator_params_.plot,
-        estimator_params_.report_dir, "", estimator_params_.report_formats,
-        estimator_params_.report);
+    const auto files =
+        deformation::WriteAllReports(*estimator_, estimator_params_.database,
+                                     estimator_params_.plot, estimator_params_.report_dir, "",
+                                     estimator_params_.report_formats, estimator_params_.report);
     Log("wrote " + std::to_string(files.size()) + " report file(s) to " +
         estimator_params_.report_dir);
   }
@@ -530,11 +532,11 @@ class OfflineGraph {
       return;
     }
     const deformation::Snapshot s = estimator_->GetSnapshot();
-    deformation::AnnounceAlertChanges(
-        s, estimator_params_.site ? estimator_params_.site->name : "", &alert_changes_, hook_.get(),
-        [this](deformation::LogLevel, const std::string& text) {
-          Log("deformation_estimator: " + text);
-        });
+    deformation::AnnounceAlertChanges(s, estimator_params_.site ? estimator_params_.site->name : "",
+                                      &alert_changes_, hook_.get(),
+                                      [this](deformation::LogLevel, const std::string& text) {
+                                        Log("deformation_estimator: " + text);
+                                      });
     std_msgs::Header h = msg.header;
     h.frame_id = estimator_params_.frame_id;
     Write("/deformation_estimator/deformation", ros_adapters::ToMsg(s, h));

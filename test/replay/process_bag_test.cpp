@@ -27,12 +27,12 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
+#include "process_bag_run.h"
 #include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/SlopeDeformation.h"
 #include "slope_monitor/TargetObservationArray.h"
 #include "slope_monitor/core/evaluation/deformation_truth.h"
 #include "slope_monitor/core/sim/truth.h"
-#include "process_bag_run.h"
 
 namespace slope_monitor {
 namespace {

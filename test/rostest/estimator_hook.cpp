@@ -9,12 +9,12 @@
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 
+#include "../core/deformation/hook_json.h"
 #include "../core/deformation/test_scenario.h"
 #include "slope_monitor/PointDisplacementArray.h"
 #include "slope_monitor/SlopeDeformation.h"
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "test_node.h"
-#include "../core/deformation/hook_json.h"
 
 namespace slope_monitor {
 namespace {
@@ -27,7 +27,6 @@ constexpr double kMmPerDay = 1e-3 / kDay;
 
 using hook_json::Field;
 using hook_json::Lines;
-
 
 TEST(EstimatorHook, OneRunPerPublishedLevelChange) {
   ros::NodeHandle nh, pnh("~");

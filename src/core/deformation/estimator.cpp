@@ -517,8 +517,9 @@ uint32_t Estimator::SetReferenceEpoch(uint32_t epoch, bool use_latest) {
 
 bool Estimator::AddAreas(const AreaBatch& batch) {
   if (has_areas_ && batch.epoch <= last_area_epoch_) return false;  // old, or re-delivered
-  areas_ = AssessAreas(areas_, has_areas_ ? std::optional<uint32_t>(last_area_epoch_) : std::nullopt,
-                       batch, options_.areas);
+  areas_ =
+      AssessAreas(areas_, has_areas_ ? std::optional<uint32_t>(last_area_epoch_) : std::nullopt,
+                  batch, options_.areas);
   has_areas_ = true;
   last_area_epoch_ = batch.epoch;
   return true;

@@ -12,9 +12,9 @@
 
 #include <gtest/gtest.h>
 
+#include "hook_json.h"
 #include "slope_monitor/core/common/error.h"
 #include "test_scenario.h"
-#include "hook_json.h"
 
 namespace slope_monitor {
 namespace deformation {

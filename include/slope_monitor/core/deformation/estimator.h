@@ -85,11 +85,11 @@ struct Batch {
 // One area of significant surface change (change_areas.h): a polygon of a
 // DoD's significant cells (source `surface`).
 struct ChangeArea {
-  int sign = 0;              // +1 gain (fill), -1 loss (cut)
-  double area = 0.0;         // [m^2]
-  double volume = 0.0;       // [m^3] signed
-  double mean_change = 0.0;  // [m]
-  double max_change = 0.0;   // [m] signed
+  int sign = 0;                                     // +1 gain (fill), -1 loss (cut)
+  double area = 0.0;                                // [m^2]
+  double volume = 0.0;                              // [m^3] signed
+  double mean_change = 0.0;                         // [m]
+  double max_change = 0.0;                          // [m] signed
   std::vector<Eigen::Vector2d> outline;             // site x, y, closed implicitly
   std::vector<std::vector<Eigen::Vector2d>> holes;  // interior rings
 };
@@ -242,8 +242,9 @@ class Estimator {
   // Areas of significant surface change of one epoch (source `surface`):
   // replaces the previous area epoch's, their growth against it sets the
   // areas' alert (change_areas.h). An epoch not newer than the latest area
-  // epoch (late, or re-delivered by a latched topic) is refused (returns false). Throws InvalidArgument naming a bad polygon.
-  // Not kept in the history: a restarted estimator starts a new baseline.
+  // epoch (late, or re-delivered by a latched topic) is refused (returns false). Throws
+  // InvalidArgument naming a bad polygon. Not kept in the history: a restarted estimator starts a
+  // new baseline.
   bool AddAreas(const AreaBatch& batch);
 
   // Re-bases displacements on epoch `epoch` (which must have been seen), or
