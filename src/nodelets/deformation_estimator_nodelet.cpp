@@ -33,6 +33,7 @@
 #include "slope_monitor/core/deformation/report.h"
 #include "slope_monitor/core/io/safe_file.h"
 #include "slope_monitor/core/io/site_file.h"
+#include "slope_monitor/ros/change_area_conversions.h"
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/node_parameters.h"
 #include "slope_monitor/ros/parameters.h"
@@ -126,6 +127,13 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
       subscribers_.push_back(
           nh.subscribe<slope_monitor::PointDisplacementArray>(topic, 64, callback));
     }
+    for (const std::string& topic : area_topics_) {
+      const boost::function<void(const slope_monitor::ChangeAreaArray::ConstPtr&)> callback =
+          [this, topic](const slope_monitor::ChangeAreaArray::ConstPtr& msg) {
+            OnAreas(*msg, topic);
+          };
+      subscribers_.push_back(nh.subscribe<slope_monitor::ChangeAreaArray>(topic, 8, callback));
+    }
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     updater_->setHardwareID("deformation_estimator");
     updater_->add("deformation_estimator", this, &DeformationEstimatorNodelet::Diagnose);
@@ -174,6 +182,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     ros_adapters::EstimatorParameters e = ros_adapters::ReadEstimatorParameters(p);
     *o = e.options;
     input_topics_ = e.input_topics;
+    area_topics_ = e.area_topics;
     frame_id_ = e.frame_id;
     database_ = e.database;
     report_dir_ = e.report_dir;
@@ -208,25 +217,11 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
                  site.notification.hook.empty() ? "none" : site.notification.hook.c_str());
   }
 
-  // Caller holds mutex_. With a history and a plot script the pictures
-  // ("png") are drawn by scripts/plot_report (matplotlib, deformation/plot_report.h)
-  // from the history file; without a history by report.h (OpenCV).
+  // Caller holds mutex_. The pictures: deformation/plot_report.h.
   std::vector<std::string> WriteAllReports(const std::string& subfolder,
-                                           std::vector<std::string> formats) {
-    if (formats.empty()) formats = {"csv", "geojson", "geotiff", "gpkg", "png"};
-    const auto png = std::find(formats.begin(), formats.end(), "png");
-    const bool plot = png != formats.end() && history_ && !plot_options_.script.empty();
-    if (plot) formats.erase(png);
-    std::vector<std::string> files;
-    if (!formats.empty())
-      files =
-          deformation::WriteReports(*estimator_, report_dir_, subfolder, formats, report_options_);
-    if (plot) {
-      const std::vector<std::string> pictures = deformation::RunPlotReport(
-          plot_options_, database_, io::ResolveSubfolder(report_dir_, subfolder), thresholds_);
-      files.insert(files.end(), pictures.begin(), pictures.end());
-    }
-    return files;
+                                           const std::vector<std::string>& formats) {
+    return deformation::WriteAllReports(*estimator_, history_ ? database_ : "", plot_options_,
+                                        report_dir_, subfolder, formats, report_options_);
   }
 
   // Caller holds mutex_.
@@ -312,27 +307,43 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     }
   }
 
-  void Publish(const deformation::Snapshot& s, const std_msgs::Header& h) {
-    const std::vector<deformation::AlertChange> changes = alert_changes_.Update(s);
-    for (const deformation::AlertChange& c : changes) {
-      if (hook_) {
-        for (const deformation::PointState& p : s.points)
-          if (p.id == c.point_id) hook_->Notify(deformation::AlertJson(site_name_, p, c));
+  // Areas of significant surface change of one epoch (source surface).
+  void OnAreas(const slope_monitor::ChangeAreaArray& msg, const std::string& topic) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++messages_;
+    try {
+      if (!estimator_->AddAreas(ros_adapters::AreaBatchFromMsg(msg, topic))) {
+        NODELET_WARN("deformation_estimator: topic '%s': areas of epoch %u are not newer than the last; ignored",
+                     topic.c_str(), msg.epoch);
+        return;
       }
-      if (c.to == deformation::AlertLevel::kAlarm) {
-        NODELET_ERROR("deformation_estimator: %s", c.text.c_str());
-      } else if (c.to == deformation::AlertLevel::kNone) {
-        NODELET_INFO("deformation_estimator: %s", c.text.c_str());
-      } else {
-        NODELET_WARN("deformation_estimator: %s", c.text.c_str());
-      }
+      std_msgs::Header h = msg.header;
+      h.frame_id = frame_id_;
+      Publish(estimator_->GetSnapshot(), h);
+    } catch (const Error& e) {
+      ++errors_;
+      last_problem_ = e.what();
+      NODELET_ERROR_THROTTLE(5.0, "deformation_estimator: topic '%s': %s; message dropped", topic.c_str(), e.what());
     }
+  }
+
+  void Publish(const deformation::Snapshot& s, const std_msgs::Header& h) {
+    const std::vector<deformation::AlertChange> changes = deformation::AnnounceAlertChanges(
+        s, site_name_, &alert_changes_, hook_.get(),
+        [this](deformation::LogLevel level, const std::string& text) {
+          if (level == deformation::LogLevel::kError) {
+            NODELET_ERROR("deformation_estimator: %s", text.c_str());
+          } else if (level == deformation::LogLevel::kWarn) {
+            NODELET_WARN("deformation_estimator: %s", text.c_str());
+          } else {
+            NODELET_INFO("deformation_estimator: %s", text.c_str());
+          }
+        });
     last_alert_ = s.alert;
     num_points_ = s.points.size();
     if (report_on_alert_change_ && !changes.empty()) WriteReportsNow("on an alert-level change");
     deformation_pub_.publish(ros_adapters::ToMsg(s, h));
-    if (markers_pub_.getNumSubscribers() > 0)
-      markers_pub_.publish(ros_adapters::ToMarkers(s, h, marker_options_));
+    if (markers_pub_.getNumSubscribers() > 0) markers_pub_.publish(ros_adapters::ToMarkers(s, h, marker_options_));
     if (points_pub_.getNumSubscribers() > 0) points_pub_.publish(ros_adapters::ToCloud(s, h));
     alerts_pub_.publish(ros_adapters::ToAlerts(s, h));
   }
@@ -403,6 +414,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
 
   std::mutex mutex_;
   std::vector<std::string> input_topics_;
+  std::vector<std::string> area_topics_;  // ChangeAreaArray topics (dense step)
   std::string frame_id_, database_, report_dir_;
   bool report_on_shutdown_ = true;
   double report_interval_ = 0.0;                  // [s] live mode: reports on a wall timer; 0 = off

@@ -11,7 +11,9 @@
 // own measures the complete epochs, so neither the bundle adjuster nor the
 // estimator waits for it. Outputs: a latched PointCloud2 `surface_cloud` in
 // `site` per epoch (fields x y z rgb sigma_z change lod) and, with
-// report_dir, surface_eNN.tif and change_eNN.tif there. A failing step is
+// report_dir, surface_eNN.tif and change_eNN.tif there; per later epoch the
+// polygons of significant change (ChangeAreaArray `change_areas`, latched)
+// for the deformation estimator. A failing step is
 // named (log, diagnostics) and the epoch's other outputs are kept.
 #include <atomic>
 #include <condition_variable>
@@ -56,6 +58,7 @@ class DenseEpochNodelet : public nodelet::Nodelet {
       return;
     }
     cloud_pub_ = nh.advertise<sensor_msgs::PointCloud2>("surface_cloud", 1, true);
+    areas_pub_ = nh.advertise<slope_monitor::ChangeAreaArray>("change_areas", 2, true);
     // A queue as deep as the photos the collector may hold: the transport
     // never drops a photo of a flight that fits the memory limit.
     const uint32_t queue = static_cast<uint32_t>(params.photos.max_photos);
@@ -125,6 +128,7 @@ class DenseEpochNodelet : public nodelet::Nodelet {
           job, [this](const std::string& s) { NODELET_INFO("dense_matcher: %s", s.c_str()); });
       Log(out.log);
       if (out.cloud) cloud_pub_.publish(*out.cloud);
+      if (out.areas) areas_pub_.publish(*out.areas);
       std::lock_guard<std::mutex> lock(state_mutex_);
       if (out.cloud) ++epochs_;
       for (const auto& line : out.log)
@@ -165,7 +169,7 @@ class DenseEpochNodelet : public nodelet::Nodelet {
   }
 
   std::unique_ptr<ros_adapters::DenseEpochStep> step_;
-  ros::Publisher cloud_pub_;
+  ros::Publisher cloud_pub_, areas_pub_;
   std::vector<ros::Subscriber> subs_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer timer_;

@@ -1,5 +1,8 @@
 #include "slope_monitor/ros/dense_epoch_step.h"
 
+#include "slope_monitor/core/dense/change_polygons.h"
+#include "slope_monitor/ros/change_area_conversions.h"
+
 #include <cv_bridge/cv_bridge.h>
 
 #include "slope_monitor/core/common/error.h"
@@ -118,6 +121,20 @@ DenseEpochOutput DenseEpochStep::Measure(const dense::PhotoEpoch& e,
   header.stamp.fromNSec(static_cast<uint64_t>(e.stamp_ns));
   header.frame_id = parameters_.frame_id;
   out.cloud = MakeSurfaceCloud(*s.surface, s.change ? &*s.change : nullptr, header);
+  if (reference_epoch_ < 0) reference_epoch_ = e.input.epoch;
+  if (s.change) {
+    try {
+      const std::vector<dense::ChangePolygon> polygons =
+          dense::ChangePolygons(s.change->change, dense::ChangePolygonOptions());
+      out.log.push_back({LogLine::kInfo, Message("epoch ", e.input.epoch, ": ", polygons.size(),
+                                                 " area(s) of significant change")});
+      out.areas = ToChangeAreaMsg(polygons, static_cast<uint32_t>(e.input.epoch),
+                                  static_cast<uint32_t>(reference_epoch_), header);
+    } catch (const std::exception& ex) {
+      out.log.push_back({LogLine::kError, Message("epoch ", e.input.epoch,
+                                                  " change polygons (the DoD is kept): ", ex.what())});
+    }
+  }
   return out;
 }
 

@@ -197,6 +197,10 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
   e.input_topics = p.StringList("input_topics", {"displacements"});
   if (e.input_topics.empty())
     throw ConfigError(Message("parameter '", p.FullKey("input_topics"), "' is empty"));
+  e.area_topics = p.StringList("area_topics", {});
+  o->areas.growth_watch = p.Double("area_growth_watch", o->areas.growth_watch, 1e-6, 1e9, "m^2");
+  o->areas.growth_warning =
+      p.Double("area_growth_warning", o->areas.growth_warning, 1e-6, 1e9, "m^2");
   e.frame_id = p.String("frame_id", "site");
   e.database = p.String("database", "");
   e.report_dir = p.String("report_dir", "");

@@ -11,9 +11,10 @@ namespace slope_monitor {
 namespace ros_adapters {
 
 constexpr char OfflineDense::kCloudTopic[];
+constexpr char OfflineDense::kAreasTopic[];
 
 OfflineDense::OfflineDense(const XmlRpc::XmlRpcValue& params,
-                           std::function<void(const sensor_msgs::PointCloud2&)> write,
+                           std::function<void(const DenseEpochOutput&)> write,
                            std::function<void(const std::string&)> log)
     : write_(std::move(write)), log_(std::move(log)) {
   ParamReader reader(params, "/dense/dense_matcher");
@@ -63,9 +64,8 @@ void OfflineDense::Measure(const std::vector<dense::PhotoEpoch>& epochs) {
     seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     cpu_seconds_ += static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC;
     Log(out.log);
-    if (!out.cloud) continue;
-    ++epochs_;
-    write_(*out.cloud);
+    if (out.cloud) ++epochs_;
+    write_(out);
   }
 }
 

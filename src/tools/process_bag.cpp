@@ -53,13 +53,16 @@
 #include "slope_monitor/RadioSampleBlock.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/input_order.h"
+#include "slope_monitor/core/deformation/alert_hook.h"
 #include "slope_monitor/core/deformation/alert_log.h"
 #include "slope_monitor/core/deformation/history.h"
+#include "slope_monitor/core/deformation/plot_report.h"
 #include "slope_monitor/core/deformation/report.h"
 #include "slope_monitor/core/evaluation/deformation_truth.h"
 #include "slope_monitor/core/targets/options_reader.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
 #include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/ros/change_area_conversions.h"
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/epoch_solver.h"
 #include "slope_monitor/ros/hex_matcher_parameters.h"
@@ -319,11 +322,7 @@ class OfflineGraph {
       Log("no point was ever measured: no reports written to " + estimator_params_.report_dir);
       return;
     }
-    const auto files =
-        deformation::WriteReports(*estimator_, estimator_params_.report_dir, "",
-                                  estimator_params_.report_formats, estimator_params_.report);
-    Log("wrote " + std::to_string(files.size()) + " report file(s) to " +
-        estimator_params_.report_dir);
+    WriteReportFiles();
   }
 
   // --uav-tie-points: the hex matcher of the graph (mode sequence, camera
@@ -416,6 +415,9 @@ class OfflineGraph {
     std::vector<std::string> inputs = {kAdjusterDisplacements, kRadioDisplacements};
     if (targetless_) inputs.push_back(kTargetlessDisplacements);
     ros_adapters::SetParam(&p, "input_topics", StringList(inputs));
+    // As deformation_estimator.launch: the pictures by scripts/plot_report.
+    ros_adapters::SetParam(&p, "plot_script",
+                           fs::path(ConfigDir()).parent_path().string() + "/scripts/plot_report");
     ros_adapters::ParamReader r(p, "/deformation_estimator/deformation_estimator");
     estimator_params_ = ros_adapters::ReadEstimatorParameters(r);
     history_ = std::make_unique<deformation::History>(estimator_params_.database);
@@ -427,6 +429,7 @@ class OfflineGraph {
     if (assembler_) ordered.push_back(kRadioDisplacements);
     if (targetless_) ordered.push_back(kTargetlessDisplacements);
     order_ = std::make_unique<InputOrder<slope_monitor::PointDisplacementArray>>(ordered);
+    StartHook();
   }
 
   // The fixed_targetless cameras of --site (launch/include/processing_graph.xml
@@ -493,10 +496,34 @@ class OfflineGraph {
     ros_adapters::SetParam(&p, "report_dir", args_.report_dir);
     dense_ = std::make_unique<ros_adapters::OfflineDense>(
         p,
-        [this](const sensor_msgs::PointCloud2& c) {
-          Write(ros_adapters::OfflineDense::kCloudTopic, c);
+        [this](const ros_adapters::DenseEpochOutput& out) {
+          if (out.cloud) Write(ros_adapters::OfflineDense::kCloudTopic, *out.cloud);
+          if (out.areas) OnAreas(*out.areas);
         },
         log_);
+  }
+
+  // The site file's notification hook (the estimator nodelet's: deformation/alert_hook.h).
+  void StartHook() {
+    if (!estimator_params_.site || estimator_params_.site->notification.hook.empty()) return;
+    hook_ = std::make_unique<deformation::AlertHook>(
+        estimator_params_.site->notification,
+        // From the hook's worker thread: straight to stderr, not through the progress line.
+        [](bool, const std::string& m) {
+          std::cerr << "deformation_estimator: " << m << std::endl;
+        });
+  }
+
+  // The reports at the end of the input, written as the estimator nodelet
+  // writes them (deformation::WriteAllReports); the hook's queue is drained first.
+  void WriteReportFiles() {
+    if (hook_) hook_->Flush();
+    const auto files =
+        deformation::WriteAllReports(*estimator_, estimator_params_.database,
+                                     estimator_params_.plot, estimator_params_.report_dir, "",
+                                     estimator_params_.report_formats, estimator_params_.report);
+    Log("wrote " + std::to_string(files.size()) + " report file(s) to " +
+        estimator_params_.report_dir);
   }
 
   // ---- inputs.
@@ -677,16 +704,42 @@ class OfflineGraph {
       Log("deformation_estimator: topic '" + topic + "': " + e.what() + "; message dropped");
       return;
     }
+    PublishSnapshot(msg.header);
+  }
+
+  // The estimator's state after an input: alert changes announced (log,
+  // hook), its outputs written as the estimator nodelet publishes them.
+  void PublishSnapshot(const std_msgs::Header& header) {
     const deformation::Snapshot s = estimator_->GetSnapshot();
-    for (const deformation::AlertChange& c : alert_changes_.Update(s))
-      Log("deformation_estimator: " + c.text);
-    std_msgs::Header h = msg.header;
+    deformation::AnnounceAlertChanges(s, estimator_params_.site ? estimator_params_.site->name : "",
+                                      &alert_changes_, hook_.get(),
+                                      [this](deformation::LogLevel, const std::string& text) {
+                                        Log("deformation_estimator: " + text);
+                                      });
+    std_msgs::Header h = header;
     h.frame_id = estimator_params_.frame_id;
     Write("/deformation_estimator/deformation", ros_adapters::ToMsg(s, h));
     Write("/deformation_estimator/markers",
           ros_adapters::ToMarkers(s, h, estimator_params_.markers));
     Write("/deformation_estimator/points", ros_adapters::ToCloud(s, h));
     Write("/deformation_estimator/alerts", ros_adapters::ToAlerts(s, h));
+  }
+
+  // The dense step's areas of significant change (source surface), as the
+  // estimator nodelet takes them from /dense/change_areas.
+  void OnAreas(const slope_monitor::ChangeAreaArray& msg) {
+    Write(ros_adapters::OfflineDense::kAreasTopic, msg);
+    try {
+      if (!estimator_->AddAreas(ros_adapters::AreaBatchFromMsg(msg, ros_adapters::OfflineDense::kAreasTopic))) {
+        Log("deformation_estimator: areas of epoch " + std::to_string(msg.epoch) +
+            " are not newer than the last; ignored");
+        return;
+      }
+    } catch (const Error& e) {
+      Log(std::string("deformation_estimator: areas: ") + e.what() + "; message dropped");
+      return;
+    }
+    PublishSnapshot(msg.header);
   }
 
   template <typename M>
@@ -725,6 +778,7 @@ class OfflineGraph {
   std::unique_ptr<InputOrder<slope_monitor::PointDisplacementArray>> order_;
   deformation::AlertChangeTracker alert_changes_;
   std::unique_ptr<ros_adapters::OfflineDense> dense_;  // dense_matcher
+  std::unique_ptr<deformation::AlertHook> hook_;  // the site's notification hook, if any
 };
 
 // ---------------------------------------------------------------- progress

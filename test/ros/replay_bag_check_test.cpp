@@ -13,28 +13,18 @@
 
 #include <gtest/gtest.h>
 
+#include "run_command.h"
+
 namespace {
 
-struct LaunchRun {
-  int status = -1;  // exit status; 128 + signal when killed
-  std::string output;
-};
+using LaunchRun = slope_monitor::run_command::CommandRun;
 
 // roslaunch replay.launch bag:=<bag>, stderr folded into the output; a
 // launch that gets past the check is ended by `timeout` (status 124).
 LaunchRun Replay(const std::string& bag) {
-  LaunchRun r;
-  const std::string cmd = "timeout -s INT 60 roslaunch --skip-log-check " +
-                          std::string(SM_SOURCE_DIR) + "/launch/replay.launch bag:=" + bag +
-                          " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
-  const int w = pclose(p);
-  r.status = WIFEXITED(w) ? WEXITSTATUS(w) : 128 + WTERMSIG(w);
-  return r;
+  return slope_monitor::run_command::Run("timeout -s INT 60 roslaunch --skip-log-check " +
+                                         std::string(SM_SOURCE_DIR) +
+                                         "/launch/replay.launch bag:=" + bag);
 }
 
 const std::string kTmp = "/tmp/sm_replay_bag_check_" + std::to_string(getpid());

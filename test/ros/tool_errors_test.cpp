@@ -11,28 +11,18 @@
 
 #include <gtest/gtest.h>
 
+#include "run_command.h"
+
 namespace {
 
 // The tools as rosrun finds them (tests are built elsewhere: CMakeLists.txt).
 std::string BinDir() { return SM_TOOL_DIR; }
 
-struct ToolRun {
-  int status = -1;  // exit status; 128 + signal when killed
-  std::string output;
-};
+using ToolRun = slope_monitor::run_command::CommandRun;
 
 // Runs `tool args` with stderr folded into the output.
 ToolRun Tool(const std::string& tool, const std::string& args) {
-  ToolRun r;
-  const std::string cmd = BinDir() + "/" + tool + " " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
-  const int w = pclose(p);
-  r.status = WIFEXITED(w) ? WEXITSTATUS(w) : 128 + WTERMSIG(w);
-  return r;
+  return slope_monitor::run_command::Run(BinDir() + "/" + tool + " " + args);
 }
 
 const std::string kTmp = "/tmp/sm_tool_errors_" + std::to_string(getpid());

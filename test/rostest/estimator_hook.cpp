@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 
+#include "../core/deformation/hook_json.h"
 #include "../core/deformation/test_scenario.h"
 #include "slope_monitor/PointDisplacementArray.h"
 #include "slope_monitor/SlopeDeformation.h"
@@ -23,29 +24,9 @@ using deformation::testing::kT0;
 using rostest_node::Param;
 using rostest_node::WaitFor;
 constexpr double kMmPerDay = 1e-3 / kDay;
-const char* kLevels[] = {"none", "watch", "warning", "alarm"};
 
-std::vector<std::string> Lines(const std::string& path) {
-  std::ifstream in(path);
-  std::vector<std::string> lines;
-  for (std::string l; std::getline(in, l);)
-    if (!l.empty()) lines.push_back(l);
-  return lines;
-}
-
-std::string Field(const std::string& json, const std::string& key) {
-  const std::string k = "\"" + key + "\": ";
-  const size_t a = json.find(k);
-  if (a == std::string::npos) return "<absent>";
-  const size_t b = a + k.size();
-  if (json[b] == '"') return json.substr(b + 1, json.find('"', b + 1) - b - 1);
-  return json.substr(b, json.find_first_of(",}", b) - b);
-}
-
-struct Change {
-  std::string point, from, to;
-  double speed_mm_per_day;
-};
+using hook_json::Field;
+using hook_json::Lines;
 
 TEST(EstimatorHook, OneRunPerPublishedLevelChange) {
   ros::NodeHandle nh, pnh("~");
@@ -55,22 +36,13 @@ TEST(EstimatorHook, OneRunPerPublishedLevelChange) {
 
   // What the estimator publishes: each point's level, message by message.
   std::mutex mutex;
-  std::map<std::string, uint8_t> level;
-  std::vector<Change> changes;
+  hook_json::LevelChanges changes;
   double last_stamp = 0.0;
   ros::Subscriber sub = nh.subscribe<slope_monitor::SlopeDeformation>(
       "/deformation_estimator/deformation", 5000,
       [&](const slope_monitor::SlopeDeformation::ConstPtr& m) {
         std::lock_guard<std::mutex> lock(mutex);
-        for (const auto& p : m->points) {
-          const uint8_t from = level.count(p.point_id) ? level[p.point_id] : 0;
-          if (p.alert_level != from) {
-            const Eigen::Vector3d v(p.velocity.x, p.velocity.y, p.velocity.z);
-            changes.push_back(
-                {p.point_id, kLevels[from], kLevels[p.alert_level], v.norm() / kMmPerDay});
-          }
-          level[p.point_id] = p.alert_level;
-        }
+        changes.Add(*m);
         last_stamp = m->header.stamp.toSec();
       });
   ros::Publisher pub = nh.advertise<slope_monitor::PointDisplacementArray>(
@@ -112,10 +84,10 @@ TEST(EstimatorHook, OneRunPerPublishedLevelChange) {
         timeout))
         << "the estimator did not publish the batch at " << b.stamp;
   }
-  std::vector<Change> expected;
+  std::vector<hook_json::LevelChange> expected;
   {
     std::lock_guard<std::mutex> lock(mutex);
-    expected = changes;
+    expected = changes.changes();
   }
   // The body accelerates to 144 mm/day: its points raise alerts (with the
   // node's defaults measured: body2 and body3 none -> watch -> warning in the

@@ -20,6 +20,7 @@
 #include <sensor_msgs/PointCloud2.h>
 
 #include "slope_monitor/AdjustmentSolution.h"
+#include "slope_monitor/ChangeAreaArray.h"
 #include "slope_monitor/core/dense/epoch_photos.h"
 #include "slope_monitor/core/dense/surface_series.h"
 #include "slope_monitor/ros/dense_conversions.h"
@@ -40,6 +41,9 @@ struct DenseEpochOutput {
   std::optional<sensor_msgs::PointCloud2> cloud;  // none: no surface
   std::vector<std::string> files;                 // GeoTIFFs written
   std::vector<LogLine> log;                       // what happened, named
+  // Later epochs: the polygons of significant change of the DoD
+  // (core/dense/change_polygons.h), for the deformation estimator.
+  std::optional<slope_monitor::ChangeAreaArray> areas;
 };
 
 class DenseEpochStep {
@@ -69,6 +73,7 @@ class DenseEpochStep {
   DenseEpochParameters parameters_;
   dense::EpochPhotoCollector photos_;
   dense::SurfaceSeries series_;
+  int reference_epoch_ = -1;  // the first epoch measured
   std::vector<LogLine> log_;
 };
 

@@ -60,6 +60,7 @@ RadioParameters ReadRadioParameters(ParamReader& p);
 struct EstimatorParameters {
   deformation::EstimatorOptions options;
   std::vector<std::string> input_topics;
+  std::vector<std::string> area_topics;  // ChangeAreaArray (areas of surface change)
   std::string frame_id, database, report_dir;
   bool report_on_shutdown = true;
   bool enable_export_report = true, enable_set_reference_epoch = true;

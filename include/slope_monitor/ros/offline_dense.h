@@ -3,7 +3,8 @@
 // bag-time order in one thread. Photos and camera_info of the surface
 // cameras are collected; each solution's epoch is measured as soon as its
 // photos are there (at the end of the bags with what it has, the missing
-// photos named), its cloud handed to `write` (topic /dense/surface_cloud)
+// photos named), its output handed to `write` (cloud: /dense/surface_cloud,
+// areas of significant change: /dense/change_areas)
 // and its GeoTIFFs written to the report directory.
 #pragma once
 
@@ -27,11 +28,12 @@ class OfflineDense {
  public:
   // The graph's cloud topic (launch/include/processing_graph.xml).
   static constexpr char kCloudTopic[] = "/dense/surface_cloud";
+  static constexpr char kAreasTopic[] = "/dense/change_areas";
 
   // `params`: the node's keys (config/defaults/dense_epoch.yaml and what the
   // launch files add), read as the node reads them; ConfigError naming the key.
   OfflineDense(const XmlRpc::XmlRpcValue& params,
-               std::function<void(const sensor_msgs::PointCloud2&)> write,
+               std::function<void(const DenseEpochOutput&)> write,
                std::function<void(const std::string&)> log);
 
   // `now` [s]: bag time.
@@ -51,7 +53,7 @@ class OfflineDense {
 
   std::vector<std::string> cameras_;
   std::unique_ptr<DenseEpochStep> step_;
-  std::function<void(const sensor_msgs::PointCloud2&)> write_;
+  std::function<void(const DenseEpochOutput&)> write_;
   std::function<void(const std::string&)> log_;
   int epochs_ = 0;
   double seconds_ = 0.0, cpu_seconds_ = 0.0;

@@ -9,6 +9,7 @@
 
 #include "slope_monitor/core/adjustment/cost_functions/collinearity_error.h"
 #include "slope_monitor/core/adjustment/resect_camera.h"
+#include "slope_monitor/core/adjustment/small_problem.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/geometry/resection.h"
 
@@ -42,14 +43,7 @@ Pass Adjust(const camera::CameraModel& model, const std::vector<Eigen::Vector3d>
   }
   problem.SetParameterBlockConstant(interior.data());
   problem.SetManifold(e->data(), new ceres::SubsetManifold(camera::kNumExterior, {0, 1, 2}));
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = 100;
-  so.function_tolerance = 1e-14;
-  so.parameter_tolerance = 1e-14;
-  so.logging_type = ceres::SILENT;
-  ceres::Solver::Summary ss;
-  ceres::Solve(so, &problem, &ss);
+  const ceres::Solver::Summary ss = SolveSmallProblem(&problem, 100, 1e-14);
   Pass p;
   if (!ss.IsSolutionUsable()) return p;
   p.cost = ss.final_cost;

@@ -12,6 +12,7 @@
 #include "slope_monitor/core/adjustment/cost_functions/collinearity_error.h"
 #include "slope_monitor/core/adjustment/cost_functions/control_point_prior.h"
 #include "slope_monitor/core/adjustment/cost_functions/position_prior.h"
+#include "slope_monitor/core/adjustment/small_problem.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/geometry/resection.h"
 
@@ -205,14 +206,7 @@ ResectCameraSummary ResectCamera(const std::vector<io::SurveyedPoint>& points,
   } else {
     problem.SetManifold(in.data(), new ceres::SubsetManifold(camera::kNumInterior, held));
   }
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = 200;
-  so.function_tolerance = 1e-12;
-  so.parameter_tolerance = 1e-12;
-  so.logging_type = ceres::SILENT;
-  ceres::Solver::Summary ss;
-  ceres::Solve(so, &problem, &ss);
+  const ceres::Solver::Summary ss = SolveSmallProblem(&problem, 200, 1e-12);
   if (!ss.IsSolutionUsable()) {
     out.message = Message("adjustment failed: ", ss.message);
     return out;

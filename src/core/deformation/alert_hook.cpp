@@ -153,5 +153,22 @@ std::string AlertHook::RunOnce(const std::string& json) const {
   return r.failure;
 }
 
+std::vector<AlertChange> AnnounceAlertChanges(
+    const Snapshot& snapshot, const std::string& site, AlertChangeTracker* tracker, AlertHook* hook,
+    const std::function<void(LogLevel, const std::string&)>& log) {
+  const std::vector<AlertChange> changes = tracker->Update(snapshot);
+  for (const AlertChange& c : changes) {
+    if (hook) {
+      for (const PointState& p : snapshot.points)
+        if (p.id == c.point_id) hook->Notify(AlertJson(site, p, c));
+    }
+    const LogLevel level = c.to == AlertLevel::kAlarm  ? LogLevel::kError
+                           : c.to == AlertLevel::kNone ? LogLevel::kInfo
+                                                       : LogLevel::kWarn;
+    log(level, c.text);
+  }
+  return changes;
+}
+
 }  // namespace deformation
 }  // namespace slope_monitor

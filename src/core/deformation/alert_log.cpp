@@ -39,6 +39,15 @@ std::vector<AlertChange> AlertChangeTracker::Update(const Snapshot& snapshot) {
     if (p.alert != from) changes.push_back({p.id, from, p.alert, Text(p, from)});
     levels_[p.id] = p.alert;
   }
+  if (snapshot.area_alert != area_level_) {
+    std::string why;  // the reason of the (first) area at the new level
+    for (const AreaState& a : snapshot.areas)
+      if (a.alert == snapshot.area_alert && why.empty()) why = "; " + a.reason;
+    changes.push_back({kSurfaceAreas, area_level_, snapshot.area_alert,
+                       "areas of significant surface change: alert " + AlertName(area_level_) +
+                           " -> " + AlertName(snapshot.area_alert) + why});
+    area_level_ = snapshot.area_alert;
+  }
   return changes;
 }
 

@@ -8,6 +8,7 @@
 #include <Eigen/Cholesky>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/deformation/change_areas.h"
 #include "slope_monitor/core/deformation/history.h"
 
 namespace slope_monitor {
@@ -96,6 +97,7 @@ void AlertOptions::Check() const {
 void EstimatorOptions::Check() const {
   filter.Check();
   alerts.Check();
+  areas.Check();
   forecast.Check();
   if (!(reorder_window >= 0.0)) throw ConfigError(Message("reorder_window = ", reorder_window, " s must be >= 0"));
   if (!(reference_tolerance >= 0.0))
@@ -513,6 +515,16 @@ uint32_t Estimator::SetReferenceEpoch(uint32_t epoch, bool use_latest) {
   return epoch;
 }
 
+bool Estimator::AddAreas(const AreaBatch& batch) {
+  if (has_areas_ && batch.epoch <= last_area_epoch_) return false;  // old, or re-delivered
+  areas_ =
+      AssessAreas(areas_, has_areas_ ? std::optional<uint32_t>(last_area_epoch_) : std::nullopt,
+                  batch, options_.areas);
+  has_areas_ = true;
+  last_area_epoch_ = batch.epoch;
+  return true;
+}
+
 Snapshot Estimator::GetSnapshot() const {
   Snapshot s;
   s.stamp = newest_stamp_;
@@ -533,8 +545,14 @@ Snapshot Estimator::GetSnapshot() const {
     }
     disagree += ps.sources_disagree ? 1 : 0;
   }
+  s.areas = areas_;
+  s.area_alert = AreasAlert(areas_);
+  s.alert = std::max(s.alert, s.area_alert);
   s.summary = Message(s.points.size(), " points, largest displacement ", Fixed(max_d * 1e3, 1), " mm at '", max_id,
                       "', slope alert ", AlertName(s.alert), ", ", disagree, " point(s) with disagreeing sources");
+  if (!areas_.empty())
+    s.summary += Message(", ", areas_.size(), " area(s) of significant surface change (alert ",
+                         AlertName(s.area_alert), ")");
   return s;
 }
 

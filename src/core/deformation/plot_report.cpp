@@ -1,10 +1,14 @@
 #include "slope_monitor/core/deformation/plot_report.h"
 
+#include <algorithm>
 #include <cstdio>
+#include <filesystem>
+#include <regex>
 #include <sstream>
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/subprocess.h"
+#include "slope_monitor/core/io/safe_file.h"
 
 namespace slope_monitor {
 namespace deformation {
@@ -26,6 +30,7 @@ std::vector<std::string> RunPlotReport(const PlotReportOptions& options, const s
                                    folder,         "--thresholds", t};
   if (!options.dem.empty()) argv.insert(argv.end(), {"--dem", options.dem});
   if (!options.site.empty()) argv.insert(argv.end(), {"--site", options.site});
+  if (!options.polygons.empty()) argv.insert(argv.end(), {"--polygons", options.polygons});
   const RunResult r = RunProgram(argv, "", options.timeout);
   if (!r.ok())
     throw IoError(Message("plot report '", options.script, "' on history '", history,
@@ -34,6 +39,45 @@ std::vector<std::string> RunPlotReport(const PlotReportOptions& options, const s
   std::istringstream lines(r.output);
   for (std::string line; std::getline(lines, line);)
     if (!line.empty()) files.push_back(line);
+  return files;
+}
+
+std::string LatestSurface(const std::string& folder) {
+  namespace fs = std::filesystem;
+  const std::regex name("surface_e([0-9]+)\\.tif");
+  std::string best;
+  long best_epoch = -1;
+  std::error_code ec;
+  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+    std::smatch m;
+    const std::string file = it->path().filename().string();
+    if (!std::regex_match(file, m, name)) continue;
+    const long epoch = std::stol(m[1]);
+    if (epoch > best_epoch) best_epoch = epoch, best = it->path().string();
+  }
+  return best;
+}
+
+std::vector<std::string> WriteAllReports(const Estimator& estimator, const std::string& history,
+                                         const PlotReportOptions& plot, const std::string& root,
+                                         const std::string& subfolder,
+                                         std::vector<std::string> formats,
+                                         const ReportOptions& options) {
+  if (formats.empty()) formats = {"csv", "geojson", "geotiff", "gpkg", "png"};
+  const auto png = std::find(formats.begin(), formats.end(), "png");
+  const bool matplotlib = png != formats.end() && !history.empty() && !plot.script.empty();
+  if (matplotlib) formats.erase(png);
+  std::vector<std::string> files;
+  if (!formats.empty()) files = WriteReports(estimator, root, subfolder, formats, options);
+  if (matplotlib) {
+    PlotReportOptions o = plot;
+    if (o.dem.empty()) o.dem = LatestSurface(root);
+    for (const std::string& f : files)
+      if (f.size() > 5 && f.compare(f.size() - 5, 5, ".gpkg") == 0) o.polygons = f;
+    const std::vector<std::string> pictures = RunPlotReport(
+        o, history, io::ResolveSubfolder(root, subfolder), estimator.options().alerts.thresholds);
+    files.insert(files.end(), pictures.begin(), pictures.end());
+  }
   return files;
 }
 

@@ -185,6 +185,47 @@ std::string WriteCsv(const Snapshot& s, const std::string& path, const ReportOpt
   return path;
 }
 
+namespace {
+
+// The areas of significant surface change as Polygon features (exterior
+// ring and holes; WGS 84 lon, lat with a site CRS, else site x, y).
+void WriteAreaFeatures(const Snapshot& s, const std::optional<SiteCrs>& site, bool comma,
+                       std::ostringstream& o) {
+  const auto ring = [&](const std::vector<Eigen::Vector2d>& pts) {
+    o << "[";
+    for (size_t k = 0; k <= pts.size(); ++k) {  // closed: the first vertex again
+      const Eigen::Vector2d& v = pts[k % pts.size()];
+      const Eigen::Vector3d c = site ? site->Wgs84FromSite(Eigen::Vector3d(v.x(), v.y(), 0.0))
+                                     : Eigen::Vector3d(v.x(), v.y(), 0.0);
+      o << (k ? ", " : "") << "[" << Num(c(0), site ? 9 : 3) << ", " << Num(c(1), site ? 9 : 3)
+        << "]";
+    }
+    o << "]";
+  };
+  for (const AreaState& a : s.areas) {
+    o << (comma ? "," : "")
+      << "\n    {\"type\": \"Feature\", \"geometry\": {\"type\": \"Polygon\", \"coordinates\": [";
+    comma = true;
+    ring(a.area.outline);
+    for (const auto& h : a.area.holes) {
+      o << ", ";
+      ring(h);
+    }
+    o << "]},\n     \"properties\": {\"id\": \"" << a.id
+      << "\", \"kind\": \"change_area\", \"source\": \"surface\""
+      << ", \"epoch\": " << a.epoch << ", \"time_utc\": \"" << Utc(a.stamp)
+      << "\", \"sign\": " << a.area.sign << ", \"area_m2\": " << Num(a.area.area, 2)
+      << ", \"volume_m3\": " << Num(a.area.volume, 3)
+      << ", \"mean_change_m\": " << Num(a.area.mean_change, 3)
+      << ", \"max_change_m\": " << Num(a.area.max_change, 3)
+      << ", \"growth_m2\": " << Num(a.growth, 2) << ", \"alert\": \"" << AlertName(a.alert)
+      << "\", \"alert_level\": " << static_cast<int>(a.alert) << ", \"alert_reason\": \""
+      << JsonEscape(a.reason) << "\"}}";
+  }
+}
+
+}  // namespace
+
 std::string WriteGeoJson(const Snapshot& s, const std::string& path, const ReportOptions& options) {
   const std::optional<SiteCrs> site = SiteOf(options);
   std::ostringstream o;
@@ -235,6 +276,7 @@ std::string WriteGeoJson(const Snapshot& s, const std::string& path, const Repor
     }
     o << "}}";
   }
+  WriteAreaFeatures(s, site, !s.points.empty(), o);
   o << "\n  ]\n}\n";
   io::WriteFileAtomically(path, o.str());
   return path;

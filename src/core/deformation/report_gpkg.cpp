@@ -1,4 +1,5 @@
-// GeoPackage report through OGR: layers "points" and "latest_displacement".
+// GeoPackage report through OGR: layers "points", "latest_displacement" and
+// "change_polygons".
 #include <unistd.h>
 
 #include <cerrno>
@@ -46,8 +47,8 @@ OGRSpatialReference ReportSrs(const ReportOptions& options, const std::string& p
 }
 
 OGRLayer* NewLayer(GDALDataset* ds, const char* name, OGRSpatialReference* srs,
-                   const std::string& path) {
-  OGRLayer* layer = ds->CreateLayer(name, srs, wkbPoint25D, nullptr);
+                   const std::string& path, OGRwkbGeometryType type = wkbPoint25D) {
+  OGRLayer* layer = ds->CreateLayer(name, srs, type, nullptr);
   if (!layer)
     throw IoError(
         Message("GeoPackage '", path, "': cannot create layer ", name, ": ", CPLGetLastErrorMsg()));
@@ -136,6 +137,49 @@ void WriteDisplacementLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialRefere
   }
 }
 
+// The areas of significant surface change (Snapshot::areas), one polygon
+// each with its holes, in the site CRS; written even when empty, so a reader
+// finds the layer.
+void WriteChangePolygonsLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* srs,
+                              const std::string& path) {
+  OGRLayer* layer = NewLayer(ds, "change_polygons", srs, path, wkbPolygon);
+  AddField(layer, "area_id", OFTString, path);
+  AddField(layer, "epoch", OFTInteger, path);
+  AddField(layer, "time_utc", OFTString, path);
+  AddField(layer, "sign", OFTInteger, path);
+  const char* reals[] = {"area_m2", "volume_m3", "mean_change_m", "max_change_m", "growth_m2"};
+  for (const char* r : reals) AddField(layer, r, OFTReal, path);
+  AddField(layer, "alert", OFTString, path);
+  AddField(layer, "alert_level", OFTInteger, path);
+  AddField(layer, "alert_reason", OFTString, path);
+  for (const AreaState& a : s.areas) {
+    OGRFeature f(layer->GetLayerDefn());
+    f.SetField("area_id", a.id.c_str());
+    f.SetField("epoch", static_cast<int>(a.epoch));
+    f.SetField("time_utc", Utc(a.stamp).c_str());
+    f.SetField("sign", a.area.sign);
+    const double values[] = {a.area.area, a.area.volume, a.area.mean_change, a.area.max_change,
+                             a.growth};
+    for (size_t k = 0; k < std::size(reals); ++k) f.SetField(reals[k], values[k]);
+    f.SetField("alert", AlertName(a.alert).c_str());
+    f.SetField("alert_level", static_cast<int>(a.alert));
+    f.SetField("alert_reason", a.reason.c_str());
+    OGRPolygon poly;
+    const auto add_ring = [&poly](const std::vector<Eigen::Vector2d>& pts) {
+      OGRLinearRing ring;
+      for (const Eigen::Vector2d& v : pts) ring.addPoint(v.x(), v.y());
+      ring.closeRings();
+      poly.addRing(&ring);
+    };
+    add_ring(a.area.outline);
+    for (const auto& h : a.area.holes) add_ring(h);
+    f.SetGeometry(&poly);
+    if (layer->CreateFeature(&f) != OGRERR_NONE)
+      throw IoError(Message("GeoPackage '", path,
+                            "': cannot write a change polygon: ", CPLGetLastErrorMsg()));
+  }
+}
+
 }  // namespace
 
 std::string WriteGeoPackage(const Snapshot& s, const std::string& path,
@@ -151,6 +195,7 @@ std::string WriteGeoPackage(const Snapshot& s, const std::string& path,
   try {
     WritePointsLayer(ds, s, &srs, path);
     WriteDisplacementLayer(ds, s, &srs, path);
+    WriteChangePolygonsLayer(ds, s, &srs, path);
   } catch (...) {
     GDALClose(ds);
     std::remove(tmp.c_str());

@@ -19,6 +19,9 @@ void ApplySite(const io::SiteFile& site, EstimatorOptions* o, ReportOptions* rep
   if (site.thresholds.watch) o->alerts.thresholds.watch = *site.thresholds.watch * to_si;
   if (site.thresholds.warning) o->alerts.thresholds.warning = *site.thresholds.warning * to_si;
   if (site.thresholds.alarm) o->alerts.thresholds.alarm = *site.thresholds.alarm * to_si;
+  if (site.thresholds.area_growth_watch) o->areas.growth_watch = *site.thresholds.area_growth_watch;
+  if (site.thresholds.area_growth_warning)
+    o->areas.growth_warning = *site.thresholds.area_growth_warning;
   for (const std::string& entry :
        site.aliases) {  // "measured_id = monitoring_point_id" (checked by the reader)
     const size_t eq = entry.find('=');

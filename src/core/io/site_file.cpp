@@ -147,7 +147,15 @@ void ReadThresholds(YamlMap& root, SiteFile* s) {
                                    std::make_pair("alarm", &s->thresholds.alarm)}) {
     if (t.Has(key)) *value = t.RequiredDouble(key, 1e-9, 1e6, s->thresholds.unit);
   }
+  for (const auto& [key, value] :
+       {std::make_pair("area_growth_watch", &s->thresholds.area_growth_watch),
+        std::make_pair("area_growth_warning", &s->thresholds.area_growth_warning)}) {
+    if (t.Has(key)) *value = t.RequiredDouble(key, 1e-6, 1e9, "m^2");
+  }
   const auto& th = s->thresholds;
+  if (th.area_growth_watch && th.area_growth_warning &&
+      *th.area_growth_watch >= *th.area_growth_warning)
+    t.Fail("area_growth_watch", "must be below area_growth_warning");
   if (th.watch && th.warning && *th.watch >= *th.warning) t.Fail("watch", "must be below warning");
   if (th.warning && th.alarm && *th.warning >= *th.alarm) t.Fail("warning", "must be below alarm");
   t.CheckNoUnknownKeys();

@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include "hook_json.h"
 #include "slope_monitor/core/common/error.h"
 #include "test_scenario.h"
 
@@ -38,22 +39,8 @@ std::string WriteScript(const std::string& path, const std::string& body) {
   return path;
 }
 
-std::vector<std::string> Lines(const std::string& path) {
-  std::ifstream in(path);
-  std::vector<std::string> lines;
-  for (std::string l; std::getline(in, l);)
-    if (!l.empty()) lines.push_back(l);
-  return lines;
-}
-
-std::string Field(const std::string& json, const std::string& key) {
-  const std::string k = "\"" + key + "\": ";
-  const size_t a = json.find(k);
-  if (a == std::string::npos) return "<absent>";
-  size_t b = a + k.size();
-  if (json[b] == '"') return json.substr(b + 1, json.find('"', b + 1) - b - 1);
-  return json.substr(b, json.find_first_of(",}", b) - b);
-}
+using hook_json::Field;
+using hook_json::Lines;
 
 // Three points on a body accelerating to failure (v0 = 6 mm/day, tf = t0 +
 // 6 d: 36 mm/day at 5 d, 144 mm/day at 5.75 d) and three on stable ground;

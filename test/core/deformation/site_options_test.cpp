@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include "slope_monitor/core/common/error.h"
+
 namespace slope_monitor {
 namespace deformation {
 namespace {
@@ -35,6 +37,23 @@ TEST(SiteOptions, AbsentThresholdsKeptAndUnitsConverted) {
   EXPECT_DOUBLE_EQ(o.alerts.thresholds.watch, watch);
   EXPECT_DOUBLE_EQ(o.alerts.thresholds.alarm, 4e-3 / 3600.0);  // 4 mm/h
   EXPECT_FALSE(r.geodetic_origin.has_value());  // a shifted CRS frame is not ENU at the origin
+}
+
+TEST(SiteOptions, AreaGrowthThresholds) {
+  const io::SiteFile site = io::ParseSiteFile(
+      "name: x\ncrs: EPSG:32632\norigin: [500000, 5150000, 0]\nframe: shifted_crs\n"
+      "thresholds: {area_growth_warning: 400}\n",
+      "x.yaml", ".");
+  EstimatorOptions o;
+  ReportOptions r;
+  ApplySite(site, &o, &r);
+  EXPECT_DOUBLE_EQ(o.areas.growth_watch, AreaOptions().growth_watch);  // absent: kept
+  EXPECT_DOUBLE_EQ(o.areas.growth_warning, 400.0);
+  EXPECT_THROW(io::ParseSiteFile("name: x\ncrs: EPSG:32632\norigin: [500000, 5150000, 0]\n"
+                                 "frame: shifted_crs\n"
+                                 "thresholds: {area_growth_watch: 50, area_growth_warning: 40}\n",
+                                 "x.yaml", "."),
+               Error);
 }
 
 }  // namespace

@@ -32,6 +32,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "slope_monitor/core/deformation/alert_log.h"
 #include "slope_monitor/core/deformation/estimator.h"
@@ -42,6 +43,17 @@ namespace deformation {
 
 // The alert as one line of JSON (above); `site` is the site's name.
 std::string AlertJson(const std::string& site, const PointState& point, const AlertChange& change);
+
+class AlertHook;
+
+// What the estimator nodelet and process_bag do at every snapshot: the
+// alert-level changes (tracker.Update) are logged (`log`: level ERROR for
+// alarm, INFO for back to none, else WARN) and each point's change goes to
+// `hook` (may be null) as AlertJson. Returns the changes.
+enum class LogLevel { kInfo, kWarn, kError };
+std::vector<AlertChange> AnnounceAlertChanges(
+    const Snapshot& snapshot, const std::string& site, AlertChangeTracker* tracker, AlertHook* hook,
+    const std::function<void(LogLevel, const std::string&)>& log);
 
 struct AlertHookSummary {
   int attempts = 0;   // hook runs started (or failed to start)

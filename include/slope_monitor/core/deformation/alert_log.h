@@ -5,7 +5,9 @@
 //   for (const AlertChange& c : tracker.Update(snapshot)) log(c.level, c.text);
 //
 // The first snapshot reports every point already above `none` (a restart
-// re-announces standing alerts); later snapshots report changes only.
+// re-announces standing alerts); later snapshots report changes only. A
+// change of the areas of surface change's level (Snapshot::area_alert) is
+// reported as point "surface" with the area's reason.
 #pragma once
 
 #include <map>
@@ -17,8 +19,11 @@
 namespace slope_monitor {
 namespace deformation {
 
+// AlertChange::point_id of a change of the areas' level (Snapshot::area_alert).
+constexpr const char* kSurfaceAreas = "surface";
+
 struct AlertChange {
-  std::string point_id;
+  std::string point_id;  // or kSurfaceAreas
   AlertLevel from = AlertLevel::kNone;
   AlertLevel to = AlertLevel::kNone;
   // "point tag36h11/3: alert watch -> warning, speed 12.40 +- 0.80 mm/day,
@@ -32,6 +37,7 @@ class AlertChangeTracker {
 
  private:
   std::map<std::string, AlertLevel> levels_;
+  AlertLevel area_level_ = AlertLevel::kNone;
 };
 
 }  // namespace deformation

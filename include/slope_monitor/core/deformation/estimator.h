@@ -82,6 +82,27 @@ struct Batch {
   std::vector<Measurement> measurements;
 };
 
+// One area of significant surface change (change_areas.h): a polygon of a
+// DoD's significant cells (source `surface`).
+struct ChangeArea {
+  int sign = 0;                                     // +1 gain (fill), -1 loss (cut)
+  double area = 0.0;                                // [m^2]
+  double volume = 0.0;                              // [m^3] signed
+  double mean_change = 0.0;                         // [m]
+  double max_change = 0.0;                          // [m] signed
+  std::vector<Eigen::Vector2d> outline;             // site x, y, closed implicitly
+  std::vector<std::vector<Eigen::Vector2d>> holes;  // interior rings
+};
+
+// Every polygon of one epoch's DoD (one ChangeAreaArray message).
+struct AreaBatch {
+  uint32_t epoch = 0;
+  uint32_t reference_epoch = 0;
+  double stamp = 0.0;  // [s] the epoch's stamp
+  std::string source_name;
+  std::vector<ChangeArea> areas;
+};
+
 // Velocity thresholds [m/s] of the three levels (watch < warning < alarm).
 struct Thresholds {
   double watch = 1.0 / 86400.0 * 1e-3 * 2.0;    // [m/s] 2 mm/day
@@ -101,6 +122,13 @@ struct AlertOptions {
   void Check() const;
 };
 
+// Growth of areas of significant surface change that raises an alert (change_areas.h).
+struct AreaOptions {
+  double growth_watch = 25.0;     // [m^2] a polygon grown by more than this: watch; > 0
+  double growth_warning = 100.0;  // [m^2] ... warning; > growth_watch
+  void Check() const;             // throws ConfigError naming the field
+};
+
 struct EstimatorOptions {
   FilterOptions filter;
   double reorder_window = 3.0 * 86400.0;      // [s] how late a measurement may arrive and still be used
@@ -111,6 +139,7 @@ struct EstimatorOptions {
   double velocity_sample_interval = 3600.0;   // [s] spacing of the velocity / displacement series kept per point
   std::map<std::string, std::string> aliases; // measured id -> monitoring point id (e.g. "radio/tx1" -> "tag36h11/5")
   AlertOptions alerts;
+  AreaOptions areas;
   ForecastOptions forecast;
   void Check() const;                         // throws ConfigError naming the field
 };
@@ -161,6 +190,16 @@ struct PointState {
   uint64_t num_rejected = 0;                  // gated by the innovation test
 };
 
+struct AreaState {
+  std::string id;  // "e03/1": epoch and rank (largest first)
+  ChangeArea area;
+  uint32_t epoch = 0;
+  double stamp = 0.0;
+  double growth = 0.0;  // [m^2] against the previous area epoch (change_areas.h)
+  AlertLevel alert = AlertLevel::kNone;
+  std::string reason;
+};
+
 struct Snapshot {
   double stamp = 0.0;             // [s] newest measurement
   uint32_t epoch = 0;             // newest epoch
@@ -168,7 +207,9 @@ struct Snapshot {
   double reference_stamp = 0.0;   // [s]
   bool has_reference = false;
   std::vector<PointState> points;  // sorted by id
-  AlertLevel alert = AlertLevel::kNone;
+  std::vector<AreaState> areas;    // the latest area epoch's polygons, largest first
+  AlertLevel area_alert = AlertLevel::kNone;  // the highest of `areas`
+  AlertLevel alert = AlertLevel::kNone;       // the slope's: points and areas
   std::string summary;
 };
 
@@ -197,6 +238,14 @@ class Estimator {
   // of a latched topic's last message when a restarted node subscribes
   // again: it is refused (reported in the summary), not stored or fused twice.
   BatchSummary AddBatch(const Batch& batch);
+
+  // Areas of significant surface change of one epoch (source `surface`):
+  // replaces the previous area epoch's, their growth against it sets the
+  // areas' alert (change_areas.h). An epoch not newer than the latest area
+  // epoch (late, or re-delivered by a latched topic) is refused (returns false). Throws
+  // InvalidArgument naming a bad polygon. Not kept in the history: a restarted estimator starts a
+  // new baseline.
+  bool AddAreas(const AreaBatch& batch);
 
   // Re-bases displacements on epoch `epoch` (which must have been seen), or
   // on the latest epoch. Throws InvalidArgument naming the epoch.
@@ -231,6 +280,9 @@ class Estimator {
   double newest_stamp_ = 0.0;
   uint32_t newest_epoch_ = 0;
   uint64_t next_sequence_ = 1;
+  std::vector<AreaState> areas_;  // the latest area epoch's
+  bool has_areas_ = false;
+  uint32_t last_area_epoch_ = 0;
   std::set<std::string> received_;  // keys of every measurement received (duplicate check)
 };
 

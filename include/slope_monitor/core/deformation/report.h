@@ -41,7 +41,11 @@
 //
 // GeoPackage (OGR): layer "points" (id, reference position) and layer
 // "latest_displacement" (the CSV's numbers per point), both Point layers in
-// the GeoTIFF's CRS.
+// the GeoTIFF's CRS, and layer "change_polygons" (Polygon, same CRS: the
+// latest areas of significant surface change, Snapshot::areas, with area_id,
+// epoch, time_utc, sign, area_m2, volume_m3, mean_change_m, max_change_m,
+// growth_m2, alert, alert_level, alert_reason; empty without areas). The
+// GeoJSON carries the same areas as Polygon features ("kind": "change_area").
 #pragma once
 
 #include <map>

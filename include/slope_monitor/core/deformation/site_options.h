@@ -9,7 +9,8 @@
 namespace slope_monitor {
 namespace deformation {
 
-// The site's thresholds override those in `options` (absent ones are kept),
+// The site's thresholds (speeds and area growth) override those in
+// `options` (absent ones are kept),
 // its aliases are added, and a local_enu site without a geodetic origin in
 // `report` gives it one (the origin as WGS 84 latitude, longitude, height).
 void ApplySite(const io::SiteFile& site, EstimatorOptions* options, ReportOptions* report);

@@ -18,7 +18,8 @@
 //     crs: site
 //     outline: [[0, 0], [200, 0], [200, 150], [0, 150]]
 //     stable: [[[0, 0], [40, 0], [40, 40], [0, 40]]]
-//   thresholds: {unit: mm/day, watch: 2, warning: 10, alarm: 50}   # any subset
+//   thresholds: {unit: mm/day, watch: 2, warning: 10, alarm: 50,   # any subset
+//                area_growth_watch: 25, area_growth_warning: 100}  # [m^2]
 //   aliases: ["radio/tx1 = tag36h11/10"]                          # measured id = monitoring point
 //   notification: {hook: /usr/local/bin/notify, timeout: 10, retries: 2, retry_delay: 30}
 //
@@ -59,6 +60,8 @@ struct SiteCamera {
 struct SiteThresholds {
   std::string unit = "mm/day";                  // mm/day | mm/h
   std::optional<double> watch, warning, alarm;  // [unit]
+  // Growth of an area of significant surface change [m^2] (change_areas.h).
+  std::optional<double> area_growth_watch, area_growth_warning;
 };
 
 // The notification hook (deformation/alert_hook.h): an executable run with
