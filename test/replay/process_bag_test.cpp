@@ -25,6 +25,7 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
+#include "process_bag_run.h"
 #include "replay_test_util.h"
 #include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/SlopeDeformation.h"
@@ -36,26 +37,8 @@ namespace slope_monitor {
 namespace {
 
 namespace fs = std::filesystem;
+using namespace process_bag_run;  // NOLINT: the test helpers
 using replay_test::DumpSqlite;
-using replay_test::ProcessBagArgs;
-using replay_test::ReadFile;
-using replay_test::Spawn;
-using replay_test::Survey;
-using replay_test::Wait;
-
-// A fresh directory for one run's outputs.
-fs::path Scratch(const std::string& name) { return replay_test::Scratch("process_bag_test", name); }
-
-int RunProcessBag(const std::string& name, const fs::path& dir, bool output_bag = false) {
-  std::vector<std::string> args = ProcessBagArgs(name, dir);
-  if (output_bag) {
-    args.push_back("--output-bag");
-    args.push_back((dir / "out.bag").string());
-  }
-  const int status = Wait(Spawn(args, dir));
-  if (status != 0) std::cerr << ReadFile(dir / "stderr");
-  return status;
-}
 
 // (source, epoch, point) -> how many observations of it the history holds.
 std::map<std::string, int> ObservationKeys(const fs::path& db) {
