@@ -49,6 +49,7 @@ namespace slope_monitor {
 class BundleAdjusterNodelet : public nodelet::Nodelet {
  public:
   void onInit() override {
+    ros_adapters::GraphReady ready(getPrivateNodeHandle());
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh); })) {

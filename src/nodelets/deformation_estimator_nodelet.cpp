@@ -73,6 +73,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
 
  private:
   void onInit() override {
+    ros_adapters::GraphReady ready(getPrivateNodeHandle());
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     deformation::EstimatorOptions options;

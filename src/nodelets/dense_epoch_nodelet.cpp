@@ -46,6 +46,7 @@ class DenseEpochNodelet : public nodelet::Nodelet {
 
  private:
   void onInit() override {
+    ros_adapters::GraphReady ready(getPrivateNodeHandle());
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     ros_adapters::DenseEpochParameters params;

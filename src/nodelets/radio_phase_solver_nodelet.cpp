@@ -37,6 +37,7 @@ namespace slope_monitor {
 class RadioPhaseSolverNodelet : public nodelet::Nodelet {
  private:
   void onInit() override {
+    ros_adapters::GraphReady ready(getPrivateNodeHandle());
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     if (const auto error = ros_adapters::SetUpError([&] {

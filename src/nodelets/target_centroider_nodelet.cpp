@@ -35,6 +35,7 @@ namespace slope_monitor {
 class TargetCentroiderNodelet : public nodelet::Nodelet {
  private:
   void onInit() override {
+    ros_adapters::GraphReady ready(getPrivateNodeHandle());
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     targets::NodeOptions node;

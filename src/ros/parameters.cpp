@@ -168,9 +168,9 @@ void ParamReader::CheckNoUnknownKeys(const std::set<std::string>& ignored) const
   std::string unknown;
   for (const std::string& name : all) {
     if (name.compare(0, prefix.size(), prefix) != 0) continue;
-    bool known = false;
-    for (const std::string& r : read_) known = known || name == r || name.compare(0, r.size() + 1, r + "/") == 0;
     const std::string relative = name.substr(prefix.size());
+    bool known = relative == kGraphReadyParam;
+    for (const std::string& r : read_) known = known || name == r || name.compare(0, r.size() + 1, r + "/") == 0;
     for (const std::string& i : ignored) known = known || relative == i || relative.compare(0, i.size() + 1, i + "/") == 0;
     if (!known) unknown += (unknown.empty() ? "" : ", ") + name;
   }

@@ -1,6 +1,7 @@
 #include "slope_monitor/ros/setup.h"
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/ros/parameters.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -27,6 +28,8 @@ SetUpFailureDiagnostics::SetUpFailureDiagnostics(const ros::NodeHandle& nh,
       ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_.force_update(); });
   updater_.force_update();
 }
+
+GraphReady::~GraphReady() { pnh_.setParam(kGraphReadyParam, true); }
 
 }  // namespace ros_adapters
 }  // namespace slope_monitor

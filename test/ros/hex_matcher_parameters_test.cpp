@@ -75,6 +75,19 @@ TEST(HexMatcherParameters, BadKeysAreNamed) {
   }
 }
 
+// The launch's graph_ready flag (replay_start) sits among every node's
+// parameters; it is not an unknown key, a misspelt one still is.
+TEST(HexMatcherParameters, GraphReadyIsNotAnUnknownKey) {
+  XmlRpc::XmlRpcValue file = Defaults();
+  SetParam(&file, kGraphReadyParam, false);
+  ParamReader r(file, "/uav/hex_matcher");
+  EXPECT_NO_THROW(ReadHexMatcherParameters(r));
+  XmlRpc::XmlRpcValue bad = Defaults();
+  SetParam(&bad, "graph_redy", false);
+  ParamReader r2(bad, "/uav/hex_matcher");
+  EXPECT_THROW(ReadHexMatcherParameters(r2), ConfigError);
+}
+
 }  // namespace
 }  // namespace ros_adapters
 }  // namespace slope_monitor

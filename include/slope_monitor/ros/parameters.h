@@ -20,6 +20,10 @@
 namespace slope_monitor {
 namespace ros_adapters {
 
+// `~graph_ready`: set by the launch and the node (setup.h GraphReady) for
+// replay_start, never a node's own parameter; CheckNoUnknownKeys accepts it.
+inline constexpr char kGraphReadyParam[] = "graph_ready";
+
 class ParamReader {
  public:
   explicit ParamReader(const ros::NodeHandle& nh) : nh_(nh) {}

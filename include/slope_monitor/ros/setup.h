@@ -48,5 +48,25 @@ class SetUpFailureDiagnostics {
   ros::WallTimer timer_;
 };
 
+// The replay graph starts playing a bag only when every node of it is ready
+// (replay_start): the launch sets `~graph_ready: false` for each node, and
+// the nodelet's onInit holds a GraphReady whose destructor sets it true on
+// every way out of onInit (set up, or refused with its error logged).
+//
+//   void onInit() override {
+//     ros_adapters::GraphReady ready(getPrivateNodeHandle());
+//     ...
+//   }
+class GraphReady {
+ public:
+  explicit GraphReady(const ros::NodeHandle& pnh) : pnh_(pnh) {}
+  ~GraphReady();
+  GraphReady(const GraphReady&) = delete;
+  GraphReady& operator=(const GraphReady&) = delete;
+
+ private:
+  ros::NodeHandle pnh_;
+};
+
 }  // namespace ros_adapters
 }  // namespace slope_monitor
