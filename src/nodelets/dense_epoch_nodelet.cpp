@@ -6,8 +6,11 @@
 // Thin wrapper: the photos and camera_info of the surface cameras
 // (/<camera>/camera/image_raw, camera_info) and the AdjustmentSolutions on
 // `solution` go to the step's photo collector, which decides by message when
-// an epoch has its photos (in whichever order they come; the ROS clock only
-// for the photo_wait time-out, polled once a second). A worker thread of its
+// an epoch has its photos (in whichever order they come; the wall clock only
+// for the live photo_wait time-out, polled once a second: a replay's clock
+// stops with the bag, a lost photo must not hold the last epoch for ever;
+// photos come within a fraction of a wall second of their solution at any
+// rate). A worker thread of its
 // own measures the complete epochs, so neither the bundle adjuster nor the
 // estimator waits for it. Outputs: a latched PointCloud2 `surface_cloud` in
 // `site` per epoch (fields x y z rgb sigma_z change lod) and, with
@@ -67,7 +70,7 @@ class DenseEpochNodelet : public nodelet::Nodelet {
       if (!step_->Uses(c)) continue;
       subs_.push_back(nh.subscribe<sensor_msgs::Image>(
           "/" + c + "/camera/image_raw", queue, [this, c](const sensor_msgs::ImageConstPtr& m) {
-            Collect([&] { return step_->OnImage(c, *m, ros::Time::now().toSec()); });
+            Collect([&] { return step_->OnImage(c, *m, ros::WallTime::now().toSec()); });
           }));
       subs_.push_back(nh.subscribe<sensor_msgs::CameraInfo>(
           "/" + c + "/camera/camera_info", queue,
@@ -80,13 +83,13 @@ class DenseEpochNodelet : public nodelet::Nodelet {
     }
     subs_.push_back(nh.subscribe<slope_monitor::AdjustmentSolution>(
         "solution", 16, [this](const slope_monitor::AdjustmentSolutionConstPtr& m) {
-          Collect([&] { return step_->OnSolution(*m, ros::Time::now().toSec()); });
+          Collect([&] { return step_->OnSolution(*m, ros::WallTime::now().toSec()); });
         }));
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     updater_->setHardwareID("dense_matcher");
     updater_->add("dense_matcher", this, &DenseEpochNodelet::Diagnose);
     timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) {
-      Collect([&] { return step_->Poll(ros::Time::now().toSec()); });
+      Collect([&] { return step_->Poll(ros::WallTime::now().toSec()); });
       updater_->update();
     });
     worker_ = std::thread([this] { Work(); });
