@@ -65,10 +65,19 @@ sm_build() {
     sm_say "workspace $SM_WS was configured for make; reconfiguring it for Ninja (a full rebuild)"
     rm -rf "$SM_WS/build" "$SM_WS/devel"
   fi
-  sm_say "building with catkin_make --use-ninja (-j$jobs, Release)"
+  # ccache (scripts/debian-packages.txt) keeps every object it compiled: a
+  # build after a pull or in a fresh clone recompiles only what changed.
+  # SM_CCACHE=0, or a launcher of the caller's own, turns it off.
+  local cache=()
+  if [ "${SM_CCACHE:-1}" != 0 ] && [ -z "${CMAKE_CXX_COMPILER_LAUNCHER:-}" ] && command -v ccache >/dev/null; then
+    cache=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+    # The message headers are generated seconds before they are compiled.
+    export CCACHE_SLOPPINESS="${CCACHE_SLOPPINESS:-include_file_mtime,include_file_ctime,time_macros}"
+  fi
   # "sm_build demo": only what the replay graph and the demo tools need (the
   # benchmarks, offline tools and the other nodelets wait for scripts/test);
-  # "sm_build tests": everything and the tests in one go.
+  # "sm_build tests": everything and the tests in one go; "sm_build configure":
+  # only CMake (scripts/test then builds and runs the tests in one Ninja run).
   local targets=()
   if [ "${1:-}" = demo ]; then
     targets=(slope_monitor_target_centroider_nodelet slope_monitor_bundle_adjuster_nodelet
@@ -76,13 +85,20 @@ sm_build() {
              make_survey_bag deformation_summary process_bag)
   elif [ "${1:-}" = tests ]; then
     targets=(all tests)
+  elif [ "${1:-}" = configure ]; then
+    targets=(clean_test_results)
   fi
-  (cd "$SM_WS" && catkin_make --use-ninja -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=ON -j"$jobs" \
-     "${targets[@]}" >"$SM_WS/build.log" 2>&1) || {
+  if [ "${1:-}" = configure ]; then
+    sm_say "configuring with catkin_make --use-ninja (Release${cache:+, ccache})"
+  else
+    sm_say "building with catkin_make --use-ninja (-j$jobs, Release${cache:+, ccache})"
+  fi
+  (cd "$SM_WS" && catkin_make --use-ninja -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=ON "${cache[@]}" \
+     -j"$jobs" "${targets[@]}" >"$SM_WS/build.log" 2>&1) || {
     tail -n 60 "$SM_WS/build.log" >&2
     sm_die "build failed; full log: $SM_WS/build.log"
   }
-  sm_say "build ok"
+  [ "${1:-}" = configure ] && sm_say "configured" || sm_say "build ok"
 }
 
 # Build single targets of an already configured workspace: sm_build_targets T1 [T2 ...]
