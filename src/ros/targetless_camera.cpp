@@ -238,6 +238,7 @@ TargetlessOutputs TargetlessCameraRunner::OnImage(const sensor_msgs::Image& imag
   const dense::DisplacementField& f = e.field;
   s.values.push_back(Kv("probes", std::to_string(f.summary.probes)));
   s.values.push_back(Kv("usable", std::to_string(f.summary.usable)));
+  s.values.push_back(Kv("window straddle", std::to_string(f.summary.straddling)));
   s.values.push_back(Kv("lsc variance factor", Fixed(f.summary.lsc_variance_factor, 2)));
   std::string flags;
   for (const auto& [flag, n] : f.summary.flags) {

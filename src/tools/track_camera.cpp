@@ -230,8 +230,11 @@ int main(int argc, char** argv) {
       dense::WriteDisplacementFieldPng(stem + ".png", img, f, model, s.exterior,
                                        dense::FieldPictureOptions());
       std::fprintf(
-          stderr, "%s: field of %d probes, %d usable, LSC variance factor %.2f, dt %.0f s;",
-          name.c_str(), f.summary.probes, f.summary.usable, f.summary.lsc_variance_factor, e.dt);
+          stderr,
+          "%s: field of %d probes, %d usable (%d with a window-straddle term), LSC variance factor "
+          "%.2f, dt %.0f s;",
+          name.c_str(), f.summary.probes, f.summary.usable, f.summary.straddling,
+          f.summary.lsc_variance_factor, e.dt);
       for (const auto& kv : f.summary.flags)
         std::fprintf(stderr, " %s %d", kv.first.c_str(), kv.second);
       std::fprintf(stderr, "\n");

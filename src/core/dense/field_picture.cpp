@@ -129,13 +129,14 @@ cv::Mat DrawDisplacementField(const cv::Mat& photo, const DisplacementField& fie
     ranges.push_back((p.x_ref - current.position).norm());
     if (!p.stable) longest = std::max(longest, (p.xb - tails[i]).norm());
   }
+  // Lines, text and arrows grow with the photo: x1 up to 1999 px wide, x2 from 2000, ...
+  const int thick = std::max(1, photo.cols / 1000);
   s.bar_motion_px = RoundDown125(longest > 0 ? longest : 1.0);
-  s.exaggeration = options.longest_arrow_px / std::max(longest, s.bar_motion_px);
+  s.exaggeration = thick * options.longest_arrow_px / std::max(longest, s.bar_motion_px);
   s.metres_per_px = Median(ranges) * sensor.pixel_size / model.principal_distance();
   s.bar_metres = s.bar_motion_px * s.metres_per_px;
 
   // The legend first: the arrows stay visible where they cross it.
-  const int thick = std::max(1, photo.cols / 1000);
   DrawLegend(s, thick, &out);
   for (size_t i = 0; i < field.points.size(); ++i) {
     const FieldPoint& p = field.points[i];

@@ -8,7 +8,7 @@
 // re-oriented pose, i.e. with the mast's turn removed) along its image
 // displacement xb - that position, multiplied by a common exaggeration so
 // that the longest arrow of the usable monitored probes is
-// longest_arrow_px long. Colours (BGR):
+// longest_arrow_px long (times the photo's width in thousands of pixels). Colours (BGR):
 //   green   usable probe of the monitored area (published)
 //   cyan    usable check probe on stable ground (should be ~0)
 //   orange  flagged "grazing"
@@ -34,8 +34,10 @@ namespace slope_monitor {
 namespace dense {
 
 struct FieldPictureOptions {
-  double longest_arrow_px = 80.0;  // [px] drawn length of the longest usable arrow, > 0
-  void Check() const;              // throws InvalidArgument naming the field
+  // [px] drawn length of the longest usable arrow, > 0, per 1000 px of the
+  // photo's width (x1 below 2000 px, x2 below 3000, ...; lines and text alike).
+  double longest_arrow_px = 80.0;
+  void Check() const;  // throws InvalidArgument naming the field
 };
 
 struct FieldPictureSummary {
