@@ -282,6 +282,8 @@ void FlagInconsistent(double max_sigma, std::vector<FieldPoint>* points) {
     if (!flags[i].empty()) (*points)[i].flag = flags[i];
 }
 
+}  // namespace
+
 // The window-straddle term: a usable probe whose LSC window (half width h
 // px) sees ground that moves differently. For each usable neighbour j
 // (within 1.5 x the median nearest-neighbour distance in the reference
@@ -330,8 +332,6 @@ std::vector<Eigen::Matrix3d> WindowStraddleTerms(double min_sigma, int half_wind
   }
   return terms;
 }
-
-}  // namespace
 
 void DisplacementFieldOptions::Check() const {
   if (!(spacing_px > 0))

@@ -160,6 +160,12 @@ struct FieldInput {
 bool IntersectDem(const io::GeoRaster& dem, const Eigen::Vector3d& origin,
                   const Eigen::Vector3d& direction, double max_range, double* t);
 
+// The window-straddle term of each point (the file comment; zero for
+// flagged points and where no neighbour differs significantly), from the
+// points' xa, displacement and covariance. min_sigma 0: all zero.
+std::vector<Eigen::Matrix3d> WindowStraddleTerms(double min_sigma, int half_window,
+                                                 const std::vector<FieldPoint>& points);
+
 // The field between two photos (8-bit or float single channel, the camera's
 // size). Throws InvalidArgument naming the DEM (input.dem_name) when no probe
 // of the monitored area meets it ("does not cover the view"), and naming the
