@@ -13,8 +13,7 @@
 //   cyan    usable check probe on stable ground (should be ~0)
 //   orange  flagged "grazing"
 //   magenta flagged "line_of_sight"
-//   yellow  any other flag with a match ("inconsistent", "window_straddle",
-//           "no_surface")
+//   yellow  any other flag with a match ("inconsistent", "no_surface")
 //   red dot no match ("off_image", "lsc_<status>")
 // A legend at the top left holds the scale bar: a bar of the exaggeration
 // times a round number of pixels of image motion, labelled in pixels and in
