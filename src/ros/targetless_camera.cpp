@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 
 #include <cv_bridge/cv_bridge.h>
 #include <Eigen/Eigenvalues>
@@ -10,6 +11,7 @@
 #include "slope_monitor/PointDisplacement.h"
 #include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/dense/field_picture.h"
 #include "slope_monitor/core/io/camera_pose_file.h"
 #include "slope_monitor/core/io/image_polygons.h"
 #include "slope_monitor/ros/conversions.h"
@@ -108,6 +110,7 @@ TargetlessParameters ReadTargetlessParameters(ParamReader& p) {
     t.references[r.substr(0, eq)] = r.substr(eq + 1);
   }
   t.frame_id = p.String("frame_id", t.frame_id);
+  t.report_dir = p.String("report_dir", t.report_dir);
   dense::TargetlessCameraOptions& o = t.options;
   o.match_radius = p.Double("match_radius", o.match_radius, 1.0, 1000.0, "px");
   o.max_rotation_deg = p.Double("max_rotation_deg", o.max_rotation_deg, 1e-6, 90.0, "deg");
@@ -235,6 +238,7 @@ TargetlessOutputs TargetlessCameraRunner::OnImage(const sensor_msgs::Image& imag
   const dense::DisplacementField& f = e.field;
   s.values.push_back(Kv("probes", std::to_string(f.summary.probes)));
   s.values.push_back(Kv("usable", std::to_string(f.summary.usable)));
+  s.values.push_back(Kv("window straddle", std::to_string(f.summary.straddling)));
   s.values.push_back(Kv("lsc variance factor", Fixed(f.summary.lsc_variance_factor, 2)));
   std::string flags;
   for (const auto& [flag, n] : f.summary.flags) {
@@ -247,6 +251,19 @@ TargetlessOutputs TargetlessCameraRunner::OnImage(const sensor_msgs::Image& imag
   out.info += "; field: " + std::to_string(f.summary.probes) + " probes, " +
               std::to_string(out.displacements->displacements.size()) + " published" +
               (flags.empty() ? "" : ", flagged:" + flags);
+  if (!params_.report_dir.empty()) {
+    const std::string path =
+        params_.report_dir + "/" + dense::FieldPictureFileName(camera_.name, epoch_);
+    try {
+      std::filesystem::create_directories(params_.report_dir);
+      dense::WriteDisplacementFieldPng(path, img, f, tracker_->model(), r.exterior,
+                                       dense::FieldPictureOptions());
+      out.picture = path;
+      out.info += "; wrote " + path;
+    } catch (const std::exception& e) {  // the field is published all the same
+      out.warnings.push_back("camera '" + camera_.name + "': " + e.what());
+    }
+  }
   return out;
 }
 

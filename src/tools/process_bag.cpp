@@ -438,6 +438,7 @@ class OfflineGraph {
     if (args_.site.empty()) return;
     XmlRpc::XmlRpcValue p = NodeParams("targetless_camera");
     ros_adapters::SetParam(&p, "site_file", args_.site);
+    ros_adapters::SetParam(&p, "report_dir", args_.report_dir);
     ros_adapters::ParamReader r(p, "/targetless_camera/targetless_camera");
     const ros_adapters::TargetlessParameters params = ros_adapters::ReadTargetlessParameters(r);
     r.CheckNoUnknownKeys();

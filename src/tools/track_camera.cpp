@@ -23,8 +23,9 @@
 //                               (site metres, m/s from the photos' EXIF times;
 //                               stable 1 = a probe on stable ground (a check,
 //                               d ~ 0), flag empty = usable)
-//   DIR/field_<image stem>.png  the new photo with an arrow per usable probe
-//                               (scale printed on it), flagged probes as red dots
+//   DIR/field_<image stem>.png  the new photo with the field's arrows, legend
+//                               and scale bar (dense/field_picture.h, the
+//                               picture the reports get)
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -47,6 +48,7 @@
 #include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/dense/displacement_field.h"
+#include "slope_monitor/core/dense/field_picture.h"
 #include "slope_monitor/core/dense/targetless_camera.h"
 #include "slope_monitor/core/io/camera_pose_file.h"
 #include "slope_monitor/core/io/geotiff.h"
@@ -131,43 +133,6 @@ void WriteFieldCsv(const std::string& path, const dense::DisplacementField& f) {
     out << line;
   }
   if (!out) throw IoError(Message("cannot write '", path, "'"));
-}
-
-// Arrows over the photo: from each usable probe along its displacement
-// projected into the photo, scaled so the largest is 80 px.
-void WriteFieldPng(const std::string& path, const cv::Mat& photo, const dense::DisplacementField& f,
-                   const camera::CameraModel& model, const camera::ExteriorOrientation& pose) {
-  double largest = 0.0;
-  for (const auto& p : f.points)
-    if (p.IsUsable()) largest = std::max(largest, p.displacement.norm());
-  const double metres_per_80px = largest > 0 ? largest : 1.0;
-  cv::Mat out;
-  cv::cvtColor(photo, out, cv::COLOR_GRAY2BGR);
-  const int thick = std::max(1, photo.cols / 1000);
-  for (const auto& p : f.points) {
-    const cv::Point a(cvRound(p.xa.x()), cvRound(p.xa.y()));
-    if (!p.IsUsable()) {
-      cv::circle(out, a, 2 * thick, cv::Scalar(0, 0, 255), cv::FILLED);
-      continue;
-    }
-    // Direction in the image: the projection of x_ref + d (exaggerated).
-    Eigen::Vector2d x0, x1;
-    const Eigen::Vector3d dir = p.displacement / metres_per_80px;
-    if (!model.Project(pose, p.x_ref, &x0) || !model.Project(pose, p.x_ref + 0.01 * dir, &x1))
-      continue;
-    Eigen::Vector2d v = x1 - x0;
-    const double n = v.norm();
-    if (n <= 0) continue;
-    // Length proportional to |d| (80 px for the largest).
-    v *= 80.0 * p.displacement.norm() / metres_per_80px / n;
-    cv::arrowedLine(out, a, cv::Point(cvRound(p.xa.x() + v.x()), cvRound(p.xa.y() + v.y())),
-                    cv::Scalar(0, 255, 0), thick, cv::LINE_AA, 0, 0.25);
-  }
-  char label[128];
-  std::snprintf(label, sizeof(label), "80 px = %.3f m", metres_per_80px);
-  cv::putText(out, label, cv::Point(20, 40 * thick), cv::FONT_HERSHEY_SIMPLEX, thick,
-              cv::Scalar(0, 255, 255), 2 * thick);
-  if (!cv::imwrite(path, out)) throw IoError(Message("cannot write '", path, "'"));
 }
 
 }  // namespace
@@ -262,10 +227,14 @@ int main(int argc, char** argv) {
       const std::string stem =
           a["--out"][0] + "/field_" + std::filesystem::path(path).stem().string();
       WriteFieldCsv(stem + ".csv", f);
-      WriteFieldPng(stem + ".png", img, f, model, s.exterior);
+      dense::WriteDisplacementFieldPng(stem + ".png", img, f, model, s.exterior,
+                                       dense::FieldPictureOptions());
       std::fprintf(
-          stderr, "%s: field of %d probes, %d usable, LSC variance factor %.2f, dt %.0f s;",
-          name.c_str(), f.summary.probes, f.summary.usable, f.summary.lsc_variance_factor, e.dt);
+          stderr,
+          "%s: field of %d probes, %d usable (%d with a window-straddle term), LSC variance factor "
+          "%.2f, dt %.0f s;",
+          name.c_str(), f.summary.probes, f.summary.usable, f.summary.straddling,
+          f.summary.lsc_variance_factor, e.dt);
       for (const auto& kv : f.summary.flags)
         std::fprintf(stderr, " %s %d", kv.first.c_str(), kv.second);
       std::fprintf(stderr, "\n");

@@ -17,7 +17,9 @@
 //  * the re-oriented pose site -> <camera>_optical (tf);
 //  * a DiagnosticStatus "targetless_camera: <camera>": rotation, the three
 //    angles' changes and sigmas, RMS px, the field's counts and flags; WARN
-//    naming the camera and the angle above max_rotation_deg.
+//    naming the camera and the angle above max_rotation_deg;
+//  * with report_dir, the field drawn over the photo (dense/field_picture.h):
+//    <report_dir>/<camera>_field_eNN.png, NN the photo's epoch (1, 2, ...).
 #pragma once
 
 #include <map>
@@ -45,6 +47,7 @@ struct TargetlessParameters {
   io::SiteFile site;                              // read from site_file
   std::map<std::string, std::string> references;  // camera -> reference photo file
   std::string frame_id = "site";
+  std::string report_dir;  // where <camera>_field_eNN.png go; "" = not written
   dense::TargetlessCameraOptions options;
 };
 // Throws ConfigError naming the key (no site file, no fixed_targetless camera, ...).
@@ -55,6 +58,7 @@ struct TargetlessOutputs {
   std::optional<geometry_msgs::TransformStamped> site_from_optical;
   diagnostic_msgs::DiagnosticStatus status;
   std::vector<std::string> warnings;  // each names the camera (WARN)
+  std::string picture;                // the field picture written, or ""
   std::string info;                   // one line for the log (INFO)
 };
 

@@ -284,12 +284,64 @@ void FlagInconsistent(double max_sigma, std::vector<FieldPoint>* points) {
 
 }  // namespace
 
+// The window-straddle term: a usable probe whose LSC window (half width h
+// px) sees ground that moves differently. For each usable neighbour j
+// (within 1.5 x the median nearest-neighbour distance in the reference
+// photo, r_ij px) whose displacement differs from the probe's by Delta
+// significantly in the horizontal (|Delta_xy| > min_sigma x its sigma,
+// sqrt(u^T (C_i + C_j) u), u = Delta_xy / |Delta_xy|), the motion changes
+// across the probe's window by about w = Delta min(1, h / r_ij) (linear
+// between the probes). LSC then returns a texture-weighted blend of the
+// window's motions, not the centre's. The motion over the window spans
+// -w..w; its variance, that of a uniform spread, w w^T / 3 of the largest
+// such w, is added to the probe's covariance (returned per probe, zero where
+// no neighbour differs significantly).
+std::vector<Eigen::Matrix3d> WindowStraddleTerms(double min_sigma, int half_window,
+                                                 const std::vector<FieldPoint>& points) {
+  std::vector<Eigen::Matrix3d> terms(points.size(), Eigen::Matrix3d::Zero());
+  if (min_sigma <= 0) return terms;
+  std::vector<size_t> usable;
+  for (size_t i = 0; i < points.size(); ++i)
+    if (points[i].IsUsable()) usable.push_back(i);
+  if (usable.size() < 2) return terms;
+  std::vector<double> nearest;
+  for (size_t i : usable) {
+    double best = std::numeric_limits<double>::infinity();
+    for (size_t j : usable)
+      if (j != i) best = std::min(best, (points[i].xa - points[j].xa).norm());
+    nearest.push_back(best);
+  }
+  std::nth_element(nearest.begin(), nearest.begin() + nearest.size() / 2, nearest.end());
+  const double radius = 1.5 * nearest[nearest.size() / 2];
+  for (size_t i : usable) {
+    const FieldPoint& p = points[i];
+    Eigen::Vector3d largest = Eigen::Vector3d::Zero();
+    for (size_t j : usable) {
+      const double r = (p.xa - points[j].xa).norm();
+      if (j == i || r > radius) continue;
+      const FieldPoint& q = points[j];
+      const Eigen::Vector3d delta = q.displacement - p.displacement;
+      const double norm = delta.head<2>().norm();
+      if (norm <= 0) continue;
+      const Eigen::Vector2d u = delta.head<2>() / norm;
+      const double var = u.dot((p.covariance + q.covariance).topLeftCorner<2, 2>() * u);
+      const Eigen::Vector3d w = delta * std::min(1.0, half_window / r);
+      if (norm > min_sigma * std::sqrt(var) && w.norm() > largest.norm()) largest = w;
+    }
+    terms[i] = largest * largest.transpose() / 3.0;
+  }
+  return terms;
+}
+
 void DisplacementFieldOptions::Check() const {
   if (!(spacing_px > 0))
     throw InvalidArgument(Message("displacement field: spacing_px must be > 0, got ", spacing_px));
   if (!(max_neighbour_sigma >= 0))
     throw InvalidArgument(
         Message("displacement field: max_neighbour_sigma must be >= 0, got ", max_neighbour_sigma));
+  if (!(straddle_min_sigma >= 0))
+    throw InvalidArgument(
+        Message("displacement field: straddle_min_sigma must be >= 0, got ", straddle_min_sigma));
   if (!(spacing_m >= 0))
     throw InvalidArgument(Message("displacement field: spacing_m must be >= 0, got ", spacing_m));
   if (border_px < 0)
@@ -375,6 +427,7 @@ DisplacementField ComputeDisplacementField(const cv::Mat& reference_image, const
       p.xb = m.xb;
       p.covariance_px = m.covariance;
       p.correlation = m.correlation;
+      p.affine = m.affine;
       if (!m.IsSolutionUsable()) p.flag = std::string("lsc_") + matching::LscStatusName(m.status);
     }
     field.points.push_back(p);
@@ -387,6 +440,12 @@ DisplacementField ComputeDisplacementField(const cv::Mat& reference_image, const
       p.covariance_px *= field.summary.lsc_variance_factor;
       Project(dem, in, o, p.x_ref, &p);
     }
+  }
+  const std::vector<Eigen::Matrix3d> straddle =
+      WindowStraddleTerms(o.straddle_min_sigma, o.half_window, field.points);
+  for (size_t i = 0; i < field.points.size(); ++i) {
+    field.points[i].covariance += straddle[i];
+    if (!straddle[i].isZero()) ++field.summary.straddling;
   }
   FlagInconsistent(o.max_neighbour_sigma, &field.points);
   for (FieldPoint& p : field.points) {

@@ -8,9 +8,10 @@
 // ground point the probe's reference ray hits):
 //  * horizontal RMS of the displacement error <= 1 cm over the usable probes
 //    whose true motion is >= 30 deg off the line of sight (or zero);
-//  * at most 1.5 % of the horizontal components beyond 3 sigma (the issue
-//    asks for none; measured 0.8 % with the "inconsistent" flag, 1.1 %
-//    without; the rest sit at the body's margin, doc/targetless_camera.md);
+//  * every horizontal component of every usable probe within 3 sigma (the
+//    window-straddle term of the covariance at the body's margin,
+//    displacement_field.h; |err|/sigma is printed against the distance to
+//    the body's edge);
 //  * median |err| / sigma in [0.5, 0.9] (the stated sigma is honest).
 // Links slope_monitor_core_sim and slope_monitor_core_adjustment
 // (CMakeLists.txt: this test only).
@@ -144,11 +145,20 @@ TEST(DisplacementFieldSim, GridAgainstTruthWithMastRotation) {
   DisplacementFieldOptions o;
   o.spacing_px = 32.0;
   const DisplacementField f = ComputeDisplacementField(img0, img1, dem, in, o);
-  std::printf("field: %d probes, %d usable, %.2f s, LSC variance factor %.2f;", f.summary.probes,
-              f.summary.usable, f.summary.seconds, f.summary.lsc_variance_factor);
+  std::printf(
+      "field: %d probes, %d usable (%d with a window-straddle term), %.2f s, LSC variance factor "
+      "%.2f; flagged:",
+      f.summary.probes, f.summary.usable, f.summary.straddling, f.summary.seconds,
+      f.summary.lsc_variance_factor);
   for (const auto& kv : f.summary.flags) std::printf(" %s %d", kv.first.c_str(), kv.second);
   std::printf("\n");
 
+  // |err|/sigma against the distance to the body's edge: the body's
+  // normalised elliptic radius rho (edge 1, taper from 0.7).
+  static const double kZones[] = {0.0, 0.7, 0.85, 1.0, 1.15, 1.3, 1.6, 1e9};
+  constexpr int kNumZones = 7;
+  std::vector<double> zone_z[kNumZones];
+  std::vector<double> zone_sigma[kNumZones];
   int n = 0, moving = 0, outside3 = 0;
   double sum2 = 0.0, max_true = 0.0;
   std::vector<double> z;
@@ -156,6 +166,10 @@ TEST(DisplacementFieldSim, GridAgainstTruthWithMastRotation) {
     if (!p.IsUsable()) continue;
     Eigen::Vector3d x;
     ASSERT_TRUE(ground_of(p.xa, &x));
+    const Eigen::Vector2d rel = x.head<2>() - slide.centre;
+    const double rho = std::hypot(rel.x() / slide.length, rel.y() / slide.width);
+    const int zone =
+        static_cast<int>(std::upper_bound(kZones, kZones + kNumZones + 1, rho) - kZones) - 1;
     const Eigen::Vector3d truth = slide.DisplacementAt(x, kDt);
     const Eigen::Vector3d los = (x - ref.position).normalized();
     if (truth.norm() > 1e-3) {
@@ -170,8 +184,21 @@ TEST(DisplacementFieldSim, GridAgainstTruthWithMastRotation) {
     sum2 += e.head<2>().squaredNorm();
     for (int k = 0; k < 2; ++k) {
       z.push_back(std::abs(e(k)) / s(k));
+      zone_z[zone].push_back(z.back());
       if (std::abs(e(k)) > 3.0 * s(k)) ++outside3;
     }
+    zone_sigma[zone].push_back(s.head<2>().norm());
+  }
+  std::printf("rho (body edge 1)  probes  median |err|/sigma  max  median sigma_xy [m]\n");
+  for (int k = 0; k < kNumZones; ++k) {
+    std::vector<double>& zz = zone_z[k];
+    std::vector<double>& ss = zone_sigma[k];
+    if (zz.empty()) continue;
+    std::sort(zz.begin(), zz.end());
+    std::sort(ss.begin(), ss.end());
+    std::printf("%5.2f..%-5.2f %13zu %19.2f %5.2f %20.4f\n", kZones[k],
+                std::min(kZones[k + 1], 99.0), ss.size(), zz[zz.size() / 2], zz.back(),
+                ss[ss.size() / 2]);
   }
   ASSERT_GT(n, 100);
   std::sort(z.begin(), z.end());
@@ -187,10 +214,10 @@ TEST(DisplacementFieldSim, GridAgainstTruthWithMastRotation) {
   EXPECT_GT(moving, 30);
   EXPECT_GT(max_true, 0.2);
   EXPECT_LE(rms, 0.01);
-  // Not every probe: measured 11 of 1332 components (0.8 %) beyond 3 sigma
-  // (a Gaussian gives 0.27 %), at the body's margin (see
-  // doc/targetless_camera.md).
-  EXPECT_LE(outside3, 0.015 * z.size());
+  // Every usable probe within 3 sigma: without the window-straddle term 16
+  // of 1392 components were beyond, 11 of them in the body's taper
+  // (doc/targetless_camera.md).
+  EXPECT_EQ(outside3, 0);
   EXPECT_GE(median, 0.5);
   EXPECT_LE(median, 0.9);
 }

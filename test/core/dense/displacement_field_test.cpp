@@ -1,7 +1,9 @@
-// dense::IntersectDem and the options of the displacement field, checked by
-// hand: rays against planes, the DEM's edge and nodata.
+// dense::IntersectDem, the window-straddle term and the options of the
+// displacement field, checked by hand: rays against planes, the DEM's edge and
+// nodata; three probes in a row.
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -64,6 +66,36 @@ TEST(DisplacementFieldOptions, CheckNamesTheField) {
   } catch (const InvalidArgument& e) {
     EXPECT_NE(std::string(e.what()).find("min_incidence_deg"), std::string::npos) << e.what();
   }
+}
+
+// Three probes in a row, 32 px apart, sigma 1 cm in x and y; the third moved
+// 0.1 m east. Probes 2 and 3 differ by 0.1 m > 3 x sqrt(2) x 1 cm: across a
+// 10 px half window the motion changes by w = 0.1 x 10 / 32 m, variance
+// w^2 / 3 along x. Probe 1's only neighbour (probe 2, within 1.5 x 32 px)
+// moves as it does: no term.
+TEST(WindowStraddleTerms, ChangeAcrossTheWindowFromSignificantNeighbours) {
+  std::vector<FieldPoint> points(3);
+  for (int i = 0; i < 3; ++i) {
+    points[i].xa = Eigen::Vector2d(100 + 32 * i, 200);
+    points[i].covariance = Eigen::Vector3d(1e-4, 1e-4, 1e-4).asDiagonal();
+  }
+  points[2].displacement = Eigen::Vector3d(0.1, 0, 0);
+  const std::vector<Eigen::Matrix3d> t = WindowStraddleTerms(3.0, 10, points);
+  ASSERT_EQ(t.size(), 3u);
+  EXPECT_TRUE(t[0].isZero());
+  const double w = 0.1 * 10.0 / 32.0;
+  for (int i : {1, 2}) {
+    EXPECT_NEAR(t[i](0, 0), w * w / 3.0, 1e-12) << i;
+    EXPECT_NEAR(t[i].norm(), w * w / 3.0, 1e-12) << i;  // along x only
+  }
+  // A difference within noise (2 cm < 3 x sqrt(2) x 1 cm): no term; off: none.
+  points[2].displacement = Eigen::Vector3d(0.02, 0, 0);
+  for (const Eigen::Matrix3d& m : WindowStraddleTerms(3.0, 10, points)) EXPECT_TRUE(m.isZero());
+  points[2].displacement = Eigen::Vector3d(0.1, 0, 0);
+  for (const Eigen::Matrix3d& m : WindowStraddleTerms(0.0, 10, points)) EXPECT_TRUE(m.isZero());
+  // A flagged probe neither gets nor gives a term.
+  points[2].flag = "grazing";
+  for (const Eigen::Matrix3d& m : WindowStraddleTerms(3.0, 10, points)) EXPECT_TRUE(m.isZero());
 }
 
 }  // namespace

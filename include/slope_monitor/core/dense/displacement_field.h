@@ -23,10 +23,23 @@
 //
 // Covariance of d (numeric Jacobians, central differences):
 //   J_xb Cov_LSC J_xb^T  +  J_att Cov_att J_att^T  +  J_h sigma_h^2 J_h^T
+//   + w w^T  (the window-straddle term, below)
 // with J_h the derivative of d with respect to a common shift of the DEM
 // height (both points lie on the same local surface: its error is largely
 // common to both). The reference pose is taken as exact (its error moves
 // both rays together).
+//
+// Window-straddle term: LSC's covariance holds for a window that moves as
+// one (affine). At a body's margin the window sees ground that moves
+// differently and LSC returns a texture-weighted blend of its motions, not
+// the centre's (measured on the simulator: 11 of 50 probes in the body's
+// taper beyond 3 sigma without the term, doc/targetless_camera.md). For a
+// usable probe whose usable neighbour in the photo (within 1.5 x the median
+// grid distance, r px) differs in displacement by Delta, significantly
+// (|Delta_xy| > straddle_min_sigma x the sigma of the difference), the
+// motion changes across the window by w = Delta min(1, half_window / r); the
+// largest such w adds w w^T to the covariance (Summary::straddling counts
+// the probes that got one). Applied before the "inconsistent" test.
 //
 // Flags (FieldPoint::flag, "" = usable):
 //   "no_surface"     a ray does not meet the DEM (outside it or nodata)
@@ -75,6 +88,9 @@ struct DisplacementFieldOptions {
   double min_los_angle_deg = 30.0;  // [deg] "line_of_sight" within this of the ray, [0, 90)
   // "inconsistent" beyond this x sigma from the median of the neighbours, >= 0; 0 = off.
   double max_neighbour_sigma = 3.0;
+  // Window-straddle term (file comment): neighbours whose displacement differs
+  // by more than this x the sigma of the difference count, >= 0; 0 = no term.
+  double straddle_min_sigma = 3.0;
   // Probes on stable ground (FieldInput::stable) needed to scale the LSC
   // covariance to their scatter, >= 1 (fewer: the LSC covariance as it is).
   int min_stable_probes = 20;
@@ -87,10 +103,11 @@ struct FieldPoint {
   Eigen::Vector2d xb = Eigen::Vector2d::Zero();             // [px] its match in the new photo
   Eigen::Matrix2d covariance_px = Eigen::Matrix2d::Zero();  // [px^2] of xb (LSC)
   double correlation = 0.0;                                 // LSC NCC
-  Eigen::Vector3d x_ref = Eigen::Vector3d::Zero();          // [m] site, on the DEM
-  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();   // [m] site
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();     // [m^2] of the displacement
-  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();       // [m/s] (0 when dt == 0)
+  Eigen::Vector4d affine = Eigen::Vector4d::Zero();  // LSC's a1 a2 a4 a5 (0: shift model kept)
+  Eigen::Vector3d x_ref = Eigen::Vector3d::Zero();   // [m] site, on the DEM
+  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();  // [m] site
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();    // [m^2] of the displacement
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();      // [m/s] (0 when dt == 0)
   double incidence_deg = 0.0;  // angle between the reference ray and the surface
   double los_angle_deg = 0.0;  // angle between the displacement and the line of sight
   bool stable = false;         // on stable ground (FieldInput::stable): a check, d ~ 0
@@ -106,6 +123,7 @@ struct DisplacementFieldSummary {
   // Factor applied to every LSC covariance (>= 1): the scatter of the probes
   // on stable ground against the LSC covariance (see the file comment).
   double lsc_variance_factor = 1.0;
+  int straddling = 0;                // usable probes given a window-straddle term
   std::map<std::string, int> flags;  // flag -> count
   double seconds = 0.0;
   bool IsSolutionUsable() const { return usable > 0; }
@@ -141,6 +159,12 @@ struct FieldInput {
 // or false. *t the distance along the (unit) direction.
 bool IntersectDem(const io::GeoRaster& dem, const Eigen::Vector3d& origin,
                   const Eigen::Vector3d& direction, double max_range, double* t);
+
+// The window-straddle term of each point (the file comment; zero for
+// flagged points and where no neighbour differs significantly), from the
+// points' xa, displacement and covariance. min_sigma 0: all zero.
+std::vector<Eigen::Matrix3d> WindowStraddleTerms(double min_sigma, int half_window,
+                                                 const std::vector<FieldPoint>& points);
 
 // The field between two photos (8-bit or float single channel, the camera's
 // size). Throws InvalidArgument naming the DEM (input.dem_name) when no probe
