@@ -140,6 +140,9 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   a.displacement.significance_threshold = p.Double("significance_threshold", 3.0, 0.1, 100.0);
   a.displacement.estimate_scale = p.Bool("coregistration_scale", false);
   a.displacement.Check();
+  a.frustums.depth = p.Double("frustum_depth", a.frustums.depth, 1e-3, 1e4, "m");
+  a.frustums.line_width = p.Double("frustum_line_width", a.frustums.line_width, 1e-3, 100.0, "m");
+  a.frustums.Check();
   p.CheckNoUnknownKeys();
   return a;
 }

@@ -68,6 +68,7 @@
 #include "slope_monitor/ros/hex_matcher_parameters.h"
 #include "slope_monitor/ros/node_parameters.h"
 #include "slope_monitor/ros/offline_dense.h"
+#include "slope_monitor/ros/view_markers.h"
 #include "slope_monitor/ros/param_files.h"
 #include "slope_monitor/ros/radio_conversions.h"
 #include "slope_monitor/ros/sequence_conversions.h"
@@ -251,6 +252,10 @@ struct Centroider {
   std::unique_ptr<targets::TargetCentroider> centroider;
   std::map<ros::Time, sensor_msgs::Image::ConstPtr> images;      // waiting for their camera_info
   std::map<ros::Time, sensor_msgs::CameraInfo::ConstPtr> infos;  // waiting for their image
+  // The latest centroided photo (its image kept: `mono` may share its pixels),
+  // written as /<camera>/debug_image at the end of the input.
+  sensor_msgs::Image::ConstPtr last_image;
+  std::optional<ros_adapters::CentroidedImage> last;
 };
 
 class OfflineGraph {
@@ -305,6 +310,10 @@ class OfflineGraph {
   // End of the bags: an epoch still open is solved with what it has (the
   // live graph's time-out), then the reports are written.
   void Finish() {
+    // The centroider's debug_image of each camera's latest photo (rviz's
+    // photo panel), once: every photo would multiply the output bag's size.
+    for (auto& [camera, c] : centroiders_)
+      if (c.last) Write("/" + camera + "/debug_image", ros_adapters::ToDebugImage(*c.last, c.last_image->header));
     if (sequence_) OnSequenceStep(sequence_->Finish());
     if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) Solve(*e);
     // The inputs have ended: what waits for a later stamp of another input is fused.
@@ -498,6 +507,7 @@ class OfflineGraph {
         p,
         [this](const ros_adapters::DenseEpochOutput& out) {
           if (out.cloud) Write(ros_adapters::OfflineDense::kCloudTopic, *out.cloud);
+          if (out.legend) Write(ros_adapters::OfflineDense::kLegendTopic, *out.legend);
           if (out.areas) OnAreas(*out.areas);
         },
         log_);
@@ -568,6 +578,8 @@ class OfflineGraph {
           ros_adapters::CentroidImage(*c->centroider, *image->second, *info->second,
                                       site_from_optical, c->camera, c->node.pixel_size, topic);
       Write("/" + c->camera + "/targets", out.targets);
+      c->last_image = image->second;
+      c->last = out;
       Solve(collector_->AddTargets(ros_adapters::FromMsg(out.targets), now_.toSec()));
     } catch (const std::exception& e) {
       Log("target_centroider: dropped image (topic " + topic + ", stamp " +
@@ -678,6 +690,8 @@ class OfflineGraph {
       Write("/tf", tf);
     }
     Write("/bundle_adjuster/points", out.points);
+    Write("/bundle_adjuster/frustums",
+          ros_adapters::ToFrustumMarkers(out.solution, models_, adjuster_params_.frustums));
     if (out.displacements) {
       Write(kAdjusterDisplacements, *out.displacements);
       Fuse(*out.displacements, kAdjusterDisplacements);
