@@ -88,7 +88,7 @@ Outputs ReadOutputs(const fs::path& bag_path) {
         out.solutions[s->header.stamp.toSec()] = static_cast<int>(s->epoch);
         out.usable[s->header.stamp.toSec()] = s;
       }
-    if (const auto a = m.instantiate<visualization_msgs::MarkerArray>()) {
+    if (const auto a = m.instantiate<visualization_msgs::MarkerArray>(); a && !a->markers.empty()) {
       if (m.getTopic() == "/dense/change_legend") out.legends[a->markers.back().header.stamp.toSec()] = a;
       if (m.getTopic() == "/bundle_adjuster/frustums")
         out.frustums[a->markers.front().header.stamp.toSec()] = a;
