@@ -61,20 +61,20 @@
 #include "slope_monitor/core/evaluation/deformation_truth.h"
 #include "slope_monitor/core/targets/options_reader.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
-#include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/change_area_conversions.h"
+#include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/epoch_solver.h"
 #include "slope_monitor/ros/hex_matcher_parameters.h"
 #include "slope_monitor/ros/node_parameters.h"
 #include "slope_monitor/ros/offline_dense.h"
-#include "slope_monitor/ros/view_markers.h"
 #include "slope_monitor/ros/param_files.h"
 #include "slope_monitor/ros/radio_conversions.h"
 #include "slope_monitor/ros/sequence_conversions.h"
 #include "slope_monitor/ros/target_conversions.h"
 #include "slope_monitor/ros/targetless_camera.h"
 #include "slope_monitor/ros/validation.h"
+#include "slope_monitor/ros/view_markers.h"
 
 namespace fs = std::filesystem;
 
@@ -313,7 +313,9 @@ class OfflineGraph {
     // The centroider's debug_image of each camera's latest photo (rviz's
     // photo panel), once: every photo would multiply the output bag's size.
     for (auto& [camera, c] : centroiders_)
-      if (c.last) Write("/" + camera + "/debug_image", ros_adapters::ToDebugImage(*c.last, c.last_image->header));
+      if (c.last)
+        Write("/" + camera + "/debug_image",
+              ros_adapters::ToDebugImage(*c.last, c.last_image->header));
     if (sequence_) OnSequenceStep(sequence_->Finish());
     if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) Solve(*e);
     // The inputs have ended: what waits for a later stamp of another input is fused.

@@ -23,8 +23,8 @@
 #include <gtest/gtest.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
-#include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <visualization_msgs/MarkerArray.h>
 
@@ -89,7 +89,8 @@ Outputs ReadOutputs(const fs::path& bag_path) {
         out.usable[s->header.stamp.toSec()] = s;
       }
     if (const auto a = m.instantiate<visualization_msgs::MarkerArray>(); a && !a->markers.empty()) {
-      if (m.getTopic() == "/dense/change_legend") out.legends[a->markers.back().header.stamp.toSec()] = a;
+      if (m.getTopic() == "/dense/change_legend")
+        out.legends[a->markers.back().header.stamp.toSec()] = a;
       if (m.getTopic() == "/bundle_adjuster/frustums")
         out.frustums[a->markers.front().header.stamp.toSec()] = a;
     }
