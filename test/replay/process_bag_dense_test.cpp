@@ -135,7 +135,9 @@ void ExpectViewMarkers(const Outputs& out) {
     for (const visualization_msgs::Marker& m : legend->markers) {
       cubes += m.type == visualization_msgs::Marker::CUBE;
       if (m.type == visualization_msgs::Marker::TEXT_VIEW_FACING) labels.push_back(m.text);
-      if (m.action == visualization_msgs::Marker::ADD) EXPECT_EQ(m.header.frame_id, "site");
+      if (m.action == visualization_msgs::Marker::ADD) {
+        EXPECT_EQ(m.header.frame_id, "site");
+      }
     }
     EXPECT_EQ(cubes, 10);  // config/defaults/dense_epoch.yaml: -1 .. +1 m
     EXPECT_EQ(labels, (std::vector<std::string>{"-1.0 m", "-0.5 m", "0.0 m", "+0.5 m", "+1.0 m",
