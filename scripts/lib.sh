@@ -20,9 +20,10 @@ export ROS_HOSTNAME="${ROS_HOSTNAME:-127.0.0.1}"
 sm_say() { printf '[slope_monitor] %s\n' "$*" >&2; }
 sm_die() { printf '[slope_monitor] ERROR: %s\n' "$*" >&2; exit 1; }
 
-# Install every Debian package of scripts/debian-packages.txt that is missing.
+# Install every Debian package of a list that is missing (default
+# scripts/debian-packages.txt; scripts/debian-packages-rviz.txt for rviz).
 sm_install_missing() {
-  local list="$SM_SRC/scripts/debian-packages.txt" missing=() p
+  local list="${1:-$SM_SRC/scripts/debian-packages.txt}" missing=() p
   [ -f "$list" ] || sm_die "package list $list not found"
   while read -r p; do
     p="${p%%#*}"; p="$(echo "$p" | xargs)"

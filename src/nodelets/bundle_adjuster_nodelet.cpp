@@ -3,7 +3,7 @@
 // core's EpochCollector (which decides when an epoch is complete, see
 // core/adjustment/epoch_collector.h), and publishes what the core computes for
 // each complete epoch: the solution, tf of every camera, the adjusted points
-// with their sigma, and displacements of monitoring points against the
+// with their sigma, the camera frustums (rviz), and displacements of monitoring points against the
 // reference epoch. The process_bag tool drives the same core the same way.
 #include <algorithm>
 #include <map>
@@ -43,6 +43,7 @@
 #include "slope_monitor/ros/node_parameters.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
+#include "slope_monitor/ros/view_markers.h"
 
 namespace slope_monitor {
 
@@ -62,6 +63,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("points", 5, true);
     displacements_pub_ =
         nh.advertise<slope_monitor::PointDisplacementArray>("displacements", 5, true);
+    frustums_pub_ = nh.advertise<visualization_msgs::MarkerArray>("frustums", 1, true);
     for (const std::string& topic : params_.target_topics)
       target_subs_.push_back(nh.subscribe(topic, 500, &BundleAdjusterNodelet::OnTargets, this));
     for (const std::string& cam : params_.collector.cameras) {
@@ -248,6 +250,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     if (!out.moving_transforms.empty()) tf_broadcaster_.sendTransform(out.moving_transforms);
     points_pub_.publish(out.points);
     if (out.displacements) displacements_pub_.publish(*out.displacements);
+    frustums_pub_.publish(ros_adapters::ToFrustumMarkers(out.solution, models_, params_.frustums));
     ++accepted_;
     return out.solution;
   }
@@ -297,7 +300,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   int accepted_ = 0;
 
   // ROS.
-  ros::Publisher solution_pub_, points_pub_, displacements_pub_;
+  ros::Publisher solution_pub_, points_pub_, displacements_pub_, frustums_pub_;
   std::vector<ros::Subscriber> target_subs_, info_subs_;
   ros::Subscriber tie_sub_, prior_sub_;
   std::vector<ros::Subscriber> epoch_subs_;

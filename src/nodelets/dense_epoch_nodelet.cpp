@@ -13,7 +13,8 @@
 // rate). A worker thread of its
 // own measures the complete epochs, so neither the bundle adjuster nor the
 // estimator waits for it. Outputs: a latched PointCloud2 `surface_cloud` in
-// `site` per epoch (fields x y z rgb sigma_z change lod) and, with
+// `site` per epoch (fields x y z rgb sigma_z change lod), the colour scale
+// of `change` beside it (MarkerArray `change_legend`, latched) and, with
 // report_dir, surface_eNN.tif and change_eNN.tif there; per later epoch the
 // polygons of significant change (ChangeAreaArray `change_areas`, latched)
 // for the deformation estimator. A failing step is
@@ -63,6 +64,7 @@ class DenseEpochNodelet : public nodelet::Nodelet {
     }
     cloud_pub_ = nh.advertise<sensor_msgs::PointCloud2>("surface_cloud", 1, true);
     areas_pub_ = nh.advertise<slope_monitor::ChangeAreaArray>("change_areas", 2, true);
+    legend_pub_ = nh.advertise<visualization_msgs::MarkerArray>("change_legend", 1, true);
     // A queue as deep as the photos the collector may hold: the transport
     // never drops a photo of a flight that fits the memory limit.
     const uint32_t queue = static_cast<uint32_t>(params.photos.max_photos);
@@ -132,6 +134,7 @@ class DenseEpochNodelet : public nodelet::Nodelet {
           job, [this](const std::string& s) { NODELET_INFO("dense_matcher: %s", s.c_str()); });
       Log(out.log);
       if (out.cloud) cloud_pub_.publish(*out.cloud);
+      if (out.legend) legend_pub_.publish(*out.legend);
       if (out.areas) areas_pub_.publish(*out.areas);
       std::lock_guard<std::mutex> lock(state_mutex_);
       if (out.cloud) ++epochs_;
@@ -173,7 +176,7 @@ class DenseEpochNodelet : public nodelet::Nodelet {
   }
 
   std::unique_ptr<ros_adapters::DenseEpochStep> step_;
-  ros::Publisher cloud_pub_, areas_pub_;
+  ros::Publisher cloud_pub_, areas_pub_, legend_pub_;
   std::vector<ros::Subscriber> subs_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer timer_;

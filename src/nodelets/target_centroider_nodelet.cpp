@@ -149,11 +149,8 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
       const targets::Result& r = c.result;
       const TargetObservationArray& out = c.targets;
       targets_pub_.publish(out);
-      if (debug_pub_.getNumSubscribers() > 0) {
-        cv_bridge::CvImage dbg(image->header, sensor_msgs::image_encodings::BGR8,
-                               targets::DrawResult(c.mono.mono8, r));
-        debug_pub_.publish(dbg.toImageMsg());
-      }
+      if (debug_pub_.getNumSubscribers() > 0)
+        debug_pub_.publish(ros_adapters::ToDebugImage(c, image->header));
       std::lock_guard<std::mutex> lock(stats_mutex_);
       ++frames_;
       last_detections_ = r.observations.size();

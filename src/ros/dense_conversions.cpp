@@ -1,5 +1,6 @@
 #include "slope_monitor/ros/dense_conversions.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -68,6 +69,20 @@ sensor_msgs::PointCloud2 MakeSurfaceCloud(const dense::EpochSurfaceResult& surfa
   return cloud;
 }
 
+visualization_msgs::MarkerArray MakeChangeScaleBeside(const dense::EpochSurfaceResult& surface,
+                                                      const ChangeScaleOptions& options,
+                                                      const std_msgs::Header& header) {
+  if (surface.points.empty()) return {};
+  Eigen::Vector3d lo = surface.points.front().x_in_site, hi = lo;
+  for (const dense::EpochPoint& p : surface.points) {
+    lo = lo.cwiseMin(p.x_in_site);
+    hi = hi.cwiseMax(p.x_in_site);
+  }
+  const double side = std::max(hi.x() - lo.x(), hi.y() - lo.y());
+  const Eigen::Vector3d base(hi.x() + 0.05 * side, 0.5 * (lo.y() + hi.y()), lo.z());
+  return ToChangeScaleMarkers(options, base, 0.5 * side, header);
+}
+
 DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
   DenseEpochParameters d;
   dense::SurfaceOptions& s = d.surface.surface;
@@ -128,6 +143,15 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
   ph.photo_wait = p.Double("photo_wait", ph.photo_wait, 0.0, 1e6, "s");
   d.frame_id = p.String("frame_id", "site");
   d.report_dir = p.String("report_dir", "");
+  ChangeScaleOptions& cs = d.change_scale;
+  cs.min = p.Double("change_colour_min", cs.min, -1e3, 1e3, "m");
+  cs.max = p.Double("change_colour_max", cs.max, -1e3, 1e3, "m");
+  try {
+    cs.Check();
+  } catch (const ConfigError& e) {
+    throw ConfigError(Message("parameters '", p.FullKey("change_colour_min"), "', '",
+                              p.FullKey("change_colour_max"), "': ", e.what()));
+  }
   p.CheckNoUnknownKeys();
   d.surface.Check();
   d.change.Check();

@@ -121,6 +121,8 @@ DenseEpochOutput DenseEpochStep::Measure(const dense::PhotoEpoch& e,
   header.stamp.fromNSec(static_cast<uint64_t>(e.stamp_ns));
   header.frame_id = parameters_.frame_id;
   out.cloud = MakeSurfaceCloud(*s.surface, s.change ? &*s.change : nullptr, header);
+  if (!s.surface->points.empty())
+    out.legend = MakeChangeScaleBeside(*s.surface, parameters_.change_scale, header);
   if (reference_epoch_ < 0) reference_epoch_ = e.input.epoch;
   if (s.change) {
     try {

@@ -140,6 +140,9 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   a.displacement.significance_threshold = p.Double("significance_threshold", 3.0, 0.1, 100.0);
   a.displacement.estimate_scale = p.Bool("coregistration_scale", false);
   a.displacement.Check();
+  a.frustums.depth = p.Double("frustum_depth", a.frustums.depth, 1e-3, 1e4, "m");
+  a.frustums.line_width = p.Double("frustum_line_width", a.frustums.line_width, 1e-3, 100.0, "m");
+  a.frustums.Check();
   p.CheckNoUnknownKeys();
   return a;
 }
@@ -285,9 +288,9 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
   e.report.idw_power = p.Double("report_idw_power", 2.0, 0.1, 10.0);
   e.report.idw_radius = p.Double("report_idw_radius", 50.0, 0.1, 1e5, "m");
   e.report.map_width = p.Int("report_map_width", 1200, 200, 8000, "px");
-  e.markers.arrow_scale = p.Double("marker_arrow_scale", 100.0, 0.0, 1e6);
-  e.markers.text_size = p.Double("marker_text_size", 0.8, 0.01, 100.0, "m");
-  e.markers.point_size = p.Double("marker_point_size", 0.5, 0.01, 100.0, "m");
+  e.markers.arrow_scale = p.Double("marker_arrow_scale", e.markers.arrow_scale, 0.0, 1e6);
+  e.markers.text_size = p.Double("marker_text_size", e.markers.text_size, 0.01, 100.0, "m");
+  e.markers.point_size = p.Double("marker_point_size", e.markers.point_size, 0.01, 100.0, "m");
   e.report_interval = p.Double("report_interval", 0.0, 0.0, 30 * 86400.0, "s");
   e.order_timeout = p.Double("order_timeout", 300.0, 0.0, 86400.0, "s");
   e.report_on_alert_change = p.Bool("report_on_alert_change", false);

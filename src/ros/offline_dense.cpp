@@ -12,6 +12,7 @@ namespace ros_adapters {
 
 constexpr char OfflineDense::kCloudTopic[];
 constexpr char OfflineDense::kAreasTopic[];
+constexpr char OfflineDense::kLegendTopic[];
 
 OfflineDense::OfflineDense(const XmlRpc::XmlRpcValue& params,
                            std::function<void(const DenseEpochOutput&)> write,

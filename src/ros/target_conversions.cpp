@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include <cv_bridge/cv_bridge.h>
+#include <sensor_msgs/image_encodings.h>
 
 #include "slope_monitor/core/common/rigid3.h"
 #include "slope_monitor/ros/conversions.h"
@@ -65,6 +66,14 @@ CentroidedImage CentroidImage(const targets::TargetCentroider& centroider,
     msg.reject_reasons.push_back(targets::RejectReasonName(rj.reason) + ": " + rj.family + "/" +
                                  std::to_string(rj.id) + " " + rj.detail);
   }
+  return out;
+}
+
+sensor_msgs::Image ToDebugImage(const CentroidedImage& c, const std_msgs::Header& header) {
+  sensor_msgs::Image out;
+  cv_bridge::CvImage(header, sensor_msgs::image_encodings::BGR8,
+                     targets::DrawResult(c.mono.mono8, c.result))
+      .toImageMsg(out);
   return out;
 }
 

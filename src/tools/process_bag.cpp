@@ -61,8 +61,8 @@
 #include "slope_monitor/core/evaluation/deformation_truth.h"
 #include "slope_monitor/core/targets/options_reader.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
-#include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/change_area_conversions.h"
+#include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/epoch_solver.h"
 #include "slope_monitor/ros/hex_matcher_parameters.h"
@@ -74,6 +74,7 @@
 #include "slope_monitor/ros/target_conversions.h"
 #include "slope_monitor/ros/targetless_camera.h"
 #include "slope_monitor/ros/validation.h"
+#include "slope_monitor/ros/view_markers.h"
 
 namespace fs = std::filesystem;
 
@@ -251,6 +252,10 @@ struct Centroider {
   std::unique_ptr<targets::TargetCentroider> centroider;
   std::map<ros::Time, sensor_msgs::Image::ConstPtr> images;      // waiting for their camera_info
   std::map<ros::Time, sensor_msgs::CameraInfo::ConstPtr> infos;  // waiting for their image
+  // The latest centroided photo (its image kept: `mono` may share its pixels),
+  // written as /<camera>/debug_image at the end of the input.
+  sensor_msgs::Image::ConstPtr last_image;
+  std::optional<ros_adapters::CentroidedImage> last;
 };
 
 class OfflineGraph {
@@ -305,6 +310,12 @@ class OfflineGraph {
   // End of the bags: an epoch still open is solved with what it has (the
   // live graph's time-out), then the reports are written.
   void Finish() {
+    // The centroider's debug_image of each camera's latest photo (rviz's
+    // photo panel), once: every photo would multiply the output bag's size.
+    for (auto& [camera, c] : centroiders_)
+      if (c.last)
+        Write("/" + camera + "/debug_image",
+              ros_adapters::ToDebugImage(*c.last, c.last_image->header));
     if (sequence_) OnSequenceStep(sequence_->Finish());
     if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) Solve(*e);
     // The inputs have ended: what waits for a later stamp of another input is fused.
@@ -499,6 +510,7 @@ class OfflineGraph {
         p,
         [this](const ros_adapters::DenseEpochOutput& out) {
           if (out.cloud) Write(ros_adapters::OfflineDense::kCloudTopic, *out.cloud);
+          if (out.legend) Write(ros_adapters::OfflineDense::kLegendTopic, *out.legend);
           if (out.areas) OnAreas(*out.areas);
         },
         log_);
@@ -569,6 +581,8 @@ class OfflineGraph {
           ros_adapters::CentroidImage(*c->centroider, *image->second, *info->second,
                                       site_from_optical, c->camera, c->node.pixel_size, topic);
       Write("/" + c->camera + "/targets", out.targets);
+      c->last_image = image->second;
+      c->last = out;
       Solve(collector_->AddTargets(ros_adapters::FromMsg(out.targets), now_.toSec()));
     } catch (const std::exception& e) {
       Log("target_centroider: dropped image (topic " + topic + ", stamp " +
@@ -679,6 +693,8 @@ class OfflineGraph {
       Write("/tf", tf);
     }
     Write("/bundle_adjuster/points", out.points);
+    Write("/bundle_adjuster/frustums",
+          ros_adapters::ToFrustumMarkers(out.solution, models_, adjuster_params_.frustums));
     if (out.displacements) {
       Write(kAdjusterDisplacements, *out.displacements);
       Fuse(*out.displacements, kAdjusterDisplacements);

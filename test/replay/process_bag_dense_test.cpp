@@ -4,6 +4,9 @@
 // for every adjusted epoch in --output-bag, a change on the later epoch,
 // surface_eNN.tif and change_eNN.tif in --report-dir, every oriented photo
 // used, and the DEMs against the simulator's true surfaces on bare ground.
+// The rviz outputs: the colour scale of `change` beside every cloud, the
+// camera frustums of every usable solution (apex at each camera's adjusted
+// projection centre) and the UAV centroider's debug image of the last photo.
 // --no-dense turns the step off.
 #include <algorithm>
 #include <cmath>
@@ -20,8 +23,10 @@
 #include <gtest/gtest.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
+#include <sensor_msgs/Image.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
+#include <visualization_msgs/MarkerArray.h>
 
 #include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
@@ -68,7 +73,10 @@ int RunProcessBag(const fs::path& dir, const std::string& extra) {
 
 struct Outputs {
   std::map<double, int> solutions;  // usable: stamp -> epoch
+  std::map<double, slope_monitor::AdjustmentSolution::ConstPtr> usable;  // stamp -> solution
   std::map<double, sensor_msgs::PointCloud2::ConstPtr> clouds;
+  std::map<double, visualization_msgs::MarkerArray::ConstPtr> legends, frustums;
+  std::vector<sensor_msgs::Image::ConstPtr> uav_debug_images;
 };
 
 Outputs ReadOutputs(const fs::path& bag_path) {
@@ -76,7 +84,18 @@ Outputs ReadOutputs(const fs::path& bag_path) {
   rosbag::Bag bag(bag_path.string(), rosbag::bagmode::Read);
   for (const rosbag::MessageInstance& m : rosbag::View(bag)) {
     if (const auto s = m.instantiate<slope_monitor::AdjustmentSolution>())
-      if (s->usable) out.solutions[s->header.stamp.toSec()] = static_cast<int>(s->epoch);
+      if (s->usable) {
+        out.solutions[s->header.stamp.toSec()] = static_cast<int>(s->epoch);
+        out.usable[s->header.stamp.toSec()] = s;
+      }
+    if (const auto a = m.instantiate<visualization_msgs::MarkerArray>(); a && !a->markers.empty()) {
+      if (m.getTopic() == "/dense/change_legend")
+        out.legends[a->markers.back().header.stamp.toSec()] = a;
+      if (m.getTopic() == "/bundle_adjuster/frustums")
+        out.frustums[a->markers.front().header.stamp.toSec()] = a;
+    }
+    if (m.getTopic() == "/uav/debug_image")
+      if (const auto i = m.instantiate<sensor_msgs::Image>()) out.uav_debug_images.push_back(i);
     if (m.getTopic() == "/dense/surface_cloud")
       if (const auto c = m.instantiate<sensor_msgs::PointCloud2>())
         out.clouds[c->header.stamp.toSec()] = c;
@@ -104,6 +123,44 @@ std::vector<double> BareGroundErrors(const io::GeoRaster& dem, const io::GeoRast
 
 double Quantile(const std::vector<double>& sorted, double q) {
   return sorted.empty() ? NAN : sorted[static_cast<size_t>(q * (sorted.size() - 1))];
+}
+
+// The markers rviz/slope_monitor.rviz shows beside the clouds.
+void ExpectViewMarkers(const Outputs& out) {
+  ASSERT_EQ(out.legends.size(), out.clouds.size());
+  for (const auto& [stamp, legend] : out.legends) {
+    EXPECT_EQ(out.clouds.count(stamp), 1u) << "legend at " << stamp << " without a cloud";
+    std::vector<std::string> labels;
+    int cubes = 0;
+    for (const visualization_msgs::Marker& m : legend->markers) {
+      cubes += m.type == visualization_msgs::Marker::CUBE;
+      if (m.type == visualization_msgs::Marker::TEXT_VIEW_FACING) labels.push_back(m.text);
+      if (m.action == visualization_msgs::Marker::ADD) {
+        EXPECT_EQ(m.header.frame_id, "site");
+      }
+    }
+    EXPECT_EQ(cubes, 10);  // config/defaults/dense_epoch.yaml: -1 .. +1 m
+    EXPECT_EQ(labels, (std::vector<std::string>{"-1.0 m", "-0.5 m", "0.0 m", "+0.5 m", "+1.0 m",
+                                                "change [m]"}));
+  }
+  ASSERT_EQ(out.frustums.size(), out.usable.size());
+  for (const auto& [stamp, solution] : out.usable) {
+    ASSERT_EQ(out.frustums.count(stamp), 1u) << "no frustums for the solution at " << stamp;
+    const auto& markers = out.frustums.at(stamp)->markers;
+    ASSERT_EQ(markers.size(), solution->cameras.size() + 1);  // DELETEALL, one per camera
+    EXPECT_EQ(markers.front().action, visualization_msgs::Marker::DELETEALL);
+    for (size_t i = 1; i < markers.size(); ++i) {
+      const auto& apex = markers[i].points.at(0);
+      const auto& centre = solution->cameras[markers[i].id].site_from_optical.position;
+      EXPECT_NEAR(apex.x, centre.x, 1e-9);
+      EXPECT_NEAR(apex.y, centre.y, 1e-9);
+      EXPECT_NEAR(apex.z, centre.z, 1e-9);
+      EXPECT_EQ(markers[i].points.size(), 16u);
+    }
+  }
+  ASSERT_EQ(out.uav_debug_images.size(), 1u);  // the last photo's
+  EXPECT_EQ(out.uav_debug_images[0]->encoding, "bgr8");
+  EXPECT_EQ(out.uav_debug_images[0]->width, 1280u);
 }
 
 TEST(ProcessBagDense, ACloudPerEpochTheGeoTiffsAndTheTruth) {
@@ -142,6 +199,8 @@ TEST(ProcessBagDense, ACloudPerEpochTheGeoTiffsAndTheTruth) {
     else
       EXPECT_GT(finite_change, n / 4) << "epoch " << epoch;
   }
+
+  ExpectViewMarkers(out);
 
   // The GeoTIFFs, and each DEM against the true surface on bare ground.
   for (const auto& [stamp, epoch] : out.solutions) {

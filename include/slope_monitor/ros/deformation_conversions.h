@@ -30,10 +30,12 @@ slope_monitor::PointDisplacement MakePointDisplacement(const std::string& point_
                                                        const Eigen::Vector3d& displacement,
                                                        const Eigen::Matrix3d& covariance);
 
+// Sized to read at site scale (a 100-200 m slope seen whole in rviz): a
+// 0.3 m displacement is a 15 m arrow, labels 2.5 m high.
 struct MarkerOptions {
-  double arrow_scale = 100.0;  // [m of arrow per m of displacement]
-  double text_size = 0.8;      // [m]
-  double point_size = 0.5;     // [m]
+  double arrow_scale = 50.0;  // [m of arrow per m of displacement]
+  double text_size = 2.5;     // [m]
+  double point_size = 1.5;    // [m]
 };
 // Per point: a sphere at the reference position, an arrow along the
 // displacement (scaled), a text label "id |d| mm v mm/day ALERT"; colour by

@@ -7,12 +7,14 @@
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <std_msgs/Header.h>
+#include <visualization_msgs/MarkerArray.h>
 
 #include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/core/dense/dem_change.h"
 #include "slope_monitor/core/dense/epoch_photos.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
 #include "slope_monitor/ros/parameters.h"
+#include "slope_monitor/ros/view_markers.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -32,6 +34,9 @@ struct DenseEpochParameters {
   // uav_cameras, stereo_pairs as above; max_cached_images, max_cached_megabytes, photo_wait.
   dense::PhotoCollectorOptions photos;
   std::string frame_id, report_dir;
+  // change_colour_min / max: the colour scale of `change` (the legend; rviz's
+  // cloud display is set to the same numbers).
+  ChangeScaleOptions change_scale;
 };
 DenseEpochParameters ReadDenseEpochParameters(ParamReader& p);
 
@@ -52,6 +57,14 @@ std::vector<Eigen::Vector3d> AdjustedPoints(const slope_monitor::AdjustmentSolut
 sensor_msgs::PointCloud2 MakeSurfaceCloud(const dense::EpochSurfaceResult& surface,
                                           const dense::DemChangeResult* change,
                                           const std_msgs::Header& header);
+
+// The colour scale of `change` (view_markers.h) standing beside the surface:
+// at the east edge of the points' extent plus 5 % of its larger side, at the
+// middle of its north extent, from the lowest point up, half as tall as the
+// larger side. Empty surface: an empty array.
+visualization_msgs::MarkerArray MakeChangeScaleBeside(const dense::EpochSurfaceResult& surface,
+                                                      const ChangeScaleOptions& options,
+                                                      const std_msgs::Header& header);
 
 }  // namespace ros_adapters
 }  // namespace slope_monitor

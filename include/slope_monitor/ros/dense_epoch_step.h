@@ -39,6 +39,8 @@ dense::EpochOrientations OrientationsOf(const slope_monitor::AdjustmentSolution&
 struct DenseEpochOutput {
   int epoch = 0;
   std::optional<sensor_msgs::PointCloud2> cloud;  // none: no surface
+  // With the cloud: the colour scale of its `change` beside it (change_legend).
+  std::optional<visualization_msgs::MarkerArray> legend;
   std::vector<std::string> files;                 // GeoTIFFs written
   std::vector<LogLine> log;                       // what happened, named
   // Later epochs: the polygons of significant change of the DoD

@@ -22,6 +22,7 @@
 #include "slope_monitor/core/radio/phase_solver.h"
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "slope_monitor/ros/parameters.h"
+#include "slope_monitor/ros/view_markers.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -42,6 +43,7 @@ struct AdjusterParameters {
   adjustment::BuildSceneOptions scene;
   adjustment::EpochAdjustmentOptions epoch;
   adjustment::DisplacementOptions displacement;
+  FrustumOptions frustums;  // the `frustums` markers (rviz)
 };
 AdjusterParameters ReadAdjusterParameters(ParamReader& p);
 

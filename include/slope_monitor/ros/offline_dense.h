@@ -4,7 +4,8 @@
 // cameras are collected; each solution's epoch is measured as soon as its
 // photos are there (at the end of the bags with what it has, the missing
 // photos named), its output handed to `write` (cloud: /dense/surface_cloud,
-// areas of significant change: /dense/change_areas)
+// areas of significant change: /dense/change_areas, colour scale of the
+// cloud's change: /dense/change_legend)
 // and its GeoTIFFs written to the report directory.
 #pragma once
 
@@ -29,6 +30,7 @@ class OfflineDense {
   // The graph's cloud topic (launch/include/processing_graph.xml).
   static constexpr char kCloudTopic[] = "/dense/surface_cloud";
   static constexpr char kAreasTopic[] = "/dense/change_areas";
+  static constexpr char kLegendTopic[] = "/dense/change_legend";
 
   // `params`: the node's keys (config/defaults/dense_epoch.yaml and what the
   // launch files add), read as the node reads them; ConfigError naming the key.

@@ -33,5 +33,9 @@ CentroidedImage CentroidImage(const targets::TargetCentroider& centroider,
                               const std::string& camera_name, double pixel_size,
                               const std::string& topic);
 
+// The debug image of `c` (targets::DrawResult: detected targets drawn, bgr8)
+// with `header` (the input image's): what the centroider's `debug_image` shows.
+sensor_msgs::Image ToDebugImage(const CentroidedImage& c, const std_msgs::Header& header);
+
 }  // namespace ros_adapters
 }  // namespace slope_monitor
