@@ -63,8 +63,6 @@ SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
     LogResult(n, result, built.unidentified.empty(), &out);
     const adjustment::Summary& s = result.summary;
     out.covariance_time = s.covariance_time;
-    out.adjustments = result.adjustments;
-    out.adjustments_time = result.adjustments_time;
     s_out = MakeSolution(epoch, result.scene, s, params.frame_id);
     if (!s.IsSolutionUsable()) {
       Log(&out, LogLine::kError,

@@ -301,8 +301,7 @@ class OfflineGraph {
       if (sequence_ && topic == kUavImage) OnUavImage(image);
       if (Centroider* c = CameraOf(topic, "/camera/image_raw")) {
         c->images[image->header.stamp] = image;
-        if (dense_)
-          Timed(&stages_.dense, [&] { dense_->OnImage(c->camera, *image, now_.toSec()); });
+        if (dense_) Timed(&stages_.dense, [&] { dense_->OnImage(c->camera, *image, now_.toSec()); });
         Pair(c, image->header.stamp);
       }
     } else if (const auto info = m.instantiate<sensor_msgs::CameraInfo>()) {
@@ -651,8 +650,8 @@ class OfflineGraph {
       Log(std::string("hex_matcher: image on ") + kUavImage + " not converted: " + e.what());
     }
     OnSequenceStep(Timed(&stages_.matching, [&] {
-      return sequence_->AddImage(ros_adapters::ToStamp(image->header.stamp), image->header.frame_id,
-                                 grey);
+      return sequence_->AddImage(ros_adapters::ToStamp(image->header.stamp),
+                                 image->header.frame_id, grey);
     }));
   }
 
@@ -702,18 +701,15 @@ class OfflineGraph {
   // Wall time of each stage since the previous adjustment epoch, and the
   // process's peak memory so far: one line per epoch (doc/process_bag.md).
   void LogStages(uint32_t epoch, const ros_adapters::SolvedEpoch& out, double adjustment) {
-    char line[512];
+    char line[400];
     std::snprintf(line, sizeof line,
                   "epoch %u stages: targets %.2f s, tie points %.2f s (%d pairs, %d points), "
-                  "adjustment %.2f s (orientation and naming %.2f s, %d adjustments %.2f s, the "
-                  "last: Ceres %.2f s in %u iterations, covariance %.2f s), dense %.2f s, "
-                  "estimator %.2f s; peak memory %.0f MB",
+                  "adjustment %.2f s (Ceres %.2f s in %u iterations, covariance %.2f s), dense "
+                  "%.2f s, estimator %.2f s; peak memory %.0f MB",
                   epoch, stages_.targets, stages_.matching, stages_.pairs, stages_.tie_points,
-                  adjustment, adjustment - out.adjustments_time, out.adjustments,
-                  out.adjustments_time, out.solution.solve_time, out.solution.iterations,
+                  adjustment, out.solution.solve_time, out.solution.iterations,
                   out.covariance_time, stages_.dense, stages_.estimator, PeakMemoryMb());
-    Log(std::string(line) +
-        (out.adjusted && out.photos.total > 0 ? "; " + out.photos.Brief() : ""));
+    Log(std::string(line) + (out.adjusted && out.photos.total > 0 ? "; " + out.photos.Brief() : ""));
     stages_ = StageTimes();
   }
 

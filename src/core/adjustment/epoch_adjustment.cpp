@@ -1,7 +1,6 @@
 #include "slope_monitor/core/adjustment/epoch_adjustment.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <map>
 #include <set>
@@ -305,15 +304,6 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
   Scene pruned;
   std::string named_failure;
   bool ties_screened = false;
-  // Every adjustment run here, counted and timed (EpochAdjustmentResult::adjustments).
-  auto adjust = [&r](const BundleAdjuster& adjuster, Scene* trial) {
-    const auto start = std::chrono::steady_clock::now();
-    Summary summary = adjuster.Solve(trial);
-    ++r.adjustments;
-    r.adjustments_time +=
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    return summary;
-  };
   auto solve = [&]() {
     for (int round = 0; round < 20; ++round) {
       r.pruned = PruneReport();
@@ -368,7 +358,7 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
           so.max_iterations = std::min(ao.max_iterations, 50);
           so.write_back_unconverged = true;  // a block creeping in the robust loss's linear range is still fitted
           Scene trial = pruned;
-          const Summary ts = adjust(BundleAdjuster(so, config), &trial);
+          const Summary ts = BundleAdjuster(so, config).Solve(&trial);
           if (std::isfinite(ts.final_cost) && ts.final_cost < ts.initial_cost) {
             std::set<ObservationKey> bad;
             for (const Observation& o : trial.observations) {
@@ -402,7 +392,7 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
         so.max_outlier_fraction = 1.0;
         so.compute_covariance = false;
         Scene trial = pruned;
-        const Summary ts = adjust(BundleAdjuster(so, config), &trial);
+        const Summary ts = BundleAdjuster(so, config).Solve(&trial);
         if (ts.IsSolutionUsable()) {
           double worst = 0.0, worst_px = 0.0;
           ObservationKey worst_key;
@@ -433,7 +423,7 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
         }
       }
       const BundleAdjuster adjuster(ao, config);
-      r.summary = adjust(adjuster, &pruned);
+      r.summary = adjuster.Solve(&pruned);
       if (!r.summary.IsSolutionUsable() && !named.empty() && !r.retried_without_names) {
         // Not usable with the named observations: once more without any.
         std::vector<Observation> kept;

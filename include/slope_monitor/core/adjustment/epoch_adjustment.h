@@ -153,12 +153,6 @@ struct EpochAdjustmentResult {
   // mismatch; tie points are plentiful, and a few gross ones in the robust
   // loss's linear range keep the solver creeping for hundreds of steps).
   int tie_outliers_removed = 0;
-  // Every BundleAdjuster::Solve of this call (screening adjustments, the
-  // final one, and again after the second naming pass): how many, and their
-  // wall time with their covariance [s]. The rest of the call's time is the
-  // orientation (InitializeScene) and the naming.
-  int adjustments = 0;
-  double adjustments_time = 0.0;
 };
 
 // Steps 1-5 on a copy of `scene`. Does not throw for bad observations (the
