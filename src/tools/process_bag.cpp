@@ -301,7 +301,8 @@ class OfflineGraph {
       if (sequence_ && topic == kUavImage) OnUavImage(image);
       if (Centroider* c = CameraOf(topic, "/camera/image_raw")) {
         c->images[image->header.stamp] = image;
-        if (dense_) Timed(&stages_.dense, [&] { dense_->OnImage(c->camera, *image, now_.toSec()); });
+        if (dense_)
+          Timed(&stages_.dense, [&] { dense_->OnImage(c->camera, *image, now_.toSec()); });
         Pair(c, image->header.stamp);
       }
     } else if (const auto info = m.instantiate<sensor_msgs::CameraInfo>()) {
@@ -650,8 +651,8 @@ class OfflineGraph {
       Log(std::string("hex_matcher: image on ") + kUavImage + " not converted: " + e.what());
     }
     OnSequenceStep(Timed(&stages_.matching, [&] {
-      return sequence_->AddImage(ros_adapters::ToStamp(image->header.stamp),
-                                 image->header.frame_id, grey);
+      return sequence_->AddImage(ros_adapters::ToStamp(image->header.stamp), image->header.frame_id,
+                                 grey);
     }));
   }
 
@@ -707,9 +708,10 @@ class OfflineGraph {
                   "adjustment %.2f s (Ceres %.2f s in %u iterations, covariance %.2f s), dense "
                   "%.2f s, estimator %.2f s; peak memory %.0f MB",
                   epoch, stages_.targets, stages_.matching, stages_.pairs, stages_.tie_points,
-                  adjustment, out.solution.solve_time, out.solution.iterations,
-                  out.covariance_time, stages_.dense, stages_.estimator, PeakMemoryMb());
-    Log(std::string(line) + (out.adjusted && out.photos.total > 0 ? "; " + out.photos.Brief() : ""));
+                  adjustment, out.solution.solve_time, out.solution.iterations, out.covariance_time,
+                  stages_.dense, stages_.estimator, PeakMemoryMb());
+    Log(std::string(line) +
+        (out.adjusted && out.photos.total > 0 ? "; " + out.photos.Brief() : ""));
     stages_ = StageTimes();
   }
 
