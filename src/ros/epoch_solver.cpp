@@ -62,6 +62,7 @@ SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
         built.scene, built.unidentified, adjustment::ListedTargets(params.targets), params.epoch);
     LogResult(n, result, built.unidentified.empty(), &out);
     const adjustment::Summary& s = result.summary;
+    out.covariance_time = s.covariance_time;
     s_out = MakeSolution(epoch, result.scene, s, params.frame_id);
     if (!s.IsSolutionUsable()) {
       Log(&out, LogLine::kError,

@@ -246,6 +246,27 @@ XmlRpc::XmlRpcValue StringList(const std::vector<std::string>& v) {
 
 // ------------------------------------------------------------------ graph
 
+// f() with its wall time added to *seconds; returns what f returns.
+template <typename F>
+auto Timed(double* seconds, F&& f) {
+  struct Add {
+    double* seconds;
+    std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
+    ~Add() {
+      *seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    }
+  } add{seconds};
+  return f();
+}
+
+// The process's peak resident memory so far (VmHWM) [MB]; 0 where /proc has none.
+double PeakMemoryMb() {
+  std::ifstream status("/proc/self/status");
+  for (std::string line; std::getline(status, line);)
+    if (line.rfind("VmHWM:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;  // kB
+  return 0.0;
+}
+
 struct Centroider {
   std::string camera;
   targets::NodeOptions node;
@@ -285,7 +306,8 @@ class OfflineGraph {
       if (sequence_ && topic == kUavImage) OnUavImage(image);
       if (Centroider* c = CameraOf(topic, "/camera/image_raw")) {
         c->images[image->header.stamp] = image;
-        if (dense_) dense_->OnImage(c->camera, *image, now_.toSec());
+        if (dense_)
+          Timed(&stages_.dense, [&] { dense_->OnImage(c->camera, *image, now_.toSec()); });
         Pair(c, image->header.stamp);
       }
     } else if (const auto info = m.instantiate<sensor_msgs::CameraInfo>()) {
@@ -316,7 +338,7 @@ class OfflineGraph {
       if (c.last)
         Write("/" + camera + "/debug_image",
               ros_adapters::ToDebugImage(*c.last, c.last_image->header));
-    if (sequence_) OnSequenceStep(sequence_->Finish());
+    if (sequence_) OnSequenceStep(Timed(&stages_.matching, [&] { return sequence_->Finish(); }));
     if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) Solve(*e);
     // The inputs have ended: what waits for a later stamp of another input is fused.
     for (auto& r : order_->Flush()) FuseNow(r.item, r.input);
@@ -577,9 +599,10 @@ class OfflineGraph {
         } catch (const tf2::TransformException&) {
         }
       }
-      const ros_adapters::CentroidedImage out =
-          ros_adapters::CentroidImage(*c->centroider, *image->second, *info->second,
-                                      site_from_optical, c->camera, c->node.pixel_size, topic);
+      const ros_adapters::CentroidedImage out = Timed(&stages_.targets, [&] {
+        return ros_adapters::CentroidImage(*c->centroider, *image->second, *info->second,
+                                           site_from_optical, c->camera, c->node.pixel_size, topic);
+      });
       Write("/" + c->camera + "/targets", out.targets);
       c->last_image = image->second;
       c->last = out;
@@ -642,8 +665,10 @@ class OfflineGraph {
     } catch (const std::exception& e) {
       Log(std::string("hex_matcher: image on ") + kUavImage + " not converted: " + e.what());
     }
-    OnSequenceStep(sequence_->AddImage(ros_adapters::ToStamp(image->header.stamp),
-                                       image->header.frame_id, grey));
+    OnSequenceStep(Timed(&stages_.matching, [&] {
+      return sequence_->AddImage(ros_adapters::ToStamp(image->header.stamp), image->header.frame_id,
+                                 grey);
+    }));
   }
 
   void OnUavPrior(const geometry_msgs::PoseWithCovarianceStamped& prior) {
@@ -652,9 +677,11 @@ class OfflineGraph {
           hex_params_.site_frame + "' (site_frame); ignored");
       return;
     }
-    OnSequenceStep(sequence_->AddPrior(
-        ros_adapters::ToStamp(prior.header.stamp),
-        Eigen::Vector2d(prior.pose.pose.position.x, prior.pose.pose.position.y)));
+    OnSequenceStep(Timed(&stages_.matching, [&] {
+      return sequence_->AddPrior(
+          ros_adapters::ToStamp(prior.header.stamp),
+          Eigen::Vector2d(prior.pose.pose.position.x, prior.pose.pose.position.y));
+    }));
   }
 
   void OnSequenceStep(const matching::SequenceStep& step) {
@@ -662,6 +689,8 @@ class OfflineGraph {
     for (const matching::SequencePair& pair : step.pairs) {
       if (!pair.reason.empty())
         Log("hex_matcher: sequence " + pair.message + " (empty tie points)");
+      ++stages_.pairs;
+      stages_.tie_points += static_cast<int>(pair.points.size());
       const slope_monitor::TiePointArray msg = ros_adapters::ToMsg(pair, hex_params_.camera);
       Write(kUavTiePoints, msg);
       Solve(collector_->AddTies(ros_adapters::FromMsg(msg), now_.toSec()));
@@ -674,12 +703,38 @@ class OfflineGraph {
   }
 
   void Solve(const adjustment::CollectedEpoch& epoch) {
-    const ros_adapters::SolvedEpoch out = ros_adapters::SolveCollectedEpoch(
-        epoch, models_, adjuster_params_, "/bundle_adjuster/bundle_adjuster", &store_);
+    double adjustment = 0.0;
+    const ros_adapters::SolvedEpoch out = Timed(&adjustment, [&] {
+      return ros_adapters::SolveCollectedEpoch(epoch, models_, adjuster_params_,
+                                               "/bundle_adjuster/bundle_adjuster", &store_);
+    });
     for (const ros_adapters::LogLine& line : out.log)
       if (line.level >= ros_adapters::LogLine::kWarn) Log("bundle_adjuster: " + line.text);
+    Publish(out);
+    LogStages(epoch.epoch, out, adjustment);
+  }
+
+  // Wall time of each stage since the previous adjustment epoch, and the
+  // process's peak memory so far: one line per epoch (doc/process_bag.md).
+  void LogStages(uint32_t epoch, const ros_adapters::SolvedEpoch& out, double adjustment) {
+    char line[400];
+    std::snprintf(line, sizeof line,
+                  "epoch %u stages: targets %.2f s, tie points %.2f s (%d pairs, %d points), "
+                  "adjustment %.2f s (Ceres %.2f s in %u iterations, covariance %.2f s), dense "
+                  "%.2f s, estimator %.2f s; peak memory %.0f MB",
+                  epoch, stages_.targets, stages_.matching, stages_.pairs, stages_.tie_points,
+                  adjustment, out.solution.solve_time, out.solution.iterations, out.covariance_time,
+                  stages_.dense, stages_.estimator, PeakMemoryMb());
+    Log(std::string(line) +
+        (out.adjusted && out.photos.total > 0 ? "; " + out.photos.Brief() : ""));
+    stages_ = StageTimes();
+  }
+
+  // Publishes a solved epoch as the bundle adjuster nodelet does; the
+  // accepted one's displacements go to the estimator.
+  void Publish(const ros_adapters::SolvedEpoch& out) {
     Write("/bundle_adjuster/solution", out.solution);
-    if (dense_) dense_->OnSolution(out.solution, now_.toSec());
+    if (dense_) Timed(&stages_.dense, [&] { dense_->OnSolution(out.solution, now_.toSec()); });
     if (!out.accepted) return;
     ++adjuster_accepted_;
     if (!out.fixed_transforms.empty()) {
@@ -714,7 +769,9 @@ class OfflineGraph {
       Log("deformation_estimator: rejected " + problem);
     if (valid.displacements.empty() && !msg.displacements.empty()) return;
     try {
-      const deformation::BatchSummary s = estimator_->AddBatch(ros_adapters::FromMsg(valid, topic));
+      const deformation::BatchSummary s = Timed(&stages_.estimator, [&] {
+        return estimator_->AddBatch(ros_adapters::FromMsg(valid, topic));
+      });
       for (const std::string& m : s.messages)
         Log("deformation_estimator: topic '" + topic + "': " + m);
     } catch (const Error& e) {
@@ -764,6 +821,12 @@ class OfflineGraph {
     if (output_) output_->write(topic, now_, msg);
   }
 
+  // Wall time per stage since the previous adjustment epoch [s] (LogStages).
+  struct StageTimes {
+    double targets = 0.0, matching = 0.0, dense = 0.0, estimator = 0.0;
+    int pairs = 0, tie_points = 0;  // tie-point messages and their points
+  };
+  StageTimes stages_;
   std::function<void(const std::string&)> log_;
   const Args& args_;
   rosbag::Bag* output_;

@@ -41,6 +41,7 @@ struct SolvedEpoch {
   adjustment::PhotoStats photos;
   adjustment::NamingReport naming;
   int rejected_names = 0;
+  double covariance_time = 0.0;  // [s] adjustment::Summary::covariance_time
 };
 
 // `source_name`: the displacement messages' source (the node's name).
