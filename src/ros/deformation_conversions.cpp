@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include <sensor_msgs/point_cloud2_iterator.h>
+#include <tf2_eigen/tf2_eigen.h>
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/ros/conversions.h"
@@ -27,14 +28,6 @@ std_msgs::ColorRGBA AlertColour(deformation::AlertLevel a) {
     default: c.r = 0.2; c.g = 0.75; c.b = 0.2;
   }
   return c;
-}
-
-geometry_msgs::Point ToPoint(const Eigen::Vector3d& v) {
-  geometry_msgs::Point p;
-  p.x = v.x();
-  p.y = v.y();
-  p.z = v.z();
-  return p;
 }
 
 geometry_msgs::Vector3 ToVector(const Eigen::Vector3d& v) {
@@ -110,7 +103,7 @@ slope_monitor::SlopeDeformation ToMsg(const deformation::Snapshot& s, const std_
   for (const deformation::PointState& p : s.points) {
     slope_monitor::DeformationPoint d;
     d.point_id = p.id;
-    d.reference_position = ToPoint(p.reference_position);
+    d.reference_position = tf2::toMsg(p.reference_position);
     d.displacement = ToVector(p.displacement);
     const auto dc = ToRowMajor<3>(p.displacement_covariance);
     std::copy(dc.begin(), dc.end(), d.displacement_covariance.begin());
@@ -147,7 +140,7 @@ visualization_msgs::MarkerArray ToMarkers(const deformation::Snapshot& s, const 
     sphere.id = id;
     sphere.type = visualization_msgs::Marker::SPHERE;
     sphere.action = visualization_msgs::Marker::ADD;
-    sphere.pose.position = ToPoint(p.reference_position);
+    sphere.pose.position = tf2::toMsg(p.reference_position);
     sphere.pose.orientation.w = 1.0;
     sphere.scale.x = sphere.scale.y = sphere.scale.z = o.point_size;
     sphere.color = colour;
@@ -158,8 +151,8 @@ visualization_msgs::MarkerArray ToMarkers(const deformation::Snapshot& s, const 
     arrow.type = visualization_msgs::Marker::ARROW;
     arrow.pose = geometry_msgs::Pose();
     arrow.pose.orientation.w = 1.0;
-    arrow.points.push_back(ToPoint(p.reference_position));
-    arrow.points.push_back(ToPoint(p.reference_position + o.arrow_scale * p.displacement));
+    arrow.points.push_back(tf2::toMsg(p.reference_position));
+    arrow.points.push_back(tf2::toMsg(Eigen::Vector3d(p.reference_position + o.arrow_scale * p.displacement)));
     arrow.scale.x = 0.4 * o.point_size;  // shaft diameter
     arrow.scale.y = 0.8 * o.point_size;  // head diameter
     arrow.scale.z = 0.0;                 // default head length

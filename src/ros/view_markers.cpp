@@ -4,20 +4,14 @@
 #include <cmath>
 #include <cstdio>
 
+#include <tf2_eigen/tf2_eigen.h>
+
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/ros/conversions.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
 namespace {
-
-geometry_msgs::Point ToPointMsg(const Eigen::Vector3d& v) {
-  geometry_msgs::Point p;
-  p.x = v.x();
-  p.y = v.y();
-  p.z = v.z();
-  return p;
-}
 
 std_msgs::ColorRGBA Rgba(double r, double g, double b) {
   std_msgs::ColorRGBA c;
@@ -92,10 +86,10 @@ visualization_msgs::MarkerArray ToFrustumMarkers(
     m.color =
         e.camera_name.find("uav") != std::string::npos ? Rgba(1.0, 0.55, 0.0) : Rgba(0.2, 1.0, 0.3);
     for (size_t k = 0; k < 4; ++k) {
-      m.points.push_back(ToPointMsg(apex));
-      m.points.push_back(ToPointMsg(corners[k]));
-      m.points.push_back(ToPointMsg(corners[k]));
-      m.points.push_back(ToPointMsg(corners[(k + 1) % 4]));
+      m.points.push_back(tf2::toMsg(apex));
+      m.points.push_back(tf2::toMsg(corners[k]));
+      m.points.push_back(tf2::toMsg(corners[k]));
+      m.points.push_back(tf2::toMsg(corners[(k + 1) % 4]));
     }
     out.markers.push_back(std::move(m));
   }
@@ -140,7 +134,8 @@ visualization_msgs::MarkerArray ToChangeScaleMarkers(const ChangeScaleOptions& o
     m.id = k;
     m.type = visualization_msgs::Marker::CUBE;
     m.action = visualization_msgs::Marker::ADD;
-    m.pose.position = ToPointMsg(base_in_frame + Eigen::Vector3d(0, 0, (k + 0.5) * cube));
+    m.pose.position =
+        tf2::toMsg(Eigen::Vector3d(base_in_frame + Eigen::Vector3d(0, 0, (k + 0.5) * cube)));
     m.pose.orientation.w = 1.0;
     m.scale.x = m.scale.y = m.scale.z = cube;
     m.color = RvizRainbow((k + 0.5) / o.steps);
@@ -158,12 +153,14 @@ visualization_msgs::MarkerArray ToChangeScaleMarkers(const ChangeScaleOptions& o
     const double t = static_cast<double>(k) / (o.labels - 1);
     text.id = k;
     text.text = Label(o.min + t * (o.max - o.min));
-    text.pose.position = ToPointMsg(base_in_frame + Eigen::Vector3d(2.2 * cube, 0, t * height));
+    text.pose.position =
+        tf2::toMsg(Eigen::Vector3d(base_in_frame + Eigen::Vector3d(2.2 * cube, 0, t * height)));
     out.markers.push_back(text);
   }
   text.id = o.labels;
   text.text = "change [m]";
-  text.pose.position = ToPointMsg(base_in_frame + Eigen::Vector3d(0, 0, height + cube));
+  text.pose.position =
+      tf2::toMsg(Eigen::Vector3d(base_in_frame + Eigen::Vector3d(0, 0, height + cube)));
   out.markers.push_back(text);
   return out;
 }
