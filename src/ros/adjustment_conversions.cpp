@@ -74,6 +74,11 @@ adjustment::PositionPrior FromMsg(const geometry_msgs::PoseWithCovarianceStamped
       Eigen::Vector3d(msg.pose.pose.position.x, msg.pose.pose.position.y, msg.pose.pose.position.z);
   for (int r = 0; r < 3; ++r)
     for (int k = 0; k < 3; ++k) out.covariance(r, k) = msg.pose.covariance[6 * r + k];
+  // The orientation part (an attitude from the flight log) as it is; the
+  // scene decides whether it is good enough to start from.
+  const auto& q = msg.pose.pose.orientation;
+  out.site_from_optical = Eigen::Quaterniond(q.w, q.x, q.y, q.z);
+  for (int k = 0; k < 3; ++k) out.attitude_variance[k] = msg.pose.covariance[6 * (3 + k) + 3 + k];
   return out;
 }
 

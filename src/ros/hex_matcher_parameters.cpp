@@ -121,6 +121,7 @@ void ReadSequenceOptions(ParamReader& p, matching::SequenceMatcherOptions* s) {
   s->prior_wait = p.Double("prior_wait", s->prior_wait, 0.0, 600.0, "s");
   s->max_images = p.Int("sequence_max_images", s->max_images, 1, 100000);
   s->max_memory_mb = p.Double("max_memory_mb", s->max_memory_mb, 1.0, 1e6, "MB");
+  s->threads = p.Int("sequence_threads", s->threads, 0, 64);
   s->border = p.Double("sequence_border", s->border, 0.0, 1000.0, "px");
   matching::GlobalShiftOptions& g = s->shift;
   g.max_size = p.Int("shift_max_size", g.max_size, 32, 4096, "px");

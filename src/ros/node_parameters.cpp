@@ -89,6 +89,9 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   a.scene.position_prior_max_dt = p.Double("position_prior_max_dt", 0.1, 0.0, 10.0, "s");
   a.scene.position_prior_min_sigma = p.Double("position_prior_min_sigma", 0.01, 1e-4, 100.0, "m");
   a.scene.min_images = p.Int("min_images", 2, 1, 10000);
+  a.scene.attitude_prior_max_sigma =
+      p.Double("attitude_prior_max_sigma", a.scene.attitude_prior_max_sigma * 180.0 / M_PI, 0.0, 180.0, "deg") *
+      M_PI / 180.0;
   a.scene.Check();
   auto interior_list = [&p](const std::string& key) {
     std::vector<int> out;
@@ -131,6 +134,7 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
       if (adjustment::IsUavCamera(cam, c.uav_cameras)) e.free_interior_by_camera[cam] = uav_free_interior;
   e.name_unidentified = p.Bool("name_unidentified", true);
   e.orient_from_approximate = p.Bool("orient_from_approximate", true);
+  e.max_tie_outlier_share = p.Double("max_tie_outlier_share", e.max_tie_outlier_share, 1e-3, 1.0);
   e.naming.gate_sigma = p.Double("naming_gate_sigma", 3.0, 0.1, 100.0, "sigma");
   e.naming.gate_extra_px = p.Double("naming_gate_extra_px", 10.0, 0.0, 10000.0, "px");
   e.naming.coarse_extra_px = p.Double("naming_coarse_extra_px", 100.0, 0.0, 10000.0, "px");

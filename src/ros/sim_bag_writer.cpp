@@ -203,6 +203,16 @@ SurveyBagSummary WriteSurveyBag(const sim::Survey& survey, const std::string& pa
           prior.pose.covariance[7] = h2;
           prior.pose.covariance[14] = v2;
           prior.pose.covariance[21] = prior.pose.covariance[28] = prior.pose.covariance[35] = 1e6;
+          if (spec.imu_sigma > 0.0) {
+            const Eigen::Quaterniond q = sim::FlightLogAttitude(it.exterior, spec.imu_sigma, survey.config.seed,
+                                                          img.camera, img.image);
+            prior.pose.pose.orientation.w = q.w();
+            prior.pose.pose.orientation.x = q.x();
+            prior.pose.pose.orientation.y = q.y();
+            prior.pose.pose.orientation.z = q.z();
+            prior.pose.covariance[21] = prior.pose.covariance[28] = prior.pose.covariance[35] =
+                spec.imu_sigma * spec.imu_sigma;
+          }
           bag.write(ns + "position_prior", Stamp(img.stamp), prior);
           ++summary.gnss_fixes;
         }

@@ -28,6 +28,8 @@ void NamingOptions::Check() const {
 void EpochAdjustmentOptions::Check() const {
   adjustment.Check();
   naming.Check();
+  if (!(max_tie_outlier_share > 0.0 && max_tie_outlier_share <= 1.0))
+    throw ConfigError(Message("option 'max_tie_outlier_share' must be in (0, 1], got ", max_tie_outlier_share));
 }
 
 std::string NamingReport::Brief() const {
@@ -260,7 +262,9 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
   Scene s = scene;
   const InitializationOptions& io = options.initialization;
   r.initialization = InitializeScene(&s, io);
+  // Photos started from the flight log's attitude are coarse (naming gates).
   std::vector<bool> coarse(s.images.size(), false);
+  for (size_t i = 0; i < s.images.size(); ++i) coarse[i] = s.images[i].attitude_from_prior;
   if (options.orient_from_approximate) {
     r.oriented_from_approximate = OrientFromApproximatePoints(&s, io, &coarse);
     if (r.oriented_from_approximate > 0) r.initialization = InitializeScene(&s, io);
@@ -361,8 +365,10 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
           const Summary ts = BundleAdjuster(so, config).Solve(&trial);
           if (std::isfinite(ts.final_cost) && ts.final_cost < ts.initial_cost) {
             std::set<ObservationKey> bad;
+            int ties = 0;
             for (const Observation& o : trial.observations) {
               if (trial.points[o.point].role != PointRole::kTie) continue;
+              ++ties;
               const Image& im = trial.images[o.image];
               Eigen::Vector2d px;
               bool out = !trial.cameras[im.camera].model.Project(im.exterior, trial.points[o.point].position, &px);
@@ -372,7 +378,12 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
               }
               if (out) bad.insert(KeyOf(trial, o));
             }
-            if (!bad.empty()) {
+            if (static_cast<double>(bad.size()) > options.max_tie_outlier_share * ties) {
+              // Not a fit that tells mismatches from good points: flag nothing.
+              r.tie_screening_refused = Message("the screening adjustment flagged ", bad.size(), " of ", ties,
+                                                " tie-point observations (more than max_tie_outlier_share ",
+                                                options.max_tie_outlier_share, "): none removed");
+            } else if (!bad.empty()) {
               std::vector<Observation> kept;
               for (const Observation& o : s.observations)
                 if (!bad.count(KeyOf(s, o))) kept.push_back(o);
@@ -485,6 +496,7 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
   if (r.tie_outliers_removed > 0)
     r.summary.reason += Message("; ", r.tie_outliers_removed, " tie-point observation(s) removed as mismatches (residual above ",
                                 ao.outlier_threshold, " sigma in a screening adjustment)");
+  if (!r.tie_screening_refused.empty()) r.summary.reason += "; " + r.tie_screening_refused;
   if (r.retried_without_names)
     r.summary.reason += "; not usable with the targets named by projection (" + named_failure + "), adjusted without them";
   return r;

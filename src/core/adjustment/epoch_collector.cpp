@@ -6,6 +6,7 @@
 #include <Eigen/Dense>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/rigid3.h"
 
 namespace slope_monitor {
 namespace adjustment {
@@ -444,9 +445,23 @@ void BuildSceneOptions::Check() const {
   if (!(position_prior_min_sigma > 0.0))
     fail("position_prior_min_sigma", Message("must be > 0, got ", position_prior_min_sigma));
   if (min_images < 1) fail("min_images", Message("must be >= 1, got ", min_images));
+  if (!(attitude_prior_max_sigma >= 0.0 && attitude_prior_max_sigma < 3.2))
+    fail("attitude_prior_max_sigma", Message("must be in [0, pi] rad, got ", attitude_prior_max_sigma));
 }
 
 namespace {
+
+// An attitude in the prior that a photo can start from: a unit quaternion,
+// every variance finite and within max_sigma^2.
+bool UsableAttitude(const PositionPrior& prior, double max_sigma) {
+  if (!(max_sigma > 0.0) || !prior.site_from_optical.coeffs().allFinite()) return false;
+  if (std::abs(prior.site_from_optical.norm() - 1.0) > 1e-3) return false;
+  for (int k = 0; k < 3; ++k) {
+    const double v = prior.attitude_variance[k];
+    if (!(std::isfinite(v) && v >= 0.0 && v <= max_sigma * max_sigma)) return false;
+  }
+  return true;
+}
 
 ObjectPoint MakePoint(const CollectedObservation& c, const io::TargetList& targets) {
   ObjectPoint p;
@@ -513,6 +528,13 @@ BuiltScene BuildScene(const CollectedEpoch& epoch,
       const double floor = options.position_prior_min_sigma * options.position_prior_min_sigma;
       for (int r = 0; r < 3; ++r) c(r, r) = std::max(c(r, r), floor);
       image.position_prior_covariance = c;
+      if (UsableAttitude(prior, options.attitude_prior_max_sigma) && IsUavCamera(im.camera, options.uav_cameras)) {
+        // The flight log's attitude at the GNSS centre: the start values.
+        image.exterior = camera::ExteriorOrientation::FromOpticalFromSite(
+            Rigid3(prior.site_from_optical.normalized().toRotationMatrix(), prior.position).Inverse());
+        image.exterior_known = true;
+        image.attitude_from_prior = true;
+      }
     }
     image_index[key] = static_cast<int>(scene.images.size());
     scene.images.push_back(image);

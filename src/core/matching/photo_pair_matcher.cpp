@@ -126,8 +126,12 @@ bool CoarseMatch(const PhotoFeatures& a, const PhotoFeatures& b, const PhotoPair
     s->message = "too few SIFT features";
     return false;
   }
-  cv::FlannBasedMatcher matcher;
+  // Exact nearest neighbours (brute force, L2): the same matches on every
+  // run and thread. OpenCV's FLANN k-d trees are drawn from the thread's
+  // random state, and on the real snowpeak pairs the approximate search
+  // changed the tie points by a third from one random state to another.
   std::vector<std::vector<cv::DMatch>> knn;
+  cv::BFMatcher matcher(cv::NORM_L2);
   matcher.knnMatch(a.coarse_descriptors(), b.coarse_descriptors(), knn, 2);
   std::vector<cv::DMatch> ratio;
   std::vector<MatchShape> shapes;

@@ -5,10 +5,12 @@
 #include <cmath>
 #include <cstdio>
 #include <utility>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/parallel.h"
 
 namespace slope_monitor {
 namespace matching {
@@ -75,6 +77,7 @@ void SequenceMatcherOptions::Check() const {
   need(max_memory_mb > 0.0 && std::isfinite(max_memory_mb),
        Message("max_memory_mb must be > 0, got ", max_memory_mb));
   need(border >= 0.0 && std::isfinite(border), Message("border must be >= 0 px, got ", border));
+  need(threads >= 0 && threads <= 64, Message("threads must be in [0, 64], got ", threads));
   pairing.Check();
   shift.Check();
   hex.Check();
@@ -232,10 +235,15 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
     step->pairs.push_back(out);
     ++summary_.unpaired;
   }
+  std::vector<SequencePair> matched(plan.size());
+  if (error.empty()) {
+    ParallelFor(plan.size(), options_.threads,
+                [&](size_t k) { matched[k] = MatchPair(history_[plan[k]], b); });
+  }
   for (size_t k = 0; k < plan.size(); ++k) {
     SequencePair out;
     if (error.empty()) {
-      out = MatchPair(history_[plan[k]], b);
+      out = std::move(matched[k]);
     } else {
       out.reason = "error";
       out.message = error;

@@ -54,6 +54,16 @@ camera::ExteriorOrientation LookAt(const Eigen::Vector3d& position, const Eigen:
   return camera::ExteriorOrientation::FromOpticalFromSite(Rigid3(optical_from_site, -(optical_from_site * position)));
 }
 
+Eigen::Quaterniond FlightLogAttitude(const camera::ExteriorOrientation& pose, double sigma, unsigned int seed,
+                                     int camera, int image) {
+  std::seed_seq sequence{seed, 0x1e5a7u, static_cast<unsigned int>(camera), static_cast<unsigned int>(image)};
+  std::mt19937 rng(sequence);
+  const Eigen::Vector3d w(Gauss(&rng, sigma), Gauss(&rng, sigma), Gauss(&rng, sigma));
+  const Eigen::Quaterniond turn =
+      w.norm() > 0.0 ? Eigen::Quaterniond(Eigen::AngleAxisd(w.norm(), w.normalized())) : Eigen::Quaterniond::Identity();
+  return (turn * Eigen::Quaterniond(pose.SiteFromOptical().rotation)).normalized();
+}
+
 bool ImagedAt(const camera::CameraModel& model, const camera::ExteriorOrientation& pose, const Eigen::Vector3d& x,
               double margin_px, Eigen::Vector2d* pixel) {
   const int w = model.sensor().width, h = model.sensor().height;

@@ -273,6 +273,7 @@ SurveyConfig FromRoot(io::YamlMap& root) {
         s.gnss_sigma = Eigen::Vector2d(g[0], g[1]);
         s.attitude_sigma = cm.Double("attitude_sigma_deg", s.attitude_sigma / kDeg, 0.0, 20.0, "deg") * kDeg;
         s.track_sigma = cm.Double("track_sigma", s.track_sigma, 0.0, 50.0, "m");
+        s.imu_sigma = cm.Double("imu_sigma_deg", s.imu_sigma / kDeg, 0.0, 20.0, "deg") * kDeg;
         s.crab = cm.Double("crab_deg", 0.0, -30.0, 30.0, "deg") * kDeg;
         s.altitude_variation = cm.Double("altitude_variation", 0.0, 0.0, 0.5);
         s.turn_images = cm.Int("turn_images", 0, 0, 20);

@@ -84,6 +84,42 @@ TEST(SequenceMatcher, TiePointsOfShiftedPhotosAgainstTheHandCheckedRelation) {
   }
 }
 
+// A photo's pairs are matched on several threads; the tie points are the
+// same, bit for bit and in the same order, as on one thread, and the same
+// again in a second run (FLANN's random trees are seeded per pair).
+TEST(SequenceMatcher, TiePointsDoNotDependOnTheThreads) {
+  std::vector<std::vector<SequencePair>> runs;
+  for (const int threads : {1, 3, 3}) {
+    SequenceMatcherOptions o = Options(SequencePairMethod::kPhoto);
+    o.threads = threads;
+    o.pairing.sequence_depth = 4;
+    SequenceMatcher m(o);
+    m.SetPriorsExpected(false);
+    std::vector<SequencePair> pairs;
+    for (int i = 0; i < 5; ++i)
+      for (const SequencePair& p : m.AddImage(i * kSecond, "cam", Photo(i)).pairs) pairs.push_back(p);
+    runs.push_back(pairs);
+  }
+  ASSERT_EQ(runs[0].size(), 11u);  // photo 0 alone, then 1 + 2 + 3 + 4 pairs
+  int points = 0;
+  for (size_t r = 1; r < runs.size(); ++r) {
+    ASSERT_EQ(runs[r].size(), runs[0].size());
+    for (size_t k = 0; k < runs[0].size(); ++k) {
+      const SequencePair &a = runs[0][k], &b = runs[r][k];
+      EXPECT_EQ(a.stamp_a, b.stamp_a);
+      EXPECT_EQ(a.reason, b.reason);
+      ASSERT_EQ(a.points.size(), b.points.size()) << a.message << " / " << b.message;
+      for (size_t i = 0; i < a.points.size(); ++i) {
+        EXPECT_EQ(a.points[i].id, b.points[i].id);
+        EXPECT_EQ(a.points[i].xb, b.points[i].xb);
+        EXPECT_EQ(a.points[i].covariance, b.points[i].covariance);
+      }
+      points += static_cast<int>(a.points.size());
+    }
+  }
+  EXPECT_GT(points, 500);
+}
+
 // The strip flown the other way: photo 1 turned by 180 deg. The photo method
 // finds the rotation; the global shift cannot (it says so).
 TEST(SequenceMatcher, PhotoMethodMatchesAPhotoTurnedBy180Degrees) {

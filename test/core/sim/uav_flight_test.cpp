@@ -86,6 +86,27 @@ TEST(UavFlightTest, CrabAltitudeAndTurns) {
   EXPECT_GT(z_max - z_min, 0.1 * kAltitude);  // it does wander
 }
 
+// The flight log's attitude: the truth turned by N(0, sigma) about each axis,
+// the same for the same (seed, camera, image), different for another image.
+TEST(UavFlightTest, FlightLogAttitudeScattersBySigma) {
+  camera::ExteriorOrientation pose;
+  pose.position = Eigen::Vector3d(10, 20, 80);
+  pose.angles.theta = 0.03;
+  pose.angles.phi = -0.02;
+  pose.angles.kappa = 2.0;
+  const Eigen::Quaterniond truth = pose.SiteFromOptical().rotation;
+  const double sigma = 0.3 * kDeg;
+  double sum = 0.0;
+  const int n = 4000;
+  for (int i = 0; i < n; ++i) sum += FlightLogAttitude(pose, sigma, 7, 0, i).angularDistance(truth);
+  // |w| of three N(0, sigma) components has mean sigma sqrt(8 / pi) = 1.596 sigma;
+  // its standard deviation over 4000 draws is ~0.011 sigma.
+  EXPECT_NEAR(sum / n / sigma, std::sqrt(8.0 / M_PI), 0.05);
+  EXPECT_EQ(FlightLogAttitude(pose, sigma, 7, 0, 5).coeffs(), FlightLogAttitude(pose, sigma, 7, 0, 5).coeffs());
+  EXPECT_GT(FlightLogAttitude(pose, sigma, 7, 0, 5).angularDistance(FlightLogAttitude(pose, sigma, 7, 0, 6)), 1e-6);
+  EXPECT_LT(FlightLogAttitude(pose, 0.0, 7, 0, 5).angularDistance(truth), 1e-12);
+}
+
 }  // namespace
 }  // namespace sim
 }  // namespace slope_monitor

@@ -53,6 +53,7 @@ struct Image {
   double stamp = 0.0;   // [s]
   camera::ExteriorOrientation exterior;  // initial value / solution
   bool exterior_known = true;            // false: InitializeScene() resects it first
+  bool attitude_from_prior = false;     // exterior is the flight log's attitude at the GNSS centre (coarse)
   std::optional<Eigen::Vector3d> position_prior;                 // [m] GNSS projection centre in site
   Eigen::Matrix3d position_prior_covariance = Eigen::Matrix3d::Identity();  // [m^2]
 };

@@ -123,6 +123,10 @@ struct EpochAdjustmentOptions {
   std::map<std::string, std::vector<int>> free_interior_by_camera;
   bool orient_from_approximate = true;  // step 2
   bool name_unidentified = true;        // step 3
+  // The screening adjustment of the tie points removes what it flags (residual
+  // above adjustment.outlier_threshold) only when that is at most this share
+  // of the tie observations: more means the fit failed, not the points.
+  double max_tie_outlier_share = 0.3;   // (0, 1]
   // Images with a GNSS position prior need adjustment.min_observations_with_prior
   // observations of initialised points to stay (the others
   // adjustment.min_observations_per_image).
@@ -153,6 +157,7 @@ struct EpochAdjustmentResult {
   // mismatch; tie points are plentiful, and a few gross ones in the robust
   // loss's linear range keep the solver creeping for hundreds of steps).
   int tie_outliers_removed = 0;
+  std::string tie_screening_refused;  // why the screening removed nothing although it flagged (empty: applied)
 };
 
 // Steps 1-5 on a copy of `scene`. Does not throw for bad observations (the

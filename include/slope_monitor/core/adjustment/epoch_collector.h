@@ -37,6 +37,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include "slope_monitor/core/adjustment/bundle_adjuster.h"
 #include "slope_monitor/core/adjustment/epoch_adjustment.h"
@@ -93,11 +94,15 @@ struct ImageTies {
   std::vector<TieInput> points;
 };
 
-// A GNSS projection centre (PoseWithCovarianceStamped, position part).
+// A GNSS projection centre (PoseWithCovarianceStamped, position part) and,
+// when the flight log gives one, the photo's attitude (orientation part: the
+// optical frame in site, its variances about x, y, z of site).
 struct PositionPrior {
   StampNs stamp = 0;
   Eigen::Vector3d position = Eigen::Vector3d::Zero();        // [m] site
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  // [m^2]
+  Eigen::Quaterniond site_from_optical = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d attitude_variance = Eigen::Vector3d::Constant(1e6);  // [rad^2]; >= 1e6: no attitude
 };
 
 // An epoch end marker (EpochMarker with end = true).
@@ -239,6 +244,10 @@ class EpochCollector {
 struct BuildSceneOptions {
   double position_prior_max_dt = 0.1;      // [s] prior to image stamp, >= 0
   double position_prior_min_sigma = 0.01;  // [m] floor of the prior's sigma, > 0
+  // A UAV photo whose prior carries an attitude with every sigma at most this
+  // starts from it (GNSS centre + flight-log attitude) instead of being
+  // resected or oriented incrementally; 0 ignores the priors' attitudes.
+  double attitude_prior_max_sigma = 5.0 * 3.14159265358979323846 / 180.0;  // [rad], >= 0
   int min_images = 2;                      // images with a camera model, >= 1
   std::optional<std::vector<std::string>> uav_cameras;  // the UAV cameras (site file); none: IsUavCamera(name)
   void Check() const;                      // throws ConfigError naming the field

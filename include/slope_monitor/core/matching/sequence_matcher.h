@@ -99,6 +99,10 @@ struct SequenceMatcherOptions {
   // ground at 640 x 480 gives 7 consistent SIFT matches where 12 are needed)
   // of photos of one size is matched by the global shift + hex matcher.
   bool fallback_shift_hex = true;
+  // A photo's pairs are matched at once on this many threads (0: the
+  // hardware's). Each pair is matched on its own and the results are kept in
+  // the pairs' order, so the tie points do not depend on it.
+  int threads = 0;  // [0, 64]
   void Check() const;  // throws ConfigError naming the field
 };
 

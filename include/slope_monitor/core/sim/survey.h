@@ -60,6 +60,10 @@ struct CameraSpec {
   Eigen::Vector2d gnss_sigma{0.03, 0.05};  // [m] horizontal, vertical
   double attitude_sigma = 0.01;      // [rad] deviation of the true attitude from the plan
   double track_sigma = 0.3;          // [m] deviation of the true position from the plan
+  // The flight log's attitude written with each photo's position_prior: the
+  // true attitude rotated by this sigma about each axis; 0 = the log has no
+  // attitude (the prior's orientation variance is 1e6).
+  double imu_sigma = 0.0;            // [rad]
   // A real flight (all 0 = the ideal plan): the heading off the track into a
   // constant cross wind (its sign flips on strips flown the other way), the
   // height wandering within +-altitude_variation of the strip's altitude
@@ -134,6 +138,14 @@ camera::ExteriorOrientation LookAt(const Eigen::Vector3d& position, const Eigen:
 // coordinates must lie near the image too). *pixel: where.
 bool ImagedAt(const camera::CameraModel& model, const camera::ExteriorOrientation& pose, const Eigen::Vector3d& x,
               double margin_px, Eigen::Vector2d* pixel);
+
+// The attitude a UAV's flight log records for a photo: the true optical
+// frame in site (pose.SiteFromOptical()) turned by a small rotation whose
+// components about site x, y, z are N(0, sigma) [rad]. Deterministic: drawn
+// from its own generator seeded by (seed, camera, image), so the survey's
+// other random draws do not change with it.
+Eigen::Quaterniond FlightLogAttitude(const camera::ExteriorOrientation& pose, double sigma, unsigned int seed,
+                                     int camera, int image);
 
 // Plates fully visible in an image: every outline point (and the centre)
 // inside the image by `margin_px`, in front, the plate facing the camera, and
