@@ -4,7 +4,7 @@
 //   rosrun slope_monitor process_bag --bag FILE [--bag FILE2 ...] [--site-config FILE]
 //       [--target-list FILE] [--radio-network FILE] [--adjuster-config FILE]
 //       [--uav-tie-points] [--database FILE] [--report-dir DIR] [--output-bag FILE]
-//       [--no-dense]
+//       [--no-dense] [--verbose]
 //
 // The bags are read with rosbag::View in bag-time order (several bags, e.g.
 // the split files of one recording, merged by time) and every message goes,
@@ -85,7 +85,7 @@ constexpr char kUsage[] =
     "usage: process_bag --bag FILE [--bag FILE2 ...] [--site FILE] [--site-config FILE] "
     "[--target-list FILE]\n"
     "                   [--radio-network FILE] [--adjuster-config FILE] [--uav-tie-points]\n"
-    "                   [--database FILE] [--report-dir DIR] [--output-bag FILE] [--no-dense]\n";
+    "                   [--database FILE] [--report-dir DIR] [--output-bag FILE] [--no-dense] [--verbose]\n";
 
 // Topics of the replay graph (launch/include/processing_graph.xml).
 constexpr char kAdjusterDisplacements[] = "/bundle_adjuster/displacements";
@@ -100,6 +100,7 @@ struct Args {
   std::string site, site_config, target_list, radio_network, adjuster_config;
   bool uav_tie_points = false;
   bool dense = true;  // the dense epoch step (replay.launch dense:=true)
+  bool verbose = false;  // the bundle adjuster's INFO lines too
   std::string database, report_dir, output_bag;
 };
 
@@ -126,6 +127,10 @@ Args ParseArgs(int argc, char** argv) {
     }
     if (flag == "--no-dense") {
       a.dense = false;
+      continue;
+    }
+    if (flag == "--verbose") {
+      a.verbose = true;
       continue;
     }
     const bool is_bag = flag == "--bag";
@@ -709,7 +714,7 @@ class OfflineGraph {
                                                "/bundle_adjuster/bundle_adjuster", &store_);
     });
     for (const ros_adapters::LogLine& line : out.log)
-      if (line.level >= ros_adapters::LogLine::kWarn) Log("bundle_adjuster: " + line.text);
+      if (line.level >= ros_adapters::LogLine::kWarn || args_.verbose) Log("bundle_adjuster: " + line.text);
     Publish(out);
     LogStages(epoch.epoch, out, adjustment);
   }
