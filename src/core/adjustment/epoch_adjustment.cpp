@@ -402,11 +402,13 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
                                                 " tie-point observations (more than max_tie_outlier_share ",
                                                 options.max_tie_outlier_share, "): none removed");
             } else {
-              // The final adjustment starts from the screening's solution: from
-              // a flight log's attitude the raw start left the 20-photo block
-              // of config/sim/uav_block_20 in a valley 5x the cost (control 7 cm
-              // off) that the screened start does not meet.
-              StartFrom(trial, &s);
+              // A converged screening is the final adjustment's start: from a
+              // flight log's attitude the raw start left the 20-photo block of
+              // config/sim/uav_block_20 in a valley of 5x the cost (control 7 cm
+              // off). An unconverged one (50 iterations creeping in the robust
+              // loss's linear range) is not: from it the self-calibration of
+              // uav_block_replay stopped 9 sigma off in c.
+              if (ts.termination.rfind("CONVERGENCE", 0) == 0) StartFrom(trial, &s);
               if (!bad.empty()) {
                 std::vector<Observation> kept;
                 for (const Observation& o : s.observations)
