@@ -4,6 +4,7 @@
 #include <cmath>
 #include <map>
 #include <set>
+#include <string>
 #include <utility>
 
 #include <Eigen/Geometry>
@@ -270,6 +271,61 @@ void StartFrom(const Scene& from, Scene* to) {
   }
 }
 
+// The tie-point screening: an adjustment without the usability limits (at
+// most 50 iterations) whose tie observations beyond the outlier threshold are
+// mismatches. Applied only when it lowered the cost and flags at most
+// max_share of the tie observations (more: the fit failed, not the points).
+// A converged screening is also the final adjustment's start: from a flight
+// log's attitude the raw start left the 20-photo block of
+// config/sim/uav_block_20 in a valley of 5x the cost (control 7 cm off). An
+// unconverged one (creeping in the robust loss's linear range) is not: from it
+// the self-calibration of uav_block_replay stopped 9 sigma off in c.
+struct TieScreening {
+  bool applied = false;
+  bool converged = false;
+  std::set<ObservationKey> mismatches;
+  Scene solution;
+  std::string refused;  // why nothing was removed although the fit flagged
+};
+
+TieScreening ScreenTiePoints(const Scene& pruned, const Options& ao, const Config& config, double max_share) {
+  TieScreening t;
+  bool any_tie = false;
+  for (const Observation& o : pruned.observations) any_tie = any_tie || pruned.points[o.point].role == PointRole::kTie;
+  if (!any_tie) return t;
+  Options so = ao;
+  so.max_sigma0 = 1e12;
+  so.max_outlier_fraction = 1.0;
+  so.compute_covariance = false;
+  so.max_iterations = std::min(ao.max_iterations, 50);
+  so.write_back_unconverged = true;  // a block creeping in the robust loss's linear range is still fitted
+  t.solution = pruned;
+  const Summary ts = BundleAdjuster(so, config).Solve(&t.solution);
+  if (!(std::isfinite(ts.final_cost) && ts.final_cost < ts.initial_cost)) return t;
+  int ties = 0;
+  for (const Observation& o : t.solution.observations) {
+    if (t.solution.points[o.point].role != PointRole::kTie) continue;
+    ++ties;
+    const Image& im = t.solution.images[o.image];
+    Eigen::Vector2d px;
+    bool out = !t.solution.cameras[im.camera].model.Project(im.exterior, t.solution.points[o.point].position, &px);
+    if (!out) {
+      const Eigen::Vector2d e = px - o.pixel;
+      out = !(std::sqrt(e.dot(o.covariance.inverse() * e)) <= ao.outlier_threshold);
+    }
+    if (out) t.mismatches.insert(KeyOf(t.solution, o));
+  }
+  if (static_cast<double>(t.mismatches.size()) > max_share * ties) {
+    t.refused = Message("the screening adjustment flagged ", t.mismatches.size(), " of ", ties,
+                        " tie-point observations (more than max_tie_outlier_share ", max_share, "): none removed");
+    t.mismatches.clear();
+    return t;
+  }
+  t.applied = true;
+  t.converged = ts.termination.rfind("CONVERGENCE", 0) == 0;
+  return t;
+}
+
 }  // namespace
 
 EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<UnidentifiedObservation>& unidentified,
@@ -370,55 +426,16 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
       // Tie points: one screening adjustment removes the mismatches.
       if (!ties_screened) {
         ties_screened = true;
-        bool any_tie = false;
-        for (const Observation& o : pruned.observations) any_tie = any_tie || pruned.points[o.point].role == PointRole::kTie;
-        if (any_tie) {
-          Options so = ao;
-          so.max_sigma0 = 1e12;
-          so.max_outlier_fraction = 1.0;
-          so.compute_covariance = false;
-          so.max_iterations = std::min(ao.max_iterations, 50);
-          so.write_back_unconverged = true;  // a block creeping in the robust loss's linear range is still fitted
-          Scene trial = pruned;
-          const Summary ts = BundleAdjuster(so, config).Solve(&trial);
-          if (std::isfinite(ts.final_cost) && ts.final_cost < ts.initial_cost) {
-            std::set<ObservationKey> bad;
-            int ties = 0;
-            for (const Observation& o : trial.observations) {
-              if (trial.points[o.point].role != PointRole::kTie) continue;
-              ++ties;
-              const Image& im = trial.images[o.image];
-              Eigen::Vector2d px;
-              bool out = !trial.cameras[im.camera].model.Project(im.exterior, trial.points[o.point].position, &px);
-              if (!out) {
-                const Eigen::Vector2d e = px - o.pixel;
-                out = !(std::sqrt(e.dot(o.covariance.inverse() * e)) <= ao.outlier_threshold);
-              }
-              if (out) bad.insert(KeyOf(trial, o));
-            }
-            if (static_cast<double>(bad.size()) > options.max_tie_outlier_share * ties) {
-              // Not a fit that tells mismatches from good points: flag nothing.
-              r.tie_screening_refused = Message("the screening adjustment flagged ", bad.size(), " of ", ties,
-                                                " tie-point observations (more than max_tie_outlier_share ",
-                                                options.max_tie_outlier_share, "): none removed");
-            } else {
-              // A converged screening is the final adjustment's start: from a
-              // flight log's attitude the raw start left the 20-photo block of
-              // config/sim/uav_block_20 in a valley of 5x the cost (control 7 cm
-              // off). An unconverged one (50 iterations creeping in the robust
-              // loss's linear range) is not: from it the self-calibration of
-              // uav_block_replay stopped 9 sigma off in c.
-              if (ts.termination.rfind("CONVERGENCE", 0) == 0) StartFrom(trial, &s);
-              if (!bad.empty()) {
-                std::vector<Observation> kept;
-                for (const Observation& o : s.observations)
-                  if (!bad.count(KeyOf(s, o))) kept.push_back(o);
-                r.tie_outliers_removed += static_cast<int>(s.observations.size() - kept.size());
-                s.observations.swap(kept);
-              }
-              continue;
-            }
-          }
+        const TieScreening t = ScreenTiePoints(pruned, ao, config, options.max_tie_outlier_share);
+        if (!t.refused.empty()) r.tie_screening_refused = t.refused;
+        if (t.applied) {
+          if (t.converged) StartFrom(t.solution, &s);
+          std::vector<Observation> kept;
+          for (const Observation& o : s.observations)
+            if (!t.mismatches.count(KeyOf(s, o))) kept.push_back(o);
+          r.tie_outliers_removed += static_cast<int>(s.observations.size() - kept.size());
+          s.observations.swap(kept);
+          continue;
         }
       }
       // Screening: adjust without the usability limits and test the named
