@@ -452,13 +452,13 @@ void BuildSceneOptions::Check() const {
 namespace {
 
 // An attitude in the prior that a photo can start from: a unit quaternion,
-// every variance finite and within max_sigma^2.
+// every variance in (0, max_sigma^2] (a zero covariance is ROS' "unknown").
 bool UsableAttitude(const PositionPrior& prior, double max_sigma) {
   if (!(max_sigma > 0.0) || !prior.site_from_optical.coeffs().allFinite()) return false;
   if (std::abs(prior.site_from_optical.norm() - 1.0) > 1e-3) return false;
   for (int k = 0; k < 3; ++k) {
     const double v = prior.attitude_variance[k];
-    if (!(std::isfinite(v) && v >= 0.0 && v <= max_sigma * max_sigma)) return false;
+    if (!(std::isfinite(v) && v > 0.0 && v <= max_sigma * max_sigma)) return false;
   }
   return true;
 }

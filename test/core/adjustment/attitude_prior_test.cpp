@@ -1,6 +1,6 @@
 // A UAV photo whose position prior carries the flight log's attitude starts
 // from it (GNSS centre + attitude) in BuildScene; a prior without a usable
-// attitude (variance 1e6, beyond attitude_prior_max_sigma, not a unit
+// attitude (variance 1e6 or 0, beyond attitude_prior_max_sigma, not a unit
 // quaternion), or a fixed camera's, leaves the photo to be oriented as before.
 #include <cmath>
 
@@ -80,15 +80,16 @@ TEST(AttitudePrior, AUavPhotoStartsFromTheFlightLogsAttitude) {
 
 TEST(AttitudePrior, AnAttitudeThatCannotBeUsedIsIgnored) {
   const CollectedImage a = Photo("uav", MakeStamp(100, 0)), b = Photo("uav", MakeStamp(102, 0)),
-                       c = Photo("fixed_cam_1", MakeStamp(104, 0));
+                       c = Photo("fixed_cam_1", MakeStamp(104, 0)), d = Photo("uav", MakeStamp(106, 0));
   BuildSceneOptions options;  // attitude_prior_max_sigma 5 deg
   options.min_images = 1;
   const Built built =
       Build({{a, Prior(a.stamp, Eigen::Vector3d(0, 0, 80), kNadir, 6.0 * kDeg)},       // beyond the limit
              {b, Prior(b.stamp, Eigen::Vector3d(9, 0, 80), Eigen::Quaterniond(0, 0, 0, 0), 0.1 * kDeg)},  // not a rotation
-             {c, Prior(c.stamp, Eigen::Vector3d(0, -90, 30), kNadir, 0.1 * kDeg)}},  // a fixed camera
+             {c, Prior(c.stamp, Eigen::Vector3d(0, -90, 30), kNadir, 0.1 * kDeg)},  // a fixed camera
+             {d, Prior(d.stamp, Eigen::Vector3d(18, 0, 80), Eigen::Quaterniond::Identity(), 0.0)}},  // all zero: unknown
             options);
-  for (const std::string& key : {a.key, b.key, c.key}) {
+  for (const std::string& key : {a.key, b.key, c.key, d.key}) {
     EXPECT_FALSE(built.Of(key).exterior_known) << key;
     EXPECT_FALSE(built.Of(key).attitude_from_prior) << key;
   }
