@@ -7,10 +7,10 @@
 #include <utility>
 #include <vector>
 
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "slope_monitor/core/common/error.h"
-#include "slope_monitor/core/common/parallel.h"
 
 namespace slope_monitor {
 namespace matching {
@@ -237,8 +237,16 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
   }
   std::vector<SequencePair> matched(plan.size());
   if (error.empty()) {
-    ParallelFor(plan.size(), options_.threads,
-                [&](size_t k) { matched[k] = MatchPair(history_[plan[k]], b); });
+    // OpenCV's thread pool, in at most `threads` stripes (0: as many as it
+    // has threads); each pair's result goes to its own slot.
+    const int n = static_cast<int>(plan.size());
+    const double stripes = options_.threads > 0 ? std::min(options_.threads, n) : -1.0;
+    cv::parallel_for_(
+        cv::Range(0, n),
+        [&](const cv::Range& range) {
+          for (int k = range.start; k < range.end; ++k) matched[k] = MatchPair(history_[plan[k]], b);
+        },
+        stripes);
   }
   for (size_t k = 0; k < plan.size(); ++k) {
     SequencePair out;
