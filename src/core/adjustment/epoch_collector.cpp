@@ -446,7 +446,7 @@ void BuildSceneOptions::Check() const {
     fail("position_prior_min_sigma", Message("must be > 0, got ", position_prior_min_sigma));
   if (min_images < 1) fail("min_images", Message("must be >= 1, got ", min_images));
   if (!(attitude_prior_max_sigma >= 0.0 && attitude_prior_max_sigma < 3.2))
-    fail("attitude_prior_max_sigma", Message("must be in [0, pi] rad, got ", attitude_prior_max_sigma));
+    fail("attitude_prior_max_sigma", Message("must be in [0, 3.2) rad (0..180 deg), got ", attitude_prior_max_sigma));
 }
 
 namespace {
