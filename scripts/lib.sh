@@ -66,14 +66,20 @@ sm_build() {
     sm_say "workspace $SM_WS was configured for make; reconfiguring it for Ninja (a full rebuild)"
     rm -rf "$SM_WS/build" "$SM_WS/devel"
   fi
-  # ccache (scripts/debian-packages.txt) keeps every object it compiled: a
-  # build after a pull or in a fresh clone recompiles only what changed.
-  # SM_CCACHE=0, or a launcher of the caller's own, turns it off.
+  # ccache (scripts/debian-packages.txt, SM_CCACHE=1) keeps every object it
+  # compiled, so a fresh clone on a machine that built before recompiles only
+  # what changed. Off by default: on a new machine every file is a miss, and
+  # a miss costs ~0.8 s of CPU per file (preprocessing for the hash, hashing
+  # the precompiled header), ~3.5 CPU-minutes of a cold build (doc/testing.md).
   local cache=()
-  if [ "${SM_CCACHE:-1}" != 0 ] && [ -z "${CMAKE_CXX_COMPILER_LAUNCHER:-}" ] && command -v ccache >/dev/null; then
+  if [ "${SM_CCACHE:-0}" = 1 ] && [ -z "${CMAKE_CXX_COMPILER_LAUNCHER:-}" ] && command -v ccache >/dev/null; then
     cache=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
-    # The message headers are generated seconds before they are compiled.
-    export CCACHE_SLOPPINESS="${CCACHE_SLOPPINESS:-include_file_mtime,include_file_ctime,time_macros}"
+    # The message headers are generated seconds before they are compiled;
+    # pch_defines and time_macros let ccache cache files that start from a
+    # precompiled header (CMakeLists.txt, SM_PCH).
+    export CCACHE_SLOPPINESS="${CCACHE_SLOPPINESS:-include_file_mtime,include_file_ctime,time_macros,pch_defines}"
+  elif [ -z "${CMAKE_CXX_COMPILER_LAUNCHER:-}" ]; then
+    cache=(-DCMAKE_CXX_COMPILER_LAUNCHER= -DCMAKE_C_COMPILER_LAUNCHER=)  # a workspace that had it drops it
   fi
   # "sm_build demo": only what the replay graph and the demo tools need (the
   # benchmarks, offline tools and the other nodelets wait for scripts/test);
@@ -90,9 +96,9 @@ sm_build() {
     targets=(clean_test_results)
   fi
   if [ "${1:-}" = configure ]; then
-    sm_say "configuring with catkin_make --use-ninja (Release${cache:+, ccache})"
+    sm_say "configuring with catkin_make --use-ninja (Release${SM_CCACHE:+, SM_CCACHE=$SM_CCACHE})"
   else
-    sm_say "building with catkin_make --use-ninja (-j$jobs, Release${cache:+, ccache})"
+    sm_say "building with catkin_make --use-ninja (-j$jobs, Release${SM_CCACHE:+, SM_CCACHE=$SM_CCACHE})"
   fi
   (cd "$SM_WS" && catkin_make --use-ninja -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=ON "${cache[@]}" \
      -j"$jobs" "${targets[@]}" >"$SM_WS/build.log" 2>&1) || {

@@ -77,7 +77,8 @@ RenderResult Renderer::Render(const Scene::State& state, const camera::ExteriorO
   const Eigen::Vector3d origin = pose.position;
   const HeightGrid& grid = state.grid;
   const LandslideModel& landslide = scene_.spec().landslide;
-  const bool moved = landslide.Travel(state.t) != 0.0;
+  const LandslideModel::InverseAt reference_of(landslide, state.t);
+  const bool moved = reference_of.moved();
   const Lighting& light = scene_.spec().lighting;
   const Eigen::Vector3d sun = light.sun.normalized();
 
@@ -260,7 +261,7 @@ RenderResult Renderer::Render(const Scene::State& state, const camera::ExteriorO
       const double cos_inc = std::max(0.2, std::abs(n.dot(d)));
       const double footprint = t_ground * ps / c / cos_inc;
       Eigen::Vector2d xr = p.head<2>();
-      if (moved) xr = landslide.ReferencePositionOf(p, state.t).head<2>();
+      if (moved) xr = reference_of(p).head<2>();
       return scene_.GroundAlbedo(xr, footprint) * lit(n);
     }
     const float s = static_cast<float>(light.sky);

@@ -273,6 +273,16 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
   if (!(spec_.foliage_sway >= 0.0 && spec_.foliage_sway <= 1.0)) {
     throw InvalidArgument(Message("scene foliage_sway ", spec_.foliage_sway, " outside [0, 1]"));
   }
+  // The texture's octaves (GroundAlbedo), coarsest first: wavelength and amplitude.
+  const TextureOptions& tx = spec_.texture;
+  octave_amplitude_sum_ = 0.0;
+  for (double lambda = tx.coarsest_wavelength; lambda >= tx.finest_wavelength * 0.999; lambda *= 0.5) {
+    const double amp = 0.6 + 0.4 * std::clamp(std::log2(16.0 / lambda) / 8.0, 0.0, 1.0);
+    octaves_.push_back({lambda, amp});
+    octave_amplitude_sum_ += amp;
+  }
+  cos_azimuth_ = std::cos(spec_.landslide.azimuth);
+  sin_azimuth_ = std::sin(spec_.landslide.azimuth);
   reference_.xmin = t.extent[0];
   reference_.ymin = t.extent[2];
   reference_.spacing = t.grid_spacing;
@@ -476,17 +486,17 @@ Rgb Scene::GroundAlbedo(const Eigen::Vector2d& x, double footprint) const {
   const double rock = (1.0 - veg) * Smoothstep(rock_t - 0.04, rock_t + 0.04, rock_noise);
   const double soil = 1.0 - veg - rock;
 
-  // Multi-scale texture: octaves from coarsest to finest, faded out when
-  // finer than about two pixel footprints (anti-aliasing).
-  double fbm = 0.0, norm = 0.0;
-  int octave = 0;
-  for (double lambda = tx.coarsest_wavelength; lambda >= tx.finest_wavelength * 0.999; lambda *= 0.5, ++octave) {
+  // Multi-scale texture: octaves from coarsest to finest (Scene::Scene),
+  // faded out when finer than about two pixel footprints (anti-aliasing).
+  double fbm = 0.0;
+  for (size_t octave = 0; octave < octaves_.size(); ++octave) {
+    const double lambda = octaves_[octave].wavelength;
     const double fade = std::clamp(lambda / (2.0 * std::max(footprint, 1e-6)) - 1.0, 0.0, 1.0);
-    const double amp = 0.6 + 0.4 * std::clamp(std::log2(16.0 / lambda) / 8.0, 0.0, 1.0);
-    norm += amp;
     if (fade <= 0.0) continue;
-    fbm += fade * amp * ValueNoise(x.x() / lambda, x.y() / lambda, seed + 100 + octave);
+    fbm += fade * octaves_[octave].amplitude *
+           ValueNoise(x.x() / lambda, x.y() / lambda, seed + 100 + static_cast<std::uint32_t>(octave));
   }
+  const double norm = octave_amplitude_sum_;
   fbm /= std::max(norm, 1e-9) * 0.35;  // roughly unit amplitude
 
   // Low-texture scarp: fresh, uniform soil.
@@ -495,8 +505,8 @@ Rgb Scene::GroundAlbedo(const Eigen::Vector2d& x, double footprint) const {
   const LandslideModel& l = spec_.landslide;
   if (spec_.scarp.depth > 0.0) {
     const double dx = x.x() - l.centre.x(), dy = x.y() - l.centre.y();
-    const double u = dx * std::cos(l.azimuth) + dy * std::sin(l.azimuth);
-    const double v = -dx * std::sin(l.azimuth) + dy * std::cos(l.azimuth);
+    const double u = dx * cos_azimuth_ + dy * sin_azimuth_;
+    const double v = -dx * sin_azimuth_ + dy * cos_azimuth_;
     const double rho = std::hypot(u / l.length, v / l.width);
     if (rho >= 1.0 - spec_.scarp.band && rho <= 1.0 && -u / l.length > spec_.scarp.head_fraction) {
       contrast *= 0.05;

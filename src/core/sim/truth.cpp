@@ -174,18 +174,39 @@ Eigen::Vector3d LandslideModel::DisplacementAt(const Eigen::Vector3d& x_ref, dou
 }
 
 Eigen::Vector3d LandslideModel::ReferencePositionOf(const Eigen::Vector3d& x_now, double t) const {
-  const double s = Travel(t);
-  const Eigen::Vector3d dir = Direction();
+  return InverseAt(*this, t)(x_now);
+}
+
+LandslideModel::InverseAt::InverseAt(const LandslideModel& model, double t)
+    : model_(model),
+      travel_(model.Travel(t)),
+      cos_azimuth_(std::cos(model.azimuth)),
+      sin_azimuth_(std::sin(model.azimuth)),
+      direction_(model.Direction()) {}
+
+// LandslideModel::Weight with the azimuth's cosine and sine computed once.
+double LandslideModel::InverseAt::Weight(const Eigen::Vector2d& xy) const {
+  const Eigen::Vector2d d = xy - model_.centre;
+  const double u = d.x() * cos_azimuth_ + d.y() * sin_azimuth_;
+  const double v = -d.x() * sin_azimuth_ + d.y() * cos_azimuth_;
+  const double rho = std::hypot(u / model_.length, v / model_.width);
+  if (rho >= 1.0) return 0.0;
+  if (rho <= 1.0 - model_.taper) return 1.0;
+  return Smoothstep((1.0 - rho) / model_.taper);
+}
+
+Eigen::Vector3d LandslideModel::InverseAt::operator()(const Eigen::Vector3d& x_now) const {
+  const double s = travel_;
   Eigen::Vector2d x = x_now.head<2>();
   if (s != 0.0) {
     for (int it = 0; it < 100; ++it) {
-      const Eigen::Vector2d next = x_now.head<2>() - Weight(x) * s * dir.head<2>();
+      const Eigen::Vector2d next = x_now.head<2>() - Weight(x) * s * direction_.head<2>();
       const double step = (next - x).norm();
       x = next;
       if (step < 1e-10) break;
     }
   }
-  const double dz = Weight(x) * s * dir.z();
+  const double dz = Weight(x) * s * direction_.z();
   return Eigen::Vector3d(x.x(), x.y(), x_now.z() - dz);
 }
 

@@ -160,7 +160,14 @@ class Scene {
 
  private:
   double ScarpDrop(double x, double y) const;
+  struct Octave {
+    double wavelength;  // [m]
+    double amplitude;   // [-]
+  };
   SceneSpec spec_;
+  std::vector<Octave> octaves_;        // GroundAlbedo's texture, coarsest first
+  double octave_amplitude_sum_ = 0.0;  // their amplitudes' sum
+  double cos_azimuth_ = 1.0, sin_azimuth_ = 0.0;  // of the landslide's motion azimuth
   HeightGrid reference_;
   std::vector<TargetTruth> targets_;
   std::vector<Plate> reference_plates_;

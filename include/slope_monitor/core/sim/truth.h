@@ -78,6 +78,21 @@ struct LandslideModel {
   // iteration; exact to 1e-9 m for the smooth fields above). Only x, y of
   // x_now are used; the returned z is x_now.z - d_z.
   Eigen::Vector3d ReferencePositionOf(const Eigen::Vector3d& x_now_in_site, double t) const;
+  // The same inverse for many points at one instant (the renderer: one per
+  // ray): the travel, direction and azimuth terms computed once; the same
+  // numbers as ReferencePositionOf, bit for bit.
+  class InverseAt {
+   public:
+    InverseAt(const LandslideModel& model, double t);
+    Eigen::Vector3d operator()(const Eigen::Vector3d& x_now_in_site) const;
+    bool moved() const { return travel_ != 0.0; }
+
+   private:
+    double Weight(const Eigen::Vector2d& xy) const;
+    const LandslideModel& model_;
+    double travel_, cos_azimuth_, sin_azimuth_;
+    Eigen::Vector3d direction_;
+  };
   static std::string VelocityName(Velocity v);
   static Velocity VelocityFromName(const std::string& name);  // throws InvalidArgument
 };
