@@ -2,15 +2,18 @@
 // surveyed points picked in one photo (issue 19), through the core's
 // adjustment::ResectCamera.
 //
-//   rosrun slope_monitor resect_camera --image IMG --gcp FILE [--crs EPSG:NNNN]
+//   rosrun slope_monitor resect_camera --image IMG --gcp FILE [--site FILE | --crs EPSG:NNNN]
 //       [--position X Y Z [--position-sigma S]] [--camera-info YAML | --focal-mm F --sensor-mm W H]
 //       [--free c,k1,...] [--pixel-sigma S] [--point-sigma S] [--pixel-origin opencv|corner] --out
 //       PREFIX
 //
 // Without --camera-info the nominal camera is c = --focal-mm (or the EXIF
 // focal length), the principal point at the image centre, no distortion, with
-// the pixel pitch from --sensor-mm. Coordinates are used as given (a projected
-// CRS in metres, or a local frame); --crs is only recorded in PREFIX.pose.yaml.
+// the pixel pitch from --sensor-mm. With --site FILE the points (and
+// --position) are in the site file's CRS and the pose is written in its `site`
+// frame (what the site's cameras[].pose_file holds). Without it coordinates
+// are used as given (a projected CRS in metres, or a local frame); --crs is
+// then only recorded in PREFIX.pose.yaml.
 // Writes PREFIX.yaml (camera_info_manager calibration, in pixels) and
 // PREFIX.pose.yaml (position, theta/phi/kappa, the site_from_optical
 // quaternion, and the 6x6 covariance of X0 Y0 Z0 theta phi kappa [m^2, rad^2]).
@@ -21,6 +24,7 @@
 #include <iomanip>
 #include <iostream>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -32,6 +36,8 @@
 #include "slope_monitor/core/capture/calibration.h"
 #include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/site_crs.h"
+#include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/core/io/surveyed_points.h"
 #include "slope_monitor/ros/conversions.h"
 
@@ -42,7 +48,7 @@ namespace {
 constexpr double kDeg = 180.0 / M_PI;
 
 int Usage() {
-  std::cerr << "usage: resect_camera --image IMG --gcp FILE [--crs EPSG:NNNN] [--position X Y Z "
+  std::cerr << "usage: resect_camera --image IMG --gcp FILE [--site FILE | --crs EPSG:NNNN] [--position X Y Z "
                "[--position-sigma S]] [--camera-info YAML | --focal-mm F --sensor-mm W H] [--free "
                "c,k1,...] "
                "[--pixel-sigma S] [--point-sigma S] [--pixel-origin opencv|corner] --out PREFIX\n";
@@ -152,18 +158,35 @@ void PrintPoints(const adjustment::ResectCameraSummary& s, double critical) {
   }
 }
 
+// Where the coordinates come from and go: the site file's CRS and `site`
+// frame (--site), or the points' own coordinates (crs only recorded).
+struct Frame {
+  std::optional<SiteCrs> site;
+  std::string site_file;
+  std::string crs;  // the site's, or --crs, or ""
+};
+
 void WritePose(const std::string& path, const adjustment::ResectCameraSummary& s,
-               const std::string& crs, const std::string& image) {
+               const Frame& frame, const std::string& image) {
   std::ofstream out(path);
   if (!out) throw IoError(Message("cannot write '", path, "'"));
   const auto& e = s.exterior;
   const Eigen::Quaterniond q = camera::SiteFromOpticalFromAngles(e.angles);
   out << std::setprecision(12);
-  out << "# resect_camera: pose of the camera in site (projected CRS coordinates as given)\n";
+  if (frame.site) {
+    out << "# resect_camera: pose of the camera in the site frame of " << frame.site_file << "\n";
+    out << "site_file: \"" << frame.site_file << "\"\n";
+  } else {
+    out << "# resect_camera: pose of the camera in site (projected CRS coordinates as given)\n";
+  }
   out << "image: \"" << image << "\"\n";
-  out << "crs: \"" << crs << "\"\n";
+  out << "crs: \"" << frame.crs << "\"\n";
   out << "position: [" << e.position.x() << ", " << e.position.y() << ", " << e.position.z()
       << "]  # X0 Y0 Z0 [m]\n";
+  if (frame.site) {
+    const Eigen::Vector3d c = frame.site->CrsFromSite(e.position);
+    out << "position_crs: [" << c.x() << ", " << c.y() << ", " << c.z() << "]  # the same in crs\n";
+  }
   out << "angles_deg: {theta: " << e.angles.theta * kDeg << ", phi: " << e.angles.phi * kDeg
       << ", kappa: " << e.angles.kappa * kDeg << "}\n";
   out << "# site_from_optical (REP 103 optical frame), x y z w\n";
@@ -174,6 +197,33 @@ void WritePose(const std::string& path, const adjustment::ResectCameraSummary& s
   out << "]\n";
   out << "rms_px: " << s.rms_px << "\n";
   out << "points: " << s.points.size() << "\n";
+}
+
+// --site FILE: the site's CRS and frame; else --crs (recorded only).
+Frame ReadFrame(const std::map<std::string, std::vector<std::string>>& a) {
+  Frame f;
+  if (a.count("--site")) {
+    if (a.count("--crs"))
+      throw InvalidArgument("give either --site FILE (the points in the site's CRS) or --crs, not both");
+    f.site_file = a.at("--site")[0];
+    const io::SiteFile site = io::LoadSiteFile(f.site_file);
+    f.site.emplace(site.crs);
+    f.crs = site.crs.crs;
+  } else if (a.count("--crs")) {
+    f.crs = a.at("--crs")[0];
+  }
+  return f;
+}
+
+// A point of `what` in the site CRS -> site, naming it when PROJ cannot.
+Eigen::Vector3d ToSite(const Frame& f, const Eigen::Vector3d& x, const std::string& what) {
+  if (!f.site) return x;
+  try {
+    return f.site->SiteFromCrs(x);
+  } catch (const InvalidArgument& e) {
+    throw InvalidArgument(Message(what, ": not convertible from ", f.crs, " to the site frame of ",
+                                  f.site_file, ": ", e.what()));
+  }
 }
 
 }  // namespace
@@ -187,9 +237,7 @@ int main(int argc, char** argv) {
     }
     const auto a = ParseArgs(argc, argv);
     if (!a.count("--image") || !a.count("--gcp") || !a.count("--out")) return Usage();
-    if (a.count("--site"))
-      throw InvalidArgument(
-          "--site is not supported by this version: give the points in a projected CRS (metres)");
+    const Frame frame = ReadFrame(a);
     const std::string image = a.at("--image")[0];
     const cv::Mat full = cv::imread(image, cv::IMREAD_GRAYSCALE);
     if (full.empty()) throw IoError(Message("--image: cannot read '", image, "'"));
@@ -204,7 +252,10 @@ int main(int argc, char** argv) {
             Message("--pixel-origin: '", o, "' is neither 'opencv' nor 'corner'"));
       }
     }
-    const auto points = io::ReadSurveyedPoints(a.at("--gcp")[0], origin);
+    const std::string gcp = a.at("--gcp")[0];
+    auto points = io::ReadSurveyedPoints(gcp, origin);
+    for (auto& p : points)
+      p.xyz = ToSite(frame, p.xyz, Message(gcp, ":", p.line, " (", p.id, ")"));
     adjustment::ResectCameraOptions options;
     if (a.count("--free")) {
       options.free_interior.clear();
@@ -219,6 +270,7 @@ int main(int argc, char** argv) {
     if (a.count("--position")) {
       options.has_position = true;
       for (int k = 0; k < 3; ++k) options.position(k) = Number("--position", a.at("--position")[k]);
+      options.position = ToSite(frame, options.position, "--position");
       if (a.count("--position-sigma"))
         options.position_sigma = Number("--position-sigma", a.at("--position-sigma")[0]);
     } else if (a.count("--position-sigma")) {
@@ -226,6 +278,9 @@ int main(int argc, char** argv) {
     }
     const camera::CameraModel nominal = NominalCamera(a, image, width, height);
     const auto s = adjustment::ResectCamera(points, nominal, options);
+    if (frame.site)
+      std::printf("frame: site of %s (points and --position in %s)\n", frame.site_file.c_str(),
+                  frame.crs.c_str());
     std::printf("start: %s\n", s.start.c_str());
     if (!s.success) {
       std::cerr << "resect_camera: " << s.message << "\n";
@@ -237,7 +292,7 @@ int main(int argc, char** argv) {
     sensor_msgs::CameraInfo info = ros_adapters::ToMsg(s.model.ToCameraInfo());
     if (!camera_calibration_parsers::writeCalibration(prefix + ".yaml", "camera", info))
       throw IoError(Message("cannot write '", prefix, ".yaml'"));
-    WritePose(prefix + ".pose.yaml", s, a.count("--crs") ? a.at("--crs")[0] : "", image);
+    WritePose(prefix + ".pose.yaml", s, frame, image);
     std::printf("wrote %s.yaml and %s.pose.yaml\n", prefix.c_str(), prefix.c_str());
     return 0;
   } catch (const std::exception& e) {

@@ -88,6 +88,24 @@ TEST(HexMatcherParameters, GraphReadyIsNotAnUnknownKey) {
   EXPECT_THROW(ReadHexMatcherParameters(r2), ConfigError);
 }
 
+// The shipped defaults file leaves estimate_global_shift to the mode (issue
+// 19: a track-mode user loading it got false, and its points landed on the
+// moving slope): on in track mode, where a turned camera moves every point by
+// the same shift, off in pair mode; a value in the file still wins.
+TEST(HexMatcherParameters, DefaultsFileLeavesTheGlobalShiftToTheMode) {
+  for (const std::string mode : {"track", "pair"}) {
+    XmlRpc::XmlRpcValue file = Defaults();
+    SetParam(&file, "mode", mode);
+    ParamReader r(file, "/fixed_cam_1/hex_matcher");
+    EXPECT_EQ(ReadHexMatcherParameters(r).prior.estimate_global_shift, mode == "track") << mode;
+  }
+  XmlRpc::XmlRpcValue file = Defaults();
+  SetParam(&file, "mode", std::string("track"));
+  SetParam(&file, "estimate_global_shift", false);
+  ParamReader r(file, "/fixed_cam_1/hex_matcher");
+  EXPECT_FALSE(ReadHexMatcherParameters(r).prior.estimate_global_shift);
+}
+
 }  // namespace
 }  // namespace ros_adapters
 }  // namespace slope_monitor
