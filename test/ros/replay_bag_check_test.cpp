@@ -27,10 +27,10 @@ LaunchRun Replay(const std::string& bag) {
                                          "/launch/replay.launch bag:=" + bag);
 }
 
-const std::string kTmp = "/tmp/sm_replay_bag_check_" + std::to_string(getpid());
+const std::string kReplayTmp = "/tmp/sm_replay_bag_check_" + std::to_string(getpid());
 
 TEST(ReplayBagCheck, MissingBagEndsTheLaunchWithStatus1NamingIt) {
-  const std::string bag = kTmp + "_missing.bag";
+  const std::string bag = kReplayTmp + "_missing.bag";
   const LaunchRun r = Replay(bag);
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("bag_check: " + bag + ": no such file"), std::string::npos) << r.output;
@@ -43,7 +43,7 @@ TEST(ReplayBagCheck, TruncatedBagEndsTheLaunchWithStatus1NamingIt) {
                    std::ios::binary);
   const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   ASSERT_GT(bytes.size(), 300000u);
-  const std::string bag = kTmp + "_truncated.bag";
+  const std::string bag = kReplayTmp + "_truncated.bag";
   std::ofstream(bag, std::ios::binary) << bytes.substr(0, 300000);
   const LaunchRun r = Replay(bag);
   EXPECT_EQ(r.status, 1) << r.output;

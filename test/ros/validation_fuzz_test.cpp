@@ -16,7 +16,7 @@ namespace slope_monitor {
 namespace ros_adapters {
 namespace {
 
-constexpr double kNow = 1.7e9;
+constexpr double kFuzzNow = 1.7e9;
 
 class Hostile {
  public:
@@ -46,14 +46,14 @@ TEST(ValidationFuzz, WhatPassesIsUsable) {
   size_t passed = 0, seen = 0;
   for (int i = 0; i < n; ++i) {
     slope_monitor::PointDisplacementArray a;
-    a.header.stamp = ros::Time(kNow - h.Below(100000));
+    a.header.stamp = ros::Time(kFuzzNow - h.Below(100000));
     a.epoch = static_cast<uint32_t>(i / 10);  // message-level checks: validation_test.cpp
     for (size_t k = 0, count = h.Below(6); k < count; ++k) {
       slope_monitor::PointDisplacement d;
       d.point_id = h.Id();
       d.source_name = "fuzz";
-      d.stamp = ros::Time(kNow - 10.0);
-      d.reference_stamp = ros::Time(kNow - 1e5);
+      d.stamp = ros::Time(kFuzzNow - 10.0);
+      d.reference_stamp = ros::Time(kFuzzNow - 1e5);
       d.reference_position.x = h.Value(100.0);
       d.reference_position.y = h.Value(-50.0);
       d.reference_position.z = h.Value(300.0);
@@ -67,7 +67,7 @@ TEST(ValidationFuzz, WhatPassesIsUsable) {
     }
     seen += a.displacements.size();
     slope_monitor::PointDisplacementArray out;
-    ASSERT_NO_THROW(out = v.Filter(a, "fuzz", kNow)) << "message " << i;
+    ASSERT_NO_THROW(out = v.Filter(a, "fuzz", kFuzzNow)) << "message " << i;
     for (const auto& d : out.displacements) {
       ++passed;
       EXPECT_EQ(io::IdProblem(d.point_id), "");

@@ -10,7 +10,7 @@ namespace slope_monitor {
 namespace adjustment {
 namespace {
 
-Scene MakeScene() {
+Scene MakePruneScene() {
   Scene s;
   s.cameras.resize(2);
   s.cameras[0].name = "fixed_cam_1";
@@ -41,7 +41,7 @@ Scene MakeScene() {
 }
 
 TEST(PruneScene, DropsWeakImagesOrphansAndCascades) {
-  const Scene in = MakeScene();
+  const Scene in = MakePruneScene();
   PruneReport report;
   const Scene out = PruneScene(in, 4, &report);
   // uav@1 has 3 observations; uav@2 loses point 7 (unknown) and then has 3.
@@ -68,7 +68,7 @@ TEST(PruneScene, DropsWeakImagesOrphansAndCascades) {
 }
 
 TEST(PruneScene, KeepsEverythingWhenAllImagesAreStrong) {
-  Scene in = MakeScene();
+  Scene in = MakePruneScene();
   in.points[7].position_known = true;
   const Scene out = PruneScene(in, 3, nullptr);
   EXPECT_EQ(out.images.size(), 3u);
@@ -78,7 +78,7 @@ TEST(PruneScene, KeepsEverythingWhenAllImagesAreStrong) {
 }
 
 TEST(PruneScene, UnorientedImageIsDropped) {
-  Scene in = MakeScene();
+  Scene in = MakePruneScene();
   in.points[7].position_known = true;
   in.images[2].exterior_known = false;
   PruneReport report;

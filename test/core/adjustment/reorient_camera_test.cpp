@@ -15,7 +15,7 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
-camera::CameraModel Camera() {
+camera::CameraModel ReorientTestCamera() {
   camera::Sensor s;
   s.width = 4000;
   s.height = 3000;
@@ -30,7 +30,7 @@ camera::CameraModel Camera() {
 // stable ground's tie points are measured with 0.3 px noise, 10 % of them
 // mismatched by 5-30 px.
 TEST(ReorientCamera, RecoversAKnownMastRotationWithin0002Deg) {
-  const camera::CameraModel model = Camera();
+  const camera::CameraModel model = ReorientTestCamera();
   camera::ExteriorOrientation ref;
   ref.position = Eigen::Vector3d(100, 200, 50);
   ref.angles = {0.3, 1.45, 0.02};
@@ -79,7 +79,7 @@ TEST(ReorientCamera, RecoversAKnownMastRotationWithin0002Deg) {
 }
 
 TEST(ReorientCamera, TooFewPointsAndNonFiniteInput) {
-  const camera::CameraModel model = Camera();
+  const camera::CameraModel model = ReorientTestCamera();
   camera::ExteriorOrientation ref;
   ref.angles = {0.3, 1.45, 0.02};
   std::vector<adjustment::StableTiePoint> ties(3);

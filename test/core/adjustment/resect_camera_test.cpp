@@ -15,7 +15,7 @@
 namespace slope_monitor {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
+constexpr double kResectDeg = M_PI / 180.0;
 
 camera::CameraModel Camera(double c_mm) {
   camera::Sensor s;
@@ -218,7 +218,8 @@ TEST(ResectCamera, ColumbiaAk10FourControlPoints) {
   // north), pitch -10 deg; the optical axis in site:
   const Eigen::Vector3d axis =
       camera::RotationFromAngles(r.exterior.angles).transpose() * Eigen::Vector3d(0, 0, -1);
-  const double yaw = std::atan2(axis.x(), axis.y()) / kDeg, pitch = std::asin(axis.z()) / kDeg;
+  const double yaw = std::atan2(axis.x(), axis.y()) / kResectDeg,
+               pitch = std::asin(axis.z()) / kResectDeg;
   EXPECT_NEAR(yaw, -165.0, 5.0);
   EXPECT_NEAR(pitch, -10.0, 5.0);
   EXPECT_EQ(r.redundancy, 4);

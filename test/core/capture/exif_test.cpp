@@ -12,8 +12,7 @@ namespace {
 
 using capture_test::ExifTags;
 using capture_test::TempDir;
-
-constexpr double kMay1st10h = 1714557600.0;  // 2024-05-01 10:00:00 UTC (date -u -d ... +%s)
+using capture_test::kMay1st10h;
 
 TEST(Exif, ParseDateTime) {
   EXPECT_DOUBLE_EQ(ParseExifDateTime("2024:05:01 10:00:00", "", "t"), kMay1st10h);

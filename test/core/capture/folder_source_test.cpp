@@ -15,8 +15,7 @@ namespace {
 
 using capture_test::ExifTags;
 using capture_test::TempDir;
-
-constexpr double kMay1st10h = 1714557600.0;  // 2024-05-01 10:00:00 UTC
+using capture_test::kMay1st10h;
 
 ExifTags Tags(const std::string& hms, const std::string& subsec) {
   ExifTags t;

@@ -25,6 +25,8 @@
 namespace slope_monitor {
 namespace capture_test {
 
+constexpr double kMay1st10h = 1714557600.0;  // 2024-05-01 10:00:00 UTC (date -u -d ... +%s)
+
 // A temporary directory removed on destruction.
 class TempDir {
  public:

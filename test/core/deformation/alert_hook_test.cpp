@@ -22,14 +22,14 @@ namespace {
 
 using testing::kDay;
 using testing::kT0;
-constexpr double kMmPerDay = 1e-3 / kDay;
+using testing::kMmPerDay;
 
-struct TempDir {
-  TempDir() {
+struct HookTempDir {
+  HookTempDir() {
     char tmpl[] = "/tmp/alert_hook_test_XXXXXX";
     path = mkdtemp(tmpl);
   }
-  ~TempDir() { std::system(("rm -rf '" + path + "'").c_str()); }
+  ~HookTempDir() { std::system(("rm -rf '" + path + "'").c_str()); }
   std::string path;
 };
 
@@ -46,7 +46,7 @@ using hook_json::Lines;
 // 6 d: 36 mm/day at 5 d, 144 mm/day at 5.75 d) and three on stable ground;
 // radio every 30 min, 4 mm noise; the estimator with its default options.
 TEST(AlertHook, RunsOncePerLevelChangeWithThatChangesJson) {
-  TempDir dir;
+  HookTempDir dir;
   const std::string out = dir.path + "/alerts.jsonl";
   io::NotificationOptions options;
   options.hook = WriteScript(dir.path + "/hook", "cat >> '" + out + "'\necho >> '" + out + "'");
@@ -104,7 +104,7 @@ TEST(AlertHook, RunsOncePerLevelChangeWithThatChangesJson) {
 }
 
 TEST(AlertHook, AFailingHookIsRetriedThenGivenUp) {
-  TempDir dir;
+  HookTempDir dir;
   // Fails on its first run (no marker yet), succeeds on the second.
   const std::string marker = dir.path + "/ran";
   io::NotificationOptions options;
@@ -144,7 +144,7 @@ TEST(AlertHook, AFailingHookIsRetriedThenGivenUp) {
 }
 
 TEST(AlertHook, AHungHookIsKilledAtItsTimeLimitAndAMissingOneIsReported) {
-  TempDir dir;
+  HookTempDir dir;
   io::NotificationOptions options;
   options.timeout = 0.2;
   options.retries = 0;

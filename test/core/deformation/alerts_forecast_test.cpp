@@ -15,7 +15,7 @@ namespace {
 using testing::kDay;
 using testing::kT0;
 
-constexpr double kMmPerDay = 1e-3 / kDay;  // 1 mm/day in m/s
+using testing::kMmPerDay;  // 1 mm/day in m/s
 
 EstimatorOptions AlertTestOptions() {
   EstimatorOptions o;

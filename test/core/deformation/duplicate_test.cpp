@@ -15,19 +15,19 @@ namespace slope_monitor {
 namespace deformation {
 namespace {
 
-constexpr double kT0 = 1700000000.0;
+constexpr double kDuplicateT0 = 1700000000.0;
 
 Batch MakeBatch(uint32_t epoch, double dt, double dy) {
   Batch b;
   b.epoch = epoch;
-  b.stamp = kT0 + dt;
+  b.stamp = kDuplicateT0 + dt;
   Measurement m;
   m.point_id = "p1";
   m.source = Source::kRadio;
   m.source_name = "/radio/radio_displacements";
   m.epoch = epoch;
   m.stamp = b.stamp;
-  m.reference_stamp = kT0;
+  m.reference_stamp = kDuplicateT0;
   m.reference_position = Eigen::Vector3d(100, 80, 20);
   m.displacement = Eigen::Vector3d(0.0, dy, 0.0);
   m.covariance = Eigen::Matrix3d::Identity() * 1e-6;  // 1 mm

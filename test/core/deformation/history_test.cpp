@@ -25,7 +25,7 @@ std::string TempPath(const std::string& name) {
   return p;
 }
 
-std::vector<Batch> Scenario() {
+std::vector<Batch> HistoryScenario() {
   testing::Motion m1, m2;
   m1.v0 = 10e-3 / kDay;
   m1.accelerating = true;
@@ -66,7 +66,7 @@ void ExpectSameSnapshot(const Snapshot& x, const Snapshot& y) {
 }
 
 TEST(History, KillAndRestartGivesTheUninterruptedResult) {
-  const std::vector<Batch> batches = Scenario();
+  const std::vector<Batch> batches = HistoryScenario();
   EstimatorOptions o;
   const std::string path_a = TempPath("a.db"), path_b = TempPath("b.db");
   Snapshot uninterrupted;
@@ -102,7 +102,7 @@ TEST(History, KillAndRestartGivesTheUninterruptedResult) {
 
 TEST(History, AMeasurementCommittedButNotProcessedIsUsedOnRestart) {
   // Killed between the commit of a batch and its use: the restart uses it.
-  const std::vector<Batch> batches = Scenario();
+  const std::vector<Batch> batches = HistoryScenario();
   const std::string path = TempPath("c.db");
   Snapshot expected;
   {
@@ -122,7 +122,7 @@ TEST(History, AMeasurementCommittedButNotProcessedIsUsedOnRestart) {
 }
 
 TEST(History, ReferenceEpochSurvivesARestart) {
-  const std::vector<Batch> batches = Scenario();
+  const std::vector<Batch> batches = HistoryScenario();
   const std::string path = TempPath("r.db");
   Snapshot before;
   {
@@ -165,7 +165,7 @@ TEST(History, TruncatedDatabaseIsRefused) {
   {
     History h(path);
     Estimator e(EstimatorOptions(), &h);
-    for (const Batch& b : Scenario()) e.AddBatch(b);
+    for (const Batch& b : HistoryScenario()) e.AddBatch(b);
   }
   // Keep the header page only: the SQLite header is valid, the rest is gone.
   std::ifstream in(path, std::ios::binary);

@@ -25,15 +25,15 @@ namespace {
 
 using testing::kDay;
 using testing::kT0;
-constexpr double kMmPerDay = 1e-3 / kDay;
+using testing::kMmPerDay;
 const std::string kScript = std::string(SM_SOURCE_DIR) + "/scripts/plot_report";
 
-struct TempDir {
-  TempDir() {
+struct PlotTempDir {
+  PlotTempDir() {
     char tmpl[] = "/tmp/plot_report_test_XXXXXX";
     path = mkdtemp(tmpl);
   }
-  ~TempDir() { std::system(("rm -rf '" + path + "'").c_str()); }
+  ~PlotTempDir() { std::system(("rm -rf '" + path + "'").c_str()); }
   std::string path;
 };
 
@@ -65,7 +65,7 @@ int Drawn(const cv::Mat& image) {
 }
 
 TEST(PlotReport, ThreePicturesOfTheExpectedSize) {
-  TempDir dir;
+  PlotTempDir dir;
   const std::string db = dir.path + "/history.db";
   FillHistory(db);
   // A DEM under the points (site x 0..20, y 40..60: a tilted plane with a bump) for the hillshade.
@@ -114,7 +114,7 @@ std::string StderrOf(const std::string& history) {
 }
 
 TEST(PlotReport, MissingOrCorruptHistoryIsNamed) {
-  TempDir dir;
+  PlotTempDir dir;
   const std::string missing = dir.path + "/none.db";
   EXPECT_NE(StderrOf(missing).find("plot_report: history file '" + missing + "' does not exist"),
             std::string::npos);

@@ -18,7 +18,7 @@ namespace slope_monitor {
 namespace deformation {
 namespace {
 
-ChangeArea Square(double x, double y, double side) {
+ChangeArea AreasSquare(double x, double y, double side) {
   ChangeArea a;
   a.sign = -1;
   a.area = side * side;
@@ -35,11 +35,11 @@ Snapshot Scenario() {
   AreaBatch b;
   b.stamp = 1.7e9;
   b.epoch = 1;
-  b.areas = {Square(10, 20, 5)};
+  b.areas = {AreasSquare(10, 20, 5)};
   e.AddAreas(b);
   b.epoch = 2;
   b.stamp += 21600.0;
-  b.areas = {Square(10, 20, 8)};
+  b.areas = {AreasSquare(10, 20, 8)};
   e.AddAreas(b);
   return e.GetSnapshot();
 }

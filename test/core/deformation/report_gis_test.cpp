@@ -36,7 +36,7 @@ using testing::kT0;
 
 // tag36h11/1 at x = 0, tag36h11/2 at x = 10 (both 10 mm/day), rock at x = 20
 // (stable), all y = 50 (test_scenario.h); site origin 35 N 139 E, 100 m.
-Snapshot Scenario() {
+Snapshot GisScenario() {
   Estimator e{EstimatorOptions()};
   std::vector<testing::Motion> motions(3);
   motions[0].v0 = motions[1].v0 = 10e-3 / kDay;
@@ -49,7 +49,7 @@ Snapshot Scenario() {
   return e.GetSnapshot();
 }
 
-ReportOptions Georeferenced() {
+ReportOptions GisGeoreferenced() {
   ReportOptions o;
   o.geodetic_origin = Eigen::Vector3d(35.0, 139.0, 100.0);
   return o;
@@ -59,7 +59,7 @@ ReportOptions Georeferenced() {
 double Lon(double x) { return 139.0 + x / 91288.0; }
 double Lat() { return 35.0 + 50.0 / 110941.0; }
 
-std::string TempDir(const std::string& name) {
+std::string GisTempDir(const std::string& name) {
   const std::string d = "/tmp/sm_report_gis_" + std::to_string(getpid()) + "_" + name;
   mkdir(d.c_str(), 0755);
   return d;
@@ -84,9 +84,10 @@ float Sample(GDALDataset* ds, double x, double y) {
 }
 
 TEST(ReportGis, GeoTiffWarpsToWgs84WithThePointsInPlace) {
-  const Snapshot s = Scenario();
-  const std::string dir = TempDir("tif");
-  const std::string path = WriteDisplacementGeoTiff(s, dir + "/deformation.tif", Georeferenced());
+  const Snapshot s = GisScenario();
+  const std::string dir = GisTempDir("tif");
+  const std::string path =
+      WriteDisplacementGeoTiff(s, dir + "/deformation.tif", GisGeoreferenced());
   GDALAllRegister();
   GDALDatasetH src = GDALOpen(path.c_str(), GA_ReadOnly);
   ASSERT_NE(src, nullptr);
@@ -120,9 +121,9 @@ TEST(ReportGis, GeoTiffWarpsToWgs84WithThePointsInPlace) {
 }
 
 TEST(ReportGis, GeoJsonPropertiesAreFlat) {
-  const Snapshot s = Scenario();
+  const Snapshot s = GisScenario();
   const std::string path =
-      WriteGeoJson(s, TempDir("json") + "/deformation.geojson", Georeferenced());
+      WriteGeoJson(s, GisTempDir("json") + "/deformation.geojson", GisGeoreferenced());
   const YAML::Node root = YAML::LoadFile(path);
   ASSERT_EQ(root["features"].size(), 3u);
   for (const YAML::Node& f : root["features"]) {
@@ -143,9 +144,9 @@ TEST(ReportGis, GeoJsonPropertiesAreFlat) {
 }
 
 TEST(ReportGis, GeoPackageHasThePointLayersInTheSiteCrs) {
-  const Snapshot s = Scenario();
+  const Snapshot s = GisScenario();
   const std::string path =
-      WriteGeoPackage(s, TempDir("gpkg") + "/deformation.gpkg", Georeferenced());
+      WriteGeoPackage(s, GisTempDir("gpkg") + "/deformation.gpkg", GisGeoreferenced());
   GDALAllRegister();
   std::unique_ptr<GDALDataset, void (*)(GDALDataset*)> ds(
       GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY),
@@ -183,8 +184,8 @@ TEST(ReportGis, GeoPackageHasThePointLayersInTheSiteCrs) {
 }
 
 TEST(ReportGis, CsvHasLonLatAndIsoTimes) {
-  const Snapshot s = Scenario();
-  const std::string path = WriteCsv(s, TempDir("csv") + "/deformation.csv", Georeferenced());
+  const Snapshot s = GisScenario();
+  const std::string path = WriteCsv(s, GisTempDir("csv") + "/deformation.csv", GisGeoreferenced());
   std::ifstream in(path);
   std::string header, line;
   std::getline(in, header);

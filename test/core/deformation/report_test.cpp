@@ -27,7 +27,7 @@ namespace {
 using testing::kDay;
 using testing::kT0;
 
-std::string TempDir(const std::string& name) {
+std::string ReportTempDir(const std::string& name) {
   const std::string d = "/tmp/sm_deformation_reports_" + std::to_string(getpid()) + "_" + name;
   mkdir(d.c_str(), 0755);
   return d;
@@ -36,7 +36,7 @@ std::string TempDir(const std::string& name) {
 // Three points: two moving (10 mm/day south-down), one stable; radio, 2 days.
 // Reference positions (test_scenario.h): tag36h11/1 at x = 0, tag36h11/2 at
 // x = 10, rock at x = 20, all y = 50. Snapshots list points sorted by id.
-Estimator& Scenario() {
+Estimator& ReportScenario() {
   static Estimator* est = [] {
     auto* e = new Estimator(EstimatorOptions());
     std::vector<testing::Motion> motions(3);
@@ -81,8 +81,8 @@ std::vector<std::string> SplitCsvLine(const std::string& line) {
 }
 
 TEST(Report, CsvParsesBackToTheEstimates) {
-  const Snapshot s = Scenario().GetSnapshot();
-  const std::string path = TempDir("csv") + "/points.csv";
+  const Snapshot s = ReportScenario().GetSnapshot();
+  const std::string path = ReportTempDir("csv") + "/points.csv";
   WriteCsv(s, path);
   std::ifstream in(path);
   std::string header, line;
@@ -113,8 +113,8 @@ TEST(Report, CsvParsesBackToTheEstimates) {
 }
 
 TEST(Report, GeoJsonIsAFeatureCollection) {
-  const Snapshot s = Scenario().GetSnapshot();
-  const std::string dir = TempDir("geojson");
+  const Snapshot s = ReportScenario().GetSnapshot();
+  const std::string dir = ReportTempDir("geojson");
   for (bool geodetic : {false, true}) {
     ReportOptions o;
     if (geodetic) o.geodetic_origin = Eigen::Vector3d(35.0, 139.0, 100.0);
@@ -155,11 +155,11 @@ TEST(Report, GeoJsonIsAFeatureCollection) {
 }
 
 TEST(Report, GeoTiffReadsBackThroughGdal) {
-  const Snapshot s = Scenario().GetSnapshot();
+  const Snapshot s = ReportScenario().GetSnapshot();
   ReportOptions o;
   o.grid_resolution = 0.5;
   o.grid_margin = 5.0;
-  const std::string path = TempDir("tif") + "/field.tif";
+  const std::string path = ReportTempDir("tif") + "/field.tif";
   WriteDisplacementGeoTiff(s, path, o);
   GDALAllRegister();
   GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen(path.c_str(), GA_ReadOnly));
@@ -190,13 +190,13 @@ TEST(Report, GeoTiffReadsBackThroughGdal) {
 }
 
 TEST(Report, PngsDecodeWithTheExpectedSize) {
-  Estimator& est = Scenario();
+  Estimator& est = ReportScenario();
   ReportOptions o;
   o.map_width = 900;
   o.series_width = 800;
   o.series_height = 500;
-  const std::string dir = TempDir("png") + "/nested/reports";
-  const std::vector<std::string> files = WriteReports(est, TempDir("png"), "nested/reports", {"png", "csv"}, o);
+  const std::string dir = ReportTempDir("png") + "/nested/reports";
+  const std::vector<std::string> files = WriteReports(est, ReportTempDir("png"), "nested/reports", {"png", "csv"}, o);
   ASSERT_EQ(files.size(), 5u);  // map + 3 series + csv
   const cv::Mat map = cv::imread(dir + "/deformation_map.png");
   ASSERT_FALSE(map.empty());
@@ -220,14 +220,14 @@ TEST(Report, PngsDecodeWithTheExpectedSize) {
 }
 
 TEST(Report, UnwritableDirectoryNamesTheFile) {
-  const Snapshot s = Scenario().GetSnapshot();
+  const Snapshot s = ReportScenario().GetSnapshot();
   try {
     WriteCsv(s, "/proc/no_such_dir/points.csv");
     FAIL();
   } catch (const IoError& e) {
     EXPECT_NE(std::string(e.what()).find("/proc/no_such_dir/points.csv"), std::string::npos) << e.what();
   }
-  EXPECT_THROW(WriteReports(Scenario(), TempDir("bad"), "", {"pdf"}, ReportOptions()), InvalidArgument);
+  EXPECT_THROW(WriteReports(ReportScenario(), ReportTempDir("bad"), "", {"pdf"}, ReportOptions()), InvalidArgument);
 }
 
 }  // namespace

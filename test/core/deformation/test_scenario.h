@@ -17,6 +17,7 @@ namespace deformation {
 namespace testing {
 
 constexpr double kDay = 86400.0;
+constexpr double kMmPerDay = 1e-3 / kDay;  // 1 mm/day in m/s
 constexpr double kT0 = 1700000000.0;  // [s] reference stamp
 
 struct Motion {

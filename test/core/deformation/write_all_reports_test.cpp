@@ -18,12 +18,12 @@ namespace slope_monitor {
 namespace deformation {
 namespace {
 
-struct TempDir {
-  TempDir() {
+struct ReportsTempDir {
+  ReportsTempDir() {
     char tmpl[] = "/tmp/write_all_reports_test_XXXXXX";
     path = mkdtemp(tmpl);
   }
-  ~TempDir() { std::system(("rm -rf '" + path + "'").c_str()); }
+  ~ReportsTempDir() { std::system(("rm -rf '" + path + "'").c_str()); }
   std::string path;
 };
 
@@ -36,7 +36,7 @@ bool Has(const std::vector<std::string>& files, const std::string& name) {
 }
 
 TEST(WriteAllReports, LatestSurfaceIsTheLargestEpoch) {
-  TempDir dir;
+  ReportsTempDir dir;
   EXPECT_EQ(LatestSurface(dir.path), "");
   for (const char* f : {"surface_e09.tif", "surface_e10.tif", "surface_e2.tif",
                         "surface_e11.tif.tmp", "change_e12.tif", "surface_e12.tiff"})
@@ -59,7 +59,7 @@ std::unique_ptr<Estimator> Measured(History* history) {
 }
 
 TEST(WriteAllReports, MatplotlibWithAHistoryOpenCvWithout) {
-  TempDir dir;
+  ReportsTempDir dir;
   PlotReportOptions plot;
   plot.script = std::string(SM_SOURCE_DIR) + "/scripts/plot_report";
   {

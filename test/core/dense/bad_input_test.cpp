@@ -23,13 +23,13 @@ namespace {
 
 namespace fs = std::filesystem;
 
-SurfaceOptions Options() {
+SurfaceOptions BadInputOptions() {
   SurfaceOptions o;
   o.correlation.final_grid_spacing = 4;
   return o;
 }
 
-SurfaceConfig Config() {
+SurfaceConfig BadInputConfig() {
   SurfaceConfig c;
   c.min_depth = 30.0;
   c.max_depth = 50.0;
@@ -67,7 +67,7 @@ class BadInputTest : public ::testing::Test {
   // Expects InvalidArgument whose message contains every one of `parts`, and no file.
   void ExpectRejected(const OrientedImage& l, const OrientedImage& r, const std::vector<std::string>& parts) {
     try {
-      MeasureSurfaceToFiles(l, r, Options(), Config(), Stem());
+      MeasureSurfaceToFiles(l, r, BadInputOptions(), BadInputConfig(), Stem());
       ADD_FAILURE() << "no error";
     } catch (const InvalidArgument& e) {
       for (const std::string& p : parts) EXPECT_NE(std::string(e.what()).find(p), std::string::npos) << e.what();
@@ -83,7 +83,7 @@ std::pair<OrientedImage, OrientedImage>* BadInputTest::pair_ = nullptr;
 
 TEST_F(BadInputTest, GoodPairWritesSurfaceAndOrthophoto) {
   SurfaceSummary s;
-  MeasureSurfaceToFiles(left_, right_, Options(), Config(), Stem(), &s);
+  MeasureSurfaceToFiles(left_, right_, BadInputOptions(), BadInputConfig(), Stem(), &s);
   ASSERT_TRUE(s.IsSolutionUsable()) << s.BriefReport();
   const io::GeoRaster model = io::ReadGeoTiff(Stem() + "_surface.tif");
   const io::GeoRaster ortho = io::ReadGeoTiff(Stem() + "_ortho.tif");
@@ -126,7 +126,7 @@ TEST_F(BadInputTest, UnwritableDirectoryLeavesNoFile) {
   // The stem's directory does not exist: IoError naming the file, nothing written.
   const std::string stem = (dir_ / "missing" / "pair").string();
   try {
-    MeasureSurfaceToFiles(left_, right_, Options(), Config(), stem);
+    MeasureSurfaceToFiles(left_, right_, BadInputOptions(), BadInputConfig(), stem);
     ADD_FAILURE() << "no error";
   } catch (const IoError& e) {
     EXPECT_NE(std::string(e.what()).find("pair_surface.tif"), std::string::npos) << e.what();

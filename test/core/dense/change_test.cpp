@@ -9,7 +9,7 @@ namespace slope_monitor {
 namespace dense {
 namespace {
 
-io::GeoRaster Model(const std::vector<float>& z) {
+io::GeoRaster ChangeModel(const std::vector<float>& z) {
   io::GeoRaster r(3, 2, 0.0, 4.0, 2.0);
   r.AddBand("height");
   r.AddBand("uncertainty", 0.1f);
@@ -19,8 +19,8 @@ io::GeoRaster Model(const std::vector<float>& z) {
 
 TEST(SurfaceChange, CutAndFillByHand) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  const io::GeoRaster before = Model({10, 10, 10, 10, 10, nan});
-  const io::GeoRaster after = Model({10.5f, 10.2f, 9.0f, 10.0f, 10.1f, 10.0f});
+  const io::GeoRaster before = ChangeModel({10, 10, 10, 10, 10, nan});
+  const io::GeoRaster after = ChangeModel({10.5f, 10.2f, 9.0f, 10.0f, 10.1f, 10.0f});
   ChangeOptions o;  // LoD = 1.96 * sqrt(0.01 + 0.01) = 0.2772 m
   const ChangeResult c = SurfaceChange(before, after, o);
   EXPECT_EQ(c.summary.cells_compared, 5);
@@ -44,7 +44,7 @@ TEST(SurfaceChange, CutAndFillByHand) {
 }
 
 TEST(SurfaceChange, DifferentGridsAreRejected) {
-  io::GeoRaster a = Model({1, 1, 1, 1, 1, 1});
+  io::GeoRaster a = ChangeModel({1, 1, 1, 1, 1, 1});
   io::GeoRaster b = a;
   b.origin_x = 1.0;
   EXPECT_THROW(SurfaceChange(a, b, ChangeOptions()), InvalidArgument);

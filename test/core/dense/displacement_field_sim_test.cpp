@@ -54,7 +54,7 @@ sim::SceneSpec Site() {
 }
 
 // 1280 x 720 px, 10 um pixels, c = 50 mm (5000 px): ~3 cm per pixel at 155 m.
-camera::CameraModel Camera() {
+camera::CameraModel DisplacementCamera() {
   return sim::testing::SmallCamera(1280, 720, 50.0, 0.03, -0.02, -1.0e-5);
 }
 
@@ -71,7 +71,7 @@ io::GeoRaster DemOf(const sim::HeightGrid& g) {
 TEST(DisplacementFieldSim, GridAgainstTruthWithMastRotation) {
   const sim::Scene scene(Site());
   const sim::LandslideModel& slide = scene.spec().landslide;
-  const camera::CameraModel model = Camera();
+  const camera::CameraModel model = DisplacementCamera();
   const Eigen::Vector3d look(20, 15, scene.AnalyticHeight(20, 15));
   const camera::ExteriorOrientation ref =
       sim::LookAt(Eigen::Vector3d(20, -120, look.z() + 70), look, Eigen::Vector3d::UnitZ());
@@ -224,7 +224,7 @@ TEST(DisplacementFieldSim, GridAgainstTruthWithMastRotation) {
 
 // Bad input named: a DEM beside the view, images of the wrong size.
 TEST(DisplacementFieldSim, BadInputIsNamed) {
-  const camera::CameraModel model = Camera();
+  const camera::CameraModel model = DisplacementCamera();
   FieldInput in;
   in.model = model;
   in.reference = sim::LookAt(Eigen::Vector3d(20, -120, 75), Eigen::Vector3d(20, 15, 3),

@@ -35,10 +35,10 @@ namespace slope_monitor {
 namespace dense {
 namespace {
 
-constexpr double kEpochTime = 3600.0;  // [s] the body travels 2 m by then
-const Eigen::Vector4d kRegion(10.0, 30.0, 6.0, 24.0);
+constexpr double kEpochChangeTime = 3600.0;  // [s] the body travels 2 m by then
+const Eigen::Vector4d kEpochChangeRegion(10.0, 30.0, 6.0, 24.0);
 
-sim::SceneSpec SiteSpec() {
+sim::SceneSpec EpochChangeSite() {
   sim::SceneSpec s = sim::testing::SmallSlope(11);
   sim::testing::SetSouthwardBody(&s, Eigen::Vector2d(20, 15), 7.0, 5.0, 0.3, 2.0);
   s.scarp.depth = 1.0;
@@ -46,7 +46,7 @@ sim::SceneSpec SiteSpec() {
   return s;
 }
 
-camera::CameraModel Camera() {
+camera::CameraModel EpochChangeCamera() {
   return sim::testing::SmallCamera(640, 480, 8.0, 0.01, -0.006, -1.0e-3);
 }
 
@@ -69,7 +69,7 @@ Polygon Outline() {
 }
 
 // As sim_test.cpp: within 1.5 m of what sim::SurveyTruth::Unmatchable flags.
-bool Near(const sim::SurveyTruth& truth, const Eigen::Vector3d& x_ref) {
+bool EpochChangeNear(const sim::SurveyTruth& truth, const Eigen::Vector3d& x_ref) {
   if (truth.Unmatchable(x_ref)) return true;
   for (double r : {0.75, 1.5})
     for (int k = 0; k < 12; ++k) {
@@ -85,26 +85,26 @@ double Rms(const std::vector<double>& e) {
   return e.empty() ? NAN : std::sqrt(s / e.size());
 }
 
-EpochSurfaceOptions Options() {
+EpochSurfaceOptions EpochChangeOptions() {
   EpochSurfaceOptions o;
   o.surface.cell_size = 0.5;
   o.surface.min_points_per_cell = 2;
   o.surface.correlation.final_grid_spacing = 2;
-  o.region = kRegion;
+  o.region = kEpochChangeRegion;
   return o;
 }
 
 class EpochChangeTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    scene_ = new sim::Scene(SiteSpec());
+    scene_ = new sim::Scene(EpochChangeSite());
     states_[0] = new sim::Scene::State(scene_->AtTime(0.0));
-    states_[1] = new sim::Scene::State(scene_->AtTime(kEpochTime));
+    states_[1] = new sim::Scene::State(scene_->AtTime(kEpochChangeTime));
     truth_ = new sim::SurveyTruth();
     truth_->landslide = scene_->spec().landslide;
     truth_->scarp = scene_->spec().scarp;
     truth_->obstacles = scene_->obstacles();
-    const camera::CameraModel model = Camera();
+    const camera::CameraModel model = EpochChangeCamera();
     const sim::Renderer renderer(*scene_, model);
     sim::RenderOptions ro;
     ro.threads = 2;
@@ -134,7 +134,7 @@ class EpochChangeTest : public ::testing::Test {
       for (double x : {12.0, 20.0, 28.0})
         for (double y : {8.0, 15.0, 22.0})
           in.adjusted_points.push_back(d * Eigen::Vector3d(x, y, states_[e]->grid.HeightAt(x, y)));
-      surfaces_[e] = new EpochSurfaceResult(MeasureEpochSurface(in, Options()));
+      surfaces_[e] = new EpochSurfaceResult(MeasureEpochSurface(in, EpochChangeOptions()));
       std::printf("%s\n", surfaces_[e]->summary.BriefReport().c_str());
     }
     const std::vector<uint8_t> stable = StableMask(surfaces_[0]->dem, {Outline()}, {}, "test");
@@ -151,7 +151,7 @@ class EpochChangeTest : public ::testing::Test {
     delete surfaces_[1];
     delete change_;
   }
-  // Height errors of a DEM on bare ground (not Near the tree / scarp).
+  // Height errors of a DEM on bare ground (not near the tree / scarp).
   static std::vector<double> BareErrors(const io::GeoRaster& dem, const sim::Scene::State& st,
                                         int* bare_cells) {
     std::vector<double> e;
@@ -162,7 +162,7 @@ class EpochChangeTest : public ::testing::Test {
         const double zt = st.grid.HeightAt(xy.x(), xy.y());
         const Eigen::Vector3d x_ref =
             truth_->landslide.ReferencePositionOf(Eigen::Vector3d(xy.x(), xy.y(), zt), st.t);
-        if (Near(*truth_, x_ref)) continue;
+        if (EpochChangeNear(*truth_, x_ref)) continue;
         ++*bare_cells;
         const float z = dem.At(kHeight, r, c);
         if (!dem.IsNoData(z)) e.push_back(z - zt);
@@ -240,7 +240,7 @@ TEST_F(EpochChangeTest, DodErrorAndLevelOfDetection) {
       const double zt = states_[1]->grid.HeightAt(xy.x(), xy.y());
       const Eigen::Vector3d x_ref =
           truth_->landslide.ReferencePositionOf(Eigen::Vector3d(xy.x(), xy.y(), zt), states_[1]->t);
-      if (!Near(*truth_, x_ref)) bare_error.push_back(dz - t);
+      if (!EpochChangeNear(*truth_, x_ref)) bare_error.push_back(dz - t);
       if (std::abs(t) < 1e-3) {
         ++stable;
         stable_below += cls == 0.0f;
@@ -297,7 +297,7 @@ TEST_F(EpochChangeTest, BadInputIsNamed) {
   EpochSurfaceInput in;
   in.epoch = 4;
   in.adjusted_points = {Eigen::Vector3d(20, 15, 0)};
-  EpochSurfaceOptions o = Options();
+  EpochSurfaceOptions o = EpochChangeOptions();
   o.surface.cell_size = 0.001;
   try {
     MeasureEpochSurface(in, o);

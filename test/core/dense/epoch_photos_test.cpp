@@ -12,7 +12,7 @@ namespace {
 
 constexpr int64_t kSecond = 1000000000;
 
-camera::CameraModel Model() {
+camera::CameraModel EpochPhotosModel() {
   std::array<double, camera::kNumInterior> interior{};
   interior[camera::kC] = 8.0;  // [mm]
   return camera::CameraModel(camera::Sensor{64, 48, 0.01}, camera::DistortionModel::kRadial,
@@ -46,14 +46,14 @@ EpochOrientations Solution(int epoch, const std::vector<int64_t>& uav_stamps_s) 
   return s;
 }
 
-PhotoCollectorOptions Options() {
+PhotoCollectorOptions EpochPhotosOptions() {
   PhotoCollectorOptions o;  // the defaults: uav_cameras {"uav"}, no stereo pairs
   return o;
 }
 
 TEST(EpochPhotoCollector, SolutionAfterItsPhotosIsCompleteAtOnce) {
-  EpochPhotoCollector c(Options());
-  c.SetCamera("uav", Model());
+  EpochPhotoCollector c(EpochPhotosOptions());
+  c.SetCamera("uav", EpochPhotosModel());
   for (int t : {10, 12, 14}) EXPECT_TRUE(c.AddPhoto(MakePhoto("uav", t), t).empty());
   EXPECT_TRUE(c.AddPhoto(MakePhoto("fixed_cam_1", 10), 10).empty());
   EXPECT_EQ(c.photos_held(), 3);  // the fixed camera is not a surface camera: not kept
@@ -81,8 +81,8 @@ TEST(EpochPhotoCollector, SolutionAfterItsPhotosIsCompleteAtOnce) {
 }
 
 TEST(EpochPhotoCollector, SolutionBeforeItsPhotosWaitsForTheLastOne) {
-  EpochPhotoCollector c(Options());
-  c.SetCamera("uav", Model());
+  EpochPhotoCollector c(EpochPhotosOptions());
+  c.SetCamera("uav", EpochPhotosModel());
   EXPECT_TRUE(c.AddPhoto(MakePhoto("uav", 10), 10).empty());
   EXPECT_TRUE(c.AddSolution(Solution(1, {10, 12, 14}), 11.0).empty());
   EXPECT_EQ(c.solutions_waiting(), 1);
@@ -97,8 +97,8 @@ TEST(EpochPhotoCollector, SolutionBeforeItsPhotosWaitsForTheLastOne) {
 }
 
 TEST(EpochPhotoCollector, AMissingPhotoIsNamedWhenALaterOneComes) {
-  EpochPhotoCollector c(Options());
-  c.SetCamera("uav", Model());
+  EpochPhotoCollector c(EpochPhotosOptions());
+  c.SetCamera("uav", EpochPhotosModel());
   c.AddPhoto(MakePhoto("uav", 10), 10);
   c.AddPhoto(MakePhoto("uav", 14), 14);  // uav@12 was lost in transport
   const std::vector<PhotoEpoch> done = c.AddSolution(Solution(1, {10, 12, 14}), 20.0);
@@ -109,8 +109,8 @@ TEST(EpochPhotoCollector, AMissingPhotoIsNamedWhenALaterOneComes) {
 }
 
 TEST(EpochPhotoCollector, TimeOutAndEndOfInputNameWhatDidNotCome) {
-  EpochPhotoCollector c(Options());
-  c.SetCamera("uav", Model());
+  EpochPhotoCollector c(EpochPhotosOptions());
+  c.SetCamera("uav", EpochPhotosModel());
   c.AddPhoto(MakePhoto("uav", 10), 10);
   c.AddPhoto(MakePhoto("uav", 12), 12);
   EXPECT_TRUE(c.AddSolution(Solution(1, {10, 12, 14}), 20.0).empty());
@@ -133,8 +133,8 @@ TEST(EpochPhotoCollector, TimeOutAndEndOfInputNameWhatDidNotCome) {
 }
 
 TEST(EpochPhotoCollector, OlderUnusedPhotosAreReleasedWithTheEpoch) {
-  EpochPhotoCollector c(Options());
-  c.SetCamera("uav", Model());
+  EpochPhotoCollector c(EpochPhotosOptions());
+  c.SetCamera("uav", EpochPhotosModel());
   for (int t : {8, 10, 12, 30})
     c.AddPhoto(MakePhoto("uav", t), t);  // 8: a test shot; 30: next epoch
   ASSERT_EQ(c.AddSolution(Solution(1, {10, 12}), 31.0).size(), 1u);
@@ -146,7 +146,7 @@ TEST(EpochPhotoCollector, OlderUnusedPhotosAreReleasedWithTheEpoch) {
 }
 
 TEST(EpochPhotoCollector, MissingCameraInfoIsNamed) {
-  EpochPhotoCollector c(Options());
+  EpochPhotoCollector c(EpochPhotosOptions());
   c.AddPhoto(MakePhoto("uav", 10), 10);
   c.AddPhoto(MakePhoto("uav", 12), 12);
   const std::vector<PhotoEpoch> done = c.AddSolution(Solution(1, {10, 12}), 20.0);
@@ -157,10 +157,10 @@ TEST(EpochPhotoCollector, MissingCameraInfoIsNamed) {
 }
 
 TEST(EpochPhotoCollector, MemoryLimitDropsTheOldestUnnamedPhotoAndSaysSo) {
-  PhotoCollectorOptions o = Options();
+  PhotoCollectorOptions o = EpochPhotosOptions();
   o.max_photos = 3;
   EpochPhotoCollector c(o);
-  c.SetCamera("uav", Model());
+  c.SetCamera("uav", EpochPhotosModel());
   // A solution waits for photos 10 and 11: they are protected.
   EXPECT_TRUE(c.AddSolution(Solution(1, {10, 11, 13}), 1.0).empty());
   c.AddPhoto(MakePhoto("uav", 10), 10);
@@ -180,7 +180,7 @@ TEST(EpochPhotoCollector, MemoryLimitDropsTheOldestUnnamedPhotoAndSaysSo) {
   // Every photo named: the oldest goes, and the epoch names it.
   o.max_photos = 2;
   EpochPhotoCollector d(o);
-  d.SetCamera("uav", Model());
+  d.SetCamera("uav", EpochPhotosModel());
   d.AddSolution(Solution(1, {10, 11, 12}), 1.0);
   d.AddPhoto(MakePhoto("uav", 10), 10);
   d.AddPhoto(MakePhoto("uav", 11), 11);
@@ -190,7 +190,7 @@ TEST(EpochPhotoCollector, MemoryLimitDropsTheOldestUnnamedPhotoAndSaysSo) {
   EXPECT_EQ(d.TakeDropped().size(), 1u);
 
   // The megabyte limit: 9216 bytes a photo, 0.02 MB hold two.
-  PhotoCollectorOptions m = Options();
+  PhotoCollectorOptions m = EpochPhotosOptions();
   m.max_megabytes = 0.02;
   EpochPhotoCollector e(m);
   for (int t : {1, 2, 3}) e.AddPhoto(MakePhoto("uav", t), t);
@@ -200,12 +200,12 @@ TEST(EpochPhotoCollector, MemoryLimitDropsTheOldestUnnamedPhotoAndSaysSo) {
 }
 
 TEST(EpochPhotoCollector, StereoPairsMakeFixedCamerasSurfaceCameras) {
-  PhotoCollectorOptions o = Options();
+  PhotoCollectorOptions o = EpochPhotosOptions();
   o.uav_cameras = {};
   o.stereo_pairs = {{"fixed_cam_1", "fixed_cam_2"}};
   EpochPhotoCollector c(o);
-  c.SetCamera("fixed_cam_1", Model());
-  c.SetCamera("fixed_cam_2", Model());
+  c.SetCamera("fixed_cam_1", EpochPhotosModel());
+  c.SetCamera("fixed_cam_2", EpochPhotosModel());
   EXPECT_TRUE(c.Uses("fixed_cam_2"));
   EXPECT_FALSE(c.Uses("uav"));
   EpochOrientations s;
@@ -233,7 +233,7 @@ TEST(EpochPhotoCollector, BadOptionsAndDistortionAreNamed) {
   PhotoOrientation bad = Oriented("uav", 7);
   bad.distortion.assign(camera::kNumInterior, 0.0);
   try {
-    OrientPhoto(MakePhoto("uav", 7), Model(), bad, ImageKind::kUav);
+    OrientPhoto(MakePhoto("uav", 7), EpochPhotosModel(), bad, ImageKind::kUav);
     FAIL() << "too many distortion terms accepted";
   } catch (const InvalidArgument& e) {
     EXPECT_EQ(std::string(e.what()).rfind("uav@7.000: 10 distortion terms", 0), 0u) << e.what();

@@ -18,15 +18,15 @@ namespace slope_monitor {
 namespace dense {
 namespace {
 
-constexpr int kWidth = 640, kHeight = 480;
+constexpr int kPhotoWidth = 640, kPhotoHeight = 480;
 constexpr double kAltitude = 100.0;  // [m]
 constexpr unsigned char kGrey = 100;
 
 camera::CameraModel Camera() {
   std::array<double, camera::kNumInterior> interior{};
   interior[camera::kC] = 50.0;  // [mm]
-  return camera::CameraModel(camera::Sensor{kWidth, kHeight, 0.01}, camera::DistortionModel::kNone,
-                             interior);
+  return camera::CameraModel(camera::Sensor{kPhotoWidth, kPhotoHeight, 0.01},
+                             camera::DistortionModel::kNone, interior);
 }
 
 camera::ExteriorOrientation Nadir() {
@@ -61,7 +61,7 @@ TEST(FieldPicture, ArrowsWhereTheFieldSaysInTheirFlagsColours) {
               Probe({500, 150}, {-2, 0}, "line_of_sight"),  // drawn, magenta
               Probe({550, 400}, {0.1, 0}, "", true),        // stable check, cyan
               Probe({100, 420}, {0, 0}, "lsc_textureless")};
-  const cv::Mat photo(kHeight, kWidth, CV_8UC1, cv::Scalar(kGrey));
+  const cv::Mat photo(kPhotoHeight, kPhotoWidth, CV_8UC1, cv::Scalar(kGrey));
   FieldPictureSummary s;
   const cv::Mat out = DrawDisplacementField(photo, f, Camera(), Nadir(), FieldPictureOptions(), &s);
   ASSERT_EQ(out.size(), photo.size());

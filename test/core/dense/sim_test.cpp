@@ -32,10 +32,10 @@ namespace slope_monitor {
 namespace dense {
 namespace {
 
-constexpr double kEpochTime = 3600.0;  // [s] epoch 1; the body travels 2 m by then
-const Eigen::Vector4d kRegion(10.0, 30.0, 6.0, 24.0);
+constexpr double kSimEpochTime = 3600.0;  // [s] epoch 1; the body travels 2 m by then
+const Eigen::Vector4d kSimRegion(10.0, 30.0, 6.0, 24.0);
 
-sim::SceneSpec SiteSpec() {
+sim::SceneSpec SimSiteSpec() {
   sim::SceneSpec s = sim::testing::SmallSlope(11);
   // Steeper than the slope here: the body's surface drops; 2 m per hour.
   sim::testing::SetSouthwardBody(&s, Eigen::Vector2d(20, 15), 7.0, 5.0, 0.3, 2.0);
@@ -45,7 +45,7 @@ sim::SceneSpec SiteSpec() {
 }
 
 // f = 800 px; at 35 m: 4.4 cm per pixel.
-camera::CameraModel Camera() { return sim::testing::SmallCamera(640, 480, 8.0, 0.01, -0.006, -1.0e-3); }
+camera::CameraModel SimCamera() { return sim::testing::SmallCamera(640, 480, 8.0, 0.01, -0.006, -1.0e-3); }
 
 camera::ExteriorOrientation NadirAt(const sim::Scene& scene, double x, double y) {
   return sim::testing::NadirFrom(Eigen::Vector3d(x, y, scene.AnalyticHeight(20.0, 15.0) + 35.0));
@@ -70,7 +70,7 @@ OrientedImage Render(const sim::Scene& scene, const sim::Scene::State& state, co
 // by its height times the viewing angle and widened by the correlation
 // window, so its effect reaches beyond its radius.
 constexpr double kNear = 1.5;  // [m]
-bool Near(const sim::SurveyTruth& truth, const Eigen::Vector3d& x_ref) {
+bool SimNear(const sim::SurveyTruth& truth, const Eigen::Vector3d& x_ref) {
   if (truth.Unmatchable(x_ref)) return true;
   for (double r : {0.5 * kNear, kNear})
     for (int k = 0; k < 12; ++k) {
@@ -100,7 +100,7 @@ Stats Summarise(std::vector<double> e) {
 }
 
 // Half-metre cells from a 2 px grid of points; cameras 25-45 m above the
-// ground of kRegion.
+// ground of kSimRegion.
 SurfaceOptions SimSurfaceOptions() {
   SurfaceOptions o;
   o.cell_size = 0.5;
@@ -113,21 +113,21 @@ SurfaceConfig SimSurfaceConfig() {
   SurfaceConfig c;
   c.min_depth = 25.0;
   c.max_depth = 45.0;
-  c.region = kRegion;
+  c.region = kSimRegion;
   return c;
 }
 
 class DenseSimTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    scene_ = new sim::Scene(SiteSpec());
+    scene_ = new sim::Scene(SimSiteSpec());
     before_ = new sim::Scene::State(scene_->AtTime(0.0));
-    after_ = new sim::Scene::State(scene_->AtTime(kEpochTime));
+    after_ = new sim::Scene::State(scene_->AtTime(kSimEpochTime));
     truth_ = new sim::SurveyTruth();
     truth_->landslide = scene_->spec().landslide;
     truth_->scarp = scene_->spec().scarp;
     truth_->obstacles = scene_->obstacles();
-    const camera::CameraModel model = Camera();
+    const camera::CameraModel model = SimCamera();
     const camera::ExteriorOrientation pl = NadirAt(*scene_, 17.0, 15.0), pr = NadirAt(*scene_, 23.0, 15.0);
     images_ = new std::vector<OrientedImage>{Render(*scene_, *before_, model, pl, "sim/left_e0", 1),
                                              Render(*scene_, *before_, model, pr, "sim/right_e0", 2),
@@ -179,7 +179,7 @@ TEST_F(DenseSimTest, SurfaceModelAgreesWithTheTrueSurfaceOnBareGround) {
         const double zt = st.grid.HeightAt(xy.x(), xy.y());
         ASSERT_FALSE(std::isnan(zt));
         const Eigen::Vector3d x_ref = truth_->landslide.ReferencePositionOf(Eigen::Vector3d(xy.x(), xy.y(), zt), st.t);
-        const bool unmatchable = Near(*truth_, x_ref);
+        const bool unmatchable = SimNear(*truth_, x_ref);
         bare_cells += !unmatchable;
         const float z = m.At(kHeight, r, c);
         if (m.IsNoData(z)) continue;
@@ -220,7 +220,7 @@ TEST_F(DenseSimTest, ConesConfigurationOnTheSimulator) {
     for (int k = 0; k < m.width; ++k) {
       const Eigen::Vector2d xy = m.CellCentre(r, k);
       const double zt = before_->grid.HeightAt(xy.x(), xy.y());
-      if (Near(*truth_, Eigen::Vector3d(xy.x(), xy.y(), zt))) continue;
+      if (SimNear(*truth_, Eigen::Vector3d(xy.x(), xy.y(), zt))) continue;
       ++bare_cells;
       const float z = m.At(kHeight, r, k);
       if (!m.IsNoData(z)) bare.push_back(z - zt);

@@ -20,7 +20,7 @@ namespace slope_monitor {
 namespace dense {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
+constexpr double kTargetlessDeg = M_PI / 180.0;
 
 TEST(TargetlessCamera, WarningNamesCameraAndAngle) {
   const sim::Scene scene(sim::testing::SmallSlope(5));
@@ -29,7 +29,7 @@ TEST(TargetlessCamera, WarningNamesCameraAndAngle) {
   const camera::ExteriorOrientation ref =
       sim::LookAt(Eigen::Vector3d(20, -120, look.z() + 70), look, Eigen::Vector3d::UnitZ());
   camera::ExteriorOrientation turned = ref;
-  turned.angles.kappa += 0.1 * kDeg;  // 0.1 deg about the optical axis
+  turned.angles.kappa += 0.1 * kTargetlessDeg;  // 0.1 deg about the optical axis
   const sim::Renderer renderer(scene, model);
   const sim::Scene::State s0 = scene.AtTime(0.0);
   const cv::Mat img0 = sim::testing::Photo(renderer, s0, ref, sim::RenderOptions(), 1);
@@ -43,9 +43,11 @@ TEST(TargetlessCamera, WarningNamesCameraAndAngle) {
   const TargetlessEpoch e = cam.Process(img1, 3600.0);
   ASSERT_TRUE(e.reorientation.success) << e.reorientation.message;
   // The turn within 3 sigma (a small 640 x 360 camera: sigma ~0.001 deg).
-  std::printf("rotation %.5f deg, sigma max %.5f deg\n", e.reorientation.rotation_angle / kDeg,
-              e.reorientation.sigma.maxCoeff() / kDeg);
-  EXPECT_NEAR(e.reorientation.rotation_angle, 0.1 * kDeg, 3.0 * e.reorientation.sigma.maxCoeff());
+  std::printf("rotation %.5f deg, sigma max %.5f deg\n",
+              e.reorientation.rotation_angle / kTargetlessDeg,
+              e.reorientation.sigma.maxCoeff() / kTargetlessDeg);
+  EXPECT_NEAR(e.reorientation.rotation_angle, 0.1 * kTargetlessDeg,
+              3.0 * e.reorientation.sigma.maxCoeff());
   EXPECT_FALSE(e.has_field);  // no DEM: re-orientation only
   bool named = false;
   for (const std::string& w : e.warnings) {

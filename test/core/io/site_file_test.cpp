@@ -115,7 +115,7 @@ TEST(SiteFile, TargetCsvBesideTheSiteFile) {
   std::system(("rm -rf '" + dir + "'").c_str());
 }
 
-std::string ErrorOf(const std::string& text) {
+std::string SiteFileErrorOf(const std::string& text) {
   try {
     ParseSiteFile(text, "bad.yaml", "/sites");
   } catch (const Error& e) {
@@ -127,7 +127,7 @@ std::string ErrorOf(const std::string& text) {
 TEST(SiteFile, MistakesNameTheFileAndTheKey) {
   const std::string head = "name: x\ncrs: EPSG:32632\norigin: [500000, 5150000, 0]\n";
   auto expect = [&](const std::string& body, const std::vector<std::string>& parts) {
-    const std::string e = ErrorOf(head + body);
+    const std::string e = SiteFileErrorOf(head + body);
     EXPECT_NE(e.find("bad.yaml"), std::string::npos) << e;
     for (const std::string& p : parts)
       EXPECT_NE(e.find(p), std::string::npos) << "'" << p << "' not in: " << e;
@@ -149,9 +149,9 @@ TEST(SiteFile, MistakesNameTheFileAndTheKey) {
   expect("targets: {list: [{id: tag36h11/x, position: [0, 0, 0]}]}", {"id", "tag36h11/x"});
   expect("notification: {hook: h, retries: 99}", {"retries"});
   expect("colour: red", {"colour"});
-  EXPECT_NE(ErrorOf("name: x\ncrs: EPSG:999999\norigin: [0, 0, 0]\n").find("crs"),
+  EXPECT_NE(SiteFileErrorOf("name: x\ncrs: EPSG:999999\norigin: [0, 0, 0]\n").find("crs"),
             std::string::npos);
-  EXPECT_NE(ErrorOf("name: x\ncrs: EPSG:32632\n").find("origin"), std::string::npos);
+  EXPECT_NE(SiteFileErrorOf("name: x\ncrs: EPSG:32632\n").find("origin"), std::string::npos);
 }
 
 }  // namespace

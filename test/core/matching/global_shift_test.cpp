@@ -23,12 +23,12 @@ cv::Mat Crop(const cv::Mat& left, int x0, int y0, int w, int h, unsigned seed) {
   cv::Mat f;
   left(cv::Rect(x0, y0, w, h)).convertTo(f, CV_32F);
   cv::Mat out;
-  testing::AddNoise(f, 1.5, seed).convertTo(out, CV_8U);
+  slope_monitor::testing::AddNoise(f, 1.5, seed).convertTo(out, CV_8U);
   return out;
 }
 
 TEST(GlobalShift, KnownShiftOfConesTexture) {
-  const cv::Mat left = testing::LoadCones("left.tif", cv::IMREAD_GRAYSCALE);
+  const cv::Mat left = slope_monitor::testing::LoadCones("left.tif", cv::IMREAD_GRAYSCALE);
   const int w = 320, h = 260;
   // b at xb sees the scene point at xb + (x0 - dx) = xa + x0 -> xb = xa + d.
   struct Case {
@@ -67,7 +67,7 @@ TEST(GlobalShift, KnownShiftOfConesTexture) {
 // Overlap below 50 % in both axes: the phase-correlation peak wraps around;
 // the candidate whose overlap correlates best must be taken.
 TEST(GlobalShift, OverlapBelowHalfTheImage) {
-  const cv::Mat left = testing::LoadCones("left.tif", cv::IMREAD_GRAYSCALE);
+  const cv::Mat left = slope_monitor::testing::LoadCones("left.tif", cv::IMREAD_GRAYSCALE);
   const int w = 200, h = 160, dx = 125, dy = 90, x0 = 150, y0 = 100;
   const cv::Mat a = Crop(left, x0, y0, w, h, 5);
   const cv::Mat b = Crop(left, x0 - dx, y0 - dy, w, h, 6);
@@ -82,7 +82,7 @@ TEST(GlobalShift, OverlapBelowHalfTheImage) {
 }
 
 TEST(GlobalShift, UnrelatedOrTexturelessImagesAreNotUsable) {
-  const cv::Mat left = testing::LoadCones("left.tif", cv::IMREAD_GRAYSCALE);
+  const cv::Mat left = slope_monitor::testing::LoadCones("left.tif", cv::IMREAD_GRAYSCALE);
   const cv::Mat a = Crop(left, 0, 0, 200, 160, 1);
   // Pure noise against texture: no common content.
   cv::Mat noise(160, 200, CV_8U);

@@ -20,7 +20,7 @@ namespace slope_monitor {
 namespace matching {
 namespace {
 
-using testing::LoadCones;
+using slope_monitor::testing::LoadCones;
 
 TEST(HexRaster, GeometryAndSampling) {
   cv::Mat img(30, 40, CV_32F);
@@ -85,7 +85,9 @@ cv::Mat ShiftImage(const cv::Mat& f, const Eigen::Vector2d& t, const cv::Rect& m
 }
 
 // One grey level of Gaussian noise.
-cv::Mat Noisy(const cv::Mat& f, unsigned seed) { return testing::AddNoise(f, 1.0, seed); }
+cv::Mat Noisy(const cv::Mat& f, unsigned seed) {
+  return slope_monitor::testing::AddNoise(f, 1.0, seed);
+}
 
 TEST(HexMatcher, FindsKnownShiftOnRealTexture) {
   const cv::Mat left = GaussianBlur(ToFloat(LoadCones("left.tif")), 0.7);

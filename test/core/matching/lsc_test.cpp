@@ -26,8 +26,8 @@ namespace slope_monitor {
 namespace matching {
 namespace {
 
-using testing::AddNoise;
-using testing::LoadCones;
+using slope_monitor::testing::AddNoise;
+using slope_monitor::testing::LoadCones;
 
 struct WarpCase {
   cv::Mat a, b;
@@ -275,7 +275,7 @@ const PublishedCell kPublishedCells[] = {
 // four configurations match within 1 px (the same points in every cell, so
 // the cells compare like with like).
 TEST(Lsc, PublishedTableOnCones) {
-  const testing::ConesPair cones = testing::LoadConesPair();
+  const slope_monitor::testing::ConesPair cones = slope_monitor::testing::LoadConesPair();
   const cv::Mat left = ToFloat(cones.left), right = ToFloat(cones.right);
   const cv::Mat &gt = cones.gt, &occl = cones.occl;
   ASSERT_EQ(gt.type(), CV_32FC1);
@@ -400,7 +400,7 @@ TEST(Lsc, BadInputGivesAClearOutcome) {
 // cannot remove and that would otherwise dominate the RMS. The raw RMS is
 // printed beside it. Two point spacings (4 px asserted, 6 px reported).
 TEST(Lsc, PublishedTableWindowOrderingOnCones) {
-  const testing::ConesPair cones = testing::LoadConesPair();
+  const slope_monitor::testing::ConesPair cones = slope_monitor::testing::LoadConesPair();
   const cv::Mat left = ToFloat(cones.left), right = ToFloat(cones.right);
   const cv::Mat &gt = cones.gt, &occl = cones.occl;
   const auto& cells = kPublishedCells;

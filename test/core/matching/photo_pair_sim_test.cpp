@@ -27,13 +27,13 @@ namespace slope_monitor {
 namespace matching {
 namespace {
 
-constexpr int kW = 640, kH = 480;
+constexpr int kPairW = 640, kPairH = 480;
 constexpr double kHeight = 60.0;  // [m] photo a above the ground
 constexpr double kC = 9.1667;  // [mm] the UAV camera's field of view on 640 x 480 pixels of 0.01 mm
 constexpr double kHeading = 160.0;  // [deg] of photo b (a: 0)
 constexpr double kScale = 1.14;     // ground size in b / in a
 
-sim::SceneSpec Site() {
+sim::SceneSpec PairSite() {
   sim::SceneSpec s = sim::testing::SmallSlope(11);
   s.terrain.extent = Eigen::Vector4d(0, 60, 0, 60);
   s.texture.coarsest_wavelength = 8.0;
@@ -43,8 +43,9 @@ sim::SceneSpec Site() {
 }
 
 TEST(PhotoPairSim, TurnedLowerPhotoAgainstTruth) {
-  const sim::Scene scene(Site());
-  const camera::CameraModel model = sim::testing::SmallCamera(kW, kH, kC, 0.02, -0.01, -1.0e-3);
+  const sim::Scene scene(PairSite());
+  const camera::CameraModel model =
+      sim::testing::SmallCamera(kPairW, kPairH, kC, 0.02, -0.01, -1.0e-3);
   const sim::Scene::State state = scene.AtTime(0.0);
   const double ground = scene.AnalyticHeight(30, 30);
   const double h = kHeading * M_PI / 180.0;

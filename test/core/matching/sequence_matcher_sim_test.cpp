@@ -20,7 +20,7 @@ namespace slope_monitor {
 namespace matching {
 namespace {
 
-constexpr std::int64_t kSecond = 1000000000;
+constexpr std::int64_t kSimSecond = 1000000000;
 
 struct PairError {
   int normal = 0, gross = 0, low = 0;
@@ -28,7 +28,8 @@ struct PairError {
 };
 
 PairError Compare(const testing::Flight& f, const SequencePair& p) {
-  const int a = static_cast<int>(p.stamp_a / kSecond), b = static_cast<int>(p.stamp_b / kSecond);
+  const int a = static_cast<int>(p.stamp_a / kSimSecond),
+            b = static_cast<int>(p.stamp_b / kSimSecond);
   PairError e;
   double sum2 = 0;
   for (const SequenceTie& t : p.points) {
@@ -58,7 +59,7 @@ void CheckMethod(SequencePairMethod method, int min_normal, double max_rms) {
   m.SetPriorsExpected(false);
   std::vector<SequencePair> pairs;
   for (int i = 0; i < 3; ++i)
-    for (const SequencePair& p : m.AddImage(i * kSecond, "uav", f.images[i]).pairs)
+    for (const SequencePair& p : m.AddImage(i * kSimSecond, "uav", f.images[i]).pairs)
       if (p.has_a) pairs.push_back(p);
   ASSERT_EQ(pairs.size(), 3u);
   std::map<std::uint64_t, std::set<std::int64_t>> tracks;
@@ -68,8 +69,9 @@ void CheckMethod(SequencePairMethod method, int min_normal, double max_rms) {
         "%s: photos %d-%d: %zu tie points (%d low quality), %d within 1 px of the truth, RMS %.3f "
         "px, %d "
         "beyond 1 px; %.2f s\n",
-        SequencePairMethodName(method), int(p.stamp_a / kSecond) + 1, int(p.stamp_b / kSecond) + 1,
-        p.points.size(), e.low, e.normal, e.rms, e.gross, p.seconds);
+        SequencePairMethodName(method), int(p.stamp_a / kSimSecond) + 1,
+        int(p.stamp_b / kSimSecond) + 1, p.points.size(), e.low, e.normal, e.rms, e.gross,
+        p.seconds);
     EXPECT_EQ(p.reason, "") << p.message;
     EXPECT_GT(e.normal, min_normal);
     EXPECT_LE(e.gross, 0.01 * (e.normal + e.gross));

@@ -16,13 +16,13 @@ namespace slope_monitor {
 namespace matching {
 namespace {
 
-constexpr int kW = 320, kH = 240, kStep = 24;  // [px] photo size and advance per photo
+constexpr int kSeqW = 320, kSeqH = 240, kStep = 24;  // [px] photo size and advance per photo
 constexpr std::int64_t kSecond = 1000000000;
 
 // A blurred random texture (fixed seed), wide enough for 8 photos.
 const cv::Mat& Texture() {
   static const cv::Mat texture = [] {
-    cv::Mat noise(kH + 8 * kStep, kW, CV_32F);
+    cv::Mat noise(kSeqH + 8 * kStep, kSeqW, CV_32F);
     cv::RNG rng(7);
     rng.fill(noise, cv::RNG::NORMAL, 0.0, 1.0);
     cv::GaussianBlur(noise, noise, cv::Size(0, 0), 1.5);
@@ -37,7 +37,7 @@ const cv::Mat& Texture() {
 }
 
 // Photo i: rows i * kStep ... of the texture.
-cv::Mat Photo(int i) { return Texture()(cv::Rect(0, i * kStep, kW, kH)).clone(); }
+cv::Mat Photo(int i) { return Texture()(cv::Rect(0, i * kStep, kSeqW, kSeqH)).clone(); }
 
 SequenceMatcherOptions Options(SequencePairMethod method) {
   SequenceMatcherOptions o;
@@ -137,7 +137,7 @@ TEST(SequenceMatcher, PhotoMethodMatchesAPhotoTurnedBy180Degrees) {
   EXPECT_GT(p.points.size(), 50u) << p.message;
   int far = 0;
   for (const SequenceTie& t : p.points) {
-    const Eigen::Vector2d truth(kW - 1 - t.xa.x(), kH - 1 - (t.xa.y() - kStep));
+    const Eigen::Vector2d truth(kSeqW - 1 - t.xa.x(), kSeqH - 1 - (t.xa.y() - kStep));
     if ((t.xb - truth).norm() > 0.1) ++far;
   }
   EXPECT_LE(far, static_cast<int>(p.points.size() / 100)) << p.message;
@@ -297,13 +297,13 @@ TEST(SequenceMatcher, PhotosNoLaterImageCanPairWithAreReleased) {
   for (int i = 0; i < 5; ++i) m.AddImage(i * kSecond, "cam", Photo(i));
   EXPECT_EQ(m.summary().images_in_memory, 2);
   EXPECT_EQ(m.summary().released, 3);
-  EXPECT_GT(m.summary().memory_bytes, 2u * kW * kH);  // grey images + features of two photos
+  EXPECT_GT(m.summary().memory_bytes, 2u * kSeqW * kSeqH);  // grey images + features of two photos
   EXPECT_LT(m.summary().memory_bytes, m.summary().peak_memory_bytes);  // three before the release
 }
 
 TEST(SequenceMatcher, MemoryLimitReleasesTheOldestPhotos) {
   SequenceMatcherOptions o = Options(SequencePairMethod::kGlobalShiftHex);
-  o.max_memory_mb = 2.5 * kW * kH / (1024.0 * 1024.0);  // room for two grey photos
+  o.max_memory_mb = 2.5 * kSeqW * kSeqH / (1024.0 * 1024.0);  // room for two grey photos
   SequenceMatcher m(o);
   std::vector<std::string> log;
   for (int i = 0; i < 4; ++i) {
@@ -312,7 +312,7 @@ TEST(SequenceMatcher, MemoryLimitReleasesTheOldestPhotos) {
       log.push_back(line);
   }
   EXPECT_EQ(m.summary().images_in_memory, 2);
-  EXPECT_EQ(m.summary().memory_bytes, 2u * kW * kH);
+  EXPECT_EQ(m.summary().memory_bytes, 2u * kSeqW * kSeqH);
   ASSERT_EQ(log.size(), 2u);
   EXPECT_NE(log[0].find("released the oldest photo (0.000)"), std::string::npos) << log[0];
 }

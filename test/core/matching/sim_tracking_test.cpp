@@ -33,7 +33,7 @@ constexpr double kEpoch1 = 3600.0;  // [s] the later epoch; the reference epoch 
 // A 40 m x 30 m textured slope, a landslide body in the middle moving
 // 0.5 m per hour towards the south (down the slope, towards the cameras),
 // a boulder and a tree (unmatchable), no targets, no scarp.
-sim::SceneSpec Site(bool foliage_motion = false, unsigned seed = 5) {
+sim::SceneSpec TrackingSite(bool foliage_motion = false, unsigned seed = 5) {
   sim::SceneSpec s = sim::testing::SmallSlope(seed);
   s.foliage_motion = foliage_motion;
   s.texture.coarsest_wavelength = 8.0;
@@ -112,7 +112,7 @@ bool NearObstacle(const sim::Scene::State& state, const camera::CameraModel& mod
 // LSC runs on a 15 x 15 window of images low-passed by 1 px (measured on
 // this scene: stable-ground error RMS 0.37 px with the defaults, 0.27 px
 // with these).
-HexMatcherOptions SimOptions() {
+HexMatcherOptions TrackingSimOptions() {
   HexMatcherOptions o;
   o.lsc.half_window = 7;
   o.lsc_prefilter_sigma = 1.0;
@@ -156,13 +156,13 @@ struct FixedCameraRun {
 };
 
 TEST(SimTracking, NaturalFeaturesAcrossEpochsAgainstTruth) {
-  const FixedCameraRun run(Site());
+  const FixedCameraRun run(TrackingSite());
   const camera::CameraModel& model = run.model;
   const camera::ExteriorOrientation& pose = run.pose;
   const sim::Scene::State& s0 = run.s0;
   const sim::LandslideModel& slide = run.Slide();
 
-  const HexMatcher matcher(SimOptions());
+  const HexMatcher matcher(TrackingSimOptions());
   const HexMatchResult r = matcher.Match(run.img0, run.img1, run.Prior());
 
   int ground = 0, correct = 0, moving = 0, moving_correct = 0, on_obstacle = 0, on_obstacle_wrong = 0;
@@ -213,7 +213,7 @@ TEST(SimTracking, NaturalFeaturesAcrossEpochsAgainstTruth) {
   EXPECT_GE(correct, 0.95 * ground);
   EXPECT_GE(moving_correct, 0.9 * moving);
   // Measured 0.27 px (ground) and 0.31 px (moving body): the limit of the
-  // simulator's weak ground texture, see SimOptions().
+  // simulator's weak ground texture, see TrackingSimOptions().
   EXPECT_LT(rms, 0.35);
   EXPECT_LT(rms_moving, 0.4);
   // The obstacles do not move; without wind (foliage_motion off) the
@@ -224,14 +224,14 @@ TEST(SimTracking, NaturalFeaturesAcrossEpochsAgainstTruth) {
 }
 
 TEST(SimTracking, TiePointsBetweenTwoFixedCamerasAgainstTruth) {
-  const sim::Scene scene(Site());
+  const sim::Scene scene(TrackingSite());
   const camera::CameraModel model = Camera();
   const sim::Renderer renderer(scene, model);
   const camera::ExteriorOrientation pose_a = FixedPose(scene, -2.0), pose_b = FixedPose(scene, 2.0);
   const sim::Scene::State s0 = scene.AtTime(0.0);
   const cv::Mat img_a = Shoot(renderer, s0, pose_a, 0, 3), img_b = Shoot(renderer, s0, pose_b, 0, 4);
 
-  const HexMatcher matcher(SimOptions());
+  const HexMatcher matcher(TrackingSimOptions());
   MatchPrior prior;
   prior.has_epipolar = true;
   prior.fundamental = FundamentalFromOrientation(model, pose_a, model, pose_b);
@@ -263,7 +263,7 @@ TEST(SimTracking, TiePointsBetweenTwoFixedCamerasAgainstTruth) {
   for (const auto& kv : r.summary.rejects) std::printf("  reject %s: %d\n", kv.first.c_str(), kv.second);
   EXPECT_GT(checked, 100);
   EXPECT_GE(correct, 0.95 * checked);
-  EXPECT_LT(rms, 0.4);  // measured 0.31 px (weak simulated texture, see SimOptions())
+  EXPECT_LT(rms, 0.4);  // measured 0.31 px (weak simulated texture, see TrackingSimOptions())
 }
 
 // Occluding objects with wind in the tree crown (SceneSpec::foliage_motion:
@@ -309,12 +309,12 @@ bool InObstacleOutline(const sim::Scene::State& state, const camera::CameraModel
 }
 
 TrackingStats TrackWith(bool foliage_motion, bool quality_control, unsigned seed, bool outline = false) {
-  const FixedCameraRun run(Site(foliage_motion, seed));
+  const FixedCameraRun run(TrackingSite(foliage_motion, seed));
   const camera::CameraModel& model = run.model;
   const camera::ExteriorOrientation& pose = run.pose;
   const sim::Scene::State &s0 = run.s0, &s1 = run.s1;
   const sim::LandslideModel& slide = run.Slide();
-  HexMatcherOptions options = SimOptions();
+  HexMatcherOptions options = TrackingSimOptions();
   options.quality.enabled = quality_control;
   const HexMatcher matcher(options);
   MatchPrior prior = run.Prior();

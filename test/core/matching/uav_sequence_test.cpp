@@ -84,7 +84,7 @@ TEST(UavSequence, GlobalShiftOfSimulatedPhotos) {
 // sim_tracking_test.cpp, LSC on images low-passed by 1 px) with a 19 x 19
 // window (measured here: RMS 0.16 px against 0.20 px with 15 x 15; the error
 // is noise, its mean below 0.03 px).
-HexMatcherOptions SimOptions() {
+HexMatcherOptions UavSimOptions() {
   HexMatcherOptions o;
   o.lsc.half_window = 9;
   o.lsc_prefilter_sigma = 1.0;
@@ -93,7 +93,7 @@ HexMatcherOptions SimOptions() {
 
 TEST(UavSequence, TiePointsAgainstTruthAndTracksOverThreePhotos) {
   const Flight& f = TheFlight();
-  const HexMatcher matcher(SimOptions());
+  const HexMatcher matcher(UavSimOptions());
   std::map<std::uint64_t, std::set<int>> track_images;                // id -> photos
   std::map<std::pair<std::uint64_t, int>, Eigen::Vector2d> track_xa;  // (id, b) -> xa
   double sum2_all = 0;

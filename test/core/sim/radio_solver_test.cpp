@@ -119,17 +119,17 @@ TEST(RadioSolver, AmbiguitiesFixedOverManySeeds) {
   EXPECT_GE(correct, static_cast<int>(std::ceil(0.99 * trials)));
 }
 
-struct RunResult {
+struct SolverRunResult {
   std::vector<std::string> events, problems;
   double rms[3] = {0, 0, 0};
   double worst = 0.0;
   int epochs = 0;
 };
 
-RunResult RunScenario(const Scenario& s, int n_epochs, bool print) {
+SolverRunResult RunScenario(const Scenario& s, int n_epochs, bool print) {
   const sim::RadioSimulator sim(s.sim);
   radio::RadioPhaseSolver solver(s.network);
-  RunResult out;
+  SolverRunResult out;
   double sum2[3] = {0, 0, 0};
   int n = 0;
   for (int e = 0; e < n_epochs; ++e) {
@@ -165,7 +165,7 @@ TEST(RadioSolver, DisplacementAccuracy) {
   Scenario s = MakeScenario(7, 0.005);
   const sim::RadioSimulator probe(s.sim);
   const double sigma_phi = probe.PhaseSigma(0);
-  const RunResult r = RunScenario(s, 105, true);
+  const SolverRunResult r = RunScenario(s, 105, true);
   std::printf("phase noise %.4f rad; theoretical range limit lambda*sigma/2pi = %.3f mm per link and block\n",
               sigma_phi, 1e3 * kLambda * sigma_phi / (2.0 * M_PI));
   std::printf("displacement RMS x %.3f y %.3f z %.3f mm over %d estimates; worst %.3f mm\n", 1e3 * r.rms[0],
@@ -186,7 +186,7 @@ TEST(RadioSolver, FaultsHideOneMeasurement) {
   s.sim.faults.push_back(sim::RadioFault::BlockedPath("tx2", "rx1", kT0 + 20, 10));
   s.sim.faults.push_back(sim::RadioFault::MultipathJump("tx3", "rx2", kT0 + 40, 0.0, 1.5));
   s.sim.faults.push_back(sim::RadioFault::DroppedBlocks("rx3", kT0 + 60, 3));
-  const RunResult r = RunScenario(s, 105, false);
+  const SolverRunResult r = RunScenario(s, 105, false);
   std::printf("with faults: displacement RMS x %.3f y %.3f z %.3f mm; worst %.3f mm\n", 1e3 * r.rms[0],
               1e3 * r.rms[1], 1e3 * r.rms[2], 1e3 * r.worst);
   for (const auto& e : r.events) std::printf("  event: %s\n", e.c_str());

@@ -15,12 +15,12 @@ namespace slope_monitor {
 namespace sim {
 namespace {
 
-const std::string kTiny = std::string(SM_TEST_DATA_DIR) + "/sim/tiny_site.yaml";
+const std::string kUavTiny = std::string(SM_TEST_DATA_DIR) + "/sim/tiny_site.yaml";
 constexpr double kDeg = M_PI / 180.0;
 constexpr double kAltitude = 25.0;  // [m] both strips
 
 std::string Flight(const std::string& extra) {
-  std::ifstream f(kTiny);
+  std::ifstream f(kUavTiny);
   std::stringstream ss;
   ss << f.rdbuf();
   std::string yaml = ss.str();

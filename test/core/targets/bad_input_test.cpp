@@ -43,14 +43,14 @@ cv::Mat Disc(int w, int h, double cx, double cy, double diameter, double gain = 
   return testing::ToMono8(f, ro);
 }
 
-Options CirclesOnly() {
+Options BadInputCirclesOnly() {
   Options o;
   o.families.clear();
   return o;
 }
 
 TEST(BadInput, WrongEncodingIsNamed) {
-  TargetCentroider c(CirclesOnly(), io::TargetList());
+  TargetCentroider c(BadInputCirclesOnly(), io::TargetList());
   const cv::Mat img(20, 20, CV_8UC1, cv::Scalar(0));
   const std::string msg = ErrorOf<InvalidArgument>([&] { c.Detect(img, "yuv422"); });
   EXPECT_NE(msg.find("'yuv422'"), std::string::npos) << msg;
@@ -58,13 +58,13 @@ TEST(BadInput, WrongEncodingIsNamed) {
 }
 
 TEST(BadInput, EmptyImage) {
-  TargetCentroider c(CirclesOnly(), io::TargetList());
+  TargetCentroider c(BadInputCirclesOnly(), io::TargetList());
   const std::string msg = ErrorOf<InvalidArgument>([&] { c.Detect(cv::Mat(), "mono8"); });
   EXPECT_NE(msg.find("empty"), std::string::npos) << msg;
 }
 
 TEST(BadInput, TypeNotMatchingEncoding) {
-  TargetCentroider c(CirclesOnly(), io::TargetList());
+  TargetCentroider c(BadInputCirclesOnly(), io::TargetList());
   const cv::Mat img(20, 20, CV_8UC3, cv::Scalar(0, 0, 0));
   const std::string msg = ErrorOf<InvalidArgument>([&] { c.Detect(img, "mono16"); });
   EXPECT_NE(msg.find("mono16"), std::string::npos) << msg;
@@ -72,7 +72,7 @@ TEST(BadInput, TypeNotMatchingEncoding) {
 }
 
 TEST(BadInput, CameraInfoSizeMismatchNamesBothSizes) {
-  TargetCentroider c(CirclesOnly(), io::TargetList());
+  TargetCentroider c(BadInputCirclesOnly(), io::TargetList());
   const cv::Mat img(48, 64, CV_8UC1, cv::Scalar(0));
   ViewGeometry view{testing::NadirCamera(640, 480, 500.0), camera::ExteriorOrientation()};
   const std::string msg = ErrorOf<InvalidArgument>([&] { c.Detect(img, "mono8", &view); });
@@ -111,7 +111,7 @@ TEST(BadInput, ImageMessageChecksNameTheTopic) {
 
 // A bad image does not break the centroider: the next good one is measured.
 TEST(BadInput, GoodImageAfterBadOnesIsMeasured) {
-  TargetCentroider c(CirclesOnly(), io::TargetList());
+  TargetCentroider c(BadInputCirclesOnly(), io::TargetList());
   EXPECT_THROW(c.Detect(cv::Mat(), "mono8"), InvalidArgument);
   EXPECT_THROW(c.Detect(cv::Mat(30, 30, CV_8UC1, cv::Scalar(0)), "32FC1"), InvalidArgument);
   ViewGeometry view{testing::NadirCamera(640, 480, 500.0), camera::ExteriorOrientation()};
@@ -123,7 +123,7 @@ TEST(BadInput, GoodImageAfterBadOnesIsMeasured) {
 }
 
 TEST(BadInput, MonoImageOfWrongTypeIsNamed) {
-  TargetCentroider c(CirclesOnly(), io::TargetList());
+  TargetCentroider c(BadInputCirclesOnly(), io::TargetList());
   MonoImage m;
   m.mono8 = cv::Mat(20, 20, CV_16UC1, cv::Scalar(0));
   EXPECT_NE(ErrorOf<InvalidArgument>([&] { c.DetectMono(m); }).find("mono8"), std::string::npos);
@@ -216,7 +216,7 @@ TEST(BadInput, BadOptionsAreNamed) {
 
 TEST(Encodings, AllSupportedEncodingsGiveTheSameCentre) {
   const cv::Mat mono = Disc(120, 100, 60.3, 50.7, 24.0);
-  TargetCentroider c(CirclesOnly(), io::TargetList());
+  TargetCentroider c(BadInputCirclesOnly(), io::TargetList());
   const Result ref = c.Detect(mono, "mono8");
   ASSERT_EQ(ref.observations.size(), 1u);
   EXPECT_NEAR(ref.observations[0].centre.x(), 60.3, 0.01);
@@ -249,7 +249,7 @@ std::map<std::string, int> Reasons(const Result& r) {
 }
 
 TEST(Rejections, BorderSaturatedBlurredPartial) {
-  TargetCentroider c(CirclesOnly(), io::TargetList());
+  TargetCentroider c(BadInputCirclesOnly(), io::TargetList());
   // Truncated by the border.
   {
     const Result r = c.Detect(Disc(100, 100, 8.0, 50.0, 24.0), "mono8");

@@ -19,20 +19,20 @@ namespace slope_monitor {
 namespace targets {
 namespace {
 
-constexpr double kFocal = 1000.0, kHeight = 10.0, kDiscPx = 30.0;
+constexpr double kEvidenceFocal = 1000.0, kEvidenceHeight = 10.0, kDiscPx = 30.0;
 constexpr int kSize = 201;
 
 struct Scene {
   cv::Mat image;
-  camera::CameraModel cam = testing::NadirCamera(kSize, kSize, kFocal);
+  camera::CameraModel cam = testing::NadirCamera(kSize, kSize, kEvidenceFocal);
   camera::ExteriorOrientation pose;
   testing::Plate plate;
 };
 
 // ring_factor: outer ring radius / disc radius; background: reflectance around.
-Scene Render(double ring_factor, double background) {
+Scene EvidenceRender(double ring_factor, double background) {
   Scene s;
-  s.pose.position = Eigen::Vector3d(0, 0, kHeight);
+  s.pose.position = Eigen::Vector3d(0, 0, kEvidenceHeight);
   s.plate.centre = Eigen::Vector3d(0.0037, -0.0052, 0.0);
   testing::RenderOptions ro;
   ro.read_noise = 1.0;
@@ -40,37 +40,37 @@ Scene Render(double ring_factor, double background) {
   ro.seed = 11;
   ro.background = background;
   cv::Mat f = testing::Background(kSize, kSize, ro);
-  const double d = kDiscPx * kHeight / kFocal;
+  const double d = kDiscPx * kEvidenceHeight / kEvidenceFocal;
   testing::RenderPlate(&f, testing::PlaneToPixel(s.cam, s.pose, s.plate),
                        testing::CirclePattern(d, ring_factor), 0.5 * d * ring_factor, ro);
   s.image = testing::ToMono8(f, ro);
   return s;
 }
 
-Options CirclesOnly() {
+Options EvidenceCirclesOnly() {
   Options o;  // defaults
   o.families.clear();
   return o;
 }
 
 TEST(CircleEvidence, TheDesignIsAccepted) {
-  const Scene s = Render(2.0, 0.45);
-  const TargetCentroider c(CirclesOnly(), io::TargetList());
+  const Scene s = EvidenceRender(2.0, 0.45);
+  const TargetCentroider c(EvidenceCirclesOnly(), io::TargetList());
   const Result r = c.Detect(s.image, "mono8");
   ASSERT_EQ(r.observations.size(), 1u);
   EXPECT_NEAR(r.observations[0].ring_ratio, 2.0, 0.1);
   EXPECT_EQ(r.observations[0].method, CentreMethod::kEllipseModel);
-  EXPECT_LT(r.observations[0].fit_residual, CirclesOnly().circle_max_residual);
+  EXPECT_LT(r.observations[0].fit_residual, EvidenceCirclesOnly().circle_max_residual);
   EXPECT_TRUE(r.rejections.empty());
   std::printf("design: ring ratio %.3f, fit residual %.4f of the contrast\n",
               r.observations[0].ring_ratio, r.observations[0].fit_residual);
 }
 
 TEST(CircleEvidence, OtherDesignsAreNotTargets) {
-  const TargetCentroider c(CirclesOnly(), io::TargetList());
+  const TargetCentroider c(EvidenceCirclesOnly(), io::TargetList());
   for (const auto& [ring, background] :
        std::vector<std::pair<double, double>>{{1.4, 0.45}, {3.0, 0.45}, {2.0, 0.08}}) {
-    const Scene s = Render(ring, background);
+    const Scene s = EvidenceRender(ring, background);
     const Result r = c.Detect(s.image, "mono8");
     EXPECT_TRUE(r.observations.empty()) << "ring " << ring << " background " << background;
     EXPECT_TRUE(r.rejections.empty());
@@ -86,18 +86,18 @@ TEST(CircleEvidence, OtherDesignsAreNotTargets) {
 }
 
 TEST(CircleEvidence, ListedSizeMustAgree) {
-  const Scene s = Render(2.0, 0.45);
+  const Scene s = EvidenceRender(2.0, 0.45);
   for (const double listed_factor : {1.0, 0.5}) {
     io::TargetSpec spec;
     spec.id = 4;
     spec.family = "circle";
-    spec.size = listed_factor * kDiscPx * kHeight / kFocal;
+    spec.size = listed_factor * kDiscPx * kEvidenceHeight / kEvidenceFocal;
     spec.role = io::TargetRole::kMonitoring;
     spec.position = s.plate.centre;
     spec.normal = s.plate.Normal();
     io::TargetList list;
     list.Add(spec);
-    const TargetCentroider c(CirclesOnly(), list);
+    const TargetCentroider c(EvidenceCirclesOnly(), list);
     const ViewGeometry view{s.cam, s.pose};
     const Result r = c.Detect(s.image, "mono8", &view);
     if (listed_factor == 1.0) {

@@ -16,7 +16,7 @@ namespace slope_monitor {
 namespace targets {
 namespace {
 
-Result Render(bool occluded, double* cell_px) {
+Result OccludedRender(bool occluded, double* cell_px) {
   const double focal = 500.0, height = 10.0, size_px = 60.0;
   const double size_m = size_px * height / focal;
   const int w = 161;
@@ -52,12 +52,12 @@ Result Render(bool occluded, double* cell_px) {
 
 TEST(OccludedSurround, CoveredSurroundIsRejectedAsPartial) {
   double cell_px = 0.0;
-  const Result clean = Render(false, &cell_px);
+  const Result clean = OccludedRender(false, &cell_px);
   ASSERT_EQ(clean.observations.size(), 1u) << "the uncovered tag must be measured";
   EXPECT_EQ(clean.observations[0].id, 7);
   EXPECT_TRUE(clean.rejections.empty());
 
-  const Result covered = Render(true, &cell_px);
+  const Result covered = OccludedRender(true, &cell_px);
   EXPECT_TRUE(covered.observations.empty()) << "a tag with a covered surround was measured at "
                                             << covered.observations[0].centre.transpose();
   ASSERT_EQ(covered.rejections.size(), 1u);

@@ -24,8 +24,8 @@ namespace slope_monitor {
 namespace targets {
 namespace {
 
-constexpr double kFocal = 400.0;  // [px]
-constexpr double kHeight = 10.0;  // [m]
+constexpr double kBiasFocal = 400.0;  // [px]
+constexpr double kBiasHeight = 10.0;  // [m]
 
 struct Measured {
   Eigen::Vector2d error{0, 0};       // centre - truth [px]
@@ -35,14 +35,14 @@ struct Measured {
 
 // Renders one target and measures it with and without the correction.
 bool Measure(double size_px, double azimuth, unsigned seed, Measured* with, Measured* without) {
-  const double size_m = size_px * kHeight / kFocal;
+  const double size_m = size_px * kBiasHeight / kBiasFocal;
   const int w = static_cast<int>(4 * size_px + 200) | 1;
-  const camera::CameraModel cam = testing::NadirCamera(w, w, kFocal);
+  const camera::CameraModel cam = testing::NadirCamera(w, w, kBiasFocal);
   camera::ExteriorOrientation pose;
-  pose.position = Eigen::Vector3d(0, 0, kHeight);
+  pose.position = Eigen::Vector3d(0, 0, kBiasHeight);
   // Off-axis (the bias grows with the distance from the principal point).
-  const Eigen::Vector3d centre(0.3 * w * kHeight / kFocal * std::cos(azimuth + 1.0),
-                               0.3 * w * kHeight / kFocal * std::sin(azimuth + 1.0), 0.0);
+  const Eigen::Vector3d centre(0.3 * w * kBiasHeight / kBiasFocal * std::cos(azimuth + 1.0),
+                               0.3 * w * kBiasHeight / kBiasFocal * std::sin(azimuth + 1.0), 0.0);
   const testing::Plate plate = testing::TiltedPlate(centre, 60.0 * M_PI / 180.0, azimuth, 0.3);
   const Eigen::Matrix3d h = testing::PlaneToPixel(cam, pose, plate);
   testing::RenderOptions ro;
@@ -79,7 +79,7 @@ bool Measure(double size_px, double azimuth, unsigned seed, Measured* with, Meas
 }
 
 TEST(PerspectiveBias, CorrectionRemovesTheBiasAt60Degrees) {
-  std::printf("circles tilted 60 deg, focal %.0f px: RMS error per coordinate [px]\n", kFocal);
+  std::printf("circles tilted 60 deg, focal %.0f px: RMS error per coordinate [px]\n", kBiasFocal);
   std::printf("  size | without correction | with correction | mean |correction|\n");
   double sum_with = 0, sum_without = 0;
   int n = 0;

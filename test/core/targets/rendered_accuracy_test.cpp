@@ -32,8 +32,8 @@ namespace {
 using testing::Apply;
 using testing::Plate;
 
-constexpr double kFocal = 500.0;  // [px] short focal length: strong perspective
-constexpr double kHeight = 10.0;  // [m] camera above the plate
+constexpr double kAccuracyFocal = 500.0;  // [px] short focal length: strong perspective
+constexpr double kAccuracyHeight = 10.0;  // [m] camera above the plate
 constexpr int kTrials = 5;        // random sub-pixel positions / azimuths per cell
 const std::vector<double> kSizes = {
     15.0, 20.0, 30.0, 45.0, 60.0};  // [px] tag border edge / disc diameter, facing the camera
@@ -87,15 +87,15 @@ bool RunOne(const Case& c, double size_px, double tilt, const TargetCentroider* 
             std::mt19937* rng, Eigen::Vector2d* error, Eigen::Matrix2d* cov, std::string* why_not,
             CentreMethod* method) {
   std::uniform_real_distribution<double> uni(0.0, 1.0);
-  const double size_m = size_px * kHeight / kFocal;
+  const double size_m = size_px * kAccuracyHeight / kAccuracyFocal;
   const double plate_half_px = (c.circle ? 1.0 : 0.625) * size_px;
   const int w = static_cast<int>(2 * (plate_half_px + 40)) + 1;
-  const camera::CameraModel cam = testing::NadirCamera(w, w, kFocal);
+  const camera::CameraModel cam = testing::NadirCamera(w, w, kAccuracyFocal);
   camera::ExteriorOrientation pose;
-  pose.position = Eigen::Vector3d(0, 0, kHeight);
+  pose.position = Eigen::Vector3d(0, 0, kAccuracyHeight);
   // Off-axis by 15 px plus a random sub-pixel part.
-  const Eigen::Vector3d centre((15.0 + uni(*rng)) * kHeight / kFocal,
-                               (10.0 + uni(*rng)) * kHeight / kFocal, 0.0);
+  const Eigen::Vector3d centre((15.0 + uni(*rng)) * kAccuracyHeight / kAccuracyFocal,
+                               (10.0 + uni(*rng)) * kAccuracyHeight / kAccuracyFocal, 0.0);
   const Plate plate =
       testing::TiltedPlate(centre, tilt, 2 * M_PI * uni(*rng), 2 * M_PI * uni(*rng));
   const Eigen::Matrix3d h = testing::PlaneToPixel(cam, pose, plate);
