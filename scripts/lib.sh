@@ -82,14 +82,12 @@ sm_build() {
     cache=(-DCMAKE_CXX_COMPILER_LAUNCHER= -DCMAKE_C_COMPILER_LAUNCHER=)  # a workspace that had it drops it
   fi
   # "sm_build demo": only what the replay graph and the demo tools need (the
-  # benchmarks, offline tools and the other nodelets wait for scripts/test);
+  # benchmarks and the other offline tools wait for scripts/test);
   # "sm_build tests": everything and the tests in one go; "sm_build configure":
   # only CMake (scripts/test then builds and runs the tests in one Ninja run).
   local targets=()
   if [ "${1:-}" = demo ]; then
-    targets=(slope_monitor_target_centroider_nodelet slope_monitor_bundle_adjuster_nodelet
-             slope_monitor_radio_phase_solver_nodelet slope_monitor_deformation_estimator_nodelet
-             make_survey_bag deformation_summary process_bag)
+    targets=(slope_monitor_nodelets make_survey_bag deformation_summary process_bag)
   elif [ "${1:-}" = tests ]; then
     targets=(all tests)
   elif [ "${1:-}" = configure ]; then

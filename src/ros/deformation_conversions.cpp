@@ -11,6 +11,7 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/core/common/format.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -36,12 +37,6 @@ geometry_msgs::Vector3 ToVector(const Eigen::Vector3d& v) {
   p.y = v.y();
   p.z = v.z();
   return p;
-}
-
-std::string Fixed(double v, int digits) {
-  std::ostringstream o;
-  o << std::fixed << std::setprecision(digits) << v;
-  return o.str();
 }
 
 }  // namespace

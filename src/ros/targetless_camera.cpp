@@ -15,18 +15,12 @@
 #include "slope_monitor/core/io/camera_pose_file.h"
 #include "slope_monitor/core/io/image_polygons.h"
 #include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/core/common/format.h"
+#include "slope_monitor/core/common/numeric.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
 namespace {
-
-constexpr double kDeg = 180.0 / M_PI;
-
-std::string Fixed(double v, int digits) {
-  char b[64];
-  std::snprintf(b, sizeof(b), "%.*f", digits, v);
-  return b;
-}
 
 diagnostic_msgs::KeyValue Kv(const std::string& key, const std::string& value) {
   diagnostic_msgs::KeyValue kv;
@@ -221,17 +215,17 @@ TargetlessOutputs TargetlessCameraRunner::OnImage(const sensor_msgs::Image& imag
   s.level = e.warnings.empty() ? diagnostic_msgs::DiagnosticStatus::OK
                                : diagnostic_msgs::DiagnosticStatus::WARN;
   s.message = e.warnings.empty() ? "re-oriented" : e.warnings.front();
-  s.values.push_back(Kv("rotation [deg]", Fixed(r.rotation_angle * kDeg, 5)));
+  s.values.push_back(Kv("rotation [deg]", Fixed(r.rotation_angle * kDegPerRad, 5)));
   for (int k = 0; k < 3; ++k) {
-    s.values.push_back(Kv(std::string("d") + kAngle[k] + " [deg]", Fixed(r.delta(k) * kDeg, 5)));
+    s.values.push_back(Kv(std::string("d") + kAngle[k] + " [deg]", Fixed(r.delta(k) * kDegPerRad, 5)));
     s.values.push_back(
-        Kv(std::string("sigma ") + kAngle[k] + " [deg]", Fixed(r.sigma(k) * kDeg, 5)));
+        Kv(std::string("sigma ") + kAngle[k] + " [deg]", Fixed(r.sigma(k) * kDegPerRad, 5)));
   }
   s.values.push_back(Kv("rms [px]", Fixed(r.rms_px, 3)));
   s.values.push_back(Kv("stable points", std::to_string(r.num_points)));
   s.values.push_back(Kv("outliers", std::to_string(r.num_outliers)));
   out.site_from_optical = PoseTf(r.exterior, params_.frame_id, camera_.name, image.header.stamp);
-  out.info = "camera '" + camera_.name + "': rotation " + Fixed(r.rotation_angle * kDeg, 4) +
+  out.info = "camera '" + camera_.name + "': rotation " + Fixed(r.rotation_angle * kDegPerRad, 4) +
              " deg, rms " + Fixed(r.rms_px, 2) + " px over " + std::to_string(r.num_points) +
              " stable points";
   if (!e.has_field) return out;

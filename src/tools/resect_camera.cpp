@@ -40,12 +40,11 @@
 #include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/core/io/surveyed_points.h"
 #include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/core/common/numeric.h"
 
 using namespace slope_monitor;
 
 namespace {
-
-constexpr double kDeg = 180.0 / M_PI;
 
 int Usage() {
   std::cerr << "usage: resect_camera --image IMG --gcp FILE [--site FILE | --crs EPSG:NNNN] [--position X Y Z "
@@ -140,7 +139,7 @@ void PrintPoints(const adjustment::ResectCameraSummary& s, double critical) {
   std::printf("sigma0 %.3f (a posteriori, unit weight), redundancy %d\n", s.sigma0, s.redundancy);
   for (const auto& p : s.parameters) {
     const bool angle = p.name == "theta" || p.name == "phi" || p.name == "kappa";
-    const double f = angle ? kDeg : 1.0;
+    const double f = angle ? kDegPerRad : 1.0;
     std::printf("%-6s %18.8g +- %.4g %s\n", p.name.c_str(), p.value * f, p.sigma * f,
                 angle                                                  ? "deg"
                 : (p.name == "X0" || p.name == "Y0" || p.name == "Z0") ? "m"
@@ -187,8 +186,8 @@ void WritePose(const std::string& path, const adjustment::ResectCameraSummary& s
     const Eigen::Vector3d c = frame.site->CrsFromSite(e.position);
     out << "position_crs: [" << c.x() << ", " << c.y() << ", " << c.z() << "]  # the same in crs\n";
   }
-  out << "angles_deg: {theta: " << e.angles.theta * kDeg << ", phi: " << e.angles.phi * kDeg
-      << ", kappa: " << e.angles.kappa * kDeg << "}\n";
+  out << "angles_deg: {theta: " << e.angles.theta * kDegPerRad << ", phi: " << e.angles.phi * kDegPerRad
+      << ", kappa: " << e.angles.kappa * kDegPerRad << "}\n";
   out << "# site_from_optical (REP 103 optical frame), x y z w\n";
   out << "quaternion: [" << q.x() << ", " << q.y() << ", " << q.z() << ", " << q.w() << "]\n";
   out << "# covariance of X0 Y0 Z0 [m] theta phi kappa [rad], row-major 6x6\n";

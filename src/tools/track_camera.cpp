@@ -55,12 +55,11 @@
 #include "slope_monitor/core/io/image_polygons.h"
 #include "slope_monitor/core/matching/hex_matcher.h"
 #include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/core/common/numeric.h"
 
 using namespace slope_monitor;
 
 namespace {
-
-constexpr double kDeg = 180.0 / M_PI;
 
 int Usage() {
   std::cerr
@@ -210,16 +209,16 @@ int main(int argc, char** argv) {
         ++failures;
         continue;
       }
-      const double sigma = s.sigma.maxCoeff() * kDeg;
+      const double sigma = s.sigma.maxCoeff() * kDegPerRad;
       std::printf(
           "%s: rotation %.4f deg (dtheta %.4f dphi %.4f dkappa %.4f deg, sigma %.4f deg) rms %.2f "
           "px over %d "
           "stable points\n",
-          name.c_str(), s.rotation_angle * kDeg, s.delta(0) * kDeg, s.delta(1) * kDeg,
-          s.delta(2) * kDeg, sigma, s.rms_px, s.num_points);
-      csv << name << ',' << s.rotation_angle * kDeg << ',' << s.delta(0) * kDeg << ','
-          << s.delta(1) * kDeg << ',' << s.delta(2) * kDeg << ',' << s.sigma(0) * kDeg << ','
-          << s.sigma(1) * kDeg << ',' << s.sigma(2) * kDeg << ',' << s.rms_px << ',' << s.num_points
+          name.c_str(), s.rotation_angle * kDegPerRad, s.delta(0) * kDegPerRad, s.delta(1) * kDegPerRad,
+          s.delta(2) * kDegPerRad, sigma, s.rms_px, s.num_points);
+      csv << name << ',' << s.rotation_angle * kDegPerRad << ',' << s.delta(0) * kDegPerRad << ','
+          << s.delta(1) * kDegPerRad << ',' << s.delta(2) * kDegPerRad << ',' << s.sigma(0) * kDegPerRad << ','
+          << s.sigma(1) * kDegPerRad << ',' << s.sigma(2) * kDegPerRad << ',' << s.rms_px << ',' << s.num_points
           << ',' << s.num_outliers << ',' << e.matches.global_shift.x() << ','
           << e.matches.global_shift.y() << '\n';
       if (!e.has_field) continue;

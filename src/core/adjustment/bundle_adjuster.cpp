@@ -408,7 +408,7 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
   for (size_t i = 0; i < scene.images.size(); ++i) {
     const Image& im = scene.images[i];
     if (config_.use_position_priors && im.position_prior) {
-      prob.AddResidualBlock(PositionPrior::Create(*im.position_prior, SqrtInformation<3>(im.position_prior_covariance)),
+      prob.AddResidualBlock(PositionPriorError::Create(*im.position_prior, SqrtInformation<3>(im.position_prior_covariance)),
                             nullptr, exterior[i].data());
       num_prior_residuals += 3;
     }

@@ -12,6 +12,7 @@
 #include <Eigen/LU>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/format.h"
 
 namespace slope_monitor {
 namespace adjustment {
@@ -160,12 +161,6 @@ Fit RobustFit(const std::vector<ControlPointPair>& points, const std::vector<int
     fit.residual[i] = q.surveyed - fit.transform * q.measured;
   }
   return fit;
-}
-
-std::string Fixed(double v, int digits) {
-  std::ostringstream out;
-  out << std::fixed << std::setprecision(digits) << v;
-  return out.str();
 }
 
 }  // namespace

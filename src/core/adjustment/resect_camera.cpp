@@ -134,7 +134,7 @@ Eigen::Matrix3d RotationFromDirections(const std::vector<Eigen::Vector3d>& site_
   return svd.matrixU() * fix * svd.matrixV().transpose();
 }
 
-ResectCameraSummary ResectCamera(const std::vector<io::SurveyedPoint>& points,
+ResectCameraSummary ResectCamera(const std::vector<io::PickedPoint>& points,
                                  const camera::CameraModel& nominal,
                                  const ResectCameraOptions& options) {
   options.Check();
@@ -194,7 +194,7 @@ ResectCameraSummary ResectCamera(const std::vector<io::SurveyedPoint>& points,
     problem.SetManifold(e.data(), new ceres::SubsetManifold(camera::kNumExterior, {0, 1, 2}));
   } else if (options.has_position) {
     blocks.push_back(problem.AddResidualBlock(
-        PositionPrior::Create(options.position - centroid,
+        PositionPriorError::Create(options.position - centroid,
                               Eigen::Matrix3d::Identity() / options.position_sigma),
         nullptr, e.data()));
   }

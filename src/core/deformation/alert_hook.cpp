@@ -8,13 +8,14 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/subprocess.h"
+#include "slope_monitor/core/common/format.h"
+#include "slope_monitor/core/deformation/units.h"
 
 namespace slope_monitor {
 namespace deformation {
 namespace {
 
 constexpr size_t kMaxJson = 4096;  // RunProgram's input limit
-constexpr double kMmPerDay = 86400e3;
 
 std::string Escape(const std::string& s) {
   std::string out;
@@ -31,21 +32,6 @@ std::string Escape(const std::string& s) {
     }
   }
   return out;
-}
-
-std::string Utc(double stamp) {
-  const std::time_t t = static_cast<std::time_t>(std::floor(stamp));
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char when[32];
-  std::strftime(when, sizeof(when), "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return when;
-}
-
-std::string Fixed(double v, int digits) {
-  char b[64];
-  std::snprintf(b, sizeof(b), "%.*f", digits, v);
-  return b;
 }
 
 }  // namespace

@@ -10,12 +10,12 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/deformation/change_areas.h"
 #include "slope_monitor/core/deformation/history.h"
+#include "slope_monitor/core/common/format.h"
+#include "slope_monitor/core/deformation/units.h"
 
 namespace slope_monitor {
 namespace deformation {
 namespace {
-
-constexpr double kMmPerDay = 1e3 * 86400.0;  // m/s -> mm/day
 
 void SpeedOf(const Eigen::Vector3d& v, const Eigen::Matrix3d& P, double* speed, double* sigma) {
   *speed = v.norm();
@@ -25,12 +25,6 @@ void SpeedOf(const Eigen::Vector3d& v, const Eigen::Matrix3d& P, double* speed, 
   } else {
     *sigma = std::sqrt(std::max(0.0, P.trace() / 3.0));
   }
-}
-
-std::string Fixed(double v, int digits) {
-  std::ostringstream o;
-  o << std::fixed << std::setprecision(digits) << v;
-  return o.str();
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/subprocess.h"
 #include "slope_monitor/core/io/safe_file.h"
+#include "slope_monitor/core/deformation/units.h"
 
 namespace slope_monitor {
 namespace deformation {
@@ -23,7 +24,6 @@ std::vector<std::string> RunPlotReport(const PlotReportOptions& options, const s
                                        const std::string& folder, const Thresholds& thresholds) {
   options.Check();
   char t[96];
-  constexpr double kMmPerDay = 86400e3;
   std::snprintf(t, sizeof(t), "%.6g,%.6g,%.6g", thresholds.watch * kMmPerDay,
                 thresholds.warning * kMmPerDay, thresholds.alarm * kMmPerDay);
   std::vector<std::string> argv = {options.script, "--history",    history, "--out",

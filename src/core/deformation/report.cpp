@@ -1,6 +1,5 @@
 #include "slope_monitor/core/deformation/report.h"
 
-
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -21,12 +20,12 @@
 #include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/io/geotiff.h"
 #include "slope_monitor/core/io/safe_file.h"
+#include "slope_monitor/core/common/format.h"
+#include "slope_monitor/core/deformation/units.h"
 
 namespace slope_monitor {
 namespace deformation {
 namespace {
-
-constexpr double kMmPerDay = 1e3 * 86400.0;  // m/s -> mm/day
 
 std::string JsonEscape(const std::string& s) {
   std::string out;
@@ -65,15 +64,6 @@ std::string Num(double v, int digits = 6) {
     if (!s.empty() && s.back() == '.') s.pop_back();
   }
   return s == "-0" ? "0" : s;
-}
-
-std::string Utc(double stamp) {
-  const std::time_t t = static_cast<std::time_t>(std::floor(stamp));
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
 }
 
 // The site frame's PROJ definition when the options georeference it.

@@ -15,21 +15,12 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/deformation/report.h"
+#include "slope_monitor/core/common/format.h"
+#include "slope_monitor/core/deformation/units.h"
 
 namespace slope_monitor {
 namespace deformation {
 namespace {
-
-constexpr double kMmPerDay = 1e3 * 86400.0;  // m/s -> mm/day
-
-std::string Utc(double stamp) {
-  const std::time_t t = static_cast<std::time_t>(std::floor(stamp));
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
 
 OGRSpatialReference ReportSrs(const ReportOptions& options, const std::string& path) {
   OGRSpatialReference srs;

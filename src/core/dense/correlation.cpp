@@ -29,10 +29,6 @@ constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
 inline bool Finite(float v) { return v == v; }
 
-void Require(bool ok, const char* key, const std::string& what) {
-  if (!ok) throw ConfigError(Message("dense correlation option '", key, "' ", what));
-}
-
 // Result of one search direction on one level: dense per-pixel parallax.
 struct DenseResult {
   cv::Mat disparity;    // CV_32F level px, NaN invalid
@@ -947,30 +943,30 @@ cv::Mat DownsampleMask(const cv::Mat& mask, int scale, bool all_valid, cv::Mat* 
 }  // namespace
 
 void CorrelationOptions::Check() const {
-  Require(levels >= 1 && levels <= 5, "levels", Message("= ", levels, " must be in [1, 5]"));
-  Require(peak_frequency > 0 && peak_frequency <= 3, "peak_frequency",
+  RequireOption("dense correlation", levels >= 1 && levels <= 5, "levels", Message("= ", levels, " must be in [1, 5]"));
+  RequireOption("dense correlation", peak_frequency > 0 && peak_frequency <= 3, "peak_frequency",
           Message("= ", peak_frequency, " rad/px must be in (0, 3]"));
-  Require(grid_spacing >= 1 && grid_spacing <= 64, "grid_spacing", Message("= ", grid_spacing, " must be in [1, 64]"));
-  Require(final_grid_spacing >= 1 && final_grid_spacing <= 64, "final_grid_spacing",
+  RequireOption("dense correlation", grid_spacing >= 1 && grid_spacing <= 64, "grid_spacing", Message("= ", grid_spacing, " must be in [1, 64]"));
+  RequireOption("dense correlation", final_grid_spacing >= 1 && final_grid_spacing <= 64, "final_grid_spacing",
           Message("= ", final_grid_spacing, " must be in [1, 64]"));
-  Require(window >= 3 && window <= 51 && window % 2 == 1, "window", Message("= ", window, " must be odd in [3, 51]"));
-  Require(final_window == 0 || (final_window >= 3 && final_window <= 51 && final_window % 2 == 1), "final_window",
+  RequireOption("dense correlation", window >= 3 && window <= 51 && window % 2 == 1, "window", Message("= ", window, " must be odd in [3, 51]"));
+  RequireOption("dense correlation", final_window == 0 || (final_window >= 3 && final_window <= 51 && final_window % 2 == 1), "final_window",
           Message("= ", final_window, " must be 0 (= window) or odd in [3, 51]"));
-  Require(search_radius >= 1 && search_radius <= 16, "search_radius",
+  RequireOption("dense correlation", search_radius >= 1 && search_radius <= 16, "search_radius",
           Message("= ", search_radius, " must be in [1, 16]"));
-  Require(std::isfinite(min_disparity) && std::isfinite(max_disparity) && max_disparity > min_disparity,
+  RequireOption("dense correlation", std::isfinite(min_disparity) && std::isfinite(max_disparity) && max_disparity > min_disparity,
           "max_disparity", Message("= ", max_disparity, " must be finite and > min_disparity = ", min_disparity));
-  Require(min_correlation >= -1 && min_correlation < 1, "min_correlation",
+  RequireOption("dense correlation", min_correlation >= -1 && min_correlation < 1, "min_correlation",
           Message("= ", min_correlation, " must be in [-1, 1)"));
-  Require(lsc_iterations >= 0 && lsc_iterations <= 20, "lsc_iterations",
+  RequireOption("dense correlation", lsc_iterations >= 0 && lsc_iterations <= 20, "lsc_iterations",
           Message("= ", lsc_iterations, " must be in [0, 20]"));
-  Require(edge_window == 0 || (edge_window >= 3 && edge_window <= 51 && edge_window % 2 == 1), "edge_window",
+  RequireOption("dense correlation", edge_window == 0 || (edge_window >= 3 && edge_window <= 51 && edge_window % 2 == 1), "edge_window",
           Message("= ", edge_window, " must be 0 (off) or odd in [3, 51]"));
-  Require(edge_parallax_step > 0, "edge_parallax_step", Message("= ", edge_parallax_step, " must be > 0"));
-  Require(final_search_radius >= 0 && final_search_radius <= 16, "final_search_radius",
+  RequireOption("dense correlation", edge_parallax_step > 0, "edge_parallax_step", Message("= ", edge_parallax_step, " must be > 0"));
+  RequireOption("dense correlation", final_search_radius >= 0 && final_search_radius <= 16, "final_search_radius",
           Message("= ", final_search_radius, " must be 0 (= search_radius) or in [1, 16]"));
-  Require(lr_tolerance > 0, "lr_tolerance", Message("= ", lr_tolerance, " must be > 0"));
-  Require(order_tolerance >= 0, "order_tolerance", Message("= ", order_tolerance, " must be >= 0"));
+  RequireOption("dense correlation", lr_tolerance > 0, "lr_tolerance", Message("= ", lr_tolerance, " must be > 0"));
+  RequireOption("dense correlation", order_tolerance >= 0, "order_tolerance", Message("= ", order_tolerance, " must be >= 0"));
 }
 
 std::string CorrelationSummary::BriefReport() const {

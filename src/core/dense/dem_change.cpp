@@ -9,15 +9,12 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/dense/surface.h"
+#include "slope_monitor/core/common/numeric.h"
 
 namespace slope_monitor {
 namespace dense {
 
 namespace {
-
-void Require(bool ok, const char* key, const std::string& what) {
-  if (!ok) throw ConfigError(Message("DEM change option '", key, "' ", what));
-}
 
 void CheckSameGrid(const io::GeoRaster& a, const io::GeoRaster& b) {
   if (a.width != b.width || a.height != b.height ||
@@ -67,12 +64,6 @@ io::GeoRaster Apply(const io::GeoRaster& after, const Coregistration& c) {
   return out;
 }
 
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
-
 struct StableResiduals {
   std::vector<int> cells;  // row * width + col
   std::vector<double> dz;
@@ -92,10 +83,10 @@ StableResiduals Residuals(const io::GeoRaster& ref, const io::GeoRaster& aft,
     s.cells.push_back(i);
     s.dz.push_back(static_cast<double>(z1) - z0);
   }
-  const double med = Median(s.dz);
+  const double med = UpperMedian(s.dz);
   std::vector<double> dev(s.dz.size());
   for (size_t i = 0; i < dev.size(); ++i) dev[i] = std::abs(s.dz[i] - med);
-  const double sigma = 1.4826 * Median(dev);
+  const double sigma = 1.4826 * UpperMedian(dev);
   double sum2 = 0, sumu = 0;
   for (size_t i = 0; i < s.dz.size(); ++i) {
     const bool in = sigma <= 0 || dev[i] <= clip * sigma;
@@ -186,17 +177,17 @@ double CorrelatedCells(double length, double cell_area) {
 }  // namespace
 
 void DemChangeOptions::Check() const {
-  Require(lod_factor > 0 && lod_factor <= 10, "lod_factor",
+  RequireOption("DEM change", lod_factor > 0 && lod_factor <= 10, "lod_factor",
           Message("= ", lod_factor, " must be in (0, 10]"));
-  Require(coregistration_iterations >= 0 && coregistration_iterations <= 20,
+  RequireOption("DEM change", coregistration_iterations >= 0 && coregistration_iterations <= 20,
           "coregistration_iterations",
           Message("= ", coregistration_iterations, " must be in [0, 20]"));
-  Require(clip_sigmas >= 1 && clip_sigmas <= 10, "clip_sigmas",
+  RequireOption("DEM change", clip_sigmas >= 1 && clip_sigmas <= 10, "clip_sigmas",
           Message("= ", clip_sigmas, " must be in [1, 10]"));
-  Require(max_shift > 0, "max_shift", Message("= ", max_shift, " m must be > 0"));
-  Require(min_stable_cells >= 4, "min_stable_cells",
+  RequireOption("DEM change", max_shift > 0, "max_shift", Message("= ", max_shift, " m must be > 0"));
+  RequireOption("DEM change", min_stable_cells >= 4, "min_stable_cells",
           Message("= ", min_stable_cells, " must be >= 4"));
-  Require(max_correlation_length > 0, "max_correlation_length",
+  RequireOption("DEM change", max_correlation_length > 0, "max_correlation_length",
           Message("= ", max_correlation_length, " m must be > 0"));
 }
 

@@ -9,12 +9,12 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/matching/filters.h"
+#include "slope_monitor/core/common/numeric.h"
 
 namespace slope_monitor {
 namespace dense {
 namespace {
 
-constexpr double kDeg = 180.0 / M_PI;
 constexpr double kPixelStep = 0.25;   // [px] numeric derivative steps
 constexpr double kAngleStep = 1e-6;   // [rad]
 constexpr double kHeightStep = 0.05;  // [m]
@@ -207,11 +207,11 @@ void Project(const io::GeoRaster& dem, const FieldInput& in, const DisplacementF
   // Geometry of the view: incidence on the surface, displacement vs line of sight.
   const Eigen::Vector3d los = (x_ref - in.reference.position).normalized();
   const Eigen::Vector3d n = DemNormal(dem, x_ref.x(), x_ref.y());
-  p->incidence_deg = std::asin(std::min(1.0, std::abs(los.dot(n)))) * kDeg;
+  p->incidence_deg = std::asin(std::min(1.0, std::abs(los.dot(n)))) * kDegPerRad;
   const double norm = p->displacement.norm();
   if (norm > 0) {
     const Eigen::Vector3d u = p->displacement / norm;
-    p->los_angle_deg = std::acos(std::min(1.0, std::abs(u.dot(los)))) * kDeg;
+    p->los_angle_deg = std::acos(std::min(1.0, std::abs(u.dot(los)))) * kDegPerRad;
     const double sigma_along = std::sqrt(std::max(0.0, u.dot(p->covariance * u)));
     if (p->los_angle_deg < o.min_los_angle_deg && norm > 3.0 * sigma_along)
       p->flag = "line_of_sight";

@@ -17,10 +17,6 @@ namespace dense {
 
 namespace {
 
-void Require(bool ok, const char* key, const std::string& what) {
-  if (!ok) throw ConfigError(Message("epoch surface option '", key, "' ", what));
-}
-
 // Where a ray meets the plane z = a + b x + c y; false when parallel or behind.
 bool MeetPlane(const camera::Ray& ray, const Eigen::Vector3d& plane, Eigen::Vector3d* x) {
   const Eigen::Vector3d n(-plane[1], -plane[2], 1.0);  // n . X = a
@@ -84,15 +80,15 @@ void CheckMemory(const Eigen::Vector4d& region, const EpochSurfaceOptions& o) {
 
 void EpochSurfaceOptions::Check() const {
   surface.Check();
-  Require(min_pair_overlap > 0 && min_pair_overlap <= 1, "min_pair_overlap",
+  RequireOption("epoch surface", min_pair_overlap > 0 && min_pair_overlap <= 1, "min_pair_overlap",
           Message("= ", min_pair_overlap, " must be in (0, 1]"));
-  Require(depth_margin >= 0 && depth_margin <= 10, "depth_margin",
+  RequireOption("epoch surface", depth_margin >= 0 && depth_margin <= 10, "depth_margin",
           Message("= ", depth_margin, " must be in [0, 10]"));
-  Require(max_pairs_per_image >= 1 && max_pairs_per_image <= 100, "max_pairs_per_image",
+  RequireOption("epoch surface", max_pairs_per_image >= 1 && max_pairs_per_image <= 100, "max_pairs_per_image",
           Message("= ", max_pairs_per_image, " must be in [1, 100]"));
-  Require(max_dem_megabytes > 0 && max_dem_megabytes <= 1e5, "max_dem_megabytes",
+  RequireOption("epoch surface", max_dem_megabytes > 0 && max_dem_megabytes <= 1e5, "max_dem_megabytes",
           Message("= ", max_dem_megabytes, " MB must be in (0, 1e5]"));
-  Require(region.isZero() || (region[1] > region[0] && region[3] > region[2]), "region",
+  RequireOption("epoch surface", region.isZero() || (region[1] > region[0] && region[3] > region[2]), "region",
           "must be all zero or xmin < xmax, ymin < ymax");
 }
 

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/numeric.h"
 
 namespace slope_monitor {
 namespace dense {
@@ -29,12 +30,6 @@ cv::Scalar ColourOf(const FieldPoint& p) {
   if (p.flag == "grazing") return kGrazing;
   if (p.flag == "line_of_sight") return kLineOfSight;
   return kOtherFlag;
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
 }
 
 // The largest of 1, 2, 5 x 10^k not above x (x > 0).
@@ -133,7 +128,7 @@ cv::Mat DrawDisplacementField(const cv::Mat& photo, const DisplacementField& fie
   const int thick = std::max(1, photo.cols / 1000);
   s.bar_motion_px = RoundDown125(longest > 0 ? longest : 1.0);
   s.exaggeration = thick * options.longest_arrow_px / std::max(longest, s.bar_motion_px);
-  s.metres_per_px = Median(ranges) * sensor.pixel_size / model.principal_distance();
+  s.metres_per_px = UpperMedian(ranges) * sensor.pixel_size / model.principal_distance();
   s.bar_metres = s.bar_motion_px * s.metres_per_px;
 
   // The legend first: the arrows stay visible where they cross it.

@@ -13,10 +13,6 @@ namespace dense {
 
 namespace {
 
-void Require(bool ok, const char* key, const std::string& what) {
-  if (!ok) throw ConfigError(Message("rectify option '", key, "' ", what));
-}
-
 void CheckImage(const OrientedImage& im, const char* role) {
   const std::string name = im.name.empty() ? std::string(role) : im.name;
   if (!im.oriented)
@@ -56,13 +52,13 @@ struct Projector {
 }  // namespace
 
 void RectifyOptions::Check() const {
-  Require(scale > 0 && scale <= 4, "scale", Message("= ", scale, " must be in (0, 4]"));
-  Require(patch_size == 0 || (patch_size >= 64 && patch_size <= 8192), "patch_size",
+  RequireOption("rectify", scale > 0 && scale <= 4, "scale", Message("= ", scale, " must be in (0, 4]"));
+  RequireOption("rectify", patch_size == 0 || (patch_size >= 64 && patch_size <= 8192), "patch_size",
           Message("= ", patch_size, " must be 0 or in [64, 8192]"));
-  Require(patch_overlap >= 0 && (patch_size == 0 || patch_overlap < patch_size / 2), "patch_overlap",
+  RequireOption("rectify", patch_overlap >= 0 && (patch_size == 0 || patch_overlap < patch_size / 2), "patch_overlap",
           Message("= ", patch_overlap, " must be in [0, patch_size / 2)"));
-  Require(min_baseline > 0, "min_baseline", Message("= ", min_baseline, " must be > 0"));
-  Require(min_overlap >= 0 && min_overlap <= 1, "min_overlap", Message("= ", min_overlap, " must be in [0, 1]"));
+  RequireOption("rectify", min_baseline > 0, "min_baseline", Message("= ", min_baseline, " must be > 0"));
+  RequireOption("rectify", min_overlap >= 0 && min_overlap <= 1, "min_overlap", Message("= ", min_overlap, " must be in [0, 1]"));
 }
 
 cv::Mat ToGrayFloat(const cv::Mat& image, const std::string& what) {

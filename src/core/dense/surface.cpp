@@ -13,21 +13,18 @@ namespace slope_monitor {
 namespace dense {
 
 namespace {
-void Require(bool ok, const char* key, const std::string& what) {
-  if (!ok) throw ConfigError(Message("dense surface option '", key, "' ", what));
-}
 }  // namespace
 
 void SurfaceOptions::Check() const {
   correlation.Check();
   rectify.Check();
-  Require(cell_size > 0 && cell_size <= 100, "cell_size", Message("= ", cell_size, " m must be in (0, 100]"));
-  Require(min_points_per_cell >= 1 && min_points_per_cell <= 1000, "min_points_per_cell",
+  RequireOption("dense surface", cell_size > 0 && cell_size <= 100, "cell_size", Message("= ", cell_size, " m must be in (0, 100]"));
+  RequireOption("dense surface", min_points_per_cell >= 1 && min_points_per_cell <= 1000, "min_points_per_cell",
           Message("= ", min_points_per_cell, " must be in [1, 1000]"));
-  Require(parallax_sigma > 0 && parallax_sigma <= 10, "parallax_sigma",
+  RequireOption("dense surface", parallax_sigma > 0 && parallax_sigma <= 10, "parallax_sigma",
           Message("= ", parallax_sigma, " px must be in (0, 10]"));
-  Require(max_ray_gap >= 0, "max_ray_gap", Message("= ", max_ray_gap, " m must be >= 0"));
-  Require(ortho_cell_size >= 0, "ortho_cell_size", Message("= ", ortho_cell_size, " m must be >= 0"));
+  RequireOption("dense surface", max_ray_gap >= 0, "max_ray_gap", Message("= ", max_ray_gap, " m must be >= 0"));
+  RequireOption("dense surface", ortho_cell_size >= 0, "ortho_cell_size", Message("= ", ortho_cell_size, " m must be >= 0"));
 }
 
 std::string SurfaceSummary::BriefReport() const {

@@ -5,12 +5,11 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/image_polygons.h"
+#include "slope_monitor/core/common/numeric.h"
 
 namespace slope_monitor {
 namespace dense {
 namespace {
-
-constexpr double kDeg = 180.0 / M_PI;
 
 }  // namespace
 
@@ -131,14 +130,14 @@ TargetlessEpoch TargetlessCamera::Process(const cv::Mat& image, double time,
     return e;
   }
   static const char* kAngle[] = {"theta", "phi", "kappa"};
-  if (r.rotation_angle * kDeg > options_.max_rotation_deg)
-    e.warnings.push_back(Message("camera '", name_, "' turned by ", r.rotation_angle * kDeg,
+  if (r.rotation_angle * kDegPerRad > options_.max_rotation_deg)
+    e.warnings.push_back(Message("camera '", name_, "' turned by ", r.rotation_angle * kDegPerRad,
                                  " deg since the reference photo (limit ",
                                  options_.max_rotation_deg, " deg)"));
   for (int k = 0; k < 3; ++k)
-    if (std::abs(r.delta(k)) * kDeg > options_.max_rotation_deg)
+    if (std::abs(r.delta(k)) * kDegPerRad > options_.max_rotation_deg)
       e.warnings.push_back(Message("camera '", name_, "': ", kAngle[k], " changed by ",
-                                   r.delta(k) * kDeg, " deg (limit ", options_.max_rotation_deg,
+                                   r.delta(k) * kDegPerRad, " deg (limit ", options_.max_rotation_deg,
                                    " deg)"));
   if (!dem_) return e;
   FieldInput in;

@@ -12,6 +12,7 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/deformation/history.h"
 #include "slope_monitor/core/sim/survey.h"
+#include "slope_monitor/core/common/format.h"
 
 namespace slope_monitor {
 namespace evaluation {
@@ -71,12 +72,6 @@ Eigen::Matrix3d BlobToMatrix(sqlite3_stmt* s, int col) {
       for (int c = 0; c < 3; ++c) m(r, c) = v[3 * r + c];
   }
   return m;
-}
-
-std::string Fixed(double v, int digits) {
-  std::ostringstream o;
-  o << std::fixed << std::setprecision(digits) << v;
-  return o.str();
 }
 
 }  // namespace

@@ -25,10 +25,10 @@ bool ParseNumber(const std::string& token, double* value) {
 
 }  // namespace
 
-std::vector<SurveyedPoint> ParseSurveyedPoints(const std::string& text, const std::string& name,
+std::vector<PickedPoint> ParseSurveyedPoints(const std::string& text, const std::string& name,
                                                PixelOrigin origin) {
   static const char* kColumns[5] = {"X", "Y", "Z", "u", "v"};
-  std::vector<SurveyedPoint> points;
+  std::vector<PickedPoint> points;
   std::istringstream in(text);
   std::string line;
   for (int number = 1; std::getline(in, line); ++number) {
@@ -39,7 +39,7 @@ std::vector<SurveyedPoint> ParseSurveyedPoints(const std::string& text, const st
     for (std::string t; fields >> t;) tokens.push_back(t);
     if (tokens.empty()) continue;
     auto where = [&]() { return Message(name, ":", number, ": "); };
-    SurveyedPoint p;
+    PickedPoint p;
     p.line = number;
     double first;
     size_t k = 0;
@@ -81,7 +81,7 @@ std::vector<SurveyedPoint> ParseSurveyedPoints(const std::string& text, const st
   return points;
 }
 
-std::vector<SurveyedPoint> ReadSurveyedPoints(const std::string& path, PixelOrigin origin) {
+std::vector<PickedPoint> ReadSurveyedPoints(const std::string& path, PixelOrigin origin) {
   std::ifstream in(path);
   if (!in) throw IoError(Message("cannot read point file '", path, "'"));
   std::stringstream text;

@@ -10,14 +10,11 @@
 #include <opencv2/imgproc.hpp>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/numeric.h"
 
 namespace slope_monitor {
 namespace matching {
 namespace {
-
-double Seconds(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 cv::Mat ToGrey8(const cv::Mat& image, const std::string& name) {
   if (image.empty()) throw InvalidArgument(Message("photo '", name, "': empty image"));
@@ -51,12 +48,6 @@ Eigen::Matrix2d Jacobian(const Eigen::Matrix3d& h, const Eigen::Vector2d& x) {
     for (int c = 0; c < 2; ++c) j(r, c) = (h(r, c) * p.z() - p(r) * h(2, c)) / (p.z() * p.z());
   }
   return j;
-}
-
-double Median(std::vector<double> v) {
-  const size_t m = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + m, v.end());
-  return v[m];
 }
 
 struct CoarseRelation {
@@ -201,7 +192,7 @@ Eigen::Vector2d LocalCorrection(const CoarseRelation& rel, const Eigen::Vector2d
     dx.push_back(rel.residual[(*scratch)[i].second].x());
     dy.push_back(rel.residual[(*scratch)[i].second].y());
   }
-  return Eigen::Vector2d(Median(dx), Median(dy));
+  return Eigen::Vector2d(UpperMedian(dx), UpperMedian(dy));
 }
 
 }  // namespace
@@ -236,7 +227,7 @@ PhotoFeatures::PhotoFeatures(const cv::Mat& image, const std::string& name,
     coarse_sizes_.push_back(static_cast<float>(k.size / reduce));
   }
   interest_points_ = DetectInterestPoints(reduced_, options.interest);
-  seconds_ = Seconds(start);
+  seconds_ = SecondsSince(start);
 }
 
 size_t PhotoFeatures::MemoryBytes() const {
@@ -348,7 +339,7 @@ PhotoPairResult MatchPhotoPair(const PhotoFeatures& a, const PhotoFeatures& b,
   PhotoPairSummary& s = result.summary;
   CoarseRelation rel;
   if (!CoarseMatch(a, b, options, prior, &rel, &s)) {
-    s.seconds = Seconds(start);
+    s.seconds = SecondsSince(start);
     return result;
   }
   // Level 1: the reduced photos (the coarse relation's resolution, where its
@@ -451,7 +442,7 @@ PhotoPairResult MatchPhotoPair(const PhotoFeatures& a, const PhotoFeatures& b,
     s.message = Message("only ", found.size(), " LSC matches: too few for a fundamental matrix");
   }
   s.matched = static_cast<int>(result.tie_points.size());
-  s.seconds = Seconds(start);
+  s.seconds = SecondsSince(start);
   return result;
 }
 

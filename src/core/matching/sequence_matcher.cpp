@@ -11,16 +11,13 @@
 #include <opencv2/imgproc.hpp>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/numeric.h"
 
 namespace slope_monitor {
 namespace matching {
 namespace {
 
 constexpr double kMb = 1024.0 * 1024.0;
-
-double Seconds(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 std::string Format(const char* format, double a, double b = 0.0) {
   char line[200];
@@ -213,7 +210,7 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
       b.bytes = b.image.total() * b.image.elemSize();
     }
     b.size = next.image.size();
-    summary_.feature_seconds += Seconds(start);
+    summary_.feature_seconds += SecondsSince(start);
   } catch (const std::exception& e) {
     error = ImageName(b.stamp_ns, b.frame_id) + ": " + e.what();
     ++summary_.errors;
@@ -297,7 +294,7 @@ SequencePair SequenceMatcher::MatchPair(const Earlier& a, const Earlier& b) cons
     out.message = e.what();
   }
   out.message = names + out.message;
-  out.seconds = Seconds(start);
+  out.seconds = SecondsSince(start);
   if (out.reason.empty()) out.message += Format(" in %.2f s", out.seconds);
   return out;
 }

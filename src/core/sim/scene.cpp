@@ -15,8 +15,6 @@ namespace slope_monitor {
 namespace sim {
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
 std::uint64_t SplitMix(std::uint64_t x) {
   x += 0x9e3779b97f4a7c15ULL;
   x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
@@ -148,7 +146,7 @@ double HeightGrid::IntersectRay(const Eigen::Vector3d& o, const Eigen::Vector3d&
     have_prev = true;
   }
   (void)prev_above;
-  return kInf;
+  return std::numeric_limits<double>::infinity();
 }
 
 // ---------------------------------------------------------------------------

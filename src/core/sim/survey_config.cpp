@@ -5,12 +5,11 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/yaml_map.h"
 #include "slope_monitor/core/sim/survey.h"
+#include "slope_monitor/core/common/numeric.h"
 
 namespace slope_monitor {
 namespace sim {
 namespace {
-
-constexpr double kDeg = M_PI / 180.0;
 
 Eigen::Vector2d Vec2(io::YamlMap& m, const std::string& key) {
   const auto v = m.RequiredDoubles(key, 2);
@@ -120,8 +119,8 @@ SurveyConfig FromRoot(io::YamlMap& root) {
     t.coarsest_wavelength = tx.Double("coarsest_wavelength", t.coarsest_wavelength, t.finest_wavelength, 1000.0, "m");
     tx.CheckNoUnknownKeys();
     io::YamlMap li = root.OptionalMap("lighting");
-    const double az = li.Double("sun_azimuth_deg", 200.0, -360.0, 360.0, "deg") * kDeg;
-    const double el = li.Double("sun_elevation_deg", 45.0, 1.0, 90.0, "deg") * kDeg;
+    const double az = li.Double("sun_azimuth_deg", 200.0, -360.0, 360.0, "deg") * kRadPerDeg;
+    const double el = li.Double("sun_elevation_deg", 45.0, 1.0, 90.0, "deg") * kRadPerDeg;
     // Azimuth clockwise from north (as a compass): x = sin, y = cos.
     c.scene.lighting.sun = Eigen::Vector3d(std::cos(el) * std::sin(az), std::cos(el) * std::cos(az), std::sin(el));
     c.scene.lighting.ambient = li.Double("ambient", 0.35, 0.0, 1.0);
@@ -146,8 +145,8 @@ SurveyConfig FromRoot(io::YamlMap& root) {
     l.length = ls.RequiredDouble("length", 1.0, 2000.0, "m");
     l.width = ls.RequiredDouble("width", 1.0, 2000.0, "m");
     l.taper = ls.Double("taper", 0.25, 0.01, 1.0);
-    l.azimuth = ls.Double("azimuth_deg", -90.0, -360.0, 360.0, "deg") * kDeg;
-    l.plunge = ls.Double("plunge_deg", 20.0, -89.0, 89.0, "deg") * kDeg;
+    l.azimuth = ls.Double("azimuth_deg", -90.0, -360.0, 360.0, "deg") * kRadPerDeg;
+    l.plunge = ls.Double("plunge_deg", 20.0, -89.0, 89.0, "deg") * kRadPerDeg;
     const std::string model = ls.String("model", "constant", {"constant", "accelerating"});
     l.velocity = LandslideModel::VelocityFromName(model);
     l.velocity0 = ls.Double("velocity", 0.05, 0.0, 100.0, "m/day") / 86400.0;
@@ -248,10 +247,10 @@ SurveyConfig FromRoot(io::YamlMap& root) {
         const Eigen::Vector3d position = Vec3(cm, "position");
         const Eigen::Vector3d look_at = Vec3(cm, "look_at");
         if ((look_at - position).norm() < 1.0) cm.Fail("look_at", "is less than 1 m from the camera position");
-        const double roll = cm.Double("roll_deg", 0.0, -180.0, 180.0, "deg") * kDeg;
+        const double roll = cm.Double("roll_deg", 0.0, -180.0, 180.0, "deg") * kRadPerDeg;
         s.pose = LookAt(position, look_at, Eigen::Vector3d::UnitZ(), roll);
         s.jitter_position = cm.Double("jitter_position", s.jitter_position, 0.0, 1.0, "m");
-        s.jitter_angle = cm.Double("jitter_angle_deg", s.jitter_angle / kDeg, 0.0, 5.0, "deg") * kDeg;
+        s.jitter_angle = cm.Double("jitter_angle_deg", s.jitter_angle / kRadPerDeg, 0.0, 5.0, "deg") * kRadPerDeg;
       } else {
         for (io::YamlMap& st : cm.List("strips")) {
           StripSpec strip;
@@ -260,8 +259,8 @@ SurveyConfig FromRoot(io::YamlMap& root) {
           if ((strip.end - strip.start).norm() < 1.0) st.Fail("end", "is less than 1 m from start");
           strip.altitude = st.Double("altitude", 60.0, 5.0, 1000.0, "m");
           strip.overlap = st.Double("overlap", 0.7, 0.0, 0.95);
-          strip.tilt = st.Double("tilt_deg", 0.0, 0.0, 80.0, "deg") * kDeg;
-          strip.tilt_azimuth = st.Double("tilt_azimuth_deg", 90.0, -360.0, 360.0, "deg") * kDeg;
+          strip.tilt = st.Double("tilt_deg", 0.0, 0.0, 80.0, "deg") * kRadPerDeg;
+          strip.tilt_azimuth = st.Double("tilt_azimuth_deg", 90.0, -360.0, 360.0, "deg") * kRadPerDeg;
           st.CheckNoUnknownKeys();
           s.strips.push_back(strip);
         }
@@ -271,10 +270,10 @@ SurveyConfig FromRoot(io::YamlMap& root) {
         const auto g = cm.Doubles("gnss_sigma", {0.03, 0.05}, 2);
         if (g[0] < 0 || g[1] < 0) cm.Fail("gnss_sigma", "must be >= 0");
         s.gnss_sigma = Eigen::Vector2d(g[0], g[1]);
-        s.attitude_sigma = cm.Double("attitude_sigma_deg", s.attitude_sigma / kDeg, 0.0, 20.0, "deg") * kDeg;
+        s.attitude_sigma = cm.Double("attitude_sigma_deg", s.attitude_sigma / kRadPerDeg, 0.0, 20.0, "deg") * kRadPerDeg;
         s.track_sigma = cm.Double("track_sigma", s.track_sigma, 0.0, 50.0, "m");
-        s.imu_sigma = cm.Double("imu_sigma_deg", s.imu_sigma / kDeg, 0.0, 20.0, "deg") * kDeg;
-        s.crab = cm.Double("crab_deg", 0.0, -30.0, 30.0, "deg") * kDeg;
+        s.imu_sigma = cm.Double("imu_sigma_deg", s.imu_sigma / kRadPerDeg, 0.0, 20.0, "deg") * kRadPerDeg;
+        s.crab = cm.Double("crab_deg", 0.0, -30.0, 30.0, "deg") * kRadPerDeg;
         s.altitude_variation = cm.Double("altitude_variation", 0.0, 0.0, 0.5);
         s.turn_images = cm.Int("turn_images", 0, 0, 20);
       }

@@ -83,7 +83,7 @@ TEST(ControlPointPriorTest, ResidualAndGradient) {
 TEST(PositionPriorTest, ResidualAndGradient) {
   Eigen::Matrix3d cov;
   cov << 0.0009, 0.0003, 0.0, 0.0003, 0.0009, 0.0, 0.0, 0.0, 0.0025;
-  std::unique_ptr<ceres::CostFunction> cost(PositionPrior::Create(Eigen::Vector3d(1, 2, 80), SqrtInformation<3>(cov)));
+  std::unique_ptr<ceres::CostFunction> cost(PositionPriorError::Create(Eigen::Vector3d(1, 2, 80), SqrtInformation<3>(cov)));
   const std::array<double, 6> e = {1.0, 2.0, 80.05, 0.1, 0.2, 0.3};  // 1 sigma high
   const double* params[] = {e.data()};
   double r[3];

@@ -38,18 +38,18 @@ camera::ExteriorOrientation TruePose() {
 
 // A surveyed-point list as a crew would have it: points on the slope 150-200 m
 // away, surveyed with xyz_sigma noise and picked with pixel_sigma noise.
-std::vector<io::SurveyedPoint> Survey(const camera::CameraModel& truth,
+std::vector<io::PickedPoint> Survey(const camera::CameraModel& truth,
                                       const camera::ExteriorOrientation& pose, int n,
                                       double xyz_sigma, double pixel_sigma, unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> col(100, truth.sensor().width - 100),
       row(100, truth.sensor().height - 100), range(150, 200);
   std::normal_distribution<double> g(0.0, 1.0);
-  std::vector<io::SurveyedPoint> points;
+  std::vector<io::PickedPoint> points;
   for (int i = 0; i < n; ++i) {
     const Eigen::Vector2d px(col(rng), row(rng));
     const camera::Ray ray = truth.ImageToRay(pose, px);
-    io::SurveyedPoint p;
+    io::PickedPoint p;
     p.id = "p" + std::to_string(i);
     const Eigen::Vector3d x = ray.origin + range(rng) * ray.direction;
     p.xyz = x + xyz_sigma * Eigen::Vector3d(g(rng), g(rng), g(rng));
@@ -140,7 +140,7 @@ TEST(ResectCamera, BadInputIsNamed) {
   const camera::ExteriorOrientation pose = TruePose();
   auto points = Survey(truth, pose, 10, 0.0, 0.3, 5);
   adjustment::ResectCameraOptions o;
-  const std::vector<io::SurveyedPoint> three(points.begin(), points.begin() + 3);
+  const std::vector<io::PickedPoint> three(points.begin(), points.begin() + 3);
   try {
     adjustment::ResectCamera(three, truth, o);
     FAIL() << "3 points accepted";

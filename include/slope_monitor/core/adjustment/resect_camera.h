@@ -79,7 +79,7 @@ struct ResectCameraSummary {
 // is not an interior parameter, or points behind the camera after the
 // adjustment (naming them); success = false with the reason when no start is
 // found or the adjustment fails.
-ResectCameraSummary ResectCamera(const std::vector<io::SurveyedPoint>& points,
+ResectCameraSummary ResectCamera(const std::vector<io::PickedPoint>& points,
                                  const camera::CameraModel& nominal,
                                  const ResectCameraOptions& options);
 

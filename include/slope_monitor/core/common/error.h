@@ -40,4 +40,10 @@ std::string Message(const Args&... args) {
   return out.str();
 }
 
+// Throws ConfigError "<options> option '<key>' <what>" unless `ok`:
+// RequireOption("rectify", x > 0, "scale", "must be > 0").
+inline void RequireOption(const char* options, bool ok, const char* key, const std::string& what) {
+  if (!ok) throw ConfigError(Message(options, " option '", key, "' ", what));
+}
+
 }  // namespace slope_monitor

@@ -16,7 +16,10 @@
 namespace slope_monitor {
 namespace io {
 
-struct SurveyedPoint {
+// A surveyed point and where it was picked in one photo (a ground control
+// point of a resection). Targets of a site's list are io::SurveyedPoint
+// (target_csv.h).
+struct PickedPoint {
   std::string id;         // the file's id, or "#<line>" when the line has none
   Eigen::Vector3d xyz;    // [m]
   Eigen::Vector2d pixel;  // [px], OpenCV convention
@@ -28,9 +31,9 @@ enum class PixelOrigin { kOpenCv, kCorner };
 // Throws InvalidArgument naming the file, the line number and what is wrong
 // (a malformed number such as "1951+9", too few or too many columns, a
 // non-finite value); IoError when the file cannot be read.
-std::vector<SurveyedPoint> ReadSurveyedPoints(const std::string& path, PixelOrigin origin);
+std::vector<PickedPoint> ReadSurveyedPoints(const std::string& path, PixelOrigin origin);
 // The same from text already read (`name` is used in the messages).
-std::vector<SurveyedPoint> ParseSurveyedPoints(const std::string& text, const std::string& name,
+std::vector<PickedPoint> ParseSurveyedPoints(const std::string& text, const std::string& name,
                                                PixelOrigin origin);
 
 }  // namespace io

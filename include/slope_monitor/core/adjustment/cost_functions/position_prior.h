@@ -16,9 +16,9 @@
 namespace slope_monitor {
 namespace adjustment {
 
-class PositionPrior : public ceres::SizedCostFunction<3, camera::kNumExterior> {
+class PositionPriorError : public ceres::SizedCostFunction<3, camera::kNumExterior> {
  public:
-  PositionPrior(const Eigen::Vector3d& measured, const Eigen::Matrix3d& sqrt_information)
+  PositionPriorError(const Eigen::Vector3d& measured, const Eigen::Matrix3d& sqrt_information)
       : measured_(measured), sqrt_information_(sqrt_information) {}
 
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
@@ -34,7 +34,7 @@ class PositionPrior : public ceres::SizedCostFunction<3, camera::kNumExterior> {
   }
 
   static ceres::CostFunction* Create(const Eigen::Vector3d& measured, const Eigen::Matrix3d& sqrt_information) {
-    return new PositionPrior(measured, sqrt_information);
+    return new PositionPriorError(measured, sqrt_information);
   }
 
  private:
