@@ -37,6 +37,7 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/input_order.h"
 #include "slope_monitor/core/io/target_list.h"
+#include "slope_monitor/ros/resect_service.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/epoch_solver.h"
@@ -89,6 +90,9 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     if (params_.enable_set_reference_epoch)
       reference_srv_ =
           nh.advertiseService("set_reference_epoch", &BundleAdjusterNodelet::OnSetReference, this);
+    // Resection of a camera from surveyed points (ros/resect_service.h): it
+    // computes and answers, and changes no state of the adjuster.
+    resect_srv_ = nh.advertiseService("resect_camera", &BundleAdjusterNodelet::OnResect, this);
     // The collector's time-outs are for live sensors only (a complete epoch is
     // decided by the messages); wall time, so that they also end on a replay
     // whose clock stopped with the bag.
@@ -200,6 +204,12 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     return true;
   }
 
+  bool OnResect(slope_monitor::ResectCamera::Request& req, slope_monitor::ResectCamera::Response& res) {
+    ros_adapters::Resect(req, &res);
+    if (!res.success) NODELET_WARN("bundle_adjuster: resect_camera: %s", res.message.c_str());
+    return true;
+  }
+
   bool OnSetReference(slope_monitor::SetReferenceEpoch::Request& req,
                       slope_monitor::SetReferenceEpoch::Response& res) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -304,7 +314,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   std::vector<ros::Subscriber> target_subs_, info_subs_;
   ros::Subscriber tie_sub_, prior_sub_;
   std::vector<ros::Subscriber> epoch_subs_;
-  ros::ServiceServer run_srv_, reference_srv_;
+  ros::ServiceServer run_srv_, reference_srv_, resect_srv_;
   ros::WallTimer gap_timer_;
   std::unique_ptr<InputOrder<slope_monitor::EpochMarkerConstPtr>>
       marker_order_;  // null without cameras

@@ -1,11 +1,13 @@
 // Test node of service_switches.test: with enable_run_adjustment,
 // enable_set_reference_epoch and enable_export_report false the services are
-// not advertised; with the defaults they are (issue 22).
+// not advertised; with the defaults they are (issue 22). resect_camera changes
+// no state and is always advertised: an empty request is answered, naming why.
 #include <string>
 
 #include <ros/master.h>
 #include <ros/service.h>
 
+#include "slope_monitor/ResectCamera.h"
 #include "test_node.h"
 
 namespace slope_monitor {
@@ -32,6 +34,18 @@ TEST(ServiceSwitches, DefaultsAdvertiseSwitchedOffDoNot) {
        {"/adjuster_off/run_adjustment", "/adjuster_off/set_reference_epoch",
         "/estimator_off/export_report", "/estimator_off/set_reference_epoch"})
     EXPECT_FALSE(ros::service::exists(s, false)) << s << " is advertised although switched off";
+}
+
+TEST(ServiceSwitches, ResectCameraIsAlwaysAdvertisedAndNamesABadRequest) {
+  const std::string s = "/adjuster_off/resect_camera";
+  ASSERT_TRUE(ros::service::waitForService(s, ros::Duration(30.0))) << s << " not advertised";
+  slope_monitor::ResectCamera srv;
+  srv.request.camera_info.width = 4000;
+  srv.request.camera_info.height = 3000;
+  srv.request.camera_info.K = {4000, 0, 1999.5, 0, 4000, 1499.5, 0, 0, 1};
+  ASSERT_TRUE(ros::service::call(s, srv));
+  EXPECT_FALSE(srv.response.success);
+  EXPECT_NE(srv.response.message.find("4"), std::string::npos) << srv.response.message;
 }
 
 }  // namespace

@@ -66,12 +66,6 @@ std::string Num(double v, int digits = 6) {
   return s == "-0" ? "0" : s;
 }
 
-// The site frame's PROJ definition when the options georeference it.
-std::optional<SiteCrs> SiteOf(const ReportOptions& options) {
-  if (!options.geodetic_origin) return std::nullopt;
-  const Eigen::Vector3d& g = *options.geodetic_origin;
-  return SiteCrs::LocalEnuAtWgs84(g(0), g(1), g(2));
-}
 
 std::string SourcesText(const PointState& p) {
   std::string s;
@@ -128,6 +122,13 @@ void Text(cv::Mat& img, const std::string& s, cv::Point p, double scale = 0.5, c
 
 }  // namespace
 
+std::optional<SiteCrs> ReportSiteCrs(const ReportOptions& options) {
+  if (options.site_crs) return SiteCrs(*options.site_crs);
+  if (!options.geodetic_origin) return std::nullopt;
+  const Eigen::Vector3d& g = *options.geodetic_origin;
+  return SiteCrs::LocalEnuAtWgs84(g(0), g(1), g(2));
+}
+
 void ReportOptions::Check() const {
   if (!(grid_resolution > 0.0)) throw ConfigError(Message("report grid_resolution = ", grid_resolution, " m must be > 0"));
   if (!(grid_margin >= 0.0)) throw ConfigError(Message("report grid_margin = ", grid_margin, " m must be >= 0"));
@@ -146,7 +147,7 @@ Eigen::Vector3d SiteToGeodetic(const Eigen::Vector3d& enu, const Eigen::Vector3d
 std::string WriteCsv(const Snapshot& s, const std::string& path) { return WriteCsv(s, path, ReportOptions()); }
 
 std::string WriteCsv(const Snapshot& s, const std::string& path, const ReportOptions& options) {
-  const std::optional<SiteCrs> site = SiteOf(options);
+  const std::optional<SiteCrs> site = ReportSiteCrs(options);
   std::ostringstream o;
   o << "id,x,y,z,lon,lat,h,time_utc,dx_mm,dy_mm,dz_mm,d_mm,sigma_dx_mm,sigma_dy_mm,sigma_dz_mm,vx_mm_per_day,"
        "vy_mm_per_day,vz_mm_per_day,speed_mm_per_day,sigma_speed_mm_per_day,alert,forecast_valid,"
@@ -217,14 +218,14 @@ void WriteAreaFeatures(const Snapshot& s, const std::optional<SiteCrs>& site, bo
 }  // namespace
 
 std::string WriteGeoJson(const Snapshot& s, const std::string& path, const ReportOptions& options) {
-  const std::optional<SiteCrs> site = SiteOf(options);
+  const std::optional<SiteCrs> site = ReportSiteCrs(options);
   std::ostringstream o;
   o << "{\n  \"type\": \"FeatureCollection\",\n";
   if (site) {
     o << "  \"crs_note\": \"WGS 84 longitude, latitude [deg], ellipsoidal height [m] (RFC 7946), from the site "
          "frame origin "
-      << Num((*options.geodetic_origin)(0), 8) << ", " << Num((*options.geodetic_origin)(1), 8) << ", "
-      << Num((*options.geodetic_origin)(2), 3) << "\",\n";
+      << Num(site->origin_wgs84().y(), 8) << ", " << Num(site->origin_wgs84().x(), 8) << ", "
+      << Num(site->origin_wgs84().z(), 3) << "\",\n";
   } else {
     o << "  \"crs_note\": \"local site frame: x east, y north, z up, metres (not geodetic)\",\n";
   }
@@ -289,7 +290,8 @@ std::string WriteDisplacementGeoTiff(const Snapshot& s, const std::string& path,
                                   " cells; increase grid_resolution"));
   io::GeoRaster r(std::max(1, width), std::max(1, height), x0, y1, cell);
   r.nodata = -9999.0;
-  if (const std::optional<SiteCrs> site = SiteOf(options)) r.srs_wkt = site->CrsWkt();
+  const std::optional<SiteCrs> site = ReportSiteCrs(options);
+  if (site) r.srs_wkt = site->CrsWkt();
   // Cells farther than grid_margin outside the points' convex hull stay nodata.
   std::vector<cv::Point2f> xy, hull;
   for (const PointState& p : s.points) xy.emplace_back(p.reference_position.x(), p.reference_position.y());
@@ -298,31 +300,44 @@ std::string WriteDisplacementGeoTiff(const Snapshot& s, const std::string& path,
   r.AddBand("dx_m");
   r.AddBand("dy_m");
   r.AddBand("dz_m");
+  r.AddBand("vx_mm_per_day");
+  r.AddBand("vy_mm_per_day");
+  r.AddBand("vz_mm_per_day");
+  // Displacement [m] and velocity [mm/day] of a point, interpolated alike.
+  using Vector6d = Eigen::Matrix<double, 6, 1>;
+  auto field = [](const PointState& p) {
+    Vector6d f;
+    f << p.displacement, p.velocity * kMmPerDay;
+    return f;
+  };
   for (int row = 0; row < r.height; ++row) {
     for (int col = 0; col < r.width; ++col) {
       const Eigen::Vector2d c = r.CellCentre(row, col);
       if (cv::pointPolygonTest(hull, cv::Point2f(c.x(), c.y()), true) < -options.grid_margin) continue;
-      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      Vector6d sum = Vector6d::Zero();
       double wsum = 0.0;
-      bool exact = false;
       for (const PointState& p : s.points) {
         const double dist = (p.reference_position.head<2>() - c).norm();
         if (dist > options.idw_radius) continue;
-        if (dist < 1e-9) {
-          sum = p.displacement;
+        if (dist < 1e-9) {  // IDW is exact at a point
+          sum = field(p);
           wsum = 1.0;
-          exact = true;
           break;
         }
         const double w = 1.0 / std::pow(dist, options.idw_power);
-        sum += w * p.displacement;
+        sum += w * field(p);
         wsum += w;
       }
-      if (wsum <= 0.0 && !exact) continue;
-      const Eigen::Vector3d d = sum / wsum;
-      r.At(0, row, col) = static_cast<float>(d.norm());
-      for (int k = 0; k < 3; ++k) r.At(1 + k, row, col) = static_cast<float>(d(k));
+      if (wsum <= 0.0) continue;
+      const Vector6d f = sum / wsum;
+      r.At(0, row, col) = static_cast<float>(f.head<3>().norm());
+      for (int k = 0; k < 6; ++k) r.At(1 + k, row, col) = static_cast<float>(f(k));
     }
+  }
+  if (site && site->options().frame == SiteCrsOptions::Frame::kShiftedCrs) {
+    // In the site CRS itself: site coordinates plus the origin.
+    r.origin_x += site->options().origin.x();
+    r.origin_y += site->options().origin.y();
   }
   io::WriteGeoTiff(path, r);
   return path;

@@ -24,9 +24,8 @@ namespace {
 
 OGRSpatialReference ReportSrs(const ReportOptions& options, const std::string& path) {
   OGRSpatialReference srs;
-  if (options.geodetic_origin) {
-    const Eigen::Vector3d& g = *options.geodetic_origin;
-    const std::string wkt = SiteCrs::LocalEnuAtWgs84(g(0), g(1), g(2)).CrsWkt();
+  if (const std::optional<SiteCrs> site = ReportSiteCrs(options)) {
+    const std::string wkt = site->CrsWkt();
     if (srs.importFromWkt(wkt.c_str()) != OGRERR_NONE)
       throw IoError(Message("GeoPackage '", path, "': GDAL cannot read the site CRS"));
   } else {
@@ -53,8 +52,11 @@ void AddField(OGRLayer* layer, const char* name, OGRFieldType type, const std::s
         Message("GeoPackage '", path, "': cannot add field ", name, ": ", CPLGetLastErrorMsg()));
 }
 
-void AddPoint(OGRLayer* layer, OGRFeature* f, const Eigen::Vector3d& x, const std::string& path) {
-  OGRPoint pt(x.x(), x.y(), x.z());
+// x in site; offset: site -> the layer's CRS (the origin of a shifted CRS, else 0).
+void AddPoint(OGRLayer* layer, OGRFeature* f, const Eigen::Vector3d& x, const Eigen::Vector3d& offset,
+              const std::string& path) {
+  const Eigen::Vector3d c = x + offset;
+  OGRPoint pt(c.x(), c.y(), c.z());
   f->SetGeometry(&pt);
   if (layer->CreateFeature(f) != OGRERR_NONE)
     throw IoError(
@@ -62,7 +64,7 @@ void AddPoint(OGRLayer* layer, OGRFeature* f, const Eigen::Vector3d& x, const st
 }
 
 void WritePointsLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* srs,
-                      const std::string& path) {
+                      const Eigen::Vector3d& offset, const std::string& path) {
   OGRLayer* layer = NewLayer(ds, "points", srs, path);
   AddField(layer, "point_id", OFTString, path);
   AddField(layer, "sources", OFTString, path);
@@ -72,12 +74,12 @@ void WritePointsLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* s
     std::string sources;
     for (Source src : p.sources) sources += (sources.empty() ? "" : "+") + SourceName(src);
     f.SetField("sources", sources.c_str());
-    AddPoint(layer, &f, p.reference_position, path);
+    AddPoint(layer, &f, p.reference_position, offset, path);
   }
 }
 
 void WriteDisplacementLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* srs,
-                            const std::string& path) {
+                            const Eigen::Vector3d& offset, const std::string& path) {
   OGRLayer* layer = NewLayer(ds, "latest_displacement", srs, path);
   const char* reals[] = {"dx_mm",
                          "dy_mm",
@@ -124,7 +126,7 @@ void WriteDisplacementLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialRefere
     f.SetField("forecast_valid", p.forecast.valid ? 1 : 0);
     if (p.forecast.valid)
       f.SetField("forecast_failure_time_utc", Utc(p.forecast.failure_time).c_str());
-    AddPoint(layer, &f, p.reference_position, path);
+    AddPoint(layer, &f, p.reference_position, offset, path);
   }
 }
 
@@ -132,7 +134,7 @@ void WriteDisplacementLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialRefere
 // each with its holes, in the site CRS; written even when empty, so a reader
 // finds the layer.
 void WriteChangePolygonsLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* srs,
-                              const std::string& path) {
+                              const Eigen::Vector3d& offset, const std::string& path) {
   OGRLayer* layer = NewLayer(ds, "change_polygons", srs, path, wkbPolygon);
   AddField(layer, "area_id", OFTString, path);
   AddField(layer, "epoch", OFTInteger, path);
@@ -156,9 +158,9 @@ void WriteChangePolygonsLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialRefe
     f.SetField("alert_level", static_cast<int>(a.alert));
     f.SetField("alert_reason", a.reason.c_str());
     OGRPolygon poly;
-    const auto add_ring = [&poly](const std::vector<Eigen::Vector2d>& pts) {
+    const auto add_ring = [&poly, &offset](const std::vector<Eigen::Vector2d>& pts) {
       OGRLinearRing ring;
-      for (const Eigen::Vector2d& v : pts) ring.addPoint(v.x(), v.y());
+      for (const Eigen::Vector2d& v : pts) ring.addPoint(v.x() + offset.x(), v.y() + offset.y());
       ring.closeRings();
       poly.addRing(&ring);
     };
@@ -179,14 +181,18 @@ std::string WriteGeoPackage(const Snapshot& s, const std::string& path,
   GDALDriver* driver = GetGDALDriverManager()->GetDriverByName("GPKG");
   if (!driver) throw IoError(Message("GeoPackage '", path, "': GDAL has no GPKG driver"));
   OGRSpatialReference srs = ReportSrs(options, path);
+  const std::optional<SiteCrs> site = ReportSiteCrs(options);
+  const Eigen::Vector3d offset = site && site->options().frame == SiteCrsOptions::Frame::kShiftedCrs
+                                     ? site->options().origin
+                                     : Eigen::Vector3d::Zero();
   const std::string tmp = path + ".tmp-" + std::to_string(getpid()) + ".gpkg";
   std::remove(tmp.c_str());
   GDALDataset* ds = driver->Create(tmp.c_str(), 0, 0, 0, GDT_Unknown, nullptr);
   if (!ds) throw IoError(Message("cannot create GeoPackage '", path, "': ", CPLGetLastErrorMsg()));
   try {
-    WritePointsLayer(ds, s, &srs, path);
-    WriteDisplacementLayer(ds, s, &srs, path);
-    WriteChangePolygonsLayer(ds, s, &srs, path);
+    WritePointsLayer(ds, s, &srs, offset, path);
+    WriteDisplacementLayer(ds, s, &srs, offset, path);
+    WriteChangePolygonsLayer(ds, s, &srs, offset, path);
   } catch (...) {
     GDALClose(ds);
     std::remove(tmp.c_str());

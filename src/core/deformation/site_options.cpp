@@ -27,6 +27,9 @@ void ApplySite(const io::SiteFile& site, EstimatorOptions* o, ReportOptions* rep
     const size_t eq = entry.find('=');
     o->aliases[Trim(entry.substr(0, eq))] = Trim(entry.substr(eq + 1));
   }
+  // Reports in the site's CRS: a shifted CRS (UTM, a national grid) is
+  // written in that CRS; local ENU as before, from the origin in WGS 84.
+  if (site.crs.frame == SiteCrsOptions::Frame::kShiftedCrs) report->site_crs = site.crs;
   if (!report->geodetic_origin && site.crs.frame == SiteCrsOptions::Frame::kLocalEnu) {
     const Eigen::Vector3d lon_lat_h = SiteCrs(site.crs).origin_wgs84();
     report->geodetic_origin = Eigen::Vector3d(lon_lat_h.y(), lon_lat_h.x(), lon_lat_h.z());

@@ -183,6 +183,98 @@ TEST(ReportGis, GeoPackageHasThePointLayersInTheSiteCrs) {
   EXPECT_EQ(n, 3);
 }
 
+// A site in a shifted projected CRS (UTM zone 54N, site = easting/northing/height
+// minus the origin 500000, 3985000, 100): the GeoTIFF and the GeoPackage are in
+// EPSG:32654 itself. Hand value for the check: tag36h11/1 (site x = 0) is on the
+// zone's central meridian (141 E), where the northing is 0.9996 times the WGS 84
+// meridian arc, so its latitude inverts the arc series (below) at
+// 3985050 / 0.9996 m; gdalwarp to EPSG:4326 puts its displacement there.
+double LatitudeOnTheCentralMeridian(double northing) {
+  const double a = 6378137.0, f = 1.0 / 298.257223563, e2 = f * (2.0 - f);
+  const double e4 = e2 * e2, e6 = e4 * e2;
+  auto arc = [&](double p) {
+    return a * ((1 - e2 / 4 - 3 * e4 / 64 - 5 * e6 / 256) * p -
+                (3 * e2 / 8 + 3 * e4 / 32 + 45 * e6 / 1024) * std::sin(2 * p) +
+                (15 * e4 / 256 + 45 * e6 / 1024) * std::sin(4 * p) - (35 * e6 / 3072) * std::sin(6 * p));
+  };
+  double p = northing / 0.9996 / a;
+  for (int i = 0; i < 20; ++i) p += (northing / 0.9996 - arc(p)) / a * 0.99;  // dM/dphi ~ a
+  return p * 180.0 / M_PI;
+}
+
+TEST(ReportGis, ShiftedCrsSiteWritesTheGeoTiffAndGeoPackageInThatCrs) {
+  const Snapshot s = GisScenario();
+  ReportOptions o;
+  SiteCrsOptions crs;
+  crs.crs = "EPSG:32654";
+  crs.origin = Eigen::Vector3d(500000.0, 3985000.0, 100.0);
+  crs.frame = SiteCrsOptions::Frame::kShiftedCrs;
+  o.site_crs = crs;
+  const std::string dir = GisTempDir("utm");
+  const std::string tif = WriteDisplacementGeoTiff(s, dir + "/deformation.tif", o);
+  GDALAllRegister();
+  GDALDatasetH src = GDALOpen(tif.c_str(), GA_ReadOnly);
+  ASSERT_NE(src, nullptr);
+  GDALDataset* t = GDALDataset::FromHandle(src);
+  ASSERT_NE(t->GetSpatialRef(), nullptr);
+  EXPECT_STREQ(t->GetSpatialRef()->GetAuthorityCode(nullptr), "32654");
+  double gt[6];
+  ASSERT_EQ(t->GetGeoTransform(gt), CE_None);
+  // Points at site x = 0..20, y = 50, margin 10 m, 1 m cells.
+  EXPECT_DOUBLE_EQ(gt[0], 500000.0 - 10.0);
+  EXPECT_DOUBLE_EQ(gt[3], 3985000.0 + 60.0);
+  const PointState& p1 = PointById(s, "tag36h11/1");
+  EXPECT_NEAR(Sample(t, 500000.25, 3985050.25), p1.displacement.norm(), 0.002);
+  const char* args[] = {"-t_srs", "EPSG:4326", "-r", "near", nullptr};
+  GDALWarpAppOptions* wo = GDALWarpAppOptionsNew(const_cast<char**>(args), nullptr);
+  int failed = 0;
+  GDALDatasetH warped = GDALWarp((dir + "/wgs84.tif").c_str(), nullptr, 1, &src, wo, &failed);
+  GDALWarpAppOptionsFree(wo);
+  ASSERT_NE(warped, nullptr);
+  EXPECT_EQ(failed, 0);
+  const double lat = LatitudeOnTheCentralMeridian(3985050.0);
+  EXPECT_NEAR(Sample(GDALDataset::FromHandle(warped), 141.0, lat), p1.displacement.norm(), 0.002)
+      << "at 141 E, " << lat << " N";
+  GDALClose(warped);
+  GDALClose(src);
+
+  const std::string gpkg = WriteGeoPackage(s, dir + "/deformation.gpkg", o);
+  std::unique_ptr<GDALDataset, void (*)(GDALDataset*)> ds(
+      GDALDataset::Open(gpkg.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY),
+      [](GDALDataset* d) { GDALClose(d); });
+  ASSERT_NE(ds, nullptr);
+  OGRLayer* points = ds->GetLayerByName("points");
+  ASSERT_NE(points, nullptr);
+  ASSERT_NE(points->GetSpatialRef(), nullptr);
+  EXPECT_STREQ(points->GetSpatialRef()->GetAuthorityCode(nullptr), "32654");
+  int n = 0;
+  for (auto& f : *points) {
+    const PointState& p = PointById(s, f->GetFieldAsString("point_id"));
+    const OGRPoint* g = f->GetGeometryRef()->toPoint();
+    EXPECT_NEAR(g->getX(), 500000.0 + p.reference_position.x(), 1e-6);
+    EXPECT_NEAR(g->getY(), 3985000.0 + p.reference_position.y(), 1e-6);
+    EXPECT_NEAR(g->getZ(), 100.0 + p.reference_position.z(), 1e-6);
+    ++n;
+  }
+  EXPECT_EQ(n, 3);
+  // The CSV's longitude and latitude (SiteCrs, PROJ) of the point on the central meridian.
+  std::ifstream csv(WriteCsv(s, dir + "/deformation.csv", o));
+  std::string line;
+  std::getline(csv, line);
+  bool found = false;
+  while (std::getline(csv, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+    ASSERT_GE(f.size(), 6u);
+    if (f[0] != "\"tag36h11/1\"") continue;
+    found = true;
+    EXPECT_NEAR(std::stod(f[4]), 141.0, 1e-9) << line;
+    EXPECT_NEAR(std::stod(f[5]), lat, 2e-7) << line;
+  }
+  EXPECT_TRUE(found);
+}
+
 TEST(ReportGis, CsvHasLonLatAndIsoTimes) {
   const Snapshot s = GisScenario();
   const std::string path = WriteCsv(s, GisTempDir("csv") + "/deformation.csv", GisGeoreferenced());

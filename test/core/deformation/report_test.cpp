@@ -175,7 +175,8 @@ TEST(Report, GeoTiffReadsBackThroughGdal) {
   EXPECT_DOUBLE_EQ(gt[5], -0.5);
   EXPECT_EQ(ds->GetRasterXSize(), 60);
   EXPECT_EQ(ds->GetRasterYSize(), 20);
-  EXPECT_EQ(ds->GetRasterCount(), 4);
+  ASSERT_EQ(ds->GetRasterCount(), 7);
+  EXPECT_STREQ(ds->GetRasterBand(5)->GetDescription(), "vx_mm_per_day");
   // The cell whose corner touches tag36h11/2 (x = 10, y = 50): IDW is exact
   // at a point, so the cells around it are close to its magnitude; the cell
   // at the stable rock (x = 20) is close to the rock's.
@@ -186,6 +187,13 @@ TEST(Report, GeoTiffReadsBackThroughGdal) {
   EXPECT_NEAR(v, s.points[2].displacement.norm(), 0.002);
   ASSERT_EQ(band->RasterIO(GF_Read, 49, 9, 1, 1, &v, 1, 1, GDT_Float32, 0, 0), CE_None);
   EXPECT_NEAR(v, s.points[0].displacement.norm(), 0.003);
+  // The velocity bands in mm/day: the cell at x = 10, y = 50 (its centre
+  // 0.25 m from the point) holds about the point's velocity.
+  for (int k = 0; k < 3; ++k) {
+    ASSERT_EQ(ds->GetRasterBand(5 + k)->RasterIO(GF_Read, 29, 9, 1, 1, &v, 1, 1, GDT_Float32, 0, 0), CE_None);
+    const double expected = s.points[2].velocity(k) * 86400e3;
+    EXPECT_NEAR(v, expected, 0.01 * std::abs(expected) + 0.001) << "band " << 5 + k;
+  }
   GDALClose(ds);
 }
 

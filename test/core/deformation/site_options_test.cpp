@@ -1,5 +1,5 @@
 // What a site file sets in the estimator: thresholds in SI units, aliases,
-// the reports' geodetic origin.
+// the reports' geodetic origin or site CRS.
 #include "slope_monitor/core/deformation/site_options.h"
 
 #include <gtest/gtest.h>
@@ -23,6 +23,7 @@ TEST(SiteOptions, ShippedDemoSite) {
   EXPECT_EQ(o.aliases.at("tx5"), "tag36h11/12");
   ASSERT_TRUE(r.geodetic_origin.has_value());  // lat, lon, h of the simulator's origin
   EXPECT_NEAR((*r.geodetic_origin - Eigen::Vector3d(46.5, 8.0, 1200.0)).norm(), 0.0, 1e-9);
+  EXPECT_FALSE(r.site_crs.has_value());  // local ENU: the reports as before, from the origin
 }
 
 TEST(SiteOptions, AbsentThresholdsKeptAndUnitsConverted) {
@@ -37,6 +38,11 @@ TEST(SiteOptions, AbsentThresholdsKeptAndUnitsConverted) {
   EXPECT_DOUBLE_EQ(o.alerts.thresholds.watch, watch);
   EXPECT_DOUBLE_EQ(o.alerts.thresholds.alarm, 4e-3 / 3600.0);  // 4 mm/h
   EXPECT_FALSE(r.geodetic_origin.has_value());  // a shifted CRS frame is not ENU at the origin
+  // The reports are georeferenced in the site's own CRS (report_gis_test.cpp).
+  ASSERT_TRUE(r.site_crs.has_value());
+  EXPECT_EQ(r.site_crs->crs, "EPSG:32632");
+  EXPECT_EQ(r.site_crs->origin, Eigen::Vector3d(500000, 5150000, 0));
+  EXPECT_EQ(r.site_crs->frame, SiteCrsOptions::Frame::kShiftedCrs);
 }
 
 TEST(SiteOptions, AreaGrowthThresholds) {

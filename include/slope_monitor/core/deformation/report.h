@@ -55,6 +55,7 @@
 
 #include <Eigen/Core>
 
+#include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/deformation/estimator.h"
 
 namespace slope_monitor {
@@ -62,6 +63,11 @@ namespace deformation {
 
 struct ReportOptions {
   std::optional<Eigen::Vector3d> geodetic_origin;  // [deg, deg, m] lat, lon, h of the site origin
+  // The site file's CRS and frame (deformation/site_options.h sets it for a
+  // shifted_crs site; it takes precedence over geodetic_origin). With a
+  // shifted CRS the GeoTIFF and the GeoPackage are written in that CRS (site
+  // coordinates plus the origin), e.g. UTM or a national grid.
+  std::optional<SiteCrsOptions> site_crs;
   double grid_resolution = 1.0;     // [m] GeoTIFF cell size
   double grid_margin = 10.0;        // [m] grid extends this far beyond the points
   double idw_power = 2.0;           // [-] inverse-distance weighting exponent
@@ -73,14 +79,20 @@ struct ReportOptions {
   void Check() const;
 };
 
+// The reports' georeference: the site CRS (site_crs), else local ENU at
+// geodetic_origin, else none (reports in the local frame `site`).
+std::optional<SiteCrs> ReportSiteCrs(const ReportOptions& options);
+
 // The largest displacement of the field in metres per pixel etc. is not
 // needed by callers; each writer returns the path it wrote.
 std::string WriteCsv(const Snapshot& snapshot, const std::string& path);  // lon, lat empty
 std::string WriteCsv(const Snapshot& snapshot, const std::string& path, const ReportOptions& options);
 std::string WriteGeoPackage(const Snapshot& snapshot, const std::string& path, const ReportOptions& options);
 std::string WriteGeoJson(const Snapshot& snapshot, const std::string& path, const ReportOptions& options);
-// Displacement magnitude [m] (band 1) and dx, dy, dz (bands 2-4), float32,
-// north-up grid in the site frame (x east, y north), nodata -9999.
+// Displacement magnitude [m] (band 1), dx, dy, dz [m] (bands 2-4) and the
+// velocity components vx, vy, vz [mm/day] (bands 5-7), float32, each
+// interpolated from the points by inverse distance; north-up grid in the site
+// frame (x east, y north), nodata -9999.
 std::string WriteDisplacementGeoTiff(const Snapshot& snapshot, const std::string& path,
                                      const ReportOptions& options);
 std::string WriteDisplacementMap(const Snapshot& snapshot, const std::string& path, const ReportOptions& options);
