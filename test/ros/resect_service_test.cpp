@@ -4,7 +4,6 @@
 // true camera, picks with 0.3 px noise); the answer's pose, angles and c
 // against the truth within 3 sigma; bad requests answered with the field named.
 #include <cmath>
-#include <random>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -12,51 +11,27 @@
 #include "slope_monitor/core/camera/camera_model.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/resect_service.h"
+#include "../core/adjustment/resect_scenario.h"
 
 namespace slope_monitor {
 namespace {
 
-camera::CameraModel ResectServiceCamera(double c_mm) {
-  camera::Sensor s;
-  s.width = 4000;
-  s.height = 3000;
-  s.pixel_size = 0.004;
-  std::array<double, camera::kNumInterior> in{};
-  in[camera::kC] = c_mm;
-  return camera::CameraModel(s, camera::DistortionModel::kNone, in);
-}
-
-camera::ExteriorOrientation ResectServicePose() {
-  camera::ExteriorOrientation e;
-  e.position = Eigen::Vector3d(512.3, -170.4, 1032.0);
-  e.angles.theta = 0.31;
-  e.angles.phi = 1.42;
-  e.angles.kappa = 0.04;
-  return e;
-}
-
-// 15 points on the slope 150-200 m from the camera, picked with 0.3 px noise.
+// 15 points on the slope 150-200 m from the camera (test/core/adjustment/
+// resect_scenario.h), picked with 0.3 px noise, as the service's request.
 slope_monitor::ResectCamera::Request ResectServiceRequest() {
-  const camera::CameraModel truth = ResectServiceCamera(16.0);
-  const camera::ExteriorOrientation pose = ResectServicePose();
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<double> col(100, 3900), row(100, 2900), range(150, 200);
-  std::normal_distribution<double> g(0.0, 0.3);
+  const std::vector<io::PickedPoint> points = resect_scenario::Survey(
+      resect_scenario::Camera(16.0), resect_scenario::TruePose(), 15, 0.0, 0.3, 11);
   slope_monitor::ResectCamera::Request r;
-  r.camera_info = ros_adapters::ToMsg(ResectServiceCamera(15.0).ToCameraInfo());  // nominal c 6 % off
-  for (int i = 0; i < 15; ++i) {
-    const camera::Ray ray = truth.ImageToRay(pose, Eigen::Vector2d(col(rng), row(rng)));
-    const Eigen::Vector3d x = ray.origin + range(rng) * ray.direction;
-    Eigen::Vector2d px;
-    truth.Project(pose, x, &px);
-    geometry_msgs::Point p;
-    p.x = x.x();
-    p.y = x.y();
-    p.z = x.z();
-    r.points.push_back(p);
-    r.u.push_back(px.x() + g(rng));
-    r.v.push_back(px.y() + g(rng));
-    r.ids.push_back("gcp" + std::to_string(i));
+  r.camera_info = ros_adapters::ToMsg(resect_scenario::Camera(15.0).ToCameraInfo());  // nominal c 6 % off
+  for (const io::PickedPoint& p : points) {
+    geometry_msgs::Point x;
+    x.x = p.xyz.x();
+    x.y = p.xyz.y();
+    x.z = p.xyz.z();
+    r.points.push_back(x);
+    r.u.push_back(p.pixel.x());
+    r.v.push_back(p.pixel.y());
+    r.ids.push_back(p.id);
   }
   r.pixel_sigma = 0.3;
   return r;
@@ -66,7 +41,7 @@ TEST(ResectService, AnswersThePoseAndFocalOfTheTruthWithinThreeSigma) {
   slope_monitor::ResectCamera::Response res;
   ros_adapters::Resect(ResectServiceRequest(), &res);
   ASSERT_TRUE(res.success) << res.message;
-  const camera::ExteriorOrientation truth = ResectServicePose();
+  const camera::ExteriorOrientation truth = resect_scenario::TruePose();
   const auto sigma = [&](int k) { return std::sqrt(res.camera.pose_covariance[7 * k]); };
   EXPECT_LT(std::abs(res.camera.site_from_optical.position.x - truth.position.x()), 3 * sigma(0));
   EXPECT_LT(std::abs(res.camera.site_from_optical.position.y - truth.position.y()), 3 * sigma(1));

@@ -11,55 +11,16 @@
 #include "slope_monitor/core/adjustment/resect_camera.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/surveyed_points.h"
+#include "resect_scenario.h"
 
 namespace slope_monitor {
 namespace {
 
 constexpr double kResectDeg = M_PI / 180.0;
 
-camera::CameraModel Camera(double c_mm) {
-  camera::Sensor s;
-  s.width = 4000;
-  s.height = 3000;
-  s.pixel_size = 0.004;  // 16 x 12 mm
-  std::array<double, camera::kNumInterior> in{};
-  in[camera::kC] = c_mm;
-  return camera::CameraModel(s, camera::DistortionModel::kNone, in);
-}
-
-camera::ExteriorOrientation TruePose() {
-  camera::ExteriorOrientation e;
-  e.position = Eigen::Vector3d(512.3, -170.4, 1032.0);
-  e.angles.theta = 0.31;
-  e.angles.phi = 1.42;  // looking almost horizontally across the slope
-  e.angles.kappa = 0.04;
-  return e;
-}
-
-// A surveyed-point list as a crew would have it: points on the slope 150-200 m
-// away, surveyed with xyz_sigma noise and picked with pixel_sigma noise.
-std::vector<io::PickedPoint> Survey(const camera::CameraModel& truth,
-                                      const camera::ExteriorOrientation& pose, int n,
-                                      double xyz_sigma, double pixel_sigma, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> col(100, truth.sensor().width - 100),
-      row(100, truth.sensor().height - 100), range(150, 200);
-  std::normal_distribution<double> g(0.0, 1.0);
-  std::vector<io::PickedPoint> points;
-  for (int i = 0; i < n; ++i) {
-    const Eigen::Vector2d px(col(rng), row(rng));
-    const camera::Ray ray = truth.ImageToRay(pose, px);
-    io::PickedPoint p;
-    p.id = "p" + std::to_string(i);
-    const Eigen::Vector3d x = ray.origin + range(rng) * ray.direction;
-    p.xyz = x + xyz_sigma * Eigen::Vector3d(g(rng), g(rng), g(rng));
-    Eigen::Vector2d projected;
-    truth.Project(pose, x, &projected);
-    p.pixel = projected + pixel_sigma * Eigen::Vector2d(g(rng), g(rng));
-    points.push_back(p);
-  }
-  return points;
-}
+using resect_scenario::Camera;
+using resect_scenario::Survey;
+using resect_scenario::TruePose;
 
 double Sigma(const adjustment::ResectCameraSummary& s, const std::string& name) {
   for (const auto& p : s.parameters)
