@@ -129,6 +129,11 @@ std::optional<SiteCrs> ReportSiteCrs(const ReportOptions& options) {
   return SiteCrs::LocalEnuAtWgs84(g(0), g(1), g(2));
 }
 
+Eigen::Vector3d ReportCrsOffset(const std::optional<SiteCrs>& site) {
+  return site && site->options().frame == SiteCrsOptions::Frame::kShiftedCrs ? site->options().origin
+                                                                             : Eigen::Vector3d::Zero();
+}
+
 void ReportOptions::Check() const {
   if (!(grid_resolution > 0.0)) throw ConfigError(Message("report grid_resolution = ", grid_resolution, " m must be > 0"));
   if (!(grid_margin >= 0.0)) throw ConfigError(Message("report grid_margin = ", grid_margin, " m must be >= 0"));
@@ -334,11 +339,10 @@ std::string WriteDisplacementGeoTiff(const Snapshot& s, const std::string& path,
       for (int k = 0; k < 6; ++k) r.At(1 + k, row, col) = static_cast<float>(f(k));
     }
   }
-  if (site && site->options().frame == SiteCrsOptions::Frame::kShiftedCrs) {
-    // In the site CRS itself: site coordinates plus the origin.
-    r.origin_x += site->options().origin.x();
-    r.origin_y += site->options().origin.y();
-  }
+  // In a shifted site CRS itself: site coordinates plus the origin.
+  const Eigen::Vector3d offset = ReportCrsOffset(site);
+  r.origin_x += offset.x();
+  r.origin_y += offset.y();
   io::WriteGeoTiff(path, r);
   return path;
 }

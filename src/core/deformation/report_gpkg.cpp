@@ -22,9 +22,9 @@ namespace slope_monitor {
 namespace deformation {
 namespace {
 
-OGRSpatialReference ReportSrs(const ReportOptions& options, const std::string& path) {
+OGRSpatialReference ReportSrs(const std::optional<SiteCrs>& site, const std::string& path) {
   OGRSpatialReference srs;
-  if (const std::optional<SiteCrs> site = ReportSiteCrs(options)) {
+  if (site) {
     const std::string wkt = site->CrsWkt();
     if (srs.importFromWkt(wkt.c_str()) != OGRERR_NONE)
       throw IoError(Message("GeoPackage '", path, "': GDAL cannot read the site CRS"));
@@ -180,11 +180,9 @@ std::string WriteGeoPackage(const Snapshot& s, const std::string& path,
   GDALAllRegister();
   GDALDriver* driver = GetGDALDriverManager()->GetDriverByName("GPKG");
   if (!driver) throw IoError(Message("GeoPackage '", path, "': GDAL has no GPKG driver"));
-  OGRSpatialReference srs = ReportSrs(options, path);
   const std::optional<SiteCrs> site = ReportSiteCrs(options);
-  const Eigen::Vector3d offset = site && site->options().frame == SiteCrsOptions::Frame::kShiftedCrs
-                                     ? site->options().origin
-                                     : Eigen::Vector3d::Zero();
+  OGRSpatialReference srs = ReportSrs(site, path);
+  const Eigen::Vector3d offset = ReportCrsOffset(site);
   const std::string tmp = path + ".tmp-" + std::to_string(getpid()) + ".gpkg";
   std::remove(tmp.c_str());
   GDALDataset* ds = driver->Create(tmp.c_str(), 0, 0, 0, GDT_Unknown, nullptr);

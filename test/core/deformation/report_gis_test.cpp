@@ -71,6 +71,22 @@ const PointState& PointById(const Snapshot& s, const std::string& id) {
   throw std::runtime_error("no point " + id);
 }
 
+// gdalwarp -t_srs EPSG:4326 -r near src -> out; nullptr when GDAL fails.
+GDALDatasetH GisWarpToWgs84(GDALDatasetH src, const std::string& out, int* failed) {
+  const char* args[] = {"-t_srs", "EPSG:4326", "-r", "near", nullptr};
+  GDALWarpAppOptions* wo = GDALWarpAppOptionsNew(const_cast<char**>(args), nullptr);
+  GDALDatasetH warped = GDALWarp(out.c_str(), nullptr, 1, &src, wo, failed);
+  GDALWarpAppOptionsFree(wo);
+  return warped;
+}
+
+// ogrinfo: a vector file opened read-only, closed with its owner.
+using GisVector = std::unique_ptr<GDALDataset, void (*)(GDALDataset*)>;
+GisVector GisOpenVector(const std::string& path) {
+  return GisVector(GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY),
+                   [](GDALDataset* d) { GDALClose(d); });
+}
+
 float Sample(GDALDataset* ds, double x, double y) {
   double gt[6];
   EXPECT_EQ(ds->GetGeoTransform(gt), CE_None);
@@ -101,12 +117,8 @@ TEST(ReportGis, GeoTiffWarpsToWgs84WithThePointsInPlace) {
   GDALDataset* tif = GDALDataset::FromHandle(src);
   EXPECT_EQ(Sample(tif, -9.5, 59.5), -9999.0f);
   EXPECT_NE(Sample(tif, 10.25, 50.25), -9999.0f);
-  // gdalwarp -t_srs EPSG:4326 -r near
-  const char* args[] = {"-t_srs", "EPSG:4326", "-r", "near", nullptr};
-  GDALWarpAppOptions* wo = GDALWarpAppOptionsNew(const_cast<char**>(args), nullptr);
   int failed = 0;
-  GDALDatasetH warped = GDALWarp((dir + "/wgs84.tif").c_str(), nullptr, 1, &src, wo, &failed);
-  GDALWarpAppOptionsFree(wo);
+  GDALDatasetH warped = GisWarpToWgs84(src, dir + "/wgs84.tif", &failed);
   ASSERT_NE(warped, nullptr);
   EXPECT_EQ(failed, 0);
   GDALDataset* w = GDALDataset::FromHandle(warped);
@@ -148,9 +160,7 @@ TEST(ReportGis, GeoPackageHasThePointLayersInTheSiteCrs) {
   const std::string path =
       WriteGeoPackage(s, GisTempDir("gpkg") + "/deformation.gpkg", GisGeoreferenced());
   GDALAllRegister();
-  std::unique_ptr<GDALDataset, void (*)(GDALDataset*)> ds(
-      GDALDataset::Open(path.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY),
-      [](GDALDataset* d) { GDALClose(d); });
+  const GisVector ds = GisOpenVector(path);
   ASSERT_NE(ds, nullptr);
   ASSERT_EQ(ds->GetLayerCount(), 3);  // and change_polygons (empty here)
   OGRLayer* points = ds->GetLayerByName("points");
@@ -225,11 +235,8 @@ TEST(ReportGis, ShiftedCrsSiteWritesTheGeoTiffAndGeoPackageInThatCrs) {
   EXPECT_DOUBLE_EQ(gt[3], 3985000.0 + 60.0);
   const PointState& p1 = PointById(s, "tag36h11/1");
   EXPECT_NEAR(Sample(t, 500000.25, 3985050.25), p1.displacement.norm(), 0.002);
-  const char* args[] = {"-t_srs", "EPSG:4326", "-r", "near", nullptr};
-  GDALWarpAppOptions* wo = GDALWarpAppOptionsNew(const_cast<char**>(args), nullptr);
   int failed = 0;
-  GDALDatasetH warped = GDALWarp((dir + "/wgs84.tif").c_str(), nullptr, 1, &src, wo, &failed);
-  GDALWarpAppOptionsFree(wo);
+  GDALDatasetH warped = GisWarpToWgs84(src, dir + "/wgs84.tif", &failed);
   ASSERT_NE(warped, nullptr);
   EXPECT_EQ(failed, 0);
   const double lat = LatitudeOnTheCentralMeridian(3985050.0);
@@ -239,9 +246,7 @@ TEST(ReportGis, ShiftedCrsSiteWritesTheGeoTiffAndGeoPackageInThatCrs) {
   GDALClose(src);
 
   const std::string gpkg = WriteGeoPackage(s, dir + "/deformation.gpkg", o);
-  std::unique_ptr<GDALDataset, void (*)(GDALDataset*)> ds(
-      GDALDataset::Open(gpkg.c_str(), GDAL_OF_VECTOR | GDAL_OF_READONLY),
-      [](GDALDataset* d) { GDALClose(d); });
+  const GisVector ds = GisOpenVector(gpkg);
   ASSERT_NE(ds, nullptr);
   OGRLayer* points = ds->GetLayerByName("points");
   ASSERT_NE(points, nullptr);

@@ -82,6 +82,9 @@ struct ReportOptions {
 // The reports' georeference: the site CRS (site_crs), else local ENU at
 // geodetic_origin, else none (reports in the local frame `site`).
 std::optional<SiteCrs> ReportSiteCrs(const ReportOptions& options);
+// Site -> the reports' CRS coordinates: a shifted CRS's origin, else zero
+// (local ENU and the local frame are written in site coordinates).
+Eigen::Vector3d ReportCrsOffset(const std::optional<SiteCrs>& site);
 
 // The largest displacement of the field in metres per pixel etc. is not
 // needed by callers; each writer returns the path it wrote.
