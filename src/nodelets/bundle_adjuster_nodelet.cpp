@@ -94,8 +94,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     // computes and answers, and changes no state of the adjuster.
     resect_srv_ = nh.advertiseService("resect_camera", &BundleAdjusterNodelet::OnResect, this);
     // The collector's time-outs are for live sensors only (a complete epoch is
-    // decided by the messages); wall time, so that they also end on a replay
-    // whose clock stopped with the bag.
+    // decided by the messages; none in a replay, ros/setup.h LiveTimeouts).
     gap_timer_ = nh.createWallTimer(ros::WallDuration(1.0), &BundleAdjusterNodelet::OnTimer, this);
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     updater_->setHardwareID("bundle_adjuster");
@@ -171,7 +170,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   void OnTimer(const ros::WallTimerEvent&) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      if (marker_order_) {
+      if (marker_order_ && ros_adapters::LiveTimeouts()) {
         // Live: a camera silent for epoch_wait no longer holds the others' markers.
         std::vector<std::string> given_up;
         for (auto& r : marker_order_->Expire(Now(), params_.collector.epoch_wait, &given_up))
@@ -183,8 +182,10 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
               "go on without it",
               c.c_str(), params_.collector.epoch_wait);
       }
-      collector_->SetTiePointsExpected(tie_sub_.getNumPublishers() > 0);
-      Solve(collector_->Poll(Now()));
+      if (ros_adapters::LiveTimeouts()) {
+        collector_->SetTiePointsExpected(tie_sub_.getNumPublishers() > 0);
+        Solve(collector_->Poll(Now()));
+      }
     }
     if (updater_) updater_->update();
   }

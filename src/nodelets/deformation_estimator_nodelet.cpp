@@ -267,6 +267,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
 
   // Live: a batch that waited order_timeout for a silent input is fused without it.
   void OnOrderTimer() {
+    if (!ros_adapters::LiveTimeouts()) return;  // replay: the destructor flushes
     std::lock_guard<std::mutex> lock(mutex_);
     std::vector<std::string> given_up;
     for (auto& r : order_->Expire(ros::WallTime::now().toSec(), order_timeout_, &given_up))

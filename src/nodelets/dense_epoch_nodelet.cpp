@@ -91,7 +91,8 @@ class DenseEpochNodelet : public nodelet::Nodelet {
     updater_->setHardwareID("dense_matcher");
     updater_->add("dense_matcher", this, &DenseEpochNodelet::Diagnose);
     timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) {
-      Collect([&] { return step_->Poll(ros::WallTime::now().toSec()); });
+      if (ros_adapters::LiveTimeouts())
+        Collect([&] { return step_->Poll(ros::WallTime::now().toSec()); });
       updater_->update();
     });
     worker_ = std::thread([this] { Work(); });

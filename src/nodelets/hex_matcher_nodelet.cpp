@@ -15,7 +15,8 @@
 //          messages, epochs, pair method, track IDs, pairs_b; process_bag
 //          --uav-tie-points runs the same). Callbacks only queue; one worker
 //          thread feeds the images and priors to it in arrival order and
-//          polls it with the wall clock (prior_wait, live sensors only).
+//          polls it with the wall clock (prior_wait, live sensors only; not
+//          in a replay, ros/setup.h LiveTimeouts).
 // Output: tie_points (slope_monitor/TiePointArray, header of image b,
 // per-match 2x2 covariance), diagnostics (matches, rejects by reason, time).
 #include <condition_variable>
@@ -218,13 +219,18 @@ class HexMatcherNodelet : public nodelet::Nodelet {
           NODELET_ERROR_THROTTLE(5.0, "hex_matcher: image at %.3f not converted: %s",
                                  next.image->header.stamp.toSec(), e.what());
         }
+        // Replay: no prior_wait, so an image waits for a prior only when the
+        // bag has a prior topic (its player advertises every topic at start),
+        // as process_bag decides it.
+        if (!ros_adapters::LiveTimeouts())
+          sequence_->SetPriorsExpected(sub_b_.getNumPublishers() > 0);
         step = sequence_->AddImage(ros_adapters::ToStamp(next.image->header.stamp),
                                    next.image->header.frame_id, image, now);
       } else if (next.prior) {
         step = sequence_->AddPrior(
             ros_adapters::ToStamp(next.prior->header.stamp),
             Eigen::Vector2d(next.prior->pose.pose.position.x, next.prior->pose.pose.position.y));
-      } else {
+      } else if (ros_adapters::LiveTimeouts()) {
         step = sequence_->Poll(now);
       }
       Publish(step);

@@ -107,6 +107,7 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
 
   // Live: a receiver silent for kSilentReceiverWait no longer holds the others' blocks.
   void OnOrderTimer() {
+    if (!ros_adapters::LiveTimeouts()) return;  // replay: the blocks' order alone
     std::lock_guard<std::mutex> lock(mutex_);
     std::vector<std::string> given_up;
     for (auto& r : order_->Expire(ros::WallTime::now().toSec(), kSilentReceiverWait, &given_up))

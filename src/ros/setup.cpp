@@ -31,5 +31,7 @@ SetUpFailureDiagnostics::SetUpFailureDiagnostics(const ros::NodeHandle& nh,
 
 GraphReady::~GraphReady() { pnh_.setParam(kGraphReadyParam, true); }
 
+bool LiveTimeouts() { return !ros::Time::isSimTime(); }
+
 }  // namespace ros_adapters
 }  // namespace slope_monitor

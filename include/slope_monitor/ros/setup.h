@@ -68,5 +68,17 @@ class GraphReady {
   ros::NodeHandle pnh_;
 };
 
+// Time-outs (a silent camera, receiver or input no longer holds the others)
+// are for live sensors. In a replay (/use_sim_time true) every input comes
+// from the bag: completion is decided by the messages alone, as process_bag
+// does, so the numbers do not depend on the CPU load or the replay rate (a
+// wall-clock time-out would fire whenever an upstream node is slower than it
+// under load). What is still held at the end of a replay is flushed by the
+// nodelet's destructor where that can still reach its outputs (the
+// deformation estimator) and is named in the log otherwise.
+//
+//   if (ros_adapters::LiveTimeouts()) Solve(collector_->Poll(Now()));
+bool LiveTimeouts();
+
 }  // namespace ros_adapters
 }  // namespace slope_monitor
