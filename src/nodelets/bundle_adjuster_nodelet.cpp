@@ -60,21 +60,25 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
           nh, pnh, "bundle_adjuster", "parameters rejected: " + *error);
       return;
     }
-    solution_pub_ = nh.advertise<slope_monitor::AdjustmentSolution>("solution", 5, true);
-    points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("points", 5, true);
+    // Outputs and services under the node's own name (launched at the root as
+    // /bundle_adjuster: parameters /bundle_adjuster/<key>, outputs
+    // /bundle_adjuster/solution, ...); inputs relative to its namespace.
+    solution_pub_ = pnh.advertise<slope_monitor::AdjustmentSolution>("solution", 5, true);
+    points_pub_ = pnh.advertise<sensor_msgs::PointCloud2>("points", 5, true);
     displacements_pub_ =
-        nh.advertise<slope_monitor::PointDisplacementArray>("displacements", 5, true);
-    frustums_pub_ = nh.advertise<visualization_msgs::MarkerArray>("frustums", 1, true);
+        pnh.advertise<slope_monitor::PointDisplacementArray>("displacements", 5, true);
+    frustums_pub_ = pnh.advertise<visualization_msgs::MarkerArray>("frustums", 1, true);
     for (const std::string& topic : params_.target_topics)
       target_subs_.push_back(nh.subscribe(topic, 500, &BundleAdjusterNodelet::OnTargets, this));
     for (const std::string& cam : params_.collector.cameras) {
       info_subs_.push_back(nh.subscribe<sensor_msgs::CameraInfo>(
-          cam + "/camera_info", 5,
+          params_.CameraInfoTopic(cam), 5,
           [this, cam](const sensor_msgs::CameraInfoConstPtr& m) { OnCameraInfo(cam, m); }));
     }
     // Large queues: a long solve holds the callbacks, and nothing may be lost.
     tie_sub_ = nh.subscribe("tie_points", 2000, &BundleAdjusterNodelet::OnTiePoints, this);
-    prior_sub_ = nh.subscribe("position_prior", 500, &BundleAdjusterNodelet::OnPositionPrior, this);
+    for (const std::string& topic : params_.prior_topics)
+      prior_subs_.push_back(nh.subscribe(topic, 500, &BundleAdjusterNodelet::OnPositionPrior, this));
     for (const std::string& topic : params_.epoch_topics)
       epoch_subs_.push_back(nh.subscribe(topic, 20, &BundleAdjusterNodelet::OnEpoch, this));
     // The configured cameras' markers in epoch order: each camera's topic is
@@ -86,16 +90,18 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     // A live installation may switch off the services that change state (ROS 1
     // has no authentication; doc/security.md).
     if (params_.enable_run_adjustment)
-      run_srv_ = nh.advertiseService("run_adjustment", &BundleAdjusterNodelet::OnRun, this);
+      run_srv_ = pnh.advertiseService("run_adjustment", &BundleAdjusterNodelet::OnRun, this);
     if (params_.enable_set_reference_epoch)
       reference_srv_ =
-          nh.advertiseService("set_reference_epoch", &BundleAdjusterNodelet::OnSetReference, this);
+          pnh.advertiseService("set_reference_epoch", &BundleAdjusterNodelet::OnSetReference, this);
     // Resection of a camera from surveyed points (ros/resect_service.h): it
     // computes and answers, and changes no state of the adjuster.
-    resect_srv_ = nh.advertiseService("resect_camera", &BundleAdjusterNodelet::OnResect, this);
+    resect_srv_ = pnh.advertiseService("resect_camera", &BundleAdjusterNodelet::OnResect, this);
     // The collector's time-outs are for live sensors only (a complete epoch is
     // decided by the messages; none in a replay, ros/setup.h LiveTimeouts).
     gap_timer_ = nh.createWallTimer(ros::WallDuration(1.0), &BundleAdjusterNodelet::OnTimer, this);
+    end_sub_ = ros_adapters::SubscribeEndOfInput(nh, ros_adapters::kEndOfAdjustment,
+                                                 [this] { OnEndOfInput(); });
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     updater_->setHardwareID("bundle_adjuster");
     updater_->add("adjustment", this, &BundleAdjusterNodelet::Diagnose);
@@ -125,14 +131,44 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     }
   }
 
+  // A replay of a site file's graph waits only for the cameras the bag has:
+  // without time-outs, a listed camera that never sends (the UAV did not fly)
+  // would hold every epoch to the end. Decided once, at the first input,
+  // by which epoch topics have a publisher (the player advertises all of its
+  // bag's topics before it plays), as process_bag takes the bag's cameras.
+  // Caller holds mutex_.
+  void CheckReplayCameras() {
+    if (cameras_checked_) return;
+    cameras_checked_ = true;
+    if (ros_adapters::LiveTimeouts() || !params_.cameras_from_site ||
+        epoch_subs_.size() != params_.collector.cameras.size())
+      return;
+    std::vector<std::string> kept;
+    for (size_t i = 0; i < epoch_subs_.size(); ++i) {
+      if (epoch_subs_[i].getNumPublishers() > 0) {
+        kept.push_back(params_.collector.cameras[i]);
+      } else {
+        NODELET_INFO("bundle_adjuster: camera '%s' of the site file has nothing on %s in this replay: "
+                     "epochs do not wait for it",
+                     params_.collector.cameras[i].c_str(), epoch_subs_[i].getTopic().c_str());
+      }
+    }
+    if (kept.size() == params_.collector.cameras.size() || kept.empty()) return;
+    params_.collector.cameras = kept;
+    collector_ = std::make_unique<adjustment::EpochCollector>(params_.collector, &params_.targets);
+    marker_order_ = std::make_unique<InputOrder<slope_monitor::EpochMarkerConstPtr>>(kept);
+  }
+
   void OnTargets(const slope_monitor::TargetObservationArrayConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
+    CheckReplayCameras();
     collector_->SetTiePointsExpected(tie_sub_.getNumPublishers() > 0);
     Solve(collector_->AddTargets(ros_adapters::FromMsg(*msg), Now()));
   }
 
   void OnTiePoints(const slope_monitor::TiePointArrayConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
+    CheckReplayCameras();
     // No matcher publishing (not started, or failed on its parameters):
     // nothing to wait for.
     collector_->SetTiePointsExpected(tie_sub_.getNumPublishers() > 0);
@@ -141,12 +177,14 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
 
   void OnPositionPrior(const geometry_msgs::PoseWithCovarianceStampedConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
+    CheckReplayCameras();
     collector_->AddPrior(ros_adapters::FromMsg(*msg));
   }
 
   // Begin and end markers: both move their camera on in the marker order.
   void OnEpoch(const slope_monitor::EpochMarkerConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
+    CheckReplayCameras();
     const auto& cameras = params_.collector.cameras;
     // A camera's marker of epoch k waits until every camera has begun epoch k
     // (unnumbered markers, epoch 0, are not held).
@@ -188,6 +226,20 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
       }
     }
     if (updater_) updater_->update();
+  }
+
+  // The end of a replay (ros/setup.h): markers held for a camera that never
+  // sent its next one go on, and the epoch still open is solved with what it
+  // has (process_bag's Finish); the log names what was missing.
+  void OnEndOfInput() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (marker_order_)
+      for (auto& r : marker_order_->Flush()) RouteEnd(r.item);
+    collector_->SetTiePointsExpected(tie_sub_.getNumPublishers() > 0);
+    if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) {
+      NODELET_INFO("bundle_adjuster: end of the replay: solving the epoch still open");
+      SolveOne(*e);
+    }
   }
 
   bool OnRun(slope_monitor::RunAdjustment::Request& req,
@@ -313,10 +365,13 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   // ROS.
   ros::Publisher solution_pub_, points_pub_, displacements_pub_, frustums_pub_;
   std::vector<ros::Subscriber> target_subs_, info_subs_;
-  ros::Subscriber tie_sub_, prior_sub_;
+  ros::Subscriber tie_sub_;
+  std::vector<ros::Subscriber> prior_subs_;
+  bool cameras_checked_ = false;  // CheckReplayCameras ran
   std::vector<ros::Subscriber> epoch_subs_;
   ros::ServiceServer run_srv_, reference_srv_, resect_srv_;
   ros::WallTimer gap_timer_;
+  ros::Subscriber end_sub_;  // replay only: the end of the input
   std::unique_ptr<InputOrder<slope_monitor::EpochMarkerConstPtr>>
       marker_order_;  // null without cameras
   tf2_ros::TransformBroadcaster tf_broadcaster_;

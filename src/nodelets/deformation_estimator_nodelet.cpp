@@ -96,6 +96,19 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
       return;
     }
     const deformation::Snapshot resumed = estimator_->GetSnapshot();
+    LogResumed(resumed);
+    Advertise(pnh);
+    Subscribe(pnh);
+    StartTimers(nh, pnh);
+    if (!resumed.points.empty()) {
+      std_msgs::Header h;
+      h.frame_id = frame_id_;
+      h.stamp = ros::Time(resumed.stamp);
+      Publish(resumed, h);
+    }
+  }
+
+  void LogResumed(const deformation::Snapshot& resumed) {
     if (history_) {
       NODELET_INFO(
           "deformation_estimator: history '%s': %zu point(s) resumed, reference epoch %u (stamp "
@@ -107,19 +120,28 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
           "deformation_estimator: parameter 'database' is empty: no history is kept (a restart "
           "loses it)");
     }
+  }
 
-    deformation_pub_ = nh.advertise<slope_monitor::SlopeDeformation>("deformation", 4, true);
-    markers_pub_ = nh.advertise<visualization_msgs::MarkerArray>("markers", 2, true);
-    points_pub_ = nh.advertise<sensor_msgs::PointCloud2>("points", 2, true);
-    alerts_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("alerts", 4, true);
+  void Advertise(ros::NodeHandle& pnh) {
+    // Outputs and services under the node's own name (/deformation_estimator/deformation,
+    // next to its parameters /deformation_estimator/<key>).
+    deformation_pub_ = pnh.advertise<slope_monitor::SlopeDeformation>("deformation", 4, true);
+    markers_pub_ = pnh.advertise<visualization_msgs::MarkerArray>("markers", 2, true);
+    points_pub_ = pnh.advertise<sensor_msgs::PointCloud2>("points", 2, true);
+    alerts_pub_ = pnh.advertise<diagnostic_msgs::DiagnosticArray>("alerts", 4, true);
     // A live installation may switch off the services that change state or
     // write files (ROS 1 has no authentication; doc/security.md).
     if (enable_set_reference_epoch_)
-      reference_srv_ = nh.advertiseService("set_reference_epoch",
+      reference_srv_ = pnh.advertiseService("set_reference_epoch",
                                            &DeformationEstimatorNodelet::OnSetReference, this);
     if (enable_export_report_)
       export_srv_ =
-          nh.advertiseService("export_report", &DeformationEstimatorNodelet::OnExport, this);
+          pnh.advertiseService("export_report", &DeformationEstimatorNodelet::OnExport, this);
+  }
+
+  // Relative input topics are the node's own (/deformation_estimator/displacements),
+  // like its outputs; the graphs give absolute ones.
+  void Subscribe(ros::NodeHandle& nh) {
     for (const std::string& topic : input_topics_) {
       const boost::function<void(const slope_monitor::PointDisplacementArray::ConstPtr&)> callback =
           [this, topic](const slope_monitor::PointDisplacementArray::ConstPtr& msg) {
@@ -135,6 +157,11 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
           };
       subscribers_.push_back(nh.subscribe<slope_monitor::ChangeAreaArray>(topic, 8, callback));
     }
+  }
+
+  // Diagnostics, the input order's live time-out (and the end of a replay),
+  // reports on a timer.
+  void StartTimers(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     updater_->setHardwareID("deformation_estimator");
     updater_->add("deformation_estimator", this, &DeformationEstimatorNodelet::Diagnose);
@@ -144,6 +171,12 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
       order_ = std::make_unique<InputOrder<Incoming>>(input_topics_);
       order_timer_ = nh.createWallTimer(ros::WallDuration(1.0),
                                         [this](const ros::WallTimerEvent&) { OnOrderTimer(); });
+      // The end of a replay (ros/setup.h): what waits for a later stamp of
+      // another input is fused (and published).
+      end_sub_ = ros_adapters::SubscribeEndOfInput(nh, ros_adapters::kEndOfFusion, [this] {
+        std::lock_guard<std::mutex> lock(mutex_);
+        for (auto& r : order_->Flush()) Fuse(r.item, r.input, true);
+      });
     }
     if (report_interval_ > 0.0 && !report_dir_.empty()) {
       report_timer_ = nh.createWallTimer(ros::WallDuration(report_interval_),
@@ -151,12 +184,6 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
                                            std::lock_guard<std::mutex> lock(mutex_);
                                            WriteReportsNow("on the report timer");
                                          });
-    }
-    if (!resumed.points.empty()) {
-      std_msgs::Header h;
-      h.frame_id = frame_id_;
-      h.stamp = ros::Time(resumed.stamp);
-      Publish(resumed, h);
     }
   }
 
@@ -426,6 +453,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   ros::WallTimer report_timer_;
   double order_timeout_ = 0.0;  // [s] wall, from the parameter order_timeout; 0 = arrival order
   std::unique_ptr<InputOrder<Incoming>> order_;  // null with order_timeout 0
+  ros::Subscriber end_sub_;  // replay only: the end of the input
   ros::WallTimer order_timer_;
   std::string given_up_names_;                   // the inputs the order last gave up on
   deformation::PlotReportOptions plot_options_;  // script "" = OpenCV pictures

@@ -96,6 +96,9 @@ class DenseEpochNodelet : public nodelet::Nodelet {
       updater_->update();
     });
     worker_ = std::thread([this] { Work(); });
+    // The end of a replay (ros/setup.h): the epochs held are measured.
+    end_sub_ = ros_adapters::SubscribeEndOfInput(nh, ros_adapters::kEndOfSurfaces,
+                                                 [this] { Collect([&] { return step_->Finish(); }); });
   }
 
   // Runs one collector call; complete epochs go to the worker.
@@ -189,6 +192,7 @@ class DenseEpochNodelet : public nodelet::Nodelet {
   std::deque<dense::PhotoEpoch> jobs_;
   bool stop_ = false;
   std::thread worker_;      // step_'s Measure
+  ros::Subscriber end_sub_;  // replay only: the end of the input
   std::mutex state_mutex_;  // counters and reports
   int epochs_ = 0, failures_ = 0;
   std::string last_summary_, last_error_;

@@ -86,6 +86,8 @@ class HexMatcherNodelet : public nodelet::Nodelet {
       sub_b_ = nh.subscribe("position_prior", params_.image_queue,
                             &HexMatcherNodelet::OnPositionPrior, this);
       worker_ = std::thread([this] { SequenceWorker(); });
+      end_sub_ = ros_adapters::SubscribeEndOfInput(nh, ros_adapters::kEndOfMatching,
+                                                   [this] { OnEndOfInput(); });
     }
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh, getName());
     updater_->setHardwareID("hex_matcher");
@@ -170,7 +172,16 @@ class HexMatcherNodelet : public nodelet::Nodelet {
   struct Input {
     sensor_msgs::ImageConstPtr image;  // or
     geometry_msgs::PoseWithCovarianceStampedConstPtr prior;
+    bool end_of_input = false;  // or the end of a replay (ros/setup.h)
   };
+
+  void OnEndOfInput() {
+    {
+      std::lock_guard<std::mutex> lock(queue_mutex_);
+      inputs_.push_back({nullptr, nullptr, true});
+    }
+    queue_cv_.notify_all();
+  }
 
   void OnSequenceImage(const sensor_msgs::ImageConstPtr& msg) {
     {
@@ -230,6 +241,9 @@ class HexMatcherNodelet : public nodelet::Nodelet {
         step = sequence_->AddPrior(
             ros_adapters::ToStamp(next.prior->header.stamp),
             Eigen::Vector2d(next.prior->pose.pose.position.x, next.prior->pose.pose.position.y));
+      } else if (next.end_of_input) {
+        NODELET_INFO("hex_matcher: end of the replay: matching the photos still waiting");
+        step = sequence_->Finish();
       } else if (ros_adapters::LiveTimeouts()) {
         step = sequence_->Poll(now);
       }
@@ -311,6 +325,7 @@ class HexMatcherNodelet : public nodelet::Nodelet {
   std::deque<Input> inputs_;
   bool stop_ = false;
   std::thread worker_;
+  ros::Subscriber end_sub_;  // replay only: the end of the input
   // Diagnostics (mutex_).
   int bad_priors_ = 0;
   matching::SequenceMatcherSummary summary_;

@@ -64,6 +64,11 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
     order_ = std::make_unique<InputOrder<slope_monitor::RadioSampleBlockConstPtr>>(ids);
     order_timer_ = nh.createWallTimer(ros::WallDuration(1.0),
                                       [this](const ros::WallTimerEvent&) { OnOrderTimer(); });
+    // The end of a replay (ros/setup.h): the blocks held for a silent receiver go on.
+    end_sub_ = ros_adapters::SubscribeEndOfInput(nh, ros_adapters::kEndOfAdjustment, [this] {
+      std::lock_guard<std::mutex> lock(mutex_);
+      for (auto& r : order_->Flush()) Assemble(r.item);
+    });
     obs_pub_ = nh.advertise<slope_monitor::RadioPhaseObservationArray>("phase_observations", 10);
     disp_pub_ =
         nh.advertise<slope_monitor::PointDisplacementArray>("radio_displacements", 10, true);
@@ -197,6 +202,7 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
   static constexpr double kSilentReceiverWait = 60.0;
   std::unique_ptr<InputOrder<slope_monitor::RadioSampleBlockConstPtr>> order_;
   ros::WallTimer order_timer_;
+  ros::Subscriber end_sub_;  // replay only: the end of the input
   ros_adapters::MessageValidator validator_;
   double stamp_tolerance_ = 1e-3, max_wait_ = 2.5;
   std::string frame_id_ = "site";

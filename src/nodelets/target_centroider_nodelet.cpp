@@ -1,6 +1,8 @@
 // target_centroider: image_raw + camera_info -> targets (TargetObservationArray),
 // debug_image (lazy), diagnostics. Thin: parameters once, convert, call
-// targets::TargetCentroider, publish. See doc/nodes/target_centroider.md.
+// targets::TargetCentroider, publish. With `site_file`, one channel per camera
+// of kind fixed or uav the site lists (any number), on /<camera>/camera/...
+// and /<camera>/targets. See doc/nodes/target_centroider.md.
 #include <atomic>
 #include <map>
 #include <memory>
@@ -23,6 +25,7 @@
 
 #include "slope_monitor/TargetObservationArray.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/core/targets/options_reader.h"
 #include "slope_monitor/core/targets/target_centroider.h"
 #include "slope_monitor/ros/conversions.h"
@@ -34,18 +37,37 @@ namespace slope_monitor {
 
 class TargetCentroiderNodelet : public nodelet::Nodelet {
  private:
+  // One camera's input, outputs and counts. Without a site file the nodelet
+  // has one, on topics relative to its namespace (image_raw, camera_info,
+  // targets, debug_image); with one, a channel per camera of kind fixed or
+  // uav that the site lists, on /<camera>/camera/image_raw (+ camera_info),
+  // /<camera>/targets and /<camera>/debug_image.
+  struct Channel {
+    std::string name;
+    double pixel_size = 1.0;
+    std::unique_ptr<targets::TargetCentroider> centroider;  // its own libapriltag detector
+    image_transport::CameraSubscriber sub;
+    image_transport::Publisher debug_pub;
+    ros::Publisher targets_pub;
+    int frames = 0, errors = 0, last_detections = 0;  // guarded by stats_mutex_
+    std::map<std::string, int> rejects;
+    std::string last_error;
+  };
+
   void onInit() override {
     ros_adapters::GraphReady ready(getPrivateNodeHandle());
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     targets::NodeOptions node;
     targets::Options o;
+    std::optional<io::SiteFile> site;
     if (const auto error = ros_adapters::SetUpError([&] {
           ros_adapters::ParamReader p(pnh);
           o = targets::ReadOptions(p);  // the same reader as the centroid_targets tool's
           node = targets::ReadNodeOptions(p);
           p.CheckNoUnknownKeys();
           o.Check();
+          if (!node.site_file.empty()) site = io::LoadSiteFile(node.site_file);
         })) {
       // Bad parameters: nothing is measured, but the node stays up and says
       // why, throttled in the log and in diagnostics.
@@ -53,43 +75,19 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
       NODELET_ERROR("target_centroider: %s; not advertising", config_error_.c_str());
       updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
       updater_->setHardwareID(pnh.getNamespace());
-      updater_->add("target_centroider", this, &TargetCentroiderNodelet::Diagnose);
+      updater_->add("target_centroider", [this](diagnostic_updater::DiagnosticStatusWrapper& stat) {
+        stat.summaryf(diagnostic_msgs::DiagnosticStatus::ERROR, "not running: %s",
+                      config_error_.c_str());
+      });
       diag_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) {
         NODELET_ERROR_THROTTLE(30.0, "target_centroider: not running: %s", config_error_.c_str());
         updater_->update();
       });
       return;
     }
-    camera_name_ = node.camera_name;
     site_frame_ = node.site_frame;
     use_tf_pose_ = node.use_tf_pose;
-    pixel_size_ = node.pixel_size;
-    queue_size_ = node.queue_size;
-    io::TargetList list;
-    if (!node.target_list.empty()) {
-      try {
-        list = io::TargetList::Load(
-            node.target_list);  // names the file and the key (e.g. a duplicate ID)
-      } catch (const Error& e) {
-        // A bad target list: keep measuring, but with no list every target is
-        // published as UNKNOWN (never as a control point); said on every image
-        // (throttled) and in diagnostics.
-        target_list_error_ = Message("target list '", node.target_list, "' not used: ", e.what(),
-                                     "; every target is published as unknown");
-        NODELET_ERROR("target_centroider: %s", target_list_error_.c_str());
-      }
-    }
-    try {
-      centroider_ = std::make_unique<targets::TargetCentroider>(o, list);
-    } catch (const Error& e) {
-      NODELET_ERROR("target_centroider: %s; not advertising", e.what());
-      return;
-    }
-    if (camera_name_.empty()) {
-      camera_name_ = ros::names::parentNamespace(nh.getNamespace());
-      if (camera_name_.empty() || camera_name_ == "/") camera_name_ = nh.getNamespace();
-      if (!camera_name_.empty() && camera_name_[0] == '/') camera_name_ = camera_name_.substr(1);
-    }
+    const io::TargetList list = LoadTargets(node, site);
     if (use_tf_pose_) {
       // Poses from /tf and /tf_static on this nodelet's queue, in order with the
       // images. A camera's static pose is the first one received (the
@@ -104,15 +102,79 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
           "/tf_static", 100, [this](const tf2_msgs::TFMessageConstPtr& m) { OnTf(*m, true); }));
     }
     it_ = std::make_unique<image_transport::ImageTransport>(nh);
-    targets_pub_ = nh.advertise<TargetObservationArray>("targets", 10);
-    debug_pub_ = it_->advertise("debug_image", 1);
-    sub_ = it_->subscribeCamera("image_raw", queue_size_, &TargetCentroiderNodelet::OnImage, this);
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
-    updater_->setHardwareID(camera_name_);
-    updater_->add("target_centroider", this, &TargetCentroiderNodelet::Diagnose);
+    try {
+      if (site && !site->cameras.empty()) {
+        // The site's cameras with targets, in one queue (images and poses in
+        // arrival order, as above); the camera kind is the site's field.
+        for (const io::SiteCamera& cam : site->cameras)
+          if (cam.kind != io::CameraKind::kFixedTargetless)
+            AddChannel(cam.name, cam.pixel_size > 0.0 ? cam.pixel_size : node.pixel_size, "/" + cam.name + "/camera/",
+                       "/" + cam.name + "/", o, list, node.queue_size);
+        updater_->setHardwareID("target_centroider");
+      } else {
+        std::string name = node.camera_name;
+        if (name.empty()) {
+          name = ros::names::parentNamespace(nh.getNamespace());
+          if (name.empty() || name == "/") name = nh.getNamespace();
+          if (!name.empty() && name[0] == '/') name = name.substr(1);
+        }
+        AddChannel(name, node.pixel_size, "", "", o, list, node.queue_size);
+        updater_->setHardwareID(name);
+      }
+    } catch (const Error& e) {
+      NODELET_ERROR("target_centroider: %s; not advertising", e.what());
+      channels_.clear();
+      return;
+    }
     diag_timer_ = nh.createWallTimer(ros::WallDuration(1.0),
                                      [this](const ros::WallTimerEvent&) { updater_->update(); });
     start_ = ros::WallTime::now();
+    if (channels_.size() > 1 || site)
+      NODELET_INFO("target_centroider: %zu camera(s) of the site file '%s'", channels_.size(),
+                   node.site_file.c_str());
+  }
+
+  // The site file's targets when it lists them, else target_list. A bad list:
+  // keep measuring, but with no list every target is published as UNKNOWN
+  // (never as a control point); said on every image (throttled) and in
+  // diagnostics.
+  io::TargetList LoadTargets(const targets::NodeOptions& node,
+                             const std::optional<io::SiteFile>& site) {
+    if (site && site->targets) return *site->targets;
+    if (node.target_list.empty()) return io::TargetList();
+    try {
+      return io::TargetList::Load(node.target_list);  // names the file and the key
+    } catch (const Error& e) {
+      target_list_error_ = Message("target list '", node.target_list, "' not used: ", e.what(),
+                                   "; every target is published as unknown");
+      NODELET_ERROR("target_centroider: %s", target_list_error_.c_str());
+      return io::TargetList();
+    }
+  }
+
+  // Throws Error (the centroider's options or families).
+  void AddChannel(const std::string& name, double pixel_size, const std::string& input_prefix,
+                  const std::string& output_prefix, const targets::Options& o,
+                  const io::TargetList& list, int queue_size) {
+    auto c = std::make_unique<Channel>();
+    c->name = name;
+    c->pixel_size = pixel_size;
+    c->centroider = std::make_unique<targets::TargetCentroider>(o, list);
+    ros::NodeHandle& nh = getNodeHandle();
+    c->targets_pub = nh.advertise<TargetObservationArray>(output_prefix + "targets", 10);
+    c->debug_pub = it_->advertise(output_prefix + "debug_image", 1);
+    Channel* raw = c.get();
+    c->sub = it_->subscribeCamera(
+        input_prefix + "image_raw", queue_size,
+        [this, raw](const sensor_msgs::ImageConstPtr& image,
+                    const sensor_msgs::CameraInfoConstPtr& info) { OnImage(raw, image, info); });
+    updater_->add(channels_.empty() && output_prefix.empty() ? "target_centroider"
+                                                              : "target_centroider: " + name,
+                  [this, raw](diagnostic_updater::DiagnosticStatusWrapper& stat) {
+                    Diagnose(*raw, stat);
+                  });
+    channels_.push_back(std::move(c));
   }
 
   void OnTf(const tf2_msgs::TFMessage& tf, bool is_static) {
@@ -128,7 +190,7 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
     }
   }
 
-  void OnImage(const sensor_msgs::ImageConstPtr& image,
+  void OnImage(Channel* ch, const sensor_msgs::ImageConstPtr& image,
                const sensor_msgs::CameraInfoConstPtr& info) {
     if (!target_list_error_.empty()) {
       NODELET_ERROR_THROTTLE(30.0, "target_centroider: %s", target_list_error_.c_str());
@@ -144,74 +206,60 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
         }
       }
       const ros_adapters::CentroidedImage c =
-          ros_adapters::CentroidImage(*centroider_, *image, *info, site_from_optical, camera_name_,
-                                      pixel_size_, sub_.getTopic());
+          ros_adapters::CentroidImage(*ch->centroider, *image, *info, site_from_optical, ch->name,
+                                      ch->pixel_size, ch->sub.getTopic());
       const targets::Result& r = c.result;
-      const TargetObservationArray& out = c.targets;
-      targets_pub_.publish(out);
-      if (debug_pub_.getNumSubscribers() > 0)
-        debug_pub_.publish(ros_adapters::ToDebugImage(c, image->header));
+      ch->targets_pub.publish(c.targets);
+      if (ch->debug_pub.getNumSubscribers() > 0)
+        ch->debug_pub.publish(ros_adapters::ToDebugImage(c, image->header));
       std::lock_guard<std::mutex> lock(stats_mutex_);
-      ++frames_;
-      last_detections_ = r.observations.size();
-      for (const auto& [reason, n] : r.summary.rejects_by_reason) rejects_[reason] += n;
+      ++ch->frames;
+      ch->last_detections = r.observations.size();
+      for (const auto& [reason, n] : r.summary.rejects_by_reason) ch->rejects[reason] += n;
     } catch (
         const std::exception& e) {  // slope_monitor::Error, cv_bridge::Exception, cv::Exception
       NODELET_ERROR_THROTTLE(5.0, "target_centroider: dropped image (topic %s, stamp %.3f): %s",
-                             sub_.getTopic().c_str(), image->header.stamp.toSec(), e.what());
+                             ch->sub.getTopic().c_str(), image->header.stamp.toSec(), e.what());
       std::lock_guard<std::mutex> lock(stats_mutex_);
-      ++errors_;
-      last_error_ = e.what();
+      ++ch->errors;
+      ch->last_error = e.what();
     }
   }
 
-  void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
+  void Diagnose(const Channel& ch, diagnostic_updater::DiagnosticStatusWrapper& stat) {
     std::lock_guard<std::mutex> lock(stats_mutex_);
-    if (!config_error_.empty()) {
-      stat.summaryf(diagnostic_msgs::DiagnosticStatus::ERROR, "not running: %s",
-                    config_error_.c_str());
-      return;
-    }
     const double elapsed = (ros::WallTime::now() - start_).toSec();
-    stat.add("frames", frames_);
-    stat.add("frame rate [Hz]", elapsed > 0 ? frames_ / elapsed : 0.0);
-    stat.add("detections (last frame)", last_detections_);
-    stat.add("dropped images", errors_);
-    for (const auto& [reason, n] : rejects_) stat.add("rejected: " + reason, n);
+    stat.add("camera", ch.name);
+    stat.add("frames", ch.frames);
+    stat.add("frame rate [Hz]", elapsed > 0 ? ch.frames / elapsed : 0.0);
+    stat.add("detections (last frame)", ch.last_detections);
+    stat.add("dropped images", ch.errors);
+    for (const auto& [reason, n] : ch.rejects) stat.add("rejected: " + reason, n);
     if (!target_list_error_.empty()) {
       stat.summaryf(diagnostic_msgs::DiagnosticStatus::ERROR, "%s", target_list_error_.c_str());
-    } else if (errors_ > 0) {
-      stat.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "%d images dropped; last: %s", errors_,
-                    last_error_.c_str());
-    } else if (frames_ == 0) {
+    } else if (ch.errors > 0) {
+      stat.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "%d images dropped; last: %s",
+                    ch.errors, ch.last_error.c_str());
+    } else if (ch.frames == 0) {
       stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "no images yet");
     } else {
       stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "measuring");
     }
   }
 
-  std::unique_ptr<targets::TargetCentroider> centroider_;
-  std::string camera_name_, site_frame_;
+  std::vector<std::unique_ptr<Channel>> channels_;
+  std::string site_frame_;
   std::string config_error_;       // bad parameters: the node only reports this
   std::string target_list_error_;  // bad target list: measuring without it
   bool use_tf_pose_ = true;
-  double pixel_size_ = 1.0;
-  int queue_size_ =
-      100;  // images buffered while the detector is busy (a replayed survey comes in bursts)
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::vector<ros::Subscriber> tf_subs_;
   std::set<std::string> static_frames_;  // child frames whose static pose is set
   std::unique_ptr<image_transport::ImageTransport> it_;
-  image_transport::CameraSubscriber sub_;
-  image_transport::Publisher debug_pub_;
-  ros::Publisher targets_pub_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diag_timer_;
   ros::WallTime start_;
   std::mutex stats_mutex_;
-  int frames_ = 0, errors_ = 0, last_detections_ = 0;
-  std::map<std::string, int> rejects_;
-  std::string last_error_;
 };
 
 }  // namespace slope_monitor

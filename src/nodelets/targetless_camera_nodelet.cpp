@@ -51,7 +51,8 @@ class TargetlessCameraNodelet : public nodelet::Nodelet {
     if (cameras_->cameras().empty())
       NODELET_WARN("targetless_camera: site file '%s' has no fixed_targetless camera: idle",
                    params_.site_file.c_str());
-    displacements_pub_ = nh.advertise<slope_monitor::PointDisplacementArray>("displacements", 4);
+    // Under the node's own name (/targetless_camera/displacements), next to its parameters.
+    displacements_pub_ = pnh.advertise<slope_monitor::PointDisplacementArray>("displacements", 4);
     diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 4);
     for (const std::string& c : cameras_->cameras()) {
       subs_.push_back(nh.subscribe<sensor_msgs::Image>(

@@ -9,6 +9,7 @@
 #include <sensor_msgs/point_cloud2_iterator.h>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/dense_epoch_step.h"
 
@@ -129,6 +130,21 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
   d.stable_mask = p.String("stable_mask", "");
   d.cameras = p.StringList("cameras", {"fixed_cam_1", "fixed_cam_2", "uav"});
   d.uav_cameras = p.StringList("uav_cameras", {"uav"});
+  // A site file that lists cameras decides them and their kinds (the two
+  // parameters above are then not used).
+  const std::string site_file = p.String("site_file", "");
+  if (!site_file.empty()) {
+    const io::SiteFile site = io::LoadSiteFile(site_file);
+    if (!site.cameras.empty()) {
+      d.cameras.clear();
+      d.uav_cameras.clear();
+      for (const io::SiteCamera& cam : site.cameras) {
+        if (cam.kind == io::CameraKind::kFixedTargetless) continue;
+        d.cameras.push_back(cam.name);
+        if (cam.kind == io::CameraKind::kUav) d.uav_cameras.push_back(cam.name);
+      }
+    }
+  }
   const std::vector<std::string> pairs = p.StringList("stereo_pairs", {});
   if (pairs.size() % 2 != 0)
     throw ConfigError(Message("parameter '", p.FullKey("stereo_pairs"),

@@ -68,10 +68,31 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   }
   // The camera kind is the site file's field, not the name.
   if (site) a.pixel_size_by_camera = adjustment::ApplySite(*site, &a.collector, &a.scene);
-  a.target_topics = p.StringList("target_topics", {"targets"});
+  std::vector<std::string> site_cameras, site_targets, site_epochs;
+  a.prior_topics = {"position_prior"};
+  if (site) {
+    std::vector<std::string> priors;
+    for (const io::SiteCamera& cam : site->cameras) {
+      if (cam.kind == io::CameraKind::kFixedTargetless) continue;
+      site_cameras.push_back(cam.name);
+      site_targets.push_back("/" + cam.name + "/targets");
+      site_epochs.push_back("/" + cam.name + "/camera/epoch");
+      if (cam.kind == io::CameraKind::kUav) priors.push_back("/" + cam.name + "/camera/position_prior");
+    }
+    if (!site_cameras.empty()) a.prior_topics = priors;
+  }
+  // A site file that lists cameras decides them (cameras, target_topics and
+  // epoch_topics are then not used, as target_list is not).
+  a.cameras_from_site = !site_cameras.empty();
   adjustment::EpochCollectorOptions& c = a.collector;
+  a.target_topics = p.StringList("target_topics", {"targets"});
   c.cameras = p.StringList("cameras", {});
   a.epoch_topics = p.StringList("epoch_topics", {"epoch"});
+  if (a.cameras_from_site) {
+    c.cameras = site_cameras;
+    a.target_topics = site_targets;
+    a.epoch_topics = site_epochs;
+  }
   c.epoch_wait = p.Double("epoch_wait", 30.0, 0.0, 3600.0, "s");
   c.tie_point_cameras = p.StringList("tie_point_cameras", {});
   c.tie_point_wait = p.Double("tie_point_wait", 300.0, 0.0, 86400.0, "s");
@@ -146,6 +167,7 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   a.displacement.Check();
   a.frustums.depth = p.Double("frustum_depth", a.frustums.depth, 1e-3, 1e4, "m");
   a.frustums.line_width = p.Double("frustum_line_width", a.frustums.line_width, 1e-3, 100.0, "m");
+  a.frustums.uav_cameras = c.uav_cameras;
   a.frustums.Check();
   p.CheckNoUnknownKeys();
   return a;

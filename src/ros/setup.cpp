@@ -1,5 +1,9 @@
 #include "slope_monitor/ros/setup.h"
 
+#include <memory>
+
+#include <std_msgs/UInt8.h>
+
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/ros/parameters.h"
 
@@ -32,6 +36,19 @@ SetUpFailureDiagnostics::SetUpFailureDiagnostics(const ros::NodeHandle& nh,
 GraphReady::~GraphReady() { pnh_.setParam(kGraphReadyParam, true); }
 
 bool LiveTimeouts() { return !ros::Time::isSimTime(); }
+
+ros::Subscriber SubscribeEndOfInput(ros::NodeHandle& nh, EndOfInputStage stage,
+                                    std::function<void()> finish) {
+  if (LiveTimeouts()) return ros::Subscriber();
+  auto done = std::make_shared<bool>(false);
+  return nh.subscribe<std_msgs::UInt8>(
+      kEndOfInputTopic, kEndOfInputStages,
+      [stage, finish = std::move(finish), done](const std_msgs::UInt8ConstPtr& m) {
+        if (m->data != stage || *done) return;
+        *done = true;
+        finish();
+      });
+}
 
 }  // namespace ros_adapters
 }  // namespace slope_monitor

@@ -6,6 +6,7 @@
 
 #include <tf2_eigen/tf2_eigen.h>
 
+#include "slope_monitor/core/adjustment/epoch_collector.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/ros/conversions.h"
 
@@ -83,8 +84,8 @@ visualization_msgs::MarkerArray ToFrustumMarkers(
     m.action = visualization_msgs::Marker::ADD;
     m.pose.orientation.w = 1.0;
     m.scale.x = options.line_width;
-    m.color =
-        e.camera_name.find("uav") != std::string::npos ? Rgba(1.0, 0.55, 0.0) : Rgba(0.2, 1.0, 0.3);
+    m.color = adjustment::IsUavCamera(e.camera_name, options.uav_cameras) ? Rgba(1.0, 0.55, 0.0)
+                                                                          : Rgba(0.2, 1.0, 0.3);
     for (size_t k = 0; k < 4; ++k) {
       m.points.push_back(tf2::toMsg(apex));
       m.points.push_back(tf2::toMsg(corners[k]));

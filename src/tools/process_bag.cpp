@@ -408,8 +408,19 @@ class OfflineGraph {
     if (!args_.adjuster_config.empty())
       ros_adapters::MergeParams(&p, ros_adapters::LoadParamFile(args_.adjuster_config));
     if (args_.uav_tie_points) ros_adapters::SetParam(&p, "tie_point_cameras", StringList({"uav"}));
-    ros_adapters::ParamReader r(p, "/bundle_adjuster/bundle_adjuster");
+    ros_adapters::ParamReader r(p, "/bundle_adjuster");
     adjuster_params_ = ros_adapters::ReadAdjusterParameters(r);
+    if (adjuster_params_.cameras_from_site) {
+      // The site's cameras that this bag has (a UAV that did not fly is not
+      // waited for), as the replay graph decides it (bundle_adjuster_nodelet.cpp).
+      std::vector<std::string>& site_cameras = adjuster_params_.collector.cameras;
+      site_cameras.erase(std::remove_if(site_cameras.begin(), site_cameras.end(),
+                                        [&](const std::string& c) {
+                                          return std::find(cameras.begin(), cameras.end(), c) ==
+                                                 cameras.end();
+                                        }),
+                         site_cameras.end());
+    }
     collector_ = std::make_unique<adjustment::EpochCollector>(adjuster_params_.collector,
                                                               &adjuster_params_.targets);
     collector_->SetTiePointsExpected(args_.uav_tie_points);
@@ -456,7 +467,7 @@ class OfflineGraph {
     // As deformation_estimator.launch: the pictures by scripts/plot_report.
     ros_adapters::SetParam(&p, "plot_script",
                            fs::path(ConfigDir()).parent_path().string() + "/scripts/plot_report");
-    ros_adapters::ParamReader r(p, "/deformation_estimator/deformation_estimator");
+    ros_adapters::ParamReader r(p, "/deformation_estimator");
     estimator_params_ = ros_adapters::ReadEstimatorParameters(r);
     history_ = std::make_unique<deformation::History>(estimator_params_.database);
     estimator_ =
@@ -477,7 +488,7 @@ class OfflineGraph {
     XmlRpc::XmlRpcValue p = NodeParams("targetless_camera");
     ros_adapters::SetParam(&p, "site_file", args_.site);
     ros_adapters::SetParam(&p, "report_dir", args_.report_dir);
-    ros_adapters::ParamReader r(p, "/targetless_camera/targetless_camera");
+    ros_adapters::ParamReader r(p, "/targetless_camera");
     const ros_adapters::TargetlessParameters params = ros_adapters::ReadTargetlessParameters(r);
     r.CheckNoUnknownKeys();
     targetless_ = std::make_unique<ros_adapters::TargetlessCameras>(params);
@@ -711,7 +722,7 @@ class OfflineGraph {
     double adjustment = 0.0;
     const ros_adapters::SolvedEpoch out = Timed(&adjustment, [&] {
       return ros_adapters::SolveCollectedEpoch(epoch, models_, adjuster_params_,
-                                               "/bundle_adjuster/bundle_adjuster", &store_);
+                                               "/bundle_adjuster", &store_);
     });
     for (const ros_adapters::LogLine& line : out.log)
       if (line.level >= ros_adapters::LogLine::kWarn || args_.verbose) Log("bundle_adjuster: " + line.text);

@@ -12,8 +12,13 @@
 // machine) is running or waiting for the CPU or the disk (state R or D in
 // /proc/<pid>/task/*/stat) in every sample of `quiet` seconds, and exits:
 // roslaunch then stops the nodes, and the deformation estimator writes its
-// reports. A node blocked on a wall-clock time-out is idle: the graph's
-// time-outs are for live sensors only.
+// reports. In a replay the graph has no time-outs (ros/setup.h LiveTimeouts),
+// so before it exits replay_end announces the end of the input on
+// /replay/end_of_input, stage by stage, waiting for the graph to be idle
+// after each (ros/setup.h kEndOfMatching ... kEndOfSurfaces): what a live
+// time-out would have released (a photo waiting for its prior, an epoch whose
+// camera never sent its end marker) is processed as process_bag's end of
+// input does, and the same bag gives the same numbers at any rate and load.
 //
 // Private parameters:
 //   player  (string, "/player")  the rosbag play node
@@ -35,7 +40,10 @@
 #include <ros/master.h>
 #include <ros/network.h>
 #include <ros/ros.h>
+#include <std_msgs/UInt8.h>
 #include <xmlrpcpp/XmlRpcClient.h>
+
+#include "slope_monitor/ros/setup.h"
 
 namespace {
 
@@ -105,6 +113,26 @@ bool Busy(int pid) {
   return busy;
 }
 
+// Waits until no process of `graph` is busy in any sample of `needed` 0.1 s
+// steps. False (logged, naming the busy nodes) after `timeout` s from `since`.
+bool WaitIdle(const std::map<std::string, int>& graph, int needed, Clock::time_point since,
+              double timeout) {
+  int idle = 0;
+  while (ros::ok() && idle < needed) {
+    std::string busy;
+    for (const auto& [node, pid] : graph)
+      if (Busy(pid)) busy += (busy.empty() ? "" : ", ") + node;
+    idle = busy.empty() ? idle + 1 : 0;
+    if (std::chrono::duration<double>(Clock::now() - since).count() > timeout) {
+      ROS_ERROR("replay_end: the graph is still busy %.0f s after the end of the bag (timeout): %s",
+                timeout, busy.c_str());
+      return false;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -120,6 +148,12 @@ int main(int argc, char** argv) {
               pnh.resolveName("quiet").c_str(), pnh.resolveName("timeout").c_str(), quiet, timeout);
     return 1;
   }
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+  ros::NodeHandle nh;
+  ros::Publisher end_pub = nh.advertise<std_msgs::UInt8>(
+      slope_monitor::ros_adapters::kEndOfInputTopic, slope_monitor::ros_adapters::kEndOfInputStages,
+      true);
   const auto step = std::chrono::milliseconds(100);
   // The player: seen, then gone.
   while (ros::ok() && !NodeRunning(player)) std::this_thread::sleep_for(step);
@@ -130,18 +164,15 @@ int main(int argc, char** argv) {
   ROS_INFO("replay_end: %s has ended; waiting for %zu node process(es) to finish their work",
            player.c_str(), graph.size());
   const int needed = static_cast<int>(quiet / 0.1 + 0.5);
-  int idle = 0;
-  while (ros::ok() && idle < needed) {
-    std::string busy;
-    for (const auto& [node, pid] : graph)
-      if (Busy(pid)) busy += (busy.empty() ? "" : ", ") + node;
-    idle = busy.empty() ? idle + 1 : 0;
-    if (std::chrono::duration<double>(Clock::now() - ended).count() > timeout) {
-      ROS_ERROR("replay_end: the graph is still busy %.0f s after the end of the bag (timeout): %s",
-                timeout, busy.c_str());
-      return 1;
-    }
-    std::this_thread::sleep_for(step);
+  if (!WaitIdle(graph, needed, ended, timeout)) return 1;
+  for (int stage = 1; stage <= slope_monitor::ros_adapters::kEndOfInputStages && ros::ok();
+       ++stage) {
+    std_msgs::UInt8 m;
+    m.data = static_cast<uint8_t>(stage);
+    end_pub.publish(m);
+    // Delivered and taken up (a node that starts work is busy from then on).
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    if (!WaitIdle(graph, needed, ended, timeout)) return 1;
   }
   ROS_INFO("replay_end: the graph is idle %.1f s after the end of the bag; ending the replay",
            std::chrono::duration<double>(Clock::now() - ended).count());

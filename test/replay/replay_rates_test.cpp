@@ -20,6 +20,10 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
+#include "slope_monitor/EpochMarker.h"
 
 #include "replay_test_util.h"
 
@@ -71,7 +75,7 @@ int WaitAtMost(pid_t pid, std::chrono::seconds timeout) {
 // dense surface either) and the outputs in `dir` (history.db, reports/).
 // Its own master on a free port and its own log folder, so that it meets
 // no other test's graph.
-int RunReplayLaunch(const fs::path& dir, int rate) {
+int RunReplayLaunch(const fs::path& dir, int rate, const std::string& bag = Survey(kSurvey, ".bag")) {
   const int port = FreePort();
   EXPECT_GT(port, 0);
   std::vector<std::string> args = {"roslaunch",
@@ -79,7 +83,7 @@ int RunReplayLaunch(const fs::path& dir, int rate) {
                                    std::to_string(port),
                                    "slope_monitor",
                                    "replay.launch",
-                                   "bag:=" + Survey(kSurvey, ".bag"),
+                                   "bag:=" + bag,
                                    "rate:=" + std::to_string(rate),
                                    "uav:=false",
                                    "dense:=false",
@@ -137,6 +141,59 @@ TEST(ReplayLaunch, TwoRatesGiveTheReportsOfProcessBag) {
   replay_test::ExpectSameResults(offline, slow, "process_bag vs replay.launch rate 20", {".png"});
   EXPECT_EQ(ObservationsBySource(offline / "history.db"),
             ObservationsBySource(fast / "history.db"));
+}
+
+// A copy of `in` without the last end marker of `camera` (its last epoch
+// then never ends by the messages). Returns that marker's epoch.
+uint32_t WithoutLastEndMarker(const std::string& in, const std::string& out,
+                              const std::string& camera) {
+  rosbag::Bag src(in);
+  rosbag::View view(src);
+  const std::string topic = "/" + camera + "/camera/epoch";
+  ros::Time last;
+  uint32_t epoch = 0;
+  for (const rosbag::MessageInstance& m : view) {
+    if (m.getTopic() != topic) continue;
+    const auto marker = m.instantiate<slope_monitor::EpochMarker>();
+    if (marker && marker->end) {
+      last = m.getTime();
+      epoch = marker->epoch;
+    }
+  }
+  rosbag::Bag dst(out, rosbag::bagmode::Write);
+  for (const rosbag::MessageInstance& m : view) {
+    if (m.getTopic() == topic && m.getTime() == last) continue;
+    dst.write(m.getTopic(), m.getTime(), m, m.getConnectionHeader());
+  }
+  return epoch;
+}
+
+// The live graph has no time-out in a replay: an epoch whose camera never
+// sends its end marker is solved at the end of the replay (replay_end's end
+// of input, doc/nodes/replay_end.md) with what was collected, as process_bag
+// solves it at the end of its bag: the same reports and history.
+TEST(ReplayLaunch, AnEpochWithoutItsEndMarkerIsSolvedAtTheEndOfTheReplay) {
+  const fs::path dir = replay_test::Scratch("replay_rates_test", "truncated");
+  const std::string bag = (dir / "truncated.bag").string();
+  const uint32_t epoch = WithoutLastEndMarker(Survey(kSurvey, ".bag"), bag, "fixed_cam_2");
+  ASSERT_GT(epoch, 0u) << "no end marker of fixed_cam_2 in the survey";
+  // The survey's files beside the bag, where both tools look for them.
+  for (const char* ext : {".targets.yaml", ".truth.yaml"})
+    fs::copy_file(Survey(kSurvey, ext), dir / (std::string("truncated") + ext));
+  const fs::path offline = dir / "process_bag";
+  fs::create_directories(offline);
+  std::vector<std::string> args = replay_test::ProcessBagArgs(kSurvey, offline);
+  args[2] = bag;  // --bag
+  ASSERT_EQ(replay_test::Wait(Spawn(args, offline)), 0) << ReadFile(offline / "stderr");
+  const fs::path live = dir / "replay";
+  fs::create_directories(live);
+  ASSERT_EQ(RunReplayLaunch(live, 200, bag), 0);
+  EXPECT_NE(ReadFile(live / "stdout").find("end of the replay: solving the epoch still open"),
+            std::string::npos)
+      << "the bundle adjuster did not solve the open epoch at the end of the replay";
+  replay_test::ExpectSameResults(offline, live, "process_bag vs replay.launch, truncated bag",
+                                 {".png"});
+  EXPECT_EQ(ObservationsBySource(offline / "history.db"), ObservationsBySource(live / "history.db"));
 }
 
 }  // namespace

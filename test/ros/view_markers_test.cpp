@@ -79,6 +79,25 @@ TEST(FrustumMarkers, PyramidFromTheProjectionCentreToTheImageCorners) {
   }
 }
 
+// The colour follows the camera kind (site file), not the name: a UAV named
+// "drone" is orange, a fixed camera named "uav_mast" green.
+TEST(FrustumMarkers, UavColourByTheSitesKind) {
+  slope_monitor::AdjustmentSolution s = NadirSolution(0, 0);
+  s.cameras.push_back(s.cameras[0]);
+  s.cameras[0].camera_name = "drone";
+  s.cameras[1].camera_name = "uav_mast";
+  const std::map<std::string, camera::CameraModel> models = {{"drone", Model(0.0, 0.0)},
+                                                             {"uav_mast", Model(0.0, 0.0)}};
+  FrustumOptions o;
+  o.uav_cameras = std::vector<std::string>{"drone"};
+  const visualization_msgs::MarkerArray a = ToFrustumMarkers(s, models, o);
+  ASSERT_EQ(a.markers.size(), 3u);
+  EXPECT_FLOAT_EQ(a.markers[1].color.r, 1.0f);  // orange
+  EXPECT_FLOAT_EQ(a.markers[1].color.g, 0.55f);
+  EXPECT_FLOAT_EQ(a.markers[2].color.g, 1.0f);  // green
+  EXPECT_FLOAT_EQ(a.markers[2].color.r, 0.2f);
+}
+
 TEST(FrustumMarkers, CornersProjectOntoTheCornerPixelsWithAShiftedPrincipalPoint) {
   const double x0 = 1.0, y0 = -0.5;  // [mm]
   const std::map<std::string, camera::CameraModel> models = {{"uav", Model(x0, y0)}};

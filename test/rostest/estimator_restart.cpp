@@ -228,7 +228,7 @@ TEST(EstimatorRestart, HistorySurvivesAndFinalNumbersEqualUninterruptedRun) {
   ASSERT_TRUE(pnh.getParam("reference_database", reference_database));
   ASSERT_TRUE(pnh.getParam("corrupt_database", corrupt_database));
   pnh.param<std::string>("manager", manager, "/slope_monitor_manager");
-  pnh.param<std::string>("nodelet", nodelet_name, "/deformation_estimator/deformation_estimator");
+  pnh.param<std::string>("nodelet", nodelet_name, "/deformation_estimator");
   pnh.param<std::string>("pause_service", pause_service, "/player/pause_playback");
   const double restart_after = Param(pnh, "restart_after", 16200.0);  // [s simulated]
   const double timeout = Param(pnh, "timeout", 300.0);                // [s wall]

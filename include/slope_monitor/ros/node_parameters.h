@@ -31,6 +31,17 @@ struct AdjusterParameters {
   std::string target_list_path;  // or "<site file> (inline targets)"
   io::TargetList targets;        // the site file's when it lists them, else target_list's
   std::vector<std::string> target_topics, epoch_topics;
+  // A site file that lists cameras decides them: its cameras with targets
+  // (kind fixed or uav) are `cameras`, target_topics (/<camera>/targets) and
+  // epoch_topics (/<camera>/camera/epoch), in the site's order; those three
+  // parameters are then not read.
+  bool cameras_from_site = false;
+  std::vector<std::string> prior_topics;  // site: /<uav>/camera/position_prior each; else position_prior
+  // Where camera `name`'s CameraInfo comes from: site: /<name>/camera/camera_info;
+  // else <name>/camera_info (relative: remapped by the launch).
+  std::string CameraInfoTopic(const std::string& name) const {
+    return cameras_from_site ? "/" + name + "/camera/camera_info" : name + "/camera_info";
+  }
   std::string frame_id;
   bool enable_run_adjustment = true, enable_set_reference_epoch = true;
   double pixel_size = 1.0;                            // [mm/px]

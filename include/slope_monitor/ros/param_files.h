@@ -5,7 +5,7 @@
 //   XmlRpc::XmlRpcValue p = LoadParamFile(defaults_dir + "/bundle_adjuster.yaml");
 //   SetParam(&p, "target_list", XmlRpc::XmlRpcValue(path));
 //   MergeParams(&p, LoadParamFile(overlay));     // later keys win, as rosparam load
-//   ParamReader reader(p, "/bundle_adjuster/bundle_adjuster");
+//   ParamReader reader(p, "/bundle_adjuster");
 #pragma once
 
 #include <string>

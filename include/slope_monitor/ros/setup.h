@@ -80,5 +80,26 @@ class GraphReady {
 //   if (ros_adapters::LiveTimeouts()) Solve(collector_->Poll(Now()));
 bool LiveTimeouts();
 
+// The end of a replay, what the live time-outs were for: once the player has
+// ended and the graph is idle, replay_end announces the end of the input on
+// kEndOfInputTopic (std_msgs/UInt8, latched), one stage after another, each
+// once the graph is idle again, so that what a stage flushes reaches the next
+// (process_bag's Finish in the same order):
+//   1 kEndOfMatching    the hex_matcher matches the photos still waiting
+//   2 kEndOfAdjustment  the bundle adjuster solves the epoch still open (its
+//                       log names what is missing); the radio solver releases
+//                       the blocks held for a silent receiver
+//   3 kEndOfFusion      the deformation estimator fuses what waits for a later
+//                       stamp of another input
+//   4 kEndOfSurfaces    the dense step measures the epochs it holds
+// A node subscribes only in a replay (not LiveTimeouts()); `finish` runs once,
+// on the node's callback queue, when its stage is announced.
+inline constexpr const char* kEndOfInputTopic = "/replay/end_of_input";
+enum EndOfInputStage { kEndOfMatching = 1, kEndOfAdjustment, kEndOfFusion, kEndOfSurfaces };
+inline constexpr int kEndOfInputStages = kEndOfSurfaces;
+// A null subscriber when live.
+ros::Subscriber SubscribeEndOfInput(ros::NodeHandle& nh, EndOfInputStage stage,
+                                    std::function<void()> finish);
+
 }  // namespace ros_adapters
 }  // namespace slope_monitor

@@ -7,7 +7,9 @@
 
 #include <array>
 #include <map>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include <std_msgs/ColorRGBA.h>
 #include <std_msgs/Header.h>
@@ -23,6 +25,8 @@ namespace ros_adapters {
 struct FrustumOptions {
   double depth = 12.0;       // apex to image plane, along the optical axis [m]
   double line_width = 0.25;  // [m]
+  // The UAV cameras (the site file's kind; adjustment::IsUavCamera without one).
+  std::optional<std::vector<std::string>> uav_cameras;
   void Check() const;        // ConfigError naming the bad value
 };
 
@@ -33,7 +37,7 @@ struct FrustumOptions {
 // models[camera_name], principal distance and principal point adjusted)
 // projected to `depth` along the optical axis (distortion not applied). A
 // camera with no model in `models` gets no pyramid. Fixed cameras green, UAV
-// photos (name containing "uav") orange. Header: the solution's.
+// photos (options.uav_cameras) orange. Header: the solution's.
 visualization_msgs::MarkerArray ToFrustumMarkers(
     const slope_monitor::AdjustmentSolution& solution,
     const std::map<std::string, camera::CameraModel>& models, const FrustumOptions& options);

@@ -120,7 +120,9 @@ std::string CamelToSnake(const std::string& camel) {
 std::vector<fs::path> NodeletsIn(const std::string& ns) {
   const std::string launch = TextUnder(kRoot / "launch", {".launch", ".xml"});
   std::vector<fs::path> sources;
-  const std::regex kDecl("(ns|name)=\"" + ns + "\"");
+  // A group or node of that name, or the default of a launch file's `ns`
+  // argument (deformation_estimator.launch names its node after it).
+  const std::regex kDecl("(ns|name)=\"" + ns + "\"|name=\"ns\" default=\"" + ns + "\"");
   static const std::regex kLoad(R"(load slope_monitor/([A-Za-z]+))");
   // A node of its own process: type "<x>_node" runs src/nodelets/<x>_nodelet.cpp.
   static const std::regex kNode(R"re(type="([a-z_]+)_node")re");
@@ -162,6 +164,12 @@ std::vector<std::string> UnknownTopics(const std::string& text) {
       const std::string ns = topic.substr(1, topic.find('/', 1) - 1);
       for (const fs::path& source : NodeletsIn(ns)) {
         if (fs::exists(source) && ReadFile(source).find("\"" + leaf + "\"") != std::string::npos)
+          found = true;
+        // Or one of that node's parameters (/deformation_estimator/threshold_alarm).
+        std::string node = source.filename().string();
+        node = node.substr(0, node.size() - std::string("_nodelet.cpp").size());
+        const fs::path defaults = kRoot / "config/defaults" / (node + ".yaml");
+        if (fs::exists(defaults) && ("\n" + ReadFile(defaults)).find("\n" + leaf + ":") != std::string::npos)
           found = true;
       }
     }
@@ -223,6 +231,9 @@ TEST(ReadmeClaimChecks, CatchWrongClaims) {
             (std::vector<std::string>{"/radio_phase_solver/displacements"}));
   EXPECT_EQ(UnknownTopics("`/deformation_estimator/alarms`"),
             (std::vector<std::string>{"/deformation_estimator/alarms"}));
+  EXPECT_TRUE(UnknownTopics("`/deformation_estimator/threshold_alarm`").empty());
+  EXPECT_EQ(UnknownTopics("`/deformation_estimator/threshold_alarms`"),
+            (std::vector<std::string>{"/deformation_estimator/threshold_alarms"}));
   EXPECT_EQ(UndeclaredLaunchArgs("replay.launch bag:=x bagg:=demo.bag"),
             (std::vector<std::string>{"bagg"}));
   EXPECT_EQ(ReplayTableArgs("## The replay graph\n\n| arg |\n|---|\n| `bag` | x |\n| `rviz` | y "

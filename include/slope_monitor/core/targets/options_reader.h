@@ -28,6 +28,7 @@ struct NodeOptions {
   bool use_tf_pose = true;
   double pixel_size = 1.0;  // [mm/px]
   int queue_size = 100;     // [images]
+  std::string site_file;    // the node: one camera per site camera of kind fixed/uav ("" = one)
 };
 
 namespace detail {
@@ -92,6 +93,7 @@ NodeOptions ReadNodeOptions(Reader& r) {
   n.use_tf_pose = r.Bool("use_tf_pose", n.use_tf_pose);
   n.pixel_size = r.Double("pixel_size", n.pixel_size, 1e-6, 1.0, "mm");
   n.queue_size = r.Int("queue_size", n.queue_size, 1, 10000, "images");
+  n.site_file = r.String("site_file", n.site_file);
   return n;
 }
 
