@@ -10,6 +10,8 @@
 #include <nodelet/loader.h>
 #include <ros/ros.h>
 
+#include "slope_monitor/core/common/allocator.h"
+
 namespace {
 
 // "radio_phase_solver" -> "RadioPhaseSolver".
@@ -30,6 +32,7 @@ std::string CamelCase(const std::string& snake) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  slope_monitor::KeepFreedMemoryForReuse();  // core/common/allocator.h
   std::string exe = argv[0];
   exe = exe.substr(exe.find_last_of('/') + 1);
   const std::string suffix = "_node";

@@ -31,6 +31,7 @@
 #include <sensor_msgs/Image.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/yaml_map.h"
 #include "slope_monitor/core/targets/options_reader.h"
@@ -112,6 +113,7 @@ int Usage() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  slope_monitor::KeepFreedMemoryForReuse();  // core/common/allocator.h
   std::map<std::string, std::string> args;
   bool explain = false;
   for (int i = 1; i < argc; ++i) {

@@ -45,6 +45,7 @@
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 
+#include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/dense/change.h"
 #include "slope_monitor/core/dense/dem_change.h"
@@ -402,6 +403,7 @@ int Run(const Args& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  slope_monitor::KeepFreedMemoryForReuse();  // core/common/allocator.h
   Args a;
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];

@@ -11,6 +11,7 @@
 #include <iostream>
 #include <string>
 
+#include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/sim/survey.h"
 #include "slope_monitor/ros/sim_bag_writer.h"
@@ -25,6 +26,7 @@ void Usage() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  slope_monitor::KeepFreedMemoryForReuse();  // core/common/allocator.h
   std::string config_path, out, compression = "bz2";
   long seed = -1;
   bool quiet = false;

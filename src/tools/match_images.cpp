@@ -31,6 +31,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/capture/geodesy.h"
 #include "slope_monitor/core/capture/photo_attitude.h"
@@ -89,6 +90,7 @@ std::vector<Photo> ReadPhotos(const std::vector<std::string>& paths,
 }  // namespace
 
 int main(int argc, char** argv) {
+  slope_monitor::KeepFreedMemoryForReuse();  // core/common/allocator.h
   std::vector<std::string> paths;
   std::string out_path;
   for (int i = 1; i < argc; ++i) {

@@ -49,6 +49,7 @@
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/EpochMarker.h"
 #include "slope_monitor/RadioSampleBlock.h"
 #include "slope_monitor/core/common/error.h"
@@ -991,6 +992,7 @@ int Run(const Args& args) {
 }  // namespace slope_monitor
 
 int main(int argc, char** argv) {
+  slope_monitor::KeepFreedMemoryForReuse();  // core/common/allocator.h
   try {
     return slope_monitor::Run(slope_monitor::ParseArgs(argc, argv));
   } catch (const slope_monitor::Error& e) {

@@ -43,6 +43,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/adjustment/reorient_camera.h"
 #include "slope_monitor/core/capture/calibration.h"
 #include "slope_monitor/core/capture/exif.h"
@@ -137,6 +138,7 @@ void WriteFieldCsv(const std::string& path, const dense::DisplacementField& f) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  slope_monitor::KeepFreedMemoryForReuse();  // core/common/allocator.h
   try {
     std::map<std::string, std::vector<std::string>> a;
     static const char* kKnown[] = {"--camera",          "--reference", "--image", "--stable-mask",

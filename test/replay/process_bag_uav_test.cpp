@@ -65,7 +65,8 @@ fs::path RunProcessBag(const std::string& name, const std::vector<std::string>& 
 
 TEST(ProcessBagUav, GraphReplaySurveyMatchesTruth) {
   const std::string name = "uav_graph_replay";
-  const fs::path dir = RunProcessBag(name, {});
+  // The adjustment's truth only: the dense step's is process_bag_dense_test's.
+  const fs::path dir = RunProcessBag(name, {"--no-dense"});
   uav_replay::Tolerances tol;  // those of uav_graph_replay.test.in
   tol.min_uav_photos = 5;      // kept per epoch, of 9
   tol.max_uav_position_error = 0.15;
@@ -79,7 +80,7 @@ TEST(ProcessBagUav, GraphReplaySurveyMatchesTruth) {
 TEST(ProcessBagUav, BlockSurveyWithTiePointsMatchesTruth) {
   const std::string name = "uav_block_replay";
   const fs::path dir =
-      RunProcessBag(name, {"--uav-tie-points", "--adjuster-config",
+      RunProcessBag(name, {"--uav-tie-points", "--no-dense", "--adjuster-config",
                            std::string(SM_SOURCE_DIR) + "/config/uav_self_calibration.yaml"});
   const uav_replay::Outputs outputs = uav_replay::ReadOutputs((dir / "out.bag").string());
   std::cout << outputs.tie_point_messages << " tie-point messages, " << outputs.tie_points
