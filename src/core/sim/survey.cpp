@@ -28,6 +28,74 @@ double Gauss(std::mt19937* rng, double sigma) {
   return sigma * n(*rng);
 }
 
+// The mast turns between consecutive epochs by an angle uniform in
+// [mast_rotation_min, max] about a uniformly random axis (the installation's
+// sway, warming and settling); epoch 0 keeps its pose.
+void TurnMast(const CameraSpec& s, std::mt19937 rng, std::vector<ImageTruth>* images) {
+  if (!(s.mast_rotation_max > 0.0)) return;
+  std::uniform_real_distribution<double> angle(s.mast_rotation_min, s.mast_rotation_max);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  for (size_t k = 1; k < images->size(); ++k) {
+    Eigen::Vector3d axis(normal(rng), normal(rng), normal(rng));
+    axis.normalize();
+    const Eigen::Matrix3d turn = Eigen::AngleAxisd(angle(rng), axis).toRotationMatrix();
+    (*images)[k].exterior.angles = camera::AnglesFromRotation(
+        turn * camera::RotationFromAngles((*images)[k - 1].exterior.angles));
+  }
+}
+
+// Stable ground points a crew would survey and pick in the reference photo:
+// the rays of a regular pixel grid (inset 8 %) that reach the ground outside
+// the landslide (weight 0) unoccluded, `surveyed_points` of them spread over
+// the grid; positions with the targets' survey noise, pixels with the
+// picking noise.
+std::vector<SurveyedPointTruth> PickSurveyedPoints(const CameraSpec& s, const Scene::State& ref,
+                                                   const SurveyConfig& c, std::mt19937 rng,
+                                                   const camera::ExteriorOrientation& pose) {
+  std::vector<SurveyedPointTruth> out;
+  if (s.surveyed_points <= 0) return out;
+  const int w = s.model.sensor().width, h = s.model.sensor().height;
+  std::vector<Eigen::Vector3d> candidates;
+  const int n = 16;
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Vector2d px(w * (0.08 + 0.84 * (i + 0.5) / n), h * (0.08 + 0.84 * (j + 0.5) / n));
+      const camera::Ray ray = s.model.ImageToRay(pose, px);
+      const double d = ref.grid.IntersectRay(ray.origin, ray.direction, 20000.0);
+      if (!std::isfinite(d)) continue;
+      const Eigen::Vector3d p = ray.origin + d * ray.direction;
+      if (c.scene.landslide.Weight(p.head<2>()) > 0.0) continue;
+      bool occluded = false;
+      Eigen::Vector3d normal;
+      for (const Obstacle& o : ref.obstacles) {
+        const double t = IntersectObstacle(o, ray.origin, ray.direction, &normal);
+        if (t >= 0.0 && t < d) occluded = true;
+      }
+      if (!occluded) candidates.push_back(p);
+    }
+  }
+  if (static_cast<int>(candidates.size()) < s.surveyed_points) {
+    throw ConfigError(Message(s.key, ": surveyed_points ", s.surveyed_points, " but only ",
+                              candidates.size(), " stable ground points are in view of camera '",
+                              s.name, "'"));
+  }
+  // Spread: every k-th candidate of the grid order.
+  const double step = static_cast<double>(candidates.size()) / s.surveyed_points;
+  for (int k = 0; k < s.surveyed_points; ++k) {
+    SurveyedPointTruth sp;
+    sp.id = "s" + std::to_string(k + 1);
+    sp.position = candidates[static_cast<size_t>(k * step)];
+    sp.surveyed = sp.position + Eigen::Vector3d(Gauss(&rng, c.survey_sigma.x()),
+                                                Gauss(&rng, c.survey_sigma.x()),
+                                                Gauss(&rng, c.survey_sigma.y()));
+    Eigen::Vector2d px;
+    s.model.Project(pose, sp.position, &px);
+    sp.picked = px + Eigen::Vector2d(Gauss(&rng, s.picked_pixel_sigma), Gauss(&rng, s.picked_pixel_sigma));
+    out.push_back(sp);
+  }
+  return out;
+}
+
 std::string EpochSuffix(int k) {
   char buf[16];
   std::snprintf(buf, sizeof(buf), "_e%02d", k);
@@ -207,6 +275,9 @@ SurveyGenerator::SurveyGenerator(const SurveyConfig& config) : config_(config) {
         im.exterior.angles.kappa += Gauss(&rng, s.jitter_angle);
         ct.images.push_back(im);
       }
+      TurnMast(s, Stream(c.seed, 5, static_cast<unsigned>(ci)), &ct.images);
+      ct.surveyed_points = PickSurveyedPoints(s, ref, c, Stream(c.seed, 6, static_cast<unsigned>(ci)),
+                                              ct.images.front().exterior);
     } else {
       const double c_mm = s.model.principal_distance();
       const double along_mm = h * s.model.sensor().pixel_size;

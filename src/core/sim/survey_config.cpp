@@ -251,6 +251,13 @@ SurveyConfig FromRoot(io::YamlMap& root) {
         s.pose = LookAt(position, look_at, Eigen::Vector3d::UnitZ(), roll);
         s.jitter_position = cm.Double("jitter_position", s.jitter_position, 0.0, 1.0, "m");
         s.jitter_angle = cm.Double("jitter_angle_deg", s.jitter_angle / kRadPerDeg, 0.0, 5.0, "deg") * kRadPerDeg;
+        const std::vector<double> turn = cm.Doubles("mast_rotation_deg", {0.0, 0.0});
+        if (turn.size() != 2 || !(turn[0] >= 0.0) || !(turn[1] >= turn[0]) || !(turn[1] <= 5.0))
+          cm.Fail("mast_rotation_deg", "must be [min, max] with 0 <= min <= max <= 5 (deg)");
+        s.mast_rotation_min = turn[0] * kRadPerDeg;
+        s.mast_rotation_max = turn[1] * kRadPerDeg;
+        s.surveyed_points = cm.Int("surveyed_points", 0, 0, 200);
+        s.picked_pixel_sigma = cm.Double("picked_pixel_sigma", s.picked_pixel_sigma, 0.0, 10.0, "px");
       } else {
         for (io::YamlMap& st : cm.List("strips")) {
           StripSpec strip;

@@ -331,6 +331,19 @@ std::string SurveyTruth::ToYaml() const {
       out << YAML::EndMap;
     }
     out << YAML::EndSeq;
+    if (!c.surveyed_points.empty()) {
+      out << YAML::Key << "surveyed_points" << YAML::Value << YAML::BeginSeq;
+      for (const SurveyedPointTruth& sp : c.surveyed_points) {
+        out << YAML::Flow << YAML::BeginMap;
+        out << YAML::Key << "id" << YAML::Value << sp.id;
+        EmitVec3(out, "position", sp.position);
+        EmitVec3(out, "surveyed", sp.surveyed);
+        out << YAML::Key << "picked" << YAML::Value;
+        Vec(out, sp.picked.data(), 2);
+        out << YAML::EndMap;
+      }
+      out << YAML::EndSeq;
+    }
     out << YAML::EndMap;
   }
   out << YAML::EndSeq;
@@ -495,6 +508,18 @@ SurveyTruth SurveyTruth::FromYaml(const std::string& text, const std::string& co
       im.exposure = r.GetOr<double>(ims[j], "exposure", 1.0, q);
       im.visible = r.GetOr<std::vector<std::string>>(ims[j], "visible", {}, q);
       c.images.push_back(im);
+    }
+    const YAML::Node sps = n["surveyed_points"];
+    for (size_t j = 0; sps.IsDefined() && j < sps.size(); ++j) {
+      const std::string q = Message(p, "surveyed_points[", j, "].");
+      SurveyedPointTruth sp;
+      sp.id = r.Get<std::string>(sps[j], "id", q);
+      sp.position = r.Vec3(sps[j], "position", q);
+      sp.surveyed = r.Vec3(sps[j], "surveyed", q);
+      const std::vector<double> px = r.Get<std::vector<double>>(sps[j], "picked", q);
+      if (px.size() != 2) throw ConfigError(Message(q, "picked: expected [u, v]"));
+      sp.picked = Eigen::Vector2d(px[0], px[1]);
+      c.surveyed_points.push_back(sp);
     }
     t.cameras.push_back(c);
   }

@@ -53,6 +53,14 @@ struct CameraSpec {
   camera::ExteriorOrientation pose;  // nominal installed pose
   double jitter_position = 0.002;    // [m] sigma per epoch
   double jitter_angle = 2e-4;        // [rad] sigma per epoch
+  // The mast turns between consecutive epochs by a random angle, uniform in
+  // [min, max], about a random axis (replaces jitter_angle after the
+  // reference epoch); max 0: off.
+  double mast_rotation_min = 0.0, mast_rotation_max = 0.0;  // [rad]
+  // Surveyed stable-ground points in the truth (the crew's GNSS points picked
+  // in the reference photo): how many, and the picking noise.
+  int surveyed_points = 0;
+  double picked_pixel_sigma = 0.5;   // [px]
   // uav
   std::vector<StripSpec> strips;
   double image_interval = 2.0;       // [s]

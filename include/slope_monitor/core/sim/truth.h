@@ -145,6 +145,15 @@ struct ImageTruth {
   double exposure = 1.0;                    // [-] exposure gain applied to this image
 };
 
+// A point of stable ground surveyed by the crew and picked by hand in a fixed
+// camera's reference photo (resect_camera's input).
+struct SurveyedPointTruth {
+  std::string id;             // "s1", "s2", ...
+  Eigen::Vector3d position;   // [m] true, site
+  Eigen::Vector3d surveyed;   // [m] with the survey noise (targets.survey_sigma)
+  Eigen::Vector2d picked;     // [px] true projection in the reference image + picking noise
+};
+
 struct CameraTruth {
   std::string name;                         // fixed_cam_1, ..., uav
   std::string kind = "fixed";               // fixed | fixed_targetless | uav
@@ -153,6 +162,7 @@ struct CameraTruth {
   camera::CameraModel nominal;              // what camera_info says
   std::optional<camera::ExteriorOrientation> nominal_pose;  // fixed cameras: installed pose (tf_static)
   std::vector<ImageTruth> images;
+  std::vector<SurveyedPointTruth> surveyed_points;  // fixed cameras: in the reference image
 };
 
 struct TargetTruth {
