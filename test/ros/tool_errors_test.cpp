@@ -10,6 +10,8 @@
 #include <string>
 
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "run_command.h"
 
@@ -53,6 +55,34 @@ TEST(ToolErrors, SolveBalHugeDeclaredCounts) {
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find(path), std::string::npos) << r.output;
   std::remove(path.c_str());
+}
+
+// Issue 19: a stable mask that is not the photos' size is named with both sizes.
+TEST(ToolErrors, TrackCameraStableMaskOfTheWrongSize) {
+  const std::string dir = kTmp + "_track";
+  ASSERT_EQ(system(("mkdir -p '" + dir + "'").c_str()), 0);
+  std::ofstream(dir + "/cam.yaml")
+      << "image_width: 64\nimage_height: 48\ncamera_name: cam\n"
+         "camera_matrix: {rows: 3, cols: 3, data: [100, 0, 31.5, 0, 100, 23.5, 0, 0, 1]}\n"
+         "distortion_model: plumb_bob\n"
+         "distortion_coefficients: {rows: 1, cols: 5, data: [0, 0, 0, 0, 0]}\n"
+         "rectification_matrix: {rows: 3, cols: 3, data: [1, 0, 0, 0, 1, 0, 0, 0, 1]}\n"
+         "projection_matrix: {rows: 3, cols: 4, data: [100, 0, 31.5, 0, 0, 100, 23.5, 0, 0, 0, 1, 0]}\n";
+  std::ofstream(dir + "/cam.pose.yaml")
+      << "position: [0, 0, 0]\nangles_deg: {theta: 0, phi: 90, kappa: 0}\n";
+  cv::Mat photo(48, 64, CV_8UC1);
+  cv::randu(photo, 0, 255);
+  ASSERT_TRUE(cv::imwrite(dir + "/a.png", photo));
+  ASSERT_TRUE(cv::imwrite(dir + "/b.png", photo));
+  ASSERT_TRUE(cv::imwrite(dir + "/mask.png", cv::Mat(24, 32, CV_8UC1, cv::Scalar(255))));
+  const ToolRun r = Tool("track_camera", "--camera " + dir + "/cam --reference " + dir +
+                                             "/a.png --image " + dir + "/b.png --stable-mask " +
+                                             dir + "/mask.png --out " + dir + "/out");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("--stable-mask '" + dir + "/mask.png' is 32x24 px, the images are 64x48"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(system(("rm -rf '" + dir + "'").c_str()), 0);
 }
 
 }  // namespace
