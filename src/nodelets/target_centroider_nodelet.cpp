@@ -107,10 +107,9 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
       if (site && !site->cameras.empty()) {
         // The site's cameras with targets, in one queue (images and poses in
         // arrival order, as above); the camera kind is the site's field.
-        for (const io::SiteCamera& cam : site->cameras)
-          if (cam.kind != io::CameraKind::kFixedTargetless)
-            AddChannel(cam.name, cam.pixel_size > 0.0 ? cam.pixel_size : node.pixel_size, "/" + cam.name + "/camera/",
-                       "/" + cam.name + "/", o, list, node.queue_size);
+        for (const io::SiteCamera* cam : site->CamerasWithTargets())
+          AddChannel(cam->name, cam->pixel_size > 0.0 ? cam->pixel_size : node.pixel_size,
+                     "/" + cam->name + "/camera/", "/" + cam->name + "/", o, list, node.queue_size);
         updater_->setHardwareID("target_centroider");
       } else {
         std::string name = node.camera_name;

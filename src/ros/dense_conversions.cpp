@@ -138,10 +138,9 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
     if (!site.cameras.empty()) {
       d.cameras.clear();
       d.uav_cameras.clear();
-      for (const io::SiteCamera& cam : site.cameras) {
-        if (cam.kind == io::CameraKind::kFixedTargetless) continue;
-        d.cameras.push_back(cam.name);
-        if (cam.kind == io::CameraKind::kUav) d.uav_cameras.push_back(cam.name);
+      for (const io::SiteCamera* cam : site.CamerasWithTargets()) {
+        d.cameras.push_back(cam->name);
+        if (cam->kind == io::CameraKind::kUav) d.uav_cameras.push_back(cam->name);
       }
     }
   }

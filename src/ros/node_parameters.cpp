@@ -72,12 +72,11 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   a.prior_topics = {"position_prior"};
   if (site) {
     std::vector<std::string> priors;
-    for (const io::SiteCamera& cam : site->cameras) {
-      if (cam.kind == io::CameraKind::kFixedTargetless) continue;
-      site_cameras.push_back(cam.name);
-      site_targets.push_back("/" + cam.name + "/targets");
-      site_epochs.push_back("/" + cam.name + "/camera/epoch");
-      if (cam.kind == io::CameraKind::kUav) priors.push_back("/" + cam.name + "/camera/position_prior");
+    for (const io::SiteCamera* cam : site->CamerasWithTargets()) {
+      site_cameras.push_back(cam->name);
+      site_targets.push_back("/" + cam->name + "/targets");
+      site_epochs.push_back("/" + cam->name + "/camera/epoch");
+      if (cam->kind == io::CameraKind::kUav) priors.push_back("/" + cam->name + "/camera/position_prior");
     }
     if (!site_cameras.empty()) a.prior_topics = priors;
   }

@@ -45,6 +45,7 @@
 
 #include "slope_monitor/PointDisplacementArray.h"
 #include "slope_monitor/core/adjustment/resect_camera.h"
+#include "../core/adjustment/resect_scenario.h"
 #include "slope_monitor/core/camera/rotation.h"
 #include "slope_monitor/core/sim/survey.h"
 #include "slope_monitor/core/sim/truth.h"
@@ -158,12 +159,7 @@ TEST(TargetlessCameraSimulator, MastTurnsWithinItsRangeAndSurveyedPointsResectTh
   o.point_sigma = 0.03;
   const adjustment::ResectCameraSummary s = adjustment::ResectCamera(points, cam.nominal, o);
   ASSERT_TRUE(s.success) << s.message;
-  const auto sigma = [&s](const std::string& name) {
-    for (const auto& p : s.parameters)
-      if (p.name == name) return p.sigma;
-    ADD_FAILURE() << "no parameter " << name;
-    return 0.0;
-  };
+  const auto sigma = [&s](const std::string& name) { return resect_scenario::Sigma(s, name); };
   const camera::ExteriorOrientation& truth = cam.images[0].exterior;
   std::cout << "resection from " << points.size() << " surveyed points: rms " << s.rms_px
             << " px, attitude " << AngleBetween(s.exterior, truth.SiteFromOptical().rotation)

@@ -210,6 +210,13 @@ const SiteCamera* SiteFile::FindCamera(const std::string& name) const {
   return nullptr;
 }
 
+std::vector<const SiteCamera*> SiteFile::CamerasWithTargets() const {
+  std::vector<const SiteCamera*> out;
+  for (const SiteCamera& c : cameras)
+    if (c.kind != CameraKind::kFixedTargetless) out.push_back(&c);
+  return out;
+}
+
 SiteFile ParseSiteFile(const std::string& text, const std::string& context,
                        const std::string& folder) {
   YamlMap root = YamlMap::Parse(text, context);

@@ -22,12 +22,7 @@ using resect_scenario::Camera;
 using resect_scenario::Survey;
 using resect_scenario::TruePose;
 
-double Sigma(const adjustment::ResectCameraSummary& s, const std::string& name) {
-  for (const auto& p : s.parameters)
-    if (p.name == name) return p.sigma;
-  ADD_FAILURE() << "no parameter " << name;
-  return 0.0;
-}
+using resect_scenario::Sigma;
 
 TEST(ResectCamera, SimulatedSurveyRecoversAttitudeAndFocalWithinThreeSigma) {
   const camera::CameraModel truth = Camera(16.0);

@@ -1,5 +1,6 @@
 // A camera 150-200 m across a slope and its surveyed, picked points, for the
-// resection tests (core_adjustment_tests and the ROS service's in ros_tests).
+// resection tests (core_adjustment_tests, the ROS service's in ros_tests, the
+// simulator's surveyed points in replay_targetless_camera_test).
 #pragma once
 
 #include <array>
@@ -7,6 +8,9 @@
 #include <string>
 #include <vector>
 
+#include <gtest/gtest.h>
+
+#include "slope_monitor/core/adjustment/resect_camera.h"
 #include "slope_monitor/core/camera/camera_model.h"
 #include "slope_monitor/core/io/surveyed_points.h"
 
@@ -56,6 +60,14 @@ inline std::vector<io::PickedPoint> Survey(const camera::CameraModel& truth,
     points.push_back(p);
   }
   return points;
+}
+
+// The estimated sigma of the free parameter `name` ("theta", "c", "X0", ...).
+inline double Sigma(const adjustment::ResectCameraSummary& s, const std::string& name) {
+  for (const auto& p : s.parameters)
+    if (p.name == name) return p.sigma;
+  ADD_FAILURE() << "no parameter " << name;
+  return 0.0;
 }
 
 }  // namespace resect_scenario

@@ -90,6 +90,9 @@ struct SiteFile {
   NotificationOptions notification;
 
   const SiteCamera* FindCamera(const std::string& name) const;
+  // The cameras of kind fixed or uav, in the file's order: those whose photos
+  // are centroided and adjusted (not the fixed_targetless ones).
+  std::vector<const SiteCamera*> CamerasWithTargets() const;
 };
 
 // Reads and checks a site file (every key validated, unknown keys refused,
