@@ -28,6 +28,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <future>
 #include <iostream>
 #include <map>
 #include <memory>
@@ -303,8 +304,25 @@ class OfflineGraph {
   }
 
   void OnMessage(const rosbag::MessageInstance& m) {
-    now_ = m.getTime();
     const std::string& topic = m.getTopic();
+    if (sequence_ && topic == kUavPrior) {
+      // The sequence matcher's work for this prior (features and pairs of
+      // the photo that waited for it) runs while the photo's targets are
+      // still being centroided (Pair); both are taken in bag order after.
+      if (const auto prior = m.instantiate<geometry_msgs::PoseWithCovarianceStamped>()) {
+        const std::optional<matching::SequenceStep> step = MatchUavPrior(*prior);
+        TakeCentroided();
+        now_ = m.getTime();
+        collector_->AddPrior(ros_adapters::FromMsg(*prior));
+        if (step) OnSequenceStep(*step);
+        return;
+      }
+    }
+    // A message the graph takes no input from (e.g. /uav/gnss/fix) leaves a
+    // photo being centroided running.
+    if (!Handled(m.getDataType())) return;
+    TakeCentroided();
+    now_ = m.getTime();
     if (topic == "/tf" || topic == "/tf_static") {
       if (const auto tf = m.instantiate<tf2_msgs::TFMessage>()) OnTf(*tf, topic == "/tf_static");
     } else if (OnTargetlessMessage(m)) {
@@ -326,10 +344,7 @@ class OfflineGraph {
     } else if (const auto marker = m.instantiate<slope_monitor::EpochMarker>()) {
       if (marker->end) OnEpochEnd(*marker);
     } else if (const auto prior = m.instantiate<geometry_msgs::PoseWithCovarianceStamped>()) {
-      if (topic == kUavPrior) {
-        collector_->AddPrior(ros_adapters::FromMsg(*prior));
-        if (sequence_) OnUavPrior(*prior);
-      }
+      if (topic == kUavPrior) collector_->AddPrior(ros_adapters::FromMsg(*prior));
     } else if (const auto block = m.instantiate<slope_monitor::RadioSampleBlock>()) {
       OnRadioBlock(*block, topic);
     }
@@ -338,6 +353,7 @@ class OfflineGraph {
   // End of the bags: an epoch still open is solved with what it has (the
   // live graph's time-out), then the reports are written.
   void Finish() {
+    TakeCentroided();
     // The centroider's debug_image of each camera's latest photo (rviz's
     // photo panel), once: every photo would multiply the output bag's size.
     for (auto& [camera, c] : centroiders_)
@@ -601,35 +617,72 @@ class OfflineGraph {
     }
   }
 
-  // An image and its camera_info (same stamp, in either order): centroid it.
+  // An image and its camera_info (same stamp, in either order) are both in:
+  // its targets are centroided on another thread (the photo and its pose are
+  // the task's own) and taken (written, given to the collector) by
+  // TakeCentroided before the next message's effects, i.e. in bag order.
   void Pair(Centroider* c, const ros::Time& stamp) {
+    TakeCentroided();
     const auto image = c->images.find(stamp);
     const auto info = c->infos.find(stamp);
     if (image == c->images.end() || info == c->infos.end()) return;
-    const std::string topic = "/" + c->camera + "/camera/image_raw";
-    try {
-      std::optional<Eigen::Isometry3d> site_from_optical;
-      if (c->node.use_tf_pose && info->second->K[0] > 0) {
-        try {
-          site_from_optical = tf2::transformToEigen(
-              tf_.lookupTransform(c->node.site_frame, image->second->header.frame_id, stamp));
-        } catch (const tf2::TransformException&) {
-        }
+    Centroiding task;
+    task.c = c;
+    task.stamp = stamp;
+    task.bag_time = now_;
+    task.image = image->second;
+    task.topic = "/" + c->camera + "/camera/image_raw";
+    std::optional<Eigen::Isometry3d> site_from_optical;
+    if (c->node.use_tf_pose && info->second->K[0] > 0) {
+      try {
+        site_from_optical = tf2::transformToEigen(
+            tf_.lookupTransform(c->node.site_frame, image->second->header.frame_id, stamp));
+      } catch (const tf2::TransformException&) {
       }
-      const ros_adapters::CentroidedImage out = Timed(&stages_.targets, [&] {
-        return ros_adapters::CentroidImage(*c->centroider, *image->second, *info->second,
-                                           site_from_optical, c->camera, c->node.pixel_size, topic);
-      });
+    }
+    task.result = std::async(
+        std::launch::async, [this, c, image = image->second, info = info->second,
+                             site_from_optical, topic = task.topic] {
+          return Timed(&stages_.targets, [&] {
+            return ros_adapters::CentroidImage(*c->centroider, *image, *info, site_from_optical,
+                                               c->camera, c->node.pixel_size, topic);
+          });
+        });
+    centroiding_ = std::move(task);
+    c->images.erase(c->images.begin(), std::next(image));
+    c->infos.erase(c->infos.begin(), std::next(info));
+  }
+
+  // Message types the graph takes input from (OnMessage's branches).
+  static bool Handled(const std::string& type) {
+    static const std::set<std::string> types = {
+        ros::message_traits::datatype<tf2_msgs::TFMessage>(),
+        ros::message_traits::datatype<sensor_msgs::Image>(),
+        ros::message_traits::datatype<sensor_msgs::CameraInfo>(),
+        ros::message_traits::datatype<slope_monitor::EpochMarker>(),
+        ros::message_traits::datatype<geometry_msgs::PoseWithCovarianceStamped>(),
+        ros::message_traits::datatype<slope_monitor::RadioSampleBlock>()};
+    return types.count(type) > 0;
+  }
+
+  void TakeCentroided() {
+    if (!centroiding_) return;
+    Centroiding task = std::move(*centroiding_);
+    centroiding_.reset();
+    const ros::Time now = now_;
+    now_ = task.bag_time;  // written and collected at the photo's place in the bag
+    try {
+      const ros_adapters::CentroidedImage out = task.result.get();
+      Centroider* c = task.c;
       Write("/" + c->camera + "/targets", out.targets);
-      c->last_image = image->second;
+      c->last_image = task.image;
       c->last = out;
       Solve(collector_->AddTargets(ros_adapters::FromMsg(out.targets), now_.toSec()));
     } catch (const std::exception& e) {
-      Log("target_centroider: dropped image (topic " + topic + ", stamp " +
-          std::to_string(stamp.toSec()) + "): " + e.what());
+      Log("target_centroider: dropped image (topic " + task.topic + ", stamp " +
+          std::to_string(task.stamp.toSec()) + "): " + e.what());
     }
-    c->images.erase(c->images.begin(), std::next(image));
-    c->infos.erase(c->infos.begin(), std::next(info));
+    now_ = now;
   }
 
   void OnEpochEnd(const slope_monitor::EpochMarker& marker) {
@@ -688,17 +741,20 @@ class OfflineGraph {
     }));
   }
 
-  void OnUavPrior(const geometry_msgs::PoseWithCovarianceStamped& prior) {
+  // The sequence matcher's step for a UAV position prior (pure: nothing is
+  // written or collected); none for a prior in another frame (logged).
+  std::optional<matching::SequenceStep> MatchUavPrior(
+      const geometry_msgs::PoseWithCovarianceStamped& prior) {
     if (!prior.header.frame_id.empty() && prior.header.frame_id != hex_params_.site_frame) {
       Log("hex_matcher: position_prior in frame '" + prior.header.frame_id + "', expected '" +
           hex_params_.site_frame + "' (site_frame); ignored");
-      return;
+      return std::nullopt;
     }
-    OnSequenceStep(Timed(&stages_.matching, [&] {
+    return Timed(&stages_.matching, [&] {
       return sequence_->AddPrior(
           ros_adapters::ToStamp(prior.header.stamp),
           Eigen::Vector2d(prior.pose.pose.position.x, prior.pose.pose.position.y));
-    }));
+    });
   }
 
   void OnSequenceStep(const matching::SequenceStep& step) {
@@ -844,6 +900,15 @@ class OfflineGraph {
     int pairs = 0, tie_points = 0;  // tie-point messages and their points
   };
   StageTimes stages_;
+  // The photo being centroided on another thread (Pair, TakeCentroided).
+  struct Centroiding {
+    Centroider* c = nullptr;
+    ros::Time stamp, bag_time;
+    sensor_msgs::Image::ConstPtr image;
+    std::string topic;
+    std::future<ros_adapters::CentroidedImage> result;
+  };
+  std::optional<Centroiding> centroiding_;
   std::function<void(const std::string&)> log_;
   const Args& args_;
   rosbag::Bag* output_;

@@ -244,6 +244,23 @@ float SampleBicubic(const cv::Mat& image, double x, double y) {
   const float tx = static_cast<float>(x - x0), ty = static_cast<float>(y - y0);
   const int cm = image.cols - 1, rm = image.rows - 1;
   float wx[4], wy[4];
+  if (x0 >= 1 && y0 >= 1 && x0 + 2 <= cm && y0 + 2 <= rm) {
+    // Inside: no clamping, rows read through one pointer (same weights and
+    // sums as below).
+    for (int i = 0; i < 4; ++i) {
+      wx[i] = Keys(tx - static_cast<float>(i - 1));
+      wy[i] = Keys(ty - static_cast<float>(i - 1));
+    }
+    const float* row = image.ptr<float>(y0 - 1) + (x0 - 1);
+    const size_t step = image.step1();
+    float value = 0.0f;
+    for (int j = 0; j < 4; ++j, row += step) {
+      float rv = 0.0f;
+      for (int i = 0; i < 4; ++i) rv += wx[i] * row[i];
+      value += wy[j] * rv;
+    }
+    return value;
+  }
   int xs[4];
   for (int i = 0; i < 4; ++i) {
     wx[i] = Keys(tx - static_cast<float>(i - 1));
@@ -258,6 +275,53 @@ float SampleBicubic(const cv::Mat& image, double x, double y) {
     value += wy[j] * rv;
   }
   return value;
+}
+
+void SampleWindow(const cv::Mat& image, double x, double y, int half, Interpolation interpolation,
+                  double* out) {
+  CheckSampleImage(image);
+  if (half < 0 || !CanSample(image, x - half, y - half, interpolation) ||
+      !CanSample(image, x + half, y + half, interpolation)) {
+    throw InvalidArgument(Message("SampleWindow: window of half size ", half, " at (", x, ", ", y,
+                                  ") not inside the ", image.cols, " x ", image.rows, " image"));
+  }
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  const float tx = static_cast<float>(x - x0), ty = static_cast<float>(y - y0);
+  const size_t step = image.step1();
+  const int w = 2 * half + 1;
+  if (interpolation == Interpolation::kBilinear) {
+    // At the image's last row or column the weight of the next one is 0.
+    const int cm = image.cols - 1, rm = image.rows - 1;
+    for (int v = 0; v < w; ++v) {
+      const int ya = y0 - half + v, yb = std::min(ya + 1, rm);
+      const float* ra = image.ptr<float>(ya);
+      const float* rb = image.ptr<float>(yb);
+      for (int u = 0; u < w; ++u) {
+        const int xa = x0 - half + u, xb = std::min(xa + 1, cm);
+        *out++ = (1.0f - ty) * ((1.0f - tx) * ra[xa] + tx * ra[xb]) +
+                 ty * ((1.0f - tx) * rb[xa] + tx * rb[xb]);
+      }
+    }
+    return;
+  }
+  float wx[4], wy[4];
+  for (int i = 0; i < 4; ++i) {
+    wx[i] = Keys(tx - static_cast<float>(i - 1));
+    wy[i] = Keys(ty - static_cast<float>(i - 1));
+  }
+  const float* origin = image.ptr<float>(y0 - half - 1) + (x0 - half - 1);
+  for (int v = 0; v < w; ++v) {
+    for (int u = 0; u < w; ++u) {
+      const float* row = origin + v * step + u;
+      float value = 0.0f;
+      for (int j = 0; j < 4; ++j, row += step) {
+        float rv = 0.0f;
+        for (int i = 0; i < 4; ++i) rv += wx[i] * row[i];
+        value += wy[j] * rv;
+      }
+      *out++ = value;
+    }
+  }
 }
 
 float Sample(const cv::Mat& image, double x, double y, Interpolation interpolation) {

@@ -287,7 +287,7 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
   bool affine = false;  // the stage: affine columns active
   int m = 0, ig = 0, io = 0;
   Mat jtj;
-  Vec jtr, row;
+  Vec jtr;
   auto set_stage = [&](bool with_affine) {
     affine = with_affine;
     m = 2 + (affine ? 4 : 0) + (gain ? 1 : 0) + 1;
@@ -295,7 +295,6 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
     io = ig + (gain ? 1 : 0);
     jtj.resize(m, m);
     jtr.resize(m);
-    row.resize(m);
   };
   set_stage(false);
   double p_aff[4] = {0, 0, 0, 0};
@@ -331,22 +330,41 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
   // routine for both models (eq. 1 adds the four affine columns). False if
   // the window leaves image b.
   auto assemble = [&]() {
-    jtj.setZero();
-    jtr.setZero();
+    // Accumulated in plain arrays (the lower triangle, mirrored at the end):
+    // the same products summed in the same order as jtj += row row^T, without
+    // the dynamic-size expression per pixel.
+    double a[8][8] = {}, t[8] = {};
+    double row[8];
     sum_r2 = 0;
     // M^-T for the template gradient.
     const double m11 = 1 + p_aff[0], m12 = p_aff[1], m21 = p_aff[2], m22 = 1 + p_aff[3];
     const double det = m11 * m22 - m12 * m21;
+    // Shift stage (no affine part yet): window b is a shifted grid, sampled
+    // with one set of weights.
+    const bool shifted_grid = options.gradient == LscGradient::kTemplate &&
+                              p_aff[0] == 0.0 && p_aff[1] == 0.0 && p_aff[2] == 0.0 &&
+                              p_aff[3] == 0.0;
+    if (shifted_grid) {
+      if (!inside(xb.x() - h, xb.y() - h) || !inside(xb.x() + h, xb.y() + h)) return false;
+      SampleWindow(image_b, xb.x(), xb.y(), h, interp, wb.data());
+    }
     for (int k = 0; k < n; ++k) {
-      double X, Y;
-      map(k, &X, &Y);
-      if (!inside(X, Y)) return false;
       double gx, gy, b;
-      if (options.gradient == LscGradient::kTemplate) {
+      if (shifted_grid) {
+        b = wb[k];
+        gx = ga_u[k];
+        gy = ga_v[k];
+      } else if (options.gradient == LscGradient::kTemplate) {
+        double X, Y;
+        map(k, &X, &Y);
+        if (!inside(X, Y)) return false;
         b = Sample(image_b, X, Y, interp);
         gx = (m22 * ga_u[k] - m21 * ga_v[k]) / det;
         gy = (-m12 * ga_u[k] + m11 * ga_v[k]) / det;
       } else {
+        double X, Y;
+        map(k, &X, &Y);
+        if (!inside(X, Y)) return false;
         float bx, by;
         b = ValueGrad(image_b, X, Y, interp, &bx, &by);
         gx = g * bx;
@@ -355,18 +373,24 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
       wb[k] = b;
       const double r = g * b + o - wa[k];
       sum_r2 += r * r;
-      row(0) = gx;
-      row(1) = gy;
+      row[0] = gx;
+      row[1] = gy;
       if (affine) {
-        row(2) = gx * us[k];
-        row(3) = gx * vs[k];
-        row(4) = gy * us[k];
-        row(5) = gy * vs[k];
+        row[2] = gx * us[k];
+        row[3] = gx * vs[k];
+        row[4] = gy * us[k];
+        row[5] = gy * vs[k];
       }
-      if (gain) row(ig) = b;
-      row(io) = 1.0;
-      jtj.noalias() += row * row.transpose();
-      jtr += row * r;
+      if (gain) row[ig] = b;
+      row[io] = 1.0;
+      for (int i = 0; i < m; ++i) {
+        for (int j = 0; j <= i; ++j) a[i][j] += row[i] * row[j];
+        t[i] += row[i] * r;
+      }
+    }
+    for (int i = 0; i < m; ++i) {
+      for (int j = 0; j <= i; ++j) jtj(i, j) = jtj(j, i) = a[i][j];
+      jtr(i) = t[i];
     }
     return true;
   };

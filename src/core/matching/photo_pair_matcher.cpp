@@ -6,6 +6,7 @@
 
 #include <Eigen/Geometry>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/core/utility.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -251,6 +252,7 @@ void PhotoPairOptions::Check() const {
   if (max_candidates < 1) throw ConfigError("max_candidates must be >= 1");
   if (border < 0) throw ConfigError("border must be >= 0");
   if (!(screen_threshold > 0.0)) throw ConfigError("screen_threshold must be > 0");
+  if (threads < 0 || threads > 64) throw ConfigError("threads must be in [0, 64]");
   lsc.Check();
   refine_lsc.Check();
 }
@@ -329,6 +331,46 @@ Eigen::Vector2d Scaled(const Eigen::Vector2d& x, double f) {  // pixel centres: 
   return (x.array() + 0.5) * f - 0.5;
 }
 
+struct WindowMatch {
+  bool matched = false;
+  PhotoTiePoint tie_point;
+  std::string status;  // why not matched ("" when matched)
+};
+
+// Candidate xa (full-resolution pixels of a): predicted in b by the relation
+// and the local correction of its nearest coarse inliers, matched on the
+// reduced photos, then (refine) at full resolution from there.
+WindowMatch MatchCandidate(const PhotoFeatures& a, const PhotoFeatures& b,
+                           const CoarseRelation& rel, const Eigen::Vector2d& xa, bool refine,
+                           const PhotoPairOptions& options,
+                           std::vector<std::pair<double, int>>* scratch) {
+  const double ra = a.reduce(), rb = b.reduce();
+  const Eigen::Vector2d xb0 =
+      Apply(rel.b_from_a, xa) + LocalCorrection(rel, xa, options.neighbours, scratch);
+  // Local map in reduced pixels: b_reduced = rb * J * a_reduced / ra.
+  const Eigen::Matrix2d j = Jacobian(rel.b_from_a, xa) * (rb / ra);
+  WindowMatch out;
+  PhotoTiePoint& tp = out.tie_point;
+  Eigen::Matrix2d local;
+  if (!MatchWindow(a.reduced(), b.reduced(), Scaled(xa, ra), Scaled(xb0, rb), j, options.lsc,
+                   &tp, &local, &out.status)) {
+    return out;
+  }
+  if (refine) {
+    const Eigen::Vector2d xb1 = Scaled(tp.xb, 1.0 / rb);
+    const Eigen::Matrix2d j1 = local * (ra / rb);
+    if (!MatchWindow(a.grey(), b.grey(), xa, xb1, j1, options.refine_lsc, &tp, &local,
+                     &out.status)) {
+      out.status = "refine_" + out.status;
+      return out;
+    }
+  } else {
+    tp.xa = xa;
+  }
+  out.matched = true;
+  return out;
+}
+
 }  // namespace
 
 PhotoPairResult MatchPhotoPair(const PhotoFeatures& a, const PhotoFeatures& b,
@@ -364,40 +406,35 @@ PhotoPairResult MatchPhotoPair(const PhotoFeatures& a, const PhotoFeatures& b,
   }
   s.candidates = static_cast<int>(candidates.size());
   std::vector<std::string> status(candidates.size());
-  std::vector<std::pair<double, int>> scratch;
   std::vector<cv::Point2f> pa, pb;
   std::vector<PhotoTiePoint> found;
   // Pass 1 predicts from the coarse relation; pass 2 retries the failures
   // from the relation of pass 1's tie points (many, precise, spread over the
   // overlap: the relief between coarse matches is followed).
   for (int pass = 0; pass < 2 && !todo.empty(); ++pass) {
+    // Each candidate is matched on its own (MatchCandidate reads only the
+    // photos and the relation) into its own slot, in stripes on `threads`
+    // threads; the slots are then taken in candidate order, so the result
+    // does not depend on the threads.
+    std::vector<WindowMatch> slots(todo.size());
+    const int n = static_cast<int>(todo.size());
+    cv::parallel_for_(
+        cv::Range(0, n),
+        [&](const cv::Range& range) {
+          std::vector<std::pair<double, int>> scratch;
+          for (int k = range.start; k < range.end; ++k)
+            slots[k] = MatchCandidate(a, b, rel, candidates[todo[k]], refine, options, &scratch);
+        },
+        options.threads > 0 ? std::min(options.threads, n) : -1.0);
     std::vector<int> failed;
-    for (const int c : todo) {
-      const Eigen::Vector2d& xa = candidates[c];
-      const Eigen::Vector2d xb0 =
-          Apply(rel.b_from_a, xa) + LocalCorrection(rel, xa, options.neighbours, &scratch);
-      // Local map in reduced pixels: b_reduced = rb * J * a_reduced / ra.
-      const Eigen::Matrix2d j = Jacobian(rel.b_from_a, xa) * (rb / ra);
-      PhotoTiePoint tp;
-      Eigen::Matrix2d local;
-      if (!MatchWindow(a.reduced(), b.reduced(), Scaled(xa, ra), Scaled(xb0, rb), j, options.lsc,
-                       &tp, &local, &status[c])) {
+    for (int k = 0; k < n; ++k) {
+      const int c = todo[k];
+      status[c] = std::move(slots[k].status);
+      if (!slots[k].matched) {
         if (status[c] != "outside_a") failed.push_back(c);
         continue;
       }
-      if (refine) {
-        const Eigen::Vector2d xb1 = Scaled(tp.xb, 1.0 / rb);
-        const Eigen::Matrix2d j1 = local * (ra / rb);
-        if (!MatchWindow(a.grey(), b.grey(), xa, xb1, j1, options.refine_lsc, &tp, &local,
-                         &status[c])) {
-          status[c] = "refine_" + status[c];
-          failed.push_back(c);
-          continue;
-        }
-      } else {
-        tp.xa = xa;
-      }
-      status[c].clear();
+      const PhotoTiePoint& tp = slots[k].tie_point;
       found.push_back(tp);
       pa.emplace_back(static_cast<float>(tp.xa.x()), static_cast<float>(tp.xa.y()));
       pb.emplace_back(static_cast<float>(tp.xb.x()), static_cast<float>(tp.xb.y()));

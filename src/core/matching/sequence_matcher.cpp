@@ -85,6 +85,9 @@ void SequenceMatcherOptions::Check() const {
 SequenceMatcher::SequenceMatcher(const SequenceMatcherOptions& options)
     : options_(options), hex_(options.hex) {
   options_.Check();
+  // One knob for the photo's matching: its pairs at once, and a pair's
+  // windows when the pairs do not already share the threads.
+  options_.photo_pair.threads = options_.threads;
 }
 
 SequenceStep SequenceMatcher::AddImage(std::int64_t stamp_ns, const std::string& frame_id,

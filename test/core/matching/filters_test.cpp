@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <numeric>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -136,6 +138,42 @@ TEST(Filters, BilinearIsExactOnRampsBicubicOnQuadratics) {
   EXPECT_FALSE(CanSample(ramp, 29.5, 3.0, Interpolation::kBilinear));
   EXPECT_EQ(InterpolationFromName("bicubic"), Interpolation::kBicubic);
   EXPECT_THROW(InterpolationFromName("nearest"), InvalidArgument);
+}
+
+// The window sampler (one set of weights for the window) gives each pixel the
+// point sampler's value, on a quadratic (bicubic exact) and on noise, up to
+// the last bits of the float sub-pixel offset; at the image border it refuses
+// the window, naming it.
+TEST(Filters, SampleWindowEqualsThePointSampler) {
+  cv::Mat quad(40, 50, CV_32F), noise(40, 50, CV_32F);
+  cv::RNG rng(3);
+  rng.fill(noise, cv::RNG::UNIFORM, 0.0, 255.0);
+  for (int r = 0; r < 40; ++r)
+    for (int c = 0; c < 50; ++c) quad.at<float>(r, c) = float(0.1 * c * c - 0.05 * r * r + 0.02 * r * c);
+  const int h = 5, w = 2 * h + 1;
+  std::vector<double> out(w * w);
+  for (const Interpolation interp : {Interpolation::kBicubic, Interpolation::kBilinear}) {
+    for (const cv::Mat* image : {&quad, &noise}) {
+      for (const auto& [x, y] : std::vector<std::pair<double, double>>{{20.0, 17.0}, {21.37, 13.81}, {7.5, 30.25}}) {
+        SampleWindow(*image, x, y, h, interp, out.data());
+        for (int v = -h, k = 0; v <= h; ++v)
+          for (int u = -h; u <= h; ++u, ++k)
+            EXPECT_NEAR(out[k], Sample(*image, x + u, y + v, interp), 1e-3)
+                << "(" << x << ", " << y << ") + (" << u << ", " << v << ")";
+      }
+    }
+    // Hand value: the quadratic at (21.37 + 2, 13.81 - 1).
+    SampleWindow(quad, 21.37, 13.81, h, Interpolation::kBicubic, out.data());
+    const double x = 23.37, y = 12.81;
+    EXPECT_NEAR(out[(h - 1) * w + (h + 2)], 0.1 * x * x - 0.05 * y * y + 0.02 * x * y, 1e-3);
+  }
+  // Bicubic needs one pixel more around the window than bilinear.
+  EXPECT_THROW(SampleWindow(quad, 5.5, 20.0, h, Interpolation::kBicubic, out.data()), InvalidArgument);
+  EXPECT_NO_THROW(SampleWindow(quad, 5.5, 20.0, h, Interpolation::kBilinear, out.data()));
+  EXPECT_NO_THROW(SampleWindow(quad, 44.0, 20.0, h, Interpolation::kBilinear, out.data()));
+  EXPECT_THROW(SampleWindow(quad, 44.5, 20.0, h, Interpolation::kBilinear, out.data()), InvalidArgument);
+  EXPECT_THROW(SampleWindow(cv::Mat(40, 50, CV_8U), 20.0, 20.0, h, Interpolation::kBilinear, out.data()),
+               InvalidArgument);
 }
 
 TEST(Filters, BadInputIsNamed) {

@@ -115,6 +115,13 @@ float SampleBilinear(const cv::Mat& image, double x, double y);
 float SampleBicubic(const cv::Mat& image, double x, double y);
 float Sample(const cv::Mat& image, double x, double y, Interpolation interpolation);
 
+// The (2 half + 1)^2 values at (x + u, y + v), u, v = -half..half, row by
+// row into out: one set of interpolation weights for the whole window (the
+// sub-pixel offset is the same everywhere). The window's neighbourhood must
+// lie inside the image (CanSample at both corners); else InvalidArgument.
+void SampleWindow(const cv::Mat& image, double x, double y, int half, Interpolation interpolation,
+                  double* out);
+
 // Interpolated value and its analytic derivatives d/dx, d/dy of the same
 // interpolant. Returns the value; writes the derivatives to *dx, *dy.
 float SampleBilinearGrad(const cv::Mat& image, double x, double y, float* dx, float* dy);

@@ -142,6 +142,11 @@ struct PhotoPairOptions {
   // [px] RANSAC fundamental matrix of the tie points: those farther from
   // their epipolar line are blunders and dropped, > 0.
   double screen_threshold = 1.0;
+  // The candidate windows are matched on this many threads (0: OpenCV's
+  // pool, as many as the hardware's), each into its own slot taken in
+  // candidate order: the tie points do not depend on it. Inside another
+  // cv::parallel_for_ (pairs matched at once) the windows run serially.
+  int threads = 0;  // [0, 64]
   void Check() const;  // throws ConfigError naming the field
 };
 
