@@ -76,7 +76,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
           [this, cam](const sensor_msgs::CameraInfoConstPtr& m) { OnCameraInfo(cam, m); }));
     }
     // Large queues: a long solve holds the callbacks, and nothing may be lost.
-    tie_sub_ = nh.subscribe("tie_points", 2000, &BundleAdjusterNodelet::OnTiePoints, this);
+    for (const std::string& topic : params_.tie_topics)
+      tie_subs_.push_back(nh.subscribe(topic, 2000, &BundleAdjusterNodelet::OnTiePoints, this));
     for (const std::string& topic : params_.prior_topics)
       prior_subs_.push_back(nh.subscribe(topic, 500, &BundleAdjusterNodelet::OnPositionPrior, this));
     for (const std::string& topic : params_.epoch_topics)
@@ -159,10 +160,18 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     marker_order_ = std::make_unique<InputOrder<slope_monitor::EpochMarkerConstPtr>>(kept);
   }
 
+  // Whether a matcher publishes tie points (none started, or it failed on
+  // its parameters: nothing to wait for).
+  bool MatcherPublishing() const {
+    for (const ros::Subscriber& s : tie_subs_)
+      if (s.getNumPublishers() > 0) return true;
+    return false;
+  }
+
   void OnTargets(const slope_monitor::TargetObservationArrayConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     CheckReplayCameras();
-    collector_->SetTiePointsExpected(tie_sub_.getNumPublishers() > 0);
+    collector_->SetTiePointsExpected(MatcherPublishing());
     Solve(collector_->AddTargets(ros_adapters::FromMsg(*msg), Now()));
   }
 
@@ -171,7 +180,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     CheckReplayCameras();
     // No matcher publishing (not started, or failed on its parameters):
     // nothing to wait for.
-    collector_->SetTiePointsExpected(tie_sub_.getNumPublishers() > 0);
+    collector_->SetTiePointsExpected(MatcherPublishing());
     Solve(collector_->AddTies(ros_adapters::FromMsg(*msg), Now()));
   }
 
@@ -199,7 +208,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   // Caller holds mutex_.
   void RouteEnd(const slope_monitor::EpochMarkerConstPtr& msg) {
     if (!msg->end) return;
-    collector_->SetTiePointsExpected(tie_sub_.getNumPublishers() > 0);
+    collector_->SetTiePointsExpected(MatcherPublishing());
     Solve(collector_->AddEnd(ros_adapters::FromMsg(*msg), Now()));
     for (; reported_ignored_ < collector_->ignored().size(); ++reported_ignored_)
       NODELET_WARN("bundle_adjuster: %s", collector_->ignored()[reported_ignored_].c_str());
@@ -221,7 +230,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
               c.c_str(), params_.collector.epoch_wait);
       }
       if (ros_adapters::LiveTimeouts()) {
-        collector_->SetTiePointsExpected(tie_sub_.getNumPublishers() > 0);
+        collector_->SetTiePointsExpected(MatcherPublishing());
         Solve(collector_->Poll(Now()));
       }
     }
@@ -235,7 +244,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     if (marker_order_)
       for (auto& r : marker_order_->Flush()) RouteEnd(r.item);
-    collector_->SetTiePointsExpected(tie_sub_.getNumPublishers() > 0);
+    collector_->SetTiePointsExpected(MatcherPublishing());
     if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) {
       NODELET_INFO("bundle_adjuster: end of the replay: solving the epoch still open");
       SolveOne(*e);
@@ -365,7 +374,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   // ROS.
   ros::Publisher solution_pub_, points_pub_, displacements_pub_, frustums_pub_;
   std::vector<ros::Subscriber> target_subs_, info_subs_;
-  ros::Subscriber tie_sub_;
+  std::vector<ros::Subscriber> tie_subs_;
   std::vector<ros::Subscriber> prior_subs_;
   bool cameras_checked_ = false;  // CheckReplayCameras ran
   std::vector<ros::Subscriber> epoch_subs_;

@@ -10,7 +10,9 @@
 //          epoch, every later image is matched against it with the
 //          displacement prior (global shift from stable ground estimated).
 //   sequence: image (one moving camera, e.g. the UAV) + optional
-//          position_prior -> matching::SequenceMatcher
+//          position_prior -> matching::SequenceMatcher; with site_file, the
+//          site's camera of kind uav on its own topics
+//          (ros/hex_matcher_parameters.h)
 //          (core/matching/sequence_matcher.h: pairs, prior association by
 //          messages, epochs, pair method, track IDs, pairs_b; process_bag
 //          --uav-tie-points runs the same). Callbacks only queue; one worker
@@ -72,7 +74,8 @@ class HexMatcherNodelet : public nodelet::Nodelet {
           nh, pnh, "hex_matcher", "parameters rejected: " + *error);
       return;
     }
-    pub_ = nh.advertise<slope_monitor::TiePointArray>("tie_points", 5);
+    // tie_topic: "tie_points", or the site's UAV camera's /<camera>/tie_points.
+    pub_ = nh.advertise<slope_monitor::TiePointArray>(params_.tie_topic, 5);
     if (mode_ == "pair") {
       sub_a_ = nh.subscribe("image_a", 2, &HexMatcherNodelet::OnImageA, this);
       sub_b_ = nh.subscribe("image_b", 2, &HexMatcherNodelet::OnImageB, this);
@@ -82,8 +85,8 @@ class HexMatcherNodelet : public nodelet::Nodelet {
       // Large queues: a fast bag replay must lose no image (the callbacks
       // only queue; the worker matches).
       sub_a_ =
-          nh.subscribe("image", params_.image_queue, &HexMatcherNodelet::OnSequenceImage, this);
-      sub_b_ = nh.subscribe("position_prior", params_.image_queue,
+          nh.subscribe(params_.image_topic, params_.image_queue, &HexMatcherNodelet::OnSequenceImage, this);
+      sub_b_ = nh.subscribe(params_.prior_topic, params_.image_queue,
                             &HexMatcherNodelet::OnPositionPrior, this);
       worker_ = std::thread([this] { SequenceWorker(); });
       end_sub_ = ros_adapters::SubscribeEndOfInput(nh, ros_adapters::kEndOfMatching,

@@ -128,8 +128,11 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
       d.outlines.back().emplace_back(outline[i], outline[i + 1]);
   }
   d.stable_mask = p.String("stable_mask", "");
-  d.cameras = p.StringList("cameras", {"fixed_cam_1", "fixed_cam_2", "uav"});
-  d.uav_cameras = p.StringList("uav_cameras", {"uav"});
+  std::vector<std::string> default_cameras;
+  for (const io::SiteCamera& cam : io::DefaultCameras()) default_cameras.push_back(cam.name);
+  d.cameras = p.StringList("cameras", default_cameras);
+  d.uav_cameras =
+      p.StringList("uav_cameras", io::CameraNames(io::DefaultCameras(), io::CameraKind::kUav));
   // A site file that lists cameras decides them and their kinds (the two
   // parameters above are then not used).
   const std::string site_file = p.String("site_file", "");

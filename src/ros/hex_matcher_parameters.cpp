@@ -1,9 +1,11 @@
 #include "slope_monitor/ros/hex_matcher_parameters.h"
 
+#include <algorithm>
 #include <vector>
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/image_polygons.h"
+#include "slope_monitor/core/io/site_file.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -148,6 +150,29 @@ void ReadSequenceOptions(ParamReader& p, matching::SequenceMatcherOptions* s) {
       p.Double("photo_screen_threshold", s->photo_pair.screen_threshold, 1e-3, 100.0, "px");
 }
 
+// Sequence mode with a site file: its camera of kind uav and that camera's
+// topics (the kind is the site's field, never the name).
+void UseSiteUavCamera(const io::SiteFile& site, ParamReader& p, HexMatcherParameters* h) {
+  if (site.cameras.empty()) return;  // the site says nothing about cameras
+  const std::vector<std::string> uav = io::CameraNames(site.cameras, io::CameraKind::kUav);
+  if (uav.empty())
+    throw ConfigError("parameter '" + p.FullKey("site_file") + "': site file '" + site.path +
+                      "' lists no camera of kind uav (mode sequence ties a UAV camera's photos)");
+  if (std::find(uav.begin(), uav.end(), h->camera) == uav.end()) {
+    if (uav.size() > 1) {
+      std::string names;
+      for (const std::string& n : uav) names += (names.empty() ? "" : ", ") + n;
+      throw ConfigError("parameter '" + p.FullKey("camera") + "': '" + h->camera +
+                        "' is not a camera of kind uav of site file '" + site.path + "' (" +
+                        names + "); one hex_matcher per UAV camera, each with its camera");
+    }
+    h->camera = uav.front();
+  }
+  h->image_topic = "/" + h->camera + "/camera/image_raw";
+  h->prior_topic = "/" + h->camera + "/camera/position_prior";
+  h->tie_topic = "/" + h->camera + "/tie_points";
+}
+
 }  // namespace
 
 HexMatcherParameters ReadHexMatcherParameters(ParamReader& p) {
@@ -159,6 +184,8 @@ HexMatcherParameters ReadHexMatcherParameters(ParamReader& p) {
   ReadHexOptions(p, &h.hex);
   ReadPrior(p, h.mode == "track", &h.prior);
   h.camera = p.String("camera", h.camera);
+  const std::string site_file = p.String("site_file", "");
+  if (h.mode == "sequence" && !site_file.empty()) UseSiteUavCamera(io::LoadSiteFile(site_file), p, &h);
   h.site_frame = p.String("site_frame", h.site_frame);
   h.image_queue = p.Int("image_queue", h.image_queue, 1, 100000);
   ReadSequenceOptions(p, &h.sequence);

@@ -70,15 +70,22 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   if (site) a.pixel_size_by_camera = adjustment::ApplySite(*site, &a.collector, &a.scene);
   std::vector<std::string> site_cameras, site_targets, site_epochs;
   a.prior_topics = {"position_prior"};
+  a.tie_topics = {"tie_points"};
   if (site) {
-    std::vector<std::string> priors;
+    std::vector<std::string> priors, ties;
     for (const io::SiteCamera* cam : site->CamerasWithTargets()) {
       site_cameras.push_back(cam->name);
       site_targets.push_back("/" + cam->name + "/targets");
       site_epochs.push_back("/" + cam->name + "/camera/epoch");
-      if (cam->kind == io::CameraKind::kUav) priors.push_back("/" + cam->name + "/camera/position_prior");
+      if (cam->kind == io::CameraKind::kUav) {
+        priors.push_back("/" + cam->name + "/camera/position_prior");
+        ties.push_back("/" + cam->name + "/tie_points");
+      }
     }
-    if (!site_cameras.empty()) a.prior_topics = priors;
+    if (!site_cameras.empty()) {
+      a.prior_topics = priors;
+      a.tie_topics = ties;
+    }
   }
   // A site file that lists cameras decides them (cameras, target_topics and
   // epoch_topics are then not used, as target_list is not).
@@ -93,7 +100,9 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
     a.epoch_topics = site_epochs;
   }
   c.epoch_wait = p.Double("epoch_wait", 30.0, 0.0, 3600.0, "s");
-  c.tie_point_cameras = p.StringList("tie_point_cameras", {});
+  // The UAV cameras' photos wait for their tie points (replay.launch
+  // uav_tie_points:=true, process_bag --uav-tie-points).
+  if (p.Bool("uav_tie_points", false)) c.tie_point_cameras = c.uav_cameras;
   c.tie_point_wait = p.Double("tie_point_wait", 300.0, 0.0, 86400.0, "s");
   c.tie_pixel_sigma_floor = p.Double("tie_pixel_sigma_floor", 0.2, 0.0, 100.0, "px");
   c.min_tie_quality = p.Double("min_tie_quality", 0.25, 0.0, 1.0);

@@ -93,9 +93,13 @@ constexpr char kUsage[] =
 constexpr char kAdjusterDisplacements[] = "/bundle_adjuster/displacements";
 constexpr char kRadioDisplacements[] = "/radio/radio_displacements";
 constexpr char kTargetlessDisplacements[] = "/targetless_camera/displacements";
-constexpr char kUavImage[] = "/uav/camera/image_raw";
-constexpr char kUavPrior[] = "/uav/camera/position_prior";
-constexpr char kUavTiePoints[] = "/uav/tie_points";
+// A UAV camera's topics (the adjuster's prior topics with a site file, and
+// hex_matcher's in processing_graph.xml): /<camera>/camera/image_raw ...
+std::string UavImageTopic(const std::string& camera) { return "/" + camera + "/camera/image_raw"; }
+std::string UavPriorTopic(const std::string& camera) {
+  return "/" + camera + "/camera/position_prior";
+}
+std::string UavTiePointTopic(const std::string& camera) { return "/" + camera + "/tie_points"; }
 
 struct Args {
   std::vector<std::string> bags;
@@ -305,16 +309,16 @@ class OfflineGraph {
 
   void OnMessage(const rosbag::MessageInstance& m) {
     const std::string& topic = m.getTopic();
-    if (sequence_ && topic == kUavPrior) {
+    if (UavMatcher* uav = UavMatcherOf(topic, &UavMatcher::prior_topic)) {
       // The sequence matcher's work for this prior (features and pairs of
       // the photo that waited for it) runs while the photo's targets are
       // still being centroided (Pair); both are taken in bag order after.
       if (const auto prior = m.instantiate<geometry_msgs::PoseWithCovarianceStamped>()) {
-        const std::optional<matching::SequenceStep> step = MatchUavPrior(*prior);
+        const std::optional<matching::SequenceStep> step = MatchUavPrior(uav, *prior);
         TakeCentroided();
         now_ = m.getTime();
         collector_->AddPrior(ros_adapters::FromMsg(*prior));
-        if (step) OnSequenceStep(*step);
+        if (step) OnSequenceStep(*uav, *step);
         return;
       }
     }
@@ -327,7 +331,7 @@ class OfflineGraph {
       if (const auto tf = m.instantiate<tf2_msgs::TFMessage>()) OnTf(*tf, topic == "/tf_static");
     } else if (OnTargetlessMessage(m)) {
     } else if (const auto image = m.instantiate<sensor_msgs::Image>()) {
-      if (sequence_ && topic == kUavImage) OnUavImage(image);
+      if (UavMatcher* uav = UavMatcherOf(topic, &UavMatcher::image_topic)) OnUavImage(uav, image);
       if (Centroider* c = CameraOf(topic, "/camera/image_raw")) {
         c->images[image->header.stamp] = image;
         if (dense_)
@@ -344,7 +348,7 @@ class OfflineGraph {
     } else if (const auto marker = m.instantiate<slope_monitor::EpochMarker>()) {
       if (marker->end) OnEpochEnd(*marker);
     } else if (const auto prior = m.instantiate<geometry_msgs::PoseWithCovarianceStamped>()) {
-      if (topic == kUavPrior) collector_->AddPrior(ros_adapters::FromMsg(*prior));
+      if (IsPriorTopic(topic)) collector_->AddPrior(ros_adapters::FromMsg(*prior));
     } else if (const auto block = m.instantiate<slope_monitor::RadioSampleBlock>()) {
       OnRadioBlock(*block, topic);
     }
@@ -360,7 +364,8 @@ class OfflineGraph {
       if (c.last)
         Write("/" + camera + "/debug_image",
               ros_adapters::ToDebugImage(*c.last, c.last_image->header));
-    if (sequence_) OnSequenceStep(Timed(&stages_.matching, [&] { return sequence_->Finish(); }));
+    for (UavMatcher& uav : uav_matchers_)
+      OnSequenceStep(uav, Timed(&stages_.matching, [&] { return uav.sequence->Finish(); }));
     if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) Solve(*e);
     // The inputs have ended: what waits for a later stamp of another input is fused.
     for (auto& r : order_->Flush()) FuseNow(r.item, r.input);
@@ -380,18 +385,27 @@ class OfflineGraph {
     WriteReportFiles();
   }
 
-  // --uav-tie-points: the hex matcher of the graph (mode sequence, camera
-  // uav) on /uav/camera/image_raw and position_prior; its tie points go to
-  // the collector as /uav/tie_points. priors_in_bag: the bag has priors (an
-  // image waits for its own); else every image is matched when it comes.
-  void SetUpUavTiePoints(bool priors_in_bag) {
-    XmlRpc::XmlRpcValue p = NodeParams("hex_matcher");
-    ros_adapters::SetParam(&p, "mode", std::string("sequence"));
-    ros_adapters::SetParam(&p, "camera", std::string("uav"));
-    ros_adapters::ParamReader r(p, "/uav/hex_matcher");
-    hex_params_ = ros_adapters::ReadHexMatcherParameters(r);
-    sequence_ = std::make_unique<matching::SequenceMatcher>(hex_params_.sequence);
-    sequence_->SetPriorsExpected(priors_in_bag);
+  // --uav-tie-points: the graph's hex matcher (mode sequence) for every
+  // camera of kind uav (the site file's, else io::DefaultCameras()'s `uav`)
+  // on /<camera>/camera/image_raw and position_prior; its tie points go to
+  // the collector as /<camera>/tie_points. has_topic: whether the bag has a
+  // topic; with priors in the bag an image waits for its own, else every
+  // image is matched when it comes.
+  void SetUpUavTiePoints(const std::function<bool(const std::string&)>& has_topic) {
+    for (const std::string& camera : adjuster_params_.collector.uav_cameras) {
+      XmlRpc::XmlRpcValue p = NodeParams("hex_matcher");
+      ros_adapters::SetParam(&p, "mode", std::string("sequence"));
+      ros_adapters::SetParam(&p, "camera", camera);
+      ros_adapters::ParamReader r(p, "/" + camera + "/hex_matcher");
+      UavMatcher uav;
+      uav.params = ros_adapters::ReadHexMatcherParameters(r);
+      uav.image_topic = UavImageTopic(camera);
+      uav.prior_topic = UavPriorTopic(camera);
+      uav.tie_topic = UavTiePointTopic(camera);
+      uav.sequence = std::make_unique<matching::SequenceMatcher>(uav.params.sequence);
+      uav.sequence->SetPriorsExpected(has_topic(uav.prior_topic));
+      uav_matchers_.push_back(std::move(uav));
+    }
   }
 
   int epochs_solved() const { return adjuster_accepted_ + radio_epochs_; }
@@ -424,7 +438,7 @@ class OfflineGraph {
     if (!args_.site.empty()) ros_adapters::SetParam(&p, "site_file", args_.site);
     if (!args_.adjuster_config.empty())
       ros_adapters::MergeParams(&p, ros_adapters::LoadParamFile(args_.adjuster_config));
-    if (args_.uav_tie_points) ros_adapters::SetParam(&p, "tie_point_cameras", StringList({"uav"}));
+    if (args_.uav_tie_points) ros_adapters::SetParam(&p, "uav_tie_points", true);
     ros_adapters::ParamReader r(p, "/bundle_adjuster");
     adjuster_params_ = ros_adapters::ReadAdjusterParameters(r);
     if (adjuster_params_.cameras_from_site) {
@@ -727,45 +741,65 @@ class OfflineGraph {
     }
   }
 
-  // ---- the hex matcher (mode sequence).
-  void OnUavImage(const sensor_msgs::Image::ConstPtr& image) {
+  // ---- the hex matcher (mode sequence), one per UAV camera.
+  struct UavMatcher {
+    ros_adapters::HexMatcherParameters params;  // params.camera: the UAV camera
+    std::string image_topic, prior_topic, tie_topic;
+    std::unique_ptr<matching::SequenceMatcher> sequence;
+  };
+
+  UavMatcher* UavMatcherOf(const std::string& topic, std::string UavMatcher::*field) {
+    for (UavMatcher& uav : uav_matchers_)
+      if (uav.*field == topic) return &uav;
+    return nullptr;
+  }
+
+  // The adjuster's position priors: each site UAV camera's topic, or the
+  // graph's /uav/camera/position_prior without a site file.
+  bool IsPriorTopic(const std::string& topic) const {
+    if (!adjuster_params_.cameras_from_site) return topic == UavPriorTopic("uav");
+    const std::vector<std::string>& topics = adjuster_params_.prior_topics;
+    return std::find(topics.begin(), topics.end(), topic) != topics.end();
+  }
+
+  void OnUavImage(UavMatcher* uav, const sensor_msgs::Image::ConstPtr& image) {
     cv::Mat grey;
     try {
       grey = ros_adapters::ImageForMatching(image);
     } catch (const std::exception& e) {
-      Log(std::string("hex_matcher: image on ") + kUavImage + " not converted: " + e.what());
+      Log("hex_matcher: image on " + uav->image_topic + " not converted: " + e.what());
     }
-    OnSequenceStep(Timed(&stages_.matching, [&] {
-      return sequence_->AddImage(ros_adapters::ToStamp(image->header.stamp), image->header.frame_id,
-                                 grey);
+    OnSequenceStep(*uav, Timed(&stages_.matching, [&] {
+      return uav->sequence->AddImage(ros_adapters::ToStamp(image->header.stamp),
+                                     image->header.frame_id, grey);
     }));
   }
 
   // The sequence matcher's step for a UAV position prior (pure: nothing is
   // written or collected); none for a prior in another frame (logged).
   std::optional<matching::SequenceStep> MatchUavPrior(
-      const geometry_msgs::PoseWithCovarianceStamped& prior) {
-    if (!prior.header.frame_id.empty() && prior.header.frame_id != hex_params_.site_frame) {
-      Log("hex_matcher: position_prior in frame '" + prior.header.frame_id + "', expected '" +
-          hex_params_.site_frame + "' (site_frame); ignored");
+      UavMatcher* uav, const geometry_msgs::PoseWithCovarianceStamped& prior) {
+    if (!prior.header.frame_id.empty() && prior.header.frame_id != uav->params.site_frame) {
+      Log("hex_matcher: " + uav->prior_topic + " in frame '" + prior.header.frame_id +
+          "', expected '" + uav->params.site_frame + "' (site_frame); ignored");
       return std::nullopt;
     }
     return Timed(&stages_.matching, [&] {
-      return sequence_->AddPrior(
+      return uav->sequence->AddPrior(
           ros_adapters::ToStamp(prior.header.stamp),
           Eigen::Vector2d(prior.pose.pose.position.x, prior.pose.pose.position.y));
     });
   }
 
-  void OnSequenceStep(const matching::SequenceStep& step) {
+  void OnSequenceStep(const UavMatcher& uav, const matching::SequenceStep& step) {
     for (const std::string& line : step.log) Log("hex_matcher: " + line);
     for (const matching::SequencePair& pair : step.pairs) {
       if (!pair.reason.empty())
         Log("hex_matcher: sequence " + pair.message + " (empty tie points)");
       ++stages_.pairs;
       stages_.tie_points += static_cast<int>(pair.points.size());
-      const slope_monitor::TiePointArray msg = ros_adapters::ToMsg(pair, hex_params_.camera);
-      Write(kUavTiePoints, msg);
+      const slope_monitor::TiePointArray msg = ros_adapters::ToMsg(pair, uav.params.camera);
+      Write(uav.tie_topic, msg);
       Solve(collector_->AddTies(ros_adapters::FromMsg(msg), now_.toSec()));
     }
   }
@@ -923,9 +957,8 @@ class OfflineGraph {
   std::map<std::string, camera::CameraModel> models_;
   size_t reported_ignored_ = 0;
   int adjuster_accepted_ = 0;
-  // hex_matcher (mode sequence; --uav-tie-points)
-  ros_adapters::HexMatcherParameters hex_params_;
-  std::unique_ptr<matching::SequenceMatcher> sequence_;
+  // hex_matcher (mode sequence; --uav-tie-points): one per UAV camera
+  std::vector<UavMatcher> uav_matchers_;
   // radio_phase_solver
   ros_adapters::RadioParameters radio_params_;
   std::unique_ptr<radio::RadioPhaseSolver> radio_solver_;
@@ -1019,7 +1052,8 @@ int Run(const Args& args) {
   OfflineGraph graph(args, cameras, output.get(), [&progress](const std::string& line) {
     progress.Print("process_bag: " + line);
   });
-  if (args.uav_tie_points) graph.SetUpUavTiePoints(HasTopic(view, kUavPrior));
+  if (args.uav_tie_points)
+    graph.SetUpUavTiePoints([&view](const std::string& topic) { return HasTopic(view, topic); });
   for (const rosbag::MessageInstance& m : view) {
     graph.OnMessage(m);
     progress.Update(m.getTime(), graph.epochs_solved());

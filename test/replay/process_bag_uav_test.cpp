@@ -7,7 +7,10 @@
 //   * uav_block_replay: the UAV alone, two parallel strips, two epochs, tie
 //     points from the sequence matcher (--uav-tie-points, the graph's
 //     hex_matcher in mode sequence) and the camera self-calibrated
-//     (config/uav_self_calibration.yaml).
+//     (config/uav_self_calibration.yaml). Run on a copy of the bag whose
+//     UAV topics are /drone/...: a site file names the camera `drone` with
+//     kind uav, and every UAV step (priors, tie points, self-calibration)
+//     must follow the kind, not the name `uav` (issue 18).
 #include <unistd.h>
 
 #include <chrono>
@@ -20,6 +23,8 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
 
 #include "uav_replay_checks.h"
 
@@ -39,14 +44,40 @@ std::string ReadFile(const fs::path& p) {
   return ss.str();
 }
 
-// process_bag on `name`'s survey with `extra` arguments; outputs in a fresh
-// directory (history.db, reports/, out.bag, stdout, stderr). Returns it.
-fs::path RunProcessBag(const std::string& name, const std::vector<std::string>& extra) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("process_bag_uav_test_" + std::to_string(getpid())) / name;
-  fs::remove_all(dir);
+fs::path OutputDir(const std::string& name) {
+  return fs::temp_directory_path() / ("process_bag_uav_test_" + std::to_string(getpid())) / name;
+}
+
+// A copy of `name`'s survey in `dir` (bag, targets, truth) whose topics
+// under /uav/ are under /<camera>/ (messages, stamps and latching kept).
+std::string RenamedSurvey(const std::string& name, const fs::path& dir, const std::string& camera) {
   fs::create_directories(dir);
-  std::string command = std::string("'") + SM_PROCESS_BAG + "' --bag '" + Survey(name, ".bag") +
+  const std::string stem = (dir / name).string();
+  rosbag::Bag in(Survey(name, ".bag"), rosbag::bagmode::Read);
+  rosbag::Bag out(stem + ".bag", rosbag::bagmode::Write);
+  for (const rosbag::MessageInstance& m : rosbag::View(in)) {
+    std::string topic = m.getTopic();
+    if (topic.rfind("/uav/", 0) == 0) topic = "/" + camera + topic.substr(4);
+    out.write(topic, m.getTime(), m, m.getConnectionHeader());
+  }
+  out.close();
+  for (const std::string ext : {".targets.yaml", ".truth.yaml"})
+    fs::copy_file(Survey(name, ext), stem + ext, fs::copy_options::overwrite_existing);
+  return stem + ".bag";
+}
+
+// process_bag on `name`'s survey (or on `bag`) with `extra` arguments;
+// outputs in a fresh directory (history.db, reports/, out.bag, stdout,
+// stderr). Returns it.
+fs::path RunProcessBag(const std::string& name, const std::vector<std::string>& extra,
+                       std::string bag = "") {
+  if (bag.empty()) bag = Survey(name, ".bag");
+  const fs::path dir = OutputDir(name);
+  fs::remove_all(dir / "out.bag");
+  fs::remove_all(dir / "history.db");
+  fs::remove_all(dir / "reports");
+  fs::create_directories(dir);
+  std::string command = std::string("'") + SM_PROCESS_BAG + "' --bag '" + bag +
                         "' --database '" + (dir / "history.db").string() + "' --report-dir '" +
                         (dir / "reports").string() + "' --output-bag '" +
                         (dir / "out.bag").string() + "'";
@@ -79,10 +110,22 @@ TEST(ProcessBagUav, GraphReplaySurveyMatchesTruth) {
 
 TEST(ProcessBagUav, BlockSurveyWithTiePointsMatchesTruth) {
   const std::string name = "uav_block_replay";
+  // The UAV is `drone` by the site file's kind field (the survey calls it uav).
+  const fs::path survey = OutputDir(name) / "drone";
+  const std::string bag = RenamedSurvey(name, survey, "drone");
+  const std::string site = (survey / "drone.site.yaml").string();
+  std::ofstream(site) << "name: drone_block\n"
+                         "crs: EPSG:4979\n"
+                         "origin: [8.0, 46.5, 1200.0]\n"
+                         "cameras:\n"
+                         "  - {name: drone, kind: uav, pixel_size: 0.0048}\n";
   const fs::path dir =
-      RunProcessBag(name, {"--uav-tie-points", "--no-dense", "--adjuster-config",
-                           std::string(SM_SOURCE_DIR) + "/config/uav_self_calibration.yaml"});
-  const uav_replay::Outputs outputs = uav_replay::ReadOutputs((dir / "out.bag").string());
+      RunProcessBag(name,
+                    {"--uav-tie-points", "--no-dense", "--site", site, "--adjuster-config",
+                     std::string(SM_SOURCE_DIR) + "/config/uav_self_calibration.yaml"},
+                    bag);
+  const uav_replay::Outputs outputs =
+      uav_replay::ReadOutputs((dir / "out.bag").string(), "/drone/tie_points");
   std::cout << outputs.tie_point_messages << " tie-point messages, " << outputs.tie_points
             << " tie points\n";
   // Every photo but the first of each epoch pairs (2 epochs x 20 photos).
@@ -98,6 +141,7 @@ TEST(ProcessBagUav, BlockSurveyWithTiePointsMatchesTruth) {
   tol.max_c_error = 0.008;               // [mm] nominal is 0.020 off
   tol.max_principal_point_error = 0.03;  // [mm] 6 px; nominal is 0.008-0.012 off
   tol.max_k1_error = 2e-5;               // [mm^-2] nominal is 2e-4 off
+  tol.uav_camera = "drone";
   uav_replay::CheckUavReplay(outputs, Survey(name, ".truth.yaml"), tol);
 }
 

@@ -40,6 +40,9 @@ struct Tolerances {
   double max_c_error = 0.005;                // [mm]
   double max_principal_point_error = 0.005;  // [mm]
   double max_k1_error = 2e-5;                // [mm^-2]
+  // The UAV camera's name in the outputs: "" = the survey truth's (a bag
+  // whose topics were renamed: the site file's name).
+  std::string uav_camera;
 };
 
 // The bundle adjuster's last solution and displacements of each epoch in the output bag.
@@ -49,7 +52,8 @@ struct Outputs {
   int tie_point_messages = 0, tie_points = 0;
 };
 
-inline Outputs ReadOutputs(const std::string& bag_path) {
+inline Outputs ReadOutputs(const std::string& bag_path,
+                           const std::string& tie_topic = "/uav/tie_points") {
   Outputs o;
   rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
   for (const rosbag::MessageInstance& m : rosbag::View(bag)) {
@@ -59,7 +63,7 @@ inline Outputs ReadOutputs(const std::string& bag_path) {
     } else if (m.getTopic() == "/bundle_adjuster/displacements") {
       if (const auto d = m.instantiate<slope_monitor::PointDisplacementArray>())
         o.displacements[static_cast<int>(d->epoch)] = *d;
-    } else if (m.getTopic() == "/uav/tie_points") {
+    } else if (m.getTopic() == tie_topic) {
       if (const auto t = m.instantiate<slope_monitor::TiePointArray>()) {
         ++o.tie_point_messages;
         o.tie_points += static_cast<int>(t->points.size());
@@ -93,6 +97,7 @@ inline void CheckUavReplay(const Outputs& outputs, const std::string& truth_path
   for (const sim::CameraTruth& c : truth.cameras)
     if (c.kind == "uav") uav = &c;
   ASSERT_NE(uav, nullptr) << "the survey has no UAV";
+  const std::string uav_name = tol.uav_camera.empty() ? uav->name : tol.uav_camera;
   const auto& solutions = outputs.solutions;
   const auto& displacements = outputs.displacements;
   std::map<int, std::set<std::string>> seen_by_uav;  // epoch -> targets visible in kept UAV photos
@@ -105,7 +110,7 @@ inline void CheckUavReplay(const Outputs& outputs, const std::string& truth_path
     int photos = 0;
     double worst_pos = 0.0, worst_att = 0.0;
     for (const auto& c : s.cameras) {
-      if (c.camera_name != uav->name) continue;
+      if (c.camera_name != uav_name) continue;
       const sim::ImageTruth* im = FindImage(*uav, c.image_header.stamp.toSec());
       ASSERT_NE(im, nullptr) << "UAV photo at " << c.image_header.stamp << " is not in the truth";
       ++photos;

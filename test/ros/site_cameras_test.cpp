@@ -9,7 +9,9 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include "slope_monitor/core/common/error.h"
 #include "slope_monitor/ros/dense_conversions.h"
+#include "slope_monitor/ros/hex_matcher_parameters.h"
 #include "slope_monitor/ros/node_parameters.h"
 #include "slope_monitor/ros/param_files.h"
 #include "slope_monitor/ros/parameters.h"
@@ -52,9 +54,10 @@ TEST(SiteCameras, TheSiteDecidesTheAdjustersCamerasAndTopics) {
   EXPECT_EQ(a.epoch_topics, (Strings{"/north_mast/camera/epoch", "/drone/camera/epoch",
                                      "/south_mast/camera/epoch"}));
   EXPECT_EQ(a.prior_topics, (Strings{"/drone/camera/position_prior"}));
+  EXPECT_EQ(a.tie_topics, (Strings{"/drone/tie_points"}));
+  EXPECT_TRUE(a.collector.tie_point_cameras.empty());  // uav_tie_points off by default
   EXPECT_EQ(a.CameraInfoTopic("south_mast"), "/south_mast/camera/camera_info");
-  ASSERT_TRUE(a.collector.uav_cameras.has_value());
-  EXPECT_EQ(*a.collector.uav_cameras, (Strings{"drone"}));  // by kind, not by name
+  EXPECT_EQ(a.collector.uav_cameras, (Strings{"drone"}));  // by kind, not by name
   EXPECT_DOUBLE_EQ(a.PixelSizeOf("north_mast"), 0.0039);
   EXPECT_DOUBLE_EQ(a.PixelSizeOf("drone"), 0.0033);
   ::unlink(site.c_str());
@@ -70,7 +73,89 @@ TEST(SiteCameras, WithoutASiteTheParametersAndRelativeTopicsStay) {
   EXPECT_EQ(a.target_topics, (Strings{"targets"}));
   EXPECT_EQ(a.epoch_topics, (Strings{"epoch"}));
   EXPECT_EQ(a.prior_topics, (Strings{"position_prior"}));
+  EXPECT_EQ(a.tie_topics, (Strings{"tie_points"}));
   EXPECT_EQ(a.CameraInfoTopic("fixed_cam_1"), "fixed_cam_1/camera_info");
+  EXPECT_EQ(a.collector.uav_cameras, (Strings{"uav"}));  // io::DefaultCameras()' kind uav
+}
+
+// uav_tie_points: the UAV cameras' photos wait for their tie points, the
+// site's by kind (and the graph's `uav` without a site).
+TEST(SiteCameras, UavTiePointsWaitForTheUavCamerasByKind) {
+  const std::string site = WriteSite();
+  XmlRpc::XmlRpcValue p = Defaults("bundle_adjuster");
+  SetParam(&p, "site_file", site);
+  SetParam(&p, "uav_tie_points", true);
+  ParamReader r(p, "/bundle_adjuster");
+  EXPECT_EQ(ReadAdjusterParameters(r).collector.tie_point_cameras, (Strings{"drone"}));
+  XmlRpc::XmlRpcValue q = Defaults("bundle_adjuster");
+  SetParam(&q, "target_list",
+           std::string(SM_SOURCE_DIR) + "/test/rostest/service_switches.targets.yaml");
+  SetParam(&q, "uav_tie_points", true);
+  ParamReader r2(q, "/bundle_adjuster");
+  EXPECT_EQ(ReadAdjusterParameters(r2).collector.tie_point_cameras, (Strings{"uav"}));
+  ::unlink(site.c_str());
+}
+
+// The ConfigError of hex_matcher parameters `p`; "" when they are accepted.
+std::string HexMatcherError(const XmlRpc::XmlRpcValue& p) {
+  ParamReader r(p, "/uav/hex_matcher");
+  try {
+    ReadHexMatcherParameters(r);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// The hex_matcher in mode sequence serves the site's camera of kind uav on
+// that camera's topics; a site without one, or a `camera` that is not one of
+// several, is refused by name.
+TEST(SiteCameras, TheSequenceMatcherTakesTheSitesUavCamera) {
+  const std::string site = WriteSite();
+  XmlRpc::XmlRpcValue p = Defaults("hex_matcher");
+  SetParam(&p, "mode", std::string("sequence"));
+  SetParam(&p, "site_file", site);
+  ParamReader r(p, "/uav/hex_matcher");
+  const HexMatcherParameters h = ReadHexMatcherParameters(r);
+  EXPECT_EQ(h.camera, "drone");
+  EXPECT_EQ(h.image_topic, "/drone/camera/image_raw");
+  EXPECT_EQ(h.prior_topic, "/drone/camera/position_prior");
+  EXPECT_EQ(h.tie_topic, "/drone/tie_points");
+  // Without a site: the relative topics the launch remaps.
+  XmlRpc::XmlRpcValue d = Defaults("hex_matcher");
+  SetParam(&d, "mode", std::string("sequence"));
+  ParamReader rd(d, "/uav/hex_matcher");
+  const HexMatcherParameters plain = ReadHexMatcherParameters(rd);
+  EXPECT_EQ(plain.camera, "uav");
+  EXPECT_EQ(plain.image_topic, "image");
+  EXPECT_EQ(plain.tie_topic, "tie_points");
+
+  const std::string two = site + ".two.yaml";
+  std::ofstream(two) << "name: two_uavs\ncrs: EPSG:4979\norigin: [8.0, 46.5, 1200.0]\ncameras:\n"
+                        "  - {name: drone_a, kind: uav, pixel_size: 0.0033}\n"
+                        "  - {name: drone_b, kind: uav, pixel_size: 0.0033}\n";
+  XmlRpc::XmlRpcValue t = Defaults("hex_matcher");
+  SetParam(&t, "mode", std::string("sequence"));
+  SetParam(&t, "site_file", two);
+  const std::string two_error = HexMatcherError(t);  // two UAV cameras, camera 'uav'
+  EXPECT_NE(two_error.find("/uav/hex_matcher/camera"), std::string::npos) << two_error;
+  EXPECT_NE(two_error.find("drone_a, drone_b"), std::string::npos) << two_error;
+  SetParam(&t, "camera", std::string("drone_b"));
+  ParamReader rb(t, "/uav/hex_matcher");
+  EXPECT_EQ(ReadHexMatcherParameters(rb).tie_topic, "/drone_b/tie_points");
+
+  const std::string none = site + ".none.yaml";
+  std::ofstream(none) << "name: no_uav\ncrs: EPSG:4979\norigin: [8.0, 46.5, 1200.0]\ncameras:\n"
+                         "  - {name: mast, kind: fixed, pixel_size: 0.0039}\n";
+  XmlRpc::XmlRpcValue n = Defaults("hex_matcher");
+  SetParam(&n, "mode", std::string("sequence"));
+  SetParam(&n, "site_file", none);
+  const std::string none_error = HexMatcherError(n);
+  EXPECT_NE(none_error.find("no camera of kind uav"), std::string::npos) << none_error;
+  EXPECT_NE(none_error.find(none), std::string::npos) << none_error;
+  ::unlink(site.c_str());
+  ::unlink(two.c_str());
+  ::unlink(none.c_str());
 }
 
 TEST(SiteCameras, TheDenseStepPairsTheSitesUavCameras) {

@@ -89,7 +89,7 @@ TEST(FrustumMarkers, UavColourByTheSitesKind) {
   const std::map<std::string, camera::CameraModel> models = {{"drone", Model(0.0, 0.0)},
                                                              {"uav_mast", Model(0.0, 0.0)}};
   FrustumOptions o;
-  o.uav_cameras = std::vector<std::string>{"drone"};
+  o.uav_cameras = {"drone"};
   const visualization_msgs::MarkerArray a = ToFrustumMarkers(s, models, o);
   ASSERT_EQ(a.markers.size(), 3u);
   EXPECT_FLOAT_EQ(a.markers[1].color.r, 1.0f);  // orange

@@ -1,6 +1,8 @@
 // The notification hook through the deformation estimator node: one hook run
-// per published alert-level change, with that change's JSON.
+// per published alert-level change, with that change's JSON; and the live
+// report timer (report_interval) writing the reports while the node runs.
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <mutex>
 #include <string>
@@ -11,6 +13,7 @@
 
 #include "../core/deformation/hook_json.h"
 #include "../core/deformation/test_scenario.h"
+#include "slope_monitor/core/common/format.h"
 #include "slope_monitor/PointDisplacementArray.h"
 #include "slope_monitor/SlopeDeformation.h"
 #include "slope_monitor/ros/deformation_conversions.h"
@@ -32,6 +35,8 @@ TEST(EstimatorHook, OneRunPerPublishedLevelChange) {
   ros::NodeHandle nh, pnh("~");
   std::string hook_out;
   ASSERT_TRUE(pnh.getParam("hook_out", hook_out));
+  std::string report_csv;
+  ASSERT_TRUE(pnh.getParam("report_csv", report_csv));
   const double timeout = Param(pnh, "timeout", 60.0);
 
   // What the estimator publishes: each point's level, message by message.
@@ -107,6 +112,16 @@ TEST(EstimatorHook, OneRunPerPublishedLevelChange) {
         << got[k];
     EXPECT_EQ(Field(got[k], "point").rfind("body", 0), 0u) << got[k];
   }
+  // The report timer (report_interval 1 s; report_on_alert_change off, the
+  // node still running): the CSV report holds the estimate at the last batch.
+  const std::string last_time = "," + Utc(batches.back().stamp) + ",";
+  const auto report_has_last_batch = [&] {
+    std::ifstream in(report_csv);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    return text.find(last_time) != std::string::npos;
+  };
+  EXPECT_TRUE(WaitFor(report_has_last_batch, 10.0))
+      << report_csv << " does not hold the estimate at " << last_time;
 }
 
 }  // namespace

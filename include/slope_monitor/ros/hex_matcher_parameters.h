@@ -23,8 +23,13 @@ struct HexMatcherParameters {
   std::string camera_a = "cam_a", camera_b = "cam_b";
   matching::HexMatcherOptions hex;  // pair and track modes
   matching::MatchPrior prior;       // pair and track modes
-  // Sequence mode.
+  // Sequence mode. With a site file (key site_file) that lists cameras:
+  // `camera` is its camera of kind uav (the key picks one when it lists
+  // several) and the topics are that camera's, /<camera>/camera/image_raw,
+  // /<camera>/camera/position_prior and /<camera>/tie_points; without one,
+  // the relative names below (remapped by the launch file).
   std::string camera = "uav";       // written into camera_a and camera_b
+  std::string image_topic = "image", prior_topic = "position_prior", tie_topic = "tie_points";
   std::string site_frame = "site";  // frame of position_prior (others ignored)
   int image_queue = 200;            // subscriber queues (a fast replay must lose none)
   matching::SequenceMatcherOptions sequence;

@@ -37,6 +37,7 @@ struct AdjusterParameters {
   // parameters are then not read.
   bool cameras_from_site = false;
   std::vector<std::string> prior_topics;  // site: /<uav>/camera/position_prior each; else position_prior
+  std::vector<std::string> tie_topics;    // site: /<uav>/tie_points each; else tie_points
   // Where camera `name`'s CameraInfo comes from: site: /<name>/camera/camera_info;
   // else <name>/camera_info (relative: remapped by the launch).
   std::string CameraInfoTopic(const std::string& name) const {

@@ -17,6 +17,7 @@
 #include <Eigen/Core>
 
 #include "slope_monitor/AdjustmentSolution.h"
+#include "slope_monitor/core/adjustment/epoch_collector.h"
 #include "slope_monitor/core/camera/camera_model.h"
 
 namespace slope_monitor {
@@ -25,8 +26,8 @@ namespace ros_adapters {
 struct FrustumOptions {
   double depth = 12.0;       // apex to image plane, along the optical axis [m]
   double line_width = 0.25;  // [m]
-  // The UAV cameras (the site file's kind; adjustment::IsUavCamera without one).
-  std::optional<std::vector<std::string>> uav_cameras;
+  // The UAV cameras (kind uav of the site file, or of io::DefaultCameras()).
+  std::vector<std::string> uav_cameras = adjustment::DefaultUavCameras();
   void Check() const;        // ConfigError naming the bad value
 };
 

@@ -29,11 +29,12 @@ std::string ImageKey(const std::string& camera, StampNs stamp) {
          std::to_string(stamp % kNsPerSecond);
 }
 
-bool IsUavCamera(const std::string& camera) { return camera.find("uav") != std::string::npos; }
+bool IsUavCamera(const std::string& camera, const std::vector<std::string>& uav_cameras) {
+  return std::find(uav_cameras.begin(), uav_cameras.end(), camera) != uav_cameras.end();
+}
 
-bool IsUavCamera(const std::string& camera, const std::optional<std::vector<std::string>>& uav_cameras) {
-  if (!uav_cameras) return IsUavCamera(camera);
-  return std::find(uav_cameras->begin(), uav_cameras->end(), camera) != uav_cameras->end();
+std::vector<std::string> DefaultUavCameras() {
+  return io::CameraNames(io::DefaultCameras(), io::CameraKind::kUav);
 }
 
 PointRole RoleOf(const io::TargetSpec* spec) {

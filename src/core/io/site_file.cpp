@@ -194,6 +194,22 @@ std::string CameraKindName(CameraKind kind) {
   return "fixed";
 }
 
+std::vector<SiteCamera> DefaultCameras() {
+  std::vector<SiteCamera> cameras(3);
+  cameras[0].name = "fixed_cam_1";
+  cameras[1].name = "fixed_cam_2";
+  cameras[2].name = "uav";
+  cameras[2].kind = CameraKind::kUav;
+  return cameras;
+}
+
+std::vector<std::string> CameraNames(const std::vector<SiteCamera>& cameras, CameraKind kind) {
+  std::vector<std::string> names;
+  for (const SiteCamera& c : cameras)
+    if (c.kind == kind) names.push_back(c.name);
+  return names;
+}
+
 void NotificationOptions::Check() const {
   if (!(timeout >= 0.1 && timeout <= 600.0))
     throw InvalidArgument(Message("notification timeout ", timeout, " s is outside 0.1..600"));

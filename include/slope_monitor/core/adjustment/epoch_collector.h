@@ -42,6 +42,7 @@
 #include "slope_monitor/core/adjustment/bundle_adjuster.h"
 #include "slope_monitor/core/adjustment/epoch_adjustment.h"
 #include "slope_monitor/core/adjustment/epochs.h"
+#include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/core/io/target_list.h"
 
 namespace slope_monitor {
@@ -54,11 +55,11 @@ double StampSeconds(StampNs stamp);  // sec + 1e-9 nsec, as ros::Time::toSec()
 // "fixed_cam_1@1700000000.500000000": the image's name in the scene.
 std::string ImageKey(const std::string& camera, StampNs stamp);
 // A UAV camera (self-calibrated per flight, never keeps a pose between
-// epochs): its name contains "uav", as the graph's configuration names them.
-bool IsUavCamera(const std::string& camera);
-// The same from a list of the site's UAV cameras (site file: kind uav);
-// without a list, the name rule above.
-bool IsUavCamera(const std::string& camera, const std::optional<std::vector<std::string>>& uav_cameras);
+// epochs): one of `uav_cameras`, the cameras of kind uav of the site file
+// (or of io::DefaultCameras()); never decided by the name.
+bool IsUavCamera(const std::string& camera, const std::vector<std::string>& uav_cameras);
+// The cameras of kind uav of io::DefaultCameras(): ["uav"].
+std::vector<std::string> DefaultUavCameras();
 
 // One target observation of an image (TargetObservation).
 struct TargetInput {
@@ -145,7 +146,7 @@ struct CollectedEpoch {
 struct EpochCollectorOptions {
   std::vector<std::string> cameras;            // cameras that must end an epoch; empty: any source
   std::vector<std::string> tie_point_cameras;  // cameras whose images wait for their tie points
-  std::optional<std::vector<std::string>> uav_cameras;  // the UAV cameras (site file); none: IsUavCamera(name)
+  std::vector<std::string> uav_cameras = DefaultUavCameras();  // kind uav (site file)
   double pixel_sigma = 0.3;                    // [px] observations without a covariance, > 0
   double pixel_sigma_floor = 0.05;             // [px] added in quadrature, fixed cameras, >= 0
   double uav_pixel_sigma_floor = 1.0;          // [px] added in quadrature, UAV cameras, >= 0
@@ -249,7 +250,7 @@ struct BuildSceneOptions {
   // resected or oriented incrementally; 0 ignores the priors' attitudes.
   double attitude_prior_max_sigma = 5.0 * 3.14159265358979323846 / 180.0;  // [rad], >= 0
   int min_images = 2;                      // images with a camera model, >= 1
-  std::optional<std::vector<std::string>> uav_cameras;  // the UAV cameras (site file); none: IsUavCamera(name)
+  std::vector<std::string> uav_cameras = DefaultUavCameras();  // kind uav (site file)
   void Check() const;                      // throws ConfigError naming the field
 };
 

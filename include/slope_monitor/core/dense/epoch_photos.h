@@ -38,6 +38,7 @@
 
 #include "slope_monitor/core/camera/camera_model.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
+#include "slope_monitor/core/io/site_file.h"
 
 namespace slope_monitor {
 namespace dense {
@@ -67,7 +68,8 @@ struct EpochOrientations {
 };
 
 struct PhotoCollectorOptions {
-  std::vector<std::string> uav_cameras = {"uav"};                 // paired by overlap
+  // Paired by overlap: kind uav (site file, or io::DefaultCameras()).
+  std::vector<std::string> uav_cameras = io::CameraNames(io::DefaultCameras(), io::CameraKind::kUav);
   std::vector<std::pair<std::string, std::string>> stereo_pairs;  // fixed cameras (left, right)
   int max_photos = 64;            // [-] photos held, all cameras; [1, 10000]
   double max_megabytes = 1024.0;  // [MB] pixels held; (0, 1e5]

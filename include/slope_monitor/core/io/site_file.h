@@ -95,6 +95,13 @@ struct SiteFile {
   std::vector<const SiteCamera*> CamerasWithTargets() const;
 };
 
+// The graph's cameras when no site file lists them (replay.launch without
+// `site`, launch/include/processing_graph.xml): fixed_cam_1 and fixed_cam_2
+// (kind fixed) and uav (kind uav). The one place this default is written.
+std::vector<SiteCamera> DefaultCameras();
+// The names of the cameras of `kind`, in their order.
+std::vector<std::string> CameraNames(const std::vector<SiteCamera>& cameras, CameraKind kind);
+
 // Reads and checks a site file (every key validated, unknown keys refused,
 // the CRS checked by PROJ).
 SiteFile LoadSiteFile(const std::string& path);
