@@ -26,6 +26,7 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
+#include "slope_monitor/EpochMarker.h"
 #include "uav_replay_checks.h"
 
 namespace slope_monitor {
@@ -49,7 +50,8 @@ fs::path OutputDir(const std::string& name) {
 }
 
 // A copy of `name`'s survey in `dir` (bag, targets, truth) whose topics
-// under /uav/ are under /<camera>/ (messages, stamps and latching kept).
+// under /uav/ are under /<camera>/ and whose epoch markers name <camera>
+// (stamps, the other messages and latching kept).
 std::string RenamedSurvey(const std::string& name, const fs::path& dir, const std::string& camera) {
   fs::create_directories(dir);
   const std::string stem = (dir / name).string();
@@ -58,6 +60,14 @@ std::string RenamedSurvey(const std::string& name, const fs::path& dir, const st
   for (const rosbag::MessageInstance& m : rosbag::View(in)) {
     std::string topic = m.getTopic();
     if (topic.rfind("/uav/", 0) == 0) topic = "/" + camera + topic.substr(4);
+    // The epoch markers name their camera (EpochMarker.source), as a
+    // driver of camera `drone` writes them.
+    if (const auto marker = m.instantiate<slope_monitor::EpochMarker>()) {
+      slope_monitor::EpochMarker renamed = *marker;
+      if (renamed.source == "uav") renamed.source = camera;
+      out.write(topic, m.getTime(), renamed, m.getConnectionHeader());
+      continue;
+    }
     out.write(topic, m.getTime(), m, m.getConnectionHeader());
   }
   out.close();

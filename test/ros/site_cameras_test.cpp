@@ -84,6 +84,8 @@ TEST(SiteCameras, UavTiePointsWaitForTheUavCamerasByKind) {
   const std::string site = WriteSite();
   XmlRpc::XmlRpcValue p = Defaults("bundle_adjuster");
   SetParam(&p, "site_file", site);
+  SetParam(&p, "target_list",
+           std::string(SM_SOURCE_DIR) + "/test/rostest/service_switches.targets.yaml");
   SetParam(&p, "uav_tie_points", true);
   ParamReader r(p, "/bundle_adjuster");
   EXPECT_EQ(ReadAdjusterParameters(r).collector.tie_point_cameras, (Strings{"drone"}));

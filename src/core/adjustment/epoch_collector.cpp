@@ -548,19 +548,23 @@ BuiltScene BuildScene(const CollectedEpoch& epoch,
                                       ? ""
                                       : "; no camera_info for " + out.cameras_without_model[0]));
   }
-  // In image order (each image's observations as its message gave them): the
-  // scene, and so the solution to the last bit, does not depend on the order
-  // in which the cameras' messages arrived.
-  auto by_image = [](const std::vector<CollectedObservation>& all) {
+  // In (image, point) order, the unidentified in image order (each image's as
+  // its message gave them): the scene, and so the solution to the last bit,
+  // does not depend on the order in which the messages arrived (the cameras'
+  // targets, or a photo's targets and its tie points, which come from
+  // different nodes; the screening adjustment of a UAV block flagged 8 or 761
+  // tie observations depending on it).
+  auto sorted = [](const std::vector<CollectedObservation>& all, bool by_point) {
     std::vector<const CollectedObservation*> out;
     for (const CollectedObservation& c : all) out.push_back(&c);
     std::stable_sort(out.begin(), out.end(),
-                     [](const CollectedObservation* a, const CollectedObservation* b) {
-                       return a->image_key < b->image_key;
+                     [by_point](const CollectedObservation* a, const CollectedObservation* b) {
+                       if (a->image_key != b->image_key) return a->image_key < b->image_key;
+                       return by_point && a->point_id < b->point_id;
                      });
     return out;
   };
-  for (const CollectedObservation* in : by_image(epoch.observations)) {
+  for (const CollectedObservation* in : sorted(epoch.observations, true)) {
     const CollectedObservation& c = *in;
     auto ii = image_index.find(c.image_key);
     if (ii == image_index.end()) continue;
@@ -575,7 +579,7 @@ BuiltScene BuildScene(const CollectedEpoch& epoch,
     o.covariance = c.covariance;
     scene.observations.push_back(o);
   }
-  for (const CollectedObservation* in : by_image(epoch.unidentified)) {
+  for (const CollectedObservation* in : sorted(epoch.unidentified, false)) {
     const CollectedObservation& c = *in;
     auto ii = image_index.find(c.image_key);
     if (ii == image_index.end()) continue;
