@@ -15,6 +15,8 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <regex>
+#include <utility>
 #include <set>
 #include <sstream>
 #include <string>
@@ -55,6 +57,14 @@ std::map<std::string, int> ObservationKeys(const fs::path& db) {
       &keys, nullptr);
   sqlite3_close(h);
   return keys;
+}
+
+// A command run as a crew runs it (outputs in `dir`): its exit status and
+// what it printed.
+std::pair<int, std::string> Tool(const std::vector<std::string>& argv, const fs::path& dir) {
+  fs::create_directories(dir);
+  const int status = Wait(Spawn(argv, dir));
+  return {status, ReadFile(dir / "stdout") + ReadFile(dir / "stderr")};
 }
 
 // ------------------------------------------------ full_graph_replay's truth
@@ -145,6 +155,33 @@ TEST(ProcessBag, FullGraphReplayMatchesTruth) {
   if (monitoring > 0) EXPECT_LE(std::sqrt(sum2 / monitoring), 0.005);
   // The summary scripts/demo prints, on stdout.
   EXPECT_NE(ReadFile(dir / "stdout").find(evaluation::FormatTable(e)), std::string::npos);
+
+  // The reports as a crew's GIS tools see them (issue 18): GDAL's own
+  // gdalinfo, gdalwarp -t_srs EPSG:4326 and ogrinfo on what the run wrote.
+  const fs::path reports = dir / "reports";
+  const auto [info_status, info] = Tool({"gdalinfo", (reports / "deformation.tif").string()}, dir / "gdalinfo");
+  EXPECT_EQ(info_status, 0) << info;
+  EXPECT_NE(info.find("PROJCRS"), std::string::npos) << info;  // a projected CRS, not ENGCRS["site"]
+  EXPECT_EQ(info.find("ENGCRS"), std::string::npos) << info;
+  const fs::path warped = dir / "deformation_wgs84.tif";
+  const auto [warp_status, warp] = Tool(
+      {"gdalwarp", "-t_srs", "EPSG:4326", (reports / "deformation.tif").string(), warped.string()},
+      dir / "gdalwarp");
+  EXPECT_EQ(warp_status, 0) << warp;
+  // The warped raster's centre lies on the site: the survey's origin is
+  // 46.5 N, 8.0 E and the site is 200 m x 150 m east and north of it.
+  const auto [center_status, center] = Tool({"gdalinfo", warped.string()}, dir / "gdalinfo_wgs84");
+  EXPECT_EQ(center_status, 0) << center;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(center, m, std::regex(R"(Center\s*\(\s*([-0-9.]+),\s*([-0-9.]+)\))")))
+      << center;
+  EXPECT_NEAR(std::stod(m[1]), 8.0 + 0.0013, 0.0015) << center;   // lon: 0-200 m east
+  EXPECT_NEAR(std::stod(m[2]), 46.5 + 0.0007, 0.0008) << center;  // lat: 0-150 m north
+  const auto [ogr_status, ogr] =
+      Tool({"ogrinfo", "-ro", "-so", (reports / "deformation.gpkg").string()}, dir / "ogrinfo");
+  EXPECT_EQ(ogr_status, 0) << ogr;
+  EXPECT_NE(ogr.find("points"), std::string::npos) << ogr;
+  EXPECT_NE(ogr.find("latest_displacement"), std::string::npos) << ogr;
 }
 
 // ----------------------------------------------- estimator_no_radio's truth
