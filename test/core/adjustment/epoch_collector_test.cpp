@@ -345,14 +345,32 @@ TEST(EpochCollector, OptionsNameTheBadField) {
   }
 }
 
+// A target list of one surveyed control point, tag36h11/0 at the origin.
+io::TargetList OneControlTarget() {
+  return io::TargetList::FromYaml(
+      "frame: site\ntargets:\n  - {id: 0, family: tag36h11, size: 0.6, role: control, position: "
+      "[0, 0, 0]}\n",
+      "scene order test");
+}
+
+// Two scenes built from the same messages in another order: the same points
+// and the same observations, in the same order.
+void ExpectSameScene(const Scene& s0, const Scene& s1) {
+  ASSERT_EQ(s0.points.size(), s1.points.size());
+  for (size_t j = 0; j < s0.points.size(); ++j) EXPECT_EQ(s0.points[j].id, s1.points[j].id) << j;
+  ASSERT_EQ(s0.observations.size(), s1.observations.size());
+  for (size_t k = 0; k < s0.observations.size(); ++k) {
+    EXPECT_EQ(s0.observations[k].image, s1.observations[k].image) << k;
+    EXPECT_EQ(s0.observations[k].point, s1.observations[k].point) << k;
+    EXPECT_EQ(s0.observations[k].pixel, s1.observations[k].pixel) << k;
+  }
+}
+
 // The scene of an epoch does not depend on which camera's messages came
 // first (two centroiders run in parallel): same points, same observations in
 // the same order.
 TEST(EpochCollector, SceneDoesNotDependOnTheCamerasArrivalOrder) {
-  io::TargetList targets = io::TargetList::FromYaml(
-      "frame: site\ntargets:\n  - {id: 0, family: tag36h11, size: 0.6, role: control, position: "
-      "[0, 0, 0]}\n",
-      "scene order test");
+  const io::TargetList targets = OneControlTarget();
   std::map<std::string, camera::CameraModel> models;
   models["fixed_cam_1"] = models["fixed_cam_2"] = camera::CameraModel();
   std::vector<BuiltScene> scenes;
@@ -370,15 +388,8 @@ TEST(EpochCollector, SceneDoesNotDependOnTheCamerasArrivalOrder) {
   }
   ASSERT_EQ(scenes.size(), 2u);
   const Scene &s0 = scenes[0].scene, &s1 = scenes[1].scene;
-  ASSERT_EQ(s0.points.size(), s1.points.size());
-  for (size_t j = 0; j < s0.points.size(); ++j) EXPECT_EQ(s0.points[j].id, s1.points[j].id);
   ASSERT_EQ(s0.observations.size(), 7u);
-  ASSERT_EQ(s1.observations.size(), 7u);
-  for (size_t k = 0; k < s0.observations.size(); ++k) {
-    EXPECT_EQ(s0.observations[k].image, s1.observations[k].image);
-    EXPECT_EQ(s0.observations[k].point, s1.observations[k].point);
-    EXPECT_EQ(s0.observations[k].pixel, s1.observations[k].pixel);
-  }
+  ExpectSameScene(s0, s1);
   EXPECT_EQ(s0.points[0].id, "tag36h11/0");
   ASSERT_TRUE(s0.points[0].surveyed.has_value());  // the control point's survey from the list
 }
@@ -388,10 +399,7 @@ TEST(EpochCollector, SceneDoesNotDependOnTheCamerasArrivalOrder) {
 // by observation (found on a renamed bag whose equal stamps came in another
 // order: the screening adjustment flagged 8 or 761 tie observations).
 TEST(EpochCollector, SceneDoesNotDependOnWhetherTargetsOrTiePointsComeFirst) {
-  io::TargetList targets = io::TargetList::FromYaml(
-      "frame: site\ntargets:\n  - {id: 0, family: tag36h11, size: 0.6, role: control, position: "
-      "[0, 0, 0]}\n",
-      "scene order test");
+  const io::TargetList targets = OneControlTarget();
   std::map<std::string, camera::CameraModel> models;
   models["uav"] = camera::CameraModel();
   EpochCollectorOptions o;
@@ -427,17 +435,9 @@ TEST(EpochCollector, SceneDoesNotDependOnWhetherTargetsOrTiePointsComeFirst) {
     ASSERT_EQ(done.size(), 1u);
     scenes.push_back(BuildScene(done[0], models, EpochStore(), targets, BuildSceneOptions()).scene);
   }
-  const Scene &s0 = scenes[0], &s1 = scenes[1];
-  ASSERT_EQ(s0.points.size(), 3u + 4u);
-  ASSERT_EQ(s1.points.size(), s0.points.size());
-  for (size_t j = 0; j < s0.points.size(); ++j) EXPECT_EQ(s0.points[j].id, s1.points[j].id);
-  ASSERT_EQ(s0.observations.size(), 2u * 3u + 2u * 4u);
-  ASSERT_EQ(s1.observations.size(), s0.observations.size());
-  for (size_t k = 0; k < s0.observations.size(); ++k) {
-    EXPECT_EQ(s0.observations[k].image, s1.observations[k].image) << k;
-    EXPECT_EQ(s0.observations[k].point, s1.observations[k].point) << k;
-    EXPECT_EQ(s0.observations[k].pixel, s1.observations[k].pixel) << k;
-  }
+  ASSERT_EQ(scenes[0].points.size(), 3u + 4u);
+  ASSERT_EQ(scenes[0].observations.size(), 2u * 3u + 2u * 4u);
+  ExpectSameScene(scenes[0], scenes[1]);
 }
 
 // ----------------------------------------------------------------------------
