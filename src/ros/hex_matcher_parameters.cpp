@@ -6,6 +6,7 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/image_polygons.h"
 #include "slope_monitor/core/io/site_file.h"
+#include "slope_monitor/ros/uav_topics.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -168,9 +169,10 @@ void UseSiteUavCamera(const io::SiteFile& site, ParamReader& p, HexMatcherParame
     }
     h->camera = uav.front();
   }
-  h->image_topic = "/" + h->camera + "/camera/image_raw";
-  h->prior_topic = "/" + h->camera + "/camera/position_prior";
-  h->tie_topic = "/" + h->camera + "/tie_points";
+  const UavTopics topics = UavCameraTopics(h->camera);
+  h->image_topic = topics.image;
+  h->prior_topic = topics.prior;
+  h->tie_topic = topics.tie_points;
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include "slope_monitor/core/camera/camera_model.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/sim/truth.h"
+#include "slope_monitor/ros/uav_topics.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -78,8 +79,8 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
       site_targets.push_back("/" + cam->name + "/targets");
       site_epochs.push_back("/" + cam->name + "/camera/epoch");
       if (cam->kind == io::CameraKind::kUav) {
-        priors.push_back("/" + cam->name + "/camera/position_prior");
-        ties.push_back("/" + cam->name + "/tie_points");
+        priors.push_back(UavCameraTopics(cam->name).prior);
+        ties.push_back(UavCameraTopics(cam->name).tie_points);
       }
     }
     if (!site_cameras.empty()) {

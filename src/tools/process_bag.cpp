@@ -72,6 +72,7 @@
 #include "slope_monitor/ros/offline_dense.h"
 #include "slope_monitor/ros/param_files.h"
 #include "slope_monitor/ros/radio_conversions.h"
+#include "slope_monitor/ros/uav_topics.h"
 #include "slope_monitor/ros/sequence_conversions.h"
 #include "slope_monitor/ros/target_conversions.h"
 #include "slope_monitor/ros/targetless_camera.h"
@@ -93,13 +94,6 @@ constexpr char kUsage[] =
 constexpr char kAdjusterDisplacements[] = "/bundle_adjuster/displacements";
 constexpr char kRadioDisplacements[] = "/radio/radio_displacements";
 constexpr char kTargetlessDisplacements[] = "/targetless_camera/displacements";
-// A UAV camera's topics (the adjuster's prior topics with a site file, and
-// hex_matcher's in processing_graph.xml): /<camera>/camera/image_raw ...
-std::string UavImageTopic(const std::string& camera) { return "/" + camera + "/camera/image_raw"; }
-std::string UavPriorTopic(const std::string& camera) {
-  return "/" + camera + "/camera/position_prior";
-}
-std::string UavTiePointTopic(const std::string& camera) { return "/" + camera + "/tie_points"; }
 
 struct Args {
   std::vector<std::string> bags;
@@ -309,7 +303,7 @@ class OfflineGraph {
 
   void OnMessage(const rosbag::MessageInstance& m) {
     const std::string& topic = m.getTopic();
-    if (UavMatcher* uav = UavMatcherOf(topic, &UavMatcher::prior_topic)) {
+    if (UavMatcher* uav = UavMatcherOf(topic, &ros_adapters::UavTopics::prior)) {
       // The sequence matcher's work for this prior (features and pairs of
       // the photo that waited for it) runs while the photo's targets are
       // still being centroided (Pair); both are taken in bag order after.
@@ -331,7 +325,8 @@ class OfflineGraph {
       if (const auto tf = m.instantiate<tf2_msgs::TFMessage>()) OnTf(*tf, topic == "/tf_static");
     } else if (OnTargetlessMessage(m)) {
     } else if (const auto image = m.instantiate<sensor_msgs::Image>()) {
-      if (UavMatcher* uav = UavMatcherOf(topic, &UavMatcher::image_topic)) OnUavImage(uav, image);
+      if (UavMatcher* uav = UavMatcherOf(topic, &ros_adapters::UavTopics::image))
+        OnUavImage(uav, image);
       if (Centroider* c = CameraOf(topic, "/camera/image_raw")) {
         c->images[image->header.stamp] = image;
         if (dense_)
@@ -399,11 +394,9 @@ class OfflineGraph {
       ros_adapters::ParamReader r(p, "/" + camera + "/hex_matcher");
       UavMatcher uav;
       uav.params = ros_adapters::ReadHexMatcherParameters(r);
-      uav.image_topic = UavImageTopic(camera);
-      uav.prior_topic = UavPriorTopic(camera);
-      uav.tie_topic = UavTiePointTopic(camera);
+      uav.topics = ros_adapters::UavCameraTopics(camera);
       uav.sequence = std::make_unique<matching::SequenceMatcher>(uav.params.sequence);
-      uav.sequence->SetPriorsExpected(has_topic(uav.prior_topic));
+      uav.sequence->SetPriorsExpected(has_topic(uav.topics.prior));
       uav_matchers_.push_back(std::move(uav));
     }
   }
@@ -744,20 +737,22 @@ class OfflineGraph {
   // ---- the hex matcher (mode sequence), one per UAV camera.
   struct UavMatcher {
     ros_adapters::HexMatcherParameters params;  // params.camera: the UAV camera
-    std::string image_topic, prior_topic, tie_topic;
+    ros_adapters::UavTopics topics;
     std::unique_ptr<matching::SequenceMatcher> sequence;
   };
 
-  UavMatcher* UavMatcherOf(const std::string& topic, std::string UavMatcher::*field) {
+  // The matcher whose topic `field` (image or prior) is `topic`, if any.
+  UavMatcher* UavMatcherOf(const std::string& topic, std::string ros_adapters::UavTopics::*field) {
     for (UavMatcher& uav : uav_matchers_)
-      if (uav.*field == topic) return &uav;
+      if (uav.topics.*field == topic) return &uav;
     return nullptr;
   }
 
   // The adjuster's position priors: each site UAV camera's topic, or the
   // graph's /uav/camera/position_prior without a site file.
   bool IsPriorTopic(const std::string& topic) const {
-    if (!adjuster_params_.cameras_from_site) return topic == UavPriorTopic("uav");
+    if (!adjuster_params_.cameras_from_site)
+      return topic == ros_adapters::UavCameraTopics(adjustment::DefaultUavCameras().front()).prior;
     const std::vector<std::string>& topics = adjuster_params_.prior_topics;
     return std::find(topics.begin(), topics.end(), topic) != topics.end();
   }
@@ -767,7 +762,7 @@ class OfflineGraph {
     try {
       grey = ros_adapters::ImageForMatching(image);
     } catch (const std::exception& e) {
-      Log("hex_matcher: image on " + uav->image_topic + " not converted: " + e.what());
+      Log("hex_matcher: image on " + uav->topics.image + " not converted: " + e.what());
     }
     OnSequenceStep(*uav, Timed(&stages_.matching, [&] {
       return uav->sequence->AddImage(ros_adapters::ToStamp(image->header.stamp),
@@ -780,7 +775,7 @@ class OfflineGraph {
   std::optional<matching::SequenceStep> MatchUavPrior(
       UavMatcher* uav, const geometry_msgs::PoseWithCovarianceStamped& prior) {
     if (!prior.header.frame_id.empty() && prior.header.frame_id != uav->params.site_frame) {
-      Log("hex_matcher: " + uav->prior_topic + " in frame '" + prior.header.frame_id +
+      Log("hex_matcher: " + uav->topics.prior + " in frame '" + prior.header.frame_id +
           "', expected '" + uav->params.site_frame + "' (site_frame); ignored");
       return std::nullopt;
     }
@@ -799,7 +794,7 @@ class OfflineGraph {
       ++stages_.pairs;
       stages_.tie_points += static_cast<int>(pair.points.size());
       const slope_monitor::TiePointArray msg = ros_adapters::ToMsg(pair, uav.params.camera);
-      Write(uav.tie_topic, msg);
+      Write(uav.topics.tie_points, msg);
       Solve(collector_->AddTies(ros_adapters::FromMsg(msg), now_.toSec()));
     }
   }

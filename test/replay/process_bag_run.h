@@ -14,6 +14,7 @@ namespace slope_monitor {
 namespace process_bag_run {
 
 namespace fs = std::filesystem;
+using replay_test::CopySurvey;
 using replay_test::ProcessBagArgs;
 using replay_test::ReadFile;
 using replay_test::Spawn;

@@ -196,21 +196,15 @@ TEST(ProcessBag, NoRadioSurveyMatchesTruth) {
   const std::string from = "estimator_restart", name = "estimator_no_radio";
   const fs::path dir = Scratch(name);
   const std::string stem = (dir / name).string();
-  {
-    rosbag::Bag in(Survey(from, ".bag"), rosbag::bagmode::Read);
-    rosbag::Bag out(stem + ".bag", rosbag::bagmode::Write);
-    int dropped = 0;
-    for (const rosbag::MessageInstance& m : rosbag::View(in)) {
-      if (m.getTopic().rfind("/radio/", 0) == 0) {
-        ++dropped;
-        continue;
-      }
-      out.write(m.getTopic(), m.getTime(), m, m.getConnectionHeader());
-    }
-    ASSERT_GT(dropped, 0) << "the estimator_restart survey has no radio topics to leave out";
-  }
-  for (const std::string ext : {".truth.yaml", ".targets.yaml", ".site.yaml"})
-    fs::copy_file(Survey(from, ext), stem + ext, fs::copy_options::overwrite_existing);
+  int dropped = 0;
+  CopySurvey(from, dir, name, [&dropped](const rosbag::MessageInstance& m, rosbag::Bag* out) {
+    if (m.getTopic().rfind("/radio/", 0) == 0)
+      ++dropped;
+    else
+      out->write(m.getTopic(), m.getTime(), m, m.getConnectionHeader());
+  });
+  ASSERT_GT(dropped, 0) << "the estimator_restart survey has no radio topics to leave out";
+  ASSERT_TRUE(fs::exists(stem + ".site.yaml"));
   ASSERT_EQ(Wait(Spawn({SM_PROCESS_BAG, "--bag", stem + ".bag", "--database",
                         (dir / "history.db").string(), "--report-dir", (dir / "reports").string(),
                         "--site-config", stem + ".site.yaml"},

@@ -26,6 +26,7 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
+#include "replay_test_util.h"
 #include "slope_monitor/EpochMarker.h"
 #include "uav_replay_checks.h"
 
@@ -33,31 +34,19 @@ namespace slope_monitor {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string Survey(const std::string& name, const std::string& ext) {
-  return std::string(SM_ROSTEST_DATA_DIR) + "/" + name + "/" + name + ext;
-}
-
-std::string ReadFile(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using replay_test::CopySurvey;
+using replay_test::ReadFile;
+using replay_test::Survey;
 
 fs::path OutputDir(const std::string& name) {
   return fs::temp_directory_path() / ("process_bag_uav_test_" + std::to_string(getpid())) / name;
 }
 
-// A copy of `name`'s survey in `dir` (bag, targets, truth) whose topics
-// under /uav/ are under /<camera>/ and whose epoch markers name <camera>
-// (stamps, the other messages and latching kept).
+// A copy of `name`'s survey in `dir` whose topics under /uav/ are under
+// /<camera>/ and whose epoch markers name <camera> (stamps, the other
+// messages and latching kept).
 std::string RenamedSurvey(const std::string& name, const fs::path& dir, const std::string& camera) {
-  fs::create_directories(dir);
-  const std::string stem = (dir / name).string();
-  rosbag::Bag in(Survey(name, ".bag"), rosbag::bagmode::Read);
-  rosbag::Bag out(stem + ".bag", rosbag::bagmode::Write);
-  for (const rosbag::MessageInstance& m : rosbag::View(in)) {
+  return CopySurvey(name, dir, name, [&camera](const rosbag::MessageInstance& m, rosbag::Bag* out) {
     std::string topic = m.getTopic();
     if (topic.rfind("/uav/", 0) == 0) topic = "/" + camera + topic.substr(4);
     // The epoch markers name their camera (EpochMarker.source), as a
@@ -65,15 +54,11 @@ std::string RenamedSurvey(const std::string& name, const fs::path& dir, const st
     if (const auto marker = m.instantiate<slope_monitor::EpochMarker>()) {
       slope_monitor::EpochMarker renamed = *marker;
       if (renamed.source == "uav") renamed.source = camera;
-      out.write(topic, m.getTime(), renamed, m.getConnectionHeader());
-      continue;
+      out->write(topic, m.getTime(), renamed, m.getConnectionHeader());
+    } else {
+      out->write(topic, m.getTime(), m, m.getConnectionHeader());
     }
-    out.write(topic, m.getTime(), m, m.getConnectionHeader());
-  }
-  out.close();
-  for (const std::string ext : {".targets.yaml", ".truth.yaml"})
-    fs::copy_file(Survey(name, ext), stem + ext, fs::copy_options::overwrite_existing);
-  return stem + ".bag";
+  });
 }
 
 // process_bag on `name`'s survey (or on `bag`) with `extra` arguments;

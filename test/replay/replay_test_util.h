@@ -12,12 +12,15 @@
 
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <set>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
 
 extern char** environ;
 
@@ -29,6 +32,26 @@ namespace fs = std::filesystem;
 // A survey rendered at build time: rostest_data/<name>/<name><ext>.
 inline std::string Survey(const std::string& name, const std::string& ext) {
   return std::string(SM_ROSTEST_DATA_DIR) + "/" + name + "/" + name + ext;
+}
+
+// A copy of the rendered survey `from` as <dir>/<name>.bag with its side
+// files (.truth.yaml, .targets.yaml and .site.yaml where present), each
+// message handed to `copy`, which writes it to `out` (under any topic,
+// edited or as it is) or leaves it out. Returns the bag's path.
+inline std::string CopySurvey(
+    const std::string& from, const fs::path& dir, const std::string& name,
+    const std::function<void(const rosbag::MessageInstance&, rosbag::Bag* out)>& copy) {
+  fs::create_directories(dir);
+  const std::string stem = (dir / name).string();
+  {
+    rosbag::Bag in(Survey(from, ".bag"), rosbag::bagmode::Read);
+    rosbag::Bag out(stem + ".bag", rosbag::bagmode::Write);
+    for (const rosbag::MessageInstance& m : rosbag::View(in)) copy(m, &out);
+  }
+  for (const std::string ext : {".truth.yaml", ".targets.yaml", ".site.yaml"})
+    if (fs::exists(Survey(from, ext)))
+      fs::copy_file(Survey(from, ext), stem + ext, fs::copy_options::overwrite_existing);
+  return stem + ".bag";
 }
 
 inline std::string ReadFile(const fs::path& p) {
