@@ -241,9 +241,8 @@ class HexMatcherNodelet : public nodelet::Nodelet {
         step = sequence_->AddImage(ros_adapters::ToStamp(next.image->header.stamp),
                                    next.image->header.frame_id, image, now);
       } else if (next.prior) {
-        step = sequence_->AddPrior(
-            ros_adapters::ToStamp(next.prior->header.stamp),
-            Eigen::Vector2d(next.prior->pose.pose.position.x, next.prior->pose.pose.position.y));
+        step = sequence_->AddPrior(ros_adapters::ToStamp(next.prior->header.stamp),
+                                   ros_adapters::FromPriorMsg(*next.prior));
       } else if (next.end_of_input) {
         NODELET_INFO("hex_matcher: end of the replay: matching the photos still waiting");
         step = sequence_->Finish();

@@ -114,6 +114,7 @@ void ReadSequenceOptions(ParamReader& p, matching::SequenceMatcherOptions* s) {
       p.String("pair_method", matching::SequencePairMethodName(s->method), {"photo", "shift_hex"}));
   s->fallback_shift_hex = p.Bool("photo_fallback_shift_hex", s->fallback_shift_hex);
   s->max_gap = p.Double("sequence_max_gap", s->max_gap, 0.0, 1e6, "s");
+  s->pairing.min_overlap = p.Double("min_footprint_overlap", s->pairing.min_overlap, 0.001, 1.0);
   s->pairing.max_pair_distance =
       p.Double("max_pair_distance", s->pairing.max_pair_distance, 0.01, 1e5, "m");
   s->pairing.max_pairs_per_image =
@@ -141,10 +142,15 @@ void ReadSequenceOptions(ParamReader& p, matching::SequenceMatcherOptions* s) {
   // Photo method: features per photo, pair matching.
   s->photo.coarse_max_side =
       p.Int("photo_coarse_max_side", s->photo.coarse_max_side, 200, 10000, "px");
+  s->photo.coarse_sift_max_side =
+      p.Int("photo_coarse_sift_max_side", s->photo.coarse_sift_max_side, 100, 10000, "px");
   s->photo.coarse_max_features =
       p.Int("photo_coarse_max_features", s->photo.coarse_max_features, 10, 1000000);
+  s->photo.coarse_contrast_threshold = p.Double(
+      "photo_coarse_contrast_threshold", s->photo.coarse_contrast_threshold, 1e-6, 0.999);
   s->photo.interest.max_points =
       p.Int("photo_max_points", s->photo.interest.max_points, 1, 1000000);
+  s->photo.interest.cells = p.Int("photo_interest_cells", s->photo.interest.cells, 0, 100);
   s->photo_pair.min_coarse_inliers =
       p.Int("photo_min_coarse_inliers", s->photo_pair.min_coarse_inliers, 8, 100000);
   s->photo_pair.screen_threshold =

@@ -1,5 +1,7 @@
 #include "slope_monitor/ros/sequence_conversions.h"
 
+#include <cmath>
+
 #include <cv_bridge/cv_bridge.h>
 #include <sensor_msgs/image_encodings.h>
 
@@ -12,6 +14,21 @@ cv::Mat ImageForMatching(const sensor_msgs::ImageConstPtr& msg) {
   if (sensor_msgs::image_encodings::numChannels(msg->encoding) == 1)
     return cv_bridge::toCvShare(msg)->image;
   return cv_bridge::toCvShare(msg, sensor_msgs::image_encodings::MONO8)->image;
+}
+
+matching::SequencePrior FromPriorMsg(const geometry_msgs::PoseWithCovarianceStamped& msg) {
+  matching::SequencePrior out;
+  out.position = Eigen::Vector2d(msg.pose.pose.position.x, msg.pose.pose.position.y);
+  const auto& o = msg.pose.pose.orientation;
+  const Eigen::Quaterniond q(o.w, o.x, o.y, o.z);
+  constexpr double kMaxVariance = (30.0 * M_PI / 180.0) * (30.0 * M_PI / 180.0);
+  bool attitude = q.coeffs().allFinite() && std::abs(q.norm() - 1.0) < 1e-3;
+  for (int k = 3; k < 6; ++k) {
+    const double v = msg.pose.covariance[6 * k + k];
+    attitude = attitude && std::isfinite(v) && v > 0.0 && v <= kMaxVariance;
+  }
+  if (attitude) out.site_from_optical = q;
+  return out;
 }
 
 slope_monitor::TiePointArray ToMsg(const matching::SequencePair& pair, const std::string& camera) {

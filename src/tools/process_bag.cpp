@@ -780,9 +780,8 @@ class OfflineGraph {
       return std::nullopt;
     }
     return Timed(&stages_.matching, [&] {
-      return uav->sequence->AddPrior(
-          ros_adapters::ToStamp(prior.header.stamp),
-          Eigen::Vector2d(prior.pose.pose.position.x, prior.pose.pose.position.y));
+      return uav->sequence->AddPrior(ros_adapters::ToStamp(prior.header.stamp),
+                                     ros_adapters::FromPriorMsg(prior));
     });
   }
 
@@ -821,15 +820,23 @@ class OfflineGraph {
   void LogStages(uint32_t epoch, const ros_adapters::SolvedEpoch& out, double adjustment) {
     char line[400];
     std::snprintf(line, sizeof line,
-                  "epoch %u stages: targets %.2f s, tie points %.2f s (%d pairs, %d points), "
-                  "adjustment %.2f s (Ceres %.2f s in %u iterations, covariance %.2f s), dense "
-                  "%.2f s, estimator %.2f s; peak memory %.0f MB",
+                  "epoch %u stages: targets %.2f s, tie points %.2f s (%d pairs, %d points, "
+                  "photo features %.2f s), adjustment %.2f s (Ceres %.2f s in %u iterations, "
+                  "covariance %.2f s), dense %.2f s, estimator %.2f s; peak memory %.0f MB",
                   epoch, stages_.targets, stages_.matching, stages_.pairs, stages_.tie_points,
-                  adjustment, out.solution.solve_time, out.solution.iterations, out.covariance_time,
+                  FeatureSeconds() - stages_.features_before, adjustment, out.solution.solve_time, out.solution.iterations, out.covariance_time,
                   stages_.dense, stages_.estimator, PeakMemoryMb());
     Log(std::string(line) +
         (out.adjusted && out.photos.total > 0 ? "; " + out.photos.Brief() : ""));
     stages_ = StageTimes();
+    stages_.features_before = FeatureSeconds();
+  }
+
+  // The sequence matchers' time on photo features so far [s].
+  double FeatureSeconds() const {
+    double s = 0.0;
+    for (const UavMatcher& uav : uav_matchers_) s += uav.sequence->summary().feature_seconds;
+    return s;
   }
 
   // Publishes a solved epoch as the bundle adjuster nodelet does; the
@@ -927,6 +934,7 @@ class OfflineGraph {
   struct StageTimes {
     double targets = 0.0, matching = 0.0, dense = 0.0, estimator = 0.0;
     int pairs = 0, tie_points = 0;  // tie-point messages and their points
+    double features_before = 0.0;   // FeatureSeconds() at the epoch's start
   };
   StageTimes stages_;
   // The photo being centroided on another thread (Pair, TakeCentroided).

@@ -33,6 +33,7 @@ TEST(HexMatcherParameters, DefaultsFileHoldsTheOptionsDefaults) {
   EXPECT_EQ(s.max_images, d.max_images);
   EXPECT_EQ(s.max_memory_mb, d.max_memory_mb);
   EXPECT_EQ(s.border, d.border);
+  EXPECT_EQ(s.pairing.min_overlap, d.pairing.min_overlap);
   EXPECT_EQ(s.pairing.max_pair_distance, d.pairing.max_pair_distance);
   EXPECT_EQ(s.pairing.max_pairs_per_image, d.pairing.max_pairs_per_image);
   EXPECT_EQ(s.pairing.sequence_depth, d.pairing.sequence_depth);
@@ -41,7 +42,10 @@ TEST(HexMatcherParameters, DefaultsFileHoldsTheOptionsDefaults) {
   EXPECT_EQ(s.hex.interest.max_points, d.hex.interest.max_points);
   EXPECT_EQ(s.photo.coarse_max_side, d.photo.coarse_max_side);
   EXPECT_EQ(s.photo.coarse_max_features, d.photo.coarse_max_features);
+  EXPECT_EQ(s.photo.coarse_sift_max_side, d.photo.coarse_sift_max_side);
+  EXPECT_EQ(s.photo.coarse_contrast_threshold, d.photo.coarse_contrast_threshold);
   EXPECT_EQ(s.photo.interest.max_points, d.photo.interest.max_points);
+  EXPECT_EQ(s.photo.interest.cells, d.photo.interest.cells);
   EXPECT_EQ(s.photo_pair.min_coarse_inliers, d.photo_pair.min_coarse_inliers);
   EXPECT_EQ(s.photo_pair.screen_threshold, d.photo_pair.screen_threshold);
   const matching::HexMatcherOptions h;

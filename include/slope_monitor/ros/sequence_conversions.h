@@ -5,6 +5,7 @@
 
 #include <string>
 
+#include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <sensor_msgs/Image.h>
 #include <opencv2/core.hpp>
 
@@ -18,6 +19,12 @@ namespace ros_adapters {
 // message), colour converted to mono8. Throws cv_bridge's exception for an
 // encoding it cannot convert.
 cv::Mat ImageForMatching(const sensor_msgs::ImageConstPtr& msg);
+
+// A UAV photo's position_prior for the sequence matcher: x, y, and the
+// orientation (site_from_optical) when it is an attitude: a unit quaternion
+// whose three rotation variances are in (0, (30 deg)^2] (0 is ROS'
+// "unknown"). A coarse attitude is enough: it only turns the footprint.
+matching::SequencePrior FromPriorMsg(const geometry_msgs::PoseWithCovarianceStamped& msg);
 
 // One pair as the graph publishes it on tie_points: header of image b,
 // header_a of image a (none when image b has no partner: camera_a ""),

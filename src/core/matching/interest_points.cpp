@@ -24,6 +24,7 @@ void InterestPointOptions::Check() const {
   if (!(min_gradient >= 0)) fail("min_gradient", min_gradient, "[0, inf)");
   if (min_distance < 1) fail("min_distance", min_distance, "[1, inf)");
   if (max_points < 1) fail("max_points", max_points, "[1, inf)");
+  if (cells < 0 || cells > 100) fail("cells", cells, "[0, 100]");
   if (border < 0) fail("border", border, "[0, inf)");
 }
 
@@ -93,21 +94,45 @@ std::vector<InterestPoint> DetectInterestPoints(const cv::Mat& image, const Inte
   const int gc = f.cols / d + 1, gr = f.rows / d + 1;
   std::vector<std::vector<int>> grid(static_cast<size_t>(gc) * gr);
   const double d2 = double(d) * d;
-  for (const InterestPoint& p : cand) {
-    if (static_cast<int>(out.size()) >= options.max_points) break;
+  // Spread (cells > 0): a cell of the image keeps at most `quota` points in
+  // the first pass; the points over quota fill what is left, strongest first.
+  const int cells = options.cells;
+  const int quota = cells > 0 ? (options.max_points + cells * cells - 1) / (cells * cells)
+                              : options.max_points;
+  std::vector<int> per_cell(cells > 0 ? static_cast<size_t>(cells) * cells : 1, 0);
+  const auto cell_of = [&](const InterestPoint& p) {
+    if (cells <= 0) return 0;
+    const int x = std::min(cells - 1, static_cast<int>(p.x.x()) * cells / f.cols);
+    const int y = std::min(cells - 1, static_cast<int>(p.x.y()) * cells / f.rows);
+    return y * cells + x;
+  };
+  std::vector<const InterestPoint*> over_quota;
+  const auto take = [&](const InterestPoint& p, bool first_pass) {
     const int cx = static_cast<int>(p.x.x()) / d, cy = static_cast<int>(p.x.y()) / d;
-    bool ok = true;
-    for (int y = std::max(0, cy - 1); y <= std::min(gr - 1, cy + 1) && ok; ++y)
-      for (int x = std::max(0, cx - 1); x <= std::min(gc - 1, cx + 1) && ok; ++x)
+    for (int y = std::max(0, cy - 1); y <= std::min(gr - 1, cy + 1); ++y)
+      for (int x = std::max(0, cx - 1); x <= std::min(gc - 1, cx + 1); ++x)
         for (int k : grid[static_cast<size_t>(y) * gc + x])
-          if ((out[k].x - p.x).squaredNorm() < d2) {
-            ok = false;
-            break;
-          }
-    if (!ok) continue;
+          if ((out[k].x - p.x).squaredNorm() < d2) return;
+    if (first_pass && per_cell[cell_of(p)] >= quota) {
+      over_quota.push_back(&p);
+      return;
+    }
+    ++per_cell[cell_of(p)];
     grid[static_cast<size_t>(cy) * gc + cx].push_back(static_cast<int>(out.size()));
     out.push_back(p);
+  };
+  for (const InterestPoint& p : cand) {
+    if (static_cast<int>(out.size()) >= options.max_points) break;
+    take(p, true);
   }
+  for (const InterestPoint* p : over_quota) {
+    if (static_cast<int>(out.size()) >= options.max_points) break;
+    take(*p, false);
+  }
+  if (cells > 0)
+    std::stable_sort(out.begin(), out.end(), [](const InterestPoint& a, const InterestPoint& b) {
+      return a.strength > b.strength;
+    });
   return out;
 }
 

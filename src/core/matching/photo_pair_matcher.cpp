@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <exception>
 
 #include <Eigen/Geometry>
 #include <opencv2/calib3d.hpp>
@@ -201,7 +202,11 @@ Eigen::Vector2d LocalCorrection(const CoarseRelation& rel, const Eigen::Vector2d
 void PhotoFeatureOptions::Check() const {
   if (coarse_max_side < 200 || coarse_max_side > 10000)
     throw ConfigError("coarse_max_side must be in [200, 10000]");
+  if (coarse_sift_max_side < 100 || coarse_sift_max_side > 10000)
+    throw ConfigError("coarse_sift_max_side must be in [100, 10000]");
   if (coarse_max_features < 10) throw ConfigError("coarse_max_features must be >= 10");
+  if (!(coarse_contrast_threshold > 0.0 && coarse_contrast_threshold < 1.0))
+    throw ConfigError("coarse_contrast_threshold must be in (0, 1)");
   interest.Check();
 }
 
@@ -216,19 +221,48 @@ PhotoFeatures::PhotoFeatures(const cv::Mat& image, const std::string& name,
   reduce_ = reduce;
   reduced_ = grey_;
   if (reduce < 1.0) cv::resize(grey_, reduced_, cv::Size(), reduce, reduce, cv::INTER_AREA);
+  // SIFT (the coarse relation) and the interest points (the LSC candidates)
+  // are independent: both at once, each into its own members.
+  std::exception_ptr failed[2];
+  cv::parallel_for_(
+      cv::Range(0, 2),
+      [&](const cv::Range& range) {
+        for (int task = range.start; task < range.end; ++task) {
+          try {
+            if (task == 0)
+              DetectSift(options);
+            else
+              interest_points_ = DetectInterestPoints(reduced_, options.interest);
+          } catch (...) {
+            failed[task] = std::current_exception();
+          }
+        }
+      },
+      2);
+  for (const std::exception_ptr& e : failed)
+    if (e) std::rethrow_exception(e);
+  seconds_ = SecondsSince(start);
+}
+
+void PhotoFeatures::DetectSift(const PhotoFeatureOptions& options) {
+  // SIFT's copy: the reduced one, or smaller (coarse_sift_max_side).
+  const double scale =
+      std::min(reduce_, static_cast<double>(options.coarse_sift_max_side) /
+                            std::max(grey_.cols, grey_.rows));
+  cv::Mat copy = reduced_;
+  if (scale < reduce_) cv::resize(grey_, copy, cv::Size(), scale, scale, cv::INTER_AREA);
   std::vector<cv::KeyPoint> keys;
-  cv::SIFT::create(options.coarse_max_features)
-      ->detectAndCompute(reduced_, cv::noArray(), keys, coarse_descriptors_);
+  cv::SIFT::create(options.coarse_max_features, 3, options.coarse_contrast_threshold)
+      ->detectAndCompute(copy, cv::noArray(), keys, coarse_descriptors_);
+  const float s = static_cast<float>(scale);
   for (const auto& k : keys) {
-    // Pixel centres: x_full + 0.5 = (x_small + 0.5) / reduce.
-    coarse_points_.emplace_back((k.pt.x + 0.5f) / reduce - 0.5f, (k.pt.y + 0.5f) / reduce - 0.5f);
+    // Pixel centres: x_full + 0.5 = (x_small + 0.5) / scale.
+    coarse_points_.emplace_back((k.pt.x + 0.5f) / s - 0.5f, (k.pt.y + 0.5f) / s - 0.5f);
     // OpenCV's SIFT angle, measured from x towards y (clockwise on screen);
     // checked on the real pairs: rotation of the homography = angle in b - in a.
     coarse_angles_.push_back(static_cast<float>(Wrap(k.angle)));
-    coarse_sizes_.push_back(static_cast<float>(k.size / reduce));
+    coarse_sizes_.push_back(k.size / s);
   }
-  interest_points_ = DetectInterestPoints(reduced_, options.interest);
-  seconds_ = SecondsSince(start);
 }
 
 size_t PhotoFeatures::MemoryBytes() const {

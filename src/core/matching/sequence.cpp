@@ -4,12 +4,18 @@
 #include <cmath>
 #include <tuple>
 
+#include <Eigen/Geometry>
+
 #include "slope_monitor/core/common/error.h"
 
 namespace slope_monitor {
 namespace matching {
 
 void SequencePairOptions::Check() const {
+  if (!(min_overlap > 0.0 && min_overlap <= 1.0)) {
+    throw ConfigError(
+        Message("SequencePairOptions.min_overlap must be in (0, 1], got ", min_overlap));
+  }
   if (!(max_pair_distance > 0.0) || !std::isfinite(max_pair_distance)) {
     throw ConfigError(
         Message("SequencePairOptions.max_pair_distance must be > 0 m, got ", max_pair_distance));
@@ -24,10 +30,43 @@ void SequencePairOptions::Check() const {
   }
 }
 
+PhotoFootprint FootprintOf(const SequenceImage& image) {
+  PhotoFootprint f;
+  f.has_position = image.has_position && image.ground_pixel > 0.0 && image.width > 0 &&
+                   image.height > 0;
+  if (!f.has_position) return f;
+  f.east_north = image.position;
+  f.has_heading = image.has_heading;
+  f.heading_deg = image.heading_deg;
+  f.width = image.width * image.ground_pixel;
+  f.length = image.height * image.ground_pixel;
+  return f;
+}
+
 std::vector<size_t> PlanSequencePairs(const std::vector<SequenceImage>& earlier,
                                       const SequenceImage& b, const SequencePairOptions& options) {
   options.Check();
-  std::vector<size_t> out;
+  // The first max_pairs_per_image of (key, -stamp, index), smallest key first.
+  const auto take = [&](std::vector<std::tuple<double, double, size_t>>* c) {
+    std::sort(c->begin(), c->end());
+    std::vector<size_t> out;
+    for (size_t k = 0; k < c->size() && static_cast<int>(k) < options.max_pairs_per_image; ++k)
+      out.push_back(std::get<2>((*c)[k]));
+    return out;
+  };
+  const PhotoFootprint fb = FootprintOf(b);
+  if (fb.has_position && std::any_of(earlier.begin(), earlier.end(), [](const SequenceImage& s) {
+        return FootprintOf(s).has_position;
+      })) {
+    std::vector<std::tuple<double, double, size_t>> c;  // -overlap, -stamp, index
+    for (size_t i = 0; i < earlier.size(); ++i) {
+      const PhotoFootprint fa = FootprintOf(earlier[i]);
+      if (!fa.has_position) continue;
+      const double overlap = FootprintOverlap(fa, fb);
+      if (overlap >= options.min_overlap) c.emplace_back(-overlap, -earlier[i].stamp, i);
+    }
+    return take(&c);
+  }
   const bool any_prior =
       b.has_position && std::any_of(earlier.begin(), earlier.end(),
                                     [](const SequenceImage& s) { return s.has_position; });
@@ -38,16 +77,29 @@ std::vector<size_t> PlanSequencePairs(const std::vector<SequenceImage>& earlier,
       const double d = (earlier[i].position - b.position).norm();
       if (d <= options.max_pair_distance) c.emplace_back(d, -earlier[i].stamp, i);
     }
-    std::sort(c.begin(), c.end());
-    for (size_t k = 0; k < c.size() && static_cast<int>(k) < options.max_pairs_per_image; ++k) {
-      out.push_back(std::get<2>(c[k]));
-    }
-    return out;
+    return take(&c);
   }
+  std::vector<size_t> out;
   for (size_t k = 0; k < earlier.size() && static_cast<int>(k) < options.sequence_depth; ++k) {
     out.push_back(earlier.size() - 1 - k);
   }
   return out;
+}
+
+double GroundPixelFromTies(const std::vector<Eigen::Vector2d>& xa,
+                           const std::vector<Eigen::Vector2d>& xb, const Eigen::Vector2d& centre_a,
+                           const Eigen::Vector2d& centre_b, double baseline) {
+  const size_t n = std::min(xa.size(), xb.size());
+  if (n < 8 || !(baseline >= 1.0)) return 0.0;
+  Eigen::Matrix2Xd a(2, n), b(2, n);
+  for (size_t k = 0; k < n; ++k) {
+    a.col(k) = xa[k];
+    b.col(k) = xb[k];
+  }
+  const Eigen::Matrix3d b_from_a = Eigen::umeyama(a, b, true);
+  const Eigen::Vector2d p = b_from_a.topLeftCorner<2, 2>() * centre_a + b_from_a.topRightCorner<2, 1>();
+  const double d = (p - centre_b).norm();
+  return std::isfinite(d) && d >= 10.0 ? baseline / d : 0.0;
 }
 
 std::uint64_t SequenceTrackId(std::uint32_t serial_a, const Eigen::Vector2d& xa, int width) {

@@ -100,9 +100,9 @@ SequenceStep SequenceMatcher::AddImage(std::int64_t stamp_ns, const std::string&
   return step;
 }
 
-SequenceStep SequenceMatcher::AddPrior(std::int64_t stamp_ns, const Eigen::Vector2d& position) {
+SequenceStep SequenceMatcher::AddPrior(std::int64_t stamp_ns, const SequencePrior& prior) {
   const double t = 1e-9 * static_cast<double>(stamp_ns);
-  priors_.emplace_back(t, position);
+  priors_.emplace_back(t, prior);
   latest_prior_ = std::max(latest_prior_, t);
   SequenceStep step;
   Drain(&step);
@@ -154,8 +154,8 @@ void SequenceMatcher::Drain(SequenceStep* step) {
 
 // The prior nearest to t within position_prior_max_dt; priors older than
 // that are done (images come in time order).
-std::optional<Eigen::Vector2d> SequenceMatcher::TakePrior(double t) {
-  std::optional<Eigen::Vector2d> best;
+std::optional<SequencePrior> SequenceMatcher::TakePrior(double t) {
+  std::optional<SequencePrior> best;
   double best_dt = options_.position_prior_max_dt;
   for (const auto& p : priors_) {
     const double dt = std::fabs(p.first - t);
@@ -178,9 +178,15 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
   b.info.stamp = t;
   b.stamp_ns = next.stamp_ns;
   b.frame_id = next.frame_id;
-  if (const std::optional<Eigen::Vector2d> prior = TakePrior(t)) {
+  if (const std::optional<SequencePrior> prior = TakePrior(t)) {
     b.info.has_position = true;
-    b.info.position = *prior;
+    b.info.position = prior->position;
+    if (prior->site_from_optical) {
+      // Where the image's top (-y of the optical frame) points on the ground.
+      const Eigen::Vector3d up = prior->site_from_optical->normalized() * Eigen::Vector3d(0, -1, 0);
+      b.info.has_heading = up.head<2>().norm() > 0.1;
+      b.info.heading_deg = std::atan2(up.x(), up.y()) * kDegPerRad;
+    }
   }
   // A new epoch (flight) after a gap, or when the stamps run backwards.
   if (summary_.epoch == 0 || t - last_stamp_ > options_.max_gap || t < last_stamp_) {
@@ -189,6 +195,7 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
           Format("new sequence epoch at %.3f (previous image at %.3f)", t, last_stamp_));
     while (!history_.empty()) Release(history_.size() - 1);
     ++summary_.epoch;
+    ground_pixel_ = 0.0;
   }
   last_stamp_ = t;
   // The image's features (or grey copy), once.
@@ -213,6 +220,9 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
       b.bytes = b.image.total() * b.image.elemSize();
     }
     b.size = next.image.size();
+    b.info.width = b.size.width;
+    b.info.height = b.size.height;
+    b.info.ground_pixel = ground_pixel_;  // this photo's own when its pairs are matched
     summary_.feature_seconds += SecondsSince(start);
   } catch (const std::exception& e) {
     error = ImageName(b.stamp_ns, b.frame_id) + ": " + e.what();
@@ -225,6 +235,10 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
   for (const Earlier& e : history_) infos.push_back(e.info);
   const std::vector<size_t> plan = PlanSequencePairs(infos, b.info, options_.pairing);
   ++summary_.images;
+  if (FootprintOf(b.info).has_position &&
+      std::any_of(infos.begin(), infos.end(),
+                  [](const SequenceImage& e) { return FootprintOf(e).has_position; }))
+    ++summary_.footprint_planned;
   if (plan.empty()) {
     SequencePair out;
     out.epoch = summary_.epoch;
@@ -247,6 +261,7 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
           for (int k = range.start; k < range.end; ++k) matched[k] = MatchPair(history_[plan[k]], b);
         },
         stripes);
+    MeasureGroundPixel(plan, matched, &b);
   }
   for (size_t k = 0; k < plan.size(); ++k) {
     SequencePair out;
@@ -271,6 +286,36 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
     step->pairs.push_back(std::move(out));
   }
   if (error.empty()) Keep(std::move(b), step);
+}
+
+// b's ground pixel size: the median of its matched pairs'
+// (GroundPixelFromTies), else the one it was planned with; an earlier image
+// without one (the epoch's first) takes its pair's. The next photo starts
+// from b's.
+void SequenceMatcher::MeasureGroundPixel(const std::vector<size_t>& plan,
+                                         const std::vector<SequencePair>& pairs, Earlier* b) {
+  if (!b->info.has_position) return;
+  std::vector<double> measured;
+  for (size_t k = 0; k < plan.size(); ++k) {
+    Earlier& a = history_[plan[k]];
+    if (!a.info.has_position || pairs[k].points.empty()) continue;
+    std::vector<Eigen::Vector2d> xa, xb;
+    for (const SequenceTie& t : pairs[k].points) {
+      xa.push_back(t.xa);
+      xb.push_back(t.xb);
+    }
+    const auto centre = [](const cv::Size& s) {
+      return Eigen::Vector2d(0.5 * (s.width - 1), 0.5 * (s.height - 1));
+    };
+    const double g = GroundPixelFromTies(xa, xb, centre(a.size), centre(b->size),
+                                         (a.info.position - b->info.position).norm());
+    if (g <= 0.0) continue;
+    measured.push_back(g);
+    if (a.info.ground_pixel <= 0.0) a.info.ground_pixel = g;
+  }
+  if (!measured.empty()) b->info.ground_pixel = UpperMedian(measured);
+  if (!measured.empty()) summary_.ground_pixel = b->info.ground_pixel;
+  if (b->info.ground_pixel > 0.0) ground_pixel_ = b->info.ground_pixel;
 }
 
 SequencePair SequenceMatcher::MatchPair(const Earlier& a, const Earlier& b) const {

@@ -155,6 +155,63 @@ TEST(SequencePairs, NearestPriorsFirstAtMostMaxPairs) {
   EXPECT_THROW(PlanSequencePairs(earlier, Img(6, 22, 0, 0), o), ConfigError);
 }
 
+// Footprints 40 x 30 m (400 x 300 px of 0.1 m) by hand: b at (0, 0) with
+// its top to the north; overlaps with b (of the smaller footprint):
+//   (0, 9) heading 0: 40 x 21 of 40 x 30 = 0.70; (0, 18): 0.40; (0, 27): 0.10;
+//   (25, 0) heading 180 (the next strip, flown back): 15 x 30 = 0.375;
+//   (24, 9) heading 180: 16 x 21 = 0.28; no ground pixel: not a partner.
+TEST(SequencePairs, LargestFootprintOverlapFirst) {
+  const auto img = [](std::uint32_t serial, double stamp, double x, double y, double heading,
+                      double ground_pixel = 0.1) {
+    SequenceImage s = Img(serial, stamp, x, y);
+    s.has_heading = true;
+    s.heading_deg = heading;
+    s.width = 400;
+    s.height = 300;
+    s.ground_pixel = ground_pixel;
+    return s;
+  };
+  const std::vector<SequenceImage> earlier = {img(1, 0, 0, 27, 0), img(2, 2, 0, 18, 0),
+                                              img(3, 4, 0, 9, 0),  img(4, 30, 24, 9, 180),
+                                              img(5, 32, 25, 0, 180), img(6, 34, 1, 1, 0, 0.0)};
+  const SequenceImage b = img(7, 40, 0, 0, 0);
+  EXPECT_NEAR(FootprintOverlap(FootprintOf(earlier[3]), FootprintOf(b)), 0.28, 1e-4);
+  SequencePairOptions o;  // min_overlap 0.2, 4 pairs
+  const std::vector<size_t> p = PlanSequencePairs(earlier, b, o);
+  // 0.70 (image 3), 0.40 (image 2), 0.375 (image 5), 0.28 (image 4); image 1 shares 0.10 < 0.2.
+  const std::vector<size_t> expected = {2, 1, 4, 3};
+  EXPECT_EQ(p, expected);
+  o.min_overlap = 0.5;
+  EXPECT_EQ(PlanSequencePairs(earlier, b, o), std::vector<size_t>{2});
+  // Without b's ground pixel: by distance (image 6 at 1.4 m first).
+  SequenceImage near = b;
+  near.ground_pixel = 0.0;
+  EXPECT_EQ(PlanSequencePairs(earlier, near, SequencePairOptions())[0], 5u);
+  o.min_overlap = 0.0;
+  EXPECT_THROW(PlanSequencePairs(earlier, b, o), ConfigError);
+}
+
+// Tie points of a pair whose b is a's image moved 120 px right and 50 px
+// down (a's centre 130 px from b's), turned by 30 deg about the centre and
+// scaled 1.1: a baseline of 6.5 m gives 0.05 m/px.
+TEST(SequencePairs, GroundPixelFromTiesByHand) {
+  const Eigen::Vector2d centre(200, 150);
+  const Eigen::Rotation2Dd r(30.0 * M_PI / 180.0);
+  std::vector<Eigen::Vector2d> xa, xb;
+  for (int i = 0; i < 40; ++i) {
+    const Eigen::Vector2d x(10.0 * (i % 8) + 90, 12.0 * (i / 8) + 60);
+    xa.push_back(x);
+    xb.push_back(centre + Eigen::Vector2d(120, 50) + 1.1 * (r * (x - centre)));
+  }
+  EXPECT_NEAR(GroundPixelFromTies(xa, xb, centre, centre, 6.5), 0.05, 1e-9);
+  // Not to be told: a baseline under 1 m, fewer than 8 tie points, no image motion.
+  EXPECT_EQ(GroundPixelFromTies(xa, xb, centre, centre, 0.5), 0.0);
+  EXPECT_EQ(GroundPixelFromTies({xa.begin(), xa.begin() + 7}, {xb.begin(), xb.begin() + 7}, centre,
+                                centre, 6.5),
+            0.0);
+  EXPECT_EQ(GroundPixelFromTies(xa, xa, centre, centre, 6.5), 0.0);
+}
+
 TEST(SequencePairs, TrackIdsAreUniqueAndNeverZero) {
   EXPECT_EQ(SequenceTrackId(1, Eigen::Vector2d(0, 0), 1280), std::uint64_t(1) << 32);
   EXPECT_EQ(SequenceTrackId(3, Eigen::Vector2d(5.2, 2.9), 1280),

@@ -2,6 +2,8 @@
 // images whose corners are known.
 #include "slope_monitor/core/matching/interest_points.h"
 
+#include <vector>
+
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
@@ -54,6 +56,35 @@ TEST(InterestPoints, RectangleCornersAreFound) {
     for (const auto& p : pts) best = std::min(best, std::hypot(p.x.x() - c.x, p.x.y() - c.y));
     EXPECT_LT(best, 6.0) << c;
   }
+}
+
+// Squares of contrast 160 in the top-left quarter, of contrast 30 in the
+// other three (each square gives corners). The 8 strongest all lie in the
+// top-left; spread over 2 x 2 cells, each quarter keeps 2.
+TEST(InterestPoints, CellsSpreadThePointsOverTheImage) {
+  cv::Mat img(200, 200, CV_8U, cv::Scalar(60));
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) {
+      const bool strong = r < 2 && c < 2;
+      cv::rectangle(img, cv::Rect(15 + 50 * c, 15 + 50 * r, 20, 20),
+                    cv::Scalar(strong ? 220 : 90), cv::FILLED);
+    }
+  const auto quarter = [](const InterestPoint& p) {
+    return (p.x.y() >= 100 ? 2 : 0) + (p.x.x() >= 100 ? 1 : 0);
+  };
+  InterestPointOptions o;
+  o.max_points = 8;
+  std::vector<int> count(4, 0);
+  for (const InterestPoint& p : DetectInterestPoints(img, o)) ++count[quarter(p)];
+  EXPECT_EQ(count, (std::vector<int>{8, 0, 0, 0}));
+  o.cells = 2;
+  const auto spread = DetectInterestPoints(img, o);
+  std::fill(count.begin(), count.end(), 0);
+  for (const InterestPoint& p : spread) ++count[quarter(p)];
+  EXPECT_EQ(count, (std::vector<int>{2, 2, 2, 2}));
+  for (size_t k = 1; k < spread.size(); ++k) EXPECT_GE(spread[k - 1].strength, spread[k].strength);
+  o.cells = 101;
+  EXPECT_THROW(DetectInterestPoints(img, o), ConfigError);
 }
 
 TEST(InterestPoints, FlatImageHasNone) {

@@ -30,6 +30,7 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/matching/photo_pair_matcher.h"
+#include "slope_monitor/core/matching/sequence_matcher.h"
 
 namespace slope_monitor {
 namespace matching {
@@ -143,6 +144,7 @@ struct RealPair {
   const char* b;
   int min_tie_points;  // measured count minus a margin (see the printout)
   double max_rms;      // [px] measured epipolar RMS plus a margin
+  int min_sequence_tie_points;  // the same with the UAV sequence matcher's options
 };
 
 class RealPairs : public ::testing::TestWithParam<RealPair> {};
@@ -179,11 +181,23 @@ TEST_P(RealPairs, TiePointsAgreeWithTheAutopilotHeadingAndOutnumberSift) {
   const PhotoPairResult rp = MatchPhotoPair(fa, fb, PhotoPairOptions(), prior);
   EXPECT_GE(rp.summary.matched, p.min_tie_points);
   EXPECT_LT(std::abs(Wrap(rp.summary.rotation_deg - s.rotation_deg)), 2.0);
+  // The UAV sequence matcher's options (the graph's hex_matcher, mode
+  // sequence: SIFT on a 640 px copy, 1000 interest points spread over 8 x 8
+  // cells; measured 114 and 52 tie points, 7 and 22 before the spread): the
+  // same relation.
+  const SequenceMatcherOptions so;
+  const PhotoFeatures sa(a, p.a, so.photo), sb(b, p.b, so.photo);
+  const PhotoPairSummary ss = MatchPhotoPair(sa, sb, so.photo_pair).summary;
+  std::printf("  sequence options: %d tie points, epipolar rms %.3f px, rotation %.1f deg, %.2f s\n",
+              ss.matched, ss.epipolar_rms, ss.rotation_deg, ss.seconds);
+  EXPECT_GE(ss.matched, p.min_sequence_tie_points);
+  EXPECT_LT(ss.epipolar_rms, p.max_rms);
+  EXPECT_LT(std::abs(Wrap(ss.rotation_deg - heading_rotation)), 6.0);
 }
 
 INSTANTIATE_TEST_SUITE_P(Snowpeak, RealPairs,
-                         ::testing::Values(RealPair{"IMG_2213", "IMG_2244", 330, 0.42},
-                                           RealPair{"IMG_2212", "IMG_2244", 320, 0.42}));
+                         ::testing::Values(RealPair{"IMG_2213", "IMG_2244", 330, 0.42, 80},
+                                           RealPair{"IMG_2212", "IMG_2244", 320, 0.42, 35}));
 
 TEST(PhotoPairMatcher, PhotosFarApartGiveNoTiePoints) {
   // IMG_2168 and IMG_2244: 540 m apart (geoinfo.txt), footprints ~230 m.

@@ -95,6 +95,43 @@ TEST(SequenceMatcherSim, ShiftHexMethodTiePointsAgainstTruth) {
   CheckMethod(SequencePairMethod::kGlobalShiftHex, 150, 0.3);
 }
 
+// With position priors and the flight log's attitude (here the true pose),
+// the third photo's partners are chosen by predicted footprint overlap: the
+// ground pixel size measured by the pair (1, 2) equals the flight's (60 m
+// above the terrain at the flight's centre, 10 um pixels behind 9.17 mm),
+// photo 2 shares 70 % with photo 3 and photo 1 40 %.
+TEST(SequenceMatcherSim, PartnersByFootprintOverlapFromTheMeasuredGroundPixel) {
+  const testing::Flight& f = testing::TheFlight();
+  const auto run = [&](double min_overlap) {
+    SequenceMatcherOptions o;
+    o.pairing.min_overlap = min_overlap;
+    SequenceMatcher m(o);
+    std::vector<SequencePair> third;
+    for (int i = 0; i < 3; ++i) {
+      SequencePrior prior;
+      prior.position = f.poses[i].position.head<2>();
+      prior.site_from_optical = f.poses[i].SiteFromOptical().rotation;
+      m.AddPrior(i * kSimSecond, prior);
+      for (const SequencePair& p : m.AddImage(i * kSimSecond, "uav", f.images[i]).pairs)
+        if (i == 2) third.push_back(p);
+    }
+    EXPECT_EQ(m.summary().footprint_planned, 1) << "photo 3 (photo 2 by distance)";
+    const double truth = testing::kHeight * 0.01 / testing::kC;
+    std::printf("ground pixel measured %.5f m, flight %.5f m\n", m.summary().ground_pixel, truth);
+    EXPECT_NEAR(m.summary().ground_pixel, truth, 0.05 * truth);
+    return third;
+  };
+  const std::vector<SequencePair> both = run(SequencePairOptions().min_overlap);
+  ASSERT_EQ(both.size(), 2u);
+  EXPECT_EQ(both[0].stamp_a, 1 * kSimSecond);  // 70 % first
+  EXPECT_EQ(both[1].stamp_a, 0);               // 40 %
+  for (const SequencePair& p : both) EXPECT_EQ(p.reason, "") << p.message;
+  // A pair needing half the smaller footprint: photo 1 (40 %) is not tried.
+  const std::vector<SequencePair> one = run(0.5);
+  ASSERT_EQ(one.size(), 1u);
+  EXPECT_EQ(one[0].stamp_a, 1 * kSimSecond);
+}
+
 }  // namespace
 }  // namespace matching
 }  // namespace slope_monitor

@@ -3,12 +3,23 @@
 // same interest point of an earlier photo one multi-ray tie point.
 //
 // Pairs for a new image b (PlanSequencePairs):
-//   * b has a position prior and at least one earlier image has one: every
-//     earlier image with a prior whose horizontal distance to b's is
+//   * b and earlier images have a ground footprint (a position prior and a
+//     ground pixel size; a heading from the prior's attitude, else the disc
+//     inside the rectangle): the earlier images whose footprint overlaps b's
+//     by at least min_overlap of the smaller one (FootprintOverlap,
+//     photo_pair_matcher.h), largest overlap first (equal: the later image
+//     first), at most max_pairs_per_image. Photos along the strip, of the
+//     neighbouring strips and across turns are tied, in the order of how
+//     much they share, whatever the distance;
+//   * else b has a position prior and at least one earlier image has one:
+//     every earlier image with a prior whose horizontal distance to b's is
 //     <= max_pair_distance, nearest first (equal distances: the later image
-//     first), at most max_pairs_per_image of them. Neighbouring parallel
-//     strips are tied too, not only the previous photos of the strip;
+//     first), at most max_pairs_per_image of them;
 //   * otherwise the previous `sequence_depth` images, latest first.
+// The ground pixel size is measured by the flight itself
+// (GroundPixelFromTies): the GNSS baseline of a matched pair over the image
+// distance between b's centre and where a's centre falls in b, so neither
+// the flying height nor the terrain need to be known.
 // Track IDs (SequenceTrackId): (serial of image a, from 1) << 32 | (row *
 // width + col) of the rounded interest point xa. Interest points are
 // detected on the whole image a, so the same point of a carries the same ID
@@ -21,11 +32,18 @@
 
 #include <Eigen/Core>
 
+#include "slope_monitor/core/matching/photo_pair_matcher.h"
+
 namespace slope_monitor {
 namespace matching {
 
 struct SequencePairOptions {
-  double max_pair_distance = 30.0;  // [m] horizontal distance of the position priors, > 0
+  // [-] (0, 1]: predicted footprint overlap a pair needs. On the simulated
+  // blocks (config/sim/uav_block_*) photos three apart on a strip share
+  // 10 % and failed after every method (doc/uav_block_scaling.md).
+  double min_overlap = 0.2;
+  // [m] > 0: without footprints, horizontal distance of the position priors.
+  double max_pair_distance = 30.0;
   int max_pairs_per_image = 4;      // [1, 100]
   int sequence_depth = 2;           // previous images without priors, [1, 100]
   void Check() const;               // throws ConfigError naming the field
@@ -36,12 +54,32 @@ struct SequenceImage {
   double stamp = 0.0;        // [s]
   bool has_position = false;
   Eigen::Vector2d position = Eigen::Vector2d::Zero();  // [m] horizontal prior (site x, y)
+  // Where the image's top points on the ground [deg, clockwise from site
+  // north = +y], from the prior's attitude.
+  bool has_heading = false;
+  double heading_deg = 0.0;
+  int width = 0, height = 0;  // [px]
+  double ground_pixel = 0.0;  // [m/px] > 0: the footprint is known
 };
+
+// The footprint (position, heading, size x ground pixel);
+// has_position false without a position or ground pixel size.
+PhotoFootprint FootprintOf(const SequenceImage& image);
 
 // Indices into `earlier` (the epoch's earlier images, in time order) of
 // image b's partners, in the order they are to be matched.
 std::vector<size_t> PlanSequencePairs(const std::vector<SequenceImage>& earlier,
                                       const SequenceImage& b, const SequencePairOptions& options);
+
+// Ground pixel size [m/px] of image b from its tie points with image a
+// (xa -> xb) and the horizontal GNSS baseline [m] of the pair: a similarity
+// b_from_a of the tie points (least squares, Eigen::umeyama) puts a's centre
+// at p in b; for nadir photos p is `baseline` metres from b's centre on the
+// ground. 0 when it cannot be told: fewer than 8 tie points, a baseline under
+// 1 m or p less than 10 px from b's centre.
+double GroundPixelFromTies(const std::vector<Eigen::Vector2d>& xa,
+                           const std::vector<Eigen::Vector2d>& xb, const Eigen::Vector2d& centre_a,
+                           const Eigen::Vector2d& centre_b, double baseline);
 
 // Track ID of interest point xa [px] of image a (serial >= 1) of width
 // `width` [px]; throws InvalidArgument for serial 0 or xa outside 2^32 pixels.
