@@ -11,7 +11,8 @@
 // same RANSAC fundamental fit for all), wall time per pair including the
 // features of both photos (ours also without them: "match"), and the ratios
 // ours/SIFT and ours/ORB. OpenCV runs with its default threads (its best);
-// our matcher runs on one thread. Decoding the JPEGs is not timed.
+// our matcher runs on one thread. Decoding the JPEGs is not timed. A line
+// under each pair: ours with the UAV sequence matcher's options.
 //   bench_uav_pair_matching [data_dir]   (default ../shared/data/uav_real_snowpeak)
 #include <chrono>
 #include <cmath>
@@ -25,6 +26,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "slope_monitor/core/matching/photo_pair_matcher.h"
+#include "slope_monitor/core/matching/sequence_matcher.h"
 
 using namespace slope_monitor::matching;
 
@@ -118,6 +120,15 @@ int main(int argc, char** argv) {
         r.summary.coarse_matches, r.summary.coarse_consistent, r.summary.coarse_inliers,
         r.summary.rotation_deg, r.summary.candidates, r.summary.message.empty() ? "" : "; ",
         r.summary.message.c_str());
+    // The same pair with the UAV sequence matcher's options (hex_matcher,
+    // mode sequence; process_bag --uav-tie-points).
+    const double t1 = Now();
+    const SequenceMatcherOptions so;
+    const PhotoFeatures sa(a, na, so.photo), sb(b, nb, so.photo);
+    const PhotoPairSummary ss = MatchPhotoPair(sa, sb, so.photo_pair).summary;
+    std::printf("    sequence options: %d tie points, epipolar rms %.3f px, %.2f s (match %.2f s)%s%s\n",
+                ss.matched, ss.epipolar_rms, Now() - t1, ss.seconds, ss.message.empty() ? "" : "; ",
+                ss.message.c_str());
     std::fflush(stdout);
   }
   return 0;
