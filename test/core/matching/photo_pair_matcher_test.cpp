@@ -6,7 +6,10 @@
 //    tie point against that known map (the refinement at full resolution
 //    runs: the copy is 2304 px wide, larger than the 1200 px reduced level);
 //  * the real pairs that overlap: IMG_2213/IMG_2244 across a turn (headings
-//    307.6 / 146.9 deg) and IMG_2212/IMG_2244 on strips flown the same way:
+//    307.6 / 146.9 deg), IMG_2212/IMG_2244 on strips flown the same way,
+//    IMG_2171/IMG_2186 on neighbouring strips flown in opposite directions
+//    and IMG_2212/IMG_2213 either side of a turn (the last two share a narrow
+//    band at the photos' edge; found since SIFT's contrast threshold is 0.01):
 //    count, epipolar RMS, the rotation of the relation against the heading
 //    difference of the autopilot (geoinfo.txt, independent of the images),
 //    and the count against OpenCV SIFT + ratio test + RANSAC fundamental
@@ -145,6 +148,7 @@ struct RealPair {
   int min_tie_points;  // measured count minus a margin (see the printout)
   double max_rms;      // [px] measured epipolar RMS plus a margin
   int min_sequence_tie_points;  // the same with the UAV sequence matcher's options
+  double max_heading_error;     // [deg] relation's rotation against the headings' difference
 };
 
 class RealPairs : public ::testing::TestWithParam<RealPair> {};
@@ -172,7 +176,7 @@ TEST_P(RealPairs, TiePointsAgreeWithTheAutopilotHeadingAndOutnumberSift) {
   EXPECT_GT(s.epipolar_rms, 0.0);
   // Relation against the autopilot's headings (crab and the homography's
   // fit on an overlap at the photo's edge: a few degrees).
-  EXPECT_LT(std::abs(Wrap(s.rotation_deg - heading_rotation)), 6.0);
+  EXPECT_LT(std::abs(Wrap(s.rotation_deg - heading_rotation)), p.max_heading_error);
   EXPECT_GT(s.matched, 2 * sift);
   // The same with the heading difference as the prior: the same relation.
   PhotoPairPrior prior;
@@ -192,12 +196,26 @@ TEST_P(RealPairs, TiePointsAgreeWithTheAutopilotHeadingAndOutnumberSift) {
               ss.matched, ss.epipolar_rms, ss.rotation_deg, ss.seconds);
   EXPECT_GE(ss.matched, p.min_sequence_tie_points);
   EXPECT_LT(ss.epipolar_rms, p.max_rms);
-  EXPECT_LT(std::abs(Wrap(ss.rotation_deg - heading_rotation)), 6.0);
+  if (ss.matched > 0) {
+    EXPECT_LT(std::abs(Wrap(ss.rotation_deg - heading_rotation)), p.max_heading_error);
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Snowpeak, RealPairs,
-                         ::testing::Values(RealPair{"IMG_2213", "IMG_2244", 330, 0.42, 80},
-                                           RealPair{"IMG_2212", "IMG_2244", 320, 0.42, 35}));
+                         ::testing::Values(RealPair{"IMG_2213", "IMG_2244", 330, 0.42, 80, 6.0},
+                                           RealPair{"IMG_2212", "IMG_2244", 320, 0.42, 35, 6.0},
+                                           // Strips flown in opposite directions (headings
+                                           // 142.8 / 307.6 deg), the common scene at the
+                                           // photos' edge (a path and a pole's shadow, checked
+                                           // by eye): 239 tie points, -172.3 deg (sequence
+                                           // options -175.3) against the headings' -164.7:
+                                           // the autopilot's heading is the track's, and the
+                                           // overlap at the edge holds the homography's fit.
+                                           RealPair{"IMG_2171", "IMG_2186", 200, 0.42, 20, 12.0},
+                                           // Either side of a turn: 115, -166.3 deg; the
+                                           // sequence's 1000 interest points leave too few
+                                           // in the narrow overlap (none matched).
+                                           RealPair{"IMG_2212", "IMG_2213", 95, 0.42, 0, 6.0}));
 
 TEST(PhotoPairMatcher, PhotosFarApartGiveNoTiePoints) {
   // IMG_2168 and IMG_2244: 540 m apart (geoinfo.txt), footprints ~230 m.
