@@ -313,8 +313,7 @@ void SequenceMatcher::MeasureGroundPixel(const std::vector<size_t>& plan,
     measured.push_back(g);
     if (a.info.ground_pixel <= 0.0) a.info.ground_pixel = g;
   }
-  if (!measured.empty()) b->info.ground_pixel = UpperMedian(measured);
-  if (!measured.empty()) summary_.ground_pixel = b->info.ground_pixel;
+  if (!measured.empty()) summary_.ground_pixel = b->info.ground_pixel = UpperMedian(measured);
   if (b->info.ground_pixel > 0.0) ground_pixel_ = b->info.ground_pixel;
 }
 
