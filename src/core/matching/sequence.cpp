@@ -91,7 +91,9 @@ double GroundPixelFromTies(const std::vector<Eigen::Vector2d>& xa,
                            const Eigen::Vector2d& centre_b, double baseline) {
   const size_t n = std::min(xa.size(), xb.size());
   if (n < 8 || !(baseline >= 1.0)) return 0.0;
-  Eigen::Matrix2Xd a(2, n), b(2, n);
+  // Dynamic sizes: GCC 12 warns (a false -Wstringop-overread) inside
+  // Eigen's umeyama for a fixed 2 x N input.
+  Eigen::MatrixXd a(2, n), b(2, n);
   for (size_t k = 0; k < n; ++k) {
     a.col(k) = xa[k];
     b.col(k) = xb[k];
