@@ -5,6 +5,7 @@
 #include <cv_bridge/cv_bridge.h>
 #include <sensor_msgs/image_encodings.h>
 
+#include "slope_monitor/core/common/numeric.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
 
 namespace slope_monitor {
@@ -21,7 +22,7 @@ matching::SequencePrior FromPriorMsg(const geometry_msgs::PoseWithCovarianceStam
   out.position = Eigen::Vector2d(msg.pose.pose.position.x, msg.pose.pose.position.y);
   const auto& o = msg.pose.pose.orientation;
   const Eigen::Quaterniond q(o.w, o.x, o.y, o.z);
-  constexpr double kMaxVariance = (30.0 * M_PI / 180.0) * (30.0 * M_PI / 180.0);
+  constexpr double kMaxVariance = (30.0 * kRadPerDeg) * (30.0 * kRadPerDeg);
   bool attitude = q.coeffs().allFinite() && std::abs(q.norm() - 1.0) < 1e-3;
   for (int k = 3; k < 6; ++k) {
     const double v = msg.pose.covariance[6 * k + k];

@@ -43,6 +43,12 @@ PhotoFootprint FootprintOf(const SequenceImage& image) {
   return f;
 }
 
+bool PlansByFootprint(const std::vector<SequenceImage>& earlier, const SequenceImage& b) {
+  return FootprintOf(b).has_position &&
+         std::any_of(earlier.begin(), earlier.end(),
+                     [](const SequenceImage& s) { return FootprintOf(s).has_position; });
+}
+
 std::vector<size_t> PlanSequencePairs(const std::vector<SequenceImage>& earlier,
                                       const SequenceImage& b, const SequencePairOptions& options) {
   options.Check();
@@ -54,10 +60,8 @@ std::vector<size_t> PlanSequencePairs(const std::vector<SequenceImage>& earlier,
       out.push_back(std::get<2>((*c)[k]));
     return out;
   };
-  const PhotoFootprint fb = FootprintOf(b);
-  if (fb.has_position && std::any_of(earlier.begin(), earlier.end(), [](const SequenceImage& s) {
-        return FootprintOf(s).has_position;
-      })) {
+  if (PlansByFootprint(earlier, b)) {
+    const PhotoFootprint fb = FootprintOf(b);
     std::vector<std::tuple<double, double, size_t>> c;  // -overlap, -stamp, index
     for (size_t i = 0; i < earlier.size(); ++i) {
       const PhotoFootprint fa = FootprintOf(earlier[i]);

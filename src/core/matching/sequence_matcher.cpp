@@ -235,10 +235,7 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
   for (const Earlier& e : history_) infos.push_back(e.info);
   const std::vector<size_t> plan = PlanSequencePairs(infos, b.info, options_.pairing);
   ++summary_.images;
-  if (FootprintOf(b.info).has_position &&
-      std::any_of(infos.begin(), infos.end(),
-                  [](const SequenceImage& e) { return FootprintOf(e).has_position; }))
-    ++summary_.footprint_planned;
+  if (PlansByFootprint(infos, b.info)) ++summary_.footprint_planned;
   if (plan.empty()) {
     SequencePair out;
     out.epoch = summary_.epoch;

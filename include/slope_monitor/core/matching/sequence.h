@@ -66,6 +66,10 @@ struct SequenceImage {
 // has_position false without a position or ground pixel size.
 PhotoFootprint FootprintOf(const SequenceImage& image);
 
+// Whether PlanSequencePairs chooses b's partners by footprint overlap: b and
+// at least one earlier image have a footprint.
+bool PlansByFootprint(const std::vector<SequenceImage>& earlier, const SequenceImage& b);
+
 // Indices into `earlier` (the epoch's earlier images, in time order) of
 // image b's partners, in the order they are to be matched.
 std::vector<size_t> PlanSequencePairs(const std::vector<SequenceImage>& earlier,
