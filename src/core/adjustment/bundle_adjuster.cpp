@@ -228,6 +228,10 @@ std::string BundleAdjuster::CheckInput(const Scene& scene) const {
     if (p.surveyed && (!p.surveyed->allFinite() || !p.surveyed_covariance.allFinite()))
       return Message("point '", p.id, "' has a non-finite survey");
   }
+  if (options_.fixed_images_define_datum) {
+    if (config_.fixed_images.size() >= 2) return "";
+    return Message("fixed_images_define_datum needs two or more fixed images (", config_.fixed_images.size(), " held)");
+  }
   // Datum: control points seen (or GNSS priors), not all on one line.
   std::vector<Eigen::Vector3d> control;
   for (size_t i = 0; i < scene.points.size(); ++i) {

@@ -139,6 +139,10 @@ struct Options {
   // reached are still written back to the scene (the Summary still says not
   // usable, and nothing else is filled in).
   bool write_back_unconverged = false;
+  // A relative block in a model frame (flight orientation while it grows):
+  // the datum is the images the Config holds fixed (two or more), not
+  // control points or GNSS priors.
+  bool fixed_images_define_datum = false;
 
   // Throws ConfigError naming the first bad field.
   void Check() const;

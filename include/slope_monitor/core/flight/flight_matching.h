@@ -1,0 +1,90 @@
+// Tie points of a flight's photos, as multi-photo tracks.
+//
+// Pairs: every pair of photos up to exhaustive_max_photos photos (as COLMAP's
+// exhaustive matcher); beyond that, pairs whose GNSS footprints overlap
+// (matching::SelectOverlappingPairs with the flying height the photos give,
+// or the options' when they give none) and, for photos without GNSS, each
+// photo with the next sequence_window photos in name order. Each photo is
+// decoded once (grey) and its features (matching::PhotoFeatures) are reused
+// by all its pairs and released after its last pair; pairs are matched on
+// `threads` threads, each into its own slot, so the result does not depend on
+// the thread count.
+//
+// Tracks: the tie points of a pair (a, b) start at interest points of a
+// (photo_pair_matcher.h); one interest point of a matched into several
+// photos is one track, so a track has photo a and every photo it was
+// matched into (>= 2 photos).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "slope_monitor/core/flight/flight_photos.h"
+#include "slope_monitor/core/matching/photo_pair_matcher.h"
+
+namespace slope_monitor {
+namespace flight {
+
+struct FlightMatchingOptions {
+  int exhaustive_max_photos = 60;  // all pairs up to this many photos, >= 2
+  int sequence_window = 8;         // photos without GNSS: each with the next N by name, >= 1
+  // Beyond exhaustive_max_photos, with GNSS: footprint overlap; the flying
+  // height above ground is taken from the photos' XMP relative altitude when
+  // they have one, else footprint.height_above_ground.
+  matching::PairSelectionOptions footprint;
+  // Features per photo: SIFT (2000 on the 1200 px copy) for the pair's
+  // relation, interest points spread over 8 x 8 cells for the tie points.
+  // 2000 interest points per photo (COLMAP kept 20 202 points for 50 photos
+  // of this kind of block; the pair default 8000 only costs time).
+  matching::PhotoFeatureOptions features = [] {
+    matching::PhotoFeatureOptions o;
+    o.coarse_max_features = 2000;
+    o.interest.max_points = 2000;
+    o.interest.cells = 8;
+    return o;
+  }();
+  matching::PhotoPairOptions pair = [] {
+    matching::PhotoPairOptions o;
+    o.threads = 1;  // pairs run in parallel instead
+    return o;
+  }();
+  int min_pair_tie_points = 15;  // a pair with fewer is not used, >= 5
+  int threads = 0;               // pairs matched at once (0: the hardware's), [0, 64]
+  void Check() const;            // throws ConfigError naming the field
+};
+
+struct FlightTrack {
+  std::vector<std::pair<int, Eigen::Vector2d>> observations;  // (photo index, pixel), photo a first
+  std::uint8_t grey = 128;                                     // photo a's grey value at the point
+};
+
+struct FlightPairStats {
+  int a = 0, b = 0;
+  int tie_points = 0;
+  double epipolar_rms = 0.0;
+  std::string message;  // why none ("" when tied)
+};
+
+struct FlightTies {
+  std::vector<FlightTrack> tracks;
+  std::vector<FlightPairStats> pairs;  // every pair tried, in order
+  int pairs_tied = 0;                  // with >= min_pair_tie_points
+  long tie_points = 0;                 // pairwise tie points kept
+  std::vector<std::string> unreadable;  // "<photo>: <reason>" photos that could not be decoded
+  double feature_seconds = 0.0, pair_seconds = 0.0;  // CPU time summed over threads
+  double wall_seconds = 0.0;
+  std::size_t peak_feature_bytes = 0;
+};
+
+// The pairs to try (i < j, indices into photos.photos).
+std::vector<std::pair<int, int>> PlanFlightPairs(const FlightPhotos& photos, const FlightMatchingOptions& options);
+
+// Decodes the photos, matches the planned pairs and builds the tracks.
+FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& options);
+
+}  // namespace flight
+}  // namespace slope_monitor

@@ -1,0 +1,52 @@
+// Control points picked in photos, in OpenDroneMap's gcp_list.txt format
+// (also read by WebODM's GCP interface and written by its GCP editor):
+//
+//   <CRS: a PROJ string, "EPSG:NNNN" or "WGS84 UTM 11N">
+//   geo_x geo_y geo_z im_x im_y image_name [gcp_name] [extra ...]
+//
+// one pick (one point seen in one photo) per line, separated by blanks or
+// tabs; '#' starts a comment. Picks of one point share its name (or, without
+// a name, its coordinates). Pixel coordinates are taken as OpenCV pixels
+// (origin at the centre of the top-left pixel; ODM's half-pixel convention
+// differs by 0.5 px, far below a pick's precision).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace slope_monitor {
+namespace io {
+
+struct GcpPick {
+  std::string image;                                // file name as written (no folder)
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  // [px]
+  int line = 0;                                     // 1-based line of the file
+};
+
+struct GcpPoint {
+  std::string name;                                // gcp_name, or "line<N>" when unnamed
+  Eigen::Vector3d geo = Eigen::Vector3d::Zero();   // in the file's CRS
+  std::vector<GcpPick> picks;
+  int line = 0;                                    // its first line
+};
+
+struct GcpList {
+  std::string path;
+  std::string crs;  // as written on the first line, normalised: "WGS84 UTM 11N" -> "EPSG:32611"
+  std::vector<GcpPoint> points;  // in order of first appearance
+};
+
+// Throws IoError naming the file (missing, unreadable, empty) and
+// InvalidArgument naming "file:line" and what is wrong: too few fields, a
+// number that is not one, a point named twice with other coordinates, the
+// same point picked twice in one photo.
+GcpList ReadGcpList(const std::string& path);
+
+// "WGS84 UTM 11N" / "WGS84 UTM 33S" -> "EPSG:32611" / "EPSG:32733"; anything
+// else is returned unchanged (PROJ strings and EPSG codes).
+std::string NormaliseGcpCrs(const std::string& crs);
+
+}  // namespace io
+}  // namespace slope_monitor

@@ -1,0 +1,222 @@
+#include "slope_monitor/core/flight/flight_matching.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "slope_monitor/core/capture/geodesy.h"
+#include "slope_monitor/core/common/error.h"
+
+namespace slope_monitor {
+namespace flight {
+namespace {
+
+double Seconds(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Footprints of the photos with GNSS (east/north in a tangent plane at the first).
+std::vector<matching::PhotoFootprint> Footprints(const FlightPhotos& photos,
+                                                 const matching::PairSelectionOptions& selection) {
+  std::vector<matching::PhotoFootprint> out(photos.photos.size());
+  std::optional<capture::LocalTangentPlane> ltp;
+  for (size_t i = 0; i < photos.photos.size(); ++i) {
+    const FlightPhoto& p = photos.photos[i];
+    if (!p.exif.has_gps) continue;
+    const capture::Geodetic g{p.exif.gps.latitude_deg, p.exif.gps.longitude_deg, 0.0};
+    if (!ltp) ltp.emplace(g);
+    out[i] = matching::NadirFootprint(ltp->ToSite(g).head<2>(), p.attitude.has_yaw, p.attitude.yaw_deg,
+                                      cv::Size(p.width, p.height), p.exif.focal_length_mm,
+                                      p.attitude.pixel_size_mm, selection);
+  }
+  return out;
+}
+
+// Grey value of a photo at a pixel (nearest).
+std::uint8_t GreyAt(const cv::Mat& grey, const Eigen::Vector2d& px) {
+  const int c = std::clamp(static_cast<int>(std::lround(px.x())), 0, grey.cols - 1);
+  const int r = std::clamp(static_cast<int>(std::lround(px.y())), 0, grey.rows - 1);
+  return grey.at<std::uint8_t>(r, c);
+}
+
+// Photos' features, computed at first use and released after the last pair
+// that uses them. Thread-safe.
+class FeatureCache {
+ public:
+  FeatureCache(const FlightPhotos& photos, const FlightMatchingOptions& options, std::vector<int> uses)
+      : photos_(photos), options_(options), uses_(std::move(uses)), slots_(photos.photos.size()) {}
+
+  // nullptr when the photo cannot be decoded (named in unreadable()).
+  std::shared_ptr<const matching::PhotoFeatures> Get(int i) {
+    Slot& s = slots_[i];
+    std::call_once(s.once, [&] { Compute(i); });
+    return s.features;
+  }
+  void Done(int i) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (--uses_[i] == 0 && slots_[i].features) {
+      bytes_ -= slots_[i].features->MemoryBytes();
+      slots_[i].features.reset();
+    }
+  }
+  double seconds() const { return seconds_; }
+  std::size_t peak_bytes() const { return peak_; }
+  std::vector<std::string> unreadable() const { return unreadable_; }
+
+ private:
+  struct Slot {
+    std::once_flag once;
+    std::shared_ptr<const matching::PhotoFeatures> features;
+  };
+  void Compute(int i) {
+    const FlightPhoto& p = photos_.photos[i];
+    cv::Mat image;
+    std::string why;
+    try {
+      image = cv::imread(p.path, cv::IMREAD_GRAYSCALE);
+      if (image.empty()) why = "cannot be decoded as an image";
+      else if (image.cols != p.width || image.rows != p.height)
+        why = Message("decodes to ", image.cols, "x", image.rows, " where its header says ", p.width, "x", p.height);
+    } catch (const cv::Exception& e) {
+      why = e.what();
+    }
+    std::shared_ptr<const matching::PhotoFeatures> f;
+    if (why.empty()) f = std::make_shared<matching::PhotoFeatures>(image, p.name, options_.features);
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!why.empty()) {
+      unreadable_.push_back(Message(p.path, ": ", why));
+      return;
+    }
+    slots_[i].features = f;
+    seconds_ += f->seconds();
+    bytes_ += f->MemoryBytes();
+    peak_ = std::max(peak_, bytes_);
+  }
+
+  const FlightPhotos& photos_;
+  const FlightMatchingOptions& options_;
+  std::vector<int> uses_;
+  std::vector<Slot> slots_;
+  std::mutex mutex_;
+  double seconds_ = 0.0;
+  std::size_t bytes_ = 0, peak_ = 0;
+  std::vector<std::string> unreadable_;
+};
+
+// Tracks from the pairs' tie points: an interest point of photo a (its
+// pixel, identical in every pair of a) is one track.
+void BuildTracks(const std::vector<std::pair<int, int>>& pairs,
+                 const std::vector<matching::PhotoPairResult>& results, const std::vector<std::uint8_t>& used,
+                 const std::vector<std::vector<std::uint8_t>>& grey_of, FlightTies* ties) {
+  std::map<std::pair<int, std::pair<long, long>>, int> track_of;
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    if (!used[k]) continue;
+    const auto [a, b] = pairs[k];
+    const auto& pts = results[k].tie_points;
+    for (size_t t = 0; t < pts.size(); ++t) {
+      const auto key = std::make_pair(
+          a, std::make_pair(std::lround(pts[t].xa.x() * 100.0), std::lround(pts[t].xa.y() * 100.0)));
+      auto it = track_of.find(key);
+      if (it == track_of.end()) {
+        it = track_of.emplace(key, static_cast<int>(ties->tracks.size())).first;
+        FlightTrack track;
+        track.observations.emplace_back(a, pts[t].xa);
+        track.grey = grey_of[k][t];
+        ties->tracks.push_back(std::move(track));
+      }
+      ties->tracks[it->second].observations.emplace_back(b, pts[t].xb);
+    }
+  }
+}
+
+}  // namespace
+
+void FlightMatchingOptions::Check() const {
+  RequireOption("flight matching", exhaustive_max_photos >= 2, "exhaustive_max_photos", "must be >= 2");
+  RequireOption("flight matching", sequence_window >= 1, "sequence_window", "must be >= 1");
+  RequireOption("flight matching", min_pair_tie_points >= 5, "min_pair_tie_points", "must be >= 5");
+  RequireOption("flight matching", threads >= 0 && threads <= 64, "threads", "must be in [0, 64]");
+  footprint.Check();
+  features.Check();
+  pair.Check();
+}
+
+std::vector<std::pair<int, int>> PlanFlightPairs(const FlightPhotos& photos, const FlightMatchingOptions& options) {
+  const int n = static_cast<int>(photos.photos.size());
+  std::vector<std::pair<int, int>> pairs;
+  if (n <= options.exhaustive_max_photos) {
+    for (int i = 0; i < n; ++i)
+      for (int j = i + 1; j < n; ++j) pairs.emplace_back(i, j);
+    return pairs;
+  }
+  const std::vector<matching::PhotoFootprint> fp = Footprints(photos, options.footprint);
+  for (int i = 0; i < n; ++i) {
+    for (int j = i + 1; j < n; ++j) {
+      const bool both = fp[i].has_position && fp[j].has_position;
+      if (both ? matching::FootprintOverlap(fp[i], fp[j]) >= options.footprint.min_overlap
+               : j - i <= options.sequence_window)
+        pairs.emplace_back(i, j);
+    }
+  }
+  return pairs;
+}
+
+FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& options) {
+  options.Check();
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::vector<std::pair<int, int>> pairs = PlanFlightPairs(photos, options);
+  std::vector<int> uses(photos.photos.size(), 0);
+  for (const auto& [a, b] : pairs) ++uses[a], ++uses[b];
+  FeatureCache cache(photos, options, uses);
+  std::vector<matching::PhotoPairResult> results(pairs.size());
+  std::vector<std::vector<std::uint8_t>> grey_of(pairs.size());
+  const int threads = options.threads > 0 ? options.threads : cv::getNumberOfCPUs();
+  // Pairs in order, `threads` at a time: photo a's features come first, so a
+  // photo is released soon after the pairs that need it.
+  cv::parallel_for_(cv::Range(0, static_cast<int>(pairs.size())), [&](const cv::Range& range) {
+    for (int k = range.start; k < range.end; ++k) {
+      const auto [a, b] = pairs[k];
+      const auto fa = cache.Get(a), fb = cache.Get(b);
+      if (fa && fb) {
+        results[k] = matching::MatchPhotoPair(*fa, *fb, options.pair);
+        for (const auto& t : results[k].tie_points) grey_of[k].push_back(GreyAt(fa->grey(), t.xa));
+      } else {
+        results[k].summary.message = "a photo could not be decoded";
+      }
+      cache.Done(a);
+      cache.Done(b);
+    }
+  }, threads);
+  FlightTies ties;
+  std::vector<std::uint8_t> used(pairs.size(), 0);
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    const matching::PhotoPairSummary& s = results[k].summary;
+    FlightPairStats st{pairs[k].first, pairs[k].second, static_cast<int>(results[k].tie_points.size()),
+                       s.epipolar_rms, s.message};
+    if (st.tie_points >= options.min_pair_tie_points) {
+      used[k] = 1;
+      ++ties.pairs_tied;
+      ties.tie_points += st.tie_points;
+    } else if (st.message.empty()) {
+      st.message = Message(st.tie_points, " tie points (min_pair_tie_points = ", options.min_pair_tie_points, ")");
+    }
+    ties.pair_seconds += s.seconds;
+    ties.pairs.push_back(st);
+  }
+  BuildTracks(pairs, results, used, grey_of, &ties);
+  ties.feature_seconds = cache.seconds();
+  ties.peak_feature_bytes = cache.peak_bytes();
+  ties.unreadable = cache.unreadable();
+  ties.wall_seconds = Seconds(t0);
+  return ties;
+}
+
+}  // namespace flight
+}  // namespace slope_monitor

@@ -1,0 +1,101 @@
+#include "slope_monitor/core/io/gcp_list.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "slope_monitor/core/common/error.h"
+
+namespace slope_monitor {
+namespace io {
+namespace {
+
+std::string GcpTrim(const std::string& s) {
+  const size_t a = s.find_first_not_of(" \t\r\n");
+  if (a == std::string::npos) return "";
+  const size_t b = s.find_last_not_of(" \t\r\n");
+  return s.substr(a, b - a + 1);
+}
+
+double GcpNumber(const std::string& text, const std::string& where, const char* field) {
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(v))
+    throw InvalidArgument(Message(where, ": ", field, " '", text, "' is not a number"));
+  return v;
+}
+
+}  // namespace
+
+std::string NormaliseGcpCrs(const std::string& crs) {
+  std::istringstream in(crs);
+  std::string datum, utm, zone;
+  if (in >> datum >> utm >> zone && (datum == "WGS84" || datum == "WGS 84") && utm == "UTM" && zone.size() >= 2) {
+    const char hemi = zone.back();
+    const int z = std::atoi(zone.substr(0, zone.size() - 1).c_str());
+    if (z >= 1 && z <= 60 && (hemi == 'N' || hemi == 'S' || hemi == 'n' || hemi == 's'))
+      return Message("EPSG:", (hemi == 'N' || hemi == 'n') ? 32600 + z : 32700 + z);
+  }
+  return crs;
+}
+
+GcpList ReadGcpList(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw IoError(Message(path, ": cannot be opened (no such file, or not readable)"));
+  GcpList list;
+  list.path = path;
+  std::map<std::string, size_t> by_key;
+  std::string raw;
+  int line_no = 0;
+  bool have_crs = false;
+  while (std::getline(in, raw)) {
+    ++line_no;
+    const std::string line = GcpTrim(raw.substr(0, raw.find('#')));
+    if (line.empty()) continue;
+    const std::string where = Message(path, ":", line_no);
+    if (!have_crs) {
+      list.crs = NormaliseGcpCrs(line);
+      have_crs = true;
+      continue;
+    }
+    std::istringstream fields(line);
+    std::vector<std::string> f;
+    for (std::string s; fields >> s;) f.push_back(s);
+    if (f.size() < 6)
+      throw InvalidArgument(Message(where, ": ", f.size(),
+                                    " fields where 'geo_x geo_y geo_z im_x im_y image_name [gcp_name]' needs 6 or 7"));
+    const Eigen::Vector3d geo(GcpNumber(f[0], where, "geo_x"), GcpNumber(f[1], where, "geo_y"),
+                              GcpNumber(f[2], where, "geo_z"));
+    GcpPick pick;
+    pick.pixel = Eigen::Vector2d(GcpNumber(f[3], where, "im_x"), GcpNumber(f[4], where, "im_y"));
+    pick.image = f[5];
+    pick.line = line_no;
+    const std::string name = f.size() >= 7 ? f[6] : "";
+    const std::string key = name.empty() ? Message("@", f[0], " ", f[1], " ", f[2]) : name;
+    auto it = by_key.find(key);
+    if (it == by_key.end()) {
+      GcpPoint p;
+      p.name = name.empty() ? Message("line", line_no) : name;
+      p.geo = geo;
+      p.line = line_no;
+      it = by_key.emplace(key, list.points.size()).first;
+      list.points.push_back(p);
+    }
+    GcpPoint& p = list.points[it->second];
+    if ((p.geo - geo).norm() > 1e-6 * std::max(1.0, geo.norm()))
+      throw InvalidArgument(Message(where, ": point '", p.name, "' has other coordinates than on line ", p.line));
+    for (const GcpPick& q : p.picks)
+      if (q.image == pick.image)
+        throw InvalidArgument(Message(where, ": point '", p.name, "' is picked in '", pick.image,
+                                      "' again (first on line ", q.line, ")"));
+    p.picks.push_back(pick);
+  }
+  if (!have_crs) throw IoError(Message(path, ": empty (the first line must name the CRS)"));
+  if (list.points.empty()) throw IoError(Message(path, ": names a CRS but no picks"));
+  return list;
+}
+
+}  // namespace io
+}  // namespace slope_monitor
