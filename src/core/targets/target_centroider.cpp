@@ -349,6 +349,31 @@ void Options::Check() const {
     fail("circle_size_tolerance", "must be in (0, 1]");
 }
 
+std::string CircleDesignName(CircleDesign design) {
+  switch (design) {
+    case CircleDesign::kAuto:
+      return "auto";
+    case CircleDesign::kDiscInRing:
+      return "disc_in_ring";
+    case CircleDesign::kDot:
+      return "dot";
+    case CircleDesign::kRing:
+      return "ring";
+    case CircleDesign::kConcentric:
+      return "concentric";
+  }
+  return "unknown";
+}
+
+CircleDesign ParseCircleDesign(const std::string& name, const std::string& key) {
+  for (CircleDesign d : {CircleDesign::kAuto, CircleDesign::kDiscInRing, CircleDesign::kDot,
+                         CircleDesign::kRing, CircleDesign::kConcentric}) {
+    if (CircleDesignName(d) == name) return d;
+  }
+  throw ConfigError(Message("targets option '", key, "' = '", name,
+                            "' is not a circle design (auto, disc_in_ring, dot, ring, concentric)"));
+}
+
 std::string RejectReasonName(RejectReason reason) {
   switch (reason) {
     case RejectReason::kBorder:
@@ -852,6 +877,163 @@ bool MeasureRingRatio(const ImageView& im, const Blob& blob, double ring, const 
   return true;
 }
 
+// What the 32 rays from a light centre show beyond it (CircleDesign): the
+// design, the outer edge of the dark part and the first dark->light edge
+// (both in radii of the light centre, medians over the rays).
+struct DesignSeen {
+  CircleDesign design = CircleDesign::kAuto;
+  double outer = 0.0;  // dot: 0
+  double first = 0.0;  // ring designs: the first light after the centre's dark ring
+};
+
+// Limits of the ring designs (in radii of the light centre): the outer edge
+// between kMinOuterRatio and kMaxOuterRatio; light for kLightRun at least
+// beyond it (a light gap between two rings or a code band is shorter; the
+// gap to a neighbouring marker on a board longer); a dot's dark ground out to
+// kDotGround at least. Consistency: kRingRayShare of the counted rays (at
+// least kMinRingRays) within kRingTolerance of the median; a concentric or
+// coded marker shows light inside the outer edge on kConcentricShare of them.
+constexpr double kMinOuterRatio = 1.2, kMaxOuterRatio = 4.0, kLightRun = 0.6, kDotGround = 2.5;
+constexpr double kRingTolerance = 0.12, kRingRayShare = 0.75, kConcentricShare = 0.25;
+constexpr double kDotRayShare = 0.9, kDotGroundSpread = 0.25;
+constexpr int kMinRingRays = 20, kMinDotRays = 24;
+
+// The ring designs and the dot: per ray the profile is classified against the
+// midpoint of the light centre's and the dark ring's levels. A ray counts for
+// the ring rule when it finds the outer edge or stays in the image to
+// kMaxOuterRatio + kLightRun, for the dot rule when it stays in the image to
+// kDotGround.
+bool SeeRingOrDot(const ImageView& im, const Blob& blob, double disc, double ring,
+                  double min_diameter, CircleDesign wanted, DesignSeen* seen, std::string* fault) {
+  const double thr = ring + 0.5 * (disc - ring);
+  const double ds = 0.5 / std::max(blob.a, 1.0);
+  const double s_end = kMaxOuterRatio + kLightRun;
+  auto in_image = [&](const Eigen::Vector2d& p) {
+    return p.x() >= 0 && p.y() >= 0 && p.x() <= im.cols - 1 && p.y() <= im.rows - 1;
+  };
+  int ring_rays = 0, dot_rays = 0, dark_rays = 0;
+  std::vector<double> outers, firsts, ground;
+  for (int k = 0; k < 32; ++k) {
+    const double ang = 2 * M_PI * (k + 0.5) / 32;
+    double prev_s = 1.15, up = -1.0, first = -1.0;
+    Eigen::Vector2d p = blob.At(ang, prev_s);
+    if (!in_image(p)) continue;
+    double prev_v = im.Sample(p.x(), p.y());
+    bool found = false, whole = true;
+    for (double s = prev_s + ds; s <= s_end; s += ds) {
+      p = blob.At(ang, s);
+      if (!in_image(p)) {
+        whole = false;
+        break;
+      }
+      const double v = im.Sample(p.x(), p.y());
+      if (s >= 1.3 && s <= kDotGround) ground.push_back(v);
+      if (v >= thr && prev_v < thr) {
+        up = prev_s + (s - prev_s) * (thr - prev_v) / (v - prev_v);
+        if (first < 0) first = up;
+      } else if (v < thr && prev_v >= thr) {
+        up = -1.0;  // dark again: a gap between rings, not the outer edge
+      }
+      if (up > 0 && s - up >= kLightRun) {
+        found = true;
+        break;
+      }
+      if (s >= kDotGround && s - ds < kDotGround) {
+        ++dot_rays;
+        if (first < 0) ++dark_rays;
+      }
+      prev_s = s;
+      prev_v = v;
+    }
+    if (found) {
+      ++ring_rays;
+      outers.push_back(up);
+      firsts.push_back(first);
+    } else if (whole) {
+      ++ring_rays;
+    }
+  }
+  const bool want_ring = wanted == CircleDesign::kAuto || wanted == CircleDesign::kRing ||
+                         wanted == CircleDesign::kConcentric;
+  std::string ring_fault;
+  if (want_ring && ring_rays >= kMinRingRays && !outers.empty()) {
+    std::vector<double> tmp = outers;
+    const double med = Percentile(tmp, 0.5);
+    int within = 0, inner = 0;
+    std::vector<double> first_within;
+    for (size_t i = 0; i < outers.size(); ++i) {
+      if (std::abs(outers[i] / med - 1.0) > kRingTolerance) continue;
+      ++within;
+      if (firsts[i] < 0.85 * outers[i]) {
+        ++inner;
+        first_within.push_back(firsts[i]);
+      }
+    }
+    const bool concentric = inner >= kConcentricShare * within;
+    if (med >= kMinOuterRatio && med <= kMaxOuterRatio && within >= kRingRayShare * ring_rays &&
+        (wanted == CircleDesign::kAuto || concentric == (wanted == CircleDesign::kConcentric))) {
+      seen->design = concentric ? CircleDesign::kConcentric : CircleDesign::kRing;
+      seen->outer = med;
+      seen->first = concentric ? Percentile(first_within, 0.5) : med;
+      return true;
+    }
+    ring_fault = Message("outer edge of the dark part at ", med, " radii on ", within, " of ",
+                         ring_rays, " rays", concentric ? " (concentric)" : "");
+  } else {
+    ring_fault = Message("outer edge of the dark part seen on ", outers.size(), " of ", ring_rays,
+                         " rays");
+  }
+  // A dot: dark ground on (nearly) every ray, and a ground, not texture: its
+  // brightest tenth still in the dark quarter of the contrast; the dot at
+  // least circle_min_diameter across (a speck of texture is smaller).
+  const double ground_top = Percentile(ground, 0.9);
+  const bool uniform = ground_top <= ring + kDotGroundSpread * (disc - ring);
+  const bool large = blob.a + blob.b >= min_diameter;
+  if ((wanted == CircleDesign::kAuto || wanted == CircleDesign::kDot) && dot_rays >= kMinDotRays &&
+      dark_rays >= kDotRayShare * dot_rays && uniform && large) {
+    seen->design = CircleDesign::kDot;
+    return true;
+  }
+  *fault = Message(ring_fault, "; dark ground to ", kDotGround, " radii on ", dark_rays, " of ",
+                   dot_rays, " rays", uniform ? "" : " (not uniform)",
+                   large ? "" : " (smaller than circle_min_diameter)");
+  return false;
+}
+
+// The design of the configured ones that the rays show (see CircleDesign).
+// kAuto tries kDiscInRing first: the simulator's plates keep exactly their
+// former evidence and measurement.
+bool SeeDesign(const ImageView& im, const Blob& blob, double disc, double ring, const Options& o,
+               DesignSeen* seen, std::string* fault) {
+  std::string disc_fault;
+  if (o.circle_design == CircleDesign::kAuto || o.circle_design == CircleDesign::kDiscInRing) {
+    double ratio = 0.0;
+    if (MeasureRingRatio(im, blob, ring, o, &ratio, &disc_fault)) {
+      // auto: a concentric or coded marker whose outer edge happens to be at
+      // the ratio is measured as what it is (its dark part has light inside).
+      DesignSeen other;
+      std::string unused;
+      if (o.circle_design == CircleDesign::kAuto &&
+          SeeRingOrDot(im, blob, disc, ring, o.circle_min_diameter, CircleDesign::kConcentric,
+                       &other, &unused)) {
+        *seen = other;
+        return true;
+      }
+      seen->design = CircleDesign::kDiscInRing;
+      seen->outer = seen->first = ratio;
+      return true;
+    }
+    if (o.circle_design == CircleDesign::kDiscInRing) {
+      *fault = disc_fault;
+      return false;
+    }
+  }
+  if (SeeRingOrDot(im, blob, disc, ring, o.circle_min_diameter, o.circle_design, seen, fault))
+    return true;
+  if (!disc_fault.empty()) *fault = disc_fault + "; " + *fault;
+  return false;
+}
+
 // Semi-major axis [px] of the image of a circle (diameter [m], centre and
 // normal in site): half the longest chord between 36 projected rim points;
 // 0 when a rim point does not project.
@@ -957,6 +1139,81 @@ Eigen::Vector2d CirclePerspectiveBias(const ViewGeometry& view,
   FitConicCentre(pts, &ellipse_centre);
   return ellipse_centre - projected_centre;
 }
+
+namespace {
+
+// One target per marker: a circle whose centre lies within another circle's
+// outer edge (a light gap or code segment of a ring marker, a dot inside a
+// ring) is dropped in favour of the larger one (debug output: discarded,
+// reason "design").
+double OuterRadius(const Observation& o) {
+  return 0.5 * o.size_px * std::max(o.ring_ratio, 1.0);
+}
+
+void DropNestedCircles(Result* res) {
+  std::vector<bool> drop(res->observations.size(), false);
+  for (size_t i = 0; i < res->observations.size(); ++i) {
+    const Observation& a = res->observations[i];
+    if (a.family != "circle") continue;
+    for (size_t j = 0; j < res->observations.size(); ++j) {
+      const Observation& b = res->observations[j];
+      if (i == j || b.family != "circle" || drop[i]) continue;
+      const double ra = OuterRadius(a), rb = OuterRadius(b);
+      if ((a.centre - b.centre).norm() < rb && (ra < rb || (ra == rb && i > j))) drop[i] = true;
+    }
+  }
+  // Unlisted markers that could not be measured: the same rule among them
+  // and against the measured ones.
+  std::vector<bool> drop_r(res->rejections.size(), false);
+  for (size_t i = 0; i < res->rejections.size(); ++i) {
+    const Rejection& a = res->rejections[i];
+    if (a.family != "circle" || a.id >= 0) continue;
+    for (size_t j = 0; j < res->observations.size() && !drop_r[i]; ++j) {
+      const Observation& b = res->observations[j];
+      if (!drop[j] && b.family == "circle" && (a.where - b.centre).norm() < OuterRadius(b))
+        drop_r[i] = true;
+    }
+    for (size_t j = 0; j < res->rejections.size() && !drop_r[i]; ++j) {
+      const Rejection& b = res->rejections[j];
+      if (i == j || b.family != "circle") continue;
+      if ((a.where - b.where).norm() < b.radius_px &&
+          (a.radius_px < b.radius_px || (a.radius_px == b.radius_px && i > j)))
+        drop_r[i] = true;
+    }
+  }
+  std::vector<Rejection> kept_r;
+  for (size_t i = 0; i < res->rejections.size(); ++i) {
+    if (!drop_r[i]) {
+      kept_r.push_back(res->rejections[i]);
+      continue;
+    }
+    res->summary.rejects_by_reason[RejectReasonName(res->rejections[i].reason)]--;
+    Rejection r = res->rejections[i];
+    r.detail += " (inside the outer edge of a larger circle: one target per marker)";
+    res->discarded.push_back(r);
+  }
+  res->rejections.swap(kept_r);
+  std::vector<Observation> kept;
+  for (size_t i = 0; i < res->observations.size(); ++i) {
+    const Observation& o = res->observations[i];
+    if (!drop[i]) {
+      kept.push_back(o);
+      continue;
+    }
+    Rejection r;
+    r.family = "circle";
+    r.id = o.id;
+    r.where = o.centre;
+    r.reason = RejectReason::kDesign;
+    r.detail = "inside the outer edge of a larger circle (one target per marker)";
+    res->discarded.push_back(r);
+    res->summary.num_circles--;
+    if (!o.role) res->summary.num_unknown--;
+  }
+  res->observations.swap(kept);
+}
+
+}  // namespace
 
 Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* view) const {
   if (mono.mono8.empty() && mono.intensity.empty()) throw InvalidArgument("image is empty");
@@ -1377,9 +1634,13 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       // A listed circle expected here is a target that cannot be measured (a
       // rejection); an unlisted candidate that fails is not a target
       // (discarded, debug output only).
+      // A candidate that shows a design's evidence is a marker: when it
+      // cannot be measured it is a rejection too.
+      double marker_radius = 0.0;
       auto fail = [&](RejectReason reason, const std::string& detail) {
-        if (spec) {
+        if (spec || marker_radius > 0.0) {
           reject("circle", id, blob.centre, reason, detail);
+          res.rejections.back().radius_px = marker_radius;
         } else {
           discard(blob.centre, reason, detail);
         }
@@ -1412,20 +1673,49 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
         sectors.push_back(sum / n);
       }
       const double disc = Percentile(inner, 0.5);
-      const double ring = Percentile(sectors, 0.5);
-      const double contrast = disc - ring;
-      if (contrast < options_.min_contrast) {  // not a target (bright texture)
+      double ring = Percentile(sectors, 0.5);
+      double contrast = disc - ring;
+      // (The darkest quarter of the sectors: a coded ring's light segments
+      // may lift the median.)
+      std::vector<double> sorted_sectors = sectors;
+      if (disc - Percentile(sorted_sectors, 0.25) < options_.min_contrast) {  // bright texture
         discard(blob.centre, RejectReason::kLowContrast,
                 Message("disc/ring contrast ", contrast, " DN"));
         continue;
       }
-      const double worst_sector = *std::max_element(sectors.begin(), sectors.end());
-      // The design: the dark ring ends at circle_ring_ratio disc radii.
-      double ring_ratio = 0.0;
+      double worst_sector = *std::max_element(sectors.begin(), sectors.end());
+      // The design: where the dark part around the light centre ends.
+      DesignSeen seen;
       std::string design_fault;
-      if (!MeasureRingRatio(im, blob, ring, options_, &ring_ratio, &design_fault)) {
+      if (!SeeDesign(im, blob, disc, ring, options_, &seen, &design_fault)) {
         fail(RejectReason::kDesign, design_fault);
         continue;
+      }
+      const double ring_ratio = seen.outer;
+      // (A dot's evidence is weaker, a dark ground only: an unlisted dot
+      // that cannot be measured is not called a marker.)
+      if (seen.design != CircleDesign::kDot) marker_radius = blob.a * ring_ratio;
+      if (seen.design == CircleDesign::kRing || seen.design == CircleDesign::kConcentric) {
+        // The centre's own dark ring may end before 1.3 radii (a thin inner
+        // ring, a code band): the surround is judged within it.
+        const double w = seen.first - 1.0;
+        sectors.clear();
+        for (int k = 0; k < 16; ++k) {
+          double sum = 0;
+          int n = 0;
+          for (int j = 0; j < 3; ++j) {
+            const double ang = 2 * M_PI * (k + j / 3.0) / 16;
+            for (double s : {1.0 + 0.45 * w, 1.0 + 0.55 * w, 1.0 + 0.65 * w}) {
+              const Eigen::Vector2d p = blob.At(ang, s);
+              sum += im.Sample(p.x(), p.y());
+              ++n;
+            }
+          }
+          sectors.push_back(sum / n);
+        }
+        ring = Percentile(sectors, 0.5);
+        contrast = disc - ring;
+        worst_sector = *std::max_element(sectors.begin(), sectors.end());
       }
       // With a pose: the listed target's projected size.
       if (spec && expected[best].major_px > 0.0) {
@@ -1451,6 +1741,7 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       o.family = "circle";
       o.id = id;
       o.ring_ratio = ring_ratio;
+      o.design = seen.design;
       if (spec) o.role = spec->role;
       o.contrast = contrast;
       const Eigen::Matrix2d shape = blob.Shape();
@@ -1504,6 +1795,7 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       EllipseModel model;
       const LmResult<8> fit = FitModel<8>(px, x0, model, 30);
       if (!fit.ok || (fit.x.head<2>() - o.gray_centroid).norm() > 0.25 * rmean) {
+        marker_radius = 0.0;  // unlisted: no model, no marker
         fail(RejectReason::kFitFailed, "ellipse model fit did not converge");
         continue;
       }
@@ -1516,6 +1808,7 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
         continue;
       }
       if (rel > options_.max_residual) {
+        marker_radius = 0.0;  // unlisted: the model does not explain it, no marker
         fail(RejectReason::kPartial, Message("ellipse fit residual ", rel, " of the contrast"));
         continue;
       }
@@ -1549,6 +1842,7 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
       res.summary.num_circles++;
       if (!o.role) res.summary.num_unknown++;
     }
+    DropNestedCircles(&res);
   }
   if (!residuals.empty()) res.summary.noise_estimate = Percentile(residuals, 0.5);
   return res;

@@ -1,5 +1,6 @@
-// Target centroider: AprilTags and circular targets (bright disc on a dark
-// ring) to sub-pixel centres with a covariance, a quality and, for targets
+// Target centroider: AprilTags and circular targets (a bright disc in a dark
+// ring, a light dot on a dark ground, a dark ring with a light centre,
+// concentric or coded rings: Options::circle_design) to sub-pixel centres with a covariance, a quality and, for targets
 // that cannot be measured, a rejection reason.
 //
 //   targets::TargetCentroider centroider(options, target_list);
@@ -26,7 +27,9 @@
 // tag_refine_max_sigma); otherwise libapriltag's corners are published
 // (Observation::method says which; doc/targets_real_photos.md).
 //
-// Circles: blobs of a locally thresholded image with a dark surround; then
+// Circles: blobs of a locally thresholded image with a dark surround (the
+// light centre of every design); the design is told by 32 rays from the
+// blob's centre (where the dark part around the light centre ends); then
 // the gray-weighted centroid of DESIGN.md (automatic threshold halfway
 // between the disc and ring levels, pixels under it set to 0,
 // intensity-weighted mean); then a least-squares fit of a blurred elliptical
@@ -55,6 +58,26 @@
 
 namespace slope_monitor {
 namespace targets {
+
+// Circular target designs. Every design has a light centre (a disc) with
+// something dark around it; they differ in where the dark part ends, seen
+// along 32 rays from the centre (in radii of the light centre):
+//   kDiscInRing  the dark ring ends at circle_ring_ratio (the simulator's plates);
+//   kDot         a light dot on a dark ground: dark out to 2.5 radii at least
+//                (retro-reflective dots on a black plate);
+//   kRing        a dark ring with a light centre: the ring's outer edge at one
+//                ratio (1.2..4) on most rays, light beyond;
+//   kConcentric  two or more dark rings (or a coded ring, e.g. ringgrid's
+//                markers): light between them on a quarter of the rays at
+//                least; the outermost edge at one ratio on most rays.
+// One target per marker: its centre is the centre of the light centre
+// (common to all rings); a smaller candidate inside an accepted marker's
+// outer edge is dropped. kAuto (the default) accepts any of them, trying
+// kDiscInRing first.
+enum class CircleDesign { kAuto, kDiscInRing, kDot, kRing, kConcentric };
+std::string CircleDesignName(CircleDesign design);  // "auto", "disc_in_ring", "dot", "ring", "concentric"
+// Throws ConfigError naming `key` and the allowed names.
+CircleDesign ParseCircleDesign(const std::string& name, const std::string& key = "circle_design");
 
 // How to find and measure targets. Units in the comments; Check() throws
 // ConfigError naming the field.
@@ -88,9 +111,11 @@ struct Options {
   double circle_max_diameter = 150.0;    // [px]
   double circle_max_eccentricity = 0.9;  // [-] 1 - minor/major; 0.9 ~ 84 deg obliquity
   double circle_id_gate = 0.5;  // [-] max distance to a projected listed circle, in its radii
-  // Target design: outer diameter of the dark ring / diameter of the bright
-  // disc. A candidate is a circle only when the ring's outer edge is seen at
-  // this ratio (within the tolerance) on most rays from the centre.
+  // Which designs are circles (see CircleDesign); auto: any.
+  CircleDesign circle_design = CircleDesign::kAuto;
+  // Design kDiscInRing: outer diameter of the dark ring / diameter of the
+  // bright disc. Such a candidate is a circle only when the ring's outer edge
+  // is seen at this ratio (within the tolerance) on most rays from the centre.
   double circle_ring_ratio = 2.0;             // [-] > 1
   double circle_ring_ratio_tolerance = 0.15;  // [-] relative
   double circle_max_residual = 0.08;  // [-] ellipse fit residual RMS / contrast; more is "residual"
@@ -163,7 +188,8 @@ struct Observation {
       0, 0};  // circles: what was subtracted [px] (0 when not corrected)
   CentreMethod method = CentreMethod::kDetector;  // what gave the centre (and corners)
   double fit_residual = 0.0;  // [-] tags: worst edge, circles: ellipse fit residual RMS / contrast
-  double ring_ratio = 0.0;    // circles: measured ring outer / disc diameter
+  double ring_ratio = 0.0;    // circles: measured ring outer / disc diameter (dot: 0)
+  CircleDesign design = CircleDesign::kAuto;  // circles: the design seen (never kAuto)
   std::string Key() const { return family + "/" + std::to_string(id); }
 };
 
@@ -173,6 +199,7 @@ struct Rejection {
   Eigen::Vector2d where{0, 0};  // [px]
   RejectReason reason = RejectReason::kFitFailed;
   std::string detail;  // e.g. "23% of the disc saturated"
+  double radius_px = 0.0;  // circles of a design: the marker's outer radius [px] (0: unknown)
 };
 
 struct Summary {
@@ -188,7 +215,10 @@ struct Result {
   int width = 0;
   int height = 0;
   std::vector<Observation> observations;
-  std::vector<Rejection> rejections;  // targets seen but not measured
+  // Targets seen but not measured: listed targets, and circle candidates that
+  // show a design's evidence (a marker) but cannot be measured (blurred,
+  // partial, residual, ...).
+  std::vector<Rejection> rejections;
   // Circle candidates (bright disc-sized blobs with a darker surround) that
   // are not targets of the configured design, each with its reason: the
   // debug output (centroid_targets --explain). Not counted in the summary.
