@@ -10,6 +10,13 @@
 //   target_centroider.yaml] [--explain] centroid_targets --bag survey.bag --topic
 //   /fixed_cam_1/camera/image_raw [--out targets.csv] [...]
 //
+// One line per image on stderr: "<image>: <t> tags, <c> circles, <r> rejected".
+// --layout FILE (a board layout: ringgrid's target JSON or our YAML, see
+// core/targets/board_layout.h) numbers the circles by their lattice index
+// (the CSV's id) and prints the fit per image: markers, rows x columns, RMS
+// of the lattice fit [px], circles off the lattice; a layout that does not
+// fit is named with the reason.
+//
 // Without --out the CSV goes to stdout. --explain prints one line per
 // rejected target and per discarded circle candidate with its reason to
 // stderr. --config reads the same keys as config/defaults/target_centroider.yaml
@@ -23,6 +30,7 @@
 #include <iomanip>
 #include <iostream>
 #include <map>
+#include <optional>
 #include <string>
 
 #include <cv_bridge/cv_bridge.h>
@@ -34,6 +42,7 @@
 #include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/yaml_map.h"
+#include "slope_monitor/core/targets/board_layout.h"
 #include "slope_monitor/core/targets/options_reader.h"
 #include "slope_monitor/core/targets/target_centroider.h"
 
@@ -94,6 +103,35 @@ void WriteRows(std::ostream& out, const std::string& image, double stamp,
   }
 }
 
+// Numbers the circles by the layout's lattice index (their id) and prints the
+// fit; a fit that fails leaves the ids as they are and says why.
+void IdentifyOnLayout(const std::string& image, const targets::BoardLayout& layout,
+                      targets::Result* r) {
+  std::vector<Eigen::Vector2d> centres;
+  std::vector<double> outer;
+  std::vector<size_t> which;
+  for (size_t k = 0; k < r->observations.size(); ++k) {
+    const targets::Observation& o = r->observations[k];
+    if (o.family != "circle" || o.id >= 0) continue;
+    centres.push_back(o.centre);
+    outer.push_back(o.size_px * std::max(o.ring_ratio, 1.0));
+    which.push_back(k);
+  }
+  const targets::LatticeFit fit =
+      targets::FitLattice(centres, outer, layout, r->width, r->height);
+  if (!fit.ok) {
+    std::fprintf(stderr, "%s: lattice: %s\n", image.c_str(), fit.message.c_str());
+    return;
+  }
+  for (const targets::LatticeMarker& m : fit.markers) r->observations[which[m.observation]].id = m.id;
+  std::fprintf(stderr,
+               "%s: lattice: %zu markers on %d rows x %d columns, RMS %.3f px (homography alone "
+               "%.3f px), %zu circles off the lattice\n",
+               image.c_str(), fit.markers.size(), fit.rows_seen, fit.cols_seen, fit.rms_px,
+               fit.rms_homography_px, fit.off_lattice.size());
+  if (!fit.warning.empty()) std::fprintf(stderr, "%s: lattice: note: %s\n", image.c_str(), fit.warning.c_str());
+}
+
 void Explain(const std::string& image, const targets::Result& r) {
   auto line = [&](const char* what, const targets::Rejection& rj) {
     std::fprintf(stderr, "explain: %s: %s %s/%d at (%.1f, %.1f): %s: %s\n", image.c_str(), what,
@@ -106,7 +144,7 @@ void Explain(const std::string& image, const targets::Result& r) {
 
 int Usage() {
   std::cerr << "usage: centroid_targets (--images DIR | --bag FILE --topic TOPIC) [--out FILE.csv] "
-               "[--targets LIST.yaml] [--config OPTIONS.yaml] [--explain]\n";
+               "[--targets LIST.yaml] [--config OPTIONS.yaml] [--layout BOARD] [--explain]\n";
   return 2;
 }
 
@@ -124,7 +162,7 @@ int main(int argc, char** argv) {
       Usage();
       return 0;
     } else if ((a == "--images" || a == "--bag" || a == "--topic" || a == "--out" ||
-                a == "--targets" || a == "--config") &&
+                a == "--targets" || a == "--config" || a == "--layout") &&
                i + 1 < argc) {
       args[a] = argv[++i];
     } else {
@@ -163,6 +201,8 @@ int main(int argc, char** argv) {
     const io::TargetList list =
         list_path.empty() ? io::TargetList() : io::TargetList::Load(list_path);
     targets::TargetCentroider centroider(options, list);
+    std::optional<targets::BoardLayout> layout;
+    if (args.count("--layout")) layout = targets::BoardLayout::Load(args["--layout"]);
     std::ofstream file;
     if (args.count("--out")) {
       file.open(args["--out"]);
@@ -171,7 +211,10 @@ int main(int argc, char** argv) {
     std::ostream& out = args.count("--out") ? file : std::cout;
     WriteHeader(out);
     int images = 0, tags = 0, circles = 0, rejected = 0, discarded = 0, failed = 0;
-    auto take = [&](const std::string& name, double stamp, const targets::Result& r) {
+    auto take = [&](const std::string& name, double stamp, targets::Result r) {
+      std::fprintf(stderr, "%s: %d tags, %d circles, %zu rejected\n", name.c_str(),
+                   r.summary.num_tags, r.summary.num_circles, r.rejections.size());
+      if (layout) IdentifyOnLayout(name, *layout, &r);
       WriteRows(out, name, stamp, r);
       if (explain) Explain(name, r);
       tags += r.summary.num_tags;
