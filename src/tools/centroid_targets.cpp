@@ -23,8 +23,24 @@
 // through the reader the nodelet uses (targets/options_reader.h; unknown keys
 // are an error naming the file and key); without it the in-class defaults
 // (the values of that file) are used.
+//
+// Every photo of --images is checked before it is decoded (io::ReadImageChecked,
+// core/io/image_file.h): its size from the header (refused above
+// --max-megapixels, default 100, before any pixel is allocated), its format
+// from the content (a PNG named .jpg is read as PNG, with a note), and a JPEG
+// or PNG must be whole (a truncated JPEG, which OpenCV would decode with the
+// missing rows gray, is refused). A photo that fails is named with the reason
+// on stderr, e.g.
+//   centroid_targets: skipped image 'DIR/a.jpg': truncated JPEG: the data ends at byte ...
+// and the other photos are processed.
+//
+// Exit status: 0 every input read and at least one image processed; 2 some
+// images (files or bag messages) skipped, the rest processed and written;
+// 1 nothing processed (no image readable), a usage error or a fatal error
+// (missing folder, unreadable bag, bad --config or --targets).
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -41,6 +57,7 @@
 
 #include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/image_file.h"
 #include "slope_monitor/core/io/yaml_map.h"
 #include "slope_monitor/core/targets/board_layout.h"
 #include "slope_monitor/core/targets/options_reader.h"
@@ -144,8 +161,10 @@ void Explain(const std::string& image, const targets::Result& r) {
 
 int Usage() {
   std::cerr << "usage: centroid_targets (--images DIR | --bag FILE --topic TOPIC) [--out FILE.csv] "
-               "[--targets LIST.yaml] [--config OPTIONS.yaml] [--layout BOARD] [--explain]\n";
-  return 2;
+               "[--targets LIST.yaml] [--config OPTIONS.yaml] [--layout BOARD] [--max-megapixels MP] "
+               "[--explain]\n"
+               "exit status: 0 all read, 2 some images skipped, 1 nothing processed or an error\n";
+  return 1;
 }
 
 }  // namespace
@@ -162,7 +181,8 @@ int main(int argc, char** argv) {
       Usage();
       return 0;
     } else if ((a == "--images" || a == "--bag" || a == "--topic" || a == "--out" ||
-                a == "--targets" || a == "--config" || a == "--layout") &&
+                a == "--targets" || a == "--config" || a == "--max-megapixels" ||
+                a == "--layout") &&
                i + 1 < argc) {
       args[a] = argv[++i];
     } else {
@@ -194,6 +214,15 @@ int main(int argc, char** argv) {
                               "' holds no image (.png .jpg .jpeg .tif .tiff .pgm)"));
       }
     }
+    io::ImageFileOptions image_options;
+    if (args.count("--max-megapixels")) {
+      const std::string& v = args["--max-megapixels"];
+      char* end = nullptr;
+      image_options.max_megapixels = std::strtod(v.c_str(), &end);
+      if (v.empty() || *end != '\0')
+        throw InvalidArgument(Message("--max-megapixels '", v, "' is not a number"));
+    }
+    image_options.Check();
     targets::NodeOptions node;
     const targets::Options options =
         LoadOptions(args.count("--config") ? args["--config"] : "", &node);
@@ -226,9 +255,14 @@ int main(int argc, char** argv) {
     if (args.count("--images")) {
       std::sort(files.begin(), files.end());
       for (const auto& f : files) {
-        const cv::Mat img = cv::imread(f.string(), cv::IMREAD_UNCHANGED);
-        if (img.empty()) {
-          std::cerr << "centroid_targets: skipped " << f << ": not a readable image\n";
+        cv::Mat img;
+        try {
+          const io::ImageHeader header = io::ReadImageHeader(f.string(), image_options);
+          const std::string note = io::FormatNote(f.string(), header);
+          if (!note.empty()) std::cerr << "centroid_targets: note: " << note << "\n";
+          img = io::ReadImageChecked(f.string(), cv::IMREAD_UNCHANGED, image_options);
+        } catch (const IoError& e) {
+          std::cerr << "centroid_targets: skipped " << e.what() << "\n";
           ++failed;
           continue;
         }
@@ -273,6 +307,11 @@ int main(int argc, char** argv) {
               << " circles, " << rejected << " rejected, " << discarded
               << " circle candidates discarded, " << failed << " skipped -> "
               << (args.count("--out") ? args["--out"] : std::string("stdout")) << "\n";
+    if (images == 0) {
+      std::cerr << "centroid_targets: no image could be processed\n";
+      return 1;
+    }
+    if (failed > 0) return 2;
   } catch (const std::filesystem::filesystem_error& e) {
     std::cerr << "centroid_targets: cannot read '" << e.path1().string() << "': " << e.code().message() << "\n";
     return 1;

@@ -16,11 +16,19 @@
 //   total: <P> pairs, <N> tie points, epipolar rms <r> px, <t> s (features <f> s for <k> photos)
 // --out writes CSV: image_a,image_b,xa,ya,xb,yb,cov_xx,cov_xy,cov_yy,quality
 // (full-resolution OpenCV pixels; covariance of xb in px^2).
-// Exit 1 with a message naming the file for a missing file, a file that is
-// not an image, or fewer than two images.
+// Every photo is checked before it is used (io::CheckImageFile,
+// core/io/image_file.h): missing, empty, not a JPEG/PNG/TIFF/PGM by its
+// content, a header claiming more than --max-megapixels (default 100) or a
+// truncated or damaged JPEG/PNG is named with the reason and left out:
+//   match_images: skipped image 'IMG_2.JPG': truncated JPEG: the data ends at byte ...
+// and the other photos are matched.
+// Exit status: 0 every photo read and tie points found; 2 some photos
+// skipped, the others matched with tie points; 1 fewer than two readable
+// photos, no tie point at all, a usage error or an unwritable --out.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -36,6 +44,7 @@
 #include "slope_monitor/core/capture/geodesy.h"
 #include "slope_monitor/core/capture/photo_attitude.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/image_file.h"
 #include "slope_monitor/core/matching/photo_pair_matcher.h"
 
 using namespace slope_monitor;
@@ -45,7 +54,8 @@ namespace {
 int Usage(const std::string& why) {
   std::cerr << "match_images: " << why << "\n"
             << "usage: match_images --image A.jpg --image B.jpg [--image C.jpg ...] [--out "
-               "tie_points.csv]\n";
+               "tie_points.csv] [--max-megapixels MP]\n"
+               "exit status: 0 all read, 2 some photos skipped, 1 nothing matched or an error\n";
   return 1;
 }
 
@@ -55,15 +65,24 @@ struct Photo {
       footprint;  // has_position false without GNSS, focal length or pixel size
 };
 
-// Reads the EXIF/XMP pose of each photo; throws naming the file for a missing
-// file or one that is not an image. Photos without GNSS pair with every other.
+// Checks each photo (io::CheckImageFile) and reads its EXIF/XMP pose; a
+// photo that fails the check is named with the reason on stderr and left
+// out (counted in *skipped). Photos without GNSS pair with every other.
 std::vector<Photo> ReadPhotos(const std::vector<std::string>& paths,
-                              const matching::PairSelectionOptions& selection) {
+                              const matching::PairSelectionOptions& selection,
+                              const io::ImageFileOptions& image_options, int* skipped) {
   std::vector<Photo> photos;
   std::optional<capture::LocalTangentPlane> ltp;
   for (const std::string& path : paths) {
-    if (!std::filesystem::is_regular_file(path)) throw IoError(Message(path, ": no such file"));
-    if (!cv::haveImageReader(path)) throw IoError(Message(path, ": not an image OpenCV can read"));
+    try {
+      const io::ImageHeader header = io::CheckImageFile(path, image_options);
+      const std::string note = io::FormatNote(path, header);
+      if (!note.empty()) std::cerr << "match_images: note: " << note << "\n";
+    } catch (const IoError& e) {
+      std::cerr << "match_images: skipped " << e.what() << "\n";
+      ++*skipped;
+      continue;
+    }
     Photo p;
     p.path = path;
     capture::ExifInfo exif;
@@ -93,13 +112,21 @@ int main(int argc, char** argv) {
   slope_monitor::KeepFreedMemoryForReuse();  // core/common/allocator.h
   std::vector<std::string> paths;
   std::string out_path;
+  io::ImageFileOptions image_options;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if ((a == "--image" || a == "--out") && i + 1 >= argc) return Usage(a + " needs a value");
+    if ((a == "--image" || a == "--out" || a == "--max-megapixels") && i + 1 >= argc)
+      return Usage(a + " needs a value");
     if (a == "--image") {
       paths.push_back(argv[++i]);
     } else if (a == "--out") {
       out_path = argv[++i];
+    } else if (a == "--max-megapixels") {
+      const std::string v = argv[++i];
+      char* end = nullptr;
+      image_options.max_megapixels = std::strtod(v.c_str(), &end);
+      if (v.empty() || *end != '\0' || !(image_options.max_megapixels > 0))
+        return Usage("--max-megapixels '" + v + "' is not a number > 0");
     } else if (a == "-h" || a == "--help") {
       Usage("tie points between overlapping photos");
       return 0;
@@ -116,7 +143,13 @@ int main(int argc, char** argv) {
     const matching::PhotoFeatureOptions feature_options;
     const matching::PhotoPairOptions pair_options;
     const matching::PairSelectionOptions selection;
-    const std::vector<Photo> photos = ReadPhotos(paths, selection);
+    int skipped = 0;
+    const std::vector<Photo> photos = ReadPhotos(paths, selection, image_options, &skipped);
+    if (photos.size() < 2) {
+      std::cerr << "match_images: " << photos.size() << " of " << paths.size()
+                << " photos readable: two or more are needed\n";
+      return 1;
+    }
     std::vector<matching::PhotoFootprint> footprints;
     for (const Photo& p : photos) footprints.push_back(p.footprint);
     const auto pairs = matching::SelectOverlappingPairs(footprints, selection);
@@ -128,11 +161,22 @@ int main(int argc, char** argv) {
     std::vector<std::unique_ptr<matching::PhotoFeatures>> features(photos.size());
     double feature_seconds = 0.0;
     int featured = 0;
+    // A photo that passed the check but cannot be decoded is named once and
+    // its pairs are left out.
+    std::vector<bool> undecodable(photos.size(), false);
     auto get = [&](int i) -> const matching::PhotoFeatures& {
       if (!features[i]) {
-        const cv::Mat image = cv::imread(photos[i].path, cv::IMREAD_COLOR);
-        if (image.empty())
-          throw IoError(Message(photos[i].path, ": cannot be decoded as an image"));
+        cv::Mat image;
+        try {
+          image = io::ReadImageChecked(photos[i].path, cv::IMREAD_COLOR, image_options);
+        } catch (const IoError& e) {
+          if (!undecodable[i]) {
+            std::cerr << "match_images: skipped " << e.what() << "\n";
+            ++skipped;
+          }
+          undecodable[i] = true;
+          throw;
+        }
         features[i] =
             std::make_unique<matching::PhotoFeatures>(image, photos[i].path, feature_options);
         feature_seconds += features[i]->seconds();
@@ -151,12 +195,21 @@ int main(int argc, char** argv) {
     double seconds = 0.0, sum_sq = 0.0;
     for (size_t k = 0; k < pairs.size(); ++k) {
       const auto [i, j] = pairs[k];
-      const matching::PhotoPairResult r = matching::MatchPhotoPair(get(i), get(j), pair_options);
+      if (undecodable[i] || undecodable[j]) continue;
+      matching::PhotoPairResult r;
+      try {
+        const matching::PhotoFeatures& a = get(i);
+        r = matching::MatchPhotoPair(a, get(j), pair_options);
+      } catch (const IoError&) {  // named in get()
+        if (last_use[i] == k) features[i].reset();
+        if (last_use[j] == k) features[j].reset();
+        continue;
+      }
       if (last_use[i] == k) features[i].reset();
       if (last_use[j] == k) features[j].reset();
       const int n = static_cast<int>(r.tie_points.size());
-      std::printf("%s %s: %d tie points, epipolar rms %.3f px, %.2f s\n", paths[i].c_str(),
-                  paths[j].c_str(), n, r.summary.epipolar_rms, r.summary.seconds);
+      std::printf("%s %s: %d tie points, epipolar rms %.3f px, %.2f s\n", photos[i].path.c_str(),
+                  photos[j].path.c_str(), n, r.summary.epipolar_rms, r.summary.seconds);
       if (!r.summary.message.empty()) std::printf("  (%s)\n", r.summary.message.c_str());
       total += n;
       seconds += r.summary.seconds;
@@ -165,7 +218,7 @@ int main(int argc, char** argv) {
         if (!out) break;
         char line[512];
         std::snprintf(line, sizeof(line), "%s,%s,%.3f,%.3f,%.3f,%.3f,%.4e,%.4e,%.4e,%.3f\n",
-                      paths[i].c_str(), paths[j].c_str(), t.xa.x(), t.xa.y(), t.xb.x(), t.xb.y(),
+                      photos[i].path.c_str(), photos[j].path.c_str(), t.xa.x(), t.xa.y(), t.xb.x(), t.xb.y(),
                       t.covariance(0, 0), t.covariance(0, 1), t.covariance(1, 1), t.quality);
         out << line;
       }
@@ -176,6 +229,14 @@ int main(int argc, char** argv) {
         pairs.size(), total, total > 0 ? std::sqrt(sum_sq / total) : 0.0, seconds, feature_seconds,
         featured);
     if (out_path.size() && !out) throw IoError(Message(out_path, ": write failed"));
+    if (total == 0) {
+      std::cerr << "match_images: no tie points\n";
+      return 1;
+    }
+    if (skipped > 0) {
+      std::cerr << "match_images: " << skipped << " of " << paths.size() << " photos skipped\n";
+      return 2;
+    }
   } catch (const Error& e) {
     std::cerr << "match_images: " << e.what() << "\n";
     return 1;

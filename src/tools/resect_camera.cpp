@@ -17,6 +17,13 @@
 // Writes PREFIX.yaml (camera_info_manager calibration, in pixels) and
 // PREFIX.pose.yaml (position, theta/phi/kappa, the site_from_optical
 // quaternion, and the 6x6 covariance of X0 Y0 Z0 theta phi kappa [m^2, rad^2]).
+// The photo is checked before it is decoded (io::ReadImageChecked,
+// core/io/image_file.h: its size from the header, refused above 100 MP; a
+// truncated or damaged JPEG/PNG refused), e.g.
+//   resect_camera: --image: image 'IMG.jpg': truncated JPEG: the data ends at byte ...
+// Exit status: 0 the camera resected and both files written; 1 anything else
+// (a bad photo or input file, no solution, a usage error). There is one
+// input photo, so no partial result (status 2) exists.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -37,6 +44,7 @@
 #include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/site_crs.h"
+#include "slope_monitor/core/io/image_file.h"
 #include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/core/io/surveyed_points.h"
 #include "slope_monitor/ros/conversions.h"
@@ -50,8 +58,9 @@ int Usage() {
   std::cerr << "usage: resect_camera --image IMG --gcp FILE [--site FILE | --crs EPSG:NNNN] [--position X Y Z "
                "[--position-sigma S]] [--camera-info YAML | --focal-mm F --sensor-mm W H] [--free "
                "c,k1,...] "
-               "[--pixel-sigma S] [--point-sigma S] [--pixel-origin opencv|corner] --out PREFIX\n";
-  return 2;
+               "[--pixel-sigma S] [--point-sigma S] [--pixel-origin opencv|corner] --out PREFIX\n"
+               "exit status: 0 resected and written, 1 otherwise\n";
+  return 1;
 }
 
 double Number(const std::string& flag, const std::string& text) {
@@ -238,8 +247,12 @@ int main(int argc, char** argv) {
     if (!a.count("--image") || !a.count("--gcp") || !a.count("--out")) return Usage();
     const Frame frame = ReadFrame(a);
     const std::string image = a.at("--image")[0];
-    const cv::Mat full = cv::imread(image, cv::IMREAD_GRAYSCALE);
-    if (full.empty()) throw IoError(Message("--image: cannot read '", image, "'"));
+    cv::Mat full;
+    try {
+      full = io::ReadImageChecked(image, cv::IMREAD_GRAYSCALE);
+    } catch (const IoError& e) {
+      throw IoError(Message("--image: ", e.what()));
+    }
     const int width = full.cols, height = full.rows;
     io::PixelOrigin origin = io::PixelOrigin::kOpenCv;
     if (a.count("--pixel-origin")) {

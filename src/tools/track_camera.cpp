@@ -26,9 +26,20 @@
 //   DIR/field_<image stem>.png  the new photo with the field's arrows, legend
 //                               and scale bar (dense/field_picture.h, the
 //                               picture the reports get)
+//
+// Every photo is checked before it is decoded (io::ReadImageChecked,
+// core/io/image_file.h: the size from the header, refused above
+// --max-megapixels (default 100) before decoding; a truncated or damaged
+// JPEG/PNG refused). A --image that fails, or is not the reference's size,
+// is named with the reason and skipped:
+//   track_camera: skipped --image: image 'B.jpg': truncated JPEG: the data ends at byte ...
+// Exit status: 0 every photo read and re-oriented; 2 some photos skipped or
+// not re-oriented, at least one re-oriented; 1 none re-oriented, a bad
+// --reference, --camera, --stable-mask or --dem, or a usage error.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -53,6 +64,7 @@
 #include "slope_monitor/core/dense/targetless_camera.h"
 #include "slope_monitor/core/io/camera_pose_file.h"
 #include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/core/io/image_file.h"
 #include "slope_monitor/core/io/image_polygons.h"
 #include "slope_monitor/core/matching/hex_matcher.h"
 #include "slope_monitor/ros/conversions.h"
@@ -65,8 +77,9 @@ namespace {
 int Usage() {
   std::cerr
       << "usage: track_camera --camera PREFIX --reference A.jpg --image B.jpg [--image C.jpg ...] "
-         "[--stable-mask M.png | --stable-polygons F] [--dem DEM.tif] --out DIR\n";
-  return 2;
+         "[--stable-mask M.png | --stable-polygons F] [--dem DEM.tif] [--max-megapixels MP] --out DIR\n"
+         "exit status: 0 all re-oriented, 2 some photos skipped or not re-oriented, 1 none or an error\n";
+  return 1;
 }
 
 camera::CameraModel LoadCamera(const std::string& path) {
@@ -78,13 +91,18 @@ camera::CameraModel LoadCamera(const std::string& path) {
 }
 
 // The stable area as a mask of the image's size (255 = stable).
-cv::Mat StableMask(const std::map<std::string, std::vector<std::string>>& a, const cv::Size& size) {
+cv::Mat StableMask(const std::map<std::string, std::vector<std::string>>& a, const cv::Size& size,
+                   const io::ImageFileOptions& image_options) {
   if (a.count("--stable-mask") && a.count("--stable-polygons"))
     throw InvalidArgument("give --stable-mask or --stable-polygons, not both");
   if (a.count("--stable-mask")) {
     const std::string path = a.at("--stable-mask")[0];
-    cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);
-    if (m.empty()) throw IoError(Message("--stable-mask: cannot read '", path, "'"));
+    cv::Mat m;
+    try {
+      m = io::ReadImageChecked(path, cv::IMREAD_UNCHANGED, image_options);
+    } catch (const IoError& e) {
+      throw IoError(Message("--stable-mask: ", e.what()));
+    }
     if (m.type() != CV_8UC1)
       throw InvalidArgument(
           Message("--stable-mask '", path, "': not an 8-bit single-channel image"));
@@ -104,10 +122,13 @@ cv::Mat StableMask(const std::map<std::string, std::vector<std::string>>& a, con
   return m;
 }
 
-cv::Mat Gray(const std::string& path, const std::string& flag) {
-  cv::Mat m = cv::imread(path, cv::IMREAD_GRAYSCALE);
-  if (m.empty()) throw IoError(Message(flag, ": cannot read '", path, "'"));
-  return m;
+// The photo in gray; IoError "<flag>: image '<path>': <reason>".
+cv::Mat Gray(const std::string& path, const std::string& flag, const io::ImageFileOptions& options) {
+  try {
+    return io::ReadImageChecked(path, cv::IMREAD_GRAYSCALE, options);
+  } catch (const IoError& e) {
+    throw IoError(Message(flag, ": ", e.what()));
+  }
 }
 
 // Capture time of a photo [s] from its EXIF, or NaN.
@@ -142,7 +163,7 @@ int main(int argc, char** argv) {
   try {
     std::map<std::string, std::vector<std::string>> a;
     static const char* kKnown[] = {"--camera",          "--reference", "--image", "--stable-mask",
-                                   "--stable-polygons", "--dem",       "--out"};
+                                   "--stable-polygons", "--dem",       "--out",   "--max-megapixels"};
     for (int i = 1; i < argc; i += 2) {
       const std::string flag = argv[i];
       if (std::find(std::begin(kKnown), std::end(kKnown), flag) == std::end(kKnown))
@@ -152,18 +173,27 @@ int main(int argc, char** argv) {
     }
     if (!a.count("--camera") || !a.count("--reference") || !a.count("--image") || !a.count("--out"))
       return Usage();
+    io::ImageFileOptions image_options;
+    if (a.count("--max-megapixels")) {
+      const std::string& v = a["--max-megapixels"][0];
+      char* end = nullptr;
+      image_options.max_megapixels = std::strtod(v.c_str(), &end);
+      if (v.empty() || *end != '\0')
+        throw InvalidArgument(Message("--max-megapixels '", v, "' is not a number"));
+    }
+    image_options.Check();
     io::GeoRaster dem;
     if (a.count("--dem")) dem = io::ReadGeoTiff(a["--dem"][0]);
     const std::string prefix = a["--camera"][0];
     const camera::CameraModel model = LoadCamera(prefix + ".yaml");
     const camera::ExteriorOrientation reference =
         io::ReadCameraPoseFile(prefix + ".pose.yaml", "--camera");
-    const cv::Mat ref = Gray(a["--reference"][0], "--reference");
+    const cv::Mat ref = Gray(a["--reference"][0], "--reference", image_options);
     if (ref.cols != model.sensor().width || ref.rows != model.sensor().height)
       throw InvalidArgument(Message("--reference '", a["--reference"][0], "' is ", ref.cols, "x",
                                     ref.rows, " px, the camera ", model.sensor().width, "x",
                                     model.sensor().height));
-    const cv::Mat stable = StableMask(a, ref.size());
+    const cv::Mat stable = StableMask(a, ref.size(), image_options);
     const bool has_stable_area = a.count("--stable-mask") || a.count("--stable-polygons");
     const double ref_time = a.count("--dem") ? PhotoTime(a["--reference"][0]) : 0.0;
     auto is_stable = [&stable](const Eigen::Vector2d& x) {
@@ -185,12 +215,19 @@ int main(int argc, char** argv) {
                                    dense::TargetlessCameraOptions());
     const double ref_t = std::isfinite(ref_time) ? ref_time : 0.0;  // 0: times unknown
     camera.SetReference(ref, ref_t);
-    int failures = 0;
+    int failures = 0, skipped = 0, reoriented = 0;
     for (const auto& path : a["--image"]) {
-      const cv::Mat img = Gray(path, "--image");
-      if (img.size() != ref.size())
-        throw InvalidArgument(Message("--image '", path, "' is ", img.cols, "x", img.rows,
-                                      " px, the reference ", ref.cols, "x", ref.rows));
+      cv::Mat img;
+      try {
+        img = Gray(path, "--image", image_options);
+        if (img.size() != ref.size())
+          throw IoError(Message("--image '", path, "' is ", img.cols, "x", img.rows,
+                                " px, the reference ", ref.cols, "x", ref.rows));
+      } catch (const IoError& e) {
+        std::fprintf(stderr, "track_camera: skipped %s\n", e.what());
+        ++skipped;
+        continue;
+      }
       const double t = a.count("--dem") ? PhotoTime(path) : 0.0;
       const dense::TargetlessEpoch e =
           camera.Process(img, std::isfinite(t) && std::isfinite(ref_time) ? t : ref_t,
@@ -211,6 +248,7 @@ int main(int argc, char** argv) {
         ++failures;
         continue;
       }
+      ++reoriented;
       const double sigma = s.sigma.maxCoeff() * kDegPerRad;
       std::printf(
           "%s: rotation %.4f deg (dtheta %.4f dphi %.4f dkappa %.4f deg, sigma %.4f deg) rms %.2f "
@@ -240,7 +278,17 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, " %s %d", kv.first.c_str(), kv.second);
       std::fprintf(stderr, "\n");
     }
-    return failures ? 1 : 0;
+    if (reoriented == 0) {
+      std::fprintf(stderr, "track_camera: no photo re-oriented (%d skipped, %d without a re-orientation)\n",
+                   skipped, failures);
+      return 1;
+    }
+    if (skipped || failures) {
+      std::fprintf(stderr, "track_camera: %d of %zu photos skipped, %d without a re-orientation\n", skipped,
+                   a["--image"].size(), failures);
+      return 2;
+    }
+    return 0;
   } catch (const std::exception& e) {
     std::cerr << "track_camera: " << e.what() << "\n";
     return 1;
