@@ -38,6 +38,23 @@ std::string NormaliseGcpCrs(const std::string& crs) {
     if (z >= 1 && z <= 60 && (hemi == 'N' || hemi == 'S' || hemi == 'n' || hemi == 's'))
       return Message("EPSG:", (hemi == 'N' || hemi == 'n') ? 32600 + z : 32700 + z);
   }
+  // A PROJ string of UTM on WGS 84 is that EPSG code (GIS tools want one);
+  // any other PROJ string is made a CRS definition.
+  if (crs.rfind("+proj=", 0) == 0) {
+    std::istringstream words(crs);
+    std::map<std::string, std::string> kv;
+    for (std::string w; words >> w;) {
+      const size_t eq = w.find('=');
+      kv[w.substr(0, eq)] = eq == std::string::npos ? "" : w.substr(eq + 1);
+    }
+    const bool wgs84 = kv["+datum"] == "WGS84" || (kv.count("+datum") == 0 && kv["+ellps"] == "WGS84");
+    const int zone = std::atoi(kv["+zone"].c_str());
+    const bool plain = (kv.count("+units") == 0 || kv["+units"] == "m") && kv.count("+towgs84") == 0 &&
+                       kv.count("+x_0") == 0 && kv.count("+k") == 0 && kv.count("+k_0") == 0;
+    if (kv["+proj"] == "utm" && wgs84 && zone >= 1 && zone <= 60 && plain)
+      return Message("EPSG:", kv.count("+south") ? 32700 + zone : 32600 + zone);
+    if (kv.count("+type") == 0) return crs + " +type=crs";
+  }
   return crs;
 }
 

@@ -224,7 +224,10 @@ TEST(GcpList, ReadsOdmFormatWithNamedPoints) {
   EXPECT_DOUBLE_EQ(list.points[0].picks[1].pixel.x(), 589.69);
   EXPECT_EQ(list.points[1].name, "line5");
   EXPECT_DOUBLE_EQ(list.points[1].geo.z(), 1.5);
-  EXPECT_EQ(io::NormaliseGcpCrs("+proj=utm +zone=11"), "+proj=utm +zone=11");
+  EXPECT_EQ(io::NormaliseGcpCrs("+proj=utm +zone=11 +ellps=WGS84 +datum=WGS84 +units=m +no_defs"), "EPSG:32611");
+  EXPECT_EQ(io::NormaliseGcpCrs("+proj=utm +zone=54 +south +datum=WGS84"), "EPSG:32754");
+  EXPECT_EQ(io::NormaliseGcpCrs("+proj=tmerc +lat_0=36 +lon_0=139.83 +k=0.9999 +ellps=GRS80"),
+            "+proj=tmerc +lat_0=36 +lon_0=139.83 +k=0.9999 +ellps=GRS80 +type=crs");
   EXPECT_EQ(io::NormaliseGcpCrs("WGS84 UTM 33S"), "EPSG:32733");
 }
 
