@@ -19,6 +19,13 @@
 // replay.launch loads them. Defaults of the options: those of replay.launch
 // (target list and truth beside the bag, database and reports under
 // ~/.ros/slope_monitor). See doc/process_bag.md.
+//
+// One writer per history: while another process_bag (or an estimator node)
+// writes the --database, this run ends at once, before processing anything,
+// with exit status 1 and the one line
+//   process_bag: history database '<file>' is in use by process <pid> (<name>), which holds its
+//   writer lock '<file>.lock'; one writer per history: wait for it to end or use another database
+// (deformation/history.h).
 #include <unistd.h>
 
 #include <algorithm>
@@ -1097,6 +1104,10 @@ int main(int argc, char** argv) {
   slope_monitor::KeepFreedMemoryForReuse();  // core/common/allocator.h
   try {
     return slope_monitor::Run(slope_monitor::ParseArgs(argc, argv));
+  } catch (const slope_monitor::deformation::HistoryInUse& e) {
+    // Another writer on --database: that one line, no usage text (issue 38).
+    std::cerr << "process_bag: " << e.what() << "\n";
+    return 1;
   } catch (const slope_monitor::Error& e) {
     std::cerr << "process_bag: " << e.what() << "\n" << slope_monitor::kUsage;
     return 1;

@@ -1,10 +1,16 @@
 #include "slope_monitor/core/deformation/history.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <ctime>
+#include <fstream>
+#include <thread>
 
 #include <sqlite3.h>
 
@@ -94,7 +100,62 @@ const char* kMigrate1To2 =
     "ALTER TABLE estimates ADD COLUMN forecast_sigma REAL;"
     "CREATE TABLE reference_offsets(point_id TEXT PRIMARY KEY, dx REAL, dy REAL, dz REAL, covariance BLOB);";
 
+// The process id a lock file holds ("" when none is written yet) and, when
+// /proc knows it, the process' name: "4242 (process_bag)".
+std::string LockOwner(int fd) {
+  char buf[32] = {0};
+  const ssize_t n = pread(fd, buf, sizeof(buf) - 1, 0);
+  if (n <= 0) return "";
+  std::string pid(buf, static_cast<size_t>(n));
+  pid = pid.substr(0, pid.find_first_not_of("0123456789"));
+  if (pid.empty()) return "";
+  std::string name;
+  std::getline(std::ifstream("/proc/" + pid + "/comm"), name);
+  return name.empty() ? pid : pid + " (" + name + ")";
+}
+
 }  // namespace
+
+class History::WriterLock {
+ public:
+  explicit WriterLock(const std::string& path) {
+    const std::string lock_path = path + ".lock";
+    fd_ = open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+    if (fd_ < 0)
+      throw IoError(Message("history database '", path, "': cannot open its writer lock '", lock_path,
+                            "': ", std::strerror(errno)));
+    if (flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      const int error = errno;
+      std::string owner;
+      if (error == EWOULDBLOCK) {
+        // The owner writes its pid right after it locks: give it a moment.
+        for (int i = 0; i < 20 && (owner = LockOwner(fd_)).empty(); ++i)
+          std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      }
+      close(fd_);
+      if (error != EWOULDBLOCK)
+        throw IoError(Message("history database '", path, "': cannot lock '", lock_path, "': ",
+                              std::strerror(error)));
+      throw HistoryInUse(Message("history database '", path, "' is in use by process ",
+                                 owner.empty() ? "(pid not known)" : owner,
+                                 ", which holds its writer lock '", lock_path,
+                                 "'; one writer per history: wait for it to end or use another database"));
+    }
+    const std::string pid = std::to_string(getpid()) + "\n";
+    if (ftruncate(fd_, 0) != 0 || pwrite(fd_, pid.data(), pid.size(), 0) != static_cast<ssize_t>(pid.size())) {
+      const int error = errno;
+      close(fd_);
+      throw IoError(Message("history database '", path, "': cannot write its writer lock '", lock_path,
+                            "': ", std::strerror(error)));
+    }
+  }
+  ~WriterLock() { close(fd_); }  // releases the flock
+  WriterLock(const WriterLock&) = delete;
+  WriterLock& operator=(const WriterLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
 
 History::History(const std::string& path) : path_(path) {
   if (path.empty()) throw IoError("history database path is empty");
@@ -105,6 +166,8 @@ History::History(const std::string& path) : path_(path) {
       throw IoError(Message("cannot create the directory '", dir, "' of history database '", path, "': ",
                             std::strerror(errno)));
   }
+  // The writer lock first: a second writer is refused before the database is opened.
+  lock_ = std::make_unique<WriterLock>(path);
   const int rc = sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr);
   if (rc != SQLITE_OK) {
     const std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";

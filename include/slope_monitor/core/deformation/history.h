@@ -11,6 +11,18 @@
 // newer schema) is refused with an IoError naming the file; it is never
 // written to or replaced.
 //
+// One writer per history (issue 38): the constructor takes an exclusive
+// flock() on the sidecar file `<path>.lock` (created beside the database,
+// left there; it holds the owner's process id) without waiting. While
+// another History, in this or any other process, holds it, the constructor
+// throws HistoryInUse before opening the database:
+//   history database '/data/slope.db' is in use by process 4242 (process_bag),
+//   which holds its writer lock '/data/slope.db.lock'; one writer per history:
+//   wait for it to end or use another database
+// The lock ends with the History (or its process, however it ends: kill -9
+// included); child processes do not inherit it (O_CLOEXEC). Readers
+// (evaluation::EvaluateHistory, deformation_summary) take no lock.
+//
 // Schema (PRAGMA user_version = 2):
 //   meta(key TEXT PRIMARY KEY, value TEXT NOT NULL)
 //       keys: created (UTC ISO time), datum_stamp [s], reference_epoch,
@@ -43,6 +55,7 @@
 
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -50,6 +63,7 @@
 
 #include <Eigen/Core>
 
+#include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/deformation/estimator.h"
 
 struct sqlite3;
@@ -57,11 +71,18 @@ struct sqlite3;
 namespace slope_monitor {
 namespace deformation {
 
+// The history is held by another writer (see above).
+class HistoryInUse : public IoError {
+ public:
+  using IoError::IoError;
+};
+
 class History {
  public:
   static constexpr int kSchemaVersion = 2;
 
-  // Opens (creating it and its directory if absent) and migrates. Throws IoError naming the file.
+  // Takes the writer lock (HistoryInUse if another writer holds it), opens
+  // (creating it and its directory if absent) and migrates. Throws IoError naming the file.
   explicit History(const std::string& path);
   ~History();
   History(const History&) = delete;
@@ -95,7 +116,10 @@ class History {
   [[noreturn]] void Fail(const std::string& what) const;
   void Migrate();
 
+  class WriterLock;  // the flock on <path>.lock, released when destroyed
+
   std::string path_;
+  std::unique_ptr<WriterLock> lock_;
   sqlite3* db_ = nullptr;
 };
 
