@@ -191,6 +191,127 @@ DistortedParams FitDistorted(const std::vector<Eigen::Vector2d>& board,
   return x;
 }
 
+// The largest lattice grown from one of the 10 centres nearest the
+// detections' middle and a pair of its neighbours at the lattice's angle (the
+// first to the right); `spacing` [px] the median nearest-neighbour distance.
+Growth GrowFromSeeds(const std::vector<Eigen::Vector2d>& centres, const BoardLayout& layout,
+                     double* spacing_out) {
+  const int n = static_cast<int>(centres.size());
+  // Neighbour distance: median of every centre's nearest neighbour.
+  std::vector<double> nn(n, 1e18);
+  for (int a = 0; a < n; ++a)
+    for (int b = 0; b < n; ++b)
+      if (a != b) nn[a] = std::min(nn[a], (centres[a] - centres[b]).norm());
+  const double spacing = MedianOf(nn);
+  *spacing_out = spacing;
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const auto& c : centres) mean += c;
+  mean /= n;
+  std::vector<int> seeds(n);
+  for (int k = 0; k < n; ++k) seeds[k] = k;
+  std::sort(seeds.begin(), seeds.end(), [&](int a, int b) {
+    return (centres[a] - mean).norm() < (centres[b] - mean).norm();
+  });
+  const double want = layout.kind == BoardLayout::Kind::kHex ? 60.0 : 90.0;
+  Growth best;
+  size_t best_count = 0;
+  for (int t = 0; t < std::min(n, 10); ++t) {
+    const int s = seeds[t];
+    std::vector<int> near;
+    for (int k = 0; k < n; ++k)
+      if (k != s && (centres[k] - centres[s]).norm() < 1.3 * spacing) near.push_back(k);
+    for (int u : near) {
+      const Eigen::Vector2d du = centres[u] - centres[s];
+      // Rows along the image's x: u the neighbour to the right.
+      if (du.x() <= 0 || std::abs(du.y()) > std::abs(du.x()) * std::tan(M_PI / 6)) continue;
+      for (int v : near) {
+        const Eigen::Vector2d dv = centres[v] - centres[s];
+        // v at +want degrees from u (image y down: the board's y follows v).
+        const double ang = std::atan2(du.x() * dv.y() - du.y() * dv.x(), du.dot(dv)) * 180 / M_PI;
+        if (std::abs(ang - want) > kBasisAngleTolDeg) continue;
+        Growth g = Grow(centres, layout, s, u, v);
+        if (g.at.size() > best_count) {
+          best_count = g.at.size();
+          best = g;
+        }
+      }
+    }
+    if (best_count >= 0.8 * n) break;
+  }
+  return best;
+}
+
+// The board's image fitted to the grown lattice: RANSAC, then homography and
+// radial distortion (LatticeFit), the residual gate of the inliers. src/who:
+// the lattice points' board positions and their centres; mask: inliers.
+bool FitBoardImage(const std::vector<Eigen::Vector2d>& centres, const Growth& best,
+                   const BoardLayout& layout, double spacing, int image_width, int image_height,
+                   LatticeFit* fit_out, std::vector<cv::Point2d>* src_out,
+                   std::vector<int>* who_out, std::vector<unsigned char>* mask_out,
+                   double* inlier_gate_out) {
+  // Mismatches out by RANSAC (a gate of a tenth of the neighbour distance:
+  // the lens bends the rows by more than a pixel), then the homography and
+  // the radial distortion on the rest.
+  std::vector<cv::Point2d>& src = *src_out;
+  std::vector<int>& who = *who_out;
+  std::vector<unsigned char>& mask = *mask_out;
+  LatticeFit& fit = *fit_out;
+  std::vector<cv::Point2d> dst;
+  for (const auto& [ij, k] : best.at) {
+    const Eigen::Vector2d b = layout.Position(ij.first, ij.second);
+    src.emplace_back(b.x(), b.y());
+    dst.emplace_back(centres[k].x(), centres[k].y());
+    who.push_back(k);
+  }
+  const cv::Mat hm =
+      cv::findHomography(src, dst, cv::RANSAC, kRansacShare * spacing, mask, 2000, 0.999);
+  if (hm.empty()) {
+    fit.message = Message("layout '", layout.source, "': the homography fit failed");
+    return false;
+  }
+  Eigen::Matrix3d h0;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) h0(r, c) = hm.at<double>(r, c);
+  if (image_width > 0 && image_height > 0) {
+    fit.centre = Eigen::Vector2d(0.5 * (image_width - 1), 0.5 * (image_height - 1));
+    fit.scale = 0.5 * std::hypot(image_width, image_height);
+  } else {
+    Eigen::Vector2d lo = centres[0], hi = centres[0];
+    for (const auto& c : centres) {
+      lo = lo.cwiseMin(c);
+      hi = hi.cwiseMax(c);
+    }
+    fit.centre = 0.5 * (lo + hi);
+    fit.scale = std::max(1.0, 0.5 * (hi - lo).norm());
+  }
+  std::vector<Eigen::Vector2d> fb, fi;
+  for (size_t q = 0; q < who.size(); ++q)
+    if (mask[q]) {
+      fb.emplace_back(src[q].x, src[q].y);
+      fi.push_back(centres[who[q]]);
+    }
+  {
+    Eigen::Matrix3d hl = h0;
+    FitTransform(fb, fi, &hl);  // least squares on the RANSAC inliers
+    double ss = 0;
+    for (size_t q = 0; q < fb.size(); ++q) ss += (Apply(hl, fb[q]) - fi[q]).squaredNorm();
+    fit.rms_homography_px = std::sqrt(ss / std::max<size_t>(fb.size(), 1));
+    h0 = hl;
+  }
+  const DistortedParams dp = FitDistorted(fb, fi, h0, fit.centre, fit.scale);
+  fit.image_from_board << dp(0), dp(1), dp(2), dp(3), dp(4), dp(5), dp(6), dp(7), 1.0;
+  fit.k1 = dp(8);
+  fit.k2 = dp(9);
+  std::vector<double> abs_res;
+  for (size_t q = 0; q < who.size(); ++q)
+    abs_res.push_back((centres[who[q]] - fit.Project(Eigen::Vector2d(src[q].x, src[q].y))).norm());
+  const double inlier_gate = std::max(1.0, 4.0 * MedianOf(abs_res));
+  *inlier_gate_out = inlier_gate;
+  mask.assign(who.size(), 0);
+  for (size_t q = 0; q < who.size(); ++q) mask[q] = abs_res[q] <= inlier_gate;
+  return true;
+}
+
 }  // namespace
 
 Eigen::Vector2d BoardLayout::Position(int i, int j) const {
@@ -257,110 +378,24 @@ LatticeFit FitLattice(const std::vector<Eigen::Vector2d>& centres,
                           " circles, at least 6 are needed to fit the board");
     return fit;
   }
-  // Neighbour distance: median of every centre's nearest neighbour.
-  std::vector<double> nn(n, 1e18);
-  for (int a = 0; a < n; ++a)
-    for (int b = 0; b < n; ++b)
-      if (a != b) nn[a] = std::min(nn[a], (centres[a] - centres[b]).norm());
-  const double spacing = MedianOf(nn);
-  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-  for (const auto& c : centres) mean += c;
-  mean /= n;
-  std::vector<int> seeds(n);
-  for (int k = 0; k < n; ++k) seeds[k] = k;
-  std::sort(seeds.begin(), seeds.end(), [&](int a, int b) {
-    return (centres[a] - mean).norm() < (centres[b] - mean).norm();
-  });
-  const double want = layout.kind == BoardLayout::Kind::kHex ? 60.0 : 90.0;
-  Growth best;
-  size_t best_count = 0;
-  for (int t = 0; t < std::min(n, 10); ++t) {
-    const int s = seeds[t];
-    std::vector<int> near;
-    for (int k = 0; k < n; ++k)
-      if (k != s && (centres[k] - centres[s]).norm() < 1.3 * spacing) near.push_back(k);
-    for (int u : near) {
-      const Eigen::Vector2d du = centres[u] - centres[s];
-      // Rows along the image's x: u the neighbour to the right.
-      if (du.x() <= 0 || std::abs(du.y()) > std::abs(du.x()) * std::tan(M_PI / 6)) continue;
-      for (int v : near) {
-        const Eigen::Vector2d dv = centres[v] - centres[s];
-        // v at +want degrees from u (image y down: the board's y follows v).
-        const double ang = std::atan2(du.x() * dv.y() - du.y() * dv.x(), du.dot(dv)) * 180 / M_PI;
-        if (std::abs(ang - want) > kBasisAngleTolDeg) continue;
-        Growth g = Grow(centres, layout, s, u, v);
-        if (g.at.size() > best_count) {
-          best_count = g.at.size();
-          best = g;
-        }
-      }
-    }
-    if (best_count >= 0.8 * n) break;
-  }
+  double spacing = 0.0;
+  const Growth best = GrowFromSeeds(centres, layout, &spacing);
+  const size_t best_count = best.at.size();
   if (best_count < 6) {
     fit.message = Message("layout '", layout.source, "' does not fit: no ",
                           layout.kind == BoardLayout::Kind::kHex ? "hex" : "square",
-                          " lattice of neighbours at ", want, " deg found among the ", n,
+                          " lattice of neighbours at ",
+                          layout.kind == BoardLayout::Kind::kHex ? 60 : 90, " deg found among the ", n,
                           " circles (a wrong lattice kind?)");
     return fit;
   }
-  // Mismatches out by RANSAC (a gate of a tenth of the neighbour distance:
-  // the lens bends the rows by more than a pixel), then the homography and
-  // the radial distortion on the rest.
-  std::vector<cv::Point2d> src, dst;
+  std::vector<cv::Point2d> src;
   std::vector<int> who;
-  for (const auto& [ij, k] : best.at) {
-    const Eigen::Vector2d b = layout.Position(ij.first, ij.second);
-    src.emplace_back(b.x(), b.y());
-    dst.emplace_back(centres[k].x(), centres[k].y());
-    who.push_back(k);
-  }
   std::vector<unsigned char> mask;
-  const cv::Mat hm =
-      cv::findHomography(src, dst, cv::RANSAC, kRansacShare * spacing, mask, 2000, 0.999);
-  if (hm.empty()) {
-    fit.message = Message("layout '", layout.source, "': the homography fit failed");
+  double inlier_gate = 0.0;
+  if (!FitBoardImage(centres, best, layout, spacing, image_width, image_height, &fit, &src, &who,
+                     &mask, &inlier_gate))
     return fit;
-  }
-  Eigen::Matrix3d h0;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) h0(r, c) = hm.at<double>(r, c);
-  if (image_width > 0 && image_height > 0) {
-    fit.centre = Eigen::Vector2d(0.5 * (image_width - 1), 0.5 * (image_height - 1));
-    fit.scale = 0.5 * std::hypot(image_width, image_height);
-  } else {
-    Eigen::Vector2d lo = centres[0], hi = centres[0];
-    for (const auto& c : centres) {
-      lo = lo.cwiseMin(c);
-      hi = hi.cwiseMax(c);
-    }
-    fit.centre = 0.5 * (lo + hi);
-    fit.scale = std::max(1.0, 0.5 * (hi - lo).norm());
-  }
-  std::vector<Eigen::Vector2d> fb, fi;
-  for (size_t q = 0; q < who.size(); ++q)
-    if (mask[q]) {
-      fb.emplace_back(src[q].x, src[q].y);
-      fi.push_back(centres[who[q]]);
-    }
-  {
-    Eigen::Matrix3d hl = h0;
-    FitTransform(fb, fi, &hl);  // least squares on the RANSAC inliers
-    double ss = 0;
-    for (size_t q = 0; q < fb.size(); ++q) ss += (Apply(hl, fb[q]) - fi[q]).squaredNorm();
-    fit.rms_homography_px = std::sqrt(ss / std::max<size_t>(fb.size(), 1));
-    h0 = hl;
-  }
-  const DistortedParams dp = FitDistorted(fb, fi, h0, fit.centre, fit.scale);
-  fit.image_from_board << dp(0), dp(1), dp(2), dp(3), dp(4), dp(5), dp(6), dp(7), 1.0;
-  fit.k1 = dp(8);
-  fit.k2 = dp(9);
-  std::vector<double> abs_res;
-  for (size_t q = 0; q < who.size(); ++q)
-    abs_res.push_back((centres[who[q]] - fit.Project(Eigen::Vector2d(src[q].x, src[q].y))).norm());
-  const double inlier_gate = std::max(1.0, 4.0 * MedianOf(abs_res));
-  mask.assign(who.size(), 0);
-  for (size_t q = 0; q < who.size(); ++q) mask[q] = abs_res[q] <= inlier_gate;
   // Numbering: rows from the top of the image, columns from the left.
   int jmin = 1 << 30, jmax = -(1 << 30), hmin = 1 << 30, hmax = -(1 << 30);
   const bool hex = layout.kind == BoardLayout::Kind::kHex;
