@@ -18,10 +18,12 @@
 // above and below are rejected with a reason (blurred, residual, partial)
 // or measured; none of those is counted twice either.
 #include <cstdio>
+#include <fstream>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/targets/board_layout.h"
 #include "slope_monitor/core/targets/target_centroider.h"
 
@@ -107,6 +109,46 @@ TEST(RingBoardReal, WrongLatticeIsNamed) {
   EXPECT_FALSE(fit.ok);
   EXPECT_NE(fit.message.find("does not fit"), std::string::npos) << fit.message;
   std::printf("square layout on the hex board: %s\n", fit.message.c_str());
+}
+
+
+// Our own YAML layout; a wrong pitch is seen against the marker size (the
+// homography absorbs the scale): measured 0.79 pitch across, so a board of
+// 6.3 mm markers on an 8 mm pitch fits without a note, the same markers on
+// a 12 mm pitch get one naming the pitch. A photo without markers, and a
+// bad key, are named.
+TEST(RingBoardReal, YamlLayoutAndWrongPitch) {
+  const cv::Mat img = cv::imread(kRingDir + "target_3_split_00.png", cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(img.empty());
+  const TargetCentroider c{Options(), io::TargetList()};
+  const Result r = c.Detect(img, "mono8");
+  std::vector<Eigen::Vector2d> centres;
+  std::vector<double> outer;
+  for (const auto& o : r.observations) {
+    centres.push_back(o.centre);
+    outer.push_back(o.size_px * std::max(o.ring_ratio, 1.0));
+  }
+  const std::string dir = ::testing::TempDir();
+  auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir + name) << text;
+    return dir + name;
+  };
+  const BoardLayout right = BoardLayout::Load(
+      write("ring_right.yaml", "lattice: hex\npitch: 8.0\nrows: 15\ncols: 14\nmarker_diameter: 6.3\n"));
+  const LatticeFit ok = FitLattice(centres, outer, right, img.cols, img.rows);
+  ASSERT_TRUE(ok.ok) << ok.message;
+  EXPECT_TRUE(ok.warning.empty()) << ok.warning;
+  const BoardLayout wrong = BoardLayout::Load(
+      write("ring_wrong.yaml", "lattice: hex\npitch: 12.0\nmarker_diameter: 6.3\n"));
+  const LatticeFit bad = FitLattice(centres, outer, wrong, img.cols, img.rows);
+  EXPECT_NE(bad.warning.find("pitch"), std::string::npos) << bad.warning;
+  std::printf("wrong pitch: %s\n", bad.warning.c_str());
+  const LatticeFit none = FitLattice({}, {}, right, img.cols, img.rows);
+  EXPECT_FALSE(none.ok);
+  EXPECT_NE(none.message.find("0 circles"), std::string::npos) << none.message;
+  EXPECT_THROW(BoardLayout::Load(write("ring_typo.yaml", "lattice: hex\npitch: 8\npich: 8\n")),
+               Error);
+  EXPECT_THROW(BoardLayout::Load(write("ring_kind.yaml", "lattice: hexagon\npitch: 8\n")), Error);
 }
 
 }  // namespace
