@@ -108,7 +108,9 @@ TEST(CircleEvidence, AutoFindsEveryDesign) {
     const Observation& o = r.observations[0];
     EXPECT_EQ(o.design, design) << CircleDesignName(o.design);
     EXPECT_LT((o.centre - truth_near).norm(), 1.0);
-    if (design != CircleDesign::kDot) EXPECT_NEAR(o.ring_ratio, ring, 0.15);
+    if (design != CircleDesign::kDot) {
+      EXPECT_NEAR(o.ring_ratio, ring, 0.15);
+    }
     std::printf("auto: ring %.1f background %.2f -> %s, ring ratio %.3f, centre (%.3f, %.3f)\n",
                 ring, background, CircleDesignName(o.design).c_str(), o.ring_ratio, o.centre.x(),
                 o.centre.y());
