@@ -48,6 +48,9 @@ using namespace slope_monitor;
 
 namespace {
 
+// [m] sigma of the height of a control point whose list gives none.
+constexpr double kNoHeightSigma = 10.0;
+
 const char* kUsage =
     "usage: process_flight --photos DIR [--photos DIR2 ...] [--gcp FILE] [--check NAME[,NAME...]]\n"
     "                      [--site FILE] [--gcp-sigma M] [--gnss-sigma M] [--pixel-size MM] [--focal MM]\n"
@@ -153,11 +156,21 @@ std::vector<flight::FlightControlPoint> ControlPoints(const io::GcpList& gcp, co
                                                       int* skipped) {
   std::vector<flight::FlightControlPoint> out;
   const double s = args.gcp_sigma;
+  bool heights = false;
+  for (const io::GcpPoint& p : gcp.points) heights |= p.geo.z() != 0.0;
+  static bool said = false;
+  if (!heights && !said) {
+    std::cerr << "process_flight: " << gcp.path << ": every height is 0: taken as not given (horizontal control;"
+              << " heights held within " << kNoHeightSigma << " m of 0)\n";
+    said = true;
+  }
   for (const io::GcpPoint& p : gcp.points) {
     flight::FlightControlPoint cp;
     cp.name = p.name;
     cp.site = crs.SiteFromCrs(p.geo);
-    cp.covariance = Eigen::Vector3d(s * s, s * s, 4.0 * s * s).asDiagonal();
+    const double sz = heights ? 2.0 * s : kNoHeightSigma;
+    cp.covariance = Eigen::Vector3d(s * s, s * s, sz * sz).asDiagonal();
+    cp.has_height = heights;
     cp.check = args.check.count(p.name) > 0;
     for (const io::GcpPick& k : p.picks) {
       int index = -1;

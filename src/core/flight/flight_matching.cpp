@@ -136,12 +136,71 @@ void BuildTracks(const std::vector<std::pair<int, int>>& pairs,
   }
 }
 
+// Union-find over tracks.
+int Root(std::vector<int>* parent, int i) {
+  while ((*parent)[i] != i) i = (*parent)[i] = (*parent)[(*parent)[i]];
+  return i;
+}
+
+// Joins tracks through their common photos: an observation (b, xb) of one
+// track within `radius` px of the interest point a track of photo b starts
+// at is the same ground point, so the two are one track (the pairs of b
+// start at b's interest points, the pairs into b end at LSC positions near
+// them). A joined track keeps one observation per photo (the first).
+void JoinTracks(double radius, FlightTies* ties) {
+  std::vector<FlightTrack>& tracks = ties->tracks;
+  std::map<std::pair<int, std::pair<long, long>>, std::vector<int>> start_cell;
+  auto cell = [&](const Eigen::Vector2d& x) {
+    return std::make_pair(static_cast<long>(std::floor(x.x() / radius)), static_cast<long>(std::floor(x.y() / radius)));
+  };
+  for (size_t t = 0; t < tracks.size(); ++t)
+    start_cell[{tracks[t].observations[0].first, cell(tracks[t].observations[0].second)}].push_back(static_cast<int>(t));
+  std::vector<int> parent(tracks.size());
+  for (size_t t = 0; t < tracks.size(); ++t) parent[t] = static_cast<int>(t);
+  for (size_t t = 0; t < tracks.size(); ++t) {
+    for (size_t k = 1; k < tracks[t].observations.size(); ++k) {
+      const auto& [b, xb] = tracks[t].observations[k];
+      const auto c = cell(xb);
+      int best = -1;
+      double best_d = radius;
+      for (long dx = -1; dx <= 1; ++dx)
+        for (long dy = -1; dy <= 1; ++dy) {
+          auto it = start_cell.find({b, {c.first + dx, c.second + dy}});
+          if (it == start_cell.end()) continue;
+          for (int u : it->second) {
+            const double d = (tracks[u].observations[0].second - xb).norm();
+            if (d < best_d) best_d = d, best = u;
+          }
+        }
+      if (best >= 0) parent[Root(&parent, best)] = Root(&parent, static_cast<int>(t));
+    }
+  }
+  std::map<int, int> joined_of_root;
+  std::vector<FlightTrack> joined;
+  for (size_t t = 0; t < tracks.size(); ++t) {
+    const int r = Root(&parent, static_cast<int>(t));
+    auto it = joined_of_root.find(r);
+    if (it == joined_of_root.end()) {
+      it = joined_of_root.emplace(r, static_cast<int>(joined.size())).first;
+      joined.push_back(FlightTrack{{}, tracks[t].grey});
+    }
+    FlightTrack& j = joined[it->second];
+    for (const auto& o : tracks[t].observations) {
+      bool have = false;
+      for (const auto& q : j.observations) have |= q.first == o.first;
+      if (!have) j.observations.push_back(o);
+    }
+  }
+  tracks.swap(joined);
+}
+
 }  // namespace
 
 void FlightMatchingOptions::Check() const {
   RequireOption("flight matching", exhaustive_max_photos >= 2, "exhaustive_max_photos", "must be >= 2");
   RequireOption("flight matching", sequence_window >= 1, "sequence_window", "must be >= 1");
   RequireOption("flight matching", min_pair_tie_points >= 5, "min_pair_tie_points", "must be >= 5");
+  RequireOption("flight matching", join_radius_px >= 0.0, "join_radius_px", "must be >= 0");
   RequireOption("flight matching", threads >= 0 && threads <= 64, "threads", "must be in [0, 64]");
   footprint.Check();
   features.Check();
@@ -211,6 +270,7 @@ FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& 
     ties.pairs.push_back(st);
   }
   BuildTracks(pairs, results, used, grey_of, &ties);
+  if (options.join_radius_px > 0.0) JoinTracks(options.join_radius_px, &ties);
   ties.feature_seconds = cache.seconds();
   ties.peak_feature_bytes = cache.peak_bytes();
   ties.unreadable = cache.unreadable();

@@ -287,7 +287,8 @@ adjustment::Config StageConfig(const Block& block, const StageSetup& s, const Sc
 adjustment::Options StageOptions(const StageSetup& s, bool datum_free) {
   adjustment::Options o = s.options->bundle;
   o.compute_covariance = s.final && s.leave_out < 0;
-  if (!s.final) o.max_iterations = s.options->intermediate_iterations;
+  // Leave one out starts from the final solution: a few steps reach the new minimum.
+  if (!s.final || s.leave_out >= 0) o.max_iterations = s.options->intermediate_iterations;
   o.write_back_unconverged = !s.final;
   o.fixed_images_define_datum = datum_free;
   if (s.use_gnss) o.min_position_priors = 3;
@@ -374,6 +375,7 @@ PointResidual MeasurePoint(const Block& block, const FlightControlPoint& cp, con
   }
   r.measured = true;
   r.residual = res.position - cp.site;
+  if (!cp.has_height) r.residual.z() = 0.0;
   if (position) *position = res.position;
   return r;
 }
@@ -511,6 +513,7 @@ void ControlReport(const Block& block, const StageResult& stage, const FlightInp
         r.measured = true;
         r.message.clear();
         r.residual = stage.scene.points[p].position - cp.site;
+        if (!cp.has_height) r.residual.z() = 0.0;
       }
     }
     (cp.check ? summary->check : summary->control).push_back(r);

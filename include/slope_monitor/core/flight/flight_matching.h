@@ -13,7 +13,10 @@
 // Tracks: the tie points of a pair (a, b) start at interest points of a
 // (photo_pair_matcher.h); one interest point of a matched into several
 // photos is one track, so a track has photo a and every photo it was
-// matched into (>= 2 photos).
+// matched into (>= 2 photos). Tracks are then joined through the photos they
+// share: a track's observation in b within join_radius_px of the interest
+// point another track starts at in b makes them one track (one observation
+// per photo).
 #pragma once
 
 #include <cstdint>
@@ -53,6 +56,9 @@ struct FlightMatchingOptions {
     return o;
   }();
   int min_pair_tie_points = 15;  // a pair with fewer is not used, >= 5
+  // [px] tracks are joined where one's observation in photo b lies this
+  // close to the interest point another starts at in b (0: not joined), >= 0.
+  double join_radius_px = 1.0;
   int threads = 0;               // pairs matched at once (0: the hardware's), [0, 64]
   void Check() const;            // throws ConfigError naming the field
 };

@@ -90,6 +90,9 @@ struct FlightControlPoint {
   Eigen::Vector3d site = Eigen::Vector3d::Zero();                           // [m] survey in the site frame
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity() * 0.05 * 0.05;  // [m^2]
   bool check = false;                                  // true: never in the adjustment
+  // false: the height is not known (a gcp list with every height 0): give
+  // covariance(2, 2) loose; the residuals' dz is reported as 0.
+  bool has_height = true;
   std::vector<std::pair<int, Eigen::Vector2d>> picks;  // (photo index, pixel)
 };
 
