@@ -20,10 +20,13 @@
 #include "slope_monitor/core/capture/sources.h"
 #include "slope_monitor/core/capture/timing.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/site_crs.h"
+#include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/ros/capture_conversions.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
+#include "slope_monitor/ros/uav_topics.h"
 
 namespace slope_monitor {
 
@@ -109,7 +112,10 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     ros_adapters::ParamReader p(pnh);
     source_kind_ = p.String("source", "device", {"device", "folder", "video"});
     camera_name_ = p.String("camera_name", "camera");
-    publisher_options_.source_name = p.String("source_name", getNodeHandle().getNamespace());
+    // The camera's name by the graph's one rule (ros/uav_topics.h): ns /uav/camera is camera uav.
+    publisher_options_.source_name =
+        p.String("source_name", ros_adapters::CameraOfNamespace(getNodeHandle().getNamespace()));
+    const std::string site_file = p.String("site_file", "");
     publisher_options_.frame_id = p.String("frame_id", camera_name_ + "_optical");
     camera_info_url_ = p.String("camera_info_url", "");
     publisher_options_.pixel_size = p.Double("pixel_size", 0.0, 0.0, 1.0, "mm");
@@ -120,6 +126,8 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     encoding_ = p.String("encoding", "auto", {"auto", "mono8", "bgr8"});
     rate_ = p.Double("rate", 2.0, 0.001, 1000.0, "Hz");
     start_delay_ = p.Double("start_delay", 1.0, 0.0, 3600.0, "s");
+    subscriber_wait_ = p.Double("subscriber_wait", 10.0, 0.0, 3600.0, "s");
+    exit_at_end_ = p.Bool("exit_at_end", false);
 
     // Folder.
     folder_.folder = p.String("folder", "");
@@ -158,7 +166,9 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     publisher_options_.gnss.sigma_horizontal = p.Double("gnss_sigma_horizontal", 5.0, 1e-4, 1e4, "m");
     publisher_options_.gnss.sigma_vertical = p.Double("gnss_sigma_vertical", 10.0, 1e-4, 1e4, "m");
     publisher_options_.gnss.geoid_height = p.Double("geoid_height", 0.0, -200.0, 200.0, "m");
+    publisher_options_.attitude_sigma = p.Double("attitude_sigma", 10.0, 0.01, 180.0, "deg");
     p.CheckNoUnknownKeys();
+    if (!site_file.empty()) ApplySiteFile(site_file, origin.empty());
 
     if (!origin.empty()) {
       if (origin.size() != 3) {
@@ -207,6 +217,23 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     }
   }
 
+  // The site file (io::LoadSiteFile): the position priors' origin (a local_enu
+  // site's origin, unless site_origin is set) and this camera's pixel size
+  // (its entry, by the camera's name, unless pixel_size is set).
+  void ApplySiteFile(const std::string& path, bool origin_from_site) {
+    const io::SiteFile site = io::LoadSiteFile(path);
+    if (origin_from_site) {
+      if (site.crs.frame != SiteCrsOptions::Frame::kLocalEnu)
+        throw ConfigError(Message(path, ": frame shifted_crs: camera_capture's position priors need a local_enu site "
+                                        "(or set site_origin)"));
+      const Eigen::Vector3d lon_lat_h = SiteCrs(site.crs).origin_wgs84();
+      publisher_options_.has_site_origin = true;
+      publisher_options_.site_origin = {lon_lat_h.y(), lon_lat_h.x(), lon_lat_h.z()};
+    }
+    const io::SiteCamera* camera = site.FindCamera(publisher_options_.source_name);
+    if (camera && !(publisher_options_.pixel_size > 0.0)) publisher_options_.pixel_size = camera->pixel_size;
+  }
+
   bool OnTrigger(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!device_open_) {
@@ -235,6 +262,13 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
   }
 
   void Run() {
+    if (source_kind_ != "device") {
+      // A folder or video is published once: wait for a subscriber (rosbag
+      // record, the graph) so that the first photos are not lost.
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(subscriber_wait_);
+      while (camera_pub_.getNumSubscribers() == 0 && std::chrono::steady_clock::now() < deadline)
+        if (!Wait(0.1, false)) return;
+    }
     if (!Wait(start_delay_, false)) return;
     if (source_kind_ == "device") {
       RunDevice();
@@ -247,6 +281,12 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
         for (const auto& w : folder->exif_warnings()) {
           NODELET_WARN("camera_capture: %s (using the file time)", w.reason.c_str());
         }
+        for (const auto& w : folder->left_out()) {
+          NODELET_WARN("camera_capture: left out %s: %s", w.name.c_str(), w.reason.c_str());
+          std::lock_guard<std::mutex> lock(mutex_);
+          ++skipped_;
+          last_warning_ = "left out " + w.name + ": " + w.reason;
+        }
         source = std::move(folder);
       } else {
         source = std::make_unique<capture::VideoSource>(video_);
@@ -254,6 +294,7 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     } catch (const Error& e) {
       NODELET_ERROR("camera_capture: %s", e.what());
       SetStatus(e.what());
+      if (exit_at_end_) ros::requestShutdown();  // nothing to publish
       return;
     }
     SetStatus("publishing " + source->Describe());
@@ -266,6 +307,12 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
                        static_cast<unsigned long>(published_.load()),
                        static_cast<unsigned long>(source->skipped_count()));
           SetStatus("finished " + source->Describe());
+          if (exit_at_end_) {
+            // The last messages reach the subscribers, then the node ends
+            // (camera_capture.launch: a folder or video is done).
+            if (Wait(2.0, false)) NODELET_INFO("camera_capture: exiting (exit_at_end)");
+            ros::requestShutdown();
+          }
           return;
         }
       } catch (const std::exception& e) {
@@ -352,6 +399,8 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
   // Parameters.
   std::string source_kind_, camera_name_, camera_info_url_, encoding_, source_description_;
   double rate_ = 2.0, start_delay_ = 1.0, retry_interval_ = 5.0;
+  double subscriber_wait_ = 10.0;  // [s] folder / video: wait this long at most for a subscriber
+  bool exit_at_end_ = false;       // folder / video: end the process after the last frame
   bool continuous_ = false;
   capture::FolderSourceOptions folder_;
   capture::VideoSourceOptions video_;

@@ -57,6 +57,16 @@ geometry_msgs::PoseWithCovarianceStamped ToPositionPrior(const sensor_msgs::NavS
   return prior;
 }
 
+void SetNadirAttitude(double yaw_deg, double sigma_deg, geometry_msgs::PoseWithCovarianceStamped* prior) {
+  const Eigen::Quaterniond q = capture::SiteFromOpticalNadir(yaw_deg);
+  prior->pose.pose.orientation.w = q.w();
+  prior->pose.pose.orientation.x = q.x();
+  prior->pose.pose.orientation.y = q.y();
+  prior->pose.pose.orientation.z = q.z();
+  const double variance = std::pow(sigma_deg * M_PI / 180.0, 2);
+  for (int i = 3; i < 6; ++i) prior->pose.covariance[6 * i + i] = variance;
+}
+
 slope_monitor::EpochMarker ToEpochMarker(const capture::EpochEvent& e, const std::string& source,
                                          const std::string& frame_id) {
   slope_monitor::EpochMarker m;
@@ -145,7 +155,9 @@ void FramePublisher::PublishFrame(const capture::Frame& frame, sensor_msgs::Imag
     if (outputs_.fix) outputs_.fix(fix);
     if (site_ && outputs_.prior) {
       if (frame.exif.has_gps_altitude) {
-        outputs_.prior(ToPositionPrior(fix, *site_, options_.site_frame));
+        geometry_msgs::PoseWithCovarianceStamped prior = ToPositionPrior(fix, *site_, options_.site_frame);
+        if (frame.attitude.has_yaw) SetNadirAttitude(frame.attitude.yaw_deg, options_.attitude_sigma, &prior);
+        outputs_.prior(prior);
       } else {
         Warn(Message(frame.name, ": EXIF GNSS position has no altitude; no position prior"));
       }

@@ -312,7 +312,7 @@ TEST(CameraCaptureLive, PhotoFolder) {
       EXPECT_EQ(epochs[i].count, std::get<2>(expected[i])) << i;
     }
     EXPECT_NEAR(epochs[i].header.stamp.toSec(), std::get<3>(expected[i]), 1e-6) << i;
-    EXPECT_EQ(epochs[i].source, "/uav/camera");
+    EXPECT_EQ(epochs[i].source, "uav");  // the camera of ns /uav/camera (ros/uav_topics.h)
   }
   // The truncated photo: skipped, counted and named, and the stream went on.
   const auto diags = rec.Diagnostics(hw);

@@ -46,6 +46,10 @@ geometry_msgs::PoseWithCovarianceStamped ToPositionPrior(const sensor_msgs::NavS
                                                          const capture::LocalTangentPlane& site,
                                                          const std::string& site_frame);
 
+// The orientation of *prior: a nadir photo flown at heading yaw_deg
+// (capture::SiteFromOpticalNadir), sigma_deg about each axis.
+void SetNadirAttitude(double yaw_deg, double sigma_deg, geometry_msgs::PoseWithCovarianceStamped* prior);
+
 slope_monitor::EpochMarker ToEpochMarker(const capture::EpochEvent& event, const std::string& source,
                                          const std::string& frame_id);
 
@@ -69,6 +73,9 @@ struct FramePublisherOptions {
   GnssOptions gnss;
   bool has_site_origin = false;             // publish position priors (needs site_origin)
   capture::Geodetic site_origin;
+  // [deg] 1-sigma of the attitude a photo's XMP heading gives the position
+  // prior (nadir, SetNadirAttitude); photos without a heading: unknown (1e6 rad^2).
+  double attitude_sigma = 10.0;
   double pixel_size = 0.0;                  // [mm] sensor pixel pitch; 0: unknown (no nominal EXIF camera_info)
   // A calibration (from camera_info_manager or the package's interior
   // parameters); without one, a nominal one from the EXIF focal length when

@@ -1,7 +1,8 @@
 // The topics of a moving (UAV) camera in the graph, written once: its photos
 // and GNSS priors from the driver, its tie points from the hex_matcher (mode
 // sequence). Used by the hex_matcher and bundle adjuster parameters with a
-// site file and by process_bag.
+// site file and by process_bag. And the one rule that names a camera by its
+// driver's namespace (camera_capture's EpochMarker.source).
 #pragma once
 
 #include <string>
@@ -18,6 +19,21 @@ struct UavTopics {
 inline UavTopics UavCameraTopics(const std::string& camera) {
   return {"/" + camera + "/camera/image_raw", "/" + camera + "/camera/position_prior",
           "/" + camera + "/tie_points"};
+}
+
+// A camera's name (the site file's cameras[].name, EpochMarker.source, the
+// <camera> of the topics above) from its driver's namespace: the graph's
+// camera topics are /<camera>/camera/..., so camera_capture.launch
+// ns:=uav/camera (node namespace "/uav/camera") is camera "uav". A namespace
+// that does not end in /camera is the name itself without its slashes
+// ("/cam1" -> "cam1").
+inline std::string CameraOfNamespace(std::string ns) {
+  while (!ns.empty() && ns.back() == '/') ns.pop_back();
+  const std::string suffix = "/camera";
+  if (ns.size() > suffix.size() && ns.compare(ns.size() - suffix.size(), suffix.size(), suffix) == 0)
+    ns.resize(ns.size() - suffix.size());
+  while (!ns.empty() && ns.front() == '/') ns.erase(0, 1);
+  return ns;
 }
 
 }  // namespace ros_adapters

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -238,15 +239,48 @@ FolderSource::FolderSource(const FolderSourceOptions& options) : options_(option
       }
       entry.stamp_source = StampSource::kFile;
     }
+    try {
+      entry.attitude = ReadPhotoAttitude(entry.path);  // XMP attitude and the header's size
+    } catch (const Error&) {
+      entry.attitude = PhotoAttitude();  // unreadable: decoding names it (skipped then)
+    }
     entries_.push_back(std::move(entry));
   }
   if (ec) throw IoError(Message("image folder '", options_.folder, "': ", ec.message()));
   if (entries_.empty()) {
     throw IoError(Message("image folder '", options_.folder, "' holds no file with a listed extension"));
   }
+  LeaveOutOddPhotos();
   std::sort(entries_.begin(), entries_.end(), [](const Entry& a, const Entry& b) {
     return a.stamp != b.stamp ? a.stamp < b.stamp : a.path < b.path;
   });
+}
+
+void FolderSource::LeaveOutOddPhotos() {
+  std::map<std::pair<int, int>, int> sizes;
+  size_t with_gps = 0;
+  for (const Entry& e : entries_) {
+    if (e.attitude.width > 0) ++sizes[{e.attitude.width, e.attitude.height}];
+    if (e.exif.has_gps) ++with_gps;
+  }
+  std::pair<int, int> common{0, 0};
+  int most = 0;
+  for (const auto& [size, n] : sizes)
+    if (n > most) most = n, common = size;
+  const bool gnss_folder = 2 * with_gps > entries_.size();
+  std::vector<Entry> kept;
+  for (Entry& e : entries_) {
+    if (e.attitude.width > 0 && std::make_pair(e.attitude.width, e.attitude.height) != common) {
+      left_out_.push_back({e.path, Message(e.attitude.width, "x", e.attitude.height, " px, not the folder's ",
+                                           common.first, "x", common.second, " px (", most, " photos)")});
+    } else if (gnss_folder && !e.exif.has_gps && e.attitude.width > 0) {  // (unreadable: the decoder names it)
+      left_out_.push_back({e.path, Message("no EXIF GNSS position (", with_gps, " of ", entries_.size(),
+                                           " photos of the folder have one)")});
+    } else {
+      kept.push_back(std::move(e));
+    }
+  }
+  entries_ = std::move(kept);
 }
 
 bool FolderSource::Next(Frame* frame) {
@@ -264,6 +298,7 @@ bool FolderSource::Next(Frame* frame) {
     frame->name = e.path;
     frame->index = index;
     frame->exif = e.exif;
+    frame->attitude = e.attitude;
     return true;
   }
   return false;

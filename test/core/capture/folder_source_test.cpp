@@ -61,6 +61,33 @@ class FolderFixture : public ::testing::Test {
   std::map<std::string, cv::Mat> images_;
 };
 
+// A flight's folder with a photo of another size and one without a GNSS
+// position: both named and left out at the scan, the rest kept in order.
+TEST(FolderSource, LeavesOutPhotosOfAnotherSizeAndWithoutPosition) {
+  TempDir dir{"odd_photos"};
+  for (int i = 0; i < 3; ++i)
+    capture_test::WriteJpeg(dir.File("p" + std::to_string(i) + ".jpg"), capture_test::TexturedImage(160, 120, 3, i),
+                            Tags("10:00:0" + std::to_string(i), ""));
+  capture_test::WriteJpeg(dir.File("bigger.jpg"), capture_test::TexturedImage(200, 150, 3, 5), Tags("10:00:05", ""));
+  ExifTags no_gps = Tags("10:00:06", "");
+  no_gps.gps = false;
+  capture_test::WriteJpeg(dir.File("no_gps.jpg"), capture_test::TexturedImage(160, 120, 3, 6), no_gps);
+  FolderSourceOptions o;
+  o.folder = dir.path();
+  FolderSource source(o);
+  EXPECT_EQ(source.size(), 3u);
+  ASSERT_EQ(source.left_out().size(), 2u);
+  EXPECT_NE(source.left_out()[0].name.find("bigger.jpg"), std::string::npos);
+  EXPECT_NE(source.left_out()[0].reason.find("200x150 px, not the folder's 160x120 px"), std::string::npos)
+      << source.left_out()[0].reason;
+  EXPECT_NE(source.left_out()[1].name.find("no_gps.jpg"), std::string::npos);
+  EXPECT_NE(source.left_out()[1].reason.find("no EXIF GNSS position"), std::string::npos);
+  Frame f;
+  std::vector<std::string> names;
+  while (source.Next(&f)) names.push_back(std::filesystem::path(f.name).filename().string());
+  EXPECT_EQ(names, (std::vector<std::string>{"p0.jpg", "p1.jpg", "p2.jpg"}));
+}
+
 TEST_F(FolderFixture, PublishesInExifTimeOrderAndSkipsBadFiles) {
   FolderSourceOptions o;
   o.folder = dir_.path();

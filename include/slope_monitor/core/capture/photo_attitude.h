@@ -14,6 +14,8 @@
 
 #include <string>
 
+#include <Eigen/Geometry>
+
 namespace slope_monitor {
 namespace capture {
 
@@ -32,6 +34,13 @@ struct PhotoAttitude {
 // Throws IoError naming the file when exiv2 cannot open it, or when a tag
 // present is not a number (naming the tag). Absent tags leave has_* false.
 PhotoAttitude ReadPhotoAttitude(const std::string& path);
+
+// The rotation site_from_optical of a nadir photo whose top edge points along
+// the heading `yaw_deg` (clockwise from north; site x east, y north, z up):
+// optical z down, y (image down) backwards, x (image right) to the right of
+// the flight direction. The autopilot's pitch and roll are not used (how the
+// camera sits in the airframe is not in the photo).
+Eigen::Quaterniond SiteFromOpticalNadir(double yaw_deg);
 
 }  // namespace capture
 }  // namespace slope_monitor

@@ -17,6 +17,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "slope_monitor/core/capture/exif.h"
+#include "slope_monitor/core/capture/photo_attitude.h"
 
 namespace slope_monitor {
 namespace capture {
@@ -33,6 +34,7 @@ struct Frame {
   std::string name;           // file path, "video.avi#17" or device path
   uint64_t index = 0;         // position in the source (0-based, counts skipped items)
   ExifInfo exif;              // folder sources only (empty otherwise)
+  PhotoAttitude attitude;     // folder sources only: the XMP attitude (photo_attitude.h)
   bool in_image_buffer = false;  // `image` lies in memory from the source's ImageBuffer (see below)
 };
 
@@ -131,6 +133,11 @@ class FolderSource : public FrameSource {
   std::vector<std::string> Files() const;
   // Files whose EXIF could not be read at the scan (they fall back to file time).
   const std::vector<SkippedItem>& exif_warnings() const { return exif_warnings_; }
+  // Files left out at the scan, each with the reason: a photo whose size
+  // (image header) is not the folder's most common one, and, in a folder
+  // where most photos carry an EXIF GNSS position, a photo without one (a
+  // flight's photos belong to one camera and are placed by their GNSS).
+  const std::vector<SkippedItem>& left_out() const { return left_out_; }
 
  private:
   struct Entry {
@@ -138,10 +145,14 @@ class FolderSource : public FrameSource {
     double stamp = 0.0;
     StampSource stamp_source = StampSource::kFile;
     ExifInfo exif;
+    PhotoAttitude attitude;
   };
+  // Moves the entries of another size or (in a GNSS-tagged folder) without a
+  // position to left_out_.
+  void LeaveOutOddPhotos();
   FolderSourceOptions options_;
   std::vector<Entry> entries_;
-  std::vector<SkippedItem> exif_warnings_;
+  std::vector<SkippedItem> exif_warnings_, left_out_;
   size_t next_ = 0;
 };
 
