@@ -30,7 +30,8 @@ double MedianMs(F f) {
   for (int k = 0; k < 20; ++k) {
     const auto a = std::chrono::steady_clock::now();
     f();
-    t.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - a).count());
+    t.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - a).count());
   }
   std::sort(t.begin(), t.end());
   return t[t.size() / 2];
@@ -40,12 +41,15 @@ void Report(const char* name, double ms, const std::vector<Eigen::Vector2d>& c,
             const std::vector<double>& outer, const targets::BoardLayout& layout, int w, int h) {
   const targets::LatticeFit fit = targets::FitLattice(c, outer, layout, w, h);
   if (!fit.ok) {
-    std::printf("%-26s %8.1f ms %4zu circles, lattice: %s\n", name, ms, c.size(), fit.message.c_str());
+    std::printf("%-26s %8.1f ms %4zu circles, lattice: %s\n", name, ms, c.size(),
+                fit.message.c_str());
     return;
   }
-  std::printf("%-26s %8.1f ms %4zu circles, %3zu on the lattice (%d rows x %d cols), %2zu off, RMS %.3f px (homography alone %.3f px)\n",
-              name, ms, c.size(), fit.markers.size(), fit.rows_seen, fit.cols_seen,
-              fit.off_lattice.size(), fit.rms_px, fit.rms_homography_px);
+  std::printf(
+      "%-26s %8.1f ms %4zu circles, %3zu on the lattice (%d rows x %d cols), %2zu off, RMS %.3f px "
+      "(homography alone %.3f px)\n",
+      name, ms, c.size(), fit.markers.size(), fit.rows_seen, fit.cols_seen, fit.off_lattice.size(),
+      fit.rms_px, fit.rms_homography_px);
 }
 
 }  // namespace
@@ -87,7 +91,8 @@ int main() {
   for (const auto& a : c) {
     const Eigen::Vector2d* nearest = nullptr;
     for (const auto& b : cb)
-      if ((a - b).norm() < 3.0 && (!nearest || (a - b).norm() < (a - *nearest).norm())) nearest = &b;
+      if ((a - b).norm() < 3.0 && (!nearest || (a - b).norm() < (a - *nearest).norm()))
+        nearest = &b;
     if (nearest) {
       both_ours.push_back(a);
       both_blob.push_back(*nearest);

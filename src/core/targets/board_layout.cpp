@@ -35,8 +35,8 @@ Eigen::Vector2d Apply(const Eigen::Matrix3d& h, const Eigen::Vector2d& p) {
 
 // Least-squares homography board -> image of the assigned points (an affine
 // one while fewer than 6 are assigned).
-bool FitTransform(const std::vector<Eigen::Vector2d>& board, const std::vector<Eigen::Vector2d>& img,
-                  Eigen::Matrix3d* h) {
+bool FitTransform(const std::vector<Eigen::Vector2d>& board,
+                  const std::vector<Eigen::Vector2d>& img, Eigen::Matrix3d* h) {
   if (board.size() < 3) return false;
   if (board.size() < 6) {
     Eigen::MatrixXd a(2 * board.size(), 6);
@@ -64,7 +64,7 @@ bool FitTransform(const std::vector<Eigen::Vector2d>& board, const std::vector<E
 }
 
 struct Growth {
-  std::map<std::pair<int, int>, int> at;  // lattice index -> centre
+  std::map<std::pair<int, int>, int> at;   // lattice index -> centre
   std::vector<std::pair<int, int>> index;  // centre -> lattice index (assigned only)
   std::vector<bool> assigned;
   Eigen::Matrix3d h = Eigen::Matrix3d::Identity();
@@ -107,8 +107,7 @@ Growth Grow(const std::vector<Eigen::Vector2d>& c, const BoardLayout& layout, in
         const std::pair<int, int> n{ij.first + s.first, ij.second + s.second};
         if (g.at.count(n)) continue;
         const Eigen::Vector2d p = Apply(g.h, layout.Position(n.first, n.second));
-        const double spacing =
-            (Apply(g.h, layout.Position(n.first + 1, n.second)) - p).norm();
+        const double spacing = (Apply(g.h, layout.Position(n.first + 1, n.second)) - p).norm();
         int best = -1;
         double best_d = kLatticeGate * spacing;
         for (size_t q = 0; q < c.size(); ++q) {
@@ -209,9 +208,8 @@ Growth GrowFromSeeds(const std::vector<Eigen::Vector2d>& centres, const BoardLay
   mean /= n;
   std::vector<int> seeds(n);
   for (int k = 0; k < n; ++k) seeds[k] = k;
-  std::sort(seeds.begin(), seeds.end(), [&](int a, int b) {
-    return (centres[a] - mean).norm() < (centres[b] - mean).norm();
-  });
+  std::sort(seeds.begin(), seeds.end(),
+            [&](int a, int b) { return (centres[a] - mean).norm() < (centres[b] - mean).norm(); });
   const double want = layout.kind == BoardLayout::Kind::kHex ? 60.0 : 90.0;
   Growth best;
   size_t best_count = 0;
@@ -382,11 +380,11 @@ LatticeFit FitLattice(const std::vector<Eigen::Vector2d>& centres,
   const Growth best = GrowFromSeeds(centres, layout, &spacing);
   const size_t best_count = best.at.size();
   if (best_count < 6) {
-    fit.message = Message("layout '", layout.source, "' does not fit: no ",
-                          layout.kind == BoardLayout::Kind::kHex ? "hex" : "square",
-                          " lattice of neighbours at ",
-                          layout.kind == BoardLayout::Kind::kHex ? 60 : 90, " deg found among the ", n,
-                          " circles (a wrong lattice kind?)");
+    fit.message =
+        Message("layout '", layout.source, "' does not fit: no ",
+                layout.kind == BoardLayout::Kind::kHex ? "hex" : "square",
+                " lattice of neighbours at ", layout.kind == BoardLayout::Kind::kHex ? 60 : 90,
+                " deg found among the ", n, " circles (a wrong lattice kind?)");
     return fit;
   }
   std::vector<cv::Point2d> src;
@@ -433,9 +431,8 @@ LatticeFit FitLattice(const std::vector<Eigen::Vector2d>& centres,
       ++inl;
     }
     if (static_cast<size_t>(k) < outer_diameters.size() && outer_diameters[k] > 0) {
-      const double local = (fit.Project(layout.Position(ij.first + 1, ij.second)) -
-                            fit.Project(m.board))
-                               .norm();
+      const double local =
+          (fit.Project(layout.Position(ij.first + 1, ij.second)) - fit.Project(m.board)).norm();
       ratios.push_back(outer_diameters[k] / local);
     }
     fit.markers.push_back(m);
@@ -457,9 +454,9 @@ LatticeFit FitLattice(const std::vector<Eigen::Vector2d>& centres,
     return fit;
   }
   if (inl < 0.8 * static_cast<int>(who.size())) {
-    fit.message = Message("layout '", layout.source, "' does not fit: only ", inl, " of ",
-                          who.size(), " lattice markers within ", inlier_gate,
-                          " px of the board's image");
+    fit.message =
+        Message("layout '", layout.source, "' does not fit: only ", inl, " of ", who.size(),
+                " lattice markers within ", inlier_gate, " px of the board's image");
     return fit;
   }
   if (layout.marker_diameter > 0 && fit.size_ratio > 0) {

@@ -241,7 +241,7 @@ struct Blob {
 
 // An ellipse from first and second moments; false when degenerate.
 inline bool BlobFromMoments(double n, double sx, double sy, double sxx, double sxy, double syy,
-                     Blob* blob) {
+                            Blob* blob) {
   if (n < 3) return false;
   blob->centre = Eigen::Vector2d(sx / n, sy / n);
   Eigen::Matrix2d m2;
@@ -270,7 +270,7 @@ struct Frame {
   const Options& options;
   const double noise_floor;  // [DN] minimum image noise of the covariances
   Result res;
-  std::vector<double> residuals;                           // fit RMS of what was measured
+  std::vector<double> residuals;                          // fit RMS of what was measured
   std::vector<std::array<Eigen::Vector2d, 4>> tag_quads;  // every decoded tag (no circle there)
 
   bool NearBorder(const Eigen::Vector2d& p, double extra) const {
@@ -311,8 +311,8 @@ void DetectTags(apriltag_detector* td, const cv::Mat& mono8, const io::TargetLis
 // Work buffers of the candidate stage (kept between frames).
 struct CandidateBuffers {
   cv::Mat small, thr, bright, labels, stats, centroids;
-  int f = 1;   // reduction of the candidate level
-  int n = 0;   // connected components (label 0 is the background)
+  int f = 1;  // reduction of the candidate level
+  int n = 0;  // connected components (label 0 is the background)
 };
 // The bright components of mono8 on one reduced level (tags masked out).
 void FindBrightComponents(const cv::Mat& mono8, CandidateBuffers* b, Frame* frame);

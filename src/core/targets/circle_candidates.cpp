@@ -17,8 +17,7 @@ namespace detail {
 // pass. Everything after works on small ROIs of the full-resolution image.
 // Buffers are the caller's (no per-frame allocation).
 void FindBrightComponents(const cv::Mat& mono8, CandidateBuffers* b, Frame* frame) {
-  const double dmin = frame->options.circle_min_diameter,
-               dmax = frame->options.circle_max_diameter;
+  const double dmin = frame->options.circle_min_diameter, dmax = frame->options.circle_max_diameter;
   const int f = std::clamp(static_cast<int>(std::floor(dmin / 4.0)), 1, 4);
   b->f = f;
   cv::Mat small;
@@ -33,13 +32,11 @@ void FindBrightComponents(const cv::Mat& mono8, CandidateBuffers* b, Frame* fram
   b->bright.setTo(0);
   // Window sizes from 3 dmin to 1.5 dmax, at most a factor 4 apart.
   const double kmin = 3 * dmin, kmax = std::max(kmin, 1.5 * dmax);
-  const int nscales =
-      1 + static_cast<int>(std::ceil(std::log(kmax / kmin) / std::log(4.0) - 1e-9));
+  const int nscales = 1 + static_cast<int>(std::ceil(std::log(kmax / kmin) / std::log(4.0) - 1e-9));
   const int kcap = std::max(3, 2 * ((std::min(small.cols, small.rows) - 1) / 2) + 1);
   for (int i = 0; i < nscales; ++i) {
-    const double k = nscales == 1
-                         ? kmin
-                         : kmin * std::pow(kmax / kmin, static_cast<double>(i) / (nscales - 1));
+    const double k =
+        nscales == 1 ? kmin : kmin * std::pow(kmax / kmin, static_cast<double>(i) / (nscales - 1));
     const int ks = std::clamp(2 * static_cast<int>(k / f / 2) + 1, 3, kcap);
     cv::blur(small, b->thr, cv::Size(ks, ks), cv::Point(-1, -1), cv::BORDER_REPLICATE);
     cv::subtract(small, b->thr, b->thr);  // saturating: max(0, image - local mean)
@@ -51,10 +48,8 @@ void FindBrightComponents(const cv::Mat& mono8, CandidateBuffers* b, Frame* fram
     std::vector<cv::Point> poly;
     Eigen::Vector2d c = 0.25 * (q[0] + q[1] + q[2] + q[3]);
     for (const auto& p : q) {
-      const Eigen::Vector2d g =
-          (c + 1.3 * (p - c) - Eigen::Vector2d::Constant(0.5 * (f - 1))) / f;
-      poly.emplace_back(static_cast<int>(std::lround(g.x())),
-                        static_cast<int>(std::lround(g.y())));
+      const Eigen::Vector2d g = (c + 1.3 * (p - c) - Eigen::Vector2d::Constant(0.5 * (f - 1))) / f;
+      poly.emplace_back(static_cast<int>(std::lround(g.x())), static_cast<int>(std::lround(g.y())));
     }
     cv::fillConvexPoly(b->bright, poly, cv::Scalar(0));
   }
@@ -62,8 +57,7 @@ void FindBrightComponents(const cv::Mat& mono8, CandidateBuffers* b, Frame* fram
 }
 
 bool CandidateBlob(const CandidateBuffers& b, int label, Frame* frame, Blob* out) {
-  const double dmin = frame->options.circle_min_diameter,
-               dmax = frame->options.circle_max_diameter;
+  const double dmin = frame->options.circle_min_diameter, dmax = frame->options.circle_max_diameter;
   const int f = b.f, l = label;
   auto to_full = [f](double xs) { return f * xs + 0.5 * (f - 1); };
   const double amin = M_PI / 4 * dmin * dmin * 0.4 / (f * f),
@@ -73,8 +67,7 @@ bool CandidateBlob(const CandidateBuffers& b, int label, Frame* frame, Blob* out
   const int area = b.stats.at<int>(l, cv::CC_STAT_AREA);
   if (area < amin || area > amax) return false;
   const int bx = b.stats.at<int>(l, cv::CC_STAT_LEFT), by = b.stats.at<int>(l, cv::CC_STAT_TOP);
-  const int bw = b.stats.at<int>(l, cv::CC_STAT_WIDTH),
-            bh = b.stats.at<int>(l, cv::CC_STAT_HEIGHT);
+  const int bw = b.stats.at<int>(l, cv::CC_STAT_WIDTH), bh = b.stats.at<int>(l, cv::CC_STAT_HEIGHT);
   if (f * std::max(bw, bh) > 1.3 * dmax + 2 * f) return false;
   // Coarse ellipse from the component's moments on the reduced level.
   double sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, cnt = 0;
@@ -98,7 +91,7 @@ bool CandidateBlob(const CandidateBuffers& b, int label, Frame* frame, Blob* out
   coarse.centre = Eigen::Vector2d(to_full(coarse.centre.x()), to_full(coarse.centre.y()));
   if (coarse_fill < 0.6 || coarse_fill > 1.6) {
     frame->Discard(coarse.centre, RejectReason::kNotDisc,
-            Message("bright blob fills ", coarse_fill, " of its moment ellipse"));
+                   Message("bright blob fills ", coarse_fill, " of its moment ellipse"));
     return false;
   }
   coarse.a = std::max(f * coarse.a, 1.0);
@@ -142,23 +135,23 @@ bool CandidateBlob(const CandidateBuffers& b, int label, Frame* frame, Blob* out
   Blob blob;
   if (!BlobFromMoments(cnt, sx, sy, sxx, sxy, syy, &blob)) {
     frame->Discard(coarse.centre, RejectReason::kNotDisc,
-            "no bright pixels above the disc/surround midpoint");
+                   "no bright pixels above the disc/surround midpoint");
     return false;
   }
   const double fill = cnt / (M_PI * blob.a * blob.b);
   if (fill < 0.8 || fill > 1.2) {
     frame->Discard(blob.centre, RejectReason::kNotDisc,
-            Message("thresholded blob fills ", fill, " of its moment ellipse"));
+                   Message("thresholded blob fills ", fill, " of its moment ellipse"));
     return false;
   }
   if (2 * blob.a < 0.8 * dmin || 2 * blob.a > dmax) {
     frame->Discard(blob.centre, RejectReason::kSize,
-            Message("diameter ", 2 * blob.a, " px outside [", dmin, ", ", dmax, "]"));
+                   Message("diameter ", 2 * blob.a, " px outside [", dmin, ", ", dmax, "]"));
     return false;
   }
   if (1.0 - blob.b / blob.a > frame->options.circle_max_eccentricity) {
     frame->Discard(blob.centre, RejectReason::kNotDisc,
-            Message("eccentricity ", 1.0 - blob.b / blob.a));
+                   Message("eccentricity ", 1.0 - blob.b / blob.a));
     return false;
   }
   *out = blob;

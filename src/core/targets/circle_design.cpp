@@ -159,8 +159,8 @@ bool SeeRingOrDot(const ImageView& im, const Blob& blob, double disc, double rin
     ring_fault = Message("outer edge of the dark part at ", med, " radii on ", within, " of ",
                          ring_rays, " rays", concentric ? " (concentric)" : "");
   } else {
-    ring_fault = Message("outer edge of the dark part seen on ", outers.size(), " of ", ring_rays,
-                         " rays");
+    ring_fault =
+        Message("outer edge of the dark part seen on ", outers.size(), " of ", ring_rays, " rays");
   }
   // A dot: dark ground on (nearly) every ray, and a ground, not texture: its
   // brightest tenth still in the dark quarter of the contrast; the dot at

@@ -68,9 +68,7 @@ const ExpectedCircle* IdentifyCircle(const std::vector<ExpectedCircle>& expected
 // outer edge (a light gap or code segment of a ring marker, a dot inside a
 // ring) is dropped in favour of the larger one (debug output: discarded,
 // reason "design").
-double OuterRadius(const Observation& o) {
-  return 0.5 * o.size_px * std::max(o.ring_ratio, 1.0);
-}
+double OuterRadius(const Observation& o) { return 0.5 * o.size_px * std::max(o.ring_ratio, 1.0); }
 
 void DropNestedCircles(Result* res) {
   std::vector<bool> drop(res->observations.size(), false);

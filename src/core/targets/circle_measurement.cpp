@@ -239,8 +239,9 @@ bool JudgeSurround(const Blob& blob, const ExpectedCircle* expected, Verdict* ve
   int sat = 0;
   for (double v : inner_samples) sat += v >= opt.saturation_level;
   if (sat > opt.max_saturated_fraction * inner_samples.size()) {
-    verdict->Fail(RejectReason::kSaturated, Message(100 * sat / static_cast<int>(inner_samples.size()),
-                                                    "% of the disc saturated"));
+    verdict->Fail(
+        RejectReason::kSaturated,
+        Message(100 * sat / static_cast<int>(inner_samples.size()), "% of the disc saturated"));
     return false;
   }
   out->disc = disc;

@@ -369,8 +369,8 @@ double OccludedShare(const apriltag_detection_t* det, const TagEdges& t,
     white += 0.25 * t.edges[k].w;
   }
   if (!CornersFromEdges(l0, &outer)) return 0.0;
-  return DarkSurroundFraction(f.im, outer, det->family->width_at_border, cell,
-                              1.5 * t.blur + 0.5, black, white);
+  return DarkSurroundFraction(f.im, outer, det->family->width_at_border, cell, 1.5 * t.blur + 0.5,
+                              black, white);
 }
 
 // One decoded tag: rejected, published with the detector's corners, or with

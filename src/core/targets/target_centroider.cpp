@@ -125,8 +125,9 @@ CircleDesign ParseCircleDesign(const std::string& name, const std::string& key) 
                          CircleDesign::kRing, CircleDesign::kConcentric}) {
     if (CircleDesignName(d) == name) return d;
   }
-  throw ConfigError(Message("targets option '", key, "' = '", name,
-                            "' is not a circle design (auto, disc_in_ring, dot, ring, concentric)"));
+  throw ConfigError(
+      Message("targets option '", key, "' = '", name,
+              "' is not a circle design (auto, disc_in_ring, dot, ring, concentric)"));
 }
 
 std::string RejectReasonName(RejectReason reason) {

@@ -97,11 +97,11 @@ TEST(CircleEvidence, OtherDesignsAreNotTargets) {
 TEST(CircleEvidence, AutoFindsEveryDesign) {
   const TargetCentroider c(EvidenceCirclesOnly(), io::TargetList());
   const Eigen::Vector2d truth_near(100.37, 100.52);
-  for (const auto& [ring, background, design] : std::vector<std::tuple<double, double, CircleDesign>>{
-           {2.0, 0.45, CircleDesign::kDiscInRing},
-           {1.4, 0.45, CircleDesign::kDot},
-           {3.0, 0.45, CircleDesign::kDot},
-           {2.0, 0.08, CircleDesign::kDot}}) {
+  for (const auto& [ring, background, design] :
+       std::vector<std::tuple<double, double, CircleDesign>>{{2.0, 0.45, CircleDesign::kDiscInRing},
+                                                             {1.4, 0.45, CircleDesign::kDot},
+                                                             {3.0, 0.45, CircleDesign::kDot},
+                                                             {2.0, 0.08, CircleDesign::kDot}}) {
     const Scene s = EvidenceRender(ring, background);
     const Result r = c.Detect(s.image, "mono8");
     ASSERT_EQ(r.observations.size(), 1u) << "ring " << ring << " background " << background;

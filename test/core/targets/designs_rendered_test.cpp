@@ -102,8 +102,9 @@ TEST(DesignsRendered, AutoFindsEachDesignOnceAndCentresIt) {
       ASSERT_EQ(r.observations.size(), 1u)
           << CircleDesignName(dc.design) << " " << px << " px: " << r.discarded.size()
           << " discarded, " << r.rejections.size() << " rejected"
-          << (r.discarded.empty() ? "" : ": " + RejectReasonName(r.discarded[0].reason) + ": " +
-                                              r.discarded[0].detail);
+          << (r.discarded.empty()
+                  ? ""
+                  : ": " + RejectReasonName(r.discarded[0].reason) + ": " + r.discarded[0].detail);
       const Observation& o = r.observations[0];
       EXPECT_EQ(o.design, dc.design) << CircleDesignName(o.design) << " at " << px << " px";
       ss += (o.centre - rd.truth).squaredNorm() / 2;

@@ -32,9 +32,9 @@ namespace targets {
 namespace {
 
 const std::string kRingDir = std::string(SM_TEST_DATA_DIR) + "/targets_real_rings/";
-constexpr int kSharpRowMarkers = 24;   // counted by eye, see above
-constexpr double kSharpBlur = 1.0;     // [px] edge blur sigma of the sharp rows' markers
-constexpr double kSharpRmsPx = 0.1;    // [px] lattice fit RMS goal where sharp
+constexpr int kSharpRowMarkers = 24;  // counted by eye, see above
+constexpr double kSharpBlur = 1.0;    // [px] edge blur sigma of the sharp rows' markers
+constexpr double kSharpRmsPx = 0.1;   // [px] lattice fit RMS goal where sharp
 
 TEST(RingBoardReal, DefaultsFindEveryMarkerOfTheSharpRowsOnceOnTheLattice) {
   const cv::Mat img = cv::imread(kRingDir + "target_3_split_00.png", cv::IMREAD_UNCHANGED);
@@ -55,7 +55,8 @@ TEST(RingBoardReal, DefaultsFindEveryMarkerOfTheSharpRowsOnceOnTheLattice) {
   for (const auto& rj : r.rejections) all.push_back(rj.where);
   for (size_t a = 0; a < all.size(); ++a)
     for (size_t b = a + 1; b < all.size(); ++b)
-      EXPECT_GT((all[a] - all[b]).norm(), 20.0) << all[a].transpose() << " / " << all[b].transpose();
+      EXPECT_GT((all[a] - all[b]).norm(), 20.0)
+          << all[a].transpose() << " / " << all[b].transpose();
   const BoardLayout layout = BoardLayout::Load(kRingDir + "board_ringgrid.json");
   const LatticeFit fit = FitLattice(centres, outer, layout, img.cols, img.rows);
   ASSERT_TRUE(fit.ok) << fit.message;
@@ -111,7 +112,6 @@ TEST(RingBoardReal, WrongLatticeIsNamed) {
   std::printf("square layout on the hex board: %s\n", fit.message.c_str());
 }
 
-
 // Our own YAML layout; a wrong pitch is seen against the marker size (the
 // homography absorbs the scale): measured 0.79 pitch across, so a board of
 // 6.3 mm markers on an 8 mm pitch fits without a note, the same markers on
@@ -133,8 +133,8 @@ TEST(RingBoardReal, YamlLayoutAndWrongPitch) {
     std::ofstream(dir + name) << text;
     return dir + name;
   };
-  const BoardLayout right = BoardLayout::Load(
-      write("ring_right.yaml", "lattice: hex\npitch: 8.0\nrows: 15\ncols: 14\nmarker_diameter: 6.3\n"));
+  const BoardLayout right = BoardLayout::Load(write(
+      "ring_right.yaml", "lattice: hex\npitch: 8.0\nrows: 15\ncols: 14\nmarker_diameter: 6.3\n"));
   const LatticeFit ok = FitLattice(centres, outer, right, img.cols, img.rows);
   ASSERT_TRUE(ok.ok) << ok.message;
   EXPECT_TRUE(ok.warning.empty()) << ok.warning;

@@ -47,12 +47,12 @@ namespace targets {
 struct BoardLayout {
   enum class Kind { kHex, kSquare, kList };
   Kind kind = Kind::kHex;
-  double pitch = 0.0;                    // [mm]
-  int rows = 0;                          // [-] 0: unbounded
-  int cols = 0;                          // [-] hex: markers on a long row; 0: unbounded
-  double marker_diameter = 0.0;          // [mm] outer diameter; 0: unknown
+  double pitch = 0.0;                      // [mm]
+  int rows = 0;                            // [-] 0: unbounded
+  int cols = 0;                            // [-] hex: markers on a long row; 0: unbounded
+  double marker_diameter = 0.0;            // [mm] outer diameter; 0: unknown
   std::vector<Eigen::Vector2d> positions;  // [mm] kList
-  std::string source;                    // file it came from
+  std::string source;                      // file it came from
 
   // Throws IoError (unreadable) or ConfigError naming the file and key.
   static BoardLayout Load(const std::string& path);
@@ -62,18 +62,18 @@ struct BoardLayout {
 };
 
 struct LatticeMarker {
-  int observation = -1;        // index into the centres given
-  int row = 0, col = 0;        // lattice index (see the header comment)
-  int id = 0;                  // row * (cols or columns seen) + col
+  int observation = -1;            // index into the centres given
+  int row = 0, col = 0;            // lattice index (see the header comment)
+  int id = 0;                      // row * (cols or columns seen) + col
   Eigen::Vector2d board{0, 0};     // [mm] relative to the lattice origin
   Eigen::Vector2d residual{0, 0};  // [px] measured minus the fitted board position
-  bool inlier = false;         // |residual| <= max(1 px, 4 x the median |residual|)
+  bool inlier = false;             // |residual| <= max(1 px, 4 x the median |residual|)
 };
 
 struct LatticeFit {
   bool ok = false;
-  std::string message;   // why not ok
-  std::string warning;   // ok, but something disagrees (marker size vs pitch)
+  std::string message;  // why not ok
+  std::string warning;  // ok, but something disagrees (marker size vs pitch)
   // The board's image: u = H b, then a radial distortion about `centre`
   // (r = |u - centre| / scale): x = centre + (u - centre)(1 + k1 r^2 + k2 r^4).
   // A strong lens (the real ring photo) bends a board's rows by pixels: a

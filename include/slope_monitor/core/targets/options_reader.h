@@ -61,9 +61,9 @@ Options ReadOptions(Reader& r) {
   o.tag_refine_max_sigma =
       r.Double("tag_refine_max_sigma", o.tag_refine_max_sigma, 1e-6, 10.0, "px");
   o.detect_circles = r.Bool("detect_circles", o.detect_circles);
-  o.circle_design = ParseCircleDesign(
-      r.String("circle_design", CircleDesignName(o.circle_design),
-               {"auto", "disc_in_ring", "dot", "ring", "concentric"}));
+  o.circle_design =
+      ParseCircleDesign(r.String("circle_design", CircleDesignName(o.circle_design),
+                                 {"auto", "disc_in_ring", "dot", "ring", "concentric"}));
   o.circle_min_diameter = r.Double("circle_min_diameter", o.circle_min_diameter, 4.0, 2000.0, "px");
   o.circle_max_diameter = r.Double("circle_max_diameter", o.circle_max_diameter, 4.0, 2000.0, "px");
   o.circle_max_eccentricity =

@@ -1,7 +1,7 @@
 // Target centroider: AprilTags and circular targets (a bright disc in a dark
 // ring, a light dot on a dark ground, a dark ring with a light centre,
-// concentric or coded rings: Options::circle_design) to sub-pixel centres with a covariance, a quality and, for targets
-// that cannot be measured, a rejection reason.
+// concentric or coded rings: Options::circle_design) to sub-pixel centres with a covariance, a
+// quality and, for targets that cannot be measured, a rejection reason.
 //
 //   targets::TargetCentroider centroider(options, target_list);
 //   targets::Result r = centroider.Detect(image, "mono8");            // no pose known
@@ -75,7 +75,8 @@ namespace targets {
 // outer edge is dropped. kAuto (the default) accepts any of them, trying
 // kDiscInRing first.
 enum class CircleDesign { kAuto, kDiscInRing, kDot, kRing, kConcentric };
-std::string CircleDesignName(CircleDesign design);  // "auto", "disc_in_ring", "dot", "ring", "concentric"
+std::string CircleDesignName(
+    CircleDesign design);  // "auto", "disc_in_ring", "dot", "ring", "concentric"
 // Throws ConfigError naming `key` and the allowed names.
 CircleDesign ParseCircleDesign(const std::string& name, const std::string& key = "circle_design");
 
@@ -198,7 +199,7 @@ struct Rejection {
   int id = -1;
   Eigen::Vector2d where{0, 0};  // [px]
   RejectReason reason = RejectReason::kFitFailed;
-  std::string detail;  // e.g. "23% of the disc saturated"
+  std::string detail;      // e.g. "23% of the disc saturated"
   double radius_px = 0.0;  // circles of a design: the marker's outer radius [px] (0: unknown)
 };
 
