@@ -39,7 +39,8 @@ std::string JsonResiduals(const std::vector<PointResidual>& v) {
       << ", \"measured\": " << (r.measured ? "true" : "false");
     if (r.measured)
       o << ", \"dx\": " << Fmt("%.4f", r.residual.x()) << ", \"dy\": " << Fmt("%.4f", r.residual.y())
-        << ", \"dz\": " << Fmt("%.4f", r.residual.z()) << ", \"d3\": " << Fmt("%.4f", r.residual.norm());
+        << ", \"dz\": " << Fmt("%.4f", r.residual.z()) << ", \"d3\": " << Fmt("%.4f", r.residual.norm())
+        << ", \"pick_rms_px\": " << Fmt("%.2f", r.pick_rms_px);
     else
       o << ", \"message\": " << JsonString(r.message);
     o << "}";
@@ -50,14 +51,15 @@ std::string JsonResiduals(const std::vector<PointResidual>& v) {
 std::string MdResiduals(const char* title, const std::vector<PointResidual>& v, double rms) {
   if (v.empty()) return "";
   std::ostringstream o;
-  o << "\n## " << title << "\n\n| point | picks | dx [m] | dy [m] | dz [m] | 3-D [m] |\n|---|---|---|---|---|---|\n";
+  o << "\n## " << title << "\n\n| point | picks | dx [m] | dy [m] | dz [m] | 3-D [m] | picks rms [px] |\n"
+    << "|---|---|---|---|---|---|---|\n";
   for (const PointResidual& r : v) {
     if (r.measured)
       o << "| " << r.name << " | " << r.picks << " | " << Fmt("%.3f", r.residual.x()) << " | "
         << Fmt("%.3f", r.residual.y()) << " | " << Fmt("%.3f", r.residual.z()) << " | "
-        << Fmt("%.3f", r.residual.norm()) << " |\n";
+        << Fmt("%.3f", r.residual.norm()) << " | " << (r.check ? "" : Fmt("%.1f", r.pick_rms_px)) << " |\n";
     else
-      o << "| " << r.name << " | " << r.picks << " | " << r.message << " | | | |\n";
+      o << "| " << r.name << " | " << r.picks << " | " << r.message << " | | | | |\n";
   }
   o << "\nRMS (3-D): " << Fmt("%.3f", rms) << " m\n";
   return o.str();

@@ -574,12 +574,46 @@ void Statistics(FlightResult* result) {
   result->summary.rms_px = std::sqrt(sum_sq / n);
 }
 
+// The control points' pick residuals into the summary; then the control
+// points leave the result's scene (it holds the photos and tie points).
+void SeparateControl(const Block& block, const StageResult& stage, FlightResult* result) {
+  const adjustment::Scene& sc = stage.scene;
+  std::vector<double> sum(sc.points.size(), 0.0);
+  std::vector<int> n(sc.points.size(), 0);
+  for (const adjustment::Observation& o : sc.observations) {
+    if (stage.maps.control_of_point[o.point] < 0) continue;
+    Eigen::Vector2d px;
+    sc.cameras[0].model.Project(sc.images[o.image].exterior, sc.points[o.point].position, &px);
+    sum[o.point] += (px - o.pixel).squaredNorm();
+    ++n[o.point];
+  }
+  for (size_t p = 0; p < sc.points.size(); ++p)
+    for (PointResidual& r : result->summary.control)
+      if (n[p] && "gcp/" + r.name == sc.points[p].id) r.pick_rms_px = std::sqrt(sum[p] / n[p]);
+  adjustment::Scene ties;
+  ties.cameras = sc.cameras;
+  ties.images = sc.images;
+  std::vector<int> index(sc.points.size(), -1);
+  result->point_grey.clear();
+  for (size_t p = 0; p < sc.points.size(); ++p) {
+    const int t = stage.maps.track_of_point[p];
+    if (t < 0) continue;
+    index[p] = static_cast<int>(ties.points.size());
+    ties.points.push_back(sc.points[p]);
+    result->point_grey.push_back(block.tracks[t].grey);
+  }
+  for (adjustment::Observation o : sc.observations) {
+    if (index[o.point] < 0) continue;
+    o.point = index[o.point];
+    ties.observations.push_back(o);
+  }
+  result->scene = std::move(ties);
+}
+
 void FillResult(const Block& block, StageResult&& stage, FlightResult* result) {
-  result->scene = std::move(stage.scene);
+  SeparateControl(block, stage, result);
   result->bundle = std::move(stage.summary);
   result->photo_of_image = stage.maps.photo_of_image;
-  result->point_grey.clear();
-  for (int t : stage.maps.track_of_point) result->point_grey.push_back(t >= 0 ? block.tracks[t].grey : 255);
   result->summary.oriented = static_cast<int>(result->scene.images.size());
   result->summary.sigma0 = result->bundle.sigma0;
   if (result->bundle.precision.valid && !result->bundle.precision.interior_sigma.empty())

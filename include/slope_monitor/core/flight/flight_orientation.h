@@ -110,6 +110,9 @@ struct PointResidual {
   bool measured = false;  // false: too few picks in oriented photos (message)
   std::string message;
   Eigen::Vector3d residual = Eigen::Vector3d::Zero();  // [m] photogrammetric - survey
+  // [px] control points: RMS of the picks' reprojection errors (a pick far
+  // off, or a survey that disagrees with the block, shows here).
+  double pick_rms_px = 0.0;
 };
 
 struct FlightSummary {
@@ -129,7 +132,7 @@ struct FlightSummary {
 };
 
 struct FlightResult {
-  adjustment::Scene scene;  // oriented photos, points (tie points "tie/<k>", control "gcp/<name>")
+  adjustment::Scene scene;  // oriented photos and their tie points ("tie/<k>"; control points are in the summary)
   std::vector<int> photo_of_image;  // scene image -> photo index
   std::vector<std::uint8_t> point_grey;  // per scene point
   std::vector<double> point_error_px;    // per scene point: mean reprojection error

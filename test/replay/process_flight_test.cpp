@@ -1,0 +1,133 @@
+// process_flight (src/tools/process_flight.cpp) on real photos nobody here
+// made: four GNSS-tagged photos of ../shared/data/uav_real_caliterra (two
+// neighbouring strips flown in opposite directions), run as a crew runs it.
+// Truth: the photos' own EXIF GNSS (a consumer receiver: metres) for the
+// camera centres; the exported COLMAP model read back for its counts; bad
+// input named with the documented exit status.
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "replay_test_util.h"
+
+namespace slope_monitor {
+namespace {
+
+namespace fs = std::filesystem;
+using replay_test::ReadFile;
+using replay_test::Spawn;
+using replay_test::Wait;
+
+const fs::path kCaliterra = fs::path(SM_SOURCE_DIR) / ".." / "shared" / "data" / "uav_real_caliterra";
+const std::string kTool = std::string(SM_TOOL_DIR) + "/process_flight";
+
+fs::path Scratch(const std::string& name) { return replay_test::Scratch("process_flight_test", name); }
+
+int RunTool(const std::vector<std::string>& args, const fs::path& dir) {
+  std::vector<std::string> argv{kTool};
+  argv.insert(argv.end(), args.begin(), args.end());
+  return Wait(Spawn(argv, dir));
+}
+
+std::vector<std::vector<std::string>> ReadCsv(const fs::path& p) {
+  std::vector<std::vector<std::string>> rows;
+  std::ifstream in(p);
+  for (std::string line; std::getline(in, line);) {
+    std::vector<std::string> row;
+    std::stringstream ss(line);
+    for (std::string f; std::getline(ss, f, ',');) row.push_back(f);
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+// The folder a crew brings: four real photos, one photo of another size
+// without EXIF (written by OpenCV) and a zero-byte file.
+TEST(ProcessFlight, RealGnssFlightIsOrientedAndExportedAndBadPhotosAreNamed) {
+  ASSERT_TRUE(fs::is_directory(kCaliterra)) << kCaliterra << " (../shared/data beside the repository)";
+  const fs::path dir = Scratch("caliterra");
+  const fs::path photos = dir / "photos";
+  fs::create_directories(photos);
+  for (const char* n : {"IMG_9377.jpg", "IMG_9378.jpg", "IMG_9387.jpg", "IMG_9388.jpg"})
+    fs::create_symlink(kCaliterra / n, photos / n);
+  cv::Mat small;
+  cv::resize(cv::imread((kCaliterra / "IMG_9379.jpg").string()), small, cv::Size(800, 600));
+  cv::imwrite((photos / "IMG_small.jpg").string(), small);
+  std::ofstream(photos / "IMG_empty.jpg").close();
+
+  const int status = RunTool({"--photos", photos.string(), "--out", (dir / "out").string()}, dir);
+  const std::string out = ReadFile(dir / "stdout"), err = ReadFile(dir / "stderr");
+  EXPECT_EQ(status, 2) << err;  // oriented, but inputs were left out
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(
+      out, m, std::regex(R"(flight 1: 4 of 6 photos oriented, (\d+) points, reprojection rms ([0-9.]+) px, [0-9.]+ s\n)")))
+      << out << err;
+  EXPECT_GT(std::stoi(m[1]), 1000);
+  EXPECT_LT(std::stod(m[2]), 1.0);  // COLMAP 3.8 on all eight: 0.87 px mean (doc/uav_real_flight.md)
+  EXPECT_NE(err.find("IMG_empty.jpg: cannot be read as a photo"), std::string::npos) << err;
+  EXPECT_NE(err.find("IMG_small.jpg: no focal length in its EXIF"), std::string::npos) << err;
+
+  const fs::path f1 = dir / "out" / "flight_1";
+  EXPECT_NE(ReadFile(f1 / "crs.txt").find("crs: EPSG:32614"), std::string::npos);  // UTM zone of the photos
+  const std::string images = ReadFile(f1 / "sparse" / "images.txt");
+  EXPECT_NE(images.find("# Number of images: 4"), std::string::npos);
+  EXPECT_NE(ReadFile(f1 / "sparse" / "cameras.txt").find("1 FULL_OPENCV 4000 3000 "), std::string::npos);
+  EXPECT_NE(ReadFile(f1 / "sparse" / "points3D.txt").find("# Number of points: " + std::string(m[1])),
+            std::string::npos);
+  EXPECT_NE(ReadFile(f1 / "report.json").find("\"datum\": \"GNSS of 4 photos\""), std::string::npos);
+  // Camera centres against the photos' GNSS (same frame: crs.txt): the
+  // adjustment weighs them at 3 m horizontally, so they stay within metres.
+  const auto rows = ReadCsv(f1 / "cameras.csv");
+  ASSERT_EQ(rows.size(), 5u);
+  const std::string report = ReadFile(f1 / "report.md");
+  EXPECT_NE(report.find("| photos oriented | 4 of 4 (2 skipped) |"), std::string::npos) << report;
+  for (size_t r = 1; r < rows.size(); ++r) {
+    ASSERT_EQ(rows[r].size(), 15u);
+    for (int c = 7; c <= 9; ++c) EXPECT_GT(std::stod(rows[r][c]), 0.0) << rows[r][0];  // sigma from the covariance
+    EXPECT_LT(std::stod(rows[r][7]), 5.0) << rows[r][0];
+  }
+}
+
+TEST(ProcessFlight, BadInputIsNamedWithExitOne) {
+  const fs::path dir = Scratch("bad");
+  fs::create_directories(dir / "empty");
+  EXPECT_EQ(RunTool({"--photos", (dir / "empty").string(), "--out", (dir / "out").string()}, dir), 1);
+  EXPECT_NE(ReadFile(dir / "stderr").find("empty: holds no photo"), std::string::npos) << ReadFile(dir / "stderr");
+  EXPECT_EQ(RunTool({"--photos", (dir / "nowhere").string(), "--out", (dir / "out").string()}, dir), 1);
+  EXPECT_NE(ReadFile(dir / "stderr").find("nowhere: no such folder"), std::string::npos);
+  EXPECT_EQ(RunTool({"--out", (dir / "out").string()}, dir), 1);
+  EXPECT_NE(ReadFile(dir / "stderr").find("no --photos DIR given"), std::string::npos);
+  EXPECT_EQ(RunTool({"--help"}, dir), 0);
+  EXPECT_NE(ReadFile(dir / "stdout").find("usage: process_flight"), std::string::npos);
+
+  // One real photo, a gcp list with a CRS PROJ does not know, then one that
+  // names a photo not in the flight.
+  fs::create_directories(dir / "one");
+  fs::create_symlink(kCaliterra / "IMG_9377.jpg", dir / "one" / "IMG_9377.jpg");
+  std::ofstream(dir / "bad_crs.txt") << "EPSG:999999\n1 2 3 4 5 IMG_9377.jpg p1\n";
+  EXPECT_EQ(RunTool({"--photos", (dir / "one").string(), "--gcp", (dir / "bad_crs.txt").string(), "--out",
+                 (dir / "out").string()},
+                dir),
+            1);
+  EXPECT_NE(ReadFile(dir / "stderr").find("EPSG:999999"), std::string::npos) << ReadFile(dir / "stderr");
+  std::ofstream(dir / "gcp.txt") << "EPSG:32614\n500000 4000000 10 100 200 IMG_0001.jpg p1\n";
+  EXPECT_EQ(RunTool({"--photos", (dir / "one").string(), "--gcp", (dir / "gcp.txt").string(), "--out",
+                 (dir / "out").string()},
+                dir),
+            1);  // one photo orients nothing
+  const std::string err = ReadFile(dir / "stderr");
+  EXPECT_NE(err.find("gcp.txt:2: photo 'IMG_0001.jpg' is not in this flight"), std::string::npos) << err;
+  EXPECT_NE(ReadFile(dir / "stdout").find("flight 1: 0 of 1 photos oriented"), std::string::npos);
+  EXPECT_NE(err.find("flight 1: no start pair"), std::string::npos) << err;
+}
+
+}  // namespace
+}  // namespace slope_monitor
