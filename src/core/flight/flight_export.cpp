@@ -190,7 +190,7 @@ void WriteFlightReport(const FlightReportInput& in, const std::string& json_path
     << ",\n  \"pairs_tried\": " << in.ties->pairs.size() << ",\n  \"pairs_tied\": " << in.ties->pairs_tied
     << ",\n  \"tie_points\": " << in.ties->tie_points << ",\n  \"reprojection_rms_px\": " << Fmt("%.4f", s.rms_px)
     << ",\n  \"reprojection_mean_px\": " << Fmt("%.4f", s.mean_px) << ",\n  \"sigma0\": " << Fmt("%.4f", s.sigma0)
-    << ",\n  \"datum\": " << JsonString(s.datum) << ",\n  \"crs\": " << JsonString(in.frame.crs)
+    << ",\n  \"datum\": " << JsonString(s.datum) << ",\n  \"covariance_note\": " << JsonString(s.covariance_note) << ",\n  \"crs\": " << JsonString(in.frame.crs)
     << ",\n  \"interior\": {";
   for (int k = 0; k < camera::kNumInterior; ++k)
     j << (k ? ", " : "") << "\"" << camera::InteriorNames()[k] << "\": [" << Fmt("%.6g", interior[k]) << ", "
@@ -213,7 +213,7 @@ void WriteFlightReport(const FlightReportInput& in, const std::string& json_path
     << " skipped) |\n| pairs tied / tried | " << in.ties->pairs_tied << " / " << in.ties->pairs.size()
     << " |\n| 3-D points | " << s.points << " |\n| reprojection error | rms " << Fmt("%.3f", s.rms_px) << " px, mean "
     << Fmt("%.3f", s.mean_px) << " px |\n| sigma0 | " << Fmt("%.3f", s.sigma0) << " |\n| datum | " << s.datum
-    << " |\n| CRS | " << (in.frame.crs.empty() ? "none" : in.frame.crs) << " |\n| time | "
+    << (s.covariance_note.empty() ? "" : " (" + s.covariance_note + ")") << " |\n| CRS | " << (in.frame.crs.empty() ? "none" : in.frame.crs) << " |\n| time | "
     << Fmt("%.1f", in.total_seconds) << " s |\n| peak memory | " << Fmt("%.2f", in.peak_memory_gb) << " GB |\n";
   m << MdResiduals("Control points (in the adjustment)", s.control, s.control_rms)
     << MdResiduals("Check points (not in the adjustment)", s.check, s.check_rms)

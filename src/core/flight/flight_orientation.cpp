@@ -180,6 +180,7 @@ struct StageSetup {
   bool use_control = false;
   int leave_out = -1;  // control point left out (leave one out)
   bool final = false;  // full self-calibration, covariance
+  bool without_covariance = false;  // the covariance failed once: solve without it
 };
 
 std::vector<int> FreeInterior(const Block& block, const StageSetup& s) {
@@ -286,7 +287,7 @@ adjustment::Config StageConfig(const Block& block, const StageSetup& s, const Sc
 
 adjustment::Options StageOptions(const StageSetup& s, bool datum_free) {
   adjustment::Options o = s.options->bundle;
-  o.compute_covariance = s.final && s.leave_out < 0;
+  o.compute_covariance = s.final && s.leave_out < 0 && !s.without_covariance;
   // Leave one out starts from the final solution: a few steps reach the new minimum.
   if (!s.final || s.leave_out >= 0) o.max_iterations = s.options->intermediate_iterations;
   o.write_back_unconverged = !s.final;
@@ -672,6 +673,15 @@ FlightResult OrientFlight(const FlightInput& input, const FlightOrientationOptio
   t0 = Clock::now();
   Adjust(&block, s);  // drops the observations the site frame's datum shows as blunders
   StageResult final_stage = Adjust(&block, s);
+  if (!final_stage.summary.IsSolutionUsable() &&
+      final_stage.summary.reason.find("covariance") != std::string::npos) {
+    // A weak datum (control points known to metres, heights not given) can
+    // leave the covariance unobtainable while the solution itself is sound:
+    // keep the solution and say that it has no sigma.
+    sum.covariance_note = "no covariance: " + final_stage.summary.reason;
+    s.without_covariance = true;
+    final_stage = Adjust(&block, s);
+  }
   sum.seconds["adjustment"] = Since(t0);
   sum.not_oriented = NotOriented(block, input, options);
   if (!final_stage.summary.IsSolutionUsable()) {

@@ -14,6 +14,7 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/flight/flight_orientation.h"
+#include "slope_monitor/core/flight/flight_scene.h"
 #include "slope_monitor/core/io/gcp_list.h"
 
 namespace slope_monitor {
@@ -78,7 +79,7 @@ Synthetic MakeBlock(unsigned seed) {
     }
     return obs;
   };
-  for (int t = 0; t < 6000; ++t) {
+  for (int t = 0; t < 4000; ++t) {
     const double x = ux(rng), y = uy(rng);
     FlightTrack track;
     track.observations = observe({x, y, Terrain(x, y)}, 0.3, px_noise);
@@ -199,6 +200,47 @@ TEST(FlightOrientation, NoTiePointsNoStartPair) {
   EXPECT_FALSE(r.summary.success);
   EXPECT_NE(r.summary.message.find("no start pair"), std::string::npos) << r.summary.message;
   EXPECT_EQ(r.summary.not_oriented.size(), 18u);
+}
+
+// The graph's form: a collected epoch's scene of a UAV camera "drone" with
+// tie points and GNSS priors (plus a fixed camera that must stay untouched).
+TEST(FlightScene, AUavEpochWithoutTargetsIsStartedFromItsTiePoints) {
+  Synthetic s = MakeBlock(13);
+  adjustment::Scene scene;
+  scene.cameras.push_back({"fixed_1", TruthCamera()});
+  scene.cameras.push_back({"drone", s.photos.nominal});
+  for (size_t i = 0; i < s.photos.photos.size(); ++i) {
+    adjustment::Image im;
+    im.name = "drone@" + std::to_string(i);
+    im.camera = 1;
+    im.exterior_known = false;
+    im.position_prior = s.gnss[i];
+    im.position_prior_covariance = Eigen::Matrix3d::Identity() * 4.0;
+    scene.images.push_back(im);
+  }
+  for (size_t t = 0; t < s.ties.tracks.size(); ++t) {
+    adjustment::ObjectPoint p;
+    p.id = "tie/" + std::to_string(t);
+    p.position_known = false;
+    scene.points.push_back(p);
+    for (const auto& [photo, px] : s.ties.tracks[t].observations)
+      scene.observations.push_back({photo, static_cast<int>(t), px, Eigen::Matrix2d::Identity() * 0.09});
+  }
+  const FlightSummary sum = OrientSceneFromTiePoints(&scene, "drone");
+  ASSERT_TRUE(sum.success) << sum.message;
+  EXPECT_EQ(sum.oriented, 18);
+  EXPECT_EQ(sum.datum, "GNSS of 18 photos");
+  int known = 0;
+  for (const auto& p : scene.points) known += p.position_known;
+  EXPECT_GT(known, static_cast<int>(scene.points.size()) * 9 / 10);
+  for (size_t i = 0; i < scene.images.size(); ++i) {
+    EXPECT_TRUE(scene.images[i].exterior_known);
+    EXPECT_LT((scene.images[i].exterior.position - s.truth[i].position).head<2>().norm(), 3.0) << i;  // GNSS 2 m
+  }
+  EXPECT_EQ(scene.cameras[1].model.model(), camera::DistortionModel::kRadial);
+  EXPECT_NEAR(scene.cameras[1].model.interior()[camera::kK1], -3e-4, 0.1 * 3e-4);
+  EXPECT_EQ(scene.cameras[0].model.interior()[camera::kC], 10.3);  // the other camera untouched
+  EXPECT_THROW(OrientSceneFromTiePoints(&scene, "uav"), InvalidArgument);
 }
 
 std::string WriteText(const std::string& name, const std::string& text) {

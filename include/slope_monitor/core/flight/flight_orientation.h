@@ -122,6 +122,7 @@ struct FlightSummary {
   int points = 0, observations = 0;
   double rms_px = 0.0, mean_px = 0.0;  // reprojection error of the kept observations
   double sigma0 = 0.0;
+  std::string covariance_note;  // "" or why the final adjustment has no covariance (sigmas then 0)
   std::string datum;  // "7 control points", "GNSS of 8 photos", "model frame (no datum: arbitrary scale)"
   bool georeferenced = false;
   std::vector<std::string> not_oriented;  // "<photo>: <reason>"
