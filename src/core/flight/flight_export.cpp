@@ -48,7 +48,7 @@ std::string JsonResiduals(const std::vector<PointResidual>& v) {
   return o.str() + "]";
 }
 
-std::string MdResiduals(const char* title, const std::vector<PointResidual>& v, double rms) {
+std::string MdResiduals(const char* title, const std::vector<PointResidual>& v, double rms, bool picks_rms) {
   if (v.empty()) return "";
   std::ostringstream o;
   o << "\n## " << title << "\n\n| point | picks | dx [m] | dy [m] | dz [m] | 3-D [m] | picks rms [px] |\n"
@@ -57,7 +57,7 @@ std::string MdResiduals(const char* title, const std::vector<PointResidual>& v, 
     if (r.measured)
       o << "| " << r.name << " | " << r.picks << " | " << Fmt("%.3f", r.residual.x()) << " | "
         << Fmt("%.3f", r.residual.y()) << " | " << Fmt("%.3f", r.residual.z()) << " | "
-        << Fmt("%.3f", r.residual.norm()) << " | " << (r.check ? "" : Fmt("%.1f", r.pick_rms_px)) << " |\n";
+        << Fmt("%.3f", r.residual.norm()) << " | " << (picks_rms ? Fmt("%.1f", r.pick_rms_px) : "") << " |\n";
     else
       o << "| " << r.name << " | " << r.picks << " | " << r.message << " | | | | |\n";
   }
@@ -215,9 +215,9 @@ void WriteFlightReport(const FlightReportInput& in, const std::string& json_path
     << Fmt("%.3f", s.mean_px) << " px |\n| sigma0 | " << Fmt("%.3f", s.sigma0) << " |\n| datum | " << s.datum
     << (s.covariance_note.empty() ? "" : " (" + s.covariance_note + ")") << " |\n| CRS | " << (in.frame.crs.empty() ? "none" : in.frame.crs) << " |\n| time | "
     << Fmt("%.1f", in.total_seconds) << " s |\n| peak memory | " << Fmt("%.2f", in.peak_memory_gb) << " GB |\n";
-  m << MdResiduals("Control points (in the adjustment)", s.control, s.control_rms)
-    << MdResiduals("Check points (not in the adjustment)", s.check, s.check_rms)
-    << MdResiduals("Leave one out (each control point left out in turn)", s.leave_one_out, s.leave_one_out_rms);
+  m << MdResiduals("Control points (in the adjustment)", s.control, s.control_rms, true)
+    << MdResiduals("Check points (not in the adjustment)", s.check, s.check_rms, false)
+    << MdResiduals("Leave one out (each control point left out in turn)", s.leave_one_out, s.leave_one_out_rms, false);
   if (!s.not_oriented.empty()) {
     m << "\n## Photos not oriented\n\n";
     for (const std::string& n : s.not_oriented) m << "* " << n << "\n";
