@@ -121,6 +121,7 @@ std::vector<CollectedEpoch> EpochCollector::AddTargets(const ImageTargets& image
   }
   const std::string key = ImageKey(image.camera, image.stamp);
   RememberImage(key, image.camera, image.frame_id, image.stamp);
+  targets_in_.insert(key);
   StampNs& latest = latest_image_[image.camera];
   latest = std::max(latest, image.stamp);
   if (image.epoch != 0 && ends_.empty()) current_epoch_ = image.epoch;
@@ -264,7 +265,7 @@ std::vector<std::string> EpochCollector::MissingImages(bool blocking_only) const
   for (const auto& [source, end] : ends_) {
     uint32_t have = 0;
     for (const auto& [key, im] : images_)
-      have += im.camera == source && im.stamp <= end.stamp ? 1 : 0;
+      have += im.camera == source && im.stamp <= end.stamp && targets_in_.count(key) ? 1 : 0;
     if (have >= end.count) continue;
     // A camera's images arrive in order: once a later one is in, the missing
     // one is not coming.
@@ -425,6 +426,10 @@ CollectedEpoch EpochCollector::Take(const std::string& reason, std::vector<std::
     if (later.count(key)) later_ties[key] = count;
   tie_counts_.swap(later_ties);
   images_.swap(later);
+  std::set<std::string> later_targets;
+  for (const std::string& key : targets_in_)
+    if (images_.count(key)) later_targets.insert(key);
+  targets_in_.swap(later_targets);
   for (const auto& [source, end] : ends_) solved_end_[source] = end.stamp;
   ends_.clear();
   cut_short_.clear();

@@ -225,6 +225,11 @@ class EpochCollector {
   bool tie_points_expected_ = true;
 
   std::map<std::string, CollectedImage> images_;
+  // Images whose targets message is in (every camera's centroider sends one
+  // per photo, empty on a site without targets): only these count against
+  // an end marker's image count. An image known only from tie points (the
+  // matcher is faster than the centroider) is not complete yet.
+  std::set<std::string> targets_in_;
   std::vector<CollectedObservation> observations_, unidentified_;
   std::vector<std::pair<std::string, std::string>> dropped_;  // image key, line
   std::vector<PositionPrior> priors_;
