@@ -2,7 +2,9 @@
 
 #include <set>
 
+#include "slope_monitor/core/camera/camera_model.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/flight/flight_scene.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
 
 namespace slope_monitor {
@@ -35,6 +37,62 @@ void LogResult(uint32_t n, const adjustment::EpochAdjustmentResult& result, bool
                 result.rejected_names.size(), " names rejected by the residual test"));
 }
 
+// The UAV cameras of the scene whose photos the existing initialisation
+// (InitializeScene, OrientFromApproximatePoints) cannot start: no photo of
+// the camera sees a target (control, check or monitoring point) or has the
+// flight log's attitude (Image::attitude_from_prior), but the camera's photos
+// have tie points (a UAV-only site without targets).
+std::vector<int> UavCamerasWithoutControl(const adjustment::Scene& scene, const AdjusterParameters& params) {
+  std::vector<int> targets_seen(scene.images.size(), 0), ties_seen(scene.images.size(), 0);
+  for (const adjustment::Observation& o : scene.observations)
+    ++(scene.points[o.point].role == adjustment::PointRole::kTie ? ties_seen : targets_seen)[o.image];
+  std::vector<int> out;
+  for (size_t c = 0; c < scene.cameras.size(); ++c) {
+    if (!adjustment::IsUavCamera(scene.cameras[c].name, params.collector.uav_cameras)) continue;
+    bool started = false, tied = false;
+    for (size_t i = 0; i < scene.images.size(); ++i) {
+      if (scene.images[i].camera != static_cast<int>(c)) continue;
+      started = started || targets_seen[i] > 0 || scene.images[i].attitude_from_prior;
+      tied = tied || ties_seen[i] > 0;
+    }
+    if (!started && tied) out.push_back(static_cast<int>(c));
+  }
+  return out;
+}
+
+// A UAV flight without targets in its photos (a UAV-only site): its photos
+// and tie points are oriented by the flight module (the same code as
+// process_flight), georeferenced by the GNSS priors, and the camera's
+// interior it self-calibrated (distortion model radial) becomes the
+// adjustment's start; unless the parameters say otherwise (uav_free_interior),
+// the adjustment self-calibrates c, k1, k2 of it. Returns why a flight could
+// not be oriented ("" when all were; logged as an error too).
+std::string StartFlightsFromTiePoints(adjustment::Scene* scene, const AdjusterParameters& params, uint32_t n,
+                                      adjustment::EpochAdjustmentOptions* options, SolvedEpoch* out) {
+  std::string failed;
+  for (const int c : UavCamerasWithoutControl(*scene, params)) {
+    const std::string camera = scene->cameras[c].name;
+    const flight::FlightSummary f = flight::OrientSceneFromTiePoints(scene, camera);
+    if (!f.success) {
+      failed = Message("UAV camera '", camera, "' sees no target in its photos and its tie points could not orient ",
+                       "them: ", f.message);
+      Log(out, LogLine::kError, Message("epoch ", n, ": ", failed));
+      continue;
+    }
+    Log(out, LogLine::kInfo,
+        Message("epoch ", n, ": UAV camera '", camera, "' started from its tie points: ", f.oriented, " of ",
+                f.photos, " photos oriented, ", f.points, " points, rms ", f.rms_px, " px, datum ", f.datum));
+    if (options->free_interior_by_camera.count(camera) == 0) {
+      std::vector<int> free;
+      for (const char* name : {"c", "k1", "k2"})
+        for (int i = 0; i < camera::kNumInterior; ++i)
+          if (camera::InteriorNames()[i] == std::string(name)) free.push_back(i);
+      options->free_interior_by_camera[camera] = free;
+    }
+  }
+  return failed;
+}
+
 }  // namespace
 
 SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
@@ -56,10 +114,16 @@ SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
     return out;
   }
   try {
-    const adjustment::BuiltScene built =
+    adjustment::BuiltScene built =
         adjustment::BuildScene(epoch, models, *store, params.targets, params.scene);
+    adjustment::EpochAdjustmentOptions options = params.epoch;
+    const std::string failed = StartFlightsFromTiePoints(&built.scene, params, n, &options, &out);
+    if (!failed.empty()) {
+      s_out.message = failed;
+      return out;
+    }
     const adjustment::EpochAdjustmentResult result = adjustment::AdjustEpoch(
-        built.scene, built.unidentified, adjustment::ListedTargets(params.targets), params.epoch);
+        built.scene, built.unidentified, adjustment::ListedTargets(params.targets), options);
     LogResult(n, result, built.unidentified.empty(), &out);
     const adjustment::Summary& s = result.summary;
     out.covariance_time = s.covariance_time;

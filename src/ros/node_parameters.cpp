@@ -63,6 +63,10 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
         site->targets_file.empty() ? site_file + " (inline targets)" : site->targets_file;
   } else if (!a.target_list_path.empty()) {
     a.targets = io::TargetList::Load(a.target_list_path);
+  } else if (site) {
+    // A site without targets (a UAV flight oriented by its tie points and
+    // GNSS, fixed_targetless cameras) is a normal site: no target list.
+    a.target_list_path = site_file + " (no targets)";
   } else {
     throw ConfigError("parameter '" + p.FullKey("target_list") + "' is required (or '" +
                       p.FullKey("site_file") + "' naming a site file with targets)");

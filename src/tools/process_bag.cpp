@@ -106,6 +106,9 @@ struct Args {
   std::vector<std::string> bags;
   std::string site, site_config, target_list, radio_network, adjuster_config;
   bool uav_tie_points = false;
+  // No target list (a --site without targets and no <bag>.targets.yaml): no
+  // target stage; set by ResolveTargets.
+  bool no_targets = false;
   bool dense = true;  // the dense epoch step (replay.launch dense:=true)
   bool verbose = false;  // the bundle adjuster's INFO lines too
   std::string database, report_dir, output_bag;
@@ -154,8 +157,6 @@ Args ParseArgs(int argc, char** argv) {
   for (const std::string& bag : a.bags)
     if (!fs::is_regular_file(bag)) throw InvalidArgument("bag '" + bag + "' not found");
   // The defaults of replay.launch.
-  const std::string stem = a.bags.front().substr(0, a.bags.front().size() - 4);
-  if (a.target_list.empty()) a.target_list = stem + ".targets.yaml";
   const char* home = std::getenv("HOME");
   const std::string ros_dir = std::string(home ? home : ".") + "/.ros/slope_monitor";
   if (a.database.empty()) a.database = ros_dir + "/replay.db";
@@ -169,6 +170,38 @@ void CheckInputFiles(const Args& a) {
        {&a.site, &a.site_config, &a.target_list, &a.radio_network, &a.adjuster_config})
     if (!f->empty() && !fs::is_regular_file(*f))
       throw InvalidArgument("file '" + *f + "' not found");
+}
+
+// The targets, as replay.launch finds them: the site file's when it lists
+// them, else --target-list, else <first bag>.targets.yaml (the simulator's).
+// A --site without targets and no such file: a site without targets (a UAV
+// flight oriented by its tie points), no target stage; its UAV cameras are
+// tied by the sequence matcher without --uav-tie-points. Without --site a
+// target list is required (InvalidArgument naming the file looked for).
+void ResolveTargets(Args* a, const std::function<void(const std::string&)>& log) {
+  const std::optional<io::SiteFile> site =
+      a->site.empty() ? std::nullopt : std::optional<io::SiteFile>(io::LoadSiteFile(a->site));
+  if (site && site->targets) return;
+  if (!a->target_list.empty()) return;
+  const std::string beside = a->bags.front().substr(0, a->bags.front().size() - 4) + ".targets.yaml";
+  if (fs::is_regular_file(beside)) {
+    a->target_list = beside;
+    return;
+  }
+  if (!site)
+    throw InvalidArgument("no target list: file '" + beside +
+                          "' not found (give --target-list FILE, or --site FILE naming the targets)");
+  a->no_targets = true;
+  std::string uav;
+  for (const io::SiteCamera& c : site->cameras)
+    if (c.kind == io::CameraKind::kUav) uav += (uav.empty() ? "" : ", ") + c.name;
+  if (!uav.empty() && !a->uav_tie_points) {
+    a->uav_tie_points = true;
+    log("site '" + site->name + "' lists no targets: no target stage; UAV camera(s) " + uav +
+        " tied by their tie points (as --uav-tie-points)");
+  } else {
+    log("site '" + site->name + "' lists no targets: no target stage");
+  }
 }
 
 // ------------------------------------------------------------------ bags
@@ -301,6 +334,7 @@ class OfflineGraph {
     std::vector<std::string> with_targets;
     for (const std::string& cam : cameras)
       if (!targetless_ || !targetless_->Handles(cam)) with_targets.push_back(cam);
+    if (!args.site.empty()) site_ = io::LoadSiteFile(args.site);
     for (const std::string& cam : with_targets) SetUpCentroider(cam);
     SetUpAdjuster(with_targets);
     SetUpRadio();
@@ -409,6 +443,13 @@ class OfflineGraph {
   }
 
   int epochs_solved() const { return adjuster_accepted_ + radio_epochs_; }
+  // Why no epoch was solved, in one line (epochs_solved() == 0).
+  std::string WhyNothingSolved() const {
+    if (!last_failure_.empty()) return last_failure_;
+    if (centroiders_.empty() && !assembler_)
+      return "the bags hold no camera images (/<camera>/camera/image_raw) and no radio network runs";
+    return "no adjustment epoch was completed (no epoch end marker of the cameras; see the warnings above)";
+  }
   bool has_points() const { return !estimator_->GetSnapshot().points.empty(); }
 
  private:
@@ -426,14 +467,17 @@ class OfflineGraph {
     c.node = targets::ReadNodeOptions(r);
     r.CheckNoUnknownKeys();
     o.Check();
-    c.centroider =
-        std::make_unique<targets::TargetCentroider>(o, io::TargetList::Load(args_.target_list));
+    // A site without targets: nothing to look for, no centroider (each photo
+    // gets an empty target list, what a centroider would find).
+    if (!args_.no_targets)
+      c.centroider = std::make_unique<targets::TargetCentroider>(
+          o, site_ && site_->targets ? *site_->targets : io::TargetList::Load(args_.target_list));
     centroiders_[cam] = std::move(c);
   }
 
   void SetUpAdjuster(const std::vector<std::string>& cameras) {
     XmlRpc::XmlRpcValue p = NodeParams("bundle_adjuster");
-    ros_adapters::SetParam(&p, "target_list", args_.target_list);
+    if (!args_.target_list.empty()) ros_adapters::SetParam(&p, "target_list", args_.target_list);
     ros_adapters::SetParam(&p, "cameras", StringList(cameras));
     if (!args_.site.empty()) ros_adapters::SetParam(&p, "site_file", args_.site);
     if (!args_.adjuster_config.empty())
@@ -460,9 +504,13 @@ class OfflineGraph {
   void SetUpRadio() {
     XmlRpc::XmlRpcValue p = NodeParams("radio_phase_solver");
     const std::string stem = args_.bags.front().substr(0, args_.bags.front().size() - 4);
-    if (args_.radio_network.empty())
-      ros_adapters::SetParam(&p, "truth_file", stem + ".truth.yaml");
-    else
+    // The simulator's truth beside the bag when there is one (replay.launch's
+    // truth_file); a recorded bag has none, and a site without radio_network
+    // has no radio: the solver does not run.
+    if (args_.radio_network.empty()) {
+      if (fs::is_regular_file(stem + ".truth.yaml"))
+        ros_adapters::SetParam(&p, "truth_file", stem + ".truth.yaml");
+    } else
       ros_adapters::SetParam(&p, "network_file", args_.radio_network);
     if (!args_.site.empty()) ros_adapters::SetParam(&p, "site_file", args_.site);
     ros_adapters::ParamReader r(p, "/radio/radio_phase_solver");
@@ -654,14 +702,26 @@ class OfflineGraph {
       } catch (const tf2::TransformException&) {
       }
     }
-    task.result = std::async(
-        std::launch::async, [this, c, image = image->second, info = info->second,
-                             site_from_optical, topic = task.topic] {
-          return Timed(&stages_.targets, [&] {
-            return ros_adapters::CentroidImage(*c->centroider, *image, *info, site_from_optical,
-                                               c->camera, c->node.pixel_size, topic);
+    if (!c->centroider) {
+      // No targets to look for: the photo's empty target list at once.
+      ros_adapters::CentroidedImage none;
+      none.targets.header = image->second->header;
+      none.targets.camera_name = c->camera;
+      none.targets.image_width = image->second->width;
+      none.targets.image_height = image->second->height;
+      std::promise<ros_adapters::CentroidedImage> ready;
+      ready.set_value(std::move(none));
+      task.result = ready.get_future();
+    } else {
+      task.result = std::async(
+          std::launch::async, [this, c, image = image->second, info = info->second,
+                               site_from_optical, topic = task.topic] {
+            return Timed(&stages_.targets, [&] {
+              return ros_adapters::CentroidImage(*c->centroider, *image, *info, site_from_optical,
+                                                 c->camera, c->node.pixel_size, topic);
+            });
           });
-        });
+    }
     centroiding_ = std::move(task);
     c->images.erase(c->images.begin(), std::next(image));
     c->infos.erase(c->infos.begin(), std::next(info));
@@ -689,8 +749,10 @@ class OfflineGraph {
       const ros_adapters::CentroidedImage out = task.result.get();
       Centroider* c = task.c;
       Write("/" + c->camera + "/targets", out.targets);
-      c->last_image = task.image;
-      c->last = out;
+      if (c->centroider) {
+        c->last_image = task.image;
+        c->last = out;
+      }
       Solve(collector_->AddTargets(ros_adapters::FromMsg(out.targets), now_.toSec()));
     } catch (const std::exception& e) {
       Log("target_centroider: dropped image (topic " + task.topic + ", stamp " +
@@ -816,6 +878,8 @@ class OfflineGraph {
       return ros_adapters::SolveCollectedEpoch(epoch, models_, adjuster_params_,
                                                "/bundle_adjuster", &store_);
     });
+    if (!out.accepted)
+      last_failure_ = "epoch " + std::to_string(epoch.epoch) + " not accepted: " + out.solution.message;
     for (const ros_adapters::LogLine& line : out.log)
       if (line.level >= ros_adapters::LogLine::kWarn || args_.verbose) Log("bundle_adjuster: " + line.text);
     Publish(out);
@@ -967,6 +1031,8 @@ class OfflineGraph {
   std::map<std::string, camera::CameraModel> models_;
   size_t reported_ignored_ = 0;
   int adjuster_accepted_ = 0;
+  std::string last_failure_;  // the last epoch not accepted and why
+  std::optional<io::SiteFile> site_;  // --site
   // hex_matcher (mode sequence; --uav-tie-points): one per UAV camera
   std::vector<UavMatcher> uav_matchers_;
   // radio_phase_solver
@@ -1032,7 +1098,7 @@ class Progress {
   bool drawn_ = false;
 };
 
-int Run(const Args& args) {
+int Run(Args args) {
   std::vector<fs::path> temporaries;
   struct Cleanup {
     std::vector<fs::path>* dirs;
@@ -1059,6 +1125,7 @@ int Run(const Args& args) {
     }
   }
   Progress progress(view.getBeginTime(), view.getEndTime());
+  ResolveTargets(&args, [&progress](const std::string& line) { progress.Print("process_bag: " + line); });
   OfflineGraph graph(args, cameras, output.get(), [&progress](const std::string& line) {
     progress.Print("process_bag: " + line);
   });
@@ -1074,6 +1141,11 @@ int Run(const Args& args) {
   if (output) output->close();
   std::cerr << "process_bag: " << view.size() << " messages of " << args.bags.size() << " bag(s) ("
             << cameras.size() << " cameras) processed in " << progress.elapsed() << " s\n";
+  if (graph.epochs_solved() == 0) {
+    // A run that solves nothing fails, saying why in one line.
+    std::cerr << "process_bag: nothing solved: " << graph.WhyNothingSolved() << "\n";
+    return 2;
+  }
 
   // The summary scripts/demo prints (the deformation_summary tool's table).
   const std::string stem = args.bags.front().substr(0, args.bags.front().size() - 4);

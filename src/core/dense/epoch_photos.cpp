@@ -48,7 +48,17 @@ EpochImage OrientPhoto(const Photo& photo, const camera::CameraModel& nominal,
   out.camera = o.camera;
   out.image.name = PhotoName(o.camera, o.stamp_ns);
   out.image.image = photo.image;
-  out.image.camera = camera::CameraModel(nominal.sensor(), nominal.model(), interior);
+  // The solution's terms decide the model when it holds more than the
+  // nominal one (a UAV camera from EXIF is "none" until self-calibrated).
+  camera::DistortionModel model = nominal.model();
+  for (size_t i = 0; i < o.distortion.size(); ++i) {
+    if (o.distortion[i] == 0.0) continue;
+    const camera::DistortionModel needed = i < 3   ? camera::DistortionModel::kRadial
+                                           : i < 5 ? camera::DistortionModel::kBrown
+                                                   : camera::DistortionModel::kBrownAffinity;
+    if (static_cast<int>(needed) > static_cast<int>(model)) model = needed;
+  }
+  out.image.camera = camera::CameraModel(nominal.sensor(), model, interior);
   out.image.pose = o.pose;
   out.image.oriented = true;
   return out;
