@@ -13,6 +13,7 @@
 
 #include "slope_monitor/core/capture/geodesy.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/image_file.h"
 
 namespace slope_monitor {
 namespace flight {
@@ -80,11 +81,10 @@ class FeatureCache {
     cv::Mat image;
     std::string why;
     try {
-      image = cv::imread(p.path, cv::IMREAD_GRAYSCALE);
-      if (image.empty()) why = "cannot be decoded as an image";
-      else if (image.cols != p.width || image.rows != p.height)
+      image = io::ReadImageChecked(p.path, cv::IMREAD_GRAYSCALE, photos_.options.image);
+      if (image.cols != p.width || image.rows != p.height)
         why = Message("decodes to ", image.cols, "x", image.rows, " where its header says ", p.width, "x", p.height);
-    } catch (const cv::Exception& e) {
+    } catch (const std::exception& e) {
       why = e.what();
     }
     std::shared_ptr<const matching::PhotoFeatures> f;

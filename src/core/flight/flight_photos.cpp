@@ -37,6 +37,7 @@ std::string Describe(const CameraKey& k) {
 
 void FlightPhotoOptions::Check() const {
   RequireOption("flight photo", pixel_size_mm >= 0.0 && std::isfinite(pixel_size_mm), "pixel_size_mm", "must be >= 0");
+  image.Check();
   RequireOption("flight photo", focal_length_mm >= 0.0 && std::isfinite(focal_length_mm), "focal_length_mm",
                 "must be >= 0");
 }
@@ -58,13 +59,14 @@ std::vector<std::string> ListPhotoFolder(const std::string& folder) {
 FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths, const FlightPhotoOptions& options) {
   options.Check();
   FlightPhotos out;
+  out.options = options;
   std::vector<FlightPhoto> read;
   for (const std::string& path : paths) {
     FlightPhoto p;
     p.path = path;
     p.name = std::filesystem::path(path).filename().string();
     try {
-      if (std::filesystem::file_size(path) == 0) throw IoError("an empty file (0 bytes)");
+      io::CheckImageFile(path, options.image);
       p.exif = capture::ReadExif(path);
       p.attitude = capture::ReadPhotoAttitude(path);
     } catch (const std::exception& e) {

@@ -2,7 +2,7 @@
 // nadir block of 3 strips x 6 photos over rolling terrain, a camera with
 // strong barrel distortion that the nominal model (EXIF focal, no
 // distortion) does not know, tie-point noise 0.3 px; georeferenced by noisy
-// GNSS (2 m) or by control points picked in the photos (two of them checks).
+// GNSS (2 m) or by control points picked in the photos (two of seven checks).
 // Also the gcp_list.txt reader on hand-checkable text.
 #include <cmath>
 #include <fstream>
@@ -96,13 +96,13 @@ Synthetic MakeBlock(unsigned seed) {
       s.ties.pairs.push_back(st);
     }
   }
-  const double gx[6] = {0, 80, 40, 10, 75, 40}, gy[6] = {0, 0, 50, 100, 100, 90};
-  for (int g = 0; g < 6; ++g) {
+  const double gx[7] = {0, 80, 40, 10, 75, 80, 40}, gy[7] = {0, 0, 50, 100, 100, 50, 90};
+  for (int g = 0; g < 7; ++g) {
     FlightControlPoint cp;
     cp.name = Message("gcp", g);
     cp.site = {gx[g], gy[g], Terrain(gx[g], gy[g])};
     cp.covariance = Eigen::Matrix3d::Identity() * 1e-4;
-    cp.check = g >= 4;
+    cp.check = g == 4 || g == 6;
     cp.picks = observe(cp.site, 0.5, pick_noise);
     s.control.push_back(cp);
   }
@@ -151,14 +151,17 @@ TEST(FlightOrientation, ControlPointsPickedInPhotosGiveTheDatumAndCheckPointsSta
   const FlightSummary& sum = r.summary;
   ASSERT_TRUE(sum.success) << sum.message;
   EXPECT_EQ(sum.oriented, 18);
-  EXPECT_EQ(sum.datum, "4 control points");
+  EXPECT_EQ(sum.datum, "5 control points");
   ASSERT_EQ(sum.check.size(), 2u);
   for (const PointResidual& c : sum.check) {
     ASSERT_TRUE(c.measured) << c.name << ": " << c.message;
     EXPECT_LT(c.residual.norm(), 0.15) << c.name;  // ground pixel 4 cm
   }
-  for (const auto& p : r.scene.points) EXPECT_NE(p.id, "gcp/gcp4");  // checks never in the adjustment
-  ASSERT_EQ(sum.leave_one_out.size(), 4u);
+  ASSERT_EQ(sum.control.size(), 5u);  // checks never in the adjustment
+  for (const PointResidual& c : sum.control) EXPECT_TRUE(c.name != "gcp4" && c.name != "gcp6") << c.name;
+  EXPECT_EQ(sum.check[0].name, "gcp4");
+  for (const PointResidual& c : sum.control) EXPECT_LT(c.pick_rms_px, 2.0) << c.name;  // picks 0.5 px noise
+  ASSERT_EQ(sum.leave_one_out.size(), 5u);
   EXPECT_LT(sum.leave_one_out_rms, 0.3);
   ExpectWithinThreeSigma(r, camera::kC, 10.3);
   for (size_t i = 0; i < r.scene.images.size(); ++i) {

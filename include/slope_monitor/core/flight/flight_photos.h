@@ -10,6 +10,9 @@
 // focal length, principal point at the centre, no distortion yet; pixel size
 // from EXIF FocalPlaneXResolution, else FlightPhotoOptions::pixel_size_mm.
 // GNSS positions (EXIF) and the autopilot's attitude (XMP) are kept per photo.
+// Each file is checked whole first (io::CheckImageFile): an empty,
+// truncated or damaged photo, or one whose header claims more pixels than
+// the budget, is named and left out without being decoded.
 #pragma once
 
 #include <optional>
@@ -19,6 +22,7 @@
 #include "slope_monitor/core/camera/camera_model.h"
 #include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/capture/photo_attitude.h"
+#include "slope_monitor/core/io/image_file.h"
 
 namespace slope_monitor {
 namespace flight {
@@ -30,6 +34,9 @@ struct FlightPhotoOptions {
   // [mm] focal length of a camera whose EXIF has none (0: such photos are
   // named and left out), >= 0.
   double focal_length_mm = 0.0;
+  // Every photo is checked whole before use (io::CheckImageFile: header,
+  // truncation, pixel budget); one that fails is named and left out.
+  io::ImageFileOptions image;
   void Check() const;  // throws ConfigError naming the field
 };
 
@@ -53,6 +60,7 @@ struct FlightPhotos {
   std::string camera_label;         // "Canon EOS DIGITAL REBEL XSi 4272x2848 f=18 mm"
   int with_gnss = 0;                // photos with an EXIF position
   int with_yaw = 0;                 // photos with the autopilot's heading
+  FlightPhotoOptions options;       // as read with
 };
 
 // Image files of a folder (.jpg .jpeg .png .tif .tiff, any case), sorted by
