@@ -221,6 +221,8 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
               << s->rms_residual_px << " px, sigma0 " << s->sigma0 << "\n";
   }
   EXPECT_EQ(accepted, 1) << err;
+  // The recording is 200 MB: kept only when something failed.
+  if (!::testing::Test::HasFailure()) fs::remove_all(dir / "bags");
 }
 
 // The run's messages on bad input: no target list without a site file, and
