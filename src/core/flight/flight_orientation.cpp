@@ -440,7 +440,11 @@ Block MakeBlock(const FlightInput& input) {
   Block b;
   const size_t n = input.photos->photos.size();
   const camera::CameraModel& nominal = input.photos->nominal;
-  b.model = camera::CameraModel(nominal.sensor(), camera::DistortionModel::kRadial, nominal.interior());
+  // A camera from EXIF (no distortion yet) is self-calibrated with radial
+  // terms; a calibrated camera keeps its model and terms.
+  b.model = nominal.model() == camera::DistortionModel::kNone
+                ? camera::CameraModel(nominal.sensor(), camera::DistortionModel::kRadial, nominal.interior())
+                : nominal;
   b.exterior.resize(n);
   b.oriented.assign(n, 0);
   b.failed_at.assign(n, 0);

@@ -246,6 +246,35 @@ TEST(FlightScene, AUavEpochWithoutTargetsIsStartedFromItsTiePoints) {
   EXPECT_THROW(OrientSceneFromTiePoints(&scene, "uav"), InvalidArgument);
 }
 
+// A calibrated camera with decentring terms (brown) keeps its model.
+TEST(FlightScene, ACalibratedCameraKeepsItsDistortionModel) {
+  Synthetic s = MakeBlock(17);
+  std::array<double, camera::kNumInterior> in = TruthCamera().interior();
+  in[camera::kP1] = 6e-6;
+  adjustment::Scene scene;
+  scene.cameras.push_back({"drone", camera::CameraModel(TruthCamera().sensor(), camera::DistortionModel::kBrown, in)});
+  for (size_t i = 0; i < s.photos.photos.size(); ++i) {
+    adjustment::Image im;
+    im.name = "drone@" + std::to_string(i);
+    im.exterior_known = false;
+    im.position_prior = s.gnss[i];
+    im.position_prior_covariance = Eigen::Matrix3d::Identity() * 4.0;
+    scene.images.push_back(im);
+  }
+  for (size_t t = 0; t < s.ties.tracks.size(); ++t) {
+    adjustment::ObjectPoint p;
+    p.id = "tie/" + std::to_string(t);
+    p.position_known = false;
+    scene.points.push_back(p);
+    for (const auto& [photo, px] : s.ties.tracks[t].observations)
+      scene.observations.push_back({photo, static_cast<int>(t), px, Eigen::Matrix2d::Identity() * 0.09});
+  }
+  const FlightSummary sum = OrientSceneFromTiePoints(&scene, "drone");
+  ASSERT_TRUE(sum.success) << sum.message;
+  EXPECT_EQ(sum.oriented, 18);
+  EXPECT_EQ(scene.cameras[0].model.model(), camera::DistortionModel::kBrown);
+}
+
 std::string WriteText(const std::string& name, const std::string& text) {
   const std::string path = ::testing::TempDir() + name;
   std::ofstream(path) << text;

@@ -20,7 +20,8 @@ namespace flight {
 // scene's tie points, georeferenced by the images' GNSS position priors (their
 // covariance gives the sigma) or the control points they see. Writes the
 // exterior orientations (exterior_known = true), the tie points' positions
-// (position_known = true) and the camera's interior (distortion model radial)
+// (position_known = true) and the camera's interior (distortion model radial
+// for a camera without distortion terms, else its own)
 // into *scene; leaves *scene as it was when the summary says no success.
 // Throws InvalidArgument naming the camera when the scene has none of that name.
 FlightSummary OrientSceneFromTiePoints(adjustment::Scene* scene, const std::string& camera,
