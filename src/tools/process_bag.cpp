@@ -1141,8 +1141,10 @@ int Run(Args args) {
   if (output) output->close();
   std::cerr << "process_bag: " << view.size() << " messages of " << args.bags.size() << " bag(s) ("
             << cameras.size() << " cameras) processed in " << progress.elapsed() << " s\n";
-  if (graph.epochs_solved() == 0) {
-    // A run that solves nothing fails, saying why in one line.
+  if (graph.epochs_solved() == 0 && !graph.has_points()) {
+    // A run that solves nothing (no adjusted or radio epoch, and no point
+    // from elsewhere, e.g. a fixed_targetless camera's field) fails, saying
+    // why in one line.
     std::cerr << "process_bag: nothing solved: " << graph.WhyNothingSolved() << "\n";
     return 2;
   }
