@@ -116,7 +116,7 @@ bool ParseArgs(int argc, char** argv, Args* a) {
 // UTM zone (WGS 84) of a longitude / latitude.
 std::string UtmEpsg(double lon, double lat) {
   const int zone = std::clamp(static_cast<int>(std::floor((lon + 180.0) / 6.0)) + 1, 1, 60);
-  return Message("EPSG:", lat >= 0.0 ? 32600 + zone : 32700 + zone);
+  return io::WgsUtmEpsg(zone, lat < 0.0);
 }
 
 // The site frame of the run: from the gcp list, the site file or the first
@@ -149,6 +149,13 @@ std::optional<SiteCrs> MakeFrame(const Args& args, const std::optional<io::GcpLi
   return crs;
 }
 
+// false: every height of the list is 0 (a list without heights).
+bool HasHeights(const io::GcpList& gcp) {
+  for (const io::GcpPoint& p : gcp.points)
+    if (p.geo.z() != 0.0) return true;
+  return false;
+}
+
 // Control points of the gcp list in this flight's photos; picks naming a
 // photo not in the flight are named on stderr (*skipped counts them).
 std::vector<flight::FlightControlPoint> ControlPoints(const io::GcpList& gcp, const SiteCrs& crs,
@@ -156,14 +163,7 @@ std::vector<flight::FlightControlPoint> ControlPoints(const io::GcpList& gcp, co
                                                       int* skipped) {
   std::vector<flight::FlightControlPoint> out;
   const double s = args.gcp_sigma;
-  bool heights = false;
-  for (const io::GcpPoint& p : gcp.points) heights |= p.geo.z() != 0.0;
-  static bool said = false;
-  if (!heights && !said) {
-    std::cerr << "process_flight: " << gcp.path << ": every height is 0: taken as not given (horizontal control;"
-              << " heights held within " << kNoHeightSigma << " m of 0)\n";
-    said = true;
-  }
+  const bool heights = HasHeights(gcp);
   for (const io::GcpPoint& p : gcp.points) {
     flight::FlightControlPoint cp;
     cp.name = p.name;
@@ -268,6 +268,9 @@ int main(int argc, char** argv) {
   try {
     std::optional<io::GcpList> gcp;
     if (!args.gcp.empty()) gcp = io::ReadGcpList(args.gcp);
+    if (gcp && !HasHeights(*gcp))
+      std::cerr << "process_flight: " << gcp->path << ": every height is 0: taken as not given (horizontal control;"
+                << " heights held within " << kNoHeightSigma << " m of 0)\n";
     std::optional<SiteCrs> crs;
     flight::FlightFrame frame;
     for (size_t k = 0; k < args.folders.size(); ++k) {

@@ -29,6 +29,8 @@ double GcpNumber(const std::string& text, const std::string& where, const char* 
 
 }  // namespace
 
+std::string WgsUtmEpsg(int zone, bool south) { return Message("EPSG:", (south ? 32700 : 32600) + zone); }
+
 std::string NormaliseGcpCrs(const std::string& crs) {
   std::istringstream in(crs);
   std::string datum, utm, zone;
@@ -36,7 +38,7 @@ std::string NormaliseGcpCrs(const std::string& crs) {
     const char hemi = zone.back();
     const int z = std::atoi(zone.substr(0, zone.size() - 1).c_str());
     if (z >= 1 && z <= 60 && (hemi == 'N' || hemi == 'S' || hemi == 'n' || hemi == 's'))
-      return Message("EPSG:", (hemi == 'N' || hemi == 'n') ? 32600 + z : 32700 + z);
+      return WgsUtmEpsg(z, hemi == 'S' || hemi == 's');
   }
   // A PROJ string of UTM on WGS 84 is that EPSG code (GIS tools want one);
   // any other PROJ string is made a CRS definition.
@@ -52,7 +54,7 @@ std::string NormaliseGcpCrs(const std::string& crs) {
     const bool plain = (kv.count("+units") == 0 || kv["+units"] == "m") && kv.count("+towgs84") == 0 &&
                        kv.count("+x_0") == 0 && kv.count("+k") == 0 && kv.count("+k_0") == 0;
     if (kv["+proj"] == "utm" && wgs84 && zone >= 1 && zone <= 60 && plain)
-      return Message("EPSG:", kv.count("+south") ? 32700 + zone : 32600 + zone);
+      return WgsUtmEpsg(zone, kv.count("+south") > 0);
     if (kv.count("+type") == 0) return crs + " +type=crs";
   }
   return crs;

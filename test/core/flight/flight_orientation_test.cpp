@@ -205,30 +205,40 @@ TEST(FlightOrientation, NoTiePointsNoStartPair) {
   EXPECT_EQ(r.summary.not_oriented.size(), 18u);
 }
 
+// The synthetic block as the graph collects it: camera `drone` (appended
+// to the scene's cameras), one image per photo with its GNSS prior (2 m),
+// the tracks as tie points, all unknown.
+void AddDroneEpoch(const Synthetic& s, const adjustment::Camera& drone, adjustment::Scene* scene) {
+  const int cam = static_cast<int>(scene->cameras.size());
+  scene->cameras.push_back(drone);
+  const int first_image = static_cast<int>(scene->images.size());
+  for (size_t i = 0; i < s.photos.photos.size(); ++i) {
+    adjustment::Image im;
+    im.name = "drone@" + std::to_string(i);
+    im.camera = cam;
+    im.exterior_known = false;
+    im.position_prior = s.gnss[i];
+    im.position_prior_covariance = Eigen::Matrix3d::Identity() * 4.0;
+    scene->images.push_back(im);
+  }
+  for (size_t t = 0; t < s.ties.tracks.size(); ++t) {
+    adjustment::ObjectPoint p;
+    p.id = "tie/" + std::to_string(t);
+    p.position_known = false;
+    const int point = static_cast<int>(scene->points.size());
+    scene->points.push_back(p);
+    for (const auto& [photo, px] : s.ties.tracks[t].observations)
+      scene->observations.push_back({first_image + photo, point, px, Eigen::Matrix2d::Identity() * 0.09});
+  }
+}
+
 // The graph's form: a collected epoch's scene of a UAV camera "drone" with
 // tie points and GNSS priors (plus a fixed camera that must stay untouched).
 TEST(FlightScene, AUavEpochWithoutTargetsIsStartedFromItsTiePoints) {
   Synthetic s = MakeBlock(13);
   adjustment::Scene scene;
   scene.cameras.push_back({"fixed_1", TruthCamera()});
-  scene.cameras.push_back({"drone", s.photos.nominal});
-  for (size_t i = 0; i < s.photos.photos.size(); ++i) {
-    adjustment::Image im;
-    im.name = "drone@" + std::to_string(i);
-    im.camera = 1;
-    im.exterior_known = false;
-    im.position_prior = s.gnss[i];
-    im.position_prior_covariance = Eigen::Matrix3d::Identity() * 4.0;
-    scene.images.push_back(im);
-  }
-  for (size_t t = 0; t < s.ties.tracks.size(); ++t) {
-    adjustment::ObjectPoint p;
-    p.id = "tie/" + std::to_string(t);
-    p.position_known = false;
-    scene.points.push_back(p);
-    for (const auto& [photo, px] : s.ties.tracks[t].observations)
-      scene.observations.push_back({photo, static_cast<int>(t), px, Eigen::Matrix2d::Identity() * 0.09});
-  }
+  AddDroneEpoch(s, {"drone", s.photos.nominal}, &scene);
   const FlightSummary sum = OrientSceneFromTiePoints(&scene, "drone");
   ASSERT_TRUE(sum.success) << sum.message;
   EXPECT_EQ(sum.oriented, 18);
@@ -252,23 +262,8 @@ TEST(FlightScene, ACalibratedCameraKeepsItsDistortionModel) {
   std::array<double, camera::kNumInterior> in = TruthCamera().interior();
   in[camera::kP1] = 6e-6;
   adjustment::Scene scene;
-  scene.cameras.push_back({"drone", camera::CameraModel(TruthCamera().sensor(), camera::DistortionModel::kBrown, in)});
-  for (size_t i = 0; i < s.photos.photos.size(); ++i) {
-    adjustment::Image im;
-    im.name = "drone@" + std::to_string(i);
-    im.exterior_known = false;
-    im.position_prior = s.gnss[i];
-    im.position_prior_covariance = Eigen::Matrix3d::Identity() * 4.0;
-    scene.images.push_back(im);
-  }
-  for (size_t t = 0; t < s.ties.tracks.size(); ++t) {
-    adjustment::ObjectPoint p;
-    p.id = "tie/" + std::to_string(t);
-    p.position_known = false;
-    scene.points.push_back(p);
-    for (const auto& [photo, px] : s.ties.tracks[t].observations)
-      scene.observations.push_back({photo, static_cast<int>(t), px, Eigen::Matrix2d::Identity() * 0.09});
-  }
+  AddDroneEpoch(s, {"drone", camera::CameraModel(TruthCamera().sensor(), camera::DistortionModel::kBrown, in)},
+                &scene);
   const FlightSummary sum = OrientSceneFromTiePoints(&scene, "drone");
   ASSERT_TRUE(sum.success) << sum.message;
   EXPECT_EQ(sum.oriented, 18);

@@ -44,6 +44,9 @@ struct GcpList {
 // same point picked twice in one photo.
 GcpList ReadGcpList(const std::string& path);
 
+// "EPSG:326NN" (north) / "EPSG:327NN" (south): WGS 84 / UTM zone NN, 1..60.
+std::string WgsUtmEpsg(int zone, bool south);
+
 // "WGS84 UTM 11N" / "WGS84 UTM 33S" -> "EPSG:32611" / "EPSG:32733"; anything
 // else is returned unchanged (PROJ strings and EPSG codes).
 std::string NormaliseGcpCrs(const std::string& crs);
