@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 #include <Eigen/Dense>
@@ -174,6 +175,28 @@ double CorrelatedCells(double length, double cell_area) {
   return std::max(1.0, 2 * M_PI * length * length / cell_area);
 }
 
+// 1-sigma of the horizontal shift at the final state (see Coregistration::shift_sigma).
+Eigen::Vector2d ShiftSigma(const io::GeoRaster& reference, const StableResiduals& s, const Coregistration& c,
+                           double correlated_cells) {
+  Eigen::Matrix<double, 5, 5> n = Eigen::Matrix<double, 5, 5>::Zero();
+  for (size_t i = 0; i < s.cells.size(); ++i) {
+    if (!s.inlier[i]) continue;
+    const int row = s.cells[i] / reference.width, col = s.cells[i] % reference.width;
+    Eigen::Vector2d g;
+    if (!Gradient(reference, row, col, &g)) continue;
+    const Eigen::Vector2d xy = reference.CellCentre(row, col) - c.centre;
+    Eigen::Matrix<double, 5, 1> a;
+    a << -g.x(), -g.y(), 1.0, xy.x(), xy.y();
+    n += a * a.transpose();
+  }
+  const double inf = std::numeric_limits<double>::infinity();
+  Eigen::FullPivLU<Eigen::Matrix<double, 5, 5>> lu(n);
+  if (lu.rank() < 5) return Eigen::Vector2d(inf, inf);
+  const Eigen::Matrix<double, 5, 5> q = lu.inverse();
+  const double v = s.rms * s.rms * correlated_cells;
+  return Eigen::Vector2d(std::sqrt(std::max(0.0, v * q(0, 0))), std::sqrt(std::max(0.0, v * q(1, 1))));
+}
+
 }  // namespace
 
 void DemChangeOptions::Check() const {
@@ -284,6 +307,7 @@ Coregistration Coregister(const io::GeoRaster& reference, const io::GeoRaster& a
   const double area = reference.cell_size * reference.cell_size;
   c.level_sigma =
       s.rms / std::sqrt(std::max(1.0, s.inliers / CorrelatedCells(c.correlation_length, area)));
+  c.shift_sigma = ShiftSigma(reference, s, c, CorrelatedCells(c.correlation_length, area));
   return c;
 }
 

@@ -53,6 +53,10 @@ struct DemChangeOptions {
 
 struct Coregistration {
   Eigen::Vector2d shift = Eigen::Vector2d::Zero();   // [m] s: the after DEM is read at x + s
+  // [m] 1 sigma of s: the final residual's variance times the normal matrix's
+  // inverse (no ridge), inflated by the cells one correlation range holds;
+  // infinite where the stable terrain's slopes cannot reveal the shift.
+  Eigen::Vector2d shift_sigma = Eigen::Vector2d::Zero();
   double vertical = 0.0;                             // [m] a (at the centre)
   Eigen::Vector2d tilt = Eigen::Vector2d::Zero();    // [m/m] b, c
   Eigen::Vector2d centre = Eigen::Vector2d::Zero();  // [m] xc, yc
