@@ -55,6 +55,9 @@ PhotoAttitude ReadPhotoAttitude(const std::string& path) {
                 path, &a.pitch_deg) &&
       XmpNumber(xmp, {"Xmp.sensefly.Roll", "Xmp.drone-dji.FlightRollDegree", "Xmp.Camera.Roll"},
                 path, &a.roll_deg);
+  a.has_height_above_ground =
+      XmpNumber(xmp, {"Xmp.drone-dji.RelativeAltitude", "Xmp.Camera.AboveGroundAltitude"}, path,
+                &a.height_above_ground_m);
   const Exiv2::ExifData& exif = image->exifData();
   const auto res = exif.findKey(Exiv2::ExifKey("Exif.Photo.FocalPlaneXResolution"));
   if (res != exif.end() && res->count() > 0) {

@@ -33,9 +33,14 @@ std::vector<matching::PhotoFootprint> Footprints(const FlightPhotos& photos,
     if (!p.exif.has_gps) continue;
     const capture::Geodetic g{p.exif.gps.latitude_deg, p.exif.gps.longitude_deg, 0.0};
     if (!ltp) ltp.emplace(g);
+    // The photo's own flying height where its XMP says it (above the take-off
+    // point: on a slope the ground under the photo may lie lower or higher).
+    matching::PairSelectionOptions own = selection;
+    if (p.attitude.has_height_above_ground && p.attitude.height_above_ground_m > 1.0)
+      own.height_above_ground = p.attitude.height_above_ground_m;
     out[i] = matching::NadirFootprint(ltp->ToSite(g).head<2>(), p.attitude.has_yaw, p.attitude.yaw_deg,
                                       cv::Size(p.width, p.height), p.exif.focal_length_mm,
-                                      p.attitude.pixel_size_mm, selection);
+                                      p.attitude.pixel_size_mm, own);
   }
   return out;
 }

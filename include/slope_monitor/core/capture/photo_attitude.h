@@ -9,6 +9,10 @@
 //     FocalPlaneResolutionUnit (2 inch, 3 cm, 4 mm, 5 um), divided into the
 //     unit's length. Cameras write it for the full sensor width
 //     (Exif.Photo.PixelXDimension pixels);
+//   * the flying height above the take-off point [m]: DJI
+//     (Xmp.drone-dji.RelativeAltitude, written as "+68.20") and Pix4D-style
+//     camera tags (Xmp.Camera.AboveGroundAltitude); GNSS heights are above
+//     the ellipsoid or sea level and say nothing about the ground;
 //   * the image size from its header (without decoding the pixels).
 #pragma once
 
@@ -27,6 +31,8 @@ struct PhotoAttitude {
   double roll_deg = 0.0;   // [deg]
   bool has_pixel_size = false;
   double pixel_size_mm = 0.0;  // [mm]
+  bool has_height_above_ground = false;
+  double height_above_ground_m = 0.0;  // [m] the autopilot's relative altitude
   int width = 0;               // [px] from the image header (exiv2), 0 when unknown
   int height = 0;              // [px]
 };
