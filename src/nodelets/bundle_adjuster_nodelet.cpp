@@ -4,7 +4,9 @@
 // core/adjustment/epoch_collector.h), and publishes what the core computes for
 // each complete epoch: the solution, tf of every camera, the adjusted points
 // with their sigma, the camera frustums (rviz), and displacements of monitoring points against the
-// reference epoch. The process_bag tool drives the same core the same way.
+// reference epoch. The work is ros_adapters::AdjusterStep (ros/adjuster_step.h),
+// which process_bag drives too; this nodelet subscribes, orders the cameras'
+// markers, publishes and diagnoses.
 #include <algorithm>
 #include <map>
 #include <memory>
@@ -31,20 +33,13 @@
 #include "slope_monitor/SetReferenceEpoch.h"
 #include "slope_monitor/TargetObservationArray.h"
 #include "slope_monitor/TiePointArray.h"
-#include "slope_monitor/core/adjustment/epoch_adjustment.h"
-#include "slope_monitor/core/adjustment/epoch_collector.h"
-#include "slope_monitor/core/adjustment/epochs.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/input_order.h"
-#include "slope_monitor/core/io/target_list.h"
-#include "slope_monitor/ros/resect_service.h"
-#include "slope_monitor/ros/adjustment_conversions.h"
-#include "slope_monitor/ros/conversions.h"
-#include "slope_monitor/ros/epoch_solver.h"
+#include "slope_monitor/ros/adjuster_step.h"
 #include "slope_monitor/ros/node_parameters.h"
 #include "slope_monitor/ros/parameters.h"
+#include "slope_monitor/ros/resect_service.h"
 #include "slope_monitor/ros/setup.h"
-#include "slope_monitor/ros/view_markers.h"
 
 namespace slope_monitor {
 
@@ -54,7 +49,11 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     ros_adapters::GraphReady ready(getPrivateNodeHandle());
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh); })) {
+    if (const auto error = ros_adapters::SetUpError([&] {
+          ros_adapters::ParamReader p(pnh);
+          step_ = std::make_unique<ros_adapters::AdjusterStep>(ros_adapters::ReadAdjusterParameters(p),
+                                                               getName());
+        })) {
       NODELET_ERROR("bundle_adjuster: %s; not advertising anything", error->c_str());
       setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(
           nh, pnh, "bundle_adjuster", "parameters rejected: " + *error);
@@ -68,31 +67,31 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     displacements_pub_ =
         pnh.advertise<slope_monitor::PointDisplacementArray>("displacements", 5, true);
     frustums_pub_ = pnh.advertise<visualization_msgs::MarkerArray>("frustums", 1, true);
-    for (const std::string& topic : params_.target_topics)
+    for (const std::string& topic : params().target_topics)
       target_subs_.push_back(nh.subscribe(topic, 500, &BundleAdjusterNodelet::OnTargets, this));
-    for (const std::string& cam : params_.collector.cameras) {
+    for (const std::string& cam : params().collector.cameras) {
       info_subs_.push_back(nh.subscribe<sensor_msgs::CameraInfo>(
-          params_.CameraInfoTopic(cam), 5,
+          params().CameraInfoTopic(cam), 5,
           [this, cam](const sensor_msgs::CameraInfoConstPtr& m) { OnCameraInfo(cam, m); }));
     }
     // Large queues: a long solve holds the callbacks, and nothing may be lost.
-    for (const std::string& topic : params_.tie_topics)
+    for (const std::string& topic : params().tie_topics)
       tie_subs_.push_back(nh.subscribe(topic, 2000, &BundleAdjusterNodelet::OnTiePoints, this));
-    for (const std::string& topic : params_.prior_topics)
+    for (const std::string& topic : params().prior_topics)
       prior_subs_.push_back(nh.subscribe(topic, 500, &BundleAdjusterNodelet::OnPositionPrior, this));
-    for (const std::string& topic : params_.epoch_topics)
+    for (const std::string& topic : params().epoch_topics)
       epoch_subs_.push_back(nh.subscribe(topic, 20, &BundleAdjusterNodelet::OnEpoch, this));
     // The configured cameras' markers in epoch order: each camera's topic is
     // in order, but on a fast replay or a busy machine one camera's next
     // epoch can overtake another's end marker, which would cut that one short.
-    if (!params_.collector.cameras.empty())
+    if (!params().collector.cameras.empty())
       marker_order_ = std::make_unique<InputOrder<slope_monitor::EpochMarkerConstPtr>>(
-          params_.collector.cameras);
+          params().collector.cameras);
     // A live installation may switch off the services that change state (ROS 1
     // has no authentication; doc/security.md).
-    if (params_.enable_run_adjustment)
+    if (params().enable_run_adjustment)
       run_srv_ = pnh.advertiseService("run_adjustment", &BundleAdjusterNodelet::OnRun, this);
-    if (params_.enable_set_reference_epoch)
+    if (params().enable_set_reference_epoch)
       reference_srv_ =
           pnh.advertiseService("set_reference_epoch", &BundleAdjusterNodelet::OnSetReference, this);
     // Resection of a camera from surveyed points (ros/resect_service.h): it
@@ -105,58 +104,42 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
                                                  [this] { OnEndOfInput(); });
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     updater_->setHardwareID("bundle_adjuster");
-    updater_->add("adjustment", this, &BundleAdjusterNodelet::Diagnose);
+    updater_->add("adjustment", [this](diagnostic_updater::DiagnosticStatusWrapper& stat) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      step_->Diagnose(stat);
+    });
     NODELET_INFO("bundle_adjuster: %zu target topics, %zu cameras, %zu targets in '%s'",
-                 params_.target_topics.size(), params_.collector.cameras.size(),
-                 params_.targets.targets().size(), params_.target_list_path.c_str());
+                 params().target_topics.size(), params().collector.cameras.size(),
+                 params().targets.targets().size(), params().target_list_path.c_str());
   }
 
  private:
-  void ReadParameters(ros::NodeHandle& pnh) {
-    ros_adapters::ParamReader p(pnh);
-    params_ = ros_adapters::ReadAdjusterParameters(p);
-    collector_ = std::make_unique<adjustment::EpochCollector>(params_.collector, &params_.targets);
-  }
+  const ros_adapters::AdjusterParameters& params() const { return step_->parameters(); }
 
-  // ---------------------------------------------------------------- input
   static double Now() { return ros::WallTime::now().toSec(); }
 
-  void OnCameraInfo(const std::string& camera_name, const sensor_msgs::CameraInfoConstPtr& msg) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    try {
-      models_[camera_name] =
-          ros_adapters::CameraModelFromCameraInfo(*msg, params_.PixelSizeOf(camera_name));
-    } catch (const Error& e) {
-      NODELET_ERROR_THROTTLE(10.0, "bundle_adjuster: camera_info of '%s': %s", camera_name.c_str(),
-                             e.what());
-    }
-  }
-
-  // A replay of a site file's graph waits only for the cameras the bag has:
-  // without time-outs, a listed camera that never sends (the UAV did not fly)
-  // would hold every epoch to the end. Decided once, at the first input,
-  // by which epoch topics have a publisher (the player advertises all of its
-  // bag's topics before it plays), as process_bag takes the bag's cameras.
-  // Caller holds mutex_.
+  // A replay of a site file's graph waits only for the cameras the bag has
+  // (ros_adapters::ReplayCameras, as process_bag decides it): decided once, at
+  // the first input, by which epoch topics have a publisher (the player
+  // advertises all of its bag's topics before it plays). Caller holds mutex_.
   void CheckReplayCameras() {
     if (cameras_checked_) return;
     cameras_checked_ = true;
-    if (ros_adapters::LiveTimeouts() || !params_.cameras_from_site ||
-        epoch_subs_.size() != params_.collector.cameras.size())
-      return;
-    std::vector<std::string> kept;
-    for (size_t i = 0; i < epoch_subs_.size(); ++i) {
-      if (epoch_subs_[i].getNumPublishers() > 0) {
-        kept.push_back(params_.collector.cameras[i]);
-      } else {
-        NODELET_INFO("bundle_adjuster: camera '%s' of the site file has nothing on %s in this replay: "
-                     "epochs do not wait for it",
-                     params_.collector.cameras[i].c_str(), epoch_subs_[i].getTopic().c_str());
-      }
-    }
-    if (kept.size() == params_.collector.cameras.size() || kept.empty()) return;
-    params_.collector.cameras = kept;
-    collector_ = std::make_unique<adjustment::EpochCollector>(params_.collector, &params_.targets);
+    if (ros_adapters::LiveTimeouts()) return;
+    std::map<std::string, const ros::Subscriber*> epoch_sub;
+    for (size_t i = 0; i < epoch_subs_.size() && i < params().collector.cameras.size(); ++i)
+      epoch_sub[params().collector.cameras[i]] = &epoch_subs_[i];
+    std::vector<ros_adapters::LogLine> log;
+    const std::vector<std::string> kept = ros_adapters::ReplayCameras(
+        params(),
+        [&](const std::string& camera) {
+          const auto it = epoch_sub.find(camera);
+          return it == epoch_sub.end() || it->second->getNumPublishers() > 0;
+        },
+        &log);
+    Log(log);
+    if (kept == params().collector.cameras) return;
+    step_->KeepCameras(kept);
     marker_order_ = std::make_unique<InputOrder<slope_monitor::EpochMarkerConstPtr>>(kept);
   }
 
@@ -168,33 +151,38 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     return false;
   }
 
+  void OnCameraInfo(const std::string& camera_name, const sensor_msgs::CameraInfoConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (const auto error = step_->OnCameraInfo(camera_name, *msg))
+      NODELET_ERROR_THROTTLE(10.0, "bundle_adjuster: camera_info of '%s': %s", camera_name.c_str(),
+                             error->c_str());
+  }
+
   void OnTargets(const slope_monitor::TargetObservationArrayConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     CheckReplayCameras();
-    collector_->SetTiePointsExpected(MatcherPublishing());
-    Solve(collector_->AddTargets(ros_adapters::FromMsg(*msg), Now()));
+    step_->SetTiePointsExpected(MatcherPublishing());
+    Publish(step_->AddTargets(*msg, Now()));
   }
 
   void OnTiePoints(const slope_monitor::TiePointArrayConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     CheckReplayCameras();
-    // No matcher publishing (not started, or failed on its parameters):
-    // nothing to wait for.
-    collector_->SetTiePointsExpected(MatcherPublishing());
-    Solve(collector_->AddTies(ros_adapters::FromMsg(*msg), Now()));
+    step_->SetTiePointsExpected(MatcherPublishing());
+    Publish(step_->AddTies(*msg, Now()));
   }
 
   void OnPositionPrior(const geometry_msgs::PoseWithCovarianceStampedConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     CheckReplayCameras();
-    collector_->AddPrior(ros_adapters::FromMsg(*msg));
+    step_->AddPrior(*msg);
   }
 
   // Begin and end markers: both move their camera on in the marker order.
   void OnEpoch(const slope_monitor::EpochMarkerConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     CheckReplayCameras();
-    const auto& cameras = params_.collector.cameras;
+    const auto& cameras = params().collector.cameras;
     // A camera's marker of epoch k waits until every camera has begun epoch k
     // (unnumbered markers, epoch 0, are not held).
     if (!marker_order_ || msg->epoch == 0 ||
@@ -208,30 +196,29 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   // Caller holds mutex_.
   void RouteEnd(const slope_monitor::EpochMarkerConstPtr& msg) {
     if (!msg->end) return;
-    collector_->SetTiePointsExpected(MatcherPublishing());
-    Solve(collector_->AddEnd(ros_adapters::FromMsg(*msg), Now()));
-    for (; reported_ignored_ < collector_->ignored().size(); ++reported_ignored_)
-      NODELET_WARN("bundle_adjuster: %s", collector_->ignored()[reported_ignored_].c_str());
+    step_->SetTiePointsExpected(MatcherPublishing());
+    std::vector<ros_adapters::LogLine> ignored;
+    const std::vector<ros_adapters::SolvedEpoch> epochs = step_->AddEnd(*msg, Now(), &ignored);
+    Log(ignored);
+    Publish(epochs);
   }
 
   void OnTimer(const ros::WallTimerEvent&) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
+      const double wait = params().collector.epoch_wait;
       if (marker_order_ && ros_adapters::LiveTimeouts()) {
         // Live: a camera silent for epoch_wait no longer holds the others' markers.
         std::vector<std::string> given_up;
-        for (auto& r : marker_order_->Expire(Now(), params_.collector.epoch_wait, &given_up))
-          RouteEnd(r.item);
+        for (auto& r : marker_order_->Expire(Now(), wait, &given_up)) RouteEnd(r.item);
         for (const std::string& c : given_up)
-          NODELET_WARN(
-              "bundle_adjuster: no epoch marker of '%s' for epoch_wait %.0f s: the other cameras' "
-              "markers "
-              "go on without it",
-              c.c_str(), params_.collector.epoch_wait);
+          NODELET_WARN("bundle_adjuster: no epoch marker of '%s' for epoch_wait %.0f s: the other "
+                       "cameras' markers go on without it",
+                       c.c_str(), wait);
       }
       if (ros_adapters::LiveTimeouts()) {
-        collector_->SetTiePointsExpected(MatcherPublishing());
-        Solve(collector_->Poll(Now()));
+        step_->SetTiePointsExpected(MatcherPublishing());
+        Publish(step_->Poll(Now()));
       }
     }
     if (updater_) updater_->update();
@@ -244,23 +231,25 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     if (marker_order_)
       for (auto& r : marker_order_->Flush()) RouteEnd(r.item);
-    collector_->SetTiePointsExpected(MatcherPublishing());
-    if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) {
+    step_->SetTiePointsExpected(MatcherPublishing());
+    if (const std::optional<ros_adapters::SolvedEpoch> e = step_->Finish()) {
       NODELET_INFO("bundle_adjuster: end of the replay: solving the epoch still open");
-      SolveOne(*e);
+      Publish(*e);
     }
   }
 
   bool OnRun(slope_monitor::RunAdjustment::Request& req,
              slope_monitor::RunAdjustment::Response& res) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (req.epoch != 0 && req.epoch != collector_->current_epoch()) {
+    if (req.epoch != 0 && req.epoch != step_->current_epoch()) {
       res.success = false;
       res.message = "only the epoch being collected (" +
-                    std::to_string(collector_->current_epoch()) + ") can be solved";
+                    std::to_string(step_->current_epoch()) + ") can be solved";
       return true;
     }
-    res.solution = SolveOne(collector_->TakeNow());
+    const ros_adapters::SolvedEpoch out = step_->SolveNow();
+    Publish(out);
+    res.solution = out.solution;
     res.success = res.solution.usable;
     res.message = res.solution.message;
     return true;
@@ -277,22 +266,16 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     int chosen = -1;
     const std::string error =
-        store_.SetReference(req.use_latest, static_cast<int>(req.epoch), &chosen);
+        step_->store().SetReference(req.use_latest, static_cast<int>(req.epoch), &chosen);
     res.success = error.empty();
     res.message = error.empty() ? "reference epoch set to " + std::to_string(chosen) : error;
     if (res.success) res.reference_epoch = chosen;
     return true;
   }
 
-  // ---------------------------------------------------------------- solve
-  void Solve(const std::vector<adjustment::CollectedEpoch>& epochs) {
-    for (const adjustment::CollectedEpoch& e : epochs) SolveOne(e);
-  }
-
-  slope_monitor::AdjustmentSolution SolveOne(const adjustment::CollectedEpoch& epoch) {
-    const ros_adapters::SolvedEpoch out =
-        ros_adapters::SolveCollectedEpoch(epoch, models_, params_, getName(), &store_);
-    for (const ros_adapters::LogLine& line : out.log) {
+  // ---------------------------------------------------------------- publish
+  void Log(const std::vector<ros_adapters::LogLine>& lines) const {
+    for (const ros_adapters::LogLine& line : lines) {
       switch (line.level) {
         case ros_adapters::LogLine::kDebug:
           NODELET_DEBUG("bundle_adjuster: %s", line.text.c_str());
@@ -308,68 +291,27 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
           break;
       }
     }
-    if (out.adjusted) {
-      last_photos_ = out.photos;
-      last_naming_ = out.naming;
-      last_rejected_names_ = out.rejected_names;
-    }
-    last_message_ = out.solution.message;
-    last_usable_ = out.accepted;
+  }
+
+  void Publish(const std::vector<ros_adapters::SolvedEpoch>& epochs) {
+    for (const ros_adapters::SolvedEpoch& e : epochs) Publish(e);
+  }
+
+  void Publish(const ros_adapters::SolvedEpoch& out) {
+    Log(out.log);
     solution_pub_.publish(out.solution);
-    if (!out.accepted) return out.solution;
+    if (!out.accepted) return;
     // Fixed cameras on /tf_static (latched), each UAV photo as its own stamped transform on /tf.
     if (!out.fixed_transforms.empty()) static_broadcaster_.sendTransform(out.fixed_transforms);
     if (!out.moving_transforms.empty()) tf_broadcaster_.sendTransform(out.moving_transforms);
     points_pub_.publish(out.points);
     if (out.displacements) displacements_pub_.publish(*out.displacements);
-    frustums_pub_.publish(ros_adapters::ToFrustumMarkers(out.solution, models_, params_.frustums));
-    ++accepted_;
-    return out.solution;
+    frustums_pub_.publish(step_->Frustums(out));
   }
-
-  void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (last_message_.empty()) {
-      stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "waiting for an epoch");
-    } else if (last_usable_) {
-      stat.summary(diagnostic_msgs::DiagnosticStatus::OK, last_message_);
-    } else {
-      stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
-                   "last epoch not usable: " + last_message_);
-    }
-    stat.add("collected observations", collector_->num_observations());
-    stat.add("collected images", collector_->num_images());
-    stat.add("accepted epochs", accepted_);
-    stat.add("unidentified observations received", collector_->unidentified_received());
-    stat.add("observations dropped: bad pixel or covariance", collector_->observations_dropped());
-    stat.add("UAV photos last epoch", last_photos_.total);
-    stat.add("UAV photos kept", last_photos_.kept);
-    stat.add("UAV photos dropped: not oriented", last_photos_.not_oriented);
-    stat.add("UAV photos dropped: too few observations", last_photos_.too_few_observations);
-    stat.add("targets named by projection", last_naming_.named);
-    stat.add("targets left unnamed: ambiguous", last_naming_.ambiguous);
-    stat.add("targets left unnamed: no listed target near", last_naming_.unmatched);
-    stat.add("targets left unnamed: image not oriented", last_naming_.not_oriented);
-    stat.add("names rejected by the residual test", last_rejected_names_);
-    stat.add("tie-point observation pairs used", collector_->tie_points_used());
-    stat.add("tie points skipped: low quality", collector_->tie_points_low_quality());
-    stat.add("reference epoch", store_.reference_epoch());
-  }
-
-  ros_adapters::AdjusterParameters params_;
 
   // State (guarded by mutex_; a solve holds it, as the callbacks wait anyway).
   std::mutex mutex_;
-  std::unique_ptr<adjustment::EpochCollector> collector_;
-  adjustment::EpochStore store_;
-  std::map<std::string, camera::CameraModel> models_;
-  size_t reported_ignored_ = 0;
-  adjustment::PhotoStats last_photos_;
-  adjustment::NamingReport last_naming_;
-  int last_rejected_names_ = 0;
-  std::string last_message_;
-  bool last_usable_ = false;
-  int accepted_ = 0;
+  std::unique_ptr<ros_adapters::AdjusterStep> step_;
 
   // ROS.
   ros::Publisher solution_pub_, points_pub_, displacements_pub_, frustums_pub_;

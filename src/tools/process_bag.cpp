@@ -69,6 +69,7 @@
 #include "slope_monitor/core/deformation/report.h"
 #include "slope_monitor/core/evaluation/deformation_truth.h"
 #include "slope_monitor/core/targets/options_reader.h"
+#include "slope_monitor/ros/adjuster_step.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
 #include "slope_monitor/ros/change_area_conversions.h"
 #include "slope_monitor/ros/conversions.h"
@@ -78,7 +79,7 @@
 #include "slope_monitor/ros/node_parameters.h"
 #include "slope_monitor/ros/offline_dense.h"
 #include "slope_monitor/ros/param_files.h"
-#include "slope_monitor/ros/radio_conversions.h"
+#include "slope_monitor/ros/radio_step.h"
 #include "slope_monitor/ros/uav_topics.h"
 #include "slope_monitor/ros/sequence_conversions.h"
 #include "slope_monitor/ros/target_conversions.h"
@@ -352,7 +353,7 @@ class OfflineGraph {
         const std::optional<matching::SequenceStep> step = MatchUavPrior(uav, *prior);
         TakeCentroided();
         now_ = m.getTime();
-        collector_->AddPrior(ros_adapters::FromMsg(*prior));
+        adjuster_->AddPrior(*prior);
         if (step) OnSequenceStep(*uav, *step);
         return;
       }
@@ -384,7 +385,7 @@ class OfflineGraph {
     } else if (const auto marker = m.instantiate<slope_monitor::EpochMarker>()) {
       if (marker->end) OnEpochEnd(*marker);
     } else if (const auto prior = m.instantiate<geometry_msgs::PoseWithCovarianceStamped>()) {
-      if (IsPriorTopic(topic)) collector_->AddPrior(ros_adapters::FromMsg(*prior));
+      if (IsPriorTopic(topic)) adjuster_->AddPrior(*prior);
     } else if (const auto block = m.instantiate<slope_monitor::RadioSampleBlock>()) {
       OnRadioBlock(*block, topic);
     }
@@ -402,7 +403,7 @@ class OfflineGraph {
               ros_adapters::ToDebugImage(*c.last, c.last_image->header));
     for (UavMatcher& uav : uav_matchers_)
       OnSequenceStep(uav, Timed(&stages_.matching, [&] { return uav.sequence->Finish(); }));
-    if (const std::optional<adjustment::CollectedEpoch> e = collector_->Finish()) Solve(*e);
+    if (const std::optional<ros_adapters::SolvedEpoch> e = adjuster_->Finish()) Solve(*e);
     // The inputs have ended: what waits for a later stamp of another input is fused.
     for (auto& r : order_->Flush()) FuseNow(r.item, r.input);
     if (dense_) {
@@ -412,8 +413,8 @@ class OfflineGraph {
                     dense_->epochs_measured(), dense_->seconds(), dense_->cpu_seconds());
       Log(line);
     }
-    Log("end of input: " + std::to_string(adjuster_accepted_) + " adjustment epoch(s) accepted, " +
-        std::to_string(radio_epochs_) + " radio epoch(s) solved");
+    Log("end of input: " + std::to_string(adjuster_->accepted()) + " adjustment epoch(s) accepted, " +
+        std::to_string(radio_epochs()) + " radio epoch(s) solved");
     if (estimator_->GetSnapshot().points.empty()) {
       Log("no point was ever measured: no reports written to " + estimator_params_.report_dir);
       return;
@@ -428,7 +429,7 @@ class OfflineGraph {
   // topic; with priors in the bag an image waits for its own, else every
   // image is matched when it comes.
   void SetUpUavTiePoints(const std::function<bool(const std::string&)>& has_topic) {
-    for (const std::string& camera : adjuster_params_.collector.uav_cameras) {
+    for (const std::string& camera : adjuster_->parameters().collector.uav_cameras) {
       XmlRpc::XmlRpcValue p = NodeParams("hex_matcher");
       ros_adapters::SetParam(&p, "mode", std::string("sequence"));
       ros_adapters::SetParam(&p, "camera", camera);
@@ -442,11 +443,12 @@ class OfflineGraph {
     }
   }
 
-  int epochs_solved() const { return adjuster_accepted_ + radio_epochs_; }
+  int epochs_solved() const { return adjuster_->accepted() + static_cast<int>(radio_epochs()); }
+  unsigned int radio_epochs() const { return radio_ ? radio_->epochs() : 0; }
   // Why no epoch was solved, in one line (epochs_solved() == 0).
   std::string WhyNothingSolved() const {
     if (!last_failure_.empty()) return last_failure_;
-    if (centroiders_.empty() && !assembler_)
+    if (centroiders_.empty() && !radio_)
       return "the bags hold no camera images (/<camera>/camera/image_raw) and no radio network runs";
     return "no adjustment epoch was completed (no epoch end marker of the cameras; see the warnings above)";
   }
@@ -484,21 +486,17 @@ class OfflineGraph {
       ros_adapters::MergeParams(&p, ros_adapters::LoadParamFile(args_.adjuster_config));
     if (args_.uav_tie_points) ros_adapters::SetParam(&p, "uav_tie_points", true);
     ros_adapters::ParamReader r(p, "/bundle_adjuster");
-    adjuster_params_ = ros_adapters::ReadAdjusterParameters(r);
-    if (adjuster_params_.cameras_from_site) {
-      // The site's cameras that this bag has (a UAV that did not fly is not
-      // waited for), as the replay graph decides it (bundle_adjuster_nodelet.cpp).
-      std::vector<std::string>& site_cameras = adjuster_params_.collector.cameras;
-      site_cameras.erase(std::remove_if(site_cameras.begin(), site_cameras.end(),
-                                        [&](const std::string& c) {
-                                          return std::find(cameras.begin(), cameras.end(), c) ==
-                                                 cameras.end();
-                                        }),
-                         site_cameras.end());
-    }
-    collector_ = std::make_unique<adjustment::EpochCollector>(adjuster_params_.collector,
-                                                              &adjuster_params_.targets);
-    collector_->SetTiePointsExpected(args_.uav_tie_points);
+    adjuster_ = std::make_unique<ros_adapters::AdjusterStep>(ros_adapters::ReadAdjusterParameters(r),
+                                                             "/bundle_adjuster");
+    // The site's cameras that this bag has (a UAV that did not fly is not
+    // waited for), as the replay graph decides it.
+    std::vector<ros_adapters::LogLine> log;
+    adjuster_->KeepCameras(ros_adapters::ReplayCameras(
+        adjuster_->parameters(),
+        [&](const std::string& c) { return std::find(cameras.begin(), cameras.end(), c) != cameras.end(); },
+        &log));
+    for (const ros_adapters::LogLine& line : log) Log("bundle_adjuster: " + line.text);
+    adjuster_->SetTiePointsExpected(args_.uav_tie_points);
   }
 
   void SetUpRadio() {
@@ -514,23 +512,19 @@ class OfflineGraph {
       ros_adapters::SetParam(&p, "network_file", args_.radio_network);
     if (!args_.site.empty()) ros_adapters::SetParam(&p, "site_file", args_.site);
     ros_adapters::ParamReader r(p, "/radio/radio_phase_solver");
+    ros_adapters::RadioParameters params;
     try {
-      radio_params_ = ros_adapters::ReadRadioParameters(r);
+      params = ros_adapters::ReadRadioParameters(r);
     } catch (const Error& e) {
       // As the graph: without a radio network the radio solver does not run.
       Log(std::string("radio_phase_solver not running: ") + e.what());
       return;
     }
-    if (!radio_params_.has_network) {
+    if (!params.has_network) {
       Log("radio_phase_solver not running: no radio network");
       return;
     }
-    radio_solver_ =
-        std::make_unique<radio::RadioPhaseSolver>(radio_params_.network, radio_params_.options);
-    std::vector<std::string> ids;
-    for (const auto& rx : radio_params_.network.receivers) ids.push_back(rx.id);
-    assembler_ = std::make_unique<radio::EpochAssembler>(ids, radio_params_.stamp_tolerance,
-                                                         radio_params_.max_wait);
+    radio_ = std::make_unique<ros_adapters::RadioStep>(params);
   }
 
   void SetUpEstimator() {
@@ -554,7 +548,7 @@ class OfflineGraph {
     // Fused in stamp order over the inputs that run (without a radio network
     // the radio solver does not: nothing to wait for).
     std::vector<std::string> ordered = {kAdjusterDisplacements};
-    if (assembler_) ordered.push_back(kRadioDisplacements);
+    if (radio_) ordered.push_back(kRadioDisplacements);
     if (targetless_) ordered.push_back(kTargetlessDisplacements);
     order_ = std::make_unique<InputOrder<slope_monitor::PointDisplacementArray>>(ordered);
     StartHook();
@@ -671,12 +665,8 @@ class OfflineGraph {
   }
 
   void OnCameraInfo(const std::string& cam, const sensor_msgs::CameraInfo& info) {
-    try {
-      models_[cam] =
-          ros_adapters::CameraModelFromCameraInfo(info, adjuster_params_.PixelSizeOf(cam));
-    } catch (const Error& e) {
-      Log("bundle_adjuster: camera_info of '" + cam + "': " + e.what());
-    }
+    if (const auto error = adjuster_->OnCameraInfo(cam, info))
+      Log("bundle_adjuster: camera_info of '" + cam + "': " + *error);
   }
 
   // An image and its camera_info (same stamp, in either order) are both in:
@@ -753,7 +743,7 @@ class OfflineGraph {
         c->last_image = task.image;
         c->last = out;
       }
-      Solve(collector_->AddTargets(ros_adapters::FromMsg(out.targets), now_.toSec()));
+      Solve(adjuster_->AddTargets(out.targets, now_.toSec()));
     } catch (const std::exception& e) {
       Log("target_centroider: dropped image (topic " + task.topic + ", stamp " +
           std::to_string(task.stamp.toSec()) + "): " + e.what());
@@ -762,45 +752,33 @@ class OfflineGraph {
   }
 
   void OnEpochEnd(const slope_monitor::EpochMarker& marker) {
-    Solve(collector_->AddEnd(ros_adapters::FromMsg(marker), now_.toSec()));
-    for (; reported_ignored_ < collector_->ignored().size(); ++reported_ignored_)
-      Log("bundle_adjuster: " + collector_->ignored()[reported_ignored_]);
+    std::vector<ros_adapters::LogLine> ignored;
+    const std::vector<ros_adapters::SolvedEpoch> epochs = adjuster_->AddEnd(marker, now_.toSec(), &ignored);
+    for (const ros_adapters::LogLine& line : ignored) Log("bundle_adjuster: " + line.text);
+    Solve(epochs);
   }
 
+  // A receiver's block (/radio/<id>/samples) through the radio step, as the
+  // radio_phase_solver nodelet takes it (a recording: no wall-clock test of
+  // the stamps, now = 0).
   void OnRadioBlock(const slope_monitor::RadioSampleBlock& block, const std::string& topic) {
-    if (!assembler_) return;
-    // The receiver this topic belongs to: /radio/<id>/samples.
-    const std::string prefix = "/radio/", suffix = "/samples";
-    if (topic.compare(0, prefix.size(), prefix) != 0 ||
-        topic.size() <= prefix.size() + suffix.size())
-      return;
-    const std::string receiver =
-        topic.substr(prefix.size(), topic.size() - prefix.size() - suffix.size());
-    // A recording: no wall-clock test of the stamps (now = 0).
-    if (!radio_validator_.Accept(block, receiver, 0.0)) {
-      Log("radio_phase_solver: rejected " + radio_validator_.last_problems().front());
+    const std::string receiver = ros_adapters::RadioReceiverOfTopic(topic);
+    if (!radio_ || receiver.empty()) return;
+    if (!radio_->Accept(block, receiver, 0.0)) {
+      Log("radio_phase_solver: rejected " + radio_->last_problem());
       return;
     }
-    try {
-      for (const radio::EpochAssembler::Epoch& epoch :
-           assembler_->Add(ros_adapters::FromMsg(block))) {
-        const radio::RadioEpochSummary s = radio_solver_->ProcessEpoch(epoch.stamp, epoch.blocks);
-        ++radio_epochs_;
-        for (const auto& p : s.problems) Log("radio_phase_solver: " + p);
-        std_msgs::Header header = block.header;
-        header.stamp = ros::Time(epoch.stamp);
-        header.frame_id = radio_params_.frame_id;
-        const ros_adapters::RadioOutputs out =
-            ros_adapters::MakeRadioOutputs(s, header, radio_epochs_);
-        Write("/radio/phase_observations", out.observations);
-        if (out.displacements) {
-          Write(kRadioDisplacements, *out.displacements);
-          Fuse(*out.displacements, kRadioDisplacements);
-        }
+    std::vector<ros_adapters::LogLine> dropped;
+    for (const ros_adapters::RadioEpochOutput& out : radio_->Assemble(block, &dropped)) {
+      for (const ros_adapters::LogLine& line : out.log)
+        if (line.level >= ros_adapters::LogLine::kError) Log("radio_phase_solver: " + line.text);
+      Write("/radio/phase_observations", out.messages.observations);
+      if (out.messages.displacements) {
+        Write(kRadioDisplacements, *out.messages.displacements);
+        Fuse(*out.messages.displacements, kRadioDisplacements);
       }
-    } catch (const std::exception& e) {
-      Log("radio_phase_solver: block of '" + block.receiver_id + "' dropped: " + e.what());
     }
+    for (const ros_adapters::LogLine& line : dropped) Log("radio_phase_solver: " + line.text);
   }
 
   // ---- the hex matcher (mode sequence), one per UAV camera.
@@ -820,9 +798,10 @@ class OfflineGraph {
   // The adjuster's position priors: each site UAV camera's topic, or the
   // graph's /uav/camera/position_prior without a site file.
   bool IsPriorTopic(const std::string& topic) const {
-    if (!adjuster_params_.cameras_from_site)
+    const ros_adapters::AdjusterParameters& params = adjuster_->parameters();
+    if (!params.cameras_from_site)
       return topic == ros_adapters::UavCameraTopics(adjustment::DefaultUavCameras().front()).prior;
-    const std::vector<std::string>& topics = adjuster_params_.prior_topics;
+    const std::vector<std::string>& topics = params.prior_topics;
     return std::find(topics.begin(), topics.end(), topic) != topics.end();
   }
 
@@ -863,27 +842,24 @@ class OfflineGraph {
       stages_.tie_points += static_cast<int>(pair.points.size());
       const slope_monitor::TiePointArray msg = ros_adapters::ToMsg(pair, uav.params.camera);
       Write(uav.topics.tie_points, msg);
-      Solve(collector_->AddTies(ros_adapters::FromMsg(msg), now_.toSec()));
+      Solve(adjuster_->AddTies(msg, now_.toSec()));
     }
   }
 
   // ---- the bundle adjuster's epochs.
-  void Solve(const std::vector<adjustment::CollectedEpoch>& epochs) {
-    for (const adjustment::CollectedEpoch& e : epochs) Solve(e);
+  void Solve(const std::vector<ros_adapters::SolvedEpoch>& epochs) {
+    for (const ros_adapters::SolvedEpoch& e : epochs) Solve(e);
   }
 
-  void Solve(const adjustment::CollectedEpoch& epoch) {
-    double adjustment = 0.0;
-    const ros_adapters::SolvedEpoch out = Timed(&adjustment, [&] {
-      return ros_adapters::SolveCollectedEpoch(epoch, models_, adjuster_params_,
-                                               "/bundle_adjuster", &store_);
-    });
+  void Solve(const ros_adapters::SolvedEpoch& out) {
+    const double adjustment = out.wall_time;
+    const uint32_t epoch = out.solution.epoch;
     if (!out.accepted)
-      last_failure_ = "epoch " + std::to_string(epoch.epoch) + " not accepted: " + out.solution.message;
+      last_failure_ = "epoch " + std::to_string(epoch) + " not accepted: " + out.solution.message;
     for (const ros_adapters::LogLine& line : out.log)
       if (line.level >= ros_adapters::LogLine::kWarn || args_.verbose) Log("bundle_adjuster: " + line.text);
     Publish(out);
-    LogStages(epoch.epoch, out, adjustment);
+    LogStages(epoch, out, adjustment);
   }
 
   // Wall time of each stage since the previous adjustment epoch, and the
@@ -916,7 +892,6 @@ class OfflineGraph {
     Write("/bundle_adjuster/solution", out.solution);
     if (dense_) Timed(&stages_.dense, [&] { dense_->OnSolution(out.solution, now_.toSec()); });
     if (!out.accepted) return;
-    ++adjuster_accepted_;
     if (!out.fixed_transforms.empty()) {
       tf2_msgs::TFMessage tf;
       tf.transforms = out.fixed_transforms;
@@ -929,7 +904,7 @@ class OfflineGraph {
     }
     Write("/bundle_adjuster/points", out.points);
     Write("/bundle_adjuster/frustums",
-          ros_adapters::ToFrustumMarkers(out.solution, models_, adjuster_params_.frustums));
+          adjuster_->Frustums(out));
     if (out.displacements) {
       Write(kAdjusterDisplacements, *out.displacements);
       Fuse(*out.displacements, kAdjusterDisplacements);
@@ -1025,22 +1000,12 @@ class OfflineGraph {
   std::map<std::string, Centroider> centroiders_;
   std::unique_ptr<ros_adapters::TargetlessCameras> targetless_;  // fixed_targetless cameras
   // bundle_adjuster
-  ros_adapters::AdjusterParameters adjuster_params_;
-  std::unique_ptr<adjustment::EpochCollector> collector_;
-  adjustment::EpochStore store_;
-  std::map<std::string, camera::CameraModel> models_;
-  size_t reported_ignored_ = 0;
-  int adjuster_accepted_ = 0;
+  std::unique_ptr<ros_adapters::AdjusterStep> adjuster_;
   std::string last_failure_;  // the last epoch not accepted and why
   std::optional<io::SiteFile> site_;  // --site
   // hex_matcher (mode sequence; --uav-tie-points): one per UAV camera
   std::vector<UavMatcher> uav_matchers_;
-  // radio_phase_solver
-  ros_adapters::RadioParameters radio_params_;
-  std::unique_ptr<radio::RadioPhaseSolver> radio_solver_;
-  std::unique_ptr<radio::EpochAssembler> assembler_;
-  ros_adapters::MessageValidator radio_validator_;
-  unsigned int radio_epochs_ = 0;
+  std::unique_ptr<ros_adapters::RadioStep> radio_;  // radio_phase_solver; null: not running
   // deformation_estimator
   ros_adapters::EstimatorParameters estimator_params_;
   ros_adapters::MessageValidator estimator_validator_;

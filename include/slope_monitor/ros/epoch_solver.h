@@ -42,6 +42,7 @@ struct SolvedEpoch {
   adjustment::NamingReport naming;
   int rejected_names = 0;
   double covariance_time = 0.0;  // [s] adjustment::Summary::covariance_time
+  double wall_time = 0.0;        // [s] of the whole solve (AdjusterStep; process_bag's stage times)
 };
 
 // `source_name`: the displacement messages' source (the node's name).

@@ -1,0 +1,119 @@
+#include "slope_monitor/ros/radio_step.h"
+
+#include <exception>
+
+#include "slope_monitor/core/common/error.h"
+
+namespace slope_monitor {
+namespace ros_adapters {
+namespace {
+
+std::vector<std::string> ReceiverIds(const radio::NetworkConfig& network) {
+  std::vector<std::string> ids;
+  for (const auto& r : network.receivers) ids.push_back(r.id);
+  return ids;
+}
+
+const RadioParameters& WithNetwork(const RadioParameters& parameters) {
+  if (!parameters.has_network) throw ConfigError("radio step: no radio network configured");
+  return parameters;
+}
+
+}  // namespace
+
+std::string RadioReceiverOfTopic(const std::string& topic) {
+  const std::string prefix = "/radio/", suffix = "/samples";
+  if (topic.size() <= prefix.size() + suffix.size() || topic.compare(0, prefix.size(), prefix) != 0 ||
+      topic.compare(topic.size() - suffix.size(), suffix.size(), suffix) != 0)
+    return "";
+  return topic.substr(prefix.size(), topic.size() - prefix.size() - suffix.size());
+}
+
+RadioStep::RadioStep(const RadioParameters& parameters)
+    : parameters_(WithNetwork(parameters)),
+      solver_(parameters_.network, parameters_.options),
+      assembler_(ReceiverIds(parameters_.network), parameters_.stamp_tolerance,
+                 parameters_.max_wait) {}
+
+std::vector<std::string> RadioStep::receivers() const { return ReceiverIds(parameters_.network); }
+
+bool RadioStep::Accept(const slope_monitor::RadioSampleBlock& block, const std::string& receiver,
+                       double now) {
+  ++blocks_received_;
+  if (validator_.Accept(block, receiver, now)) return true;
+  last_error_ = validator_.last_problems().front();
+  return false;
+}
+
+std::vector<RadioEpochOutput> RadioStep::Assemble(const slope_monitor::RadioSampleBlock& block,
+                                                  std::vector<LogLine>* dropped) {
+  std::vector<RadioEpochOutput> out;
+  try {
+    for (const radio::EpochAssembler::Epoch& epoch : assembler_.Add(FromMsg(block)))
+      out.push_back(Solve(epoch, block.header));
+  } catch (const std::exception& e) {
+    ++errors_;
+    last_error_ = e.what();
+    dropped->push_back({LogLine::kError, "block of '" + block.receiver_id + "' dropped: " + e.what()});
+  }
+  return out;
+}
+
+RadioEpochOutput RadioStep::Solve(const radio::EpochAssembler::Epoch& epoch,
+                                  const std_msgs::Header& input_header) {
+  const radio::RadioEpochSummary s = solver_.ProcessEpoch(epoch.stamp, epoch.blocks);
+  ++epochs_;
+  RadioEpochOutput out;
+  for (const std::string& p : s.problems) {
+    out.log.push_back({LogLine::kError, p});
+    last_error_ = p;
+    ++errors_;
+  }
+  for (const std::string& e : s.events) {
+    out.log.push_back({LogLine::kWarn, e});
+    last_event_ = e;
+  }
+  last_ = s;
+  std_msgs::Header header = input_header;
+  header.stamp = ros::Time(epoch.stamp);
+  header.frame_id = parameters_.frame_id;
+  out.messages = MakeRadioOutputs(s, header, epochs_);
+  return out;
+}
+
+void RadioStep::Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) const {
+  const auto& ref = solver_.reference();
+  int ok_links = 0, links = 0;
+  for (const auto& l : last_.links) {
+    ++links;
+    if (l.used) ++ok_links;
+    stat.add("link " + l.transmitter_id + "->" + l.receiver_id,
+             l.status + " (snr " + std::to_string(l.snr) + ", refixes " +
+                 std::to_string(l.refixes) + ")");
+  }
+  for (const auto& t : last_.transmitters)
+    stat.add("transmitter " + t.id, t.status + ", reference " + radio::FixStateName(t.fix_state) +
+                                        " ratio " + std::to_string(t.ratio) + ", epoch " +
+                                        radio::FixStateName(t.epoch_fix_state) + ", links " +
+                                        std::to_string(t.links_used));
+  stat.add("blocks received", blocks_received_);
+  for (const auto& [reason, count] : validator_.rejected()) stat.add("rejected: " + reason, count);
+  stat.add("epochs", epochs_);
+  stat.add("errors", errors_);
+  stat.add("last error", last_error_);
+  stat.add("last event", last_event_);
+  stat.add("reference",
+           ref.solved
+               ? radio::FixStateName(ref.fix_state) + " " + std::to_string(ref.num_fixed) + "/" +
+                     std::to_string(ref.num_ambiguities) + " ratio " + std::to_string(ref.ratio)
+               : std::string("initialising"));
+  if (!ref.solved)
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "waiting for the reference epochs");
+  else if (links > 0 && ok_links < links)
+    stat.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "%d of %d links in use", ok_links, links);
+  else
+    stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "all links in use");
+}
+
+}  // namespace ros_adapters
+}  // namespace slope_monitor
