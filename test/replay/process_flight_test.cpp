@@ -17,6 +17,9 @@
 #include <opencv2/imgproc.hpp>
 
 #include "replay_test_util.h"
+#include "slope_monitor/core/capture/exif.h"
+#include "slope_monitor/core/common/site_crs.h"
+#include "slope_monitor/core/io/geotiff.h"
 
 namespace slope_monitor {
 namespace {
@@ -47,6 +50,47 @@ std::vector<std::vector<std::string>> ReadCsv(const fs::path& p) {
     rows.push_back(row);
   }
   return rows;
+}
+
+// The dense stage (on by default): a DEM and an RGB orthophoto on its grid
+// as GeoTIFFs in the run's EPSG CRS, placed where the photos' EXIF GNSS is
+// (transformed to WGS 84 with PROJ), and the cloud.
+void ExpectDenseOutputs(const std::string& out, const fs::path& f1) {
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(
+      out, m, std::regex(R"(flight 1: surface (\d+) of (\d+) cells at ([0-9.]+) m, (\d+) points from (\d+) of (\d+) pairs)")))
+      << out;
+  EXPECT_GT(std::stoi(m[1]), 1000);
+  EXPECT_GE(std::stoi(m[5]), 2);
+  const io::GeoRaster dem = io::ReadGeoTiff((f1 / "surface_e01.tif").string());
+  const io::GeoRaster ortho = io::ReadGeoTiff((f1 / "ortho_e01.tif").string());
+  EXPECT_EQ(dem.epsg, 32614);
+  EXPECT_EQ(ortho.epsg, 32614);
+  EXPECT_EQ(dem.band_names[0], "height");
+  EXPECT_EQ(ortho.band_names, (std::vector<std::string>{"red", "green", "blue"}));
+  EXPECT_DOUBLE_EQ(ortho.origin_x, dem.origin_x);
+  EXPECT_DOUBLE_EQ(ortho.origin_y, dem.origin_y);
+  EXPECT_NEAR(ortho.cell_size * 4, dem.cell_size, 1e-9);
+  int filled = 0;
+  for (float v : ortho.bands[1]) filled += !ortho.IsNoData(v);
+  EXPECT_GT(filled, 1000 * 16);
+  // The DEM's centre in WGS 84 against the mean EXIF position of the photos.
+  SiteCrsOptions o;
+  o.crs = "EPSG:32614";
+  o.frame = SiteCrsOptions::Frame::kShiftedCrs;
+  const SiteCrs crs(o);
+  const Eigen::Vector3d centre = crs.Wgs84FromSite(Eigen::Vector3d(
+      dem.origin_x + dem.width * dem.cell_size / 2, dem.origin_y - dem.height * dem.cell_size / 2, 0.0));
+  double lon = 0, lat = 0;
+  for (const char* n : {"IMG_9377.jpg", "IMG_9378.jpg", "IMG_9387.jpg", "IMG_9388.jpg"}) {
+    const capture::ExifInfo e = capture::ReadExif((kCaliterra / n).string());
+    lon += e.gps.longitude_deg / 4;
+    lat += e.gps.latitude_deg / 4;
+  }
+  EXPECT_NEAR(centre.x(), lon, 0.0005);  // ~50 m
+  EXPECT_NEAR(centre.y(), lat, 0.0005);
+  EXPECT_NE(ReadFile(f1 / "cloud.ply").find("format binary_little_endian 1.0"), std::string::npos);
+  EXPECT_NE(ReadFile(f1 / "surface_report.json").find("\"seconds\": {\"decode\""), std::string::npos);
 }
 
 // The folder a crew brings: four real photos, one photo of another size
@@ -94,6 +138,7 @@ TEST(ProcessFlight, RealGnssFlightIsOrientedAndExportedAndBadPhotosAreNamed) {
     for (int c = 7; c <= 9; ++c) EXPECT_GT(std::stod(rows[r][c]), 0.0) << rows[r][0];  // sigma from the covariance
     EXPECT_LT(std::stod(rows[r][7]), 5.0) << rows[r][0];
   }
+  ExpectDenseOutputs(out, f1);
 }
 
 TEST(ProcessFlight, BadInputIsNamedWithExitOne) {

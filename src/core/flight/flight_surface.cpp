@@ -6,6 +6,7 @@
 #include <cstring>
 #include <sstream>
 
+#include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "slope_monitor/core/common/error.h"
@@ -115,27 +116,28 @@ bool Bilinear(const cv::Mat& bgr, double x, double y, cv::Vec3f* c) {
   return true;
 }
 
-// Grid rows / cols [r0, r1) x [c0, c1) that the photo's footprint between
-// heights zlo and zhi can touch (empty when it looks away from the ground).
-cv::Rect FootprintCells(const dense::OrientedImage& im, const io::GeoRaster& grid, double zlo, double zhi) {
+// Ortho cells [rows x cols] the photo can see: the DEM cells, every
+// kFootprintStride-th row and column, projected into the photo; the box of
+// those that land inside it, widened by the stride (any viewing direction:
+// oblique photos too). Empty when none lands inside.
+constexpr int kFootprintStride = 4;
+cv::Rect FootprintCells(const dense::OrientedImage& im, const io::GeoRaster& dem, int subdivision) {
   const camera::Sensor& s = im.camera.sensor();
-  double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
-  for (int i = 0; i <= 4; ++i)
-    for (int j = 0; j <= 4; ++j) {
-      if (i != 0 && i != 4 && j != 0 && j != 4) continue;
-      const camera::Ray ray = im.camera.ImageToRay(im.pose, Eigen::Vector2d(j * (s.width - 1) / 4.0, i * (s.height - 1) / 4.0));
-      if (ray.direction.z() > -1e-3) return cv::Rect();  // a border ray misses the ground
-      for (double z : {zlo, zhi}) {
-        const Eigen::Vector3d p = ray.origin + (z - ray.origin.z()) / ray.direction.z() * ray.direction;
-        x0 = std::min(x0, p.x()), x1 = std::max(x1, p.x()), y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
-      }
+  int r0 = dem.height, r1 = -1, c0 = dem.width, c1 = -1;
+  for (int r = 0; r < dem.height; r += kFootprintStride)
+    for (int c = 0; c < dem.width; c += kFootprintStride) {
+      const float z = dem.At(dense::kHeight, r, c);
+      if (dem.IsNoData(z)) continue;
+      const Eigen::Vector2d xy = dem.CellCentre(r, c);
+      Eigen::Vector2d px;
+      if (!im.camera.Project(im.pose, Eigen::Vector3d(xy.x(), xy.y(), z), &px)) continue;
+      if (px.x() < 0 || px.y() < 0 || px.x() > s.width - 1 || px.y() > s.height - 1) continue;
+      r0 = std::min(r0, r), r1 = std::max(r1, r), c0 = std::min(c0, c), c1 = std::max(c1, c);
     }
-  const int c0 = std::max(0, static_cast<int>(std::floor((x0 - grid.origin_x) / grid.cell_size)));
-  const int c1 = std::min(grid.width, static_cast<int>(std::ceil((x1 - grid.origin_x) / grid.cell_size)) + 1);
-  const int r0 = std::max(0, static_cast<int>(std::floor((grid.origin_y - y1) / grid.cell_size)));
-  const int r1 = std::min(grid.height, static_cast<int>(std::ceil((grid.origin_y - y0) / grid.cell_size)) + 1);
-  if (c1 <= c0 || r1 <= r0) return cv::Rect();
-  return cv::Rect(c0, r0, c1 - c0, r1 - r0);
+  if (r1 < 0) return cv::Rect();
+  r0 = std::max(0, r0 - kFootprintStride), c0 = std::max(0, c0 - kFootprintStride);
+  r1 = std::min(dem.height, r1 + kFootprintStride + 1), c1 = std::min(dem.width, c1 + kFootprintStride + 1);
+  return cv::Rect(c0 * subdivision, r0 * subdivision, (c1 - c0) * subdivision, (r1 - r0) * subdivision);
 }
 
 // DEM height at (x, y): bilinear, else the cell's own (NaN in a hole).
@@ -149,6 +151,68 @@ double DemHeight(const io::GeoRaster& dem, double x, double y) {
 }
 
 void PutFloat(std::string* s, float v) { s->append(reinterpret_cast<const char*>(&v), sizeof v); }
+
+// Block mean of a DEM's height band over factor x factor cells (nodata where
+// fewer than half the cells hold a height), and the stable flag of a block
+// (any stable cell).
+void Coarsen(const io::GeoRaster& dem, const std::vector<uint8_t>& stable, int f, cv::Mat* z, cv::Mat* st) {
+  const int h = dem.height / f, w = dem.width / f;
+  *z = cv::Mat(h, w, CV_32F, cv::Scalar(NAN));
+  *st = cv::Mat::zeros(h, w, CV_8U);
+  for (int r = 0; r < h; ++r)
+    for (int c = 0; c < w; ++c) {
+      double sum = 0;
+      int n = 0;
+      for (int i = 0; i < f; ++i)
+        for (int j = 0; j < f; ++j) {
+          const size_t k = static_cast<size_t>(r * f + i) * dem.width + c * f + j;
+          const float v = dem.bands[dense::kHeight][k];
+          if (!dem.IsNoData(v)) sum += v, ++n;
+          if (stable[k]) st->at<uint8_t>(r, c) = 1;
+        }
+      if (2 * n >= f * f) z->at<float>(r, c) = static_cast<float>(sum / n);
+    }
+}
+
+// NMAD of after(r + di, c + dj) - ref(r, c) over stable cells with both (-1: fewer than `need`).
+double ShiftScore(const cv::Mat& ref, const cv::Mat& aft, const cv::Mat& st, int di, int dj, int need) {
+  std::vector<double> dz;
+  for (int r = std::max(0, -di); r < std::min(ref.rows, ref.rows - di); ++r)
+    for (int c = std::max(0, -dj); c < std::min(ref.cols, ref.cols - dj); ++c) {
+      if (!st.at<uint8_t>(r, c)) continue;
+      const float a = ref.at<float>(r, c), b = aft.at<float>(r + di, c + dj);
+      if (a == a && b == b) dz.push_back(static_cast<double>(b) - a);
+    }
+  if (static_cast<int>(dz.size()) < need) return -1;
+  const double med = UpperMedian(dz);
+  for (double& v : dz) v = std::abs(v - med);
+  return UpperMedian(dz);
+}
+
+// Best (di, dj) within +-radius cells around (i0, j0).
+cv::Point BestShift(const cv::Mat& ref, const cv::Mat& aft, const cv::Mat& st, int i0, int j0, int radius, int need) {
+  cv::Point best(j0, i0);
+  double best_score = 1e300;
+  for (int di = i0 - radius; di <= i0 + radius; ++di)
+    for (int dj = j0 - radius; dj <= j0 + radius; ++dj) {
+      const double s = ShiftScore(ref, aft, st, di, dj, need);
+      if (s >= 0 && s < best_score) best_score = s, best = cv::Point(dj, di);
+    }
+  return best;
+}
+
+// The after DEM read at whole cells (row + di, col + dj): exact, no resampling.
+io::GeoRaster ShiftCells(const io::GeoRaster& d, int di, int dj) {
+  io::GeoRaster out = d;
+  for (auto& b : out.bands) std::fill(b.begin(), b.end(), NAN);
+  for (int r = 0; r < d.height; ++r)
+    for (int c = 0; c < d.width; ++c) {
+      const int rr = r + di, cc = c + dj;
+      if (rr < 0 || cc < 0 || rr >= d.height || cc >= d.width) continue;
+      for (int b = 0; b < d.num_bands(); ++b) out.At(b, r, c) = d.At(b, rr, cc);
+    }
+  return out;
+}
 
 std::string Pct(double share) {
   std::ostringstream s;
@@ -205,13 +269,9 @@ io::GeoRaster ColourOrthophoto(const io::GeoRaster& dem, const std::vector<dense
   o.AddBand("red");
   o.AddBand("green");
   o.AddBand("blue");
-  double zlo = 1e300, zhi = -1e300;
-  for (float z : dem.bands[dense::kHeight])
-    if (!dem.IsNoData(z)) zlo = std::min<double>(zlo, z), zhi = std::max<double>(zhi, z);
-  if (zlo > zhi) return o;
   std::vector<float> best(static_cast<size_t>(o.width) * o.height, std::numeric_limits<float>::infinity());
   for (const dense::OrientedImage& im : photos) {
-    const cv::Rect cells = FootprintCells(im, o, zlo, zhi);
+    const cv::Rect cells = FootprintCells(im, dem, subdivision);
     const camera::Sensor& s = im.camera.sensor();
     const Eigen::Vector2d centre = im.camera.MmToPixel(Eigen::Vector2d::Zero());
     const double scale = 1.0 / (s.width * s.width + s.height * s.height);
@@ -331,11 +391,18 @@ void WriteCloudPly(const std::vector<dense::EpochPoint>& cloud, const std::strin
   io::WriteFileAtomically(path, s);
 }
 
+void FlightChangeOptions::Check() const {
+  change.Check();
+  RequireOption("flight change", search_radius >= 0 && search_radius <= change.max_shift, "search_radius",
+                Message("= ", search_radius, " m must be in [0, change.max_shift = ", change.max_shift, "]"));
+  RequireOption("flight change", search_cell > 0, "search_cell", Message("= ", search_cell, " m must be > 0"));
+}
+
 std::string FlightChangeSummary::BriefReport() const {
   const dense::Coregistration& c = dem.coregistration;
   std::ostringstream s;
   s.precision(3);
-  s << "co-registration shift (" << c.shift.x() << " +- " << c.shift_sigma.x() << ", " << c.shift.y() << " +- "
+  s << "co-registration (search " << searched_shift.x() << ", " << searched_shift.y() << " m) shift (" << c.shift.x() << " +- " << c.shift_sigma.x() << ", " << c.shift.y() << " +- "
     << c.shift_sigma.y() << ") m, vertical " << c.vertical << " +- " << c.level_sigma << " m on " << c.inliers
     << " stable cells; stable median dz " << stable_median << " m, NMAD " << stable_nmad << " m, flagged "
     << Pct(stable_flagged) << " % of stable, " << Pct(flagged) << " % of " << common_cells
@@ -388,7 +455,24 @@ FlightChange CompareFlights(const FlightChangeInput& in, const FlightChangeOptio
                                     " (min_stable_cells): nothing compared"));
   }
   const std::vector<uint8_t> stable = dense::StableMask(ref, in.moving, mask, in.stable_name);
-  out.result = dense::DemChange(ref, aft, in.moving, stable, options.change);
+  cv::Point cells(0, 0);
+  if (options.search_radius > 0) {
+    const int f = std::max(1, static_cast<int>(std::lround(options.search_cell / ref.cell_size)));
+    cv::Mat zr, za, st, unused;
+    Coarsen(ref, stable, f, &zr, &st);
+    Coarsen(aft, stable, f, &za, &unused);
+    const int need = std::max(4, need / (f * f));
+    const cv::Point coarse =
+        BestShift(zr, za, st, 0, 0, static_cast<int>(std::ceil(options.search_radius / (f * ref.cell_size))), need);
+    cv::Mat fr, fa, fs;
+    Coarsen(ref, stable, 1, &fr, &fs);
+    Coarsen(aft, stable, 1, &fa, &unused);
+    cells = BestShift(fr, fa, fs, coarse.y * f, coarse.x * f, f, options.change.min_stable_cells);
+  }
+  sum.searched_shift = Eigen::Vector2d(cells.x * ref.cell_size, -cells.y * ref.cell_size);
+  const io::GeoRaster shifted = cells == cv::Point(0, 0) ? aft : ShiftCells(aft, cells.y, cells.x);
+  out.result = dense::DemChange(ref, shifted, in.moving, stable, options.change);
+  out.result.summary.coregistration.shift += sum.searched_shift;
   sum.dem = out.result.summary;
   const io::GeoRaster& ch = out.result.change;
   std::vector<double> dz;
@@ -434,11 +518,14 @@ void WriteSurfaceReport(const FlightSurfaceSummary& s, const FlightChangeSummary
     first = false;
   }
   j << "}";
+  if (!s.dense.pair_errors.empty()) m << "\nPairs not measured (" << s.dense.pair_errors.size() << "):\n\n";
+  for (const std::string& e : s.dense.pair_errors) m << "* " << e << "\n";
   if (change) {
     const dense::DemChangeSummary& d = change->dem;
     const dense::Coregistration& c = d.coregistration;
     j << ",\n  \"change\": {\"reference\": \"" << reference << "\", \"shift_m\": [" << c.shift.x() << ", "
-      << c.shift.y() << "], \"shift_sigma_m\": [" << c.shift_sigma.x() << ", " << c.shift_sigma.y()
+      << c.shift.y() << "], \"searched_shift_m\": [" << change->searched_shift.x() << ", "
+      << change->searched_shift.y() << "], \"shift_sigma_m\": [" << c.shift_sigma.x() << ", " << c.shift_sigma.y()
       << "], \"vertical_m\": " << c.vertical << ", \"vertical_sigma_m\": " << c.level_sigma
       << ", \"tilt\": [" << c.tilt.x() << ", " << c.tilt.y() << "], \"stable_cells\": " << c.inliers
       << ", \"residual_before_m\": " << c.residual_before << ", \"residual_m\": " << c.residual

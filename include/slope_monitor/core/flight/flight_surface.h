@@ -25,7 +25,8 @@
 // Orthophoto: RGB, the DEM's extent and origin with ortho_subdivision x
 // ortho_subdivision cells per DEM cell (so it lines up with the DEM); each
 // cell takes the DEM height (bilinear), is projected into every photo whose
-// footprint can hold it, and takes the bilinear colour of the photo where it
+// footprint can hold it (found by projecting every 4th DEM cell: nadir and
+// oblique photos alike), and takes the bilinear colour of the photo where it
 // lies closest to the principal point (the most nadir view; no blending).
 // Nodata where the DEM has a hole.
 //
@@ -33,7 +34,8 @@
 // stable polygons when any is given, else everywhere outside the moving
 // outlines; co-registration and DoD are dense/dem_change.h (Nuth-Kaab on the
 // reference's slope, iterated, with vertical shift and tilt; LoD from both
-// DEMs' sigma and the stable residual the sigma does not explain). Bad input
+// DEMs' sigma and the stable residual the sigma does not explain), started
+// from a whole-cell shift search (FlightChangeOptions::search_radius). Bad input
 // is refused before anything is computed, each with its own message: no
 // common cell ("no overlap"), a stable area with no cell on the grid
 // ("outside the surface"), a stable area with fewer than min_stable_cells
@@ -130,7 +132,14 @@ struct FlightChangeOptions {
     o.min_stable_cells = 100;
     return o;
   }();
-  void Check() const { change.Check(); }
+  // Start of the co-registration: the whole-cell shift within search_radius
+  // [m] that minimises the NMAD of dz on the stable cells, searched on DEMs
+  // averaged to ~search_cell [m] and then on the full grid around the best
+  // (a consumer GNSS's metres are more than the linearised Nuth-Kaab step
+  // converges from on terrain whose features are smaller); 0: no search.
+  double search_radius = 8.0;  // [m] >= 0, <= change.max_shift
+  double search_cell = 0.3;    // [m] > 0
+  void Check() const;
 };
 
 struct FlightChangeInput {
@@ -142,7 +151,8 @@ struct FlightChangeInput {
 };
 
 struct FlightChangeSummary {
-  dense::DemChangeSummary dem;
+  dense::DemChangeSummary dem;  // its co-registration's shift includes the search's
+  Eigen::Vector2d searched_shift = Eigen::Vector2d::Zero();  // [m] the search's whole-cell start
   int common_cells = 0;        // a height in both DEMs
   int stable_common = 0;       // ... and stable
   double stable_median = 0.0;  // [m] median dz on stable ground after co-registration
