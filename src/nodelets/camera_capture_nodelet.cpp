@@ -23,6 +23,7 @@
 #include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/ros/capture_conversions.h"
+#include "slope_monitor/ros/capture_parameters.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
@@ -110,128 +111,24 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
 
   void ReadParameters(ros::NodeHandle& pnh) {
     ros_adapters::ParamReader p(pnh);
-    source_kind_ = p.String("source", "device", {"device", "folder", "video"});
-    camera_name_ = p.String("camera_name", "camera");
-    // The camera's name by the graph's one rule (ros/uav_topics.h): ns /uav/camera is camera uav.
-    publisher_options_.source_name =
-        p.String("source_name", ros_adapters::CameraOfNamespace(getNodeHandle().getNamespace()));
-    const std::string site_file = p.String("site_file", "");
-    publisher_options_.frame_id = p.String("frame_id", camera_name_ + "_optical");
-    camera_info_url_ = p.String("camera_info_url", "");
-    publisher_options_.pixel_size = p.Double("pixel_size", 0.0, 0.0, 1.0, "mm");
-    const std::vector<double> interior = p.DoubleList("interior", {});
-    const std::string model = p.String("distortion_model", "brown_affinity", {"none", "radial", "brown", "brown_affinity"});
-    const int sensor_width = p.Int("sensor_width", 0, 0, 100000, "px");
-    const int sensor_height = p.Int("sensor_height", 0, 0, 100000, "px");
-    encoding_ = p.String("encoding", "auto", {"auto", "mono8", "bgr8"});
-    rate_ = p.Double("rate", 2.0, 0.001, 1000.0, "Hz");
-    start_delay_ = p.Double("start_delay", 1.0, 0.0, 3600.0, "s");
-    subscriber_wait_ = p.Double("subscriber_wait", 10.0, 0.0, 3600.0, "s");
-    exit_at_end_ = p.Bool("exit_at_end", false);
-
-    // Folder.
-    folder_.folder = p.String("folder", "");
-    folder_.extensions = p.StringList("extensions", folder_.extensions);
-    folder_.time_source = p.String("time_source", "exif", {"exif", "file"});
-    folder_.clock_offset = p.Double("clock_offset", 0.0, -1e9, 1e9, "s");
-    folder_.encoding = encoding_;
-    // Video.
-    video_.path = p.String("video_file", "");
-    video_.start_time = p.Double("video_start_time", -1.0, -1.0, 1e10, "s");
-    video_.fps = p.Double("video_fps", 0.0, 0.0, 1000.0, "Hz");
-    video_.frame_step = p.Int("frame_step", 1, 1, 100000);
-    video_.encoding = encoding_;
-    // Device.
-    device_.device = p.String("device", "/dev/video0");
-    device_.api = p.String("device_api", "v4l2", {"v4l2", "any"});
-    device_.width = p.Int("width", 0, 0, 20000, "px");
-    device_.height = p.Int("height", 0, 0, 20000, "px");
-    device_.fps = p.Double("fps", 0.0, 0.0, 1000.0, "Hz");
-    device_.exposure = p.Double("exposure", -1.0, -1.0, 1e7, "device units");
-    device_.encoding = encoding_;
-    retry_interval_ = p.Double("retry_interval", 5.0, 0.1, 3600.0, "s");
-    continuous_ = p.Bool("continuous", false);
-    // Schedule.
-    schedule_.interval = p.Double("schedule/interval", 600.0, 0.0, 7 * 86400.0, "s");
-    schedule_.windows = p.StringList("schedule/windows", {});
-    schedule_.utc_offset_hours = p.Double("schedule/utc_offset", 0.0, -14.0, 14.0, "h");
-    schedule_.frames_per_epoch = p.Int("schedule/frames_per_epoch", 1, 1, 1000);
-    // Epochs.
-    epochs_.gap = p.Double("epoch_gap", 600.0, 1e-3, 1e9, "s");
-    epochs_.max_duration = p.Double("epoch_max_duration", 0.0, 0.0, 1e9, "s");
-    epochs_.first_epoch = static_cast<uint32_t>(p.Int("first_epoch", 0, 0, 1000000000));
-    // GNSS.
-    const std::vector<double> origin = p.DoubleList("site_origin", {});
-    publisher_options_.site_frame = p.String("site_frame", "site");
-    publisher_options_.gnss.sigma_horizontal = p.Double("gnss_sigma_horizontal", 5.0, 1e-4, 1e4, "m");
-    publisher_options_.gnss.sigma_vertical = p.Double("gnss_sigma_vertical", 10.0, 1e-4, 1e4, "m");
-    publisher_options_.gnss.geoid_height = p.Double("geoid_height", 0.0, -200.0, 200.0, "m");
-    publisher_options_.attitude_sigma = p.Double("attitude_sigma", 10.0, 0.01, 180.0, "deg");
-    p.CheckNoUnknownKeys();
-    if (!site_file.empty()) ApplySiteFile(site_file, origin.empty());
-
-    if (!origin.empty()) {
-      if (origin.size() != 3) {
-        throw ConfigError(Message("parameter '", p.FullKey("site_origin"), "' must be [lat_deg, lon_deg, height_m], got ",
-                                  origin.size(), " values"));
-      }
-      publisher_options_.has_site_origin = true;
-      publisher_options_.site_origin = {origin[0], origin[1], origin[2]};
-      capture::CheckGeodetic(publisher_options_.site_origin, p.FullKey("site_origin").c_str());
-    }
-    if (!interior.empty()) {
-      if (interior.size() != camera::kNumInterior) {
-        throw ConfigError(Message("parameter '", p.FullKey("interior"), "' needs ", camera::kNumInterior,
-                                  " values (c x0 y0 k1 k2 k3 p1 p2 b1 b2), got ", interior.size()));
-      }
-      if (!camera_info_url_.empty()) {
-        throw ConfigError(Message("parameters '", p.FullKey("interior"), "' and '", p.FullKey("camera_info_url"),
-                                  "' are both set; use one calibration"));
-      }
-      if (!(publisher_options_.pixel_size > 0.0) || sensor_width <= 0 || sensor_height <= 0) {
-        throw ConfigError(Message("parameter '", p.FullKey("interior"), "' needs pixel_size, sensor_width and sensor_height"));
-      }
-      std::array<double, camera::kNumInterior> a{};
-      std::copy(interior.begin(), interior.end(), a.begin());
-      try {
-        const camera::CameraModel m(camera::Sensor{sensor_width, sensor_height, publisher_options_.pixel_size},
-                                    camera::DistortionModelFromName(model), a);
-        m.Check();
-        publisher_options_.camera_info = ros_adapters::ToMsg(m.ToCameraInfo());
-        publisher_options_.has_camera_info = true;
-      } catch (const InvalidArgument& e) {
-        throw ConfigError(Message("parameter '", p.FullKey("interior"), "': ", e.what()));
-      }
-    }
-    epochs_.Check();
-    if (source_kind_ == "folder") {
-      folder_.Check();
-      source_description_ = "folder " + folder_.folder;
-    } else if (source_kind_ == "video") {
-      video_.Check();
-      source_description_ = "video " + video_.path;
-    } else {
-      device_.Check();
-      schedule_.Check();
-      source_description_ = (device_.api == "v4l2" ? "V4L2 " : "camera ") + device_.device;
-    }
-  }
-
-  // The site file (io::LoadSiteFile): the position priors' origin (a local_enu
-  // site's origin, unless site_origin is set) and this camera's pixel size
-  // (its entry, by the camera's name, unless pixel_size is set).
-  void ApplySiteFile(const std::string& path, bool origin_from_site) {
-    const io::SiteFile site = io::LoadSiteFile(path);
-    if (origin_from_site) {
-      if (site.crs.frame != SiteCrsOptions::Frame::kLocalEnu)
-        throw ConfigError(Message(path, ": frame shifted_crs: camera_capture's position priors need a local_enu site "
-                                        "(or set site_origin)"));
-      const Eigen::Vector3d lon_lat_h = SiteCrs(site.crs).origin_wgs84();
-      publisher_options_.has_site_origin = true;
-      publisher_options_.site_origin = {lon_lat_h.y(), lon_lat_h.x(), lon_lat_h.z()};
-    }
-    const io::SiteCamera* camera = site.FindCamera(publisher_options_.source_name);
-    if (camera && !(publisher_options_.pixel_size > 0.0)) publisher_options_.pixel_size = camera->pixel_size;
+    const ros_adapters::CaptureParameters c = ros_adapters::ReadCaptureParameters(p, getNodeHandle().getNamespace());
+    source_kind_ = c.source;
+    camera_name_ = c.camera_name;
+    camera_info_url_ = c.camera_info_url;
+    encoding_ = c.encoding;
+    source_description_ = c.source_description;
+    rate_ = c.rate;
+    start_delay_ = c.start_delay;
+    retry_interval_ = c.retry_interval;
+    subscriber_wait_ = c.subscriber_wait;
+    exit_at_end_ = c.exit_at_end;
+    continuous_ = c.continuous;
+    folder_ = c.folder;
+    video_ = c.video;
+    device_ = c.device;
+    schedule_ = c.schedule;
+    epochs_ = c.epochs;
+    publisher_options_ = c.publisher;
   }
 
   bool OnTrigger(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
@@ -398,9 +295,10 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
 
   // Parameters.
   std::string source_kind_, camera_name_, camera_info_url_, encoding_, source_description_;
-  double rate_ = 2.0, start_delay_ = 1.0, retry_interval_ = 5.0;
-  double subscriber_wait_ = 10.0;  // [s] folder / video: wait this long at most for a subscriber
-  bool exit_at_end_ = false;       // folder / video: end the process after the last frame
+  // From ros_adapters::CaptureParameters (its defaults and units).
+  double rate_ = 0.0, start_delay_ = 0.0, retry_interval_ = 0.0;
+  double subscriber_wait_ = 0.0;
+  bool exit_at_end_ = false;
   bool continuous_ = false;
   capture::FolderSourceOptions folder_;
   capture::VideoSourceOptions video_;

@@ -34,6 +34,7 @@
 #include "slope_monitor/core/dense/surface.h"
 #include "slope_monitor/core/io/geotiff.h"
 #include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/ros/dense_conversions.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
 
@@ -78,54 +79,15 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
 
   void ReadParameters(ros::NodeHandle& pnh) {
     ros_adapters::ParamReader p(pnh);
-    dense::SurfaceOptions& o = options_;
-    o.correlation.levels = p.Int("levels", 3, 1, 5);
-    o.correlation.peak_frequency = p.Double("peak_frequency", 1.0, 0.01, 3.0, "rad/px");
-    o.correlation.grid_spacing = p.Int("grid_spacing", 8, 1, 64, "px");
-    o.correlation.final_grid_spacing = p.Int("final_grid_spacing", 2, 1, 64, "px");
-    o.correlation.window = p.Int("window", 15, 3, 51, "px");
-    o.correlation.final_window = p.Int("final_window", 0, 0, 51, "px");
-    o.correlation.lsc_iterations = p.Int("lsc_iterations", 0, 0, 20);
-    o.correlation.search_radius = p.Int("search_radius", 3, 1, 16, "px");
-    o.correlation.final_search_radius = p.Int("final_search_radius", 0, 0, 16, "px");
-    o.correlation.edge_window = p.Int("edge_window", 0, 0, 51, "px");
-    o.correlation.edge_parallax_step = p.Double("edge_parallax_step", 2.0, 0.01, 100.0, "px");
-    o.correlation.min_correlation = p.Double("min_correlation", 0.3, -1.0, 0.999);
-    o.correlation.lr_tolerance = p.Double("lr_tolerance", 1.0, 0.01, 10.0, "px");
-    o.correlation.order_tolerance = p.Double("order_tolerance", 0.5, 0.0, 10.0, "px");
-    o.correlation.median_filter = p.Bool("median_filter", true);
-    o.correlation.order_check = p.Bool("order_check", true);
-    o.correlation.two_way = p.Bool("two_way", true);
-    o.correlation.full_right_search = p.Bool("full_right_search", true);
-    o.rectify.scale = p.Double("rectify_scale", 1.0, 0.05, 4.0);
-    o.rectify.patch_size = p.Int("patch_size", 0, 0, 8192, "px");
-    o.rectify.patch_overlap = p.Int("patch_overlap", 32, 0, 4096, "px");
-    o.rectify.min_baseline = p.Double("min_baseline", 1e-3, 1e-9, 1e6, "m");
-    o.rectify.min_overlap = p.Double("min_overlap", 0.05, 0.0, 1.0);
-    o.cell_size = p.Double("cell_size", 0.5, 1e-3, 100.0, "m");
-    o.min_points_per_cell = p.Int("min_points_per_cell", 2, 1, 1000);
-    o.parallax_sigma = p.Double("parallax_sigma", 0.15, 1e-3, 10.0, "px");
-    o.max_ray_gap = p.Double("max_ray_gap", 0.0, 0.0, 1e3, "m");
-    o.ortho_cell_size = p.Double("ortho_cell_size", 0.0, 0.0, 100.0, "m");
-    config_.min_depth = p.Double("min_depth", 5.0, 1e-3, 1e6, "m");
-    config_.max_depth = p.Double("max_depth", 500.0, 1e-3, 1e6, "m");
-    const std::vector<double> region = p.DoubleList("region", {0.0, 0.0, 0.0, 0.0});
-    if (region.size() != 4)
-      throw ConfigError(Message("parameter '", p.FullKey("region"), "' must be [xmin, xmax, ymin, ymax] (m)"));
-    config_.region = Eigen::Vector4d(region[0], region[1], region[2], region[3]);
-    change_options_.lod_factor = p.Double("lod_factor", 1.96, 0.0, 10.0);
-    change_options_.min_lod = p.Double("min_lod", 0.0, 0.0, 100.0, "m");
-    pixel_size_ = p.Double("pixel_size", 1.0, 1e-6, 1.0, "mm/px");
-    max_pair_dt_ = p.Double("max_pair_dt", 1.0, 0.0, 1e6, "s");
-    frame_id_ = p.String("frame_id", "site");
-    output_dir_ = p.String("output_dir", "");
-    tf_timeout_ = p.Double("tf_timeout", 0.5, 0.0, 60.0, "s");
-    p.CheckNoUnknownKeys();
-    options_.Check();
-    change_options_.Check();
-    if (!(config_.max_depth > config_.min_depth))
-      throw ConfigError(Message("parameter '", p.FullKey("max_depth"), "' = ", config_.max_depth,
-                                " must be > min_depth = ", config_.min_depth));
+    const ros_adapters::DenseMatcherParameters d = ros_adapters::ReadDenseMatcherParameters(p);
+    options_ = d.surface;
+    config_ = d.config;
+    change_options_ = d.change;
+    pixel_size_ = d.pixel_size;
+    max_pair_dt_ = d.max_pair_dt;
+    frame_id_ = d.frame_id;
+    output_dir_ = d.output_dir;
+    tf_timeout_ = d.tf_timeout;
   }
 
   void OnInfo(int side, const sensor_msgs::CameraInfoConstPtr& msg) {
@@ -273,10 +235,10 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
   dense::SurfaceOptions options_;
   dense::SurfaceConfig config_;
   dense::ChangeOptions change_options_;
-  double pixel_size_ = 1.0;
-  double max_pair_dt_ = 1.0;
-  double tf_timeout_ = 0.5;
-  std::string frame_id_ = "site";
+  double pixel_size_ = 0.0;  // the members below: ros_adapters::DenseMatcherParameters
+  double max_pair_dt_ = 0.0;
+  double tf_timeout_ = 0.0;
+  std::string frame_id_;
   std::string output_dir_;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;

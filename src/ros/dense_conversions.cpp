@@ -108,7 +108,8 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
       p.Int("max_pairs_per_image", d.surface.max_pairs_per_image, 1, 100);
   d.surface.max_dem_megabytes =
       p.Double("max_dem_megabytes", d.surface.max_dem_megabytes, 1e-3, 1e5, "MB");
-  const std::vector<double> region = p.DoubleList("region", {0.0, 0.0, 0.0, 0.0});
+  const Eigen::Vector4d& r0 = d.surface.region;
+  const std::vector<double> region = p.DoubleList("region", {r0[0], r0[1], r0[2], r0[3]});
   if (region.size() != 4)
     throw ConfigError(
         Message("parameter '", p.FullKey("region"), "' must be [xmin, xmax, ymin, ymax] (m)"));
@@ -117,7 +118,8 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
   d.change.coregistration_iterations =
       p.Int("coregistration_iterations", d.change.coregistration_iterations, 0, 20);
   d.change.min_stable_cells = p.Int("min_stable_cells", d.change.min_stable_cells, 4, 1000000000);
-  const std::vector<double> outline = p.DoubleList("monitored_outline", {});
+  d.monitored_outline = p.DoubleList("monitored_outline", d.monitored_outline);
+  const std::vector<double>& outline = d.monitored_outline;
   if (outline.size() % 2 != 0 || (!outline.empty() && outline.size() < 6))
     throw ConfigError(
         Message("parameter '", p.FullKey("monitored_outline"),
@@ -127,7 +129,7 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
     for (size_t i = 0; i < outline.size(); i += 2)
       d.outlines.back().emplace_back(outline[i], outline[i + 1]);
   }
-  d.stable_mask = p.String("stable_mask", "");
+  d.stable_mask = p.String("stable_mask", d.stable_mask);
   std::vector<std::string> default_cameras;
   for (const io::SiteCamera& cam : io::DefaultCameras()) default_cameras.push_back(cam.name);
   d.cameras = p.StringList("cameras", default_cameras);
@@ -135,9 +137,9 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
       p.StringList("uav_cameras", io::CameraNames(io::DefaultCameras(), io::CameraKind::kUav));
   // A site file that lists cameras decides them and their kinds (the two
   // parameters above are then not used).
-  const std::string site_file = p.String("site_file", "");
-  if (!site_file.empty()) {
-    const io::SiteFile site = io::LoadSiteFile(site_file);
+  d.site_file = p.String("site_file", d.site_file);
+  if (!d.site_file.empty()) {
+    const io::SiteFile site = io::LoadSiteFile(d.site_file);
     if (!site.cameras.empty()) {
       d.cameras.clear();
       d.uav_cameras.clear();
@@ -147,20 +149,23 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
       }
     }
   }
-  const std::vector<std::string> pairs = p.StringList("stereo_pairs", {});
+  std::vector<std::string> default_pairs;
+  for (const auto& pair : d.stereo_pairs) default_pairs.insert(default_pairs.end(), {pair.first, pair.second});
+  const std::vector<std::string> pairs = p.StringList("stereo_pairs", default_pairs);
+  d.stereo_pairs.clear();
   if (pairs.size() % 2 != 0)
     throw ConfigError(Message("parameter '", p.FullKey("stereo_pairs"),
                               "' must list cameras in pairs (left, right)"));
   for (size_t i = 0; i < pairs.size(); i += 2) d.stereo_pairs.push_back({pairs[i], pairs[i + 1]});
-  d.pixel_size = p.Double("pixel_size", 0.0048, 1e-6, 1.0, "mm/px");
+  d.pixel_size = p.Double("pixel_size", d.pixel_size, 1e-6, 1.0, "mm/px");
   dense::PhotoCollectorOptions& ph = d.photos;
   ph.uav_cameras = d.uav_cameras;
   ph.stereo_pairs = d.stereo_pairs;
   ph.max_photos = p.Int("max_cached_images", ph.max_photos, 1, 10000);
   ph.max_megabytes = p.Double("max_cached_megabytes", ph.max_megabytes, 1e-3, 1e5, "MB");
   ph.photo_wait = p.Double("photo_wait", ph.photo_wait, 0.0, 1e6, "s");
-  d.frame_id = p.String("frame_id", "site");
-  d.report_dir = p.String("report_dir", "");
+  d.frame_id = p.String("frame_id", d.frame_id);
+  d.report_dir = p.String("report_dir", d.report_dir);
   ChangeScaleOptions& cs = d.change_scale;
   cs.min = p.Double("change_colour_min", cs.min, -1e3, 1e3, "m");
   cs.max = p.Double("change_colour_max", cs.max, -1e3, 1e3, "m");
@@ -174,6 +179,62 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
   d.surface.Check();
   d.change.Check();
   d.photos.Check();
+  return d;
+}
+
+DenseMatcherParameters ReadDenseMatcherParameters(ParamReader& p) {
+  DenseMatcherParameters d;
+  dense::SurfaceOptions& o = d.surface;
+  dense::CorrelationOptions& c = o.correlation;
+  c.levels = p.Int("levels", c.levels, 1, 5);
+  c.peak_frequency = p.Double("peak_frequency", c.peak_frequency, 0.01, 3.0, "rad/px");
+  c.grid_spacing = p.Int("grid_spacing", c.grid_spacing, 1, 64, "px");
+  c.final_grid_spacing = p.Int("final_grid_spacing", c.final_grid_spacing, 1, 64, "px");
+  c.window = p.Int("window", c.window, 3, 51, "px");
+  c.final_window = p.Int("final_window", c.final_window, 0, 51, "px");
+  c.lsc_iterations = p.Int("lsc_iterations", c.lsc_iterations, 0, 20);
+  c.search_radius = p.Int("search_radius", c.search_radius, 1, 16, "px");
+  c.final_search_radius = p.Int("final_search_radius", c.final_search_radius, 0, 16, "px");
+  c.edge_window = p.Int("edge_window", c.edge_window, 0, 51, "px");
+  c.edge_parallax_step = p.Double("edge_parallax_step", c.edge_parallax_step, 0.01, 100.0, "px");
+  c.min_correlation = p.Double("min_correlation", c.min_correlation, -1.0, 0.999);
+  c.lr_tolerance = p.Double("lr_tolerance", c.lr_tolerance, 0.01, 10.0, "px");
+  c.order_tolerance = p.Double("order_tolerance", c.order_tolerance, 0.0, 10.0, "px");
+  c.median_filter = p.Bool("median_filter", c.median_filter);
+  c.order_check = p.Bool("order_check", c.order_check);
+  c.two_way = p.Bool("two_way", c.two_way);
+  c.full_right_search = p.Bool("full_right_search", c.full_right_search);
+  o.rectify.scale = p.Double("rectify_scale", o.rectify.scale, 0.05, 4.0);
+  o.rectify.patch_size = p.Int("patch_size", o.rectify.patch_size, 0, 8192, "px");
+  o.rectify.patch_overlap = p.Int("patch_overlap", o.rectify.patch_overlap, 0, 4096, "px");
+  o.rectify.min_baseline = p.Double("min_baseline", o.rectify.min_baseline, 1e-9, 1e6, "m");
+  o.rectify.min_overlap = p.Double("min_overlap", o.rectify.min_overlap, 0.0, 1.0);
+  o.cell_size = p.Double("cell_size", o.cell_size, 1e-3, 100.0, "m");
+  o.min_points_per_cell = p.Int("min_points_per_cell", o.min_points_per_cell, 1, 1000);
+  o.parallax_sigma = p.Double("parallax_sigma", o.parallax_sigma, 1e-3, 10.0, "px");
+  o.max_ray_gap = p.Double("max_ray_gap", o.max_ray_gap, 0.0, 1e3, "m");
+  o.ortho_cell_size = p.Double("ortho_cell_size", o.ortho_cell_size, 0.0, 100.0, "m");
+  d.config.min_depth = p.Double("min_depth", d.config.min_depth, 1e-3, 1e6, "m");
+  d.config.max_depth = p.Double("max_depth", d.config.max_depth, 1e-3, 1e6, "m");
+  const Eigen::Vector4d& r0 = d.config.region;
+  const std::vector<double> region = p.DoubleList("region", {r0[0], r0[1], r0[2], r0[3]});
+  if (region.size() != 4)
+    throw ConfigError(
+        Message("parameter '", p.FullKey("region"), "' must be [xmin, xmax, ymin, ymax] (m)"));
+  d.config.region = Eigen::Vector4d(region[0], region[1], region[2], region[3]);
+  d.change.lod_factor = p.Double("lod_factor", d.change.lod_factor, 0.0, 10.0);
+  d.change.min_lod = p.Double("min_lod", d.change.min_lod, 0.0, 100.0, "m");
+  d.pixel_size = p.Double("pixel_size", d.pixel_size, 1e-6, 1.0, "mm/px");
+  d.max_pair_dt = p.Double("max_pair_dt", d.max_pair_dt, 0.0, 1e6, "s");
+  d.frame_id = p.String("frame_id", d.frame_id);
+  d.output_dir = p.String("output_dir", d.output_dir);
+  d.tf_timeout = p.Double("tf_timeout", d.tf_timeout, 0.0, 60.0, "s");
+  p.CheckNoUnknownKeys();
+  d.surface.Check();
+  d.change.Check();
+  if (!(d.config.max_depth > d.config.min_depth))
+    throw ConfigError(Message("parameter '", p.FullKey("max_depth"), "' = ", d.config.max_depth,
+                              " must be > min_depth = ", d.config.min_depth));
   return d;
 }
 

@@ -61,7 +61,8 @@ void ReadHexOptions(ParamReader& p, matching::HexMatcherOptions* o) {
 }
 
 // Search radii, prior shift, excluded boxes.
-void ReadPrior(ParamReader& p, bool track, matching::MatchPrior* prior) {
+void ReadPrior(ParamReader& p, bool track, HexMatcherParameters* h) {
+  matching::MatchPrior* prior = &h->prior;
   prior->radius = p.Double("search_radius", prior->radius, 1.0, 1000.0, "px");
   prior->moving_radius = p.Double("moving_radius", prior->moving_radius, 1.0, 1000.0, "px");
   const std::vector<double> shift =
@@ -72,7 +73,8 @@ void ReadPrior(ParamReader& p, bool track, matching::MatchPrior* prior) {
   prior->estimate_global_shift = p.Bool("estimate_global_shift", track);
   // Operator's outline of known obstacles in image a: rectangles
   // [x0, y0, x1, y1, ...] [px]; matches there are flagged low quality.
-  const std::vector<double> boxes = p.DoubleList("exclude_boxes", {});
+  h->exclude_boxes = p.DoubleList("exclude_boxes", h->exclude_boxes);
+  const std::vector<double>& boxes = h->exclude_boxes;
   if (boxes.size() % 4 != 0) {
     throw ConfigError(p.FullKey("exclude_boxes") +
                       " must hold 4 values per box (x0, y0, x1, y1) [px], got " +
@@ -87,8 +89,10 @@ void ReadPrior(ParamReader& p, bool track, matching::MatchPrior* prior) {
   // Track mode: the operator's stable area of the reference image (polygons
   // in pixels, io/image_polygons.h); the rest may move (moving_radius) and
   // only stable points give the global shift.
-  const std::string stable_file = p.String("stable_polygons", "");
-  const bool only_stable = p.Bool("match_only_stable", false);
+  h->stable_polygons = p.String("stable_polygons", h->stable_polygons);
+  h->match_only_stable = p.Bool("match_only_stable", h->match_only_stable);
+  const std::string& stable_file = h->stable_polygons;
+  const bool only_stable = h->match_only_stable;
   if (!stable_file.empty()) {
     const auto stable = io::ReadImagePolygons(stable_file, p.FullKey("stable_polygons"));
     prior->moving = [stable](const Eigen::Vector2d& x) { return !io::InsideAny(stable, x); };
@@ -190,10 +194,10 @@ HexMatcherParameters ReadHexMatcherParameters(ParamReader& p) {
   h.camera_a = p.String("camera_a", h.camera_a);
   h.camera_b = p.String("camera_b", h.camera_b);
   ReadHexOptions(p, &h.hex);
-  ReadPrior(p, h.mode == "track", &h.prior);
+  ReadPrior(p, h.mode == "track", &h);
   h.camera = p.String("camera", h.camera);
-  const std::string site_file = p.String("site_file", "");
-  if (h.mode == "sequence" && !site_file.empty()) UseSiteUavCamera(io::LoadSiteFile(site_file), p, &h);
+  h.site_file = p.String("site_file", h.site_file);
+  if (h.mode == "sequence" && !h.site_file.empty()) UseSiteUavCamera(io::LoadSiteFile(h.site_file), p, &h);
   h.site_frame = p.String("site_frame", h.site_frame);
   h.image_queue = p.Int("image_queue", h.image_queue, 1, 100000);
   ReadSequenceOptions(p, &h.sequence);

@@ -34,6 +34,27 @@ bool ToDouble(XmlRpc::XmlRpcValue& v, double* out) {
   return false;
 }
 
+template <typename T>
+XmlRpc::XmlRpcValue ListValue(const std::vector<T>& values) {
+  XmlRpc::XmlRpcValue list;
+  list.setSize(static_cast<int>(values.size()));
+  for (size_t i = 0; i < values.size(); ++i) list[static_cast<int>(i)] = XmlRpc::XmlRpcValue(values[i]);
+  return list;
+}
+
+// The keys of a parameter tree as the parameter server names them: a
+// dictionary's members as "<dictionary>/<member>", recursively.
+void ListTreeKeys(const XmlRpc::XmlRpcValue& tree, const std::string& prefix, std::vector<std::string>* out) {
+  if (tree.getType() != XmlRpc::XmlRpcValue::TypeStruct) return;
+  XmlRpc::XmlRpcValue& t = const_cast<XmlRpc::XmlRpcValue&>(tree);
+  for (auto it = t.begin(); it != t.end(); ++it) {
+    if (it->second.getType() == XmlRpc::XmlRpcValue::TypeStruct && it->second.size() > 0)
+      ListTreeKeys(it->second, prefix + it->first + "/", out);
+    else
+      out->push_back(prefix + it->first);
+  }
+}
+
 std::string UnitSuffix(const std::string& unit) { return unit.empty() ? "" : " " + unit; }
 
 }  // namespace
@@ -47,14 +68,26 @@ std::string ParamReader::FullKey(const std::string& key) const {
 
 bool ParamReader::Get(const std::string& key, XmlRpc::XmlRpcValue* v) const {
   if (!use_tree_) return nh_->getParam(key, *v);
-  if (tree_.getType() != XmlRpc::XmlRpcValue::TypeStruct || !tree_.hasMember(key)) return false;
-  *v = const_cast<XmlRpc::XmlRpcValue&>(tree_)[key];
+  // "schedule/interval" is member interval of dictionary schedule, as the
+  // parameter server resolves it.
+  const XmlRpc::XmlRpcValue* node = &tree_;
+  size_t begin = 0;
+  while (true) {
+    const size_t slash = key.find('/', begin);
+    const std::string part = key.substr(begin, slash == std::string::npos ? std::string::npos : slash - begin);
+    if (node->getType() != XmlRpc::XmlRpcValue::TypeStruct || !node->hasMember(part)) return false;
+    node = &const_cast<XmlRpc::XmlRpcValue&>(*node)[part];
+    if (slash == std::string::npos) break;
+    begin = slash + 1;
+  }
+  *v = *node;
   return true;
 }
 
 double ParamReader::Double(const std::string& key, double default_value, double min, double max,
                            const std::string& unit) {
   read_.insert(FullKey(key));
+  defaults_[key] = XmlRpc::XmlRpcValue(default_value);
   XmlRpc::XmlRpcValue v;
   if (!Get(key, &v)) return default_value;
   double value;
@@ -71,6 +104,7 @@ double ParamReader::Double(const std::string& key, double default_value, double 
 
 int ParamReader::Int(const std::string& key, int default_value, int min, int max, const std::string& unit) {
   read_.insert(FullKey(key));
+  defaults_[key] = XmlRpc::XmlRpcValue(default_value);
   XmlRpc::XmlRpcValue v;
   if (!Get(key, &v)) return default_value;
   if (v.getType() != XmlRpc::XmlRpcValue::TypeInt) {
@@ -87,6 +121,7 @@ int ParamReader::Int(const std::string& key, int default_value, int min, int max
 
 bool ParamReader::Bool(const std::string& key, bool default_value) {
   read_.insert(FullKey(key));
+  defaults_[key] = XmlRpc::XmlRpcValue(default_value);
   XmlRpc::XmlRpcValue v;
   if (!Get(key, &v)) return default_value;
   if (v.getType() != XmlRpc::XmlRpcValue::TypeBoolean) {
@@ -98,6 +133,7 @@ bool ParamReader::Bool(const std::string& key, bool default_value) {
 std::string ParamReader::String(const std::string& key, const std::string& default_value,
                                 const std::vector<std::string>& allowed) {
   read_.insert(FullKey(key));
+  defaults_[key] = XmlRpc::XmlRpcValue(default_value);
   XmlRpc::XmlRpcValue v;
   std::string value = default_value;
   if (Get(key, &v)) {
@@ -120,6 +156,7 @@ std::string ParamReader::String(const std::string& key, const std::string& defau
 
 std::vector<double> ParamReader::DoubleList(const std::string& key, const std::vector<double>& default_value) {
   read_.insert(FullKey(key));
+  defaults_[key] = ListValue(default_value);
   XmlRpc::XmlRpcValue v;
   if (!Get(key, &v)) return default_value;
   if (v.getType() != XmlRpc::XmlRpcValue::TypeArray) {
@@ -139,6 +176,7 @@ std::vector<double> ParamReader::DoubleList(const std::string& key, const std::v
 std::vector<std::string> ParamReader::StringList(const std::string& key,
                                                  const std::vector<std::string>& default_value) {
   read_.insert(FullKey(key));
+  defaults_[key] = ListValue(default_value);
   XmlRpc::XmlRpcValue v;
   if (!Get(key, &v)) return default_value;
   if (v.getType() != XmlRpc::XmlRpcValue::TypeArray) {
@@ -159,8 +197,7 @@ void ParamReader::CheckNoUnknownKeys(const std::set<std::string>& ignored) const
   std::string prefix;
   if (use_tree_) {
     prefix = tree_ns_ + "/";
-    if (tree_.getType() == XmlRpc::XmlRpcValue::TypeStruct)
-      for (auto it = tree_.begin(); it != tree_.end(); ++it) all.push_back(prefix + it->first);
+    ListTreeKeys(tree_, prefix, &all);
   } else {
     if (!nh_->getParamNames(all)) return;
     prefix = nh_->getNamespace() + "/";

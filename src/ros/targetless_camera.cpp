@@ -90,13 +90,14 @@ slope_monitor::PointDisplacementArray ToDisplacements(const dense::DisplacementF
 
 TargetlessParameters ReadTargetlessParameters(ParamReader& p) {
   TargetlessParameters t;
-  t.site_file = p.String("site_file", "");
+  t.site_file = p.String("site_file", t.site_file);
   if (t.site_file.empty())
     throw ConfigError(
         Message(p.FullKey("site_file"),
                 ": required (the site file that lists the fixed_targetless cameras)"));
   t.site = io::LoadSiteFile(t.site_file);
-  for (const std::string& r : p.StringList("reference_images", {})) {
+  t.reference_images = p.StringList("reference_images", t.reference_images);
+  for (const std::string& r : t.reference_images) {
     const size_t eq = r.find('=');
     if (eq == std::string::npos || eq == 0 || eq + 1 == r.size())
       throw ConfigError(Message(p.FullKey("reference_images"), ": entry '", r,

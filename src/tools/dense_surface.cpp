@@ -74,50 +74,15 @@ struct Args {
   bool Has(const std::string& k) const { return kv.count(k) > 0; }
 };
 
+// The dense_matcher node's reader (config/defaults/dense_matcher.yaml): the
+// same keys, defaults and checks; the node-only keys are read and not used.
 void ReadOptions(const std::string& path, dense::SurfaceOptions* o, dense::SurfaceConfig* c, dense::ChangeOptions* co) {
   if (path.empty()) return;
-  io::YamlMap p = io::YamlMap::Load(path);
-  o->correlation.levels = p.Int("levels", 3, 1, 5);
-  o->correlation.peak_frequency = p.Double("peak_frequency", 1.0, 0.01, 3.0, "rad/px");
-  o->correlation.grid_spacing = p.Int("grid_spacing", 8, 1, 64, "px");
-  o->correlation.final_grid_spacing = p.Int("final_grid_spacing", 2, 1, 64, "px");
-  o->correlation.window = p.Int("window", 15, 3, 51, "px");
-  o->correlation.final_window = p.Int("final_window", 0, 0, 51, "px");
-  o->correlation.lsc_iterations = p.Int("lsc_iterations", 0, 0, 20);
-  o->correlation.search_radius = p.Int("search_radius", 3, 1, 16, "px");
-  o->correlation.final_search_radius = p.Int("final_search_radius", 0, 0, 16, "px");
-  o->correlation.edge_window = p.Int("edge_window", 0, 0, 51, "px");
-  o->correlation.edge_parallax_step = p.Double("edge_parallax_step", 2.0, 0.01, 100.0, "px");
-  o->correlation.min_correlation = p.Double("min_correlation", 0.3, -1.0, 0.999);
-  o->correlation.lr_tolerance = p.Double("lr_tolerance", 1.0, 0.01, 10.0, "px");
-  o->correlation.order_tolerance = p.Double("order_tolerance", 0.5, 0.0, 10.0, "px");
-  o->correlation.median_filter = p.Bool("median_filter", true);
-  o->correlation.order_check = p.Bool("order_check", true);
-  o->correlation.two_way = p.Bool("two_way", true);
-  o->correlation.full_right_search = p.Bool("full_right_search", true);
-  o->rectify.scale = p.Double("rectify_scale", 1.0, 0.05, 4.0);
-  o->rectify.patch_size = p.Int("patch_size", 0, 0, 8192, "px");
-  o->rectify.patch_overlap = p.Int("patch_overlap", 32, 0, 4096, "px");
-  o->rectify.min_baseline = p.Double("min_baseline", 1e-3, 1e-9, 1e6, "m");
-  o->rectify.min_overlap = p.Double("min_overlap", 0.05, 0.0, 1.0);
-  c->min_depth = p.Double("min_depth", 5.0, 1e-3, 1e6, "m");
-  c->max_depth = p.Double("max_depth", 500.0, 1e-3, 1e6, "m");
-  o->cell_size = p.Double("cell_size", 0.5, 1e-3, 100.0, "m");
-  o->min_points_per_cell = p.Int("min_points_per_cell", 2, 1, 1000);
-  o->parallax_sigma = p.Double("parallax_sigma", 0.15, 1e-3, 10.0, "px");
-  o->max_ray_gap = p.Double("max_ray_gap", 0.0, 0.0, 1e3, "m");
-  o->ortho_cell_size = p.Double("ortho_cell_size", 0.0, 0.0, 100.0, "m");
-  const std::vector<double> r = p.Doubles("region", {0, 0, 0, 0}, 4);
-  c->region = Eigen::Vector4d(r[0], r[1], r[2], r[3]);
-  co->lod_factor = p.Double("lod_factor", 1.96, 0.0, 10.0);
-  co->min_lod = p.Double("min_lod", 0.0, 0.0, 100.0, "m");
-  // Node-only keys, accepted so the same file serves both.
-  p.Double("pixel_size", 0.00345, 1e-6, 1.0, "mm/px");
-  p.Double("max_pair_dt", 1.0, 0.0, 1e6, "s");
-  p.String("frame_id", "site");
-  p.String("output_dir", "");
-  p.Double("tf_timeout", 0.5, 0.0, 60.0, "s");
-  p.CheckNoUnknownKeys();
+  ros_adapters::ParamReader p(ros_adapters::LoadParamFile(path), path);
+  const ros_adapters::DenseMatcherParameters d = ros_adapters::ReadDenseMatcherParameters(p);
+  *o = d.surface;
+  *c = d.config;
+  *co = d.change;
 }
 
 dense::OrientedImage ImageFromYaml(io::YamlMap m, const std::string& dir, const std::string& role) {

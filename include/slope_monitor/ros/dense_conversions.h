@@ -10,35 +10,76 @@
 #include <visualization_msgs/MarkerArray.h>
 
 #include "slope_monitor/AdjustmentSolution.h"
+#include "slope_monitor/core/dense/change.h"
 #include "slope_monitor/core/dense/dem_change.h"
 #include "slope_monitor/core/dense/epoch_photos.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
+#include "slope_monitor/core/dense/surface.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/view_markers.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
 
+// The graph's dense surfaces, where they differ from the library's
+// dense::SurfaceOptions: a 2 px final grid (0.2 m on the ground from 25-45 m:
+// several points per 0.5 m cell; the library keeps DESIGN.md's 8 px grid)
+// and no cell from a single point. Both dense nodes (stereo and epoch) start
+// from these.
+inline void ApplyGraphSurfaceDefaults(dense::SurfaceOptions* o) {
+  o->correlation.final_grid_spacing = 2;
+  o->min_points_per_cell = 2;
+}
+inline dense::SurfaceOptions StereoSurfaceOptions() {
+  dense::SurfaceOptions o;
+  ApplyGraphSurfaceDefaults(&o);
+  return o;
+}
+inline dense::EpochSurfaceOptions GraphEpochSurfaceOptions() {
+  dense::EpochSurfaceOptions o;
+  ApplyGraphSurfaceDefaults(&o.surface);
+  return o;
+}
+
 // The keys of config/defaults/dense_epoch.yaml, read once for the dense
 // matcher node (parameter server) and for `dense_surface --bag` (the same
 // file, ros/param_files.h). Defaults: the core Options' own. Throws
 // ConfigError naming the key (CheckNoUnknownKeys is called).
 struct DenseEpochParameters {
-  dense::EpochSurfaceOptions surface;
+  dense::EpochSurfaceOptions surface = GraphEpochSurfaceOptions();
   dense::DemChangeOptions change;
+  std::vector<double> monitored_outline;  // [x1, y1, x2, y2, ...] (m, site) as written
   std::vector<dense::Polygon> outlines;  // monitored_outline (site)
   std::string stable_mask;               // GeoTIFF, "" = none
   std::vector<std::string> cameras, uav_cameras;
   std::vector<std::pair<std::string, std::string>> stereo_pairs;
-  double pixel_size = 0.0;  // [mm/px]
+  std::string site_file;  // its cameras and their kinds, when it lists them ("" = cameras, uav_cameras)
+  double pixel_size = 0.0048;  // [mm/px] of a camera the site file does not give (the simulator's cameras)
   // uav_cameras, stereo_pairs as above; max_cached_images, max_cached_megabytes, photo_wait.
   dense::PhotoCollectorOptions photos;
-  std::string frame_id, report_dir;
+  std::string frame_id = "site", report_dir;
   // change_colour_min / max: the colour scale of `change` (the legend; rviz's
   // cloud display is set to the same numbers).
   ChangeScaleOptions change_scale;
 };
 DenseEpochParameters ReadDenseEpochParameters(ParamReader& p);
+
+// The stereo dense matcher's keys (config/defaults/dense_matcher.yaml), read
+// once for the dense_matcher nodelet (parameter server) and for the
+// dense_surface tool (--config, the same file). The in-class values are the
+// defaults; where the node's differ from the library's, StereoSurfaceOptions
+// says why.
+struct DenseMatcherParameters {
+  dense::SurfaceOptions surface = StereoSurfaceOptions();
+  dense::SurfaceConfig config = {5.0, 500.0};  // [m] min_depth, max_depth; region: bounding box
+  dense::ChangeOptions change;
+  double pixel_size = 0.00345;  // [mm/px] to read camera_info into the camera model
+  double max_pair_dt = 1.0;     // [s] left and right stamps may differ by this much
+  std::string frame_id = "site";
+  std::string output_dir;       // GeoTIFFs written here ("" = none)
+  double tf_timeout = 0.5;      // [s] wait for the camera transform
+};
+DenseMatcherParameters ReadDenseMatcherParameters(ParamReader& p);
 
 // The image with the ADJUSTED orientation and interior orientation of
 // `estimate` (sensor size and distortion model from `info`). Throws

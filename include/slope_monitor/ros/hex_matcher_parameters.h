@@ -7,6 +7,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "slope_monitor/core/matching/hex_matcher.h"
 #include "slope_monitor/core/matching/sequence_matcher.h"
@@ -23,6 +24,13 @@ struct HexMatcherParameters {
   std::string camera_a = "cam_a", camera_b = "cam_b";
   matching::HexMatcherOptions hex;  // pair and track modes
   matching::MatchPrior prior;       // pair and track modes
+  // Into `prior`: rectangles [x0, y0, x1, y1, ...] of image a [px] whose
+  // matches are flagged low quality; the operator's stable area of the
+  // reference image (polygons file, "" = none) and whether to match only there.
+  std::vector<double> exclude_boxes;
+  std::string stable_polygons;
+  bool match_only_stable = false;
+  std::string site_file;  // sequence mode: the site's camera of kind uav ("" = `camera`)
   // Sequence mode. With a site file (key site_file) that lists cameras:
   // `camera` is its camera of kind uav (the key picks one when it lists
   // several) and the topics are that camera's, /<camera>/camera/image_raw,

@@ -27,10 +27,27 @@
 namespace slope_monitor {
 namespace ros_adapters {
 
+// The monitoring graph's adjustment, where it differs from the library's
+// adjustment::Options: displacements compared datum-free (their covariance
+// without the datum's), and a sigma0 below 1 does not shrink the
+// covariances (min_variance_factor 1: image noise better than assumed is
+// not taken as a smaller displacement uncertainty).
+inline adjustment::EpochAdjustmentOptions MonitoringEpochOptions() {
+  adjustment::EpochAdjustmentOptions e;
+  e.adjustment.compute_datum_free_covariance = true;
+  e.adjustment.min_variance_factor = 1.0;
+  return e;
+}
+
+// Every field's in-class value is the default a node gets when neither
+// config/defaults/<node>.yaml nor the launch sets the key (the readers take
+// them from here; test/ros/config_files_test.cpp checks the yaml files
+// against them).
 struct AdjusterParameters {
+  std::string site_file;         // "" = none: target_list and the parameters decide
   std::string target_list_path;  // or "<site file> (inline targets)"
   io::TargetList targets;        // the site file's when it lists them, else target_list's
-  std::vector<std::string> target_topics, epoch_topics;
+  std::vector<std::string> target_topics = {"targets"}, epoch_topics = {"epoch"};
   // A site file that lists cameras decides them: its cameras with targets
   // (kind fixed or uav) are `cameras`, target_topics (/<camera>/targets) and
   // epoch_topics (/<camera>/camera/epoch), in the site's order; those three
@@ -43,8 +60,12 @@ struct AdjusterParameters {
   std::string CameraInfoTopic(const std::string& name) const {
     return cameras_from_site ? "/" + name + "/camera/camera_info" : name + "/camera_info";
   }
-  std::string frame_id;
+  std::string frame_id = "site";
   bool enable_run_adjustment = true, enable_set_reference_epoch = true;
+  bool uav_tie_points = false;  // the UAV cameras' photos wait for their tie points
+  // Interior parameters (camera::InteriorNames) free for the UAV cameras in
+  // every flight; empty: free_interior's (and the UAV start's c, k1, k2)
+  std::vector<std::string> uav_free_interior;
   double pixel_size = 1.0;                            // [mm/px]
   std::map<std::string, double> pixel_size_by_camera;  // [mm/px] from the site file
   double PixelSizeOf(const std::string& camera) const {
@@ -53,7 +74,7 @@ struct AdjusterParameters {
   }
   adjustment::EpochCollectorOptions collector;
   adjustment::BuildSceneOptions scene;
-  adjustment::EpochAdjustmentOptions epoch;
+  adjustment::EpochAdjustmentOptions epoch = MonitoringEpochOptions();
   adjustment::DisplacementOptions displacement;
   FrustumOptions frustums;  // the `frustums` markers (rviz)
 };
@@ -66,16 +87,41 @@ struct RadioParameters {
   bool has_network = false;
   radio::NetworkConfig network;
   radio::RadioSolverOptions options;
-  double stamp_tolerance = 0.0, max_wait = 0.0;  // [s] radio::EpochAssembler
-  std::string frame_id;
+  double stamp_tolerance = 1e-3, max_wait = 2.5;  // [s] radio::EpochAssembler
+  std::string frame_id = "site";
+  // Where the network comes from: the site file's radio_network, else exactly
+  // one of network_file and truth_file (the simulator's truth, its
+  // transmitters started at truth_initial_sigma; the truth does not hold the
+  // sample rate).
+  std::string site_file, network_file, truth_file;
+  double truth_initial_sigma = 0.005;  // [m]
+  double truth_sample_rate = 20000.0;  // [Hz]
 };
 RadioParameters ReadRadioParameters(ParamReader& p);
 
+// The monitoring graph's estimator, where it differs from the library's
+// deformation::EstimatorOptions: a white-jerk density of 1e-25 m^2/s^5
+// (~ (700 mm/day^2)^2 per day; the library's 2e-29 suits slow creep).
+// Measured on the rostest slide near failure (config/defaults/
+// deformation_estimator.yaml): 2e-29 lagged 4-7 sigma, 1e-26 up to 3.0
+// sigma, 1e-25 up to 2.3 sigma.
+inline deformation::EstimatorOptions MonitoringEstimatorOptions() {
+  deformation::EstimatorOptions o;
+  o.filter.jerk_spectral_density = 1e-25;
+  return o;
+}
+
 struct EstimatorParameters {
-  deformation::EstimatorOptions options;
-  std::vector<std::string> input_topics;
+  deformation::EstimatorOptions options = MonitoringEstimatorOptions();
+  std::vector<std::string> input_topics = {"displacements"};
   std::vector<std::string> area_topics;  // ChangeAreaArray (areas of surface change)
-  std::string frame_id, database, report_dir;
+  std::string frame_id = "site", database, report_dir;
+  std::string velocity_unit = "mm/day";  // of the thresholds and forecast_min_velocity: mm/day or mm/h
+  // As written in the file: "point_id: watch, warning, alarm" and
+  // "measured_id = monitoring_point_id" (parsed into `options`).
+  std::vector<std::string> point_thresholds, aliases;
+  std::vector<double> geodetic_origin;  // [] or [lat_deg, lon_deg, height_m] (into report)
+  std::string site_file;
   bool report_on_shutdown = true;
   bool enable_export_report = true, enable_set_reference_epoch = true;
   std::vector<std::string> report_formats;
@@ -84,7 +130,7 @@ struct EstimatorParameters {
   double report_interval = 0.0;  // [s] live: reports on a wall-clock timer; 0 = off
   // [s] wall: how long a batch waits for the other inputs to pass its stamp
   // (core/common/input_order.h) before it is fused without them; 0 = arrival order
-  double order_timeout = 0.0;  // (default: ReadEstimatorParameters)
+  double order_timeout = 300.0;
   bool report_on_alert_change = false;
   deformation::PlotReportOptions plot;  // plot.script "" = the OpenCV pictures
   // The site file's contents when `site_file` is set (thresholds, aliases and

@@ -9,6 +9,7 @@
 // Every getter throws slope_monitor::ConfigError naming the full key.
 #pragma once
 
+#include <map>
 #include <optional>
 #include <set>
 #include <string>
@@ -46,6 +47,12 @@ class ParamReader {
 
   std::string FullKey(const std::string& key) const;
 
+  // Every key asked for so far with the default its getter was given (the
+  // value a node gets when no file or launch sets it): the test that checks
+  // config/defaults/*.yaml against the Options structs compares the files'
+  // values with these (test/ros/config_files_test.cpp).
+  const std::map<std::string, XmlRpc::XmlRpcValue>& Defaults() const { return defaults_; }
+
  private:
   bool Get(const std::string& key, XmlRpc::XmlRpcValue* v) const;
 
@@ -54,6 +61,7 @@ class ParamReader {
   XmlRpc::XmlRpcValue tree_;
   std::string tree_ns_;
   std::set<std::string> read_;
+  std::map<std::string, XmlRpc::XmlRpcValue> defaults_;  // key -> default given
 };
 
 }  // namespace ros_adapters

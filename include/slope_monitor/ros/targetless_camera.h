@@ -45,6 +45,7 @@ namespace ros_adapters {
 struct TargetlessParameters {
   std::string site_file;                          // required
   io::SiteFile site;                              // read from site_file
+  std::vector<std::string> reference_images;      // "<camera>=<photo file>" as written
   std::map<std::string, std::string> references;  // camera -> reference photo file
   std::string frame_id = "site";
   std::string report_dir;  // where <camera>_field_eNN.png go; "" = not written

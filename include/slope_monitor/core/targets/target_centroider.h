@@ -111,7 +111,13 @@ struct Options {
   double circle_min_diameter = 8.0;      // [px] apparent disc diameter range
   double circle_max_diameter = 150.0;    // [px]
   double circle_max_eccentricity = 0.9;  // [-] 1 - minor/major; 0.9 ~ 84 deg obliquity
-  double circle_id_gate = 0.5;  // [-] max distance to a projected listed circle, in its radii
+  // [-] max distance to a projected listed circle, in its radii. Monitoring
+  // circles are listed at approximate positions and move between epochs;
+  // listed circles stand metres (hundreds of px) apart. Measured on the
+  // replay surveys (process_bag): 2.0 names every listed circle, 0.5 left 4
+  // per epoch (full_graph_replay) and 4 (uav_graph_replay) to the adjuster's
+  // naming, with the same displacement errors.
+  double circle_id_gate = 2.0;
   // Which designs are circles (see CircleDesign); auto: any.
   CircleDesign circle_design = CircleDesign::kAuto;
   // Design kDiscInRing: outer diameter of the dark ring / diameter of the
