@@ -23,9 +23,14 @@ namespace ros_adapters {
 
 // The graph's dense surfaces, where they differ from the library's
 // dense::SurfaceOptions: a 2 px final grid (0.2 m on the ground from 25-45 m:
-// several points per 0.5 m cell; the library keeps DESIGN.md's 8 px grid)
-// and no cell from a single point. Both dense nodes (stereo and epoch) start
-// from these.
+// several points per 0.5 m cell) and no cell from a single point. Both dense
+// nodes (stereo and epoch) start from these. The library keeps DESIGN.md's
+// 8 px grid (correlation.h) for its own callers and tests. Measured with
+// process_bag on dense_graph_replay (replay_process_bag_dense_test), 2 vs
+// 8 px: cloud 635 k / 1.13 M vs 40 k / 71 k points per epoch, DEM cells on
+// bare ground 8903 / 9760 vs 8398 / 9363, median |e| 0.073 / 0.031 vs
+// 0.072 / 0.034 m, p90 0.174 / 0.102 vs 0.165 / 0.100 m; test wall time 53
+// vs 42 s: the same heights, 16 x the points and 5 % more cells.
 inline void ApplyGraphSurfaceDefaults(dense::SurfaceOptions* o) {
   o->correlation.final_grid_spacing = 2;
   o->min_points_per_cell = 2;
