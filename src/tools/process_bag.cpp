@@ -74,6 +74,7 @@
 #include "slope_monitor/ros/change_area_conversions.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/deformation_conversions.h"
+#include "slope_monitor/ros/estimator_step.h"
 #include "slope_monitor/ros/epoch_solver.h"
 #include "slope_monitor/ros/hex_matcher_parameters.h"
 #include "slope_monitor/ros/node_parameters.h"
@@ -405,7 +406,7 @@ class OfflineGraph {
       OnSequenceStep(uav, Timed(&stages_.matching, [&] { return uav.sequence->Finish(); }));
     if (const std::optional<ros_adapters::SolvedEpoch> e = adjuster_->Finish()) Solve(*e);
     // The inputs have ended: what waits for a later stamp of another input is fused.
-    for (auto& r : order_->Flush()) FuseNow(r.item, r.input);
+    Publish(Timed(&stages_.estimator, [&] { return estimator_->Flush(); }));
     if (dense_) {
       dense_->Finish();
       char line[120];
@@ -416,7 +417,8 @@ class OfflineGraph {
     Log("end of input: " + std::to_string(adjuster_->accepted()) + " adjustment epoch(s) accepted, " +
         std::to_string(radio_epochs()) + " radio epoch(s) solved");
     if (estimator_->GetSnapshot().points.empty()) {
-      Log("no point was ever measured: no reports written to " + estimator_params_.report_dir);
+      Log("no point was ever measured: no reports written to " +
+          estimator_->parameters().report_dir);
       return;
     }
     WriteReportFiles();
@@ -541,17 +543,16 @@ class OfflineGraph {
     ros_adapters::SetParam(&p, "plot_script",
                            fs::path(ConfigDir()).parent_path().string() + "/scripts/plot_report");
     ros_adapters::ParamReader r(p, "/deformation_estimator");
-    estimator_params_ = ros_adapters::ReadEstimatorParameters(r);
-    history_ = std::make_unique<deformation::History>(estimator_params_.database);
-    estimator_ =
-        std::make_unique<deformation::Estimator>(estimator_params_.options, history_.get());
     // Fused in stamp order over the inputs that run (without a radio network
     // the radio solver does not: nothing to wait for).
     std::vector<std::string> ordered = {kAdjusterDisplacements};
     if (radio_) ordered.push_back(kRadioDisplacements);
     if (targetless_) ordered.push_back(kTargetlessDisplacements);
-    order_ = std::make_unique<InputOrder<slope_monitor::PointDisplacementArray>>(ordered);
-    StartHook();
+    estimator_ = std::make_unique<ros_adapters::EstimatorStep>(
+        ros_adapters::ReadEstimatorParameters(r), ordered,
+        // The site's notification hook, from its worker thread: straight to
+        // stderr, not through the progress line.
+        [](bool, const std::string& m) { std::cerr << "deformation_estimator: " << m << std::endl; });
   }
 
   // The fixed_targetless cameras of --site (launch/include/processing_graph.xml
@@ -627,27 +628,13 @@ class OfflineGraph {
         log_);
   }
 
-  // The site file's notification hook (the estimator nodelet's: deformation/alert_hook.h).
-  void StartHook() {
-    if (!estimator_params_.site || estimator_params_.site->notification.hook.empty()) return;
-    hook_ = std::make_unique<deformation::AlertHook>(
-        estimator_params_.site->notification,
-        // From the hook's worker thread: straight to stderr, not through the progress line.
-        [](bool, const std::string& m) {
-          std::cerr << "deformation_estimator: " << m << std::endl;
-        });
-  }
-
   // The reports at the end of the input, written as the estimator nodelet
   // writes them (deformation::WriteAllReports); the hook's queue is drained first.
   void WriteReportFiles() {
-    if (hook_) hook_->Flush();
-    const auto files =
-        deformation::WriteAllReports(*estimator_, estimator_params_.database,
-                                     estimator_params_.plot, estimator_params_.report_dir, "",
-                                     estimator_params_.report_formats, estimator_params_.report);
-    Log("wrote " + std::to_string(files.size()) + " report file(s) to " +
-        estimator_params_.report_dir);
+    estimator_->FlushHook();
+    const ros_adapters::EstimatorParameters& p = estimator_->parameters();
+    const auto files = estimator_->WriteReports("", p.report_formats);
+    Log("wrote " + std::to_string(files.size()) + " report file(s) to " + p.report_dir);
   }
 
   // ---- inputs.
@@ -911,64 +898,29 @@ class OfflineGraph {
     }
   }
 
-  // ---- the deformation estimator: its inputs in one stamp order, as the
-  // nodelet fuses them (core/common/input_order.h); no time-out.
+  // ---- the deformation estimator (its inputs in one stamp order, no time-out).
   void Fuse(const slope_monitor::PointDisplacementArray& msg, const std::string& topic) {
-    for (auto& r : order_->Add(topic, msg.header.stamp.toSec(), msg, 0.0)) FuseNow(r.item, r.input);
-  }
-
-  void FuseNow(const slope_monitor::PointDisplacementArray& msg, const std::string& topic) {
-    const slope_monitor::PointDisplacementArray valid =
-        estimator_validator_.Filter(msg, topic, 0.0);
-    for (const std::string& problem : estimator_validator_.last_problems())
-      Log("deformation_estimator: rejected " + problem);
-    if (valid.displacements.empty() && !msg.displacements.empty()) return;
-    try {
-      const deformation::BatchSummary s = Timed(&stages_.estimator, [&] {
-        return estimator_->AddBatch(ros_adapters::FromMsg(valid, topic));
-      });
-      for (const std::string& m : s.messages)
-        Log("deformation_estimator: topic '" + topic + "': " + m);
-    } catch (const Error& e) {
-      Log("deformation_estimator: topic '" + topic + "': " + e.what() + "; message dropped");
-      return;
-    }
-    PublishSnapshot(msg.header);
-  }
-
-  // The estimator's state after an input: alert changes announced (log,
-  // hook), its outputs written as the estimator nodelet publishes them.
-  void PublishSnapshot(const std_msgs::Header& header) {
-    const deformation::Snapshot s = estimator_->GetSnapshot();
-    deformation::AnnounceAlertChanges(s, estimator_params_.site ? estimator_params_.site->name : "",
-                                      &alert_changes_, hook_.get(),
-                                      [this](deformation::LogLevel, const std::string& text) {
-                                        Log("deformation_estimator: " + text);
-                                      });
-    std_msgs::Header h = header;
-    h.frame_id = estimator_params_.frame_id;
-    Write("/deformation_estimator/deformation", ros_adapters::ToMsg(s, h));
-    Write("/deformation_estimator/markers",
-          ros_adapters::ToMarkers(s, h, estimator_params_.markers));
-    Write("/deformation_estimator/points", ros_adapters::ToCloud(s, h));
-    Write("/deformation_estimator/alerts", ros_adapters::ToAlerts(s, h));
+    Publish(Timed(&stages_.estimator, [&] { return estimator_->AddDisplacements(msg, topic, 0.0); }));
   }
 
   // The dense step's areas of significant change (source surface), as the
   // estimator nodelet takes them from /dense/change_areas.
   void OnAreas(const slope_monitor::ChangeAreaArray& msg) {
     Write(ros_adapters::OfflineDense::kAreasTopic, msg);
-    try {
-      if (!estimator_->AddAreas(ros_adapters::AreaBatchFromMsg(msg, ros_adapters::OfflineDense::kAreasTopic))) {
-        Log("deformation_estimator: areas of epoch " + std::to_string(msg.epoch) +
-            " are not newer than the last; ignored");
-        return;
-      }
-    } catch (const Error& e) {
-      Log(std::string("deformation_estimator: areas: ") + e.what() + "; message dropped");
-      return;
+    Publish(estimator_->AddAreas(msg, ros_adapters::OfflineDense::kAreasTopic));
+  }
+
+  // The estimator's problems and snapshots, written as the estimator nodelet publishes them.
+  void Publish(const ros_adapters::EstimatorResult& result) {
+    for (const ros_adapters::LogLine& line : result.problems) Log("deformation_estimator: " + line.text);
+    for (const ros_adapters::EstimatorPublication& p : result.publications) {
+      for (const ros_adapters::LogLine& line : p.log) Log("deformation_estimator: " + line.text);
+      Write("/deformation_estimator/deformation", ros_adapters::ToMsg(p.snapshot, p.header));
+      Write("/deformation_estimator/markers",
+            ros_adapters::ToMarkers(p.snapshot, p.header, estimator_->parameters().markers));
+      Write("/deformation_estimator/points", ros_adapters::ToCloud(p.snapshot, p.header));
+      Write("/deformation_estimator/alerts", ros_adapters::ToAlerts(p.snapshot, p.header));
     }
-    PublishSnapshot(msg.header);
   }
 
   template <typename M>
@@ -1007,14 +959,8 @@ class OfflineGraph {
   std::vector<UavMatcher> uav_matchers_;
   std::unique_ptr<ros_adapters::RadioStep> radio_;  // radio_phase_solver; null: not running
   // deformation_estimator
-  ros_adapters::EstimatorParameters estimator_params_;
-  ros_adapters::MessageValidator estimator_validator_;
-  std::unique_ptr<deformation::History> history_;
-  std::unique_ptr<deformation::Estimator> estimator_;
-  std::unique_ptr<InputOrder<slope_monitor::PointDisplacementArray>> order_;
-  deformation::AlertChangeTracker alert_changes_;
+  std::unique_ptr<ros_adapters::EstimatorStep> estimator_;
   std::unique_ptr<ros_adapters::OfflineDense> dense_;  // dense_matcher
-  std::unique_ptr<deformation::AlertHook> hook_;  // the site's notification hook, if any
 };
 
 // ---------------------------------------------------------------- progress
