@@ -82,17 +82,19 @@ void DropNestedCircles(Result* res) {
       if ((a.centre - b.centre).norm() < rb && (ra < rb || (ra == rb && i > j))) drop[i] = true;
     }
   }
-  // Unlisted markers that could not be measured: the same rule among them
-  // and against the measured ones.
+  // Markers that could not be measured: inside a measured marker's outer
+  // edge, the same marker seen again (another candidate of it, listed or
+  // not); unlisted ones also by the same rule among them.
   std::vector<bool> drop_r(res->rejections.size(), false);
   for (size_t i = 0; i < res->rejections.size(); ++i) {
     const Rejection& a = res->rejections[i];
-    if (a.family != "circle" || a.id >= 0) continue;
+    if (a.family != "circle") continue;
     for (size_t j = 0; j < res->observations.size() && !drop_r[i]; ++j) {
       const Observation& b = res->observations[j];
       if (!drop[j] && b.family == "circle" && (a.where - b.centre).norm() < OuterRadius(b))
         drop_r[i] = true;
     }
+    if (a.id >= 0) continue;
     for (size_t j = 0; j < res->rejections.size() && !drop_r[i]; ++j) {
       const Rejection& b = res->rejections[j];
       if (i == j || b.family != "circle") continue;

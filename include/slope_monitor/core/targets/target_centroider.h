@@ -108,7 +108,9 @@ struct Options {
   double tag_refine_max_sigma = 0.1;  // [px]
   // --- circular targets ---
   bool detect_circles = true;
-  double circle_min_diameter = 8.0;      // [px] apparent disc diameter range
+  // [px] apparent diameter range of the light centre (major axis; a measured
+  // diameter 20 % under the minimum or 5 % over the maximum still counts).
+  double circle_min_diameter = 8.0;      // [px]
   double circle_max_diameter = 150.0;    // [px]
   double circle_max_eccentricity = 0.9;  // [-] 1 - minor/major; 0.9 ~ 84 deg obliquity
   // [-] max distance to a projected listed circle, in its radii. Monitoring
