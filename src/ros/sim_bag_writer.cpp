@@ -58,6 +58,131 @@ slope_monitor::RadioSampleBlock RadioMsg(const radio::SampleBlock& b) {
 
 std::string ReceiverFrame(const sim::RadioSimReceiver& r) { return r.frame_id.empty() ? r.id + "_antenna" : r.frame_id; }
 
+// /tf_static, latched: site -> each fixed camera's optical frame (its
+// nominal pose) and site -> each radio receiver's antenna.
+void WriteStaticTransforms(const sim::Survey& survey, double t0, rosbag::Bag* bag_out, SurveyBagSummary* summary_out) {
+  const sim::SurveyTruth& truth = survey.truth;
+  rosbag::Bag& bag = *bag_out;
+  SurveyBagSummary& summary = *summary_out;
+  tf2_msgs::TFMessage tf;
+  auto add = [&](const std::string& child, const Rigid3& parent_from_child) {
+    geometry_msgs::TransformStamped ts;
+    ts.header.stamp = Stamp(t0);
+    ts.header.frame_id = "site";
+    ts.child_frame_id = child;
+    ts.transform = ToTransform(parent_from_child);
+    tf.transforms.push_back(ts);
+  };
+  for (const auto& c : truth.cameras) {
+    if (c.nominal_pose) add(c.name + "_optical", c.nominal_pose->SiteFromOptical());
+  }
+  if (survey.radio) {
+    for (const auto& r : survey.radio->config().receivers) {
+      add(ReceiverFrame(r), Rigid3(Eigen::Quaterniond::Identity(), r.position));
+    }
+  }
+  if (!tf.transforms.empty()) {
+    // Latched as tf2_ros' static broadcaster publishes it, so rosbag play
+    // republishes it latched and a tf listener (rviz, tf_echo) started
+    // after playback begins still sees `site`.
+    auto header = boost::make_shared<ros::M_string>();
+    (*header)["callerid"] = "/make_survey_bag";
+    (*header)["latching"] = "1";
+    (*header)["type"] = ros::message_traits::datatype(tf);
+    (*header)["md5sum"] = ros::message_traits::md5sum(tf);
+    (*header)["message_definition"] = ros::message_traits::definition(tf);
+    bag.write("/tf_static", Stamp(t0), tf, header);
+    ++summary.tf_static;
+  }
+}
+
+// What the bag holds, in time order (ties by kind, then index): kind 0 an
+// epoch's start marker, 1 an image (with its camera_info and GNSS), 2 an
+// epoch's end marker, 3 a radio block.
+struct SurveyEvent {
+  double t;
+  int kind;
+  int a;  // camera / block index
+  int b;  // epoch / image index into survey.images
+};
+
+std::vector<SurveyEvent> SurveyEvents(const sim::Survey& survey) {
+  const sim::SurveyTruth& truth = survey.truth;
+  std::vector<SurveyEvent> events;
+  for (size_t ci = 0; ci < truth.cameras.size(); ++ci) {
+    std::map<int, std::pair<double, double>> span;  // epoch -> first, last stamp
+    for (const auto& im : truth.cameras[ci].images) {
+      auto it = span.find(im.epoch);
+      if (it == span.end()) span[im.epoch] = {im.stamp, im.stamp};
+      else it->second = {std::min(it->second.first, im.stamp), std::max(it->second.second, im.stamp)};
+    }
+    for (const auto& [epoch, s] : span) {
+      events.push_back({s.first - 0.5, 0, static_cast<int>(ci), epoch});
+      events.push_back({s.second + 0.5, 2, static_cast<int>(ci), epoch});
+    }
+  }
+  for (size_t k = 0; k < survey.images.size(); ++k) {
+    events.push_back({survey.images[k].stamp, 1, survey.images[k].camera, static_cast<int>(k)});
+  }
+  for (size_t k = 0; k < survey.radio_block_starts.size(); ++k) {
+    events.push_back({survey.radio_block_starts[k], 3, static_cast<int>(k), 0});
+  }
+  std::stable_sort(events.begin(), events.end(), [](const SurveyEvent& x, const SurveyEvent& y) {
+    return std::tie(x.t, x.kind, x.a, x.b) < std::tie(y.t, y.kind, y.a, y.b);
+  });
+  return events;
+}
+
+// An image's GNSS fix (NavSatFix) and the position prior in `site` (with
+// the flight log's attitude when the camera has an IMU).
+void WriteGnss(const sim::Survey& survey, const sim::SurveyImage& img, const capture::LocalTangentPlane& ltp_ref,
+               rosbag::Bag* bag_out, SurveyBagSummary* summary_out) {
+  rosbag::Bag& bag = *bag_out;
+  SurveyBagSummary& summary = *summary_out;
+  const sim::CameraTruth& cam = survey.truth.cameras[img.camera];
+  const sim::ImageTruth& it = cam.images[img.image];
+  const std::string ns = "/" + cam.name + "/camera/";
+  const capture::LocalTangentPlane* ltp = &ltp_ref;
+  const sim::CameraSpec& spec = survey.config.cameras[img.camera];
+  const capture::Geodetic g = ltp->ToGeodetic(*it.gnss);
+  sensor_msgs::NavSatFix fix;
+  fix.header.stamp = Stamp(img.stamp);
+  fix.header.frame_id = cam.name + "_gnss";
+  fix.status.status = sensor_msgs::NavSatStatus::STATUS_GBAS_FIX;
+  fix.status.service = sensor_msgs::NavSatStatus::SERVICE_GPS;
+  fix.latitude = g.latitude_deg;
+  fix.longitude = g.longitude_deg;
+  fix.altitude = g.height_m;
+  const double h2 = spec.gnss_sigma.x() * spec.gnss_sigma.x(), v2 = spec.gnss_sigma.y() * spec.gnss_sigma.y();
+  fix.position_covariance = {h2, 0, 0, 0, h2, 0, 0, 0, v2};
+  fix.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_DIAGONAL_KNOWN;
+  bag.write("/" + cam.name + "/gnss/fix", Stamp(img.stamp), fix);
+  geometry_msgs::PoseWithCovarianceStamped prior;
+  prior.header.stamp = Stamp(img.stamp);
+  prior.header.frame_id = "site";
+  prior.pose.pose.position.x = it.gnss->x();
+  prior.pose.pose.position.y = it.gnss->y();
+  prior.pose.pose.position.z = it.gnss->z();
+  prior.pose.pose.orientation.w = 1.0;
+  prior.pose.covariance.fill(0.0);
+  prior.pose.covariance[0] = h2;
+  prior.pose.covariance[7] = h2;
+  prior.pose.covariance[14] = v2;
+  prior.pose.covariance[21] = prior.pose.covariance[28] = prior.pose.covariance[35] = 1e6;
+  if (spec.imu_sigma > 0.0) {
+    const Eigen::Quaterniond q = sim::FlightLogAttitude(it.exterior, spec.imu_sigma, survey.config.seed,
+                                                  img.camera, img.image);
+    prior.pose.pose.orientation.w = q.w();
+    prior.pose.pose.orientation.x = q.x();
+    prior.pose.pose.orientation.y = q.y();
+    prior.pose.pose.orientation.z = q.z();
+    prior.pose.covariance[21] = prior.pose.covariance[28] = prior.pose.covariance[35] =
+        spec.imu_sigma * spec.imu_sigma;
+  }
+  bag.write(ns + "position_prior", Stamp(img.stamp), prior);
+  ++summary.gnss_fixes;
+}
+
 }  // namespace
 
 SurveyBagSummary WriteSurveyBag(const sim::Survey& survey, const std::string& path, const std::string& compression) {
@@ -82,75 +207,16 @@ SurveyBagSummary WriteSurveyBag(const sim::Survey& survey, const std::string& pa
     const double t0 = truth.epochs.empty() ? survey.config.start_time : truth.epochs.front().stamp;
 
     // ---- /tf_static: site -> receiver antennas, site -> fixed cameras' optical frames (nominal) ----
-    {
-      tf2_msgs::TFMessage tf;
-      auto add = [&](const std::string& child, const Rigid3& parent_from_child) {
-        geometry_msgs::TransformStamped ts;
-        ts.header.stamp = Stamp(t0);
-        ts.header.frame_id = "site";
-        ts.child_frame_id = child;
-        ts.transform = ToTransform(parent_from_child);
-        tf.transforms.push_back(ts);
-      };
-      for (const auto& c : truth.cameras) {
-        if (c.nominal_pose) add(c.name + "_optical", c.nominal_pose->SiteFromOptical());
-      }
-      if (survey.radio) {
-        for (const auto& r : survey.radio->config().receivers) {
-          add(ReceiverFrame(r), Rigid3(Eigen::Quaterniond::Identity(), r.position));
-        }
-      }
-      if (!tf.transforms.empty()) {
-        // Latched as tf2_ros' static broadcaster publishes it, so rosbag play
-        // republishes it latched and a tf listener (rviz, tf_echo) started
-        // after playback begins still sees `site`.
-        auto header = boost::make_shared<ros::M_string>();
-        (*header)["callerid"] = "/make_survey_bag";
-        (*header)["latching"] = "1";
-        (*header)["type"] = ros::message_traits::datatype(tf);
-        (*header)["md5sum"] = ros::message_traits::md5sum(tf);
-        (*header)["message_definition"] = ros::message_traits::definition(tf);
-        bag.write("/tf_static", Stamp(t0), tf, header);
-        ++summary.tf_static;
-      }
-    }
+    WriteStaticTransforms(survey, t0, &bag, &summary);
 
     // ---- events in time order ----
-    // kind 0: epoch start marker, 1: image (+ info, gnss), 2: epoch end marker, 3: radio blocks
-    struct Event {
-      double t;
-      int kind;
-      int a;  // camera / block index
-      int b;  // epoch / image index into survey.images
-    };
-    std::vector<Event> events;
-    for (size_t ci = 0; ci < truth.cameras.size(); ++ci) {
-      std::map<int, std::pair<double, double>> span;  // epoch -> first, last stamp
-      for (const auto& im : truth.cameras[ci].images) {
-        auto it = span.find(im.epoch);
-        if (it == span.end()) span[im.epoch] = {im.stamp, im.stamp};
-        else it->second = {std::min(it->second.first, im.stamp), std::max(it->second.second, im.stamp)};
-      }
-      for (const auto& [epoch, s] : span) {
-        events.push_back({s.first - 0.5, 0, static_cast<int>(ci), epoch});
-        events.push_back({s.second + 0.5, 2, static_cast<int>(ci), epoch});
-      }
-    }
-    for (size_t k = 0; k < survey.images.size(); ++k) {
-      events.push_back({survey.images[k].stamp, 1, survey.images[k].camera, static_cast<int>(k)});
-    }
-    for (size_t k = 0; k < survey.radio_block_starts.size(); ++k) {
-      events.push_back({survey.radio_block_starts[k], 3, static_cast<int>(k), 0});
-    }
-    std::stable_sort(events.begin(), events.end(), [](const Event& x, const Event& y) {
-      return std::tie(x.t, x.kind, x.a, x.b) < std::tie(y.t, y.kind, y.a, y.b);
-    });
+    const std::vector<SurveyEvent> events = SurveyEvents(survey);
 
     std::unique_ptr<capture::LocalTangentPlane> ltp;
     ltp = std::make_unique<capture::LocalTangentPlane>(
         capture::Geodetic{truth.origin.x(), truth.origin.y(), truth.origin.z()});
 
-    for (const Event& e : events) {
+    for (const SurveyEvent& e : events) {
       if (e.kind == 0 || e.kind == 2) {
         const auto& cam = truth.cameras[e.a];
         slope_monitor::EpochMarker m;
@@ -176,46 +242,7 @@ SurveyBagSummary WriteSurveyBag(const sim::Survey& survey, const std::string& pa
         bag.write(ns + "camera_info", Stamp(img.stamp), info);
         ++summary.images;
         ++summary.camera_infos;
-        if (it.gnss) {
-          const sim::CameraSpec& spec = survey.config.cameras[img.camera];
-          const capture::Geodetic g = ltp->ToGeodetic(*it.gnss);
-          sensor_msgs::NavSatFix fix;
-          fix.header.stamp = Stamp(img.stamp);
-          fix.header.frame_id = cam.name + "_gnss";
-          fix.status.status = sensor_msgs::NavSatStatus::STATUS_GBAS_FIX;
-          fix.status.service = sensor_msgs::NavSatStatus::SERVICE_GPS;
-          fix.latitude = g.latitude_deg;
-          fix.longitude = g.longitude_deg;
-          fix.altitude = g.height_m;
-          const double h2 = spec.gnss_sigma.x() * spec.gnss_sigma.x(), v2 = spec.gnss_sigma.y() * spec.gnss_sigma.y();
-          fix.position_covariance = {h2, 0, 0, 0, h2, 0, 0, 0, v2};
-          fix.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_DIAGONAL_KNOWN;
-          bag.write("/" + cam.name + "/gnss/fix", Stamp(img.stamp), fix);
-          geometry_msgs::PoseWithCovarianceStamped prior;
-          prior.header.stamp = Stamp(img.stamp);
-          prior.header.frame_id = "site";
-          prior.pose.pose.position.x = it.gnss->x();
-          prior.pose.pose.position.y = it.gnss->y();
-          prior.pose.pose.position.z = it.gnss->z();
-          prior.pose.pose.orientation.w = 1.0;
-          prior.pose.covariance.fill(0.0);
-          prior.pose.covariance[0] = h2;
-          prior.pose.covariance[7] = h2;
-          prior.pose.covariance[14] = v2;
-          prior.pose.covariance[21] = prior.pose.covariance[28] = prior.pose.covariance[35] = 1e6;
-          if (spec.imu_sigma > 0.0) {
-            const Eigen::Quaterniond q = sim::FlightLogAttitude(it.exterior, spec.imu_sigma, survey.config.seed,
-                                                          img.camera, img.image);
-            prior.pose.pose.orientation.w = q.w();
-            prior.pose.pose.orientation.x = q.x();
-            prior.pose.pose.orientation.y = q.y();
-            prior.pose.pose.orientation.z = q.z();
-            prior.pose.covariance[21] = prior.pose.covariance[28] = prior.pose.covariance[35] =
-                spec.imu_sigma * spec.imu_sigma;
-          }
-          bag.write(ns + "position_prior", Stamp(img.stamp), prior);
-          ++summary.gnss_fixes;
-        }
+        if (it.gnss) WriteGnss(survey, img, *ltp, &bag, &summary);
       } else if (e.kind == 3 && survey.radio) {
         for (const radio::SampleBlock& b : survey.radio->SynthesizeAll(e.t, static_cast<uint32_t>(e.a))) {
           bag.write("/radio/" + b.receiver_id + "/samples", Stamp(b.stamp), RadioMsg(b));

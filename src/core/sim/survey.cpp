@@ -186,12 +186,11 @@ std::vector<int> VisiblePlates(const Scene::State& state, const camera::CameraMo
   return out;
 }
 
-// ---------------------------------------------------------------------------
-// SurveyGenerator
-// ---------------------------------------------------------------------------
+namespace {
 
-SurveyGenerator::SurveyGenerator(const SurveyConfig& config) : config_(config) {
-  const SurveyConfig& c = config_;
+// Every target and obstacle inside the site; control and check points on
+// stable ground.
+void CheckSurveyPlacements(const SurveyConfig& c) {
   const Eigen::Vector4d& ext = c.scene.terrain.extent;
   auto inside = [&](const Eigen::Vector2d& xy) {
     return xy.x() >= ext[0] && xy.x() <= ext[1] && xy.y() >= ext[2] && xy.y() <= ext[3];
@@ -211,6 +210,236 @@ SurveyGenerator::SurveyGenerator(const SurveyConfig& config) : config_(config) {
       throw ConfigError(Message(c.path, ": obstacles[", i, "]: 'position' is outside site.extent"));
     }
   }
+}
+
+// A fixed camera's images: its surveyed pose with per-epoch jitter, the
+// mast's turn, and the stable-ground points surveyed in its reference photo.
+void PlanFixedCameraImages(const SurveyConfig& c, size_t ci, const Scene::State& ref,
+                           const std::vector<EpochTruth>& epochs, std::mt19937* rng_in, CameraTruth* ct_out) {
+  const CameraSpec& s = c.cameras[ci];
+  std::mt19937& rng = *rng_in;
+  CameraTruth& ct = *ct_out;
+  const int w = s.model.sensor().width, h = s.model.sensor().height;
+  const Eigen::Vector2d centre_px(0.5 * (w - 1), 0.5 * (h - 1));
+  ct.nominal_pose = s.pose;
+  const camera::Ray ray = s.model.ImageToRay(s.pose, centre_px);
+  if (!std::isfinite(ref.grid.IntersectRay(ray.origin, ray.direction, 20000.0))) {
+    throw ConfigError(Message(s.key, ": 'look_at' makes the camera look away from the slope "
+                                     "(its central ray does not hit the ground)"));
+  }
+  for (int k = 0; k < c.num_epochs; ++k) {
+    ImageTruth im;
+    im.epoch = k;
+    im.stamp = epochs[k].stamp + 10.0 + 2.0 * ci;
+    im.exterior = s.pose;
+    im.exterior.position += Eigen::Vector3d(Gauss(&rng, s.jitter_position), Gauss(&rng, s.jitter_position),
+                                            Gauss(&rng, s.jitter_position));
+    im.exterior.angles.theta += Gauss(&rng, s.jitter_angle);
+    im.exterior.angles.phi += Gauss(&rng, s.jitter_angle);
+    im.exterior.angles.kappa += Gauss(&rng, s.jitter_angle);
+    ct.images.push_back(im);
+  }
+  TurnMast(s, Stream(c.seed, 5, static_cast<unsigned>(ci)), &ct.images);
+  ct.surveyed_points = PickSurveyedPoints(s, ref, c, Stream(c.seed, 6, static_cast<unsigned>(ci)),
+                                          ct.images.front().exterior);
+}
+
+// A UAV camera's images, flight after flight: each strip's photos at the
+// configured overlap (crab into the wind, altitude wander, track and
+// attitude noise, GNSS), the turn to the next strip, 30 s per turn.
+void PlanUavCameraImages(const SurveyConfig& c, size_t ci, const Scene& scene, const Scene::State& ref,
+                         const std::vector<EpochTruth>& epochs, std::mt19937* rng_in, CameraTruth* ct_out) {
+  const CameraSpec& s = c.cameras[ci];
+  std::mt19937& rng = *rng_in;
+  CameraTruth& ct = *ct_out;
+  const int w = s.model.sensor().width, h = s.model.sensor().height;
+  const Eigen::Vector2d centre_px(0.5 * (w - 1), 0.5 * (h - 1));
+  const double c_mm = s.model.principal_distance();
+  const double along_mm = h * s.model.sensor().pixel_size;
+  for (int k = 0; k < c.num_epochs; ++k) {
+    double t = epochs[k].stamp + s.start_offset;
+    for (size_t si = 0; si < s.strips.size(); ++si) {
+      const StripSpec& st = s.strips[si];
+      const Eigen::Vector2d g = (st.end - st.start).normalized();
+      const double length = (st.end - st.start).norm();
+      const Eigen::Vector2d mid = 0.5 * (st.start + st.end);
+      const double ground = scene.AnalyticHeight(mid.x(), mid.y());
+      const double z = ground + st.altitude;
+      const double footprint = st.altitude * along_mm / c_mm / std::max(0.2, std::cos(st.tilt));
+      const double base = std::max(0.5, (1.0 - st.overlap) * footprint);
+      const int n = static_cast<int>(std::floor(length / base + 1e-9)) + 1;
+      // Into a constant cross wind: the crab's sign flips with the direction.
+      const Eigen::Vector2d g0 = (s.strips[0].end - s.strips[0].start).normalized();
+      const double crab = g.dot(g0) >= 0.0 ? s.crab : -s.crab;
+      const Eigen::Vector2d heading = Eigen::Rotation2Dd(crab) * g;
+      std::uniform_real_distribution<double> u11(-1.0, 1.0);
+      for (int q = 0; q < n; ++q) {
+        const Eigen::Vector2d xy = st.start + (q * base) * g;
+        // Within +-altitude_variation: two thirds a slow wander, one third from shot to shot.
+        const double dz = s.altitude_variation > 0.0
+                              ? st.altitude * s.altitude_variation *
+                                    ((2.0 / 3.0) * std::sin(2.0 * M_PI * q / std::max(n, 2) + si) +
+                                     (1.0 / 3.0) * u11(rng))
+                              : 0.0;
+        const Eigen::Vector3d planned(xy.x(), xy.y(), z + dz);
+        const Eigen::Vector3d tilt_dir(std::cos(st.tilt_azimuth), std::sin(st.tilt_azimuth), 0.0);
+        const Eigen::Vector3d forward = std::cos(st.tilt) * Eigen::Vector3d(0, 0, -1) + std::sin(st.tilt) * tilt_dir;
+        const Eigen::Vector3d up_hint =
+            st.tilt > 1e-3 ? Eigen::Vector3d(tilt_dir) : Eigen::Vector3d(heading.x(), heading.y(), 0.0);
+        camera::ExteriorOrientation planned_pose = LookAt(planned, planned + forward, up_hint);
+        if (k == 0 && q == 0) {
+          const camera::Ray ray = s.model.ImageToRay(planned_pose, centre_px);
+          if (!std::isfinite(ref.grid.IntersectRay(ray.origin, ray.direction, 20000.0))) {
+            throw ConfigError(Message(s.key, ": strips[", si, "]: the camera looks away from the slope "
+                                             "(the central ray of the first image does not hit the ground; "
+                                             "check 'start', 'tilt_deg', 'tilt_azimuth_deg')"));
+          }
+        }
+        ImageTruth im;
+        im.epoch = k;
+        im.stamp = t;
+        t += s.image_interval;
+        im.exterior = planned_pose;
+        im.exterior.position += Eigen::Vector3d(Gauss(&rng, s.track_sigma), Gauss(&rng, s.track_sigma),
+                                                Gauss(&rng, 0.5 * s.track_sigma));
+        im.exterior.angles.theta += Gauss(&rng, s.attitude_sigma);
+        im.exterior.angles.phi += Gauss(&rng, s.attitude_sigma);
+        im.exterior.angles.kappa += Gauss(&rng, s.attitude_sigma);
+        im.gnss = im.exterior.position + Eigen::Vector3d(Gauss(&rng, s.gnss_sigma.x()), Gauss(&rng, s.gnss_sigma.x()),
+                                                         Gauss(&rng, s.gnss_sigma.y()));
+        ct.images.push_back(im);
+      }
+      // The turn to the next strip (30 s): photos on the half circle from
+      // this strip's end to the next one's start, bulging ahead.
+      if (s.turn_images > 0 && si + 1 < s.strips.size()) {
+        const Eigen::Vector2d e = st.start + ((n - 1) * base) * g, next = s.strips[si + 1].start;
+        const Eigen::Vector2d m = 0.5 * (e + next);
+        const double r = 0.5 * (next - e).norm();
+        const Eigen::Vector2d u = r > 1e-6 ? Eigen::Vector2d((e - m) / r) : Eigen::Vector2d(-g.y(), g.x());
+        const double bank = CameraSpec::kTurnBankDeg * M_PI / 180.0;
+        for (int q = 1; q <= s.turn_images; ++q) {
+          const double a = M_PI * q / (s.turn_images + 1);
+          const Eigen::Vector2d radial = std::cos(a) * u + std::sin(a) * g;
+          const Eigen::Vector2d xy = m + r * radial, tangent = -std::sin(a) * u + std::cos(a) * g;
+          const Eigen::Vector3d planned(xy.x(), xy.y(), z);
+          const Eigen::Vector3d forward = std::cos(bank) * Eigen::Vector3d(0, 0, -1) -
+                                          std::sin(bank) * Eigen::Vector3d(radial.x(), radial.y(), 0.0);
+          ImageTruth im;
+          im.epoch = k;
+          im.stamp = t + 30.0 * q / (s.turn_images + 1);
+          im.exterior = LookAt(planned, planned + forward, Eigen::Vector3d(tangent.x(), tangent.y(), 0.0));
+          im.exterior.position += Eigen::Vector3d(Gauss(&rng, s.track_sigma), Gauss(&rng, s.track_sigma),
+                                                  Gauss(&rng, 0.5 * s.track_sigma));
+          im.gnss = im.exterior.position + Eigen::Vector3d(Gauss(&rng, s.gnss_sigma.x()),
+                                                           Gauss(&rng, s.gnss_sigma.x()),
+                                                           Gauss(&rng, s.gnss_sigma.y()));
+          ct.images.push_back(im);
+        }
+      }
+      t += 30.0;  // turn between strips
+    }
+  }
+}
+
+// Exposure per image: jitter and jumps.
+void ApplyImageExposures(const CameraSpec& s, std::mt19937* rng_in, CameraTruth* ct_out) {
+  std::mt19937& rng = *rng_in;
+  CameraTruth& ct = *ct_out;
+  for (ImageTruth& im : ct.images) {
+    double factor = std::exp(Gauss(&rng, s.exposure_jitter));
+    for (const auto& [epoch, f] : s.exposure_jumps)
+      if (im.epoch >= epoch) factor *= f;
+    im.exposure = factor;
+  }
+}
+
+void RequireControlInView(const CameraSpec& s, const Scene::State& ref, const std::vector<TargetTruth>& targets,
+                          const CameraTruth& ct) {
+  // At least one control point in view in the reference epoch (a
+  // fixed_targetless camera is re-oriented on stable ground instead).
+  bool control = s.kind == "fixed_targetless";
+  for (const ImageTruth& im : ct.images) {
+    if (im.epoch != 0 || control) continue;
+    for (int p : VisiblePlates(ref, s.model, im.exterior)) {
+      if (targets[p].role == io::TargetRole::kControl) control = true;
+    }
+  }
+  if (!control) {
+    throw ConfigError(Message(s.key, ": no control point is in view of camera '", s.name,
+                              "' in the reference epoch (check 'targets.list' roles/positions and the camera's "
+                              "pose keys)"));
+  }
+}
+
+// The radio network's simulator (receivers on stable ground, transmitters
+// on masts moving with the slope) and its truth.
+std::shared_ptr<RadioSimulator> MakeRadioSimulator(const SurveyConfig& c, const Scene::State& ref,
+                                                   const std::vector<EpochTruth>& epochs, RadioTruth* rt_out) {
+  const Eigen::Vector4d& ext = c.scene.terrain.extent;
+  auto inside = [&](const Eigen::Vector2d& xy) {
+    return xy.x() >= ext[0] && xy.x() <= ext[1] && xy.y() >= ext[2] && xy.y() <= ext[3];
+  };
+  const LandslideModel& l = c.scene.landslide;
+  std::shared_ptr<RadioSimulator> radio_;
+  RadioSimConfig rc = c.radio.sim;
+  for (size_t j = 0; j < rc.receivers.size(); ++j) {
+    const Eigen::Vector2d xy = c.radio.receiver_xy[j];
+    if (!inside(xy)) throw ConfigError(Message(c.path, ": radio: receivers[", j, "]: 'position' is outside site.extent"));
+    if (l.Weight(xy) > 0.0) {
+      throw ConfigError(Message(c.path, ": radio: receivers[", j, "]: 'position' is on the moving body "
+                                         "(receivers stand on stable ground)"));
+    }
+    rc.receivers[j].position = Eigen::Vector3d(xy.x(), xy.y(), ref.grid.HeightAt(xy.x(), xy.y()) + c.radio.receiver_mast[j]);
+  }
+  for (size_t i = 0; i < rc.transmitters.size(); ++i) {
+    const Eigen::Vector2d xy = c.radio.transmitter_xy[i];
+    if (!inside(xy)) throw ConfigError(Message(c.path, ": radio: transmitters[", i, "]: 'position' is outside site.extent"));
+    const Eigen::Vector3d ground(xy.x(), xy.y(), ref.grid.HeightAt(xy.x(), xy.y()));
+    const Eigen::Vector3d x0 = ground + Eigen::Vector3d(0, 0, c.radio.transmitter_mast[i]);
+    const LandslideModel field = l;
+    // The mast stands on the ground point and moves with it.
+    rc.transmitters[i].position = [field, ground, x0](double t) -> Eigen::Vector3d { return x0 + field.DisplacementAt(ground, t); };
+  }
+  try {
+    radio_ = std::make_shared<RadioSimulator>(rc);
+  } catch (const InvalidArgument& e) {
+    throw ConfigError(Message(c.path, ": radio: ", e.what()));
+  }
+  RadioTruth& rt = *rt_out;
+  rt.wavelength = rc.wavelength;
+  rt.center_frequency = rc.center_frequency;
+  for (const auto& r : rc.receivers) rt.receivers.push_back({r.id, r.position, r.xi});
+  for (const auto& t : rc.transmitters) {
+    RadioTransmitterTruth tt;
+    tt.id = t.id;
+    tt.frequency = rc.center_frequency + t.frequency_offset;
+    tt.psi = t.psi;
+    for (const auto& e : epochs) tt.positions.push_back(t.position(e.stamp));
+    rt.transmitters.push_back(tt);
+  }
+  for (size_t i = 0; i < rc.transmitters.size(); ++i) {
+    std::vector<int> row;
+    for (size_t j = 0; j < rc.receivers.size(); ++j) {
+      row.push_back(radio_->Ambiguity(static_cast<int>(i), static_cast<int>(j), c.start_time));
+    }
+    rt.ambiguities.push_back(row);
+  }
+  rt.faults = radio_->FaultDescriptions();
+
+  return radio_;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// SurveyGenerator
+// ---------------------------------------------------------------------------
+
+SurveyGenerator::SurveyGenerator(const SurveyConfig& config) : config_(config) {
+  const SurveyConfig& c = config_;
+  const Eigen::Vector4d& ext = c.scene.terrain.extent;
+  const LandslideModel& l = c.scene.landslide;
+  CheckSurveyPlacements(c);
   try {
     scene_ = std::make_unique<Scene>(c.scene);
   } catch (const InvalidArgument& e) {
@@ -254,188 +483,18 @@ SurveyGenerator::SurveyGenerator(const SurveyConfig& config) : config_(config) {
     ct.model = s.model;
     ct.nominal = s.nominal;
     std::mt19937 rng = Stream(c.seed, 2, static_cast<unsigned>(ci));
-    const int w = s.model.sensor().width, h = s.model.sensor().height;
-    const Eigen::Vector2d centre_px(0.5 * (w - 1), 0.5 * (h - 1));
     if (s.kind != "uav") {  // fixed, fixed_targetless
-      ct.nominal_pose = s.pose;
-      const camera::Ray ray = s.model.ImageToRay(s.pose, centre_px);
-      if (!std::isfinite(ref.grid.IntersectRay(ray.origin, ray.direction, 20000.0))) {
-        throw ConfigError(Message(s.key, ": 'look_at' makes the camera look away from the slope "
-                                         "(its central ray does not hit the ground)"));
-      }
-      for (int k = 0; k < c.num_epochs; ++k) {
-        ImageTruth im;
-        im.epoch = k;
-        im.stamp = truth_.epochs[k].stamp + 10.0 + 2.0 * ci;
-        im.exterior = s.pose;
-        im.exterior.position += Eigen::Vector3d(Gauss(&rng, s.jitter_position), Gauss(&rng, s.jitter_position),
-                                                Gauss(&rng, s.jitter_position));
-        im.exterior.angles.theta += Gauss(&rng, s.jitter_angle);
-        im.exterior.angles.phi += Gauss(&rng, s.jitter_angle);
-        im.exterior.angles.kappa += Gauss(&rng, s.jitter_angle);
-        ct.images.push_back(im);
-      }
-      TurnMast(s, Stream(c.seed, 5, static_cast<unsigned>(ci)), &ct.images);
-      ct.surveyed_points = PickSurveyedPoints(s, ref, c, Stream(c.seed, 6, static_cast<unsigned>(ci)),
-                                              ct.images.front().exterior);
+      PlanFixedCameraImages(c, ci, ref, truth_.epochs, &rng, &ct);
     } else {
-      const double c_mm = s.model.principal_distance();
-      const double along_mm = h * s.model.sensor().pixel_size;
-      for (int k = 0; k < c.num_epochs; ++k) {
-        double t = truth_.epochs[k].stamp + s.start_offset;
-        for (size_t si = 0; si < s.strips.size(); ++si) {
-          const StripSpec& st = s.strips[si];
-          const Eigen::Vector2d g = (st.end - st.start).normalized();
-          const double length = (st.end - st.start).norm();
-          const Eigen::Vector2d mid = 0.5 * (st.start + st.end);
-          const double ground = scene.AnalyticHeight(mid.x(), mid.y());
-          const double z = ground + st.altitude;
-          const double footprint = st.altitude * along_mm / c_mm / std::max(0.2, std::cos(st.tilt));
-          const double base = std::max(0.5, (1.0 - st.overlap) * footprint);
-          const int n = static_cast<int>(std::floor(length / base + 1e-9)) + 1;
-          // Into a constant cross wind: the crab's sign flips with the direction.
-          const Eigen::Vector2d g0 = (s.strips[0].end - s.strips[0].start).normalized();
-          const double crab = g.dot(g0) >= 0.0 ? s.crab : -s.crab;
-          const Eigen::Vector2d heading = Eigen::Rotation2Dd(crab) * g;
-          std::uniform_real_distribution<double> u11(-1.0, 1.0);
-          for (int q = 0; q < n; ++q) {
-            const Eigen::Vector2d xy = st.start + (q * base) * g;
-            // Within +-altitude_variation: two thirds a slow wander, one third from shot to shot.
-            const double dz = s.altitude_variation > 0.0
-                                  ? st.altitude * s.altitude_variation *
-                                        ((2.0 / 3.0) * std::sin(2.0 * M_PI * q / std::max(n, 2) + si) +
-                                         (1.0 / 3.0) * u11(rng))
-                                  : 0.0;
-            const Eigen::Vector3d planned(xy.x(), xy.y(), z + dz);
-            const Eigen::Vector3d tilt_dir(std::cos(st.tilt_azimuth), std::sin(st.tilt_azimuth), 0.0);
-            const Eigen::Vector3d forward = std::cos(st.tilt) * Eigen::Vector3d(0, 0, -1) + std::sin(st.tilt) * tilt_dir;
-            const Eigen::Vector3d up_hint =
-                st.tilt > 1e-3 ? Eigen::Vector3d(tilt_dir) : Eigen::Vector3d(heading.x(), heading.y(), 0.0);
-            camera::ExteriorOrientation planned_pose = LookAt(planned, planned + forward, up_hint);
-            if (k == 0 && q == 0) {
-              const camera::Ray ray = s.model.ImageToRay(planned_pose, centre_px);
-              if (!std::isfinite(ref.grid.IntersectRay(ray.origin, ray.direction, 20000.0))) {
-                throw ConfigError(Message(s.key, ": strips[", si, "]: the camera looks away from the slope "
-                                                 "(the central ray of the first image does not hit the ground; "
-                                                 "check 'start', 'tilt_deg', 'tilt_azimuth_deg')"));
-              }
-            }
-            ImageTruth im;
-            im.epoch = k;
-            im.stamp = t;
-            t += s.image_interval;
-            im.exterior = planned_pose;
-            im.exterior.position += Eigen::Vector3d(Gauss(&rng, s.track_sigma), Gauss(&rng, s.track_sigma),
-                                                    Gauss(&rng, 0.5 * s.track_sigma));
-            im.exterior.angles.theta += Gauss(&rng, s.attitude_sigma);
-            im.exterior.angles.phi += Gauss(&rng, s.attitude_sigma);
-            im.exterior.angles.kappa += Gauss(&rng, s.attitude_sigma);
-            im.gnss = im.exterior.position + Eigen::Vector3d(Gauss(&rng, s.gnss_sigma.x()), Gauss(&rng, s.gnss_sigma.x()),
-                                                             Gauss(&rng, s.gnss_sigma.y()));
-            ct.images.push_back(im);
-          }
-          // The turn to the next strip (30 s): photos on the half circle from
-          // this strip's end to the next one's start, bulging ahead.
-          if (s.turn_images > 0 && si + 1 < s.strips.size()) {
-            const Eigen::Vector2d e = st.start + ((n - 1) * base) * g, next = s.strips[si + 1].start;
-            const Eigen::Vector2d m = 0.5 * (e + next);
-            const double r = 0.5 * (next - e).norm();
-            const Eigen::Vector2d u = r > 1e-6 ? Eigen::Vector2d((e - m) / r) : Eigen::Vector2d(-g.y(), g.x());
-            const double bank = CameraSpec::kTurnBankDeg * M_PI / 180.0;
-            for (int q = 1; q <= s.turn_images; ++q) {
-              const double a = M_PI * q / (s.turn_images + 1);
-              const Eigen::Vector2d radial = std::cos(a) * u + std::sin(a) * g;
-              const Eigen::Vector2d xy = m + r * radial, tangent = -std::sin(a) * u + std::cos(a) * g;
-              const Eigen::Vector3d planned(xy.x(), xy.y(), z);
-              const Eigen::Vector3d forward = std::cos(bank) * Eigen::Vector3d(0, 0, -1) -
-                                              std::sin(bank) * Eigen::Vector3d(radial.x(), radial.y(), 0.0);
-              ImageTruth im;
-              im.epoch = k;
-              im.stamp = t + 30.0 * q / (s.turn_images + 1);
-              im.exterior = LookAt(planned, planned + forward, Eigen::Vector3d(tangent.x(), tangent.y(), 0.0));
-              im.exterior.position += Eigen::Vector3d(Gauss(&rng, s.track_sigma), Gauss(&rng, s.track_sigma),
-                                                      Gauss(&rng, 0.5 * s.track_sigma));
-              im.gnss = im.exterior.position + Eigen::Vector3d(Gauss(&rng, s.gnss_sigma.x()),
-                                                               Gauss(&rng, s.gnss_sigma.x()),
-                                                               Gauss(&rng, s.gnss_sigma.y()));
-              ct.images.push_back(im);
-            }
-          }
-          t += 30.0;  // turn between strips
-        }
-      }
+      PlanUavCameraImages(c, ci, scene, ref, truth_.epochs, &rng, &ct);
     }
-    // Exposure per image: jitter and jumps.
-    for (ImageTruth& im : ct.images) {
-      double factor = std::exp(Gauss(&rng, s.exposure_jitter));
-      for (const auto& [epoch, f] : s.exposure_jumps)
-        if (im.epoch >= epoch) factor *= f;
-      im.exposure = factor;
-    }
-    // At least one control point in view in the reference epoch (a
-    // fixed_targetless camera is re-oriented on stable ground instead).
-    bool control = s.kind == "fixed_targetless";
-    for (const ImageTruth& im : ct.images) {
-      if (im.epoch != 0 || control) continue;
-      for (int p : VisiblePlates(ref, s.model, im.exterior)) {
-        if (truth_.targets[p].role == io::TargetRole::kControl) control = true;
-      }
-    }
-    if (!control) {
-      throw ConfigError(Message(s.key, ": no control point is in view of camera '", s.name,
-                                "' in the reference epoch (check 'targets.list' roles/positions and the camera's "
-                                "pose keys)"));
-    }
+    ApplyImageExposures(s, &rng, &ct);
+    RequireControlInView(s, ref, truth_.targets, ct);
     truth_.cameras.push_back(ct);
   }
 
   // ---- radio ----
-  if (c.radio.enabled) {
-    RadioSimConfig rc = c.radio.sim;
-    for (size_t j = 0; j < rc.receivers.size(); ++j) {
-      const Eigen::Vector2d xy = c.radio.receiver_xy[j];
-      if (!inside(xy)) throw ConfigError(Message(c.path, ": radio: receivers[", j, "]: 'position' is outside site.extent"));
-      if (l.Weight(xy) > 0.0) {
-        throw ConfigError(Message(c.path, ": radio: receivers[", j, "]: 'position' is on the moving body "
-                                           "(receivers stand on stable ground)"));
-      }
-      rc.receivers[j].position = Eigen::Vector3d(xy.x(), xy.y(), ref.grid.HeightAt(xy.x(), xy.y()) + c.radio.receiver_mast[j]);
-    }
-    for (size_t i = 0; i < rc.transmitters.size(); ++i) {
-      const Eigen::Vector2d xy = c.radio.transmitter_xy[i];
-      if (!inside(xy)) throw ConfigError(Message(c.path, ": radio: transmitters[", i, "]: 'position' is outside site.extent"));
-      const Eigen::Vector3d ground(xy.x(), xy.y(), ref.grid.HeightAt(xy.x(), xy.y()));
-      const Eigen::Vector3d x0 = ground + Eigen::Vector3d(0, 0, c.radio.transmitter_mast[i]);
-      const LandslideModel field = l;
-      // The mast stands on the ground point and moves with it.
-      rc.transmitters[i].position = [field, ground, x0](double t) -> Eigen::Vector3d { return x0 + field.DisplacementAt(ground, t); };
-    }
-    try {
-      radio_ = std::make_shared<RadioSimulator>(rc);
-    } catch (const InvalidArgument& e) {
-      throw ConfigError(Message(c.path, ": radio: ", e.what()));
-    }
-    RadioTruth& rt = truth_.radio;
-    rt.wavelength = rc.wavelength;
-    rt.center_frequency = rc.center_frequency;
-    for (const auto& r : rc.receivers) rt.receivers.push_back({r.id, r.position, r.xi});
-    for (const auto& t : rc.transmitters) {
-      RadioTransmitterTruth tt;
-      tt.id = t.id;
-      tt.frequency = rc.center_frequency + t.frequency_offset;
-      tt.psi = t.psi;
-      for (const auto& e : truth_.epochs) tt.positions.push_back(t.position(e.stamp));
-      rt.transmitters.push_back(tt);
-    }
-    for (size_t i = 0; i < rc.transmitters.size(); ++i) {
-      std::vector<int> row;
-      for (size_t j = 0; j < rc.receivers.size(); ++j) {
-        row.push_back(radio_->Ambiguity(static_cast<int>(i), static_cast<int>(j), c.start_time));
-      }
-      rt.ambiguities.push_back(row);
-    }
-    rt.faults = radio_->FaultDescriptions();
-  }
+  if (c.radio.enabled) radio_ = MakeRadioSimulator(c, ref, truth_.epochs, &truth_.radio);
 }
 
 Survey SurveyGenerator::Generate(const std::function<void(int, int)>& progress) const {

@@ -280,6 +280,109 @@ std::map<std::string, Eigen::Vector3d> SurveyTruth::TargetPositions(int epoch) c
 // Writing
 // ---------------------------------------------------------------------------
 
+namespace {
+
+// One camera of the truth file: sensor, models, images, surveyed points.
+void EmitCameraTruth(YAML::Emitter& out, const CameraTruth& c) {
+  out << YAML::BeginMap;
+  out << YAML::Key << "name" << YAML::Value << c.name;
+  out << YAML::Key << "kind" << YAML::Value << c.kind;
+  out << YAML::Key << "encoding" << YAML::Value << c.encoding;
+  out << YAML::Key << "sensor" << YAML::Value << YAML::Flow << YAML::BeginMap << YAML::Key << "width"
+      << YAML::Value << c.model.sensor().width << YAML::Key << "height" << YAML::Value << c.model.sensor().height
+      << YAML::Key << "pixel_size" << YAML::Value << c.model.sensor().pixel_size << YAML::EndMap;
+  out << YAML::Key << "distortion_model" << YAML::Value << camera::DistortionModelName(c.model.model());
+  EmitCameraModel(out, "interior", c.model);
+  EmitCameraModel(out, "nominal_interior", c.nominal);
+  if (c.nominal_pose) {
+    const auto a = c.nominal_pose->ToArray();
+    out << YAML::Key << "nominal_exterior" << YAML::Value;
+    Vec(out, a.data(), 6);
+  }
+  out << YAML::Key << "images" << YAML::Value << YAML::BeginSeq;
+  for (const auto& im : c.images) {
+    out << YAML::Flow << YAML::BeginMap;
+    out << YAML::Key << "epoch" << YAML::Value << im.epoch;
+    out << YAML::Key << "stamp" << YAML::Value << im.stamp;
+    const auto a = im.exterior.ToArray();
+    out << YAML::Key << "exterior" << YAML::Value;
+    Vec(out, a.data(), 6);
+    if (im.gnss) EmitVec3(out, "gnss", *im.gnss);
+    out << YAML::Key << "exposure" << YAML::Value << im.exposure;
+    out << YAML::Key << "visible" << YAML::Value << YAML::Flow << im.visible;
+    out << YAML::EndMap;
+  }
+  out << YAML::EndSeq;
+  if (!c.surveyed_points.empty()) {
+    out << YAML::Key << "surveyed_points" << YAML::Value << YAML::BeginSeq;
+    for (const SurveyedPointTruth& sp : c.surveyed_points) {
+      out << YAML::Flow << YAML::BeginMap;
+      out << YAML::Key << "id" << YAML::Value << sp.id;
+      EmitVec3(out, "position", sp.position);
+      EmitVec3(out, "surveyed", sp.surveyed);
+      out << YAML::Key << "picked" << YAML::Value;
+      Vec(out, sp.picked.data(), 2);
+      out << YAML::EndMap;
+    }
+    out << YAML::EndSeq;
+  }
+  out << YAML::EndMap;
+}
+
+// One target of the truth file: design, role, survey and positions per epoch.
+void EmitTargetTruth(YAML::Emitter& out, const TargetTruth& t) {
+  out << YAML::BeginMap;
+  out << YAML::Key << "key" << YAML::Value << t.key;
+  out << YAML::Key << "id" << YAML::Value << t.id;
+  out << YAML::Key << "family" << YAML::Value << t.family;
+  out << YAML::Key << "size" << YAML::Value << t.size;
+  out << YAML::Key << "role" << YAML::Value << io::TargetRoleName(t.role);
+  EmitVec3(out, "normal", t.normal);
+  EmitVec3(out, "up", t.up_in_plate);
+  if (t.surveyed) {
+    EmitVec3(out, "surveyed", *t.surveyed);
+    out << YAML::Key << "survey_sigma" << YAML::Value;
+    Vec(out, t.survey_sigma.data(), 2);
+  }
+  out << YAML::Key << "positions" << YAML::Value << YAML::BeginSeq;
+  for (const auto& p : t.positions) Vec(out, p.data(), 3);
+  out << YAML::EndSeq;
+  out << YAML::EndMap;
+}
+
+// The radio network of the truth file: receivers, transmitters per epoch, ambiguities, faults.
+void EmitRadioTruth(YAML::Emitter& out, const RadioTruth& radio) {
+  out << YAML::Key << "radio" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "wavelength" << YAML::Value << radio.wavelength;
+  out << YAML::Key << "center_frequency" << YAML::Value << radio.center_frequency;
+  out << YAML::Key << "receivers" << YAML::Value << YAML::BeginSeq;
+  for (const auto& r : radio.receivers) {
+    out << YAML::Flow << YAML::BeginMap << YAML::Key << "id" << YAML::Value << r.id;
+    EmitVec3(out, "position", r.position);
+    out << YAML::Key << "xi" << YAML::Value << r.xi << YAML::EndMap;
+  }
+  out << YAML::EndSeq;
+  out << YAML::Key << "transmitters" << YAML::Value << YAML::BeginSeq;
+  for (const auto& t : radio.transmitters) {
+    out << YAML::BeginMap << YAML::Key << "id" << YAML::Value << t.id;
+    out << YAML::Key << "frequency" << YAML::Value << t.frequency;
+    out << YAML::Key << "psi" << YAML::Value << t.psi;
+    out << YAML::Key << "positions" << YAML::Value << YAML::BeginSeq;
+    for (const auto& p : t.positions) Vec(out, p.data(), 3);
+    out << YAML::EndSeq << YAML::EndMap;
+  }
+  out << YAML::EndSeq;
+  out << YAML::Key << "ambiguities" << YAML::Value << YAML::BeginSeq;
+  for (const auto& row : radio.ambiguities) out << YAML::Flow << row;
+  out << YAML::EndSeq;
+  out << YAML::Key << "faults" << YAML::Value << YAML::BeginSeq;
+  for (const auto& f : radio.faults) out << f;
+  out << YAML::EndSeq;
+  out << YAML::EndMap;
+}
+
+}  // namespace
+
 std::string SurveyTruth::ToYaml() const {
   YAML::Emitter out;
   out.SetDoublePrecision(17);
@@ -301,73 +404,11 @@ std::string SurveyTruth::ToYaml() const {
   out << YAML::EndSeq;
 
   out << YAML::Key << "cameras" << YAML::Value << YAML::BeginSeq;
-  for (const auto& c : cameras) {
-    out << YAML::BeginMap;
-    out << YAML::Key << "name" << YAML::Value << c.name;
-    out << YAML::Key << "kind" << YAML::Value << c.kind;
-    out << YAML::Key << "encoding" << YAML::Value << c.encoding;
-    out << YAML::Key << "sensor" << YAML::Value << YAML::Flow << YAML::BeginMap << YAML::Key << "width"
-        << YAML::Value << c.model.sensor().width << YAML::Key << "height" << YAML::Value << c.model.sensor().height
-        << YAML::Key << "pixel_size" << YAML::Value << c.model.sensor().pixel_size << YAML::EndMap;
-    out << YAML::Key << "distortion_model" << YAML::Value << camera::DistortionModelName(c.model.model());
-    EmitCameraModel(out, "interior", c.model);
-    EmitCameraModel(out, "nominal_interior", c.nominal);
-    if (c.nominal_pose) {
-      const auto a = c.nominal_pose->ToArray();
-      out << YAML::Key << "nominal_exterior" << YAML::Value;
-      Vec(out, a.data(), 6);
-    }
-    out << YAML::Key << "images" << YAML::Value << YAML::BeginSeq;
-    for (const auto& im : c.images) {
-      out << YAML::Flow << YAML::BeginMap;
-      out << YAML::Key << "epoch" << YAML::Value << im.epoch;
-      out << YAML::Key << "stamp" << YAML::Value << im.stamp;
-      const auto a = im.exterior.ToArray();
-      out << YAML::Key << "exterior" << YAML::Value;
-      Vec(out, a.data(), 6);
-      if (im.gnss) EmitVec3(out, "gnss", *im.gnss);
-      out << YAML::Key << "exposure" << YAML::Value << im.exposure;
-      out << YAML::Key << "visible" << YAML::Value << YAML::Flow << im.visible;
-      out << YAML::EndMap;
-    }
-    out << YAML::EndSeq;
-    if (!c.surveyed_points.empty()) {
-      out << YAML::Key << "surveyed_points" << YAML::Value << YAML::BeginSeq;
-      for (const SurveyedPointTruth& sp : c.surveyed_points) {
-        out << YAML::Flow << YAML::BeginMap;
-        out << YAML::Key << "id" << YAML::Value << sp.id;
-        EmitVec3(out, "position", sp.position);
-        EmitVec3(out, "surveyed", sp.surveyed);
-        out << YAML::Key << "picked" << YAML::Value;
-        Vec(out, sp.picked.data(), 2);
-        out << YAML::EndMap;
-      }
-      out << YAML::EndSeq;
-    }
-    out << YAML::EndMap;
-  }
+  for (const auto& c : cameras) EmitCameraTruth(out, c);
   out << YAML::EndSeq;
 
   out << YAML::Key << "targets" << YAML::Value << YAML::BeginSeq;
-  for (const auto& t : targets) {
-    out << YAML::BeginMap;
-    out << YAML::Key << "key" << YAML::Value << t.key;
-    out << YAML::Key << "id" << YAML::Value << t.id;
-    out << YAML::Key << "family" << YAML::Value << t.family;
-    out << YAML::Key << "size" << YAML::Value << t.size;
-    out << YAML::Key << "role" << YAML::Value << io::TargetRoleName(t.role);
-    EmitVec3(out, "normal", t.normal);
-    EmitVec3(out, "up", t.up_in_plate);
-    if (t.surveyed) {
-      EmitVec3(out, "surveyed", *t.surveyed);
-      out << YAML::Key << "survey_sigma" << YAML::Value;
-      Vec(out, t.survey_sigma.data(), 2);
-    }
-    out << YAML::Key << "positions" << YAML::Value << YAML::BeginSeq;
-    for (const auto& p : t.positions) Vec(out, p.data(), 3);
-    out << YAML::EndSeq;
-    out << YAML::EndMap;
-  }
+  for (const auto& t : targets) EmitTargetTruth(out, t);
   out << YAML::EndSeq;
 
   const LandslideModel& l = landslide;
@@ -401,33 +442,7 @@ std::string SurveyTruth::ToYaml() const {
   }
   out << YAML::EndSeq;
 
-  out << YAML::Key << "radio" << YAML::Value << YAML::BeginMap;
-  out << YAML::Key << "wavelength" << YAML::Value << radio.wavelength;
-  out << YAML::Key << "center_frequency" << YAML::Value << radio.center_frequency;
-  out << YAML::Key << "receivers" << YAML::Value << YAML::BeginSeq;
-  for (const auto& r : radio.receivers) {
-    out << YAML::Flow << YAML::BeginMap << YAML::Key << "id" << YAML::Value << r.id;
-    EmitVec3(out, "position", r.position);
-    out << YAML::Key << "xi" << YAML::Value << r.xi << YAML::EndMap;
-  }
-  out << YAML::EndSeq;
-  out << YAML::Key << "transmitters" << YAML::Value << YAML::BeginSeq;
-  for (const auto& t : radio.transmitters) {
-    out << YAML::BeginMap << YAML::Key << "id" << YAML::Value << t.id;
-    out << YAML::Key << "frequency" << YAML::Value << t.frequency;
-    out << YAML::Key << "psi" << YAML::Value << t.psi;
-    out << YAML::Key << "positions" << YAML::Value << YAML::BeginSeq;
-    for (const auto& p : t.positions) Vec(out, p.data(), 3);
-    out << YAML::EndSeq << YAML::EndMap;
-  }
-  out << YAML::EndSeq;
-  out << YAML::Key << "ambiguities" << YAML::Value << YAML::BeginSeq;
-  for (const auto& row : radio.ambiguities) out << YAML::Flow << row;
-  out << YAML::EndSeq;
-  out << YAML::Key << "faults" << YAML::Value << YAML::BeginSeq;
-  for (const auto& f : radio.faults) out << f;
-  out << YAML::EndSeq;
-  out << YAML::EndMap;
+  EmitRadioTruth(out, radio);
 
   out << YAML::Key << "surfaces" << YAML::Value << YAML::BeginSeq;
   for (const auto& s : surfaces) {
@@ -457,6 +472,101 @@ SurveyTruth SurveyTruth::Load(const std::string& path) {
   ss << f.rdbuf();
   return FromYaml(ss.str(), path);
 }
+
+namespace {
+
+// One camera of a truth file (`p`: "cameras[i]." for messages).
+CameraTruth ReadCameraTruth(const Reader& r, const YAML::Node& n, const std::string& p) {
+  CameraTruth c;
+  c.name = r.Get<std::string>(n, "name", p);
+  c.kind = r.Get<std::string>(n, "kind", p);
+  c.encoding = r.GetOr<std::string>(n, "encoding", "mono8", p);
+  c.model = r.Model(n, "interior", p);
+  c.nominal = r.Model(n, "nominal_interior", p);
+  if (n["nominal_exterior"].IsDefined()) c.nominal_pose = r.Exterior(n, "nominal_exterior", p);
+  const YAML::Node ims = n["images"];
+  for (size_t j = 0; ims.IsDefined() && j < ims.size(); ++j) {
+    const std::string q = Message(p, "images[", j, "].");
+    ImageTruth im;
+    im.epoch = r.Get<int>(ims[j], "epoch", q);
+    im.stamp = r.Get<double>(ims[j], "stamp", q);
+    im.exterior = r.Exterior(ims[j], "exterior", q);
+    if (ims[j]["gnss"].IsDefined()) im.gnss = r.Vec3(ims[j], "gnss", q);
+    im.exposure = r.GetOr<double>(ims[j], "exposure", 1.0, q);
+    im.visible = r.GetOr<std::vector<std::string>>(ims[j], "visible", {}, q);
+    c.images.push_back(im);
+  }
+  const YAML::Node sps = n["surveyed_points"];
+  for (size_t j = 0; sps.IsDefined() && j < sps.size(); ++j) {
+    const std::string q = Message(p, "surveyed_points[", j, "].");
+    SurveyedPointTruth sp;
+    sp.id = r.Get<std::string>(sps[j], "id", q);
+    sp.position = r.Vec3(sps[j], "position", q);
+    sp.surveyed = r.Vec3(sps[j], "surveyed", q);
+    const std::vector<double> px = r.Get<std::vector<double>>(sps[j], "picked", q);
+    if (px.size() != 2) throw ConfigError(Message(q, "picked: expected [u, v]"));
+    sp.picked = Eigen::Vector2d(px[0], px[1]);
+    c.surveyed_points.push_back(sp);
+  }
+  return c;
+}
+
+// One target of a truth file (`p`: "targets[i]." for messages).
+TargetTruth ReadTargetTruth(const Reader& r, const YAML::Node& n, const std::string& p) {
+  TargetTruth tt;
+  tt.key = r.Get<std::string>(n, "key", p);
+  tt.id = r.Get<int>(n, "id", p);
+  tt.family = r.Get<std::string>(n, "family", p);
+  tt.size = r.Get<double>(n, "size", p);
+  try {
+    tt.role = io::TargetRoleFromName(r.Get<std::string>(n, "role", p));
+  } catch (const Error& e) {
+    r.Fail(p + "role", e.what());
+  }
+  tt.normal = r.Vec3(n, "normal", p);
+  if (n["up"].IsDefined()) tt.up_in_plate = r.Vec3(n, "up", p);
+  if (n["surveyed"].IsDefined()) tt.surveyed = r.Vec3(n, "surveyed", p);
+  if (n["survey_sigma"].IsDefined()) {
+    const auto s = r.Doubles(n["survey_sigma"], 2, p + "survey_sigma");
+    tt.survey_sigma = Eigen::Vector2d(s[0], s[1]);
+  }
+  tt.positions = r.Vec3List(n, "positions", p);
+  return tt;
+}
+
+// The radio network of a truth file.
+RadioTruth ReadRadioTruth(const Reader& r, const YAML::Node& rn) {
+  RadioTruth radio;
+  radio.wavelength = r.Get<double>(rn, "wavelength", "radio.");
+  radio.center_frequency = r.GetOr<double>(rn, "center_frequency", 0.0, "radio.");
+  const YAML::Node rx = rn["receivers"];
+  for (size_t i = 0; rx.IsDefined() && i < rx.size(); ++i) {
+    const std::string p = Message("radio.receivers[", i, "].");
+    RadioReceiverTruth rr;
+    rr.id = r.Get<std::string>(rx[i], "id", p);
+    rr.position = r.Vec3(rx[i], "position", p);
+    rr.xi = r.Get<double>(rx[i], "xi", p);
+    radio.receivers.push_back(rr);
+  }
+  const YAML::Node tx = rn["transmitters"];
+  for (size_t i = 0; tx.IsDefined() && i < tx.size(); ++i) {
+    const std::string p = Message("radio.transmitters[", i, "].");
+    RadioTransmitterTruth tt;
+    tt.id = r.Get<std::string>(tx[i], "id", p);
+    tt.frequency = r.Get<double>(tx[i], "frequency", p);
+    tt.psi = r.Get<double>(tx[i], "psi", p);
+    tt.positions = r.Vec3List(tx[i], "positions", p);
+    radio.transmitters.push_back(tt);
+  }
+  const YAML::Node amb = rn["ambiguities"];
+  for (size_t i = 0; amb.IsDefined() && i < amb.size(); ++i) {
+    radio.ambiguities.push_back(r.As<std::vector<int>>(amb[i], Message("radio.ambiguities[", i, "]")));
+  }
+  radio.faults = r.GetOr<std::vector<std::string>>(rn, "faults", {}, "radio.");
+  return radio;
+}
+
+}  // namespace
 
 SurveyTruth SurveyTruth::FromYaml(const std::string& text, const std::string& context) {
   YAML::Node root;
@@ -489,64 +599,13 @@ SurveyTruth SurveyTruth::FromYaml(const std::string& text, const std::string& co
   const YAML::Node cams = root["cameras"];
   for (size_t i = 0; cams.IsDefined() && i < cams.size(); ++i) {
     const std::string p = Message("cameras[", i, "].");
-    const YAML::Node n = cams[i];
-    CameraTruth c;
-    c.name = r.Get<std::string>(n, "name", p);
-    c.kind = r.Get<std::string>(n, "kind", p);
-    c.encoding = r.GetOr<std::string>(n, "encoding", "mono8", p);
-    c.model = r.Model(n, "interior", p);
-    c.nominal = r.Model(n, "nominal_interior", p);
-    if (n["nominal_exterior"].IsDefined()) c.nominal_pose = r.Exterior(n, "nominal_exterior", p);
-    const YAML::Node ims = n["images"];
-    for (size_t j = 0; ims.IsDefined() && j < ims.size(); ++j) {
-      const std::string q = Message(p, "images[", j, "].");
-      ImageTruth im;
-      im.epoch = r.Get<int>(ims[j], "epoch", q);
-      im.stamp = r.Get<double>(ims[j], "stamp", q);
-      im.exterior = r.Exterior(ims[j], "exterior", q);
-      if (ims[j]["gnss"].IsDefined()) im.gnss = r.Vec3(ims[j], "gnss", q);
-      im.exposure = r.GetOr<double>(ims[j], "exposure", 1.0, q);
-      im.visible = r.GetOr<std::vector<std::string>>(ims[j], "visible", {}, q);
-      c.images.push_back(im);
-    }
-    const YAML::Node sps = n["surveyed_points"];
-    for (size_t j = 0; sps.IsDefined() && j < sps.size(); ++j) {
-      const std::string q = Message(p, "surveyed_points[", j, "].");
-      SurveyedPointTruth sp;
-      sp.id = r.Get<std::string>(sps[j], "id", q);
-      sp.position = r.Vec3(sps[j], "position", q);
-      sp.surveyed = r.Vec3(sps[j], "surveyed", q);
-      const std::vector<double> px = r.Get<std::vector<double>>(sps[j], "picked", q);
-      if (px.size() != 2) throw ConfigError(Message(q, "picked: expected [u, v]"));
-      sp.picked = Eigen::Vector2d(px[0], px[1]);
-      c.surveyed_points.push_back(sp);
-    }
-    t.cameras.push_back(c);
+    t.cameras.push_back(ReadCameraTruth(r, cams[i], p));
   }
 
   const YAML::Node targets = root["targets"];
   for (size_t i = 0; targets.IsDefined() && i < targets.size(); ++i) {
     const std::string p = Message("targets[", i, "].");
-    const YAML::Node n = targets[i];
-    TargetTruth tt;
-    tt.key = r.Get<std::string>(n, "key", p);
-    tt.id = r.Get<int>(n, "id", p);
-    tt.family = r.Get<std::string>(n, "family", p);
-    tt.size = r.Get<double>(n, "size", p);
-    try {
-      tt.role = io::TargetRoleFromName(r.Get<std::string>(n, "role", p));
-    } catch (const Error& e) {
-      r.Fail(p + "role", e.what());
-    }
-    tt.normal = r.Vec3(n, "normal", p);
-    if (n["up"].IsDefined()) tt.up_in_plate = r.Vec3(n, "up", p);
-    if (n["surveyed"].IsDefined()) tt.surveyed = r.Vec3(n, "surveyed", p);
-    if (n["survey_sigma"].IsDefined()) {
-      const auto s = r.Doubles(n["survey_sigma"], 2, p + "survey_sigma");
-      tt.survey_sigma = Eigen::Vector2d(s[0], s[1]);
-    }
-    tt.positions = r.Vec3List(n, "positions", p);
-    t.targets.push_back(tt);
+    t.targets.push_back(ReadTargetTruth(r, targets[i], p));
   }
 
   const YAML::Node ls = r.Need(root, "landslide", "");
@@ -590,35 +649,7 @@ SurveyTruth SurveyTruth::FromYaml(const std::string& text, const std::string& co
     t.obstacles.push_back(o);
   }
 
-  if (root["radio"].IsDefined() && !root["radio"].IsNull()) {
-    const YAML::Node rn = root["radio"];
-    t.radio.wavelength = r.Get<double>(rn, "wavelength", "radio.");
-    t.radio.center_frequency = r.GetOr<double>(rn, "center_frequency", 0.0, "radio.");
-    const YAML::Node rx = rn["receivers"];
-    for (size_t i = 0; rx.IsDefined() && i < rx.size(); ++i) {
-      const std::string p = Message("radio.receivers[", i, "].");
-      RadioReceiverTruth rr;
-      rr.id = r.Get<std::string>(rx[i], "id", p);
-      rr.position = r.Vec3(rx[i], "position", p);
-      rr.xi = r.Get<double>(rx[i], "xi", p);
-      t.radio.receivers.push_back(rr);
-    }
-    const YAML::Node tx = rn["transmitters"];
-    for (size_t i = 0; tx.IsDefined() && i < tx.size(); ++i) {
-      const std::string p = Message("radio.transmitters[", i, "].");
-      RadioTransmitterTruth tt;
-      tt.id = r.Get<std::string>(tx[i], "id", p);
-      tt.frequency = r.Get<double>(tx[i], "frequency", p);
-      tt.psi = r.Get<double>(tx[i], "psi", p);
-      tt.positions = r.Vec3List(tx[i], "positions", p);
-      t.radio.transmitters.push_back(tt);
-    }
-    const YAML::Node amb = rn["ambiguities"];
-    for (size_t i = 0; amb.IsDefined() && i < amb.size(); ++i) {
-      t.radio.ambiguities.push_back(r.As<std::vector<int>>(amb[i], Message("radio.ambiguities[", i, "]")));
-    }
-    t.radio.faults = r.GetOr<std::vector<std::string>>(rn, "faults", {}, "radio.");
-  }
+  if (root["radio"].IsDefined() && !root["radio"].IsNull()) t.radio = ReadRadioTruth(r, root["radio"]);
 
   const YAML::Node surf = root["surfaces"];
   for (size_t i = 0; surf.IsDefined() && i < surf.size(); ++i) {
