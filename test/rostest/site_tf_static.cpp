@@ -1,7 +1,21 @@
 // replay.launch site:=config/sites/demo.yaml: a tf listener started `late`
 // seconds after playback began sees `site` (latched /tf_static), and the
-// deformation estimator, which reads the site file, is up.
+// deformation estimator, which reads the site file, is up. Also ROS's own
+// command-line tools on the graph's interfaces (issue 38): `rostopic echo -n 1`
+// of an output topic of each message type, `rosservice call` of every service.
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
 #include <mutex>
+#include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -13,7 +27,10 @@
 
 #include "slope_monitor/AdjustmentSolution.h"
 
+#include "../ros/run_command.h"
 #include "test_node.h"
+
+extern char** environ;
 
 namespace slope_monitor {
 namespace {
@@ -41,6 +58,134 @@ void OnSolution(const AdjustmentSolutionConstPtr& m) {
   std::lock_guard<std::mutex> lock(solutions_mutex);
   solutions.push_back(*m);
   received.push_back(ros::Time::now().toSec());
+}
+
+// The master's system state: topic or service -> the nodes that publish,
+// subscribe or provide it (index 0, 1, 2 of getSystemState).
+std::map<std::string, std::set<std::string>> SystemState(int index) {
+  XmlRpc::XmlRpcValue args, result, payload;
+  args[0] = ros::this_node::getName();
+  std::map<std::string, std::set<std::string>> out;
+  if (!ros::master::execute("getSystemState", args, result, payload, false)) return out;
+  XmlRpc::XmlRpcValue& list = payload[index];
+  for (int i = 0; i < list.size(); ++i)
+    for (int j = 0; j < list[i][1].size(); ++j)
+      out[static_cast<std::string>(list[i][0])].insert(static_cast<std::string>(list[i][1][j]));
+  return out;
+}
+
+// A node of the graph under test: not the player, rosout, this test node or a
+// command-line tool it started.
+bool GraphNode(const std::string& node) {
+  return node != "/player" && node != "/rosout" && node != ros::this_node::getName() &&
+         node.rfind("/rostopic_", 0) != 0 && node.rfind("/rosservice_", 0) != 0;
+}
+
+bool AnyGraphNode(const std::set<std::string>& nodes) {
+  for (const std::string& n : nodes)
+    if (GraphNode(n)) return true;
+  return false;
+}
+
+// Every graph_ready parameter but this node's own is true (replay_start's test).
+bool OthersReady() {
+  std::vector<std::string> names;
+  ros::param::getParamNames(names);
+  const std::string own = ros::this_node::getName() + "/graph_ready";
+  for (const std::string& n : names) {
+    if (n == own || n.size() < 12 || n.compare(n.size() - 12, 12, "/graph_ready") != 0) continue;
+    bool ready = false;
+    if (!ros::param::get(n, ready) || !ready) return false;
+  }
+  return true;
+}
+
+struct Echo {
+  std::string topic;
+  bool message_expected = true;  // false: a type this survey sends nothing on (`listen`)
+  pid_t pid = -1;
+  std::string output_file;
+};
+std::vector<Echo> echoes;
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// `rostopic echo -n 1 --noarr <topic>` in the background, stdout and stderr to `output_file`.
+pid_t StartEcho(const std::string& topic, const std::string& output_file) {
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, output_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  std::vector<std::string> argv = {"rostopic", "echo", "-n", "1", "--noarr", topic};
+  std::vector<char*> args;
+  for (std::string& a : argv) args.push_back(a.data());
+  args.push_back(nullptr);
+  pid_t pid = -1;
+  if (posix_spawnp(&pid, "rostopic", &actions, nullptr, args.data(), environ) != 0) pid = -1;
+  posix_spawn_file_actions_destroy(&actions);
+  return pid;
+}
+
+// Runs first (gtest runs a suite's tests in the order of the file): holds the
+// player (this node's graph_ready) until an echo listens on one output topic of
+// each message type the graph publishes.
+TEST(SiteTfStatic, AnEchoListensOnEveryOutputTypeBeforeThePlayback) {
+  ros::NodeHandle pnh("~");
+  struct Release {  // replay_start plays the bag when this test ends, however it ends
+    ros::NodeHandle nh;
+    ~Release() { nh.setParam("graph_ready", true); }
+  } release{pnh};
+  std::vector<std::string> topics, listen;
+  std::string tools_dir;
+  ASSERT_TRUE(pnh.getParam("echo", topics) && pnh.getParam("listen", listen) &&
+              pnh.getParam("tools_dir", tools_dir));
+  const size_t with_message = topics.size();
+  topics.insert(topics.end(), listen.begin(), listen.end());
+  ASSERT_TRUE(WaitFor(OthersReady, 120.0)) << "the graph's nodes did not come up";
+  std::map<std::string, std::string> type_of;  // topic -> message type
+  ros::master::V_TopicInfo infos;
+  ros::master::getTopics(infos);
+  for (const ros::master::TopicInfo& t : infos) type_of[t.name] = t.datatype;
+  std::set<std::string> echoed_types;
+  for (const std::string& t : topics) {
+    EXPECT_TRUE(type_of.count(t)) << t << " (in the test's echo list) is not advertised";
+    echoed_types.insert(type_of[t]);
+  }
+  for (const auto& [topic, nodes] : SystemState(0)) {
+    // rosout and the nodelet manager's bond are ROS's, not the graph's outputs
+    if (topic == "/rosout" || (topic.size() > 5 && topic.compare(topic.size() - 5, 5, "/bond") == 0) ||
+        !AnyGraphNode(nodes))
+      continue;
+    EXPECT_TRUE(echoed_types.count(type_of[topic]))
+        << "the graph publishes " << topic << " [" << type_of[topic]
+        << "], a type no topic of the test's echo list has";
+  }
+  std::filesystem::create_directories(tools_dir);
+  for (const std::string& t : topics) {
+    Echo e{t, echoes.size() < with_message, -1, tools_dir + "/echo" + std::to_string(echoes.size()) + ".txt"};
+    e.pid = StartEcho(t, e.output_file);
+    ASSERT_GT(e.pid, 0) << "cannot start rostopic";
+    echoes.push_back(e);
+  }
+  const bool listening = WaitFor(
+      [&] {
+        const auto subs = SystemState(1);
+        for (const std::string& t : topics) {
+          bool found = false;
+          auto it = subs.find(t);
+          if (it != subs.end())
+            for (const std::string& n : it->second) found = found || n.rfind("/rostopic_", 0) == 0;
+          if (!found) return false;
+        }
+        return true;
+      },
+      60.0);
+  ASSERT_TRUE(listening) << "a rostopic echo did not subscribe within 60 s";
 }
 
 TEST(SiteTfStatic, ALateListenerSeesTheSiteFrame) {
@@ -111,6 +256,63 @@ TEST(SiteTfStatic, TheSiteFilesCamerasAreServedAndEveryEpochSolved) {
   EXPECT_LT(received[0], clock_started + 30.0)
       << "epoch " << solutions[0].epoch << " solved " << received[0] - clock_started
       << " s of bag time after the replay began";
+}
+
+// Runs last, after both epochs, while the graph is up: `rosservice call` of
+// every service of the graph answers; each echo of `echo` printed one message
+// and ended with status 0, each of `listen` still listens, without an error.
+TEST(SiteTfStatic, EveryServiceAnswersAndEveryEchoPrintsAMessage) {
+  ros::NodeHandle pnh("~");
+  XmlRpc::XmlRpcValue calls;
+  std::string report_dir;
+  ASSERT_TRUE(pnh.getParam("services", calls) && pnh.getParam("report_dir", report_dir));
+  std::set<std::string> listed;
+  for (int i = 0; i < calls.size(); ++i) listed.insert(static_cast<std::string>(calls[i]["name"]));
+  for (const auto& [service, nodes] : SystemState(2)) {
+    const std::string leaf = service.substr(service.rfind('/') + 1);
+    // roscpp's logger services and the nodelet manager's own are not the graph's interface
+    if (!AnyGraphNode(nodes) || leaf == "get_loggers" || leaf == "set_logger_level" ||
+        leaf == "load_nodelet" || leaf == "unload_nodelet" || leaf == "list")
+      continue;
+    EXPECT_TRUE(listed.count(service)) << "the graph offers " << service
+                                       << ", which the test's services list does not call";
+  }
+  for (int i = 0; i < calls.size(); ++i) {
+    const std::string name = calls[i]["name"];
+    const std::string args = calls[i]["args"];
+    const bool success = calls[i]["success"];
+    const run_command::CommandRun r = run_command::Run("rosservice call " + name + " '" + args + "'");
+    EXPECT_EQ(r.status, 0) << "rosservice call " << name << " '" << args << "':\n" << r.output;
+    EXPECT_NE(r.output.find(success ? "success: True" : "success: False"), std::string::npos)
+        << "rosservice call " << name << " '" << args << "':\n" << r.output;
+  }
+  // export_report wrote its CSV where it said
+  EXPECT_TRUE(std::filesystem::exists(report_dir + "/ros_tools/deformation.csv"))
+      << report_dir << "/ros_tools";
+
+  for (Echo& e : echoes) {
+    int status = -1;
+    const bool ended =
+        WaitFor([&] { return waitpid(e.pid, &status, WNOHANG) == e.pid; }, e.message_expected ? 30.0 : 0.0);
+    if (!ended) {
+      kill(e.pid, SIGKILL);
+      waitpid(e.pid, &status, 0);
+    }
+    const std::string out = ReadText(e.output_file);
+    const std::string what = "rostopic echo -n 1 " + e.topic + " printed:\n" + out;
+    if (e.message_expected) {
+      EXPECT_TRUE(ended && WIFEXITED(status) && WEXITSTATUS(status) == 0)
+          << (ended ? "failed; " : "no message after both epochs; ") << what;
+      EXPECT_NE(out.find("\n---"), std::string::npos) << what;
+    } else {
+      EXPECT_FALSE(ended) << "ended although nothing is sent on it; " << what;
+      EXPECT_EQ(out.find("ERROR"), std::string::npos) << what;
+    }
+  }
+  rusage tools{};
+  getrusage(RUSAGE_CHILDREN, &tools);
+  std::cout << "ROS tools: " << echoes.size() << " rostopic echo, " << calls.size()
+            << " rosservice call: " << tools.ru_utime.tv_sec + tools.ru_stime.tv_sec << " s CPU\n";
 }
 
 }  // namespace
