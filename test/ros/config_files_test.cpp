@@ -213,10 +213,12 @@ void CfCheckOverlay(const std::string& path, const std::string& node) {
   XmlRpc::XmlRpcValue overlay = CfLoad(path);
   CfReadAs(node, CfMerged(CfMerged(defaults, overlay), CfRequired(node)), path);
   XmlRpc::XmlRpcValue& d = const_cast<XmlRpc::XmlRpcValue&>(defaults);
-  for (auto it = overlay.begin(); it != overlay.end(); ++it)
-    if (d.hasMember(it->first))
+  for (auto it = overlay.begin(); it != overlay.end(); ++it) {
+    if (d.hasMember(it->first)) {
       EXPECT_FALSE(CfSameValue(it->second, d[it->first]))
           << path << ": " << it->first << " = " << CfText(it->second) << " is the defaults file's value already";
+    }
+  }
   CfExpectEveryKeyCommented(path);
 }
 

@@ -346,41 +346,55 @@ SolveReport SolveCeresProblem(const Options& options, const std::vector<double*>
   return report;
 }
 
-Summary BundleAdjuster::Solve(Scene* scene_in) const {
-  Summary summary;
-  const std::string bad = CheckInput(*scene_in);
-  if (!bad.empty()) {
-    summary.reason = "bad input: " + bad;
-    return summary;
-  }
-  const Scene& scene = *scene_in;
-  const std::vector<int> images_per_point = CountImagesPerPoint(scene);
+namespace {
 
-  // Parameter storage.
-  std::vector<std::array<double, camera::kNumExterior>> exterior(scene.images.size());
-  std::vector<std::array<double, camera::kNumInterior>> interior(scene.cameras.size());
-  std::vector<std::array<double, 3>> point(scene.points.size());
+// The parameter blocks Ceres adjusts in place: each image's exterior, each
+// camera's interior, each point's position (a control point held at its
+// surveyed position when the priors are off), and which points take part.
+struct ParameterBlocks {
+  std::vector<std::array<double, camera::kNumExterior>> exterior;
+  std::vector<std::array<double, camera::kNumInterior>> interior;
+  std::vector<std::array<double, 3>> point;
+  std::vector<bool> point_used;
+};
+
+ParameterBlocks InitialParameters(const Scene& scene, const Config& config) {
+  const std::vector<int> images_per_point = CountImagesPerPoint(scene);
+  ParameterBlocks b;
+  auto &exterior = b.exterior;
+  auto &interior = b.interior;
+  auto &point = b.point;
+  auto &point_used = b.point_used;
+  exterior.resize(scene.images.size());
+  interior.resize(scene.cameras.size());
+  point.resize(scene.points.size());
+  point_used.resize(scene.points.size());
   for (size_t i = 0; i < scene.images.size(); ++i) exterior[i] = scene.images[i].exterior.ToArray();
   for (size_t c = 0; c < scene.cameras.size(); ++c) interior[c] = scene.cameras[c].model.interior();
-  std::vector<bool> point_used(scene.points.size());
   for (size_t j = 0; j < scene.points.size(); ++j) {
     const ObjectPoint& p = scene.points[j];
-    point_used[j] = PointUsed(p, images_per_point[j], config_.use_control_priors) ||
-                    (IsConstrainedControl(p) && !config_.use_control_priors && images_per_point[j] >= 1);
-    const Eigen::Vector3d x = (IsConstrainedControl(p) && !config_.use_control_priors) ? *p.surveyed : p.position;
+    point_used[j] = PointUsed(p, images_per_point[j], config.use_control_priors) ||
+                    (IsConstrainedControl(p) && !config.use_control_priors && images_per_point[j] >= 1);
+    const Eigen::Vector3d x = (IsConstrainedControl(p) && !config.use_control_priors) ? *p.surveyed : p.position;
     point[j] = {x.x(), x.y(), x.z()};
   }
+  return b;
+}
 
-  // One loss object shared by all image residuals; the problem must not own it.
-  std::unique_ptr<ceres::LossFunction> loss_owner;
-  if (options_.loss == "huber") loss_owner = std::make_unique<ceres::HuberLoss>(options_.loss_scale);
-  if (options_.loss == "cauchy") loss_owner = std::make_unique<ceres::CauchyLoss>(options_.loss_scale);
-  ceres::LossFunction* loss = loss_owner.get();
-  ceres::Problem::Options problem_options;
-  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem prob(problem_options);
-
-  std::vector<int> used_obs;
+// Problem building: one collinearity residual per observation of a point in
+// use (robust loss shared), control point and GNSS priors, what is held
+// (fixed points and images, interior parameters not set free). Returns the
+// number of prior residuals; *used_obs the observations in the problem,
+// *point_blocks the points' blocks (Ceres eliminates them first).
+int BuildProblem(const Scene& scene, const Config& config, ceres::LossFunction* loss, ParameterBlocks* b,
+                 ceres::Problem* problem, std::vector<int>* used_obs_out, std::vector<double*>* point_blocks_out) {
+  auto &exterior = b->exterior;
+  auto &interior = b->interior;
+  auto &point = b->point;
+  const auto &point_used = b->point_used;
+  ceres::Problem& prob = *problem;
+  std::vector<int>& used_obs = *used_obs_out;
+  std::vector<double*>& point_blocks = *point_blocks_out;
   std::vector<ceres::ResidualBlockId> obs_blocks;
   for (size_t k = 0; k < scene.observations.size(); ++k) {
     const Observation& o = scene.observations[k];
@@ -393,13 +407,12 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
     used_obs.push_back(static_cast<int>(k));
   }
   int num_prior_residuals = 0;
-  std::vector<double*> point_blocks;
   for (size_t j = 0; j < scene.points.size(); ++j) {
     if (!point_used[j]) continue;
     point_blocks.push_back(point[j].data());
     const ObjectPoint& p = scene.points[j];
     if (IsConstrainedControl(p)) {
-      if (config_.use_control_priors) {
+      if (config.use_control_priors) {
         prob.AddResidualBlock(ControlPointPrior::Create(*p.surveyed, SqrtInformation<3>(p.surveyed_covariance)),
                               nullptr, point[j].data());
         num_prior_residuals += 3;
@@ -407,21 +420,21 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
         prob.SetParameterBlockConstant(point[j].data());
       }
     }
-    if (config_.fixed_points.count(static_cast<int>(j))) prob.SetParameterBlockConstant(point[j].data());
+    if (config.fixed_points.count(static_cast<int>(j))) prob.SetParameterBlockConstant(point[j].data());
   }
   for (size_t i = 0; i < scene.images.size(); ++i) {
     const Image& im = scene.images[i];
-    if (config_.use_position_priors && im.position_prior) {
+    if (config.use_position_priors && im.position_prior) {
       prob.AddResidualBlock(PositionPriorError::Create(*im.position_prior, SqrtInformation<3>(im.position_prior_covariance)),
                             nullptr, exterior[i].data());
       num_prior_residuals += 3;
     }
-    if (config_.fixed_images.count(static_cast<int>(i))) prob.SetParameterBlockConstant(exterior[i].data());
+    if (config.fixed_images.count(static_cast<int>(i))) prob.SetParameterBlockConstant(exterior[i].data());
   }
   for (size_t c = 0; c < scene.cameras.size(); ++c) {
     if (!prob.HasParameterBlock(interior[c].data())) continue;
-    auto it = config_.free_interior.find(static_cast<int>(c));
-    if (it == config_.free_interior.end() || it->second.empty()) {
+    auto it = config.free_interior.find(static_cast<int>(c));
+    if (it == config.free_interior.end() || it->second.empty()) {
       prob.SetParameterBlockConstant(interior[c].data());
       continue;
     }
@@ -430,63 +443,32 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
       if (std::find(it->second.begin(), it->second.end(), i) == it->second.end()) fixed.push_back(i);
     if (!fixed.empty()) prob.SetManifold(interior[c].data(), new ceres::SubsetManifold(camera::kNumInterior, fixed));
   }
+  return num_prior_residuals;
+}
 
-  summary.num_observations = static_cast<int>(used_obs.size());
-  // Constant blocks do not count.
-  {
-    std::vector<double*> blocks;
-    prob.GetParameterBlocks(&blocks);
-    int n = 0;
-    for (double* b : blocks)
-      if (!prob.IsParameterBlockConstant(b)) n += prob.ParameterBlockTangentSize(b);
-    summary.num_parameters = n;
-  }
+// What the solution's residuals say: per-image RMS, outliers (whitened
+// residual over outlier_threshold), sigma0 from the inliers and the priors,
+// redundancy. Returns the outliers, worst first after sorting by the caller,
+// and *n_behind the observed points behind their camera.
+struct WorstObservation {
+  double sigmas, px;
+  int observation;
+};
 
-  const SolveReport report = SolveCeresProblem(options_, point_blocks, static_cast<int>(scene.images.size()), &prob);
-  summary.termination = report.termination;
-  summary.initial_cost = report.initial_cost;
-  summary.final_cost = report.final_cost;
-  summary.iterations = report.iterations;
-  summary.solve_time = report.time;
-  if (report.failed) {
-    summary.reason = "solver failed: " + report.termination;
-    return summary;
-  }
-  std::vector<int> undetermined;  // points dropped after the solve (below)
-  auto WriteBack = [&]() {
-    for (size_t i = 0; i < scene.images.size(); ++i)
-      scene_in->images[i].exterior = camera::ExteriorOrientation::FromArray(exterior[i].data());
-    for (size_t c = 0; c < scene.cameras.size(); ++c) scene_in->cameras[c].model.mutable_interior() = interior[c];
-    for (size_t j = 0; j < scene.points.size(); ++j) {
-      if (!point_used[j]) continue;
-      scene_in->points[j].position = Eigen::Vector3d(point[j][0], point[j][1], point[j][2]);
-      scene_in->points[j].position_known = true;
-    }
-    for (const int j : undetermined) scene_in->points[j].position_known = false;
-  };
-  if (!report.converged) {
-    summary.reason = "solver did not converge (diverging or too few iterations): " + report.termination;
-    if (options_.write_back_unconverged && std::isfinite(report.final_cost)) WriteBack();
-    return summary;
-  }
-
-  // Points the solution leaves undetermined (their 3x3 normal block singular,
-  // schur_covariance.h): dropped with their observations and named, so that
-  // one such tie point does not refuse the whole epoch's covariance.
-  SchurCovarianceOptions co;
-  co.num_threads = options_.num_threads;
-  undetermined = DropUndeterminedPoints(co, scene, &point, &point_used, &used_obs, &prob, &summary);
-
+std::vector<WorstObservation> EvaluateResiduals(const Scene& scene, const Options& options, const Config& config,
+                                                const ParameterBlocks& b, const std::vector<int>& used_obs,
+                                                int num_prior_residuals, int* n_behind_out, Summary* summary_out) {
+  const auto &exterior = b.exterior;
+  const auto &interior = b.interior;
+  const auto &point = b.point;
+  const auto &point_used = b.point_used;
+  Summary& summary = *summary_out;
   // Residuals, outliers, sigma0.
   summary.image_rms_px.assign(scene.images.size(), 0.0);
   std::vector<int> image_n(scene.images.size(), 0);
   double sum_w2 = 0.0, sum_px2 = 0.0;
   int n_inliers = 0, n_behind = 0;
-  struct Worst {
-    double sigmas, px;
-    int observation;
-  };
-  std::vector<Worst> worst;
+  std::vector<WorstObservation> worst;
   for (int k : used_obs) {
     const Observation& o = scene.observations[k];
     const Image& im = scene.images[o.image];
@@ -499,7 +481,7 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
     camera::MmToPixel(sensor, xy[0], xy[1], &col, &row);
     const Eigen::Vector2d e(col - o.pixel.x(), row - o.pixel.y());
     const Eigen::Vector2d w = SqrtInformation<2>(o.covariance) * e;
-    if (!std::isfinite(w.norm()) || w.norm() > options_.outlier_threshold) {
+    if (!std::isfinite(w.norm()) || w.norm() > options.outlier_threshold) {
       summary.outliers.push_back(k);
       worst.push_back({std::isfinite(w.norm()) ? w.norm() : 1e300, e.norm(), k});
       continue;
@@ -516,14 +498,14 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
   double sum_prior2 = 0.0;
   for (size_t j = 0; j < scene.points.size(); ++j) {
     const ObjectPoint& p = scene.points[j];
-    if (point_used[j] && IsConstrainedControl(p) && config_.use_control_priors) {
+    if (point_used[j] && IsConstrainedControl(p) && config.use_control_priors) {
       const Eigen::Vector3d d = Eigen::Vector3d(point[j][0], point[j][1], point[j][2]) - *p.surveyed;
       sum_prior2 += (SqrtInformation<3>(p.surveyed_covariance) * d).squaredNorm();
     }
   }
   for (size_t i = 0; i < scene.images.size(); ++i) {
     const Image& im = scene.images[i];
-    if (config_.use_position_priors && im.position_prior) {
+    if (config.use_position_priors && im.position_prior) {
       const Eigen::Vector3d d = Eigen::Vector3d(exterior[i][0], exterior[i][1], exterior[i][2]) - *im.position_prior;
       sum_prior2 += (SqrtInformation<3>(im.position_prior_covariance) * d).squaredNorm();
     }
@@ -533,19 +515,28 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
   summary.redundancy = summary.num_residuals - summary.num_parameters;
   summary.rms_residual_px = n_inliers > 0 ? std::sqrt(sum_px2 / n_inliers) : 0.0;
   summary.sigma0 = summary.redundancy > 0 ? std::sqrt((sum_w2 + sum_prior2) / summary.redundancy) : 0.0;
+  *n_behind_out = n_behind;
+  return worst;
+}
 
+// The refusals after the residuals (summary->reason set): no redundancy,
+// points behind a camera, too many outliers (the worst three named), sigma0
+// over max_sigma0. True when the solution passes them.
+bool SolutionPassesChecks(const Scene& scene, const Options& options, int n_behind,
+                          std::vector<WorstObservation> worst, Summary* summary_out) {
+  Summary& summary = *summary_out;
   if (summary.redundancy <= 0) {
     summary.reason = Message("no redundancy (", summary.num_residuals, " residuals for ", summary.num_parameters,
                              " unknowns)");
-    return summary;
+    return false;
   }
   if (n_behind > 0) {
     summary.reason = Message(n_behind, " observed points ended behind their camera: diverged");
-    return summary;
+    return false;
   }
   const double outlier_fraction = static_cast<double>(summary.num_outliers) / std::max(1, summary.num_observations);
-  if (outlier_fraction > options_.max_outlier_fraction) {
-    std::sort(worst.begin(), worst.end(), [](const Worst& a, const Worst& b) { return a.sigmas > b.sigmas; });
+  if (outlier_fraction > options.max_outlier_fraction) {
+    std::sort(worst.begin(), worst.end(), [](const WorstObservation& a, const WorstObservation& b) { return a.sigmas > b.sigmas; });
     std::string list;
     for (size_t i = 0; i < worst.size() && i < 3; ++i) {
       const Observation& o = scene.observations[worst[i].observation];
@@ -553,19 +544,34 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
                       " px (", worst[i].sigmas, " sigma)");
     }
     summary.reason = Message("too many outliers: ", summary.num_outliers, " of ", summary.num_observations,
-                             " (max_outlier_fraction = ", options_.max_outlier_fraction, "); worst: ", list);
-    return summary;
+                             " (max_outlier_fraction = ", options.max_outlier_fraction, "); worst: ", list);
+    return false;
   }
-  if (!(summary.sigma0 <= options_.max_sigma0)) {
-    summary.reason = Message("a posteriori sigma0 = ", summary.sigma0, " exceeds max_sigma0 = ", options_.max_sigma0,
+  if (!(summary.sigma0 <= options.max_sigma0)) {
+    summary.reason = Message("a posteriori sigma0 = ", summary.sigma0, " exceeds max_sigma0 = ", options.max_sigma0,
                              " (wrong observation weights or a diverged solution)");
-    return summary;
+    return false;
   }
+  return true;
+}
 
+// Covariance: the reduced camera system (schur_covariance.h), one
+// factorisation for the cameras, points by back-substitution, the
+// datum-free variant by adding the held control points' terms back; scaled
+// by sigma0^2 (floored by min_variance_factor). False (summary->reason set)
+// when it cannot be computed.
+bool ComputePrecision(const Scene& scene, const Options& options, const SchurCovarianceOptions& co,
+                      ParameterBlocks* b, ceres::Problem* problem, Summary* summary_out) {
+  auto &exterior = b->exterior;
+  auto &interior = b->interior;
+  auto &point = b->point;
+  const auto &point_used = b->point_used;
+  ceres::Problem& prob = *problem;
+  Summary& summary = *summary_out;
   // Precision.
   Precision& pr = summary.precision;
   pr.sigma0 = summary.sigma0;
-  if (options_.compute_covariance) {
+  if (options.compute_covariance) {
     // Reduced camera system (schur_covariance.h): one factorisation for the
     // cameras, points by back-substitution, the datum-free variant by adding
     // the held control points' terms back.
@@ -585,7 +591,7 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
     for (size_t j = 0; j < scene.points.size(); ++j) {
       if (!point_used[j] || prob.IsParameterBlockConstant(point[j].data())) continue;
       point_index[j] = static_cast<int>(point_blocks_free.size());
-      if (options_.compute_datum_free_covariance && IsConstrainedControl(scene.points[j])) held.push_back(point_index[j]);
+      if (options.compute_datum_free_covariance && IsConstrainedControl(scene.points[j])) held.push_back(point_index[j]);
       point_blocks_free.push_back(point[j].data());
     }
     const auto covariance_start = std::chrono::steady_clock::now();
@@ -593,14 +599,14 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
     summary.covariance_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - covariance_start).count();
     if (!cov.ok) {
       summary.reason = "covariance could not be computed: " + cov.message;
-      return summary;
+      return false;
     }
-    const double scale = options_.scale_covariance_by_sigma0
-                             ? std::max(summary.sigma0 * summary.sigma0, options_.min_variance_factor)
+    const double scale = options.scale_covariance_by_sigma0
+                             ? std::max(summary.sigma0 * summary.sigma0, options.min_variance_factor)
                              : 1.0;
     // With the control points held, what is left comes from the image (and
     // GNSS) weights alone, whose scale sigma0 estimates: no floor there.
-    const double datum_free_scale = options_.scale_covariance_by_sigma0 ? summary.sigma0 * summary.sigma0 : 1.0;
+    const double datum_free_scale = options.scale_covariance_by_sigma0 ? summary.sigma0 * summary.sigma0 : 1.0;
     pr.point_covariance.assign(scene.points.size(), Eigen::Matrix3d::Zero());
     pr.exterior_covariance.assign(scene.images.size(), Eigen::Matrix<double, 6, 6>::Zero());
     pr.interior_sigma.assign(scene.cameras.size(), std::array<double, camera::kNumInterior>{});
@@ -619,10 +625,90 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
         if (point_index[j] >= 0) pr.point_covariance_datum_free[j] = datum_free_scale * cov.point_covariance_held[point_index[j]];
     }
     pr.valid = true;
-    pr.message = options_.scale_covariance_by_sigma0 ? "a posteriori (scaled by sigma0^2)" : "a priori";
+    pr.message = options.scale_covariance_by_sigma0 ? "a posteriori (scaled by sigma0^2)" : "a priori";
   } else {
     pr.message = "not computed (compute_covariance = false)";
   }
+  return true;
+}
+
+}  // namespace
+
+Summary BundleAdjuster::Solve(Scene* scene_in) const {
+  Summary summary;
+  const std::string bad = CheckInput(*scene_in);
+  if (!bad.empty()) {
+    summary.reason = "bad input: " + bad;
+    return summary;
+  }
+  const Scene& scene = *scene_in;
+  ParameterBlocks b = InitialParameters(scene, config_);
+
+  // One loss object shared by all image residuals; the problem must not own it.
+  std::unique_ptr<ceres::LossFunction> loss_owner;
+  if (options_.loss == "huber") loss_owner = std::make_unique<ceres::HuberLoss>(options_.loss_scale);
+  if (options_.loss == "cauchy") loss_owner = std::make_unique<ceres::CauchyLoss>(options_.loss_scale);
+  ceres::Problem::Options problem_options;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem prob(problem_options);
+  std::vector<int> used_obs;
+  std::vector<double*> point_blocks;
+  const int num_prior_residuals = BuildProblem(scene, config_, loss_owner.get(), &b, &prob, &used_obs, &point_blocks);
+
+  summary.num_observations = static_cast<int>(used_obs.size());
+  // Constant blocks do not count.
+  {
+    std::vector<double*> blocks;
+    prob.GetParameterBlocks(&blocks);
+    int n = 0;
+    for (double* block : blocks)
+      if (!prob.IsParameterBlockConstant(block)) n += prob.ParameterBlockTangentSize(block);
+    summary.num_parameters = n;
+  }
+
+  // Solver options and the solve (SolveCeresProblem).
+  const SolveReport report = SolveCeresProblem(options_, point_blocks, static_cast<int>(scene.images.size()), &prob);
+  summary.termination = report.termination;
+  summary.initial_cost = report.initial_cost;
+  summary.final_cost = report.final_cost;
+  summary.iterations = report.iterations;
+  summary.solve_time = report.time;
+  if (report.failed) {
+    summary.reason = "solver failed: " + report.termination;
+    return summary;
+  }
+  std::vector<int> undetermined;  // points dropped after the solve (below)
+  auto WriteBack = [&]() {
+    for (size_t i = 0; i < scene.images.size(); ++i)
+      scene_in->images[i].exterior = camera::ExteriorOrientation::FromArray(b.exterior[i].data());
+    for (size_t c = 0; c < scene.cameras.size(); ++c) scene_in->cameras[c].model.mutable_interior() = b.interior[c];
+    for (size_t j = 0; j < scene.points.size(); ++j) {
+      if (!b.point_used[j]) continue;
+      scene_in->points[j].position = Eigen::Vector3d(b.point[j][0], b.point[j][1], b.point[j][2]);
+      scene_in->points[j].position_known = true;
+    }
+    for (const int j : undetermined) scene_in->points[j].position_known = false;
+  };
+  if (!report.converged) {
+    summary.reason = "solver did not converge (diverging or too few iterations): " + report.termination;
+    if (options_.write_back_unconverged && std::isfinite(report.final_cost)) WriteBack();
+    return summary;
+  }
+
+  // Points the solution leaves undetermined (their 3x3 normal block singular,
+  // schur_covariance.h): dropped with their observations and named, so that
+  // one such tie point does not refuse the whole epoch's covariance.
+  SchurCovarianceOptions co;
+  co.num_threads = options_.num_threads;
+  undetermined = DropUndeterminedPoints(co, scene, &b.point, &b.point_used, &used_obs, &prob, &summary);
+
+  int n_behind = 0;
+  std::vector<WorstObservation> worst =
+      EvaluateResiduals(scene, options_, config_, b, used_obs, num_prior_residuals, &n_behind, &summary);
+  if (!SolutionPassesChecks(scene, options_, n_behind, std::move(worst), &summary)) return summary;
+
+  // Precision.
+  if (!ComputePrecision(scene, options_, co, &b, &prob, &summary)) return summary;
 
   WriteBack();
   summary.usable = true;

@@ -349,6 +349,127 @@ TieScreening ScreenTiePoints(const Scene& pruned, const Options& ao, const Confi
   return t;
 }
 
+// The epoch's scene without the images too few observations keep and the
+// points only one kept image sees (unless a surveyed control point): they
+// tie nothing. Pruned again until nothing changes (at most 10 passes).
+Scene PruneForAdjustment(const Scene& s, const Options& ao, PruneReport* report) {
+  *report = PruneReport();
+  Scene pruned = PruneScene(s, ao.min_observations_per_image, report,
+                            std::min(ao.min_observations_with_prior, ao.min_observations_per_image));
+  for (int pass = 0; pass < 10; ++pass) {
+    std::vector<std::set<int>> seen(pruned.points.size());
+    for (const Observation& o : pruned.observations) seen[o.point].insert(o.image);
+    std::vector<Observation> kept;
+    for (const Observation& o : pruned.observations) {
+      const ObjectPoint& p = pruned.points[o.point];
+      if (seen[o.point].size() >= 2 || (p.role == PointRole::kControl && p.surveyed)) kept.push_back(o);
+    }
+    if (kept.size() == pruned.observations.size()) break;
+    for (size_t j = 0; j < pruned.points.size(); ++j)
+      if (seen[j].size() == 1) report->dropped_points.push_back(Message("point '", pruned.points[j].id, "': seen by one image only"));
+    pruned.observations.swap(kept);
+    PruneReport more;
+    pruned = PruneScene(pruned, ao.min_observations_per_image, &more,
+                        std::min(ao.min_observations_with_prior, ao.min_observations_per_image));
+    for (auto& d : more.dropped_images) report->dropped_images.push_back(d);
+    for (auto& d : more.dropped_cameras) report->dropped_cameras.push_back(d);
+  }
+  return pruned;
+}
+
+// What the adjustment holds: the interior parameters free for every camera
+// (free_interior), or a camera's own list (free_interior_by_camera; empty:
+// none free).
+Config ConfigFor(const Scene& pruned, const EpochAdjustmentOptions& options) {
+  Config config;
+  if (!options.free_interior.empty())
+    config.FreeInteriorOfAll(static_cast<int>(pruned.cameras.size()), options.free_interior);
+  for (size_t c = 0; c < pruned.cameras.size(); ++c) {
+    auto own = options.free_interior_by_camera.find(pruned.cameras[c].name);
+    if (own == options.free_interior_by_camera.end()) continue;
+    if (own->second.empty())
+      config.free_interior.erase(static_cast<int>(c));
+    else
+      config.free_interior[static_cast<int>(c)] = own->second;
+  }
+  return config;
+}
+
+// The named observation with the largest whitened residual in the adjusted
+// `trial` (sigmas 0 when none projects).
+struct WorstName {
+  double sigmas = 0.0, px = 0.0;
+  ObservationKey key;
+};
+
+WorstName WorstNamedObservation(const Scene& trial, const std::set<ObservationKey>& named) {
+  double worst = 0.0, worst_px = 0.0;
+  ObservationKey worst_key;
+  for (const Observation& o : trial.observations) {
+    const ObservationKey key = KeyOf(trial, o);
+    if (!named.count(key)) continue;
+    const Image& im = trial.images[o.image];
+    Eigen::Vector2d px;
+    if (!trial.cameras[im.camera].model.Project(im.exterior, trial.points[o.point].position, &px)) continue;
+    const Eigen::Vector2d e = px - o.pixel;
+    const double w = std::sqrt(e.dot(o.covariance.inverse() * e));
+    if (w > worst) {
+      worst = w;
+      worst_px = e.norm();
+      worst_key = key;
+    }
+  }
+  return {worst, worst_px, worst_key};
+}
+
+// The adjusted orientations and point positions of `pruned` into `s` (its
+// photos no longer coarse).
+void TakeAdjusted(const Scene& pruned, Scene* s_out, std::vector<bool>* coarse) {
+  Scene& s = *s_out;
+  for (const Image& im : pruned.images) {
+    const int i = s.FindImage(im.name);
+    s.images[i].exterior = im.exterior;
+    (*coarse)[i] = false;
+  }
+  const std::unordered_map<std::string, int> index = PointIndexByName(s);
+  for (const ObjectPoint& p : pruned.points) {
+    const int j = PointAt(index, p.id);
+    s.points[j].position = p.position;
+    s.points[j].position_known = true;
+  }
+}
+
+// The photos' fate (GNSS-tagged photos kept, not oriented, too few
+// observations) and the notes on names rejected, tie points removed, the
+// screening refused and the retry without names, in r->summary.reason.
+void FinishEpochReport(const Scene& s, const Options& ao, const std::string& named_failure,
+                       EpochAdjustmentResult* r_out) {
+  EpochAdjustmentResult& r = *r_out;
+  const Scene& pruned = r.scene;
+  for (const Image& im : s.images) {
+    if (!im.position_prior) continue;
+    ++r.photos.total;
+    if (pruned.FindImage(im.name) >= 0)
+      ++r.photos.kept;
+    else if (!im.exterior_known)
+      ++r.photos.not_oriented;
+    else
+      ++r.photos.too_few_observations;
+  }
+  if (!r.rejected_names.empty()) {
+    std::string list;
+    for (size_t i = 0; i < r.rejected_names.size() && i < 3; ++i) list += (i ? "; " : "") + r.rejected_names[i];
+    r.summary.reason += Message("; ", r.rejected_names.size(), " target name(s) given by projection rejected by the "
+                                "residual test and removed: ", list, r.rejected_names.size() > 3 ? "; ..." : "");
+  }
+  if (r.tie_outliers_removed > 0)
+    r.summary.reason += Message("; ", r.tie_outliers_removed, " tie-point observation(s) removed as mismatches (residual above ",
+                                ao.outlier_threshold, " sigma in a screening adjustment)");
+  if (!r.tie_screening_refused.empty()) r.summary.reason += "; " + r.tie_screening_refused;
+  if (r.retried_without_names)
+    r.summary.reason += "; not usable with the targets named by projection (" + named_failure + "), adjusted without them";
+}
+
 }  // namespace
 
 EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<UnidentifiedObservation>& unidentified,
@@ -407,45 +528,13 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
   bool ties_screened = false;
   auto solve = [&]() {
     for (int round = 0; round < 20; ++round) {
-      r.pruned = PruneReport();
-      pruned = PruneScene(s, ao.min_observations_per_image, &r.pruned,
-                          std::min(ao.min_observations_with_prior, ao.min_observations_per_image));
-      // A point that only one kept image sees ties nothing (unless it is a
-      // surveyed control point): drop it and prune again.
-      for (int pass = 0; pass < 10; ++pass) {
-        std::vector<std::set<int>> seen(pruned.points.size());
-        for (const Observation& o : pruned.observations) seen[o.point].insert(o.image);
-        std::vector<Observation> kept;
-        for (const Observation& o : pruned.observations) {
-          const ObjectPoint& p = pruned.points[o.point];
-          if (seen[o.point].size() >= 2 || (p.role == PointRole::kControl && p.surveyed)) kept.push_back(o);
-        }
-        if (kept.size() == pruned.observations.size()) break;
-        for (size_t j = 0; j < pruned.points.size(); ++j)
-          if (seen[j].size() == 1) r.pruned.dropped_points.push_back(Message("point '", pruned.points[j].id, "': seen by one image only"));
-        pruned.observations.swap(kept);
-        PruneReport more;
-        pruned = PruneScene(pruned, ao.min_observations_per_image, &more,
-                            std::min(ao.min_observations_with_prior, ao.min_observations_per_image));
-        for (auto& d : more.dropped_images) r.pruned.dropped_images.push_back(d);
-        for (auto& d : more.dropped_cameras) r.pruned.dropped_cameras.push_back(d);
-      }
+      pruned = PruneForAdjustment(s, ao, &r.pruned);
       if (pruned.images.empty()) {
         r.summary = Summary();
         r.summary.reason = Message("no image of the epoch could be oriented (", r.pruned.Summary(), ")");
         return;
       }
-      Config config;
-      if (!options.free_interior.empty())
-        config.FreeInteriorOfAll(static_cast<int>(pruned.cameras.size()), options.free_interior);
-      for (size_t c = 0; c < pruned.cameras.size(); ++c) {
-        auto own = options.free_interior_by_camera.find(pruned.cameras[c].name);
-        if (own == options.free_interior_by_camera.end()) continue;
-        if (own->second.empty())
-          config.free_interior.erase(static_cast<int>(c));
-        else
-          config.free_interior[static_cast<int>(c)] = own->second;
-      }
+      const Config config = ConfigFor(pruned, options);
       // Tie points: one screening adjustment removes the mismatches.
       if (!ties_screened) {
         ties_screened = true;
@@ -472,22 +561,9 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
         Scene trial = pruned;
         const Summary ts = BundleAdjuster(so, config).Solve(&trial);
         if (ts.IsSolutionUsable()) {
-          double worst = 0.0, worst_px = 0.0;
-          ObservationKey worst_key;
-          for (const Observation& o : trial.observations) {
-            const ObservationKey key = KeyOf(trial, o);
-            if (!named.count(key)) continue;
-            const Image& im = trial.images[o.image];
-            Eigen::Vector2d px;
-            if (!trial.cameras[im.camera].model.Project(im.exterior, trial.points[o.point].position, &px)) continue;
-            const Eigen::Vector2d e = px - o.pixel;
-            const double w = std::sqrt(e.dot(o.covariance.inverse() * e));
-            if (w > worst) {
-              worst = w;
-              worst_px = e.norm();
-              worst_key = key;
-            }
-          }
+          const WorstName worst_name = WorstNamedObservation(trial, named);
+          const double worst = worst_name.sigmas, worst_px = worst_name.px;
+          const ObservationKey& worst_key = worst_name.key;
           if (worst > ao.outlier_threshold) {
             r.rejected_names.push_back(Message(worst_key.second, " in '", worst_key.first, "' (residual ", worst,
                                                " sigma, ", worst_px, " px)"));
@@ -520,17 +596,7 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
   if (naming && r.summary.IsSolutionUsable() && !r.retried_without_names &&
       std::count(input_named.begin(), input_named.end(), false) > 0) {
     // Second pass: the adjusted orientations and points name what is left.
-    for (const Image& im : pruned.images) {
-      const int i = s.FindImage(im.name);
-      s.images[i].exterior = im.exterior;
-      coarse[i] = false;
-    }
-    const std::unordered_map<std::string, int> index = PointIndexByName(s);
-    for (const ObjectPoint& p : pruned.points) {
-      const int j = PointAt(index, p.id);
-      s.points[j].position = p.position;
-      s.points[j].position_known = true;
-    }
+    TakeAdjusted(pruned, &s, &coarse);
     const EpochAdjustmentResult first = r;
     const Scene first_scene = pruned;
     if (name(false) > 0) {
@@ -544,29 +610,7 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
     }
   }
   r.scene = pruned;
-
-  for (const Image& im : s.images) {
-    if (!im.position_prior) continue;
-    ++r.photos.total;
-    if (pruned.FindImage(im.name) >= 0)
-      ++r.photos.kept;
-    else if (!im.exterior_known)
-      ++r.photos.not_oriented;
-    else
-      ++r.photos.too_few_observations;
-  }
-  if (!r.rejected_names.empty()) {
-    std::string list;
-    for (size_t i = 0; i < r.rejected_names.size() && i < 3; ++i) list += (i ? "; " : "") + r.rejected_names[i];
-    r.summary.reason += Message("; ", r.rejected_names.size(), " target name(s) given by projection rejected by the "
-                                "residual test and removed: ", list, r.rejected_names.size() > 3 ? "; ..." : "");
-  }
-  if (r.tie_outliers_removed > 0)
-    r.summary.reason += Message("; ", r.tie_outliers_removed, " tie-point observation(s) removed as mismatches (residual above ",
-                                ao.outlier_threshold, " sigma in a screening adjustment)");
-  if (!r.tie_screening_refused.empty()) r.summary.reason += "; " + r.tie_screening_refused;
-  if (r.retried_without_names)
-    r.summary.reason += "; not usable with the targets named by projection (" + named_failure + "), adjusted without them";
+  FinishEpochReport(s, ao, named_failure, &r);
   return r;
 }
 

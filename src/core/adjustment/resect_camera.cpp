@@ -134,6 +134,117 @@ Eigen::Matrix3d RotationFromDirections(const std::vector<Eigen::Vector3d>& site_
   return svd.matrixU() * fix * svd.matrixV().transpose();
 }
 
+namespace {
+
+// Residuals, RMS and standardized residuals (data snooping) of the
+// adjusted resection.
+void ResectionResiduals(ceres::Problem* problem_in, const std::vector<ceres::ResidualBlockId>& blocks,
+                        const std::vector<io::PickedPoint>& points, const std::vector<Eigen::Vector2d>& pixels,
+                        const std::vector<Eigen::Vector3d>& pts, const camera::ExteriorOrientation& local,
+                        const ResectCameraOptions& options, ResectCameraSummary* out_in) {
+  ceres::Problem& problem = *problem_in;
+  ResectCameraSummary& out = *out_in;
+  const size_t n = points.size();
+  // Residuals, RMS, standardized residuals.
+  ceres::Problem::EvaluateOptions eo;
+  eo.residual_blocks = blocks;
+  std::vector<double> res;
+  ceres::CRSMatrix crs;
+  problem.Evaluate(eo, nullptr, &res, nullptr, &crs);
+  Eigen::MatrixXd j = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+  for (int r = 0; r < crs.num_rows; ++r)
+    for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) j(r, crs.cols[k]) = crs.values[k];
+  const Eigen::VectorXd whitened = Eigen::Map<Eigen::VectorXd>(res.data(), res.size());
+  int rank = 0;
+  const Eigen::VectorXd w = Standardized(j, whitened, static_cast<int>(2 * n), &rank);
+  out.redundancy = crs.num_rows - rank;
+  out.sigma0 = out.redundancy > 0 ? std::sqrt(whitened.squaredNorm() / out.redundancy) : 0.0;
+  double sum = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    ResectedPoint rp;
+    rp.id = points[i].id;
+    rp.observed = pixels[i];
+    Eigen::Vector2d px;
+    out.model.Project(local, pts[i], &px);
+    rp.residual = px - pixels[i];
+    sum += rp.residual.squaredNorm();
+    rp.w = std::max(std::abs(w(2 * i)), std::abs(w(2 * i + 1)));
+    rp.snooping_failed = out.redundancy > 0 && rp.w > options.snooping_critical;
+    out.num_snooping_failed += rp.snooping_failed;
+    out.points.push_back(rp);
+  }
+  out.rms_px = std::sqrt(sum / n);
+}
+
+// The a-priori covariance of the free parameters (exterior, and the free
+// interior ones), each parameter with its value and sigma, their
+// correlations and the ones above correlation_warning.
+void ResectionCovariance(ceres::Problem* problem_in, const std::vector<int>& free, bool position_held,
+                         const Eigen::Vector3d& centroid, const ResectCameraOptions& options,
+                         std::array<double, camera::kNumExterior>* e_in, std::array<double, camera::kNumInterior>* in_in,
+                         ResectCameraSummary* out_in) {
+  ceres::Problem& problem = *problem_in;
+  std::array<double, camera::kNumExterior>& e = *e_in;
+  std::array<double, camera::kNumInterior>& in = *in_in;
+  ResectCameraSummary& out = *out_in;
+  // Covariance of the free parameters (a priori).
+  ceres::Covariance::Options co;
+  co.algorithm_type = ceres::DENSE_SVD;
+  ceres::Covariance cov(co);
+  std::vector<std::pair<const double*, const double*>> pairs = {{e.data(), e.data()}};
+  if (!free.empty()) {
+    pairs.push_back({e.data(), in.data()});
+    pairs.push_back({in.data(), in.data()});
+  }
+  Eigen::MatrixXd full = Eigen::MatrixXd::Zero(16, 16);
+  if (cov.Compute(pairs, &problem)) {
+    Eigen::Matrix<double, 6, 6, Eigen::RowMajor> ee;
+    cov.GetCovarianceBlock(e.data(), e.data(), ee.data());
+    full.topLeftCorner<6, 6>() = ee;
+    if (!free.empty()) {
+      Eigen::Matrix<double, 6, 10, Eigen::RowMajor> ei;
+      Eigen::Matrix<double, 10, 10, Eigen::RowMajor> ii;
+      cov.GetCovarianceBlock(e.data(), in.data(), ei.data());
+      cov.GetCovarianceBlock(in.data(), in.data(), ii.data());
+      full.block<6, 10>(0, 6) = ei;
+      full.block<10, 6>(6, 0) = ei.transpose();
+      full.block<10, 10>(6, 6) = ii;
+    }
+  } else {
+    out.message =
+        "covariance not computable (rank-deficient: too many free parameters for these points)";
+  }
+  out.exterior_covariance = full.topLeftCorner<6, 6>();
+  std::vector<int> index;  // into `full`
+  for (int k = position_held ? 3 : 0; k < 6; ++k) index.push_back(k);
+  for (int k : free) index.push_back(6 + k);
+  const auto& inames = camera::InteriorNames();
+  for (int k : index) {
+    EstimatedParameter p;
+    p.name = k < 6 ? kExteriorNames[k] : inames[k - 6];
+    p.value = k < 6 ? e[k] + (k < 3 ? centroid(k) : 0.0) : in[k - 6];
+    p.sigma = std::sqrt(std::max(0.0, full(k, k)));
+    out.parameters.push_back(p);
+  }
+  const int m = static_cast<int>(index.size());
+  out.correlation = Eigen::MatrixXd::Identity(m, m);
+  for (int a = 0; a < m; ++a) {
+    for (int b = a + 1; b < m; ++b) {
+      const double d = std::sqrt(full(index[a], index[a]) * full(index[b], index[b]));
+      const double rho = d > 0.0 ? full(index[a], index[b]) / d : 0.0;
+      out.correlation(a, b) = out.correlation(b, a) = rho;
+      if (std::abs(rho) > options.correlation_warning) {
+        std::ostringstream s;
+        s << out.parameters[a].name << "-" << out.parameters[b].name << " " << std::fixed
+          << std::setprecision(3) << rho;
+        out.correlation_warnings.push_back(s.str());
+      }
+    }
+  }
+}
+
+}  // namespace
+
 ResectCameraSummary ResectCamera(const std::vector<io::PickedPoint>& points,
                                  const camera::CameraModel& nominal,
                                  const ResectCameraOptions& options) {
@@ -227,90 +338,8 @@ ResectCameraSummary ResectCamera(const std::vector<io::PickedPoint>& points,
   out.exterior = local;
   out.exterior.position += centroid;
 
-  // Residuals, RMS, standardized residuals.
-  ceres::Problem::EvaluateOptions eo;
-  eo.residual_blocks = blocks;
-  std::vector<double> res;
-  ceres::CRSMatrix crs;
-  problem.Evaluate(eo, nullptr, &res, nullptr, &crs);
-  Eigen::MatrixXd j = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
-  for (int r = 0; r < crs.num_rows; ++r)
-    for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) j(r, crs.cols[k]) = crs.values[k];
-  const Eigen::VectorXd whitened = Eigen::Map<Eigen::VectorXd>(res.data(), res.size());
-  int rank = 0;
-  const Eigen::VectorXd w = Standardized(j, whitened, static_cast<int>(2 * n), &rank);
-  out.redundancy = crs.num_rows - rank;
-  out.sigma0 = out.redundancy > 0 ? std::sqrt(whitened.squaredNorm() / out.redundancy) : 0.0;
-  double sum = 0.0;
-  for (size_t i = 0; i < n; ++i) {
-    ResectedPoint rp;
-    rp.id = points[i].id;
-    rp.observed = pixels[i];
-    Eigen::Vector2d px;
-    out.model.Project(local, pts[i], &px);
-    rp.residual = px - pixels[i];
-    sum += rp.residual.squaredNorm();
-    rp.w = std::max(std::abs(w(2 * i)), std::abs(w(2 * i + 1)));
-    rp.snooping_failed = out.redundancy > 0 && rp.w > options.snooping_critical;
-    out.num_snooping_failed += rp.snooping_failed;
-    out.points.push_back(rp);
-  }
-  out.rms_px = std::sqrt(sum / n);
-
-  // Covariance of the free parameters (a priori).
-  ceres::Covariance::Options co;
-  co.algorithm_type = ceres::DENSE_SVD;
-  ceres::Covariance cov(co);
-  std::vector<std::pair<const double*, const double*>> pairs = {{e.data(), e.data()}};
-  if (!free.empty()) {
-    pairs.push_back({e.data(), in.data()});
-    pairs.push_back({in.data(), in.data()});
-  }
-  Eigen::MatrixXd full = Eigen::MatrixXd::Zero(16, 16);
-  if (cov.Compute(pairs, &problem)) {
-    Eigen::Matrix<double, 6, 6, Eigen::RowMajor> ee;
-    cov.GetCovarianceBlock(e.data(), e.data(), ee.data());
-    full.topLeftCorner<6, 6>() = ee;
-    if (!free.empty()) {
-      Eigen::Matrix<double, 6, 10, Eigen::RowMajor> ei;
-      Eigen::Matrix<double, 10, 10, Eigen::RowMajor> ii;
-      cov.GetCovarianceBlock(e.data(), in.data(), ei.data());
-      cov.GetCovarianceBlock(in.data(), in.data(), ii.data());
-      full.block<6, 10>(0, 6) = ei;
-      full.block<10, 6>(6, 0) = ei.transpose();
-      full.block<10, 10>(6, 6) = ii;
-    }
-  } else {
-    out.message =
-        "covariance not computable (rank-deficient: too many free parameters for these points)";
-  }
-  out.exterior_covariance = full.topLeftCorner<6, 6>();
-  std::vector<int> index;  // into `full`
-  for (int k = position_held ? 3 : 0; k < 6; ++k) index.push_back(k);
-  for (int k : free) index.push_back(6 + k);
-  const auto& inames = camera::InteriorNames();
-  for (int k : index) {
-    EstimatedParameter p;
-    p.name = k < 6 ? kExteriorNames[k] : inames[k - 6];
-    p.value = k < 6 ? e[k] + (k < 3 ? centroid(k) : 0.0) : in[k - 6];
-    p.sigma = std::sqrt(std::max(0.0, full(k, k)));
-    out.parameters.push_back(p);
-  }
-  const int m = static_cast<int>(index.size());
-  out.correlation = Eigen::MatrixXd::Identity(m, m);
-  for (int a = 0; a < m; ++a) {
-    for (int b = a + 1; b < m; ++b) {
-      const double d = std::sqrt(full(index[a], index[a]) * full(index[b], index[b]));
-      const double rho = d > 0.0 ? full(index[a], index[b]) / d : 0.0;
-      out.correlation(a, b) = out.correlation(b, a) = rho;
-      if (std::abs(rho) > options.correlation_warning) {
-        std::ostringstream s;
-        s << out.parameters[a].name << "-" << out.parameters[b].name << " " << std::fixed
-          << std::setprecision(3) << rho;
-        out.correlation_warnings.push_back(s.str());
-      }
-    }
-  }
+  ResectionResiduals(&problem, blocks, points, pixels, pts, local, options, &out);
+  ResectionCovariance(&problem, free, position_held, centroid, options, &e, &in, &out);
   out.success = true;
   if (out.message.empty())
     out.message = Message(n, " points, rms ", out.rms_px, " px, redundancy ", out.redundancy);

@@ -259,6 +259,62 @@ double EpipolarDistance(const Eigen::Matrix3d& f, const Eigen::Vector2d& xa, con
 
 HexMatcher::HexMatcher(const HexMatcherOptions& options) : options_(options) { options_.Check(); }
 
+namespace {
+
+// Quality control of a pair's matches: flags for a residual above the
+// pair's noise level, a displacement inconsistent with the neighbours' (their
+// median, tolerance widened by their spread); flagged matches are counted
+// and rejected or kept with a low quality (q.reject).
+void ApplyMatchQualityControl(const HexMatcherOptions::Quality& q, HexMatchResult* result_io) {
+  HexMatchResult& result = *result_io;
+  // Residual against the pair's noise level (median sigma0 of all matches).
+  std::vector<double> s0;
+  for (const HexMatch& m : result.matches) s0.push_back(m.sigma0);
+  std::nth_element(s0.begin(), s0.begin() + s0.size() / 2, s0.end());
+  const double noise = s0[s0.size() / 2];
+  // Displacement consistency with the neighbours (median of each component).
+  const double r2 = q.neighbour_radius * q.neighbour_radius;
+  std::vector<double> nx, ny;
+  for (HexMatch& m : result.matches) {
+    if (m.sigma0 > q.max_residual_ratio * noise) m.flags |= kFlagHighResidual;
+    nx.clear();
+    ny.clear();
+    for (const HexMatch& o : result.matches) {
+      if (&o == &m || (o.xa - m.xa).squaredNorm() > r2) continue;
+      nx.push_back(o.xb.x() - o.xa.x());
+      ny.push_back(o.xb.y() - o.xa.y());
+    }
+    if (nx.size() < 3) continue;
+    const Eigen::Vector2d median(Median(&nx), Median(&ny));
+    // Spread of the neighbours (MAD): a real displacement gradient (the
+    // margin of a moving body) widens the tolerance.
+    for (double& v : nx) v = std::fabs(v - median.x());
+    for (double& v : ny) v = std::fabs(v - median.y());
+    const double spread = 1.4826 * std::hypot(Median(&nx), Median(&ny));
+    if ((m.xb - m.xa - median).norm() > q.max_neighbour_deviation + 3.0 * spread) m.flags |= kFlagNeighbours;
+  }
+  std::vector<HexMatch> kept;
+  for (HexMatch& m : result.matches) {
+    if (m.flags == 0) {
+      kept.push_back(m);
+      continue;
+    }
+    ++result.summary.low_quality;
+    for (unsigned bit = 1; bit <= kFlagExcluded; bit <<= 1) {
+      if (m.flags & bit) ++result.summary.flags[QualityFlagNames(bit)];
+    }
+    if (q.reject) {
+      ++result.summary.rejects["low_quality"];
+      continue;
+    }
+    m.quality = std::min(kLowQuality, 0.25 * m.quality);
+    kept.push_back(m);
+  }
+  result.matches.swap(kept);
+}
+
+}  // namespace
+
 HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b, const MatchPrior& prior) const {
   const auto t0 = std::chrono::steady_clock::now();
   if (image_a.empty() || image_b.empty()) throw InvalidArgument("HexMatcher::Match: an input image is empty");
@@ -367,52 +423,7 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
       ++result.summary.rejects[reason];
     }
   }
-  if (q.enabled && !result.matches.empty()) {
-    // Residual against the pair's noise level (median sigma0 of all matches).
-    std::vector<double> s0;
-    for (const HexMatch& m : result.matches) s0.push_back(m.sigma0);
-    std::nth_element(s0.begin(), s0.begin() + s0.size() / 2, s0.end());
-    const double noise = s0[s0.size() / 2];
-    // Displacement consistency with the neighbours (median of each component).
-    const double r2 = q.neighbour_radius * q.neighbour_radius;
-    std::vector<double> nx, ny;
-    for (HexMatch& m : result.matches) {
-      if (m.sigma0 > q.max_residual_ratio * noise) m.flags |= kFlagHighResidual;
-      nx.clear();
-      ny.clear();
-      for (const HexMatch& o : result.matches) {
-        if (&o == &m || (o.xa - m.xa).squaredNorm() > r2) continue;
-        nx.push_back(o.xb.x() - o.xa.x());
-        ny.push_back(o.xb.y() - o.xa.y());
-      }
-      if (nx.size() < 3) continue;
-      const Eigen::Vector2d median(Median(&nx), Median(&ny));
-      // Spread of the neighbours (MAD): a real displacement gradient (the
-      // margin of a moving body) widens the tolerance.
-      for (double& v : nx) v = std::fabs(v - median.x());
-      for (double& v : ny) v = std::fabs(v - median.y());
-      const double spread = 1.4826 * std::hypot(Median(&nx), Median(&ny));
-      if ((m.xb - m.xa - median).norm() > q.max_neighbour_deviation + 3.0 * spread) m.flags |= kFlagNeighbours;
-    }
-    std::vector<HexMatch> kept;
-    for (HexMatch& m : result.matches) {
-      if (m.flags == 0) {
-        kept.push_back(m);
-        continue;
-      }
-      ++result.summary.low_quality;
-      for (unsigned bit = 1; bit <= kFlagExcluded; bit <<= 1) {
-        if (m.flags & bit) ++result.summary.flags[QualityFlagNames(bit)];
-      }
-      if (q.reject) {
-        ++result.summary.rejects["low_quality"];
-        continue;
-      }
-      m.quality = std::min(kLowQuality, 0.25 * m.quality);
-      kept.push_back(m);
-    }
-    result.matches.swap(kept);
-  }
+  if (q.enabled && !result.matches.empty()) ApplyMatchQualityControl(q, &result);
   result.summary.matched = static_cast<int>(result.matches.size());
   result.summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return result;

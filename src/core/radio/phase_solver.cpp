@@ -67,6 +67,182 @@ FixResult PartialFix(const Eigen::VectorXd& a, const Eigen::MatrixXd& q, double 
   return r;
 }
 
+
+// The circular mean of each link's phase over the buffered epochs where it
+// was valid, and its variance; a link valid in fewer than half of them is
+// not usable.
+template <typename Buffer>
+void LinkPhaseMeans(const Buffer& buffer, int nt, int nr, std::vector<std::vector<bool>>* usable,
+                    std::vector<std::vector<double>>* mean, std::vector<std::vector<double>>* var) {
+  const int ne = static_cast<int>(buffer.size());
+  for (int tx = 0; tx < nt; ++tx)
+    for (int rx = 0; rx < nr; ++rx) {
+      std::complex<double> sum(0.0, 0.0);
+      double vsum = 0.0;
+      int count = 0;
+      for (int e = 0; e < ne; ++e) {
+        const auto& o = buffer[e][tx][rx];
+        if (!o.valid) continue;
+        sum += std::polar(1.0, o.phase);
+        vsum += o.variance;
+        ++count;
+      }
+      if (count * 2 < ne || count == 0) continue;
+      (*usable)[tx][rx] = true;
+      (*mean)[tx][rx] = std::arg(sum);
+      (*var)[tx][rx] = vsum / count / count;
+    }
+}
+
+// The reference solution's parameter layout: [dX_tx (3 each) | psi_tx |
+// xi_rx (not the reference receiver's) | N (non-tree links)], -1 where a
+// parameter is not solved.
+struct ReferenceParameters {
+  std::vector<int> px, ppsi, pxi;
+  std::vector<std::vector<int>> pn;
+  std::vector<std::pair<int, int>> amb_links;  // (tx, rx) of each ambiguity
+  int np = 0, first_amb = 0;
+};
+
+ReferenceParameters ReferenceParameterLayout(const std::vector<bool>& tx_in,
+                                             const std::vector<std::vector<bool>>& usable,
+                                             const std::vector<std::vector<bool>>& tree, const std::vector<bool>& seen,
+                                             int ref_rx) {
+  const int nt = static_cast<int>(tx_in.size());
+  const int nr = nt > 0 ? static_cast<int>(usable[0].size()) : 0;
+  ReferenceParameters l;
+  l.px.assign(nt, -1);
+  l.ppsi.assign(nt, -1);
+  l.pxi.assign(nr, -1);
+  l.pn.assign(nt, std::vector<int>(nr, -1));
+  int np = 0;
+  for (int tx = 0; tx < nt; ++tx)
+    if (tx_in[tx]) {
+      l.px[tx] = np;
+      np += 3;
+    }
+  for (int tx = 0; tx < nt; ++tx)
+    if (tx_in[tx]) l.ppsi[tx] = np++;
+  for (int rx = 0; rx < nr; ++rx)
+    if (rx != ref_rx && seen[nt + rx]) l.pxi[rx] = np++;
+  l.first_amb = np;
+  for (int tx = 0; tx < nt; ++tx)
+    for (int rx = 0; rx < nr; ++rx)
+      if (usable[tx][rx] && !tree[tx][rx]) {
+        l.pn[tx][rx] = np++;
+        l.amb_links.push_back({tx, rx});
+      }
+  l.np = np;
+  return l;
+}
+
+// The float solution conditioned on the fixed ambiguities: x and its
+// covariance updated by the fixed integers, the integers put in place;
+// *amb_fixed marks them.
+void ConditionOnFixedAmbiguities(const FixResult& fr, const Eigen::MatrixXd& cov, int first_amb, Eigen::VectorXd* x_io,
+                                 Eigen::MatrixXd* cov_fixed, std::vector<bool>* amb_fixed) {
+  Eigen::VectorXd& x = *x_io;
+  const int np = static_cast<int>(cov.rows());
+  const int nf = static_cast<int>(fr.fixed.size());
+  Eigen::MatrixXd q_xf(np, nf), q_ff(nf, nf);
+  Eigen::VectorXd diff(nf);
+  for (int i = 0; i < nf; ++i) {
+    const int pi = first_amb + fr.fixed[i];
+    q_xf.col(i) = cov.col(pi);
+    diff(i) = x(pi) - fr.integers(i);
+    (*amb_fixed)[fr.fixed[i]] = true;
+    for (int j = 0; j < nf; ++j) q_ff(i, j) = cov(pi, first_amb + fr.fixed[j]);
+  }
+  const Eigen::MatrixXd gain = q_xf * q_ff.inverse();
+  x -= gain * diff;
+  *cov_fixed = cov - gain * q_xf.transpose();
+  for (int i = 0; i < nf; ++i) x(first_amb + fr.fixed[i]) = fr.integers(i);
+}
+
+// The spanning tree of the link graph (nodes: transmitters 0..nt-1,
+// receivers nt..nt+nr-1) from the first receiver with usable links, whose
+// links get N = 0. Returns that receiver (-1: none); *seen the nodes
+// reached, *tree the tree's links.
+int ReferenceSpanningTree(const std::vector<std::vector<bool>>& usable, int nt, int nr, std::vector<bool>* seen,
+                          std::vector<std::vector<bool>>* tree) {
+  std::vector<bool>& s = *seen;
+  std::vector<std::vector<bool>>& tr = *tree;
+  int ref_rx = -1;
+  for (int rx = 0; rx < nr && ref_rx < 0; ++rx)
+    for (int tx = 0; tx < nt; ++tx)
+      if (usable[tx][rx]) {
+        ref_rx = rx;
+        break;
+      }
+  if (ref_rx < 0) return -1;
+  std::queue<int> todo;
+  todo.push(nt + ref_rx);
+  s[nt + ref_rx] = true;
+  while (!todo.empty()) {
+    const int v = todo.front();
+    todo.pop();
+    if (v >= nt) {
+      const int rx = v - nt;
+      for (int tx = 0; tx < nt; ++tx)
+        if (usable[tx][rx] && !s[tx]) {
+          s[tx] = true;
+          tr[tx][rx] = true;
+          todo.push(tx);
+        }
+    } else {
+      for (int rx = 0; rx < nr; ++rx)
+        if (usable[v][rx] && !s[nt + rx]) {
+          s[nt + rx] = true;
+          tr[v][rx] = true;
+          todo.push(nt + rx);
+        }
+    }
+  }
+  return ref_rx;
+}
+
+// The float solution's normal equations: each usable link's mean phase
+// reduced by k * r0 (r0 from the installation survey) against the
+// transmitter's shift, its psi, the receiver's xi (not the reference
+// receiver's) and its ambiguity (non-tree links), weighted by the inverse
+// phase variance; the installation survey as a prior on each shift.
+// *reduced the reduced phases.
+void ReferenceNormalEquations(const NetworkConfig& network, double k, const std::vector<bool>& tx_in,
+                              const std::vector<std::vector<bool>>& usable,
+                              const std::vector<std::vector<double>>& mean,
+                              const std::vector<std::vector<double>>& var, const std::vector<int>& px,
+                              const std::vector<int>& ppsi, const std::vector<int>& pxi,
+                              const std::vector<std::vector<int>>& pn, Eigen::MatrixXd* normal_out,
+                              Eigen::VectorXd* rhs_out, std::vector<std::vector<double>>* reduced_out) {
+  const int nt = static_cast<int>(network.transmitters.size());
+  const int nr = static_cast<int>(network.receivers.size());
+  const int np = static_cast<int>(normal_out->rows());
+  Eigen::MatrixXd& normal = *normal_out;
+  Eigen::VectorXd& rhs = *rhs_out;
+  std::vector<std::vector<double>>& reduced = *reduced_out;
+  for (int tx = 0; tx < nt; ++tx) {
+    if (!tx_in[tx]) continue;
+    const Eigen::Vector3d& x0 = network.transmitters[tx].initial_position;
+    for (int rx = 0; rx < nr; ++rx) {
+      if (!usable[tx][rx]) continue;
+      const Eigen::Vector3d dx = x0 - network.receivers[rx].position;
+      const double r0 = dx.norm();
+      const double y = WrapPhase(mean[tx][rx] - k * r0);
+      reduced[tx][rx] = y;
+      Eigen::VectorXd a = Eigen::VectorXd::Zero(np);
+      a.segment<3>(px[tx]) = k * dx / r0;
+      a(ppsi[tx]) = 1.0;
+      if (pxi[rx] >= 0) a(pxi[rx]) = 1.0;
+      if (pn[tx][rx] >= 0) a(pn[tx][rx]) = 2.0 * M_PI;
+      const double w = 1.0 / var[tx][rx];
+      normal += w * a * a.transpose();
+      rhs += w * y * a;
+    }
+    const double wp = 1.0 / std::pow(network.transmitters[tx].initial_sigma, 2);
+    normal.block<3, 3>(px[tx], px[tx]) += wp * Eigen::Matrix3d::Identity();
+  }
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------
@@ -331,29 +507,12 @@ RadioEpochSummary RadioPhaseSolver::ProcessEpoch(double stamp, const std::vector
 void RadioPhaseSolver::SolveReference(RadioEpochSummary* summary) {
   const int nt = static_cast<int>(network_.transmitters.size());
   const int nr = static_cast<int>(network_.receivers.size());
-  const int ne = static_cast<int>(init_buffer_.size());
   const double k = Wavenumber();
 
   // Circular mean of each link's phase over the epochs where it was valid.
   std::vector<std::vector<bool>> usable(nt, std::vector<bool>(nr, false));
   std::vector<std::vector<double>> mean(nt, std::vector<double>(nr, 0.0)), var(nt, std::vector<double>(nr, 0.0));
-  for (int tx = 0; tx < nt; ++tx)
-    for (int rx = 0; rx < nr; ++rx) {
-      std::complex<double> sum(0.0, 0.0);
-      double vsum = 0.0;
-      int count = 0;
-      for (int e = 0; e < ne; ++e) {
-        const Obs& o = init_buffer_[e][tx][rx];
-        if (!o.valid) continue;
-        sum += std::polar(1.0, o.phase);
-        vsum += o.variance;
-        ++count;
-      }
-      if (count * 2 < ne || count == 0) continue;
-      usable[tx][rx] = true;
-      mean[tx][rx] = std::arg(sum);
-      var[tx][rx] = vsum / count / count;
-    }
+  LinkPhaseMeans(init_buffer_, nt, nr, &usable, &mean, &var);
   // Transmitters with too few receivers are left out (reported), the rest solved.
   std::vector<bool> tx_in(nt, false);
   for (int tx = 0; tx < nt; ++tx) {
@@ -372,41 +531,12 @@ void RadioPhaseSolver::SolveReference(RadioEpochSummary* summary) {
   }
   // Spanning tree of the link graph (nodes: transmitters 0..nt-1, receivers
   // nt..nt+nr-1) from the first receiver with links: N = 0 on its edges.
-  int ref_rx = -1;
-  for (int rx = 0; rx < nr && ref_rx < 0; ++rx)
-    for (int tx = 0; tx < nt; ++tx)
-      if (usable[tx][rx]) {
-        ref_rx = rx;
-        break;
-      }
+  std::vector<bool> seen(nt + nr, false);
+  std::vector<std::vector<bool>> tree(nt, std::vector<bool>(nr, false));
+  const int ref_rx = ReferenceSpanningTree(usable, nt, nr, &seen, &tree);
   if (ref_rx < 0) {
     summary->problems.push_back("radio reference solution: no transmitter has enough usable links; retrying");
     return;
-  }
-  std::vector<bool> seen(nt + nr, false);
-  std::vector<std::vector<bool>> tree(nt, std::vector<bool>(nr, false));
-  std::queue<int> todo;
-  todo.push(nt + ref_rx);
-  seen[nt + ref_rx] = true;
-  while (!todo.empty()) {
-    const int v = todo.front();
-    todo.pop();
-    if (v >= nt) {
-      const int rx = v - nt;
-      for (int tx = 0; tx < nt; ++tx)
-        if (usable[tx][rx] && !seen[tx]) {
-          seen[tx] = true;
-          tree[tx][rx] = true;
-          todo.push(tx);
-        }
-    } else {
-      for (int rx = 0; rx < nr; ++rx)
-        if (usable[v][rx] && !seen[nt + rx]) {
-          seen[nt + rx] = true;
-          tree[v][rx] = true;
-          todo.push(nt + rx);
-        }
-    }
   }
   for (int tx = 0; tx < nt; ++tx)
     if (tx_in[tx] && !seen[tx]) {  // not connected to the reference receiver
@@ -417,53 +547,16 @@ void RadioPhaseSolver::SolveReference(RadioEpochSummary* summary) {
       tx_in[tx] = false;
       std::fill(usable[tx].begin(), usable[tx].end(), false);
     }
-  // Parameter layout: [dX_tx (3 each) | psi_tx | xi_rx (not ref) | N (non-tree links)].
-  std::vector<int> px(nt, -1), ppsi(nt, -1), pxi(nr, -1);
-  std::vector<std::vector<int>> pn(nt, std::vector<int>(nr, -1));
-  int np = 0;
-  for (int tx = 0; tx < nt; ++tx)
-    if (tx_in[tx]) {
-      px[tx] = np;
-      np += 3;
-    }
-  for (int tx = 0; tx < nt; ++tx)
-    if (tx_in[tx]) ppsi[tx] = np++;
-  for (int rx = 0; rx < nr; ++rx)
-    if (rx != ref_rx && seen[nt + rx]) pxi[rx] = np++;
-  const int first_amb = np;
-  std::vector<std::pair<int, int>> amb_links;
-  for (int tx = 0; tx < nt; ++tx)
-    for (int rx = 0; rx < nr; ++rx)
-      if (usable[tx][rx] && !tree[tx][rx]) {
-        pn[tx][rx] = np++;
-        amb_links.push_back({tx, rx});
-      }
-  const int na = np - first_amb;
+  const ReferenceParameters layout = ReferenceParameterLayout(tx_in, usable, tree, seen, ref_rx);
+  const std::vector<int>&px = layout.px, &ppsi = layout.ppsi, &pxi = layout.pxi;
+  const std::vector<std::vector<int>>& pn = layout.pn;
+  const std::vector<std::pair<int, int>>& amb_links = layout.amb_links;
+  const int np = layout.np, first_amb = layout.first_amb, na = np - first_amb;
 
   Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(np, np);
   Eigen::VectorXd rhs = Eigen::VectorXd::Zero(np);
   std::vector<std::vector<double>> reduced(nt, std::vector<double>(nr, 0.0));
-  for (int tx = 0; tx < nt; ++tx) {
-    if (!tx_in[tx]) continue;
-    const Eigen::Vector3d& x0 = network_.transmitters[tx].initial_position;
-    for (int rx = 0; rx < nr; ++rx) {
-      if (!usable[tx][rx]) continue;
-      const Eigen::Vector3d dx = x0 - network_.receivers[rx].position;
-      const double r0 = dx.norm();
-      const double y = WrapPhase(mean[tx][rx] - k * r0);
-      reduced[tx][rx] = y;
-      Eigen::VectorXd a = Eigen::VectorXd::Zero(np);
-      a.segment<3>(px[tx]) = k * dx / r0;
-      a(ppsi[tx]) = 1.0;
-      if (pxi[rx] >= 0) a(pxi[rx]) = 1.0;
-      if (pn[tx][rx] >= 0) a(pn[tx][rx]) = 2.0 * M_PI;
-      const double w = 1.0 / var[tx][rx];
-      normal += w * a * a.transpose();
-      rhs += w * y * a;
-    }
-    const double wp = 1.0 / std::pow(network_.transmitters[tx].initial_sigma, 2);
-    normal.block<3, 3>(px[tx], px[tx]) += wp * Eigen::Matrix3d::Identity();
-  }
+  ReferenceNormalEquations(network_, k, tx_in, usable, mean, var, px, ppsi, pxi, pn, &normal, &rhs, &reduced);
   const Eigen::LDLT<Eigen::MatrixXd> ldlt(normal);
   if (ldlt.info() != Eigen::Success || ldlt.vectorD().minCoeff() <= 0.0) {
     summary->problems.push_back("radio reference solution: singular normal equations; retrying");
@@ -484,21 +577,7 @@ void RadioPhaseSolver::SolveReference(RadioEpochSummary* summary) {
     const int nf = static_cast<int>(fr.fixed.size());
     reference_.num_fixed = nf;
     net_state = nf == na ? FixState::kFixed : (nf > 0 ? FixState::kPartial : FixState::kFloat);
-    if (nf > 0) {
-      Eigen::MatrixXd q_xf(np, nf), q_ff(nf, nf);
-      Eigen::VectorXd diff(nf);
-      for (int i = 0; i < nf; ++i) {
-        const int pi = first_amb + fr.fixed[i];
-        q_xf.col(i) = cov.col(pi);
-        diff(i) = x(pi) - fr.integers(i);
-        amb_fixed[fr.fixed[i]] = true;
-        for (int j = 0; j < nf; ++j) q_ff(i, j) = cov(pi, first_amb + fr.fixed[j]);
-      }
-      const Eigen::MatrixXd gain = q_xf * q_ff.inverse();
-      x -= gain * diff;
-      cov_fixed = cov - gain * q_xf.transpose();
-      for (int i = 0; i < nf; ++i) x(first_amb + fr.fixed[i]) = fr.integers(i);
-    }
+    if (nf > 0) ConditionOnFixedAmbiguities(fr, cov, first_amb, &x, &cov_fixed, &amb_fixed);
     summary->events.push_back(Message("reference solution: ", nf, " of ", na, " ambiguities fixed, ratio ", fr.ratio,
                                       " (", FixStateName(net_state), ")"));
   } else {
