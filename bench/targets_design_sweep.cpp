@@ -107,6 +107,9 @@ int main(int argc, char** argv) {
   std::printf("%d renders per cell; RMS error per coordinate [px] (measured/rendered) median |e|/sigma\n",
               trials);
   std::map<std::string, int> misses;
+  // Summary per design: by size band (8-12, 20-35, 60-150 px) and blur, both geometries.
+  std::map<std::string, testing::CentreErrors> bands;
+  auto band_of = [](double size) { return size <= 12 ? "8-12" : size <= 35 ? "20-35" : "60-150"; };
   for (const Geometry& g : kSweepGeometries) {
     for (const testing::DesignCase& dc : testing::DesignCases()) {
       std::printf("\n%s, %s\n  size px |", CircleDesignName(dc.design).c_str(), g.name);
@@ -139,12 +142,20 @@ int main(int argc, char** argv) {
             }
           }
           std::printf(" %.4f (%2d/%2d) %4.2f |", e.Rms(), e.measured(), e.rendered, e.MedianZ());
+          char key[64];
+          std::snprintf(key, sizeof(key), "%-12s %-6s px, blur %.1f", CircleDesignName(dc.design).c_str(),
+                        band_of(size), blur);
+          bands[key].Add(e);
         }
         std::printf("\n");
         std::fflush(stdout);
       }
     }
   }
+  std::printf("\nby design, size band and blur (both geometries): RMS [px] (measured/rendered) median |e|/sigma\n");
+  for (const auto& b : bands)
+    std::printf("  %s: %.4f (%3d/%3d) %4.2f\n", b.first.c_str(), b.second.Rms(), b.second.measured(),
+                b.second.rendered, b.second.MedianZ());
   std::printf("\nmisses:\n");
   for (const auto& m : misses) std::printf("  %dx %s\n", m.second, m.first.c_str());
   return 0;

@@ -8,7 +8,7 @@
 //
 // Designs (radii of the light centre, reflectance 0.9 light / 0.08 dark):
 //   disc_in_ring  light disc, dark ring to 2 radii, on a 0.45 grey ground;
-//   dot           light dot on a dark plate of 4 radii, on a light ground;
+//   dot           light dot on a dark plate of 5 radii, on a light ground;
 //   ring          dark ring to 1.6 radii on a light ground;
 //   concentric    dark ring to 1.4, light ring to 1.8, dark ring to 2.3 radii
 //                 on a light ground.
@@ -40,7 +40,7 @@ struct DesignCase {
 
 inline const std::vector<DesignCase>& DesignCases() {
   static const std::vector<DesignCase> c = {{CircleDesign::kDiscInRing, 0.45, 2.0},
-                                            {CircleDesign::kDot, kDesignBright, 4.0},
+                                            {CircleDesign::kDot, kDesignBright, 5.0},
                                             {CircleDesign::kRing, kDesignBright, 1.6},
                                             {CircleDesign::kConcentric, kDesignBright, 2.3}};
   return c;
