@@ -43,6 +43,7 @@
 #include "slope_monitor/ros/adjustment_conversions.h"
 #include "slope_monitor/ros/hex_matcher_parameters.h"
 #include "slope_monitor/ros/sequence_conversions.h"
+#include "slope_monitor/ros/sequence_step.h"
 #include "slope_monitor/ros/setup.h"
 
 namespace slope_monitor {
@@ -67,11 +68,15 @@ class HexMatcherNodelet : public nodelet::Nodelet {
           ReadParameters(pnh);
           matcher_ = std::make_unique<matching::HexMatcher>(params_.hex);
           if (mode_ == "sequence")
-            sequence_ = std::make_unique<matching::SequenceMatcher>(params_.sequence);
+            sequence_ = std::make_unique<ros_adapters::SequenceMatcherStep>(params_);
         })) {
       NODELET_ERROR("hex_matcher: %s; not advertising", error->c_str());
       setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(
           nh, pnh, "hex_matcher", "parameters rejected: " + *error);
+      return;
+    }
+    if (!params_.idle.empty()) {  // a site with targets, started by the graph (only_without_targets)
+      NODELET_INFO("hex_matcher: idle: %s", params_.idle.c_str());
       return;
     }
     // tie_topic: "tie_points", or the site's UAV camera's /<camera>/tie_points.
@@ -195,10 +200,8 @@ class HexMatcherNodelet : public nodelet::Nodelet {
   }
 
   void OnPositionPrior(const geometry_msgs::PoseWithCovarianceStampedConstPtr& msg) {
-    if (!msg->header.frame_id.empty() && msg->header.frame_id != params_.site_frame) {
-      NODELET_ERROR_THROTTLE(
-          5.0, "hex_matcher: position_prior in frame '%s', expected '%s' (site_frame); ignored",
-          msg->header.frame_id.c_str(), params_.site_frame.c_str());
+    if (const auto why = sequence_->CheckPrior(*msg)) {
+      NODELET_ERROR_THROTTLE(5.0, "hex_matcher: %s", why->c_str());
       std::lock_guard<std::mutex> lock(mutex_);
       ++bad_priors_;
       return;
@@ -224,50 +227,36 @@ class HexMatcherNodelet : public nodelet::Nodelet {
         }
       }
       const double now = ros::WallTime::now().toSec();
-      matching::SequenceStep step;
+      ros_adapters::SequenceOutput out;
       if (next.image) {
-        cv::Mat image;
-        try {
-          image = ros_adapters::ImageForMatching(next.image);
-        } catch (const std::exception& e) {
-          NODELET_ERROR_THROTTLE(5.0, "hex_matcher: image at %.3f not converted: %s",
-                                 next.image->header.stamp.toSec(), e.what());
-        }
         // Replay: no prior_wait, so an image waits for a prior only when the
         // bag has a prior topic (its player advertises every topic at start),
         // as process_bag decides it.
         if (!ros_adapters::LiveTimeouts())
-          sequence_->SetPriorsExpected(sub_b_.getNumPublishers() > 0);
-        step = sequence_->AddImage(ros_adapters::ToStamp(next.image->header.stamp),
-                                   next.image->header.frame_id, image, now);
+          sequence_->matcher().SetPriorsExpected(sub_b_.getNumPublishers() > 0);
+        out = sequence_->AddImage(next.image, now);
       } else if (next.prior) {
-        step = sequence_->AddPrior(ros_adapters::ToStamp(next.prior->header.stamp),
-                                   ros_adapters::FromPriorMsg(*next.prior));
+        out = sequence_->AddPrior(*next.prior);
       } else if (next.end_of_input) {
         NODELET_INFO("hex_matcher: end of the replay: matching the photos still waiting");
-        step = sequence_->Finish();
+        out = sequence_->Finish();
       } else if (ros_adapters::LiveTimeouts()) {
-        step = sequence_->Poll(now);
+        out = sequence_->Poll(now);
       }
-      Publish(step);
+      Publish(out);
     }
   }
 
-  void Publish(const matching::SequenceStep& step) {
-    for (const std::string& line : step.log) NODELET_INFO("hex_matcher: %s", line.c_str());
-    for (const matching::SequencePair& p : step.pairs) {
-      if (p.reason.empty()) {
-        if (p.has_a)
-          NODELET_INFO("hex_matcher: sequence %s (%u of %u)", p.message.c_str(), p.index,
-                       p.pairs_b);
-      } else {
-        NODELET_ERROR_THROTTLE(5.0, "hex_matcher: sequence %s (empty tie points)",
-                               p.message.c_str());
-      }
-      pub_.publish(ros_adapters::ToMsg(p, params_.camera));
+  void Publish(const ros_adapters::SequenceOutput& out) {
+    for (const ros_adapters::LogLine& line : out.log) {
+      if (line.level == ros_adapters::LogLine::kError)
+        NODELET_ERROR_THROTTLE(5.0, "hex_matcher: %s", line.text.c_str());
+      else  // the matcher's lines and each pair's progress
+        NODELET_INFO("hex_matcher: %s", line.text.c_str());
     }
+    for (const slope_monitor::TiePointArray& msg : out.tie_points) pub_.publish(msg);
     std::lock_guard<std::mutex> lock(mutex_);
-    summary_ = sequence_->summary();
+    summary_ = sequence_->matcher().summary();
     pairs_ = summary_.pairs;
     errors_ = summary_.errors;
     last_error_ = summary_.last_error;
@@ -321,7 +310,7 @@ class HexMatcherNodelet : public nodelet::Nodelet {
   int pairs_ = 0, errors_ = 0;
   std::string last_error_;
   // Sequence mode.
-  std::unique_ptr<matching::SequenceMatcher> sequence_;  // worker only
+  std::unique_ptr<ros_adapters::SequenceMatcherStep> sequence_;  // worker only (and CheckPrior)
   std::mutex queue_mutex_;                               // inputs_, stop_
   std::condition_variable queue_cv_;
   std::deque<Input> inputs_;

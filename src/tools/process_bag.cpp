@@ -83,6 +83,7 @@
 #include "slope_monitor/ros/radio_step.h"
 #include "slope_monitor/ros/uav_topics.h"
 #include "slope_monitor/ros/sequence_conversions.h"
+#include "slope_monitor/ros/sequence_step.h"
 #include "slope_monitor/ros/target_conversions.h"
 #include "slope_monitor/ros/targetless_camera.h"
 #include "slope_monitor/ros/validation.h"
@@ -351,7 +352,7 @@ class OfflineGraph {
       // the photo that waited for it) runs while the photo's targets are
       // still being centroided (Pair); both are taken in bag order after.
       if (const auto prior = m.instantiate<geometry_msgs::PoseWithCovarianceStamped>()) {
-        const std::optional<matching::SequenceStep> step = MatchUavPrior(uav, *prior);
+        const std::optional<ros_adapters::SequenceOutput> step = MatchUavPrior(uav, *prior);
         TakeCentroided();
         now_ = m.getTime();
         adjuster_->AddPrior(*prior);
@@ -403,7 +404,7 @@ class OfflineGraph {
         Write("/" + camera + "/debug_image",
               ros_adapters::ToDebugImage(*c.last, c.last_image->header));
     for (UavMatcher& uav : uav_matchers_)
-      OnSequenceStep(uav, Timed(&stages_.matching, [&] { return uav.sequence->Finish(); }));
+      OnSequenceStep(uav, Timed(&stages_.matching, [&] { return uav.step->Finish(); }));
     if (const std::optional<ros_adapters::SolvedEpoch> e = adjuster_->Finish()) Solve(*e);
     // The inputs have ended: what waits for a later stamp of another input is fused.
     Publish(Timed(&stages_.estimator, [&] { return estimator_->Flush(); }));
@@ -437,10 +438,10 @@ class OfflineGraph {
       ros_adapters::SetParam(&p, "camera", camera);
       ros_adapters::ParamReader r(p, "/" + camera + "/hex_matcher");
       UavMatcher uav;
-      uav.params = ros_adapters::ReadHexMatcherParameters(r);
+      uav.step = std::make_unique<ros_adapters::SequenceMatcherStep>(
+          ros_adapters::ReadHexMatcherParameters(r));
       uav.topics = ros_adapters::UavCameraTopics(camera);
-      uav.sequence = std::make_unique<matching::SequenceMatcher>(uav.params.sequence);
-      uav.sequence->SetPriorsExpected(has_topic(uav.topics.prior));
+      uav.step->matcher().SetPriorsExpected(has_topic(uav.topics.prior));
       uav_matchers_.push_back(std::move(uav));
     }
   }
@@ -770,9 +771,8 @@ class OfflineGraph {
 
   // ---- the hex matcher (mode sequence), one per UAV camera.
   struct UavMatcher {
-    ros_adapters::HexMatcherParameters params;  // params.camera: the UAV camera
+    std::unique_ptr<ros_adapters::SequenceMatcherStep> step;  // parameters().camera: the UAV camera
     ros_adapters::UavTopics topics;
-    std::unique_ptr<matching::SequenceMatcher> sequence;
   };
 
   // The matcher whose topic `field` (image or prior) is `topic`, if any.
@@ -793,41 +793,27 @@ class OfflineGraph {
   }
 
   void OnUavImage(UavMatcher* uav, const sensor_msgs::Image::ConstPtr& image) {
-    cv::Mat grey;
-    try {
-      grey = ros_adapters::ImageForMatching(image);
-    } catch (const std::exception& e) {
-      Log("hex_matcher: image on " + uav->topics.image + " not converted: " + e.what());
-    }
-    OnSequenceStep(*uav, Timed(&stages_.matching, [&] {
-      return uav->sequence->AddImage(ros_adapters::ToStamp(image->header.stamp),
-                                     image->header.frame_id, grey);
-    }));
+    OnSequenceStep(*uav, Timed(&stages_.matching, [&] { return uav->step->AddImage(image, 0.0); }));
   }
 
   // The sequence matcher's step for a UAV position prior (pure: nothing is
   // written or collected); none for a prior in another frame (logged).
-  std::optional<matching::SequenceStep> MatchUavPrior(
+  std::optional<ros_adapters::SequenceOutput> MatchUavPrior(
       UavMatcher* uav, const geometry_msgs::PoseWithCovarianceStamped& prior) {
-    if (!prior.header.frame_id.empty() && prior.header.frame_id != uav->params.site_frame) {
-      Log("hex_matcher: " + uav->topics.prior + " in frame '" + prior.header.frame_id +
-          "', expected '" + uav->params.site_frame + "' (site_frame); ignored");
+    if (const auto why = uav->step->CheckPrior(prior)) {
+      Log("hex_matcher: " + *why);
       return std::nullopt;
     }
-    return Timed(&stages_.matching, [&] {
-      return uav->sequence->AddPrior(ros_adapters::ToStamp(prior.header.stamp),
-                                     ros_adapters::FromPriorMsg(prior));
-    });
+    return Timed(&stages_.matching, [&] { return uav->step->AddPrior(prior); });
   }
 
-  void OnSequenceStep(const UavMatcher& uav, const matching::SequenceStep& step) {
-    for (const std::string& line : step.log) Log("hex_matcher: " + line);
-    for (const matching::SequencePair& pair : step.pairs) {
-      if (!pair.reason.empty())
-        Log("hex_matcher: sequence " + pair.message + " (empty tie points)");
+  // The tie points written and collected; the pairs' progress only with --verbose.
+  void OnSequenceStep(const UavMatcher& uav, const ros_adapters::SequenceOutput& out) {
+    for (const ros_adapters::LogLine& line : out.log)
+      if (line.level != ros_adapters::LogLine::kDebug || args_.verbose) Log("hex_matcher: " + line.text);
+    for (const slope_monitor::TiePointArray& msg : out.tie_points) {
       ++stages_.pairs;
-      stages_.tie_points += static_cast<int>(pair.points.size());
-      const slope_monitor::TiePointArray msg = ros_adapters::ToMsg(pair, uav.params.camera);
+      stages_.tie_points += static_cast<int>(msg.points.size());
       Write(uav.topics.tie_points, msg);
       Solve(adjuster_->AddTies(msg, now_.toSec()));
     }
@@ -869,7 +855,7 @@ class OfflineGraph {
   // The sequence matchers' time on photo features so far [s].
   double FeatureSeconds() const {
     double s = 0.0;
-    for (const UavMatcher& uav : uav_matchers_) s += uav.sequence->summary().feature_seconds;
+    for (const UavMatcher& uav : uav_matchers_) s += uav.step->matcher().summary().feature_seconds;
     return s;
   }
 
