@@ -26,6 +26,11 @@
 //   process_bag: history database '<file>' is in use by process <pid> (<name>), which holds its
 //   writer lock '<file>.lock'; one writer per history: wait for it to end or use another database
 // (deformation/history.h).
+//
+// Exit status: 0 every bag read to its end; 2 input ended early (a cut bag,
+// processed up to its break, the break named at the end with the epochs then
+// accepted incomplete) or nothing solved; 1 a usage error, an unreadable
+// input or another writer on the history.
 #include <unistd.h>
 
 #include <algorithm>
@@ -209,9 +214,19 @@ void ResolveTargets(Args* a, const std::function<void(const std::string&)>& log)
 
 // ------------------------------------------------------------------ bags
 
+// A bag read only up to its break (cut while recording or copying): named at
+// the end of the run, which then exits 2 (issue 38).
+struct BagBreak {
+  std::string path;
+  uintmax_t bytes = 0;                    // size of the cut file
+  const rosbag::Bag* readable = nullptr;  // its reindexed copy
+};
+
 // Opens `path`; an unindexed or truncated bag is reindexed in a temporary
-// copy (rosbag reindex), said on stderr, and read up to its break.
-std::unique_ptr<rosbag::Bag> OpenBag(const std::string& path, std::vector<fs::path>* temporaries) {
+// copy (rosbag reindex), said on stderr, read up to its break and added to
+// `breaks`.
+std::unique_ptr<rosbag::Bag> OpenBag(const std::string& path, std::vector<fs::path>* temporaries,
+                                     std::vector<BagBreak>* breaks) {
   if (!fs::is_regular_file(path)) throw InvalidArgument("bag '" + path + "' not found");
   auto bag = std::make_unique<rosbag::Bag>();
   try {
@@ -245,7 +260,25 @@ std::unique_ptr<rosbag::Bag> OpenBag(const std::string& path, std::vector<fs::pa
   } catch (const rosbag::BagException& e) {
     throw IoError("bag '" + path + "' reindexed but still unreadable: " + e.what());
   }
+  breaks->push_back({path, fs::file_size(path), bag.get()});
   return bag;
+}
+
+// What a run whose input ended early says at its end: each break, and the
+// epochs accepted at the end of input without all their inputs.
+void SayBreaks(const std::vector<BagBreak>& breaks, const std::vector<std::string>& incomplete) {
+  for (const BagBreak& b : breaks) {
+    rosbag::View part(*b.readable);
+    char when[160] = "no message before it";
+    if (part.size() > 0)
+      std::snprintf(when, sizeof(when), "its last readable message at bag time %.3f s (%.1f s after its start)",
+                    part.getEndTime().toSec(), (part.getEndTime() - part.getBeginTime()).toSec());
+    std::cerr << "process_bag: input ended early: bag '" << b.path << "' breaks off at byte " << b.bytes
+              << " (cut while recording or copying): " << part.size() << " messages read up to the break, "
+              << when << "; what was recorded after it is not in the file\n";
+  }
+  for (const std::string& line : incomplete)
+    std::cerr << "process_bag: accepted at the end of input without all its inputs: " << line << "\n";
 }
 
 // Cameras of the survey: every /<name>/camera/image_raw topic of the bags.
@@ -1005,7 +1038,8 @@ int Run(Args args) {
     }
   } cleanup{&temporaries};
   std::vector<std::unique_ptr<rosbag::Bag>> bags;
-  for (const std::string& path : args.bags) bags.push_back(OpenBag(path, &temporaries));
+  std::vector<BagBreak> breaks;
+  for (const std::string& path : args.bags) bags.push_back(OpenBag(path, &temporaries, &breaks));
   CheckInputFiles(args);
   rosbag::View view;
   for (const auto& bag : bags) view.addQuery(*bag);
@@ -1023,8 +1057,15 @@ int Run(Args args) {
   }
   Progress progress(view.getBeginTime(), view.getEndTime());
   ResolveTargets(&args, [&progress](const std::string& line) { progress.Print("process_bag: " + line); });
-  OfflineGraph graph(args, cameras, output.get(), [&progress](const std::string& line) {
+  std::vector<std::string> incomplete_at_end;  // "epoch 1 (end of input): incomplete: ..." lines
+  OfflineGraph graph(args, cameras, output.get(), [&progress, &incomplete_at_end](const std::string& line) {
     progress.Print("process_bag: " + line);
+    const std::string mark = " (end of input): incomplete: ";
+    const size_t at = line.find(mark);
+    if (at != std::string::npos) {
+      const size_t epoch = line.rfind("epoch ", at);
+      incomplete_at_end.push_back(line.substr(epoch, at - epoch) + ": " + line.substr(at + mark.size()));
+    }
   });
   if (args.uav_tie_points)
     graph.SetUpUavTiePoints([&view](const std::string& topic) { return HasTopic(view, topic); });
@@ -1038,6 +1079,7 @@ int Run(Args args) {
   if (output) output->close();
   std::cerr << "process_bag: " << view.size() << " messages of " << args.bags.size() << " bag(s) ("
             << cameras.size() << " cameras) processed in " << progress.elapsed() << " s\n";
+  SayBreaks(breaks, incomplete_at_end);
   if (graph.epochs_solved() == 0 && !graph.has_points()) {
     // A run that solves nothing (no adjusted or radio epoch, and no point
     // from elsewhere, e.g. a fixed_targetless camera's field) fails, saying
@@ -1065,7 +1107,8 @@ int Run(Args args) {
   for (const std::string& f : files) std::cout << "  " << f << "\n";
   std::cout << "History (SQLite): " << args.database << "\n";
   if (output) std::cout << "Outputs (rosbag play --clock): " << args.output_bag << "\n";
-  return 0;
+  // Input that ended early: processed up to the break, named above, exit 2.
+  return breaks.empty() ? 0 : 2;
 }
 
 }  // namespace

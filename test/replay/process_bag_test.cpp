@@ -357,7 +357,8 @@ TEST(ProcessBag, BadInputIsNamed) {
 }
 
 // A bag cut in the middle (no index): reindexed in a temporary copy, said
-// with the file's name, processed up to the break.
+// with the file's name, processed up to the break; the break named at the
+// end and exit status 2 (issue 38).
 TEST(ProcessBag, TruncatedBagIsProcessedUpToTheBreak) {
   const fs::path dir = Scratch("truncated");
   const fs::path cut = dir / "cut.bag";
@@ -373,11 +374,25 @@ TEST(ProcessBag, TruncatedBagIsProcessedUpToTheBreak) {
                                          (dir / "history.db").string(),
                                          "--report-dir",
                                          (dir / "reports").string()};
-  ASSERT_EQ(Wait(Spawn(args, dir)), 0) << ReadFile(dir / "stderr");
+  // Processed up to the break, the break named, exit status 2 (input ended early; issue 38).
+  ASSERT_EQ(Wait(Spawn(args, dir)), 2) << ReadFile(dir / "stderr");
   const std::string err = ReadFile(dir / "stderr");
   EXPECT_NE(err.find("'" + cut.string() + "' is not indexed"), std::string::npos) << err;
   EXPECT_NE(err.find("reindexing a temporary copy"), std::string::npos) << err;
+  EXPECT_NE(err.find("process_bag: input ended early: bag '" + cut.string() + "' breaks off at byte " +
+                     std::to_string(fs::file_size(cut))),
+            std::string::npos)
+      << err;
+  EXPECT_NE(err.find("messages read up to the break, its last readable message at bag time "),
+            std::string::npos)
+      << err;
+  // The epoch the break cut short, accepted at the end of input, is said once more at the end.
+  EXPECT_NE(err.find("process_bag: accepted at the end of input without all its inputs: epoch 1: "
+                     "fixed_cam_2: no end marker"),
+            std::string::npos)
+      << err;
   EXPECT_GT(ObservationKeys(dir / "history.db").size(), 0u) << "nothing processed before the break";
+  EXPECT_TRUE(fs::exists(dir / "reports" / "deformation.csv")) << "no report of what was processed";
 }
 
 }  // namespace
