@@ -329,11 +329,16 @@ TEST(ConfigFiles, EveryLaunchFileLoadsAndItsNodesParametersRead) {
   }
   for (const std::string& name : launch_files)
     if (!covered.count(name)) command += " " + kCfSource + "/launch/" + name + " --";
-  // Every file under launch/ (include/*.xml too) is reached from a launch file.
   const run_command::CommandRun r = run_command::Run(command);
   ASSERT_EQ(r.status, 0) << command << "\n" << r.output;
-  XmlRpc::XmlRpcValue all = CfLoad(dump);
+  XmlRpc::XmlRpcValue loaded = CfLoad(dump);
   std::remove(dump.c_str());
+  // Every file under launch/ (include/*.xml too) is reached from a launch file.
+  std::set<std::string> reached;
+  for (int i = 0; i < loaded["files"].size(); ++i) reached.insert(std::string(loaded["files"][i]));
+  for (const std::string& path : CfFilesUnder(kCfSource + "/launch"))
+    EXPECT_TRUE(reached.count(fs::canonical(path).string())) << path << " is loaded by no launch file the test runs";
+  XmlRpc::XmlRpcValue& all = loaded["nodes"];
   int nodes_read = 0;
   for (auto file = all.begin(); file != all.end(); ++file) {
     for (int i = 0; i < file->second.size(); ++i) {
