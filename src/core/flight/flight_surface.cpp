@@ -6,6 +6,7 @@
 #include <cstring>
 #include <sstream>
 
+#include <Eigen/Dense>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -174,30 +175,54 @@ void Coarsen(const io::GeoRaster& dem, const std::vector<uint8_t>& stable, int f
     }
 }
 
-// NMAD of after(r + di, c + dj) - ref(r, c) over stable cells with both (-1: fewer than `need`).
-double ShiftScore(const cv::Mat& ref, const cv::Mat& aft, const cv::Mat& st, int di, int dj, int need) {
-  std::vector<double> dz;
+// NMAD of after(r + di, c + dj) - ref(r, c) over stable cells with both,
+// about the least-squares plane of dz (two flights oriented by GNSS differ by
+// a tilt too); -1: fewer than `need` cells; *count: how many.
+double ShiftScore(const cv::Mat& ref, const cv::Mat& aft, const cv::Mat& st, int di, int dj, int need, int* count) {
+  std::vector<Eigen::Vector3d> p;  // col, row, dz
   for (int r = std::max(0, -di); r < std::min(ref.rows, ref.rows - di); ++r)
     for (int c = std::max(0, -dj); c < std::min(ref.cols, ref.cols - dj); ++c) {
       if (!st.at<uint8_t>(r, c)) continue;
       const float a = ref.at<float>(r, c), b = aft.at<float>(r + di, c + dj);
-      if (a == a && b == b) dz.push_back(static_cast<double>(b) - a);
+      if (a == a && b == b) p.emplace_back(c, r, static_cast<double>(b) - a);
     }
-  if (static_cast<int>(dz.size()) < need) return -1;
+  *count = static_cast<int>(p.size());
+  if (*count < std::max(need, 4)) return -1;
+  Eigen::Matrix3d n = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& q : p) {
+    const Eigen::Vector3d a(1.0, q.x(), q.y());
+    n += a * a.transpose();
+    rhs += a * q.z();
+  }
+  const Eigen::Vector3d plane = n.ldlt().solve(rhs);
+  std::vector<double> dz(p.size());
+  for (size_t k = 0; k < p.size(); ++k) dz[k] = p[k].z() - plane[0] - plane[1] * p[k].x() - plane[2] * p[k].y();
   const double med = UpperMedian(dz);
   for (double& v : dz) v = std::abs(v - med);
   return UpperMedian(dz);
 }
 
-// Best (di, dj) within +-radius cells around (i0, j0).
+// Best (di, dj) within +-radius cells around (i0, j0): the smallest NMAD
+// among the shifts whose overlap is at least half the largest overlap (a
+// shift that leaves a few cells of smooth ground in common must not win).
 cv::Point BestShift(const cv::Mat& ref, const cv::Mat& aft, const cv::Mat& st, int i0, int j0, int radius, int need) {
-  cv::Point best(j0, i0);
-  double best_score = 1e300;
+  std::vector<std::pair<double, int>> score;
+  std::vector<cv::Point> shift;
+  int most = 0;
   for (int di = i0 - radius; di <= i0 + radius; ++di)
     for (int dj = j0 - radius; dj <= j0 + radius; ++dj) {
-      const double s = ShiftScore(ref, aft, st, di, dj, need);
-      if (s >= 0 && s < best_score) best_score = s, best = cv::Point(dj, di);
+      int n = 0;
+      const double s = ShiftScore(ref, aft, st, di, dj, need, &n);
+      if (s < 0) continue;
+      score.push_back({s, n});
+      shift.emplace_back(dj, di);
+      most = std::max(most, n);
     }
+  cv::Point best(j0, i0);
+  double best_score = 1e300;
+  for (size_t k = 0; k < score.size(); ++k)
+    if (2 * score[k].second >= most && score[k].first < best_score) best_score = score[k].first, best = shift[k];
   return best;
 }
 
@@ -457,7 +482,7 @@ FlightChange CompareFlights(const FlightChangeInput& in, const FlightChangeOptio
   const std::vector<uint8_t> stable = dense::StableMask(ref, in.moving, mask, in.stable_name);
   cv::Point cells(0, 0);
   if (options.search_radius > 0) {
-    const int f = std::max(1, static_cast<int>(std::lround(options.search_cell / ref.cell_size)));
+    const int f = std::max(2, static_cast<int>(std::lround(options.search_cell / ref.cell_size)));
     cv::Mat zr, za, st, unused;
     Coarsen(ref, stable, f, &zr, &st);
     Coarsen(aft, stable, f, &za, &unused);

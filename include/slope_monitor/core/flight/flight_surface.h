@@ -133,10 +133,13 @@ struct FlightChangeOptions {
     return o;
   }();
   // Start of the co-registration: the whole-cell shift within search_radius
-  // [m] that minimises the NMAD of dz on the stable cells, searched on DEMs
+  // [m] that minimises the NMAD of dz about its least-squares plane on the
+  // stable cells (GNSS-oriented flights also differ by a tilt; among the shifts
+  // keeping at least half the largest overlap), searched on DEMs
   // averaged to ~search_cell [m] and then on the full grid around the best
   // (a consumer GNSS's metres are more than the linearised Nuth-Kaab step
-  // converges from on terrain whose features are smaller); 0: no search.
+  // converges from on terrain whose features are smaller; at least 2 x 2
+  // cells per block); 0: no search.
   double search_radius = 8.0;  // [m] >= 0, <= change.max_shift
   double search_cell = 0.3;    // [m] > 0
   void Check() const;
