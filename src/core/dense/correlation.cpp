@@ -977,6 +977,86 @@ std::string CorrelationSummary::BriefReport() const {
   return s.str();
 }
 
+namespace {
+
+// Throws InvalidArgument naming the image without texture (constant value).
+void RequireRectifiedTexture(const cv::Mat& left, const cv::Mat& right) {
+  for (const cv::Mat* im : {&left, &right}) {
+    cv::Scalar mean, sd;
+    cv::meanStdDev(*im, mean, sd);
+    if (!(sd[0] > 1e-3))
+      throw InvalidArgument(Message("MatchRectified: the ", im == &left ? "left" : "right",
+                                    " image has no texture (constant value ", mean[0], ", e.g. all black)"));
+  }
+}
+
+// Left/right agreement on a level's grids: a left node whose parallax the
+// right grid confirms at the matched position (within tol) takes the mean
+// of both, the others are rejected (NaN). *averaged may share grid_l's
+// data (in place). Returns the rejections.
+int AgreeLeftRight(const cv::Mat& grid_l, const cv::Mat& grid_r, int g, float tol, cv::Mat* averaged_io) {
+  cv::Mat& averaged = *averaged_io;
+  std::atomic<int> rejected{0};
+  cv::parallel_for_(cv::Range(0, grid_l.rows), [&](const cv::Range& range) {
+    int rej = 0;
+    for (int i = range.start; i < range.end; ++i) {
+      const float* rr = grid_r.ptr<float>(i);
+      const float* ll = grid_l.ptr<float>(i);
+      float* av = averaged.ptr<float>(i);
+      for (int j = 0; j < grid_l.cols; ++j) {
+        const float dl = ll[j];
+        if (!Finite(dl)) continue;
+        const float drv = LookupLine(rr, grid_r.cols, (static_cast<double>(j) * g - dl) / g);
+        if (Finite(drv) && std::abs(drv - dl) <= tol) {
+          av[j] = 0.5f * (dl + drv);
+        } else {
+          av[j] = kNaN;
+          ++rej;
+        }
+      }
+    }
+    rejected += rej;
+  });
+  return rejected;
+}
+
+// The final level's outputs: its averaged parallaxes (refined by LSC when
+// lsc_iterations > 0) and correlations, NaN where no parallax is left. They
+// go to one of two buffers kept between calls that the caller no longer
+// holds (no fresh memory: page faults were a seventh of the time in this
+// VM); a buffer still referenced is never reused.
+void FinalLevelOutputs(const cv::Mat& averaged, const cv::Mat& corr_l, const cv::Mat& l, const cv::Mat& r, int g,
+                       int window, int lsc_iterations, LevelWorkspace* lw, cv::Mat* final_grid_out,
+                       cv::Mat* final_corr_out) {
+  cv::Mat& final_grid = *final_grid_out;
+  cv::Mat& final_corr = *final_corr_out;
+  final_grid = OutputBuffer(lw->out_disp, averaged.size());
+  final_corr = OutputBuffer(lw->out_corr, corr_l.size());
+  averaged.copyTo(final_grid);
+  corr_l.copyTo(final_corr);
+  if (lsc_iterations > 0) {
+    const int half = window / 2;
+    cv::parallel_for_(cv::Range(0, final_grid.rows), [&](const cv::Range& rows) {
+      for (int i = rows.start; i < rows.end; ++i) {
+        float* row = final_grid.ptr<float>(i);
+        for (int j = 0; j < final_grid.cols; ++j) {
+          if (!Finite(row[j])) continue;
+          const float refined = RefineLsc(l, r, j * g, i * g, row[j], half, lsc_iterations);
+          if (Finite(refined)) row[j] = refined;
+        }
+      }
+    });
+  }
+  for (int i = 0; i < final_grid.rows; ++i) {
+    const float* fg = final_grid.ptr<float>(i);
+    float* fc = final_corr.ptr<float>(i);
+    for (int j = 0; j < final_grid.cols; ++j)
+      if (!Finite(fg[j])) fc[j] = kNaN;
+  }
+}
+
+}  // namespace
+
 ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, const CorrelationOptions& options,
                             CorrelationSummary* summary, const cv::Mat& valid_left, const cv::Mat& valid_right) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -998,13 +1078,7 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
   if (left.cols / coarse < options.window || left.rows / coarse < options.window)
     throw InvalidArgument(Message("MatchRectified: image ", left.cols, "x", left.rows, " too small for ",
                                   options.levels, " levels and a ", options.window, " px window"));
-  for (const cv::Mat* im : {&left, &right}) {
-    cv::Scalar mean, sd;
-    cv::meanStdDev(*im, mean, sd);
-    if (!(sd[0] > 1e-3))
-      throw InvalidArgument(Message("MatchRectified: the ", im == &left ? "left" : "right",
-                                    " image has no texture (constant value ", mean[0], ", e.g. all black)"));
-  }
+  RequireRectifiedTexture(left, right);
   const cv::Mat mask_l = MaskOrOnes(valid_left, left.size(), "valid_left", &input.mask_l);
   const cv::Mat mask_r = MaskOrOnes(valid_right, right.size(), "valid_right", &input.mask_r);
 
@@ -1096,63 +1170,15 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
     }
     int rejected_lr = 0;
     cv::Mat averaged = grid_l;  // in place
-    if (!grid_r.empty()) {
-      const float tol = static_cast<float>(options.lr_tolerance);
-      std::atomic<int> rejected{0};
-      cv::parallel_for_(cv::Range(0, grid_l.rows), [&](const cv::Range& range) {
-        int rej = 0;
-        for (int i = range.start; i < range.end; ++i) {
-          const float* rr = grid_r.ptr<float>(i);
-          const float* ll = grid_l.ptr<float>(i);
-          float* av = averaged.ptr<float>(i);
-          for (int j = 0; j < grid_l.cols; ++j) {
-            const float dl = ll[j];
-            if (!Finite(dl)) continue;
-            const float drv = LookupLine(rr, grid_r.cols, (static_cast<double>(j) * g - dl) / g);
-            if (Finite(drv) && std::abs(drv - dl) <= tol) {
-              av[j] = 0.5f * (dl + drv);
-            } else {
-              av[j] = kNaN;
-              ++rej;
-            }
-          }
-        }
-        rejected += rej;
-      });
-      rejected_lr = rejected;
-    }
+    if (!grid_r.empty())
+      rejected_lr = AgreeLeftRight(grid_l, grid_r, g, static_cast<float>(options.lr_tolerance), &averaged);
     if (last) {
       sum.nodes = nodes;
       sum.rejected_correlation = nodes - found;
       sum.rejected_order = rejected_order;
       sum.rejected_left_right = rejected_lr;
       sum.valid_nodes = CountFinite(averaged);
-      // The outputs go to one of two buffers kept between calls that the
-      // caller no longer holds (no fresh memory: page faults were a seventh
-      // of the time in this VM); a buffer still referenced is never reused.
-      final_grid = OutputBuffer(lw.out_disp, averaged.size());
-      final_corr = OutputBuffer(lw.out_corr, corr_l.size());
-      averaged.copyTo(final_grid);
-      corr_l.copyTo(final_corr);
-      if (options.lsc_iterations > 0) {
-        const int half = window / 2;
-        cv::parallel_for_(cv::Range(0, final_grid.rows), [&](const cv::Range& rows) {
-          for (int i = rows.start; i < rows.end; ++i) {
-            float* row = final_grid.ptr<float>(i);
-            for (int j = 0; j < final_grid.cols; ++j) {
-              if (!Finite(row[j])) continue;
-              const float refined = RefineLsc(l, r, j * g, i * g, row[j], half, options.lsc_iterations);
-              if (Finite(refined)) row[j] = refined;
-            }
-          }
-        });
-      }
-      for (int i = 0; i < final_grid.rows; ++i) {
-        const float* fg = final_grid.ptr<float>(i);
-        float* fc = final_corr.ptr<float>(i);
-        for (int j = 0; j < final_grid.cols; ++j)
-          if (!Finite(fg[j])) fc[j] = kNaN;
-      }
+      FinalLevelOutputs(averaged, corr_l, l, r, g, window, options.lsc_iterations, &lw, &final_grid, &final_corr);
     } else {
       const float fallback = static_cast<float>(0.5 * (options.min_disparity + options.max_disparity) / scale);
       pred_left = FillForPrediction(averaged, fallback, &lw.pred_l);
