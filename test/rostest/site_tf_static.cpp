@@ -2,7 +2,7 @@
 // seconds after playback began sees `site` (latched /tf_static), and the
 // deformation estimator, which reads the site file, is up. Also ROS's own
 // command-line tools on the graph's interfaces (issue 38): `rostopic echo -n 1`
-// of an output topic of each message type, `rosservice call` of every service.
+// of an output topic of each message package, `rosservice call` of every service.
 #include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
@@ -87,19 +87,6 @@ bool AnyGraphNode(const std::set<std::string>& nodes) {
   return false;
 }
 
-// Every graph_ready parameter but this node's own is true (replay_start's test).
-bool OthersReady() {
-  std::vector<std::string> names;
-  ros::param::getParamNames(names);
-  const std::string own = ros::this_node::getName() + "/graph_ready";
-  for (const std::string& n : names) {
-    if (n == own || n.size() < 12 || n.compare(n.size() - 12, 12, "/graph_ready") != 0) continue;
-    bool ready = false;
-    if (!ros::param::get(n, ready) || !ready) return false;
-  }
-  return true;
-}
-
 struct Echo {
   std::string topic;
   bool message_expected = true;  // false: a type this survey sends nothing on (`listen`)
@@ -129,63 +116,6 @@ pid_t StartEcho(const std::string& topic, const std::string& output_file) {
   if (posix_spawnp(&pid, "rostopic", &actions, nullptr, args.data(), environ) != 0) pid = -1;
   posix_spawn_file_actions_destroy(&actions);
   return pid;
-}
-
-// Runs first (gtest runs a suite's tests in the order of the file): holds the
-// player (this node's graph_ready) until an echo listens on one output topic of
-// each message type the graph publishes.
-TEST(SiteTfStatic, AnEchoListensOnEveryOutputTypeBeforeThePlayback) {
-  ros::NodeHandle pnh("~");
-  struct Release {  // replay_start plays the bag when this test ends, however it ends
-    ros::NodeHandle nh;
-    ~Release() { nh.setParam("graph_ready", true); }
-  } release{pnh};
-  std::vector<std::string> topics, listen;
-  std::string tools_dir;
-  ASSERT_TRUE(pnh.getParam("echo", topics) && pnh.getParam("listen", listen) &&
-              pnh.getParam("tools_dir", tools_dir));
-  const size_t with_message = topics.size();
-  topics.insert(topics.end(), listen.begin(), listen.end());
-  ASSERT_TRUE(WaitFor(OthersReady, 120.0)) << "the graph's nodes did not come up";
-  std::map<std::string, std::string> type_of;  // topic -> message type
-  ros::master::V_TopicInfo infos;
-  ros::master::getTopics(infos);
-  for (const ros::master::TopicInfo& t : infos) type_of[t.name] = t.datatype;
-  std::set<std::string> echoed_types;
-  for (const std::string& t : topics) {
-    EXPECT_TRUE(type_of.count(t)) << t << " (in the test's echo list) is not advertised";
-    echoed_types.insert(type_of[t]);
-  }
-  for (const auto& [topic, nodes] : SystemState(0)) {
-    // rosout and the nodelet manager's bond are ROS's, not the graph's outputs
-    if (topic == "/rosout" || (topic.size() > 5 && topic.compare(topic.size() - 5, 5, "/bond") == 0) ||
-        !AnyGraphNode(nodes))
-      continue;
-    EXPECT_TRUE(echoed_types.count(type_of[topic]))
-        << "the graph publishes " << topic << " [" << type_of[topic]
-        << "], a type no topic of the test's echo list has";
-  }
-  std::filesystem::create_directories(tools_dir);
-  for (const std::string& t : topics) {
-    Echo e{t, echoes.size() < with_message, -1, tools_dir + "/echo" + std::to_string(echoes.size()) + ".txt"};
-    e.pid = StartEcho(t, e.output_file);
-    ASSERT_GT(e.pid, 0) << "cannot start rostopic";
-    echoes.push_back(e);
-  }
-  const bool listening = WaitFor(
-      [&] {
-        const auto subs = SystemState(1);
-        for (const std::string& t : topics) {
-          bool found = false;
-          auto it = subs.find(t);
-          if (it != subs.end())
-            for (const std::string& n : it->second) found = found || n.rfind("/rostopic_", 0) == 0;
-          if (!found) return false;
-        }
-        return true;
-      },
-      60.0);
-  ASSERT_TRUE(listening) << "a rostopic echo did not subscribe within 60 s";
 }
 
 TEST(SiteTfStatic, ALateListenerSeesTheSiteFrame) {
@@ -258,11 +188,87 @@ TEST(SiteTfStatic, TheSiteFilesCamerasAreServedAndEveryEpochSolved) {
       << " s of bag time after the replay began";
 }
 
-// Runs last, after both epochs, while the graph is up: `rosservice call` of
-// every service of the graph answers; each echo of `echo` printed one message
-// and ended with status 0, each of `listen` still listens, without an error.
-TEST(SiteTfStatic, EveryServiceAnswersAndEveryEchoPrintsAMessage) {
+// Echoes one latched output topic of each message package the graph
+// publishes (`echo`; the test fails when a package has none: a package's
+// Python module loads all its types at once), and subscribes to `listen`
+// (topics this survey sends nothing on, or not latched: the type loaded, no
+// error). Starts them; StartEchoes' caller collects them with CheckEchoes.
+void StartEchoes(const ros::NodeHandle& pnh) {
+  std::vector<std::string> topics, listen;
+  std::string tools_dir;
+  ASSERT_TRUE(pnh.getParam("echo", topics) && pnh.getParam("listen", listen) &&
+              pnh.getParam("tools_dir", tools_dir));
+  const size_t with_message = topics.size();
+  topics.insert(topics.end(), listen.begin(), listen.end());
+  std::map<std::string, std::string> type_of;  // topic -> message type
+  ros::master::V_TopicInfo infos;
+  ros::master::getTopics(infos);
+  for (const ros::master::TopicInfo& t : infos) type_of[t.name] = t.datatype;
+  const auto package = [](const std::string& type) { return type.substr(0, type.find('/')); };
+  std::set<std::string> echoed_packages;
+  for (const std::string& t : topics) {
+    EXPECT_TRUE(type_of.count(t)) << t << " (in the test's echo list) is not advertised";
+    echoed_packages.insert(package(type_of[t]));
+  }
+  for (const auto& [topic, nodes] : SystemState(0)) {
+    // rosout and the nodelet manager's bond are ROS's, not the graph's outputs
+    if (topic == "/rosout" || (topic.size() > 5 && topic.compare(topic.size() - 5, 5, "/bond") == 0) ||
+        !AnyGraphNode(nodes))
+      continue;
+    EXPECT_TRUE(echoed_packages.count(package(type_of[topic])))
+        << "the graph publishes " << topic << " [" << type_of[topic]
+        << "], a message package no topic of the test's echo list has";
+  }
+  std::filesystem::create_directories(tools_dir);
+  for (const std::string& t : topics) {
+    Echo e{t, echoes.size() < with_message, -1, tools_dir + "/echo" + std::to_string(echoes.size()) + ".txt"};
+    e.pid = StartEcho(t, e.output_file);
+    ASSERT_GT(e.pid, 0) << "cannot start rostopic";
+    echoes.push_back(e);
+  }
+}
+
+// A `rostopic echo` node subscribes to `topic`.
+bool EchoSubscribed(const std::string& topic) {
+  const auto subs = SystemState(1);
+  const auto it = subs.find(topic);
+  if (it == subs.end()) return false;
+  for (const std::string& n : it->second)
+    if (n.rfind("/rostopic_", 0) == 0) return true;
+  return false;
+}
+
+void CheckEchoes() {
+  for (Echo& e : echoes) {
+    int status = -1;
+    bool ended = false, subscribed = false;
+    if (e.message_expected)
+      ended = WaitFor([&] { return waitpid(e.pid, &status, WNOHANG) == e.pid; }, 30.0);
+    else
+      subscribed = WaitFor([&] { return EchoSubscribed(e.topic); }, 30.0);
+    if (!ended) {
+      kill(e.pid, SIGKILL);
+      waitpid(e.pid, &status, 0);
+    }
+    const std::string out = ReadText(e.output_file);
+    const std::string what = "rostopic echo -n 1 " + e.topic + " printed:\n" + out;
+    if (e.message_expected) {
+      EXPECT_TRUE(ended && WIFEXITED(status) && WEXITSTATUS(status) == 0)
+          << (ended ? "failed; " : "no message within 30 s; ") << what;
+      EXPECT_NE(out.find("\n---"), std::string::npos) << what;
+    } else {
+      EXPECT_TRUE(subscribed) << "did not subscribe within 30 s; " << what;
+      EXPECT_EQ(out.find("ERROR"), std::string::npos) << what;
+    }
+  }
+}
+
+// Runs last, after both epochs, while the graph is up: `rostopic echo -n 1` of
+// an output topic of each message package prints it and ends with status 0;
+// `rosservice call` of every service of the graph answers (issue 38).
+TEST(SiteTfStatic, RosToolsEchoEveryOutputPackageAndCallEveryService) {
   ros::NodeHandle pnh("~");
+  StartEchoes(pnh);  // they run while the services are called
   XmlRpc::XmlRpcValue calls;
   std::string report_dir;
   ASSERT_TRUE(pnh.getParam("services", calls) && pnh.getParam("report_dir", report_dir));
@@ -289,26 +295,7 @@ TEST(SiteTfStatic, EveryServiceAnswersAndEveryEchoPrintsAMessage) {
   // export_report wrote its CSV where it said
   EXPECT_TRUE(std::filesystem::exists(report_dir + "/ros_tools/deformation.csv"))
       << report_dir << "/ros_tools";
-
-  for (Echo& e : echoes) {
-    int status = -1;
-    const bool ended =
-        WaitFor([&] { return waitpid(e.pid, &status, WNOHANG) == e.pid; }, e.message_expected ? 30.0 : 0.0);
-    if (!ended) {
-      kill(e.pid, SIGKILL);
-      waitpid(e.pid, &status, 0);
-    }
-    const std::string out = ReadText(e.output_file);
-    const std::string what = "rostopic echo -n 1 " + e.topic + " printed:\n" + out;
-    if (e.message_expected) {
-      EXPECT_TRUE(ended && WIFEXITED(status) && WEXITSTATUS(status) == 0)
-          << (ended ? "failed; " : "no message after both epochs; ") << what;
-      EXPECT_NE(out.find("\n---"), std::string::npos) << what;
-    } else {
-      EXPECT_FALSE(ended) << "ended although nothing is sent on it; " << what;
-      EXPECT_EQ(out.find("ERROR"), std::string::npos) << what;
-    }
-  }
+  CheckEchoes();
   rusage tools{};
   getrusage(RUSAGE_CHILDREN, &tools);
   std::cout << "ROS tools: " << echoes.size() << " rostopic echo, " << calls.size()
