@@ -312,6 +312,11 @@ bool FitBoardImage(const std::vector<Eigen::Vector2d>& centres, const Growth& be
 
 }  // namespace
 
+namespace detail {
+// board_list_fit.cpp
+LatticeFit FitListLayout(const std::vector<Eigen::Vector2d>& centres, const BoardLayout& layout);
+}  // namespace detail
+
 Eigen::Vector2d BoardLayout::Position(int i, int j) const {
   if (kind == Kind::kHex) return Eigen::Vector2d((i + 0.5 * j) * pitch, j * kSqrt3Half * pitch);
   return Eigen::Vector2d(i * pitch, j * pitch);
@@ -364,12 +369,7 @@ LatticeFit FitLattice(const std::vector<Eigen::Vector2d>& centres,
                       const std::vector<double>& outer_diameters, const BoardLayout& layout,
                       int image_width, int image_height) {
   LatticeFit fit;
-  if (layout.kind == BoardLayout::Kind::kList) {
-    fit.message = Message("layout '", layout.source,
-                          "': fitting a list of positions without a pose is not done; give a "
-                          "lattice (hex or square with pitch)");
-    return fit;
-  }
+  if (layout.kind == BoardLayout::Kind::kList) return detail::FitListLayout(centres, layout);
   const int n = static_cast<int>(centres.size());
   if (n < 6) {
     fit.message = Message("layout '", layout.source, "': ", n,

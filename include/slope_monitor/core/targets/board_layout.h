@@ -32,8 +32,20 @@
 // outer diameter / neighbour distance is compared with the layout's and a
 // disagreement of more than 25 % is reported in LatticeFit::warning (the
 // numbering is unaffected). A wrong lattice (square for hex) fails with a
-// message. A list of positions is read and checked, but fitting a list
-// without a pose is not done yet (FitLattice says so).
+// message.
+//
+// A list of positions (no pose needed): each detection and its nearest
+// detection against each listed position and one of its 3 nearest listed
+// neighbours give a similarity; the one that brings the most listed
+// positions within a quarter of that distance of a detection wins, then a
+// homography is fitted to the matches and the matching repeated. A listed
+// marker's id (and row) is its index in the list (col 0): the list's order
+// numbers the board absolutely. Fewer than half of the listed or detected
+// markers matched (at least 4), or fewer than 80 % of the matches within 3 %
+// of the neighbour distance of the fitted image: "does not fit". No
+// distortion terms (a strong lens may need a lattice or a pose); a
+// symmetric list (a regular lattice given as a list) has several equally
+// good numberings, of which one is taken: give such a board as a lattice.
 #pragma once
 
 #include <string>
@@ -64,7 +76,7 @@ struct BoardLayout {
 struct LatticeMarker {
   int observation = -1;            // index into the centres given
   int row = 0, col = 0;            // lattice index (see the header comment)
-  int id = 0;                      // row * (cols or columns seen) + col
+  int id = 0;                      // row * (cols or columns seen) + col; list: index in the list
   Eigen::Vector2d board{0, 0};     // [mm] relative to the lattice origin
   Eigen::Vector2d residual{0, 0};  // [px] measured minus the fitted board position
   bool inlier = false;             // |residual| <= max(1 px, 4 x the median |residual|)
