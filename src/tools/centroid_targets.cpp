@@ -141,6 +141,14 @@ void IdentifyOnLayout(const std::string& image, const targets::BoardLayout& layo
     return;
   }
   for (const targets::LatticeMarker& m : fit.markers) r->observations[which[m.observation]].id = m.id;
+  if (layout.kind == targets::BoardLayout::Kind::kList) {
+    std::fprintf(stderr,
+                 "%s: layout: %zu of %zu listed markers, RMS %.3f px (homography), %zu circles off "
+                 "the list\n",
+                 image.c_str(), fit.markers.size(), layout.positions.size(), fit.rms_px,
+                 fit.off_lattice.size());
+    return;
+  }
   std::fprintf(stderr,
                "%s: lattice: %zu markers on %d rows x %d columns, RMS %.3f px (homography alone "
                "%.3f px), %zu circles off the lattice\n",
