@@ -293,8 +293,8 @@ std::string WriteDisplacementGeoTiff(const Snapshot& s, const std::string& path,
   if (static_cast<double>(width) * height > 5e7)
     throw InvalidArgument(Message("GeoTIFF '", path, "' would have ", width, " x ", height,
                                   " cells; increase grid_resolution"));
+  // nodata NaN, the band's nodata value, as in every GeoTIFF of the package (io::GeoRaster)
   io::GeoRaster r(std::max(1, width), std::max(1, height), x0, y1, cell);
-  r.nodata = -9999.0;
   const std::optional<SiteCrs> site = ReportSiteCrs(options);
   if (site) r.srs_wkt = site->CrsWkt();
   // Cells farther than grid_margin outside the points' convex hull stay nodata.

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -132,6 +133,29 @@ TEST(PlotReport, MissingOrCorruptHistoryIsNamed) {
   } catch (const IoError& e) {
     EXPECT_NE(std::string(e.what()).find("exit status 2"), std::string::npos) << e.what();
   }
+}
+
+// A picture that cannot be written (here a folder where the file goes; a
+// full disk alike) ends with one line naming it and exit status 1, no
+// traceback, no temporary left (issue 38).
+TEST(PlotReport, AnUnwritablePictureIsOneLineWithoutTraceback) {
+  PlotTempDir dir;
+  const std::string db = dir.path + "/slope.db";
+  FillHistory(db);
+  const std::string out = dir.path + "/out";
+  const std::string blocked = out + "/deformation_series.png";
+  std::filesystem::create_directories(blocked);
+  const std::string err = dir.path + "/stderr";
+  const int status =
+      std::system(("'" + kScript + "' --history '" + db + "' --out '" + out + "' 2> '" + err + "'").c_str());
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+  std::ifstream in(err);
+  std::stringstream s;
+  s << in.rdbuf();
+  EXPECT_EQ(s.str(), "plot_report: cannot write '" + blocked +
+                         "': Is a directory; the pictures not yet written keep their previous version\n");
+  for (const auto& f : std::filesystem::directory_iterator(out))
+    EXPECT_EQ(f.path().filename().string().rfind(".plot_report-", 0), std::string::npos) << f.path();
 }
 
 }  // namespace
