@@ -28,13 +28,14 @@ using namespace slope_monitor::targets;
 namespace {
 
 const std::vector<double> kSweepSizes = {8, 12, 20, 35, 60, 100, 150};  // [px]
-const std::vector<double> kSweepBlurs = {0.0, 0.7, 1.2};              // [px] sigma
+const std::vector<double> kSweepBlurs = {0.0, 0.7, 1.2};                // [px] sigma
 
 struct Geometry {
   const char* name;
   double tilt_deg, off_axis_deg;
 };
-const std::vector<Geometry> kSweepGeometries = {{"facing", 0.0, 0.0}, {"tilted 40, 25 off axis", 40.0, 25.0}};
+const std::vector<Geometry> kSweepGeometries = {{"facing", 0.0, 0.0},
+                                                {"tilted 40, 25 off axis", 40.0, 25.0}};
 
 // Measures one shot; false (with the reason) when the target is not measured.
 bool MeasureShot(const testing::DesignShot& shot, Eigen::Vector2d* err, Eigen::Matrix2d* cov,
@@ -60,7 +61,9 @@ bool MeasureShot(const testing::DesignShot& shot, Eigen::Vector2d* err, Eigen::M
 // --one: one render, everything the centroider says about it.
 int ShowOne(int argc, char** argv) {
   if (argc < 8) {
-    std::fprintf(stderr, "usage: bench_targets_design_sweep --one design size tilt off_axis blur seed [png]\n");
+    std::fprintf(
+        stderr,
+        "usage: bench_targets_design_sweep --one design size tilt off_axis blur seed [png]\n");
     return 1;
   }
   testing::DesignShotSpec s;
@@ -80,12 +83,14 @@ int ShowOne(int argc, char** argv) {
   std::printf("%dx%d, truth (%.4f, %.4f)\n", shot.image.cols, shot.image.rows, shot.truth.x(),
               shot.truth.y());
   for (const Observation& ob : r.observations)
-    std::printf("  circle/%d %s error (%+.4f, %+.4f) sigma (%.4f, %.4f) size %.2f blur %.2f residual %.4f persp (%.3f, %.3f) gray error (%+.4f, %+.4f)\n",
-                ob.id, CircleDesignName(ob.design).c_str(), ob.centre.x() - shot.truth.x(),
-                ob.centre.y() - shot.truth.y(), std::sqrt(ob.covariance(0, 0)),
-                std::sqrt(ob.covariance(1, 1)), ob.size_px, ob.edge_blur, ob.fit_residual,
-                ob.perspective_correction.x(), ob.perspective_correction.y(),
-                ob.gray_centroid.x() - shot.truth.x(), ob.gray_centroid.y() - shot.truth.y());
+    std::printf(
+        "  circle/%d %s error (%+.4f, %+.4f) sigma (%.4f, %.4f) size %.2f blur %.2f residual %.4f "
+        "persp (%.3f, %.3f) gray error (%+.4f, %+.4f)\n",
+        ob.id, CircleDesignName(ob.design).c_str(), ob.centre.x() - shot.truth.x(),
+        ob.centre.y() - shot.truth.y(), std::sqrt(ob.covariance(0, 0)),
+        std::sqrt(ob.covariance(1, 1)), ob.size_px, ob.edge_blur, ob.fit_residual,
+        ob.perspective_correction.x(), ob.perspective_correction.y(),
+        ob.gray_centroid.x() - shot.truth.x(), ob.gray_centroid.y() - shot.truth.y());
   for (const Rejection& rj : r.rejections)
     std::printf("  rejected at (%.1f, %.1f): %s: %s\n", rj.where.x(), rj.where.y(),
                 RejectReasonName(rj.reason).c_str(), rj.detail.c_str());
@@ -104,8 +109,9 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: bench_targets_design_sweep [renders per cell >= 1]\n");
     return 1;
   }
-  std::printf("%d renders per cell; RMS error per coordinate [px] (measured/rendered) median |e|/sigma\n",
-              trials);
+  std::printf(
+      "%d renders per cell; RMS error per coordinate [px] (measured/rendered) median |e|/sigma\n",
+      trials);
   std::map<std::string, int> misses;
   // Summary per design: by size band (8-12, 20-35, 60-150 px) and blur, both geometries.
   std::map<std::string, testing::CentreErrors> bands;
@@ -136,15 +142,16 @@ int main(int argc, char** argv) {
               e.Add(err, cov);
             } else {
               char key[96];
-              std::snprintf(key, sizeof(key), "%s, %s, %.0f px, blur %.1f: ",
-                            CircleDesignName(dc.design).c_str(), g.name, size, blur);
+              std::snprintf(key, sizeof(key),
+                            "%s, %s, %.0f px, blur %.1f: ", CircleDesignName(dc.design).c_str(),
+                            g.name, size, blur);
               ++misses[key + why];
             }
           }
           std::printf(" %.4f (%2d/%2d) %4.2f |", e.Rms(), e.measured(), e.rendered, e.MedianZ());
           char key[64];
-          std::snprintf(key, sizeof(key), "%-12s %-6s px, blur %.1f", CircleDesignName(dc.design).c_str(),
-                        band_of(size), blur);
+          std::snprintf(key, sizeof(key), "%-12s %-6s px, blur %.1f",
+                        CircleDesignName(dc.design).c_str(), band_of(size), blur);
           bands[key].Add(e);
         }
         std::printf("\n");
@@ -152,10 +159,12 @@ int main(int argc, char** argv) {
       }
     }
   }
-  std::printf("\nby design, size band and blur (both geometries): RMS [px] (measured/rendered) median |e|/sigma\n");
+  std::printf(
+      "\nby design, size band and blur (both geometries): RMS [px] (measured/rendered) median "
+      "|e|/sigma\n");
   for (const auto& b : bands)
-    std::printf("  %s: %.4f (%3d/%3d) %4.2f\n", b.first.c_str(), b.second.Rms(), b.second.measured(),
-                b.second.rendered, b.second.MedianZ());
+    std::printf("  %s: %.4f (%3d/%3d) %4.2f\n", b.first.c_str(), b.second.Rms(),
+                b.second.measured(), b.second.rendered, b.second.MedianZ());
   std::printf("\nmisses:\n");
   for (const auto& m : misses) std::printf("  %dx %s\n", m.second, m.first.c_str());
   return 0;

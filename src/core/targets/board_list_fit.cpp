@@ -9,8 +9,8 @@
 // marker's number is its index in the list (the list's order is the board's
 // numbering, absolute, unlike a lattice's).
 #include <algorithm>
-#include <cmath>
 #include <array>
+#include <cmath>
 
 #include <Eigen/Dense>
 #include <opencv2/calib3d.hpp>
@@ -31,7 +31,6 @@ namespace {
 // matches must be inliers.
 constexpr double kListGate = 0.25, kListInlierShare = 0.03;
 constexpr int kListNeighbours = 3, kListRefinements = 3;
-
 
 Eigen::Vector2d ListApply(const Eigen::Matrix3d& h, const Eigen::Vector2d& p) {
   return (h * p.homogeneous()).hnormalized();
@@ -165,9 +164,10 @@ LatticeFit FitListLayout(const std::vector<Eigen::Vector2d>& centres, const Boar
     match = MatchList(centres, pos, h, gate);
   const int matched = CountMatches(match);
   if (matched < 4 || matched < 0.5 * std::min(centres.size(), pos.size())) {
-    fit.message = Message("layout '", layout.source, "' does not fit: at most ", matched, " of the ",
-                          pos.size(), " listed positions meet one of the ", centres.size(),
-                          " circles (a wrong list, or too few of its markers seen)");
+    fit.message =
+        Message("layout '", layout.source, "' does not fit: at most ", matched, " of the ",
+                pos.size(), " listed positions meet one of the ", centres.size(),
+                " circles (a wrong list, or too few of its markers seen)");
     return fit;
   }
   fit.image_from_board = h;

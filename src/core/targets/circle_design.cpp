@@ -212,8 +212,8 @@ bool SeeRingOrDot(const ImageView& im, const Blob& blob, double disc, double rin
   // A dot: dark ground on (nearly) every ray, and a ground, not texture: its
   // brightest tenth still in the dark quarter of the contrast; the dot at
   // least circle_min_diameter across on average (a speck of texture is
-// smaller; to within 10 %: the blob's size at the midpoint threshold shrinks a
-// little with blur and noise).
+  // smaller; to within 10 %: the blob's size at the midpoint threshold shrinks a
+  // little with blur and noise).
   const double ground_top = Percentile(ground, 0.9);
   const bool uniform = ground_top <= ring + kDotGroundSpread * (disc - ring);
   const bool large = blob.a + blob.b >= kDotSizeShare * min_diameter;

@@ -20,9 +20,8 @@ namespace targets {
 namespace {
 
 const std::vector<Eigen::Vector2d>& ListPositions() {
-  static const std::vector<Eigen::Vector2d> p = {
-      {0, 0},   {35, 4},  {71, -3}, {112, 6},  {8, 41},
-      {52, 47}, {95, 38}, {20, 88}, {63, 95},  {118, 80}};
+  static const std::vector<Eigen::Vector2d> p = {{0, 0},   {35, 4},  {71, -3}, {112, 6}, {8, 41},
+                                                 {52, 47}, {95, 38}, {20, 88}, {63, 95}, {118, 80}};
   return p;
 }
 
@@ -97,7 +96,8 @@ TEST(BoardList, WrongListIsNamed) {
   const LatticeFit fit = FitLattice(centres, {}, board);
   EXPECT_FALSE(fit.ok);
   EXPECT_NE(fit.message.find("does not fit"), std::string::npos) << fit.message;
-  std::printf("wrong list: %s (%zu matched, RMS %.3f px)\n", fit.message.c_str(), fit.markers.size(), fit.rms_px);
+  std::printf("wrong list: %s (%zu matched, RMS %.3f px)\n", fit.message.c_str(),
+              fit.markers.size(), fit.rms_px);
 }
 
 }  // namespace

@@ -78,20 +78,20 @@ inline Pattern DesignPattern(const DesignCase& dc, double r) {
 // optical axis, optical blur and noise.
 struct DesignShotSpec {
   CircleDesign design = CircleDesign::kDiscInRing;
-  double centre_px = 30.0;  // [px] light-centre diameter: the major axis of its image
-  double tilt_deg = 0.0;    // [deg] obliquity: plate normal vs the line of sight
+  double centre_px = 30.0;    // [px] light-centre diameter: the major axis of its image
+  double tilt_deg = 0.0;      // [deg] obliquity: plate normal vs the line of sight
   double off_axis_deg = 0.0;  // [deg] plate centre off the optical axis
-  double blur_px = 0.0;     // [px] Gaussian optical blur sigma (0: the pixel area only)
-  bool noisy = true;        // read noise 1 DN + shot noise (50 photons / DN)
-  unsigned seed = 1;        // sub-pixel position, tilt azimuth, spin, noise
+  double blur_px = 0.0;       // [px] Gaussian optical blur sigma (0: the pixel area only)
+  bool noisy = true;          // read noise 1 DN + shot noise (50 photons / DN)
+  unsigned seed = 1;          // sub-pixel position, tilt azimuth, spin, noise
 };
 
 struct DesignShot {
-  cv::Mat image;                    // mono8
-  Eigen::Vector2d truth{0, 0};      // [px] projected centre of the light centre
+  cv::Mat image;                // mono8
+  Eigen::Vector2d truth{0, 0};  // [px] projected centre of the light centre
   camera::CameraModel camera;
   camera::ExteriorOrientation pose;
-  io::TargetList list;              // the plate as circle/1 (position, normal, size)
+  io::TargetList list;  // the plate as circle/1 (position, normal, size)
 };
 
 constexpr double kDesignShotFocal = 500.0;  // [px]
@@ -158,12 +158,14 @@ inline DesignShot RenderDesignShot(const DesignShotSpec& s) {
     for (int j = i + 1; j < 72; ++j) {
       const double ai = 2 * M_PI * i / 72, aj = 2 * M_PI * j / 72;
       widest = std::max(widest, (Apply(h, r0 * std::cos(ai), r0 * std::sin(ai)) -
-                                 Apply(h, r0 * std::cos(aj), r0 * std::sin(aj))).norm());
+                                 Apply(h, r0 * std::cos(aj), r0 * std::sin(aj)))
+                                    .norm());
     }
   }
   const double r = r0 * s.centre_px / widest;  // [m]
   RenderPlate(&f, h, DesignPattern(dc, r), dc.plate_radii * r, ro);
-  if (s.blur_px > 0.0) cv::GaussianBlur(f, f, cv::Size(0, 0), s.blur_px, s.blur_px, cv::BORDER_REPLICATE);
+  if (s.blur_px > 0.0)
+    cv::GaussianBlur(f, f, cv::Size(0, 0), s.blur_px, s.blur_px, cv::BORDER_REPLICATE);
   out.image = ToMono8(f, ro);
   out.truth = Apply(h, 0.0, 0.0);
   io::TargetSpec spec;

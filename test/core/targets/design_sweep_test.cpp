@@ -25,7 +25,7 @@ struct SweepShot {
 };
 
 const std::vector<SweepShot>& SweepShots() {
-  static const std::vector<SweepShot> s = {{8, 0, 0, 0},   {40, 0, 0, 0},  {150, 0, 0, 0},
+  static const std::vector<SweepShot> s = {{8, 0, 0, 0},    {40, 0, 0, 0},    {150, 0, 0, 0},
                                            {40, 40, 25, 0}, {150, 40, 25, 0}, {40, 0, 0, 1.2}};
   return s;
 }
