@@ -73,6 +73,7 @@
 #include "slope_monitor/core/deformation/plot_report.h"
 #include "slope_monitor/core/deformation/report.h"
 #include "slope_monitor/core/evaluation/deformation_truth.h"
+#include "slope_monitor/core/io/safe_file.h"
 #include "slope_monitor/core/targets/options_reader.h"
 #include "slope_monitor/ros/adjuster_step.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
@@ -178,6 +179,10 @@ void CheckInputFiles(const Args& a) {
        {&a.site, &a.site_config, &a.target_list, &a.radio_network, &a.adjuster_config})
     if (!f->empty() && !fs::is_regular_file(*f))
       throw InvalidArgument("file '" + *f + "' not found");
+  // Fail early (issue 38): the outputs' folders are written before a message is processed.
+  io::CheckFolderWritable(a.report_dir, "--report-dir");
+  const fs::path database_folder = fs::path(a.database).parent_path();
+  io::CheckFolderWritable(database_folder.empty() ? "." : database_folder.string(), "folder of --database");
 }
 
 // The targets, as replay.launch finds them: the site file's when it lists

@@ -356,6 +356,28 @@ TEST(ProcessBag, BadInputIsNamed) {
   }
 }
 
+// Fail early (issue 38): a report folder that cannot be written is named
+// before a message is processed, exit status 1 (it was found at the end).
+TEST(ProcessBag, UnwritableReportFolderIsNamedBeforeProcessing) {
+  const fs::path dir = Scratch("unwritable_reports");
+  std::ofstream(dir / "file") << "x";
+  const std::string reports = (dir / "file" / "reports").string();
+  const std::vector<std::string> args = {SM_PROCESS_BAG,
+                                         "--bag",
+                                         Survey("full_graph_replay", ".bag"),
+                                         "--database",
+                                         (dir / "history.db").string(),
+                                         "--report-dir",
+                                         reports};
+  ASSERT_EQ(Wait(Spawn(args, dir)), 1) << ReadFile(dir / "stderr");
+  const std::string err = ReadFile(dir / "stderr");
+  EXPECT_NE(err.find("process_bag: --report-dir '" + reports + "' cannot be created: Not a directory"),
+            std::string::npos)
+      << err;
+  EXPECT_EQ(err.find("messages of 1 bag(s)"), std::string::npos) << "processed before failing:\n" << err;
+  EXPECT_FALSE(fs::exists(dir / "history.db")) << "the history was written before failing";
+}
+
 // A bag cut in the middle (no index): reindexed in a temporary copy, said
 // with the file's name, processed up to the break; the break named at the
 // end and exit status 2 (issue 38).

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <vector>
 
 #include "slope_monitor/core/common/error.h"
@@ -144,6 +145,23 @@ std::string ResolveSubfolder(const std::string& root, const std::string& subfold
     throw InvalidArgument(
         Message(what, " resolves to '", resolved, "', outside '", real_root, "'"));
   return resolved;
+}
+
+void CheckFolderWritable(const std::string& folder, const std::string& what) {
+  std::error_code ec;
+  std::filesystem::create_directories(folder, ec);
+  if (ec)
+    throw IoError(Message(what, " '", Printable(folder), "' cannot be created: ", ec.message()));
+  std::string probe = folder + "/.write_probe.XXXXXX";
+  std::vector<char> buf(probe.begin(), probe.end());
+  buf.push_back('\0');
+  Fd fd(mkstemp(buf.data()));
+  if (fd.get() < 0)
+    throw IoError(Message(what, " '", Printable(folder), "' is not writable: ", Errno()));
+  const bool wrote = write(fd.get(), "x", 1) == 1;
+  const std::string why = wrote ? "" : Errno();
+  unlink(buf.data());
+  if (!wrote) throw IoError(Message(what, " '", Printable(folder), "' is not writable: ", why));
 }
 
 void WriteFileAtomically(const std::string& path, const std::string& content) {

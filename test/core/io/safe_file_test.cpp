@@ -137,6 +137,24 @@ TEST_F(SafeFileTest, MissingFolderNamesThePath) {
   }
 }
 
+// Fail early (issue 38): a folder that can be written is created and left
+// empty; one that cannot (under a regular file: refused even for root) is
+// named with the option and the reason.
+TEST_F(SafeFileTest, CheckFolderWritableCreatesOrNamesTheFolder) {
+  const std::string ok = root_ + "/a/b";
+  CheckFolderWritable(ok, "--report-dir");
+  EXPECT_TRUE(fs::is_directory(ok));
+  EXPECT_EQ(EntriesUnder(ok), 0u) << "the probe file was left behind";
+  std::ofstream(root_ + "/file") << "x";
+  const std::string bad = root_ + "/file/reports";
+  try {
+    CheckFolderWritable(bad, "--report-dir");
+    FAIL() << "no exception";
+  } catch (const IoError& e) {
+    EXPECT_EQ(std::string(e.what()), "--report-dir '" + bad + "' cannot be created: Not a directory");
+  }
+}
+
 TEST(IdProblem, SixtyFourPrintableCharactersAtMost) {
   EXPECT_EQ(IdProblem("tag36h11/5"), "");
   EXPECT_EQ(IdProblem(std::string(64, 'p')), "");

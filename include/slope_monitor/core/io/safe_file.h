@@ -43,5 +43,11 @@ std::string ResolveSubfolder(const std::string& root, const std::string& subfold
 // never opened, so a link at it is replaced rather than followed.
 void WriteFileAtomically(const std::string& path, const std::string& content);
 
+// Fail early: creates `folder` (mkdir -p) and writes and removes a probe
+// file in it (mkstemp), so a run finds an unwritable output folder before it
+// works, not at its end. Throws IoError naming `what` (e.g. "--report-dir"),
+// the folder and the reason.
+void CheckFolderWritable(const std::string& folder, const std::string& what);
+
 }  // namespace io
 }  // namespace slope_monitor
