@@ -62,6 +62,7 @@
 #include "slope_monitor/core/flight/flight_surface.h"
 #include "slope_monitor/core/io/gcp_list.h"
 #include "slope_monitor/core/io/geo_list.h"
+#include "slope_monitor/core/io/safe_file.h"
 #include "slope_monitor/core/io/site_file.h"
 
 using namespace slope_monitor;
@@ -441,6 +442,7 @@ int main(int argc, char** argv) {
   }
   int failed = 0, skipped = 0;
   try {
+    io::CheckFolderWritable(args.out, "--out");  // fail early (issue 38): before any photo is read
     std::optional<io::GcpList> gcp;
     if (!args.gcp.empty()) gcp = io::ReadGcpList(args.gcp);
     if (gcp && !HasHeights(*gcp))

@@ -197,6 +197,15 @@ TEST(ProcessFlight, BadInputIsNamedWithExitOne) {
   EXPECT_NE(err.find("gcp.txt:2: photo 'IMG_0001.jpg' is not in this flight"), std::string::npos) << err;
   EXPECT_NE(ReadFile(dir / "stdout").find("flight 1: 0 of 1 photos oriented"), std::string::npos);
   EXPECT_NE(err.find("flight 1: no start pair"), std::string::npos) << err;
+
+  // Fail early (issue 38): an --out that cannot be written is named before a photo is read.
+  std::ofstream(dir / "file") << "x";
+  const std::string out = (dir / "file" / "out").string();
+  EXPECT_EQ(RunTool({"--photos", (dir / "one").string(), "--out", out}, dir), 1);
+  EXPECT_NE(ReadFile(dir / "stderr").find("process_flight: --out '" + out + "' cannot be created: Not a directory"),
+            std::string::npos)
+      << ReadFile(dir / "stderr");
+  EXPECT_EQ(ReadFile(dir / "stdout").find("flight 1:"), std::string::npos) << "processed before failing";
 }
 
 }  // namespace
