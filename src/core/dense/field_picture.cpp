@@ -10,6 +10,7 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/numeric.h"
+#include "slope_monitor/core/io/safe_file.h"
 
 namespace slope_monitor {
 namespace dense {
@@ -160,13 +161,17 @@ FieldPictureSummary WriteDisplacementFieldPng(const std::string& path, const cv:
                                               const FieldPictureOptions& options) {
   FieldPictureSummary s;
   const cv::Mat out = DrawDisplacementField(photo, field, model, current, options, &s);
+  // Encoded in memory, then written whole (a temporary in the folder, renamed): a full disk
+  // leaves the previous picture as it was (issue 38).
+  std::vector<uchar> png;
   bool ok = false;
   try {
-    ok = cv::imwrite(path, out);
+    ok = cv::imencode(".png", out, png);
   } catch (const cv::Exception& e) {
-    throw IoError(Message("cannot write the field picture '", path, "': ", e.what()));
+    throw IoError(Message("cannot encode the field picture '", path, "': ", e.what()));
   }
-  if (!ok) throw IoError(Message("cannot write the field picture '", path, "'"));
+  if (!ok) throw IoError(Message("cannot encode the field picture '", path, "'"));
+  io::WriteFileAtomically(path, std::string(png.begin(), png.end()));
   return s;
 }
 
