@@ -116,3 +116,16 @@ sm_source_ws() {
   # shellcheck disable=SC1091
   set +u; source "$SM_WS/devel/setup.bash"; set -u
 }
+
+# --help or -h as the first argument of a script that sources this file: its
+# header comment (the lines after the #! line up to the first line that is not
+# a comment), exit 0, nothing installed, built or written (issue 38). Only for
+# the scripts in this folder ($0), never for a shell that sources lib.sh.
+if [ "$(cd "$(dirname "$0")" 2>/dev/null && pwd)" = "$SM_SRC/scripts" ]; then
+  case "${1:-}" in
+    -h | --help)
+      sed -n '2,/^[^#]/s/^# \{0,1\}//p' "$0"
+      exit 0
+      ;;
+  esac
+fi
