@@ -74,12 +74,12 @@ using namespace slope_monitor;
 
 namespace {
 
-int Usage() {
-  std::cerr
+int Usage(std::ostream& os = std::cerr, int status = 1) {
+  os
       << "usage: track_camera --camera PREFIX --reference A.jpg --image B.jpg [--image C.jpg ...] "
          "[--stable-mask M.png | --stable-polygons F] [--dem DEM.tif] [--max-megapixels MP] --out DIR\n"
          "exit status: 0 all re-oriented, 2 some photos skipped or not re-oriented, 1 none or an error\n";
-  return 1;
+  return status;
 }
 
 camera::CameraModel LoadCamera(const std::string& path) {
@@ -162,6 +162,8 @@ int main(int argc, char** argv) {
   slope_monitor::KeepFreedMemoryForReuse();  // core/common/allocator.h
   try {
     std::map<std::string, std::vector<std::string>> a;
+    // --help: the usage on stdout, exit 0, nothing read or written (issue 38)
+    if (argc == 2 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h")) return Usage(std::cout, 0);
     static const char* kKnown[] = {"--camera",          "--reference", "--image", "--stable-mask",
                                    "--stable-polygons", "--dem",       "--out",   "--max-megapixels"};
     for (int i = 1; i < argc; i += 2) {
