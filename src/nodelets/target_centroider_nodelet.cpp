@@ -85,9 +85,18 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
       });
       return;
     }
+    // A site without targets (a UAV flight tied by its tie points): no target
+    // stage, as in process_bag; each photo gets its empty target list (the
+    // adjuster counts the epoch's photos by them). A real flight's photos
+    // would only give false circles.
+    no_targets_ = site && io::SiteWithoutTargets(*site, node.target_list);
+    if (no_targets_)
+      NODELET_INFO("target_centroider: site '%s' lists no targets and target list '%s' is not there: "
+                   "no target stage (an empty target list per photo)",
+                   site->name.c_str(), node.target_list.c_str());
     site_frame_ = node.site_frame;
-    use_tf_pose_ = node.use_tf_pose;
-    const io::TargetList list = LoadTargets(node, site);
+    use_tf_pose_ = node.use_tf_pose && !no_targets_;
+    const io::TargetList list = no_targets_ ? io::TargetList() : LoadTargets(node, site);
     if (use_tf_pose_) {
       // Poses from /tf and /tf_static on this nodelet's queue, in order with the
       // images. A camera's static pose is the first one received (the
@@ -194,6 +203,17 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
     if (!target_list_error_.empty()) {
       NODELET_ERROR_THROTTLE(30.0, "target_centroider: %s", target_list_error_.c_str());
     }
+    if (no_targets_) {
+      TargetObservationArray none;
+      none.header = image->header;
+      none.camera_name = ch->name;
+      none.image_width = image->width;
+      none.image_height = image->height;
+      ch->targets_pub.publish(none);
+      std::lock_guard<std::mutex> lock(stats_mutex_);
+      ++ch->frames;
+      return;
+    }
     try {
       std::optional<Eigen::Isometry3d> site_from_optical;
       if (use_tf_pose_ && info->K[0] > 0) {
@@ -250,6 +270,7 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
   std::string site_frame_;
   std::string config_error_;       // bad parameters: the node only reports this
   std::string target_list_error_;  // bad target list: measuring without it
+  bool no_targets_ = false;        // io::SiteWithoutTargets: empty target lists only
   bool use_tf_pose_ = true;
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::vector<ros::Subscriber> tf_subs_;

@@ -197,7 +197,17 @@ HexMatcherParameters ReadHexMatcherParameters(ParamReader& p) {
   ReadPrior(p, h.mode == "track", &h);
   h.camera = p.String("camera", h.camera);
   h.site_file = p.String("site_file", h.site_file);
-  if (h.mode == "sequence" && !h.site_file.empty()) UseSiteUavCamera(io::LoadSiteFile(h.site_file), p, &h);
+  h.only_without_targets = p.Bool("only_without_targets", h.only_without_targets);
+  h.target_list = p.String("target_list", h.target_list);
+  if (h.mode == "sequence" && !h.site_file.empty()) {
+    const io::SiteFile site = io::LoadSiteFile(h.site_file);
+    if (h.only_without_targets && !io::SiteWithoutTargets(site, h.target_list))
+      h.idle = "site '" + site.name + "' has targets: its UAV photos are tied by them (uav_tie_points:=true ties them too)";
+    else if (h.only_without_targets && io::CameraNames(site.cameras, io::CameraKind::kUav).empty())
+      h.idle = "site '" + site.name + "' lists no camera of kind uav";
+    else
+      UseSiteUavCamera(site, p, &h);
+  }
   h.site_frame = p.String("site_frame", h.site_frame);
   h.image_queue = p.Int("image_queue", h.image_queue, 1, 100000);
   ReadSequenceOptions(p, &h.sequence);

@@ -5,6 +5,7 @@
 #include "slope_monitor/core/io/site_file.h"
 
 #include <cmath>
+#include <filesystem>
 #include <sstream>
 
 #include "slope_monitor/core/camera/camera_model.h"
@@ -69,12 +70,14 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
     a.targets = *site->targets;
     a.target_list_path =
         site->targets_file.empty() ? site_file + " (inline targets)" : site->targets_file;
+  } else if (site && io::SiteWithoutTargets(*site, a.target_list_path)) {
+    // A site without targets (a UAV flight oriented by its tie points and
+    // GNSS, fixed_targetless cameras) is a normal site: no target list
+    // (replay.launch's default, the bag's <name>.targets.yaml, not there).
+    a.target_list_path = site_file + " (no targets)";
+    a.site_without_targets = true;
   } else if (!a.target_list_path.empty()) {
     a.targets = io::TargetList::Load(a.target_list_path);
-  } else if (site) {
-    // A site without targets (a UAV flight oriented by its tie points and
-    // GNSS, fixed_targetless cameras) is a normal site: no target list.
-    a.target_list_path = site_file + " (no targets)";
   } else {
     throw ConfigError("parameter '" + p.FullKey("target_list") + "' is required (or '" +
                       p.FullKey("site_file") + "' naming a site file with targets)");
@@ -115,7 +118,8 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   c.epoch_wait = p.Double("epoch_wait", c.epoch_wait, 0.0, 3600.0, "s");
   // The UAV cameras' photos wait for their tie points (replay.launch
   // uav_tie_points:=true, process_bag --uav-tie-points).
-  a.uav_tie_points = p.Bool("uav_tie_points", a.uav_tie_points);
+  // A site without targets: its UAV cameras by their tie points (as process_bag).
+  a.uav_tie_points = p.Bool("uav_tie_points", a.uav_tie_points) || a.site_without_targets;
   if (a.uav_tie_points) c.tie_point_cameras = c.uav_cameras;
   c.tie_point_wait = p.Double("tie_point_wait", c.tie_point_wait, 0.0, 86400.0, "s");
   c.tie_pixel_sigma_floor = p.Double("tie_pixel_sigma_floor", c.tie_pixel_sigma_floor, 0.0, 100.0, "px");
@@ -230,7 +234,11 @@ RadioParameters ReadRadioParameters(ParamReader& p) {
     r.has_network = true;
     return r;
   }
-  if (network_file.empty() && truth_file.empty()) return r;
+  // With a site file, a truth file that is not there (replay.launch's
+  // default, the bag's <name>.truth.yaml, on a real site's bag) means what
+  // the site says: no radio network.
+  if (network_file.empty() && (truth_file.empty() || (!site_file.empty() && !std::filesystem::is_regular_file(truth_file))))
+    return r;
   if (network_file.empty() == truth_file.empty())
     throw ConfigError(p.FullKey("network_file") + " / " + p.FullKey("truth_file") +
                       ": set exactly one of them");

@@ -36,6 +36,14 @@ struct HexMatcherParameters {
   // several) and the topics are that camera's, /<camera>/camera/image_raw,
   // /<camera>/camera/position_prior and /<camera>/tie_points; without one,
   // the relative names below (remapped by the launch file).
+  // Sequence mode with a site file, started by the graph for every site
+  // (launch/include/processing_graph.xml): only_without_targets makes the
+  // matcher idle unless the site has no targets (io::SiteWithoutTargets with
+  // target_list: the list the replay looks for beside the bag); idle says
+  // why it idles ("" = it matches).
+  bool only_without_targets = false;
+  std::string target_list;
+  std::string idle;
   std::string camera = "uav";       // written into camera_a and camera_b
   std::string image_topic = "image", prior_topic = "position_prior", tie_topic = "tie_points";
   std::string site_frame = "site";  // frame of position_prior (others ignored)

@@ -1,6 +1,7 @@
 #include "slope_monitor/core/io/site_file.h"
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -231,6 +232,10 @@ std::vector<const SiteCamera*> SiteFile::CamerasWithTargets() const {
   for (const SiteCamera& c : cameras)
     if (c.kind != CameraKind::kFixedTargetless) out.push_back(&c);
   return out;
+}
+
+bool SiteWithoutTargets(const SiteFile& site, const std::string& target_list) {
+  return !site.targets && (target_list.empty() || !std::filesystem::is_regular_file(target_list));
 }
 
 SiteFile ParseSiteFile(const std::string& text, const std::string& context,

@@ -102,6 +102,13 @@ std::vector<SiteCamera> DefaultCameras();
 // The names of the cameras of `kind`, in their order.
 std::vector<std::string> CameraNames(const std::vector<SiteCamera>& cameras, CameraKind kind);
 
+// Whether a run on this site has no targets at all, as process_bag and the
+// graph's nodes decide it alike: the site file lists none and `target_list`
+// (the list given, or the one a replay looks for beside the bag) is "" or
+// not a file. Such a site is normal (a UAV flight oriented by its tie points
+// and GNSS): no target stage, its UAV cameras tied by their tie points.
+bool SiteWithoutTargets(const SiteFile& site, const std::string& target_list);
+
 // Reads and checks a site file (every key validated, unknown keys refused,
 // the CRS checked by PROJ).
 SiteFile LoadSiteFile(const std::string& path);
