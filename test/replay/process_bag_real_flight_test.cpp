@@ -10,7 +10,9 @@
 // Must hold: the capture ends by itself at the end of the folder, the bag
 // holds every photo with its position prior, and process_bag (exit 0) accepts
 // one epoch with every photo oriented (tie points and GNSS only; measured:
-// 8 of 8 photos, 2667 points, 7055 observations, rms 0.35 px, sigma0 1.64).
+// 8 of 8 photos, 2667 points, 7055 observations, rms 0.35 px, sigma0 1.64);
+// replay.launch on the same bag and site (exit 0) accepts the same epoch with
+// the same points and observations.
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <signal.h>
@@ -116,8 +118,8 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
   const fs::path site = dir / "caliterra.yaml";
   std::ofstream(site) << std::setprecision(12) << "name: caliterra\n"
                       << "crs: EPSG:4979\n"
-                      << "origin: [" << exif.gps.longitude_deg << ", " << exif.gps.latitude_deg << ", "
-                      << exif.gps.height_m << "]\n"
+                      << "origin: [" << exif.gps.longitude_deg << ", " << exif.gps.latitude_deg
+                      << ", " << exif.gps.height_m << "]\n"
                       << "cameras:\n"
                       << "  - {name: uav, kind: uav, pixel_size: " << pixel_size << "}\n";
 
@@ -133,30 +135,34 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
   fs::create_directories(dir / "record");
   fs::create_directories(dir / "capture");
   const auto start = std::chrono::steady_clock::now();
-  const pid_t record = Spawn({"roslaunch", "-p", std::to_string(port), "slope_monitor", "record.launch",
-                              "site:=caliterra", "dir:=" + (dir / "bags").string()},
-                             dir / "record", env);
+  const pid_t record =
+      Spawn({"roslaunch", "-p", std::to_string(port), "slope_monitor", "record.launch",
+             "site:=caliterra", "dir:=" + (dir / "bags").string()},
+            dir / "record", env);
   ASSERT_GT(record, 0);
   while (!Listening(port) && std::chrono::steady_clock::now() - start < std::chrono::seconds(60))
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
   ASSERT_TRUE(Listening(port)) << ReadFile(dir / "record" / "stderr");
   const pid_t capture =
-      Spawn({"roslaunch", "slope_monitor", "camera_capture.launch", "ns:=uav/camera", "source:=folder",
-             "folder:=" + photos.string(), "site:=" + site.string()},
+      Spawn({"roslaunch", "slope_monitor", "camera_capture.launch", "ns:=uav/camera",
+             "source:=folder", "folder:=" + photos.string(), "site:=" + site.string()},
             dir / "capture", env);
   const int capture_status = WaitAtMost(capture, std::chrono::seconds(240));
   EXPECT_EQ(capture_status, 0) << "the capture did not end by itself at the end of the folder\n"
-                               << ReadFile(dir / "capture" / "stdout") << ReadFile(dir / "capture" / "stderr");
+                               << ReadFile(dir / "capture" / "stdout")
+                               << ReadFile(dir / "capture" / "stderr");
   std::this_thread::sleep_for(std::chrono::seconds(2));  // the recorder writes what it has queued
   WaitAtMost(record, std::chrono::seconds(60), true);
   std::cout << "capture and record: "
-            << std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() << " s\n";
+            << std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()
+            << " s\n";
 
   std::vector<std::string> bags;
   for (const auto& f : fs::directory_iterator(dir / "bags"))
     if (f.path().extension() == ".bag") bags.push_back(f.path().string());
   std::sort(bags.begin(), bags.end());
-  ASSERT_FALSE(bags.empty()) << ReadFile(dir / "record" / "stdout") << ReadFile(dir / "record" / "stderr");
+  ASSERT_FALSE(bags.empty()) << ReadFile(dir / "record" / "stdout")
+                             << ReadFile(dir / "record" / "stderr");
   // Every photo with its prior, and the epoch marker naming the camera `uav`.
   {
     int images = 0, priors = 0;
@@ -187,15 +193,16 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
     args.push_back(b);
   }
   for (const std::string& a :
-       {std::string("--site"), site.string(), std::string("--database"), (dir / "history.db").string(),
-        std::string("--report-dir"), (dir / "reports").string(), std::string("--output-bag"),
-        (dir / "out.bag").string()})
+       {std::string("--site"), site.string(), std::string("--database"),
+        (dir / "history.db").string(), std::string("--report-dir"), (dir / "reports").string(),
+        std::string("--output-bag"), (dir / "out.bag").string()})
     args.push_back(a);
   const auto process_start = std::chrono::steady_clock::now();
   const int status = replay_test::Wait(Spawn(args, dir));
-  std::cout << "process_bag: "
-            << std::chrono::duration<double>(std::chrono::steady_clock::now() - process_start).count()
-            << " s\n";
+  std::cout
+      << "process_bag: "
+      << std::chrono::duration<double>(std::chrono::steady_clock::now() - process_start).count()
+      << " s\n";
   const std::string err = ReadFile(dir / "stderr");
   EXPECT_EQ(status, 0) << err;
   EXPECT_EQ(err.find("targets.yaml"), std::string::npos) << err;
@@ -204,7 +211,10 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
 
   rosbag::Bag out((dir / "out.bag").string(), rosbag::bagmode::Read);
   int accepted = 0;
-  for (const rosbag::MessageInstance& m : rosbag::View(out, rosbag::TopicQuery("/bundle_adjuster/solution"))) {
+  size_t points = 0;
+  int observations = 0;
+  for (const rosbag::MessageInstance& m :
+       rosbag::View(out, rosbag::TopicQuery("/bundle_adjuster/solution"))) {
     const auto s = m.instantiate<slope_monitor::AdjustmentSolution>();
     ASSERT_TRUE(s);
     EXPECT_TRUE(s->usable) << s->message;
@@ -212,15 +222,50 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
     ++accepted;
     std::set<std::string> photos_oriented;
     for (const auto& c : s->cameras)
-      if (c.camera_name == "uav") photos_oriented.insert(std::to_string(c.image_header.stamp.toNSec()));
+      if (c.camera_name == "uav")
+        photos_oriented.insert(std::to_string(c.image_header.stamp.toNSec()));
     EXPECT_EQ(photos_oriented.size(), 8u) << "every photo oriented";
     EXPECT_LT(s->rms_residual_px, 1.0);
     EXPECT_GT(s->points.size(), 500u);
     std::cout << "epoch " << s->epoch << ": " << photos_oriented.size() << " of 8 photos oriented, "
               << s->points.size() << " points, " << s->num_observations << " observations, rms "
               << s->rms_residual_px << " px, sigma0 " << s->sigma0 << "\n";
+    points = s->points.size();
+    observations = s->num_observations;
   }
   EXPECT_EQ(accepted, 1) << err;
+
+  // The same bag through the graph: replay.launch with the site file and the
+  // defaults (but the dense step, as above) accepts the same epoch with the
+  // same points and observations (its bundle adjuster's log line).
+  ASSERT_EQ(bags.size(), 1u);
+  const int replay_port = FreePort();
+  const std::vector<std::string> replay_env = {
+      "ROS_MASTER_URI=http://127.0.0.1:" + std::to_string(replay_port),
+      "ROS_LOG_DIR=" + (dir / "log").string(), "ROS_HOME=" + (dir / "ros_home").string()};
+  fs::create_directories(dir / "replay");
+  const auto replay_start = std::chrono::steady_clock::now();
+  const int replay_status =
+      WaitAtMost(Spawn({"roslaunch", "-p", std::to_string(replay_port), "slope_monitor",
+                        "replay.launch", "site:=" + site.string(), "bag:=" + bags.front(),
+                        "dense:=false", "database:=" + (dir / "replay.db").string(),
+                        "report_dir:=" + (dir / "replay_reports").string()},
+                       dir / "replay", replay_env),
+                 std::chrono::seconds(300));
+  std::cout
+      << "replay.launch: "
+      << std::chrono::duration<double>(std::chrono::steady_clock::now() - replay_start).count()
+      << " s\n";
+  const std::string log = ReadFile(dir / "replay" / "stdout") + ReadFile(dir / "replay" / "stderr");
+  EXPECT_EQ(replay_status, 0) << log;
+  const std::string accepted_line = "bundle_adjuster: epoch 0 accepted: 8 images, " +
+                                    std::to_string(points) + " points, " +
+                                    std::to_string(observations) + " observations";
+  EXPECT_NE(log.find(accepted_line), std::string::npos) << "expected '" << accepted_line << "' in\n"
+                                                        << log;
+  EXPECT_NE(log.find("no target stage"), std::string::npos) << log;
+  EXPECT_EQ(log.find("not advertising"), std::string::npos) << log;
+  EXPECT_EQ(log.find("cannot open"), std::string::npos) << log;
   // The recording is 200 MB: kept only when something failed.
   if (!::testing::Test::HasFailure()) fs::remove_all(dir / "bags");
 }
@@ -230,20 +275,23 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
 // with one line saying why. A real bag that holds no images (turtlesim).
 TEST(ProcessBagRealFlight, NoTargetListAndNothingSolvedAreNamed) {
   const fs::path dir = replay_test::Scratch("process_bag_real_flight_test", "bad");
-  const std::string bag =
-      (fs::canonical(SM_SOURCE_DIR).parent_path() / "shared" / "data" / "rosbag_turtlesim" / "example.bag").string();
+  const std::string bag = (fs::canonical(SM_SOURCE_DIR).parent_path() / "shared" / "data" /
+                           "rosbag_turtlesim" / "example.bag")
+                              .string();
   ASSERT_TRUE(fs::exists(bag)) << bag;
   EXPECT_EQ(replay_test::Wait(Spawn({SM_PROCESS_BAG, "--bag", bag}, dir)), 1);
-  EXPECT_NE(ReadFile(dir / "stderr").find("no target list: file '" + bag.substr(0, bag.size() - 4) +
-                                          ".targets.yaml' not found"),
+  EXPECT_NE(ReadFile(dir / "stderr")
+                .find("no target list: file '" + bag.substr(0, bag.size() - 4) +
+                      ".targets.yaml' not found"),
             std::string::npos)
       << ReadFile(dir / "stderr");
   const fs::path site = dir / "uav_only.yaml";
   std::ofstream(site) << "name: uav_only\ncrs: EPSG:4979\norigin: [-98.09, 30.17, 364.0]\n"
                          "cameras:\n  - {name: uav, kind: uav, pixel_size: 0.00154}\n";
-  EXPECT_EQ(replay_test::Wait(Spawn({SM_PROCESS_BAG, "--bag", bag, "--site", site.string(), "--database",
-                                     (dir / "history.db").string(), "--report-dir", (dir / "reports").string()},
-                                    dir)),
+  EXPECT_EQ(replay_test::Wait(
+                Spawn({SM_PROCESS_BAG, "--bag", bag, "--site", site.string(), "--database",
+                       (dir / "history.db").string(), "--report-dir", (dir / "reports").string()},
+                      dir)),
             2);
   const std::string err = ReadFile(dir / "stderr");
   EXPECT_NE(err.find("process_bag: nothing solved: "), std::string::npos) << err;
