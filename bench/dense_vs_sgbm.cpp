@@ -9,7 +9,7 @@
 // dense_matcher parameter file; none: the CorrelationOptions defaults) with a
 // per-pixel final grid, its disparity map's holes filled from the background
 // side (FillFromBackground; fill_gap=0: not filled), and "design" = the plain
-// DESIGN.md method (15x15 windows, +-3 px search, lr 1 px, second right->left
+// doc/design.md method (15x15 windows, +-3 px search, lr 1 px, second right->left
 // search, no edge window, no fill) for comparison; key=value overrides
 // CorrelationOptions fields of "ours". Prints, for each
 // method, the share of non-occluded pixels (occl.png white, reference known)
@@ -204,7 +204,7 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
-  // "design": the plain DESIGN.md method (the edge-aware steps off).
+  // "design": the plain doc/design.md method (the edge-aware steps off).
   CorrelationOptions design;
   design.final_grid_spacing = 1;
   design.min_disparity = 0;

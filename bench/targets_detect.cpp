@@ -3,7 +3,7 @@
 //   (2) our full centroider (libapriltag + edge-model refinement of the tags;
 //       with circles: candidate search on one reduced pyramid level, gray-
 //       weighted centroid, ellipse-model fit, perspective correction),
-//   (3) the plain gray-weighted centroid of DESIGN.md on the circles,
+//   (3) the plain gray-weighted centroid of doc/design.md on the circles,
 // printing the centre accuracy of each against the render truth and the
 // throughput ratio ours / bare detector at 1280x720 and 4000x3000
 // (the detector settings of the centroider's defaults for both: quad_decimate,

@@ -24,7 +24,7 @@ namespace ros_adapters {
 // The graph's dense surfaces, where they differ from the library's
 // dense::SurfaceOptions: a 2 px final grid (0.2 m on the ground from 25-45 m:
 // several points per 0.5 m cell) and no cell from a single point. Both dense
-// nodes (stereo and epoch) start from these. The library keeps DESIGN.md's
+// nodes (stereo and epoch) start from these. The library keeps doc/design.md's
 // 8 px grid (correlation.h) for its own callers and tests. Measured with
 // process_bag on dense_graph_replay (replay_process_bag_dense_test), 2 vs
 // 8 px: cloud 635 k / 1.13 M vs 40 k / 71 k points per epoch, DEM cells on

@@ -1,4 +1,4 @@
-// Typed, checked parameter loading at the ROS boundary (STYLE.md: parameters
+// Typed, checked parameter loading at the ROS boundary (doc/style.md: parameters
 // are read once into typed Options and checked; a bad key names the key and
 // the reason, and the node does not advertise).
 //

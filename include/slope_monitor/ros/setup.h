@@ -1,4 +1,4 @@
-// The parameter-failure rule of every nodelet's onInit (STYLE.md): the
+// The parameter-failure rule of every nodelet's onInit (doc/style.md): the
 // parameters are read and checked once, and the solver is built from them;
 // a slope_monitor::Error there is the user's configuration (it names the key
 // and the reason), so the nodelet logs it, does not advertise and stays

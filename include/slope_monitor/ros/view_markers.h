@@ -2,7 +2,7 @@
 // what the nodes already compute: the camera frustums of an adjusted epoch
 // (bundle_adjuster `frustums`) and the colour scale of the dense surface's
 // `change` field (dense_matcher `change_legend`). Conversion only: the
-// geometry is the collinearity model's (DESIGN.md) read backwards.
+// geometry is the collinearity model's (doc/design.md) read backwards.
 #pragma once
 
 #include <array>

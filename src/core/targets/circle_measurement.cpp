@@ -1,6 +1,6 @@
 // Stage 5 of TargetCentroider::DetectMono: measuring a circle candidate.
 // The surround and the design first (what the candidate is), then the
-// gray-weighted centroid of DESIGN.md and its refinement by a least-squares
+// gray-weighted centroid of doc/design.md and its refinement by a least-squares
 // fit of a blurred elliptical disc (centre, shape, the two levels, blur) to
 // the pixels around the light centre's edge, with the covariance of the
 // fit; with a pose the perspective bias of the centre is removed.
@@ -107,7 +107,7 @@ std::vector<double> CentreSamples(const ImageView& im, const Blob& blob) {
   return inner;
 }
 
-// The plain gray-weighted centroid (DESIGN.md) over the disc and the inner
+// The plain gray-weighted centroid (doc/design.md) over the disc and the inner
 // ring: pixels under the midpoint of the two levels set to 0.
 Eigen::Vector2d GrayCentroidOfDisc(const ImageView& im, const Blob& blob, double disc,
                                    double ring) {

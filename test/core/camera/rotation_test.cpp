@@ -1,5 +1,5 @@
 // Rotation of the collinearity model, checked against the matrices printed in
-// DESIGN.md and by round trips.
+// doc/design.md and by round trips.
 #include "slope_monitor/core/camera/rotation.h"
 
 #include <cmath>

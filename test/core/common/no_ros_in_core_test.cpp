@@ -1,4 +1,4 @@
-// The core library must not depend on ROS (DESIGN.md "Layers"): no file under
+// The core library must not depend on ROS (doc/design.md "Layers"): no file under
 // include/slope_monitor/core or src/core may include a ROS, message, cv_bridge,
 // rosbag, image_transport or tf2_ros header.
 #include <filesystem>

@@ -1,6 +1,6 @@
 // Coarse-to-fine LoG correlation on Middlebury 2003 "Cones" (test/data/
 // stereo_middlebury_cones): error rates against the ground-truth disparity on
-// non-occluded pixels. The default options (DESIGN.md sizes, per-pixel final
+// non-occluded pixels. The default options (doc/design.md sizes, per-pixel final
 // grid) against bounds measured plus a margin; config/dense_cones.yaml
 // against OpenCV's StereoSGBM run in the same process (bench_dense_vs_sgbm
 // adds the throughput); the edge window, the background fill and the

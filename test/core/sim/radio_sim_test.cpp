@@ -1,4 +1,4 @@
-// The simulated radio samples reproduce the phase model of DESIGN.md,
+// The simulated radio samples reproduce the phase model of doc/design.md,
 //   phi_ij = 2 pi / lambda |x_i - X_j| + psi_i + xi_j + 2 pi N_ij,
 // when analysed with a plain (rectangular-window) DFT at the known
 // frequencies; the faults do what their description says.

@@ -5,7 +5,7 @@
 //   1. Start: with a known position, the attitude is the rotation that best
 //      maps the site directions (X - X0) onto the pixels' bearings (Wahba's
 //      problem, SVD); without one, the three-point resection with the other
-//      points choosing among its candidates (geometry::Resect, DESIGN.md).
+//      points choosing among its candidates (geometry::Resect, doc/design.md).
 //   2. Adjustment (Ceres, adjustment::CollinearityError): exterior free (the
 //      position held, or tied to its prior, when given), the interior
 //      parameters named in `free_interior` free, the others held; points held,

@@ -1,4 +1,4 @@
-// The collinearity camera model (DESIGN.md):
+// The collinearity camera model (doc/design.md):
 //
 //   x = x0 + dx - c * (m11 (X-X0) + m12 (Y-Y0) + m13 (Z-Z0)) / (m31 (X-X0) + m32 (Y-Y0) + m33 (Z-Z0))
 //   y = y0 + dy - c * (m21 (X-X0) + m22 (Y-Y0) + m23 (Z-Z0)) / (m31 (X-X0) + m32 (Y-Y0) + m33 (Z-Z0))

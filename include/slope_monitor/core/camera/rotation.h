@@ -1,4 +1,4 @@
-// Camera attitude of the collinearity model (DESIGN.md, "Collinearity and
+// Camera attitude of the collinearity model (doc/design.md, "Collinearity and
 // camera attitude").
 //
 //   M = m_kappa * m_phi * m_theta
@@ -60,7 +60,7 @@ Eigen::Matrix<T, 3, 3> MKappa(const T& kappa) {
   return m;
 }
 
-// M from (theta, phi, kappa), element by element as DESIGN.md lists them
+// M from (theta, phi, kappa), element by element as doc/design.md lists them
 // (equal to MKappa(kappa) * MPhi(phi) * MTheta(theta)). Templated so Ceres
 // can differentiate it.
 template <typename T>

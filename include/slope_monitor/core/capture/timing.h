@@ -1,7 +1,7 @@
 // Capture timing: the schedule of a fixed camera and the epoch marking of a
 // frame stream.
 //
-// Epochs (DESIGN.md "Time and epochs"): a survey epoch is a set of images
+// Epochs (doc/design.md "Epochs"): a survey epoch is a set of images
 // taken close together. EpochTracker emits "start" before the first frame of
 // an epoch and "end" after its last, so downstream nodes know when an epoch is
 // complete:

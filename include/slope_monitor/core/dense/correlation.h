@@ -1,4 +1,4 @@
-// Coarse-to-fine LoG correlation of a rectified image pair (DESIGN.md,
+// Coarse-to-fine LoG correlation of a rectified image pair (doc/design.md,
 // "Coarse-to-fine LoG correlation for surface models").
 //
 // Input: two epipolar-rectified images (rows are epipolar lines, y-parallax

@@ -1,4 +1,4 @@
-// Orientation of a flight's photos without targets (DESIGN.md: collinearity
+// Orientation of a flight's photos without targets (doc/design.md: collinearity
 // bundle adjustment with self-calibration), from what the flight gives:
 //
 //  1. a relative start: the pair with the most tie points and enough

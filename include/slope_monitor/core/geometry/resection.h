@@ -2,7 +2,7 @@
 //
 // Closed form from three points (Grunert's solution, as reviewed by Haralick
 // et al. 1994): the distances from the projection centre to the three points
-// follow from a quartic, so there are up to four candidate poses (DESIGN.md:
+// follow from a quartic, so there are up to four candidate poses (doc/design.md:
 // "two candidate solutions, a fourth point picks one"; in general up to four).
 // A fourth point picks the candidate. Inside RANSAC every sample's candidates
 // are scored on all points; the best is refined by least squares

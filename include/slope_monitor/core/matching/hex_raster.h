@@ -1,5 +1,5 @@
 // Hexagonal raster, hexagonal pyramid and the six-profile cell descriptor
-// (DESIGN.md, "Generalized photogrammetry and hexagonal matching").
+// (doc/design.md, "Generalized photogrammetry and hexagonal matching").
 //
 // Geometry. A hex raster of scale s (s = 1 for the full-resolution level)
 // has regular hexagonal cells: rows spaced dy = s / 2 px, cells in a row

@@ -1,4 +1,4 @@
-// Interest points by the modified-LSC rule (DESIGN.md):
+// Interest points by the modified-LSC rule (doc/design.md):
 //   1. LoG filter (sigma = 2 by default, scale-normalised, filters.h);
 //   2. its zero-crossings are the edges (thin, 8-connected; weak crossings
 //      below zero_crossing_contrast * RMS(LoG) are dropped);

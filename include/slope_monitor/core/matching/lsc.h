@@ -1,5 +1,5 @@
 // Least-squares correlation (LSC) of a window of image a to image b, and the
-// modified LSC (MLSC) that first correlates to the nearest pixel (DESIGN.md).
+// modified LSC (MLSC) that first correlates to the nearest pixel (doc/design.md).
 //
 // Model. Window coordinates (u, v) are integer offsets from the point
 // (xa, ya) in image a, |u|, |v| <= half_window. The window maps into b by

@@ -1,5 +1,5 @@
 // Transmitter positions and displacements from radio carrier phase
-// ("inverse GPS", DESIGN.md):
+// ("inverse GPS", doc/design.md):
 //   phi_ij = (2 pi / lambda) |x_i - X_j| + psi_i + xi_j + 2 pi N_ij
 // receivers j at known (surveyed) X_j, transmitters i at unknown x_i(t).
 //

@@ -1,5 +1,5 @@
 // Synthetic raw radio sample blocks for the "inverse GPS" field sensors
-// (DESIGN.md, radio phase displacement): transmitters on the moving slope,
+// (doc/design.md, radio phase displacement): transmitters on the moving slope,
 // passive receivers on stable ground.
 //
 //   sim::RadioSimConfig cfg;
@@ -17,12 +17,12 @@
 // ---------------------------------------------------------------------------
 // Physical model and its assumptions (what makes it realistic AND solvable)
 // ---------------------------------------------------------------------------
-// Carrier phase of transmitter i at receiver j (DESIGN.md):
+// Carrier phase of transmitter i at receiver j (doc/design.md):
 //   phi_ij(t) = (2 pi / lambda) |x_i(t) - X_j| + psi_i + xi_j + 2 pi N_ij
 // * One wavelength lambda for all transmitters (config `wavelength`): the
 //   transmitters' frequency offsets are a few kHz to ~100 kHz on a 2.4 GHz
 //   carrier, which changes lambda by < 5e-5 relative (< 0.02 cycles over
-//   400 m of range); the model of DESIGN.md uses one lambda.
+//   400 m of range); the model of doc/design.md uses one lambda.
 // * Sign convention: the receiver's mixer is arranged (spectral inversion)
 //   so that the baseband phase *grows* with range, as in the formula above.
 // * Disciplined oscillators: transmitters and receivers are locked to a common

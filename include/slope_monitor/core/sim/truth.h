@@ -191,7 +191,7 @@ struct RadioTransmitterTruth {
   std::vector<Eigen::Vector3d> positions;   // [m] true antenna position per epoch
 };
 
-// phi_ij = (2 pi / lambda) |x_i - X_j| + psi_i + xi_j + 2 pi N_ij  (DESIGN.md).
+// phi_ij = (2 pi / lambda) |x_i - X_j| + psi_i + xi_j + 2 pi N_ij  (doc/design.md).
 // ambiguities[i][j] is N_ij of transmitter i and receiver j at the reference
 // epoch, defined so that phi_ij (wrapped to (-pi, pi]) is exactly the sum.
 struct RadioTruth {

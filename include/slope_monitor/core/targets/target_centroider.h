@@ -30,7 +30,7 @@
 // Circles: blobs of a locally thresholded image with a dark surround (the
 // light centre of every design); the design is told by 32 rays from the
 // blob's centre (where the dark part around the light centre ends); then
-// the gray-weighted centroid of DESIGN.md (automatic threshold halfway
+// the gray-weighted centroid of doc/design.md (automatic threshold halfway
 // between the disc and ring levels, pixels under it set to 0,
 // intensity-weighted mean); then a least-squares fit of a blurred elliptical
 // disc intensity model (centre, ellipse shape, the two grey levels, blur) to
@@ -284,7 +284,7 @@ class TargetCentroider {
   const Options& options() const { return options_; }
   const io::TargetList& targets() const { return targets_; }
 
-  // The plain gray-weighted centroid (DESIGN.md) of the bright blob around
+  // The plain gray-weighted centroid (doc/design.md) of the bright blob around
   // `seed` within a square window of half size `radius` [px] of a CV_8UC1 or
   // CV_32FC1 image: threshold
   // halfway between the window's dark and bright levels (automatic), pixels

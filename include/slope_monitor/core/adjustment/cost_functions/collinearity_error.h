@@ -1,6 +1,6 @@
 // Collinearity reprojection error of one target / tie point observation.
 //
-// Model (DESIGN.md, camera_model.h):
+// Model (doc/design.md, camera_model.h):
 //   u = M(theta, phi, kappa) (X - X0)                     photogrammetric camera frame
 //   x = x0 + dx - c u_x / u_z,  y = y0 + dy - c u_y / u_z  [mm] (distortion dx, dy as in Distort())
 //   (col, row) = MmToPixel(sensor, x, y)                   [px], OpenCV convention
