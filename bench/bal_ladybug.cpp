@@ -13,8 +13,8 @@
 // best of 5 runs each: CPU time rather than wall time because the machine is shared).
 #include <algorithm>
 #include <chrono>
-#include <ctime>
 #include <cstdio>
+#include <ctime>
 #include <string>
 
 #include <ceres/ceres.h>
@@ -41,8 +41,8 @@ Run CeresExampleSetup(const BalProblem& start, ceres::LinearSolverType solver) {
   BalProblem p = start;
   ceres::Problem problem;
   for (const auto& o : p.observations) {
-    problem.AddResidualBlock(slope_monitor::adjustment::SnavelyReprojectionError::Create(o.x, o.y), nullptr,
-                             p.cameras[o.camera].data(), p.points[o.point].data());
+    problem.AddResidualBlock(slope_monitor::adjustment::SnavelyReprojectionError::Create(o.x, o.y),
+                             nullptr, p.cameras[o.camera].data(), p.points[o.point].data());
   }
   ceres::Solver::Options so;
   so.linear_solver_type = solver;
@@ -86,12 +86,15 @@ Run Ours(const BalProblem& start, bool analytic) {
 
 int main(int argc, char** argv) {
   const std::string path =
-      argc > 1 ? argv[1] : std::string(SM_SOURCE_DIR) + "/test/data/bal/bal-ladybug-problem-49-7776-pre-shrink-1800.txt";
+      argc > 1 ? argv[1]
+               : std::string(SM_SOURCE_DIR) +
+                     "/test/data/bal/bal-ladybug-problem-49-7776-pre-shrink-1800.txt";
   const BalProblem start = BalProblem::Load(path);
   std::printf("problem %s\ninitial cost %.6e\n", path.c_str(), start.Cost());
   // Ceres' example in each Schur solver (same threads as ours: 1); the
   // baseline is the fastest that reaches the best final cost (within 1e-6).
-  const ceres::LinearSolverType solvers[3] = {ceres::DENSE_SCHUR, ceres::SPARSE_SCHUR, ceres::ITERATIVE_SCHUR};
+  const ceres::LinearSolverType solvers[3] = {ceres::DENSE_SCHUR, ceres::SPARSE_SCHUR,
+                                              ceres::ITERATIVE_SCHUR};
   const char* names[3] = {"DENSE_SCHUR", "SPARSE_SCHUR", "ITERATIVE_SCHUR+SCHUR_JACOBI"};
   Run ceres_runs[3], ours_best, ours_ad_best;
   for (int rep = 0; rep < 5; ++rep) {
@@ -108,17 +111,20 @@ int main(int argc, char** argv) {
   for (const Run& c : ceres_runs) best_cost = std::min(best_cost, c.cost);
   int best = -1;
   for (int k = 0; k < 3; ++k) {
-    std::printf("ceres_example (autodiff, %s): final cost %.6e, %d iterations, %.3f s CPU\n", names[k],
-                ceres_runs[k].cost, ceres_runs[k].iterations, ceres_runs[k].time);
-    if (ceres_runs[k].cost <= best_cost * (1.0 + 1e-6) && (best < 0 || ceres_runs[k].time < ceres_runs[best].time))
+    std::printf("ceres_example (autodiff, %s): final cost %.6e, %d iterations, %.3f s CPU\n",
+                names[k], ceres_runs[k].cost, ceres_runs[k].iterations, ceres_runs[k].time);
+    if (ceres_runs[k].cost <= best_cost * (1.0 + 1e-6) &&
+        (best < 0 || ceres_runs[k].time < ceres_runs[best].time))
       best = k;
   }
   const Run& ceres_best = ceres_runs[best];
   std::printf("ceres best: %s\n", names[best]);
-  std::printf("ours (analytic, auto->DENSE_SCHUR):     final cost %.6e, %d iterations, %.3f s CPU\n", ours_best.cost,
-              ours_best.iterations, ours_best.time);
-  std::printf("ours_autodiff (autodiff, auto->DENSE_SCHUR): final cost %.6e, %d iterations, %.3f s CPU\n",
-              ours_ad_best.cost, ours_ad_best.iterations, ours_ad_best.time);
+  std::printf(
+      "ours (analytic, auto->DENSE_SCHUR):     final cost %.6e, %d iterations, %.3f s CPU\n",
+      ours_best.cost, ours_best.iterations, ours_best.time);
+  std::printf(
+      "ours_autodiff (autodiff, auto->DENSE_SCHUR): final cost %.6e, %d iterations, %.3f s CPU\n",
+      ours_ad_best.cost, ours_ad_best.iterations, ours_ad_best.time);
   std::printf("final cost ours %.6e, best %.6e\n", ours_best.cost, ceres_best.cost);
   std::printf("cost ratio ours/best = %.7f\n", ours_best.cost / ceres_best.cost);
   std::printf("ratio ours_autodiff/best = %.3f\n", ours_ad_best.time / ceres_best.time);

@@ -4,7 +4,8 @@
 // tracking: the nodelet's FramePublisher path) against the plain OpenCV
 // decode rate (cv::imread) of the same files, in the same process.
 //
-//   bench_capture_folder [--images N] [--rounds R] [--width W] [--height H]   (defaults 10 3 4000 3000)
+//   bench_capture_folder [--images N] [--rounds R] [--width W] [--height H]   (defaults 10 3 4000
+//   3000)
 //
 // Each image goes through the three paths back to back (order rotated), so a
 // shared machine's load hits them alike. Prints one line per measurement, the
@@ -54,7 +55,8 @@ void WriteExif(const std::string& path, int i) {
   image->readMetadata();
   Exiv2::ExifData& exif = image->exifData();
   char buf[32];
-  std::snprintf(buf, sizeof(buf), "2024:05:01 %02d:%02d:%02d", 10 + (2 * i) / 3600, ((2 * i) / 60) % 60, (2 * i) % 60);
+  std::snprintf(buf, sizeof(buf), "2024:05:01 %02d:%02d:%02d", 10 + (2 * i) / 3600,
+                ((2 * i) / 60) % 60, (2 * i) % 60);
   exif["Exif.Photo.DateTimeOriginal"] = std::string(buf);
   exif["Exif.Image.Make"] = std::string("BenchCam");
   exif["Exif.Photo.FocalLength"] = Exiv2::Rational(88, 10);
@@ -79,10 +81,14 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "bench_capture_folder: %s needs a positive integer\n", a.c_str());
       return 2;
     }
-    if (a == "--images") n = v;
-    else if (a == "--rounds") rounds = v;
-    else if (a == "--width") width = v;
-    else if (a == "--height") height = v;
+    if (a == "--images")
+      n = v;
+    else if (a == "--rounds")
+      rounds = v;
+    else if (a == "--width")
+      width = v;
+    else if (a == "--height")
+      height = v;
     else {
       std::fprintf(stderr, "bench_capture_folder: unknown option %s\n", a.c_str());
       return 2;
@@ -100,8 +106,8 @@ int main(int argc, char** argv) {
     bytes += std::filesystem::file_size(path);
     files.push_back(path);
   }
-  std::printf("folder: %d JPEGs %dx%d (%.1f MP), mean %.2f MB\n", n, width, height, width * height / 1e6,
-              bytes / n / 1e6);
+  std::printf("folder: %d JPEGs %dx%d (%.1f MP), mean %.2f MB\n", n, width, height,
+              width * height / 1e6, bytes / n / 1e6);
 
   // Warm-up (page cache, decoder tables).
   for (const auto& f : files) cv::imread(f);
@@ -116,7 +122,9 @@ int main(int argc, char** argv) {
   po.site_origin = {35.0, 139.0, 100.0};
   po.pixel_size = 0.0024;
   sm::ros_adapters::CaptureOutputs out;
-  out.image = [&](const sensor_msgs::ImagePtr& img, const sensor_msgs::CameraInfoPtr&) { sink = sink + img->data.size(); };
+  out.image = [&](const sensor_msgs::ImagePtr& img, const sensor_msgs::CameraInfoPtr&) {
+    sink = sink + img->data.size();
+  };
   out.fix = [&](const sensor_msgs::NavSatFix& f) { sink = sink + static_cast<size_t>(f.latitude); };
   out.prior = [&](const geometry_msgs::PoseWithCovarianceStamped&) { sink = sink + 1; };
   sm::capture::FolderSourceOptions fo;
@@ -143,14 +151,17 @@ int main(int argc, char** argv) {
           sink = sink + cv::imread(files[i], cv::IMREAD_COLOR).total();
           base_t[r] += Now() - t0;
         } else if (which == 1) {
-          if (publisher.Step(&source, &tracker, true) == sm::ros_adapters::FramePublisher::StepResult::kPublished) {
+          if (publisher.Step(&source, &tracker, true) ==
+              sm::ros_adapters::FramePublisher::StepResult::kPublished) {
             ++published;
           }
           ours_t[r] += Now() - t0;
         } else {
           sm::capture::Frame frame;
           if (copy_source.Next(&frame)) {
-            sink = sink + sm::ros_adapters::ToImageMsg(frame, sm::ros_adapters::FrameHeader(frame, "cam"))->data.size();
+            sink = sink +
+                   sm::ros_adapters::ToImageMsg(frame, sm::ros_adapters::FrameHeader(frame, "cam"))
+                       ->data.size();
           }
           copy_t[r] += Now() - t0;
         }
@@ -170,9 +181,11 @@ int main(int argc, char** argv) {
   const double best_copy = *std::min_element(copy_t.begin(), copy_t.end());
   const double base_rate = n / best_base, ours_rate = n / best_ours, copy_rate = n / best_copy;
   std::printf("cv_imread decode: %.3f images/s (%.1f ms/image)\n", base_rate, 1e3 / base_rate);
-  std::printf("camera_capture publish path: %.3f images/s (%.1f ms/image)\n", ours_rate, 1e3 / ours_rate);
-  std::printf("former copying path (decode, then copy into the message): %.3f images/s (%.1f ms/image)\n", copy_rate,
-              1e3 / copy_rate);
+  std::printf("camera_capture publish path: %.3f images/s (%.1f ms/image)\n", ours_rate,
+              1e3 / ours_rate);
+  std::printf(
+      "former copying path (decode, then copy into the message): %.3f images/s (%.1f ms/image)\n",
+      copy_rate, 1e3 / copy_rate);
   std::printf("per-round ratios ours/cv_imread:");
   for (double x : ratios) std::printf(" %.3f", x);
   std::printf("\n");

@@ -3,7 +3,8 @@
 // pair, in the same process (ours on cv::getNumThreads() = 2 threads; SGBM's
 // MODE_SGBM runs on one).
 //
-//   bench_dense_vs_sgbm [data_dir] [repetitions] [config=FILE|none] [fill_gap=N] [threads=N] [key=value ...]
+//   bench_dense_vs_sgbm [data_dir] [repetitions] [config=FILE|none] [fill_gap=N] [threads=N]
+//   [key=value ...]
 //
 // Two settings of ours: "ours" = config/dense_cones.yaml (config=FILE: another
 // dense_matcher parameter file; none: the CorrelationOptions defaults) with a
@@ -63,10 +64,12 @@ double CpuSeconds() {
 }
 
 void Print(const char* name, const DisparityErrors& e, double t_min, double t_median, int pixels) {
-  std::printf("%-6s bad>1px %.4f  bad>2px %.4f  (estimated only: %.4f / %.4f)  density %.4f  rms %.3f px  "
-              "time min %.4f s median %.4f s  throughput %.3g px/s\n",
-              name, e.bad_fraction[0], e.bad_fraction[1], e.bad_fraction_valid[0], e.bad_fraction_valid[1],
-              1.0 - static_cast<double>(e.missing) / e.evaluated, e.rms_valid, t_min, t_median, pixels / t_min);
+  std::printf(
+      "%-6s bad>1px %.4f  bad>2px %.4f  (estimated only: %.4f / %.4f)  density %.4f  rms %.3f px  "
+      "time min %.4f s median %.4f s  throughput %.3g px/s\n",
+      name, e.bad_fraction[0], e.bad_fraction[1], e.bad_fraction_valid[0], e.bad_fraction_valid[1],
+      1.0 - static_cast<double>(e.missing) / e.evaluated, e.rms_valid, t_min, t_median,
+      pixels / t_min);
 }
 
 // Middlebury-style regions of the evaluated (non-occluded, known) pixels:
@@ -99,7 +102,8 @@ Regions MakeRegions(const cv::Mat& left, const cv::Mat& gt, const cv::Mat& occl)
   left.convertTo(f, CV_32F);
   gx = cv::Mat::zeros(f.size(), CV_32F);
   for (int y = 0; y < f.rows; ++y)
-    for (int x = 0; x + 1 < f.cols; ++x) gx.at<float>(y, x) = f.at<float>(y, x + 1) - f.at<float>(y, x);
+    for (int x = 0; x + 1 < f.cols; ++x)
+      gx.at<float>(y, x) = f.at<float>(y, x + 1) - f.at<float>(y, x);
   cv::multiply(gx, gx, g2);
   cv::blur(g2, g2, cv::Size(3, 3));
   cv::compare(g2, 4.0, tl, cv::CMP_LT);
@@ -116,43 +120,64 @@ Regions MakeRegions(const cv::Mat& left, const cv::Mat& gt, const cv::Mat& occl)
 void PrintBreakdown(const char* name, const cv::Mat& est, const cv::Mat& gt, const Regions& regions,
                     float invalid_below, int evaluated) {
   std::printf("%-6s", name);
-  for (auto [rname, mask] : {std::pair{"disc", &regions.disc}, std::pair{"textureless", &regions.textureless},
-                             std::pair{"other", &regions.other}}) {
+  for (auto [rname, mask] :
+       {std::pair{"disc", &regions.disc}, std::pair{"textureless", &regions.textureless},
+        std::pair{"other", &regions.other}}) {
     const DisparityErrors e = EvaluateDisparity(est, gt, *mask, {1.0}, invalid_below);
     const int wrong = static_cast<int>(e.bad_fraction[0] * e.evaluated + 0.5) - e.missing;
     std::printf("  %s %d px: missing %.4f wrong %.4f (of all: %.4f + %.4f)", rname, e.evaluated,
-                static_cast<double>(e.missing) / e.evaluated, static_cast<double>(wrong) / e.evaluated,
+                static_cast<double>(e.missing) / e.evaluated,
+                static_cast<double>(wrong) / e.evaluated,
                 static_cast<double>(e.missing) / evaluated, static_cast<double>(wrong) / evaluated);
   }
   std::printf("\n");
 }
 
 bool Apply(CorrelationOptions* o, const std::string& k, double v) {
-  if (k == "window") o->window = static_cast<int>(v);
-  else if (k == "final_window") o->final_window = static_cast<int>(v);
-  else if (k == "edge_window") o->edge_window = static_cast<int>(v);
-  else if (k == "edge_parallax_step") o->edge_parallax_step = v;
-  else if (k == "min_correlation") o->min_correlation = v;
-  else if (k == "lr_tolerance") o->lr_tolerance = v;
-  else if (k == "order_tolerance") o->order_tolerance = v;
-  else if (k == "search_radius") o->search_radius = static_cast<int>(v);
-  else if (k == "final_search_radius") o->final_search_radius = static_cast<int>(v);
-  else if (k == "grid_spacing") o->grid_spacing = static_cast<int>(v);
-  else if (k == "median_filter") o->median_filter = v != 0;
-  else if (k == "order_check") o->order_check = v != 0;
-  else if (k == "two_way") o->two_way = v != 0;
-  else if (k == "full_right_search") o->full_right_search = v != 0;
-  else if (k == "peak_frequency") o->peak_frequency = v;
-  else if (k == "levels") o->levels = static_cast<int>(v);
-  else if (k == "lsc_iterations") o->lsc_iterations = static_cast<int>(v);
-  else return false;
+  if (k == "window")
+    o->window = static_cast<int>(v);
+  else if (k == "final_window")
+    o->final_window = static_cast<int>(v);
+  else if (k == "edge_window")
+    o->edge_window = static_cast<int>(v);
+  else if (k == "edge_parallax_step")
+    o->edge_parallax_step = v;
+  else if (k == "min_correlation")
+    o->min_correlation = v;
+  else if (k == "lr_tolerance")
+    o->lr_tolerance = v;
+  else if (k == "order_tolerance")
+    o->order_tolerance = v;
+  else if (k == "search_radius")
+    o->search_radius = static_cast<int>(v);
+  else if (k == "final_search_radius")
+    o->final_search_radius = static_cast<int>(v);
+  else if (k == "grid_spacing")
+    o->grid_spacing = static_cast<int>(v);
+  else if (k == "median_filter")
+    o->median_filter = v != 0;
+  else if (k == "order_check")
+    o->order_check = v != 0;
+  else if (k == "two_way")
+    o->two_way = v != 0;
+  else if (k == "full_right_search")
+    o->full_right_search = v != 0;
+  else if (k == "peak_frequency")
+    o->peak_frequency = v;
+  else if (k == "levels")
+    o->levels = static_cast<int>(v);
+  else if (k == "lsc_iterations")
+    o->lsc_iterations = static_cast<int>(v);
+  else
+    return false;
   return true;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  const std::string dir = argc > 1 ? argv[1] : std::string(SM_SOURCE_DIR) + "/test/data/stereo_middlebury_cones";
+  const std::string dir =
+      argc > 1 ? argv[1] : std::string(SM_SOURCE_DIR) + "/test/data/stereo_middlebury_cones";
   const int reps = argc > 2 ? std::max(1, std::atoi(argv[2])) : 10;
   cv::setNumThreads(2);
   const cv::Mat left = cv::imread(dir + "/left.tif", cv::IMREAD_GRAYSCALE);
@@ -200,7 +225,8 @@ int main(int argc, char** argv) {
       continue;
     }
     if (eq == std::string::npos || !Apply(&opt, a.substr(0, eq), std::atof(a.c_str() + eq + 1))) {
-      std::fprintf(stderr, "bad option '%s' (key=value of a CorrelationOptions field)\n", a.c_str());
+      std::fprintf(stderr, "bad option '%s' (key=value of a CorrelationOptions field)\n",
+                   a.c_str());
       return 1;
     }
   }
@@ -221,8 +247,9 @@ int main(int argc, char** argv) {
   // preFilterCap 63, uniqueness 10, speckle window 100 / range 32, MODE_SGBM
   // (OpenCV runs this mode on one thread; ours uses cv::getNumThreads() = 2).
   const int block = 5;
-  cv::Ptr<cv::StereoSGBM> sgbm = cv::StereoSGBM::create(0, 64, block, 8 * block * block, 32 * block * block, 1, 63,
-                                                        10, 100, 32, cv::StereoSGBM::MODE_SGBM);
+  cv::Ptr<cv::StereoSGBM> sgbm =
+      cv::StereoSGBM::create(0, 64, block, 8 * block * block, 32 * block * block, 1, 63, 10, 100,
+                             32, cv::StereoSGBM::MODE_SGBM);
   // Interleaved repetitions (ours, SGBM, design, ...) on a shared machine:
   // the minimum time of each is the least disturbed; medians too.
   cv::Mat ours, ours_raw, ours_design, raw;
@@ -250,7 +277,8 @@ int main(int argc, char** argv) {
   }
   for (auto* t : {&times_ours, &times_design, &times_sgbm, &cpu_ours, &cpu_design, &cpu_sgbm})
     std::sort(t->begin(), t->end());
-  const double t_ours = times_ours.front(), t_design = times_design.front(), t_sgbm = times_sgbm.front();
+  const double t_ours = times_ours.front(), t_design = times_design.front(),
+               t_sgbm = times_sgbm.front();
   cv::Mat sgbm_disp;
   raw.convertTo(sgbm_disp, CV_32F, 1.0 / 16.0);
   const float kSgbmInvalid = -0.5f;
@@ -258,17 +286,20 @@ int main(int argc, char** argv) {
   const DisparityErrors e_design = EvaluateDisparity(ours_design, gt, occl, thresholds);
   const DisparityErrors e_sgbm = EvaluateDisparity(sgbm_disp, gt, occl, thresholds, kSgbmInvalid);
 
-  std::printf("Cones %dx%d, %d non-occluded evaluated pixels, %d repetitions, OpenCV threads %d\n", left.cols,
-              left.rows, e_ours.evaluated, reps, cv::getNumThreads());
-  std::printf("ours:   %s\ndesign: %s\n", summary.BriefReport().c_str(), summary_design.BriefReport().c_str());
+  std::printf("Cones %dx%d, %d non-occluded evaluated pixels, %d repetitions, OpenCV threads %d\n",
+              left.cols, left.rows, e_ours.evaluated, reps, cv::getNumThreads());
+  std::printf("ours:   %s\ndesign: %s\n", summary.BriefReport().c_str(),
+              summary_design.BriefReport().c_str());
   std::printf("all non-occluded pixels (missing = error):\n");
   Print("ours", e_ours, t_ours, times_ours[reps / 2], pixels);
   if (fill_gap > 0) {
     const DisparityErrors e_raw = EvaluateDisparity(ours_raw, gt, occl, thresholds);
-    std::printf("ours before the background fill (gap <= %d px): bad>1px %.4f  bad>2px %.4f  (estimated only: %.4f / "
-                "%.4f)  density %.4f\n",
-                fill_gap, e_raw.bad_fraction[0], e_raw.bad_fraction[1], e_raw.bad_fraction_valid[0],
-                e_raw.bad_fraction_valid[1], 1.0 - static_cast<double>(e_raw.missing) / e_raw.evaluated);
+    std::printf(
+        "ours before the background fill (gap <= %d px): bad>1px %.4f  bad>2px %.4f  (estimated "
+        "only: %.4f / "
+        "%.4f)  density %.4f\n",
+        fill_gap, e_raw.bad_fraction[0], e_raw.bad_fraction[1], e_raw.bad_fraction_valid[0],
+        e_raw.bad_fraction_valid[1], 1.0 - static_cast<double>(e_raw.missing) / e_raw.evaluated);
   }
   Print("design", e_design, t_design, times_design[reps / 2], pixels);
   Print("sgbm", e_sgbm, t_sgbm, times_sgbm[reps / 2], pixels);
@@ -276,18 +307,24 @@ int main(int argc, char** argv) {
     // For reference only (not the baseline): SGBM's holes filled the same way.
     cv::Mat s = sgbm_disp.clone();
     s.setTo(std::numeric_limits<float>::quiet_NaN(), sgbm_disp < kSgbmInvalid);
-    const DisparityErrors e = EvaluateDisparity(FillFromBackground(s, left.cols), gt, occl, thresholds);
-    std::printf("sgbm with its holes filled from the background like ours (reference, not timed): bad>1px %.4f  "
-                "bad>2px %.4f  density %.4f\n",
-                e.bad_fraction[0], e.bad_fraction[1], 1.0 - static_cast<double>(e.missing) / e.evaluated);
+    const DisparityErrors e =
+        EvaluateDisparity(FillFromBackground(s, left.cols), gt, occl, thresholds);
+    std::printf(
+        "sgbm with its holes filled from the background like ours (reference, not timed): bad>1px "
+        "%.4f  "
+        "bad>2px %.4f  density %.4f\n",
+        e.bad_fraction[0], e.bad_fraction[1], 1.0 - static_cast<double>(e.missing) / e.evaluated);
   }
   const Regions regions = MakeRegions(left, gt, occl);
-  std::printf("errors > 1 px by cause (share of the region's pixels; in brackets share of all evaluated pixels):\n");
+  std::printf(
+      "errors > 1 px by cause (share of the region's pixels; in brackets share of all evaluated "
+      "pixels):\n");
   PrintBreakdown("ours", ours, gt, regions, -1e30f, e_ours.evaluated);
   PrintBreakdown("design", ours_design, gt, regions, -1e30f, e_ours.evaluated);
   PrintBreakdown("sgbm", sgbm_disp, gt, regions, kSgbmInvalid, e_ours.evaluated);
   // The same pixel set: non-occluded pixels both methods estimated (ours before the fill).
-  for (const auto& [name, mine] : {std::make_pair("ours", &ours_raw), std::make_pair("design", &ours_design)}) {
+  for (const auto& [name, mine] :
+       {std::make_pair("ours", &ours_raw), std::make_pair("design", &ours_design)}) {
     cv::Mat both = occl.clone();
     for (int y = 0; y < both.rows; ++y)
       for (int x = 0; x < both.cols; ++x) {
@@ -296,10 +333,12 @@ int main(int argc, char** argv) {
       }
     const DisparityErrors a = EvaluateDisparity(*mine, gt, both, thresholds);
     const DisparityErrors b = EvaluateDisparity(sgbm_disp, gt, both, thresholds, kSgbmInvalid);
-    std::printf("same pixels (%s and sgbm both estimated, %d px = %.3f of non-occluded): %s bad>1 %.4f bad>2 %.4f, "
-                "sgbm bad>1 %.4f bad>2 %.4f\n",
-                name, a.evaluated, static_cast<double>(a.evaluated) / e_ours.evaluated, name, a.bad_fraction[0],
-                a.bad_fraction[1], b.bad_fraction[0], b.bad_fraction[1]);
+    std::printf(
+        "same pixels (%s and sgbm both estimated, %d px = %.3f of non-occluded): %s bad>1 %.4f "
+        "bad>2 %.4f, "
+        "sgbm bad>1 %.4f bad>2 %.4f\n",
+        name, a.evaluated, static_cast<double>(a.evaluated) / e_ours.evaluated, name,
+        a.bad_fraction[0], a.bad_fraction[1], b.bad_fraction[0], b.bad_fraction[1]);
   }
   std::printf("cpu time per pair (median, all threads): ours %.4f s, design %.4f s, sgbm %.4f s\n",
               cpu_ours[reps / 2], cpu_design[reps / 2], cpu_sgbm[reps / 2]);

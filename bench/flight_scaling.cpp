@@ -59,10 +59,13 @@ double PeakGb() {
 double CpuSeconds() {
   rusage u{};
   getrusage(RUSAGE_SELF, &u);
-  return u.ru_utime.tv_sec + 1e-6 * u.ru_utime.tv_usec + u.ru_stime.tv_sec + 1e-6 * u.ru_stime.tv_usec;
+  return u.ru_utime.tv_sec + 1e-6 * u.ru_utime.tv_usec + u.ru_stime.tv_sec +
+         1e-6 * u.ru_stime.tv_usec;
 }
 
-double Terrain(double x, double y) { return 0.15 * y + 4.0 * std::sin(x / 35.0) + 2.5 * std::cos(y / 28.0); }
+double Terrain(double x, double y) {
+  return 0.15 * y + 4.0 * std::sin(x / 35.0) + 2.5 * std::cos(y / 28.0);
+}
 
 sm::camera::CameraModel Truth() {
   std::array<double, sm::camera::kNumInterior> in{};
@@ -70,8 +73,8 @@ sm::camera::CameraModel Truth() {
   in[sm::camera::kX0] = 0.01;
   in[sm::camera::kY0] = -0.008;
   in[sm::camera::kK1] = -2.0e-3;  // ~25 px at the corners
-  return sm::camera::CameraModel(sm::camera::Sensor{kWidth, kHeight, kPixelMm}, sm::camera::DistortionModel::kRadial,
-                                 in);
+  return sm::camera::CameraModel(sm::camera::Sensor{kWidth, kHeight, kPixelMm},
+                                 sm::camera::DistortionModel::kRadial, in);
 }
 
 struct Block {
@@ -86,13 +89,14 @@ Block MakeBlock(int strips, int per_strip, unsigned seed) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> px(0.0, 0.5), gnss(0.0, 3.0);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
-  const double gsd = kPixelMm / kFocalMm * kHeightM;                    // [m]
+  const double gsd = kPixelMm / kFocalMm * kHeightM;                      // [m]
   const double along = kHeight * gsd * 0.2, across = kWidth * gsd * 0.3;  // 80 % / 70 % overlap
   const sm::camera::CameraModel truth = Truth();
   std::array<double, sm::camera::kNumInterior> nominal{};
   nominal[sm::camera::kC] = kFocalMm;
   Block b;
-  b.photos.nominal = sm::camera::CameraModel(truth.sensor(), sm::camera::DistortionModel::kNone, nominal);
+  b.photos.nominal =
+      sm::camera::CameraModel(truth.sensor(), sm::camera::DistortionModel::kNone, nominal);
   std::vector<sm::camera::ExteriorOrientation> pose;
   const sm::capture::LocalTangentPlane ltp(sm::capture::Geodetic{35.0, 139.0, 0.0});
   for (int s = 0; s < strips; ++s) {
@@ -124,7 +128,8 @@ Block MakeBlock(int strips, int per_strip, unsigned seed) {
   // Tie points: ~760 kept per photo, tracks of ~4 of the photos that see them.
   const double x0 = -0.5 * kWidth * gsd, x1 = across * (strips - 1) + 0.5 * kWidth * gsd;
   const double y0 = -0.5 * kHeight * gsd, y1 = along * (per_strip - 1) + 0.5 * kHeight * gsd;
-  const double seen_by = (kWidth * gsd / across) * (kHeight * gsd / along);  // photos seeing a point inside
+  const double seen_by =
+      (kWidth * gsd / across) * (kHeight * gsd / along);  // photos seeing a point inside
   const int n_points = static_cast<int>(760.0 * pose.size() / 4.0);
   std::uniform_real_distribution<double> ux(x0, x1), uy(y0, y1);
   std::map<std::pair<int, int>, int> pair_ties;
@@ -134,7 +139,8 @@ Block MakeBlock(int strips, int per_strip, unsigned seed) {
     fl::FlightTrack track;
     for (size_t i = 0; i < pose.size(); ++i) {
       Eigen::Vector2d q;
-      if (!truth.Project(pose[i], X, &q) || q.x() < 5 || q.y() < 5 || q.x() > kWidth - 6 || q.y() > kHeight - 6)
+      if (!truth.Project(pose[i], X, &q) || q.x() < 5 || q.y() < 5 || q.x() > kWidth - 6 ||
+          q.y() > kHeight - 6)
         continue;
       if (u01(rng) > 4.0 / seen_by) continue;
       track.observations.emplace_back(static_cast<int>(i), q + Eigen::Vector2d(px(rng), px(rng)));
@@ -177,11 +183,14 @@ RealCost MeasureReal(const std::string& folder, int n, int threads) {
   c.feature_cpu_per_photo = ties.feature_seconds / std::max(1, c.photos);
   c.wall = ties.wall_seconds;
   c.cpu_per_pair = std::max(0.0, cpu - ties.feature_seconds) / std::max(1, ties.pairs_tied);
-  std::printf("real photos: %d of %s, %d pairs (%d tied, %ld tie points): features %.1f s CPU (%.2f s per photo), "
-              "matching %.1f s CPU with the features (%.3f s per tied pair without them), %.1f s wall on %d threads, "
-              "peak %.2f GB\n",
-              c.photos, folder.c_str(), c.pairs, ties.pairs_tied, ties.tie_points, ties.feature_seconds,
-              c.feature_cpu_per_photo, cpu, c.cpu_per_pair, ties.wall_seconds, threads, PeakGb());
+  std::printf(
+      "real photos: %d of %s, %d pairs (%d tied, %ld tie points): features %.1f s CPU (%.2f s per "
+      "photo), "
+      "matching %.1f s CPU with the features (%.3f s per tied pair without them), %.1f s wall on "
+      "%d threads, "
+      "peak %.2f GB\n",
+      c.photos, folder.c_str(), c.pairs, ties.pairs_tied, ties.tie_points, ties.feature_seconds,
+      c.feature_cpu_per_photo, cpu, c.cpu_per_pair, ties.wall_seconds, threads, PeakGb());
   return c;
 }
 
@@ -200,7 +209,8 @@ int main(int argc, char** argv) {
     } else if (a == "--threads" && i + 1 < argc) {
       threads = std::atoi(argv[++i]);
     } else if (a == "-h" || a == "--help") {
-      std::printf("bench_flight_scaling [--photos DIR] [--real-photos N] [--threads N] [sizes...]\n");
+      std::printf(
+          "bench_flight_scaling [--photos DIR] [--real-photos N] [--threads N] [sizes...]\n");
       return 0;
     } else if (std::atoi(a.c_str()) > 0) {
       sizes.push_back(std::atoi(a.c_str()));
@@ -212,9 +222,11 @@ int main(int argc, char** argv) {
   if (sizes.empty()) sizes = {24, 54, 100, 150};
   try {
     const RealCost real = MeasureReal(folder, real_photos, threads);
-    std::printf("\n| photos | pairs planned | features (est.) | matching (est.) | start | growth | adjustment | "
-                "orientation CPU | total (est.) | oriented | rms px | max centre error m | peak GB |\n"
-                "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    std::printf(
+        "\n| photos | pairs planned | features (est.) | matching (est.) | start | growth | "
+        "adjustment | "
+        "orientation CPU | total (est.) | oriented | rms px | max centre error m | peak GB |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (int n : sizes) {
       const int strips = n <= 24 ? 4 : n <= 54 ? 6 : 10;
       const int per_strip = std::max(2, n / strips);
@@ -230,22 +242,30 @@ int main(int argc, char** argv) {
       const double orient = CpuSeconds() - cpu0;
       double worst = 0.0;
       for (size_t i = 0; i < r.scene.images.size(); ++i)
-        worst = std::max(worst, (r.scene.images[i].exterior.position - b.centre[r.photo_of_image[i]]).norm());
+        worst = std::max(
+            worst, (r.scene.images[i].exterior.position - b.centre[r.photo_of_image[i]]).norm());
       const auto sec = [&](const char* k) {
         const auto it = r.summary.seconds.find(k);
         return it == r.summary.seconds.end() ? 0.0 : it->second;
       };
       const double features = real.feature_cpu_per_photo * photos / std::max(1, threads);
       const double matching = real.cpu_per_pair * static_cast<double>(pairs) / std::max(1, threads);
-      std::printf("| %d | %zu | %.0f s | %.0f s | %.1f s | %.1f s | %.1f s | %.1f s | %.0f s | %d of %d | %.3f | %.2f | %.2f |\n",
-                  photos, pairs, features, matching, sec("start"), sec("growth"), sec("adjustment"), orient,
-                  features + matching + orient, r.summary.oriented, photos, r.summary.rms_px, worst, PeakGb());
+      std::printf(
+          "| %d | %zu | %.0f s | %.0f s | %.1f s | %.1f s | %.1f s | %.1f s | %.0f s | %d of %d | "
+          "%.3f | %.2f | %.2f |\n",
+          photos, pairs, features, matching, sec("start"), sec("growth"), sec("adjustment"), orient,
+          features + matching + orient, r.summary.oriented, photos, r.summary.rms_px, worst,
+          PeakGb());
       std::fflush(stdout);
     }
-    std::printf("\nTimes on idle cores, from CPU seconds (load-independent): features (est.) = photos x the real "
-                "photos' feature CPU per photo / threads; matching (est.) = pairs planned x their CPU per tied pair / threads; "
-                "orientation = OrientFlight's CPU (start, growth, adjustment: their wall times, as process_flight "
-                "reports them); total (est.) = features + matching + orientation.\n");
+    std::printf(
+        "\nTimes on idle cores, from CPU seconds (load-independent): features (est.) = photos x "
+        "the real "
+        "photos' feature CPU per photo / threads; matching (est.) = pairs planned x their CPU per "
+        "tied pair / threads; "
+        "orientation = OrientFlight's CPU (start, growth, adjustment: their wall times, as "
+        "process_flight "
+        "reports them); total (est.) = features + matching + orientation.\n");
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_flight_scaling: %s\n", e.what());
     return 1;

@@ -12,9 +12,9 @@
 //   bench_matching_vs_opencv [data_dir]   (default test/data/stereo_middlebury_cones)
 #include <algorithm>
 #include <chrono>
-#include <ctime>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <functional>
 #include <string>
 #include <vector>
@@ -55,7 +55,8 @@ struct Score {
   double err_sum = 0, seconds = 0;
 };
 
-Score Evaluate(const Pair& p, const std::vector<cv::Point2d>& xa, const std::vector<cv::Point2d>& xb, double s) {
+Score Evaluate(const Pair& p, const std::vector<cv::Point2d>& xa,
+               const std::vector<cv::Point2d>& xb, double s) {
   Score sc;
   sc.seconds = s;
   sc.matches = static_cast<int>(xa.size());
@@ -108,14 +109,16 @@ Score RunOpenCv(const Pair& p, cv::Ptr<cv::Feature2D> f, int norm) {
 // Our matcher with the defaults (quality control on, low-quality matches
 // kept and marked). normal_only: score only the matches of normal quality;
 // !quality_control: the matcher without quality control (its time cost).
-Score RunOurs(const Pair& p, bool quality_control = true, bool normal_only = false, bool print_flags = true) {
+Score RunOurs(const Pair& p, bool quality_control = true, bool normal_only = false,
+              bool print_flags = true) {
   const double t0 = CpuSeconds();
   HexMatcherOptions o;
   o.quality.enabled = quality_control;
   const HexMatcher m(o);
   const HexMatchResult r = m.Match(p.a, p.b, p.prior);
   if (quality_control && !normal_only && print_flags) {
-    std::printf("%-22s ours   low quality %d of %d:", p.name.c_str(), r.summary.low_quality, r.summary.matched);
+    std::printf("%-22s ours   low quality %d of %d:", p.name.c_str(), r.summary.low_quality,
+                r.summary.matched);
     for (const auto& kv : r.summary.flags) std::printf(" %s %d", kv.first.c_str(), kv.second);
     std::printf("\n");
   }
@@ -130,16 +133,18 @@ Score RunOurs(const Pair& p, bool quality_control = true, bool normal_only = fal
 }
 
 void Print(const char* pair, const char* method, const Score& s) {
-  std::printf("%-22s %-6s matches %5d  correct %5d  precision %.3f  mean_err %.3f px  time %.3f s\n", pair, method,
-              s.matches, s.correct, s.scored ? double(s.correct) / s.scored : 0.0,
-              s.correct ? s.err_sum / s.correct : 0.0, s.seconds);
+  std::printf(
+      "%-22s %-6s matches %5d  correct %5d  precision %.3f  mean_err %.3f px  time %.3f s\n", pair,
+      method, s.matches, s.correct, s.scored ? double(s.correct) / s.scored : 0.0,
+      s.correct ? s.err_sum / s.correct : 0.0, s.seconds);
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   cv::setNumThreads(1);
-  const std::string dir = argc > 1 ? argv[1] : std::string(SM_SOURCE_DIR) + "/test/data/stereo_middlebury_cones";
+  const std::string dir =
+      argc > 1 ? argv[1] : std::string(SM_SOURCE_DIR) + "/test/data/stereo_middlebury_cones";
   const cv::Mat left = cv::imread(dir + "/left.tif", cv::IMREAD_GRAYSCALE);
   const cv::Mat right = cv::imread(dir + "/right.tif", cv::IMREAD_GRAYSCALE);
   const cv::Mat gt = cv::imread(dir + "/disp_left_gt.tif", cv::IMREAD_UNCHANGED);
@@ -157,7 +162,8 @@ int main(int argc, char** argv) {
     p.a = left;
     cv::warpAffine(left, p.b, cv::Mat(m), left.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT_101);
     p.truth = [m, w = left.cols, h = left.rows](const cv::Point2d& x, cv::Point2d* t) {
-      *t = cv::Point2d(m(0, 0) * x.x + m(0, 1) * x.y + m(0, 2), m(1, 0) * x.x + m(1, 1) * x.y + m(1, 2));
+      *t = cv::Point2d(m(0, 0) * x.x + m(0, 1) * x.y + m(0, 2),
+                       m(1, 0) * x.x + m(1, 1) * x.y + m(1, 2));
       return t->x > 2 && t->y > 2 && t->x < w - 3 && t->y < h - 3;
     };
     p.prior.radius = 30;
@@ -191,7 +197,8 @@ int main(int argc, char** argv) {
   auto median_of = [&](const std::function<Score()>& run) {
     std::vector<Score> runs;
     for (int i = 0; i < kRepeats; ++i) runs.push_back(run());
-    std::sort(runs.begin(), runs.end(), [](const Score& a, const Score& b) { return a.seconds < b.seconds; });
+    std::sort(runs.begin(), runs.end(),
+              [](const Score& a, const Score& b) { return a.seconds < b.seconds; });
     return runs[kRepeats / 2];
   };
   for (const Pair& p : pairs) {
@@ -202,7 +209,8 @@ int main(int argc, char** argv) {
     const Score ours = median_of([&] { return RunOurs(p, true, false, false); });
     const Score ours_normal = median_of([&] { return RunOurs(p, true, true); });
     const Score ours_no_qc = median_of([&] { return RunOurs(p, false); });
-    const Score orb = median_of([&] { return RunOpenCv(p, cv::ORB::create(2000), cv::NORM_HAMMING); });
+    const Score orb =
+        median_of([&] { return RunOpenCv(p, cv::ORB::create(2000), cv::NORM_HAMMING); });
     const Score sift = median_of([&] { return RunOpenCv(p, cv::SIFT::create(2000), cv::NORM_L2); });
     Print(p.name.c_str(), "ours", ours);
     Print(p.name.c_str(), "ours_q", ours_normal);  // normal quality only
@@ -210,9 +218,9 @@ int main(int argc, char** argv) {
     Print(p.name.c_str(), "orb", orb);
     Print(p.name.c_str(), "sift", sift);
     auto ratio = [](double a, double b) { return b > 0 ? a / b : 0.0; };
-    std::printf("%s ratio ours/orb: correct %.2f time %.2f; ours/sift: correct %.2f time %.2f\n", p.name.c_str(),
-                ratio(ours.correct, orb.correct), ratio(ours.seconds, orb.seconds), ratio(ours.correct, sift.correct),
-                ratio(ours.seconds, sift.seconds));
+    std::printf("%s ratio ours/orb: correct %.2f time %.2f; ours/sift: correct %.2f time %.2f\n",
+                p.name.c_str(), ratio(ours.correct, orb.correct), ratio(ours.seconds, orb.seconds),
+                ratio(ours.correct, sift.correct), ratio(ours.seconds, sift.seconds));
   }
   return 0;
 }

@@ -23,8 +23,13 @@ int main(int argc, char** argv) {
   cfg.noise_sigma = 10.0;
   radio::NetworkConfig net;
   net.sample_rate = cfg.sample_rate;
-  const std::vector<Eigen::Vector3d> rx = {{40, 135, 43}, {160, 135, 43}, {100, 146, 46}, };
-  const std::vector<Eigen::Vector3d> tx = {{100, 80, 21.5}, {90, 96, 26.5}, {110, 96, 26.5}, {92, 62, 16.5}, {108, 62, 16.5}};
+  const std::vector<Eigen::Vector3d> rx = {
+      {40, 135, 43},
+      {160, 135, 43},
+      {100, 146, 46},
+  };
+  const std::vector<Eigen::Vector3d> tx = {
+      {100, 80, 21.5}, {90, 96, 26.5}, {110, 96, 26.5}, {92, 62, 16.5}, {108, 62, 16.5}};
   for (int j = 0; j < 3; ++j) {
     cfg.receivers.push_back({"rx" + std::to_string(j + 1), rx[j], 0.3 * j, ""});
     net.receivers.push_back({"rx" + std::to_string(j + 1), rx[j]});
@@ -36,7 +41,9 @@ int main(int argc, char** argv) {
     t.psi = 0.5 * i;
     t.amplitude = 100.0;
     const Eigen::Vector3d x0 = tx[i];
-    t.position = [x0, t0](double t) { return Eigen::Vector3d(x0 + Eigen::Vector3d(0, -1e-6, 0) * (t - t0)); };
+    t.position = [x0, t0](double t) {
+      return Eigen::Vector3d(x0 + Eigen::Vector3d(0, -1e-6, 0) * (t - t0));
+    };
     cfg.transmitters.push_back(t);
     net.transmitters.push_back({t.id, t.frequency_offset, x0, 0.005});
   }
@@ -48,7 +55,8 @@ int main(int argc, char** argv) {
   radio::RadioPhaseSolver solver(net);
   const auto a = Clock::now();
   int usable = 0;
-  for (int e = 0; e < epochs; ++e) usable += solver.ProcessEpoch(t0 + e, data[e]).IsSolutionUsable();
+  for (int e = 0; e < epochs; ++e)
+    usable += solver.ProcessEpoch(t0 + e, data[e]).IsSolutionUsable();
   const double ours = std::chrono::duration<double>(Clock::now() - a).count() / epochs;
 
   // Baseline: a plain DFT at the 5 frequencies of every block (no fit, no solver).
@@ -60,14 +68,17 @@ int main(int argc, char** argv) {
         std::complex<double> s(0, 0);
         const double w = -2.0 * M_PI * t.frequency_offset / blk.sample_rate;
         for (std::size_t k = 0; k < blk.size(); ++k)
-          s += std::complex<double>(blk.i[k], blk.q[k]) * std::polar(1.0, w * static_cast<double>(k));
+          s += std::complex<double>(blk.i[k], blk.q[k]) *
+               std::polar(1.0, w * static_cast<double>(k));
         sink += std::arg(s);
       }
   const double dft = std::chrono::duration<double>(Clock::now() - b).count() / epochs;
   const double block = cfg.block_size / cfg.sample_rate;
-  std::printf("epochs %d (usable %d), receivers 3, transmitters 5, block %d samples @ %.0f Hz = %.4f s\n", epochs,
-              usable, cfg.block_size, cfg.sample_rate, block);
-  std::printf("time per epoch: ours %.3f ms, plain DFT %.3f ms (checksum %.3f)\n", 1e3 * ours, 1e3 * dft, sink);
+  std::printf(
+      "epochs %d (usable %d), receivers 3, transmitters 5, block %d samples @ %.0f Hz = %.4f s\n",
+      epochs, usable, cfg.block_size, cfg.sample_rate, block);
+  std::printf("time per epoch: ours %.3f ms, plain DFT %.3f ms (checksum %.3f)\n", 1e3 * ours,
+              1e3 * dft, sink);
   std::printf("ratio ours/block_duration = %.5f\n", ours / block);
   std::printf("ratio ours/plain_dft = %.2f\n", ours / dft);
   return 0;

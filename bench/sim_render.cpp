@@ -26,7 +26,8 @@ double Seconds(F&& f, int repeats) {
 
 int main(int argc, char** argv) {
   using namespace slope_monitor;
-  const std::string path = argc > 1 ? argv[1] : std::string(SM_SOURCE_DIR) + "/config/sim/demo_site.yaml";
+  const std::string path =
+      argc > 1 ? argv[1] : std::string(SM_SOURCE_DIR) + "/config/sim/demo_site.yaml";
   const sim::SurveyConfig config = sim::SurveyConfig::Load(path);
   const sim::SurveyGenerator gen(config);
   const sim::SurveyTruth& truth = gen.planned_truth();
@@ -48,9 +49,10 @@ int main(int argc, char** argv) {
         map_x.at<float>(r, c) = static_cast<float>(c + 0.3 * std::sin(r * 0.01));
         map_y.at<float>(r, c) = static_cast<float>(r + 0.3 * std::cos(c * 0.01));
       }
-    const double t_remap = Seconds([&] { cv::remap(src, dst, map_x, map_y, cv::INTER_LINEAR); }, 20);
-    std::printf("%s: render %.3f s per image, %.3f s/MP (%d threads); cv::remap %.5f s/MP\n", cam.name.c_str(),
-                t_render, t_render / mp, ro.threads, t_remap / mp);
+    const double t_remap =
+        Seconds([&] { cv::remap(src, dst, map_x, map_y, cv::INTER_LINEAR); }, 20);
+    std::printf("%s: render %.3f s per image, %.3f s/MP (%d threads); cv::remap %.5f s/MP\n",
+                cam.name.c_str(), t_render, t_render / mp, ro.threads, t_remap / mp);
     std::printf("ratio ours/cv_remap %s = %.1f\n", cam.name.c_str(), t_render / t_remap);
   }
   return 0;

@@ -126,9 +126,10 @@ int main(int argc, char** argv) {
     const SequenceMatcherOptions so;
     const PhotoFeatures sa(a, na, so.photo), sb(b, nb, so.photo);
     const PhotoPairSummary ss = MatchPhotoPair(sa, sb, so.photo_pair).summary;
-    std::printf("    sequence options: %d tie points, epipolar rms %.3f px, %.2f s (match %.2f s)%s%s\n",
-                ss.matched, ss.epipolar_rms, Now() - t1, ss.seconds, ss.message.empty() ? "" : "; ",
-                ss.message.c_str());
+    std::printf(
+        "    sequence options: %d tie points, epipolar rms %.3f px, %.2f s (match %.2f s)%s%s\n",
+        ss.matched, ss.epipolar_rms, Now() - t1, ss.seconds, ss.message.empty() ? "" : "; ",
+        ss.message.c_str());
     std::fflush(stdout);
   }
   return 0;

@@ -51,8 +51,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     if (const auto error = ros_adapters::SetUpError([&] {
           ros_adapters::ParamReader p(pnh);
-          step_ = std::make_unique<ros_adapters::AdjusterStep>(ros_adapters::ReadAdjusterParameters(p),
-                                                               getName());
+          step_ = std::make_unique<ros_adapters::AdjusterStep>(
+              ros_adapters::ReadAdjusterParameters(p), getName());
         })) {
       NODELET_ERROR("bundle_adjuster: %s; not advertising anything", error->c_str());
       setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(
@@ -78,7 +78,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     for (const std::string& topic : params().tie_topics)
       tie_subs_.push_back(nh.subscribe(topic, 2000, &BundleAdjusterNodelet::OnTiePoints, this));
     for (const std::string& topic : params().prior_topics)
-      prior_subs_.push_back(nh.subscribe(topic, 500, &BundleAdjusterNodelet::OnPositionPrior, this));
+      prior_subs_.push_back(
+          nh.subscribe(topic, 500, &BundleAdjusterNodelet::OnPositionPrior, this));
     for (const std::string& topic : params().epoch_topics)
       epoch_subs_.push_back(nh.subscribe(topic, 20, &BundleAdjusterNodelet::OnEpoch, this));
     // The configured cameras' markers in epoch order: each camera's topic is
@@ -212,9 +213,10 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
         std::vector<std::string> given_up;
         for (auto& r : marker_order_->Expire(Now(), wait, &given_up)) RouteEnd(r.item);
         for (const std::string& c : given_up)
-          NODELET_WARN("bundle_adjuster: no epoch marker of '%s' for epoch_wait %.0f s: the other "
-                       "cameras' markers go on without it",
-                       c.c_str(), wait);
+          NODELET_WARN(
+              "bundle_adjuster: no epoch marker of '%s' for epoch_wait %.0f s: the other "
+              "cameras' markers go on without it",
+              c.c_str(), wait);
       }
       if (ros_adapters::LiveTimeouts()) {
         step_->SetTiePointsExpected(MatcherPublishing());
@@ -243,8 +245,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     if (req.epoch != 0 && req.epoch != step_->current_epoch()) {
       res.success = false;
-      res.message = "only the epoch being collected (" +
-                    std::to_string(step_->current_epoch()) + ") can be solved";
+      res.message = "only the epoch being collected (" + std::to_string(step_->current_epoch()) +
+                    ") can be solved";
       return true;
     }
     const ros_adapters::SolvedEpoch out = step_->SolveNow();
@@ -255,7 +257,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     return true;
   }
 
-  bool OnResect(slope_monitor::ResectCamera::Request& req, slope_monitor::ResectCamera::Response& res) {
+  bool OnResect(slope_monitor::ResectCamera::Request& req,
+                slope_monitor::ResectCamera::Response& res) {
     ros_adapters::Resect(req, &res);
     if (!res.success) NODELET_WARN("bundle_adjuster: resect_camera: %s", res.message.c_str());
     return true;

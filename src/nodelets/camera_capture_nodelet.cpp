@@ -13,9 +13,9 @@
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <image_transport/image_transport.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include "slope_monitor/core/capture/sources.h"
 #include "slope_monitor/core/capture/timing.h"
@@ -49,18 +49,23 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh); })) {
       NODELET_ERROR("camera_capture: %s; not advertising", error->c_str());
-      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(nh, pnh, "camera_capture",
-                                                                               "parameters rejected: " + *error);
+      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(
+          nh, pnh, "camera_capture", "parameters rejected: " + *error);
       return;
     }
-    camera_info_manager_ = std::make_unique<camera_info_manager::CameraInfoManager>(nh, camera_name_);
+    camera_info_manager_ =
+        std::make_unique<camera_info_manager::CameraInfoManager>(nh, camera_name_);
     if (!camera_info_url_.empty()) {
       if (!camera_info_manager_->validateURL(camera_info_url_) ||
-          !camera_info_manager_->loadCameraInfo(camera_info_url_) || !camera_info_manager_->isCalibrated()) {
-        NODELET_ERROR("camera_capture: parameter '%s' = '%s' cannot be loaded as a calibration; not advertising",
-                      pnh.resolveName("camera_info_url").c_str(), camera_info_url_.c_str());
+          !camera_info_manager_->loadCameraInfo(camera_info_url_) ||
+          !camera_info_manager_->isCalibrated()) {
+        NODELET_ERROR(
+            "camera_capture: parameter '%s' = '%s' cannot be loaded as a calibration; not "
+            "advertising",
+            pnh.resolveName("camera_info_url").c_str(), camera_info_url_.c_str());
         setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(
-            nh, pnh, "camera_capture", "camera_info_url '" + camera_info_url_ + "' is not a calibration");
+            nh, pnh, "camera_capture",
+            "camera_info_url '" + camera_info_url_ + "' is not a calibration");
         return;
       }
       publisher_options_.has_camera_info = true;
@@ -76,7 +81,8 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
         prior_pub_ = nh.advertise<geometry_msgs::PoseWithCovarianceStamped>("position_prior", 16);
       }
     }
-    if (source_kind_ == "device") trigger_srv_ = nh.advertiseService("trigger", &CameraCaptureNodelet::OnTrigger, this);
+    if (source_kind_ == "device")
+      trigger_srv_ = nh.advertiseService("trigger", &CameraCaptureNodelet::OnTrigger, this);
 
     ros_adapters::CaptureOutputs out;
     out.image = [this](const sensor_msgs::ImagePtr& img, const sensor_msgs::CameraInfoPtr& info) {
@@ -84,7 +90,9 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
       ++published_;
     };
     out.fix = [this](const sensor_msgs::NavSatFix& f) { fix_pub_.publish(f); };
-    out.prior = [this](const geometry_msgs::PoseWithCovarianceStamped& p) { prior_pub_.publish(p); };
+    out.prior = [this](const geometry_msgs::PoseWithCovarianceStamped& p) {
+      prior_pub_.publish(p);
+    };
     out.epoch = [this](const slope_monitor::EpochMarker& m) { epoch_pub_.publish(m); };
     out.warn = [this](const std::string& w) {
       NODELET_WARN("camera_capture: %s", w.c_str());
@@ -96,14 +104,16 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
       publisher_ = std::make_unique<ros_adapters::FramePublisher>(publisher_options_, out);
     } catch (const Error& e) {
       NODELET_ERROR("camera_capture: %s; not advertising", e.what());
-      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(nh, pnh, "camera_capture", e.what());
+      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(
+          nh, pnh, "camera_capture", e.what());
       return;
     }
 
     diagnostics_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh, getName());
     diagnostics_->setHardwareID(source_description_);
     diagnostics_->add("capture", this, &CameraCaptureNodelet::Diagnose);
-    diag_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { diagnostics_->update(); });
+    diag_timer_ = nh.createWallTimer(
+        ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { diagnostics_->update(); });
 
     running_ = true;
     worker_ = std::thread(&CameraCaptureNodelet::Run, this);
@@ -111,7 +121,8 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
 
   void ReadParameters(ros::NodeHandle& pnh) {
     ros_adapters::ParamReader p(pnh);
-    const ros_adapters::CaptureParameters c = ros_adapters::ReadCaptureParameters(p, getNodeHandle().getNamespace());
+    const ros_adapters::CaptureParameters c =
+        ros_adapters::ReadCaptureParameters(p, getNodeHandle().getNamespace());
     source_kind_ = c.source;
     camera_name_ = c.camera_name;
     camera_info_url_ = c.camera_info_url;
@@ -162,7 +173,8 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     if (source_kind_ != "device") {
       // A folder or video is published once: wait for a subscriber (rosbag
       // record, the graph) so that the first photos are not lost.
-      const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(subscriber_wait_);
+      const auto deadline =
+          std::chrono::steady_clock::now() + std::chrono::duration<double>(subscriber_wait_);
       while (camera_pub_.getNumSubscribers() == 0 && std::chrono::steady_clock::now() < deadline)
         if (!Wait(0.1, false)) return;
     }
@@ -199,9 +211,10 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     capture::EpochTracker tracker(epochs_);
     while (Wait(1.0 / rate_, false)) {
       try {
-        if (publisher_->Step(source.get(), &tracker, true) == ros_adapters::FramePublisher::StepResult::kEnd) {
-          NODELET_INFO("camera_capture: end of %s: %lu published, %lu skipped", source->Describe().c_str(),
-                       static_cast<unsigned long>(published_.load()),
+        if (publisher_->Step(source.get(), &tracker, true) ==
+            ros_adapters::FramePublisher::StepResult::kEnd) {
+          NODELET_INFO("camera_capture: end of %s: %lu published, %lu skipped",
+                       source->Describe().c_str(), static_cast<unsigned long>(published_.load()),
                        static_cast<unsigned long>(source->skipped_count()));
           SetStatus("finished " + source->Describe());
           if (exit_at_end_) {
@@ -240,7 +253,8 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
             status_ = e.what();
             ++open_failures_;
           }
-          NODELET_ERROR_THROTTLE(30.0, "camera_capture: %s; retrying every %.3g s", e.what(), retry_interval_);
+          NODELET_ERROR_THROTTLE(30.0, "camera_capture: %s; retrying every %.3g s", e.what(),
+                                 retry_interval_);
           if (!Wait(retry_interval_, false)) return;
           continue;
         }
@@ -263,7 +277,8 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
           if (!due && !trigger_pending_) continue;
           trigger_pending_ = false;
         }
-        for (int i = 0; i < schedule_.frames_per_epoch; ++i) publisher_->Step(&source, &tracker, false);
+        for (int i = 0; i < schedule_.frames_per_epoch; ++i)
+          publisher_->Step(&source, &tracker, false);
         if (auto end = tracker.Close()) publisher_->PublishEpoch(*end);
       } catch (const Error& e) {
         if (auto end = tracker.Close()) publisher_->PublishEpoch(*end);
@@ -327,7 +342,8 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
   uint64_t skipped_ = 0;
   std::atomic<uint64_t> published_{0};
   std::string status_, last_warning_;
-  std::unique_ptr<ros_adapters::SetUpFailureDiagnostics> setup_failure_;  // onInit failed: ERROR diagnostics
+  std::unique_ptr<ros_adapters::SetUpFailureDiagnostics>
+      setup_failure_;  // onInit failed: ERROR diagnostics
 };
 
 }  // namespace slope_monitor

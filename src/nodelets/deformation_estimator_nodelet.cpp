@@ -96,11 +96,10 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
       return;
     }
     if (params_.site)
-      NODELET_INFO("deformation_estimator: site '%s' (notification hook: %s)",
-                   params_.site->name.c_str(),
-                   params_.site->notification.hook.empty()
-                       ? "none"
-                       : params_.site->notification.hook.c_str());
+      NODELET_INFO(
+          "deformation_estimator: site '%s' (notification hook: %s)", params_.site->name.c_str(),
+          params_.site->notification.hook.empty() ? "none"
+                                                  : params_.site->notification.hook.c_str());
     const deformation::Snapshot resumed = step_->GetSnapshot();
     LogResumed(resumed);
     Advertise(pnh);
@@ -137,7 +136,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     // write files (ROS 1 has no authentication; doc/security.md).
     if (params_.enable_set_reference_epoch)
       reference_srv_ = pnh.advertiseService("set_reference_epoch",
-                                           &DeformationEstimatorNodelet::OnSetReference, this);
+                                            &DeformationEstimatorNodelet::OnSetReference, this);
     if (params_.enable_export_report)
       export_srv_ =
           pnh.advertiseService("export_report", &DeformationEstimatorNodelet::OnExport, this);

@@ -97,8 +97,8 @@ class DenseEpochNodelet : public nodelet::Nodelet {
     });
     worker_ = std::thread([this] { Work(); });
     // The end of a replay (ros/setup.h): the epochs held are measured.
-    end_sub_ = ros_adapters::SubscribeEndOfInput(nh, ros_adapters::kEndOfSurfaces,
-                                                 [this] { Collect([&] { return step_->Finish(); }); });
+    end_sub_ = ros_adapters::SubscribeEndOfInput(
+        nh, ros_adapters::kEndOfSurfaces, [this] { Collect([&] { return step_->Finish(); }); });
   }
 
   // Runs one collector call; complete epochs go to the worker.
@@ -191,9 +191,9 @@ class DenseEpochNodelet : public nodelet::Nodelet {
   std::condition_variable queue_cv_;
   std::deque<dense::PhotoEpoch> jobs_;
   bool stop_ = false;
-  std::thread worker_;      // step_'s Measure
+  std::thread worker_;       // step_'s Measure
   ros::Subscriber end_sub_;  // replay only: the end of the input
-  std::mutex state_mutex_;  // counters and reports
+  std::mutex state_mutex_;   // counters and reports
   int epochs_ = 0, failures_ = 0;
   std::string last_summary_, last_error_;
 };

@@ -19,7 +19,6 @@
 #include <cv_bridge/cv_bridge.h>
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
@@ -28,6 +27,7 @@
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/dense/change.h"
@@ -53,28 +53,28 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh); })) {
       NODELET_ERROR("dense_matcher: %s; not advertising", error->c_str());
-      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(nh, pnh, "dense_matcher",
-                                                                               "parameters rejected: " + *error);
+      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(
+          nh, pnh, "dense_matcher", "parameters rejected: " + *error);
       return;
     }
     tf_buffer_ = std::make_unique<tf2_ros::Buffer>(ros::Duration(3600.0));
     tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh);
     surface_pub_ = nh.advertise<sensor_msgs::PointCloud2>("surface", 2, true);
     change_pub_ = nh.advertise<sensor_msgs::PointCloud2>("surface_change", 2, true);
-    subs_.push_back(nh.subscribe<sensor_msgs::Image>("left/image", 2, [this](const sensor_msgs::ImageConstPtr& m) {
-      OnImage(0, m);
-    }));
-    subs_.push_back(nh.subscribe<sensor_msgs::Image>("right/image", 2, [this](const sensor_msgs::ImageConstPtr& m) {
-      OnImage(1, m);
-    }));
+    subs_.push_back(nh.subscribe<sensor_msgs::Image>(
+        "left/image", 2, [this](const sensor_msgs::ImageConstPtr& m) { OnImage(0, m); }));
+    subs_.push_back(nh.subscribe<sensor_msgs::Image>(
+        "right/image", 2, [this](const sensor_msgs::ImageConstPtr& m) { OnImage(1, m); }));
     subs_.push_back(nh.subscribe<sensor_msgs::CameraInfo>(
         "left/camera_info", 2, [this](const sensor_msgs::CameraInfoConstPtr& m) { OnInfo(0, m); }));
     subs_.push_back(nh.subscribe<sensor_msgs::CameraInfo>(
-        "right/camera_info", 2, [this](const sensor_msgs::CameraInfoConstPtr& m) { OnInfo(1, m); }));
+        "right/camera_info", 2,
+        [this](const sensor_msgs::CameraInfoConstPtr& m) { OnInfo(1, m); }));
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     updater_->setHardwareID("dense_matcher");
     updater_->add("dense_matcher", this, &DenseMatcherNodelet::Diagnose);
-    diag_timer_ = nh.createWallTimer(ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_->update(); });
+    diag_timer_ = nh.createWallTimer(ros::WallDuration(1.0),
+                                     [this](const ros::WallTimerEvent&) { updater_->update(); });
   }
 
   void ReadParameters(ros::NodeHandle& pnh) {
@@ -99,7 +99,9 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
     std::unique_lock<std::mutex> lock(mutex_);
     sides_[side].image = msg;
     if (!sides_[0].image || !sides_[1].image) return;
-    if (std::abs((sides_[0].image->header.stamp - sides_[1].image->header.stamp).toSec()) > max_pair_dt_) return;
+    if (std::abs((sides_[0].image->header.stamp - sides_[1].image->header.stamp).toSec()) >
+        max_pair_dt_)
+      return;
     const Side left = sides_[0], right = sides_[1];
     sides_[0].image.reset();
     sides_[1].image.reset();
@@ -110,8 +112,8 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
       std::lock_guard<std::mutex> state(state_mutex_);
       ++failed_pairs_;
       last_error_ = e.what();
-      NODELET_ERROR_THROTTLE(5.0, "dense_matcher: pair at %.3f dropped: %s", left.image->header.stamp.toSec(),
-                             e.what());
+      NODELET_ERROR_THROTTLE(5.0, "dense_matcher: pair at %.3f dropped: %s",
+                             left.image->header.stamp.toSec(), e.what());
     }
   }
 
@@ -128,12 +130,14 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
       t = tf_buffer_->lookupTransform(frame_id_, s.image->header.frame_id, s.image->header.stamp,
                                       ros::Duration(tf_timeout_));
     } catch (const tf2::TransformException& e) {
-      throw InvalidArgument(Message(role, " image '", s.image->header.frame_id, "' is not oriented: no transform ",
-                                    frame_id_, " <- ", s.image->header.frame_id, " (", e.what(), ")"));
+      throw InvalidArgument(Message(role, " image '", s.image->header.frame_id,
+                                    "' is not oriented: no transform ", frame_id_, " <- ",
+                                    s.image->header.frame_id, " (", e.what(), ")"));
     }
     const Eigen::Isometry3d site_from_optical = tf2::transformToEigen(t);
     const Rigid3 optical_from_site =
-        Rigid3(Eigen::Matrix3d(site_from_optical.rotation()), site_from_optical.translation()).Inverse();
+        Rigid3(Eigen::Matrix3d(site_from_optical.rotation()), site_from_optical.translation())
+            .Inverse();
     im.pose = camera::ExteriorOrientation::FromOpticalFromSite(optical_from_site);
     im.oriented = true;
     return im;
@@ -143,12 +147,14 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
     const dense::OrientedImage left = ToOriented(l, "left"), right = ToOriented(r, "right");
     dense::SurfaceSummary summary;
     std::ostringstream stem;
-    stem << output_dir_ << "/dense_" << std::fixed << std::setprecision(3) << l.image->header.stamp.toSec();
+    stem << output_dir_ << "/dense_" << std::fixed << std::setprecision(3)
+         << l.image->header.stamp.toSec();
     // With output_dir: surface and orthophoto written only after a successful
     // measurement (temporary names, renamed), never a half set.
-    const dense::SurfaceResult s = output_dir_.empty()
-                                       ? dense::MeasureSurface(left, right, options_, config_, &summary)
-                                       : dense::MeasureSurfaceToFiles(left, right, options_, config_, stem.str(), &summary);
+    const dense::SurfaceResult s =
+        output_dir_.empty()
+            ? dense::MeasureSurface(left, right, options_, config_, &summary)
+            : dense::MeasureSurfaceToFiles(left, right, options_, config_, stem.str(), &summary);
     std_msgs::Header header = l.image->header;
     header.frame_id = frame_id_;
     surface_pub_.publish(SurfaceCloud(s, header));
@@ -172,16 +178,18 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
     if (!output_dir_.empty()) io::WriteGeoTiff(stem.str() + "_change.tif", c.change);
   }
 
-  static sensor_msgs::PointCloud2 SurfaceCloud(const dense::SurfaceResult& s, const std_msgs::Header& header) {
+  static sensor_msgs::PointCloud2 SurfaceCloud(const dense::SurfaceResult& s,
+                                               const std_msgs::Header& header) {
     sensor_msgs::PointCloud2 cloud;
     cloud.header = header;
     sensor_msgs::PointCloud2Modifier mod(cloud);
-    mod.setPointCloud2Fields(5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
-                             "z", 1, sensor_msgs::PointField::FLOAT32, "intensity", 1,
-                             sensor_msgs::PointField::FLOAT32, "sigma_z", 1, sensor_msgs::PointField::FLOAT32);
+    mod.setPointCloud2Fields(
+        5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z",
+        1, sensor_msgs::PointField::FLOAT32, "intensity", 1, sensor_msgs::PointField::FLOAT32,
+        "sigma_z", 1, sensor_msgs::PointField::FLOAT32);
     mod.resize(s.points.size());
-    sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"), in(cloud, "intensity"),
-        sz(cloud, "sigma_z");
+    sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"),
+        in(cloud, "intensity"), sz(cloud, "sigma_z");
     for (const dense::SurfacePoint& p : s.points) {
       *x = p.x_in_site.x();
       *y = p.x_in_site.y();
@@ -193,16 +201,18 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
     return cloud;
   }
 
-  static sensor_msgs::PointCloud2 ChangeCloud(const dense::ChangeResult& c, const std_msgs::Header& header) {
+  static sensor_msgs::PointCloud2 ChangeCloud(const dense::ChangeResult& c,
+                                              const std_msgs::Header& header) {
     sensor_msgs::PointCloud2 cloud;
     cloud.header = header;
     sensor_msgs::PointCloud2Modifier mod(cloud);
-    mod.setPointCloud2Fields(5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32,
-                             "z", 1, sensor_msgs::PointField::FLOAT32, "dz", 1, sensor_msgs::PointField::FLOAT32,
-                             "lod", 1, sensor_msgs::PointField::FLOAT32);
+    mod.setPointCloud2Fields(
+        5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z",
+        1, sensor_msgs::PointField::FLOAT32, "dz", 1, sensor_msgs::PointField::FLOAT32, "lod", 1,
+        sensor_msgs::PointField::FLOAT32);
     mod.resize(c.significant.size());
-    sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"), dz(cloud, "dz"),
-        lod(cloud, "lod");
+    sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"),
+        dz(cloud, "dz"), lod(cloud, "lod");
     for (const dense::ChangePoint& p : c.significant) {
       *x = p.x_in_site.x();
       *y = p.x_in_site.y();
@@ -217,11 +227,13 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
   void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
     std::lock_guard<std::mutex> lock(state_mutex_);
     if (failed_pairs_ > 0 && pairs_ == 0) {
-      stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "no pair measured; last error: " + last_error_);
+      stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
+                   "no pair measured; last error: " + last_error_);
     } else if (pairs_ == 0) {
       stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "waiting for an image pair");
     } else {
-      stat.summary(failed_pairs_ > 0 ? diagnostic_msgs::DiagnosticStatus::WARN : diagnostic_msgs::DiagnosticStatus::OK,
+      stat.summary(failed_pairs_ > 0 ? diagnostic_msgs::DiagnosticStatus::WARN
+                                     : diagnostic_msgs::DiagnosticStatus::OK,
                    "measuring");
     }
     stat.add("pairs measured", pairs_);
@@ -253,7 +265,8 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
   int pairs_ = 0;
   int failed_pairs_ = 0;
   std::string last_summary_, last_change_, last_error_;
-  std::unique_ptr<ros_adapters::SetUpFailureDiagnostics> setup_failure_;  // onInit failed: ERROR diagnostics
+  std::unique_ptr<ros_adapters::SetUpFailureDiagnostics>
+      setup_failure_;  // onInit failed: ERROR diagnostics
 };
 
 }  // namespace slope_monitor

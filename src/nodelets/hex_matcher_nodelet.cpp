@@ -75,7 +75,8 @@ class HexMatcherNodelet : public nodelet::Nodelet {
           nh, pnh, "hex_matcher", "parameters rejected: " + *error);
       return;
     }
-    if (!params_.idle.empty()) {  // a site with targets, started by the graph (only_without_targets)
+    if (!params_.idle
+             .empty()) {  // a site with targets, started by the graph (only_without_targets)
       NODELET_INFO("hex_matcher: idle: %s", params_.idle.c_str());
       return;
     }
@@ -89,8 +90,8 @@ class HexMatcherNodelet : public nodelet::Nodelet {
     } else {
       // Large queues: a fast bag replay must lose no image (the callbacks
       // only queue; the worker matches).
-      sub_a_ =
-          nh.subscribe(params_.image_topic, params_.image_queue, &HexMatcherNodelet::OnSequenceImage, this);
+      sub_a_ = nh.subscribe(params_.image_topic, params_.image_queue,
+                            &HexMatcherNodelet::OnSequenceImage, this);
       sub_b_ = nh.subscribe(params_.prior_topic, params_.image_queue,
                             &HexMatcherNodelet::OnPositionPrior, this);
       worker_ = std::thread([this] { SequenceWorker(); });
@@ -311,7 +312,7 @@ class HexMatcherNodelet : public nodelet::Nodelet {
   std::string last_error_;
   // Sequence mode.
   std::unique_ptr<ros_adapters::SequenceMatcherStep> sequence_;  // worker only (and CheckPrior)
-  std::mutex queue_mutex_;                               // inputs_, stop_
+  std::mutex queue_mutex_;                                       // inputs_, stop_
   std::condition_variable queue_cv_;
   std::deque<Input> inputs_;
   bool stop_ = false;

@@ -91,9 +91,10 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
     // would only give false circles.
     no_targets_ = site && io::SiteWithoutTargets(*site, node.target_list);
     if (no_targets_)
-      NODELET_INFO("target_centroider: site '%s' lists no targets and target list '%s' is not there: "
-                   "no target stage (an empty target list per photo)",
-                   site->name.c_str(), node.target_list.c_str());
+      NODELET_INFO(
+          "target_centroider: site '%s' lists no targets and target list '%s' is not there: "
+          "no target stage (an empty target list per photo)",
+          site->name.c_str(), node.target_list.c_str());
     site_frame_ = node.site_frame;
     use_tf_pose_ = node.use_tf_pose && !no_targets_;
     const io::TargetList list = no_targets_ ? io::TargetList() : LoadTargets(node, site);
@@ -177,11 +178,10 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
         input_prefix + "image_raw", queue_size,
         [this, raw](const sensor_msgs::ImageConstPtr& image,
                     const sensor_msgs::CameraInfoConstPtr& info) { OnImage(raw, image, info); });
-    updater_->add(channels_.empty() && output_prefix.empty() ? "target_centroider"
-                                                              : "target_centroider: " + name,
-                  [this, raw](diagnostic_updater::DiagnosticStatusWrapper& stat) {
-                    Diagnose(*raw, stat);
-                  });
+    updater_->add(
+        channels_.empty() && output_prefix.empty() ? "target_centroider"
+                                                   : "target_centroider: " + name,
+        [this, raw](diagnostic_updater::DiagnosticStatusWrapper& stat) { Diagnose(*raw, stat); });
     channels_.push_back(std::move(c));
   }
 

@@ -35,7 +35,8 @@ AdjusterStep::AdjusterStep(const AdjusterParameters& parameters, const std::stri
 void AdjusterStep::KeepCameras(const std::vector<std::string>& cameras) {
   if (cameras == parameters_.collector.cameras) return;
   parameters_.collector.cameras = cameras;
-  collector_ = std::make_unique<adjustment::EpochCollector>(parameters_.collector, &parameters_.targets);
+  collector_ =
+      std::make_unique<adjustment::EpochCollector>(parameters_.collector, &parameters_.targets);
   reported_ignored_ = 0;
 }
 
@@ -54,7 +55,8 @@ std::vector<SolvedEpoch> AdjusterStep::AddTargets(const slope_monitor::TargetObs
   return Solve(collector_->AddTargets(FromMsg(msg), now));
 }
 
-std::vector<SolvedEpoch> AdjusterStep::AddTies(const slope_monitor::TiePointArray& msg, double now) {
+std::vector<SolvedEpoch> AdjusterStep::AddTies(const slope_monitor::TiePointArray& msg,
+                                               double now) {
   return Solve(collector_->AddTies(FromMsg(msg), now));
 }
 
@@ -80,7 +82,8 @@ std::optional<SolvedEpoch> AdjusterStep::Finish() {
 
 SolvedEpoch AdjusterStep::SolveNow() { return Solve(collector_->TakeNow()); }
 
-std::vector<SolvedEpoch> AdjusterStep::Solve(const std::vector<adjustment::CollectedEpoch>& epochs) {
+std::vector<SolvedEpoch> AdjusterStep::Solve(
+    const std::vector<adjustment::CollectedEpoch>& epochs) {
   std::vector<SolvedEpoch> out;
   for (const adjustment::CollectedEpoch& e : epochs) out.push_back(Solve(e));
   return out;
@@ -111,7 +114,8 @@ void AdjusterStep::Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) c
   } else if (last_usable_) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::OK, last_message_);
   } else {
-    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "last epoch not usable: " + last_message_);
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                 "last epoch not usable: " + last_message_);
   }
   stat.add("collected observations", collector_->num_observations());
   stat.add("collected images", collector_->num_images());

@@ -180,7 +180,8 @@ sensor_msgs::PointCloud2 MakePointCloud(const adjustment::Scene& scene,
   return cloud;
 }
 
-CameraTransforms MakeTransforms(const adjustment::Scene& scene, const adjustment::CollectedEpoch& epoch,
+CameraTransforms MakeTransforms(const adjustment::Scene& scene,
+                                const adjustment::CollectedEpoch& epoch,
                                 const std::string& frame_id, const ros::Time& stamp,
                                 const std::set<std::string>& moving_cameras) {
   CameraTransforms tfs;
@@ -195,7 +196,8 @@ CameraTransforms MakeTransforms(const adjustment::Scene& scene, const adjustment
     if (!moving && !done.insert(frame).second) continue;
     geometry_msgs::TransformStamped t;
     t.header.stamp = stamp;
-    if (moving && ci != epoch.images.end()) t.header.stamp.fromNSec(static_cast<uint64_t>(ci->second.stamp));
+    if (moving && ci != epoch.images.end())
+      t.header.stamp.fromNSec(static_cast<uint64_t>(ci->second.stamp));
     t.header.frame_id = frame_id;
     t.child_frame_id = frame;
     t.transform = ToTransform(it->exterior.SiteFromOptical());

@@ -27,7 +27,8 @@ sensor_msgs::NavSatFix ToNavSatFix(const capture::ExifInfo& exif, const GnssOpti
   fix.status.service = sensor_msgs::NavSatStatus::SERVICE_GPS;
   fix.latitude = exif.gps.latitude_deg;
   fix.longitude = exif.gps.longitude_deg;
-  fix.altitude = exif.has_gps_altitude ? exif.gps.height_m + o.geoid_height : std::numeric_limits<double>::quiet_NaN();
+  fix.altitude = exif.has_gps_altitude ? exif.gps.height_m + o.geoid_height
+                                       : std::numeric_limits<double>::quiet_NaN();
   const double h2 = o.sigma_horizontal * o.sigma_horizontal;
   const double v2 = o.sigma_vertical * o.sigma_vertical;
   fix.position_covariance = {h2, 0.0, 0.0, 0.0, h2, 0.0, 0.0, 0.0, v2};
@@ -57,7 +58,8 @@ geometry_msgs::PoseWithCovarianceStamped ToPositionPrior(const sensor_msgs::NavS
   return prior;
 }
 
-void SetNadirAttitude(double yaw_deg, double sigma_deg, geometry_msgs::PoseWithCovarianceStamped* prior) {
+void SetNadirAttitude(double yaw_deg, double sigma_deg,
+                      geometry_msgs::PoseWithCovarianceStamped* prior) {
   const Eigen::Quaterniond q = capture::SiteFromOpticalNadir(yaw_deg);
   prior->pose.pose.orientation.w = q.w();
   prior->pose.pose.orientation.x = q.x();
@@ -92,7 +94,8 @@ namespace ros_adapters {
 
 FramePublisher::FramePublisher(const FramePublisherOptions& options, CaptureOutputs outputs)
     : options_(options), outputs_(std::move(outputs)) {
-  if (options_.has_site_origin) site_ = std::make_unique<capture::LocalTangentPlane>(options_.site_origin);
+  if (options_.has_site_origin)
+    site_ = std::make_unique<capture::LocalTangentPlane>(options_.site_origin);
 }
 
 void FramePublisher::Warn(const std::string& text) {
@@ -106,17 +109,20 @@ sensor_msgs::CameraInfo FramePublisher::CameraInfoFor(const capture::Frame& fram
     if (!calibration_checked_) {
       calibration_checked_ = true;
       try {
-        capture::CheckCameraInfo(FromMsg(options_.camera_info), options_.pixel_size > 0 ? options_.pixel_size : 1.0, w,
-                                 h, "camera_info of " + options_.source_name);
+        capture::CheckCameraInfo(FromMsg(options_.camera_info),
+                                 options_.pixel_size > 0 ? options_.pixel_size : 1.0, w, h,
+                                 "camera_info of " + options_.source_name);
       } catch (const Error& e) {
-        Warn(Message("calibration inconsistent with the collinearity model or the image: ", e.what()));
+        Warn(Message("calibration inconsistent with the collinearity model or the image: ",
+                     e.what()));
       }
     }
     return options_.camera_info;
   }
   if (options_.pixel_size > 0.0 && frame.exif.focal_length_mm > 0.0) {
     try {
-      return ToMsg(capture::NominalModelFromExif(frame.exif, w, h, options_.pixel_size, frame.name).ToCameraInfo());
+      return ToMsg(capture::NominalModelFromExif(frame.exif, w, h, options_.pixel_size, frame.name)
+                       .ToCameraInfo());
     } catch (const Error& e) {
       Warn(e.what());
     }
@@ -136,8 +142,8 @@ void FramePublisher::PublishFrame(const capture::Frame& frame, sensor_msgs::Imag
   if (outputs_.image) {
     sensor_msgs::CameraInfoPtr info(new sensor_msgs::CameraInfo(CameraInfoFor(frame)));
     info->header = header;
-    if (image && frame.in_image_buffer && !image->data.empty() && frame.image.data == image->data.data() &&
-        frame.image.isContinuous()) {
+    if (image && frame.in_image_buffer && !image->data.empty() &&
+        frame.image.data == image->data.data() && frame.image.isContinuous()) {
       // The pixels are already in the message (decoded into it): fill in the rest.
       image->header = header;
       image->height = static_cast<uint32_t>(frame.image.rows);
@@ -155,8 +161,10 @@ void FramePublisher::PublishFrame(const capture::Frame& frame, sensor_msgs::Imag
     if (outputs_.fix) outputs_.fix(fix);
     if (site_ && outputs_.prior) {
       if (frame.exif.has_gps_altitude) {
-        geometry_msgs::PoseWithCovarianceStamped prior = ToPositionPrior(fix, *site_, options_.site_frame);
-        if (frame.attitude.has_yaw) SetNadirAttitude(frame.attitude.yaw_deg, options_.attitude_sigma, &prior);
+        geometry_msgs::PoseWithCovarianceStamped prior =
+            ToPositionPrior(fix, *site_, options_.site_frame);
+        if (frame.attitude.has_yaw)
+          SetNadirAttitude(frame.attitude.yaw_deg, options_.attitude_sigma, &prior);
         outputs_.prior(prior);
       } else {
         Warn(Message(frame.name, ": EXIF GNSS position has no altitude; no position prior"));
@@ -166,8 +174,8 @@ void FramePublisher::PublishFrame(const capture::Frame& frame, sensor_msgs::Imag
   ++published_;
 }
 
-FramePublisher::StepResult FramePublisher::Step(capture::FrameSource* source, capture::EpochTracker* tracker,
-                                                bool look_ahead) {
+FramePublisher::StepResult FramePublisher::Step(capture::FrameSource* source,
+                                                capture::EpochTracker* tracker, bool look_ahead) {
   capture::Frame frame;
   // Let the source decode into the outgoing message's data (no copy).
   sensor_msgs::ImagePtr image;
@@ -188,8 +196,8 @@ FramePublisher::StepResult FramePublisher::Step(capture::FrameSource* source, ca
     ++skipped_;
     // The reason usually starts with the file name already.
     const bool named = s.reason.rfind(s.name + ": ", 0) == 0;
-    Warn(Message("skipped ", s.name, ": ", named ? s.reason.substr(s.name.size() + 2) : s.reason, " (",
-                 source->skipped_count(), " skipped so far)"));
+    Warn(Message("skipped ", s.name, ": ", named ? s.reason.substr(s.name.size() + 2) : s.reason,
+                 " (", source->skipped_count(), " skipped so far)"));
   }
   if (!got) {
     if (auto end = tracker->Close()) PublishEpoch(*end);
@@ -225,7 +233,8 @@ BagReport CheckBag(const std::string& path, const BagCheckOptions& options) {
 
 BagReport CheckBags(const std::vector<std::string>& paths, const BagCheckOptions& options) {
   if (!(options.gap > 0.0) || !(options.epoch_gap > 0.0)) {
-    throw InvalidArgument(Message("bag check gaps must be > 0 (gap = ", options.gap, ", epoch_gap = ", options.epoch_gap, ")"));
+    throw InvalidArgument(Message("bag check gaps must be > 0 (gap = ", options.gap,
+                                  ", epoch_gap = ", options.epoch_gap, ")"));
   }
   if (paths.empty()) throw InvalidArgument("bag check: no bag file given");
   BagReport report;
@@ -272,7 +281,9 @@ BagReport CheckBags(const std::vector<std::string>& paths, const BagCheckOptions
       ++report.messages;
       if (m.getDataType() == "slope_monitor/EpochMarker") {
         const auto marker = m.instantiate<slope_monitor::EpochMarker>();
-        if (marker) markers.push_back({t, static_cast<bool>(marker->end), marker->epoch, marker->count, m.getTopic()});
+        if (marker)
+          markers.push_back(
+              {t, static_cast<bool>(marker->end), marker->epoch, marker->count, m.getTopic()});
       }
       if (previous < 0.0 || t - previous > options.epoch_gap) {
         if (previous >= 0.0) {
@@ -307,8 +318,8 @@ std::string FormatBagReport(const BagReport& r) {
   out << "time span: " << r.start << " .. " << r.end << " (" << r.end - r.start << " s)\n";
   out << "topics: " << r.topics.size() << "\n";
   for (const auto& t : r.topics) {
-    out << "  " << t.topic << "  " << t.datatype << "  " << t.count << " msgs  " << t.first << " .. " << t.last
-        << "  max gap " << t.max_gap << " s\n";
+    out << "  " << t.topic << "  " << t.datatype << "  " << t.count << " msgs  " << t.first
+        << " .. " << t.last << "  max gap " << t.max_gap << " s\n";
   }
   out << "epochs (" << (r.epochs_from_markers ? "EpochMarker messages" : "time gaps") << "):\n";
   for (const auto& e : r.epochs) {
@@ -318,7 +329,8 @@ std::string FormatBagReport(const BagReport& r) {
     out << "\n";
   }
   out << "gaps: " << r.gaps.size() << "\n";
-  for (const auto& g : r.gaps) out << "  " << g.topic << "  " << g.from << " .. " << g.to << " (" << g.to - g.from << " s)\n";
+  for (const auto& g : r.gaps)
+    out << "  " << g.topic << "  " << g.from << " .. " << g.to << " (" << g.to - g.from << " s)\n";
   return out.str();
 }
 

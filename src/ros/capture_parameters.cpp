@@ -4,8 +4,8 @@
 #include <array>
 
 #include "slope_monitor/core/camera/camera_model.h"
-#include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/capture/geodesy.h"
+#include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/ros/conversions.h"
@@ -18,12 +18,15 @@ namespace {
 // The site file (io::LoadSiteFile): the position priors' origin (a local_enu
 // site's origin, unless site_origin is set) and this camera's pixel size
 // (its entry, by the camera's name, unless pixel_size is set).
-void ApplyCaptureSiteFile(const std::string& path, bool origin_from_site, FramePublisherOptions* o) {
+void ApplyCaptureSiteFile(const std::string& path, bool origin_from_site,
+                          FramePublisherOptions* o) {
   const io::SiteFile site = io::LoadSiteFile(path);
   if (origin_from_site) {
     if (site.crs.frame != SiteCrsOptions::Frame::kLocalEnu)
-      throw ConfigError(Message(path, ": frame shifted_crs: camera_capture's position priors need a local_enu site "
-                                      "(or set site_origin)"));
+      throw ConfigError(
+          Message(path,
+                  ": frame shifted_crs: camera_capture's position priors need a local_enu site "
+                  "(or set site_origin)"));
     const Eigen::Vector3d lon_lat_h = SiteCrs(site.crs).origin_wgs84();
     o->has_site_origin = true;
     o->site_origin = {lon_lat_h.y(), lon_lat_h.x(), lon_lat_h.z()};
@@ -37,7 +40,8 @@ void ApplyOriginAndInterior(ParamReader& p, CaptureParameters* c) {
   FramePublisherOptions& o = c->publisher;
   if (!c->site_origin.empty()) {
     if (c->site_origin.size() != 3) {
-      throw ConfigError(Message("parameter '", p.FullKey("site_origin"), "' must be [lat_deg, lon_deg, height_m], got ",
+      throw ConfigError(Message("parameter '", p.FullKey("site_origin"),
+                                "' must be [lat_deg, lon_deg, height_m], got ",
                                 c->site_origin.size(), " values"));
     }
     o.has_site_origin = true;
@@ -46,15 +50,17 @@ void ApplyOriginAndInterior(ParamReader& p, CaptureParameters* c) {
   }
   if (c->interior.empty()) return;
   if (c->interior.size() != camera::kNumInterior) {
-    throw ConfigError(Message("parameter '", p.FullKey("interior"), "' needs ", camera::kNumInterior,
-                              " values (c x0 y0 k1 k2 k3 p1 p2 b1 b2), got ", c->interior.size()));
+    throw ConfigError(Message("parameter '", p.FullKey("interior"), "' needs ",
+                              camera::kNumInterior, " values (c x0 y0 k1 k2 k3 p1 p2 b1 b2), got ",
+                              c->interior.size()));
   }
   if (!c->camera_info_url.empty()) {
-    throw ConfigError(Message("parameters '", p.FullKey("interior"), "' and '", p.FullKey("camera_info_url"),
-                              "' are both set; use one calibration"));
+    throw ConfigError(Message("parameters '", p.FullKey("interior"), "' and '",
+                              p.FullKey("camera_info_url"), "' are both set; use one calibration"));
   }
   if (!(o.pixel_size > 0.0) || c->sensor_width <= 0 || c->sensor_height <= 0) {
-    throw ConfigError(Message("parameter '", p.FullKey("interior"), "' needs pixel_size, sensor_width and sensor_height"));
+    throw ConfigError(Message("parameter '", p.FullKey("interior"),
+                              "' needs pixel_size, sensor_width and sensor_height"));
   }
   std::array<double, camera::kNumInterior> a{};
   std::copy(c->interior.begin(), c->interior.end(), a.begin());
@@ -114,8 +120,8 @@ CaptureParameters ReadCaptureParameters(ParamReader& p, const std::string& node_
   c.camera_info_url = p.String("camera_info_url", c.camera_info_url);
   o.pixel_size = p.Double("pixel_size", o.pixel_size, 0.0, 1.0, "mm");
   c.interior = p.DoubleList("interior", c.interior);
-  c.distortion_model =
-      p.String("distortion_model", c.distortion_model, {"none", "radial", "brown", "brown_affinity"});
+  c.distortion_model = p.String("distortion_model", c.distortion_model,
+                                {"none", "radial", "brown", "brown_affinity"});
   c.sensor_width = p.Int("sensor_width", c.sensor_width, 0, 100000, "px");
   c.sensor_height = p.Int("sensor_height", c.sensor_height, 0, 100000, "px");
   c.encoding = p.String("encoding", c.encoding, {"auto", "mono8", "bgr8"});
@@ -127,10 +133,12 @@ CaptureParameters ReadCaptureParameters(ParamReader& p, const std::string& node_
   capture::EpochOptions& e = c.epochs;
   e.gap = p.Double("epoch_gap", e.gap, 1e-3, 1e9, "s");
   e.max_duration = p.Double("epoch_max_duration", e.max_duration, 0.0, 1e9, "s");
-  e.first_epoch = static_cast<uint32_t>(p.Int("first_epoch", static_cast<int>(e.first_epoch), 0, 1000000000));
+  e.first_epoch =
+      static_cast<uint32_t>(p.Int("first_epoch", static_cast<int>(e.first_epoch), 0, 1000000000));
   c.site_origin = p.DoubleList("site_origin", c.site_origin);
   o.site_frame = p.String("site_frame", o.site_frame);
-  o.gnss.sigma_horizontal = p.Double("gnss_sigma_horizontal", o.gnss.sigma_horizontal, 1e-4, 1e4, "m");
+  o.gnss.sigma_horizontal =
+      p.Double("gnss_sigma_horizontal", o.gnss.sigma_horizontal, 1e-4, 1e4, "m");
   o.gnss.sigma_vertical = p.Double("gnss_sigma_vertical", o.gnss.sigma_vertical, 1e-4, 1e4, "m");
   o.gnss.geoid_height = p.Double("geoid_height", o.gnss.geoid_height, -200.0, 200.0, "m");
   o.attitude_sigma = p.Double("attitude_sigma", o.attitude_sigma, 0.01, 180.0, "deg");

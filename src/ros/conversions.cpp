@@ -31,7 +31,8 @@ sensor_msgs::CameraInfo ToMsg(const camera::CameraInfoFields& f) {
   return msg;
 }
 
-camera::CameraModel CameraModelFromCameraInfo(const sensor_msgs::CameraInfo& msg, double pixel_size) {
+camera::CameraModel CameraModelFromCameraInfo(const sensor_msgs::CameraInfo& msg,
+                                              double pixel_size) {
   return camera::CameraModel::FromCameraInfo(FromMsg(msg), pixel_size);
 }
 
@@ -60,8 +61,9 @@ geometry_msgs::Transform ToTransform(const Rigid3& t) {
 }
 
 Rigid3 FromPose(const geometry_msgs::Pose& p) {
-  return Rigid3(Eigen::Quaterniond(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z),
-                Eigen::Vector3d(p.position.x, p.position.y, p.position.z));
+  return Rigid3(
+      Eigen::Quaterniond(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z),
+      Eigen::Vector3d(p.position.x, p.position.y, p.position.z));
 }
 
 }  // namespace ros_adapters

@@ -10,8 +10,8 @@
 #include <tf2_eigen/tf2_eigen.h>
 
 #include "slope_monitor/core/common/error.h"
-#include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/core/common/format.h"
+#include "slope_monitor/ros/conversions.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -23,10 +23,25 @@ std_msgs::ColorRGBA AlertColour(deformation::AlertLevel a) {
   std_msgs::ColorRGBA c;
   c.a = 1.0;
   switch (a) {
-    case deformation::AlertLevel::kWatch: c.r = 1.0; c.g = 0.85; c.b = 0.0; break;
-    case deformation::AlertLevel::kWarning: c.r = 1.0; c.g = 0.5; c.b = 0.0; break;
-    case deformation::AlertLevel::kAlarm: c.r = 0.95; c.g = 0.0; c.b = 0.0; break;
-    default: c.r = 0.2; c.g = 0.75; c.b = 0.2;
+    case deformation::AlertLevel::kWatch:
+      c.r = 1.0;
+      c.g = 0.85;
+      c.b = 0.0;
+      break;
+    case deformation::AlertLevel::kWarning:
+      c.r = 1.0;
+      c.g = 0.5;
+      c.b = 0.0;
+      break;
+    case deformation::AlertLevel::kAlarm:
+      c.r = 0.95;
+      c.g = 0.0;
+      c.b = 0.0;
+      break;
+    default:
+      c.r = 0.2;
+      c.g = 0.75;
+      c.b = 0.2;
   }
   return c;
 }
@@ -41,7 +56,8 @@ geometry_msgs::Vector3 ToVector(const Eigen::Vector3d& v) {
 
 }  // namespace
 
-deformation::Batch FromMsg(const slope_monitor::PointDisplacementArray& msg, const std::string& topic) {
+deformation::Batch FromMsg(const slope_monitor::PointDisplacementArray& msg,
+                           const std::string& topic) {
   deformation::Batch b;
   b.epoch = msg.epoch;
   b.stamp = msg.header.stamp.toSec();
@@ -57,7 +73,8 @@ deformation::Batch FromMsg(const slope_monitor::PointDisplacementArray& msg, con
     m.epoch = msg.epoch;
     m.stamp = d.stamp.isZero() ? b.stamp : d.stamp.toSec();
     m.reference_stamp = d.reference_stamp.toSec();
-    m.reference_position = Eigen::Vector3d(d.reference_position.x, d.reference_position.y, d.reference_position.z);
+    m.reference_position =
+        Eigen::Vector3d(d.reference_position.x, d.reference_position.y, d.reference_position.z);
     m.displacement = Eigen::Vector3d(d.displacement.x, d.displacement.y, d.displacement.z);
     m.covariance = FromRowMajor<3>(d.covariance);
     b.measurements.push_back(m);
@@ -65,11 +82,10 @@ deformation::Batch FromMsg(const slope_monitor::PointDisplacementArray& msg, con
   return b;
 }
 
-slope_monitor::PointDisplacement MakePointDisplacement(const std::string& point_id, uint8_t source,
-                                                       const std::string& source_name, double reference_stamp,
-                                                       const ros::Time& stamp, const Eigen::Vector3d& reference_position,
-                                                       const Eigen::Vector3d& displacement,
-                                                       const Eigen::Matrix3d& covariance) {
+slope_monitor::PointDisplacement MakePointDisplacement(
+    const std::string& point_id, uint8_t source, const std::string& source_name,
+    double reference_stamp, const ros::Time& stamp, const Eigen::Vector3d& reference_position,
+    const Eigen::Vector3d& displacement, const Eigen::Matrix3d& covariance) {
   slope_monitor::PointDisplacement p;
   p.point_id = point_id;
   p.source = source;
@@ -87,7 +103,8 @@ slope_monitor::PointDisplacement MakePointDisplacement(const std::string& point_
   return p;
 }
 
-slope_monitor::SlopeDeformation ToMsg(const deformation::Snapshot& s, const std_msgs::Header& header) {
+slope_monitor::SlopeDeformation ToMsg(const deformation::Snapshot& s,
+                                      const std_msgs::Header& header) {
   slope_monitor::SlopeDeformation msg;
   msg.header = header;
   msg.epoch = s.epoch;
@@ -109,7 +126,8 @@ slope_monitor::SlopeDeformation ToMsg(const deformation::Snapshot& s, const std_
     d.alert_level = static_cast<uint8_t>(p.alert);
     d.alert_reason = p.alert_reason;
     d.forecast_valid = p.forecast.valid;
-    if (p.forecast.valid && p.forecast.failure_time > 0) d.forecast_failure_time = ros::Time(p.forecast.failure_time);
+    if (p.forecast.valid && p.forecast.failure_time > 0)
+      d.forecast_failure_time = ros::Time(p.forecast.failure_time);
     d.forecast_sigma = p.forecast.sigma;
     d.forecast_window = p.forecast.window;
     for (deformation::Source src : p.sources) d.sources.push_back(static_cast<uint8_t>(src));
@@ -119,8 +137,8 @@ slope_monitor::SlopeDeformation ToMsg(const deformation::Snapshot& s, const std_
   return msg;
 }
 
-visualization_msgs::MarkerArray ToMarkers(const deformation::Snapshot& s, const std_msgs::Header& header,
-                                          const MarkerOptions& o) {
+visualization_msgs::MarkerArray ToMarkers(const deformation::Snapshot& s,
+                                          const std_msgs::Header& header, const MarkerOptions& o) {
   visualization_msgs::MarkerArray out;
   visualization_msgs::Marker clear;
   clear.header = header;
@@ -147,7 +165,8 @@ visualization_msgs::MarkerArray ToMarkers(const deformation::Snapshot& s, const 
     arrow.pose = geometry_msgs::Pose();
     arrow.pose.orientation.w = 1.0;
     arrow.points.push_back(tf2::toMsg(p.reference_position));
-    arrow.points.push_back(tf2::toMsg(Eigen::Vector3d(p.reference_position + o.arrow_scale * p.displacement)));
+    arrow.points.push_back(
+        tf2::toMsg(Eigen::Vector3d(p.reference_position + o.arrow_scale * p.displacement)));
     arrow.scale.x = 0.4 * o.point_size;  // shaft diameter
     arrow.scale.y = 0.8 * o.point_size;  // head diameter
     arrow.scale.z = 0.0;                 // default head length
@@ -159,9 +178,11 @@ visualization_msgs::MarkerArray ToMarkers(const deformation::Snapshot& s, const 
     label.pose.position.z += 1.5 * o.point_size + o.text_size;
     label.scale.x = label.scale.y = 0.0;
     label.scale.z = o.text_size;
-    label.text = Message(p.id, "  ", Fixed(p.displacement.norm() * 1e3, 1), " mm  ", Fixed(p.speed * kMmPerDay, 1),
-                         " mm/d", p.alert == deformation::AlertLevel::kNone ? "" : "  " + deformation::AlertName(p.alert),
-                         p.sources_disagree ? "  (sources disagree)" : "");
+    label.text = Message(
+        p.id, "  ", Fixed(p.displacement.norm() * 1e3, 1), " mm  ", Fixed(p.speed * kMmPerDay, 1),
+        " mm/d",
+        p.alert == deformation::AlertLevel::kNone ? "" : "  " + deformation::AlertName(p.alert),
+        p.sources_disagree ? "  (sources disagree)" : "");
     out.markers.push_back(label);
     ++id;
   }
@@ -172,13 +193,15 @@ sensor_msgs::PointCloud2 ToCloud(const deformation::Snapshot& s, const std_msgs:
   sensor_msgs::PointCloud2 cloud;
   cloud.header = header;
   sensor_msgs::PointCloud2Modifier mod(cloud);
-  mod.setPointCloud2Fields(5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z",
-                           1, sensor_msgs::PointField::FLOAT32, "displacement", 1, sensor_msgs::PointField::FLOAT32,
-                           "rgb", 1, sensor_msgs::PointField::FLOAT32);
+  mod.setPointCloud2Fields(
+      5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z", 1,
+      sensor_msgs::PointField::FLOAT32, "displacement", 1, sensor_msgs::PointField::FLOAT32, "rgb",
+      1, sensor_msgs::PointField::FLOAT32);
   mod.resize(s.points.size());
   double max_d = 1e-9;
   for (const auto& p : s.points) max_d = std::max(max_d, p.displacement.norm());
-  sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"), d(cloud, "displacement");
+  sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"),
+      d(cloud, "displacement");
   sensor_msgs::PointCloud2Iterator<uint8_t> rgb(cloud, "rgb");
   for (const auto& p : s.points) {
     *x = static_cast<float>(p.reference_position.x());
@@ -186,23 +209,23 @@ sensor_msgs::PointCloud2 ToCloud(const deformation::Snapshot& s, const std_msgs:
     *z = static_cast<float>(p.reference_position.z());
     *d = static_cast<float>(p.displacement.norm());
     const double f = std::min(1.0, p.displacement.norm() / max_d);  // blue (still) -> red (largest)
-    rgb[0] = static_cast<uint8_t>(std::lround(255 * (1 - f)));     // b
+    rgb[0] = static_cast<uint8_t>(std::lround(255 * (1 - f)));      // b
     rgb[1] = static_cast<uint8_t>(std::lround(255 * (1 - std::abs(2 * f - 1))));  // g
-    rgb[2] = static_cast<uint8_t>(std::lround(255 * f));           // r
+    rgb[2] = static_cast<uint8_t>(std::lround(255 * f));                          // r
     rgb[3] = 0;
     ++x, ++y, ++z, ++d, ++rgb;
   }
   return cloud;
 }
 
-diagnostic_msgs::DiagnosticArray ToAlerts(const deformation::Snapshot& s, const std_msgs::Header& header) {
+diagnostic_msgs::DiagnosticArray ToAlerts(const deformation::Snapshot& s,
+                                          const std_msgs::Header& header) {
   diagnostic_msgs::DiagnosticArray out;
   out.header = header;
   auto level_of = [](deformation::AlertLevel a) {
-    return a == deformation::AlertLevel::kAlarm
-               ? diagnostic_msgs::DiagnosticStatus::ERROR
-               : a == deformation::AlertLevel::kNone ? diagnostic_msgs::DiagnosticStatus::OK
-                                                     : diagnostic_msgs::DiagnosticStatus::WARN;
+    return a == deformation::AlertLevel::kAlarm  ? diagnostic_msgs::DiagnosticStatus::ERROR
+           : a == deformation::AlertLevel::kNone ? diagnostic_msgs::DiagnosticStatus::OK
+                                                 : diagnostic_msgs::DiagnosticStatus::WARN;
   };
   auto kv = [](const std::string& k, const std::string& v) {
     diagnostic_msgs::KeyValue x;
@@ -223,7 +246,8 @@ diagnostic_msgs::DiagnosticArray ToAlerts(const deformation::Snapshot& s, const 
     st.name = "deformation/" + p.id;
     st.hardware_id = p.id;
     st.level = level_of(p.alert);
-    st.message = deformation::AlertName(p.alert) + (p.alert_reason.empty() ? "" : ": " + p.alert_reason);
+    st.message =
+        deformation::AlertName(p.alert) + (p.alert_reason.empty() ? "" : ": " + p.alert_reason);
     st.values.push_back(kv("alert", deformation::AlertName(p.alert)));
     st.values.push_back(kv("displacement_mm", Fixed(p.displacement.norm() * 1e3, 2)));
     st.values.push_back(kv("speed_mm_per_day", Fixed(p.speed * kMmPerDay, 2)));

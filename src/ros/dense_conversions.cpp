@@ -150,7 +150,8 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
     }
   }
   std::vector<std::string> default_pairs;
-  for (const auto& pair : d.stereo_pairs) default_pairs.insert(default_pairs.end(), {pair.first, pair.second});
+  for (const auto& pair : d.stereo_pairs)
+    default_pairs.insert(default_pairs.end(), {pair.first, pair.second});
   const std::vector<std::string> pairs = p.StringList("stereo_pairs", default_pairs);
   d.stereo_pairs.clear();
   if (pairs.size() % 2 != 0)

@@ -133,8 +133,9 @@ DenseEpochOutput DenseEpochStep::Measure(const dense::PhotoEpoch& e,
       out.areas = ToChangeAreaMsg(polygons, static_cast<uint32_t>(e.input.epoch),
                                   static_cast<uint32_t>(reference_epoch_), header);
     } catch (const std::exception& ex) {
-      out.log.push_back({LogLine::kError, Message("epoch ", e.input.epoch,
-                                                  " change polygons (the DoD is kept): ", ex.what())});
+      out.log.push_back(
+          {LogLine::kError,
+           Message("epoch ", e.input.epoch, " change polygons (the DoD is kept): ", ex.what())});
     }
   }
   return out;

@@ -42,10 +42,12 @@ void LogResult(uint32_t n, const adjustment::EpochAdjustmentResult& result, bool
 // the camera sees a target (control, check or monitoring point) or has the
 // flight log's attitude (Image::attitude_from_prior), but the camera's photos
 // have tie points (a UAV-only site without targets).
-std::vector<int> UavCamerasWithoutControl(const adjustment::Scene& scene, const AdjusterParameters& params) {
+std::vector<int> UavCamerasWithoutControl(const adjustment::Scene& scene,
+                                          const AdjusterParameters& params) {
   std::vector<int> targets_seen(scene.images.size(), 0), ties_seen(scene.images.size(), 0);
   for (const adjustment::Observation& o : scene.observations)
-    ++(scene.points[o.point].role == adjustment::PointRole::kTie ? ties_seen : targets_seen)[o.image];
+    ++(scene.points[o.point].role == adjustment::PointRole::kTie ? ties_seen
+                                                                 : targets_seen)[o.image];
   std::vector<int> out;
   for (size_t c = 0; c < scene.cameras.size(); ++c) {
     if (!adjustment::IsUavCamera(scene.cameras[c].name, params.collector.uav_cameras)) continue;
@@ -67,21 +69,24 @@ std::vector<int> UavCamerasWithoutControl(const adjustment::Scene& scene, const 
 // adjustment's start; unless the parameters say otherwise (uav_free_interior),
 // the adjustment self-calibrates c, k1, k2 of it. Returns why a flight could
 // not be oriented ("" when all were; logged as an error too).
-std::string StartFlightsFromTiePoints(adjustment::Scene* scene, const AdjusterParameters& params, uint32_t n,
-                                      adjustment::EpochAdjustmentOptions* options, SolvedEpoch* out) {
+std::string StartFlightsFromTiePoints(adjustment::Scene* scene, const AdjusterParameters& params,
+                                      uint32_t n, adjustment::EpochAdjustmentOptions* options,
+                                      SolvedEpoch* out) {
   std::string failed;
   for (const int c : UavCamerasWithoutControl(*scene, params)) {
     const std::string camera = scene->cameras[c].name;
     const flight::FlightSummary f = flight::OrientSceneFromTiePoints(scene, camera);
     if (!f.success) {
-      failed = Message("UAV camera '", camera, "' sees no target in its photos and its tie points could not orient ",
+      failed = Message("UAV camera '", camera,
+                       "' sees no target in its photos and its tie points could not orient ",
                        "them: ", f.message);
       Log(out, LogLine::kError, Message("epoch ", n, ": ", failed));
       continue;
     }
     Log(out, LogLine::kInfo,
-        Message("epoch ", n, ": UAV camera '", camera, "' started from its tie points: ", f.oriented, " of ",
-                f.photos, " photos oriented, ", f.points, " points, rms ", f.rms_px, " px, datum ", f.datum));
+        Message("epoch ", n, ": UAV camera '", camera,
+                "' started from its tie points: ", f.oriented, " of ", f.photos,
+                " photos oriented, ", f.points, " points, rms ", f.rms_px, " px, datum ", f.datum));
     if (options->free_interior_by_camera.count(camera) == 0) {
       std::vector<int> free;
       for (const char* name : {"c", "k1", "k2"})
@@ -140,8 +145,10 @@ SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
     out.accepted = true;
     std::set<std::string> moving;  // the site file's kind uav, else the name rule
     for (const auto& camera : result.scene.cameras)
-      if (adjustment::IsUavCamera(camera.name, params.collector.uav_cameras)) moving.insert(camera.name);
-    CameraTransforms tfs = MakeTransforms(result.scene, epoch, params.frame_id, s_out.header.stamp, moving);
+      if (adjustment::IsUavCamera(camera.name, params.collector.uav_cameras))
+        moving.insert(camera.name);
+    CameraTransforms tfs =
+        MakeTransforms(result.scene, epoch, params.frame_id, s_out.header.stamp, moving);
     out.fixed_transforms = std::move(tfs.fixed);
     out.moving_transforms = std::move(tfs.moving);
     out.points = MakePointCloud(result.scene, s, s_out.header);

@@ -156,8 +156,9 @@ void EstimatorStep::Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) 
   if (errors_ > 0 && !last_problem_.empty()) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "dropped messages: " + last_problem_);
   } else {
-    stat.summary(diagnostic_msgs::DiagnosticStatus::OK,
-                 Message(num_points_, " points, slope alert ", deformation::AlertName(last_alert_)));
+    stat.summary(
+        diagnostic_msgs::DiagnosticStatus::OK,
+        Message(num_points_, " points, slope alert ", deformation::AlertName(last_alert_)));
   }
   stat.add("messages", messages_);
   stat.add("measurements accepted", accepted_);

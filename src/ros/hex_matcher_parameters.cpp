@@ -150,8 +150,8 @@ void ReadSequenceOptions(ParamReader& p, matching::SequenceMatcherOptions* s) {
       p.Int("photo_coarse_sift_max_side", s->photo.coarse_sift_max_side, 100, 10000, "px");
   s->photo.coarse_max_features =
       p.Int("photo_coarse_max_features", s->photo.coarse_max_features, 10, 1000000);
-  s->photo.coarse_contrast_threshold = p.Double(
-      "photo_coarse_contrast_threshold", s->photo.coarse_contrast_threshold, 1e-6, 0.999);
+  s->photo.coarse_contrast_threshold =
+      p.Double("photo_coarse_contrast_threshold", s->photo.coarse_contrast_threshold, 1e-6, 0.999);
   s->photo.interest.max_points =
       p.Int("photo_max_points", s->photo.interest.max_points, 1, 1000000);
   s->photo.interest.cells = p.Int("photo_interest_cells", s->photo.interest.cells, 0, 100);
@@ -174,8 +174,8 @@ void UseSiteUavCamera(const io::SiteFile& site, ParamReader& p, HexMatcherParame
       std::string names;
       for (const std::string& n : uav) names += (names.empty() ? "" : ", ") + n;
       throw ConfigError("parameter '" + p.FullKey("camera") + "': '" + h->camera +
-                        "' is not a camera of kind uav of site file '" + site.path + "' (" +
-                        names + "); one hex_matcher per UAV camera, each with its camera");
+                        "' is not a camera of kind uav of site file '" + site.path + "' (" + names +
+                        "); one hex_matcher per UAV camera, each with its camera");
     }
     h->camera = uav.front();
   }
@@ -202,7 +202,9 @@ HexMatcherParameters ReadHexMatcherParameters(ParamReader& p) {
   if (h.mode == "sequence" && !h.site_file.empty()) {
     const io::SiteFile site = io::LoadSiteFile(h.site_file);
     if (h.only_without_targets && !io::SiteWithoutTargets(site, h.target_list))
-      h.idle = "site '" + site.name + "' has targets: its UAV photos are tied by them (uav_tie_points:=true ties them too)";
+      h.idle =
+          "site '" + site.name +
+          "' has targets: its UAV photos are tied by them (uav_tie_points:=true ties them too)";
     else if (h.only_without_targets && io::CameraNames(site.cameras, io::CameraKind::kUav).empty())
       h.idle = "site '" + site.name + "' lists no camera of kind uav";
     else

@@ -122,7 +122,8 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   a.uav_tie_points = p.Bool("uav_tie_points", a.uav_tie_points) || a.site_without_targets;
   if (a.uav_tie_points) c.tie_point_cameras = c.uav_cameras;
   c.tie_point_wait = p.Double("tie_point_wait", c.tie_point_wait, 0.0, 86400.0, "s");
-  c.tie_pixel_sigma_floor = p.Double("tie_pixel_sigma_floor", c.tie_pixel_sigma_floor, 0.0, 100.0, "px");
+  c.tie_pixel_sigma_floor =
+      p.Double("tie_pixel_sigma_floor", c.tie_pixel_sigma_floor, 0.0, 100.0, "px");
   c.min_tie_quality = p.Double("min_tie_quality", c.min_tie_quality, 0.0, 1.0);
   a.frame_id = p.String("frame_id", a.frame_id);
   a.enable_run_adjustment = p.Bool("enable_run_adjustment", a.enable_run_adjustment);
@@ -130,14 +131,18 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   a.pixel_size = p.Double("pixel_size", a.pixel_size, 1e-6, 1.0, "mm/px");
   c.pixel_sigma = p.Double("pixel_sigma", c.pixel_sigma, 1e-4, 100.0, "px");
   c.pixel_sigma_floor = p.Double("pixel_sigma_floor", c.pixel_sigma_floor, 0.0, 100.0, "px");
-  c.uav_pixel_sigma_floor = p.Double("uav_pixel_sigma_floor", c.uav_pixel_sigma_floor, 0.0, 100.0, "px");
+  c.uav_pixel_sigma_floor =
+      p.Double("uav_pixel_sigma_floor", c.uav_pixel_sigma_floor, 0.0, 100.0, "px");
   c.epoch_gap = p.Double("epoch_gap", c.epoch_gap, 0.0, 1e7, "s");
   c.Check();
-  a.scene.position_prior_max_dt = p.Double("position_prior_max_dt", a.scene.position_prior_max_dt, 0.0, 10.0, "s");
-  a.scene.position_prior_min_sigma = p.Double("position_prior_min_sigma", a.scene.position_prior_min_sigma, 1e-4, 100.0, "m");
+  a.scene.position_prior_max_dt =
+      p.Double("position_prior_max_dt", a.scene.position_prior_max_dt, 0.0, 10.0, "s");
+  a.scene.position_prior_min_sigma =
+      p.Double("position_prior_min_sigma", a.scene.position_prior_min_sigma, 1e-4, 100.0, "m");
   a.scene.min_images = p.Int("min_images", a.scene.min_images, 1, 10000);
   a.scene.attitude_prior_max_sigma =
-      p.Double("attitude_prior_max_sigma", a.scene.attitude_prior_max_sigma * 180.0 / M_PI, 0.0, 180.0, "deg") *
+      p.Double("attitude_prior_max_sigma", a.scene.attitude_prior_max_sigma * 180.0 / M_PI, 0.0,
+               180.0, "deg") *
       M_PI / 180.0;
   a.scene.Check();
   auto interior_list = [&p](const std::string& key, const std::vector<std::string>& names) {
@@ -154,16 +159,17 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
     return out;
   };
   adjustment::EpochAdjustmentOptions& e = a.epoch;
-  e.free_interior =
-      interior_list("free_interior", p.StringList("free_interior", InteriorNamesOf(e.free_interior)));
+  e.free_interior = interior_list("free_interior",
+                                  p.StringList("free_interior", InteriorNamesOf(e.free_interior)));
   a.uav_free_interior = p.StringList("uav_free_interior", a.uav_free_interior);
-  const std::vector<int> uav_free_interior = interior_list("uav_free_interior", a.uav_free_interior);
+  const std::vector<int> uav_free_interior =
+      interior_list("uav_free_interior", a.uav_free_interior);
   adjustment::Options& o = e.adjustment;
   o.loss = p.String("loss", o.loss, {"none", "huber", "cauchy"});
   o.loss_scale = p.Double("loss_scale", o.loss_scale, 1e-3, 1e3, "sigma");
   o.outlier_threshold = p.Double("outlier_threshold", o.outlier_threshold, 1e-3, 1e3, "sigma");
-  o.linear_solver =
-      p.String("linear_solver", o.linear_solver, {"auto", "dense_schur", "sparse_schur", "iterative_schur"});
+  o.linear_solver = p.String("linear_solver", o.linear_solver,
+                             {"auto", "dense_schur", "sparse_schur", "iterative_schur"});
   o.max_iterations = p.Int("max_iterations", o.max_iterations, 1, 10000);
   const int threads = p.Int("num_threads", o.num_threads, 0, 64);
   o.num_threads = threads > 0 ? threads : adjustment::Options::HardwareThreads();
@@ -171,25 +177,33 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   o.min_control_points = p.Int("min_control_points", o.min_control_points, 0, 1000);
   o.max_sigma0 = p.Double("max_sigma0", o.max_sigma0, 0.01, 1e6);
   o.max_outlier_fraction = p.Double("max_outlier_fraction", o.max_outlier_fraction, 0.0, 1.0);
-  o.min_observations_with_prior = p.Int("min_observations_with_prior", o.min_observations_with_prior, 2, 1000);
+  o.min_observations_with_prior =
+      p.Int("min_observations_with_prior", o.min_observations_with_prior, 2, 1000);
   o.min_variance_factor = p.Double("min_variance_factor", o.min_variance_factor, 0.0, 100.0);
-  o.compute_datum_free_covariance = p.Bool("datum_free_displacements", o.compute_datum_free_covariance);
+  o.compute_datum_free_covariance =
+      p.Bool("datum_free_displacements", o.compute_datum_free_covariance);
   o.Check();
   // A UAV camera self-calibrated in every flight: its own list (the fixed
   // cameras keep free_interior).
   if (!uav_free_interior.empty())
     for (const std::string& cam : c.cameras)
-      if (adjustment::IsUavCamera(cam, c.uav_cameras)) e.free_interior_by_camera[cam] = uav_free_interior;
+      if (adjustment::IsUavCamera(cam, c.uav_cameras))
+        e.free_interior_by_camera[cam] = uav_free_interior;
   e.name_unidentified = p.Bool("name_unidentified", e.name_unidentified);
   e.orient_from_approximate = p.Bool("orient_from_approximate", e.orient_from_approximate);
   e.max_tie_outlier_share = p.Double("max_tie_outlier_share", e.max_tie_outlier_share, 1e-3, 1.0);
   e.naming.gate_sigma = p.Double("naming_gate_sigma", e.naming.gate_sigma, 0.1, 100.0, "sigma");
-  e.naming.gate_extra_px = p.Double("naming_gate_extra_px", e.naming.gate_extra_px, 0.0, 10000.0, "px");
-  e.naming.coarse_extra_px = p.Double("naming_coarse_extra_px", e.naming.coarse_extra_px, 0.0, 10000.0, "px");
-  e.naming.ambiguity_factor = p.Double("naming_ambiguity_factor", e.naming.ambiguity_factor, 1.0, 100.0);
+  e.naming.gate_extra_px =
+      p.Double("naming_gate_extra_px", e.naming.gate_extra_px, 0.0, 10000.0, "px");
+  e.naming.coarse_extra_px =
+      p.Double("naming_coarse_extra_px", e.naming.coarse_extra_px, 0.0, 10000.0, "px");
+  e.naming.ambiguity_factor =
+      p.Double("naming_ambiguity_factor", e.naming.ambiguity_factor, 1.0, 100.0);
   e.Check();
-  a.displacement.stable_threshold = p.Double("stable_threshold", a.displacement.stable_threshold, 1e-6, 100.0, "m");
-  a.displacement.significance_threshold = p.Double("significance_threshold", a.displacement.significance_threshold, 0.1, 100.0);
+  a.displacement.stable_threshold =
+      p.Double("stable_threshold", a.displacement.stable_threshold, 1e-6, 100.0, "m");
+  a.displacement.significance_threshold =
+      p.Double("significance_threshold", a.displacement.significance_threshold, 0.1, 100.0);
   a.displacement.estimate_scale = p.Bool("coregistration_scale", a.displacement.estimate_scale);
   a.displacement.Check();
   a.frustums.depth = p.Double("frustum_depth", a.frustums.depth, 1e-3, 1e4, "m");
@@ -207,10 +221,12 @@ RadioParameters ReadRadioParameters(ParamReader& p) {
   r.truth_file = p.String("truth_file", r.truth_file);
   r.truth_initial_sigma = p.Double("truth_initial_sigma", r.truth_initial_sigma, 1e-5, 10.0, "m");
   r.truth_sample_rate = p.Double("truth_sample_rate", r.truth_sample_rate, 1.0, 1e10, "Hz");
-  const std::string &network_file = r.network_file, &site_file = r.site_file, &truth_file = r.truth_file;
+  const std::string &network_file = r.network_file, &site_file = r.site_file,
+                    &truth_file = r.truth_file;
   radio::RadioSolverOptions& o = r.options;
   o.extraction.min_snr = p.Double("min_snr", o.extraction.min_snr, 1e-3, 1e9);
-  o.extraction.max_saturated_fraction = p.Double("max_saturated_fraction", o.extraction.max_saturated_fraction, 0.0, 1.0);
+  o.extraction.max_saturated_fraction =
+      p.Double("max_saturated_fraction", o.extraction.max_saturated_fraction, 0.0, 1.0);
   o.extraction.fit_dc = p.Bool("fit_dc", o.extraction.fit_dc);
   o.init_epochs = p.Int("init_epochs", o.init_epochs, 1, 1000, "epochs");
   o.ratio_threshold = p.Double("ratio_threshold", o.ratio_threshold, 1.0, 100.0);
@@ -237,7 +253,8 @@ RadioParameters ReadRadioParameters(ParamReader& p) {
   // With a site file, a truth file that is not there (replay.launch's
   // default, the bag's <name>.truth.yaml, on a real site's bag) means what
   // the site says: no radio network.
-  if (network_file.empty() && (truth_file.empty() || (!site_file.empty() && !std::filesystem::is_regular_file(truth_file))))
+  if (network_file.empty() &&
+      (truth_file.empty() || (!site_file.empty() && !std::filesystem::is_regular_file(truth_file))))
     return r;
   if (network_file.empty() == truth_file.empty())
     throw ConfigError(p.FullKey("network_file") + " / " + p.FullKey("truth_file") +
@@ -246,8 +263,8 @@ RadioParameters ReadRadioParameters(ParamReader& p) {
   if (!network_file.empty()) {
     r.network = radio::NetworkConfig::Load(network_file);
   } else {
-    r.network =
-        NetworkFromTruth(sim::SurveyTruth::Load(truth_file), r.truth_initial_sigma, r.truth_sample_rate, truth_file);
+    r.network = NetworkFromTruth(sim::SurveyTruth::Load(truth_file), r.truth_initial_sigma,
+                                 r.truth_sample_rate, truth_file);
   }
   return r;
 }
@@ -316,26 +333,38 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
                                 "' must read 'measured_id = monitoring_point_id'"));
     o->aliases[Trim(entry.substr(0, eq))] = Trim(entry.substr(eq + 1));
   }
-  o->alerts.significance = p.Double("alert_significance", o->alerts.significance, 0.0, 10.0, "sigma");
+  o->alerts.significance =
+      p.Double("alert_significance", o->alerts.significance, 0.0, 10.0, "sigma");
   o->alerts.confirm_points = p.Int("confirm_points", o->alerts.confirm_points, 1, 1000);
   o->alerts.confirm_sources = p.Int("confirm_sources", o->alerts.confirm_sources, 1, 10);
   o->alerts.hysteresis = p.Double("hysteresis", o->alerts.hysteresis, 0.01, 1.0);
-  o->filter.jerk_spectral_density = p.Double("jerk_spectral_density", o->filter.jerk_spectral_density, 0.0, 1e-20, "m^2/s^5");
-  o->filter.initial_velocity_sigma = p.Double("initial_velocity_sigma", o->filter.initial_velocity_sigma, 1e-12, 1.0, "m/s");
-  o->filter.initial_acceleration_sigma =
-      p.Double("initial_acceleration_sigma", o->filter.initial_acceleration_sigma, 1e-18, 1.0, "m/s^2");
+  o->filter.jerk_spectral_density =
+      p.Double("jerk_spectral_density", o->filter.jerk_spectral_density, 0.0, 1e-20, "m^2/s^5");
+  o->filter.initial_velocity_sigma =
+      p.Double("initial_velocity_sigma", o->filter.initial_velocity_sigma, 1e-12, 1.0, "m/s");
+  o->filter.initial_acceleration_sigma = p.Double(
+      "initial_acceleration_sigma", o->filter.initial_acceleration_sigma, 1e-18, 1.0, "m/s^2");
   o->reorder_window = p.Double("reorder_window", o->reorder_window, 0.0, 365 * 86400.0, "s");
-  o->reference_tolerance = p.Double("reference_tolerance", o->reference_tolerance, 0.0, 30 * 86400.0, "s");
-  o->disagreement_threshold = p.Double("disagreement_threshold", o->disagreement_threshold, 0.1, 1e6, "chi2(3)");
-  o->comparison_max_gap = p.Double("comparison_max_gap", o->comparison_max_gap, 1.0, 365 * 86400.0, "s");
+  o->reference_tolerance =
+      p.Double("reference_tolerance", o->reference_tolerance, 0.0, 30 * 86400.0, "s");
+  o->disagreement_threshold =
+      p.Double("disagreement_threshold", o->disagreement_threshold, 0.1, 1e6, "chi2(3)");
+  o->comparison_max_gap =
+      p.Double("comparison_max_gap", o->comparison_max_gap, 1.0, 365 * 86400.0, "s");
   o->innovation_gate = p.Double("innovation_gate", o->innovation_gate, 0.0, 1e6, "chi2(3)");
-  o->velocity_sample_interval = p.Double("velocity_sample_interval", o->velocity_sample_interval, 1.0, 86400.0, "s");
-  o->forecast.window = p.Double("forecast_window", o->forecast.window / 3600.0, 0.1, 24.0 * 365, "h") * 3600.0;
+  o->velocity_sample_interval =
+      p.Double("velocity_sample_interval", o->velocity_sample_interval, 1.0, 86400.0, "s");
+  o->forecast.window =
+      p.Double("forecast_window", o->forecast.window / 3600.0, 0.1, 24.0 * 365, "h") * 3600.0;
   o->forecast.alpha = p.Double("forecast_alpha", o->forecast.alpha, 1.01, 10.0);
   o->forecast.min_samples = p.Int("forecast_min_samples", o->forecast.min_samples, 4, 100000);
-  o->forecast.min_velocity = p.Double("forecast_min_velocity", o->forecast.min_velocity / to_si, 0.0, 1e6, unit) * to_si;
-  o->forecast.significance = p.Double("forecast_significance", o->forecast.significance, 0.0, 100.0, "sigma");
-  o->forecast.max_horizon = p.Double("forecast_max_horizon", o->forecast.max_horizon / 86400.0, 0.01, 3650.0, "days") * 86400.0;
+  o->forecast.min_velocity =
+      p.Double("forecast_min_velocity", o->forecast.min_velocity / to_si, 0.0, 1e6, unit) * to_si;
+  o->forecast.significance =
+      p.Double("forecast_significance", o->forecast.significance, 0.0, 100.0, "sigma");
+  o->forecast.max_horizon =
+      p.Double("forecast_max_horizon", o->forecast.max_horizon / 86400.0, 0.01, 3650.0, "days") *
+      86400.0;
   e.geodetic_origin = p.DoubleList("geodetic_origin", e.geodetic_origin);
   const std::vector<double>& origin = e.geodetic_origin;
   if (!origin.empty()) {
@@ -344,7 +373,8 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
                                 "' must be [] or [lat_deg, lon_deg, height_m]"));
     e.report.geodetic_origin = Eigen::Vector3d(origin[0], origin[1], origin[2]);
   }
-  e.report.grid_resolution = p.Double("report_grid_resolution", e.report.grid_resolution, 0.01, 1000.0, "m");
+  e.report.grid_resolution =
+      p.Double("report_grid_resolution", e.report.grid_resolution, 0.01, 1000.0, "m");
   e.report.grid_margin = p.Double("report_grid_margin", e.report.grid_margin, 0.0, 10000.0, "m");
   e.report.idw_power = p.Double("report_idw_power", e.report.idw_power, 0.1, 10.0);
   e.report.idw_radius = p.Double("report_idw_radius", e.report.idw_radius, 0.1, 1e5, "m");

@@ -12,13 +12,20 @@ namespace {
 
 const char* TypeName(const XmlRpc::XmlRpcValue& v) {
   switch (v.getType()) {
-    case XmlRpc::XmlRpcValue::TypeBoolean: return "bool";
-    case XmlRpc::XmlRpcValue::TypeInt: return "int";
-    case XmlRpc::XmlRpcValue::TypeDouble: return "double";
-    case XmlRpc::XmlRpcValue::TypeString: return "string";
-    case XmlRpc::XmlRpcValue::TypeArray: return "list";
-    case XmlRpc::XmlRpcValue::TypeStruct: return "dictionary";
-    default: return "unknown type";
+    case XmlRpc::XmlRpcValue::TypeBoolean:
+      return "bool";
+    case XmlRpc::XmlRpcValue::TypeInt:
+      return "int";
+    case XmlRpc::XmlRpcValue::TypeDouble:
+      return "double";
+    case XmlRpc::XmlRpcValue::TypeString:
+      return "string";
+    case XmlRpc::XmlRpcValue::TypeArray:
+      return "list";
+    case XmlRpc::XmlRpcValue::TypeStruct:
+      return "dictionary";
+    default:
+      return "unknown type";
   }
 }
 
@@ -38,13 +45,15 @@ template <typename T>
 XmlRpc::XmlRpcValue ListValue(const std::vector<T>& values) {
   XmlRpc::XmlRpcValue list;
   list.setSize(static_cast<int>(values.size()));
-  for (size_t i = 0; i < values.size(); ++i) list[static_cast<int>(i)] = XmlRpc::XmlRpcValue(values[i]);
+  for (size_t i = 0; i < values.size(); ++i)
+    list[static_cast<int>(i)] = XmlRpc::XmlRpcValue(values[i]);
   return list;
 }
 
 // The keys of a parameter tree as the parameter server names them: a
 // dictionary's members as "<dictionary>/<member>", recursively.
-void ListTreeKeys(const XmlRpc::XmlRpcValue& tree, const std::string& prefix, std::vector<std::string>* out) {
+void ListTreeKeys(const XmlRpc::XmlRpcValue& tree, const std::string& prefix,
+                  std::vector<std::string>* out) {
   if (tree.getType() != XmlRpc::XmlRpcValue::TypeStruct) return;
   XmlRpc::XmlRpcValue& t = const_cast<XmlRpc::XmlRpcValue&>(tree);
   for (auto it = t.begin(); it != t.end(); ++it) {
@@ -74,7 +83,8 @@ bool ParamReader::Get(const std::string& key, XmlRpc::XmlRpcValue* v) const {
   size_t begin = 0;
   while (true) {
     const size_t slash = key.find('/', begin);
-    const std::string part = key.substr(begin, slash == std::string::npos ? std::string::npos : slash - begin);
+    const std::string part =
+        key.substr(begin, slash == std::string::npos ? std::string::npos : slash - begin);
     if (node->getType() != XmlRpc::XmlRpcValue::TypeStruct || !node->hasMember(part)) return false;
     node = &const_cast<XmlRpc::XmlRpcValue&>(*node)[part];
     if (slash == std::string::npos) break;
@@ -92,29 +102,30 @@ double ParamReader::Double(const std::string& key, double default_value, double 
   if (!Get(key, &v)) return default_value;
   double value;
   if (!ToDouble(v, &value)) {
-    throw ConfigError(Message("parameter '", FullKey(key), "' must be a number", UnitSuffix(unit), ", got a ",
-                              TypeName(v)));
+    throw ConfigError(Message("parameter '", FullKey(key), "' must be a number", UnitSuffix(unit),
+                              ", got a ", TypeName(v)));
   }
   if (!std::isfinite(value) || value < min || value > max) {
-    throw ConfigError(Message("parameter '", FullKey(key), "' = ", value, UnitSuffix(unit), " is outside [", min, ", ",
-                              max, "]"));
+    throw ConfigError(Message("parameter '", FullKey(key), "' = ", value, UnitSuffix(unit),
+                              " is outside [", min, ", ", max, "]"));
   }
   return value;
 }
 
-int ParamReader::Int(const std::string& key, int default_value, int min, int max, const std::string& unit) {
+int ParamReader::Int(const std::string& key, int default_value, int min, int max,
+                     const std::string& unit) {
   read_.insert(FullKey(key));
   defaults_[key] = XmlRpc::XmlRpcValue(default_value);
   XmlRpc::XmlRpcValue v;
   if (!Get(key, &v)) return default_value;
   if (v.getType() != XmlRpc::XmlRpcValue::TypeInt) {
-    throw ConfigError(Message("parameter '", FullKey(key), "' must be an integer", UnitSuffix(unit), ", got a ",
-                              TypeName(v)));
+    throw ConfigError(Message("parameter '", FullKey(key), "' must be an integer", UnitSuffix(unit),
+                              ", got a ", TypeName(v)));
   }
   const int value = static_cast<int>(v);
   if (value < min || value > max) {
-    throw ConfigError(Message("parameter '", FullKey(key), "' = ", value, UnitSuffix(unit), " is outside [", min, ", ",
-                              max, "]"));
+    throw ConfigError(Message("parameter '", FullKey(key), "' = ", value, UnitSuffix(unit),
+                              " is outside [", min, ", ", max, "]"));
   }
   return value;
 }
@@ -125,7 +136,8 @@ bool ParamReader::Bool(const std::string& key, bool default_value) {
   XmlRpc::XmlRpcValue v;
   if (!Get(key, &v)) return default_value;
   if (v.getType() != XmlRpc::XmlRpcValue::TypeBoolean) {
-    throw ConfigError(Message("parameter '", FullKey(key), "' must be true or false, got a ", TypeName(v)));
+    throw ConfigError(
+        Message("parameter '", FullKey(key), "' must be true or false, got a ", TypeName(v)));
   }
   return static_cast<bool>(v);
 }
@@ -138,7 +150,8 @@ std::string ParamReader::String(const std::string& key, const std::string& defau
   std::string value = default_value;
   if (Get(key, &v)) {
     if (v.getType() != XmlRpc::XmlRpcValue::TypeString) {
-      throw ConfigError(Message("parameter '", FullKey(key), "' must be a string, got a ", TypeName(v)));
+      throw ConfigError(
+          Message("parameter '", FullKey(key), "' must be a string, got a ", TypeName(v)));
     }
     value = static_cast<std::string>(v);
   }
@@ -149,24 +162,29 @@ std::string ParamReader::String(const std::string& key, const std::string& defau
       ok = ok || a == value;
       list += (list.empty() ? "" : ", ") + a;
     }
-    if (!ok) throw ConfigError(Message("parameter '", FullKey(key), "' = '", value, "' is not one of: ", list));
+    if (!ok)
+      throw ConfigError(
+          Message("parameter '", FullKey(key), "' = '", value, "' is not one of: ", list));
   }
   return value;
 }
 
-std::vector<double> ParamReader::DoubleList(const std::string& key, const std::vector<double>& default_value) {
+std::vector<double> ParamReader::DoubleList(const std::string& key,
+                                            const std::vector<double>& default_value) {
   read_.insert(FullKey(key));
   defaults_[key] = ListValue(default_value);
   XmlRpc::XmlRpcValue v;
   if (!Get(key, &v)) return default_value;
   if (v.getType() != XmlRpc::XmlRpcValue::TypeArray) {
-    throw ConfigError(Message("parameter '", FullKey(key), "' must be a list of numbers, got a ", TypeName(v)));
+    throw ConfigError(
+        Message("parameter '", FullKey(key), "' must be a list of numbers, got a ", TypeName(v)));
   }
   std::vector<double> out;
   for (int i = 0; i < v.size(); ++i) {
     double d;
     if (!ToDouble(v[i], &d) || !std::isfinite(d)) {
-      throw ConfigError(Message("parameter '", FullKey(key), "' element ", i, " is not a finite number"));
+      throw ConfigError(
+          Message("parameter '", FullKey(key), "' element ", i, " is not a finite number"));
     }
     out.push_back(d);
   }
@@ -180,7 +198,8 @@ std::vector<std::string> ParamReader::StringList(const std::string& key,
   XmlRpc::XmlRpcValue v;
   if (!Get(key, &v)) return default_value;
   if (v.getType() != XmlRpc::XmlRpcValue::TypeArray) {
-    throw ConfigError(Message("parameter '", FullKey(key), "' must be a list of strings, got a ", TypeName(v)));
+    throw ConfigError(
+        Message("parameter '", FullKey(key), "' must be a list of strings, got a ", TypeName(v)));
   }
   std::vector<std::string> out;
   for (int i = 0; i < v.size(); ++i) {
@@ -207,8 +226,10 @@ void ParamReader::CheckNoUnknownKeys(const std::set<std::string>& ignored) const
     if (name.compare(0, prefix.size(), prefix) != 0) continue;
     const std::string relative = name.substr(prefix.size());
     bool known = relative == kGraphReadyParam;
-    for (const std::string& r : read_) known = known || name == r || name.compare(0, r.size() + 1, r + "/") == 0;
-    for (const std::string& i : ignored) known = known || relative == i || relative.compare(0, i.size() + 1, i + "/") == 0;
+    for (const std::string& r : read_)
+      known = known || name == r || name.compare(0, r.size() + 1, r + "/") == 0;
+    for (const std::string& i : ignored)
+      known = known || relative == i || relative.compare(0, i.size() + 1, i + "/") == 0;
     if (!known) unknown += (unknown.empty() ? "" : ", ") + name;
   }
   if (!unknown.empty()) throw ConfigError(Message("unknown parameter(s): ", unknown));

@@ -23,7 +23,8 @@ const RadioParameters& WithNetwork(const RadioParameters& parameters) {
 
 std::string RadioReceiverOfTopic(const std::string& topic) {
   const std::string prefix = "/radio/", suffix = "/samples";
-  if (topic.size() <= prefix.size() + suffix.size() || topic.compare(0, prefix.size(), prefix) != 0 ||
+  if (topic.size() <= prefix.size() + suffix.size() ||
+      topic.compare(0, prefix.size(), prefix) != 0 ||
       topic.compare(topic.size() - suffix.size(), suffix.size(), suffix) != 0)
     return "";
   return topic.substr(prefix.size(), topic.size() - prefix.size() - suffix.size());
@@ -54,7 +55,8 @@ std::vector<RadioEpochOutput> RadioStep::Assemble(const slope_monitor::RadioSamp
   } catch (const std::exception& e) {
     ++errors_;
     last_error_ = e.what();
-    dropped->push_back({LogLine::kError, "block of '" + block.receiver_id + "' dropped: " + e.what()});
+    dropped->push_back(
+        {LogLine::kError, "block of '" + block.receiver_id + "' dropped: " + e.what()});
   }
   return out;
 }
@@ -110,7 +112,8 @@ void RadioStep::Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) cons
   if (!ref.solved)
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "waiting for the reference epochs");
   else if (links > 0 && ok_links < links)
-    stat.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "%d of %d links in use", ok_links, links);
+    stat.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "%d of %d links in use", ok_links,
+                  links);
   else
     stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "all links in use");
 }

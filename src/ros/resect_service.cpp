@@ -70,8 +70,8 @@ void Resect(const slope_monitor::ResectCamera::Request& request,
             slope_monitor::ResectCamera::Response* response) {
   *response = slope_monitor::ResectCamera::Response();
   try {
-    const camera::CameraModel nominal =
-        capture::CheckCameraInfo(FromMsg(request.camera_info), 1.0, 0, 0, "resect_camera: camera_info");
+    const camera::CameraModel nominal = capture::CheckCameraInfo(
+        FromMsg(request.camera_info), 1.0, 0, 0, "resect_camera: camera_info");
     const adjustment::ResectCameraSummary s =
         adjustment::ResectCamera(PickedPoints(request), nominal, Options(request));
     response->success = s.success;

@@ -37,7 +37,8 @@ std::optional<std::string> SequenceMatcherStep::CheckPrior(
          parameters_.site_frame + "' (site_frame); ignored";
 }
 
-SequenceOutput SequenceMatcherStep::AddPrior(const geometry_msgs::PoseWithCovarianceStamped& prior) {
+SequenceOutput SequenceMatcherStep::AddPrior(
+    const geometry_msgs::PoseWithCovarianceStamped& prior) {
   return Output(matcher_.AddPrior(ToStamp(prior.header.stamp), FromPriorMsg(prior)));
 }
 

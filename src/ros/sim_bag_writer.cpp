@@ -6,7 +6,6 @@
 #include <memory>
 #include <tuple>
 
-#include <boost/make_shared.hpp>
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <rosbag/bag.h>
@@ -15,6 +14,7 @@
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/NavSatFix.h>
 #include <tf2_msgs/TFMessage.h>
+#include <boost/make_shared.hpp>
 
 #include "slope_monitor/EpochMarker.h"
 #include "slope_monitor/RadioSampleBlock.h"
@@ -28,7 +28,8 @@ namespace {
 
 ros::Time Stamp(double t) { return ros::Time(t); }
 
-sensor_msgs::Image ImageMsg(const cv::Mat& pixels, const std::string& encoding, const std::string& frame, double t) {
+sensor_msgs::Image ImageMsg(const cv::Mat& pixels, const std::string& encoding,
+                            const std::string& frame, double t) {
   sensor_msgs::Image m;
   m.header.stamp = Stamp(t);
   m.header.frame_id = frame;
@@ -38,7 +39,8 @@ sensor_msgs::Image ImageMsg(const cv::Mat& pixels, const std::string& encoding, 
   m.is_bigendian = 0;
   m.step = static_cast<uint32_t>(pixels.cols * pixels.elemSize());
   m.data.resize(static_cast<size_t>(m.step) * m.height);
-  for (int r = 0; r < pixels.rows; ++r) std::memcpy(&m.data[static_cast<size_t>(r) * m.step], pixels.ptr(r), m.step);
+  for (int r = 0; r < pixels.rows; ++r)
+    std::memcpy(&m.data[static_cast<size_t>(r) * m.step], pixels.ptr(r), m.step);
   return m;
 }
 
@@ -56,11 +58,14 @@ slope_monitor::RadioSampleBlock RadioMsg(const radio::SampleBlock& b) {
   return m;
 }
 
-std::string ReceiverFrame(const sim::RadioSimReceiver& r) { return r.frame_id.empty() ? r.id + "_antenna" : r.frame_id; }
+std::string ReceiverFrame(const sim::RadioSimReceiver& r) {
+  return r.frame_id.empty() ? r.id + "_antenna" : r.frame_id;
+}
 
 // /tf_static, latched: site -> each fixed camera's optical frame (its
 // nominal pose) and site -> each radio receiver's antenna.
-void WriteStaticTransforms(const sim::Survey& survey, double t0, rosbag::Bag* bag_out, SurveyBagSummary* summary_out) {
+void WriteStaticTransforms(const sim::Survey& survey, double t0, rosbag::Bag* bag_out,
+                           SurveyBagSummary* summary_out) {
   const sim::SurveyTruth& truth = survey.truth;
   rosbag::Bag& bag = *bag_out;
   SurveyBagSummary& summary = *summary_out;
@@ -113,8 +118,10 @@ std::vector<SurveyEvent> SurveyEvents(const sim::Survey& survey) {
     std::map<int, std::pair<double, double>> span;  // epoch -> first, last stamp
     for (const auto& im : truth.cameras[ci].images) {
       auto it = span.find(im.epoch);
-      if (it == span.end()) span[im.epoch] = {im.stamp, im.stamp};
-      else it->second = {std::min(it->second.first, im.stamp), std::max(it->second.second, im.stamp)};
+      if (it == span.end())
+        span[im.epoch] = {im.stamp, im.stamp};
+      else
+        it->second = {std::min(it->second.first, im.stamp), std::max(it->second.second, im.stamp)};
     }
     for (const auto& [epoch, s] : span) {
       events.push_back({s.first - 0.5, 0, static_cast<int>(ci), epoch});
@@ -135,8 +142,9 @@ std::vector<SurveyEvent> SurveyEvents(const sim::Survey& survey) {
 
 // An image's GNSS fix (NavSatFix) and the position prior in `site` (with
 // the flight log's attitude when the camera has an IMU).
-void WriteGnss(const sim::Survey& survey, const sim::SurveyImage& img, const capture::LocalTangentPlane& ltp_ref,
-               rosbag::Bag* bag_out, SurveyBagSummary* summary_out) {
+void WriteGnss(const sim::Survey& survey, const sim::SurveyImage& img,
+               const capture::LocalTangentPlane& ltp_ref, rosbag::Bag* bag_out,
+               SurveyBagSummary* summary_out) {
   rosbag::Bag& bag = *bag_out;
   SurveyBagSummary& summary = *summary_out;
   const sim::CameraTruth& cam = survey.truth.cameras[img.camera];
@@ -153,7 +161,8 @@ void WriteGnss(const sim::Survey& survey, const sim::SurveyImage& img, const cap
   fix.latitude = g.latitude_deg;
   fix.longitude = g.longitude_deg;
   fix.altitude = g.height_m;
-  const double h2 = spec.gnss_sigma.x() * spec.gnss_sigma.x(), v2 = spec.gnss_sigma.y() * spec.gnss_sigma.y();
+  const double h2 = spec.gnss_sigma.x() * spec.gnss_sigma.x(),
+               v2 = spec.gnss_sigma.y() * spec.gnss_sigma.y();
   fix.position_covariance = {h2, 0, 0, 0, h2, 0, 0, 0, v2};
   fix.position_covariance_type = sensor_msgs::NavSatFix::COVARIANCE_TYPE_DIAGONAL_KNOWN;
   bag.write("/" + cam.name + "/gnss/fix", Stamp(img.stamp), fix);
@@ -170,8 +179,8 @@ void WriteGnss(const sim::Survey& survey, const sim::SurveyImage& img, const cap
   prior.pose.covariance[14] = v2;
   prior.pose.covariance[21] = prior.pose.covariance[28] = prior.pose.covariance[35] = 1e6;
   if (spec.imu_sigma > 0.0) {
-    const Eigen::Quaterniond q = sim::FlightLogAttitude(it.exterior, spec.imu_sigma, survey.config.seed,
-                                                  img.camera, img.image);
+    const Eigen::Quaterniond q = sim::FlightLogAttitude(it.exterior, spec.imu_sigma,
+                                                        survey.config.seed, img.camera, img.image);
     prior.pose.pose.orientation.w = q.w();
     prior.pose.pose.orientation.x = q.x();
     prior.pose.pose.orientation.y = q.y();
@@ -185,7 +194,8 @@ void WriteGnss(const sim::Survey& survey, const sim::SurveyImage& img, const cap
 
 }  // namespace
 
-SurveyBagSummary WriteSurveyBag(const sim::Survey& survey, const std::string& path, const std::string& compression) {
+SurveyBagSummary WriteSurveyBag(const sim::Survey& survey, const std::string& path,
+                                const std::string& compression) {
   rosbag::CompressionType ct;
   if (compression == "bz2") {
     ct = rosbag::compression::BZ2;
@@ -194,7 +204,8 @@ SurveyBagSummary WriteSurveyBag(const sim::Survey& survey, const std::string& pa
   } else if (compression == "none") {
     ct = rosbag::compression::Uncompressed;
   } else {
-    throw InvalidArgument(Message("bag compression '", compression, "' is not one of: bz2, lz4, none"));
+    throw InvalidArgument(
+        Message("bag compression '", compression, "' is not one of: bz2, lz4, none"));
   }
   const sim::SurveyTruth& truth = survey.truth;
   SurveyBagSummary summary;
@@ -206,7 +217,8 @@ SurveyBagSummary WriteSurveyBag(const sim::Survey& survey, const std::string& pa
 
     const double t0 = truth.epochs.empty() ? survey.config.start_time : truth.epochs.front().stamp;
 
-    // ---- /tf_static: site -> receiver antennas, site -> fixed cameras' optical frames (nominal) ----
+    // ---- /tf_static: site -> receiver antennas, site -> fixed cameras' optical frames (nominal)
+    // ----
     WriteStaticTransforms(survey, t0, &bag, &summary);
 
     // ---- events in time order ----
@@ -235,7 +247,8 @@ SurveyBagSummary WriteSurveyBag(const sim::Survey& survey, const std::string& pa
         const sim::CameraTruth& cam = truth.cameras[img.camera];
         const sim::ImageTruth& it = cam.images[img.image];
         const std::string ns = "/" + cam.name + "/camera/";
-        const sensor_msgs::Image msg = ImageMsg(img.pixels, cam.encoding, cam.name + "_optical", img.stamp);
+        const sensor_msgs::Image msg =
+            ImageMsg(img.pixels, cam.encoding, cam.name + "_optical", img.stamp);
         sensor_msgs::CameraInfo info = ToMsg(cam.nominal.ToCameraInfo());
         info.header = msg.header;
         bag.write(ns + "image_raw", Stamp(img.stamp), msg);
@@ -244,7 +257,8 @@ SurveyBagSummary WriteSurveyBag(const sim::Survey& survey, const std::string& pa
         ++summary.camera_infos;
         if (it.gnss) WriteGnss(survey, img, *ltp, &bag, &summary);
       } else if (e.kind == 3 && survey.radio) {
-        for (const radio::SampleBlock& b : survey.radio->SynthesizeAll(e.t, static_cast<uint32_t>(e.a))) {
+        for (const radio::SampleBlock& b :
+             survey.radio->SynthesizeAll(e.t, static_cast<uint32_t>(e.a))) {
           bag.write("/radio/" + b.receiver_id + "/samples", Stamp(b.stamp), RadioMsg(b));
           ++summary.radio_blocks;
         }

@@ -11,12 +11,12 @@
 #include "slope_monitor/PointDisplacement.h"
 #include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/format.h"
+#include "slope_monitor/core/common/numeric.h"
 #include "slope_monitor/core/dense/field_picture.h"
 #include "slope_monitor/core/io/camera_pose_file.h"
 #include "slope_monitor/core/io/image_polygons.h"
 #include "slope_monitor/ros/conversions.h"
-#include "slope_monitor/core/common/format.h"
-#include "slope_monitor/core/common/numeric.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -218,7 +218,8 @@ TargetlessOutputs TargetlessCameraRunner::OnImage(const sensor_msgs::Image& imag
   s.message = e.warnings.empty() ? "re-oriented" : e.warnings.front();
   s.values.push_back(Kv("rotation [deg]", Fixed(r.rotation_angle * kDegPerRad, 5)));
   for (int k = 0; k < 3; ++k) {
-    s.values.push_back(Kv(std::string("d") + kAngle[k] + " [deg]", Fixed(r.delta(k) * kDegPerRad, 5)));
+    s.values.push_back(
+        Kv(std::string("d") + kAngle[k] + " [deg]", Fixed(r.delta(k) * kDegPerRad, 5)));
     s.values.push_back(
         Kv(std::string("sigma ") + kAngle[k] + " [deg]", Fixed(r.sigma(k) * kDegPerRad, 5)));
   }

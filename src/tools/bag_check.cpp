@@ -22,7 +22,8 @@ namespace {
 
 int Usage(const std::string& why) {
   std::cerr << "bag_check: " << why << "\n"
-            << "usage: bag_check [--gap SECONDS] [--epoch-gap SECONDS] [--session] file.bag [more.bag ...]\n";
+            << "usage: bag_check [--gap SECONDS] [--epoch-gap SECONDS] [--session] file.bag "
+               "[more.bag ...]\n";
   return 2;
 }
 
@@ -47,7 +48,8 @@ int main(int argc, char** argv) {
     } else if (a == "--gap" || a == "--epoch-gap") {
       if (i + 1 >= argc) return Usage(a + " needs a value");
       double* target = a == "--gap" ? &options.gap : &options.epoch_gap;
-      if (!ParsePositive(argv[++i], target)) return Usage(a + " value '" + argv[i] + "' is not a positive number");
+      if (!ParsePositive(argv[++i], target))
+        return Usage(a + " value '" + argv[i] + "' is not a positive number");
     } else if (a == "-h" || a == "--help") {
       Usage("help");
       return 0;
@@ -60,7 +62,8 @@ int main(int argc, char** argv) {
   if (bags.empty()) return Usage("no bag file given");
   if (session) {
     try {
-      std::cout << slope_monitor::ros_adapters::FormatBagReport(slope_monitor::ros_adapters::CheckBags(bags, options));
+      std::cout << slope_monitor::ros_adapters::FormatBagReport(
+          slope_monitor::ros_adapters::CheckBags(bags, options));
       return 0;
     } catch (const slope_monitor::Error& e) {
       std::cerr << "bag_check: " << e.what() << "\n";
@@ -70,7 +73,8 @@ int main(int argc, char** argv) {
   int status = 0;
   for (const auto& path : bags) {
     try {
-      std::cout << slope_monitor::ros_adapters::FormatBagReport(slope_monitor::ros_adapters::CheckBag(path, options));
+      std::cout << slope_monitor::ros_adapters::FormatBagReport(
+          slope_monitor::ros_adapters::CheckBag(path, options));
     } catch (const slope_monitor::Error& e) {
       std::cerr << "bag_check: " << e.what() << "\n";
       status = 1;

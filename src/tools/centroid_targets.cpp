@@ -134,13 +134,13 @@ void IdentifyOnLayout(const std::string& image, const targets::BoardLayout& layo
     outer.push_back(o.size_px * std::max(o.ring_ratio, 1.0));
     which.push_back(k);
   }
-  const targets::LatticeFit fit =
-      targets::FitLattice(centres, outer, layout, r->width, r->height);
+  const targets::LatticeFit fit = targets::FitLattice(centres, outer, layout, r->width, r->height);
   if (!fit.ok) {
     std::fprintf(stderr, "%s: lattice: %s\n", image.c_str(), fit.message.c_str());
     return;
   }
-  for (const targets::LatticeMarker& m : fit.markers) r->observations[which[m.observation]].id = m.id;
+  for (const targets::LatticeMarker& m : fit.markers)
+    r->observations[which[m.observation]].id = m.id;
   if (layout.kind == targets::BoardLayout::Kind::kList) {
     std::fprintf(stderr,
                  "%s: layout: %zu of %zu listed markers, RMS %.3f px (homography), %zu circles off "
@@ -154,7 +154,8 @@ void IdentifyOnLayout(const std::string& image, const targets::BoardLayout& layo
                "%.3f px), %zu circles off the lattice\n",
                image.c_str(), fit.markers.size(), fit.rows_seen, fit.cols_seen, fit.rms_px,
                fit.rms_homography_px, fit.off_lattice.size());
-  if (!fit.warning.empty()) std::fprintf(stderr, "%s: lattice: note: %s\n", image.c_str(), fit.warning.c_str());
+  if (!fit.warning.empty())
+    std::fprintf(stderr, "%s: lattice: note: %s\n", image.c_str(), fit.warning.c_str());
 }
 
 void Explain(const std::string& image, const targets::Result& r) {
@@ -168,10 +169,11 @@ void Explain(const std::string& image, const targets::Result& r) {
 }
 
 int Usage() {
-  std::cerr << "usage: centroid_targets (--images DIR | --bag FILE --topic TOPIC) [--out FILE.csv] "
-               "[--targets LIST.yaml] [--config OPTIONS.yaml] [--layout BOARD] [--max-megapixels MP] "
-               "[--explain]\n"
-               "exit status: 0 all read, 2 some images skipped, 1 nothing processed or an error\n";
+  std::cerr
+      << "usage: centroid_targets (--images DIR | --bag FILE --topic TOPIC) [--out FILE.csv] "
+         "[--targets LIST.yaml] [--config OPTIONS.yaml] [--layout BOARD] [--max-megapixels MP] "
+         "[--explain]\n"
+         "exit status: 0 all read, 2 some images skipped, 1 nothing processed or an error\n";
   return 1;
 }
 
@@ -321,7 +323,8 @@ int main(int argc, char** argv) {
     }
     if (failed > 0) return 2;
   } catch (const std::filesystem::filesystem_error& e) {
-    std::cerr << "centroid_targets: cannot read '" << e.path1().string() << "': " << e.code().message() << "\n";
+    std::cerr << "centroid_targets: cannot read '" << e.path1().string()
+              << "': " << e.code().message() << "\n";
     return 1;
   } catch (const std::exception& e) {
     std::cerr << "centroid_targets: " << e.what() << "\n";

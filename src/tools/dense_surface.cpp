@@ -7,13 +7,15 @@
 //                 [--reference DIR_OR_FILE_surface.tif]
 //   pair.yaml:
 //     left:  {image: l.png, sensor: [width, height, pixel_size_mm], distortion_model: brown,
-//             interior: [c, x0, y0, k1, k2, k3, p1, p2, b1, b2], exterior: [X0, Y0, Z0, theta, phi, kappa]}
+//             interior: [c, x0, y0, k1, k2, k3, p1, p2, b1, b2], exterior: [X0, Y0, Z0, theta, phi,
+//             kappa]}
 //     right: {...}
 //
 // Pair from a simulated survey, with the simulator's TRUE orientation and the
 // truth comparison (doc/simulator.md):
 //   dense_surface --truth demo.truth.yaml --bag demo.bag --left-camera fixed_cam_1
-//                 --right-camera fixed_cam_2 --epoch 1 [--reference-epoch 0] --out-dir DIR [--config ...]
+//                 --right-camera fixed_cam_2 --epoch 1 [--reference-epoch 0] --out-dir DIR
+//                 [--config ...]
 //   prints the height error against demo.surface_eNN.tif (RMS and 95th
 //   percentile on bare ground, and near the scarp / obstacles separately) and,
 //   with --reference-epoch, the measured cut-and-fill against the true one.
@@ -23,7 +25,8 @@
 // written by process_bag --output-bag): no depth is guessed, the ground comes
 // from the adjusted points (doc/dense_change.md):
 //   dense_surface --bag run.bag --out-dir DIR [--config config/defaults/dense_epoch.yaml]
-//                 [--epoch K] [--solution-topic /bundle_adjuster/solution] [--compare-truth T.truth.yaml]
+//                 [--epoch K] [--solution-topic /bundle_adjuster/solution] [--compare-truth
+//                 T.truth.yaml]
 //   prints progress per pair and writes DIR/surface_eNN.tif per epoch and
 //   DIR/change_eNN.tif per later epoch (against the first epoch measured).
 //
@@ -39,12 +42,13 @@
 #include <vector>
 
 #include <cv_bridge/cv_bridge.h>
-#include <opencv2/imgcodecs.hpp>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+#include <opencv2/imgcodecs.hpp>
 
+#include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/dense/change.h"
@@ -54,7 +58,6 @@
 #include "slope_monitor/core/dense/surface_series.h"
 #include "slope_monitor/core/io/geotiff.h"
 #include "slope_monitor/core/io/yaml_map.h"
-#include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/core/sim/truth.h"
 #include "slope_monitor/ros/dense_conversions.h"
 #include "slope_monitor/ros/dense_epoch_step.h"
@@ -76,7 +79,8 @@ struct Args {
 
 // The dense_matcher node's reader (config/defaults/dense_matcher.yaml): the
 // same keys, defaults and checks; the node-only keys are read and not used.
-void ReadOptions(const std::string& path, dense::SurfaceOptions* o, dense::SurfaceConfig* c, dense::ChangeOptions* co) {
+void ReadOptions(const std::string& path, dense::SurfaceOptions* o, dense::SurfaceConfig* c,
+                 dense::ChangeOptions* co) {
   if (path.empty()) return;
   ros_adapters::ParamReader p(ros_adapters::LoadParamFile(path), path);
   const ros_adapters::DenseMatcherParameters d = ros_adapters::ReadDenseMatcherParameters(p);
@@ -100,8 +104,8 @@ dense::OrientedImage ImageFromYaml(io::YamlMap m, const std::string& dir, const 
   const std::vector<double> in = m.RequiredDoubles("interior", camera::kNumInterior);
   std::array<double, camera::kNumInterior> interior{};
   std::copy(in.begin(), in.end(), interior.begin());
-  im.camera = camera::CameraModel(sensor, camera::DistortionModelFromName(m.String("distortion_model", "brown")),
-                                  interior);
+  im.camera = camera::CameraModel(
+      sensor, camera::DistortionModelFromName(m.String("distortion_model", "brown")), interior);
   if (m.Has("exterior")) {
     const std::vector<double> e = m.RequiredDoubles("exterior", camera::kNumExterior);
     im.pose = camera::ExteriorOrientation::FromArray(e.data());
@@ -119,16 +123,18 @@ cv::Mat ImageFromBag(const std::string& bag_path, const std::string& camera, dou
     throw IoError(Message(bag_path, ": cannot open bag (", e.what(), ")"));
   }
   const std::string topic = "/" + camera + "/camera/image_raw";
-  rosbag::View view(bag, rosbag::TopicQuery(topic), ros::Time(std::max(0.0, stamp - 0.5)), ros::Time(stamp + 0.5));
+  rosbag::View view(bag, rosbag::TopicQuery(topic), ros::Time(std::max(0.0, stamp - 0.5)),
+                    ros::Time(stamp + 0.5));
   for (const rosbag::MessageInstance& m : view) {
     const sensor_msgs::Image::ConstPtr img = m.instantiate<sensor_msgs::Image>();
-    if (img && std::abs(img->header.stamp.toSec() - stamp) < 1e-3) return cv_bridge::toCvCopy(img)->image;
+    if (img && std::abs(img->header.stamp.toSec() - stamp) < 1e-3)
+      return cv_bridge::toCvCopy(img)->image;
   }
   throw IoError(Message(bag_path, ": no image on ", topic, " at stamp ", stamp));
 }
 
-dense::OrientedImage ImageFromTruth(const sim::SurveyTruth& truth, const std::string& bag, const std::string& cam,
-                                    int epoch) {
+dense::OrientedImage ImageFromTruth(const sim::SurveyTruth& truth, const std::string& bag,
+                                    const std::string& cam, int epoch) {
   const sim::CameraTruth* c = truth.FindCamera(cam);
   if (!c) throw InvalidArgument(Message("camera '", cam, "' is not in the truth file"));
   for (const sim::ImageTruth& it : c->images)
@@ -144,14 +150,16 @@ dense::OrientedImage ImageFromTruth(const sim::SurveyTruth& truth, const std::st
   throw InvalidArgument(Message("camera '", cam, "' has no image in epoch ", epoch));
 }
 
-std::string TruthSurfacePath(const sim::SurveyTruth& truth, const std::string& truth_path, int epoch) {
+std::string TruthSurfacePath(const sim::SurveyTruth& truth, const std::string& truth_path,
+                             int epoch) {
   for (const sim::SurfaceTruth& s : truth.surfaces)
     if (s.epoch == epoch) return (fs::path(truth_path).parent_path() / s.geotiff).string();
   throw InvalidArgument(Message(truth_path, ": no true surface for epoch ", epoch));
 }
 
 // Height errors of a model against the true surface, split by where matching must fail.
-void CompareWithTruth(const io::GeoRaster& model, const io::GeoRaster& true_surface, const sim::SurveyTruth& truth) {
+void CompareWithTruth(const io::GeoRaster& model, const io::GeoRaster& true_surface,
+                      const sim::SurveyTruth& truth) {
   std::vector<double> bare, hard;
   int cells = 0;
   for (int r = 0; r < model.height; ++r)
@@ -174,8 +182,9 @@ void CompareWithTruth(const io::GeoRaster& model, const io::GeoRaster& true_surf
     for (double v : e) s2 += v * v, s += v;
     for (double& v : e) v = std::abs(v);
     std::sort(e.begin(), e.end());
-    std::printf("%s: %zu cells, height error RMS %.4f m, mean %.4f m, p95 |e| %.4f m, max %.4f m\n", what, e.size(),
-                std::sqrt(s2 / e.size()), s / e.size(), e[static_cast<size_t>(0.95 * (e.size() - 1))], e.back());
+    std::printf("%s: %zu cells, height error RMS %.4f m, mean %.4f m, p95 |e| %.4f m, max %.4f m\n",
+                what, e.size(), std::sqrt(s2 / e.size()), s / e.size(),
+                e[static_cast<size_t>(0.95 * (e.size() - 1))], e.back());
   };
   std::printf("surface vs truth (%d cells, %zu filled):\n", cells, bare.size() + hard.size());
   report("  bare ground", bare);
@@ -193,7 +202,8 @@ int IntArg(const Args& a, const std::string& flag, const std::string& default_va
     used = 0;
   }
   if (v.empty() || used != v.size() || n < 0)
-    throw InvalidArgument(Message(flag, " '", v, "' must be a non-negative integer (an epoch number)"));
+    throw InvalidArgument(
+        Message(flag, " '", v, "' must be a non-negative integer (an epoch number)"));
   return n;
 }
 
@@ -201,7 +211,8 @@ int IntArg(const Args& a, const std::string& flag, const std::string& default_va
 // node reads them (ros_adapters::ReadDenseEpochParameters); no file: the
 // defaults.
 ros_adapters::DenseEpochParameters ReadEpochConfig(const std::string& path) {
-  const XmlRpc::XmlRpcValue params = path.empty() ? XmlRpc::XmlRpcValue() : ros_adapters::LoadParamFile(path);
+  const XmlRpc::XmlRpcValue params =
+      path.empty() ? XmlRpc::XmlRpcValue() : ros_adapters::LoadParamFile(path);
   ros_adapters::ParamReader reader(params, path);
   return ros_adapters::ReadDenseEpochParameters(reader);
 }
@@ -209,7 +220,8 @@ ros_adapters::DenseEpochParameters ReadEpochConfig(const std::string& path) {
 // Every adjusted epoch of the bag (see the file header).
 int RunBagEpochs(const Args& a) {
   const ros_adapters::DenseEpochParameters cfg = ReadEpochConfig(a.Get("--config"));
-  const std::string bag_path = a.Get("--bag"), topic = a.Get("--solution-topic", "/bundle_adjuster/solution");
+  const std::string bag_path = a.Get("--bag"),
+                    topic = a.Get("--solution-topic", "/bundle_adjuster/solution");
   const std::string out_dir = a.Get("--out-dir", ".");
   const int only_epoch = a.Has("--epoch") ? IntArg(a, "--epoch", "") : -1;
   rosbag::Bag bag;
@@ -221,12 +233,14 @@ int RunBagEpochs(const Args& a) {
   std::vector<slope_monitor::AdjustmentSolution> solutions;
   for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery(topic))) {
     const auto s = m.instantiate<slope_monitor::AdjustmentSolution>();
-    if (s && s->usable && (only_epoch < 0 || static_cast<int>(s->epoch) == only_epoch)) solutions.push_back(*s);
+    if (s && s->usable && (only_epoch < 0 || static_cast<int>(s->epoch) == only_epoch))
+      solutions.push_back(*s);
   }
   if (solutions.empty())
-    throw InvalidArgument(Message(bag_path, ": no usable adjustment on ", topic,
-                                  (only_epoch >= 0 ? Message(" for epoch ", only_epoch) : std::string()),
-                                  " (record a replay with record.launch, or run process_bag --output-bag)"));
+    throw InvalidArgument(
+        Message(bag_path, ": no usable adjustment on ", topic,
+                (only_epoch >= 0 ? Message(" for epoch ", only_epoch) : std::string()),
+                " (record a replay with record.launch, or run process_bag --output-bag)"));
   fs::create_directories(out_dir);
   // The node's epoch series (reference, DoD, surface_eNN.tif / change_eNN.tif in --out-dir).
   ros_adapters::DenseEpochParameters series_cfg = cfg;
@@ -251,13 +265,15 @@ int RunBagEpochs(const Args& a) {
         if (auto c = m.instantiate<sensor_msgs::CameraInfo>()) info = c;
       }
       if (!image || !info) {
-        std::printf("epoch %u: no image/camera_info of '%s' at %.3f in the bag; skipped\n", sol.epoch,
-                    e.camera_name.c_str(), t);
+        std::printf("epoch %u: no image/camera_info of '%s' at %.3f in the bag; skipped\n",
+                    sol.epoch, e.camera_name.c_str(), t);
         continue;
       }
-      const bool uav = std::find(cfg.uav_cameras.begin(), cfg.uav_cameras.end(), e.camera_name) != cfg.uav_cameras.end();
-      in.images.push_back(ros_adapters::EpochImageFromEstimate(e, *image, *info, cfg.pixel_size,
-                                                               uav ? dense::ImageKind::kUav : dense::ImageKind::kFixed));
+      const bool uav = std::find(cfg.uav_cameras.begin(), cfg.uav_cameras.end(), e.camera_name) !=
+                       cfg.uav_cameras.end();
+      in.images.push_back(ros_adapters::EpochImageFromEstimate(
+          e, *image, *info, cfg.pixel_size,
+          uav ? dense::ImageKind::kUav : dense::ImageKind::kFixed));
     }
     std::printf("epoch %d: %zu oriented images, %zu adjusted points\n", in.epoch, in.images.size(),
                 in.adjusted_points.size());
@@ -272,9 +288,11 @@ int RunBagEpochs(const Args& a) {
     if (a.Has("--compare-truth")) {
       const std::string truth_path = a.Get("--compare-truth");
       const sim::SurveyTruth truth = sim::SurveyTruth::Load(truth_path);
-      CompareWithTruth(r.surface->dem, io::ReadGeoTiff(TruthSurfacePath(truth, truth_path, in.epoch)), truth);
+      CompareWithTruth(r.surface->dem,
+                       io::ReadGeoTiff(TruthSurfacePath(truth, truth_path, in.epoch)), truth);
     }
-    if (r.change) std::printf("epoch %d change: %s\n", in.epoch, r.change->summary.BriefReport().c_str());
+    if (r.change)
+      std::printf("epoch %d change: %s\n", in.epoch, r.change->summary.BriefReport().c_str());
   }
   return series.reference() ? 0 : 1;
 }
@@ -301,7 +319,8 @@ int Run(const Args& a) {
     left = ImageFromTruth(*truth, a.Get("--bag"), a.Get("--left-camera", "fixed_cam_1"), epoch);
     right = ImageFromTruth(*truth, a.Get("--bag"), a.Get("--right-camera", "fixed_cam_2"), epoch);
     if (config.region.isZero())
-      config.region = Eigen::Vector4d(truth->extent[0], truth->extent[1], truth->extent[2], truth->extent[3]);
+      config.region =
+          Eigen::Vector4d(truth->extent[0], truth->extent[1], truth->extent[2], truth->extent[3]);
   } else if (a.Has("--pair")) {
     const std::string pair_path = a.Get("--pair");
     io::YamlMap root = io::YamlMap::Load(pair_path);
@@ -310,13 +329,14 @@ int Run(const Args& a) {
     right = ImageFromYaml(root.Map("right"), dir, "right");
     root.CheckNoUnknownKeys();
   } else {
-    throw InvalidArgument("give --pair pair.yaml or --truth demo.truth.yaml --bag demo.bag (see the file header)");
+    throw InvalidArgument(
+        "give --pair pair.yaml or --truth demo.truth.yaml --bag demo.bag (see the file header)");
   }
 
   dense::SurfaceSummary summary;
   // DIR/dense_surface.tif and DIR/dense_ortho.tif, written only after the measurement succeeded.
-  const dense::SurfaceResult s =
-      dense::MeasureSurfaceToFiles(left, right, options, config, (fs::path(out_dir) / "dense").string(), &summary);
+  const dense::SurfaceResult s = dense::MeasureSurfaceToFiles(
+      left, right, options, config, (fs::path(out_dir) / "dense").string(), &summary);
   std::printf("%s\n", summary.BriefReport().c_str());
 
   io::GeoRaster true_now;
@@ -332,7 +352,8 @@ int Run(const Args& a) {
         ImageFromTruth(*truth, a.Get("--bag"), a.Get("--left-camera", "fixed_cam_1"), ref_epoch);
     const dense::OrientedImage r0 =
         ImageFromTruth(*truth, a.Get("--bag"), a.Get("--right-camera", "fixed_cam_2"), ref_epoch);
-    reference = std::make_unique<io::GeoRaster>(dense::MeasureSurface(l0, r0, options, config).model);
+    reference =
+        std::make_unique<io::GeoRaster>(dense::MeasureSurface(l0, r0, options, config).model);
   } else if (a.Has("--reference")) {
     reference = std::make_unique<io::GeoRaster>(io::ReadGeoTiff(a.Get("--reference")));
   }
@@ -341,25 +362,31 @@ int Run(const Args& a) {
     std::printf("%s\n", c.summary.BriefReport().c_str());
     io::WriteGeoTiff((fs::path(out_dir) / "change.tif").string(), c.change);
     if (truth && a.Has("--reference-epoch")) {
-      const io::GeoRaster true_ref =
-          io::ReadGeoTiff(TruthSurfacePath(*truth, a.Get("--truth"), IntArg(a, "--reference-epoch", "")));
+      const io::GeoRaster true_ref = io::ReadGeoTiff(
+          TruthSurfacePath(*truth, a.Get("--truth"), IntArg(a, "--reference-epoch", "")));
       // True cut and fill over the whole model grid and over the significant cells.
       double gain = 0, loss = 0, gain_sig = 0, loss_sig = 0;
       const double area = c.change.cell_size * c.change.cell_size;
       for (int r = 0; r < c.change.height; ++r)
         for (int k = 0; k < c.change.width; ++k) {
           const Eigen::Vector2d xy = c.change.CellCentre(r, k);
-          const double dz = true_now.Interpolate(0, xy.x(), xy.y()) - true_ref.Interpolate(0, xy.x(), xy.y());
+          const double dz =
+              true_now.Interpolate(0, xy.x(), xy.y()) - true_ref.Interpolate(0, xy.x(), xy.y());
           if (std::isnan(dz)) continue;
           (dz > 0 ? gain : loss) += std::abs(dz) * area;
           const float sig = c.change.At(dense::kSignificant, r, k);
-          if (!c.change.IsNoData(sig) && sig != 0.0f) (dz > 0 ? gain_sig : loss_sig) += std::abs(dz) * area;
+          if (!c.change.IsNoData(sig) && sig != 0.0f)
+            (dz > 0 ? gain_sig : loss_sig) += std::abs(dz) * area;
         }
-      std::printf("true change over the grid: gain %.2f m3, loss %.2f m3, net %.2f m3; over the significant cells: "
-                  "gain %.2f m3, loss %.2f m3\n",
-                  gain, loss, gain - loss, gain_sig, loss_sig);
-      std::printf("ratio volume_gain measured/true = %.3f\nratio volume_loss measured/true = %.3f\n",
-                  gain > 0 ? c.summary.volume_gain / gain : 0.0, loss > 0 ? c.summary.volume_loss / loss : 0.0);
+      std::printf(
+          "true change over the grid: gain %.2f m3, loss %.2f m3, net %.2f m3; over the "
+          "significant cells: "
+          "gain %.2f m3, loss %.2f m3\n",
+          gain, loss, gain - loss, gain_sig, loss_sig);
+      std::printf(
+          "ratio volume_gain measured/true = %.3f\nratio volume_loss measured/true = %.3f\n",
+          gain > 0 ? c.summary.volume_gain / gain : 0.0,
+          loss > 0 ? c.summary.volume_loss / loss : 0.0);
     }
   }
   return 0;
@@ -373,11 +400,15 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
     if (k == "-h" || k == "--help") {
-      std::printf("usage: dense_surface --bag B.bag --out-dir DIR [--config config/defaults/dense_epoch.yaml] "
-                  "[--epoch K] [--solution-topic T] [--compare-truth T.truth.yaml]\n"
-                  "       dense_surface --pair pair.yaml --out-dir DIR [--config FILE] [--reference surface.tif]\n"
-                  "       dense_surface --truth T.truth.yaml --bag T.bag --left-camera C1 --right-camera C2 "
-                  "--epoch K [--reference-epoch K0] --out-dir DIR [--config FILE]\n");
+      std::printf(
+          "usage: dense_surface --bag B.bag --out-dir DIR [--config "
+          "config/defaults/dense_epoch.yaml] "
+          "[--epoch K] [--solution-topic T] [--compare-truth T.truth.yaml]\n"
+          "       dense_surface --pair pair.yaml --out-dir DIR [--config FILE] [--reference "
+          "surface.tif]\n"
+          "       dense_surface --truth T.truth.yaml --bag T.bag --left-camera C1 --right-camera "
+          "C2 "
+          "--epoch K [--reference-epoch K0] --out-dir DIR [--config FILE]\n");
       return 0;
     }
     if (k.rfind("--", 0) != 0 || i + 1 >= argc) {

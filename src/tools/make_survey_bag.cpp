@@ -1,7 +1,8 @@
 // make_survey_bag: renders a simulated slope survey and writes it as a bag
 // plus its ground truth (doc/simulator.md).
 //
-//   make_survey_bag --config config/sim/demo_site.yaml --out demo.bag [--compression lz4|bz2|none] [--seed N]
+//   make_survey_bag --config config/sim/demo_site.yaml --out demo.bag [--compression lz4|bz2|none]
+//   [--seed N]
 //
 // Writes demo.bag, demo.truth.yaml, demo.targets.yaml, demo.surface_eNN.tif.
 // Also runs as a ROS node from launch/make_survey_bag.launch (arguments
@@ -19,7 +20,8 @@
 namespace {
 
 void Usage() {
-  std::cerr << "usage: make_survey_bag --config <site.yaml> --out <name.bag> [--compression lz4|bz2|none] "
+  std::cerr << "usage: make_survey_bag --config <site.yaml> --out <name.bag> [--compression "
+               "lz4|bz2|none] "
                "[--seed N] [--quiet]\n";
 }
 
@@ -59,7 +61,8 @@ int main(int argc, char** argv) {
         used = 0;
       }
       if (v.empty() || used != v.size() || seed < 0 || seed > 4294967295L) {
-        std::cerr << "make_survey_bag: --seed '" << v << "' must be an integer in [0, 4294967295]\n";
+        std::cerr << "make_survey_bag: --seed '" << v
+                  << "' must be an integer in [0, 4294967295]\n";
         return 1;
       }
     } else if (a == "--quiet") {
@@ -80,7 +83,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   std::string stem = out;
-  if (stem.size() > 4 && stem.substr(stem.size() - 4) == ".bag") stem = stem.substr(0, stem.size() - 4);
+  if (stem.size() > 4 && stem.substr(stem.size() - 4) == ".bag")
+    stem = stem.substr(0, stem.size() - 4);
   const std::string bag_path = stem + ".bag";
 
   const auto t_start = std::chrono::steady_clock::now();
@@ -98,11 +102,12 @@ int main(int argc, char** argv) {
     if (!quiet) std::fprintf(stderr, "\n");
     slope_monitor::sim::WriteSurveyFiles(&survey, stem);
     const auto s = slope_monitor::ros_adapters::WriteSurveyBag(survey, bag_path, compression);
-    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+    const double secs =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
     std::printf("wrote %s: %d images, %d GNSS fixes, %d radio blocks, %d epoch markers in %.1f s\n",
                 bag_path.c_str(), s.images, s.gnss_fixes, s.radio_blocks, s.epoch_markers, secs);
-    std::printf("truth: %s.truth.yaml  targets: %s.targets.yaml  surfaces: %s.surface_eNN.tif\n", stem.c_str(),
-                stem.c_str(), stem.c_str());
+    std::printf("truth: %s.truth.yaml  targets: %s.targets.yaml  surfaces: %s.surface_eNN.tif\n",
+                stem.c_str(), stem.c_str(), stem.c_str());
   } catch (const std::exception& e) {
     std::cerr << "make_survey_bag: " << config_path << ": " << e.what() << "\n";
     return 1;

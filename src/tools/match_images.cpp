@@ -39,10 +39,10 @@
 
 #include <opencv2/imgcodecs.hpp>
 
-#include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/capture/geodesy.h"
 #include "slope_monitor/core/capture/photo_attitude.h"
+#include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/image_file.h"
 #include "slope_monitor/core/matching/photo_pair_matcher.h"
@@ -218,8 +218,9 @@ int main(int argc, char** argv) {
         if (!out) break;
         char line[512];
         std::snprintf(line, sizeof(line), "%s,%s,%.3f,%.3f,%.3f,%.3f,%.4e,%.4e,%.4e,%.3f\n",
-                      photos[i].path.c_str(), photos[j].path.c_str(), t.xa.x(), t.xa.y(), t.xb.x(), t.xb.y(),
-                      t.covariance(0, 0), t.covariance(0, 1), t.covariance(1, 1), t.quality);
+                      photos[i].path.c_str(), photos[j].path.c_str(), t.xa.x(), t.xa.y(), t.xb.x(),
+                      t.xb.y(), t.covariance(0, 0), t.covariance(0, 1), t.covariance(1, 1),
+                      t.quality);
         out << line;
       }
     }

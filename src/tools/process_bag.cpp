@@ -62,9 +62,9 @@
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_msgs/TFMessage.h>
 
-#include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/EpochMarker.h"
 #include "slope_monitor/RadioSampleBlock.h"
+#include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/input_order.h"
 #include "slope_monitor/core/deformation/alert_hook.h"
@@ -80,18 +80,18 @@
 #include "slope_monitor/ros/change_area_conversions.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/deformation_conversions.h"
-#include "slope_monitor/ros/estimator_step.h"
 #include "slope_monitor/ros/epoch_solver.h"
+#include "slope_monitor/ros/estimator_step.h"
 #include "slope_monitor/ros/hex_matcher_parameters.h"
 #include "slope_monitor/ros/node_parameters.h"
 #include "slope_monitor/ros/offline_dense.h"
 #include "slope_monitor/ros/param_files.h"
 #include "slope_monitor/ros/radio_step.h"
-#include "slope_monitor/ros/uav_topics.h"
 #include "slope_monitor/ros/sequence_conversions.h"
 #include "slope_monitor/ros/sequence_step.h"
 #include "slope_monitor/ros/target_conversions.h"
 #include "slope_monitor/ros/targetless_camera.h"
+#include "slope_monitor/ros/uav_topics.h"
 #include "slope_monitor/ros/validation.h"
 #include "slope_monitor/ros/view_markers.h"
 
@@ -104,7 +104,8 @@ constexpr char kUsage[] =
     "usage: process_bag --bag FILE [--bag FILE2 ...] [--site FILE] [--site-config FILE] "
     "[--target-list FILE]\n"
     "                   [--radio-network FILE] [--adjuster-config FILE] [--uav-tie-points]\n"
-    "                   [--database FILE] [--report-dir DIR] [--output-bag FILE] [--no-dense] [--verbose]\n";
+    "                   [--database FILE] [--report-dir DIR] [--output-bag FILE] [--no-dense] "
+    "[--verbose]\n";
 
 // Topics of the replay graph (launch/include/processing_graph.xml).
 constexpr char kAdjusterDisplacements[] = "/bundle_adjuster/displacements";
@@ -118,7 +119,7 @@ struct Args {
   // No target list (a --site without targets and no <bag>.targets.yaml): no
   // target stage; set by ResolveTargets.
   bool no_targets = false;
-  bool dense = true;  // the dense epoch step (replay.launch dense:=true)
+  bool dense = true;     // the dense epoch step (replay.launch dense:=true)
   bool verbose = false;  // the bundle adjuster's INFO lines too
   std::string database, report_dir, output_bag;
 };
@@ -182,7 +183,8 @@ void CheckInputFiles(const Args& a) {
   // Fail early (issue 38): the outputs' folders are written before a message is processed.
   io::CheckFolderWritable(a.report_dir, "--report-dir");
   const fs::path database_folder = fs::path(a.database).parent_path();
-  io::CheckFolderWritable(database_folder.empty() ? "." : database_folder.string(), "folder of --database");
+  io::CheckFolderWritable(database_folder.empty() ? "." : database_folder.string(),
+                          "folder of --database");
 }
 
 // The targets, as replay.launch finds them: the site file's when it lists
@@ -196,14 +198,16 @@ void ResolveTargets(Args* a, const std::function<void(const std::string&)>& log)
       a->site.empty() ? std::nullopt : std::optional<io::SiteFile>(io::LoadSiteFile(a->site));
   if (site && site->targets) return;
   if (!a->target_list.empty()) return;
-  const std::string beside = a->bags.front().substr(0, a->bags.front().size() - 4) + ".targets.yaml";
+  const std::string beside =
+      a->bags.front().substr(0, a->bags.front().size() - 4) + ".targets.yaml";
   if (fs::is_regular_file(beside)) {
     a->target_list = beside;
     return;
   }
   if (!site)
-    throw InvalidArgument("no target list: file '" + beside +
-                          "' not found (give --target-list FILE, or --site FILE naming the targets)");
+    throw InvalidArgument(
+        "no target list: file '" + beside +
+        "' not found (give --target-list FILE, or --site FILE naming the targets)");
   a->no_targets = true;
   std::string uav;
   for (const io::SiteCamera& c : site->cameras)
@@ -276,14 +280,17 @@ void SayBreaks(const std::vector<BagBreak>& breaks, const std::vector<std::strin
     rosbag::View part(*b.readable);
     char when[160] = "no message before it";
     if (part.size() > 0)
-      std::snprintf(when, sizeof(when), "its last readable message at bag time %.3f s (%.1f s after its start)",
+      std::snprintf(when, sizeof(when),
+                    "its last readable message at bag time %.3f s (%.1f s after its start)",
                     part.getEndTime().toSec(), (part.getEndTime() - part.getBeginTime()).toSec());
-    std::cerr << "process_bag: input ended early: bag '" << b.path << "' breaks off at byte " << b.bytes
-              << " (cut while recording or copying): " << part.size() << " messages read up to the break, "
-              << when << "; what was recorded after it is not in the file\n";
+    std::cerr << "process_bag: input ended early: bag '" << b.path << "' breaks off at byte "
+              << b.bytes << " (cut while recording or copying): " << part.size()
+              << " messages read up to the break, " << when
+              << "; what was recorded after it is not in the file\n";
   }
   for (const std::string& line : incomplete)
-    std::cerr << "process_bag: accepted at the end of input without all its inputs: " << line << "\n";
+    std::cerr << "process_bag: accepted at the end of input without all its inputs: " << line
+              << "\n";
 }
 
 // Cameras of the survey: every /<name>/camera/image_raw topic of the bags.
@@ -453,8 +460,9 @@ class OfflineGraph {
                     dense_->epochs_measured(), dense_->seconds(), dense_->cpu_seconds());
       Log(line);
     }
-    Log("end of input: " + std::to_string(adjuster_->accepted()) + " adjustment epoch(s) accepted, " +
-        std::to_string(radio_epochs()) + " radio epoch(s) solved");
+    Log("end of input: " + std::to_string(adjuster_->accepted()) +
+        " adjustment epoch(s) accepted, " + std::to_string(radio_epochs()) +
+        " radio epoch(s) solved");
     if (estimator_->GetSnapshot().points.empty()) {
       Log("no point was ever measured: no reports written to " +
           estimator_->parameters().report_dir);
@@ -490,8 +498,10 @@ class OfflineGraph {
   std::string WhyNothingSolved() const {
     if (!last_failure_.empty()) return last_failure_;
     if (centroiders_.empty() && !radio_)
-      return "the bags hold no camera images (/<camera>/camera/image_raw) and no radio network runs";
-    return "no adjustment epoch was completed (no epoch end marker of the cameras; see the warnings above)";
+      return "the bags hold no camera images (/<camera>/camera/image_raw) and no radio network "
+             "runs";
+    return "no adjustment epoch was completed (no epoch end marker of the cameras; see the "
+           "warnings above)";
   }
   bool has_points() const { return !estimator_->GetSnapshot().points.empty(); }
 
@@ -527,14 +537,16 @@ class OfflineGraph {
       ros_adapters::MergeParams(&p, ros_adapters::LoadParamFile(args_.adjuster_config));
     if (args_.uav_tie_points) ros_adapters::SetParam(&p, "uav_tie_points", true);
     ros_adapters::ParamReader r(p, "/bundle_adjuster");
-    adjuster_ = std::make_unique<ros_adapters::AdjusterStep>(ros_adapters::ReadAdjusterParameters(r),
-                                                             "/bundle_adjuster");
+    adjuster_ = std::make_unique<ros_adapters::AdjusterStep>(
+        ros_adapters::ReadAdjusterParameters(r), "/bundle_adjuster");
     // The site's cameras that this bag has (a UAV that did not fly is not
     // waited for), as the replay graph decides it.
     std::vector<ros_adapters::LogLine> log;
     adjuster_->KeepCameras(ros_adapters::ReplayCameras(
         adjuster_->parameters(),
-        [&](const std::string& c) { return std::find(cameras.begin(), cameras.end(), c) != cameras.end(); },
+        [&](const std::string& c) {
+          return std::find(cameras.begin(), cameras.end(), c) != cameras.end();
+        },
         &log));
     for (const ros_adapters::LogLine& line : log) Log("bundle_adjuster: " + line.text);
     adjuster_->SetTiePointsExpected(args_.uav_tie_points);
@@ -591,7 +603,9 @@ class OfflineGraph {
         ros_adapters::ReadEstimatorParameters(r), ordered,
         // The site's notification hook, from its worker thread: straight to
         // stderr, not through the progress line.
-        [](bool, const std::string& m) { std::cerr << "deformation_estimator: " << m << std::endl; });
+        [](bool, const std::string& m) {
+          std::cerr << "deformation_estimator: " << m << std::endl;
+        });
   }
 
   // The fixed_targetless cameras of --site (launch/include/processing_graph.xml
@@ -729,9 +743,9 @@ class OfflineGraph {
       ready.set_value(std::move(none));
       task.result = ready.get_future();
     } else {
-      task.result = std::async(
-          std::launch::async, [this, c, image = image->second, info = info->second,
-                               site_from_optical, topic = task.topic] {
+      task.result =
+          std::async(std::launch::async, [this, c, image = image->second, info = info->second,
+                                          site_from_optical, topic = task.topic] {
             return Timed(&stages_.targets, [&] {
               return ros_adapters::CentroidImage(*c->centroider, *image, *info, site_from_optical,
                                                  c->camera, c->node.pixel_size, topic);
@@ -779,7 +793,8 @@ class OfflineGraph {
 
   void OnEpochEnd(const slope_monitor::EpochMarker& marker) {
     std::vector<ros_adapters::LogLine> ignored;
-    const std::vector<ros_adapters::SolvedEpoch> epochs = adjuster_->AddEnd(marker, now_.toSec(), &ignored);
+    const std::vector<ros_adapters::SolvedEpoch> epochs =
+        adjuster_->AddEnd(marker, now_.toSec(), &ignored);
     for (const ros_adapters::LogLine& line : ignored) Log("bundle_adjuster: " + line.text);
     Solve(epochs);
   }
@@ -848,7 +863,8 @@ class OfflineGraph {
   // The tie points written and collected; the pairs' progress only with --verbose.
   void OnSequenceStep(const UavMatcher& uav, const ros_adapters::SequenceOutput& out) {
     for (const ros_adapters::LogLine& line : out.log)
-      if (line.level != ros_adapters::LogLine::kDebug || args_.verbose) Log("hex_matcher: " + line.text);
+      if (line.level != ros_adapters::LogLine::kDebug || args_.verbose)
+        Log("hex_matcher: " + line.text);
     for (const slope_monitor::TiePointArray& msg : out.tie_points) {
       ++stages_.pairs;
       stages_.tie_points += static_cast<int>(msg.points.size());
@@ -868,7 +884,8 @@ class OfflineGraph {
     if (!out.accepted)
       last_failure_ = "epoch " + std::to_string(epoch) + " not accepted: " + out.solution.message;
     for (const ros_adapters::LogLine& line : out.log)
-      if (line.level >= ros_adapters::LogLine::kWarn || args_.verbose) Log("bundle_adjuster: " + line.text);
+      if (line.level >= ros_adapters::LogLine::kWarn || args_.verbose)
+        Log("bundle_adjuster: " + line.text);
     Publish(out);
     LogStages(epoch, out, adjustment);
   }
@@ -882,8 +899,9 @@ class OfflineGraph {
                   "photo features %.2f s), adjustment %.2f s (Ceres %.2f s in %u iterations, "
                   "covariance %.2f s), dense %.2f s, estimator %.2f s; peak memory %.0f MB",
                   epoch, stages_.targets, stages_.matching, stages_.pairs, stages_.tie_points,
-                  FeatureSeconds() - stages_.features_before, adjustment, out.solution.solve_time, out.solution.iterations, out.covariance_time,
-                  stages_.dense, stages_.estimator, PeakMemoryMb());
+                  FeatureSeconds() - stages_.features_before, adjustment, out.solution.solve_time,
+                  out.solution.iterations, out.covariance_time, stages_.dense, stages_.estimator,
+                  PeakMemoryMb());
     Log(std::string(line) +
         (out.adjusted && out.photos.total > 0 ? "; " + out.photos.Brief() : ""));
     stages_ = StageTimes();
@@ -914,8 +932,7 @@ class OfflineGraph {
       Write("/tf", tf);
     }
     Write("/bundle_adjuster/points", out.points);
-    Write("/bundle_adjuster/frustums",
-          adjuster_->Frustums(out));
+    Write("/bundle_adjuster/frustums", adjuster_->Frustums(out));
     if (out.displacements) {
       Write(kAdjusterDisplacements, *out.displacements);
       Fuse(*out.displacements, kAdjusterDisplacements);
@@ -924,7 +941,8 @@ class OfflineGraph {
 
   // ---- the deformation estimator (its inputs in one stamp order, no time-out).
   void Fuse(const slope_monitor::PointDisplacementArray& msg, const std::string& topic) {
-    Publish(Timed(&stages_.estimator, [&] { return estimator_->AddDisplacements(msg, topic, 0.0); }));
+    Publish(
+        Timed(&stages_.estimator, [&] { return estimator_->AddDisplacements(msg, topic, 0.0); }));
   }
 
   // The dense step's areas of significant change (source surface), as the
@@ -936,7 +954,8 @@ class OfflineGraph {
 
   // The estimator's problems and snapshots, written as the estimator nodelet publishes them.
   void Publish(const ros_adapters::EstimatorResult& result) {
-    for (const ros_adapters::LogLine& line : result.problems) Log("deformation_estimator: " + line.text);
+    for (const ros_adapters::LogLine& line : result.problems)
+      Log("deformation_estimator: " + line.text);
     for (const ros_adapters::EstimatorPublication& p : result.publications) {
       for (const ros_adapters::LogLine& line : p.log) Log("deformation_estimator: " + line.text);
       Write("/deformation_estimator/deformation", ros_adapters::ToMsg(p.snapshot, p.header));
@@ -977,7 +996,7 @@ class OfflineGraph {
   std::unique_ptr<ros_adapters::TargetlessCameras> targetless_;  // fixed_targetless cameras
   // bundle_adjuster
   std::unique_ptr<ros_adapters::AdjusterStep> adjuster_;
-  std::string last_failure_;  // the last epoch not accepted and why
+  std::string last_failure_;          // the last epoch not accepted and why
   std::optional<io::SiteFile> site_;  // --site
   // hex_matcher (mode sequence; --uav-tie-points): one per UAV camera
   std::vector<UavMatcher> uav_matchers_;
@@ -1061,17 +1080,20 @@ int Run(Args args) {
     }
   }
   Progress progress(view.getBeginTime(), view.getEndTime());
-  ResolveTargets(&args, [&progress](const std::string& line) { progress.Print("process_bag: " + line); });
+  ResolveTargets(&args,
+                 [&progress](const std::string& line) { progress.Print("process_bag: " + line); });
   std::vector<std::string> incomplete_at_end;  // "epoch 1 (end of input): incomplete: ..." lines
-  OfflineGraph graph(args, cameras, output.get(), [&progress, &incomplete_at_end](const std::string& line) {
-    progress.Print("process_bag: " + line);
-    const std::string mark = " (end of input): incomplete: ";
-    const size_t at = line.find(mark);
-    if (at != std::string::npos) {
-      const size_t epoch = line.rfind("epoch ", at);
-      incomplete_at_end.push_back(line.substr(epoch, at - epoch) + ": " + line.substr(at + mark.size()));
-    }
-  });
+  OfflineGraph graph(args, cameras, output.get(),
+                     [&progress, &incomplete_at_end](const std::string& line) {
+                       progress.Print("process_bag: " + line);
+                       const std::string mark = " (end of input): incomplete: ";
+                       const size_t at = line.find(mark);
+                       if (at != std::string::npos) {
+                         const size_t epoch = line.rfind("epoch ", at);
+                         incomplete_at_end.push_back(line.substr(epoch, at - epoch) + ": " +
+                                                     line.substr(at + mark.size()));
+                       }
+                     });
   if (args.uav_tie_points)
     graph.SetUpUavTiePoints([&view](const std::string& topic) { return HasTopic(view, topic); });
   for (const rosbag::MessageInstance& m : view) {

@@ -25,14 +25,16 @@
 // flight, at a working resolution of --working-size px, the dense cloud
 // (cloud.ply), the DEM surface_e<kk>.tif and the RGB orthophoto
 // ortho_e<kk>.tif in the run's CRS, surface_report.json / .md, and the line
-//   flight <k>: surface <filled> of <cells> cells at <c> m, <p> points, <t> s (decode .., matching .., ortho ..), peak <g> GB
+//   flight <k>: surface <filled> of <cells> cells at <c> m, <p> points, <t> s (decode .., matching
+//   .., ortho ..), peak <g> GB
 // The reference surface is --reference DIR's flight_1/surface_e01.tif (an
 // earlier process_flight run in the same CRS), else this run's flight 1;
 // every later flight is measured on its grid, co-registered to it on stable
 // ground (the site file's areas.stable, else outside areas.outline, else
 // everywhere) and its DoD written as change_e<kk>.tif (bands change, lod,
 // class), with the line
-//   flight <k>: change: shift (x +- sx, y +- sy) m, vertical v m, stable median dz m, NMAD n m, flagged f % ...
+//   flight <k>: change: shift (x +- sx, y +- sy) m, vertical v m, stable median dz m, NMAD n m,
+//   flagged f % ...
 // A dense stage or change that fails is named and counts as a left-out input.
 //
 // Exit status: 0 every flight oriented at least half its photos and every
@@ -73,9 +75,12 @@ namespace {
 constexpr double kNoHeightSigma = 10.0;
 
 const char* kUsage =
-    "usage: process_flight --photos DIR [--photos DIR2 ...] [--gcp FILE] [--geo FILE] [--check NAME[,NAME...]]\n"
-    "                      [--site FILE] [--gcp-sigma M] [--gnss-sigma M] [--pixel-size MM] [--focal MM]\n"
-    "                      [--no-leave-one-out] [--threads N] [--no-dense] [--working-size PX] [--cell M]\n"
+    "usage: process_flight --photos DIR [--photos DIR2 ...] [--gcp FILE] [--geo FILE] [--check "
+    "NAME[,NAME...]]\n"
+    "                      [--site FILE] [--gcp-sigma M] [--gnss-sigma M] [--pixel-size MM] "
+    "[--focal MM]\n"
+    "                      [--no-leave-one-out] [--threads N] [--no-dense] [--working-size PX] "
+    "[--cell M]\n"
     "                      [--reference DIR] --out DIR\n"
     "  orients each folder of UAV photos (one flight each) and writes DIR/flight_<k>/\n";
 
@@ -130,19 +135,32 @@ bool ParseArgs(int argc, char** argv, Args* a) {
     }
     if (i + 1 >= argc) throw InvalidArgument(Message(f, " needs a value (or is unknown)"));
     const std::string v = argv[++i];
-    if (f == "--photos") a->folders.push_back(v);
-    else if (f == "--gcp") a->gcp = v;
-    else if (f == "--site") a->site = v;
-    else if (f == "--geo") a->geo = v;
-    else if (f == "--out") a->out = v;
-    else if (f == "--gcp-sigma") a->gcp_sigma = Number(f, v);
-    else if (f == "--gnss-sigma") a->gnss_sigma = Number(f, v);
-    else if (f == "--pixel-size") a->photo.pixel_size_mm = Number(f, v);
-    else if (f == "--focal") a->photo.focal_length_mm = Number(f, v);
-    else if (f == "--threads") a->threads = static_cast<int>(Number(f, v));
-    else if (f == "--working-size") a->surface.working_size = static_cast<int>(Number(f, v));
-    else if (f == "--cell") a->surface.cell_size = Number(f, v);
-    else if (f == "--reference") a->reference = v;
+    if (f == "--photos")
+      a->folders.push_back(v);
+    else if (f == "--gcp")
+      a->gcp = v;
+    else if (f == "--site")
+      a->site = v;
+    else if (f == "--geo")
+      a->geo = v;
+    else if (f == "--out")
+      a->out = v;
+    else if (f == "--gcp-sigma")
+      a->gcp_sigma = Number(f, v);
+    else if (f == "--gnss-sigma")
+      a->gnss_sigma = Number(f, v);
+    else if (f == "--pixel-size")
+      a->photo.pixel_size_mm = Number(f, v);
+    else if (f == "--focal")
+      a->photo.focal_length_mm = Number(f, v);
+    else if (f == "--threads")
+      a->threads = static_cast<int>(Number(f, v));
+    else if (f == "--working-size")
+      a->surface.working_size = static_cast<int>(Number(f, v));
+    else if (f == "--cell")
+      a->surface.cell_size = Number(f, v);
+    else if (f == "--reference")
+      a->reference = v;
     else if (f == "--check") {
       std::stringstream ss(v);
       for (std::string n; std::getline(ss, n, ',');)
@@ -156,10 +174,12 @@ bool ParseArgs(int argc, char** argv, Args* a) {
   if (!(a->gcp_sigma > 0.0) || !(a->gnss_sigma > 0.0))
     throw InvalidArgument("--gcp-sigma and --gnss-sigma must be > 0");
   a->surface.Check();
-  if (!a->reference.empty() && !a->dense) throw InvalidArgument("--reference needs the dense stage (no --no-dense)");
+  if (!a->reference.empty() && !a->dense)
+    throw InvalidArgument("--reference needs the dense stage (no --no-dense)");
   if (!a->reference.empty() && !std::filesystem::is_regular_file(ReferencePath(a->reference)))
-    throw InvalidArgument(Message("--reference ", a->reference, ": no ", ReferencePath(a->reference),
-                                  " (the --out folder of an earlier process_flight run with its dense stage)"));
+    throw InvalidArgument(
+        Message("--reference ", a->reference, ": no ", ReferencePath(a->reference),
+                " (the --out folder of an earlier process_flight run with its dense stage)"));
   return true;
 }
 
@@ -172,20 +192,22 @@ std::string UtmEpsg(double lon, double lat) {
 // The site frame of the run: from the gcp list, the site file or the first
 // GNSS photo (nullopt: model frame).
 std::optional<SiteCrs> MakeFrame(const Args& args, const std::optional<io::GcpList>& gcp,
-                                 const std::optional<io::GeoList>& geo, const flight::FlightPhotos& first,
-                                 flight::FlightFrame* frame) {
+                                 const std::optional<io::GeoList>& geo,
+                                 const flight::FlightPhotos& first, flight::FlightFrame* frame) {
   SiteCrsOptions o;
   o.frame = SiteCrsOptions::Frame::kShiftedCrs;
   if (gcp) {
     o.crs = gcp->crs;
     const Eigen::Vector3d g = gcp->points.front().geo;
-    o.origin = Eigen::Vector3d(std::round(g.x() / 100.0) * 100.0, std::round(g.y() / 100.0) * 100.0, 0.0);
+    o.origin =
+        Eigen::Vector3d(std::round(g.x() / 100.0) * 100.0, std::round(g.y() / 100.0) * 100.0, 0.0);
   } else if (!args.site.empty()) {
     o = io::LoadSiteFile(args.site).crs;
   } else if (geo && !geo->entries.empty()) {
     o.crs = geo->crs;
     const Eigen::Vector3d g = geo->entries.front().geo;
-    o.origin = Eigen::Vector3d(std::round(g.x() / 100.0) * 100.0, std::round(g.y() / 100.0) * 100.0, 0.0);
+    o.origin =
+        Eigen::Vector3d(std::round(g.x() / 100.0) * 100.0, std::round(g.y() / 100.0) * 100.0, 0.0);
   } else {
     const flight::FlightPhoto* p = nullptr;
     for (const auto& q : first.photos)
@@ -195,7 +217,8 @@ std::optional<SiteCrs> MakeFrame(const Args& args, const std::optional<io::GcpLi
     SiteCrs probe(o);
     const Eigen::Vector3d u = probe.CrsFromSite(probe.SiteFromWgs84(
         Eigen::Vector3d(p->exif.gps.longitude_deg, p->exif.gps.latitude_deg, 0.0)));
-    o.origin = Eigen::Vector3d(std::round(u.x() / 100.0) * 100.0, std::round(u.y() / 100.0) * 100.0, 0.0);
+    o.origin =
+        Eigen::Vector3d(std::round(u.x() / 100.0) * 100.0, std::round(u.y() / 100.0) * 100.0, 0.0);
   }
   SiteCrs crs(o);  // throws naming the CRS when PROJ does not know it
   frame->crs = o.crs;
@@ -214,8 +237,8 @@ bool HasHeights(const io::GcpList& gcp) {
 // Control points of the gcp list in this flight's photos; picks naming a
 // photo not in the flight are named on stderr (*skipped counts them).
 std::vector<flight::FlightControlPoint> ControlPoints(const io::GcpList& gcp, const SiteCrs& crs,
-                                                      const flight::FlightPhotos& photos, const Args& args,
-                                                      int* skipped) {
+                                                      const flight::FlightPhotos& photos,
+                                                      const Args& args, int* skipped) {
   std::vector<flight::FlightControlPoint> out;
   const double s = args.gcp_sigma;
   const bool heights = HasHeights(gcp);
@@ -256,12 +279,15 @@ void LoadAreas(const Args& args, const std::optional<SiteCrs>& crs, SurfaceState
   st->areas_loaded = true;
   if (args.site.empty()) return;
   const io::SiteFile site = io::LoadSiteFile(args.site);
-  if (!crs) throw InvalidArgument(Message(args.site, ": areas need a georeferenced block (this one is in a model frame)"));
+  if (!crs)
+    throw InvalidArgument(
+        Message(args.site, ": areas need a georeferenced block (this one is in a model frame)"));
   const SiteCrs from(site.crs);
   auto convert = [&](const std::vector<Eigen::Vector2d>& poly) {
     dense::Polygon out;
     for (const Eigen::Vector2d& v : poly) {
-      const Eigen::Vector3d p = crs->SiteFromWgs84(from.Wgs84FromSite(Eigen::Vector3d(v.x(), v.y(), 0.0)));
+      const Eigen::Vector3d p =
+          crs->SiteFromWgs84(from.Wgs84FromSite(Eigen::Vector3d(v.x(), v.y(), 0.0)));
       out.emplace_back(p.x(), p.y());
     }
     return out;
@@ -272,14 +298,16 @@ void LoadAreas(const Args& args, const std::optional<SiteCrs>& crs, SurfaceState
 
 std::string Seconds(const std::map<std::string, double>& s) {
   std::string out;
-  for (const auto& [k, v] : s) out += Message(out.empty() ? "" : ", ", k, " ", std::round(v * 10) / 10, " s");
+  for (const auto& [k, v] : s)
+    out += Message(out.empty() ? "" : ", ", k, " ", std::round(v * 10) / 10, " s");
   return out;
 }
 
 // The DoD of flight k against the reference (written beside its surface).
 // Returns false (named on stderr) when the flights cannot be compared.
-bool FlightChangeStage(int k, const io::GeoRaster& dem, const flight::FlightFrame& frame, const std::string& dir,
-                       const SurfaceState& st, flight::FlightChangeSummary* summary) {
+bool FlightChangeStage(int k, const io::GeoRaster& dem, const flight::FlightFrame& frame,
+                       const std::string& dir, const SurfaceState& st,
+                       flight::FlightChangeSummary* summary) {
   flight::FlightChangeInput in;
   in.reference = &*st.reference;
   in.after = &dem;
@@ -288,49 +316,63 @@ bool FlightChangeStage(int k, const io::GeoRaster& dem, const flight::FlightFram
   in.stable_name = st.stable.empty() ? "the ground outside areas.outline" : "areas.stable";
   try {
     const flight::FlightChange c = flight::CompareFlights(in);
-    io::WriteGeoTiff(Message(dir, "/", dense::EpochChangeFileName(k)), flight::InCrs(c.result.change, frame));
+    io::WriteGeoTiff(Message(dir, "/", dense::EpochChangeFileName(k)),
+                     flight::InCrs(c.result.change, frame));
     *summary = c.summary;
   } catch (const InvalidArgument& e) {
-    std::cerr << "process_flight: flight " << k << ": change against " << st.reference_name << ": " << e.what() << "\n";
+    std::cerr << "process_flight: flight " << k << ": change against " << st.reference_name << ": "
+              << e.what() << "\n";
     return false;
   }
   const dense::Coregistration& c = summary->dem.coregistration;
-  std::printf("flight %d: change against %s: shift (%.3f +- %.3f, %.3f +- %.3f) m, vertical %.3f +- %.3f m, stable "
-              "median dz %.4f m, NMAD %.3f m, flagged %.2f %% of stable and %.2f %% of %d common cells, gain %.1f +- "
-              "%.1f m3, loss %.1f +- %.1f m3\n",
-              k, st.reference_name.c_str(), c.shift.x(), c.shift_sigma.x(), c.shift.y(), c.shift_sigma.y(),
-              c.vertical, c.level_sigma, summary->stable_median, summary->stable_nmad, 100 * summary->stable_flagged,
-              100 * summary->flagged, summary->common_cells, summary->dem.volume_fill, summary->dem.sigma_fill,
-              summary->dem.volume_cut, summary->dem.sigma_cut);
+  std::printf(
+      "flight %d: change against %s: shift (%.3f +- %.3f, %.3f +- %.3f) m, vertical %.3f +- %.3f "
+      "m, stable "
+      "median dz %.4f m, NMAD %.3f m, flagged %.2f %% of stable and %.2f %% of %d common cells, "
+      "gain %.1f +- "
+      "%.1f m3, loss %.1f +- %.1f m3\n",
+      k, st.reference_name.c_str(), c.shift.x(), c.shift_sigma.x(), c.shift.y(), c.shift_sigma.y(),
+      c.vertical, c.level_sigma, summary->stable_median, summary->stable_nmad,
+      100 * summary->stable_flagged, 100 * summary->flagged, summary->common_cells,
+      summary->dem.volume_fill, summary->dem.sigma_fill, summary->dem.volume_cut,
+      summary->dem.sigma_cut);
   return true;
 }
 
 // Surface, orthophoto and cloud of an oriented flight, and its change against
 // the reference. Returns false (named on stderr) when a part failed.
-bool DenseStage(int k, const flight::FlightPhotos& photos, const flight::FlightResult& result, const Args& args,
-                const std::optional<SiteCrs>& crs, const flight::FlightFrame& frame, SurfaceState* st) {
+bool DenseStage(int k, const flight::FlightPhotos& photos, const flight::FlightResult& result,
+                const Args& args, const std::optional<SiteCrs>& crs,
+                const flight::FlightFrame& frame, SurfaceState* st) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string dir = Message(args.out, "/flight_", k);
   try {
     if (!st->areas_loaded) LoadAreas(args, crs, st);
     if (!st->reference && !args.reference.empty()) {
       st->reference_name = ReferencePath(args.reference);
-      st->reference = flight::InSite(io::ReadGeoTiff(st->reference_name), frame, st->reference_name);
+      st->reference =
+          flight::InSite(io::ReadGeoTiff(st->reference_name), frame, st->reference_name);
     }
-    const Eigen::Vector4d region = st->reference ? dense::RegionOf(*st->reference) : Eigen::Vector4d::Zero();
+    const Eigen::Vector4d region =
+        st->reference ? dense::RegionOf(*st->reference) : Eigen::Vector4d::Zero();
     flight::FlightSurfaceOptions o = args.surface;
     if (st->reference) o.cell_size = st->reference->cell_size;
     flight::FlightSurface s = flight::MeasureFlightSurface(photos, result, o, region);
-    io::WriteGeoTiff(Message(dir, "/", dense::EpochSurfaceFileName(k)), flight::InCrs(s.dem, frame));
+    io::WriteGeoTiff(Message(dir, "/", dense::EpochSurfaceFileName(k)),
+                     flight::InCrs(s.dem, frame));
     char name[32];
     std::snprintf(name, sizeof name, "ortho_e%02d.tif", k);
     io::WriteGeoTiff(Message(dir, "/", name), flight::InCrs(s.ortho, frame));
     flight::WriteCloudPly(s.cloud, dir + "/cloud.ply");
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     s.summary.seconds["total"] = seconds;
-    std::printf("flight %d: surface %d of %d cells at %.2f m, %d points from %d of %d pairs, %.1f s (%s), peak %.2f GB\n",
-                k, s.summary.dense.filled_cells, s.summary.dense.cells, s.summary.cell_size, s.summary.dense.points,
-                s.summary.dense.pairs_measured, s.summary.dense.candidate_pairs, seconds, Seconds(s.summary.seconds).c_str(), PeakMemoryGb());
+    std::printf(
+        "flight %d: surface %d of %d cells at %.2f m, %d points from %d of %d pairs, %.1f s (%s), "
+        "peak %.2f GB\n",
+        k, s.summary.dense.filled_cells, s.summary.dense.cells, s.summary.cell_size,
+        s.summary.dense.points, s.summary.dense.pairs_measured, s.summary.dense.candidate_pairs,
+        seconds, Seconds(s.summary.seconds).c_str(), PeakMemoryGb());
     std::fflush(stdout);
     bool ok = true;
     flight::FlightChangeSummary change;
@@ -370,14 +412,16 @@ std::vector<std::optional<Eigen::Vector3d>> GeoPositions(const io::GeoList& geo,
   return out;
 }
 
-FlightOutcome ProcessFlight(int k, const std::string& folder, const Args& args, const std::optional<io::GcpList>& gcp,
+FlightOutcome ProcessFlight(int k, const std::string& folder, const Args& args,
+                            const std::optional<io::GcpList>& gcp,
                             const std::optional<io::GeoList>& geo, std::optional<SiteCrs>* crs,
                             flight::FlightFrame* frame, SurfaceState* surface) {
   const auto t0 = std::chrono::steady_clock::now();
   FlightOutcome outcome;
   const std::vector<std::string> paths = flight::ListPhotoFolder(folder);
   const flight::FlightPhotos photos = flight::ReadFlightPhotos(paths, args.photo);
-  for (const auto& s : photos.skipped) std::cerr << "process_flight: " << s.path << ": " << s.reason << "\n";
+  for (const auto& s : photos.skipped)
+    std::cerr << "process_flight: " << s.path << ": " << s.reason << "\n";
   outcome.skipped += static_cast<int>(photos.skipped.size());
   if (k == 1) *crs = MakeFrame(args, gcp, geo, photos, frame);
   flight::FlightMatchingOptions mo;
@@ -396,8 +440,8 @@ FlightOutcome ProcessFlight(int k, const std::string& folder, const Args& args, 
         continue;
       }
       const double h = p.exif.has_gps_altitude ? p.exif.gps.height_m : 0.0;
-      input.gnss_in_site.emplace_back(
-          (*crs)->SiteFromWgs84(Eigen::Vector3d(p.exif.gps.longitude_deg, p.exif.gps.latitude_deg, h)));
+      input.gnss_in_site.emplace_back((*crs)->SiteFromWgs84(
+          Eigen::Vector3d(p.exif.gps.longitude_deg, p.exif.gps.latitude_deg, h)));
     }
   }
   if (*crs) {
@@ -411,17 +455,20 @@ FlightOutcome ProcessFlight(int k, const std::string& folder, const Args& args, 
   const flight::FlightSummary& s = result.summary;
   for (const auto& n : s.not_oriented) std::cerr << "process_flight: not oriented: " << n << "\n";
   outcome.skipped += static_cast<int>(s.not_oriented.size());
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  flight::FlightReportInput rep{k, folder, &photos, &ties, &result, *frame, seconds, PeakMemoryGb()};
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  flight::FlightReportInput rep{k,       folder, &photos, &ties,
+                                &result, *frame, seconds, PeakMemoryGb()};
   flight::WriteFlightOutputs(rep, Message(args.out, "/flight_", k));
-  std::printf("flight %d: %d of %zu photos oriented, %d points, reprojection rms %.3f px, %.1f s\n", k, s.oriented,
-              paths.size(), s.points, s.rms_px, seconds);
+  std::printf("flight %d: %d of %zu photos oriented, %d points, reprojection rms %.3f px, %.1f s\n",
+              k, s.oriented, paths.size(), s.points, s.rms_px, seconds);
   if (!input.control.empty())
-    std::printf("flight %d: control rms %.3f m over %zu points, check rms %.3f m over %zu points\n", k,
-                s.control_rms, s.control.size(), s.check_rms, s.check.size());
+    std::printf("flight %d: control rms %.3f m over %zu points, check rms %.3f m over %zu points\n",
+                k, s.control_rms, s.control.size(), s.check_rms, s.check.size());
   std::fflush(stdout);
   if (!s.success) std::cerr << "process_flight: flight " << k << ": " << s.message << "\n";
-  if (s.success && args.dense && !DenseStage(k, photos, result, args, *crs, *frame, surface)) ++outcome.skipped;
+  if (s.success && args.dense && !DenseStage(k, photos, result, args, *crs, *frame, surface))
+    ++outcome.skipped;
   outcome.ok = s.success && 2 * s.oriented >= static_cast<int>(paths.size());
   if (s.success && !outcome.ok)
     std::cerr << "process_flight: flight " << k << ": only " << s.oriented << " of " << paths.size()
@@ -446,7 +493,8 @@ int main(int argc, char** argv) {
     std::optional<io::GcpList> gcp;
     if (!args.gcp.empty()) gcp = io::ReadGcpList(args.gcp);
     if (gcp && !HasHeights(*gcp))
-      std::cerr << "process_flight: " << gcp->path << ": every height is 0: taken as not given (horizontal control;"
+      std::cerr << "process_flight: " << gcp->path
+                << ": every height is 0: taken as not given (horizontal control;"
                 << " heights held within " << kNoHeightSigma << " m of 0)\n";
     std::optional<io::GeoList> geo;
     if (!args.geo.empty()) geo = io::ReadGeoList(args.geo);
@@ -454,7 +502,8 @@ int main(int argc, char** argv) {
     flight::FlightFrame frame;
     SurfaceState surface;
     for (size_t k = 0; k < args.folders.size(); ++k) {
-      const FlightOutcome o = ProcessFlight(static_cast<int>(k + 1), args.folders[k], args, gcp, geo, &crs, &frame, &surface);
+      const FlightOutcome o = ProcessFlight(static_cast<int>(k + 1), args.folders[k], args, gcp,
+                                            geo, &crs, &frame, &surface);
       failed += !o.ok;
       skipped += o.skipped;
     }

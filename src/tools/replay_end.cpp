@@ -208,9 +208,9 @@ int main(int argc, char** argv) {
   ros::AsyncSpinner spinner(1);
   spinner.start();
   ros::NodeHandle nh;
-  ros::Publisher end_pub = nh.advertise<std_msgs::UInt8>(
-      slope_monitor::ros_adapters::kEndOfInputTopic, slope_monitor::ros_adapters::kEndOfInputStages,
-      true);
+  ros::Publisher end_pub =
+      nh.advertise<std_msgs::UInt8>(slope_monitor::ros_adapters::kEndOfInputTopic,
+                                    slope_monitor::ros_adapters::kEndOfInputStages, true);
   const auto step = std::chrono::milliseconds(100);
   std::string bag_check_param, report;
   pnh.param<std::string>("bag_check_param", bag_check_param, "/replay/bag_check");

@@ -38,11 +38,13 @@ std::vector<std::string> NotReady(size_t* total) {
   const std::string suffix = std::string("/") + slope_monitor::ros_adapters::kGraphReadyParam;
   *total = 0;
   for (const std::string& n : names) {
-    if (n.size() <= suffix.size() || n.compare(n.size() - suffix.size(), suffix.size(), suffix) != 0)
+    if (n.size() <= suffix.size() ||
+        n.compare(n.size() - suffix.size(), suffix.size(), suffix) != 0)
       continue;
     ++*total;
     bool ready = false;
-    if (!ros::param::get(n, ready) || !ready) waiting.push_back(n.substr(0, n.size() - suffix.size()));
+    if (!ros::param::get(n, ready) || !ready)
+      waiting.push_back(n.substr(0, n.size() - suffix.size()));
   }
   return waiting;
 }
@@ -65,7 +67,8 @@ int main(int argc, char** argv) {
   pnh.param("timeout", timeout, 120.0);
   if (!(settle >= 0.0 && settle <= 60.0) || !(timeout > 0.0)) {
     ROS_ERROR("replay_start: parameter '%s' must be in 0..60 s and '%s' > 0 s (got %g and %g)",
-              pnh.resolveName("settle").c_str(), pnh.resolveName("timeout").c_str(), settle, timeout);
+              pnh.resolveName("settle").c_str(), pnh.resolveName("timeout").c_str(), settle,
+              timeout);
     return 1;
   }
   using Clock = std::chrono::steady_clock;
@@ -81,9 +84,10 @@ int main(int argc, char** argv) {
   if (waiting.empty()) {
     ROS_INFO("replay_start: %zu nodes ready after %.1f s; playing the bag", total, elapsed());
   } else {
-    ROS_WARN("replay_start: not ready after %.0f s: %s; playing the bag anyway (their inputs will be "
-             "incomplete)",
-             timeout, Join(waiting).c_str());
+    ROS_WARN(
+        "replay_start: not ready after %.0f s: %s; playing the bag anyway (their inputs will be "
+        "incomplete)",
+        timeout, Join(waiting).c_str());
   }
   std::this_thread::sleep_for(std::chrono::duration<double>(settle));
   const std::string service = player + "/pause_playback";

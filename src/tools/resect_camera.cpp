@@ -43,19 +43,20 @@
 #include "slope_monitor/core/capture/calibration.h"
 #include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/numeric.h"
 #include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/io/image_file.h"
 #include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/core/io/surveyed_points.h"
 #include "slope_monitor/ros/conversions.h"
-#include "slope_monitor/core/common/numeric.h"
 
 using namespace slope_monitor;
 
 namespace {
 
 int Usage() {
-  std::cerr << "usage: resect_camera --image IMG --gcp FILE [--site FILE | --crs EPSG:NNNN] [--position X Y Z "
+  std::cerr << "usage: resect_camera --image IMG --gcp FILE [--site FILE | --crs EPSG:NNNN] "
+               "[--position X Y Z "
                "[--position-sigma S]] [--camera-info YAML | --focal-mm F --sensor-mm W H] [--free "
                "c,k1,...] "
                "[--pixel-sigma S] [--point-sigma S] [--pixel-origin opencv|corner] --out PREFIX\n"
@@ -195,8 +196,9 @@ void WritePose(const std::string& path, const adjustment::ResectCameraSummary& s
     const Eigen::Vector3d c = frame.site->CrsFromSite(e.position);
     out << "position_crs: [" << c.x() << ", " << c.y() << ", " << c.z() << "]  # the same in crs\n";
   }
-  out << "angles_deg: {theta: " << e.angles.theta * kDegPerRad << ", phi: " << e.angles.phi * kDegPerRad
-      << ", kappa: " << e.angles.kappa * kDegPerRad << "}\n";
+  out << "angles_deg: {theta: " << e.angles.theta * kDegPerRad
+      << ", phi: " << e.angles.phi * kDegPerRad << ", kappa: " << e.angles.kappa * kDegPerRad
+      << "}\n";
   out << "# site_from_optical (REP 103 optical frame), x y z w\n";
   out << "quaternion: [" << q.x() << ", " << q.y() << ", " << q.z() << ", " << q.w() << "]\n";
   out << "# covariance of X0 Y0 Z0 [m] theta phi kappa [rad], row-major 6x6\n";
@@ -212,7 +214,8 @@ Frame ReadFrame(const std::map<std::string, std::vector<std::string>>& a) {
   Frame f;
   if (a.count("--site")) {
     if (a.count("--crs"))
-      throw InvalidArgument("give either --site FILE (the points in the site's CRS) or --crs, not both");
+      throw InvalidArgument(
+          "give either --site FILE (the points in the site's CRS) or --crs, not both");
     f.site_file = a.at("--site")[0];
     const io::SiteFile site = io::LoadSiteFile(f.site_file);
     f.site.emplace(site.crs);
@@ -266,8 +269,7 @@ int main(int argc, char** argv) {
     }
     const std::string gcp = a.at("--gcp")[0];
     auto points = io::ReadSurveyedPoints(gcp, origin);
-    for (auto& p : points)
-      p.xyz = ToSite(frame, p.xyz, Message(gcp, ":", p.line, " (", p.id, ")"));
+    for (auto& p : points) p.xyz = ToSite(frame, p.xyz, Message(gcp, ":", p.line, " (", p.id, ")"));
     adjustment::ResectCameraOptions options;
     if (a.count("--free")) {
       options.free_interior.clear();

@@ -54,11 +54,12 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/adjustment/reorient_camera.h"
 #include "slope_monitor/core/capture/calibration.h"
 #include "slope_monitor/core/capture/exif.h"
+#include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/numeric.h"
 #include "slope_monitor/core/dense/displacement_field.h"
 #include "slope_monitor/core/dense/field_picture.h"
 #include "slope_monitor/core/dense/targetless_camera.h"
@@ -68,17 +69,17 @@
 #include "slope_monitor/core/io/image_polygons.h"
 #include "slope_monitor/core/matching/hex_matcher.h"
 #include "slope_monitor/ros/conversions.h"
-#include "slope_monitor/core/common/numeric.h"
 
 using namespace slope_monitor;
 
 namespace {
 
 int Usage(std::ostream& os = std::cerr, int status = 1) {
-  os
-      << "usage: track_camera --camera PREFIX --reference A.jpg --image B.jpg [--image C.jpg ...] "
-         "[--stable-mask M.png | --stable-polygons F] [--dem DEM.tif] [--max-megapixels MP] --out DIR\n"
-         "exit status: 0 all re-oriented, 2 some photos skipped or not re-oriented, 1 none or an error\n";
+  os << "usage: track_camera --camera PREFIX --reference A.jpg --image B.jpg [--image C.jpg ...] "
+        "[--stable-mask M.png | --stable-polygons F] [--dem DEM.tif] [--max-megapixels MP] --out "
+        "DIR\n"
+        "exit status: 0 all re-oriented, 2 some photos skipped or not re-oriented, 1 none or an "
+        "error\n";
   return status;
 }
 
@@ -123,7 +124,8 @@ cv::Mat StableMask(const std::map<std::string, std::vector<std::string>>& a, con
 }
 
 // The photo in gray; IoError "<flag>: image '<path>': <reason>".
-cv::Mat Gray(const std::string& path, const std::string& flag, const io::ImageFileOptions& options) {
+cv::Mat Gray(const std::string& path, const std::string& flag,
+             const io::ImageFileOptions& options) {
   try {
     return io::ReadImageChecked(path, cv::IMREAD_GRAYSCALE, options);
   } catch (const IoError& e) {
@@ -163,9 +165,11 @@ int main(int argc, char** argv) {
   try {
     std::map<std::string, std::vector<std::string>> a;
     // --help: the usage on stdout, exit 0, nothing read or written (issue 38)
-    if (argc == 2 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h")) return Usage(std::cout, 0);
-    static const char* kKnown[] = {"--camera",          "--reference", "--image", "--stable-mask",
-                                   "--stable-polygons", "--dem",       "--out",   "--max-megapixels"};
+    if (argc == 2 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h"))
+      return Usage(std::cout, 0);
+    static const char* kKnown[] = {"--camera",      "--reference",       "--image",
+                                   "--stable-mask", "--stable-polygons", "--dem",
+                                   "--out",         "--max-megapixels"};
     for (int i = 1; i < argc; i += 2) {
       const std::string flag = argv[i];
       if (std::find(std::begin(kKnown), std::end(kKnown), flag) == std::end(kKnown))
@@ -256,12 +260,13 @@ int main(int argc, char** argv) {
           "%s: rotation %.4f deg (dtheta %.4f dphi %.4f dkappa %.4f deg, sigma %.4f deg) rms %.2f "
           "px over %d "
           "stable points\n",
-          name.c_str(), s.rotation_angle * kDegPerRad, s.delta(0) * kDegPerRad, s.delta(1) * kDegPerRad,
-          s.delta(2) * kDegPerRad, sigma, s.rms_px, s.num_points);
+          name.c_str(), s.rotation_angle * kDegPerRad, s.delta(0) * kDegPerRad,
+          s.delta(1) * kDegPerRad, s.delta(2) * kDegPerRad, sigma, s.rms_px, s.num_points);
       csv << name << ',' << s.rotation_angle * kDegPerRad << ',' << s.delta(0) * kDegPerRad << ','
-          << s.delta(1) * kDegPerRad << ',' << s.delta(2) * kDegPerRad << ',' << s.sigma(0) * kDegPerRad << ','
-          << s.sigma(1) * kDegPerRad << ',' << s.sigma(2) * kDegPerRad << ',' << s.rms_px << ',' << s.num_points
-          << ',' << s.num_outliers << ',' << e.matches.global_shift.x() << ','
+          << s.delta(1) * kDegPerRad << ',' << s.delta(2) * kDegPerRad << ','
+          << s.sigma(0) * kDegPerRad << ',' << s.sigma(1) * kDegPerRad << ','
+          << s.sigma(2) * kDegPerRad << ',' << s.rms_px << ',' << s.num_points << ','
+          << s.num_outliers << ',' << e.matches.global_shift.x() << ','
           << e.matches.global_shift.y() << '\n';
       if (!e.has_field) continue;
       const dense::DisplacementField& f = e.field;
@@ -281,13 +286,14 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "\n");
     }
     if (reoriented == 0) {
-      std::fprintf(stderr, "track_camera: no photo re-oriented (%d skipped, %d without a re-orientation)\n",
+      std::fprintf(stderr,
+                   "track_camera: no photo re-oriented (%d skipped, %d without a re-orientation)\n",
                    skipped, failures);
       return 1;
     }
     if (skipped || failures) {
-      std::fprintf(stderr, "track_camera: %d of %zu photos skipped, %d without a re-orientation\n", skipped,
-                   a["--image"].size(), failures);
+      std::fprintf(stderr, "track_camera: %d of %zu photos skipped, %d without a re-orientation\n",
+                   skipped, a["--image"].size(), failures);
       return 2;
     }
     return 0;

@@ -35,19 +35,42 @@ class Mutator {
   }
 
  private:
-  size_t Below(size_t n) { return n == 0 ? 0 : std::uniform_int_distribution<size_t>(0, n - 1)(rng_); }
+  size_t Below(size_t n) {
+    return n == 0 ? 0 : std::uniform_int_distribution<size_t>(0, n - 1)(rng_);
+  }
 
   void Edit(std::string* s) {
-    static const std::vector<std::string> kExtremes = {
-        "1e300", "-1e300", "1e-300", "nan", "inf", "-inf", "4294967295", "-1", "2147483648", "-2147483649",
-        "99999999999999999999", "0", "-0", "0x7fffffff", "\"\"", "[]", "{}", "~", "\n", ":", "- ", "[[[[", "'"};
+    static const std::vector<std::string> kExtremes = {"1e300",
+                                                       "-1e300",
+                                                       "1e-300",
+                                                       "nan",
+                                                       "inf",
+                                                       "-inf",
+                                                       "4294967295",
+                                                       "-1",
+                                                       "2147483648",
+                                                       "-2147483649",
+                                                       "99999999999999999999",
+                                                       "0",
+                                                       "-0",
+                                                       "0x7fffffff",
+                                                       "\"\"",
+                                                       "[]",
+                                                       "{}",
+                                                       "~",
+                                                       "\n",
+                                                       ":",
+                                                       "- ",
+                                                       "[[[[",
+                                                       "'"};
     const size_t pos = Below(s->size() + 1);
     switch (Below(7)) {
       case 0:  // flip a byte
         if (!s->empty()) (*s)[Below(s->size())] = static_cast<char>(Below(256));
         break;
       case 1:  // insert random bytes
-        for (size_t k = 0, n = 1 + Below(8); k < n; ++k) s->insert(s->begin() + pos, static_cast<char>(Below(256)));
+        for (size_t k = 0, n = 1 + Below(8); k < n; ++k)
+          s->insert(s->begin() + pos, static_cast<char>(Below(256)));
         break;
       case 2:  // delete a run
         s->erase(pos, 1 + Below(16));
@@ -61,7 +84,8 @@ class Mutator {
         const size_t start = s->find_first_of("0123456789", pos);
         if (start == std::string::npos) break;
         const size_t end = s->find_first_not_of("0123456789.e-", start);
-        s->replace(start, (end == std::string::npos ? s->size() : end) - start, kExtremes[Below(kExtremes.size())]);
+        s->replace(start, (end == std::string::npos ? s->size() : end) - start,
+                   kExtremes[Below(kExtremes.size())]);
         break;
       }
       case 5:  // insert an extreme token

@@ -21,17 +21,27 @@ using replay_test::Wait;
 // The tools (devel/lib/slope_monitor, beside process_bag) a user runs by hand.
 // Not here: the graph's nodes and the test nodes (*_node, rostest_*), and
 // replay_start / replay_end, which replay.launch starts.
-const std::vector<std::string> kTools = {
-    "bag_check",      "centroid_targets", "deformation_summary", "dense_surface", "make_survey_bag",
-    "match_images",   "process_bag",      "process_flight",      "resect_camera", "solve_bal",
-    "track_camera"};
+const std::vector<std::string> kTools = {"bag_check",     "centroid_targets", "deformation_summary",
+                                         "dense_surface", "make_survey_bag",  "match_images",
+                                         "process_bag",   "process_flight",   "resect_camera",
+                                         "solve_bal",     "track_camera"};
 
 // Every script of scripts/ but lib.sh and env.sh (sourced, not run) and
 // check_launch (its own argument handling, not yet: see the note).
-const std::vector<std::string> kScripts = {
-    "bench",       "build",    "check_format",    "check_listeners", "compare_columbia",
-    "demo",        "fuzz_long", "long_functions", "plot_report",     "render_survey",
-    "rviz_screenshot", "test", "tidy",           "uav_block_process_bag"};
+const std::vector<std::string> kScripts = {"bench",
+                                           "build",
+                                           "check_format",
+                                           "check_listeners",
+                                           "compare_columbia",
+                                           "demo",
+                                           "fuzz_long",
+                                           "long_functions",
+                                           "plot_report",
+                                           "render_survey",
+                                           "rviz_screenshot",
+                                           "test",
+                                           "tidy",
+                                           "uav_block_process_bag"};
 
 void ExpectHelp(const std::string& program) {
   const fs::path dir = replay_test::Scratch("help_test", fs::path(program).filename().string());

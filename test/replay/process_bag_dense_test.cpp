@@ -72,7 +72,7 @@ int RunProcessBag(const fs::path& dir, const std::string& extra) {
 }
 
 struct Outputs {
-  std::map<double, int> solutions;  // usable: stamp -> epoch
+  std::map<double, int> solutions;                                       // usable: stamp -> epoch
   std::map<double, slope_monitor::AdjustmentSolution::ConstPtr> usable;  // stamp -> solution
   std::map<double, sensor_msgs::PointCloud2::ConstPtr> clouds;
   std::map<double, visualization_msgs::MarkerArray::ConstPtr> legends, frustums;

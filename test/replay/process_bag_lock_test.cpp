@@ -35,7 +35,8 @@ std::map<std::string, int> StoredObservations(const fs::path& db) {
   sqlite3_exec(
       h, "SELECT source, epoch, point_id FROM observations",
       [](void* out, int, char** v, char**) {
-        ++(*static_cast<std::map<std::string, int>*>(out))[std::string(v[0]) + "/" + v[1] + "/" + v[2]];
+        ++(*static_cast<std::map<std::string, int>*>(
+            out))[std::string(v[0]) + "/" + v[1] + "/" + v[2]];
         return 0;
       },
       &keys, nullptr);
@@ -84,11 +85,14 @@ TEST(ProcessBagLock, SecondWriterOnOneDatabaseFailsAtOnce) {
   EXPECT_EQ(status[refused], 1);
   const std::string err = ReadFile(runs[refused] / "stderr");
   std::cout << "the refused run said: " << err;
-  EXPECT_EQ(err, "process_bag: history database '" + db.string() + "' is in use by process " +
-                     std::to_string(pids[ran]) + " (process_bag), which holds its writer lock '" +
-                     db.string() + ".lock'; one writer per history: wait for it to end or use another database\n");
+  EXPECT_EQ(err,
+            "process_bag: history database '" + db.string() + "' is in use by process " +
+                std::to_string(pids[ran]) + " (process_bag), which holds its writer lock '" +
+                db.string() +
+                ".lock'; one writer per history: wait for it to end or use another database\n");
   EXPECT_LT(ended[refused], ended[ran]) << "the refused run did not end before the other";
-  std::cout << "refused after " << ended[refused] << " s, the other run took " << ended[ran] << " s\n";
+  std::cout << "refused after " << ended[refused] << " s, the other run took " << ended[ran]
+            << " s\n";
 
   const auto stored = StoredObservations(db);
   EXPECT_GT(stored.size(), 10u);

@@ -22,7 +22,9 @@ using replay_test::Survey;
 using replay_test::Wait;
 
 // A fresh directory for one run's outputs.
-inline fs::path Scratch(const std::string& name) { return replay_test::Scratch("process_bag_test", name); }
+inline fs::path Scratch(const std::string& name) {
+  return replay_test::Scratch("process_bag_test", name);
+}
 
 // process_bag on `name`'s survey, outputs in `dir` (history.db, reports/,
 // out.bag with output_bag); its stderr printed when it fails.

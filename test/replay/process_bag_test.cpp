@@ -17,11 +17,11 @@
 #include <fstream>
 #include <map>
 #include <regex>
-#include <utility>
 #include <set>
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -160,9 +160,11 @@ TEST(ProcessBag, FullGraphReplayMatchesTruth) {
   // The reports as a crew's GIS tools see them (issue 18): GDAL's own
   // gdalinfo, gdalwarp -t_srs EPSG:4326 and ogrinfo on what the run wrote.
   const fs::path reports = dir / "reports";
-  const auto [info_status, info] = Tool({"gdalinfo", (reports / "deformation.tif").string()}, dir / "gdalinfo");
+  const auto [info_status, info] =
+      Tool({"gdalinfo", (reports / "deformation.tif").string()}, dir / "gdalinfo");
   EXPECT_EQ(info_status, 0) << info;
-  EXPECT_NE(info.find("PROJCRS"), std::string::npos) << info;  // a projected CRS, not ENGCRS["site"]
+  EXPECT_NE(info.find("PROJCRS"), std::string::npos)
+      << info;  // a projected CRS, not ENGCRS["site"]
   EXPECT_EQ(info.find("ENGCRS"), std::string::npos) << info;
   const fs::path warped = dir / "deformation_wgs84.tif";
   const auto [warp_status, warp] = Tool(
@@ -174,7 +176,8 @@ TEST(ProcessBag, FullGraphReplayMatchesTruth) {
   const auto [center_status, center] = Tool({"gdalinfo", warped.string()}, dir / "gdalinfo_wgs84");
   EXPECT_EQ(center_status, 0) << center;
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(center, m, std::regex(R"(Center\s*\(\s*([-0-9.]+),\s*([-0-9.]+)\))")))
+  ASSERT_TRUE(
+      std::regex_search(center, m, std::regex(R"(Center\s*\(\s*([-0-9.]+),\s*([-0-9.]+)\))")))
       << center;
   EXPECT_NEAR(std::stod(m[1]), 8.0 + 0.0013, 0.0015) << center;   // lon: 0-200 m east
   EXPECT_NEAR(std::stod(m[2]), 46.5 + 0.0007, 0.0008) << center;  // lat: 0-150 m north
@@ -371,10 +374,12 @@ TEST(ProcessBag, UnwritableReportFolderIsNamedBeforeProcessing) {
                                          reports};
   ASSERT_EQ(Wait(Spawn(args, dir)), 1) << ReadFile(dir / "stderr");
   const std::string err = ReadFile(dir / "stderr");
-  EXPECT_NE(err.find("process_bag: --report-dir '" + reports + "' cannot be created: Not a directory"),
-            std::string::npos)
+  EXPECT_NE(
+      err.find("process_bag: --report-dir '" + reports + "' cannot be created: Not a directory"),
+      std::string::npos)
       << err;
-  EXPECT_EQ(err.find("messages of 1 bag(s)"), std::string::npos) << "processed before failing:\n" << err;
+  EXPECT_EQ(err.find("messages of 1 bag(s)"), std::string::npos) << "processed before failing:\n"
+                                                                 << err;
   EXPECT_FALSE(fs::exists(dir / "history.db")) << "the history was written before failing";
 }
 
@@ -401,8 +406,8 @@ TEST(ProcessBag, TruncatedBagIsProcessedUpToTheBreak) {
   const std::string err = ReadFile(dir / "stderr");
   EXPECT_NE(err.find("'" + cut.string() + "' is not indexed"), std::string::npos) << err;
   EXPECT_NE(err.find("reindexing a temporary copy"), std::string::npos) << err;
-  EXPECT_NE(err.find("process_bag: input ended early: bag '" + cut.string() + "' breaks off at byte " +
-                     std::to_string(fs::file_size(cut))),
+  EXPECT_NE(err.find("process_bag: input ended early: bag '" + cut.string() +
+                     "' breaks off at byte " + std::to_string(fs::file_size(cut))),
             std::string::npos)
       << err;
   EXPECT_NE(err.find("messages read up to the break, its last readable message at bag time "),

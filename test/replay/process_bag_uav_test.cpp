@@ -72,8 +72,8 @@ fs::path RunProcessBag(const std::string& name, const std::vector<std::string>& 
   fs::remove_all(dir / "history.db");
   fs::remove_all(dir / "reports");
   fs::create_directories(dir);
-  std::string command = std::string("'") + SM_PROCESS_BAG + "' --bag '" + bag +
-                        "' --database '" + (dir / "history.db").string() + "' --report-dir '" +
+  std::string command = std::string("'") + SM_PROCESS_BAG + "' --bag '" + bag + "' --database '" +
+                        (dir / "history.db").string() + "' --report-dir '" +
                         (dir / "reports").string() + "' --output-bag '" +
                         (dir / "out.bag").string() + "'";
   if (fs::exists(Survey(name, ".site.yaml")))

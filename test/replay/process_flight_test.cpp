@@ -30,10 +30,13 @@ using replay_test::ReadFile;
 using replay_test::Spawn;
 using replay_test::Wait;
 
-const fs::path kCaliterra = fs::path(SM_SOURCE_DIR) / ".." / "shared" / "data" / "uav_real_caliterra";
+const fs::path kCaliterra =
+    fs::path(SM_SOURCE_DIR) / ".." / "shared" / "data" / "uav_real_caliterra";
 const std::string kTool = std::string(SM_TOOL_DIR) + "/process_flight";
 
-fs::path Scratch(const std::string& name) { return replay_test::Scratch("process_flight_test", name); }
+fs::path Scratch(const std::string& name) {
+  return replay_test::Scratch("process_flight_test", name);
+}
 
 int RunTool(const std::vector<std::string>& args, const fs::path& dir) {
   std::vector<std::string> argv{kTool};
@@ -62,7 +65,9 @@ std::vector<std::vector<std::string>> ReadCsv(const fs::path& p) {
 void ExpectDenseOutputs(const std::string& out, const fs::path& f1) {
   std::smatch m;
   ASSERT_TRUE(std::regex_search(
-      out, m, std::regex(R"(flight 1: surface (\d+) of (\d+) cells at ([0-9.]+) m, (\d+) points from (\d+) of (\d+) pairs)")))
+      out, m,
+      std::regex(
+          R"(flight 1: surface (\d+) of (\d+) cells at ([0-9.]+) m, (\d+) points from (\d+) of (\d+) pairs)")))
       << out;
   EXPECT_GT(std::stoi(m[1]), 1000);
   EXPECT_GE(std::stoi(m[5]), 2);
@@ -83,8 +88,9 @@ void ExpectDenseOutputs(const std::string& out, const fs::path& f1) {
   o.crs = "EPSG:32614";
   o.frame = SiteCrsOptions::Frame::kShiftedCrs;
   const SiteCrs crs(o);
-  const Eigen::Vector3d centre = crs.Wgs84FromSite(Eigen::Vector3d(
-      dem.origin_x + dem.width * dem.cell_size / 2, dem.origin_y - dem.height * dem.cell_size / 2, 0.0));
+  const Eigen::Vector3d centre =
+      crs.Wgs84FromSite(Eigen::Vector3d(dem.origin_x + dem.width * dem.cell_size / 2,
+                                        dem.origin_y - dem.height * dem.cell_size / 2, 0.0));
   double lon = 0, lat = 0;
   for (const char* n : {"IMG_9377.jpg", "IMG_9378.jpg", "IMG_9387.jpg", "IMG_9388.jpg"}) {
     const capture::ExifInfo e = capture::ReadExif((kCaliterra / n).string());
@@ -100,7 +106,8 @@ void ExpectDenseOutputs(const std::string& out, const fs::path& f1) {
     if (line.rfind("origin:", 0) == 0) std::stringstream(line.substr(7)) >> ox >> oy;
   std::ifstream ply(f1 / "points.ply");
   std::string line;
-  while (std::getline(ply, line) && line != "end_header") {}
+  while (std::getline(ply, line) && line != "end_header") {
+  }
   std::vector<double> dz;
   int inside = 0;
   for (double x, y, z; std::getline(ply, line) && std::stringstream(line) >> x >> y >> z;) {
@@ -115,13 +122,15 @@ void ExpectDenseOutputs(const std::string& out, const fs::path& f1) {
   std::nth_element(dz.begin(), dz.begin() + dz.size() / 2, dz.end());
   EXPECT_LT(std::abs(dz[dz.size() / 2]), 0.2);  // 8 photos: -0.03 m, NMAD 0.41 m
   EXPECT_NE(ReadFile(f1 / "cloud.ply").find("format binary_little_endian 1.0"), std::string::npos);
-  EXPECT_NE(ReadFile(f1 / "surface_report.json").find("\"seconds\": {\"decode\""), std::string::npos);
+  EXPECT_NE(ReadFile(f1 / "surface_report.json").find("\"seconds\": {\"decode\""),
+            std::string::npos);
 }
 
 // The folder a crew brings: four real photos, one photo of another size
 // without EXIF (written by OpenCV) and a zero-byte file.
 TEST(ProcessFlight, RealGnssFlightIsOrientedAndExportedAndBadPhotosAreNamed) {
-  ASSERT_TRUE(fs::is_directory(kCaliterra)) << kCaliterra << " (../shared/data beside the repository)";
+  ASSERT_TRUE(fs::is_directory(kCaliterra))
+      << kCaliterra << " (../shared/data beside the repository)";
   const fs::path dir = Scratch("caliterra");
   const fs::path photos = dir / "photos";
   fs::create_directories(photos);
@@ -137,21 +146,28 @@ TEST(ProcessFlight, RealGnssFlightIsOrientedAndExportedAndBadPhotosAreNamed) {
   EXPECT_EQ(status, 2) << err;  // oriented, but inputs were left out
   std::smatch m;
   ASSERT_TRUE(std::regex_search(
-      out, m, std::regex(R"(flight 1: 4 of 6 photos oriented, (\d+) points, reprojection rms ([0-9.]+) px, [0-9.]+ s\n)")))
+      out, m,
+      std::regex(
+          R"(flight 1: 4 of 6 photos oriented, (\d+) points, reprojection rms ([0-9.]+) px, [0-9.]+ s\n)")))
       << out << err;
   EXPECT_GT(std::stoi(m[1]), 1000);
-  EXPECT_LT(std::stod(m[2]), 1.0);  // COLMAP 3.8 on all eight: 0.87 px mean (doc/uav_real_flight.md)
+  EXPECT_LT(std::stod(m[2]),
+            1.0);  // COLMAP 3.8 on all eight: 0.87 px mean (doc/uav_real_flight.md)
   EXPECT_NE(err.find("IMG_empty.jpg: cannot be read as a photo"), std::string::npos) << err;
   EXPECT_NE(err.find("IMG_small.jpg: no focal length in its EXIF"), std::string::npos) << err;
 
   const fs::path f1 = dir / "out" / "flight_1";
-  EXPECT_NE(ReadFile(f1 / "crs.txt").find("crs: EPSG:32614"), std::string::npos);  // UTM zone of the photos
+  EXPECT_NE(ReadFile(f1 / "crs.txt").find("crs: EPSG:32614"),
+            std::string::npos);  // UTM zone of the photos
   const std::string images = ReadFile(f1 / "sparse" / "images.txt");
   EXPECT_NE(images.find("# Number of images: 4"), std::string::npos);
-  EXPECT_NE(ReadFile(f1 / "sparse" / "cameras.txt").find("1 FULL_OPENCV 4000 3000 "), std::string::npos);
-  EXPECT_NE(ReadFile(f1 / "sparse" / "points3D.txt").find("# Number of points: " + std::string(m[1])),
+  EXPECT_NE(ReadFile(f1 / "sparse" / "cameras.txt").find("1 FULL_OPENCV 4000 3000 "),
             std::string::npos);
-  EXPECT_NE(ReadFile(f1 / "report.json").find("\"datum\": \"GNSS of 4 photos\""), std::string::npos);
+  EXPECT_NE(
+      ReadFile(f1 / "sparse" / "points3D.txt").find("# Number of points: " + std::string(m[1])),
+      std::string::npos);
+  EXPECT_NE(ReadFile(f1 / "report.json").find("\"datum\": \"GNSS of 4 photos\""),
+            std::string::npos);
   // Camera centres against the photos' GNSS (same frame: crs.txt): the
   // adjustment weighs them at 3 m horizontally, so they stay within metres.
   const auto rows = ReadCsv(f1 / "cameras.csv");
@@ -160,7 +176,8 @@ TEST(ProcessFlight, RealGnssFlightIsOrientedAndExportedAndBadPhotosAreNamed) {
   EXPECT_NE(report.find("| photos oriented | 4 of 4 (2 skipped) |"), std::string::npos) << report;
   for (size_t r = 1; r < rows.size(); ++r) {
     ASSERT_EQ(rows[r].size(), 15u);
-    for (int c = 7; c <= 9; ++c) EXPECT_GT(std::stod(rows[r][c]), 0.0) << rows[r][0];  // sigma from the covariance
+    for (int c = 7; c <= 9; ++c)
+      EXPECT_GT(std::stod(rows[r][c]), 0.0) << rows[r][0];  // sigma from the covariance
     EXPECT_LT(std::stod(rows[r][7]), 5.0) << rows[r][0];
   }
   ExpectDenseOutputs(out, f1);
@@ -169,9 +186,12 @@ TEST(ProcessFlight, RealGnssFlightIsOrientedAndExportedAndBadPhotosAreNamed) {
 TEST(ProcessFlight, BadInputIsNamedWithExitOne) {
   const fs::path dir = Scratch("bad");
   fs::create_directories(dir / "empty");
-  EXPECT_EQ(RunTool({"--photos", (dir / "empty").string(), "--out", (dir / "out").string()}, dir), 1);
-  EXPECT_NE(ReadFile(dir / "stderr").find("empty: holds no photo"), std::string::npos) << ReadFile(dir / "stderr");
-  EXPECT_EQ(RunTool({"--photos", (dir / "nowhere").string(), "--out", (dir / "out").string()}, dir), 1);
+  EXPECT_EQ(RunTool({"--photos", (dir / "empty").string(), "--out", (dir / "out").string()}, dir),
+            1);
+  EXPECT_NE(ReadFile(dir / "stderr").find("empty: holds no photo"), std::string::npos)
+      << ReadFile(dir / "stderr");
+  EXPECT_EQ(RunTool({"--photos", (dir / "nowhere").string(), "--out", (dir / "out").string()}, dir),
+            1);
   EXPECT_NE(ReadFile(dir / "stderr").find("nowhere: no such folder"), std::string::npos);
   EXPECT_EQ(RunTool({"--out", (dir / "out").string()}, dir), 1);
   EXPECT_NE(ReadFile(dir / "stderr").find("no --photos DIR given"), std::string::npos);
@@ -183,18 +203,20 @@ TEST(ProcessFlight, BadInputIsNamedWithExitOne) {
   fs::create_directories(dir / "one");
   fs::create_symlink(kCaliterra / "IMG_9377.jpg", dir / "one" / "IMG_9377.jpg");
   std::ofstream(dir / "bad_crs.txt") << "EPSG:999999\n1 2 3 4 5 IMG_9377.jpg p1\n";
-  EXPECT_EQ(RunTool({"--photos", (dir / "one").string(), "--gcp", (dir / "bad_crs.txt").string(), "--out",
-                 (dir / "out").string()},
-                dir),
+  EXPECT_EQ(RunTool({"--photos", (dir / "one").string(), "--gcp", (dir / "bad_crs.txt").string(),
+                     "--out", (dir / "out").string()},
+                    dir),
             1);
-  EXPECT_NE(ReadFile(dir / "stderr").find("EPSG:999999"), std::string::npos) << ReadFile(dir / "stderr");
+  EXPECT_NE(ReadFile(dir / "stderr").find("EPSG:999999"), std::string::npos)
+      << ReadFile(dir / "stderr");
   std::ofstream(dir / "gcp.txt") << "EPSG:32614\n500000 4000000 10 100 200 IMG_0001.jpg p1\n";
-  EXPECT_EQ(RunTool({"--photos", (dir / "one").string(), "--gcp", (dir / "gcp.txt").string(), "--out",
-                 (dir / "out").string()},
-                dir),
+  EXPECT_EQ(RunTool({"--photos", (dir / "one").string(), "--gcp", (dir / "gcp.txt").string(),
+                     "--out", (dir / "out").string()},
+                    dir),
             1);  // one photo orients nothing
   const std::string err = ReadFile(dir / "stderr");
-  EXPECT_NE(err.find("gcp.txt:2: photo 'IMG_0001.jpg' is not in this flight"), std::string::npos) << err;
+  EXPECT_NE(err.find("gcp.txt:2: photo 'IMG_0001.jpg' is not in this flight"), std::string::npos)
+      << err;
   EXPECT_NE(ReadFile(dir / "stdout").find("flight 1: 0 of 1 photos oriented"), std::string::npos);
   EXPECT_NE(err.find("flight 1: no start pair"), std::string::npos) << err;
 
@@ -202,10 +224,12 @@ TEST(ProcessFlight, BadInputIsNamedWithExitOne) {
   std::ofstream(dir / "file") << "x";
   const std::string out = (dir / "file" / "out").string();
   EXPECT_EQ(RunTool({"--photos", (dir / "one").string(), "--out", out}, dir), 1);
-  EXPECT_NE(ReadFile(dir / "stderr").find("process_flight: --out '" + out + "' cannot be created: Not a directory"),
+  EXPECT_NE(ReadFile(dir / "stderr")
+                .find("process_flight: --out '" + out + "' cannot be created: Not a directory"),
             std::string::npos)
       << ReadFile(dir / "stderr");
-  EXPECT_EQ(ReadFile(dir / "stdout").find("flight 1:"), std::string::npos) << "processed before failing";
+  EXPECT_EQ(ReadFile(dir / "stdout").find("flight 1:"), std::string::npos)
+      << "processed before failing";
 }
 
 }  // namespace

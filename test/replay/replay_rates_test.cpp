@@ -75,7 +75,8 @@ int WaitAtMost(pid_t pid, std::chrono::seconds timeout) {
 // dense surface either) and the outputs in `dir` (history.db, reports/).
 // Its own master on a free port and its own log folder, so that it meets
 // no other test's graph.
-int RunReplayLaunch(const fs::path& dir, int rate, const std::string& bag = Survey(kSurvey, ".bag")) {
+int RunReplayLaunch(const fs::path& dir, int rate,
+                    const std::string& bag = Survey(kSurvey, ".bag")) {
   const int port = FreePort();
   EXPECT_GT(port, 0);
   std::vector<std::string> args = {"roslaunch",
@@ -193,7 +194,8 @@ TEST(ReplayLaunch, AnEpochWithoutItsEndMarkerIsSolvedAtTheEndOfTheReplay) {
       << "the bundle adjuster did not solve the open epoch at the end of the replay";
   replay_test::ExpectSameResults(offline, live, "process_bag vs replay.launch, truncated bag",
                                  {".png"});
-  EXPECT_EQ(ObservationsBySource(offline / "history.db"), ObservationsBySource(live / "history.db"));
+  EXPECT_EQ(ObservationsBySource(offline / "history.db"),
+            ObservationsBySource(live / "history.db"));
 }
 
 }  // namespace

@@ -34,7 +34,8 @@ std::string TempDir() {
 TEST(SimBagTest, BagHasTheDocumentedTopicsAndTruthLoads) {
   const std::string dir = TempDir();
   const std::string stem = dir + "/tiny";
-  sim::SurveyConfig config = sim::SurveyConfig::Load(std::string(SM_TEST_DATA_DIR) + "/sim/tiny_site.yaml");
+  sim::SurveyConfig config =
+      sim::SurveyConfig::Load(std::string(SM_TEST_DATA_DIR) + "/sim/tiny_site.yaml");
   sim::Survey survey = sim::SurveyGenerator(config).Generate();
   sim::WriteSurveyFiles(&survey, stem);
   const auto summary = ros_adapters::WriteSurveyBag(survey, stem + ".bag", "bz2");
@@ -82,8 +83,10 @@ TEST(SimBagTest, BagHasTheDocumentedTopicsAndTruthLoads) {
       info_stamps.insert(info->header.stamp.toSec());
       const bool uav = m.getTopic() == "/uav/camera/camera_info";
       const sim::CameraTruth* cam = truth.FindCamera(uav ? "uav" : "fixed_cam_1");
-      // Nominal intrinsics: fx = c / pixel_size of the nominal model, not the truth's principal point.
-      EXPECT_NEAR(info->K[0], cam->nominal.principal_distance() / cam->nominal.sensor().pixel_size, 1e-6);
+      // Nominal intrinsics: fx = c / pixel_size of the nominal model, not the truth's principal
+      // point.
+      EXPECT_NEAR(info->K[0], cam->nominal.principal_distance() / cam->nominal.sensor().pixel_size,
+                  1e-6);
       EXPECT_NEAR(info->K[2], 0.5 * (info->width - 1), 1e-9);
       EXPECT_EQ(info->width, 320u);
     }
@@ -124,8 +127,10 @@ TEST(SimBagTest, BagHasTheDocumentedTopicsAndTruthLoads) {
   EXPECT_EQ(count["/tf_static"], 1);
   EXPECT_EQ(type["/uav/camera/position_prior"], "geometry_msgs/PoseWithCovarianceStamped");
   EXPECT_EQ(type["/radio/rx1/samples"], "slope_monitor/RadioSampleBlock");
-  // Radio: blocks every 1200 s from the start to 1200 s after the last epoch: 8 starts x 3 receivers.
-  EXPECT_EQ(count["/radio/rx1/samples"] + count["/radio/rx2/samples"] + count["/radio/rx3/samples"], 24);
+  // Radio: blocks every 1200 s from the start to 1200 s after the last epoch: 8 starts x 3
+  // receivers.
+  EXPECT_EQ(count["/radio/rx1/samples"] + count["/radio/rx2/samples"] + count["/radio/rx3/samples"],
+            24);
   EXPECT_EQ(summary.radio_blocks, 24);
   EXPECT_EQ(summary.images, static_cast<int>(fixed_images + uav_images));
   // Epochs hours apart: the bag spans the survey.

@@ -43,9 +43,9 @@
 #include <tf2_msgs/TFMessage.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "../core/adjustment/resect_scenario.h"
 #include "slope_monitor/PointDisplacementArray.h"
 #include "slope_monitor/core/adjustment/resect_camera.h"
-#include "../core/adjustment/resect_scenario.h"
 #include "slope_monitor/core/camera/rotation.h"
 #include "slope_monitor/core/sim/survey.h"
 #include "slope_monitor/core/sim/truth.h"
@@ -127,15 +127,18 @@ class TargetlessCameraReplay : public ::testing::Test {
 // starting from the camera_info's interior, recovers the reference photo's
 // attitude and c within 3 sigma.
 TEST(TargetlessCameraSimulator, MastTurnsWithinItsRangeAndSurveyedPointsResectTheReference) {
-  std::string text = ReadFile(std::string(SM_SOURCE_DIR) + "/test/replay/targetless_camera.sim.yaml");
+  std::string text =
+      ReadFile(std::string(SM_SOURCE_DIR) + "/test/replay/targetless_camera.sim.yaml");
   const auto set = [&text](const std::string& from, const std::string& to) {
     const size_t at = text.find(from);
     ASSERT_NE(at, std::string::npos) << from;
     text.replace(at, from.size(), to);
   };
-  set("    jitter_angle_deg: 0.08", "    mast_rotation_deg: [0.02, 0.2]\n    surveyed_points: 12\n    jitter_angle_deg: 0.08");
+  set("    jitter_angle_deg: 0.08",
+      "    mast_rotation_deg: [0.02, 0.2]\n    surveyed_points: 12\n    jitter_angle_deg: 0.08");
   set("  count: 3", "  count: 10");
-  const sim::SurveyGenerator generator(sim::SurveyConfig::Parse(text, "targetless_camera.sim.yaml"));
+  const sim::SurveyGenerator generator(
+      sim::SurveyConfig::Parse(text, "targetless_camera.sim.yaml"));
   const sim::CameraTruth& cam = generator.planned_truth().cameras.at(0);
   ASSERT_EQ(cam.images.size(), 10u);
   for (size_t k = 1; k < cam.images.size(); ++k) {
@@ -168,7 +171,8 @@ TEST(TargetlessCameraSimulator, MastTurnsWithinItsRangeAndSurveyedPointsResectTh
   EXPECT_LT(std::abs(s.exterior.angles.theta - truth.angles.theta), 3 * sigma("theta"));
   EXPECT_LT(std::abs(s.exterior.angles.phi - truth.angles.phi), 3 * sigma("phi"));
   EXPECT_LT(std::abs(s.exterior.angles.kappa - truth.angles.kappa), 3 * sigma("kappa"));
-  EXPECT_LT(std::abs(s.model.principal_distance() - cam.model.principal_distance()), 3 * sigma("c"));
+  EXPECT_LT(std::abs(s.model.principal_distance() - cam.model.principal_distance()),
+            3 * sigma("c"));
 }
 
 TEST_F(TargetlessCameraReplay, ReorientationFieldAndEstimatorAgainstTruth) {

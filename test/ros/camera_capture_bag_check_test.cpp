@@ -22,10 +22,14 @@ void ExpectTurtlesim(const ros_adapters::BagReport& r) {
   EXPECT_NEAR(r.start, 1396293887.84, 0.01);
   EXPECT_NEAR(r.end, 1396293909.54, 0.01);
   const std::map<std::string, std::pair<uint64_t, std::string>> expected = {
-      {"/rosout", {10, "rosgraph_msgs/Log"}},           {"/tf", {2688, "tf/tfMessage"}},
-      {"/tf_static", {1, "tf2_msgs/TFMessage"}},        {"/turtle1/cmd_vel", {357, "geometry_msgs/Twist"}},
-      {"/turtle1/color_sensor", {1351, "turtlesim/Color"}}, {"/turtle1/pose", {1344, "turtlesim/Pose"}},
-      {"/turtle2/cmd_vel", {208, "geometry_msgs/Twist"}}, {"/turtle2/color_sensor", {1344, "turtlesim/Color"}},
+      {"/rosout", {10, "rosgraph_msgs/Log"}},
+      {"/tf", {2688, "tf/tfMessage"}},
+      {"/tf_static", {1, "tf2_msgs/TFMessage"}},
+      {"/turtle1/cmd_vel", {357, "geometry_msgs/Twist"}},
+      {"/turtle1/color_sensor", {1351, "turtlesim/Color"}},
+      {"/turtle1/pose", {1344, "turtlesim/Pose"}},
+      {"/turtle2/cmd_vel", {208, "geometry_msgs/Twist"}},
+      {"/turtle2/color_sensor", {1344, "turtlesim/Color"}},
       {"/turtle2/pose", {1344, "turtlesim/Pose"}}};
   ASSERT_EQ(r.topics.size(), expected.size());
   for (const auto& t : r.topics) {
@@ -136,14 +140,14 @@ TEST(BagCheck, EpochMarkersWrittenByTheTest) {
   EXPECT_EQ(r.gaps.size(), 2u);
 }
 
-
 // A recording split in three files (as rosbag record --split writes it): the
 // middle file holds no marker. Per file it falls back to time-gap epochs;
 // as one session (CheckBags) the epochs span the splits, counts add up.
 TEST(BagCheck, SplitSessionAsOneRecording) {
   capture_test::TempDir dir("bagcheck_split");
   const double t0 = 1700000000.0;
-  const std::vector<std::string> paths = {dir.File("s_0.bag"), dir.File("s_1.bag"), dir.File("s_2.bag")};
+  const std::vector<std::string> paths = {dir.File("s_0.bag"), dir.File("s_1.bag"),
+                                          dir.File("s_2.bag")};
   slope_monitor::EpochMarker m;
   m.epoch = 4;
   m.source = "/uav/camera";
@@ -167,7 +171,8 @@ TEST(BagCheck, SplitSessionAsOneRecording) {
     m.count = 4;
     bag.write("/uav/camera/epoch", ros::Time(t0 + 7.5), m);
   }
-  const ros_adapters::BagReport middle = ros_adapters::CheckBag(paths[1], ros_adapters::BagCheckOptions{});
+  const ros_adapters::BagReport middle =
+      ros_adapters::CheckBag(paths[1], ros_adapters::BagCheckOptions{});
   EXPECT_FALSE(middle.epochs_from_markers);
   const ros_adapters::BagReport r = ros_adapters::CheckBags(paths, ros_adapters::BagCheckOptions{});
   EXPECT_EQ(r.messages, 6u);

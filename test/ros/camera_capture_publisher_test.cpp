@@ -46,12 +46,14 @@ class PublisherFixture : public ::testing::Test {
     const double s = std::sin(lat_deg * M_PI / 180.0);
     return capture::kWgs84A * (1 - e2) / std::pow(1 - e2 * s * s, 1.5);
   }
-  static ExifTags Tags(const std::string& hms, const std::string& subsec, double lat, double lon, double alt) {
+  static ExifTags Tags(const std::string& hms, const std::string& subsec, double lat, double lon,
+                       double alt) {
     return capture_test::UavPhotoTags("S1", hms, subsec, lat, lon, alt);
   }
-  void Photo(const std::string& name, int channels, const std::string& hms, const std::string& subsec, double lat,
-             double lon, double alt) {
-    capture_test::WriteJpeg(dir_.File(name), capture_test::TexturedImage(80, 60, channels, 1), Tags(hms, subsec, lat, lon, alt));
+  void Photo(const std::string& name, int channels, const std::string& hms,
+             const std::string& subsec, double lat, double lon, double alt) {
+    capture_test::WriteJpeg(dir_.File(name), capture_test::TexturedImage(80, 60, channels, 1),
+                            Tags(hms, subsec, lat, lon, alt));
   }
 
   ros_adapters::FramePublisherOptions Options() const {
@@ -79,7 +81,9 @@ TEST_F(PublisherFixture, FolderThroughThePublishingPath) {
   eo.gap = 600.0;
   capture::EpochTracker tracker(eo);
   int steps = 0;
-  while (publisher.Step(&source, &tracker, true) == ros_adapters::FramePublisher::StepResult::kPublished) ++steps;
+  while (publisher.Step(&source, &tracker, true) ==
+         ros_adapters::FramePublisher::StepResult::kPublished)
+    ++steps;
   EXPECT_EQ(steps, 4);
   EXPECT_EQ(publisher.published(), 4u);
 
@@ -94,7 +98,8 @@ TEST_F(PublisherFixture, FolderThroughThePublishingPath) {
 
   // Images: stamps from EXIF (ros::Time has ns resolution), encodings, frame id, content.
   ASSERT_EQ(r.images.size(), 4u);
-  const std::vector<double> stamps = {kMay1st10h, kMay1st10h + 2.5, kMay1st10h + 4.0, kMay1st10h + 7200.0};
+  const std::vector<double> stamps = {kMay1st10h, kMay1st10h + 2.5, kMay1st10h + 4.0,
+                                      kMay1st10h + 7200.0};
   const std::vector<std::string> encodings = {"bgr8", "bgr8", "mono8", "bgr8"};
   for (size_t i = 0; i < 4; ++i) {
     EXPECT_NEAR(r.images[i]->header.stamp.toSec(), stamps[i], 1e-6) << i;
@@ -131,7 +136,8 @@ TEST_F(PublisherFixture, FolderThroughThePublishingPath) {
   EXPECT_DOUBLE_EQ(r.fixes[0].position_covariance[0], 4.0);
   EXPECT_DOUBLE_EQ(r.fixes[0].position_covariance[4], 4.0);
   EXPECT_DOUBLE_EQ(r.fixes[0].position_covariance[8], 9.0);
-  EXPECT_EQ(r.fixes[0].position_covariance_type, sensor_msgs::NavSatFix::COVARIANCE_TYPE_APPROXIMATED);
+  EXPECT_EQ(r.fixes[0].position_covariance_type,
+            sensor_msgs::NavSatFix::COVARIANCE_TYPE_APPROXIMATED);
 
   // Position priors in site: (0, 0, 50), (0, 10, 50 - 10^2 / (2 R)) within the
   // 1e-4 arc-second EXIF rounding (3 mm), (0, 0, 50), (0, 0, 0).
@@ -172,7 +178,8 @@ TEST_F(PublisherFixture, CalibrationFromThePackageParameters) {
   fo.folder = dir_.path();
   capture::FolderSource source(fo);
   capture::EpochTracker tracker(capture::EpochOptions{});
-  ASSERT_EQ(publisher.Step(&source, &tracker, true), ros_adapters::FramePublisher::StepResult::kPublished);
+  ASSERT_EQ(publisher.Step(&source, &tracker, true),
+            ros_adapters::FramePublisher::StepResult::kPublished);
   ASSERT_EQ(r.infos.size(), 1u);
   EXPECT_NEAR(r.infos[0]->K[0], 80.0, 1e-9);          // c / pixel = 8 / 0.1
   EXPECT_NEAR(r.infos[0]->K[2], 39.5 + 2.0, 1e-9);    // x0 = 0.2 mm = 2 px

@@ -32,14 +32,16 @@ void SetExifTime(double stamp, capture_test::ExifTags* t) {
   char buf[32];
   std::strftime(buf, sizeof(buf), "%Y:%m:%d %H:%M:%S", &utc);
   t->date_time = buf;
-  std::snprintf(buf, sizeof(buf), "%03d", static_cast<int>(std::lround((stamp - std::floor(stamp)) * 1000.0)) % 1000);
+  std::snprintf(buf, sizeof(buf), "%03d",
+                static_cast<int>(std::lround((stamp - std::floor(stamp)) * 1000.0)) % 1000);
   t->subsec = buf;
 }
 
 class SimImages : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    const sim::SurveyConfig config = sim::SurveyConfig::Load(std::string(SM_TEST_DATA_DIR) + "/sim/tiny_site.yaml");
+    const sim::SurveyConfig config =
+        sim::SurveyConfig::Load(std::string(SM_TEST_DATA_DIR) + "/sim/tiny_site.yaml");
     survey_ = new sim::Survey(sim::SurveyGenerator(config).Generate());
   }
   static void TearDownTestSuite() {
@@ -93,7 +95,8 @@ class SimImages : public ::testing::Test {
     capture::EpochOptions eo;
     eo.gap = 600.0;  // epochs are an hour apart, images within one a few seconds
     capture::EpochTracker tracker(eo);
-    while (publisher.Step(&source, &tracker, true) == ros_adapters::FramePublisher::StepResult::kPublished) {
+    while (publisher.Step(&source, &tracker, true) ==
+           ros_adapters::FramePublisher::StepResult::kPublished) {
     }
     return p;
   }
@@ -119,17 +122,21 @@ class SimImages : public ::testing::Test {
       const sim::ImageTruth& t = cam->images[img.image];
       ++per_epoch[img.epoch];
       const sensor_msgs::Image& m = *p.images[i];
-      EXPECT_NEAR(m.header.stamp.toSec(), t.stamp, 1e-3) << name << " image " << i;  // EXIF keeps ms
+      EXPECT_NEAR(m.header.stamp.toSec(), t.stamp, 1e-3)
+          << name << " image " << i;  // EXIF keeps ms
       EXPECT_EQ(m.encoding, cam->encoding);
       ASSERT_EQ(m.width, static_cast<uint32_t>(img.pixels.cols));
       ASSERT_EQ(m.height, static_cast<uint32_t>(img.pixels.rows));
-      const cv::Mat got(img.pixels.rows, img.pixels.cols, img.pixels.type(), const_cast<uint8_t*>(m.data.data()));
-      EXPECT_LT(capture_test::MeanAbsDiff(got, img.pixels), 4.0) << name << " image " << i << " (JPEG q95)";
+      const cv::Mat got(img.pixels.rows, img.pixels.cols, img.pixels.type(),
+                        const_cast<uint8_t*>(m.data.data()));
+      EXPECT_LT(capture_test::MeanAbsDiff(got, img.pixels), 4.0)
+          << name << " image " << i << " (JPEG q95)";
       const sensor_msgs::CameraInfo& info = *p.infos[i];
       EXPECT_EQ(info.header.stamp, m.header.stamp);
       EXPECT_EQ(info.width, expected_info.width);
       EXPECT_EQ(info.height, expected_info.height);
-      for (int k = 0; k < 9; ++k) EXPECT_DOUBLE_EQ(info.K[k], expected_info.K[k]) << "K[" << k << "]";
+      for (int k = 0; k < 9; ++k)
+        EXPECT_DOUBLE_EQ(info.K[k], expected_info.K[k]) << "K[" << k << "]";
       ASSERT_EQ(info.D.size(), expected_info.D.size());
       for (size_t k = 0; k < info.D.size(); ++k) EXPECT_DOUBLE_EQ(info.D[k], expected_info.D[k]);
       if (t.gnss) {
@@ -138,10 +145,11 @@ class SimImages : public ::testing::Test {
         EXPECT_EQ(f.header.stamp, m.header.stamp);
         const Eigen::Vector3d x = site.ToSite({f.latitude, f.longitude, f.altitude});
         // EXIF keeps 1e-4 arc seconds (3 mm) and mm altitudes.
-        EXPECT_LT((x - *t.gnss).norm(), 0.01) << name << " image " << i << ": " << x.transpose() << " vs "
-                                               << t.gnss->transpose();
+        EXPECT_LT((x - *t.gnss).norm(), 0.01)
+            << name << " image " << i << ": " << x.transpose() << " vs " << t.gnss->transpose();
         const auto& prior = p.priors[fix].pose.pose.position;
-        EXPECT_LT((Eigen::Vector3d(prior.x, prior.y, prior.z) - *t.gnss).norm(), 0.01) << name << " image " << i;
+        EXPECT_LT((Eigen::Vector3d(prior.x, prior.y, prior.z) - *t.gnss).norm(), 0.01)
+            << name << " image " << i;
         EXPECT_NEAR(p.priors[fix].pose.covariance[0], 0.03 * 0.03, 1e-9);
         ++fix;
       }

@@ -13,7 +13,8 @@ TEST(CameraInfoConversion, RoundTripThroughTheMessage) {
   p[camera::kX0] = 0.02;
   p[camera::kK1] = -1e-4;
   p[camera::kP1] = 2e-5;
-  const camera::CameraModel cam(camera::Sensor{1280, 960, 0.00345}, camera::DistortionModel::kBrown, p);
+  const camera::CameraModel cam(camera::Sensor{1280, 960, 0.00345}, camera::DistortionModel::kBrown,
+                                p);
   const sensor_msgs::CameraInfo msg = ros_adapters::ToMsg(cam.ToCameraInfo());
   EXPECT_EQ(msg.width, 1280u);
   EXPECT_EQ(msg.distortion_model, "plumb_bob");

@@ -15,8 +15,8 @@ namespace capture_test {
 // EXIF of a photo taken on 2024-05-01 at `hms` (HH:MM:SS) + `subsec`, by a
 // "SimCam" camera `model` with an 8.8 mm lens, at GNSS position lat, lon [deg],
 // alt [m].
-inline ExifTags UavPhotoTags(const std::string& model, const std::string& hms, const std::string& subsec, double lat,
-                             double lon, double alt) {
+inline ExifTags UavPhotoTags(const std::string& model, const std::string& hms,
+                             const std::string& subsec, double lat, double lon, double alt) {
   ExifTags t;
   t.date_time = "2024:05:01 " + hms;
   t.subsec = subsec;

@@ -98,8 +98,9 @@ XmlRpc::XmlRpcValue CfMerged(XmlRpc::XmlRpcValue base, const XmlRpc::XmlRpcValue
 
 // Reads `params` as node `node` does; returns what the reader asked for with
 // its defaults. Fails the test (naming `what`) on a ConfigError.
-std::map<std::string, XmlRpc::XmlRpcValue> CfReadAs(const std::string& node, const XmlRpc::XmlRpcValue& params,
-                                                  const std::string& what) {
+std::map<std::string, XmlRpc::XmlRpcValue> CfReadAs(const std::string& node,
+                                                    const XmlRpc::XmlRpcValue& params,
+                                                    const std::string& what) {
   ParamReader p(params, "/" + node);
   try {
     CfNodeReaders().at(node)(p);
@@ -112,13 +113,17 @@ std::map<std::string, XmlRpc::XmlRpcValue> CfReadAs(const std::string& node, con
 bool CfSameValue(XmlRpc::XmlRpcValue a, XmlRpc::XmlRpcValue b) {
   using V = XmlRpc::XmlRpcValue;
   const auto number = [](V& v, double* d) {
-    if (v.getType() == V::TypeDouble) *d = static_cast<double>(v);
-    else if (v.getType() == V::TypeInt) *d = static_cast<int>(v);
-    else return false;
+    if (v.getType() == V::TypeDouble)
+      *d = static_cast<double>(v);
+    else if (v.getType() == V::TypeInt)
+      *d = static_cast<int>(v);
+    else
+      return false;
     return true;
   };
   double x, y;
-  if (number(a, &x) && number(b, &y)) return x == y || std::abs(x - y) <= 1e-12 * std::max(std::abs(x), std::abs(y));
+  if (number(a, &x) && number(b, &y))
+    return x == y || std::abs(x - y) <= 1e-12 * std::max(std::abs(x), std::abs(y));
   if (a.getType() != b.getType()) return false;
   if (a.getType() == V::TypeArray) {
     if (a.size() != b.size()) return false;
@@ -137,7 +142,8 @@ std::string CfText(XmlRpc::XmlRpcValue v) {
 
 // A parameter file's keys as the parameter server names them
 // ("schedule/interval"), with their values.
-void CfFlatten(XmlRpc::XmlRpcValue& tree, const std::string& prefix, std::map<std::string, XmlRpc::XmlRpcValue>* out) {
+void CfFlatten(XmlRpc::XmlRpcValue& tree, const std::string& prefix,
+               std::map<std::string, XmlRpc::XmlRpcValue>* out) {
   for (auto it = tree.begin(); it != tree.end(); ++it) {
     if (it->second.getType() == XmlRpc::XmlRpcValue::TypeStruct && it->second.size() > 0)
       CfFlatten(it->second, prefix + it->first + "/", out);
@@ -170,17 +176,21 @@ TEST(ConfigFiles, DefaultsFilesHoldTheStructsDefaults) {
   for (const std::string& path : CfFilesUnder(kCfSource + "/config/defaults")) {
     const std::string node = fs::path(path).stem().string();
     nodes.insert(node);
-    ASSERT_TRUE(CfNodeReaders().count(node)) << path << ": no reader for node '" << node << "' in this test";
-    const std::map<std::string, XmlRpc::XmlRpcValue> defaults = CfReadAs(node, CfRequired(node), "(nothing set)");
+    ASSERT_TRUE(CfNodeReaders().count(node))
+        << path << ": no reader for node '" << node << "' in this test";
+    const std::map<std::string, XmlRpc::XmlRpcValue> defaults =
+        CfReadAs(node, CfRequired(node), "(nothing set)");
     XmlRpc::XmlRpcValue file = CfLoad(path);
     CfReadAs(node, CfMerged(file, CfRequired(node)), path);
     std::map<std::string, XmlRpc::XmlRpcValue> keys;
     CfFlatten(file, "", &keys);
     for (auto& [key, value] : keys) {
       const auto d = defaults.find(key);
-      if (d == defaults.end()) continue;  // a key read only in some modes: the read above checked it
+      if (d == defaults.end())
+        continue;  // a key read only in some modes: the read above checked it
       EXPECT_TRUE(CfSameValue(value, d->second))
-          << path << ": " << key << " = " << CfText(value) << ", the reader's default is " << CfText(d->second);
+          << path << ": " << key << " = " << CfText(value) << ", the reader's default is "
+          << CfText(d->second);
     }
     for (const auto& [key, value] : defaults)
       EXPECT_TRUE(keys.count(key) || CfDocumentedAsComment(path, key))
@@ -196,7 +206,8 @@ void CfExpectEveryKeyCommented(const std::string& path) {
   std::ifstream in(path);
   std::string line, previous;
   while (std::getline(in, line)) {
-    const bool key = !line.empty() && line[0] != ' ' && line[0] != '#' && line.find(':') != std::string::npos;
+    const bool key =
+        !line.empty() && line[0] != ' ' && line[0] != '#' && line.find(':') != std::string::npos;
     if (key) {
       EXPECT_TRUE(line.find('#') != std::string::npos || previous.rfind("#", 0) == 0)
           << path << ": '" << line << "' says not why it differs from the defaults";
@@ -216,7 +227,8 @@ void CfCheckOverlay(const std::string& path, const std::string& node) {
   for (auto it = overlay.begin(); it != overlay.end(); ++it) {
     if (d.hasMember(it->first)) {
       EXPECT_FALSE(CfSameValue(it->second, d[it->first]))
-          << path << ": " << it->first << " = " << CfText(it->second) << " is the defaults file's value already";
+          << path << ": " << it->first << " = " << CfText(it->second)
+          << " is the defaults file's value already";
     }
   }
   CfExpectEveryKeyCommented(path);
@@ -254,7 +266,8 @@ TEST(ConfigFiles, EveryConfigFileLoadsThroughItsOwner) {
       } else if (owner == "radio") {
         radio::NetworkConfig::Load(path);
       } else {
-        ADD_FAILURE() << path << ": no reader for this file in config_files_test (add it to CfOwnerOf)";
+        ADD_FAILURE() << path
+                      << ": no reader for this file in config_files_test (add it to CfOwnerOf)";
         continue;
       }
       ++loaded;
@@ -268,9 +281,11 @@ TEST(ConfigFiles, EveryConfigFileLoadsThroughItsOwner) {
 // A key's file that does not exist here (a launch argument's default built
 // from the bag's name, say) is replaced by one that does, or left out.
 void CfStubMissingFiles(XmlRpc::XmlRpcValue* params) {
-  for (const char* key : {"target_list", "truth_file", "network_file", "site_file", "stable_polygons", "stable_mask",
-                          "report_dem", "camera_info_url", "folder", "video_file"}) {
-    if (!params->hasMember(key) || (*params)[key].getType() != XmlRpc::XmlRpcValue::TypeString) continue;
+  for (const char* key :
+       {"target_list", "truth_file", "network_file", "site_file", "stable_polygons", "stable_mask",
+        "report_dem", "camera_info_url", "folder", "video_file"}) {
+    if (!params->hasMember(key) || (*params)[key].getType() != XmlRpc::XmlRpcValue::TypeString)
+      continue;
     const std::string value = (*params)[key];
     if (value.empty() || fs::exists(value)) continue;
     if (std::string(key) == "target_list") {
@@ -316,7 +331,8 @@ TEST(ConfigFiles, EveryLaunchFileLoadsAndItsNodesParametersRead) {
   };
   std::set<std::string> launch_files;
   for (const std::string& path : CfFilesUnder(kCfSource + "/launch"))
-    if (fs::path(path).extension() == ".launch") launch_files.insert(fs::path(path).filename().string());
+    if (fs::path(path).extension() == ".launch")
+      launch_files.insert(fs::path(path).filename().string());
   std::string command = kCfSource + "/scripts/check_launch --dump ";
   const std::string dump = "/tmp/config_files_test_" + std::to_string(::getpid()) + ".json";
   command += dump;
@@ -337,7 +353,8 @@ TEST(ConfigFiles, EveryLaunchFileLoadsAndItsNodesParametersRead) {
   std::set<std::string> reached;
   for (int i = 0; i < loaded["files"].size(); ++i) reached.insert(std::string(loaded["files"][i]));
   for (const std::string& path : CfFilesUnder(kCfSource + "/launch"))
-    EXPECT_TRUE(reached.count(fs::canonical(path).string())) << path << " is loaded by no launch file the test runs";
+    EXPECT_TRUE(reached.count(fs::canonical(path).string()))
+        << path << " is loaded by no launch file the test runs";
   XmlRpc::XmlRpcValue& all = loaded["nodes"];
   int nodes_read = 0;
   for (auto file = all.begin(); file != all.end(); ++file) {
@@ -347,12 +364,13 @@ TEST(ConfigFiles, EveryLaunchFileLoadsAndItsNodesParametersRead) {
       XmlRpc::XmlRpcValue params = n["params"];
       if (params.getType() != XmlRpc::XmlRpcValue::TypeStruct) params.begin();
       if (!CfNodeReaders().count(node)) {
-        EXPECT_EQ(params.size(), 0) << file->first << ": node " << std::string(n["node"]) << " (" << node
-                                    << ") has parameters and no reader in this test";
+        EXPECT_EQ(params.size(), 0) << file->first << ": node " << std::string(n["node"]) << " ("
+                                    << node << ") has parameters and no reader in this test";
         continue;
       }
       CfStubMissingFiles(&params);
-      CfReadAs(node, CfMerged(CfRequired(node), params), file->first + " " + std::string(n["node"]));
+      CfReadAs(node, CfMerged(CfRequired(node), params),
+               file->first + " " + std::string(n["node"]));
       ++nodes_read;
     }
   }
@@ -370,7 +388,8 @@ TEST(ConfigFiles, TheChecksFail) {
   EXPECT_FALSE(CfSameValue(XmlRpc::XmlRpcValue(4.0), defaults.at("loss_scale")));
   EXPECT_TRUE(CfSameValue(XmlRpc::XmlRpcValue(3), defaults.at("loss_scale")));
   const std::string bad = "/tmp/config_files_test_" + std::to_string(::getpid()) + ".launch";
-  std::ofstream(bad) << "<launch><node pkg=\"slope_monitor\" type=\"no_such_node\" name=\"x\"/></launch>\n";
+  std::ofstream(bad)
+      << "<launch><node pkg=\"slope_monitor\" type=\"no_such_node\" name=\"x\"/></launch>\n";
   const run_command::CommandRun r = run_command::Run(kCfSource + "/scripts/check_launch " + bad);
   std::remove(bad.c_str());
   EXPECT_EQ(r.status, 1) << r.output;

@@ -30,7 +30,8 @@ slope_monitor::PointDisplacementArray Message(double t, double dy) {
 }
 
 TEST(DeformationConversions, DisplacementsToBatch) {
-  const deformation::Batch b = FromMsg(Message(1700003600.0, -0.01), "/bundle_adjuster/displacements");
+  const deformation::Batch b =
+      FromMsg(Message(1700003600.0, -0.01), "/bundle_adjuster/displacements");
   ASSERT_EQ(b.measurements.size(), 1u);
   const deformation::Measurement& m = b.measurements[0];
   EXPECT_EQ(m.point_id, "tag36h11/4");
@@ -52,7 +53,8 @@ TEST(DeformationConversions, DisplacementsToBatch) {
 
 TEST(DeformationConversions, EstimateToMessagesMarkersCloudAlerts) {
   deformation::Estimator est{deformation::EstimatorOptions()};
-  for (int i = 1; i <= 10; ++i) est.AddBatch(FromMsg(Message(1700000000.0 + 3600.0 * i, -0.001 * i), "t"));
+  for (int i = 1; i <= 10; ++i)
+    est.AddBatch(FromMsg(Message(1700000000.0 + 3600.0 * i, -0.001 * i), "t"));
   const deformation::Snapshot s = est.GetSnapshot();
   std_msgs::Header h;
   h.frame_id = "site";

@@ -33,7 +33,8 @@ std::string TempBagPath(const std::string& name) {
 }
 
 template <typename M>
-M RoundTrip(const M& msg, const std::string& topic, rosbag::compression::CompressionType compression) {
+M RoundTrip(const M& msg, const std::string& topic,
+            rosbag::compression::CompressionType compression) {
   std::string name = topic.substr(1) + std::to_string(static_cast<int>(compression));
   for (char& ch : name) ch = ch == '/' ? '_' : ch;
   const std::string path = TempBagPath(name);
@@ -73,7 +74,8 @@ TEST(Messages, TargetObservationArrayRoundTrip) {
   a.observations.push_back(o);
   a.reject_reasons.push_back("saturated");
   a.rejected = 1;
-  for (auto c : {rosbag::compression::Uncompressed, rosbag::compression::BZ2, rosbag::compression::LZ4}) {
+  for (auto c :
+       {rosbag::compression::Uncompressed, rosbag::compression::BZ2, rosbag::compression::LZ4}) {
     const auto b = RoundTrip(a, "/fixed_cam_1/targets", c);
     ASSERT_EQ(b.observations.size(), 1u);
     EXPECT_EQ(b.observations[0].id, 17);
@@ -112,7 +114,8 @@ TEST(Messages, DeformationAndDisplacementRoundTrip) {
   p.alert_level = slope_monitor::DeformationPoint::ALERT_WARNING;
   p.forecast_valid = true;
   p.forecast_failure_time = ros::Time(1700100000, 0);
-  p.sources = {slope_monitor::PointDisplacement::SOURCE_TARGET, slope_monitor::PointDisplacement::SOURCE_RADIO};
+  p.sources = {slope_monitor::PointDisplacement::SOURCE_TARGET,
+               slope_monitor::PointDisplacement::SOURCE_RADIO};
   d.points.push_back(p);
   const auto b = RoundTrip(d, "/deformation", rosbag::compression::BZ2);
   ASSERT_EQ(b.points.size(), 1u);
@@ -177,7 +180,8 @@ TEST(Messages, ServicesAndOtherMessagesCompile) {
   EXPECT_EQ(ph.observations.size(), 3u);
   EXPECT_EQ(std::string(ros::service_traits::datatype<slope_monitor::RunAdjustment>()),
             "slope_monitor/RunAdjustment");
-  EXPECT_EQ(std::string(ros::message_traits::datatype<slope_monitor::EpochMarker>()), "slope_monitor/EpochMarker");
+  EXPECT_EQ(std::string(ros::message_traits::datatype<slope_monitor::EpochMarker>()),
+            "slope_monitor/EpochMarker");
   const auto back = RoundTrip(m, "/epoch", rosbag::compression::Uncompressed);
   EXPECT_TRUE(back.end);
 }

@@ -45,7 +45,8 @@ TEST(ReplayCameras, KeepsTheSiteCamerasTheReplayHasAndNamesTheOthers) {
 
 TEST(ReplayCameras, KeepsAllWhenTheReplayHasNoneOfThem) {
   std::vector<LogLine> log;
-  EXPECT_EQ(ReplayCameras(SiteCameras(), [](const std::string&) { return false; }, &log),
+  EXPECT_EQ(ReplayCameras(
+                SiteCameras(), [](const std::string&) { return false; }, &log),
             SiteCameras().collector.cameras);
   EXPECT_TRUE(log.empty());
 }
@@ -54,7 +55,8 @@ TEST(ReplayCameras, LeavesCamerasThatAreNotTheSiteFilesAlone) {
   AdjusterParameters p = SiteCameras();
   p.cameras_from_site = false;
   std::vector<LogLine> log;
-  EXPECT_EQ(ReplayCameras(p, [](const std::string& c) { return c == "drone"; }, &log),
+  EXPECT_EQ(ReplayCameras(
+                p, [](const std::string& c) { return c == "drone"; }, &log),
             p.collector.cameras);
 }
 

@@ -79,7 +79,8 @@ TEST_F(ResectCameraTool, CoordinatesAsGiven) {
 TEST_F(ResectCameraTool, SiteFileGivesThePoseInTheSiteFrame) {
   const auto r = Resect("--site " + kResectDir + "/site.yaml", "site");
   ASSERT_EQ(r.status, 0) << r.output;
-  EXPECT_NE(r.output.find("frame: site of " + kResectDir + "/site.yaml (points and --position in EPSG:32606)"),
+  EXPECT_NE(r.output.find("frame: site of " + kResectDir +
+                          "/site.yaml (points and --position in EPSG:32606)"),
             std::string::npos)
       << r.output;
   const double rms = RmsOf(r.output);
@@ -88,7 +89,8 @@ TEST_F(ResectCameraTool, SiteFileGivesThePoseInTheSiteFrame) {
   const auto pose = sm::io::ReadCameraPoseFile(kResectDir + "/site.pose.yaml", "test");
   EXPECT_LT(pose.position.norm(), 1e-3) << pose.position.transpose();
   // The optical axis in site (x east, y north, z up).
-  const Eigen::Vector3d axis = sm::camera::RotationFromAngles(pose.angles).transpose() * Eigen::Vector3d(0, 0, -1);
+  const Eigen::Vector3d axis =
+      sm::camera::RotationFromAngles(pose.angles).transpose() * Eigen::Vector3d(0, 0, -1);
   EXPECT_NEAR(std::atan2(axis.x(), axis.y()) / kResectDeg, -165.0, 5.0);
   EXPECT_NEAR(std::asin(axis.z()) / kResectDeg, -10.0, 5.0);
   std::ifstream in(kResectDir + "/site.pose.yaml");
@@ -96,7 +98,8 @@ TEST_F(ResectCameraTool, SiteFileGivesThePoseInTheSiteFrame) {
   buffer << in.rdbuf();
   const std::string text = buffer.str();
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(text, m, std::regex("position_crs: \\[([-0-9.e]+), ([-0-9.e]+), ([-0-9.e]+)\\]")))
+  ASSERT_TRUE(std::regex_search(
+      text, m, std::regex("position_crs: \\[([-0-9.e]+), ([-0-9.e]+), ([-0-9.e]+)\\]")))
       << text;
   EXPECT_NEAR(std::stod(m[1]), 499211.336, 1e-3);
   EXPECT_NEAR(std::stod(m[2]), 6783755.954, 1e-3);

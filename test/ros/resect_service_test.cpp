@@ -8,10 +8,10 @@
 
 #include <gtest/gtest.h>
 
+#include "../core/adjustment/resect_scenario.h"
 #include "slope_monitor/core/camera/camera_model.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/resect_service.h"
-#include "../core/adjustment/resect_scenario.h"
 
 namespace slope_monitor {
 namespace {
@@ -22,7 +22,8 @@ slope_monitor::ResectCamera::Request ResectServiceRequest() {
   const std::vector<io::PickedPoint> points = resect_scenario::Survey(
       resect_scenario::Camera(16.0), resect_scenario::TruePose(), 15, 0.0, 0.3, 11);
   slope_monitor::ResectCamera::Request r;
-  r.camera_info = ros_adapters::ToMsg(resect_scenario::Camera(15.0).ToCameraInfo());  // nominal c 6 % off
+  r.camera_info =
+      ros_adapters::ToMsg(resect_scenario::Camera(15.0).ToCameraInfo());  // nominal c 6 % off
   for (const io::PickedPoint& p : points) {
     geometry_msgs::Point x;
     x.x = p.xyz.x();
@@ -53,7 +54,8 @@ TEST(ResectService, AnswersThePoseAndFocalOfTheTruthWithinThreeSigma) {
   EXPECT_GT(res.camera.interior_sigma[camera::kC], 0.0);  // c estimated, the rest held
   EXPECT_EQ(res.camera.interior_sigma[camera::kK1], 0.0);
   // From a camera_info the interior is in pixels (pixel size 1): c = 16 mm / 4 um.
-  EXPECT_LT(std::abs(res.camera.principal_distance - 4000.0), 3 * res.camera.interior_sigma[camera::kC]);
+  EXPECT_LT(std::abs(res.camera.principal_distance - 4000.0),
+            3 * res.camera.interior_sigma[camera::kC]);
   EXPECT_LT(res.camera.interior_sigma[camera::kC], 40.0);  // c to 1 %
   // The adjusted camera_info: fx = c.
   EXPECT_NEAR(res.camera_info.K[0], res.camera.principal_distance, 1e-6);

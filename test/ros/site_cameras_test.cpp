@@ -50,7 +50,8 @@ TEST(SiteCameras, TheSiteDecidesTheAdjustersCamerasAndTopics) {
   const AdjusterParameters a = ReadAdjusterParameters(r);
   EXPECT_TRUE(a.cameras_from_site);
   EXPECT_EQ(a.collector.cameras, (Strings{"north_mast", "drone", "south_mast"}));
-  EXPECT_EQ(a.target_topics, (Strings{"/north_mast/targets", "/drone/targets", "/south_mast/targets"}));
+  EXPECT_EQ(a.target_topics,
+            (Strings{"/north_mast/targets", "/drone/targets", "/south_mast/targets"}));
   EXPECT_EQ(a.epoch_topics, (Strings{"/north_mast/camera/epoch", "/drone/camera/epoch",
                                      "/south_mast/camera/epoch"}));
   EXPECT_EQ(a.prior_topics, (Strings{"/drone/camera/position_prior"}));

@@ -37,13 +37,15 @@ TEST(ToolErrors, CentroidTargetsMissingImageFolder) {
 }
 
 TEST(ToolErrors, DenseSurfaceEpochNotANumber) {
-  const ToolRun r = Tool("dense_surface", "--truth " + kTmp + ".truth.yaml --bag x.bag --epoch abc --out-dir " + kTmp);
+  const ToolRun r = Tool(
+      "dense_surface", "--truth " + kTmp + ".truth.yaml --bag x.bag --epoch abc --out-dir " + kTmp);
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("--epoch 'abc'"), std::string::npos) << r.output;
 }
 
 TEST(ToolErrors, MakeSurveyBagNegativeSeed) {
-  const ToolRun r = Tool("make_survey_bag", "--config " + kTmp + ".yaml --out " + kTmp + ".bag --seed -5");
+  const ToolRun r =
+      Tool("make_survey_bag", "--config " + kTmp + ".yaml --out " + kTmp + ".bag --seed -5");
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("--seed '-5'"), std::string::npos) << r.output;
 }
@@ -67,7 +69,8 @@ TEST(ToolErrors, TrackCameraStableMaskOfTheWrongSize) {
          "distortion_model: plumb_bob\n"
          "distortion_coefficients: {rows: 1, cols: 5, data: [0, 0, 0, 0, 0]}\n"
          "rectification_matrix: {rows: 3, cols: 3, data: [1, 0, 0, 0, 1, 0, 0, 0, 1]}\n"
-         "projection_matrix: {rows: 3, cols: 4, data: [100, 0, 31.5, 0, 0, 100, 23.5, 0, 0, 0, 1, 0]}\n";
+         "projection_matrix: {rows: 3, cols: 4, data: [100, 0, 31.5, 0, 0, 100, 23.5, 0, 0, 0, 1, "
+         "0]}\n";
   std::ofstream(dir + "/cam.pose.yaml")
       << "position: [0, 0, 0]\nangles_deg: {theta: 0, phi: 90, kappa: 0}\n";
   cv::Mat photo(48, 64, CV_8UC1);
@@ -75,9 +78,9 @@ TEST(ToolErrors, TrackCameraStableMaskOfTheWrongSize) {
   ASSERT_TRUE(cv::imwrite(dir + "/a.png", photo));
   ASSERT_TRUE(cv::imwrite(dir + "/b.png", photo));
   ASSERT_TRUE(cv::imwrite(dir + "/mask.png", cv::Mat(24, 32, CV_8UC1, cv::Scalar(255))));
-  const ToolRun r = Tool("track_camera", "--camera " + dir + "/cam --reference " + dir +
-                                             "/a.png --image " + dir + "/b.png --stable-mask " +
-                                             dir + "/mask.png --out " + dir + "/out");
+  const ToolRun r =
+      Tool("track_camera", "--camera " + dir + "/cam --reference " + dir + "/a.png --image " + dir +
+                               "/b.png --stable-mask " + dir + "/mask.png --out " + dir + "/out");
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("--stable-mask '" + dir + "/mask.png' is 32x24 px, the images are 64x48"),
             std::string::npos)

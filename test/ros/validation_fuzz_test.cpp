@@ -5,8 +5,8 @@
 #include <cmath>
 #include <random>
 
-#include <Eigen/Cholesky>
 #include <gtest/gtest.h>
+#include <Eigen/Cholesky>
 
 #include "../fuzz/mutator.h"
 #include "slope_monitor/core/io/safe_file.h"
@@ -22,7 +22,8 @@ class Hostile {
  public:
   explicit Hostile(unsigned seed) : rng_(seed) {}
   double Value(double typical) {
-    static const double kExtremes[] = {1e300, -1e300, 1e-300, NAN, INFINITY, -INFINITY, 0.0, -0.0, 4294967296.0};
+    static const double kExtremes[] = {1e300,     -1e300, 1e-300, NAN,         INFINITY,
+                                       -INFINITY, 0.0,    -0.0,   4294967296.0};
     if (Coin(0.15)) return kExtremes[Below(9)];
     return typical * (1.0 + 0.5 * std::normal_distribution<double>()(rng_));
   }
@@ -71,7 +72,8 @@ TEST(ValidationFuzz, WhatPassesIsUsable) {
     for (const auto& d : out.displacements) {
       ++passed;
       EXPECT_EQ(io::IdProblem(d.point_id), "");
-      const Eigen::Vector3d x(d.reference_position.x, d.reference_position.y, d.reference_position.z);
+      const Eigen::Vector3d x(d.reference_position.x, d.reference_position.y,
+                              d.reference_position.z);
       EXPECT_TRUE(x.allFinite() && x.cwiseAbs().maxCoeff() <= 1e5) << x.transpose();
       Eigen::Matrix3d c;
       for (int k = 0; k < 9; ++k) c(k / 3, k % 3) = d.covariance[k];

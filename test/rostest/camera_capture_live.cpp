@@ -23,19 +23,19 @@
 #include <gtest/gtest.h>
 #include <nodelet/NodeletLoad.h>
 #include <nodelet/NodeletUnload.h>
-#include <opencv2/videoio.hpp>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Log.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/NavSatFix.h>
 #include <std_srvs/Trigger.h>
+#include <opencv2/videoio.hpp>
 
 #include "../core/capture/test_images.h"
 #include "../ros/capture_test_util.h"
-#include "test_node.h"
 #include "slope_monitor/EpochMarker.h"
 #include "slope_monitor/core/capture/geodesy.h"
+#include "test_node.h"
 
 namespace slope_monitor {
 namespace {
@@ -52,10 +52,12 @@ std::string ManagerName() {
 }
 
 // Sets the nodelet's private parameters, then loads it into the manager.
-void LoadCapture(const std::string& name, const std::map<std::string, XmlRpc::XmlRpcValue>& params) {
+void LoadCapture(const std::string& name,
+                 const std::map<std::string, XmlRpc::XmlRpcValue>& params) {
   for (const auto& [key, value] : params) ros::param::set(name + "/" + key, value);
   const std::string service = ManagerName() + "/load_nodelet";
-  ASSERT_TRUE(ros::service::waitForService(service, ros::Duration(30.0))) << service << " is not offered";
+  ASSERT_TRUE(ros::service::waitForService(service, ros::Duration(30.0)))
+      << service << " is not offered";
   nodelet::NodeletLoad srv;
   srv.request.name = name;
   srv.request.type = "slope_monitor/CameraCapture";
@@ -66,7 +68,8 @@ void LoadCapture(const std::string& name, const std::map<std::string, XmlRpc::Xm
 void UnloadCapture(const std::string& name) {
   nodelet::NodeletUnload srv;
   srv.request.name = name;
-  EXPECT_TRUE(ros::service::call(ManagerName() + "/unload_nodelet", srv) && srv.response.success) << name;
+  EXPECT_TRUE(ros::service::call(ManagerName() + "/unload_nodelet", srv) && srv.response.success)
+      << name;
   ros::param::del(name);
 }
 
@@ -96,21 +99,23 @@ class Recorder {
  public:
   explicit Recorder(const std::string& ns) {
     ros::NodeHandle nh(ns);
-    subs_.push_back(nh.subscribe<sensor_msgs::Image>("image_raw", 100, [this](const sensor_msgs::ImageConstPtr& m) {
-      std::lock_guard<std::mutex> l(mutex_);
-      images_.push_back(m);
-    }));
-    subs_.push_back(
-        nh.subscribe<sensor_msgs::CameraInfo>("camera_info", 100, [this](const sensor_msgs::CameraInfoConstPtr& m) {
+    subs_.push_back(nh.subscribe<sensor_msgs::Image>("image_raw", 100,
+                                                     [this](const sensor_msgs::ImageConstPtr& m) {
+                                                       std::lock_guard<std::mutex> l(mutex_);
+                                                       images_.push_back(m);
+                                                     }));
+    subs_.push_back(nh.subscribe<sensor_msgs::CameraInfo>(
+        "camera_info", 100, [this](const sensor_msgs::CameraInfoConstPtr& m) {
           std::lock_guard<std::mutex> l(mutex_);
           infos_.push_back(*m);
         }));
-    subs_.push_back(nh.subscribe<sensor_msgs::NavSatFix>("gnss/fix", 100, [this](const sensor_msgs::NavSatFixConstPtr& m) {
-      std::lock_guard<std::mutex> l(mutex_);
-      fixes_.push_back(*m);
-    }));
-    subs_.push_back(
-        nh.subscribe<slope_monitor::EpochMarker>("epoch", 100, [this](const slope_monitor::EpochMarkerConstPtr& m) {
+    subs_.push_back(nh.subscribe<sensor_msgs::NavSatFix>(
+        "gnss/fix", 100, [this](const sensor_msgs::NavSatFixConstPtr& m) {
+          std::lock_guard<std::mutex> l(mutex_);
+          fixes_.push_back(*m);
+        }));
+    subs_.push_back(nh.subscribe<slope_monitor::EpochMarker>(
+        "epoch", 100, [this](const slope_monitor::EpochMarkerConstPtr& m) {
           std::lock_guard<std::mutex> l(mutex_);
           epochs_.push_back(*m);
         }));
@@ -120,10 +125,11 @@ class Recorder {
           std::lock_guard<std::mutex> l(mutex_);
           for (const auto& s : m->status) diagnostics_.push_back({ros::WallTime::now(), s});
         }));
-    subs_.push_back(root.subscribe<rosgraph_msgs::Log>("/rosout", 1000, [this](const rosgraph_msgs::LogConstPtr& m) {
-      std::lock_guard<std::mutex> l(mutex_);
-      logs_.push_back(*m);
-    }));
+    subs_.push_back(root.subscribe<rosgraph_msgs::Log>("/rosout", 1000,
+                                                       [this](const rosgraph_msgs::LogConstPtr& m) {
+                                                         std::lock_guard<std::mutex> l(mutex_);
+                                                         logs_.push_back(*m);
+                                                       }));
   }
 
   std::vector<sensor_msgs::ImageConstPtr> images() const { return Locked(images_); }
@@ -174,12 +180,16 @@ std::string Value(const diagnostic_msgs::DiagnosticStatus& s, const std::string&
   return "<no key '" + key + "'>";
 }
 
-bool Contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+bool Contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
 
 // A clip of `frames` flat grey frames, frame i at level step * i.
-std::string WriteClip(const capture_test::TempDir& dir, const std::string& name, int frames, int step, double fps) {
+std::string WriteClip(const capture_test::TempDir& dir, const std::string& name, int frames,
+                      int step, double fps) {
   const std::string path = dir.File(name);
-  cv::VideoWriter writer(path, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), fps, cv::Size(kWidth, kHeight), true);
+  cv::VideoWriter writer(path, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), fps,
+                         cv::Size(kWidth, kHeight), true);
   if (!writer.isOpened()) throw std::runtime_error("cv::VideoWriter cannot write MJPG to " + path);
   for (int i = 0; i < frames; ++i) {
     writer.write(cv::Mat(kHeight, kWidth, CV_8UC3, cv::Scalar::all(step * i)));
@@ -206,30 +216,36 @@ TEST(CameraCaptureLive, PhotoFolder) {
       {"img_c.jpg", "10:00:03", "25", 3.25, 35.1008, 139.2006, 1220.0},
       {"img_d.jpg", "10:30:00", "", 1800.0, 35.0995, 139.1990, 1199.0},
   };
-  auto tags = [](const std::string& hms, const std::string& subsec, double lat, double lon, double alt) {
+  auto tags = [](const std::string& hms, const std::string& subsec, double lat, double lon,
+                 double alt) {
     return capture_test::UavPhotoTags("UAV-1", hms, subsec, lat, lon, alt);
   };
   for (size_t i = 0; i < photos.size(); ++i) {
     const Photo& p = photos[i];
-    capture_test::WriteJpeg(dir.File(p.name), capture_test::TexturedImage(kWidth, kHeight, 3, static_cast<int>(i)),
+    capture_test::WriteJpeg(dir.File(p.name),
+                            capture_test::TexturedImage(kWidth, kHeight, 3, static_cast<int>(i)),
                             tags(p.hms, p.subsec, p.lat, p.lon, p.alt));
   }
   // Taken between img_b and img_c; cut in half (EXIF intact, image data not).
-  capture_test::WriteJpeg(dir.File("whole.jpeg"), capture_test::TexturedImage(kWidth, kHeight, 3, 9),
+  capture_test::WriteJpeg(dir.File("whole.jpeg"),
+                          capture_test::TexturedImage(kWidth, kHeight, 3, 9),
                           tags("10:00:02", "", 35.1, 139.2, 1200.0));
   capture_test::WriteTruncatedCopy(dir.File("whole.jpeg"), dir.File("img_cut.jpg"), 0.5);
   std::filesystem::remove(dir.File("whole.jpeg"));
   // Calibration (camera_info_manager YAML): plumb_bob with distortion.
   const std::vector<double> K = {152.5, 0.0, 80.25, 0.0, 152.5, 59.75, 0.0, 0.0, 1.0};
   const std::vector<double> D = {-0.12, 0.03, 0.0004, -0.0002, 0.001};
-  capture_test::WriteText(dir.File("uav.yaml"),
-                          "image_width: 160\nimage_height: 120\ncamera_name: uav\n"
-                          "camera_matrix: {rows: 3, cols: 3, data: [152.5, 0.0, 80.25, 0.0, 152.5, 59.75, 0.0, 0.0, 1.0]}\n"
-                          "distortion_model: plumb_bob\n"
-                          "distortion_coefficients: {rows: 1, cols: 5, data: [-0.12, 0.03, 0.0004, -0.0002, 0.001]}\n"
-                          "rectification_matrix: {rows: 3, cols: 3, data: [1, 0, 0, 0, 1, 0, 0, 0, 1]}\n"
-                          "projection_matrix: {rows: 3, cols: 4, data: [152.5, 0.0, 80.25, 0.0, 0.0, 152.5, 59.75, 0.0, "
-                          "0.0, 0.0, 1.0, 0.0]}\n");
+  capture_test::WriteText(
+      dir.File("uav.yaml"),
+      "image_width: 160\nimage_height: 120\ncamera_name: uav\n"
+      "camera_matrix: {rows: 3, cols: 3, data: [152.5, 0.0, 80.25, 0.0, 152.5, 59.75, 0.0, 0.0, "
+      "1.0]}\n"
+      "distortion_model: plumb_bob\n"
+      "distortion_coefficients: {rows: 1, cols: 5, data: [-0.12, 0.03, 0.0004, -0.0002, 0.001]}\n"
+      "rectification_matrix: {rows: 3, cols: 3, data: [1, 0, 0, 0, 1, 0, 0, 0, 1]}\n"
+      "projection_matrix: {rows: 3, cols: 4, data: [152.5, 0.0, 80.25, 0.0, 0.0, 152.5, 59.75, "
+      "0.0, "
+      "0.0, 0.0, 1.0, 0.0]}\n");
   const double clock_offset = -32400.0;  // the camera ran on UTC+9 without OffsetTimeOriginal
   const double geoid = 30.5;
   Recorder rec("/uav/camera");
@@ -248,7 +264,8 @@ TEST(CameraCaptureLive, PhotoFolder) {
                {"first_epoch", 7},
                {"geoid_height", geoid},
                {"site_origin", Doubles({35.1, 139.2, 1200.5 + geoid})}});
-  ASSERT_TRUE(WaitFor([&] { return rec.HasEpochEnd(8); }, 30.0)) << "no end marker of the second epoch";
+  ASSERT_TRUE(WaitFor([&] { return rec.HasEpochEnd(8); }, 30.0))
+      << "no end marker of the second epoch";
   const std::string hw = "folder " + dir.path();
   // Diagnostics are sent every second: wait for one that counts every image.
   EXPECT_TRUE(WaitFor(
@@ -278,7 +295,9 @@ TEST(CameraCaptureLive, PhotoFolder) {
     ASSERT_EQ(img.data.size(), static_cast<size_t>(3 * kWidth * kHeight));
     // The pixels are this photo's (JPEG q95 of its texture).
     const cv::Mat got(kHeight, kWidth, CV_8UC3, const_cast<uint8_t*>(img.data.data()));
-    EXPECT_LT(capture_test::MeanAbsDiff(got, capture_test::TexturedImage(kWidth, kHeight, 3, static_cast<int>(i))), 12.0)
+    EXPECT_LT(capture_test::MeanAbsDiff(
+                  got, capture_test::TexturedImage(kWidth, kHeight, 3, static_cast<int>(i))),
+              12.0)
         << p.name;
 
     const sensor_msgs::CameraInfo& info = infos[i];
@@ -293,7 +312,7 @@ TEST(CameraCaptureLive, PhotoFolder) {
 
     const sensor_msgs::NavSatFix& fix = fixes[i];
     EXPECT_EQ(fix.header.stamp, img.header.stamp);
-    EXPECT_NEAR(fix.latitude, p.lat, 1e-7) << p.name;   // EXIF seconds are stored to 1e-4"
+    EXPECT_NEAR(fix.latitude, p.lat, 1e-7) << p.name;  // EXIF seconds are stored to 1e-4"
     EXPECT_NEAR(fix.longitude, p.lon, 1e-7) << p.name;
     EXPECT_NEAR(fix.altitude, p.alt + geoid, 1e-3) << p.name;
     EXPECT_EQ(fix.status.status, sensor_msgs::NavSatStatus::STATUS_FIX);
@@ -304,7 +323,10 @@ TEST(CameraCaptureLive, PhotoFolder) {
   ASSERT_EQ(epochs.size(), 4u);
   const double t0 = kMay1st10h + clock_offset;
   const std::vector<std::tuple<bool, uint32_t, uint32_t, double>> expected = {
-      {false, 7, 0, t0}, {true, 7, 3, t0 + 3.25}, {false, 8, 0, t0 + 1800.0}, {true, 8, 1, t0 + 1800.0}};
+      {false, 7, 0, t0},
+      {true, 7, 3, t0 + 3.25},
+      {false, 8, 0, t0 + 1800.0},
+      {true, 8, 1, t0 + 1800.0}};
   for (size_t i = 0; i < expected.size(); ++i) {
     EXPECT_EQ(epochs[i].end, std::get<0>(expected[i])) << i;
     EXPECT_EQ(epochs[i].epoch, std::get<1>(expected[i])) << i;
@@ -329,8 +351,10 @@ TEST(CameraCaptureLive, PhotoFolder) {
     if (Contains(l.msg, "img_cut.jpg")) ++skip_logs;
     if (Contains(l.msg, "calibration inconsistent")) ++calibration_logs;
   }
-  EXPECT_EQ(skip_logs, 1) << "one warning naming the truncated file in /rosout (of " << logs.size() << " messages)";
-  EXPECT_EQ(calibration_logs, 0) << "the plumb_bob calibration is representable by the collinearity model";
+  EXPECT_EQ(skip_logs, 1) << "one warning naming the truncated file in /rosout (of " << logs.size()
+                          << " messages)";
+  EXPECT_EQ(calibration_logs, 0)
+      << "the plumb_bob calibration is representable by the collinearity model";
   UnloadCapture("/uav/camera/camera_capture");
 }
 
@@ -432,15 +456,18 @@ TEST(CameraCaptureLive, FixedCameraScheduleWindowsAndTrigger) {
   for (size_t i = 0; i < images.size(); ++i) {
     const double t = images[i]->header.stamp.toSec();
     const double late = t - std::floor(t / interval) * interval;
-    EXPECT_LT(late, 0.5) << "capture " << i << " at " << std::fixed << t << " is not on the schedule";
+    EXPECT_LT(late, 0.5) << "capture " << i << " at " << std::fixed << t
+                         << " is not on the schedule";
     if (i > 0) {
       EXPECT_GE(t - images[i - 1]->header.stamp.toSec(), 0.5 * interval) << i;
     }
     if (i < 10) {
-      EXPECT_NEAR(MeanLevel(*images[i]), 8.0 * i, 3.0) << "capture " << i << " is frame " << i << " of the clip";
+      EXPECT_NEAR(MeanLevel(*images[i]), 8.0 * i, 3.0)
+          << "capture " << i << " is frame " << i << " of the clip";
     }
   }
-  EXPECT_LE(images.size(), static_cast<size_t>(waited / interval) + 2) << "more captures than the interval allows";
+  EXPECT_LE(images.size(), static_cast<size_t>(waited / interval) + 2)
+      << "more captures than the interval allows";
   ASSERT_TRUE(WaitFor([&] { return open_rec.epochs().size() >= 2 * images.size(); }, 3.0));
   const auto open_epochs = open_rec.epochs();
   for (size_t i = 0; i + 1 < 2 * images.size(); i += 2) {
@@ -458,7 +485,8 @@ TEST(CameraCaptureLive, FixedCameraScheduleWindowsAndTrigger) {
   const double asked = ros::WallTime::now().toSec();
   ASSERT_TRUE(ros::service::call("/closed/camera/trigger", trigger));
   EXPECT_TRUE(trigger.response.success) << trigger.response.message;
-  ASSERT_TRUE(WaitFor([&] { return closed_rec.HasEpochEnd(0); }, 10.0)) << "no epoch after the trigger";
+  ASSERT_TRUE(WaitFor([&] { return closed_rec.HasEpochEnd(0); }, 10.0))
+      << "no epoch after the trigger";
   ros::WallDuration(0.3).sleep();
   const auto triggered = closed_rec.images();
   ASSERT_EQ(triggered.size(), 2u);
@@ -487,7 +515,8 @@ TEST(CameraCaptureLive, MissingDeviceNodeStaysUpAndRetries) {
   Recorder rec("/missing_cam/camera");
   const std::string hw = "V4L2 " + device;
   // Two diagnostics at least 2 s apart.
-  ASSERT_TRUE(WaitFor([&] { return !rec.Diagnostics(hw).empty(); }, 10.0)) << "no diagnostics for " << hw;
+  ASSERT_TRUE(WaitFor([&] { return !rec.Diagnostics(hw).empty(); }, 10.0))
+      << "no diagnostics for " << hw;
   const Recorder::Diag first = rec.Diagnostics(hw).front();
   ASSERT_TRUE(WaitFor(
       [&] { return (rec.Diagnostics(hw).back().received - first.received).toSec() >= 2.0; }, 10.0));
@@ -508,9 +537,11 @@ TEST(CameraCaptureLive, MissingDeviceNodeStaysUpAndRetries) {
   // Still up: registered with the master and answering its trigger service.
   std::vector<std::string> nodes;
   ASSERT_TRUE(ros::master::getNodes(nodes));
-  EXPECT_NE(std::find(nodes.begin(), nodes.end(), node), nodes.end()) << node << " is not registered";
+  EXPECT_NE(std::find(nodes.begin(), nodes.end(), node), nodes.end())
+      << node << " is not registered";
   std_srvs::Trigger trigger;
-  ASSERT_TRUE(ros::service::call("/missing_cam/camera/trigger", trigger)) << "the node does not answer";
+  ASSERT_TRUE(ros::service::call("/missing_cam/camera/trigger", trigger))
+      << "the node does not answer";
   EXPECT_FALSE(trigger.response.success);
   EXPECT_TRUE(Contains(trigger.response.message, device)) << trigger.response.message;
 }
@@ -518,4 +549,6 @@ TEST(CameraCaptureLive, MissingDeviceNodeStaysUpAndRetries) {
 }  // namespace
 }  // namespace slope_monitor
 
-int main(int argc, char** argv) { return slope_monitor::rostest_node::RunTests(argc, argv, "camera_capture_live_test"); }
+int main(int argc, char** argv) {
+  return slope_monitor::rostest_node::RunTests(argc, argv, "camera_capture_live_test");
+}

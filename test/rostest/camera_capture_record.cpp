@@ -19,18 +19,18 @@
 #include <regex>
 #include <sstream>
 
+#include <XmlRpcValue.h>
 #include <gtest/gtest.h>
 #include <nodelet/NodeletLoad.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
 #include <std_msgs/String.h>
-#include <XmlRpcValue.h>
 
 #include "../core/capture/test_images.h"
-#include "test_node.h"
 #include "slope_monitor/EpochMarker.h"
 #include "slope_monitor/RadioSampleBlock.h"
 #include "slope_monitor/ros/capture_conversions.h"
+#include "test_node.h"
 
 namespace slope_monitor {
 namespace {
@@ -46,7 +46,8 @@ std::vector<std::string> Subscribers(const std::string& topic) {
   XmlRpc::XmlRpcValue& subs = payload[1];
   for (int i = 0; i < subs.size(); ++i) {
     if (static_cast<std::string>(subs[i][0]) != topic) continue;
-    for (int j = 0; j < subs[i][1].size(); ++j) out.push_back(static_cast<std::string>(subs[i][1][j]));
+    for (int j = 0; j < subs[i][1].size(); ++j)
+      out.push_back(static_cast<std::string>(subs[i][1][j]));
   }
   return out;
 }
@@ -70,7 +71,8 @@ std::string RunCommand(const std::string& command, int* status) {
 TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
   capture_test::TempDir photos("record_photos"), out("record_bags");
   constexpr int kW = 640, kH = 480;
-  const std::vector<std::string> times = {"10:00:00", "10:00:01", "10:00:02", "11:00:00", "11:00:01", "11:00:02"};
+  const std::vector<std::string> times = {"10:00:00", "10:00:01", "10:00:02",
+                                          "11:00:00", "11:00:01", "11:00:02"};
   for (size_t i = 0; i < times.size(); ++i) {
     capture_test::ExifTags t;
     t.date_time = "2024:05:01 " + times[i];
@@ -87,12 +89,13 @@ TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
   std::mutex mutex;
   int published = 0;
   bool last_epoch_ended = false;
-  ros::Subscriber image_sub = nh.subscribe<sensor_msgs::Image>("image_raw", 10, [&](const sensor_msgs::ImageConstPtr&) {
-    std::lock_guard<std::mutex> l(mutex);
-    ++published;
-  });
-  ros::Subscriber epoch_sub =
-      nh.subscribe<slope_monitor::EpochMarker>("epoch", 10, [&](const slope_monitor::EpochMarkerConstPtr& m) {
+  ros::Subscriber image_sub =
+      nh.subscribe<sensor_msgs::Image>("image_raw", 10, [&](const sensor_msgs::ImageConstPtr&) {
+        std::lock_guard<std::mutex> l(mutex);
+        ++published;
+      });
+  ros::Subscriber epoch_sub = nh.subscribe<slope_monitor::EpochMarker>(
+      "epoch", 10, [&](const slope_monitor::EpochMarkerConstPtr& m) {
         std::lock_guard<std::mutex> l(mutex);
         if (m->end && m->epoch == 1) last_epoch_ended = true;
       });
@@ -104,8 +107,8 @@ TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
   if (launch == 0) {
     const std::string dir_arg = "dir:=" + out.path();
     execlp("roslaunch", "roslaunch", "slope_monitor", "record.launch", ("site:=" + site).c_str(),
-           ("date:=" + date).c_str(), dir_arg.c_str(), "compression:=lz4", "split_size:=1", "split_duration:=1h",
-           static_cast<char*>(nullptr));
+           ("date:=" + date).c_str(), dir_arg.c_str(), "compression:=lz4", "split_size:=1",
+           "split_duration:=1h", static_cast<char*>(nullptr));
     _exit(127);
   }
   struct Stopper {
@@ -131,14 +134,16 @@ TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
 
   // A radio receiver's samples (recorded) and an unrelated topic (not).
   ros::NodeHandle root;
-  ros::Publisher radio_pub = root.advertise<slope_monitor::RadioSampleBlock>("/radio/rx_test/samples", 10);
+  ros::Publisher radio_pub =
+      root.advertise<slope_monitor::RadioSampleBlock>("/radio/rx_test/samples", 10);
   ros::Publisher other_pub = root.advertise<std_msgs::String>("/field_notes/chatter", 10);
 
   const std::string recorder = "/record_" + site;
   ASSERT_TRUE(WaitFor(
       [&] {
         std::vector<std::string> nodes;
-        return ros::master::getNodes(nodes) && std::find(nodes.begin(), nodes.end(), recorder) != nodes.end();
+        return ros::master::getNodes(nodes) &&
+               std::find(nodes.begin(), nodes.end(), recorder) != nodes.end();
       },
       40.0))
       << recorder << " did not start";
@@ -146,8 +151,11 @@ TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
   // The capture nodelet: publishing starts start_delay after loading, by
   // when the recorder (which polls the master every second) has subscribed.
   const std::string name = "/rec/camera/camera_capture";
-  const std::map<std::string, XmlRpc::XmlRpcValue> params = {
-      {"source", "folder"}, {"folder", photos.path()}, {"rate", 5.0}, {"start_delay", 4.0}, {"epoch_gap", 600.0}};
+  const std::map<std::string, XmlRpc::XmlRpcValue> params = {{"source", "folder"},
+                                                             {"folder", photos.path()},
+                                                             {"rate", 5.0},
+                                                             {"start_delay", 4.0},
+                                                             {"epoch_gap", 600.0}};
   for (const auto& [key, value] : params) ros::param::set(name + "/" + key, value);
   ASSERT_TRUE(ros::service::waitForService("/capture_manager/load_nodelet", ros::Duration(30.0)));
   nodelet::NodeletLoad load;
@@ -167,7 +175,8 @@ TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
   ASSERT_TRUE(WaitFor(
       [&] {
         const auto s = Subscribers("/radio/rx_test/samples");
-        return std::find(s.begin(), s.end(), recorder) != s.end() && radio_pub.getNumSubscribers() > 0;
+        return std::find(s.begin(), s.end(), recorder) != s.end() &&
+               radio_pub.getNumSubscribers() > 0;
       },
       10.0))
       << recorder << " did not subscribe to /radio/rx_test/samples";
@@ -219,21 +228,24 @@ TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
     std::ifstream in(path, std::ios::binary);
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     EXPECT_NE(bytes.find("compression=lz4"), std::string::npos) << path << " has no lz4 chunk";
-    EXPECT_EQ(bytes.find("compression=none"), std::string::npos) << path << " has an uncompressed chunk";
+    EXPECT_EQ(bytes.find("compression=none"), std::string::npos)
+        << path << " has an uncompressed chunk";
   }
 
   // The bag_check tool: each split file on its own (all readable, counts add
   // up), then the files as one session (epoch boundaries across the splits).
   const std::regex topic_line(R"(^  (/\S+)  (\S+)  (\d+) msgs .*)");
   const std::regex epoch_line(R"(^  (start|end)\s+epoch (\d+) at [0-9.]+(  count (\d+))?.*)");
-  auto parse = [&](const std::string& report, std::map<std::string, int>* counts, std::vector<std::string>* boundaries) {
+  auto parse = [&](const std::string& report, std::map<std::string, int>* counts,
+                   std::vector<std::string>* boundaries) {
     std::istringstream lines(report);
     std::string line;
     while (std::getline(lines, line)) {
       std::smatch m;
       if (std::regex_match(line, m, topic_line)) (*counts)[m[1]] += std::stoi(m[3]);
       if (std::regex_match(line, m, epoch_line)) {
-        boundaries->push_back(m[1].str() + " " + m[2].str() + (m[4].matched ? " " + m[4].str() : ""));
+        boundaries->push_back(m[1].str() + " " + m[2].str() +
+                              (m[4].matched ? " " + m[4].str() : ""));
       }
     }
   };
@@ -243,20 +255,24 @@ TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
   std::map<std::string, int> file_counts;
   std::vector<std::string> file_boundaries;
   parse(per_file, &file_counts, &file_boundaries);
-  const std::string report = RunCommand("rosrun slope_monitor bag_check --session" + files, &status);
+  const std::string report =
+      RunCommand("rosrun slope_monitor bag_check --session" + files, &status);
   EXPECT_EQ(status, 0) << report;
   std::map<std::string, int> counts;
   std::vector<std::string> boundaries;
   parse(report, &counts, &boundaries);
-  for (const char* topic : {"/rec/camera/image_raw", "/rec/camera/camera_info", "/rec/camera/gnss/fix"}) {
+  for (const char* topic :
+       {"/rec/camera/image_raw", "/rec/camera/camera_info", "/rec/camera/gnss/fix"}) {
     EXPECT_EQ(counts[topic], 6) << topic << "\n" << report;
     EXPECT_EQ(file_counts[topic], 6) << topic << "\n" << per_file;
   }
   EXPECT_EQ(counts["/rec/camera/epoch"], 4) << report;
   EXPECT_EQ(counts["/radio/rx_test/samples"], 5) << report;
-  EXPECT_EQ(counts.count("/field_notes/chatter"), 0u) << "recorded a topic outside topics_regex\n" << report;
+  EXPECT_EQ(counts.count("/field_notes/chatter"), 0u) << "recorded a topic outside topics_regex\n"
+                                                      << report;
   EXPECT_EQ(file_counts["/rec/camera/epoch"], 4) << per_file;
-  EXPECT_EQ(boundaries, (std::vector<std::string>{"start 0", "end 0 3", "start 1", "end 1 3"})) << report;
+  EXPECT_EQ(boundaries, (std::vector<std::string>{"start 0", "end 0 3", "start 1", "end 1 3"}))
+      << report;
 
   // The same through the library, and the images in the bags are the photos.
   int images = 0;
@@ -275,4 +291,6 @@ TEST(CameraCaptureRecord, RecordLaunchSplitsCompressesAndBagCheckReports) {
 }  // namespace
 }  // namespace slope_monitor
 
-int main(int argc, char** argv) { return slope_monitor::rostest_node::RunTests(argc, argv, "camera_capture_record_test"); }
+int main(int argc, char** argv) {
+  return slope_monitor::rostest_node::RunTests(argc, argv, "camera_capture_record_test");
+}

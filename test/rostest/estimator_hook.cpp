@@ -13,9 +13,9 @@
 
 #include "../core/deformation/hook_json.h"
 #include "../core/deformation/test_scenario.h"
-#include "slope_monitor/core/common/format.h"
 #include "slope_monitor/PointDisplacementArray.h"
 #include "slope_monitor/SlopeDeformation.h"
+#include "slope_monitor/core/common/format.h"
 #include "slope_monitor/ros/deformation_conversions.h"
 #include "test_node.h"
 

@@ -19,10 +19,10 @@
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/NodeletLoad.h>
 #include <nodelet/NodeletUnload.h>
+#include <ros/ros.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <rosgraph_msgs/Log.h>
-#include <ros/ros.h>
 #include <std_srvs/SetBool.h>
 
 #include <gtest/gtest.h>
@@ -141,7 +141,8 @@ void CheckCorruptDatabase(const std::string& manager, const std::string& path) {
   const std::string name = "/estimator_corrupt/deformation_estimator";
   ros::param::set(name + "/database", path);
   ros::param::set(name + "/report_dir", path + ".reports");
-  ros::param::set(name + "/input_topics", std::vector<std::string>{"/bundle_adjuster/displacements"});
+  ros::param::set(name + "/input_topics",
+                  std::vector<std::string>{"/bundle_adjuster/displacements"});
   // Loud failure (issue 22): the refused node publishes ERROR diagnostics naming the file.
   std::mutex diag_mutex;
   std::string diag_error;
@@ -149,12 +150,14 @@ void CheckCorruptDatabase(const std::string& manager, const std::string& path) {
   ros::Subscriber diag_sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
       "/diagnostics", 10, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
         for (const auto& st : m->status)
-          if (st.level == diagnostic_msgs::DiagnosticStatus::ERROR && st.message.find(path) != std::string::npos) {
+          if (st.level == diagnostic_msgs::DiagnosticStatus::ERROR &&
+              st.message.find(path) != std::string::npos) {
             std::lock_guard<std::mutex> lock(diag_mutex);
             diag_error = st.message;
           }
       });
-  ASSERT_TRUE(Load(manager, name)) << "load_nodelet " << name;  // onInit logs and returns; the load itself succeeds
+  ASSERT_TRUE(Load(manager, name))
+      << "load_nodelet " << name;  // onInit logs and returns; the load itself succeeds
   for (int i = 0; i < 600; ++i) {
     {
       std::lock_guard<std::mutex> lock(diag_mutex);
@@ -176,19 +179,22 @@ void CheckCorruptDatabase(const std::string& manager, const std::string& path) {
     hits = log_listener->Find(path);
   }
   if (hits.empty()) {
-    for (const std::string& l : log_listener->Find("deformation_estimator")) std::cout << "log: " << l << "\n";
+    for (const std::string& l : log_listener->Find("deformation_estimator"))
+      std::cout << "log: " << l << "\n";
   }
   ASSERT_FALSE(hits.empty()) << "no log message names the corrupt database " << path;
   std::cout << "corrupt database message: " << hits.front() << "\n";
   EXPECT_NE(hits.front().find("refusing"), std::string::npos) << hits.front();
-  EXPECT_FALSE(TopicAdvertised("/estimator_corrupt/deformation")) << "an estimator on a corrupt database advertised";
+  EXPECT_FALSE(TopicAdvertised("/estimator_corrupt/deformation"))
+      << "an estimator on a corrupt database advertised";
   EXPECT_EQ(ReadFile(path), garbage) << path << " was modified";
   EXPECT_TRUE(Unload(manager, name));
   ros::param::del("/estimator_corrupt");
 }
 
 void ExpectSameHistory(const evaluation::DeformationEvaluation& restarted,
-                       const evaluation::DeformationEvaluation& reference, double max_dd, double max_dv) {
+                       const evaluation::DeformationEvaluation& reference, double max_dd,
+                       double max_dv) {
   EXPECT_EQ(restarted.points.size(), reference.points.size());
   EXPECT_EQ(restarted.reference_stamp, reference.reference_stamp);
   double worst_d = 0.0, worst_v = 0.0, worst_sigma = 0.0;
@@ -203,8 +209,10 @@ void ExpectSameHistory(const evaluation::DeformationEvaluation& restarted,
     worst_d = std::max(worst_d, dd);
     worst_v = std::max(worst_v, dv);
     worst_sigma = std::max(worst_sigma, ds);
-    EXPECT_LE(dd, max_dd) << r.id << ": displacement " << p->estimate.transpose() << " vs " << r.estimate.transpose();
-    EXPECT_LE(dv, max_dv) << r.id << ": velocity " << p->velocity.transpose() << " vs " << r.velocity.transpose();
+    EXPECT_LE(dd, max_dd) << r.id << ": displacement " << p->estimate.transpose() << " vs "
+                          << r.estimate.transpose();
+    EXPECT_LE(dv, max_dv) << r.id << ": velocity " << p->velocity.transpose() << " vs "
+                          << r.velocity.transpose();
     EXPECT_LE(ds, max_dd) << r.id << ": sigma " << p->Sigma() << " vs " << r.Sigma();
     EXPECT_EQ(p->alert_level, r.alert_level) << r.id;
     EXPECT_EQ(p->forecast_valid, r.forecast_valid) << r.id;
@@ -220,8 +228,8 @@ void ExpectSameHistory(const evaluation::DeformationEvaluation& restarted,
 
 TEST(EstimatorRestart, HistorySurvivesAndFinalNumbersEqualUninterruptedRun) {
   ros::NodeHandle pnh("~");
-  std::string bag_path, truth_path, database, reference_database, corrupt_database, manager, nodelet_name,
-      pause_service;
+  std::string bag_path, truth_path, database, reference_database, corrupt_database, manager,
+      nodelet_name, pause_service;
   ASSERT_TRUE(pnh.getParam("bag", bag_path));
   ASSERT_TRUE(pnh.getParam("truth_file", truth_path));
   ASSERT_TRUE(pnh.getParam("database", database));
@@ -255,7 +263,8 @@ TEST(EstimatorRestart, HistorySurvivesAndFinalNumbersEqualUninterruptedRun) {
   };
 
   // 1. Play to half-way between the 2nd and the 3rd epoch, pause, let the graph drain.
-  ASSERT_TRUE(wait_clock(bag_start + ros::Duration(restart_after))) << "clock never reached the restart point";
+  ASSERT_TRUE(wait_clock(bag_start + ros::Duration(restart_after)))
+      << "clock never reached the restart point";
   ASSERT_TRUE(ros::service::waitForService(pause_service, 5000)) << pause_service;
   ASSERT_TRUE(Pause(pause_service, true)) << "could not pause playback via " << pause_service;
   const ros::Time paused_at = ros::Time::now();
@@ -266,7 +275,8 @@ TEST(EstimatorRestart, HistorySurvivesAndFinalNumbersEqualUninterruptedRun) {
     int last_count = restarted_listener->count();
     ros::WallTime last_change = ros::WallTime::now();
     while ((ros::WallTime::now() - last_change).toSec() < quiet) {
-      ASSERT_LT((ros::WallTime::now() - start).toSec(), timeout) << "the estimator never went quiet while paused";
+      ASSERT_LT((ros::WallTime::now() - start).toSec(), timeout)
+          << "the estimator never went quiet while paused";
       ros::WallDuration(0.1).sleep();
       if (restarted_listener->count() != last_count) {
         last_count = restarted_listener->count();
@@ -276,25 +286,29 @@ TEST(EstimatorRestart, HistorySurvivesAndFinalNumbersEqualUninterruptedRun) {
   }
   ASSERT_GT(restarted_listener->count(), 0) << "the estimator published nothing before the restart";
   const slope_monitor::SlopeDeformation before = restarted_listener->last();
-  std::cout << "paused at bag time +" << (paused_at - bag_start).toSec() << " s; before restart: epoch " << before.epoch
-            << ", reference epoch " << before.reference_epoch << ", " << before.points.size() << " points\n";
+  std::cout << "paused at bag time +" << (paused_at - bag_start).toSec()
+            << " s; before restart: epoch " << before.epoch << ", reference epoch "
+            << before.reference_epoch << ", " << before.points.size() << " points\n";
   ASSERT_GE(before.epoch, 1u) << "the 2nd epoch had not reached the estimator";
   ASSERT_GT(before.points.size(), 0u);
 
   // 2. Kill (unload) the estimator; check a corrupt database meanwhile; restart it.
   ASSERT_TRUE(Unload(manager, nodelet_name)) << "unload_nodelet " << nodelet_name;
   ros::WallDuration(1.0).sleep();
-  EXPECT_FALSE(TopicAdvertised("/deformation_estimator/deformation")) << "still advertised after unload";
+  EXPECT_FALSE(TopicAdvertised("/deformation_estimator/deformation"))
+      << "still advertised after unload";
   CheckCorruptDatabase(manager, corrupt_database);
   const int count_before_load = restarted_listener->count();
   ASSERT_TRUE(Load(manager, nodelet_name)) << "load_nodelet " << nodelet_name;
-  for (int i = 0; i < 100 && restarted_listener->count() == count_before_load; ++i) ros::WallDuration(0.1).sleep();
-  ASSERT_GT(restarted_listener->count(), count_before_load) << "the restarted estimator did not publish its resumed state";
+  for (int i = 0; i < 100 && restarted_listener->count() == count_before_load; ++i)
+    ros::WallDuration(0.1).sleep();
+  ASSERT_GT(restarted_listener->count(), count_before_load)
+      << "the restarted estimator did not publish its resumed state";
   // The first message after the load is the resumed state (published in
   // onInit, before anything new is processed).
   const slope_monitor::SlopeDeformation after = restarted_listener->at(count_before_load);
-  std::cout << "after restart: epoch " << after.epoch << ", reference epoch " << after.reference_epoch << ", "
-            << after.points.size() << " points\n";
+  std::cout << "after restart: epoch " << after.epoch << ", reference epoch "
+            << after.reference_epoch << ", " << after.points.size() << " points\n";
   EXPECT_EQ(after.reference_epoch, before.reference_epoch);
   EXPECT_EQ(after.reference_stamp, before.reference_stamp);
   // At unload the estimator fuses the batches that still waited for the
@@ -310,9 +324,12 @@ TEST(EstimatorRestart, HistorySurvivesAndFinalNumbersEqualUninterruptedRun) {
   for (size_t i = 0; same_state && i < std::min(after.points.size(), before.points.size()); ++i) {
     EXPECT_EQ(after.points[i].point_id, before.points[i].point_id);
     // The same state, replayed from the database: the same numbers.
-    EXPECT_NEAR(after.points[i].displacement.x, before.points[i].displacement.x, 1e-9) << before.points[i].point_id;
-    EXPECT_NEAR(after.points[i].displacement.y, before.points[i].displacement.y, 1e-9) << before.points[i].point_id;
-    EXPECT_NEAR(after.points[i].displacement.z, before.points[i].displacement.z, 1e-9) << before.points[i].point_id;
+    EXPECT_NEAR(after.points[i].displacement.x, before.points[i].displacement.x, 1e-9)
+        << before.points[i].point_id;
+    EXPECT_NEAR(after.points[i].displacement.y, before.points[i].displacement.y, 1e-9)
+        << before.points[i].point_id;
+    EXPECT_NEAR(after.points[i].displacement.z, before.points[i].displacement.z, 1e-9)
+        << before.points[i].point_id;
   }
   // Let the new subscriptions connect to the adjuster and the radio solver.
   ros::WallDuration(3.0).sleep();
@@ -324,10 +341,12 @@ TEST(EstimatorRestart, HistorySurvivesAndFinalNumbersEqualUninterruptedRun) {
   std::cout << "wall time " << (ros::WallTime::now() - start).toSec() << " s\n";
   const sim::SurveyTruth truth = sim::SurveyTruth::Load(truth_path);
   const evaluation::DeformationEvaluation restarted = evaluation::EvaluateHistory(database, truth);
-  const evaluation::DeformationEvaluation reference = evaluation::EvaluateHistory(reference_database, truth);
+  const evaluation::DeformationEvaluation reference =
+      evaluation::EvaluateHistory(reference_database, truth);
   std::cout << "restarted run:\n" << evaluation::FormatTable(restarted);
   std::cout << "uninterrupted run:\n" << evaluation::FormatTable(reference);
-  EXPECT_GT(restarted_listener->last().epoch, before.epoch) << "no epoch reached the estimator after the restart";
+  EXPECT_GT(restarted_listener->last().epoch, before.epoch)
+      << "no epoch reached the estimator after the restart";
   ExpectSameHistory(restarted, reference, max_dd, max_dv);
 
   // The restarted run is still right (a restart that lost the datum or the
@@ -336,8 +355,8 @@ TEST(EstimatorRestart, HistorySurvivesAndFinalNumbersEqualUninterruptedRun) {
   for (const auto& p : restarted.points)
     if (p.role == "monitoring") {
       ++monitoring;
-      EXPECT_LE(p.NormalisedError(), max_nees) << p.id << ": error " << p.Error().transpose() * 1e3 << " mm, sigma "
-                                               << p.Sigma() * 1e3 << " mm";
+      EXPECT_LE(p.NormalisedError(), max_nees) << p.id << ": error " << p.Error().transpose() * 1e3
+                                               << " mm, sigma " << p.Sigma() * 1e3 << " mm";
     }
   EXPECT_GE(monitoring, 6) << "monitoring targets in the restarted history";
 }
@@ -349,8 +368,8 @@ int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "estimator_restart_test");
   ros::NodeHandle nh;
-  slope_monitor::restarted_listener =
-      std::make_unique<slope_monitor::DeformationListener>(nh, "/deformation_estimator/deformation");
+  slope_monitor::restarted_listener = std::make_unique<slope_monitor::DeformationListener>(
+      nh, "/deformation_estimator/deformation");
   slope_monitor::log_listener = std::make_unique<slope_monitor::LogListener>(nh);
   ros::AsyncSpinner spinner(2);
   spinner.start();

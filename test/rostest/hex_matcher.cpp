@@ -16,11 +16,11 @@
 #include <cv_bridge/cv_bridge.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Log.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/image_encodings.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "slope_monitor/TiePointArray.h"
 #include "test_node.h"
@@ -39,25 +39,29 @@ class HexMatcherRos : public ::testing::Test {
     ros::NodeHandle nh;
     pub_a_ = nh.advertise<sensor_msgs::Image>("/hm_test/image_a", 5);
     pub_b_ = nh.advertise<sensor_msgs::Image>("/hm_test/image_b", 5);
-    sub_ = nh.subscribe<slope_monitor::TiePointArray>("/tie_points", 20,
-                                                      [this](const slope_monitor::TiePointArrayConstPtr& m) {
-                                                        std::lock_guard<std::mutex> l(mutex_);
-                                                        ties_.push_back(*m);
-                                                      });
+    sub_ = nh.subscribe<slope_monitor::TiePointArray>(
+        "/tie_points", 20, [this](const slope_monitor::TiePointArrayConstPtr& m) {
+          std::lock_guard<std::mutex> l(mutex_);
+          ties_.push_back(*m);
+        });
     diag_ = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
         "/diagnostics", 100, [this](const diagnostic_msgs::DiagnosticArrayConstPtr& m) {
           std::lock_guard<std::mutex> l(mutex_);
           for (const auto& s : m->status)
             if (s.hardware_id == "hex_matcher") diags_.push_back(s);
         });
-    log_ = nh.subscribe<rosgraph_msgs::Log>("/rosout", 1000, [this](const rosgraph_msgs::LogConstPtr& m) {
-      std::lock_guard<std::mutex> l(mutex_);
-      logs_.push_back(*m);
-    });
+    log_ = nh.subscribe<rosgraph_msgs::Log>("/rosout", 1000,
+                                            [this](const rosgraph_msgs::LogConstPtr& m) {
+                                              std::lock_guard<std::mutex> l(mutex_);
+                                              logs_.push_back(*m);
+                                            });
     spinner_.start();
-    ASSERT_TRUE(WaitFor([&] { return pub_a_.getNumSubscribers() > 0 && pub_b_.getNumSubscribers() > 0 &&
-                                     sub_.getNumPublishers() > 0; },
-                        60.0))
+    ASSERT_TRUE(WaitFor(
+        [&] {
+          return pub_a_.getNumSubscribers() > 0 && pub_b_.getNumSubscribers() > 0 &&
+                 sub_.getNumPublishers() > 0;
+        },
+        60.0))
         << "hex_matcher did not subscribe to /hm_test/image_a, image_b or advertise /tie_points";
     const std::string path = std::string(SM_TEST_DATA_DIR) + "/stereo_middlebury_cones/left.tif";
     cv::Mat grey = cv::imread(path, cv::IMREAD_GRAYSCALE);
@@ -77,8 +81,8 @@ class HexMatcherRos : public ::testing::Test {
     return out;
   }
 
-  void Publish(const cv::Mat& a, const std::string& enc_a, const cv::Mat& b, const std::string& enc_b,
-               double stamp) {
+  void Publish(const cv::Mat& a, const std::string& enc_a, const cv::Mat& b,
+               const std::string& enc_b, double stamp) {
     std_msgs::Header h;
     h.stamp = ros::Time(stamp);
     h.frame_id = "cam_a";
@@ -104,7 +108,8 @@ class HexMatcherRos : public ::testing::Test {
   bool LogSays(const std::string& part) {
     std::lock_guard<std::mutex> l(mutex_);
     for (const auto& m : logs_)
-      if (m.level >= rosgraph_msgs::Log::ERROR && m.msg.find(part) != std::string::npos) return true;
+      if (m.level >= rosgraph_msgs::Log::ERROR && m.msg.find(part) != std::string::npos)
+        return true;
     return false;
   }
 
@@ -113,8 +118,10 @@ class HexMatcherRos : public ::testing::Test {
     const size_t before = TieCount();
     const int x0 = 40, y0 = 40;
     // b at xb sees the scene point at xb + (x0 - kShift.x, ...) = xa + x0 => xb = xa + kShift.
-    Publish(Crop(x0, y0, seed), "mono8", Crop(x0 - kShift.x, y0 - kShift.y, seed + 1), "mono8", stamp);
-    ASSERT_TRUE(WaitFor([&] { return TieCount() > before; }, 30.0)) << "no tie points for the good pair at " << stamp;
+    Publish(Crop(x0, y0, seed), "mono8", Crop(x0 - kShift.x, y0 - kShift.y, seed + 1), "mono8",
+            stamp);
+    ASSERT_TRUE(WaitFor([&] { return TieCount() > before; }, 30.0))
+        << "no tie points for the good pair at " << stamp;
     const slope_monitor::TiePointArray t = LastTies();
     EXPECT_DOUBLE_EQ(t.header.stamp.toSec(), stamp);
     EXPECT_EQ(t.header_a.frame_id, "cam_a");
@@ -132,8 +139,10 @@ class HexMatcherRos : public ::testing::Test {
       sum2 += e * e;
     }
     const double rms = std::sqrt(sum2 / std::max(1, normal));
-    std::printf("good pair at %.0f: %zu tie points, %d normal quality, %d within 0.2 px of the shift, RMS %.3f px\n",
-                stamp, t.points.size(), normal, correct, rms);
+    std::printf(
+        "good pair at %.0f: %zu tie points, %d normal quality, %d within 0.2 px of the shift, RMS "
+        "%.3f px\n",
+        stamp, t.points.size(), normal, correct, rms);
     EXPECT_GT(normal, 100);
     EXPECT_GE(correct, 0.98 * normal);
     EXPECT_LT(rms, 0.1);
@@ -154,8 +163,10 @@ TEST_F(HexMatcherRos, KnownShiftBadInputAndRecovery) {
 
   // Different sizes: dropped, named in the log and in diagnostics, nothing published.
   size_t before = TieCount();
-  Publish(Crop(40, 40, 3), "mono8", Crop(40, 40, 4)(cv::Rect(0, 0, kW - 20, kH)).clone(), "mono8", 200.0);
-  EXPECT_TRUE(WaitFor([&] { return LogSays("differ in size"); }, 20.0)) << "no error naming the size mismatch";
+  Publish(Crop(40, 40, 3), "mono8", Crop(40, 40, 4)(cv::Rect(0, 0, kW - 20, kH)).clone(), "mono8",
+          200.0);
+  EXPECT_TRUE(WaitFor([&] { return LogSays("differ in size"); }, 20.0))
+      << "no error naming the size mismatch";
   EXPECT_TRUE(WaitFor([&] { return DiagnosticSays("differ in size"); }, 20.0));
   EXPECT_EQ(TieCount(), before);
 
@@ -169,8 +180,10 @@ TEST_F(HexMatcherRos, KnownShiftBadInputAndRecovery) {
   EXPECT_EQ(TieCount(), before);
 
   // Textureless pair: a clear outcome (an empty tie-point set), no fake matches.
-  Publish(cv::Mat(kH, kW, CV_8U, cv::Scalar(120)), "mono8", cv::Mat(kH, kW, CV_8U, cv::Scalar(121)), "mono8", 400.0);
-  ASSERT_TRUE(WaitFor([&] { return TieCount() > before; }, 30.0)) << "no answer to the textureless pair";
+  Publish(cv::Mat(kH, kW, CV_8U, cv::Scalar(120)), "mono8", cv::Mat(kH, kW, CV_8U, cv::Scalar(121)),
+          "mono8", 400.0);
+  ASSERT_TRUE(WaitFor([&] { return TieCount() > before; }, 30.0))
+      << "no answer to the textureless pair";
   EXPECT_EQ(LastTies().points.size(), 0u);
 
   // Still running: the next good pair is matched as before.
@@ -191,17 +204,22 @@ TEST_F(HexMatcherRos, ExcludeBoxesMarkTheOutlinedMatches) {
         std::lock_guard<std::mutex> l(m);
         got.push_back(*t);
       });
-  ASSERT_TRUE(WaitFor([&] { return pa.getNumSubscribers() > 0 && pb.getNumSubscribers() > 0 &&
-                                   sub.getNumPublishers() > 0; },
-                      60.0));
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        return pa.getNumSubscribers() > 0 && pb.getNumSubscribers() > 0 &&
+               sub.getNumPublishers() > 0;
+      },
+      60.0));
   std_msgs::Header h;
   h.stamp = ros::Time(1000.0);
   pa.publish(cv_bridge::CvImage(h, "mono8", Crop(40, 40, 11)).toImageMsg());
   pb.publish(cv_bridge::CvImage(h, "mono8", Crop(40 - kShift.x, 40 - kShift.y, 12)).toImageMsg());
-  ASSERT_TRUE(WaitFor([&] {
-    std::lock_guard<std::mutex> l(m);
-    return !got.empty();
-  }, 30.0));
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        std::lock_guard<std::mutex> l(m);
+        return !got.empty();
+      },
+      30.0));
   std::lock_guard<std::mutex> l(m);
   int inside = 0, outside_normal = 0, outside = 0;
   for (const auto& p : got.back().points) {
@@ -210,11 +228,15 @@ TEST_F(HexMatcherRos, ExcludeBoxesMarkTheOutlinedMatches) {
       EXPECT_LE(p.quality, 0.25) << "(" << p.xa << ", " << p.ya << ") inside the box";
     } else {
       ++outside;
-      if (p.quality > 0.25 && std::hypot(p.xb - p.xa - kShift.x, p.yb - p.ya - kShift.y) <= 0.2) ++outside_normal;
+      if (p.quality > 0.25 && std::hypot(p.xb - p.xa - kShift.x, p.yb - p.ya - kShift.y) <= 0.2)
+        ++outside_normal;
     }
   }
-  std::printf("exclude_boxes: %d tie points inside the box (all low quality), %d outside, %d of them normal and "
-              "within 0.2 px\n", inside, outside, outside_normal);
+  std::printf(
+      "exclude_boxes: %d tie points inside the box (all low quality), %d outside, %d of them "
+      "normal and "
+      "within 0.2 px\n",
+      inside, outside, outside_normal);
   EXPECT_GT(inside, 10);
   EXPECT_GE(outside_normal, 0.97 * outside);
 }

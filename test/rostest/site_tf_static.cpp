@@ -106,7 +106,8 @@ std::string ReadText(const std::string& path) {
 pid_t StartEcho(const std::string& topic, const std::string& output_file) {
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, output_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&actions, 1, output_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
+                                   0644);
   posix_spawn_file_actions_adddup2(&actions, 1, 2);
   std::vector<std::string> argv = {"rostopic", "echo", "-n", "1", "--noarr", topic};
   std::vector<char*> args;
@@ -155,8 +156,8 @@ TEST(SiteTfStatic, ParametersSitUnderTheNodeNameOnce) {
         "/bundle_adjuster/epoch_wait", "/bundle_adjuster/site_file",
         "/radio/radio_phase_solver/site_file", "/dense/dense_matcher/report_dir"})
     EXPECT_TRUE(ros::param::has(key)) << key;
-  for (const char* doubled : {"/deformation_estimator/deformation_estimator",
-                              "/bundle_adjuster/bundle_adjuster"})
+  for (const char* doubled :
+       {"/deformation_estimator/deformation_estimator", "/bundle_adjuster/bundle_adjuster"})
     EXPECT_FALSE(ros::param::has(doubled)) << doubled;
   for (const char* service : {"/bundle_adjuster/run_adjustment", "/bundle_adjuster/resect_camera",
                               "/deformation_estimator/export_report"})
@@ -212,7 +213,8 @@ void StartEchoes(const ros::NodeHandle& pnh) {
   }
   for (const auto& [topic, nodes] : SystemState(0)) {
     // rosout and the nodelet manager's bond are ROS's, not the graph's outputs
-    if (topic == "/rosout" || (topic.size() > 5 && topic.compare(topic.size() - 5, 5, "/bond") == 0) ||
+    if (topic == "/rosout" ||
+        (topic.size() > 5 && topic.compare(topic.size() - 5, 5, "/bond") == 0) ||
         !AnyGraphNode(nodes))
       continue;
     EXPECT_TRUE(echoed_packages.count(package(type_of[topic])))
@@ -221,7 +223,8 @@ void StartEchoes(const ros::NodeHandle& pnh) {
   }
   std::filesystem::create_directories(tools_dir);
   for (const std::string& t : topics) {
-    Echo e{t, echoes.size() < with_message, -1, tools_dir + "/echo" + std::to_string(echoes.size()) + ".txt"};
+    Echo e{t, echoes.size() < with_message, -1,
+           tools_dir + "/echo" + std::to_string(echoes.size()) + ".txt"};
     e.pid = StartEcho(t, e.output_file);
     ASSERT_GT(e.pid, 0) << "cannot start rostopic";
     echoes.push_back(e);
@@ -280,17 +283,19 @@ TEST(SiteTfStatic, RosToolsEchoEveryOutputPackageAndCallEveryService) {
     if (!AnyGraphNode(nodes) || leaf == "get_loggers" || leaf == "set_logger_level" ||
         leaf == "load_nodelet" || leaf == "unload_nodelet" || leaf == "list")
       continue;
-    EXPECT_TRUE(listed.count(service)) << "the graph offers " << service
-                                       << ", which the test's services list does not call";
+    EXPECT_TRUE(listed.count(service))
+        << "the graph offers " << service << ", which the test's services list does not call";
   }
   for (int i = 0; i < calls.size(); ++i) {
     const std::string name = calls[i]["name"];
     const std::string args = calls[i]["args"];
     const bool success = calls[i]["success"];
-    const run_command::CommandRun r = run_command::Run("rosservice call " + name + " '" + args + "'");
+    const run_command::CommandRun r =
+        run_command::Run("rosservice call " + name + " '" + args + "'");
     EXPECT_EQ(r.status, 0) << "rosservice call " << name << " '" << args << "':\n" << r.output;
     EXPECT_NE(r.output.find(success ? "success: True" : "success: False"), std::string::npos)
-        << "rosservice call " << name << " '" << args << "':\n" << r.output;
+        << "rosservice call " << name << " '" << args << "':\n"
+        << r.output;
   }
   // export_report wrote its CSV where it said
   EXPECT_TRUE(std::filesystem::exists(report_dir + "/ros_tools/deformation.csv"))

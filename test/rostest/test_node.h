@@ -25,7 +25,8 @@ inline bool WaitFor(const std::function<bool()>& pred, double timeout) {
 // Waits (wall time, polling every 0.5 s) until the ROS clock (the bag's
 // simulated time under rosbag play --clock) reaches `until`, or until done()
 // holds if given; false after `timeout` seconds of wall time.
-inline bool WaitForClock(const ros::Time& until, double timeout, const std::function<bool()>& done = {}) {
+inline bool WaitForClock(const ros::Time& until, double timeout,
+                         const std::function<bool()>& done = {}) {
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
   while (ros::ok() && ros::Time::now() < until && !(done && done())) {
     if (ros::WallTime::now() >= end) return false;

@@ -58,7 +58,8 @@ class AdjusterStep {
   // ---- inputs; `now` [s]: the caller's clock (wall or bag time). Each
   // returns the epochs it completed, solved (published by the caller).
   // A camera_info that cannot be read: its reason (the camera's model stays).
-  std::optional<std::string> OnCameraInfo(const std::string& camera, const sensor_msgs::CameraInfo& info);
+  std::optional<std::string> OnCameraInfo(const std::string& camera,
+                                          const sensor_msgs::CameraInfo& info);
   std::vector<SolvedEpoch> AddTargets(const slope_monitor::TargetObservationArray& msg, double now);
   std::vector<SolvedEpoch> AddTies(const slope_monitor::TiePointArray& msg, double now);
   void AddPrior(const geometry_msgs::PoseWithCovarianceStamped& msg);
@@ -66,8 +67,8 @@ class AdjusterStep {
   std::vector<SolvedEpoch> AddEnd(const slope_monitor::EpochMarker& msg, double now,
                                   std::vector<LogLine>* ignored);
   std::vector<SolvedEpoch> Poll(double now);  // live time-outs
-  std::optional<SolvedEpoch> Finish();         // end of input: the epoch still open
-  SolvedEpoch SolveNow();                      // the epoch being collected (run_adjustment)
+  std::optional<SolvedEpoch> Finish();        // end of input: the epoch still open
+  SolvedEpoch SolveNow();                     // the epoch being collected (run_adjustment)
   uint32_t current_epoch() const { return collector_->current_epoch(); }
 
   // The camera frustums of a solved epoch (rviz).

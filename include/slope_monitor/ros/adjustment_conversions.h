@@ -50,7 +50,8 @@ sensor_msgs::PointCloud2 MakePointCloud(const adjustment::Scene& scene,
 struct CameraTransforms {
   std::vector<geometry_msgs::TransformStamped> fixed, moving;
 };
-CameraTransforms MakeTransforms(const adjustment::Scene& scene, const adjustment::CollectedEpoch& epoch,
+CameraTransforms MakeTransforms(const adjustment::Scene& scene,
+                                const adjustment::CollectedEpoch& epoch,
                                 const std::string& frame_id, const ros::Time& stamp,
                                 const std::set<std::string>& moving_cameras);
 // Every camera's latest image, all stamped `stamp` (no moving cameras).

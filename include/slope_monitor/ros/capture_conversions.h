@@ -28,9 +28,9 @@ std_msgs::Header FrameHeader(const capture::Frame& frame, const std::string& fra
 sensor_msgs::ImagePtr ToImageMsg(const capture::Frame& frame, const std_msgs::Header& header);
 
 struct GnssOptions {
-  double sigma_horizontal = 5.0;   // [m] 1-sigma of the EXIF GNSS position, east and north
-  double sigma_vertical = 10.0;    // [m] 1-sigma, up
-  double geoid_height = 0.0;       // [m] N: ellipsoidal height = EXIF altitude (above sea level) + N
+  double sigma_horizontal = 5.0;  // [m] 1-sigma of the EXIF GNSS position, east and north
+  double sigma_vertical = 10.0;   // [m] 1-sigma, up
+  double geoid_height = 0.0;      // [m] N: ellipsoidal height = EXIF altitude (above sea level) + N
 };
 
 // NavSatFix from an EXIF GNSS position (altitude converted to ellipsoidal
@@ -48,10 +48,11 @@ geometry_msgs::PoseWithCovarianceStamped ToPositionPrior(const sensor_msgs::NavS
 
 // The orientation of *prior: a nadir photo flown at heading yaw_deg
 // (capture::SiteFromOpticalNadir), sigma_deg about each axis.
-void SetNadirAttitude(double yaw_deg, double sigma_deg, geometry_msgs::PoseWithCovarianceStamped* prior);
+void SetNadirAttitude(double yaw_deg, double sigma_deg,
+                      geometry_msgs::PoseWithCovarianceStamped* prior);
 
-slope_monitor::EpochMarker ToEpochMarker(const capture::EpochEvent& event, const std::string& source,
-                                         const std::string& frame_id);
+slope_monitor::EpochMarker ToEpochMarker(const capture::EpochEvent& event,
+                                         const std::string& source, const std::string& frame_id);
 
 // ---------------------------------------------------------------------------
 // FramePublisher: camera_capture's publishing path (used by the nodelet, and
@@ -71,12 +72,12 @@ struct FramePublisherOptions {
   std::string source_name = "camera";       // EpochMarker.source
   std::string site_frame = "site";          // frame of the position prior
   GnssOptions gnss;
-  bool has_site_origin = false;             // publish position priors (needs site_origin)
+  bool has_site_origin = false;  // publish position priors (needs site_origin)
   capture::Geodetic site_origin;
   // [deg] 1-sigma of the attitude a photo's XMP heading gives the position
   // prior (nadir, SetNadirAttitude); photos without a heading: unknown (1e6 rad^2).
   double attitude_sigma = 10.0;
-  double pixel_size = 0.0;                  // [mm] sensor pixel pitch; 0: unknown (no nominal EXIF camera_info)
+  double pixel_size = 0.0;  // [mm] sensor pixel pitch; 0: unknown (no nominal EXIF camera_info)
   // A calibration (from camera_info_manager or the package's interior
   // parameters); without one, a nominal one from the EXIF focal length when
   // pixel_size > 0, else an uncalibrated camera_info (size only, K = 0).
@@ -93,9 +94,9 @@ class FramePublisher {
   // Takes the next frame from the source and publishes it with its epoch
   // markers. Sources that can decode straight into the outgoing message's
   // data do (FrameSource::set_image_buffer; 8-bit JPEGs of folders), so a
-  // frame is not copied on its way out (look_ahead: the source knows the next stamp, so an epoch end is
-  // published right after its last frame). Skipped items are reported through
-  // outputs.warn. At the end of the stream the open epoch is closed.
+  // frame is not copied on its way out (look_ahead: the source knows the next stamp, so an epoch
+  // end is published right after its last frame). Skipped items are reported through outputs.warn.
+  // At the end of the stream the open epoch is closed.
   StepResult Step(capture::FrameSource* source, capture::EpochTracker* tracker, bool look_ahead);
   // Publishes one frame (image + camera_info, GNSS when the EXIF has it).
   // `image` (optional): a message whose data already holds the frame's pixels
@@ -126,9 +127,9 @@ class FramePublisher {
 // Recording check (bag_check tool): what a recorded bag holds.
 // ---------------------------------------------------------------------------
 struct BagCheckOptions {
-  double gap = 10.0;         // [s] list per-topic gaps between consecutive messages longer than this, > 0
-  double epoch_gap = 600.0;  // [s] without EpochMarker messages, a pause of the whole bag longer than this
-                             // separates epochs, > 0
+  double gap = 10.0;  // [s] list per-topic gaps between consecutive messages longer than this, > 0
+  double epoch_gap = 600.0;  // [s] without EpochMarker messages, a pause of the whole bag longer
+                             // than this separates epochs, > 0
 };
 
 struct BagTopicStats {
@@ -139,11 +140,11 @@ struct BagTopicStats {
 };
 
 struct BagEpochBoundary {
-  double time = 0.0;     // [s] bag time
-  bool end = false;      // false: an epoch starts; true: it ends
+  double time = 0.0;  // [s] bag time
+  bool end = false;   // false: an epoch starts; true: it ends
   uint32_t epoch = 0;
-  uint32_t count = 0;    // EpochMarker.count (markers) or messages in the epoch (time gaps)
-  std::string topic;     // the EpochMarker topic; "" for time-gap epochs
+  uint32_t count = 0;  // EpochMarker.count (markers) or messages in the epoch (time gaps)
+  std::string topic;   // the EpochMarker topic; "" for time-gap epochs
 };
 
 struct BagGap {
@@ -152,13 +153,13 @@ struct BagGap {
 };
 
 struct BagReport {
-  std::string path;                    // the file (CheckBags: the files, comma-separated)
+  std::string path;  // the file (CheckBags: the files, comma-separated)
   uint64_t messages = 0;
-  double start = 0.0, end = 0.0;       // [s] bag time span
-  std::vector<BagTopicStats> topics;   // by topic name
-  bool epochs_from_markers = false;    // epochs from EpochMarker messages (else from time gaps)
+  double start = 0.0, end = 0.0;      // [s] bag time span
+  std::vector<BagTopicStats> topics;  // by topic name
+  bool epochs_from_markers = false;   // epochs from EpochMarker messages (else from time gaps)
   std::vector<BagEpochBoundary> epochs;
-  std::vector<BagGap> gaps;            // per-topic gaps longer than options.gap
+  std::vector<BagGap> gaps;  // per-topic gaps longer than options.gap
 };
 
 // Reads a bag with rosbag and reports it. Throws IoError naming the file when

@@ -25,15 +25,16 @@ inline capture::ScheduleOptions NodeScheduleOptions() {
 
 struct CaptureParameters {
   std::string source = "device";  // device | folder | video
-  std::string camera_name = "camera";  // camera_info_manager's name; frame_id defaults to <camera_name>_optical
-  std::string site_file;          // position priors' origin and this camera's pixel size ("" = none)
-  std::string camera_info_url;    // a calibration ("" = interior below, or EXIF / uncalibrated)
-  std::vector<double> interior;   // [] or c x0 y0 k1 k2 k3 p1 p2 b1 b2 (camera::kNumInterior)
+  std::string camera_name =
+      "camera";           // camera_info_manager's name; frame_id defaults to <camera_name>_optical
+  std::string site_file;  // position priors' origin and this camera's pixel size ("" = none)
+  std::string camera_info_url;   // a calibration ("" = interior below, or EXIF / uncalibrated)
+  std::vector<double> interior;  // [] or c x0 y0 k1 k2 k3 p1 p2 b1 b2 (camera::kNumInterior)
   std::string distortion_model = "brown_affinity";
   int sensor_width = 0, sensor_height = 0;  // [px] with interior
-  std::string encoding = "auto";  // auto | mono8 | bgr8
-  double rate = 2.0;              // [Hz] folder / video publishing rate
-  double start_delay = 1.0;       // [s]
+  std::string encoding = "auto";            // auto | mono8 | bgr8
+  double rate = 2.0;                        // [Hz] folder / video publishing rate
+  double start_delay = 1.0;                 // [s]
   double subscriber_wait = 10.0;  // [s] folder / video: wait this long at most for a subscriber
   bool exit_at_end = false;       // folder / video: end the process after the last frame
   double retry_interval = 5.0;    // [s] device: reopen after a failure
@@ -45,7 +46,7 @@ struct CaptureParameters {
   capture::ScheduleOptions schedule = NodeScheduleOptions();
   capture::EpochOptions epochs;
   FramePublisherOptions publisher;  // source_name, frame_id, pixel_size, gnss, camera_info, ...
-  std::string source_description;   // "folder <path>", "video <path>", "V4L2 <device>" (diagnostics)
+  std::string source_description;  // "folder <path>", "video <path>", "V4L2 <device>" (diagnostics)
 };
 
 // `node_namespace`: the node handle's namespace (source_name's default is

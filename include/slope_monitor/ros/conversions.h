@@ -4,10 +4,10 @@
 
 #include <array>
 
-#include <Eigen/Core>
 #include <geometry_msgs/Pose.h>
 #include <geometry_msgs/Transform.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <Eigen/Core>
 
 #include "slope_monitor/core/camera/camera_model.h"
 #include "slope_monitor/core/common/rigid3.h"
@@ -19,7 +19,8 @@ camera::CameraInfoFields FromMsg(const sensor_msgs::CameraInfo& msg);
 sensor_msgs::CameraInfo ToMsg(const camera::CameraInfoFields& fields);
 
 // Camera model from a CameraInfo (throws InvalidArgument naming what it cannot represent).
-camera::CameraModel CameraModelFromCameraInfo(const sensor_msgs::CameraInfo& msg, double pixel_size);
+camera::CameraModel CameraModelFromCameraInfo(const sensor_msgs::CameraInfo& msg,
+                                              double pixel_size);
 
 geometry_msgs::Pose ToPose(const Rigid3& t);
 geometry_msgs::Transform ToTransform(const Rigid3& t);

@@ -18,17 +18,18 @@ namespace ros_adapters {
 
 // One batch per message; measurement stamps of zero take the header stamp.
 // Throws InvalidArgument naming the topic for an unknown source code.
-deformation::Batch FromMsg(const slope_monitor::PointDisplacementArray& msg, const std::string& topic);
+deformation::Batch FromMsg(const slope_monitor::PointDisplacementArray& msg,
+                           const std::string& topic);
 
-slope_monitor::SlopeDeformation ToMsg(const deformation::Snapshot& snapshot, const std_msgs::Header& header);
+slope_monitor::SlopeDeformation ToMsg(const deformation::Snapshot& snapshot,
+                                      const std_msgs::Header& header);
 
 // One point's displacement as a source publishes it (significance left 0 for
 // the caller): positions and displacement [m] in site, covariance [m^2].
-slope_monitor::PointDisplacement MakePointDisplacement(const std::string& point_id, uint8_t source,
-                                                       const std::string& source_name, double reference_stamp,
-                                                       const ros::Time& stamp, const Eigen::Vector3d& reference_position,
-                                                       const Eigen::Vector3d& displacement,
-                                                       const Eigen::Matrix3d& covariance);
+slope_monitor::PointDisplacement MakePointDisplacement(
+    const std::string& point_id, uint8_t source, const std::string& source_name,
+    double reference_stamp, const ros::Time& stamp, const Eigen::Vector3d& reference_position,
+    const Eigen::Vector3d& displacement, const Eigen::Matrix3d& covariance);
 
 // Sized to read at site scale (a 100-200 m slope seen whole in rviz): a
 // 0.3 m displacement is a 15 m arrow, labels 2.5 m high.
@@ -41,16 +42,19 @@ struct MarkerOptions {
 // displacement (scaled), a text label "id |d| mm v mm/day ALERT"; colour by
 // alert level (green, yellow, orange, red). Namespaces "points", "arrows",
 // "labels"; a DELETEALL first so vanished points disappear.
-visualization_msgs::MarkerArray ToMarkers(const deformation::Snapshot& snapshot, const std_msgs::Header& header,
+visualization_msgs::MarkerArray ToMarkers(const deformation::Snapshot& snapshot,
+                                          const std_msgs::Header& header,
                                           const MarkerOptions& options);
 
 // x y z (reference position, float32), displacement [m] (float32) and rgb
 // (packed float, blue -> red over 0 .. max displacement).
-sensor_msgs::PointCloud2 ToCloud(const deformation::Snapshot& snapshot, const std_msgs::Header& header);
+sensor_msgs::PointCloud2 ToCloud(const deformation::Snapshot& snapshot,
+                                 const std_msgs::Header& header);
 
 // One DiagnosticStatus per point ("deformation/<id>", level OK for none,
 // WARN for watch and warning, ERROR for alarm) and one for the slope.
-diagnostic_msgs::DiagnosticArray ToAlerts(const deformation::Snapshot& snapshot, const std_msgs::Header& header);
+diagnostic_msgs::DiagnosticArray ToAlerts(const deformation::Snapshot& snapshot,
+                                          const std_msgs::Header& header);
 
 }  // namespace ros_adapters
 }  // namespace slope_monitor

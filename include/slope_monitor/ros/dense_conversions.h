@@ -54,12 +54,14 @@ struct DenseEpochParameters {
   dense::EpochSurfaceOptions surface = GraphEpochSurfaceOptions();
   dense::DemChangeOptions change;
   std::vector<double> monitored_outline;  // [x1, y1, x2, y2, ...] (m, site) as written
-  std::vector<dense::Polygon> outlines;  // monitored_outline (site)
-  std::string stable_mask;               // GeoTIFF, "" = none
+  std::vector<dense::Polygon> outlines;   // monitored_outline (site)
+  std::string stable_mask;                // GeoTIFF, "" = none
   std::vector<std::string> cameras, uav_cameras;
   std::vector<std::pair<std::string, std::string>> stereo_pairs;
-  std::string site_file;  // its cameras and their kinds, when it lists them ("" = cameras, uav_cameras)
-  double pixel_size = 0.0048;  // [mm/px] of a camera the site file does not give (the simulator's cameras)
+  std::string
+      site_file;  // its cameras and their kinds, when it lists them ("" = cameras, uav_cameras)
+  double pixel_size =
+      0.0048;  // [mm/px] of a camera the site file does not give (the simulator's cameras)
   // uav_cameras, stereo_pairs as above; max_cached_images, max_cached_megabytes, photo_wait.
   dense::PhotoCollectorOptions photos;
   std::string frame_id = "site", report_dir;
@@ -81,8 +83,8 @@ struct DenseMatcherParameters {
   double pixel_size = 0.00345;  // [mm/px] to read camera_info into the camera model
   double max_pair_dt = 1.0;     // [s] left and right stamps may differ by this much
   std::string frame_id = "site";
-  std::string output_dir;       // GeoTIFFs written here ("" = none)
-  double tf_timeout = 0.5;      // [s] wait for the camera transform
+  std::string output_dir;   // GeoTIFFs written here ("" = none)
+  double tf_timeout = 0.5;  // [s] wait for the camera transform
 };
 DenseMatcherParameters ReadDenseMatcherParameters(ParamReader& p);
 

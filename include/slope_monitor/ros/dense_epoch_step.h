@@ -41,8 +41,8 @@ struct DenseEpochOutput {
   std::optional<sensor_msgs::PointCloud2> cloud;  // none: no surface
   // With the cloud: the colour scale of its `change` beside it (change_legend).
   std::optional<visualization_msgs::MarkerArray> legend;
-  std::vector<std::string> files;                 // GeoTIFFs written
-  std::vector<LogLine> log;                       // what happened, named
+  std::vector<std::string> files;  // GeoTIFFs written
+  std::vector<LogLine> log;        // what happened, named
   // Later epochs: the polygons of significant change of the DoD
   // (core/dense/change_polygons.h), for the deformation estimator.
   std::optional<slope_monitor::ChangeAreaArray> areas;

@@ -44,7 +44,7 @@ struct HexMatcherParameters {
   bool only_without_targets = false;
   std::string target_list;
   std::string idle;
-  std::string camera = "uav";       // written into camera_a and camera_b
+  std::string camera = "uav";  // written into camera_a and camera_b
   std::string image_topic = "image", prior_topic = "position_prior", tie_topic = "tie_points";
   std::string site_frame = "site";  // frame of position_prior (others ignored)
   int image_queue = 200;            // subscriber queues (a fast replay must lose none)

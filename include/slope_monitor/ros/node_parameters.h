@@ -53,8 +53,9 @@ struct AdjusterParameters {
   // epoch_topics (/<camera>/camera/epoch), in the site's order; those three
   // parameters are then not read.
   bool cameras_from_site = false;
-  std::vector<std::string> prior_topics;  // site: /<uav>/camera/position_prior each; else position_prior
-  std::vector<std::string> tie_topics;    // site: /<uav>/tie_points each; else tie_points
+  std::vector<std::string>
+      prior_topics;  // site: /<uav>/camera/position_prior each; else position_prior
+  std::vector<std::string> tie_topics;  // site: /<uav>/tie_points each; else tie_points
   // Where camera `name`'s CameraInfo comes from: site: /<name>/camera/camera_info;
   // else <name>/camera_info (relative: remapped by the launch).
   std::string CameraInfoTopic(const std::string& name) const {
@@ -63,11 +64,12 @@ struct AdjusterParameters {
   std::string frame_id = "site";
   bool enable_run_adjustment = true, enable_set_reference_epoch = true;
   bool uav_tie_points = false;  // the UAV cameras' photos wait for their tie points
-  bool site_without_targets = false;  // io::SiteWithoutTargets: no target list, UAV photos by tie points
+  bool site_without_targets =
+      false;  // io::SiteWithoutTargets: no target list, UAV photos by tie points
   // Interior parameters (camera::InteriorNames) free for the UAV cameras in
   // every flight; empty: free_interior's (and the UAV start's c, k1, k2)
   std::vector<std::string> uav_free_interior;
-  double pixel_size = 1.0;                            // [mm/px]
+  double pixel_size = 1.0;                             // [mm/px]
   std::map<std::string, double> pixel_size_by_camera;  // [mm/px] from the site file
   double PixelSizeOf(const std::string& camera) const {
     const auto it = pixel_size_by_camera.find(camera);
@@ -117,7 +119,8 @@ struct EstimatorParameters {
   std::vector<std::string> input_topics = {"displacements"};
   std::vector<std::string> area_topics;  // ChangeAreaArray (areas of surface change)
   std::string frame_id = "site", database, report_dir;
-  std::string velocity_unit = "mm/day";  // of the thresholds and forecast_min_velocity: mm/day or mm/h
+  std::string velocity_unit =
+      "mm/day";  // of the thresholds and forecast_min_velocity: mm/day or mm/h
   // As written in the file: "point_id: watch, warning, alarm" and
   // "measured_id = monitoring_point_id" (parsed into `options`).
   std::vector<std::string> point_thresholds, aliases;

@@ -32,13 +32,16 @@ class ParamReader {
   // ros/param_files.h), named in messages as "<ns>/<key>".
   ParamReader(const XmlRpc::XmlRpcValue& params, const std::string& ns);
 
-  double Double(const std::string& key, double default_value, double min, double max, const std::string& unit = "");
-  int Int(const std::string& key, int default_value, int min, int max, const std::string& unit = "");
+  double Double(const std::string& key, double default_value, double min, double max,
+                const std::string& unit = "");
+  int Int(const std::string& key, int default_value, int min, int max,
+          const std::string& unit = "");
   bool Bool(const std::string& key, bool default_value);
   std::string String(const std::string& key, const std::string& default_value,
                      const std::vector<std::string>& allowed = {});
   std::vector<double> DoubleList(const std::string& key, const std::vector<double>& default_value);
-  std::vector<std::string> StringList(const std::string& key, const std::vector<std::string>& default_value);
+  std::vector<std::string> StringList(const std::string& key,
+                                      const std::vector<std::string>& default_value);
 
   // Throws ConfigError naming every parameter under the node's namespace that
   // no getter asked for (a misspelt key must not be silently ignored).
@@ -57,7 +60,7 @@ class ParamReader {
   bool Get(const std::string& key, XmlRpc::XmlRpcValue* v) const;
 
   std::optional<ros::NodeHandle> nh_;  // empty: read `tree_`
-  bool use_tree_ = false;  // read `tree_`, not the parameter server
+  bool use_tree_ = false;              // read `tree_`, not the parameter server
   XmlRpc::XmlRpcValue tree_;
   std::string tree_ns_;
   std::set<std::string> read_;

@@ -40,7 +40,8 @@ class SequenceMatcherStep {
   // cannot be converted goes in empty (the matcher counts it) with a kError line.
   SequenceOutput AddImage(const sensor_msgs::ImageConstPtr& image, double now);
   // Why a prior is not taken (another frame than site_frame); none when it is.
-  std::optional<std::string> CheckPrior(const geometry_msgs::PoseWithCovarianceStamped& prior) const;
+  std::optional<std::string> CheckPrior(
+      const geometry_msgs::PoseWithCovarianceStamped& prior) const;
   SequenceOutput AddPrior(const geometry_msgs::PoseWithCovarianceStamped& prior);
   SequenceOutput Poll(double now) { return Output(matcher_.Poll(now)); }
   SequenceOutput Finish() { return Output(matcher_.Finish()); }

@@ -30,7 +30,8 @@ inline UavTopics UavCameraTopics(const std::string& camera) {
 inline std::string CameraOfNamespace(std::string ns) {
   while (!ns.empty() && ns.back() == '/') ns.pop_back();
   const std::string suffix = "/camera";
-  if (ns.size() > suffix.size() && ns.compare(ns.size() - suffix.size(), suffix.size(), suffix) == 0)
+  if (ns.size() > suffix.size() &&
+      ns.compare(ns.size() - suffix.size(), suffix.size(), suffix) == 0)
     ns.resize(ns.size() - suffix.size());
   while (!ns.empty() && ns.front() == '/') ns.erase(0, 1);
   return ns;

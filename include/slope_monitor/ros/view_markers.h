@@ -28,7 +28,7 @@ struct FrustumOptions {
   double line_width = 0.25;  // [m]
   // The UAV cameras (kind uav of the site file, or of io::DefaultCameras()).
   std::vector<std::string> uav_cameras = adjustment::DefaultUavCameras();
-  void Check() const;        // ConfigError naming the bad value
+  void Check() const;  // ConfigError naming the bad value
 };
 
 // One LINE_LIST pyramid per camera of `solution` (namespace "frustums", id =

@@ -25,9 +25,10 @@ BalProblem BalProblem::Load(const std::string& path) {
   in.seekg(header_end);
   const long double needed = 2.0L * (4.0L * no + 9.0L * nc + 3.0L * np) - 1.0L;
   if (needed > remaining)
-    throw IoError(Message("BAL file '", path, "': header declares ", nc, " cameras, ", np, " points, ", no,
-                          " observations, which need at least ", static_cast<double>(needed), " bytes; the file has ",
-                          remaining, " after the header"));
+    throw IoError(Message("BAL file '", path, "': header declares ", nc, " cameras, ", np,
+                          " points, ", no, " observations, which need at least ",
+                          static_cast<double>(needed), " bytes; the file has ", remaining,
+                          " after the header"));
   BalProblem p;
   p.cameras.resize(nc);
   p.points.resize(np);
@@ -35,19 +36,23 @@ BalProblem BalProblem::Load(const std::string& path) {
   for (long k = 0; k < no; ++k) {
     BalObservation& o = p.observations[k];
     if (!(in >> o.camera >> o.point >> o.x >> o.y))
-      throw IoError(Message("BAL file '", path, "': observation ", k, " of ", no, " is missing or malformed"));
+      throw IoError(Message("BAL file '", path, "': observation ", k, " of ", no,
+                            " is missing or malformed"));
     if (o.camera < 0 || o.camera >= nc || o.point < 0 || o.point >= np)
-      throw IoError(Message("BAL file '", path, "': observation ", k, " refers to camera ", o.camera, " / point ",
-                            o.point, " (", nc, " cameras, ", np, " points)"));
+      throw IoError(Message("BAL file '", path, "': observation ", k, " refers to camera ",
+                            o.camera, " / point ", o.point, " (", nc, " cameras, ", np,
+                            " points)"));
   }
   for (long c = 0; c < nc; ++c)
     for (int i = 0; i < 9; ++i)
       if (!(in >> p.cameras[c][i]))
-        throw IoError(Message("BAL file '", path, "': camera ", c, " parameter ", i, " is missing or malformed"));
+        throw IoError(Message("BAL file '", path, "': camera ", c, " parameter ", i,
+                              " is missing or malformed"));
   for (long j = 0; j < np; ++j)
     for (int i = 0; i < 3; ++i)
       if (!(in >> p.points[j][i]))
-        throw IoError(Message("BAL file '", path, "': point ", j, " coordinate ", i, " is missing or malformed"));
+        throw IoError(Message("BAL file '", path, "': point ", j, " coordinate ", i,
+                              " is missing or malformed"));
   return p;
 }
 
@@ -71,9 +76,11 @@ BalReport SolveBal(BalProblem* problem, const Options& options, bool analytic_ja
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem cp(po);
   for (const BalObservation& o : problem->observations) {
-    ceres::CostFunction* cost = analytic_jacobians ? SnavelyReprojectionErrorAnalytic::Create(o.x, o.y)
-                                                   : SnavelyReprojectionError::Create(o.x, o.y);
-    cp.AddResidualBlock(cost, loss.get(), problem->cameras[o.camera].data(), problem->points[o.point].data());
+    ceres::CostFunction* cost = analytic_jacobians
+                                    ? SnavelyReprojectionErrorAnalytic::Create(o.x, o.y)
+                                    : SnavelyReprojectionError::Create(o.x, o.y);
+    cp.AddResidualBlock(cost, loss.get(), problem->cameras[o.camera].data(),
+                        problem->points[o.point].data());
   }
   std::vector<double*> points;
   for (auto& x : problem->points)

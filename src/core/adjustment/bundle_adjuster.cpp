@@ -7,8 +7,8 @@
 #include <sstream>
 
 #include <ceres/ceres.h>
-#include <Eigen/LU>
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <Eigen/SVD>
 
 #include "slope_monitor/core/adjustment/cost_functions/collinearity_error.h"
@@ -22,10 +22,14 @@ namespace adjustment {
 
 std::string PointRoleName(PointRole role) {
   switch (role) {
-    case PointRole::kTie: return "tie";
-    case PointRole::kControl: return "control";
-    case PointRole::kMonitoring: return "monitoring";
-    case PointRole::kCheck: return "check";
+    case PointRole::kTie:
+      return "tie";
+    case PointRole::kControl:
+      return "control";
+    case PointRole::kMonitoring:
+      return "monitoring";
+    case PointRole::kCheck:
+      return "check";
   }
   return "unknown";
 }
@@ -45,16 +49,17 @@ int Scene::FindImage(const std::string& name) const {
 void Scene::CheckIndices() const {
   for (size_t i = 0; i < images.size(); ++i) {
     if (images[i].camera < 0 || images[i].camera >= static_cast<int>(cameras.size())) {
-      throw InvalidArgument(Message("image '", images[i].name, "' refers to camera ", images[i].camera, " of ",
-                                    cameras.size()));
+      throw InvalidArgument(Message("image '", images[i].name, "' refers to camera ",
+                                    images[i].camera, " of ", cameras.size()));
     }
   }
   for (size_t k = 0; k < observations.size(); ++k) {
     const Observation& o = observations[k];
     if (o.image < 0 || o.image >= static_cast<int>(images.size()) || o.point < 0 ||
         o.point >= static_cast<int>(points.size())) {
-      throw InvalidArgument(Message("observation ", k, " refers to image ", o.image, " / point ", o.point,
-                                    " (scene has ", images.size(), " images, ", points.size(), " points)"));
+      throw InvalidArgument(Message("observation ", k, " refers to image ", o.image, " / point ",
+                                    o.point, " (scene has ", images.size(), " images, ",
+                                    points.size(), " points)"));
     }
   }
 }
@@ -63,11 +68,14 @@ void Options::Check() const {
   auto fail = [](const std::string& key, const std::string& what) {
     throw ConfigError(Message("adjustment option '", key, "' ", what));
   };
-  if (loss != "none" && loss != "huber" && loss != "cauchy") fail("loss", "must be none|huber|cauchy, got '" + loss + "'");
+  if (loss != "none" && loss != "huber" && loss != "cauchy")
+    fail("loss", "must be none|huber|cauchy, got '" + loss + "'");
   if (!(loss_scale > 0.0)) fail("loss_scale", Message("must be > 0, got ", loss_scale));
-  if (!(outlier_threshold > 0.0)) fail("outlier_threshold", Message("must be > 0, got ", outlier_threshold));
-  static const std::vector<std::string> kSolvers = {"auto", "dense_schur", "sparse_schur", "iterative_schur",
-                                                    "dense_qr", "sparse_normal_cholesky"};
+  if (!(outlier_threshold > 0.0))
+    fail("outlier_threshold", Message("must be > 0, got ", outlier_threshold));
+  static const std::vector<std::string> kSolvers = {"auto",         "dense_schur",
+                                                    "sparse_schur", "iterative_schur",
+                                                    "dense_qr",     "sparse_normal_cholesky"};
   if (std::find(kSolvers.begin(), kSolvers.end(), linear_solver) == kSolvers.end())
     fail("linear_solver", "unknown value '" + linear_solver + "'");
   if (max_iterations <= 0) fail("max_iterations", Message("must be > 0, got ", max_iterations));
@@ -81,7 +89,8 @@ void Options::Check() const {
   if (min_observations_with_prior < 2) fail("min_observations_with_prior", "must be >= 2");
   if (!(max_sigma0 > 0.0)) fail("max_sigma0", "must be > 0");
   if (!(min_variance_factor >= 0.0)) fail("min_variance_factor", "must be >= 0");
-  if (!(max_outlier_fraction >= 0.0 && max_outlier_fraction <= 1.0)) fail("max_outlier_fraction", "must be in [0, 1]");
+  if (!(max_outlier_fraction >= 0.0 && max_outlier_fraction <= 1.0))
+    fail("max_outlier_fraction", "must be in [0, 1]");
 }
 
 void Config::FreeInteriorOfAll(int num_cameras, const std::vector<int>& indices) {
@@ -106,20 +115,23 @@ std::string Summary::UndeterminedList() const {
 
 std::string Summary::BriefReport() const {
   std::ostringstream out;
-  out << (usable ? "usable" : "NOT usable") << ": " << reason << "; cost " << initial_cost << " -> " << final_cost
-      << " in " << iterations << " iterations, " << solve_time << " s; " << num_observations << " observations, "
-      << num_outliers << " outliers, rms " << rms_residual_px << " px, sigma0 " << sigma0 << " (redundancy "
-      << redundancy << ")";
+  out << (usable ? "usable" : "NOT usable") << ": " << reason << "; cost " << initial_cost << " -> "
+      << final_cost << " in " << iterations << " iterations, " << solve_time << " s; "
+      << num_observations << " observations, " << num_outliers << " outliers, rms "
+      << rms_residual_px << " px, sigma0 " << sigma0 << " (redundancy " << redundancy << ")";
   return out.str();
 }
 
-BundleAdjuster::BundleAdjuster(const Options& options, const Config& config) : options_(options), config_(config) {
+BundleAdjuster::BundleAdjuster(const Options& options, const Config& config)
+    : options_(options), config_(config) {
   options_.Check();
 }
 
 namespace {
 
-bool IsConstrainedControl(const ObjectPoint& p) { return p.role == PointRole::kControl && p.surveyed.has_value(); }
+bool IsConstrainedControl(const ObjectPoint& p) {
+  return p.role == PointRole::kControl && p.surveyed.has_value();
+}
 
 // Points usable in the adjustment: observed by >= 2 images, or a control point
 // observed at least once.
@@ -140,8 +152,9 @@ bool PointUsed(const ObjectPoint& p, int num_images, bool control_prior) {
 // observations from *used_obs and names them in the Summary; the free
 // parameter count shrinks by 3 each. Returns their indices.
 std::vector<int> DropUndeterminedPoints(const SchurCovarianceOptions& co, const Scene& scene,
-                            std::vector<std::array<double, 3>>* point, std::vector<bool>* point_used,
-                            std::vector<int>* used_obs, ceres::Problem* problem, Summary* summary) {
+                                        std::vector<std::array<double, 3>>* point,
+                                        std::vector<bool>* point_used, std::vector<int>* used_obs,
+                                        ceres::Problem* problem, Summary* summary) {
   std::vector<double*> blocks;
   std::vector<int> index;
   for (size_t j = 0; j < scene.points.size(); ++j) {
@@ -158,9 +171,10 @@ std::vector<int> DropUndeterminedPoints(const SchurCovarianceOptions& co, const 
     summary->undetermined_points.push_back(scene.points[j].id);
     summary->num_parameters -= 3;
   }
-  used_obs->erase(std::remove_if(used_obs->begin(), used_obs->end(),
-                                 [&](int k) { return !(*point_used)[scene.observations[k].point]; }),
-                  used_obs->end());
+  used_obs->erase(
+      std::remove_if(used_obs->begin(), used_obs->end(),
+                     [&](int k) { return !(*point_used)[scene.observations[k].point]; }),
+      used_obs->end());
   summary->num_observations = static_cast<int>(used_obs->size());
   return dropped;
 }
@@ -180,7 +194,8 @@ std::string BundleAdjuster::CheckInput(const Scene& scene) const {
     Eigen::LLT<Eigen::Matrix2d> llt(o.covariance);
     if (llt.info() != Eigen::Success || o.covariance.determinant() <= 0.0) {
       return Message("observation ", k, " of point '", scene.points[o.point].id, "' in image '",
-                     scene.images[o.image].name, "' has a covariance that is not positive definite");
+                     scene.images[o.image].name,
+                     "' has a covariance that is not positive definite");
     }
   }
   for (const Camera& c : scene.cameras) {
@@ -205,7 +220,8 @@ std::string BundleAdjuster::CheckInput(const Scene& scene) const {
     if (!im.exterior.position.allFinite() || !std::isfinite(im.exterior.angles.theta) ||
         !std::isfinite(im.exterior.angles.phi) || !std::isfinite(im.exterior.angles.kappa))
       return Message("image '", im.name, "' has a non-finite initial exterior orientation");
-    if (im.position_prior && (!im.position_prior->allFinite() || !im.position_prior_covariance.allFinite()))
+    if (im.position_prior &&
+        (!im.position_prior->allFinite() || !im.position_prior_covariance.allFinite()))
       return Message("image '", im.name, "' has a non-finite position prior");
   }
   const std::vector<int> images_per_point = CountImagesPerPoint(scene);
@@ -215,27 +231,34 @@ std::string BundleAdjuster::CheckInput(const Scene& scene) const {
       ++obs_per_image[o.image];
   }
   for (size_t i = 0; i < scene.images.size(); ++i) {
-    if (obs_per_image[i] == 0) return Message("image '", scene.images[i].name, "' has no observations");
+    if (obs_per_image[i] == 0)
+      return Message("image '", scene.images[i].name, "' has no observations");
     const bool prior = config_.use_position_priors && scene.images[i].position_prior.has_value();
-    const int min_obs = prior ? std::min(options_.min_observations_with_prior, options_.min_observations_per_image)
-                              : options_.min_observations_per_image;
+    const int min_obs =
+        prior ? std::min(options_.min_observations_with_prior, options_.min_observations_per_image)
+              : options_.min_observations_per_image;
     if (obs_per_image[i] < min_obs && !config_.fixed_images.count(i))
-      return Message("image '", scene.images[i].name, "' has only ", obs_per_image[i], " usable observations (",
-                     prior ? "min_observations_with_prior = " : "min_observations_per_image = ", min_obs, ")");
+      return Message(
+          "image '", scene.images[i].name, "' has only ", obs_per_image[i],
+          " usable observations (",
+          prior ? "min_observations_with_prior = " : "min_observations_per_image = ", min_obs, ")");
   }
   for (const ObjectPoint& p : scene.points) {
-    if (!p.position.allFinite()) return Message("point '", p.id, "' has a non-finite initial position");
+    if (!p.position.allFinite())
+      return Message("point '", p.id, "' has a non-finite initial position");
     if (p.surveyed && (!p.surveyed->allFinite() || !p.surveyed_covariance.allFinite()))
       return Message("point '", p.id, "' has a non-finite survey");
   }
   if (options_.fixed_images_define_datum) {
     if (config_.fixed_images.size() >= 2) return "";
-    return Message("fixed_images_define_datum needs two or more fixed images (", config_.fixed_images.size(), " held)");
+    return Message("fixed_images_define_datum needs two or more fixed images (",
+                   config_.fixed_images.size(), " held)");
   }
   // Datum: control points seen (or GNSS priors), not all on one line.
   std::vector<Eigen::Vector3d> control;
   for (size_t i = 0; i < scene.points.size(); ++i) {
-    if (IsConstrainedControl(scene.points[i]) && images_per_point[i] >= 1) control.push_back(*scene.points[i].surveyed);
+    if (IsConstrainedControl(scene.points[i]) && images_per_point[i] >= 1)
+      control.push_back(*scene.points[i].surveyed);
   }
   int num_priors = 0;
   std::vector<Eigen::Vector3d> prior_positions;
@@ -258,21 +281,25 @@ std::string BundleAdjuster::CheckInput(const Scene& scene) const {
   const bool control_ok = static_cast<int>(control.size()) >= options_.min_control_points;
   const bool priors_ok = num_priors >= std::max(3, options_.min_position_priors);
   if (!control_ok && !priors_ok) {
-    return Message("too few control points: ", control.size(), " observed (min_control_points = ",
-                   options_.min_control_points, ") and ", num_priors, " GNSS position priors (min ",
+    return Message("too few control points: ", control.size(),
+                   " observed (min_control_points = ", options_.min_control_points, ") and ",
+                   num_priors, " GNSS position priors (min ",
                    std::max(3, options_.min_position_priors), ")");
   }
   std::vector<Eigen::Vector3d> datum = control;
   if (priors_ok) datum.insert(datum.end(), prior_positions.begin(), prior_positions.end());
-  if (collinear(datum)) return Message("all ", datum.size(), " control points / GNSS positions lie on one line: no datum");
+  if (collinear(datum))
+    return Message("all ", datum.size(),
+                   " control points / GNSS positions lie on one line: no datum");
   return "";
 }
 
-SolveReport SolveCeresProblem(const Options& options, const std::vector<double*>& point_blocks, int num_cameras,
-                              ceres::Problem* problem) {
+SolveReport SolveCeresProblem(const Options& options, const std::vector<double*>& point_blocks,
+                              int num_cameras, ceres::Problem* problem) {
   ceres::Solver::Options so;
   std::string solver = options.linear_solver;
-  if (solver == "auto") solver = num_cameras <= options.dense_schur_max_images ? "dense_schur" : "sparse_schur";
+  if (solver == "auto")
+    solver = num_cameras <= options.dense_schur_max_images ? "dense_schur" : "sparse_schur";
   bool schur = true;
   if (solver == "dense_schur") {
     so.linear_solver_type = ceres::DENSE_SCHUR;
@@ -325,14 +352,16 @@ SolveReport SolveCeresProblem(const Options& options, const std::vector<double*>
   report.initial_cost = cs.initial_cost;
   report.final_cost = cs.final_cost;
   report.iterations = static_cast<int>(cs.iterations.size()) - 1;
-  report.termination = ceres::TerminationTypeToString(cs.termination_type) + std::string(": ") + cs.message;
+  report.termination =
+      ceres::TerminationTypeToString(cs.termination_type) + std::string(": ") + cs.message;
   report.converged = cs.termination_type == ceres::CONVERGENCE;
   // Out of iterations while only creeping: a block with 10^4 tie-point
   // residuals can creep with residuals in the robust loss's linear range (a
   // step-to-model ratio of 2 every step) by 1e-8..1e-5 of the cost a step,
   // never meeting the tolerances. Converged in cost when the last 10
   // successful steps together lowered it by less than 1e-4 relative.
-  if (cs.termination_type == ceres::NO_CONVERGENCE && std::isfinite(cs.final_cost) && cs.final_cost > 0.0) {
+  if (cs.termination_type == ceres::NO_CONVERGENCE && std::isfinite(cs.final_cost) &&
+      cs.final_cost > 0.0) {
     std::vector<double> costs;
     for (const ceres::IterationSummary& it : cs.iterations)
       if (it.step_is_successful) costs.push_back(it.cost);
@@ -341,8 +370,8 @@ SolveReport SolveCeresProblem(const Options& options, const std::vector<double*>
       report.termination += " (converged in cost: the last 10 steps lowered it by less than 1e-4)";
     }
   }
-  report.failed = cs.termination_type == ceres::FAILURE || cs.termination_type == ceres::USER_FAILURE ||
-                  !std::isfinite(cs.final_cost);
+  report.failed = cs.termination_type == ceres::FAILURE ||
+                  cs.termination_type == ceres::USER_FAILURE || !std::isfinite(cs.final_cost);
   return report;
 }
 
@@ -361,10 +390,10 @@ struct ParameterBlocks {
 ParameterBlocks InitialParameters(const Scene& scene, const Config& config) {
   const std::vector<int> images_per_point = CountImagesPerPoint(scene);
   ParameterBlocks b;
-  auto &exterior = b.exterior;
-  auto &interior = b.interior;
-  auto &point = b.point;
-  auto &point_used = b.point_used;
+  auto& exterior = b.exterior;
+  auto& interior = b.interior;
+  auto& point = b.point;
+  auto& point_used = b.point_used;
   exterior.resize(scene.images.size());
   interior.resize(scene.cameras.size());
   point.resize(scene.points.size());
@@ -373,9 +402,11 @@ ParameterBlocks InitialParameters(const Scene& scene, const Config& config) {
   for (size_t c = 0; c < scene.cameras.size(); ++c) interior[c] = scene.cameras[c].model.interior();
   for (size_t j = 0; j < scene.points.size(); ++j) {
     const ObjectPoint& p = scene.points[j];
-    point_used[j] = PointUsed(p, images_per_point[j], config.use_control_priors) ||
-                    (IsConstrainedControl(p) && !config.use_control_priors && images_per_point[j] >= 1);
-    const Eigen::Vector3d x = (IsConstrainedControl(p) && !config.use_control_priors) ? *p.surveyed : p.position;
+    point_used[j] =
+        PointUsed(p, images_per_point[j], config.use_control_priors) ||
+        (IsConstrainedControl(p) && !config.use_control_priors && images_per_point[j] >= 1);
+    const Eigen::Vector3d x =
+        (IsConstrainedControl(p) && !config.use_control_priors) ? *p.surveyed : p.position;
     point[j] = {x.x(), x.y(), x.z()};
   }
   return b;
@@ -386,12 +417,13 @@ ParameterBlocks InitialParameters(const Scene& scene, const Config& config) {
 // (fixed points and images, interior parameters not set free). Returns the
 // number of prior residuals; *used_obs the observations in the problem,
 // *point_blocks the points' blocks (Ceres eliminates them first).
-int BuildProblem(const Scene& scene, const Config& config, ceres::LossFunction* loss, ParameterBlocks* b,
-                 ceres::Problem* problem, std::vector<int>* used_obs_out, std::vector<double*>* point_blocks_out) {
-  auto &exterior = b->exterior;
-  auto &interior = b->interior;
-  auto &point = b->point;
-  const auto &point_used = b->point_used;
+int BuildProblem(const Scene& scene, const Config& config, ceres::LossFunction* loss,
+                 ParameterBlocks* b, ceres::Problem* problem, std::vector<int>* used_obs_out,
+                 std::vector<double*>* point_blocks_out) {
+  auto& exterior = b->exterior;
+  auto& interior = b->interior;
+  auto& point = b->point;
+  const auto& point_used = b->point_used;
   ceres::Problem& prob = *problem;
   std::vector<int>& used_obs = *used_obs_out;
   std::vector<double*>& point_blocks = *point_blocks_out;
@@ -400,10 +432,10 @@ int BuildProblem(const Scene& scene, const Config& config, ceres::LossFunction* 
     const Observation& o = scene.observations[k];
     if (!point_used[o.point]) continue;
     const Image& im = scene.images[o.image];
-    ceres::CostFunction* cost = new CollinearityErrorAnalytic(scene.cameras[im.camera].model.sensor(), o.pixel,
-                                                          SqrtInformation<2>(o.covariance));
-    obs_blocks.push_back(prob.AddResidualBlock(cost, loss, exterior[o.image].data(), interior[im.camera].data(),
-                                               point[o.point].data()));
+    ceres::CostFunction* cost = new CollinearityErrorAnalytic(
+        scene.cameras[im.camera].model.sensor(), o.pixel, SqrtInformation<2>(o.covariance));
+    obs_blocks.push_back(prob.AddResidualBlock(cost, loss, exterior[o.image].data(),
+                                               interior[im.camera].data(), point[o.point].data()));
     used_obs.push_back(static_cast<int>(k));
   }
   int num_prior_residuals = 0;
@@ -413,23 +445,28 @@ int BuildProblem(const Scene& scene, const Config& config, ceres::LossFunction* 
     const ObjectPoint& p = scene.points[j];
     if (IsConstrainedControl(p)) {
       if (config.use_control_priors) {
-        prob.AddResidualBlock(ControlPointPrior::Create(*p.surveyed, SqrtInformation<3>(p.surveyed_covariance)),
-                              nullptr, point[j].data());
+        prob.AddResidualBlock(
+            ControlPointPrior::Create(*p.surveyed, SqrtInformation<3>(p.surveyed_covariance)),
+            nullptr, point[j].data());
         num_prior_residuals += 3;
       } else {
         prob.SetParameterBlockConstant(point[j].data());
       }
     }
-    if (config.fixed_points.count(static_cast<int>(j))) prob.SetParameterBlockConstant(point[j].data());
+    if (config.fixed_points.count(static_cast<int>(j)))
+      prob.SetParameterBlockConstant(point[j].data());
   }
   for (size_t i = 0; i < scene.images.size(); ++i) {
     const Image& im = scene.images[i];
     if (config.use_position_priors && im.position_prior) {
-      prob.AddResidualBlock(PositionPriorError::Create(*im.position_prior, SqrtInformation<3>(im.position_prior_covariance)),
-                            nullptr, exterior[i].data());
+      prob.AddResidualBlock(
+          PositionPriorError::Create(*im.position_prior,
+                                     SqrtInformation<3>(im.position_prior_covariance)),
+          nullptr, exterior[i].data());
       num_prior_residuals += 3;
     }
-    if (config.fixed_images.count(static_cast<int>(i))) prob.SetParameterBlockConstant(exterior[i].data());
+    if (config.fixed_images.count(static_cast<int>(i)))
+      prob.SetParameterBlockConstant(exterior[i].data());
   }
   for (size_t c = 0; c < scene.cameras.size(); ++c) {
     if (!prob.HasParameterBlock(interior[c].data())) continue;
@@ -440,8 +477,10 @@ int BuildProblem(const Scene& scene, const Config& config, ceres::LossFunction* 
     }
     std::vector<int> fixed;
     for (int i = 0; i < camera::kNumInterior; ++i)
-      if (std::find(it->second.begin(), it->second.end(), i) == it->second.end()) fixed.push_back(i);
-    if (!fixed.empty()) prob.SetManifold(interior[c].data(), new ceres::SubsetManifold(camera::kNumInterior, fixed));
+      if (std::find(it->second.begin(), it->second.end(), i) == it->second.end())
+        fixed.push_back(i);
+    if (!fixed.empty())
+      prob.SetManifold(interior[c].data(), new ceres::SubsetManifold(camera::kNumInterior, fixed));
   }
   return num_prior_residuals;
 }
@@ -455,13 +494,15 @@ struct WorstObservation {
   int observation;
 };
 
-std::vector<WorstObservation> EvaluateResiduals(const Scene& scene, const Options& options, const Config& config,
-                                                const ParameterBlocks& b, const std::vector<int>& used_obs,
-                                                int num_prior_residuals, int* n_behind_out, Summary* summary_out) {
-  const auto &exterior = b.exterior;
-  const auto &interior = b.interior;
-  const auto &point = b.point;
-  const auto &point_used = b.point_used;
+std::vector<WorstObservation> EvaluateResiduals(const Scene& scene, const Options& options,
+                                                const Config& config, const ParameterBlocks& b,
+                                                const std::vector<int>& used_obs,
+                                                int num_prior_residuals, int* n_behind_out,
+                                                Summary* summary_out) {
+  const auto& exterior = b.exterior;
+  const auto& interior = b.interior;
+  const auto& point = b.point;
+  const auto& point_used = b.point_used;
   Summary& summary = *summary_out;
   // Residuals, outliers, sigma0.
   summary.image_rms_px.assign(scene.images.size(), 0.0);
@@ -474,8 +515,8 @@ std::vector<WorstObservation> EvaluateResiduals(const Scene& scene, const Option
     const Image& im = scene.images[o.image];
     const camera::Sensor& sensor = scene.cameras[im.camera].model.sensor();
     double xy[2];
-    const bool in_front = camera::ProjectToImageMm(exterior[o.image].data(), interior[im.camera].data(),
-                                                   point[o.point].data(), xy);
+    const bool in_front = camera::ProjectToImageMm(
+        exterior[o.image].data(), interior[im.camera].data(), point[o.point].data(), xy);
     if (!in_front) ++n_behind;
     double col, row;
     camera::MmToPixel(sensor, xy[0], xy[1], &col, &row);
@@ -493,20 +534,23 @@ std::vector<WorstObservation> EvaluateResiduals(const Scene& scene, const Option
     ++n_inliers;
   }
   for (size_t i = 0; i < scene.images.size(); ++i)
-    summary.image_rms_px[i] = image_n[i] > 0 ? std::sqrt(summary.image_rms_px[i] / image_n[i]) : 0.0;
+    summary.image_rms_px[i] =
+        image_n[i] > 0 ? std::sqrt(summary.image_rms_px[i] / image_n[i]) : 0.0;
   // Prior residuals (not robustified).
   double sum_prior2 = 0.0;
   for (size_t j = 0; j < scene.points.size(); ++j) {
     const ObjectPoint& p = scene.points[j];
     if (point_used[j] && IsConstrainedControl(p) && config.use_control_priors) {
-      const Eigen::Vector3d d = Eigen::Vector3d(point[j][0], point[j][1], point[j][2]) - *p.surveyed;
+      const Eigen::Vector3d d =
+          Eigen::Vector3d(point[j][0], point[j][1], point[j][2]) - *p.surveyed;
       sum_prior2 += (SqrtInformation<3>(p.surveyed_covariance) * d).squaredNorm();
     }
   }
   for (size_t i = 0; i < scene.images.size(); ++i) {
     const Image& im = scene.images[i];
     if (config.use_position_priors && im.position_prior) {
-      const Eigen::Vector3d d = Eigen::Vector3d(exterior[i][0], exterior[i][1], exterior[i][2]) - *im.position_prior;
+      const Eigen::Vector3d d =
+          Eigen::Vector3d(exterior[i][0], exterior[i][1], exterior[i][2]) - *im.position_prior;
       sum_prior2 += (SqrtInformation<3>(im.position_prior_covariance) * d).squaredNorm();
     }
   }
@@ -514,7 +558,8 @@ std::vector<WorstObservation> EvaluateResiduals(const Scene& scene, const Option
   summary.num_residuals = 2 * n_inliers + num_prior_residuals;
   summary.redundancy = summary.num_residuals - summary.num_parameters;
   summary.rms_residual_px = n_inliers > 0 ? std::sqrt(sum_px2 / n_inliers) : 0.0;
-  summary.sigma0 = summary.redundancy > 0 ? std::sqrt((sum_w2 + sum_prior2) / summary.redundancy) : 0.0;
+  summary.sigma0 =
+      summary.redundancy > 0 ? std::sqrt((sum_w2 + sum_prior2) / summary.redundancy) : 0.0;
   *n_behind_out = n_behind;
   return worst;
 }
@@ -526,29 +571,34 @@ bool SolutionPassesChecks(const Scene& scene, const Options& options, int n_behi
                           std::vector<WorstObservation> worst, Summary* summary_out) {
   Summary& summary = *summary_out;
   if (summary.redundancy <= 0) {
-    summary.reason = Message("no redundancy (", summary.num_residuals, " residuals for ", summary.num_parameters,
-                             " unknowns)");
+    summary.reason = Message("no redundancy (", summary.num_residuals, " residuals for ",
+                             summary.num_parameters, " unknowns)");
     return false;
   }
   if (n_behind > 0) {
     summary.reason = Message(n_behind, " observed points ended behind their camera: diverged");
     return false;
   }
-  const double outlier_fraction = static_cast<double>(summary.num_outliers) / std::max(1, summary.num_observations);
+  const double outlier_fraction =
+      static_cast<double>(summary.num_outliers) / std::max(1, summary.num_observations);
   if (outlier_fraction > options.max_outlier_fraction) {
-    std::sort(worst.begin(), worst.end(), [](const WorstObservation& a, const WorstObservation& b) { return a.sigmas > b.sigmas; });
+    std::sort(worst.begin(), worst.end(), [](const WorstObservation& a, const WorstObservation& b) {
+      return a.sigmas > b.sigmas;
+    });
     std::string list;
     for (size_t i = 0; i < worst.size() && i < 3; ++i) {
       const Observation& o = scene.observations[worst[i].observation];
-      list += Message(i ? ", " : "", scene.points[o.point].id, " in '", scene.images[o.image].name, "' ", worst[i].px,
-                      " px (", worst[i].sigmas, " sigma)");
+      list += Message(i ? ", " : "", scene.points[o.point].id, " in '", scene.images[o.image].name,
+                      "' ", worst[i].px, " px (", worst[i].sigmas, " sigma)");
     }
-    summary.reason = Message("too many outliers: ", summary.num_outliers, " of ", summary.num_observations,
-                             " (max_outlier_fraction = ", options.max_outlier_fraction, "); worst: ", list);
+    summary.reason =
+        Message("too many outliers: ", summary.num_outliers, " of ", summary.num_observations,
+                " (max_outlier_fraction = ", options.max_outlier_fraction, "); worst: ", list);
     return false;
   }
   if (!(summary.sigma0 <= options.max_sigma0)) {
-    summary.reason = Message("a posteriori sigma0 = ", summary.sigma0, " exceeds max_sigma0 = ", options.max_sigma0,
+    summary.reason = Message("a posteriori sigma0 = ", summary.sigma0,
+                             " exceeds max_sigma0 = ", options.max_sigma0,
                              " (wrong observation weights or a diverged solution)");
     return false;
   }
@@ -562,10 +612,10 @@ bool SolutionPassesChecks(const Scene& scene, const Options& options, int n_behi
 // when it cannot be computed.
 bool ComputePrecision(const Scene& scene, const Options& options, const SchurCovarianceOptions& co,
                       ParameterBlocks* b, ceres::Problem* problem, Summary* summary_out) {
-  auto &exterior = b->exterior;
-  auto &interior = b->interior;
-  auto &point = b->point;
-  const auto &point_used = b->point_used;
+  auto& exterior = b->exterior;
+  auto& interior = b->interior;
+  auto& point = b->point;
+  const auto& point_used = b->point_used;
   ceres::Problem& prob = *problem;
   Summary& summary = *summary_out;
   // Precision.
@@ -576,56 +626,72 @@ bool ComputePrecision(const Scene& scene, const Options& options, const SchurCov
     // cameras, points by back-substitution, the datum-free variant by adding
     // the held control points' terms back.
     std::vector<double*> camera_blocks, point_blocks_free;
-    std::vector<int> camera_image(scene.images.size(), -1), camera_interior(scene.cameras.size(), -1);
+    std::vector<int> camera_image(scene.images.size(), -1),
+        camera_interior(scene.cameras.size(), -1);
     std::vector<int> point_index(scene.points.size(), -1), held;
     for (size_t i = 0; i < scene.images.size(); ++i) {
-      if (!prob.HasParameterBlock(exterior[i].data()) || prob.IsParameterBlockConstant(exterior[i].data())) continue;
+      if (!prob.HasParameterBlock(exterior[i].data()) ||
+          prob.IsParameterBlockConstant(exterior[i].data()))
+        continue;
       camera_image[i] = static_cast<int>(camera_blocks.size());
       camera_blocks.push_back(exterior[i].data());
     }
     for (size_t c = 0; c < scene.cameras.size(); ++c) {
-      if (!prob.HasParameterBlock(interior[c].data()) || prob.IsParameterBlockConstant(interior[c].data())) continue;
+      if (!prob.HasParameterBlock(interior[c].data()) ||
+          prob.IsParameterBlockConstant(interior[c].data()))
+        continue;
       camera_interior[c] = static_cast<int>(camera_blocks.size());
       camera_blocks.push_back(interior[c].data());
     }
     for (size_t j = 0; j < scene.points.size(); ++j) {
       if (!point_used[j] || prob.IsParameterBlockConstant(point[j].data())) continue;
       point_index[j] = static_cast<int>(point_blocks_free.size());
-      if (options.compute_datum_free_covariance && IsConstrainedControl(scene.points[j])) held.push_back(point_index[j]);
+      if (options.compute_datum_free_covariance && IsConstrainedControl(scene.points[j]))
+        held.push_back(point_index[j]);
       point_blocks_free.push_back(point[j].data());
     }
     const auto covariance_start = std::chrono::steady_clock::now();
-    const SchurCovarianceResult cov = ComputeSchurCovariance(co, camera_blocks, point_blocks_free, held, &prob);
-    summary.covariance_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - covariance_start).count();
+    const SchurCovarianceResult cov =
+        ComputeSchurCovariance(co, camera_blocks, point_blocks_free, held, &prob);
+    summary.covariance_time =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - covariance_start).count();
     if (!cov.ok) {
       summary.reason = "covariance could not be computed: " + cov.message;
       return false;
     }
-    const double scale = options.scale_covariance_by_sigma0
-                             ? std::max(summary.sigma0 * summary.sigma0, options.min_variance_factor)
-                             : 1.0;
+    const double scale =
+        options.scale_covariance_by_sigma0
+            ? std::max(summary.sigma0 * summary.sigma0, options.min_variance_factor)
+            : 1.0;
     // With the control points held, what is left comes from the image (and
     // GNSS) weights alone, whose scale sigma0 estimates: no floor there.
-    const double datum_free_scale = options.scale_covariance_by_sigma0 ? summary.sigma0 * summary.sigma0 : 1.0;
+    const double datum_free_scale =
+        options.scale_covariance_by_sigma0 ? summary.sigma0 * summary.sigma0 : 1.0;
     pr.point_covariance.assign(scene.points.size(), Eigen::Matrix3d::Zero());
     pr.exterior_covariance.assign(scene.images.size(), Eigen::Matrix<double, 6, 6>::Zero());
     pr.interior_sigma.assign(scene.cameras.size(), std::array<double, camera::kNumInterior>{});
     for (size_t j = 0; j < scene.points.size(); ++j)
-      if (point_index[j] >= 0) pr.point_covariance[j] = scale * cov.point_covariance[point_index[j]];
+      if (point_index[j] >= 0)
+        pr.point_covariance[j] = scale * cov.point_covariance[point_index[j]];
     for (size_t i = 0; i < scene.images.size(); ++i)
-      if (camera_image[i] >= 0) pr.exterior_covariance[i] = scale * cov.camera_covariance[camera_image[i]];
+      if (camera_image[i] >= 0)
+        pr.exterior_covariance[i] = scale * cov.camera_covariance[camera_image[i]];
     for (size_t k = 0; k < scene.cameras.size(); ++k) {
       if (camera_interior[k] < 0) continue;
       const Eigen::MatrixXd& c = cov.camera_covariance[camera_interior[k]];
-      for (int i = 0; i < camera::kNumInterior; ++i) pr.interior_sigma[k][i] = std::sqrt(std::max(0.0, scale * c(i, i)));
+      for (int i = 0; i < camera::kNumInterior; ++i)
+        pr.interior_sigma[k][i] = std::sqrt(std::max(0.0, scale * c(i, i)));
     }
     if (!cov.point_covariance_held.empty()) {
       pr.point_covariance_datum_free.assign(scene.points.size(), Eigen::Matrix3d::Zero());
       for (size_t j = 0; j < scene.points.size(); ++j)
-        if (point_index[j] >= 0) pr.point_covariance_datum_free[j] = datum_free_scale * cov.point_covariance_held[point_index[j]];
+        if (point_index[j] >= 0)
+          pr.point_covariance_datum_free[j] =
+              datum_free_scale * cov.point_covariance_held[point_index[j]];
     }
     pr.valid = true;
-    pr.message = options.scale_covariance_by_sigma0 ? "a posteriori (scaled by sigma0^2)" : "a priori";
+    pr.message =
+        options.scale_covariance_by_sigma0 ? "a posteriori (scaled by sigma0^2)" : "a priori";
   } else {
     pr.message = "not computed (compute_covariance = false)";
   }
@@ -646,14 +712,17 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
 
   // One loss object shared by all image residuals; the problem must not own it.
   std::unique_ptr<ceres::LossFunction> loss_owner;
-  if (options_.loss == "huber") loss_owner = std::make_unique<ceres::HuberLoss>(options_.loss_scale);
-  if (options_.loss == "cauchy") loss_owner = std::make_unique<ceres::CauchyLoss>(options_.loss_scale);
+  if (options_.loss == "huber")
+    loss_owner = std::make_unique<ceres::HuberLoss>(options_.loss_scale);
+  if (options_.loss == "cauchy")
+    loss_owner = std::make_unique<ceres::CauchyLoss>(options_.loss_scale);
   ceres::Problem::Options problem_options;
   problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem prob(problem_options);
   std::vector<int> used_obs;
   std::vector<double*> point_blocks;
-  const int num_prior_residuals = BuildProblem(scene, config_, loss_owner.get(), &b, &prob, &used_obs, &point_blocks);
+  const int num_prior_residuals =
+      BuildProblem(scene, config_, loss_owner.get(), &b, &prob, &used_obs, &point_blocks);
 
   summary.num_observations = static_cast<int>(used_obs.size());
   // Constant blocks do not count.
@@ -667,7 +736,8 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
   }
 
   // Solver options and the solve (SolveCeresProblem).
-  const SolveReport report = SolveCeresProblem(options_, point_blocks, static_cast<int>(scene.images.size()), &prob);
+  const SolveReport report =
+      SolveCeresProblem(options_, point_blocks, static_cast<int>(scene.images.size()), &prob);
   summary.termination = report.termination;
   summary.initial_cost = report.initial_cost;
   summary.final_cost = report.final_cost;
@@ -681,7 +751,8 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
   auto WriteBack = [&]() {
     for (size_t i = 0; i < scene.images.size(); ++i)
       scene_in->images[i].exterior = camera::ExteriorOrientation::FromArray(b.exterior[i].data());
-    for (size_t c = 0; c < scene.cameras.size(); ++c) scene_in->cameras[c].model.mutable_interior() = b.interior[c];
+    for (size_t c = 0; c < scene.cameras.size(); ++c)
+      scene_in->cameras[c].model.mutable_interior() = b.interior[c];
     for (size_t j = 0; j < scene.points.size(); ++j) {
       if (!b.point_used[j]) continue;
       scene_in->points[j].position = Eigen::Vector3d(b.point[j][0], b.point[j][1], b.point[j][2]);
@@ -690,7 +761,8 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
     for (const int j : undetermined) scene_in->points[j].position_known = false;
   };
   if (!report.converged) {
-    summary.reason = "solver did not converge (diverging or too few iterations): " + report.termination;
+    summary.reason =
+        "solver did not converge (diverging or too few iterations): " + report.termination;
     if (options_.write_back_unconverged && std::isfinite(report.final_cost)) WriteBack();
     return summary;
   }
@@ -700,11 +772,12 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
   // one such tie point does not refuse the whole epoch's covariance.
   SchurCovarianceOptions co;
   co.num_threads = options_.num_threads;
-  undetermined = DropUndeterminedPoints(co, scene, &b.point, &b.point_used, &used_obs, &prob, &summary);
+  undetermined =
+      DropUndeterminedPoints(co, scene, &b.point, &b.point_used, &used_obs, &prob, &summary);
 
   int n_behind = 0;
-  std::vector<WorstObservation> worst =
-      EvaluateResiduals(scene, options_, config_, b, used_obs, num_prior_residuals, &n_behind, &summary);
+  std::vector<WorstObservation> worst = EvaluateResiduals(scene, options_, config_, b, used_obs,
+                                                          num_prior_residuals, &n_behind, &summary);
   if (!SolutionPassesChecks(scene, options_, n_behind, std::move(worst), &summary)) return summary;
 
   // Precision.
@@ -712,12 +785,13 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
 
   WriteBack();
   summary.usable = true;
-  summary.reason = Message("converged; sigma0 = ", summary.sigma0, ", ", summary.num_outliers, " outliers of ",
-                           summary.num_observations,
-                           summary.undetermined_points.empty()
-                               ? std::string()
-                               : Message("; ", summary.undetermined_points.size(),
-                                         " undetermined point(s) dropped (", summary.UndeterminedList(), ")"));
+  summary.reason =
+      Message("converged; sigma0 = ", summary.sigma0, ", ", summary.num_outliers, " outliers of ",
+              summary.num_observations,
+              summary.undetermined_points.empty()
+                  ? std::string()
+                  : Message("; ", summary.undetermined_points.size(),
+                            " undetermined point(s) dropped (", summary.UndeterminedList(), ")"));
   return summary;
 }
 

@@ -1,8 +1,8 @@
 #include <cmath>
 
-#include <Eigen/LU>
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
+#include <Eigen/LU>
 
 #include "slope_monitor/core/adjustment/cost_functions/collinearity_error.h"
 #include "slope_monitor/core/adjustment/cost_functions/snavely_reprojection_error.h"
@@ -15,12 +15,14 @@ namespace adjustment {
 template <int N>
 Eigen::Matrix<double, N, N> SqrtInformation(const Eigen::Matrix<double, N, N>& covariance) {
   if (!covariance.allFinite() || !covariance.isApprox(covariance.transpose(), 1e-9)) {
-    throw InvalidArgument(Message("covariance is not finite and symmetric: ", covariance.format(Eigen::IOFormat(4))));
+    throw InvalidArgument(
+        Message("covariance is not finite and symmetric: ", covariance.format(Eigen::IOFormat(4))));
   }
   const Eigen::Matrix<double, N, N> information = covariance.inverse();
   Eigen::LLT<Eigen::Matrix<double, N, N>> llt(information);
   if (llt.info() != Eigen::Success || !information.allFinite()) {
-    throw InvalidArgument(Message("covariance is not positive definite: ", covariance.format(Eigen::IOFormat(4))));
+    throw InvalidArgument(
+        Message("covariance is not positive definite: ", covariance.format(Eigen::IOFormat(4))));
   }
   // information = L L^T, so S = L^T gives S^T S = information.
   return llt.matrixL().transpose();
@@ -50,7 +52,8 @@ bool SnavelyReprojectionErrorAnalytic::Evaluate(double const* const* parameters,
     const double theta = std::sqrt(theta2);
     const double s = std::sin(theta), c = std::cos(theta);
     r = Eigen::Matrix3d::Identity() + (s / theta) * wx + ((1.0 - c) / theta2) * wx * wx;
-    jl = Eigen::Matrix3d::Identity() + ((1.0 - c) / theta2) * wx + ((theta - s) / (theta2 * theta)) * wx * wx;
+    jl = Eigen::Matrix3d::Identity() + ((1.0 - c) / theta2) * wx +
+         ((theta - s) / (theta2 * theta)) * wx * wx;
   } else {
     r = Eigen::Matrix3d::Identity() + wx;
     jl = Eigen::Matrix3d::Identity() + 0.5 * wx;
@@ -119,8 +122,10 @@ bool CollinearityErrorAnalytic::Evaluate(double const* const* parameters, double
                                          double** jacobians) const {
   const double* ext = parameters[0];
   const double* in = parameters[1];
-  const Eigen::Vector3d d(parameters[2][0] - ext[0], parameters[2][1] - ext[1], parameters[2][2] - ext[2]);
-  const Eigen::Matrix3d mt = camera::MTheta(ext[3]), mp = camera::MPhi(ext[4]), mk = camera::MKappa(ext[5]);
+  const Eigen::Vector3d d(parameters[2][0] - ext[0], parameters[2][1] - ext[1],
+                          parameters[2][2] - ext[2]);
+  const Eigen::Matrix3d mt = camera::MTheta(ext[3]), mp = camera::MPhi(ext[4]),
+                        mk = camera::MKappa(ext[5]);
   const Eigen::Matrix3d m = mk * mp * mt;
   const Eigen::Vector3d u = m * d;
   if (u.z() == 0.0) return false;
@@ -129,7 +134,8 @@ bool CollinearityErrorAnalytic::Evaluate(double const* const* parameters, double
   const double nx = -u.x() * iz, ny = -u.y() * iz;  // normalised: x_u = c nx
   const double xu = c * nx, yu = c * ny;
   const double k1 = in[camera::kK1], k2 = in[camera::kK2], k3 = in[camera::kK3];
-  const double p1 = in[camera::kP1], p2 = in[camera::kP2], b1 = in[camera::kB1], b2 = in[camera::kB2];
+  const double p1 = in[camera::kP1], p2 = in[camera::kP2], b1 = in[camera::kB1],
+               b2 = in[camera::kB2];
   const double r2 = xu * xu + yu * yu;
   const double radial = r2 * (k1 + r2 * (k2 + r2 * k3));
   const double xl = xu * (1.0 + radial) + p1 * (r2 + 2.0 * xu * xu) + 2.0 * p2 * xu * yu;
@@ -145,12 +151,13 @@ bool CollinearityErrorAnalytic::Evaluate(double const* const* parameters, double
 
   // residual = S P (x_mm, y_mm): P the pixel scale (row axis down), S the whitening.
   const Eigen::Matrix2d sp =
-      sqrt_information_ * Eigen::Vector2d(1.0 / sensor_.pixel_size, -1.0 / sensor_.pixel_size).asDiagonal();
+      sqrt_information_ *
+      Eigen::Vector2d(1.0 / sensor_.pixel_size, -1.0 / sensor_.pixel_size).asDiagonal();
   Eigen::Matrix2d shear;  // d(x_mm, y_mm) / d(xl, yl)
   shear << 1.0 + b1, b2, 0.0, 1.0;
-  const Eigen::Matrix2d ds = sp * shear;  // d residual / d(xl, yl)
+  const Eigen::Matrix2d ds = sp * shear;                   // d residual / d(xl, yl)
   const double rp = k1 + r2 * (2.0 * k2 + 3.0 * r2 * k3);  // d radial / d r2
-  Eigen::Matrix2d dl;  // d(xl, yl) / d(xu, yu)
+  Eigen::Matrix2d dl;                                      // d(xl, yl) / d(xu, yu)
   dl(0, 0) = 1.0 + radial + 2.0 * rp * xu * xu + 6.0 * p1 * xu + 2.0 * p2 * yu;
   dl(0, 1) = 2.0 * rp * xu * yu + 2.0 * p1 * yu + 2.0 * p2 * xu;
   dl(1, 0) = 2.0 * rp * xu * yu + 2.0 * p2 * xu + 2.0 * p1 * yu;

@@ -23,25 +23,28 @@ void NamingOptions::Check() const {
   if (!(gate_sigma > 0.0)) fail("gate_sigma", Message("must be > 0, got ", gate_sigma));
   if (!(gate_extra_px >= 0.0)) fail("gate_extra_px", Message("must be >= 0, got ", gate_extra_px));
   if (!(min_gate_px > 0.0)) fail("min_gate_px", Message("must be > 0, got ", min_gate_px));
-  if (!(ambiguity_factor >= 1.0)) fail("ambiguity_factor", Message("must be >= 1, got ", ambiguity_factor));
-  if (!(coarse_extra_px >= 0.0)) fail("coarse_extra_px", Message("must be >= 0, got ", coarse_extra_px));
+  if (!(ambiguity_factor >= 1.0))
+    fail("ambiguity_factor", Message("must be >= 1, got ", ambiguity_factor));
+  if (!(coarse_extra_px >= 0.0))
+    fail("coarse_extra_px", Message("must be >= 0, got ", coarse_extra_px));
 }
 
 void EpochAdjustmentOptions::Check() const {
   adjustment.Check();
   naming.Check();
   if (!(max_tie_outlier_share > 0.0 && max_tie_outlier_share <= 1.0))
-    throw ConfigError(Message("option 'max_tie_outlier_share' must be in (0, 1], got ", max_tie_outlier_share));
+    throw ConfigError(
+        Message("option 'max_tie_outlier_share' must be in (0, 1], got ", max_tie_outlier_share));
 }
 
 std::string NamingReport::Brief() const {
-  return Message("named ", named, " of ", considered, " unidentified (", ambiguous, " ambiguous, ", unmatched,
-                 " unmatched, ", not_oriented, " more in unoriented images)");
+  return Message("named ", named, " of ", considered, " unidentified (", ambiguous, " ambiguous, ",
+                 unmatched, " unmatched, ", not_oriented, " more in unoriented images)");
 }
 
 std::string PhotoStats::Brief() const {
-  return Message("UAV photos: ", kept, " of ", total, " kept (", not_oriented, " not oriented, ", too_few_observations,
-                 " too few observations)");
+  return Message("UAV photos: ", kept, " of ", total, " kept (", not_oriented, " not oriented, ",
+                 too_few_observations, " too few observations)");
 }
 
 namespace {
@@ -52,7 +55,8 @@ namespace {
 std::unordered_map<std::string, int> PointIndexByName(const Scene& scene) {
   std::unordered_map<std::string, int> index;
   index.reserve(scene.points.size());
-  for (size_t j = 0; j < scene.points.size(); ++j) index.emplace(scene.points[j].id, static_cast<int>(j));
+  for (size_t j = 0; j < scene.points.size(); ++j)
+    index.emplace(scene.points[j].id, static_cast<int>(j));
   return index;
 }
 
@@ -63,9 +67,10 @@ int PointAt(const std::unordered_map<std::string, int>& index, const std::string
 
 }  // namespace
 
-NamingReport NameUnidentified(Scene* scene, const std::vector<UnidentifiedObservation>& unidentified,
-                              const std::vector<ListedTarget>& targets, const NamingOptions& options,
-                              const std::vector<bool>* coarse) {
+NamingReport NameUnidentified(Scene* scene,
+                              const std::vector<UnidentifiedObservation>& unidentified,
+                              const std::vector<ListedTarget>& targets,
+                              const NamingOptions& options, const std::vector<bool>* coarse) {
   options.Check();
   scene->CheckIndices();
   NamingReport report;
@@ -150,8 +155,8 @@ NamingReport NameUnidentified(Scene* scene, const std::vector<UnidentifiedObserv
       }
       if (!why.empty()) {
         ++report.ambiguous;
-        report.notes.push_back(Message(u.family, " at (", u.pixel.x(), ", ", u.pixel.y(), ") in '", im.name,
-                                       "': ambiguous, ", why));
+        report.notes.push_back(Message(u.family, " at (", u.pixel.x(), ", ", u.pixel.y(), ") in '",
+                                       im.name, "': ambiguous, ", why));
         continue;
       }
       int j = PointAt(point_index, t.id);
@@ -185,12 +190,14 @@ NamingReport NameUnidentified(Scene* scene, const std::vector<UnidentifiedObserv
   return report;
 }
 
-int OrientFromApproximatePoints(Scene* scene, const InitializationOptions& options, std::vector<bool>* flags) {
+int OrientFromApproximatePoints(Scene* scene, const InitializationOptions& options,
+                                std::vector<bool>* flags) {
   scene->CheckIndices();
   if (flags) flags->resize(scene->images.size(), false);
   std::vector<int> wanted;
   for (size_t i = 0; i < scene->images.size(); ++i)
-    if (!scene->images[i].exterior_known && scene->images[i].position_prior) wanted.push_back(static_cast<int>(i));
+    if (!scene->images[i].exterior_known && scene->images[i].position_prior)
+      wanted.push_back(static_cast<int>(i));
   if (wanted.empty()) return 0;
   Scene copy = *scene;
   bool any = false;
@@ -208,17 +215,21 @@ int OrientFromApproximatePoints(Scene* scene, const InitializationOptions& optio
   std::vector<std::vector<int>> obs_of_image(copy.images.size());
   for (size_t k = 0; k < copy.observations.size(); ++k) {
     const Observation& o = copy.observations[k];
-    if (o.pixel.allFinite() && copy.points[o.point].position_known) obs_of_image[o.image].push_back(static_cast<int>(k));
+    if (o.pixel.allFinite() && copy.points[o.point].position_known)
+      obs_of_image[o.image].push_back(static_cast<int>(k));
   }
   std::vector<bool> oriented_before(copy.images.size());
-  for (size_t i = 0; i < copy.images.size(); ++i) oriented_before[i] = copy.images[i].exterior_known;
+  for (size_t i = 0; i < copy.images.size(); ++i)
+    oriented_before[i] = copy.images[i].exterior_known;
   for (int i : wanted) {
     Image& im = copy.images[i];
     if (im.exterior_known) continue;
     int best = -1;
     for (size_t n = 0; n < copy.images.size(); ++n) {
-      if (!oriented_before[n] || copy.images[n].camera != im.camera || static_cast<int>(n) == i) continue;
-      if (best < 0 || std::abs(copy.images[n].stamp - im.stamp) < std::abs(copy.images[best].stamp - im.stamp))
+      if (!oriented_before[n] || copy.images[n].camera != im.camera || static_cast<int>(n) == i)
+        continue;
+      if (best < 0 ||
+          std::abs(copy.images[n].stamp - im.stamp) < std::abs(copy.images[best].stamp - im.stamp))
         best = static_cast<int>(n);
     }
     if (best < 0) continue;
@@ -234,7 +245,8 @@ int OrientFromApproximatePoints(Scene* scene, const InitializationOptions& optio
     }
     const camera::CameraModel& model = copy.cameras[im.camera].model;
     const Observation& o = copy.observations[obs_of_image[i].front()];
-    const Eigen::Vector3d ray = neighbour.rotation * model.PixelToOpticalDirection(o.pixel).normalized();
+    const Eigen::Vector3d ray =
+        neighbour.rotation * model.PixelToOpticalDirection(o.pixel).normalized();
     const Eigen::Vector3d want = (copy.points[o.point].position - *im.position_prior).normalized();
     const Eigen::Matrix3d tilt = Eigen::Quaterniond::FromTwoVectors(ray, want).toRotationMatrix();
     im.exterior = camera::ExteriorOrientation::FromOpticalFromSite(
@@ -311,17 +323,20 @@ struct TieScreening {
   std::string refused;  // why nothing was removed although the fit flagged
 };
 
-TieScreening ScreenTiePoints(const Scene& pruned, const Options& ao, const Config& config, double max_share) {
+TieScreening ScreenTiePoints(const Scene& pruned, const Options& ao, const Config& config,
+                             double max_share) {
   TieScreening t;
   bool any_tie = false;
-  for (const Observation& o : pruned.observations) any_tie = any_tie || pruned.points[o.point].role == PointRole::kTie;
+  for (const Observation& o : pruned.observations)
+    any_tie = any_tie || pruned.points[o.point].role == PointRole::kTie;
   if (!any_tie) return t;
   Options so = ao;
   so.max_sigma0 = 1e12;
   so.max_outlier_fraction = 1.0;
   so.compute_covariance = false;
   so.max_iterations = std::min(ao.max_iterations, 50);
-  so.write_back_unconverged = true;  // a block creeping in the robust loss's linear range is still fitted
+  so.write_back_unconverged =
+      true;  // a block creeping in the robust loss's linear range is still fitted
   t.solution = pruned;
   const Summary ts = BundleAdjuster(so, config).Solve(&t.solution);
   if (!(std::isfinite(ts.final_cost) && ts.final_cost < ts.initial_cost)) return t;
@@ -331,7 +346,8 @@ TieScreening ScreenTiePoints(const Scene& pruned, const Options& ao, const Confi
     ++ties;
     const Image& im = t.solution.images[o.image];
     Eigen::Vector2d px;
-    bool out = !t.solution.cameras[im.camera].model.Project(im.exterior, t.solution.points[o.point].position, &px);
+    bool out = !t.solution.cameras[im.camera].model.Project(
+        im.exterior, t.solution.points[o.point].position, &px);
     if (!out) {
       const Eigen::Vector2d e = px - o.pixel;
       out = !(std::sqrt(e.dot(o.covariance.inverse() * e)) <= ao.outlier_threshold);
@@ -340,7 +356,8 @@ TieScreening ScreenTiePoints(const Scene& pruned, const Options& ao, const Confi
   }
   if (static_cast<double>(t.mismatches.size()) > max_share * ties) {
     t.refused = Message("the screening adjustment flagged ", t.mismatches.size(), " of ", ties,
-                        " tie-point observations (more than max_tie_outlier_share ", max_share, "): none removed");
+                        " tie-point observations (more than max_tie_outlier_share ", max_share,
+                        "): none removed");
     t.mismatches.clear();
     return t;
   }
@@ -354,19 +371,23 @@ TieScreening ScreenTiePoints(const Scene& pruned, const Options& ao, const Confi
 // tie nothing. Pruned again until nothing changes (at most 10 passes).
 Scene PruneForAdjustment(const Scene& s, const Options& ao, PruneReport* report) {
   *report = PruneReport();
-  Scene pruned = PruneScene(s, ao.min_observations_per_image, report,
-                            std::min(ao.min_observations_with_prior, ao.min_observations_per_image));
+  Scene pruned =
+      PruneScene(s, ao.min_observations_per_image, report,
+                 std::min(ao.min_observations_with_prior, ao.min_observations_per_image));
   for (int pass = 0; pass < 10; ++pass) {
     std::vector<std::set<int>> seen(pruned.points.size());
     for (const Observation& o : pruned.observations) seen[o.point].insert(o.image);
     std::vector<Observation> kept;
     for (const Observation& o : pruned.observations) {
       const ObjectPoint& p = pruned.points[o.point];
-      if (seen[o.point].size() >= 2 || (p.role == PointRole::kControl && p.surveyed)) kept.push_back(o);
+      if (seen[o.point].size() >= 2 || (p.role == PointRole::kControl && p.surveyed))
+        kept.push_back(o);
     }
     if (kept.size() == pruned.observations.size()) break;
     for (size_t j = 0; j < pruned.points.size(); ++j)
-      if (seen[j].size() == 1) report->dropped_points.push_back(Message("point '", pruned.points[j].id, "': seen by one image only"));
+      if (seen[j].size() == 1)
+        report->dropped_points.push_back(
+            Message("point '", pruned.points[j].id, "': seen by one image only"));
     pruned.observations.swap(kept);
     PruneReport more;
     pruned = PruneScene(pruned, ao.min_observations_per_image, &more,
@@ -410,7 +431,8 @@ WorstName WorstNamedObservation(const Scene& trial, const std::set<ObservationKe
     if (!named.count(key)) continue;
     const Image& im = trial.images[o.image];
     Eigen::Vector2d px;
-    if (!trial.cameras[im.camera].model.Project(im.exterior, trial.points[o.point].position, &px)) continue;
+    if (!trial.cameras[im.camera].model.Project(im.exterior, trial.points[o.point].position, &px))
+      continue;
     const Eigen::Vector2d e = px - o.pixel;
     const double w = std::sqrt(e.dot(o.covariance.inverse() * e));
     if (w > worst) {
@@ -458,22 +480,29 @@ void FinishEpochReport(const Scene& s, const Options& ao, const std::string& nam
   }
   if (!r.rejected_names.empty()) {
     std::string list;
-    for (size_t i = 0; i < r.rejected_names.size() && i < 3; ++i) list += (i ? "; " : "") + r.rejected_names[i];
-    r.summary.reason += Message("; ", r.rejected_names.size(), " target name(s) given by projection rejected by the "
-                                "residual test and removed: ", list, r.rejected_names.size() > 3 ? "; ..." : "");
+    for (size_t i = 0; i < r.rejected_names.size() && i < 3; ++i)
+      list += (i ? "; " : "") + r.rejected_names[i];
+    r.summary.reason += Message("; ", r.rejected_names.size(),
+                                " target name(s) given by projection rejected by the "
+                                "residual test and removed: ",
+                                list, r.rejected_names.size() > 3 ? "; ..." : "");
   }
   if (r.tie_outliers_removed > 0)
-    r.summary.reason += Message("; ", r.tie_outliers_removed, " tie-point observation(s) removed as mismatches (residual above ",
+    r.summary.reason += Message("; ", r.tie_outliers_removed,
+                                " tie-point observation(s) removed as mismatches (residual above ",
                                 ao.outlier_threshold, " sigma in a screening adjustment)");
   if (!r.tie_screening_refused.empty()) r.summary.reason += "; " + r.tie_screening_refused;
   if (r.retried_without_names)
-    r.summary.reason += "; not usable with the targets named by projection (" + named_failure + "), adjusted without them";
+    r.summary.reason += "; not usable with the targets named by projection (" + named_failure +
+                        "), adjusted without them";
 }
 
 }  // namespace
 
-EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<UnidentifiedObservation>& unidentified,
-                                  const std::vector<ListedTarget>& targets, const EpochAdjustmentOptions& options) {
+EpochAdjustmentResult AdjustEpoch(const Scene& scene,
+                                  const std::vector<UnidentifiedObservation>& unidentified,
+                                  const std::vector<ListedTarget>& targets,
+                                  const EpochAdjustmentOptions& options) {
   options.Check();
   scene.CheckIndices();
   EpochAdjustmentResult r;
@@ -531,7 +560,8 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
       pruned = PruneForAdjustment(s, ao, &r.pruned);
       if (pruned.images.empty()) {
         r.summary = Summary();
-        r.summary.reason = Message("no image of the epoch could be oriented (", r.pruned.Summary(), ")");
+        r.summary.reason =
+            Message("no image of the epoch could be oriented (", r.pruned.Summary(), ")");
         return;
       }
       const Config config = ConfigFor(pruned, options);
@@ -565,8 +595,9 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<Unidenti
           const double worst = worst_name.sigmas, worst_px = worst_name.px;
           const ObservationKey& worst_key = worst_name.key;
           if (worst > ao.outlier_threshold) {
-            r.rejected_names.push_back(Message(worst_key.second, " in '", worst_key.first, "' (residual ", worst,
-                                               " sigma, ", worst_px, " px)"));
+            r.rejected_names.push_back(Message(worst_key.second, " in '", worst_key.first,
+                                               "' (residual ", worst, " sigma, ", worst_px,
+                                               " px)"));
             std::vector<Observation> kept;
             for (const Observation& o : s.observations)
               if (KeyOf(s, o) != worst_key) kept.push_back(o);

@@ -127,8 +127,9 @@ std::vector<CollectedEpoch> EpochCollector::AddTargets(const ImageTargets& image
   if (image.epoch != 0 && ends_.empty()) current_epoch_ = image.epoch;
   // A UAV camera flies with its nominal interior: its model error is far
   // above the centroid precision.
-  const double floor =
-      IsUavCamera(image.camera, options_.uav_cameras) ? options_.uav_pixel_sigma_floor : options_.pixel_sigma_floor;
+  const double floor = IsUavCamera(image.camera, options_.uav_cameras)
+                           ? options_.uav_pixel_sigma_floor
+                           : options_.pixel_sigma_floor;
   for (const TargetInput& t : image.targets) {
     CollectedObservation c;
     c.image_key = key;
@@ -452,7 +453,8 @@ void BuildSceneOptions::Check() const {
     fail("position_prior_min_sigma", Message("must be > 0, got ", position_prior_min_sigma));
   if (min_images < 1) fail("min_images", Message("must be >= 1, got ", min_images));
   if (!(attitude_prior_max_sigma >= 0.0 && attitude_prior_max_sigma < 3.2))
-    fail("attitude_prior_max_sigma", Message("must be in [0, 3.2) rad (0..180 deg), got ", attitude_prior_max_sigma));
+    fail("attitude_prior_max_sigma",
+         Message("must be in [0, 3.2) rad (0..180 deg), got ", attitude_prior_max_sigma));
 }
 
 namespace {
@@ -534,10 +536,12 @@ BuiltScene BuildScene(const CollectedEpoch& epoch,
       const double floor = options.position_prior_min_sigma * options.position_prior_min_sigma;
       for (int r = 0; r < 3; ++r) c(r, r) = std::max(c(r, r), floor);
       image.position_prior_covariance = c;
-      if (UsableAttitude(prior, options.attitude_prior_max_sigma) && IsUavCamera(im.camera, options.uav_cameras)) {
+      if (UsableAttitude(prior, options.attitude_prior_max_sigma) &&
+          IsUavCamera(im.camera, options.uav_cameras)) {
         // The flight log's attitude at the GNSS centre: the start values.
         image.exterior = camera::ExteriorOrientation::FromOpticalFromSite(
-            Rigid3(prior.site_from_optical.normalized().toRotationMatrix(), prior.position).Inverse());
+            Rigid3(prior.site_from_optical.normalized().toRotationMatrix(), prior.position)
+                .Inverse());
         image.exterior_known = true;
         image.attitude_from_prior = true;
       }

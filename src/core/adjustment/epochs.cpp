@@ -8,15 +8,19 @@ namespace slope_monitor {
 namespace adjustment {
 
 void DisplacementOptions::Check() const {
-  if (!(stable_threshold > 0.0)) throw ConfigError(Message("stable_threshold must be > 0, got ", stable_threshold));
-  if (min_stable_points < 3) throw ConfigError(Message("min_stable_points must be >= 3, got ", min_stable_points));
-  if (!(significance_threshold > 0.0)) throw ConfigError(Message("significance_threshold must be > 0, got ", significance_threshold));
+  if (!(stable_threshold > 0.0))
+    throw ConfigError(Message("stable_threshold must be > 0, got ", stable_threshold));
+  if (min_stable_points < 3)
+    throw ConfigError(Message("min_stable_points must be >= 3, got ", min_stable_points));
+  if (!(significance_threshold > 0.0))
+    throw ConfigError(Message("significance_threshold must be > 0, got ", significance_threshold));
 }
 
-EpochPoints EpochPointsFromSolution(const Scene& scene, const Summary& summary, int epoch, double stamp,
-                                   bool datum_free) {
+EpochPoints EpochPointsFromSolution(const Scene& scene, const Summary& summary, int epoch,
+                                    double stamp, bool datum_free) {
   if (!summary.IsSolutionUsable())
-    throw InvalidArgument(Message("epoch ", epoch, ": the adjustment is not usable (", summary.reason, ")"));
+    throw InvalidArgument(
+        Message("epoch ", epoch, ": the adjustment is not usable (", summary.reason, ")"));
   EpochPoints e;
   e.epoch = epoch;
   e.stamp = stamp;
@@ -28,7 +32,8 @@ EpochPoints EpochPointsFromSolution(const Scene& scene, const Summary& summary, 
     s.position = p.position;
     if (summary.precision.valid && j < summary.precision.point_covariance.size())
       s.covariance = summary.precision.point_covariance[j];
-    if (datum_free && summary.precision.valid && j < summary.precision.point_covariance_datum_free.size())
+    if (datum_free && summary.precision.valid &&
+        j < summary.precision.point_covariance_datum_free.size())
       s.covariance = summary.precision.point_covariance_datum_free[j];
     e.points[p.id] = s;
   }
@@ -58,8 +63,9 @@ EpochComparison CompareEpochs(const EpochPoints& reference, const EpochPoints& c
     dst.push_back(it->second.position);
   }
   if (static_cast<int>(ids.size()) < options.min_stable_points) {
-    out.message = Message("epochs ", reference.epoch, " and ", current.epoch, " share only ", ids.size(),
-                          " stable points (min_stable_points = ", options.min_stable_points, ")");
+    out.message =
+        Message("epochs ", reference.epoch, " and ", current.epoch, " share only ", ids.size(),
+                " stable points (min_stable_points = ", options.min_stable_points, ")");
     return out;
   }
   geometry::HelmertOptions h;
@@ -67,7 +73,8 @@ EpochComparison CompareEpochs(const EpochPoints& reference, const EpochPoints& c
   h.inlier_threshold = options.stable_threshold;
   const geometry::HelmertResult fit = geometry::FitSimilarityRobust(src, dst, h);
   if (!fit.success || fit.num_inliers < options.min_stable_points) {
-    out.message = Message("co-registration of epoch ", current.epoch, " onto ", reference.epoch, " failed: ", fit.message);
+    out.message = Message("co-registration of epoch ", current.epoch, " onto ", reference.epoch,
+                          " failed: ", fit.message);
     return out;
   }
   out.reference_from_current = fit.target_from_source;
@@ -91,8 +98,8 @@ EpochComparison CompareEpochs(const EpochPoints& reference, const EpochPoints& c
   }
   out.success = true;
   out.message = Message("co-registered on ", out.stable_points_used.size(), " stable points (rms ",
-                        out.coregistration_rms, " m, ", out.stable_points_rejected.size(), " rejected); ",
-                        out.displacements.size(), " displacements");
+                        out.coregistration_rms, " m, ", out.stable_points_rejected.size(),
+                        " rejected); ", out.displacements.size(), " displacements");
   return out;
 }
 

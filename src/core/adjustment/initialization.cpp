@@ -17,8 +17,9 @@ namespace {
 // centre to the known points (Wahba's problem, solved by SVD), accepted when
 // every point reprojects within max_px. Needs >= 2 points.
 bool OrientFromPositionPrior(const camera::CameraModel& model, const Eigen::Vector3d& centre,
-                             const std::vector<Eigen::Vector2d>& px, const std::vector<Eigen::Vector3d>& xyz,
-                             double max_px, camera::ExteriorOrientation* exterior) {
+                             const std::vector<Eigen::Vector2d>& px,
+                             const std::vector<Eigen::Vector3d>& xyz, double max_px,
+                             camera::ExteriorOrientation* exterior) {
   if (px.size() < 2) return false;
   Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
   for (size_t k = 0; k < px.size(); ++k) {
@@ -50,7 +51,8 @@ std::string InitializeScene(Scene* scene, const InitializationOptions& options) 
       p.position_known = true;
     }
   }
-  std::vector<std::vector<int>> obs_of_image(scene->images.size()), obs_of_point(scene->points.size());
+  std::vector<std::vector<int>> obs_of_image(scene->images.size()),
+      obs_of_point(scene->points.size());
   for (size_t k = 0; k < scene->observations.size(); ++k) {
     const Observation& o = scene->observations[k];
     if (!o.pixel.allFinite()) continue;
@@ -78,8 +80,8 @@ std::string InitializeScene(Scene* scene, const InitializationOptions& options) 
         im.exterior_known = true;
         changed = true;
       } else if (im.position_prior && options.prior_attitude_max_px > 0.0 &&
-                 OrientFromPositionPrior(scene->cameras[im.camera].model, *im.position_prior, px, xyz,
-                                         options.prior_attitude_max_px, &im.exterior)) {
+                 OrientFromPositionPrior(scene->cameras[im.camera].model, *im.position_prior, px,
+                                         xyz, options.prior_attitude_max_px, &im.exterior)) {
         im.exterior_known = true;  // GNSS centre + attitude from the known points
         changed = true;
       } else {
@@ -112,23 +114,27 @@ std::string InitializeScene(Scene* scene, const InitializationOptions& options) 
     if (!changed) break;
   }
   for (const Image& im : scene->images) {
-    if (!im.exterior_known) return last_failure.empty() ? Message("image '", im.name, "' could not be oriented") : last_failure;
+    if (!im.exterior_known)
+      return last_failure.empty() ? Message("image '", im.name, "' could not be oriented")
+                                  : last_failure;
   }
   std::vector<std::string> unknown;
   for (size_t j = 0; j < scene->points.size(); ++j) {
-    if (!scene->points[j].position_known && obs_of_point[j].size() >= 2) unknown.push_back(scene->points[j].id);
+    if (!scene->points[j].position_known && obs_of_point[j].size() >= 2)
+      unknown.push_back(scene->points[j].id);
   }
   if (!unknown.empty()) {
     std::string list;
     for (size_t i = 0; i < unknown.size() && i < 5; ++i) list += (i ? ", " : "") + unknown[i];
-    return Message(unknown.size(), " points could not be intersected (", list, unknown.size() > 5 ? ", ..." : "", ")");
+    return Message(unknown.size(), " points could not be intersected (", list,
+                   unknown.size() > 5 ? ", ..." : "", ")");
   }
   return "";
 }
 
 std::string PruneReport::Summary() const {
-  std::string out = Message("dropped ", dropped_images.size(), " image(s), ", dropped_points.size(), " point(s), ",
-                            dropped_cameras.size(), " camera(s)");
+  std::string out = Message("dropped ", dropped_images.size(), " image(s), ", dropped_points.size(),
+                            " point(s), ", dropped_cameras.size(), " camera(s)");
   int shown = 0;
   for (const auto* list : {&dropped_images, &dropped_cameras, &dropped_points}) {
     for (const std::string& r : *list) {
@@ -149,7 +155,8 @@ Scene PruneScene(const Scene& scene, int min_observations_per_image, PruneReport
   for (size_t j = 0; j < scene.points.size(); ++j) {
     if (!scene.points[j].position_known) {
       keep_point[j] = false;
-      rep.dropped_points.push_back(Message("point '", scene.points[j].id, "': no initial position"));
+      rep.dropped_points.push_back(
+          Message("point '", scene.points[j].id, "': no initial position"));
     }
   }
   for (size_t i = 0; i < scene.images.size(); ++i) {
@@ -167,19 +174,22 @@ Scene PruneScene(const Scene& scene, int min_observations_per_image, PruneReport
       ++per_point[o.point];
     }
     for (size_t i = 0; i < scene.images.size(); ++i) {
-      const int min_obs = scene.images[i].position_prior ? min_observations_with_prior : min_observations_per_image;
+      const int min_obs =
+          scene.images[i].position_prior ? min_observations_with_prior : min_observations_per_image;
       if (keep_image[i] && per_image[i] < min_obs) {
         keep_image[i] = false;
         changed = true;
         rep.dropped_images.push_back(Message("image '", scene.images[i].name, "': ", per_image[i],
-                                             " observations of initialised points (min ", min_obs, ")"));
+                                             " observations of initialised points (min ", min_obs,
+                                             ")"));
       }
     }
     for (size_t j = 0; j < scene.points.size(); ++j) {
       if (keep_point[j] && per_point[j] == 0) {
         keep_point[j] = false;
         changed = true;
-        rep.dropped_points.push_back(Message("point '", scene.points[j].id, "': no image left that sees it"));
+        rep.dropped_points.push_back(
+            Message("point '", scene.points[j].id, "': no image left that sees it"));
       }
     }
   }
@@ -198,7 +208,8 @@ Scene PruneScene(const Scene& scene, int min_observations_per_image, PruneReport
     out.images.back().camera = camera_map[c];
   }
   for (size_t c = 0; c < scene.cameras.size(); ++c) {
-    if (camera_map[c] < 0) rep.dropped_cameras.push_back(Message("camera '", scene.cameras[c].name, "': no image left"));
+    if (camera_map[c] < 0)
+      rep.dropped_cameras.push_back(Message("camera '", scene.cameras[c].name, "': no image left"));
   }
   for (size_t j = 0; j < scene.points.size(); ++j) {
     if (!keep_point[j]) continue;

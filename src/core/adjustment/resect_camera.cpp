@@ -138,9 +138,12 @@ namespace {
 
 // Residuals, RMS and standardized residuals (data snooping) of the
 // adjusted resection.
-void ResectionResiduals(ceres::Problem* problem_in, const std::vector<ceres::ResidualBlockId>& blocks,
-                        const std::vector<io::PickedPoint>& points, const std::vector<Eigen::Vector2d>& pixels,
-                        const std::vector<Eigen::Vector3d>& pts, const camera::ExteriorOrientation& local,
+void ResectionResiduals(ceres::Problem* problem_in,
+                        const std::vector<ceres::ResidualBlockId>& blocks,
+                        const std::vector<io::PickedPoint>& points,
+                        const std::vector<Eigen::Vector2d>& pixels,
+                        const std::vector<Eigen::Vector3d>& pts,
+                        const camera::ExteriorOrientation& local,
                         const ResectCameraOptions& options, ResectCameraSummary* out_in) {
   ceres::Problem& problem = *problem_in;
   ResectCameraSummary& out = *out_in;
@@ -179,9 +182,11 @@ void ResectionResiduals(ceres::Problem* problem_in, const std::vector<ceres::Res
 // The a-priori covariance of the free parameters (exterior, and the free
 // interior ones), each parameter with its value and sigma, their
 // correlations and the ones above correlation_warning.
-void ResectionCovariance(ceres::Problem* problem_in, const std::vector<int>& free, bool position_held,
-                         const Eigen::Vector3d& centroid, const ResectCameraOptions& options,
-                         std::array<double, camera::kNumExterior>* e_in, std::array<double, camera::kNumInterior>* in_in,
+void ResectionCovariance(ceres::Problem* problem_in, const std::vector<int>& free,
+                         bool position_held, const Eigen::Vector3d& centroid,
+                         const ResectCameraOptions& options,
+                         std::array<double, camera::kNumExterior>* e_in,
+                         std::array<double, camera::kNumInterior>* in_in,
                          ResectCameraSummary* out_in) {
   ceres::Problem& problem = *problem_in;
   std::array<double, camera::kNumExterior>& e = *e_in;
@@ -306,7 +311,7 @@ ResectCameraSummary ResectCamera(const std::vector<io::PickedPoint>& points,
   } else if (options.has_position) {
     blocks.push_back(problem.AddResidualBlock(
         PositionPriorError::Create(options.position - centroid,
-                              Eigen::Matrix3d::Identity() / options.position_sigma),
+                                   Eigen::Matrix3d::Identity() / options.position_sigma),
         nullptr, e.data()));
   }
   std::vector<int> held;

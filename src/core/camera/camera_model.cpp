@@ -11,8 +11,8 @@ namespace {
 bool Finite(double v) { return std::isfinite(v); }
 
 // Lens distortion only (no affinity) and its Jacobian d(xl, yl)/d(xu, yu).
-void LensDistort(const std::array<double, kNumInterior>& p, double xu, double yu, double* xl, double* yl,
-                 Eigen::Matrix2d* jacobian) {
+void LensDistort(const std::array<double, kNumInterior>& p, double xu, double yu, double* xl,
+                 double* yl, Eigen::Matrix2d* jacobian) {
   const double r2 = xu * xu + yu * yu;
   const double radial = p[kK1] * r2 + p[kK2] * r2 * r2 + p[kK3] * r2 * r2 * r2;
   const double dradial = p[kK1] + 2.0 * p[kK2] * r2 + 3.0 * p[kK3] * r2 * r2;  // d radial / d r2
@@ -20,10 +20,12 @@ void LensDistort(const std::array<double, kNumInterior>& p, double xu, double yu
   *yl = yu + yu * radial + p[kP2] * (r2 + 2.0 * yu * yu) + 2.0 * p[kP1] * xu * yu;
   if (jacobian) {
     const double cross = 2.0 * xu * yu * dradial + 2.0 * p[kP1] * yu + 2.0 * p[kP2] * xu;
-    (*jacobian)(0, 0) = 1.0 + radial + 2.0 * xu * xu * dradial + 6.0 * p[kP1] * xu + 2.0 * p[kP2] * yu;
+    (*jacobian)(0, 0) =
+        1.0 + radial + 2.0 * xu * xu * dradial + 6.0 * p[kP1] * xu + 2.0 * p[kP2] * yu;
     (*jacobian)(0, 1) = cross;
     (*jacobian)(1, 0) = cross;
-    (*jacobian)(1, 1) = 1.0 + radial + 2.0 * yu * yu * dradial + 6.0 * p[kP2] * yu + 2.0 * p[kP1] * xu;
+    (*jacobian)(1, 1) =
+        1.0 + radial + 2.0 * yu * yu * dradial + 6.0 * p[kP2] * yu + 2.0 * p[kP1] * xu;
   }
 }
 
@@ -31,7 +33,7 @@ void LensDistort(const std::array<double, kNumInterior>& p, double xu, double yu
 
 const std::array<const char*, kNumInterior>& InteriorNames() {
   static const std::array<const char*, kNumInterior> names = {"c",  "x0", "y0", "k1", "k2",
-                                                               "k3", "p1", "p2", "b1", "b2"};
+                                                              "k3", "p1", "p2", "b1", "b2"};
   return names;
 }
 
@@ -46,10 +48,14 @@ DistortionModel DistortionModelFromName(const std::string& name) {
 
 std::string DistortionModelName(DistortionModel model) {
   switch (model) {
-    case DistortionModel::kNone: return "none";
-    case DistortionModel::kRadial: return "radial";
-    case DistortionModel::kBrown: return "brown";
-    case DistortionModel::kBrownAffinity: return "brown_affinity";
+    case DistortionModel::kNone:
+      return "none";
+    case DistortionModel::kRadial:
+      return "radial";
+    case DistortionModel::kBrown:
+      return "brown";
+    case DistortionModel::kBrownAffinity:
+      return "brown_affinity";
   }
   return "unknown";
 }
@@ -57,7 +63,8 @@ std::string DistortionModelName(DistortionModel model) {
 std::vector<int> InteriorIndicesOf(DistortionModel model) {
   std::vector<int> idx = {kC, kX0, kY0};
   if (model != DistortionModel::kNone) idx.insert(idx.end(), {kK1, kK2, kK3});
-  if (model == DistortionModel::kBrown || model == DistortionModel::kBrownAffinity) idx.insert(idx.end(), {kP1, kP2});
+  if (model == DistortionModel::kBrown || model == DistortionModel::kBrownAffinity)
+    idx.insert(idx.end(), {kP1, kP2});
   if (model == DistortionModel::kBrownAffinity) idx.insert(idx.end(), {kB1, kB2});
   return idx;
 }
@@ -93,18 +100,22 @@ CameraModel::CameraModel(const Sensor& sensor, DistortionModel model,
 
 void CameraModel::Check() const {
   if (sensor_.width <= 0 || sensor_.height <= 0) {
-    throw InvalidArgument(Message("camera sensor size ", sensor_.width, "x", sensor_.height, " px is not positive"));
+    throw InvalidArgument(
+        Message("camera sensor size ", sensor_.width, "x", sensor_.height, " px is not positive"));
   }
   if (!Finite(sensor_.pixel_size) || sensor_.pixel_size <= 0.0) {
-    throw InvalidArgument(Message("camera pixel_size ", sensor_.pixel_size, " mm is not a positive number"));
+    throw InvalidArgument(
+        Message("camera pixel_size ", sensor_.pixel_size, " mm is not a positive number"));
   }
   for (int i = 0; i < kNumInterior; ++i) {
     if (!Finite(interior_[i])) {
-      throw InvalidArgument(Message("camera parameter '", InteriorNames()[i], "' is ", interior_[i]));
+      throw InvalidArgument(
+          Message("camera parameter '", InteriorNames()[i], "' is ", interior_[i]));
     }
   }
   if (interior_[kC] <= 0.0) {
-    throw InvalidArgument(Message("camera principal distance 'c' = ", interior_[kC], " mm must be > 0"));
+    throw InvalidArgument(
+        Message("camera principal distance 'c' = ", interior_[kC], " mm must be > 0"));
   }
   const std::vector<int> used = InteriorIndicesOf(model_);
   for (int i = 0; i < kNumInterior; ++i) {
@@ -112,7 +123,8 @@ void CameraModel::Check() const {
     for (int u : used) in_model = in_model || u == i;
     if (!in_model && interior_[i] != 0.0) {
       throw InvalidArgument(Message("camera parameter '", InteriorNames()[i], "' = ", interior_[i],
-                                    " is not part of distortion model '", DistortionModelName(model_), "'"));
+                                    " is not part of distortion model '",
+                                    DistortionModelName(model_), "'"));
     }
   }
 }
@@ -182,14 +194,16 @@ Ray CameraModel::ImageToRay(const ExteriorOrientation& pose, const Eigen::Vector
 
 Eigen::Vector3d CameraModel::PixelToOpticalDirection(const Eigen::Vector2d& pixel) const {
   const Eigen::Vector2d ideal = UndistortMm(PixelToMm(pixel));
-  return (OpticalFromPhotogrammetric() * Eigen::Vector3d(ideal.x(), ideal.y(), -interior_[kC])).normalized();
+  return (OpticalFromPhotogrammetric() * Eigen::Vector3d(ideal.x(), ideal.y(), -interior_[kC]))
+      .normalized();
 }
 
 OpenCvCamera CameraModel::ToOpenCv() const {
   Check();
   if (interior_[kB2] != 0.0) {
-    throw InvalidArgument(Message("camera shear b2 = ", interior_[kB2],
-                                  " cannot be represented in OpenCV's camera matrix (projectPoints has no skew)"));
+    throw InvalidArgument(
+        Message("camera shear b2 = ", interior_[kB2],
+                " cannot be represented in OpenCV's camera matrix (projectPoints has no skew)"));
   }
   const double c = interior_[kC];
   const double ps = sensor_.pixel_size;
@@ -205,31 +219,37 @@ OpenCvCamera CameraModel::ToOpenCv() const {
 }
 
 CameraModel CameraModel::FromOpenCv(const OpenCvCamera& cv, double pixel_size) {
-  static const char* kCoeffNames[] = {"k1", "k2", "p1", "p2", "k3", "k4", "k5",
+  static const char* kCoeffNames[] = {"k1", "k2", "p1", "p2", "k3", "k4",    "k5",
                                       "k6", "s1", "s2", "s3", "s4", "tau_x", "tau_y"};
   const size_t n = cv.distortion.size();
   if (!(n == 0 || n == 4 || n == 5 || n == 8 || n == 12 || n == 14)) {
-    throw InvalidArgument(Message("OpenCV distortion vector has ", n, " coefficients (expected 0, 4, 5, 8, 12 or 14)"));
+    throw InvalidArgument(Message("OpenCV distortion vector has ", n,
+                                  " coefficients (expected 0, 4, 5, 8, 12 or 14)"));
   }
   for (size_t i = 0; i < n; ++i) {
     if (!Finite(cv.distortion[i])) {
-      throw InvalidArgument(Message("OpenCV distortion coefficient ", kCoeffNames[i], " is ", cv.distortion[i]));
+      throw InvalidArgument(
+          Message("OpenCV distortion coefficient ", kCoeffNames[i], " is ", cv.distortion[i]));
     }
     if (i >= 5 && cv.distortion[i] != 0.0) {
-      throw InvalidArgument(Message("OpenCV distortion coefficient ", kCoeffNames[i], " = ", cv.distortion[i],
-                                    " has no equivalent in the collinearity model (only k1 k2 p1 p2 k3)"));
+      throw InvalidArgument(
+          Message("OpenCV distortion coefficient ", kCoeffNames[i], " = ", cv.distortion[i],
+                  " has no equivalent in the collinearity model (only k1 k2 p1 p2 k3)"));
     }
   }
-  if (!cv.k.allFinite()) throw InvalidArgument("OpenCV camera matrix K has a NaN or infinite element");
+  if (!cv.k.allFinite())
+    throw InvalidArgument("OpenCV camera matrix K has a NaN or infinite element");
   if (cv.k(0, 1) != 0.0) {
     throw InvalidArgument(Message("OpenCV camera matrix has skew K[0][1] = ", cv.k(0, 1),
                                   ", which the collinearity model does not represent"));
   }
   if (cv.k(1, 0) != 0.0 || cv.k(2, 0) != 0.0 || cv.k(2, 1) != 0.0 || cv.k(2, 2) != 1.0) {
-    throw InvalidArgument("OpenCV camera matrix K is not of the form [[fx 0 cx] [0 fy cy] [0 0 1]]");
+    throw InvalidArgument(
+        "OpenCV camera matrix K is not of the form [[fx 0 cx] [0 fy cy] [0 0 1]]");
   }
   if (cv.k(0, 0) <= 0.0 || cv.k(1, 1) <= 0.0) {
-    throw InvalidArgument(Message("OpenCV focal lengths fx = ", cv.k(0, 0), ", fy = ", cv.k(1, 1), " must be > 0"));
+    throw InvalidArgument(
+        Message("OpenCV focal lengths fx = ", cv.k(0, 0), ", fy = ", cv.k(1, 1), " must be > 0"));
   }
   auto coeff = [&](size_t i) { return i < n ? cv.distortion[i] : 0.0; };
   Sensor sensor{cv.width, cv.height, pixel_size};
@@ -273,20 +293,24 @@ CameraInfoFields CameraModel::ToCameraInfo() const {
 
 CameraModel CameraModel::FromCameraInfo(const CameraInfoFields& info, double pixel_size) {
   if (info.width <= 0 || info.height <= 0) {
-    throw InvalidArgument(Message("CameraInfo size ", info.width, "x", info.height, " is not positive"));
+    throw InvalidArgument(
+        Message("CameraInfo size ", info.width, "x", info.height, " is not positive"));
   }
   if (info.distortion_model == "plumb_bob" || (info.distortion_model.empty() && info.d.empty())) {
     if (!(info.d.empty() || info.d.size() == 5)) {
-      throw InvalidArgument(Message("CameraInfo distortion_model 'plumb_bob' needs 5 coefficients, got ", info.d.size()));
+      throw InvalidArgument(Message(
+          "CameraInfo distortion_model 'plumb_bob' needs 5 coefficients, got ", info.d.size()));
     }
   } else if (info.distortion_model == "rational_polynomial") {
     if (info.d.size() != 8) {
-      throw InvalidArgument(Message("CameraInfo distortion_model 'rational_polynomial' needs 8 coefficients, got ",
-                                    info.d.size()));
+      throw InvalidArgument(
+          Message("CameraInfo distortion_model 'rational_polynomial' needs 8 coefficients, got ",
+                  info.d.size()));
     }
   } else {
-    throw InvalidArgument(Message("CameraInfo distortion_model '", info.distortion_model,
-                                  "' cannot be represented (supported: plumb_bob, rational_polynomial with k4..k6 = 0)"));
+    throw InvalidArgument(Message(
+        "CameraInfo distortion_model '", info.distortion_model,
+        "' cannot be represented (supported: plumb_bob, rational_polynomial with k4..k6 = 0)"));
   }
   OpenCvCamera cv;
   cv.width = info.width;

@@ -36,7 +36,8 @@ Eigen::Quaterniond SiteFromOpticalFromAngles(const AttitudeAngles& a) {
 }
 
 AttitudeAngles AnglesFromSiteFromOptical(const Eigen::Quaterniond& site_from_optical) {
-  const Eigen::Matrix3d optical_from_site = site_from_optical.normalized().toRotationMatrix().transpose();
+  const Eigen::Matrix3d optical_from_site =
+      site_from_optical.normalized().toRotationMatrix().transpose();
   return AnglesFromRotation(OpticalFromPhotogrammetric() * optical_from_site);
 }
 

@@ -7,25 +7,28 @@
 namespace slope_monitor {
 namespace capture {
 
-camera::CameraModel NominalModelFromExif(const ExifInfo& exif, int width, int height, double pixel_size,
-                                         const std::string& file) {
+camera::CameraModel NominalModelFromExif(const ExifInfo& exif, int width, int height,
+                                         double pixel_size, const std::string& file) {
   if (!(exif.focal_length_mm > 0.0)) {
-    throw InvalidArgument(Message(file, ": no EXIF focal length (Exif.Photo.FocalLength) for a nominal camera_info"));
+    throw InvalidArgument(
+        Message(file, ": no EXIF focal length (Exif.Photo.FocalLength) for a nominal camera_info"));
   }
   if (width <= 0 || height <= 0 || !(pixel_size > 0.0)) {
-    throw InvalidArgument(Message(file, ": nominal camera needs a positive size (", width, "x", height,
-                                  ") and pixel_size (", pixel_size, " mm)"));
+    throw InvalidArgument(Message(file, ": nominal camera needs a positive size (", width, "x",
+                                  height, ") and pixel_size (", pixel_size, " mm)"));
   }
   std::array<double, camera::kNumInterior> interior{};
   interior[camera::kC] = exif.focal_length_mm;
-  camera::CameraModel model(camera::Sensor{width, height, pixel_size}, camera::DistortionModel::kNone, interior);
+  camera::CameraModel model(camera::Sensor{width, height, pixel_size},
+                            camera::DistortionModel::kNone, interior);
   model.Check();
   return model;
 }
 
-camera::CameraModel CheckCameraInfo(const camera::CameraInfoFields& info, double pixel_size, int image_width,
-                                    int image_height, const std::string& context) {
-  if (image_width > 0 && image_height > 0 && (info.width != image_width || info.height != image_height)) {
+camera::CameraModel CheckCameraInfo(const camera::CameraInfoFields& info, double pixel_size,
+                                    int image_width, int image_height, const std::string& context) {
+  if (image_width > 0 && image_height > 0 &&
+      (info.width != image_width || info.height != image_height)) {
     throw InvalidArgument(Message(context, ": camera_info size ", info.width, "x", info.height,
                                   " differs from the image size ", image_width, "x", image_height));
   }
@@ -36,18 +39,22 @@ camera::CameraModel CheckCameraInfo(const camera::CameraInfoFields& info, double
     throw InvalidArgument(Message(context, ": ", e.what()));
   }
   const camera::CameraInfoFields back = model.ToCameraInfo();
-  auto close = [](double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(1.0, std::abs(a) + std::abs(b)); };
+  auto close = [](double a, double b) {
+    return std::abs(a - b) <= 1e-9 * std::max(1.0, std::abs(a) + std::abs(b));
+  };
   for (int i = 0; i < 9; ++i) {
     if (!close(info.k[i], back.k[i])) {
       throw InvalidArgument(Message(context, ": camera_info K[", i, "] = ", info.k[i],
-                                    " does not survive the collinearity round trip (", back.k[i], ")"));
+                                    " does not survive the collinearity round trip (", back.k[i],
+                                    ")"));
     }
   }
   for (size_t i = 0; i < back.d.size(); ++i) {
     const double d = i < info.d.size() ? info.d[i] : 0.0;
     if (!close(d, back.d[i])) {
       throw InvalidArgument(Message(context, ": camera_info D[", i, "] = ", d,
-                                    " does not survive the collinearity round trip (", back.d[i], ")"));
+                                    " does not survive the collinearity round trip (", back.d[i],
+                                    ")"));
     }
   }
   return model;

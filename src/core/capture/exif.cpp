@@ -16,7 +16,8 @@ namespace capture {
 namespace {
 
 std::string Trim(std::string s) {
-  while (!s.empty() && (std::isspace(static_cast<unsigned char>(s.back())) || s.back() == '\0')) s.pop_back();
+  while (!s.empty() && (std::isspace(static_cast<unsigned char>(s.back())) || s.back() == '\0'))
+    s.pop_back();
   size_t i = 0;
   while (i < s.size() && std::isspace(static_cast<unsigned char>(s[i]))) ++i;
   return s.substr(i);
@@ -38,14 +39,16 @@ double RationalAt(const Exiv2::Exifdatum& d, long i, const std::string& path) {
 }
 
 // deg/min/sec triplet with a ref ("N"/"S" or "E"/"W") -> signed degrees.
-bool ReadAngle(const Exiv2::ExifData& exif, const char* key, const char* ref_key, const char* negative_ref,
-               const std::string& path, double* deg) {
+bool ReadAngle(const Exiv2::ExifData& exif, const char* key, const char* ref_key,
+               const char* negative_ref, const std::string& path, double* deg) {
   const auto it = exif.findKey(Exiv2::ExifKey(key));
   if (it == exif.end()) return false;
   if (it->count() != 3) {
-    throw IoError(Message(path, ": EXIF tag ", key, " has ", it->count(), " values, expected 3 (deg min sec)"));
+    throw IoError(Message(path, ": EXIF tag ", key, " has ", it->count(),
+                          " values, expected 3 (deg min sec)"));
   }
-  double value = RationalAt(*it, 0, path) + RationalAt(*it, 1, path) / 60.0 + RationalAt(*it, 2, path) / 3600.0;
+  double value = RationalAt(*it, 0, path) + RationalAt(*it, 1, path) / 60.0 +
+                 RationalAt(*it, 2, path) / 3600.0;
   std::string ref;
   if (!FindString(exif, ref_key, &ref)) {
     throw IoError(Message(path, ": EXIF tag ", key, " is present but ", ref_key, " is missing"));
@@ -57,15 +60,18 @@ bool ReadAngle(const Exiv2::ExifData& exif, const char* key, const char* ref_key
 
 }  // namespace
 
-double ParseExifDateTime(const std::string& text, const std::string& subsec, const std::string& context) {
+double ParseExifDateTime(const std::string& text, const std::string& subsec,
+                         const std::string& context) {
   std::tm tm{};
   int consumed = 0;
   const std::string t = Trim(text);
-  if (std::sscanf(t.c_str(), "%4d:%2d:%2d %2d:%2d:%2d%n", &tm.tm_year, &tm.tm_mon, &tm.tm_mday, &tm.tm_hour,
-                  &tm.tm_min, &tm.tm_sec, &consumed) != 6 ||
-      consumed != static_cast<int>(t.size()) || tm.tm_year < 1970 || tm.tm_mon < 1 || tm.tm_mon > 12 ||
-      tm.tm_mday < 1 || tm.tm_mday > 31 || tm.tm_hour > 23 || tm.tm_min > 59 || tm.tm_sec > 60) {
-    throw InvalidArgument(Message(context, ": date/time '", text, "' is not 'YYYY:MM:DD HH:MM:SS'"));
+  if (std::sscanf(t.c_str(), "%4d:%2d:%2d %2d:%2d:%2d%n", &tm.tm_year, &tm.tm_mon, &tm.tm_mday,
+                  &tm.tm_hour, &tm.tm_min, &tm.tm_sec, &consumed) != 6 ||
+      consumed != static_cast<int>(t.size()) || tm.tm_year < 1970 || tm.tm_mon < 1 ||
+      tm.tm_mon > 12 || tm.tm_mday < 1 || tm.tm_mday > 31 || tm.tm_hour > 23 || tm.tm_min > 59 ||
+      tm.tm_sec > 60) {
+    throw InvalidArgument(
+        Message(context, ": date/time '", text, "' is not 'YYYY:MM:DD HH:MM:SS'"));
   }
   tm.tm_year -= 1900;
   tm.tm_mon -= 1;
@@ -75,7 +81,8 @@ double ParseExifDateTime(const std::string& text, const std::string& subsec, con
     double scale = 0.1;
     for (char ch : s) {
       if (!std::isdigit(static_cast<unsigned char>(ch))) {
-        throw InvalidArgument(Message(context, ": sub-second time '", subsec, "' is not a digit string"));
+        throw InvalidArgument(
+            Message(context, ": sub-second time '", subsec, "' is not a digit string"));
       }
       seconds += scale * (ch - '0');
       scale *= 0.1;
@@ -88,9 +95,10 @@ double ParseExifTimeOffset(const std::string& text, const std::string& context) 
   int h = 0, m = 0, consumed = 0;
   char sign = 0;
   const std::string t = Trim(text);
-  if (std::sscanf(t.c_str(), "%c%2d:%2d%n", &sign, &h, &m, &consumed) != 3 || consumed != static_cast<int>(t.size()) ||
-      (sign != '+' && sign != '-') || h > 14 || m > 59) {
-    throw InvalidArgument(Message(context, ": time offset '", text, "' is not '+HH:MM' or '-HH:MM'"));
+  if (std::sscanf(t.c_str(), "%c%2d:%2d%n", &sign, &h, &m, &consumed) != 3 ||
+      consumed != static_cast<int>(t.size()) || (sign != '+' && sign != '-') || h > 14 || m > 59) {
+    throw InvalidArgument(
+        Message(context, ": time offset '", text, "' is not '+HH:MM' or '-HH:MM'"));
   }
   return (sign == '-' ? -1.0 : 1.0) * (3600.0 * h + 60.0 * m);
 }
@@ -128,8 +136,10 @@ ExifInfo ReadExif(const std::string& path) {
   if (fl != exif.end() && fl->count() >= 1) info.focal_length_mm = RationalAt(*fl, 0, path);
 
   double lat = 0.0, lon = 0.0;
-  const bool has_lat = ReadAngle(exif, "Exif.GPSInfo.GPSLatitude", "Exif.GPSInfo.GPSLatitudeRef", "S", path, &lat);
-  const bool has_lon = ReadAngle(exif, "Exif.GPSInfo.GPSLongitude", "Exif.GPSInfo.GPSLongitudeRef", "W", path, &lon);
+  const bool has_lat =
+      ReadAngle(exif, "Exif.GPSInfo.GPSLatitude", "Exif.GPSInfo.GPSLatitudeRef", "S", path, &lat);
+  const bool has_lon =
+      ReadAngle(exif, "Exif.GPSInfo.GPSLongitude", "Exif.GPSInfo.GPSLongitudeRef", "W", path, &lon);
   if (has_lat != has_lon) {
     throw IoError(Message(path, ": EXIF has only one of GPSLatitude and GPSLongitude"));
   }

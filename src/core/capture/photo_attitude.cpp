@@ -77,9 +77,10 @@ PhotoAttitude ReadPhotoAttitude(const std::string& path) {
 Eigen::Quaterniond SiteFromOpticalNadir(double yaw_deg) {
   const double h = yaw_deg * M_PI / 180.0;
   Eigen::Matrix3d site_from_optical;
-  site_from_optical.col(0) = Eigen::Vector3d(std::cos(h), -std::sin(h), 0.0);   // image right
-  site_from_optical.col(1) = Eigen::Vector3d(-std::sin(h), -std::cos(h), 0.0);  // image down: backwards
-  site_from_optical.col(2) = Eigen::Vector3d(0.0, 0.0, -1.0);                   // viewing direction
+  site_from_optical.col(0) = Eigen::Vector3d(std::cos(h), -std::sin(h), 0.0);  // image right
+  site_from_optical.col(1) =
+      Eigen::Vector3d(-std::sin(h), -std::cos(h), 0.0);        // image down: backwards
+  site_from_optical.col(2) = Eigen::Vector3d(0.0, 0.0, -1.0);  // viewing direction
   return Eigen::Quaterniond(site_from_optical);
 }
 

@@ -33,7 +33,8 @@ bool IsJpegName(const std::string& path) {
 // Modification time of a file [s since the Unix epoch].
 double FileTime(const std::string& path) {
   struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) throw IoError(Message(path, ": cannot stat the file (", std::strerror(errno), ")"));
+  if (::stat(path.c_str(), &st) != 0)
+    throw IoError(Message(path, ": cannot stat the file (", std::strerror(errno), ")"));
   return static_cast<double>(st.st_mtim.tv_sec) + 1e-9 * static_cast<double>(st.st_mtim.tv_nsec);
 }
 
@@ -45,10 +46,14 @@ double WallClockNow() {
 
 const char* StampSourceName(StampSource s) {
   switch (s) {
-    case StampSource::kExif: return "exif";
-    case StampSource::kFile: return "file";
-    case StampSource::kVideo: return "video";
-    case StampSource::kClock: return "clock";
+    case StampSource::kExif:
+      return "exif";
+    case StampSource::kFile:
+      return "file";
+    case StampSource::kVideo:
+      return "video";
+    case StampSource::kClock:
+      return "clock";
   }
   return "unknown";
 }
@@ -83,8 +88,10 @@ std::string ConvertEncoding(const std::string& requested, cv::Mat* image) {
   }
   if (requested == "mono8" || requested == "bgr8") {
     if (image->depth() == CV_16U) image->convertTo(*image, CV_8U, 1.0 / 257.0);
-    if (requested == "mono8" && image->channels() == 3) cv::cvtColor(*image, *image, cv::COLOR_BGR2GRAY);
-    if (requested == "bgr8" && image->channels() == 1) cv::cvtColor(*image, *image, cv::COLOR_GRAY2BGR);
+    if (requested == "mono8" && image->channels() == 3)
+      cv::cvtColor(*image, *image, cv::COLOR_BGR2GRAY);
+    if (requested == "bgr8" && image->channels() == 1)
+      cv::cvtColor(*image, *image, cv::COLOR_GRAY2BGR);
     return requested;
   }
   const bool mono = image->channels() == 1;
@@ -94,7 +101,8 @@ std::string ConvertEncoding(const std::string& requested, cv::Mat* image) {
 
 std::string CheckJpegStructure(const std::vector<unsigned char>& b, JpegFrameInfo* info) {
   const size_t n = b.size();
-  if (n < 4 || b[0] != 0xFF || b[1] != 0xD8) return "not a JPEG: no SOI marker (FF D8) at the start";
+  if (n < 4 || b[0] != 0xFF || b[1] != 0xD8)
+    return "not a JPEG: no SOI marker (FF D8) at the start";
   size_t pos = 2;
   while (pos < n) {
     if (b[pos] != 0xFF) return Message("corrupt: expected a marker at byte ", pos);
@@ -106,11 +114,12 @@ std::string CheckJpegStructure(const std::vector<unsigned char>& b, JpegFrameInf
       pos += 2;
       continue;
     }
-    if (pos + 3 >= n) return Message("truncated in the marker FF ", std::hex, int(m), std::dec, " at byte ", pos);
+    if (pos + 3 >= n)
+      return Message("truncated in the marker FF ", std::hex, int(m), std::dec, " at byte ", pos);
     const size_t len = (size_t(b[pos + 2]) << 8) | b[pos + 3];
     if (len < 2 || pos + 2 + len > n) {
-      return Message("truncated: marker segment FF ", std::hex, int(m), std::dec, " at byte ", pos, " needs ", len,
-                     " bytes, the file has ", n - pos - 2);
+      return Message("truncated: marker segment FF ", std::hex, int(m), std::dec, " at byte ", pos,
+                     " needs ", len, " bytes, the file has ", n - pos - 2);
     }
     const bool sof = m >= 0xC0 && m <= 0xCF && m != 0xC4 && m != 0xC8 && m != 0xCC;
     if (sof && info != nullptr && len >= 8) {
@@ -127,7 +136,8 @@ std::string CheckJpegStructure(const std::vector<unsigned char>& b, JpegFrameInf
           return Message("truncated: the image data ends at byte ", n, " without an EOI marker");
         }
         pos = static_cast<const unsigned char*>(ff) - b.data();
-        if (pos + 1 >= n) return Message("truncated: the image data ends at byte ", n, " without an EOI marker");
+        if (pos + 1 >= n)
+          return Message("truncated: the image data ends at byte ", n, " without an EOI marker");
         const unsigned char next = b[pos + 1];
         if (next == 0x00 || (next >= 0xD0 && next <= 0xD7) || next == 0xFF) {
           pos += (next == 0xFF) ? 1 : 2;
@@ -140,8 +150,8 @@ std::string CheckJpegStructure(const std::vector<unsigned char>& b, JpegFrameInf
   return Message("truncated: no EOI marker (FF D9) in ", n, " bytes");
 }
 
-cv::Mat DecodeImageFile(const std::string& path, const std::string& encoding, std::string* encoding_out,
-                        const ImageBuffer& buffer, bool* in_buffer) {
+cv::Mat DecodeImageFile(const std::string& path, const std::string& encoding,
+                        std::string* encoding_out, const ImageBuffer& buffer, bool* in_buffer) {
   if (in_buffer != nullptr) *in_buffer = false;
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError(Message(path, ": cannot open the file"));
@@ -150,7 +160,8 @@ cv::Mat DecodeImageFile(const std::string& path, const std::string& encoding, st
   in.seekg(0, std::ios::beg);
   if (size <= 0) throw IoError(Message(path, ": the file is empty"));
   std::vector<unsigned char> bytes(static_cast<size_t>(size));
-  if (!in.read(reinterpret_cast<char*>(bytes.data()), size)) throw IoError(Message(path, ": read error"));
+  if (!in.read(reinterpret_cast<char*>(bytes.data()), size))
+    throw IoError(Message(path, ": read error"));
   // Keep the sensor's pixel layout (no EXIF rotation): the calibration refers to it.
   const int flags = cv::IMREAD_ANYCOLOR | cv::IMREAD_ANYDEPTH | cv::IMREAD_IGNORE_ORIENTATION;
   cv::Mat image;
@@ -188,7 +199,8 @@ cv::Mat DecodeImageFile(const std::string& path, const std::string& encoding, st
 // ---------------------------------------------------------------------------
 void FolderSourceOptions::Check() const {
   if (folder.empty()) throw ConfigError("folder: the image folder path is empty");
-  if (extensions.empty()) throw ConfigError("extensions: the list of image file extensions is empty");
+  if (extensions.empty())
+    throw ConfigError("extensions: the list of image file extensions is empty");
   if (time_source != "exif" && time_source != "file") {
     throw ConfigError(Message("time_source '", time_source, "' is not one of: exif, file"));
   }
@@ -200,7 +212,8 @@ FolderSource::FolderSource(const FolderSourceOptions& options) : options_(option
   options_.Check();
   std::error_code ec;
   if (!fs::is_directory(options_.folder, ec)) {
-    throw IoError(Message("image folder '", options_.folder, "' does not exist or is not a directory"));
+    throw IoError(
+        Message("image folder '", options_.folder, "' does not exist or is not a directory"));
   }
   std::vector<std::string> exts;
   for (const auto& e : options_.extensions) exts.push_back(Lower(e));
@@ -248,7 +261,8 @@ FolderSource::FolderSource(const FolderSourceOptions& options) : options_(option
   }
   if (ec) throw IoError(Message("image folder '", options_.folder, "': ", ec.message()));
   if (entries_.empty()) {
-    throw IoError(Message("image folder '", options_.folder, "' holds no file with a listed extension"));
+    throw IoError(
+        Message("image folder '", options_.folder, "' holds no file with a listed extension"));
   }
   LeaveOutOddPhotos();
   std::sort(entries_.begin(), entries_.end(), [](const Entry& a, const Entry& b) {
@@ -271,11 +285,13 @@ void FolderSource::LeaveOutOddPhotos() {
   std::vector<Entry> kept;
   for (Entry& e : entries_) {
     if (e.attitude.width > 0 && std::make_pair(e.attitude.width, e.attitude.height) != common) {
-      left_out_.push_back({e.path, Message(e.attitude.width, "x", e.attitude.height, " px, not the folder's ",
-                                           common.first, "x", common.second, " px (", most, " photos)")});
-    } else if (gnss_folder && !e.exif.has_gps && e.attitude.width > 0) {  // (unreadable: the decoder names it)
-      left_out_.push_back({e.path, Message("no EXIF GNSS position (", with_gps, " of ", entries_.size(),
-                                           " photos of the folder have one)")});
+      left_out_.push_back(
+          {e.path, Message(e.attitude.width, "x", e.attitude.height, " px, not the folder's ",
+                           common.first, "x", common.second, " px (", most, " photos)")});
+    } else if (gnss_folder && !e.exif.has_gps &&
+               e.attitude.width > 0) {  // (unreadable: the decoder names it)
+      left_out_.push_back({e.path, Message("no EXIF GNSS position (", with_gps, " of ",
+                                           entries_.size(), " photos of the folder have one)")});
     } else {
       kept.push_back(std::move(e));
     }
@@ -288,7 +304,8 @@ bool FolderSource::Next(Frame* frame) {
     const Entry& e = entries_[next_];
     const uint64_t index = next_++;
     try {
-      frame->image = DecodeImageFile(e.path, options_.encoding, &frame->encoding, image_buffer_, &frame->in_image_buffer);
+      frame->image = DecodeImageFile(e.path, options_.encoding, &frame->encoding, image_buffer_,
+                                     &frame->in_image_buffer);
     } catch (const IoError& err) {
       Skip(e.path, err.what());
       continue;
@@ -337,7 +354,8 @@ VideoSource::VideoSource(const VideoSourceOptions& options) : options_(options) 
     throw IoError(Message("video file '", options_.path, "' does not exist"));
   }
   if (!capture_.open(options_.path)) {
-    throw IoError(Message("video file '", options_.path, "' cannot be opened by OpenCV (unsupported container or codec?)"));
+    throw IoError(Message("video file '", options_.path,
+                          "' cannot be opened by OpenCV (unsupported container or codec?)"));
   }
   fps_ = options_.fps > 0.0 ? options_.fps : capture_.get(cv::CAP_PROP_FPS);
   if (!(fps_ > 0.0) || !std::isfinite(fps_)) {
@@ -390,15 +408,21 @@ std::string VideoSource::Describe() const {
 // ---------------------------------------------------------------------------
 void DeviceSourceOptions::Check() const {
   if (device.empty()) throw ConfigError("device: the V4L2 device path is empty");
-  if (api != "v4l2" && api != "any") throw ConfigError(Message("device_api '", api, "' is not one of: v4l2, any"));
-  if (width < 0 || width > 20000) throw ConfigError(Message("width = ", width, " px is outside [0, 20000]"));
-  if (height < 0 || height > 20000) throw ConfigError(Message("height = ", height, " px is outside [0, 20000]"));
-  if (!std::isfinite(fps) || fps < 0.0 || fps > 1000.0) throw ConfigError(Message("fps = ", fps, " Hz is outside [0, 1000]"));
+  if (api != "v4l2" && api != "any")
+    throw ConfigError(Message("device_api '", api, "' is not one of: v4l2, any"));
+  if (width < 0 || width > 20000)
+    throw ConfigError(Message("width = ", width, " px is outside [0, 20000]"));
+  if (height < 0 || height > 20000)
+    throw ConfigError(Message("height = ", height, " px is outside [0, 20000]"));
+  if (!std::isfinite(fps) || fps < 0.0 || fps > 1000.0)
+    throw ConfigError(Message("fps = ", fps, " Hz is outside [0, 1000]"));
   if (!std::isfinite(exposure)) throw ConfigError("exposure must be finite");
   CheckEncodingOption(encoding);
 }
 
-DeviceSource::DeviceSource(const DeviceSourceOptions& options) : options_(options) { options_.Check(); }
+DeviceSource::DeviceSource(const DeviceSourceOptions& options) : options_(options) {
+  options_.Check();
+}
 
 void DeviceSource::Open() {
   warnings_.clear();
@@ -409,10 +433,12 @@ void DeviceSource::Open() {
       throw IoError(Message(name, " does not exist (no camera connected?)"));
     }
     if (!capture_.open(options_.device, cv::CAP_V4L2)) {
-      throw IoError(Message(name, " cannot be opened (busy, no permission, or not a capture device)"));
+      throw IoError(
+          Message(name, " cannot be opened (busy, no permission, or not a capture device)"));
     }
   } else if (!capture_.open(options_.device, cv::CAP_ANY)) {
-    throw IoError(Message(name, " cannot be opened by OpenCV (unreachable, or no backend reads it)"));
+    throw IoError(
+        Message(name, " cannot be opened by OpenCV (unreachable, or no backend reads it)"));
   }
   auto set = [this, &name](int prop, double value, const char* what) {
     if (!capture_.set(prop, value)) {
@@ -435,7 +461,8 @@ bool DeviceSource::Next(Frame* frame) {
   cv::Mat image;
   if (!capture_.read(image) || image.empty()) {
     capture_.release();
-    throw IoError(Message(Describe(), " returned no frame (disconnected, or the end of a file?); closed it"));
+    throw IoError(
+        Message(Describe(), " returned no frame (disconnected, or the end of a file?); closed it"));
   }
   frame->stamp = WallClockNow();
   frame->image = image;

@@ -9,13 +9,15 @@ namespace slope_monitor {
 namespace capture {
 
 void EpochOptions::Check() const {
-  if (!std::isfinite(gap) || gap <= 0.0) throw ConfigError(Message("epoch_gap = ", gap, " s must be > 0"));
+  if (!std::isfinite(gap) || gap <= 0.0)
+    throw ConfigError(Message("epoch_gap = ", gap, " s must be > 0"));
   if (!std::isfinite(max_duration) || max_duration < 0.0) {
     throw ConfigError(Message("epoch_max_duration = ", max_duration, " s must be >= 0"));
   }
 }
 
-EpochTracker::EpochTracker(const EpochOptions& options) : options_(options), epoch_(options.first_epoch) {
+EpochTracker::EpochTracker(const EpochOptions& options)
+    : options_(options), epoch_(options.first_epoch) {
   options_.Check();
 }
 
@@ -40,7 +42,8 @@ std::vector<EpochEvent> EpochTracker::BeforeFrame(double stamp) {
   return events;
 }
 
-std::vector<EpochEvent> EpochTracker::AfterFrame(std::optional<double> next_stamp, bool next_known) {
+std::vector<EpochEvent> EpochTracker::AfterFrame(std::optional<double> next_stamp,
+                                                 bool next_known) {
   std::vector<EpochEvent> events;
   if (!open_ || !next_known) return events;
   if (!next_stamp || Splits(first_stamp_, last_stamp_, *next_stamp)) events.push_back(*Close());
@@ -55,14 +58,18 @@ std::optional<EpochEvent> EpochTracker::Close() {
 
 // ---------------------------------------------------------------------------
 void ScheduleOptions::Check() const {
-  if (!std::isfinite(interval) || interval < 0.0 || (interval > 0.0 && interval < 1.0) || interval > 7 * 86400.0) {
-    throw ConfigError(Message("schedule/interval = ", interval, " s must be 0 (trigger only) or in [1, 604800]"));
+  if (!std::isfinite(interval) || interval < 0.0 || (interval > 0.0 && interval < 1.0) ||
+      interval > 7 * 86400.0) {
+    throw ConfigError(
+        Message("schedule/interval = ", interval, " s must be 0 (trigger only) or in [1, 604800]"));
   }
   if (!std::isfinite(utc_offset_hours) || std::abs(utc_offset_hours) > 14.0) {
-    throw ConfigError(Message("schedule/utc_offset = ", utc_offset_hours, " h is outside [-14, 14]"));
+    throw ConfigError(
+        Message("schedule/utc_offset = ", utc_offset_hours, " h is outside [-14, 14]"));
   }
   if (frames_per_epoch < 1 || frames_per_epoch > 1000) {
-    throw ConfigError(Message("schedule/frames_per_epoch = ", frames_per_epoch, " is outside [1, 1000]"));
+    throw ConfigError(
+        Message("schedule/frames_per_epoch = ", frames_per_epoch, " is outside [1, 1000]"));
   }
 }
 
@@ -70,9 +77,9 @@ CaptureSchedule::CaptureSchedule(const ScheduleOptions& options) : options_(opti
   options_.Check();
   for (const auto& w : options_.windows) {
     int h0, m0, h1, m1, n = 0;
-    if (std::sscanf(w.c_str(), "%2d:%2d-%2d:%2d%n", &h0, &m0, &h1, &m1, &n) != 4 || n != static_cast<int>(w.size()) ||
-        h0 < 0 || h0 > 24 || h1 < 0 || h1 > 24 || m0 < 0 || m0 > 59 || m1 < 0 || m1 > 59 ||
-        (h0 == 24 && m0 > 0) || (h1 == 24 && m1 > 0)) {
+    if (std::sscanf(w.c_str(), "%2d:%2d-%2d:%2d%n", &h0, &m0, &h1, &m1, &n) != 4 ||
+        n != static_cast<int>(w.size()) || h0 < 0 || h0 > 24 || h1 < 0 || h1 > 24 || m0 < 0 ||
+        m0 > 59 || m1 < 0 || m1 > 59 || (h0 == 24 && m0 > 0) || (h1 == 24 && m1 > 0)) {
       throw ConfigError(Message("schedule/windows: '", w, "' is not a daily window 'HH:MM-HH:MM'"));
     }
     const int begin = 3600 * h0 + 60 * m0, end = 3600 * h1 + 60 * m1;

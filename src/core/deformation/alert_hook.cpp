@@ -7,8 +7,8 @@
 #include <sstream>
 
 #include "slope_monitor/core/common/error.h"
-#include "slope_monitor/core/common/subprocess.h"
 #include "slope_monitor/core/common/format.h"
+#include "slope_monitor/core/common/subprocess.h"
 #include "slope_monitor/core/deformation/units.h"
 
 namespace slope_monitor {

@@ -8,9 +8,9 @@
 #include <Eigen/Cholesky>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/format.h"
 #include "slope_monitor/core/deformation/change_areas.h"
 #include "slope_monitor/core/deformation/history.h"
-#include "slope_monitor/core/common/format.h"
 #include "slope_monitor/core/deformation/units.h"
 
 namespace slope_monitor {
@@ -31,59 +31,83 @@ void SpeedOf(const Eigen::Vector3d& v, const Eigen::Matrix3d& P, double* speed, 
 
 std::string SourceName(Source s) {
   switch (s) {
-    case Source::kTarget: return "target";
-    case Source::kFeature: return "feature";
-    case Source::kRadio: return "radio";
-    case Source::kSurface: return "surface";
-    case Source::kFused: return "fused";
-    case Source::kOther: return "other";
+    case Source::kTarget:
+      return "target";
+    case Source::kFeature:
+      return "feature";
+    case Source::kRadio:
+      return "radio";
+    case Source::kSurface:
+      return "surface";
+    case Source::kFused:
+      return "fused";
+    case Source::kOther:
+      return "other";
   }
   return "unknown";
 }
 
 Source SourceFromInt(int value) {
   switch (value) {
-    case 1: return Source::kTarget;
-    case 2: return Source::kFeature;
-    case 3: return Source::kRadio;
-    case 4: return Source::kSurface;
-    case 5: return Source::kFused;
-    case 9: return Source::kOther;
+    case 1:
+      return Source::kTarget;
+    case 2:
+      return Source::kFeature;
+    case 3:
+      return Source::kRadio;
+    case 4:
+      return Source::kSurface;
+    case 5:
+      return Source::kFused;
+    case 9:
+      return Source::kOther;
   }
   throw InvalidArgument(Message("unknown displacement source ", value, " (expected 1-5 or 9)"));
 }
 
 std::string AlertName(AlertLevel level) {
   switch (level) {
-    case AlertLevel::kNone: return "none";
-    case AlertLevel::kWatch: return "watch";
-    case AlertLevel::kWarning: return "warning";
-    case AlertLevel::kAlarm: return "alarm";
+    case AlertLevel::kNone:
+      return "none";
+    case AlertLevel::kWatch:
+      return "watch";
+    case AlertLevel::kWarning:
+      return "warning";
+    case AlertLevel::kAlarm:
+      return "alarm";
   }
   return "unknown";
 }
 
 double Thresholds::Of(AlertLevel level) const {
   switch (level) {
-    case AlertLevel::kWatch: return watch;
-    case AlertLevel::kWarning: return warning;
-    case AlertLevel::kAlarm: return alarm;
-    default: return 0.0;
+    case AlertLevel::kWatch:
+      return watch;
+    case AlertLevel::kWarning:
+      return warning;
+    case AlertLevel::kAlarm:
+      return alarm;
+    default:
+      return 0.0;
   }
 }
 
 void Thresholds::Check(const std::string& context) const {
   if (!(watch > 0.0 && warning > watch && alarm > warning) || !std::isfinite(alarm))
-    throw ConfigError(Message(context, ": velocity thresholds must satisfy 0 < watch < warning < alarm, got ",
-                              watch * kMmPerDay, " / ", warning * kMmPerDay, " / ", alarm * kMmPerDay, " mm/day"));
+    throw ConfigError(Message(
+        context, ": velocity thresholds must satisfy 0 < watch < warning < alarm, got ",
+        watch * kMmPerDay, " / ", warning * kMmPerDay, " / ", alarm * kMmPerDay, " mm/day"));
 }
 
 void AlertOptions::Check() const {
   thresholds.Check("alerts.thresholds");
   for (const auto& [id, t] : point_thresholds) t.Check("alerts.point_thresholds." + id);
-  if (!(significance >= 0.0)) throw ConfigError(Message("alerts.significance = ", significance, " must be >= 0"));
-  if (confirm_points < 1) throw ConfigError(Message("alerts.confirm_points = ", confirm_points, " must be >= 1"));
-  if (confirm_sources < 1) throw ConfigError(Message("alerts.confirm_sources = ", confirm_sources, " must be >= 1"));
+  if (!(significance >= 0.0))
+    throw ConfigError(Message("alerts.significance = ", significance, " must be >= 0"));
+  if (confirm_points < 1)
+    throw ConfigError(Message("alerts.confirm_points = ", confirm_points, " must be >= 1"));
+  if (confirm_sources < 1)
+    throw ConfigError(Message("alerts.confirm_sources = ", confirm_sources, " must be >= 1"));
   if (!(hysteresis > 0.0 && hysteresis <= 1.0))
     throw ConfigError(Message("alerts.hysteresis = ", hysteresis, " must be in (0, 1]"));
 }
@@ -93,19 +117,23 @@ void EstimatorOptions::Check() const {
   alerts.Check();
   areas.Check();
   forecast.Check();
-  if (!(reorder_window >= 0.0)) throw ConfigError(Message("reorder_window = ", reorder_window, " s must be >= 0"));
+  if (!(reorder_window >= 0.0))
+    throw ConfigError(Message("reorder_window = ", reorder_window, " s must be >= 0"));
   if (!(reference_tolerance >= 0.0))
     throw ConfigError(Message("reference_tolerance = ", reference_tolerance, " s must be >= 0"));
   if (!(disagreement_threshold > 0.0))
     throw ConfigError(Message("disagreement_threshold = ", disagreement_threshold, " must be > 0"));
   if (!(comparison_max_gap > 0.0))
     throw ConfigError(Message("comparison_max_gap = ", comparison_max_gap, " s must be > 0"));
-  if (!(innovation_gate >= 0.0)) throw ConfigError(Message("innovation_gate = ", innovation_gate, " must be >= 0"));
+  if (!(innovation_gate >= 0.0))
+    throw ConfigError(Message("innovation_gate = ", innovation_gate, " must be >= 0"));
   if (!(velocity_sample_interval > 0.0))
-    throw ConfigError(Message("velocity_sample_interval = ", velocity_sample_interval, " s must be > 0"));
+    throw ConfigError(
+        Message("velocity_sample_interval = ", velocity_sample_interval, " s must be > 0"));
   for (const auto& [from, to] : aliases) {
     if (from.empty() || to.empty()) throw ConfigError("aliases: empty point id");
-    if (aliases.count(to)) throw ConfigError(Message("aliases: '", from, "' -> '", to, "' chains to another alias"));
+    if (aliases.count(to))
+      throw ConfigError(Message("aliases: '", from, "' -> '", to, "' chains to another alias"));
   }
 }
 
@@ -136,11 +164,14 @@ struct Estimator::Point {
   std::vector<Raw> raw;  // fused measurements in the forecast window, by stamp
 };
 
-Estimator::Estimator(const EstimatorOptions& options, History* history) : options_(options), history_(history) {
+Estimator::Estimator(const EstimatorOptions& options, History* history)
+    : options_(options), history_(history) {
   options_.Check();
   if (!history_) return;
-  for (const History::StoredBatch& sb : history_->LoadBatches()) Process(sb.batch, sb.sequences, true);
-  if (auto e = history_->Meta("reference_epoch")) reference_epoch_ = static_cast<uint32_t>(std::stoul(*e));
+  for (const History::StoredBatch& sb : history_->LoadBatches())
+    Process(sb.batch, sb.sequences, true);
+  if (auto e = history_->Meta("reference_epoch"))
+    reference_epoch_ = static_cast<uint32_t>(std::stoul(*e));
   if (auto s = history_->Meta("reference_stamp")) reference_stamp_ = std::stod(*s);
   reference_offsets_ = history_->LoadReferenceOffsets();
   std::vector<PointState> states;
@@ -161,10 +192,13 @@ Thresholds Estimator::ThresholdsOf(const std::string& point_id) const {
 }
 
 void Estimator::Validate(const Measurement& m) const {
-  const std::string who = Message("point '", m.point_id, "' from ", SourceName(m.source), " '", m.source_name, "'");
-  if (m.point_id.empty()) throw InvalidArgument(Message("measurement from '", m.source_name, "' has an empty point_id"));
+  const std::string who =
+      Message("point '", m.point_id, "' from ", SourceName(m.source), " '", m.source_name, "'");
+  if (m.point_id.empty())
+    throw InvalidArgument(Message("measurement from '", m.source_name, "' has an empty point_id"));
   if (!std::isfinite(m.stamp) || !std::isfinite(m.reference_stamp) || m.stamp < m.reference_stamp)
-    throw InvalidArgument(Message(who, ": stamp ", m.stamp, " must be finite and not before its reference stamp ",
+    throw InvalidArgument(Message(who, ": stamp ", m.stamp,
+                                  " must be finite and not before its reference stamp ",
                                   m.reference_stamp));
   if (!m.displacement.allFinite() || !m.reference_position.allFinite())
     throw InvalidArgument(Message(who, ": displacement or reference position is not finite"));
@@ -181,8 +215,9 @@ namespace {
 // Identity of a measurement: the same values from the same source again are a re-delivery.
 std::string MeasurementKey(const Measurement& m) {
   std::ostringstream k;
-  k << std::setprecision(17) << m.point_id << '|' << static_cast<int>(m.source) << '|' << m.source_name << '|'
-    << m.stamp << '|' << m.displacement.x() << '|' << m.displacement.y() << '|' << m.displacement.z();
+  k << std::setprecision(17) << m.point_id << '|' << static_cast<int>(m.source) << '|'
+    << m.source_name << '|' << m.stamp << '|' << m.displacement.x() << '|' << m.displacement.y()
+    << '|' << m.displacement.z();
   for (int i = 0; i < 9; ++i) k << '|' << m.covariance(i);
   return k.str();
 }
@@ -196,10 +231,10 @@ BatchSummary Estimator::AddBatch(const Batch& batch_in) {
   for (const Measurement& m : batch_in.measurements) {
     if (received_.count(MeasurementKey(m))) {
       ++summary.refused;
-      summary.messages.push_back(Message("point '", m.point_id, "' from '", m.source_name, "' at stamp ",
-                                         Fixed(m.stamp, 3),
-                                         ": identical to a measurement already received (a latched topic re-delivered"
-                                         " after a restart?); not stored or fused again"));
+      summary.messages.push_back(Message(
+          "point '", m.point_id, "' from '", m.source_name, "' at stamp ", Fixed(m.stamp, 3),
+          ": identical to a measurement already received (a latched topic re-delivered"
+          " after a restart?); not stored or fused again"));
       continue;
     }
     try {
@@ -223,7 +258,8 @@ BatchSummary Estimator::AddBatch(const Batch& batch_in) {
   return s;
 }
 
-BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>& sequences, bool replay) {
+BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>& sequences,
+                                bool replay) {
   BatchSummary summary;
   if (!epochs_.count(batch.epoch)) epochs_[batch.epoch] = batch.stamp;
   newest_epoch_ = std::max(newest_epoch_, batch.epoch);
@@ -261,10 +297,10 @@ BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>&
     }
     if (std::abs(m.reference_stamp - datum_stamp_) > options_.reference_tolerance) {
       ++summary.refused;
-      summary.messages.push_back(Message("point '", m.point_id, "' from '", m.source_name, "': reference stamp ",
-                                         Fixed(m.reference_stamp, 3), " differs from the datum ",
-                                         Fixed(datum_stamp_, 3), " by more than ", options_.reference_tolerance,
-                                         " s (another reference epoch)"));
+      summary.messages.push_back(
+          Message("point '", m.point_id, "' from '", m.source_name, "': reference stamp ",
+                  Fixed(m.reference_stamp, 3), " differs from the datum ", Fixed(datum_stamp_, 3),
+                  " by more than ", options_.reference_tolerance, " s (another reference epoch)"));
       continue;
     }
     const std::string id = ResolveAlias(m.point_id);
@@ -281,24 +317,28 @@ BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>&
     Point& p = *slot;
     bool fuse = true;
     if (options_.innovation_gate > 0.0 && p.fused.initialized()) {
-      const UpdateResult t = p.fused.filter().Test(p.fused.latest(), m.stamp, m.displacement, m.covariance);
+      const UpdateResult t =
+          p.fused.filter().Test(p.fused.latest(), m.stamp, m.displacement, m.covariance);
       if (m.stamp >= p.fused.latest().stamp && t.nis > options_.innovation_gate) {
         fuse = false;
         ++p.rejected;
-        summary.messages.push_back(Message("point '", id, "' from '", m.source_name, "': innovation ",
-                                           Fixed(t.nis, 1), " > gate ", options_.innovation_gate, ", not fused"));
+        summary.messages.push_back(Message("point '", id, "' from '", m.source_name,
+                                           "': innovation ", Fixed(t.nis, 1), " > gate ",
+                                           options_.innovation_gate, ", not fused"));
       }
     }
     if (fuse && !p.fused.Add(m.stamp, seq, m.displacement, m.covariance)) {
       ++summary.refused;
-      summary.messages.push_back(Message("point '", id, "' from '", m.source_name, "': stamp ", Fixed(m.stamp, 3),
-                                         " is older than the reorder window (", options_.reorder_window, " s)"));
+      summary.messages.push_back(Message("point '", id, "' from '", m.source_name, "': stamp ",
+                                         Fixed(m.stamp, 3), " is older than the reorder window (",
+                                         options_.reorder_window, " s)"));
       continue;
     }
     if (fuse) {
       Point::Raw r{m.stamp, m.displacement, m.covariance};
-      auto pos = std::upper_bound(p.raw.begin(), p.raw.end(), r,
-                                  [](const Point::Raw& x, const Point::Raw& y) { return x.stamp < y.stamp; });
+      auto pos = std::upper_bound(
+          p.raw.begin(), p.raw.end(), r,
+          [](const Point::Raw& x, const Point::Raw& y) { return x.stamp < y.stamp; });
       p.raw.insert(pos, r);
       const double keep_from = p.raw.back().stamp - options_.forecast.window;
       size_t drop = 0;
@@ -346,10 +386,12 @@ BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>&
       p.series.push_back(sample);
       // Inverse-velocity forecast, refitted at each series sample, on the
       // raw displacements along the direction of motion (forecast.h).
-      if (sample.speed - options_.alerts.significance * sample.speed_sigma > options_.forecast.min_velocity) {
+      if (sample.speed - options_.alerts.significance * sample.speed_sigma >
+          options_.forecast.min_velocity) {
         const Eigen::Vector3d u = s.Velocity().normalized();
         std::vector<DisplacementSample> d;
-        for (const Point::Raw& r : p.raw) d.push_back({r.stamp, u.dot(r.z), std::sqrt(u.dot(r.R * u))});
+        for (const Point::Raw& r : p.raw)
+          d.push_back({r.stamp, u.dot(r.z), std::sqrt(u.dot(r.R * u))});
         p.forecast = ForecastFromDisplacements(d, options_.forecast);
       } else {
         p.forecast = Forecast();
@@ -408,24 +450,26 @@ void Estimator::UpdateAlerts() {
     const int current = static_cast<int>(p->alert);
     if (current > level) {
       level = current;
-      while (level > confirmed && speed < a.hysteresis * th.Of(static_cast<AlertLevel>(level))) --level;
+      while (level > confirmed && speed < a.hysteresis * th.Of(static_cast<AlertLevel>(level)))
+        --level;
     }
     p->alert = static_cast<AlertLevel>(level);
     if (level == 0) {
       p->alert_reason = candidate[id] > 0
                             ? Message("speed ", Fixed(speed * kMmPerDay, 2), " mm/day exceeds ",
-                                      AlertName(static_cast<AlertLevel>(candidate[id])), " but is not confirmed (",
-                                      count[candidate[id]], " of ", a.confirm_points, " points)")
+                                      AlertName(static_cast<AlertLevel>(candidate[id])),
+                                      " but is not confirmed (", count[candidate[id]], " of ",
+                                      a.confirm_points, " points)")
                             : "";
     } else if (level > confirmed) {
-      p->alert_reason = Message("held by hysteresis: speed ", Fixed(speed * kMmPerDay, 2), " mm/day > ",
-                                a.hysteresis, " x ", AlertName(p->alert), " threshold ",
-                                Fixed(th.Of(p->alert) * kMmPerDay, 2), " mm/day");
+      p->alert_reason = Message("held by hysteresis: speed ", Fixed(speed * kMmPerDay, 2),
+                                " mm/day > ", a.hysteresis, " x ", AlertName(p->alert),
+                                " threshold ", Fixed(th.Of(p->alert) * kMmPerDay, 2), " mm/day");
     } else {
-      p->alert_reason = Message("speed ", Fixed(speed * kMmPerDay, 2), " +- ", Fixed(sigma * kMmPerDay, 2),
-                                " mm/day > ", AlertName(p->alert), " threshold ",
-                                Fixed(th.Of(p->alert) * kMmPerDay, 2), " mm/day by ", k, " sigma; confirmed by ",
-                                count[level], " point(s), ", by_sources, " source(s)");
+      p->alert_reason = Message(
+          "speed ", Fixed(speed * kMmPerDay, 2), " +- ", Fixed(sigma * kMmPerDay, 2), " mm/day > ",
+          AlertName(p->alert), " threshold ", Fixed(th.Of(p->alert) * kMmPerDay, 2), " mm/day by ",
+          k, " sigma; confirmed by ", count[level], " point(s), ", by_sources, " source(s)");
     }
   }
 }
@@ -473,9 +517,10 @@ PointState Estimator::StateOf(const Point& p) const {
     s.comparisons.push_back(c);
     if (c.disagree) {
       s.sources_disagree = true;
-      s.alert_reason += Message(s.alert_reason.empty() ? "" : "; ", SourceName(c.a), " and ", SourceName(c.b),
-                                " disagree by ", Fixed(c.difference.norm() * 1e3, 1), " mm (chi2 ",
-                                Fixed(c.statistic, 1), ")");
+      s.alert_reason +=
+          Message(s.alert_reason.empty() ? "" : "; ", SourceName(c.a), " and ", SourceName(c.b),
+                  " disagree by ", Fixed(c.difference.norm() * 1e3, 1), " mm (chi2 ",
+                  Fixed(c.statistic, 1), ")");
     }
   }
   s.num_measurements = p.fused.count();
@@ -484,7 +529,8 @@ PointState Estimator::StateOf(const Point& p) const {
 }
 
 uint32_t Estimator::SetReferenceEpoch(uint32_t epoch, bool use_latest) {
-  if (epochs_.empty()) throw InvalidArgument("no epoch has been received yet; cannot set the reference epoch");
+  if (epochs_.empty())
+    throw InvalidArgument("no epoch has been received yet; cannot set the reference epoch");
   if (use_latest) epoch = epochs_.rbegin()->first;
   auto it = epochs_.find(epoch);
   if (it == epochs_.end())
@@ -493,9 +539,11 @@ uint32_t Estimator::SetReferenceEpoch(uint32_t epoch, bool use_latest) {
   const double t = it->second;
   std::map<std::string, std::pair<Eigen::Vector3d, Eigen::Matrix3d>> offsets;
   for (const auto& [id, p] : points_) {
-    if (std::abs(t - datum_stamp_) <= options_.reference_tolerance) continue;  // the datum itself: no offset
+    if (std::abs(t - datum_stamp_) <= options_.reference_tolerance)
+      continue;  // the datum itself: no offset
     const std::optional<FilterState> s = p->fused.StateAt(t);
-    if (!s) continue;  // first measured after the epoch: its datum displacement is taken as zero there
+    if (!s)
+      continue;  // first measured after the epoch: its datum displacement is taken as zero there
     offsets[id] = {s->Displacement(), s->DisplacementCovariance()};
   }
   reference_offsets_ = offsets;
@@ -542,8 +590,9 @@ Snapshot Estimator::GetSnapshot() const {
   s.areas = areas_;
   s.area_alert = AreasAlert(areas_);
   s.alert = std::max(s.alert, s.area_alert);
-  s.summary = Message(s.points.size(), " points, largest displacement ", Fixed(max_d * 1e3, 1), " mm at '", max_id,
-                      "', slope alert ", AlertName(s.alert), ", ", disagree, " point(s) with disagreeing sources");
+  s.summary = Message(s.points.size(), " points, largest displacement ", Fixed(max_d * 1e3, 1),
+                      " mm at '", max_id, "', slope alert ", AlertName(s.alert), ", ", disagree,
+                      " point(s) with disagreeing sources");
   if (!areas_.empty())
     s.summary += Message(", ", areas_.size(), " area(s) of significant surface change (alert ",
                          AlertName(s.area_alert), ")");

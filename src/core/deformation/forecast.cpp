@@ -12,11 +12,16 @@ namespace deformation {
 
 void ForecastOptions::Check() const {
   if (!(window > 0.0)) throw ConfigError(Message("forecast window = ", window, " s must be > 0"));
-  if (!(alpha > 1.0 && alpha <= 10.0)) throw ConfigError(Message("forecast alpha = ", alpha, " must be in (1, 10]"));
-  if (min_samples < 3) throw ConfigError(Message("forecast min_samples = ", min_samples, " must be >= 3"));
-  if (!(min_velocity >= 0.0)) throw ConfigError(Message("forecast min_velocity = ", min_velocity, " m/s must be >= 0"));
-  if (!(significance >= 0.0)) throw ConfigError(Message("forecast significance = ", significance, " must be >= 0"));
-  if (!(max_horizon > 0.0)) throw ConfigError(Message("forecast max_horizon = ", max_horizon, " s must be > 0"));
+  if (!(alpha > 1.0 && alpha <= 10.0))
+    throw ConfigError(Message("forecast alpha = ", alpha, " must be in (1, 10]"));
+  if (min_samples < 3)
+    throw ConfigError(Message("forecast min_samples = ", min_samples, " must be >= 3"));
+  if (!(min_velocity >= 0.0))
+    throw ConfigError(Message("forecast min_velocity = ", min_velocity, " m/s must be >= 0"));
+  if (!(significance >= 0.0))
+    throw ConfigError(Message("forecast significance = ", significance, " must be >= 0"));
+  if (!(max_horizon > 0.0))
+    throw ConfigError(Message("forecast max_horizon = ", max_horizon, " s must be > 0"));
 }
 
 namespace {
@@ -24,9 +29,11 @@ namespace {
 // The samples of the last `window` seconds up to the latest stamp (*t_last),
 // oldest first (samples_in is not empty).
 template <typename Sample>
-std::vector<Sample> SamplesInWindow(const std::vector<Sample>& samples_in, double window, double* t_last) {
+std::vector<Sample> SamplesInWindow(const std::vector<Sample>& samples_in, double window,
+                                    double* t_last) {
   std::vector<Sample> samples = samples_in;
-  std::sort(samples.begin(), samples.end(), [](const Sample& a, const Sample& b) { return a.stamp < b.stamp; });
+  std::sort(samples.begin(), samples.end(),
+            [](const Sample& a, const Sample& b) { return a.stamp < b.stamp; });
   *t_last = samples.back().stamp;
   std::vector<Sample> in_window;
   for (const Sample& s : samples)
@@ -37,7 +44,8 @@ std::vector<Sample> SamplesInWindow(const std::vector<Sample>& samples_in, doubl
 // A forecast not made yet: alpha from the options, and the reason when
 // there are no `kind` samples at all.
 template <typename Sample>
-Forecast NewForecast(const std::vector<Sample>& samples, const char* kind, const ForecastOptions& options) {
+Forecast NewForecast(const std::vector<Sample>& samples, const char* kind,
+                     const ForecastOptions& options) {
   Forecast f;
   f.alpha = options.alpha;
   if (samples.empty()) f.reason = Message("no ", kind, " samples");
@@ -54,20 +62,22 @@ void SetWindow(const std::vector<double>& t, double t_last, Forecast* f) {
 
 }  // namespace
 
-Forecast ForecastFailure(const std::vector<VelocitySample>& samples_in, const ForecastOptions& options) {
+Forecast ForecastFailure(const std::vector<VelocitySample>& samples_in,
+                         const ForecastOptions& options) {
   Forecast f = NewForecast(samples_in, "velocity", options);
   if (samples_in.empty()) return f;
   double t_last = 0.0;
   std::vector<double> t, y;
   for (const VelocitySample& s : SamplesInWindow(samples_in, options.window, &t_last)) {
-    if (!(s.velocity > 0.0) || s.velocity < options.min_velocity || !std::isfinite(s.velocity)) continue;
+    if (!(s.velocity > 0.0) || s.velocity < options.min_velocity || !std::isfinite(s.velocity))
+      continue;
     t.push_back(s.stamp - t_last);
     y.push_back(std::pow(s.velocity, 1.0 - options.alpha));
   }
   f.num_samples = static_cast<int>(t.size());
   if (f.num_samples < options.min_samples) {
-    f.reason = Message("only ", f.num_samples, " usable velocity samples in the window (need ", options.min_samples,
-                       ")");
+    f.reason = Message("only ", f.num_samples, " usable velocity samples in the window (need ",
+                       options.min_samples, ")");
     return f;
   }
   SetWindow(t, t_last, &f);
@@ -87,7 +97,8 @@ Forecast ForecastFailure(const std::vector<VelocitySample>& samples_in, const Fo
   f.slope = c(1);
   f.slope_sigma = std::sqrt(std::max(0.0, C(1, 1)));
   if (!(c(1) + options.significance * f.slope_sigma < 0.0)) {
-    f.reason = Message("not accelerating significantly (slope of v^(1-alpha) = ", c(1), " +- ", f.slope_sigma, ")");
+    f.reason = Message("not accelerating significantly (slope of v^(1-alpha) = ", c(1), " +- ",
+                       f.slope_sigma, ")");
     return f;
   }
   const double tf_rel = -c(0) / c(1);
@@ -118,7 +129,8 @@ double Basis(double tf_minus_t, double alpha) {
 }
 
 // Weighted linear fit of y = D + C g; t relative to the last sample.
-Fit LinearFit(const std::vector<double>& g, const std::vector<double>& y, const std::vector<double>& w) {
+Fit LinearFit(const std::vector<double>& g, const std::vector<double>& y,
+              const std::vector<double>& w) {
   double sw = 0, sg = 0, sy = 0, sgg = 0, sgy = 0;
   for (size_t i = 0; i < g.size(); ++i) {
     sw += w[i];
@@ -142,7 +154,8 @@ Fit LinearFit(const std::vector<double>& g, const std::vector<double>& y, const 
 
 }  // namespace
 
-Forecast ForecastFromDisplacements(const std::vector<DisplacementSample>& samples_in, const ForecastOptions& options) {
+Forecast ForecastFromDisplacements(const std::vector<DisplacementSample>& samples_in,
+                                   const ForecastOptions& options) {
   Forecast f = NewForecast(samples_in, "displacement", options);
   if (samples_in.empty()) return f;
   double t_last = 0.0;
@@ -156,8 +169,8 @@ Forecast ForecastFromDisplacements(const std::vector<DisplacementSample>& sample
   const int n = static_cast<int>(t.size());
   f.num_samples = n;
   if (n < std::max(options.min_samples, 4)) {
-    f.reason = Message("only ", n, " usable displacement samples in the window (need ", std::max(options.min_samples, 4),
-                       ")");
+    f.reason = Message("only ", n, " usable displacement samples in the window (need ",
+                       std::max(options.min_samples, 4), ")");
     return f;
   }
   SetWindow(t, t_last, &f);
@@ -181,14 +194,16 @@ Forecast ForecastFromDisplacements(const std::vector<DisplacementSample>& sample
     }
   }
   if (best_chi2 >= 1e300) {
-    f.reason = "no accelerating solution (the displacement does not grow along the direction of motion)";
+    f.reason =
+        "no accelerating solution (the displacement does not grow along the direction of motion)";
     return f;
   }
   if (best == kGrid) {
     f.reason = "not accelerating significantly (best failure time at the horizon)";
     return f;
   }
-  double a = lo + (hi - lo) * std::max(0, best - 1) / kGrid, b = lo + (hi - lo) * std::min(kGrid, best + 1) / kGrid;
+  double a = lo + (hi - lo) * std::max(0, best - 1) / kGrid,
+         b = lo + (hi - lo) * std::min(kGrid, best + 1) / kGrid;
   const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
   double c = b - gr * (b - a), d = a + gr * (b - a);
   double fc = fit_at(c).chi2, fd = fit_at(d).chi2;
@@ -236,7 +251,10 @@ Forecast ForecastFromDisplacements(const std::vector<DisplacementSample>& sample
       outer = log_h + side * 0.05 * k;
       if (outer < lo - 3.0 || outer > hi) break;
       const Fit fk = fit_at(outer);
-      if (fk.chi2 >= target || fk.C <= 0) bracketed = true; else inner = outer;
+      if (fk.chi2 >= target || fk.C <= 0)
+        bracketed = true;
+      else
+        inner = outer;
     }
     if (!bracketed) {
       f.sigma = std::max(f.sigma, side > 0 ? options.max_horizon - h : h);
@@ -245,7 +263,10 @@ Forecast ForecastFromDisplacements(const std::vector<DisplacementSample>& sample
     for (int it = 0; it < 40; ++it) {
       const double mid = 0.5 * (inner + outer);
       const Fit fm = fit_at(mid);
-      if (fm.chi2 >= target || fm.C <= 0) outer = mid; else inner = mid;
+      if (fm.chi2 >= target || fm.C <= 0)
+        outer = mid;
+      else
+        inner = mid;
     }
     f.sigma = std::max(f.sigma, std::abs(std::exp(0.5 * (inner + outer)) - h));
   }
@@ -253,7 +274,8 @@ Forecast ForecastFromDisplacements(const std::vector<DisplacementSample>& sample
   f.slope_sigma = std::sqrt(std::max(0.0, cov(1, 1))) / (best_fit.C * best_fit.C);
   const double improvement = (line.chi2 - best_fit.chi2) / std::max(1.0, reduced);
   if (!(improvement >= options.significance * options.significance) || !std::isfinite(f.sigma)) {
-    f.reason = Message("not accelerating significantly (chi2 gain over constant velocity ", improvement, ")");
+    f.reason = Message("not accelerating significantly (chi2 gain over constant velocity ",
+                       improvement, ")");
     return f;
   }
   f.valid = true;

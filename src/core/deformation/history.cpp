@@ -25,14 +25,17 @@ class Statement {
  public:
   Statement(sqlite3* db, const std::string& sql, const std::string& path) : path_(path) {
     if (sqlite3_prepare_v2(db, sql.c_str(), -1, &stmt_, nullptr) != SQLITE_OK) {
-      throw IoError(Message("history database '", path, "': cannot prepare '", sql, "': ", sqlite3_errmsg(db)));
+      throw IoError(Message("history database '", path, "': cannot prepare '", sql,
+                            "': ", sqlite3_errmsg(db)));
     }
   }
   ~Statement() { sqlite3_finalize(stmt_); }
   sqlite3_stmt* get() const { return stmt_; }
   void Bind(int i, double v) { sqlite3_bind_double(stmt_, i, v); }
   void Bind(int i, int64_t v) { sqlite3_bind_int64(stmt_, i, v); }
-  void Bind(int i, const std::string& v) { sqlite3_bind_text(stmt_, i, v.c_str(), -1, SQLITE_TRANSIENT); }
+  void Bind(int i, const std::string& v) {
+    sqlite3_bind_text(stmt_, i, v.c_str(), -1, SQLITE_TRANSIENT);
+  }
   void BindMatrix(int i, const Eigen::Matrix3d& m) {
     double a[9];
     for (int r = 0; r < 3; ++r)
@@ -45,7 +48,8 @@ class Statement {
     const int rc = sqlite3_step(stmt_);
     if (rc == SQLITE_ROW) return true;
     if (rc == SQLITE_DONE) return false;
-    throw IoError(Message("history database '", path_, "': ", sqlite3_errmsg(sqlite3_db_handle(stmt_))));
+    throw IoError(
+        Message("history database '", path_, "': ", sqlite3_errmsg(sqlite3_db_handle(stmt_))));
   }
   void Reset() {
     sqlite3_reset(stmt_);
@@ -87,10 +91,12 @@ const char* kSchemaV1 =
     "CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT NOT NULL);"
     "CREATE TABLE batches(id INTEGER PRIMARY KEY, received TEXT, epoch INTEGER, stamp REAL);"
     "CREATE TABLE observations(id INTEGER PRIMARY KEY, batch_id INTEGER REFERENCES batches(id),"
-    " point_id TEXT NOT NULL, source INTEGER, source_name TEXT, epoch INTEGER, stamp REAL, reference_stamp REAL,"
+    " point_id TEXT NOT NULL, source INTEGER, source_name TEXT, epoch INTEGER, stamp REAL, "
+    "reference_stamp REAL,"
     " rx REAL, ry REAL, rz REAL, dx REAL, dy REAL, dz REAL, covariance BLOB);"
     "CREATE INDEX observations_batch ON observations(batch_id);"
-    "CREATE TABLE estimates(point_id TEXT NOT NULL, stamp REAL NOT NULL, epoch INTEGER, batch_id INTEGER,"
+    "CREATE TABLE estimates(point_id TEXT NOT NULL, stamp REAL NOT NULL, epoch INTEGER, batch_id "
+    "INTEGER,"
     " dx REAL, dy REAL, dz REAL, vx REAL, vy REAL, vz REAL, ax REAL, ay REAL, az REAL,"
     " displacement_covariance BLOB, velocity_covariance BLOB, PRIMARY KEY(point_id, stamp));";
 
@@ -98,7 +104,8 @@ const char* kMigrate1To2 =
     "ALTER TABLE estimates ADD COLUMN alert_level INTEGER NOT NULL DEFAULT 0;"
     "ALTER TABLE estimates ADD COLUMN forecast_time REAL;"
     "ALTER TABLE estimates ADD COLUMN forecast_sigma REAL;"
-    "CREATE TABLE reference_offsets(point_id TEXT PRIMARY KEY, dx REAL, dy REAL, dz REAL, covariance BLOB);";
+    "CREATE TABLE reference_offsets(point_id TEXT PRIMARY KEY, dx REAL, dy REAL, dz REAL, "
+    "covariance BLOB);";
 
 // The process id a lock file holds ("" when none is written yet) and, when
 // /proc knows it, the process' name: "4242 (process_bag)".
@@ -122,8 +129,8 @@ class History::WriterLock {
     const std::string lock_path = path + ".lock";
     fd_ = open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
     if (fd_ < 0)
-      throw IoError(Message("history database '", path, "': cannot open its writer lock '", lock_path,
-                            "': ", std::strerror(errno)));
+      throw IoError(Message("history database '", path, "': cannot open its writer lock '",
+                            lock_path, "': ", std::strerror(errno)));
     if (flock(fd_, LOCK_EX | LOCK_NB) != 0) {
       const int error = errno;
       std::string owner;
@@ -134,19 +141,20 @@ class History::WriterLock {
       }
       close(fd_);
       if (error != EWOULDBLOCK)
-        throw IoError(Message("history database '", path, "': cannot lock '", lock_path, "': ",
-                              std::strerror(error)));
-      throw HistoryInUse(Message("history database '", path, "' is in use by process ",
-                                 owner.empty() ? "(pid not known)" : owner,
-                                 ", which holds its writer lock '", lock_path,
-                                 "'; one writer per history: wait for it to end or use another database"));
+        throw IoError(Message("history database '", path, "': cannot lock '", lock_path,
+                              "': ", std::strerror(error)));
+      throw HistoryInUse(Message(
+          "history database '", path, "' is in use by process ",
+          owner.empty() ? "(pid not known)" : owner, ", which holds its writer lock '", lock_path,
+          "'; one writer per history: wait for it to end or use another database"));
     }
     const std::string pid = std::to_string(getpid()) + "\n";
-    if (ftruncate(fd_, 0) != 0 || pwrite(fd_, pid.data(), pid.size(), 0) != static_cast<ssize_t>(pid.size())) {
+    if (ftruncate(fd_, 0) != 0 ||
+        pwrite(fd_, pid.data(), pid.size(), 0) != static_cast<ssize_t>(pid.size())) {
       const int error = errno;
       close(fd_);
-      throw IoError(Message("history database '", path, "': cannot write its writer lock '", lock_path,
-                            "': ", std::strerror(error)));
+      throw IoError(Message("history database '", path, "': cannot write its writer lock '",
+                            lock_path, "': ", std::strerror(error)));
     }
   }
   ~WriterLock() { close(fd_); }  // releases the flock
@@ -163,12 +171,13 @@ History::History(const std::string& path) : path_(path) {
   for (size_t pos = path.find('/', 1); pos != std::string::npos; pos = path.find('/', pos + 1)) {
     const std::string dir = path.substr(0, pos);
     if (mkdir(dir.c_str(), 0755) != 0 && errno != EEXIST)
-      throw IoError(Message("cannot create the directory '", dir, "' of history database '", path, "': ",
-                            std::strerror(errno)));
+      throw IoError(Message("cannot create the directory '", dir, "' of history database '", path,
+                            "': ", std::strerror(errno)));
   }
   // The writer lock first: a second writer is refused before the database is opened.
   lock_ = std::make_unique<WriterLock>(path);
-  const int rc = sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr);
+  const int rc =
+      sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr);
   if (rc != SQLITE_OK) {
     const std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
     sqlite3_close(db_);
@@ -271,7 +280,8 @@ std::vector<uint64_t> History::AppendBatch(const Batch& batch) {
     b.Step();
     const int64_t batch_id = sqlite3_last_insert_rowid(db_);
     Statement o(db_,
-                "INSERT INTO observations(batch_id, point_id, source, source_name, epoch, stamp, reference_stamp,"
+                "INSERT INTO observations(batch_id, point_id, source, source_name, epoch, stamp, "
+                "reference_stamp,"
                 " rx, ry, rz, dx, dy, dz, covariance) VALUES(?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
                 path_);
     for (const Measurement& m : batch.measurements) {
@@ -309,12 +319,14 @@ std::vector<History::StoredBatch> History::LoadBatches() const {
     out.push_back(sb);
   }
   Statement o(db_,
-              "SELECT id, batch_id, point_id, source, source_name, epoch, stamp, reference_stamp, rx, ry, rz,"
+              "SELECT id, batch_id, point_id, source, source_name, epoch, stamp, reference_stamp, "
+              "rx, ry, rz,"
               " dx, dy, dz, covariance FROM observations ORDER BY id",
               path_);
   while (o.Step()) {
     auto it = index.find(o.Int(1));
-    if (it == index.end()) Fail(Message("observation ", o.Int(0), " refers to a missing batch ", o.Int(1)));
+    if (it == index.end())
+      Fail(Message("observation ", o.Int(0), " refers to a missing batch ", o.Int(1)));
     Measurement m;
     m.point_id = o.Text(2);
     m.source = SourceFromInt(static_cast<int>(o.Int(3)));
@@ -335,11 +347,13 @@ void History::StoreEstimates(const std::vector<PointState>& points, uint32_t epo
   if (points.empty()) return;
   Exec("BEGIN IMMEDIATE");
   try {
-    Statement s(db_,
-                "INSERT OR REPLACE INTO estimates(point_id, stamp, epoch, batch_id, dx, dy, dz, vx, vy, vz, ax, ay, az,"
-                " displacement_covariance, velocity_covariance, alert_level, forecast_time, forecast_sigma)"
-                " VALUES(?,?,?,(SELECT MAX(id) FROM batches),?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
-                path_);
+    Statement s(
+        db_,
+        "INSERT OR REPLACE INTO estimates(point_id, stamp, epoch, batch_id, dx, dy, dz, vx, vy, "
+        "vz, ax, ay, az,"
+        " displacement_covariance, velocity_covariance, alert_level, forecast_time, forecast_sigma)"
+        " VALUES(?,?,?,(SELECT MAX(id) FROM batches),?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+        path_);
     for (const PointState& p : points) {
       s.Reset();
       s.Bind(1, p.id);
@@ -386,7 +400,9 @@ void History::StoreReferenceOffsets(
   Exec("BEGIN IMMEDIATE");
   try {
     Exec("DELETE FROM reference_offsets");
-    Statement s(db_, "INSERT INTO reference_offsets(point_id, dx, dy, dz, covariance) VALUES(?,?,?,?,?)", path_);
+    Statement s(db_,
+                "INSERT INTO reference_offsets(point_id, dx, dy, dz, covariance) VALUES(?,?,?,?,?)",
+                path_);
     for (const auto& [id, o] : offsets) {
       s.Reset();
       s.Bind(1, id);
@@ -401,10 +417,12 @@ void History::StoreReferenceOffsets(
   }
 }
 
-std::map<std::string, std::pair<Eigen::Vector3d, Eigen::Matrix3d>> History::LoadReferenceOffsets() const {
+std::map<std::string, std::pair<Eigen::Vector3d, Eigen::Matrix3d>> History::LoadReferenceOffsets()
+    const {
   std::map<std::string, std::pair<Eigen::Vector3d, Eigen::Matrix3d>> out;
   Statement s(db_, "SELECT point_id, dx, dy, dz, covariance FROM reference_offsets", path_);
-  while (s.Step()) out[s.Text(0)] = {Eigen::Vector3d(s.Double(1), s.Double(2), s.Double(3)), s.Matrix(4)};
+  while (s.Step())
+    out[s.Text(0)] = {Eigen::Vector3d(s.Double(1), s.Double(2), s.Double(3)), s.Matrix(4)};
   return out;
 }
 

@@ -8,8 +8,8 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/subprocess.h"
-#include "slope_monitor/core/io/safe_file.h"
 #include "slope_monitor/core/deformation/units.h"
+#include "slope_monitor/core/io/safe_file.h"
 
 namespace slope_monitor {
 namespace deformation {

@@ -34,16 +34,21 @@ void Transition(double tau, double q_day, Matrix9d* F, Matrix9d* Q) {
 
 void FilterOptions::Check() const {
   if (!(jerk_spectral_density >= 0.0) || !std::isfinite(jerk_spectral_density))
-    throw ConfigError(Message("jerk_spectral_density = ", jerk_spectral_density, " m^2/s^5 must be >= 0"));
+    throw ConfigError(
+        Message("jerk_spectral_density = ", jerk_spectral_density, " m^2/s^5 must be >= 0"));
   if (!(initial_velocity_sigma > 0.0) || !std::isfinite(initial_velocity_sigma))
-    throw ConfigError(Message("initial_velocity_sigma = ", initial_velocity_sigma, " m/s must be > 0"));
+    throw ConfigError(
+        Message("initial_velocity_sigma = ", initial_velocity_sigma, " m/s must be > 0"));
   if (!(initial_acceleration_sigma > 0.0) || !std::isfinite(initial_acceleration_sigma))
-    throw ConfigError(Message("initial_acceleration_sigma = ", initial_acceleration_sigma, " m/s^2 must be > 0"));
+    throw ConfigError(
+        Message("initial_acceleration_sigma = ", initial_acceleration_sigma, " m/s^2 must be > 0"));
 }
 
 Eigen::Vector3d FilterState::Velocity() const { return x.segment<3>(3) / kDay; }
 Eigen::Vector3d FilterState::Acceleration() const { return x.segment<3>(6) / (kDay * kDay); }
-Eigen::Matrix3d FilterState::VelocityCovariance() const { return P.block<3, 3>(3, 3) / (kDay * kDay); }
+Eigen::Matrix3d FilterState::VelocityCovariance() const {
+  return P.block<3, 3>(3, 3) / (kDay * kDay);
+}
 
 FilterState PointFilter::Predict(const FilterState& state, double stamp) const {
   FilterState out = state;
@@ -106,8 +111,8 @@ UpdateResult PointFilter::Update(FilterState* state, double stamp, const Eigen::
   return r;
 }
 
-bool OrderedFilter::Add(double stamp, uint64_t sequence, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
-                        UpdateResult* result) {
+bool OrderedFilter::Add(double stamp, uint64_t sequence, const Eigen::Vector3d& z,
+                        const Eigen::Matrix3d& R, UpdateResult* result) {
   if (base_.initialized && stamp < base_.stamp) return false;
   Entry e;
   e.stamp = stamp;
@@ -115,9 +120,10 @@ bool OrderedFilter::Add(double stamp, uint64_t sequence, const Eigen::Vector3d& 
   e.z = z;
   e.R = R;
   // Insert after every entry with (stamp, sequence) <= the new one.
-  auto pos = std::upper_bound(entries_.begin(), entries_.end(), e, [](const Entry& a, const Entry& b) {
-    return a.stamp < b.stamp || (a.stamp == b.stamp && a.sequence < b.sequence);
-  });
+  auto pos =
+      std::upper_bound(entries_.begin(), entries_.end(), e, [](const Entry& a, const Entry& b) {
+        return a.stamp < b.stamp || (a.stamp == b.stamp && a.sequence < b.sequence);
+      });
   size_t index = static_cast<size_t>(pos - entries_.begin());
   entries_.insert(pos, e);
   ++count_;

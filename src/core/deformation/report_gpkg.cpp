@@ -13,9 +13,9 @@
 #include <ogrsf_frmts.h>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/format.h"
 #include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/deformation/report.h"
-#include "slope_monitor/core/common/format.h"
 #include "slope_monitor/core/deformation/units.h"
 
 namespace slope_monitor {
@@ -53,8 +53,8 @@ void AddField(OGRLayer* layer, const char* name, OGRFieldType type, const std::s
 }
 
 // x in site; offset: site -> the layer's CRS (the origin of a shifted CRS, else 0).
-void AddPoint(OGRLayer* layer, OGRFeature* f, const Eigen::Vector3d& x, const Eigen::Vector3d& offset,
-              const std::string& path) {
+void AddPoint(OGRLayer* layer, OGRFeature* f, const Eigen::Vector3d& x,
+              const Eigen::Vector3d& offset, const std::string& path) {
   const Eigen::Vector3d c = x + offset;
   OGRPoint pt(c.x(), c.y(), c.z());
   f->SetGeometry(&pt);

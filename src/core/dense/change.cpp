@@ -21,32 +21,38 @@ int BandOf(const io::GeoRaster& r, const char* name, int fallback, const char* w
 void ChangeOptions::Check() const {
   if (!(lod_factor >= 0 && lod_factor <= 10))
     throw ConfigError(Message("change option 'lod_factor' = ", lod_factor, " must be in [0, 10]"));
-  if (!(min_lod >= 0)) throw ConfigError(Message("change option 'min_lod' = ", min_lod, " m must be >= 0"));
+  if (!(min_lod >= 0))
+    throw ConfigError(Message("change option 'min_lod' = ", min_lod, " m must be >= 0"));
 }
 
 std::string ChangeSummary::BriefReport() const {
   std::ostringstream s;
-  s << "surface change: " << cells_compared << " cells compared (" << cells_missing << " missing), gain "
-    << volume_gain << " +- " << sigma_gain << " m3 over " << cells_gain << " cells, loss " << volume_loss << " +- "
-    << sigma_loss << " m3 over " << cells_loss << " cells, net " << volume_net << " m3 (all cells, no LoD: " << volume_net_all << " m3)";
+  s << "surface change: " << cells_compared << " cells compared (" << cells_missing
+    << " missing), gain " << volume_gain << " +- " << sigma_gain << " m3 over " << cells_gain
+    << " cells, loss " << volume_loss << " +- " << sigma_loss << " m3 over " << cells_loss
+    << " cells, net " << volume_net << " m3 (all cells, no LoD: " << volume_net_all << " m3)";
   return s.str();
 }
 
-ChangeResult SurfaceChange(const io::GeoRaster& before, const io::GeoRaster& after, const ChangeOptions& options) {
+ChangeResult SurfaceChange(const io::GeoRaster& before, const io::GeoRaster& after,
+                           const ChangeOptions& options) {
   options.Check();
   if (before.width != after.width || before.height != after.height ||
       std::abs(before.origin_x - after.origin_x) > 1e-6 * before.cell_size ||
       std::abs(before.origin_y - after.origin_y) > 1e-6 * before.cell_size ||
       std::abs(before.cell_size - after.cell_size) > 1e-9 * before.cell_size)
-    throw InvalidArgument(Message("SurfaceChange: the models' grids differ (", before.width, "x", before.height,
-                                  " at (", before.origin_x, ", ", before.origin_y, ") cell ", before.cell_size,
-                                  " vs ", after.width, "x", after.height, " at (", after.origin_x, ", ",
-                                  after.origin_y, ") cell ", after.cell_size, ")"));
-  const int hb = BandOf(before, "height", 0, "before"), ub = BandOf(before, "uncertainty", 1, "before");
+    throw InvalidArgument(Message("SurfaceChange: the models' grids differ (", before.width, "x",
+                                  before.height, " at (", before.origin_x, ", ", before.origin_y,
+                                  ") cell ", before.cell_size, " vs ", after.width, "x",
+                                  after.height, " at (", after.origin_x, ", ", after.origin_y,
+                                  ") cell ", after.cell_size, ")"));
+  const int hb = BandOf(before, "height", 0, "before"),
+            ub = BandOf(before, "uncertainty", 1, "before");
   const int ha = BandOf(after, "height", 0, "after"), ua = BandOf(after, "uncertainty", 1, "after");
   ChangeResult out;
   io::GeoRaster& c = out.change;
-  c = io::GeoRaster(before.width, before.height, before.origin_x, before.origin_y, before.cell_size);
+  c = io::GeoRaster(before.width, before.height, before.origin_x, before.origin_y,
+                    before.cell_size);
   c.epsg = before.epsg;
   c.AddBand("dz");
   c.AddBand("lod");
@@ -83,8 +89,8 @@ ChangeResult SurfaceChange(const io::GeoRaster& before, const io::GeoRaster& aft
           var_loss += u * u * area * area;
         }
         const Eigen::Vector2d xy = c.CellCentre(row, col);
-        out.significant.push_back({Eigen::Vector3d(xy.x(), xy.y(), z1), static_cast<float>(dz),
-                                   static_cast<float>(lod)});
+        out.significant.push_back(
+            {Eigen::Vector3d(xy.x(), xy.y(), z1), static_cast<float>(dz), static_cast<float>(lod)});
       }
       c.At(kSignificant, row, col) = sig;
     }

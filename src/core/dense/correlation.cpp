@@ -63,9 +63,11 @@ SM_DENSE_CLONES void AccumulateRow(const float* __restrict l, const int* __restr
   }
 }
 
-SM_DENSE_CLONES void UpdateRows(const float* __restrict la, const int* __restrict ia, const float* __restrict ra,
-                                const float* __restrict ls, const int* __restrict is, const float* __restrict rs,
-                                int k, int w, float* __restrict cw, float* __restrict cww, float* __restrict clw) {
+SM_DENSE_CLONES void UpdateRows(const float* __restrict la, const int* __restrict ia,
+                                const float* __restrict ra, const float* __restrict ls,
+                                const int* __restrict is, const float* __restrict rs, int k, int w,
+                                float* __restrict cw, float* __restrict cww,
+                                float* __restrict clw) {
   for (int x = 0; x < w; ++x) {
     const float va = ra[ia[x] - k], vs = rs[is[x] - k];
     cw[x] += va - vs;
@@ -111,7 +113,8 @@ SM_DENSE_CLONES void SlidingSum(const float* __restrict in, int n, int len, floa
       done += span;
     }
     if ((2 << bit) > len) break;
-    // Only the part still needed: positions done .. done + n + (len - done - 2 span) of the new sums.
+    // Only the part still needed: positions done .. done + n + (len - done - 2 span) of the new
+    // sums.
     const int valid = total - 2 * span + 1;
     const float* __restrict pp = p;
     float* __restrict qq = q;
@@ -124,8 +127,8 @@ SM_DENSE_CLONES void SlidingSum(const float* __restrict in, int n, int len, floa
 
 // Without a right mask: score = -2 where the warped centre leaves [lo, hi)
 // or the left window is unusable (branch-free, vectorised).
-SM_DENSE_CLONES void ValidRange(const int* __restrict idx, int k, int lo, int hi, const float* __restrict il, int w,
-                                float* __restrict score) {
+SM_DENSE_CLONES void ValidRange(const int* __restrict idx, int k, int lo, int hi,
+                                const float* __restrict il, int w, float* __restrict score) {
   for (int x = 0; x < w; ++x) {
     const int i = idx[x] - k;
     const bool ok = (i >= lo) & (i < hi) & (il[x] > 0.0f);
@@ -137,8 +140,8 @@ SM_DENSE_CLONES void ValidRange(const int* __restrict idx, int k, int lo, int hi
 // when the left window has content and variance (il > 0) and the right
 // window around the warped centre lies on content (okr[idx(x) - k] = 1: the
 // right mask eroded by the window, padded with 0).
-void ScoreRowScalar(const float* bw, const float* bww, const float* blw, const float* ml, const float* il,
-                    float inv_count, float min_var, int x0, int w, float* score) {
+void ScoreRowScalar(const float* bw, const float* bww, const float* blw, const float* ml,
+                    const float* il, float inv_count, float min_var, int x0, int w, float* score) {
   for (int x = x0; x < w; ++x) {
     const float var_r = bww[x] - bw[x] * bw[x] * inv_count;
     const float cov = blw[x] - ml[x] * bw[x];
@@ -148,15 +151,19 @@ void ScoreRowScalar(const float* bw, const float* bww, const float* blw, const f
 
 #if defined(__GNUC__) && defined(__x86_64__)
 #define SM_DENSE_HAVE_AVX2_PATH 1
-__attribute__((target("avx2"))) void ScoreRowAvx2(const float* bw, const float* bww, const float* blw,
-                                                  const float* ml, const float* il, float inv_count, float min_var,
+__attribute__((target("avx2"))) void ScoreRowAvx2(const float* bw, const float* bww,
+                                                  const float* blw, const float* ml,
+                                                  const float* il, float inv_count, float min_var,
                                                   int w, float* score) {
-  const __m256 vinv = _mm256_set1_ps(inv_count), vmin = _mm256_set1_ps(min_var), vbad = _mm256_set1_ps(-2.0f);
+  const __m256 vinv = _mm256_set1_ps(inv_count), vmin = _mm256_set1_ps(min_var),
+               vbad = _mm256_set1_ps(-2.0f);
   int x = 0;
   for (; x + 8 <= w; x += 8) {
     const __m256 sw = _mm256_loadu_ps(bw + x);
-    const __m256 var_r = _mm256_sub_ps(_mm256_loadu_ps(bww + x), _mm256_mul_ps(_mm256_mul_ps(sw, sw), vinv));
-    const __m256 cov = _mm256_sub_ps(_mm256_loadu_ps(blw + x), _mm256_mul_ps(_mm256_loadu_ps(ml + x), sw));
+    const __m256 var_r =
+        _mm256_sub_ps(_mm256_loadu_ps(bww + x), _mm256_mul_ps(_mm256_mul_ps(sw, sw), vinv));
+    const __m256 cov =
+        _mm256_sub_ps(_mm256_loadu_ps(blw + x), _mm256_mul_ps(_mm256_loadu_ps(ml + x), sw));
     const __m256 ok = _mm256_cmp_ps(var_r, vmin, _CMP_GT_OQ);
     const __m256 s = _mm256_div_ps(_mm256_mul_ps(cov, _mm256_loadu_ps(il + x)),
                                    _mm256_sqrt_ps(_mm256_max_ps(var_r, vmin)));
@@ -172,8 +179,9 @@ __attribute__((target("avx2"))) void ScoreRowAvx2(const float* bw, const float* 
 // right mask eroded by the window, padded with 0).
 // okr == nullptr: the right image has no mask; the right window is on
 // content when the warped centre lies in [lo, hi) of the padded row.
-void ScoreRow(const float* bw, const float* bww, const float* blw, const float* okr, const int* idx, int k, int lo,
-              int hi, const float* ml, const float* il, float inv_count, float min_var, int w, float* score) {
+void ScoreRow(const float* bw, const float* bww, const float* blw, const float* okr, const int* idx,
+              int k, int lo, int hi, const float* ml, const float* il, float inv_count,
+              float min_var, int w, float* score) {
 #ifdef SM_DENSE_HAVE_AVX2_PATH
   static const bool avx2 = __builtin_cpu_supports("avx2");
   if (avx2)
@@ -190,8 +198,8 @@ void ScoreRow(const float* bw, const float* bww, const float* blw, const float* 
 }
 
 // Running arg-max over the offsets.
-SM_DENSE_CLONES void ArgMaxRow(const float* __restrict score, int ki, int w, float* __restrict best_s,
-                               int* __restrict best_k) {
+SM_DENSE_CLONES void ArgMaxRow(const float* __restrict score, int ki, int w,
+                               float* __restrict best_s, int* __restrict best_k) {
   for (int x = 0; x < w; ++x) {
     const bool better = score[x] > best_s[x];
     best_s[x] = better ? score[x] : best_s[x];
@@ -202,15 +210,16 @@ SM_DENSE_CLONES void ArgMaxRow(const float* __restrict score, int ki, int w, flo
 // Per-thread working memory of Search, kept between calls (no allocation per
 // pixel, and none per call once the sizes are reached).
 struct SearchBuffers {
-  std::vector<float> col;      // n offsets x 3 channels x (w + 2 r): column sums of w, w^2, l*w
-  std::vector<float> box;      // 3 x w: window sums of the current row and offset
-  std::vector<float> tmp;      // SlidingSum scratch
-  std::vector<float> col_small;  // the same for the small window near depth edges
-  std::vector<float> scores;   // n x w: ZNCC of the current row per offset
+  std::vector<float> col;          // n offsets x 3 channels x (w + 2 r): column sums of w, w^2, l*w
+  std::vector<float> box;          // 3 x w: window sums of the current row and offset
+  std::vector<float> tmp;          // SlidingSum scratch
+  std::vector<float> col_small;    // the same for the small window near depth edges
+  std::vector<float> scores;       // n x w: ZNCC of the current row per offset
   std::vector<float> score_small;  // w: ZNCC of the small window
   std::vector<float> best_s;
   std::vector<int> best_k;
-  std::vector<uint64_t> best_key;  // right-to-left from the volume: best (score, left pixel) per right pixel
+  std::vector<uint64_t>
+      best_key;  // right-to-left from the volume: best (score, left pixel) per right pixel
   std::vector<uint32_t> best_key32, keys;
   std::vector<int> slots;
   std::vector<int> x0;
@@ -267,11 +276,11 @@ LevelWorkspace& LevelCache(int level) {
 // 30 float images of this size would stay allocated per thread).
 constexpr double kMaxCachedPixels = 2.0e6;
 
-
 // left_all_valid / right_all_valid: the mask is all ones (no erosion needed;
 // no right flags: the search checks the warped centre instead).
-void ComputeWindowStats(const cv::Mat& left, const cv::Mat& mask_left, const cv::Mat& mask_right, int window,
-                        int off, int wp, bool left_all_valid, bool right_all_valid, WindowStats& st) {
+void ComputeWindowStats(const cv::Mat& left, const cv::Mat& mask_left, const cv::Mat& mask_right,
+                        int window, int off, int wp, bool left_all_valid, bool right_all_valid,
+                        WindowStats& st) {
   const int w = left.cols, h = left.rows, r = window / 2;
   const float count = static_cast<float>(window) * window, inv_count = 1.0f / count;
   const float min_var = 1e-12f * count;
@@ -281,11 +290,11 @@ void ComputeWindowStats(const cv::Mat& left, const cv::Mat& mask_left, const cv:
   cv::sqrBoxFilter(left, st.sum_ll, CV_32F, box, cv::Point(-1, -1), false, cv::BORDER_REFLECT_101);
   // The whole window has content (pixels outside the image do not count).
   if (!left_all_valid)
-    cv::erode(mask_left, st.ok_l, cv::getStructuringElement(cv::MORPH_RECT, box), cv::Point(-1, -1), 1,
-              cv::BORDER_CONSTANT, cv::Scalar(1));
+    cv::erode(mask_left, st.ok_l, cv::getStructuringElement(cv::MORPH_RECT, box), cv::Point(-1, -1),
+              1, cv::BORDER_CONSTANT, cv::Scalar(1));
   if (!right_all_valid) {
-    cv::erode(mask_right, st.ok_r, cv::getStructuringElement(cv::MORPH_RECT, box), cv::Point(-1, -1), 1,
-              cv::BORDER_CONSTANT, cv::Scalar(1));
+    cv::erode(mask_right, st.ok_r, cv::getStructuringElement(cv::MORPH_RECT, box),
+              cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(1));
     st.bp.create(h, wp, CV_32F);
   }
   st.mean_l.create(h, w, CV_32F);
@@ -315,8 +324,8 @@ void ComputeWindowStats(const cv::Mat& left, const cv::Mat& mask_left, const cv:
 // Running column sums (w, w^2, l*w of the warped right image) of one window
 // height for one row and offset: set up at the first row of a stripe, then
 // one row in and one out.
-inline void ColumnSums(const cv::Mat& left, const cv::Mat& idx, const cv::Mat& rp, int y, int y0, int h, int r,
-                       int k, int w, float* c0, float* c1, float* c2) {
+inline void ColumnSums(const cv::Mat& left, const cv::Mat& idx, const cv::Mat& rp, int y, int y0,
+                       int h, int r, int k, int w, float* c0, float* c1, float* c2) {
   if (y == y0) {
     for (int j = -r; j <= r; ++j) {
       const int yy = Reflect101(y + j, h);
@@ -324,8 +333,8 @@ inline void ColumnSums(const cv::Mat& left, const cv::Mat& idx, const cv::Mat& r
     }
   } else {
     const int ya = Reflect101(y + r, h), ys = Reflect101(y - r - 1, h);
-    UpdateRows(left.ptr<float>(ya), idx.ptr<int>(ya), rp.ptr<float>(ya), left.ptr<float>(ys), idx.ptr<int>(ys),
-               rp.ptr<float>(ys), k, w, c0, c1, c2);
+    UpdateRows(left.ptr<float>(ya), idx.ptr<int>(ya), rp.ptr<float>(ya), left.ptr<float>(ys),
+               idx.ptr<int>(ys), rp.ptr<float>(ys), k, w, c0, c1, c2);
   }
 }
 
@@ -341,11 +350,12 @@ inline void ColumnSums(const cv::Mat& left, const cv::Mat& idx, const cv::Mat& r
 constexpr int kDummySlots = 64;
 
 // Keys and target slots of one offset for a whole row (vectorised).
-SM_DENSE_CLONES void KeysOfOffset(const float* __restrict s, const int* __restrict x0, int ki, int w,
-                                  uint32_t* __restrict key, int* __restrict slot) {
+SM_DENSE_CLONES void KeysOfOffset(const float* __restrict s, const int* __restrict x0, int ki,
+                                  int w, uint32_t* __restrict key, int* __restrict slot) {
   for (int x = 0; x < w; ++x) {
     const int xr0 = x0[x] - ki;
-    slot[x] = static_cast<unsigned>(xr0) < static_cast<unsigned>(w) ? xr0 : w + (x & (kDummySlots - 1));
+    slot[x] =
+        static_cast<unsigned>(xr0) < static_cast<unsigned>(w) ? xr0 : w + (x & (kDummySlots - 1));
     key[x] = (static_cast<uint32_t>((s[x] + 2.0f) * 131071.0f) << 13) | static_cast<uint32_t>(x);
   }
 }
@@ -368,7 +378,9 @@ void ScatterBest(const float* sc, const int* x0, int n, int w, Key* best, Search
       const float* __restrict s = sc + static_cast<size_t>(ki) * w;
       for (int x = 0; x < w; ++x) {
         const int xr0 = x0[x] - ki;
-        const int xr = static_cast<unsigned>(xr0) < static_cast<unsigned>(w) ? xr0 : w + (x & (kDummySlots - 1));
+        const int xr = static_cast<unsigned>(xr0) < static_cast<unsigned>(w)
+                           ? xr0
+                           : w + (x & (kDummySlots - 1));
         const Key k = (static_cast<Key>((s[x] + 2.0f) * 1.0e9f) << 32) | static_cast<Key>(x);
         const Key old = best[xr];
         best[xr] = k > old ? k : old;
@@ -377,8 +389,8 @@ void ScatterBest(const float* sc, const int* x0, int n, int w, Key* best, Search
   }
 }
 
-void RightFromVolume(const float* sc, const int* b, int k_min, int n, int w, float min_corr, SearchBuffers& buf,
-                     float* d, float* cc) {
+void RightFromVolume(const float* sc, const int* b, int k_min, int n, int w, float min_corr,
+                     SearchBuffers& buf, float* d, float* cc) {
   // x0[x] = x - base[x] - k_min is the right pixel of offset 0.
   int* x0 = buf.x0.data();
   for (int x = 0; x < w; ++x) x0[x] = x - (b ? b[x] : 0) - k_min;
@@ -411,7 +423,8 @@ void RightFromVolume(const float* sc, const int* b, int k_min, int n, int w, flo
     const float sm = score_at(xr + D - 1, D - 1), sp = score_at(xr + D + 1, D + 1);
     float delta = 0.0f;
     const float curv = sm - 2.0f * bs + sp;
-    if (sm > -2.0f && sp > -2.0f && curv < 0.0f) delta = std::clamp(0.5f * (sm - sp) / curv, -0.5f, 0.5f);
+    if (sm > -2.0f && sp > -2.0f && curv < 0.0f)
+      delta = std::clamp(0.5f * (sm - sp) / curv, -0.5f, 0.5f);
     d[xr] = static_cast<float>(D) + delta;
     cc[xr] = bs;
   }
@@ -442,10 +455,10 @@ void RightFromVolume(const float* sc, const int* b, int k_min, int n, int w, flo
 // border of its left pixel's range is rejected as on the left.
 // `ws` and `out` are kept by the caller between calls (same sizes: no new
 // memory, no page faults).
-void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int k_min, int k_max, int window,
-            double min_correlation, const cv::Mat& mask_left, const cv::Mat& mask_right, int direction,
-            const cv::Mat& edge, int edge_window, SearchWorkspace& ws, DenseResult& out,
-            DenseResult* out_right = nullptr) {
+void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int k_min, int k_max,
+            int window, double min_correlation, const cv::Mat& mask_left, const cv::Mat& mask_right,
+            int direction, const cv::Mat& edge, int edge_window, SearchWorkspace& ws,
+            DenseResult& out, DenseResult* out_right = nullptr) {
   const int w = left.cols, h = left.rows;
   const int n = k_max - k_min + 1;
   const int pad = std::max(std::abs(k_min), std::abs(k_max)) + 1;
@@ -453,9 +466,11 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
   const bool two_windows = !edge.empty() && edge_window > 0 && edge_window != window;
   const bool left_all_valid = cv::countNonZero(mask_left) == w * h;
   const bool right_all_valid = cv::countNonZero(mask_right) == w * h;
-  ComputeWindowStats(left, mask_left, mask_right, window, off, wp, left_all_valid, right_all_valid, ws.main);
+  ComputeWindowStats(left, mask_left, mask_right, window, off, wp, left_all_valid, right_all_valid,
+                     ws.main);
   if (two_windows)
-    ComputeWindowStats(left, mask_left, mask_right, edge_window, off, wp, left_all_valid, right_all_valid, ws.small);
+    ComputeWindowStats(left, mask_left, mask_right, edge_window, off, wp, left_all_valid,
+                       right_all_valid, ws.small);
   std::vector<char> row_has_edge(h, 0);
   if (two_windows)
     for (int y = 0; y < h; ++y) row_has_edge[y] = cv::countNonZero(edge.row(y)) > 0;
@@ -473,7 +488,8 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
       for (int x = 0; x < w; ++x) o[x] = mr[x] ? rr[x] : 0.0f;
       const int* b = base.empty() ? nullptr : base.ptr<int>(y);
       int* id = ws.idx.ptr<int>(y);
-      for (int x = 0; x < w; ++x) id[x] = std::clamp(x - direction * (b ? b[x] : 0), -pad, w - 1 + pad) + off;
+      for (int x = 0; x < w; ++x)
+        id[x] = std::clamp(x - direction * (b ? b[x] : 0), -pad, w - 1 + pad) + off;
     }
   });
 
@@ -488,104 +504,114 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
   const cv::Mat& idx = ws.idx;
   const cv::Mat& rp = ws.rp;
 
-  cv::parallel_for_(cv::Range(0, stripes), [&](const cv::Range& range) {
-    static thread_local SearchBuffers buf;
-    const int r_main = window / 2, r_small = edge_window / 2;
-    const int r_max = two_windows ? std::max(r_main, r_small) : r_main;
-    const int cw_len = w + 2 * r_max;
-    buf.col.resize(static_cast<size_t>(n) * 3 * cw_len);
-    if (two_windows) buf.col_small.resize(static_cast<size_t>(n) * 3 * cw_len);
-    buf.box.resize(3 * static_cast<size_t>(w));
-    buf.tmp.resize(2 * static_cast<size_t>(cw_len + std::max(window, edge_window)));
-    buf.scores.resize(static_cast<size_t>(n) * w);
-    buf.score_small.resize(w);
-    buf.best_s.resize(w);
-    buf.best_k.resize(w);
-    if (w <= 8192) {
-      buf.best_key32.resize(w + kDummySlots);
-      buf.keys.resize(w);
-      buf.slots.resize(w);
-    } else {
-      buf.best_key.resize(w + kDummySlots);
-    }
-    buf.x0.resize(w);
-    // Window sums of a row from column sums (columns reflected at the image border) and the ZNCC.
-    auto score_row = [&](std::vector<float>& col, int ki, int k, int y, const WindowStats& st, float* score) {
-      const int win = st.window, r = win / 2;
-      const float count = static_cast<float>(win) * win;
-      float* bx[3];
-      for (int ch = 0; ch < 3; ++ch) {
-        float* c = &col[(static_cast<size_t>(ki) * 3 + ch) * cw_len] + r_max;
-        for (int j = 1; j <= r; ++j) {
-          c[-j] = c[Reflect101(-j, w)];
-          c[w - 1 + j] = c[Reflect101(w - 1 + j, w)];
+  cv::parallel_for_(
+      cv::Range(0, stripes),
+      [&](const cv::Range& range) {
+        static thread_local SearchBuffers buf;
+        const int r_main = window / 2, r_small = edge_window / 2;
+        const int r_max = two_windows ? std::max(r_main, r_small) : r_main;
+        const int cw_len = w + 2 * r_max;
+        buf.col.resize(static_cast<size_t>(n) * 3 * cw_len);
+        if (two_windows) buf.col_small.resize(static_cast<size_t>(n) * 3 * cw_len);
+        buf.box.resize(3 * static_cast<size_t>(w));
+        buf.tmp.resize(2 * static_cast<size_t>(cw_len + std::max(window, edge_window)));
+        buf.scores.resize(static_cast<size_t>(n) * w);
+        buf.score_small.resize(w);
+        buf.best_s.resize(w);
+        buf.best_k.resize(w);
+        if (w <= 8192) {
+          buf.best_key32.resize(w + kDummySlots);
+          buf.keys.resize(w);
+          buf.slots.resize(w);
+        } else {
+          buf.best_key.resize(w + kDummySlots);
         }
-        bx[ch] = buf.box.data() + static_cast<size_t>(ch) * w;
-        SlidingSum(c - r, w, win, bx[ch], buf.tmp.data());
-      }
-      ScoreRow(bx[0], bx[1], bx[2], right_all_valid ? nullptr : st.bp.ptr<float>(y), idx.ptr<int>(y), k, off + r,
-               off + w - r, st.mean_l.ptr<float>(y), st.inv_sd_l.ptr<float>(y), 1.0f / count, 1e-12f * count, w,
-               score);
-    };
-    for (int stripe = range.start; stripe < range.end; ++stripe) {
-      const int y0 = static_cast<int>(static_cast<long>(h) * stripe / stripes);
-      const int y1 = static_cast<int>(static_cast<long>(h) * (stripe + 1) / stripes);
-      std::fill(buf.col.begin(), buf.col.end(), 0.0f);
-      int small_y0 = -1;  // first row of the running small-window sums (restarted after rows without edges)
-      for (int y = y0; y < y1; ++y) {
-        float* best_s = buf.best_s.data();
-        int* best_k = buf.best_k.data();
-        std::fill(buf.best_s.begin(), buf.best_s.end(), -2.0f);
-        std::fill(buf.best_k.begin(), buf.best_k.end(), -10);
-        const bool small_row = two_windows && row_has_edge[y];
-        if (small_row && small_y0 < 0) {
-          small_y0 = y;
-          std::fill(buf.col_small.begin(), buf.col_small.end(), 0.0f);
-        }
-        if (!small_row) small_y0 = -1;
-        const uchar* er = small_row ? edge.ptr<uchar>(y) : nullptr;
-        for (int ki = 0; ki < n; ++ki) {
-          const int k = direction * (k_min + ki);  // index shift in the padded row
-          float* c[3];
-          for (int ch = 0; ch < 3; ++ch) c[ch] = &buf.col[(static_cast<size_t>(ki) * 3 + ch) * cw_len] + r_max;
-          ColumnSums(left, idx, rp, y, y0, h, r_main, k, w, c[0], c[1], c[2]);
-          float* score = buf.scores.data() + static_cast<size_t>(ki) * w;
-          score_row(buf.col, ki, k, y, ws.main, score);
-          if (small_row) {
-            for (int ch = 0; ch < 3; ++ch)
-              c[ch] = &buf.col_small[(static_cast<size_t>(ki) * 3 + ch) * cw_len] + r_max;
-            ColumnSums(left, idx, rp, y, small_y0, h, r_small, k, w, c[0], c[1], c[2]);
-            float* ss = buf.score_small.data();
-            score_row(buf.col_small, ki, k, y, ws.small, ss);
-            for (int x = 0; x < w; ++x)
-              if (er[x]) score[x] = ss[x];
+        buf.x0.resize(w);
+        // Window sums of a row from column sums (columns reflected at the image border) and the
+        // ZNCC.
+        auto score_row = [&](std::vector<float>& col, int ki, int k, int y, const WindowStats& st,
+                             float* score) {
+          const int win = st.window, r = win / 2;
+          const float count = static_cast<float>(win) * win;
+          float* bx[3];
+          for (int ch = 0; ch < 3; ++ch) {
+            float* c = &col[(static_cast<size_t>(ki) * 3 + ch) * cw_len] + r_max;
+            for (int j = 1; j <= r; ++j) {
+              c[-j] = c[Reflect101(-j, w)];
+              c[w - 1 + j] = c[Reflect101(w - 1 + j, w)];
+            }
+            bx[ch] = buf.box.data() + static_cast<size_t>(ch) * w;
+            SlidingSum(c - r, w, win, bx[ch], buf.tmp.data());
           }
-          ArgMaxRow(score, ki, w, best_s, best_k);
-        }
-        const int* b = base.empty() ? nullptr : base.ptr<int>(y);
-        float* d = out.disparity.ptr<float>(y);
-        float* cc = out.correlation.ptr<float>(y);
-        const float* sc = buf.scores.data();
-        for (int x = 0; x < w; ++x) {
-          const int best = best_k[x];
-          const float bs = best_s[x];
-          if (best <= 0 || best >= n - 1 || bs < min_corr) {
-            d[x] = kNaN;
-            cc[x] = kNaN;
-            continue;
+          ScoreRow(bx[0], bx[1], bx[2], right_all_valid ? nullptr : st.bp.ptr<float>(y),
+                   idx.ptr<int>(y), k, off + r, off + w - r, st.mean_l.ptr<float>(y),
+                   st.inv_sd_l.ptr<float>(y), 1.0f / count, 1e-12f * count, w, score);
+        };
+        for (int stripe = range.start; stripe < range.end; ++stripe) {
+          const int y0 = static_cast<int>(static_cast<long>(h) * stripe / stripes);
+          const int y1 = static_cast<int>(static_cast<long>(h) * (stripe + 1) / stripes);
+          std::fill(buf.col.begin(), buf.col.end(), 0.0f);
+          int small_y0 = -1;  // first row of the running small-window sums (restarted after rows
+                              // without edges)
+          for (int y = y0; y < y1; ++y) {
+            float* best_s = buf.best_s.data();
+            int* best_k = buf.best_k.data();
+            std::fill(buf.best_s.begin(), buf.best_s.end(), -2.0f);
+            std::fill(buf.best_k.begin(), buf.best_k.end(), -10);
+            const bool small_row = two_windows && row_has_edge[y];
+            if (small_row && small_y0 < 0) {
+              small_y0 = y;
+              std::fill(buf.col_small.begin(), buf.col_small.end(), 0.0f);
+            }
+            if (!small_row) small_y0 = -1;
+            const uchar* er = small_row ? edge.ptr<uchar>(y) : nullptr;
+            for (int ki = 0; ki < n; ++ki) {
+              const int k = direction * (k_min + ki);  // index shift in the padded row
+              float* c[3];
+              for (int ch = 0; ch < 3; ++ch)
+                c[ch] = &buf.col[(static_cast<size_t>(ki) * 3 + ch) * cw_len] + r_max;
+              ColumnSums(left, idx, rp, y, y0, h, r_main, k, w, c[0], c[1], c[2]);
+              float* score = buf.scores.data() + static_cast<size_t>(ki) * w;
+              score_row(buf.col, ki, k, y, ws.main, score);
+              if (small_row) {
+                for (int ch = 0; ch < 3; ++ch)
+                  c[ch] = &buf.col_small[(static_cast<size_t>(ki) * 3 + ch) * cw_len] + r_max;
+                ColumnSums(left, idx, rp, y, small_y0, h, r_small, k, w, c[0], c[1], c[2]);
+                float* ss = buf.score_small.data();
+                score_row(buf.col_small, ki, k, y, ws.small, ss);
+                for (int x = 0; x < w; ++x)
+                  if (er[x]) score[x] = ss[x];
+              }
+              ArgMaxRow(score, ki, w, best_s, best_k);
+            }
+            const int* b = base.empty() ? nullptr : base.ptr<int>(y);
+            float* d = out.disparity.ptr<float>(y);
+            float* cc = out.correlation.ptr<float>(y);
+            const float* sc = buf.scores.data();
+            for (int x = 0; x < w; ++x) {
+              const int best = best_k[x];
+              const float bs = best_s[x];
+              if (best <= 0 || best >= n - 1 || bs < min_corr) {
+                d[x] = kNaN;
+                cc[x] = kNaN;
+                continue;
+              }
+              const float sm = sc[static_cast<size_t>(best - 1) * w + x],
+                          sp = sc[static_cast<size_t>(best + 1) * w + x];
+              float delta = 0.0f;
+              const float curv = sm - 2.0f * bs + sp;
+              if (sm > -2.0f && sp > -2.0f && curv < 0.0f)
+                delta = std::clamp(0.5f * (sm - sp) / curv, -0.5f, 0.5f);
+              d[x] = static_cast<float>((b ? b[x] : 0) + k_min + best) + delta;
+              cc[x] = bs;
+            }
+            if (out_right)
+              RightFromVolume(sc, b, k_min, n, w, min_corr, buf, out_right->disparity.ptr<float>(y),
+                              out_right->correlation.ptr<float>(y));
           }
-          const float sm = sc[static_cast<size_t>(best - 1) * w + x], sp = sc[static_cast<size_t>(best + 1) * w + x];
-          float delta = 0.0f;
-          const float curv = sm - 2.0f * bs + sp;
-          if (sm > -2.0f && sp > -2.0f && curv < 0.0f) delta = std::clamp(0.5f * (sm - sp) / curv, -0.5f, 0.5f);
-          d[x] = static_cast<float>((b ? b[x] : 0) + k_min + best) + delta;
-          cc[x] = bs;
         }
-        if (out_right) RightFromVolume(sc, b, k_min, n, w, min_corr, buf, out_right->disparity.ptr<float>(y),
-                                       out_right->correlation.ptr<float>(y));
-      }
-    }
-  }, stripes);
+      },
+      stripes);
 }
 
 // Grid of nodes (i, j) at level pixel (j * g, i * g).
@@ -612,15 +638,17 @@ cv::Mat SampleGrid(const cv::Mat& dense_map, int g) {
 int MedianRowScalar(const float*, const float*, const float*, int, float*) { return 1; }
 
 #ifdef SM_DENSE_HAVE_AVX2_PATH
-__attribute__((target("avx2"))) int MedianRowAvx2(const float* up, const float* mid, const float* dn, int n,
-                                                   float* o) {
-  const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity()), ninf = _mm256_sub_ps(_mm256_setzero_ps(), inf);
+__attribute__((target("avx2"))) int MedianRowAvx2(const float* up, const float* mid,
+                                                  const float* dn, int n, float* o) {
+  const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity()),
+               ninf = _mm256_sub_ps(_mm256_setzero_ps(), inf);
   const __m256 one = _mm256_set1_ps(1.0f), two = _mm256_set1_ps(2.0f), half = _mm256_set1_ps(0.5f);
   int j = 1;
   for (; j + 8 <= n - 1; j += 8) {
-    __m256 v[9] = {_mm256_loadu_ps(up + j - 1),  _mm256_loadu_ps(up + j),  _mm256_loadu_ps(up + j + 1),
-                   _mm256_loadu_ps(mid + j - 1), _mm256_loadu_ps(mid + j), _mm256_loadu_ps(mid + j + 1),
-                   _mm256_loadu_ps(dn + j - 1),  _mm256_loadu_ps(dn + j),  _mm256_loadu_ps(dn + j + 1)};
+    __m256 v[9] = {
+        _mm256_loadu_ps(up + j - 1),  _mm256_loadu_ps(up + j),  _mm256_loadu_ps(up + j + 1),
+        _mm256_loadu_ps(mid + j - 1), _mm256_loadu_ps(mid + j), _mm256_loadu_ps(mid + j + 1),
+        _mm256_loadu_ps(dn + j - 1),  _mm256_loadu_ps(dn + j),  _mm256_loadu_ps(dn + j + 1)};
     __m256 miss[9], c[9];
     __m256 k = _mm256_setzero_ps();
     for (int q = 0; q < 9; ++q) {
@@ -632,21 +660,25 @@ __attribute__((target("avx2"))) int MedianRowAvx2(const float* up, const float* 
     for (int q = 0; q < 9; ++q) {
       const __m256 c2 = _mm256_mul_ps(two, c[q]);
       const __m256 fa = _mm256_blendv_ps(ninf, inf, _mm256_cmp_ps(c2, k, _CMP_LT_OQ));
-      const __m256 fb = _mm256_blendv_ps(ninf, inf, _mm256_cmp_ps(_mm256_add_ps(c2, one), k, _CMP_LT_OQ));
+      const __m256 fb =
+          _mm256_blendv_ps(ninf, inf, _mm256_cmp_ps(_mm256_add_ps(c2, one), k, _CMP_LT_OQ));
       a[q] = _mm256_blendv_ps(v[q], fa, miss[q]);
       b[q] = _mm256_blendv_ps(v[q], fb, miss[q]);
     }
     for (__m256* p : {a, b}) {
-#define SM_V2(x, y)                          \
-  {                                          \
+      // The median network, six exchanges a line (not reflowed by clang-format).
+      // clang-format off
+#define SM_V2(x, y)                              \
+  {                                              \
     const __m256 lo = _mm256_min_ps(p[x], p[y]); \
-    p[y] = _mm256_max_ps(p[x], p[y]);        \
-    p[x] = lo;                               \
+    p[y] = _mm256_max_ps(p[x], p[y]);            \
+    p[x] = lo;                                   \
   }
       SM_V2(1, 2) SM_V2(4, 5) SM_V2(7, 8) SM_V2(0, 1) SM_V2(3, 4) SM_V2(6, 7)
       SM_V2(1, 2) SM_V2(4, 5) SM_V2(7, 8) SM_V2(0, 3) SM_V2(5, 8) SM_V2(4, 7)
       SM_V2(3, 6) SM_V2(1, 4) SM_V2(2, 5) SM_V2(4, 7) SM_V2(4, 2) SM_V2(6, 4)
       SM_V2(4, 2)
+      // clang-format on
 #undef SM_V2
     }
     const __m256 m = _mm256_mul_ps(half, _mm256_add_ps(b[4], a[4]));
@@ -766,7 +798,8 @@ cv::Mat FillForPrediction(const cv::Mat& grid, float fallback, cv::Mat* store) {
       if (last < 0) {
         for (int k = 0; k < j; ++k) v[k] = v[j];
       } else {
-        for (int k = last + 1; k < j; ++k) v[k] = v[last] + (v[j] - v[last]) * (k - last) / float(j - last);
+        for (int k = last + 1; k < j; ++k)
+          v[k] = v[last] + (v[j] - v[last]) * (k - last) / float(j - last);
       }
       last = j;
     }
@@ -807,14 +840,16 @@ void PredictBase(const cv::Mat& filled_grid, int g, cv::Size size, cv::Mat* base
   cv::parallel_for_(cv::Range(0, size.height), [&](const cv::Range& range) {
     for (int y = range.start; y < range.end; ++y) {
       const double gi = std::clamp(0.5 * y / g, 0.0, filled_grid.rows - 1.0);
-      const int i0 = std::min(static_cast<int>(gi), filled_grid.rows - 1), i1 = std::min(i0 + 1, filled_grid.rows - 1);
+      const int i0 = std::min(static_cast<int>(gi), filled_grid.rows - 1),
+                i1 = std::min(i0 + 1, filled_grid.rows - 1);
       const float ti = static_cast<float>(gi - i0);
       const float* r0 = filled_grid.ptr<float>(i0);
       const float* r1 = filled_grid.ptr<float>(i1);
       int* b = base.ptr<int>(y);
       for (int x = 0; x < size.width; ++x) {
         const float tj = tjs[x];
-        const float v = (1 - ti) * ((1 - tj) * r0[j0s[x]] + tj * r0[j1s[x]]) + ti * ((1 - tj) * r1[j0s[x]] + tj * r1[j1s[x]]);
+        const float v = (1 - ti) * ((1 - tj) * r0[j0s[x]] + tj * r0[j1s[x]]) +
+                        ti * ((1 - tj) * r1[j0s[x]] + tj * r1[j1s[x]]);
         b[x] = static_cast<int>(std::floor(2.0f * v + 0.5f));
       }
     }
@@ -827,14 +862,16 @@ void PredictBase(const cv::Mat& filled_grid, int g, cv::Size size, cv::Mat* base
 cv::Mat OutputBuffer(cv::Mat (&buffers)[2], cv::Size size) {
   for (cv::Mat& b : buffers)
     if (!b.empty() && b.u && b.u->refcount == 1 && b.size() == size) return b;
-  cv::Mat& slot = (!buffers[0].empty() && buffers[0].u && buffers[0].u->refcount > 1) ? buffers[1] : buffers[0];
+  cv::Mat& slot =
+      (!buffers[0].empty() && buffers[0].u && buffers[0].u->refcount > 1) ? buffers[1] : buffers[0];
   slot = cv::Mat(size, CV_32F);
   return slot;
 }
 
 // Pixels whose window (window x window) straddles a depth edge of the
 // prediction: the predicted parallaxes in it span more than `step` level px.
-void EdgeMask(const cv::Mat& base, int window, double step, cv::Mat* b16, cv::Mat* hi, cv::Mat* lo, cv::Mat* mask) {
+void EdgeMask(const cv::Mat& base, int window, double step, cv::Mat* b16, cv::Mat* hi, cv::Mat* lo,
+              cv::Mat* mask) {
   base.convertTo(*b16, CV_16S);
   const cv::Mat k = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(window, window));
   cv::dilate(*b16, *hi, k, cv::Point(-1, -1), 1, cv::BORDER_REPLICATE);
@@ -847,7 +884,8 @@ void EdgeMask(const cv::Mat& base, int window, double step, cv::Mat* b16, cv::Ma
 // sum over the window of (l(q) - a - b r(q - d))^2 by Gauss-Newton in (d, a,
 // b), r sampled linearly along the line. Returns NaN when a window sample
 // leaves the image, the system is singular, or d moves by more than 1 px.
-float RefineLsc(const cv::Mat& l, const cv::Mat& r, int x, int y, float d0, int half, int iterations) {
+float RefineLsc(const cv::Mat& l, const cv::Mat& r, int x, int y, float d0, int half,
+                int iterations) {
   const int w = l.cols, h = l.rows;
   if (x - half < 0 || x + half >= w || y - half < 0 || y + half >= h) return kNaN;
   double d = d0, a = 0.0, b = 1.0;
@@ -943,37 +981,51 @@ cv::Mat DownsampleMask(const cv::Mat& mask, int scale, bool all_valid, cv::Mat* 
 }  // namespace
 
 void CorrelationOptions::Check() const {
-  RequireOption("dense correlation", levels >= 1 && levels <= 5, "levels", Message("= ", levels, " must be in [1, 5]"));
+  RequireOption("dense correlation", levels >= 1 && levels <= 5, "levels",
+                Message("= ", levels, " must be in [1, 5]"));
   RequireOption("dense correlation", peak_frequency > 0 && peak_frequency <= 3, "peak_frequency",
-          Message("= ", peak_frequency, " rad/px must be in (0, 3]"));
-  RequireOption("dense correlation", grid_spacing >= 1 && grid_spacing <= 64, "grid_spacing", Message("= ", grid_spacing, " must be in [1, 64]"));
-  RequireOption("dense correlation", final_grid_spacing >= 1 && final_grid_spacing <= 64, "final_grid_spacing",
-          Message("= ", final_grid_spacing, " must be in [1, 64]"));
-  RequireOption("dense correlation", window >= 3 && window <= 51 && window % 2 == 1, "window", Message("= ", window, " must be odd in [3, 51]"));
-  RequireOption("dense correlation", final_window == 0 || (final_window >= 3 && final_window <= 51 && final_window % 2 == 1), "final_window",
-          Message("= ", final_window, " must be 0 (= window) or odd in [3, 51]"));
+                Message("= ", peak_frequency, " rad/px must be in (0, 3]"));
+  RequireOption("dense correlation", grid_spacing >= 1 && grid_spacing <= 64, "grid_spacing",
+                Message("= ", grid_spacing, " must be in [1, 64]"));
+  RequireOption("dense correlation", final_grid_spacing >= 1 && final_grid_spacing <= 64,
+                "final_grid_spacing", Message("= ", final_grid_spacing, " must be in [1, 64]"));
+  RequireOption("dense correlation", window >= 3 && window <= 51 && window % 2 == 1, "window",
+                Message("= ", window, " must be odd in [3, 51]"));
+  RequireOption(
+      "dense correlation",
+      final_window == 0 || (final_window >= 3 && final_window <= 51 && final_window % 2 == 1),
+      "final_window", Message("= ", final_window, " must be 0 (= window) or odd in [3, 51]"));
   RequireOption("dense correlation", search_radius >= 1 && search_radius <= 16, "search_radius",
-          Message("= ", search_radius, " must be in [1, 16]"));
-  RequireOption("dense correlation", std::isfinite(min_disparity) && std::isfinite(max_disparity) && max_disparity > min_disparity,
-          "max_disparity", Message("= ", max_disparity, " must be finite and > min_disparity = ", min_disparity));
-  RequireOption("dense correlation", min_correlation >= -1 && min_correlation < 1, "min_correlation",
-          Message("= ", min_correlation, " must be in [-1, 1)"));
+                Message("= ", search_radius, " must be in [1, 16]"));
+  RequireOption(
+      "dense correlation",
+      std::isfinite(min_disparity) && std::isfinite(max_disparity) && max_disparity > min_disparity,
+      "max_disparity",
+      Message("= ", max_disparity, " must be finite and > min_disparity = ", min_disparity));
+  RequireOption("dense correlation", min_correlation >= -1 && min_correlation < 1,
+                "min_correlation", Message("= ", min_correlation, " must be in [-1, 1)"));
   RequireOption("dense correlation", lsc_iterations >= 0 && lsc_iterations <= 20, "lsc_iterations",
-          Message("= ", lsc_iterations, " must be in [0, 20]"));
-  RequireOption("dense correlation", edge_window == 0 || (edge_window >= 3 && edge_window <= 51 && edge_window % 2 == 1), "edge_window",
-          Message("= ", edge_window, " must be 0 (off) or odd in [3, 51]"));
-  RequireOption("dense correlation", edge_parallax_step > 0, "edge_parallax_step", Message("= ", edge_parallax_step, " must be > 0"));
-  RequireOption("dense correlation", final_search_radius >= 0 && final_search_radius <= 16, "final_search_radius",
-          Message("= ", final_search_radius, " must be 0 (= search_radius) or in [1, 16]"));
-  RequireOption("dense correlation", lr_tolerance > 0, "lr_tolerance", Message("= ", lr_tolerance, " must be > 0"));
-  RequireOption("dense correlation", order_tolerance >= 0, "order_tolerance", Message("= ", order_tolerance, " must be >= 0"));
+                Message("= ", lsc_iterations, " must be in [0, 20]"));
+  RequireOption("dense correlation",
+                edge_window == 0 || (edge_window >= 3 && edge_window <= 51 && edge_window % 2 == 1),
+                "edge_window", Message("= ", edge_window, " must be 0 (off) or odd in [3, 51]"));
+  RequireOption("dense correlation", edge_parallax_step > 0, "edge_parallax_step",
+                Message("= ", edge_parallax_step, " must be > 0"));
+  RequireOption("dense correlation", final_search_radius >= 0 && final_search_radius <= 16,
+                "final_search_radius",
+                Message("= ", final_search_radius, " must be 0 (= search_radius) or in [1, 16]"));
+  RequireOption("dense correlation", lr_tolerance > 0, "lr_tolerance",
+                Message("= ", lr_tolerance, " must be > 0"));
+  RequireOption("dense correlation", order_tolerance >= 0, "order_tolerance",
+                Message("= ", order_tolerance, " must be >= 0"));
 }
 
 std::string CorrelationSummary::BriefReport() const {
   std::ostringstream s;
-  s << "dense correlation: " << levels << " levels, " << valid_nodes << "/" << nodes << " nodes valid ("
-    << 100.0 * ValidFraction() << "%), rejected: correlation " << rejected_correlation << ", order "
-    << rejected_order << ", left/right " << rejected_left_right << ", " << seconds << " s";
+  s << "dense correlation: " << levels << " levels, " << valid_nodes << "/" << nodes
+    << " nodes valid (" << 100.0 * ValidFraction() << "%), rejected: correlation "
+    << rejected_correlation << ", order " << rejected_order << ", left/right "
+    << rejected_left_right << ", " << seconds << " s";
   return s.str();
 }
 
@@ -986,7 +1038,8 @@ void RequireRectifiedTexture(const cv::Mat& left, const cv::Mat& right) {
     cv::meanStdDev(*im, mean, sd);
     if (!(sd[0] > 1e-3))
       throw InvalidArgument(Message("MatchRectified: the ", im == &left ? "left" : "right",
-                                    " image has no texture (constant value ", mean[0], ", e.g. all black)"));
+                                    " image has no texture (constant value ", mean[0],
+                                    ", e.g. all black)"));
   }
 }
 
@@ -994,7 +1047,8 @@ void RequireRectifiedTexture(const cv::Mat& left, const cv::Mat& right) {
 // right grid confirms at the matched position (within tol) takes the mean
 // of both, the others are rejected (NaN). *averaged may share grid_l's
 // data (in place). Returns the rejections.
-int AgreeLeftRight(const cv::Mat& grid_l, const cv::Mat& grid_r, int g, float tol, cv::Mat* averaged_io) {
+int AgreeLeftRight(const cv::Mat& grid_l, const cv::Mat& grid_r, int g, float tol,
+                   cv::Mat* averaged_io) {
   cv::Mat& averaged = *averaged_io;
   std::atomic<int> rejected{0};
   cv::parallel_for_(cv::Range(0, grid_l.rows), [&](const cv::Range& range) {
@@ -1025,9 +1079,9 @@ int AgreeLeftRight(const cv::Mat& grid_l, const cv::Mat& grid_r, int g, float to
 // go to one of two buffers kept between calls that the caller no longer
 // holds (no fresh memory: page faults were a seventh of the time in this
 // VM); a buffer still referenced is never reused.
-void FinalLevelOutputs(const cv::Mat& averaged, const cv::Mat& corr_l, const cv::Mat& l, const cv::Mat& r, int g,
-                       int window, int lsc_iterations, LevelWorkspace* lw, cv::Mat* final_grid_out,
-                       cv::Mat* final_corr_out) {
+void FinalLevelOutputs(const cv::Mat& averaged, const cv::Mat& corr_l, const cv::Mat& l,
+                       const cv::Mat& r, int g, int window, int lsc_iterations, LevelWorkspace* lw,
+                       cv::Mat* final_grid_out, cv::Mat* final_corr_out) {
   cv::Mat& final_grid = *final_grid_out;
   cv::Mat& final_corr = *final_corr_out;
   final_grid = OutputBuffer(lw->out_disp, averaged.size());
@@ -1057,14 +1111,15 @@ void FinalLevelOutputs(const cv::Mat& averaged, const cv::Mat& corr_l, const cv:
 
 }  // namespace
 
-ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, const CorrelationOptions& options,
-                            CorrelationSummary* summary, const cv::Mat& valid_left, const cv::Mat& valid_right) {
+ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in,
+                            const CorrelationOptions& options, CorrelationSummary* summary,
+                            const cv::Mat& valid_left, const cv::Mat& valid_right) {
   const auto t0 = std::chrono::steady_clock::now();
   options.Check();
   if (left_in.empty() || right_in.empty()) throw InvalidArgument("MatchRectified: empty image");
   if (left_in.size() != right_in.size())
-    throw InvalidArgument(Message("MatchRectified: image sizes differ (", left_in.cols, "x", left_in.rows, " vs ",
-                                  right_in.cols, "x", right_in.rows, ")"));
+    throw InvalidArgument(Message("MatchRectified: image sizes differ (", left_in.cols, "x",
+                                  left_in.rows, " vs ", right_in.cols, "x", right_in.rows, ")"));
   // Float copies in memory kept between calls (8-bit input is the usual case).
   LevelWorkspace& input = LevelCache(kInputSlot);
   auto to_float = [](const cv::Mat& in, const char* what, cv::Mat* out) -> cv::Mat {
@@ -1076,8 +1131,9 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
   const cv::Mat right = to_float(right_in, "right image", &input.down_r);
   const int coarse = 1 << (options.levels - 1);
   if (left.cols / coarse < options.window || left.rows / coarse < options.window)
-    throw InvalidArgument(Message("MatchRectified: image ", left.cols, "x", left.rows, " too small for ",
-                                  options.levels, " levels and a ", options.window, " px window"));
+    throw InvalidArgument(Message("MatchRectified: image ", left.cols, "x", left.rows,
+                                  " too small for ", options.levels, " levels and a ",
+                                  options.window, " px window"));
   RequireRectifiedTexture(left, right);
   const cv::Mat mask_l = MaskOrOnes(valid_left, left.size(), "valid_left", &input.mask_l);
   const cv::Mat mask_r = MaskOrOnes(valid_right, right.size(), "valid_right", &input.mask_r);
@@ -1116,7 +1172,8 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
       k_min = static_cast<int>(std::floor(options.min_disparity / scale)) - 1;
       k_max = static_cast<int>(std::ceil(options.max_disparity / scale)) + 1;
     } else {
-      const int radius = (last && options.final_search_radius > 0) ? options.final_search_radius : options.search_radius;
+      const int radius = (last && options.final_search_radius > 0) ? options.final_search_radius
+                                                                   : options.search_radius;
       k_min = -radius - 1;
       k_max = radius + 1;
       PredictBase(pred_left, prev_g, l.size(), &lw.base_l);
@@ -1139,8 +1196,8 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
       }
     }
     const bool volume_right = options.two_way && !options.full_right_search;
-    Search(l, r, base_l, k_min, k_max, window, options.min_correlation, ml, mr, +1, edge_l, options.edge_window,
-           lw.ws_l, res_l, volume_right ? &lw.res_r : nullptr);
+    Search(l, r, base_l, k_min, k_max, window, options.min_correlation, ml, mr, +1, edge_l,
+           options.edge_window, lw.ws_l, res_l, volume_right ? &lw.res_r : nullptr);
     cv::Mat grid_l = SampleGrid(res_l.disparity, g);
     cv::Mat corr_l = SampleGrid(res_l.correlation, g);
     const int nodes = grid_l.rows * grid_l.cols;
@@ -1150,8 +1207,8 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
       // Right-to-left: a right pixel x matches the left x + d.
       DenseResult& res_r = lw.res_r;
       if (options.full_right_search)
-        Search(r, l, base_r, k_min, k_max, window, options.min_correlation, mr, ml, -1, edge_r, options.edge_window,
-               lw.ws_r, res_r);
+        Search(r, l, base_r, k_min, k_max, window, options.min_correlation, mr, ml, -1, edge_r,
+               options.edge_window, lw.ws_r, res_r);
       grid_r = SampleGrid(res_r.disparity, g);
     }
     if (options.median_filter) {
@@ -1171,16 +1228,19 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
     int rejected_lr = 0;
     cv::Mat averaged = grid_l;  // in place
     if (!grid_r.empty())
-      rejected_lr = AgreeLeftRight(grid_l, grid_r, g, static_cast<float>(options.lr_tolerance), &averaged);
+      rejected_lr =
+          AgreeLeftRight(grid_l, grid_r, g, static_cast<float>(options.lr_tolerance), &averaged);
     if (last) {
       sum.nodes = nodes;
       sum.rejected_correlation = nodes - found;
       sum.rejected_order = rejected_order;
       sum.rejected_left_right = rejected_lr;
       sum.valid_nodes = CountFinite(averaged);
-      FinalLevelOutputs(averaged, corr_l, l, r, g, window, options.lsc_iterations, &lw, &final_grid, &final_corr);
+      FinalLevelOutputs(averaged, corr_l, l, r, g, window, options.lsc_iterations, &lw, &final_grid,
+                        &final_corr);
     } else {
-      const float fallback = static_cast<float>(0.5 * (options.min_disparity + options.max_disparity) / scale);
+      const float fallback =
+          static_cast<float>(0.5 * (options.min_disparity + options.max_disparity) / scale);
       pred_left = FillForPrediction(averaged, fallback, &lw.pred_l);
       if (options.full_right_search)
         pred_right = grid_r.empty() ? pred_left : FillForPrediction(grid_r, fallback, &lw.pred_r);
@@ -1200,14 +1260,16 @@ ParallaxGrid MatchRectified(const cv::Mat& left_in, const cv::Mat& right_in, con
 }
 
 cv::Mat FillFromBackground(const cv::Mat& disparity, int max_gap, cv::Mat* filled) {
-  if (disparity.type() != CV_32F) throw InvalidArgument("FillFromBackground: the parallax map must be CV_32F");
+  if (disparity.type() != CV_32F)
+    throw InvalidArgument("FillFromBackground: the parallax map must be CV_32F");
   cv::Mat out = disparity.clone();
   FillFromBackgroundInPlace(&out, max_gap, filled);
   return out;
 }
 
 void FillFromBackgroundInPlace(cv::Mat* disparity, int max_gap, cv::Mat* filled) {
-  if (disparity->type() != CV_32F) throw InvalidArgument("FillFromBackground: the parallax map must be CV_32F");
+  if (disparity->type() != CV_32F)
+    throw InvalidArgument("FillFromBackground: the parallax map must be CV_32F");
   cv::Mat& out = *disparity;
   if (filled) *filled = cv::Mat::zeros(out.size(), CV_8U);
   for (int y = 0; y < out.rows; ++y) {

@@ -9,8 +9,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include "slope_monitor/core/common/error.h"
-#include "slope_monitor/core/dense/surface.h"
 #include "slope_monitor/core/common/numeric.h"
+#include "slope_monitor/core/dense/surface.h"
 
 namespace slope_monitor {
 namespace dense {
@@ -176,8 +176,8 @@ double CorrelatedCells(double length, double cell_area) {
 }
 
 // 1-sigma of the horizontal shift at the final state (see Coregistration::shift_sigma).
-Eigen::Vector2d ShiftSigma(const io::GeoRaster& reference, const StableResiduals& s, const Coregistration& c,
-                           double correlated_cells) {
+Eigen::Vector2d ShiftSigma(const io::GeoRaster& reference, const StableResiduals& s,
+                           const Coregistration& c, double correlated_cells) {
   Eigen::Matrix<double, 5, 5> n = Eigen::Matrix<double, 5, 5>::Zero();
   for (size_t i = 0; i < s.cells.size(); ++i) {
     if (!s.inlier[i]) continue;
@@ -194,24 +194,26 @@ Eigen::Vector2d ShiftSigma(const io::GeoRaster& reference, const StableResiduals
   if (lu.rank() < 5) return Eigen::Vector2d(inf, inf);
   const Eigen::Matrix<double, 5, 5> q = lu.inverse();
   const double v = s.rms * s.rms * correlated_cells;
-  return Eigen::Vector2d(std::sqrt(std::max(0.0, v * q(0, 0))), std::sqrt(std::max(0.0, v * q(1, 1))));
+  return Eigen::Vector2d(std::sqrt(std::max(0.0, v * q(0, 0))),
+                         std::sqrt(std::max(0.0, v * q(1, 1))));
 }
 
 }  // namespace
 
 void DemChangeOptions::Check() const {
   RequireOption("DEM change", lod_factor > 0 && lod_factor <= 10, "lod_factor",
-          Message("= ", lod_factor, " must be in (0, 10]"));
+                Message("= ", lod_factor, " must be in (0, 10]"));
   RequireOption("DEM change", coregistration_iterations >= 0 && coregistration_iterations <= 20,
-          "coregistration_iterations",
-          Message("= ", coregistration_iterations, " must be in [0, 20]"));
+                "coregistration_iterations",
+                Message("= ", coregistration_iterations, " must be in [0, 20]"));
   RequireOption("DEM change", clip_sigmas >= 1 && clip_sigmas <= 10, "clip_sigmas",
-          Message("= ", clip_sigmas, " must be in [1, 10]"));
-  RequireOption("DEM change", max_shift > 0, "max_shift", Message("= ", max_shift, " m must be > 0"));
+                Message("= ", clip_sigmas, " must be in [1, 10]"));
+  RequireOption("DEM change", max_shift > 0, "max_shift",
+                Message("= ", max_shift, " m must be > 0"));
   RequireOption("DEM change", min_stable_cells >= 4, "min_stable_cells",
-          Message("= ", min_stable_cells, " must be >= 4"));
+                Message("= ", min_stable_cells, " must be >= 4"));
   RequireOption("DEM change", max_correlation_length > 0, "max_correlation_length",
-          Message("= ", max_correlation_length, " m must be > 0"));
+                Message("= ", max_correlation_length, " m must be > 0"));
 }
 
 std::string DemChangeSummary::BriefReport() const {

@@ -8,8 +8,8 @@
 #include <limits>
 
 #include "slope_monitor/core/common/error.h"
-#include "slope_monitor/core/matching/filters.h"
 #include "slope_monitor/core/common/numeric.h"
+#include "slope_monitor/core/matching/filters.h"
 
 namespace slope_monitor {
 namespace dense {

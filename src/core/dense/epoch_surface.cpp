@@ -81,15 +81,16 @@ void CheckMemory(const Eigen::Vector4d& region, const EpochSurfaceOptions& o) {
 void EpochSurfaceOptions::Check() const {
   surface.Check();
   RequireOption("epoch surface", min_pair_overlap > 0 && min_pair_overlap <= 1, "min_pair_overlap",
-          Message("= ", min_pair_overlap, " must be in (0, 1]"));
+                Message("= ", min_pair_overlap, " must be in (0, 1]"));
   RequireOption("epoch surface", depth_margin >= 0 && depth_margin <= 10, "depth_margin",
-          Message("= ", depth_margin, " must be in [0, 10]"));
-  RequireOption("epoch surface", max_pairs_per_image >= 1 && max_pairs_per_image <= 100, "max_pairs_per_image",
-          Message("= ", max_pairs_per_image, " must be in [1, 100]"));
-  RequireOption("epoch surface", max_dem_megabytes > 0 && max_dem_megabytes <= 1e5, "max_dem_megabytes",
-          Message("= ", max_dem_megabytes, " MB must be in (0, 1e5]"));
-  RequireOption("epoch surface", region.isZero() || (region[1] > region[0] && region[3] > region[2]), "region",
-          "must be all zero or xmin < xmax, ymin < ymax");
+                Message("= ", depth_margin, " must be in [0, 10]"));
+  RequireOption("epoch surface", max_pairs_per_image >= 1 && max_pairs_per_image <= 100,
+                "max_pairs_per_image", Message("= ", max_pairs_per_image, " must be in [1, 100]"));
+  RequireOption("epoch surface", max_dem_megabytes > 0 && max_dem_megabytes <= 1e5,
+                "max_dem_megabytes", Message("= ", max_dem_megabytes, " MB must be in (0, 1e5]"));
+  RequireOption("epoch surface",
+                region.isZero() || (region[1] > region[0] && region[3] > region[2]), "region",
+                "must be all zero or xmin < xmax, ymin < ymax");
 }
 
 std::string EpochSurfaceSummary::BriefReport() const {

@@ -7,10 +7,13 @@
 namespace slope_monitor {
 namespace dense {
 
-DisparityErrors EvaluateDisparity(const cv::Mat& estimate, const cv::Mat& reference, const cv::Mat& mask,
-                                  const std::vector<double>& thresholds, float invalid_below) {
-  if (estimate.type() != CV_32F || reference.type() != CV_32F || estimate.size() != reference.size())
-    throw InvalidArgument("EvaluateDisparity: estimate and reference must be CV_32F of the same size");
+DisparityErrors EvaluateDisparity(const cv::Mat& estimate, const cv::Mat& reference,
+                                  const cv::Mat& mask, const std::vector<double>& thresholds,
+                                  float invalid_below) {
+  if (estimate.type() != CV_32F || reference.type() != CV_32F ||
+      estimate.size() != reference.size())
+    throw InvalidArgument(
+        "EvaluateDisparity: estimate and reference must be CV_32F of the same size");
   if (!mask.empty() && (mask.type() != CV_8U || mask.size() != reference.size()))
     throw InvalidArgument("EvaluateDisparity: mask must be CV_8U of the reference size");
   DisparityErrors e;

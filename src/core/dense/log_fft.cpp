@@ -9,12 +9,15 @@ namespace slope_monitor {
 namespace dense {
 
 cv::Mat LaplacianOfGaussianFft(const cv::Mat& image, double sigma) {
-  if (!(sigma > 0)) throw InvalidArgument(Message("LaplacianOfGaussianFft: sigma ", sigma, " must be > 0"));
+  if (!(sigma > 0))
+    throw InvalidArgument(Message("LaplacianOfGaussianFft: sigma ", sigma, " must be > 0"));
   const cv::Mat f = matching::ToFloat(image, "image");
   const int pad = static_cast<int>(std::ceil(4.0 * sigma));
-  const int w = cv::getOptimalDFTSize(f.cols + 2 * pad), h = cv::getOptimalDFTSize(f.rows + 2 * pad);
+  const int w = cv::getOptimalDFTSize(f.cols + 2 * pad),
+            h = cv::getOptimalDFTSize(f.rows + 2 * pad);
   cv::Mat padded;
-  cv::copyMakeBorder(f, padded, pad, h - f.rows - pad, pad, w - f.cols - pad, cv::BORDER_REFLECT_101);
+  cv::copyMakeBorder(f, padded, pad, h - f.rows - pad, pad, w - f.cols - pad,
+                     cv::BORDER_REFLECT_101);
   cv::Mat spectrum;
   cv::dft(padded, spectrum, cv::DFT_COMPLEX_OUTPUT);
   const double s2 = sigma * sigma;

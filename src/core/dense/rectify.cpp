@@ -16,21 +16,24 @@ namespace {
 void CheckImage(const OrientedImage& im, const char* role) {
   const std::string name = im.name.empty() ? std::string(role) : im.name;
   if (!im.oriented)
-    throw InvalidArgument(Message("dense pair: ", role, " image '", name, "' is not oriented (no exterior orientation)"));
-  if (im.image.empty()) throw InvalidArgument(Message("dense pair: ", role, " image '", name, "' is empty"));
+    throw InvalidArgument(Message("dense pair: ", role, " image '", name,
+                                  "' is not oriented (no exterior orientation)"));
+  if (im.image.empty())
+    throw InvalidArgument(Message("dense pair: ", role, " image '", name, "' is empty"));
   try {
     im.camera.Check();
   } catch (const Error& e) {
     throw InvalidArgument(Message("dense pair: ", role, " image '", name, "': ", e.what()));
   }
   if (im.image.cols != im.camera.sensor().width || im.image.rows != im.camera.sensor().height)
-    throw InvalidArgument(Message("dense pair: ", role, " image '", name, "' is ", im.image.cols, "x", im.image.rows,
-                                  " px but its camera sensor is ", im.camera.sensor().width, "x",
-                                  im.camera.sensor().height));
+    throw InvalidArgument(Message("dense pair: ", role, " image '", name, "' is ", im.image.cols,
+                                  "x", im.image.rows, " px but its camera sensor is ",
+                                  im.camera.sensor().width, "x", im.camera.sensor().height));
   const auto e = im.pose.ToArray();
   for (double v : e)
     if (!std::isfinite(v))
-      throw InvalidArgument(Message("dense pair: ", role, " image '", name, "' has a non-finite exterior orientation"));
+      throw InvalidArgument(Message("dense pair: ", role, " image '", name,
+                                    "' has a non-finite exterior orientation"));
 }
 
 // Maps of one rectified camera into its real image.
@@ -42,23 +45,29 @@ struct Projector {
     const Eigen::Vector3d u = m * dir_in_site;
     if (!(u.z() < 0)) return false;
     const double c = cam->principal_distance();
-    const Eigen::Vector2d px = cam->MmToPixel(cam->DistortMm({-c * u.x() / u.z(), -c * u.y() / u.z()}));
+    const Eigen::Vector2d px =
+        cam->MmToPixel(cam->DistortMm({-c * u.x() / u.z(), -c * u.y() / u.z()}));
     *col = static_cast<float>(px.x());
     *row = static_cast<float>(px.y());
-    return px.x() >= 0 && px.y() >= 0 && px.x() <= cam->sensor().width - 1 && px.y() <= cam->sensor().height - 1;
+    return px.x() >= 0 && px.y() >= 0 && px.x() <= cam->sensor().width - 1 &&
+           px.y() <= cam->sensor().height - 1;
   }
 };
 
 }  // namespace
 
 void RectifyOptions::Check() const {
-  RequireOption("rectify", scale > 0 && scale <= 4, "scale", Message("= ", scale, " must be in (0, 4]"));
-  RequireOption("rectify", patch_size == 0 || (patch_size >= 64 && patch_size <= 8192), "patch_size",
-          Message("= ", patch_size, " must be 0 or in [64, 8192]"));
-  RequireOption("rectify", patch_overlap >= 0 && (patch_size == 0 || patch_overlap < patch_size / 2), "patch_overlap",
-          Message("= ", patch_overlap, " must be in [0, patch_size / 2)"));
-  RequireOption("rectify", min_baseline > 0, "min_baseline", Message("= ", min_baseline, " must be > 0"));
-  RequireOption("rectify", min_overlap >= 0 && min_overlap <= 1, "min_overlap", Message("= ", min_overlap, " must be in [0, 1]"));
+  RequireOption("rectify", scale > 0 && scale <= 4, "scale",
+                Message("= ", scale, " must be in (0, 4]"));
+  RequireOption("rectify", patch_size == 0 || (patch_size >= 64 && patch_size <= 8192),
+                "patch_size", Message("= ", patch_size, " must be 0 or in [64, 8192]"));
+  RequireOption("rectify",
+                patch_overlap >= 0 && (patch_size == 0 || patch_overlap < patch_size / 2),
+                "patch_overlap", Message("= ", patch_overlap, " must be in [0, patch_size / 2)"));
+  RequireOption("rectify", min_baseline > 0, "min_baseline",
+                Message("= ", min_baseline, " must be > 0"));
+  RequireOption("rectify", min_overlap >= 0 && min_overlap <= 1, "min_overlap",
+                Message("= ", min_overlap, " must be in [0, 1]"));
 }
 
 cv::Mat ToGrayFloat(const cv::Mat& image, const std::string& what) {
@@ -96,15 +105,16 @@ Eigen::Vector3d RectifiedGeometry::Intersect(double x_left, double y, double d, 
   return 0.5 * (pa + pb);
 }
 
-bool RectifiedGeometry::ProjectLeft(const Eigen::Vector3d& x_in_site, Eigen::Vector2d* pixel) const {
+bool RectifiedGeometry::ProjectLeft(const Eigen::Vector3d& x_in_site,
+                                    Eigen::Vector2d* pixel) const {
   const Eigen::Vector3d r = site_from_rect.transpose() * (x_in_site - centre[0]);
   if (!(r.z() > 0)) return false;
   *pixel = Eigen::Vector2d(cx[0] + f * r.x() / r.z(), cy + f * r.y() / r.z());
   return true;
 }
 
-RectifiedPair Rectify(const OrientedImage& left, const OrientedImage& right, double min_depth, double max_depth,
-                      const RectifyOptions& options) {
+RectifiedPair Rectify(const OrientedImage& left, const OrientedImage& right, double min_depth,
+                      double max_depth, const RectifyOptions& options) {
   options.Check();
   CheckImage(left, "left");
   CheckImage(right, "right");
@@ -113,9 +123,9 @@ RectifiedPair Rectify(const OrientedImage& left, const OrientedImage& right, dou
                                   "] m must satisfy 0 < min_depth < max_depth"));
   const Eigen::Vector3d baseline = right.pose.position - left.pose.position;
   if (!(baseline.norm() >= options.min_baseline))
-    throw InvalidArgument(Message("dense pair '", left.name, "'/'", right.name, "': baseline ", baseline.norm(),
-                                  " m is shorter than min_baseline ", options.min_baseline,
-                                  " m (zero baseline: no parallax)"));
+    throw InvalidArgument(Message("dense pair '", left.name, "'/'", right.name, "': baseline ",
+                                  baseline.norm(), " m is shorter than min_baseline ",
+                                  options.min_baseline, " m (zero baseline: no parallax)"));
   const Eigen::Matrix3d m_l = camera::RotationFromAngles(left.pose.angles);
   const Eigen::Matrix3d m_r = camera::RotationFromAngles(right.pose.angles);
   // Viewing direction in site: the camera looks along -z of its photogrammetric frame.
@@ -142,7 +152,8 @@ RectifiedPair Rectify(const OrientedImage& left, const OrientedImage& right, dou
   g.height = static_cast<int>(std::lround(options.scale * left.camera.sensor().height));
   const Eigen::Vector3d vl = g.site_from_rect.transpose() * view_l;
   if (!(vl.z() > 0.1))
-    throw InvalidArgument(Message("dense pair '", left.name, "': left camera looks away from the rectified axis"));
+    throw InvalidArgument(
+        Message("dense pair '", left.name, "': left camera looks away from the rectified axis"));
   g.cx[0] = 0.5 * (g.width - 1) - g.f * vl.x() / vl.z();
   g.cy = 0.5 * (g.height - 1) - g.f * vl.y() / vl.z();
   // Parallax zero at the harmonic mean depth: the search range is centred.
@@ -150,7 +161,8 @@ RectifiedPair Rectify(const OrientedImage& left, const OrientedImage& right, dou
   g.cx[1] = g.cx[0] + g.f * g.baseline / z_mid;
 
   // Pixel maps through the real camera models.
-  const Projector proj[2] = {{m_l, left.pose.position, &left.camera}, {m_r, right.pose.position, &right.camera}};
+  const Projector proj[2] = {{m_l, left.pose.position, &left.camera},
+                             {m_r, right.pose.position, &right.camera}};
   cv::Mat map_x[2], map_y[2], valid[2];
   for (int i = 0; i < 2; ++i) {
     map_x[i].create(g.height, g.width, CV_32F);
@@ -175,17 +187,20 @@ RectifiedPair Rectify(const OrientedImage& left, const OrientedImage& right, dou
   RectifiedPair pair;
   pair.overlap = left_count > 0 ? static_cast<double>(cv::countNonZero(both)) / left_count : 0.0;
   if (pair.overlap < options.min_overlap || left_count == 0)
-    throw InvalidArgument(Message("dense pair '", left.name, "'/'", right.name, "': the images do not overlap (",
-                                  100.0 * pair.overlap, "% of the left image seen on the right at mid depth ",
-                                  z_mid, " m, need ", 100.0 * options.min_overlap, "%)"));
+    throw InvalidArgument(Message("dense pair '", left.name, "'/'", right.name,
+                                  "': the images do not overlap (", 100.0 * pair.overlap,
+                                  "% of the left image seen on the right at mid depth ", z_mid,
+                                  " m, need ", 100.0 * options.min_overlap, "%)"));
 
   cv::Mat rect[2];
   const cv::Mat gray[2] = {ToGrayFloat(left.image, "left image '" + left.name + "'"),
                            ToGrayFloat(right.image, "right image '" + right.name + "'")};
   for (int i = 0; i < 2; ++i)
-    cv::remap(gray[i], rect[i], map_x[i], map_y[i], cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+    cv::remap(gray[i], rect[i], map_x[i], map_y[i], cv::INTER_LINEAR, cv::BORDER_CONSTANT,
+              cv::Scalar(0));
   pair.geometry = g;
-  const int step = options.patch_size == 0 ? std::max(g.width, g.height) : options.patch_size - options.patch_overlap;
+  const int step = options.patch_size == 0 ? std::max(g.width, g.height)
+                                           : options.patch_size - options.patch_overlap;
   const int size = options.patch_size == 0 ? std::max(g.width, g.height) : options.patch_size;
   for (int y0 = 0; y0 < g.height; y0 += step) {
     for (int x0 = 0; x0 < g.width; x0 += step) {

@@ -1,9 +1,9 @@
 #include "slope_monitor/core/dense/surface.h"
 
 #include <algorithm>
-#include <cstdio>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 
 #include "slope_monitor/core/common/error.h"
@@ -12,34 +12,39 @@
 namespace slope_monitor {
 namespace dense {
 
-namespace {
-}  // namespace
+namespace {}  // namespace
 
 void SurfaceOptions::Check() const {
   correlation.Check();
   rectify.Check();
-  RequireOption("dense surface", cell_size > 0 && cell_size <= 100, "cell_size", Message("= ", cell_size, " m must be in (0, 100]"));
-  RequireOption("dense surface", min_points_per_cell >= 1 && min_points_per_cell <= 1000, "min_points_per_cell",
-          Message("= ", min_points_per_cell, " must be in [1, 1000]"));
+  RequireOption("dense surface", cell_size > 0 && cell_size <= 100, "cell_size",
+                Message("= ", cell_size, " m must be in (0, 100]"));
+  RequireOption("dense surface", min_points_per_cell >= 1 && min_points_per_cell <= 1000,
+                "min_points_per_cell", Message("= ", min_points_per_cell, " must be in [1, 1000]"));
   RequireOption("dense surface", parallax_sigma > 0 && parallax_sigma <= 10, "parallax_sigma",
-          Message("= ", parallax_sigma, " px must be in (0, 10]"));
-  RequireOption("dense surface", max_ray_gap >= 0, "max_ray_gap", Message("= ", max_ray_gap, " m must be >= 0"));
-  RequireOption("dense surface", ortho_cell_size >= 0, "ortho_cell_size", Message("= ", ortho_cell_size, " m must be >= 0"));
+                Message("= ", parallax_sigma, " px must be in (0, 10]"));
+  RequireOption("dense surface", max_ray_gap >= 0, "max_ray_gap",
+                Message("= ", max_ray_gap, " m must be >= 0"));
+  RequireOption("dense surface", ortho_cell_size >= 0, "ortho_cell_size",
+                Message("= ", ortho_cell_size, " m must be >= 0"));
 }
 
 std::string SurfaceSummary::BriefReport() const {
   std::ostringstream s;
-  s << correlation.BriefReport() << "; " << patches << " patches, " << points << " points (" << rejected_points
-    << " rejected), " << filled_cells << "/" << cells << " cells filled, overlap " << 100.0 * rectified_overlap
-    << "%, " << seconds << " s";
+  s << correlation.BriefReport() << "; " << patches << " patches, " << points << " points ("
+    << rejected_points << " rejected), " << filled_cells << "/" << cells
+    << " cells filled, overlap " << 100.0 * rectified_overlap << "%, " << seconds << " s";
   return s.str();
 }
 
-io::GeoRaster GridSurface(const std::vector<SurfacePoint>& points, double cell_size, int min_points_per_cell,
-                          const Eigen::Vector4d& region_in, double points_per_window) {
+io::GeoRaster GridSurface(const std::vector<SurfacePoint>& points, double cell_size,
+                          int min_points_per_cell, const Eigen::Vector4d& region_in,
+                          double points_per_window) {
   if (!(points_per_window >= 1.0))
-    throw InvalidArgument(Message("GridSurface: points_per_window ", points_per_window, " must be >= 1"));
-  if (!(cell_size > 0)) throw InvalidArgument(Message("GridSurface: cell_size ", cell_size, " must be > 0"));
+    throw InvalidArgument(
+        Message("GridSurface: points_per_window ", points_per_window, " must be >= 1"));
+  if (!(cell_size > 0))
+    throw InvalidArgument(Message("GridSurface: cell_size ", cell_size, " must be > 0"));
   Eigen::Vector4d region = region_in;
   if (region.isZero()) {
     if (points.empty()) throw InvalidArgument("GridSurface: no points and no region");
@@ -55,10 +60,13 @@ io::GeoRaster GridSurface(const std::vector<SurfacePoint>& points, double cell_s
   }
   if (!(region[1] > region[0] && region[3] > region[2]))
     throw InvalidArgument(Message("GridSurface: region [", region.transpose(), "] is empty"));
-  const int w = std::max(1, static_cast<int>(std::ceil((region[1] - region[0]) / cell_size - 1e-9)));
-  const int h = std::max(1, static_cast<int>(std::ceil((region[3] - region[2]) / cell_size - 1e-9)));
+  const int w =
+      std::max(1, static_cast<int>(std::ceil((region[1] - region[0]) / cell_size - 1e-9)));
+  const int h =
+      std::max(1, static_cast<int>(std::ceil((region[3] - region[2]) / cell_size - 1e-9)));
   if (static_cast<double>(w) * h > 1e8)
-    throw InvalidArgument(Message("GridSurface: ", w, "x", h, " cells is too many (cell_size ", cell_size, " m)"));
+    throw InvalidArgument(
+        Message("GridSurface: ", w, "x", h, " cells is too many (cell_size ", cell_size, " m)"));
   io::GeoRaster r(w, h, region[0], region[3], cell_size);
   r.AddBand("height");
   r.AddBand("uncertainty");
@@ -87,23 +95,27 @@ io::GeoRaster GridSurface(const std::vector<SurfacePoint>& points, double cell_s
     // Points closer than a correlation window share pixels: about
     // cnt / points_per_window of them are independent.
     const double n_eff = std::max(1.0, cnt[k] / points_per_window);
-    r.bands[kUncertainty][k] = static_cast<float>(std::sqrt((1.0 / sw[k]) * (cnt[k] / n_eff) + var / n_eff));
+    r.bands[kUncertainty][k] =
+        static_cast<float>(std::sqrt((1.0 / sw[k]) * (cnt[k] / n_eff) + var / n_eff));
   }
   return r;
 }
 
-SurfaceResult MeasureSurface(const OrientedImage& left, const OrientedImage& right, const SurfaceOptions& options,
-                             const SurfaceConfig& config, SurfaceSummary* summary) {
+SurfaceResult MeasureSurface(const OrientedImage& left, const OrientedImage& right,
+                             const SurfaceOptions& options, const SurfaceConfig& config,
+                             SurfaceSummary* summary) {
   const auto t0 = std::chrono::steady_clock::now();
   options.Check();
   SurfaceSummary sum;
-  const RectifiedPair pair = Rectify(left, right, config.min_depth, config.max_depth, options.rectify);
+  const RectifiedPair pair =
+      Rectify(left, right, config.min_depth, config.max_depth, options.rectify);
   const RectifiedGeometry& g = pair.geometry;
   sum.rectified_overlap = pair.overlap;
   sum.patches = static_cast<int>(pair.patches.size());
 
   CorrelationOptions copt = options.correlation;
-  const double d_near = g.DisparityAtDepth(config.min_depth), d_far = g.DisparityAtDepth(config.max_depth);
+  const double d_near = g.DisparityAtDepth(config.min_depth),
+               d_far = g.DisparityAtDepth(config.max_depth);
   copt.min_disparity = std::min(d_near, d_far);
   copt.max_disparity = std::max(d_near, d_far);
   if (copt.max_disparity - copt.min_disparity < 1.0) copt.max_disparity = copt.min_disparity + 1.0;
@@ -113,7 +125,8 @@ SurfaceResult MeasureSurface(const OrientedImage& left, const OrientedImage& rig
   result.geometry = g;
   for (const RectifiedPatch& patch : pair.patches) {
     CorrelationSummary cs;
-    const ParallaxGrid grid = MatchRectified(patch.left, patch.right, copt, &cs, patch.valid_left, patch.valid_right);
+    const ParallaxGrid grid =
+        MatchRectified(patch.left, patch.right, copt, &cs, patch.valid_left, patch.valid_right);
     sum.correlation.levels = cs.levels;
     sum.correlation.nodes += cs.nodes;
     sum.correlation.valid_nodes += cs.valid_nodes;
@@ -135,7 +148,8 @@ SurfaceResult MeasureSurface(const OrientedImage& left, const OrientedImage& rig
         SurfacePoint sp;
         sp.x_in_site = p;
         const double depth = (g.site_from_rect.transpose() * (p - g.centre[0])).z();
-        sp.sigma_z = static_cast<float>(options.parallax_sigma * depth * depth / (g.f * g.baseline));
+        sp.sigma_z =
+            static_cast<float>(options.parallax_sigma * depth * depth / (g.f * g.baseline));
         sp.correlation = grid.correlation.at<float>(i, j);
         sp.intensity = patch.left.at<float>(i * grid.spacing, j * grid.spacing);
         result.points.push_back(sp);
@@ -144,11 +158,13 @@ SurfaceResult MeasureSurface(const OrientedImage& left, const OrientedImage& rig
   sum.points = static_cast<int>(result.points.size());
   if (result.points.empty())
     throw InvalidArgument(Message("dense pair '", left.name, "'/'", right.name,
-                                  "': no parallax could be measured (", sum.correlation.BriefReport(), ")"));
+                                  "': no parallax could be measured (",
+                                  sum.correlation.BriefReport(), ")"));
   const int window = copt.final_window > 0 ? copt.final_window : copt.window;
-  const double per_window = std::max(1.0, std::pow(static_cast<double>(window) / copt.final_grid_spacing, 2));
-  result.model =
-      GridSurface(result.points, options.cell_size, options.min_points_per_cell, config.region, per_window);
+  const double per_window =
+      std::max(1.0, std::pow(static_cast<double>(window) / copt.final_grid_spacing, 2));
+  result.model = GridSurface(result.points, options.cell_size, options.min_points_per_cell,
+                             config.region, per_window);
   sum.cells = result.model.width * result.model.height;
   for (float v : result.model.bands[kHeight]) sum.filled_cells += !result.model.IsNoData(v);
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -172,9 +188,11 @@ SurfaceResult MeasureSurfaceToFiles(const OrientedImage& left, const OrientedIma
   return s;
 }
 
-io::GeoRaster MakeOrthophoto(const io::GeoRaster& model, const OrientedImage& image, double cell_size) {
+io::GeoRaster MakeOrthophoto(const io::GeoRaster& model, const OrientedImage& image,
+                             double cell_size) {
   if (model.num_bands() < 1) throw InvalidArgument("MakeOrthophoto: surface model has no band");
-  if (!image.oriented) throw InvalidArgument(Message("MakeOrthophoto: image '", image.name, "' is not oriented"));
+  if (!image.oriented)
+    throw InvalidArgument(Message("MakeOrthophoto: image '", image.name, "' is not oriented"));
   if (cell_size <= 0) cell_size = model.cell_size;
   const double width_m = model.width * model.cell_size, height_m = model.height * model.cell_size;
   const int w = std::max(1, static_cast<int>(std::lround(width_m / cell_size)));
@@ -190,7 +208,8 @@ io::GeoRaster MakeOrthophoto(const io::GeoRaster& model, const OrientedImage& im
       if (std::isnan(z)) {
         // At the model's outer half cell: the nearest cell's height.
         int r, k;
-        if (model.CellOf(c.x(), c.y(), &r, &k) && !model.IsNoData(model.At(kHeight, r, k))) z = model.At(kHeight, r, k);
+        if (model.CellOf(c.x(), c.y(), &r, &k) && !model.IsNoData(model.At(kHeight, r, k)))
+          z = model.At(kHeight, r, k);
       }
       if (std::isnan(z)) continue;
       Eigen::Vector2d px;

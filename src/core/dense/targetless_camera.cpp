@@ -4,14 +4,12 @@
 #include <utility>
 
 #include "slope_monitor/core/common/error.h"
-#include "slope_monitor/core/io/image_polygons.h"
 #include "slope_monitor/core/common/numeric.h"
+#include "slope_monitor/core/io/image_polygons.h"
 
 namespace slope_monitor {
 namespace dense {
-namespace {
-
-}  // namespace
+namespace {}  // namespace
 
 matching::HexMatcherOptions TargetlessCameraOptions::TrackingMatcherOptions() {
   matching::HexMatcherOptions o;
@@ -137,8 +135,8 @@ TargetlessEpoch TargetlessCamera::Process(const cv::Mat& image, double time,
   for (int k = 0; k < 3; ++k)
     if (std::abs(r.delta(k)) * kDegPerRad > options_.max_rotation_deg)
       e.warnings.push_back(Message("camera '", name_, "': ", kAngle[k], " changed by ",
-                                   r.delta(k) * kDegPerRad, " deg (limit ", options_.max_rotation_deg,
-                                   " deg)"));
+                                   r.delta(k) * kDegPerRad, " deg (limit ",
+                                   options_.max_rotation_deg, " deg)"));
   if (!dem_) return e;
   FieldInput in;
   in.model = model_;

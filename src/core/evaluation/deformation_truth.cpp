@@ -5,14 +5,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <limits>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/format.h"
 #include "slope_monitor/core/deformation/history.h"
 #include "slope_monitor/core/sim/survey.h"
-#include "slope_monitor/core/common/format.h"
 
 namespace slope_monitor {
 namespace evaluation {
@@ -30,11 +30,12 @@ class Db {
     // A damaged file or one written by an unknown schema is refused, not read.
     const std::string integrity = Scalar("PRAGMA integrity_check");
     if (integrity != "ok")
-      throw IoError(Message("deformation history '", path, "' fails PRAGMA integrity_check: ", integrity));
+      throw IoError(
+          Message("deformation history '", path, "' fails PRAGMA integrity_check: ", integrity));
     const std::string version = Scalar("PRAGMA user_version");
     if (version != std::to_string(deformation::History::kSchemaVersion))
-      throw IoError(Message("deformation history '", path, "' has schema version ", version, "; this program reads ",
-                            deformation::History::kSchemaVersion));
+      throw IoError(Message("deformation history '", path, "' has schema version ", version,
+                            "; this program reads ", deformation::History::kSchemaVersion));
   }
   ~Db() { sqlite3_close(db_); }
 
@@ -53,7 +54,8 @@ class Db {
   sqlite3_stmt* Prepare(const std::string& sql) const {
     sqlite3_stmt* s = nullptr;
     if (sqlite3_prepare_v2(db_, sql.c_str(), -1, &s, nullptr) != SQLITE_OK) {
-      throw IoError(Message("deformation history '", path_, "': ", sqlite3_errmsg(db_), " in: ", sql));
+      throw IoError(
+          Message("deformation history '", path_, "': ", sqlite3_errmsg(db_), " in: ", sql));
     }
     return s;
   }
@@ -78,22 +80,33 @@ Eigen::Matrix3d BlobToMatrix(sqlite3_stmt* s, int col) {
 
 std::string SourceName(int source) {
   switch (source) {
-    case 1: return "target";
-    case 2: return "feature";
-    case 3: return "radio";
-    case 4: return "surface";
-    case 5: return "fused";
-    default: return "other";
+    case 1:
+      return "target";
+    case 2:
+      return "feature";
+    case 3:
+      return "radio";
+    case 4:
+      return "surface";
+    case 5:
+      return "fused";
+    default:
+      return "other";
   }
 }
 
 std::string AlertName(int level) {
   switch (level) {
-    case 0: return "none";
-    case 1: return "watch";
-    case 2: return "warning";
-    case 3: return "alarm";
-    default: return "?";
+    case 0:
+      return "none";
+    case 1:
+      return "watch";
+    case 2:
+      return "warning";
+    case 3:
+      return "alarm";
+    default:
+      return "?";
   }
 }
 
@@ -115,16 +128,19 @@ const PointEvaluation* DeformationEvaluation::Find(const std::string& id) const 
 DeformationEvaluation EvaluateHistory(const std::string& database, const sim::SurveyTruth& truth) {
   Db db(database);
   DeformationEvaluation out;
-  out.true_failure_time =
-      truth.landslide.velocity == sim::LandslideModel::Velocity::kAccelerating ? truth.landslide.failure_time : 0.0;
+  out.true_failure_time = truth.landslide.velocity == sim::LandslideModel::Velocity::kAccelerating
+                              ? truth.landslide.failure_time
+                              : 0.0;
 
   {
     sqlite3_stmt* s = db.Prepare("SELECT value FROM meta WHERE key = 'datum_stamp'");
-    if (sqlite3_step(s) == SQLITE_ROW) out.reference_stamp = std::atof(reinterpret_cast<const char*>(sqlite3_column_text(s, 0)));
+    if (sqlite3_step(s) == SQLITE_ROW)
+      out.reference_stamp = std::atof(reinterpret_cast<const char*>(sqlite3_column_text(s, 0)));
     sqlite3_finalize(s);
   }
 
-  // Reference positions: the truth's (targets, transmitters) where known, else the first observation's.
+  // Reference positions: the truth's (targets, transmitters) where known, else the first
+  // observation's.
   std::map<std::string, Eigen::Vector3d> reference;
   std::map<std::string, std::string> role;
   for (const auto& t : truth.targets) {
@@ -144,16 +160,18 @@ DeformationEvaluation EvaluateHistory(const std::string& database, const sim::Su
   std::vector<Obs> observations;
   std::map<std::string, std::map<int, int>> counts;
   {
-    sqlite3_stmt* s = db.Prepare("SELECT point_id, source, stamp, rx, ry, rz, dx, dy, dz FROM observations ORDER BY id");
+    sqlite3_stmt* s = db.Prepare(
+        "SELECT point_id, source, stamp, rx, ry, rz, dx, dy, dz FROM observations ORDER BY id");
     while (sqlite3_step(s) == SQLITE_ROW) {
       Obs o;
       o.id = reinterpret_cast<const char*>(sqlite3_column_text(s, 0));
       o.source = sqlite3_column_int(s, 1);
       o.stamp = sqlite3_column_double(s, 2);
-      o.d = Eigen::Vector3d(sqlite3_column_double(s, 6), sqlite3_column_double(s, 7), sqlite3_column_double(s, 8));
+      o.d = Eigen::Vector3d(sqlite3_column_double(s, 6), sqlite3_column_double(s, 7),
+                            sqlite3_column_double(s, 8));
       if (!reference.count(o.id)) {
-        reference[o.id] =
-            Eigen::Vector3d(sqlite3_column_double(s, 3), sqlite3_column_double(s, 4), sqlite3_column_double(s, 5));
+        reference[o.id] = Eigen::Vector3d(sqlite3_column_double(s, 3), sqlite3_column_double(s, 4),
+                                          sqlite3_column_double(s, 5));
       }
       observations.push_back(o);
     }
@@ -170,7 +188,8 @@ DeformationEvaluation EvaluateHistory(const std::string& database, const sim::Su
     sqlite3_stmt* s = db.Prepare("SELECT point_id, stamp, dx, dy, dz FROM estimates");
     while (sqlite3_step(s) == SQLITE_ROW) {
       fused[reinterpret_cast<const char*>(sqlite3_column_text(s, 0))][sqlite3_column_double(s, 1)] =
-          Eigen::Vector3d(sqlite3_column_double(s, 2), sqlite3_column_double(s, 3), sqlite3_column_double(s, 4));
+          Eigen::Vector3d(sqlite3_column_double(s, 2), sqlite3_column_double(s, 3),
+                          sqlite3_column_double(s, 4));
     }
     sqlite3_finalize(s);
   }
@@ -191,8 +210,10 @@ DeformationEvaluation EvaluateHistory(const std::string& database, const sim::Su
   // Latest estimate of each point.
   {
     sqlite3_stmt* s = db.Prepare(
-        "SELECT e.point_id, e.stamp, e.dx, e.dy, e.dz, e.vx, e.vy, e.vz, e.displacement_covariance, e.alert_level, "
-        "e.forecast_time, e.forecast_sigma FROM estimates e JOIN (SELECT point_id, MAX(stamp) AS s FROM estimates "
+        "SELECT e.point_id, e.stamp, e.dx, e.dy, e.dz, e.vx, e.vy, e.vz, "
+        "e.displacement_covariance, e.alert_level, "
+        "e.forecast_time, e.forecast_sigma FROM estimates e JOIN (SELECT point_id, MAX(stamp) AS s "
+        "FROM estimates "
         "GROUP BY point_id) m ON e.point_id = m.point_id AND e.stamp = m.s ORDER BY e.point_id");
     double sum2 = 0.0;
     while (sqlite3_step(s) == SQLITE_ROW) {
@@ -200,8 +221,10 @@ DeformationEvaluation EvaluateHistory(const std::string& database, const sim::Su
       p.id = reinterpret_cast<const char*>(sqlite3_column_text(s, 0));
       p.role = role.count(p.id) ? role[p.id] : "unknown";
       p.stamp = sqlite3_column_double(s, 1);
-      p.estimate = Eigen::Vector3d(sqlite3_column_double(s, 2), sqlite3_column_double(s, 3), sqlite3_column_double(s, 4));
-      p.velocity = Eigen::Vector3d(sqlite3_column_double(s, 5), sqlite3_column_double(s, 6), sqlite3_column_double(s, 7));
+      p.estimate = Eigen::Vector3d(sqlite3_column_double(s, 2), sqlite3_column_double(s, 3),
+                                   sqlite3_column_double(s, 4));
+      p.velocity = Eigen::Vector3d(sqlite3_column_double(s, 5), sqlite3_column_double(s, 6),
+                                   sqlite3_column_double(s, 7));
       p.covariance = BlobToMatrix(s, 8);
       p.alert_level = sqlite3_column_int(s, 9);
       p.forecast_valid = sqlite3_column_type(s, 10) != SQLITE_NULL;
@@ -212,7 +235,8 @@ DeformationEvaluation EvaluateHistory(const std::string& database, const sim::Su
       p.reference_position = reference.count(p.id) ? reference[p.id] : Eigen::Vector3d::Zero();
       p.truth = true_displacement(p.id, p.stamp);
       const double dt = 60.0;
-      p.true_speed = (true_displacement(p.id, p.stamp) - true_displacement(p.id, p.stamp - dt)).norm() / dt;
+      p.true_speed =
+          (true_displacement(p.id, p.stamp) - true_displacement(p.id, p.stamp - dt)).norm() / dt;
       p.measurements = counts[p.id];
       if (p.role == "monitoring" || p.role == "radio") {
         sum2 += p.Error().squaredNorm();
@@ -254,30 +278,36 @@ DeformationEvaluation EvaluateHistory(const std::string& database, const sim::Su
 
 std::string FormatTable(const DeformationEvaluation& e) {
   std::ostringstream o;
-  o << std::left << std::setw(14) << "point" << std::setw(11) << "role" << std::right << std::setw(9) << "|d| mm"
-    << std::setw(27) << "d (x, y, z) mm" << std::setw(10) << "v mm/d" << std::setw(9) << "sigma mm" << std::setw(9)
-    << "alert" << std::setw(10) << "true mm" << std::setw(10) << "err mm" << std::setw(8) << "err/s" << "  sources\n";
+  o << std::left << std::setw(14) << "point" << std::setw(11) << "role" << std::right
+    << std::setw(9) << "|d| mm" << std::setw(27) << "d (x, y, z) mm" << std::setw(10) << "v mm/d"
+    << std::setw(9) << "sigma mm" << std::setw(9) << "alert" << std::setw(10) << "true mm"
+    << std::setw(10) << "err mm" << std::setw(8) << "err/s"
+    << "  sources\n";
   for (const auto& p : e.points) {
     std::string d = Fixed(p.estimate.x() * 1e3, 1) + ", " + Fixed(p.estimate.y() * 1e3, 1) + ", " +
                     Fixed(p.estimate.z() * 1e3, 1);
     std::string sources;
-    for (const auto& [s, c] : p.measurements) sources += (sources.empty() ? "" : " ") + SourceName(s) + "x" + std::to_string(c);
+    for (const auto& [s, c] : p.measurements)
+      sources += (sources.empty() ? "" : " ") + SourceName(s) + "x" + std::to_string(c);
     o << std::left << std::setw(14) << p.id << std::setw(11) << p.role << std::right << std::setw(9)
       << Fixed(p.estimate.norm() * 1e3, 1) << std::setw(27) << d << std::setw(10)
-      << Fixed(p.velocity.norm() * 86400e3, 1) << std::setw(9) << Fixed(p.Sigma() * 1e3, 2) << std::setw(9)
-      << AlertName(p.alert_level) << std::setw(10) << Fixed(p.truth.norm() * 1e3, 1) << std::setw(10)
-      << Fixed(p.Error().norm() * 1e3, 2) << std::setw(8) << Fixed(p.NormalisedError(), 2) << "  " << sources << "\n";
+      << Fixed(p.velocity.norm() * 86400e3, 1) << std::setw(9) << Fixed(p.Sigma() * 1e3, 2)
+      << std::setw(9) << AlertName(p.alert_level) << std::setw(10) << Fixed(p.truth.norm() * 1e3, 1)
+      << std::setw(10) << Fixed(p.Error().norm() * 1e3, 2) << std::setw(8)
+      << Fixed(p.NormalisedError(), 2) << "  " << sources << "\n";
   }
-  o << "fused RMS error of moving points (latest estimate): " << Fixed(e.fused_rms * 1e3, 2) << " mm over "
-    << e.fused_count << " points\n";
+  o << "fused RMS error of moving points (latest estimate): " << Fixed(e.fused_rms * 1e3, 2)
+    << " mm over " << e.fused_count << " points\n";
   for (const auto& s : e.sources) {
-    o << "source " << s.name << ": raw RMS " << Fixed(s.rms * 1e3, 2) << " mm, fused RMS at the same times "
-      << Fixed(s.fused_rms * 1e3, 2) << " mm (" << s.count << " measurements)\n";
+    o << "source " << s.name << ": raw RMS " << Fixed(s.rms * 1e3, 2)
+      << " mm, fused RMS at the same times " << Fixed(s.fused_rms * 1e3, 2) << " mm (" << s.count
+      << " measurements)\n";
   }
   for (const auto& p : e.points) {
     if (!p.forecast_valid) continue;
-    o << "forecast " << p.id << ": failure at t0 + " << Fixed((p.forecast_time - e.reference_stamp) / 3600.0, 2)
-      << " h +- " << Fixed(p.forecast_sigma / 3600.0, 2) << " h";
+    o << "forecast " << p.id << ": failure at t0 + "
+      << Fixed((p.forecast_time - e.reference_stamp) / 3600.0, 2) << " h +- "
+      << Fixed(p.forecast_sigma / 3600.0, 2) << " h";
     if (e.true_failure_time > 0.0)
       o << " (truth t0 + " << Fixed((e.true_failure_time - e.reference_stamp) / 3600.0, 2) << " h)";
     o << "\n";

@@ -22,10 +22,14 @@ std::string Fmt(const char* format, double v) {
 std::string JsonString(const std::string& s) {
   std::string out = "\"";
   for (char c : s) {
-    if (c == '"' || c == '\\') out += '\\', out += c;
-    else if (c == '\n') out += "\\n";
-    else if (static_cast<unsigned char>(c) < 0x20) out += ' ';
-    else out += c;
+    if (c == '"' || c == '\\')
+      out += '\\', out += c;
+    else if (c == '\n')
+      out += "\\n";
+    else if (static_cast<unsigned char>(c) < 0x20)
+      out += ' ';
+    else
+      out += c;
   }
   return out + "\"";
 }
@@ -38,8 +42,10 @@ std::string JsonResiduals(const std::vector<PointResidual>& v) {
     o << (i ? ", " : "") << "{\"name\": " << JsonString(r.name) << ", \"picks\": " << r.picks
       << ", \"measured\": " << (r.measured ? "true" : "false");
     if (r.measured)
-      o << ", \"dx\": " << Fmt("%.4f", r.residual.x()) << ", \"dy\": " << Fmt("%.4f", r.residual.y())
-        << ", \"dz\": " << Fmt("%.4f", r.residual.z()) << ", \"d3\": " << Fmt("%.4f", r.residual.norm())
+      o << ", \"dx\": " << Fmt("%.4f", r.residual.x())
+        << ", \"dy\": " << Fmt("%.4f", r.residual.y())
+        << ", \"dz\": " << Fmt("%.4f", r.residual.z())
+        << ", \"d3\": " << Fmt("%.4f", r.residual.norm())
         << ", \"pick_rms_px\": " << Fmt("%.2f", r.pick_rms_px);
     else
       o << ", \"message\": " << JsonString(r.message);
@@ -48,16 +54,19 @@ std::string JsonResiduals(const std::vector<PointResidual>& v) {
   return o.str() + "]";
 }
 
-std::string MdResiduals(const char* title, const std::vector<PointResidual>& v, double rms, bool picks_rms) {
+std::string MdResiduals(const char* title, const std::vector<PointResidual>& v, double rms,
+                        bool picks_rms) {
   if (v.empty()) return "";
   std::ostringstream o;
-  o << "\n## " << title << "\n\n| point | picks | dx [m] | dy [m] | dz [m] | 3-D [m] | picks rms [px] |\n"
+  o << "\n## " << title
+    << "\n\n| point | picks | dx [m] | dy [m] | dz [m] | 3-D [m] | picks rms [px] |\n"
     << "|---|---|---|---|---|---|---|\n";
   for (const PointResidual& r : v) {
     if (r.measured)
       o << "| " << r.name << " | " << r.picks << " | " << Fmt("%.3f", r.residual.x()) << " | "
         << Fmt("%.3f", r.residual.y()) << " | " << Fmt("%.3f", r.residual.z()) << " | "
-        << Fmt("%.3f", r.residual.norm()) << " | " << (picks_rms ? Fmt("%.1f", r.pick_rms_px) : "") << " |\n";
+        << Fmt("%.3f", r.residual.norm()) << " | " << (picks_rms ? Fmt("%.1f", r.pick_rms_px) : "")
+        << " |\n";
     else
       o << "| " << r.name << " | " << r.picks << " | " << r.message << " | | | | |\n";
   }
@@ -74,10 +83,11 @@ void WriteColmapModel(const FlightReportInput& in, const std::string& sparse_dir
   auto d = [&](size_t i) { return i < cv.distortion.size() ? cv.distortion[i] : 0.0; };
   std::ostringstream cams;
   cams.precision(12);
-  cams << "# Camera list with one line of data per camera:\n#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
-       << "# Number of cameras: 1\n1 FULL_OPENCV " << cv.width << " " << cv.height << " " << cv.k(0, 0) << " "
-       << cv.k(1, 1) << " " << cv.k(0, 2) + 0.5 << " " << cv.k(1, 2) + 0.5 << " " << d(0) << " " << d(1) << " "
-       << d(2) << " " << d(3) << " " << d(4) << " 0 0 0\n";
+  cams << "# Camera list with one line of data per camera:\n#   CAMERA_ID, MODEL, WIDTH, HEIGHT, "
+          "PARAMS[]\n"
+       << "# Number of cameras: 1\n1 FULL_OPENCV " << cv.width << " " << cv.height << " "
+       << cv.k(0, 0) << " " << cv.k(1, 1) << " " << cv.k(0, 2) + 0.5 << " " << cv.k(1, 2) + 0.5
+       << " " << d(0) << " " << d(1) << " " << d(2) << " " << d(3) << " " << d(4) << " 0 0 0\n";
   io::WriteFileAtomically(sparse_dir + "/cameras.txt", cams.str());
   // Point index of each observation within its image (POINT2D_IDX).
   std::vector<std::vector<int>> obs_of_image(sc.images.size());
@@ -88,13 +98,14 @@ void WriteColmapModel(const FlightReportInput& in, const std::string& sparse_dir
   }
   std::ostringstream ims;
   ims.precision(12);
-  ims << "# Image list with two lines of data per image:\n#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n"
+  ims << "# Image list with two lines of data per image:\n#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, "
+         "TZ, CAMERA_ID, NAME\n"
       << "#   POINTS2D[] as (X, Y, POINT3D_ID)\n# Number of images: " << sc.images.size() << "\n";
   for (size_t i = 0; i < sc.images.size(); ++i) {
     const Rigid3 r = sc.images[i].exterior.OpticalFromSite();
     ims << i + 1 << " " << r.rotation.w() << " " << r.rotation.x() << " " << r.rotation.y() << " "
-        << r.rotation.z() << " " << r.translation.x() << " " << r.translation.y() << " " << r.translation.z()
-        << " 1 " << sc.images[i].name << "\n";
+        << r.rotation.z() << " " << r.translation.x() << " " << r.translation.y() << " "
+        << r.translation.z() << " 1 " << sc.images[i].name << "\n";
     for (size_t j = 0; j < obs_of_image[i].size(); ++j) {
       const adjustment::Observation& o = sc.observations[obs_of_image[i][j]];
       ims << (j ? " " : "") << o.pixel.x() + 0.5 << " " << o.pixel.y() + 0.5 << " " << o.point + 1;
@@ -103,7 +114,8 @@ void WriteColmapModel(const FlightReportInput& in, const std::string& sparse_dir
   }
   io::WriteFileAtomically(sparse_dir + "/images.txt", ims.str());
   std::vector<std::vector<int>> obs_of_point(sc.points.size());
-  for (size_t k = 0; k < sc.observations.size(); ++k) obs_of_point[sc.observations[k].point].push_back(static_cast<int>(k));
+  for (size_t k = 0; k < sc.observations.size(); ++k)
+    obs_of_point[sc.observations[k].point].push_back(static_cast<int>(k));
   std::ostringstream pts;
   pts.precision(10);
   pts << "# 3D point list with one line of data per point:\n"
@@ -112,9 +124,10 @@ void WriteColmapModel(const FlightReportInput& in, const std::string& sparse_dir
   for (size_t p = 0; p < sc.points.size(); ++p) {
     const Eigen::Vector3d& x = sc.points[p].position;
     const int g = in.result->point_grey[p];
-    pts << p + 1 << " " << x.x() << " " << x.y() << " " << x.z() << " " << g << " " << g << " " << g << " "
-        << in.result->point_error_px[p];
-    for (int k : obs_of_point[p]) pts << " " << sc.observations[k].image + 1 << " " << index_in_image[k];
+    pts << p + 1 << " " << x.x() << " " << x.y() << " " << x.z() << " " << g << " " << g << " " << g
+        << " " << in.result->point_error_px[p];
+    for (int k : obs_of_point[p])
+      pts << " " << sc.observations[k].image + 1 << " " << index_in_image[k];
     pts << "\n";
   }
   io::WriteFileAtomically(sparse_dir + "/points3D.txt", pts.str());
@@ -127,7 +140,8 @@ void WritePointsPly(const FlightReportInput& in, const std::string& path) {
   std::ostringstream o;
   o << "ply\nformat ascii 1.0\ncomment slope_monitor process_flight: tie points in the site frame"
     << " (crs.txt: site = CRS - origin)\nelement vertex " << sc.points.size()
-    << "\nproperty double x\nproperty double y\nproperty double z\nproperty uchar red\nproperty uchar green\n"
+    << "\nproperty double x\nproperty double y\nproperty double z\nproperty uchar red\nproperty "
+       "uchar green\n"
     << "property uchar blue\nproperty float error_px\nproperty int images\nend_header\n";
   o.precision(10);
   for (size_t p = 0; p < sc.points.size(); ++p) {
@@ -146,19 +160,24 @@ void WriteCamerasCsv(const FlightReportInput& in, const std::string& path) {
   std::vector<double> ss(sc.images.size(), 0.0);
   for (size_t k = 0; k < sc.observations.size(); ++k) {
     ++n[sc.observations[k].image];
-    ss[sc.observations[k].image] += in.result->observation_error_px[k] * in.result->observation_error_px[k];
+    ss[sc.observations[k].image] +=
+        in.result->observation_error_px[k] * in.result->observation_error_px[k];
   }
   std::ostringstream o;
-  o << "image,x,y,z,theta_deg,phi_deg,kappa_deg,sigma_x,sigma_y,sigma_z,sigma_theta_deg,sigma_phi_deg,"
+  o << "image,x,y,z,theta_deg,phi_deg,kappa_deg,sigma_x,sigma_y,sigma_z,sigma_theta_deg,sigma_phi_"
+       "deg,"
        "sigma_kappa_deg,observations,rms_px\n";
   const double deg = 180.0 / M_PI;
   for (size_t i = 0; i < sc.images.size(); ++i) {
     const auto& e = sc.images[i].exterior;
-    o << sc.images[i].name << "," << Fmt("%.4f", e.position.x()) << "," << Fmt("%.4f", e.position.y()) << ","
-      << Fmt("%.4f", e.position.z()) << "," << Fmt("%.5f", e.angles.theta * deg) << ","
-      << Fmt("%.5f", e.angles.phi * deg) << "," << Fmt("%.5f", e.angles.kappa * deg);
+    o << sc.images[i].name << "," << Fmt("%.4f", e.position.x()) << ","
+      << Fmt("%.4f", e.position.y()) << "," << Fmt("%.4f", e.position.z()) << ","
+      << Fmt("%.5f", e.angles.theta * deg) << "," << Fmt("%.5f", e.angles.phi * deg) << ","
+      << Fmt("%.5f", e.angles.kappa * deg);
     for (int j = 0; j < 6; ++j) {
-      const double v = prec.valid && i < prec.exterior_covariance.size() ? prec.exterior_covariance[i](j, j) : NAN;
+      const double v = prec.valid && i < prec.exterior_covariance.size()
+                           ? prec.exterior_covariance[i](j, j)
+                           : NAN;
       o << "," << Fmt(j < 3 ? "%.4f" : "%.5f", std::sqrt(std::max(0.0, v)) * (j < 3 ? 1.0 : deg));
     }
     o << "," << n[i] << "," << Fmt("%.3f", n[i] ? std::sqrt(ss[i] / n[i]) : 0.0) << "\n";
@@ -173,58 +192,73 @@ void WriteFrame(const FlightFrame& frame, const std::string& path) {
     o << "crs: none (model frame: arbitrary scale and orientation)\n";
   } else {
     o << "crs: " << frame.crs << "\norigin: " << frame.origin.x() << " " << frame.origin.y() << " "
-      << frame.origin.z() << "\n# site = CRS coordinates - origin (x east, y north, z up)\nwkt: " << frame.wkt << "\n";
+      << frame.origin.z()
+      << "\n# site = CRS coordinates - origin (x east, y north, z up)\nwkt: " << frame.wkt << "\n";
   }
   io::WriteFileAtomically(path, o.str());
 }
 
-void WriteFlightReport(const FlightReportInput& in, const std::string& json_path, const std::string& md_path) {
+void WriteFlightReport(const FlightReportInput& in, const std::string& json_path,
+                       const std::string& md_path) {
   const FlightSummary& s = in.result->summary;
-  const auto& interior = in.result->scene.cameras.empty() ? std::array<double, camera::kNumInterior>{}
-                                                          : in.result->scene.cameras[0].model.interior();
+  const auto& interior = in.result->scene.cameras.empty()
+                             ? std::array<double, camera::kNumInterior>{}
+                             : in.result->scene.cameras[0].model.interior();
   std::ostringstream j;
   j << "{\n  \"flight\": " << in.flight << ",\n  \"folder\": " << JsonString(in.folder)
     << ",\n  \"camera\": " << JsonString(in.photos->camera_label) << ",\n  \"photos\": " << s.photos
     << ",\n  \"skipped\": " << in.photos->skipped.size() << ",\n  \"oriented\": " << s.oriented
     << ",\n  \"points\": " << s.points << ",\n  \"observations\": " << s.observations
-    << ",\n  \"pairs_tried\": " << in.ties->pairs.size() << ",\n  \"pairs_tied\": " << in.ties->pairs_tied
-    << ",\n  \"tie_points\": " << in.ties->tie_points << ",\n  \"reprojection_rms_px\": " << Fmt("%.4f", s.rms_px)
-    << ",\n  \"reprojection_mean_px\": " << Fmt("%.4f", s.mean_px) << ",\n  \"sigma0\": " << Fmt("%.4f", s.sigma0)
-    << ",\n  \"datum\": " << JsonString(s.datum) << ",\n  \"covariance_note\": " << JsonString(s.covariance_note) << ",\n  \"crs\": " << JsonString(in.frame.crs)
-    << ",\n  \"interior\": {";
+    << ",\n  \"pairs_tried\": " << in.ties->pairs.size()
+    << ",\n  \"pairs_tied\": " << in.ties->pairs_tied
+    << ",\n  \"tie_points\": " << in.ties->tie_points
+    << ",\n  \"reprojection_rms_px\": " << Fmt("%.4f", s.rms_px)
+    << ",\n  \"reprojection_mean_px\": " << Fmt("%.4f", s.mean_px)
+    << ",\n  \"sigma0\": " << Fmt("%.4f", s.sigma0) << ",\n  \"datum\": " << JsonString(s.datum)
+    << ",\n  \"covariance_note\": " << JsonString(s.covariance_note)
+    << ",\n  \"crs\": " << JsonString(in.frame.crs) << ",\n  \"interior\": {";
   for (int k = 0; k < camera::kNumInterior; ++k)
-    j << (k ? ", " : "") << "\"" << camera::InteriorNames()[k] << "\": [" << Fmt("%.6g", interior[k]) << ", "
-      << Fmt("%.3g", s.interior_sigma[k]) << "]";
-  j << "},\n  \"control\": " << JsonResiduals(s.control) << ",\n  \"control_rms_m\": " << Fmt("%.4f", s.control_rms)
-    << ",\n  \"check\": " << JsonResiduals(s.check) << ",\n  \"check_rms_m\": " << Fmt("%.4f", s.check_rms)
+    j << (k ? ", " : "") << "\"" << camera::InteriorNames()[k] << "\": ["
+      << Fmt("%.6g", interior[k]) << ", " << Fmt("%.3g", s.interior_sigma[k]) << "]";
+  j << "},\n  \"control\": " << JsonResiduals(s.control)
+    << ",\n  \"control_rms_m\": " << Fmt("%.4f", s.control_rms)
+    << ",\n  \"check\": " << JsonResiduals(s.check)
+    << ",\n  \"check_rms_m\": " << Fmt("%.4f", s.check_rms)
     << ",\n  \"leave_one_out\": " << JsonResiduals(s.leave_one_out)
-    << ",\n  \"leave_one_out_rms_m\": " << Fmt("%.4f", s.leave_one_out_rms) << ",\n  \"seconds\": {\"features\": "
-    << Fmt("%.2f", in.ties->feature_seconds) << ", \"matching_wall\": " << Fmt("%.2f", in.ties->wall_seconds);
+    << ",\n  \"leave_one_out_rms_m\": " << Fmt("%.4f", s.leave_one_out_rms)
+    << ",\n  \"seconds\": {\"features\": " << Fmt("%.2f", in.ties->feature_seconds)
+    << ", \"matching_wall\": " << Fmt("%.2f", in.ties->wall_seconds);
   for (const auto& [k, v] : s.seconds) j << ", " << JsonString(k) << ": " << Fmt("%.2f", v);
-  j << ", \"total\": " << Fmt("%.2f", in.total_seconds) << "},\n  \"peak_memory_gb\": "
-    << Fmt("%.3f", in.peak_memory_gb) << ",\n  \"not_oriented\": [";
-  for (size_t i = 0; i < s.not_oriented.size(); ++i) j << (i ? ", " : "") << JsonString(s.not_oriented[i]);
+  j << ", \"total\": " << Fmt("%.2f", in.total_seconds)
+    << "},\n  \"peak_memory_gb\": " << Fmt("%.3f", in.peak_memory_gb) << ",\n  \"not_oriented\": [";
+  for (size_t i = 0; i < s.not_oriented.size(); ++i)
+    j << (i ? ", " : "") << JsonString(s.not_oriented[i]);
   j << "]\n}\n";
   io::WriteFileAtomically(json_path, j.str());
 
   std::ostringstream m;
-  m << "# Flight " << in.flight << ": " << in.folder << "\n\n| | |\n|---|---|\n| camera | " << in.photos->camera_label
-    << " |\n| photos oriented | " << s.oriented << " of " << s.photos << " (" << in.photos->skipped.size()
-    << " skipped) |\n| pairs tied / tried | " << in.ties->pairs_tied << " / " << in.ties->pairs.size()
-    << " |\n| 3-D points | " << s.points << " |\n| reprojection error | rms " << Fmt("%.3f", s.rms_px) << " px, mean "
-    << Fmt("%.3f", s.mean_px) << " px |\n| sigma0 | " << Fmt("%.3f", s.sigma0) << " |\n| datum | " << s.datum
-    << (s.covariance_note.empty() ? "" : " (" + s.covariance_note + ")") << " |\n| CRS | " << (in.frame.crs.empty() ? "none" : in.frame.crs) << " |\n| time | "
-    << Fmt("%.1f", in.total_seconds) << " s |\n| peak memory | " << Fmt("%.2f", in.peak_memory_gb) << " GB |\n";
+  m << "# Flight " << in.flight << ": " << in.folder << "\n\n| | |\n|---|---|\n| camera | "
+    << in.photos->camera_label << " |\n| photos oriented | " << s.oriented << " of " << s.photos
+    << " (" << in.photos->skipped.size() << " skipped) |\n| pairs tied / tried | "
+    << in.ties->pairs_tied << " / " << in.ties->pairs.size() << " |\n| 3-D points | " << s.points
+    << " |\n| reprojection error | rms " << Fmt("%.3f", s.rms_px) << " px, mean "
+    << Fmt("%.3f", s.mean_px) << " px |\n| sigma0 | " << Fmt("%.3f", s.sigma0) << " |\n| datum | "
+    << s.datum << (s.covariance_note.empty() ? "" : " (" + s.covariance_note + ")")
+    << " |\n| CRS | " << (in.frame.crs.empty() ? "none" : in.frame.crs) << " |\n| time | "
+    << Fmt("%.1f", in.total_seconds) << " s |\n| peak memory | " << Fmt("%.2f", in.peak_memory_gb)
+    << " GB |\n";
   m << MdResiduals("Control points (in the adjustment)", s.control, s.control_rms, true)
     << MdResiduals("Check points (not in the adjustment)", s.check, s.check_rms, false)
-    << MdResiduals("Leave one out (each control point left out in turn)", s.leave_one_out, s.leave_one_out_rms, false);
+    << MdResiduals("Leave one out (each control point left out in turn)", s.leave_one_out,
+                   s.leave_one_out_rms, false);
   if (!s.not_oriented.empty()) {
     m << "\n## Photos not oriented\n\n";
     for (const std::string& n : s.not_oriented) m << "* " << n << "\n";
   }
   if (!in.photos->skipped.empty()) {
     m << "\n## Photos skipped\n\n";
-    for (const SkippedPhoto& p : in.photos->skipped) m << "* " << p.path << ": " << p.reason << "\n";
+    for (const SkippedPhoto& p : in.photos->skipped)
+      m << "* " << p.path << ": " << p.reason << "\n";
   }
   io::WriteFileAtomically(md_path, m.str());
 }

@@ -38,9 +38,9 @@ std::vector<matching::PhotoFootprint> Footprints(const FlightPhotos& photos,
     matching::PairSelectionOptions own = selection;
     if (p.attitude.has_height_above_ground && p.attitude.height_above_ground_m > 1.0)
       own.height_above_ground = p.attitude.height_above_ground_m;
-    out[i] = matching::NadirFootprint(ltp->ToSite(g).head<2>(), p.attitude.has_yaw, p.attitude.yaw_deg,
-                                      cv::Size(p.width, p.height), p.exif.focal_length_mm,
-                                      p.attitude.pixel_size_mm, own);
+    out[i] = matching::NadirFootprint(ltp->ToSite(g).head<2>(), p.attitude.has_yaw,
+                                      p.attitude.yaw_deg, cv::Size(p.width, p.height),
+                                      p.exif.focal_length_mm, p.attitude.pixel_size_mm, own);
   }
   return out;
 }
@@ -56,7 +56,8 @@ std::uint8_t GreyAt(const cv::Mat& grey, const Eigen::Vector2d& px) {
 // that uses them. Thread-safe.
 class FeatureCache {
  public:
-  FeatureCache(const FlightPhotos& photos, const FlightMatchingOptions& options, std::vector<int> uses)
+  FeatureCache(const FlightPhotos& photos, const FlightMatchingOptions& options,
+               std::vector<int> uses)
       : photos_(photos), options_(options), uses_(std::move(uses)), slots_(photos.photos.size()) {}
 
   // nullptr when the photo cannot be decoded (named in unreadable()).
@@ -88,12 +89,14 @@ class FeatureCache {
     try {
       image = io::ReadImageChecked(p.path, cv::IMREAD_GRAYSCALE, photos_.options.image);
       if (image.cols != p.width || image.rows != p.height)
-        why = Message("decodes to ", image.cols, "x", image.rows, " where its header says ", p.width, "x", p.height);
+        why = Message("decodes to ", image.cols, "x", image.rows, " where its header says ",
+                      p.width, "x", p.height);
     } catch (const std::exception& e) {
       why = e.what();
     }
     std::shared_ptr<const matching::PhotoFeatures> f;
-    if (why.empty()) f = std::make_shared<matching::PhotoFeatures>(image, p.name, options_.features);
+    if (why.empty())
+      f = std::make_shared<matching::PhotoFeatures>(image, p.name, options_.features);
     std::lock_guard<std::mutex> lock(mutex_);
     if (!why.empty()) {
       unreadable_.push_back(Message(p.path, ": ", why));
@@ -118,7 +121,8 @@ class FeatureCache {
 // Tracks from the pairs' tie points: an interest point of photo a (its
 // pixel, identical in every pair of a) is one track.
 void BuildTracks(const std::vector<std::pair<int, int>>& pairs,
-                 const std::vector<matching::PhotoPairResult>& results, const std::vector<std::uint8_t>& used,
+                 const std::vector<matching::PhotoPairResult>& results,
+                 const std::vector<std::uint8_t>& used,
                  const std::vector<std::vector<std::uint8_t>>& grey_of, FlightTies* ties) {
   std::map<std::pair<int, std::pair<long, long>>, int> track_of;
   for (size_t k = 0; k < pairs.size(); ++k) {
@@ -126,8 +130,8 @@ void BuildTracks(const std::vector<std::pair<int, int>>& pairs,
     const auto [a, b] = pairs[k];
     const auto& pts = results[k].tie_points;
     for (size_t t = 0; t < pts.size(); ++t) {
-      const auto key = std::make_pair(
-          a, std::make_pair(std::lround(pts[t].xa.x() * 100.0), std::lround(pts[t].xa.y() * 100.0)));
+      const auto key = std::make_pair(a, std::make_pair(std::lround(pts[t].xa.x() * 100.0),
+                                                        std::lround(pts[t].xa.y() * 100.0)));
       auto it = track_of.find(key);
       if (it == track_of.end()) {
         it = track_of.emplace(key, static_cast<int>(ties->tracks.size())).first;
@@ -156,10 +160,12 @@ void JoinTracks(double radius, FlightTies* ties) {
   std::vector<FlightTrack>& tracks = ties->tracks;
   std::map<std::pair<int, std::pair<long, long>>, std::vector<int>> start_cell;
   auto cell = [&](const Eigen::Vector2d& x) {
-    return std::make_pair(static_cast<long>(std::floor(x.x() / radius)), static_cast<long>(std::floor(x.y() / radius)));
+    return std::make_pair(static_cast<long>(std::floor(x.x() / radius)),
+                          static_cast<long>(std::floor(x.y() / radius)));
   };
   for (size_t t = 0; t < tracks.size(); ++t)
-    start_cell[{tracks[t].observations[0].first, cell(tracks[t].observations[0].second)}].push_back(static_cast<int>(t));
+    start_cell[{tracks[t].observations[0].first, cell(tracks[t].observations[0].second)}].push_back(
+        static_cast<int>(t));
   std::vector<int> parent(tracks.size());
   for (size_t t = 0; t < tracks.size(); ++t) parent[t] = static_cast<int>(t);
   for (size_t t = 0; t < tracks.size(); ++t) {
@@ -202,7 +208,8 @@ void JoinTracks(double radius, FlightTies* ties) {
 }  // namespace
 
 void FlightMatchingOptions::Check() const {
-  RequireOption("flight matching", exhaustive_max_photos >= 2, "exhaustive_max_photos", "must be >= 2");
+  RequireOption("flight matching", exhaustive_max_photos >= 2, "exhaustive_max_photos",
+                "must be >= 2");
   RequireOption("flight matching", sequence_window >= 1, "sequence_window", "must be >= 1");
   RequireOption("flight matching", min_pair_tie_points >= 5, "min_pair_tie_points", "must be >= 5");
   RequireOption("flight matching", join_radius_px >= 0.0, "join_radius_px", "must be >= 0");
@@ -212,7 +219,8 @@ void FlightMatchingOptions::Check() const {
   pair.Check();
 }
 
-std::vector<std::pair<int, int>> PlanFlightPairs(const FlightPhotos& photos, const FlightMatchingOptions& options) {
+std::vector<std::pair<int, int>> PlanFlightPairs(const FlightPhotos& photos,
+                                                 const FlightMatchingOptions& options) {
   const int n = static_cast<int>(photos.photos.size());
   std::vector<std::pair<int, int>> pairs;
   if (n <= options.exhaustive_max_photos) {
@@ -244,32 +252,37 @@ FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& 
   const int threads = options.threads > 0 ? options.threads : cv::getNumberOfCPUs();
   // Pairs in order, `threads` at a time: photo a's features come first, so a
   // photo is released soon after the pairs that need it.
-  cv::parallel_for_(cv::Range(0, static_cast<int>(pairs.size())), [&](const cv::Range& range) {
-    for (int k = range.start; k < range.end; ++k) {
-      const auto [a, b] = pairs[k];
-      const auto fa = cache.Get(a), fb = cache.Get(b);
-      if (fa && fb) {
-        results[k] = matching::MatchPhotoPair(*fa, *fb, options.pair);
-        for (const auto& t : results[k].tie_points) grey_of[k].push_back(GreyAt(fa->grey(), t.xa));
-      } else {
-        results[k].summary.message = "a photo could not be decoded";
-      }
-      cache.Done(a);
-      cache.Done(b);
-    }
-  }, threads);
+  cv::parallel_for_(
+      cv::Range(0, static_cast<int>(pairs.size())),
+      [&](const cv::Range& range) {
+        for (int k = range.start; k < range.end; ++k) {
+          const auto [a, b] = pairs[k];
+          const auto fa = cache.Get(a), fb = cache.Get(b);
+          if (fa && fb) {
+            results[k] = matching::MatchPhotoPair(*fa, *fb, options.pair);
+            for (const auto& t : results[k].tie_points)
+              grey_of[k].push_back(GreyAt(fa->grey(), t.xa));
+          } else {
+            results[k].summary.message = "a photo could not be decoded";
+          }
+          cache.Done(a);
+          cache.Done(b);
+        }
+      },
+      threads);
   FlightTies ties;
   std::vector<std::uint8_t> used(pairs.size(), 0);
   for (size_t k = 0; k < pairs.size(); ++k) {
     const matching::PhotoPairSummary& s = results[k].summary;
-    FlightPairStats st{pairs[k].first, pairs[k].second, static_cast<int>(results[k].tie_points.size()),
-                       s.epipolar_rms, s.message};
+    FlightPairStats st{pairs[k].first, pairs[k].second,
+                       static_cast<int>(results[k].tie_points.size()), s.epipolar_rms, s.message};
     if (st.tie_points >= options.min_pair_tie_points) {
       used[k] = 1;
       ++ties.pairs_tied;
       ties.tie_points += st.tie_points;
     } else if (st.message.empty()) {
-      st.message = Message(st.tie_points, " tie points (min_pair_tie_points = ", options.min_pair_tie_points, ")");
+      st.message = Message(st.tie_points,
+                           " tie points (min_pair_tie_points = ", options.min_pair_tie_points, ")");
     }
     ties.pair_seconds += s.seconds;
     ties.pairs.push_back(st);

@@ -17,7 +17,9 @@ namespace flight {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+double Since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
 
 // The state of the block while it grows.
 struct Block {
@@ -36,7 +38,8 @@ struct Block {
 
 camera::ExteriorOrientation FromCamFromSite(const Eigen::Matrix3d& r, const Eigen::Vector3d& t) {
   const Eigen::Matrix3d d = camera::OpticalFromPhotogrammetric();
-  return camera::ExteriorOrientation::FromOpticalFromSite(Rigid3(Eigen::Matrix3d(d * r), Eigen::Vector3d(d * t)));
+  return camera::ExteriorOrientation::FromOpticalFromSite(
+      Rigid3(Eigen::Matrix3d(d * r), Eigen::Vector3d(d * t)));
 }
 
 double Median(std::vector<double> v) {
@@ -62,7 +65,8 @@ bool IntersectTrack(Block* block, int t, const FlightOrientationOptions& options
   if (!res.success) return false;
   for (const auto& r : rays) {
     Eigen::Vector2d p;
-    if (!block->model.Project(r.exterior, res.position, &p) || (p - r.pixel).norm() > max_px) return false;
+    if (!block->model.Project(r.exterior, res.position, &p) || (p - r.pixel).norm() > max_px)
+      return false;
   }
   block->position[t] = res.position;
   block->known[t] = 1;
@@ -78,9 +82,11 @@ void IntersectNewTracks(Block* block, const FlightOrientationOptions& options, i
 // Start pair: among the 20 pairs with the most tie points, the one whose
 // relative orientation keeps the most inliers with a median ray angle of at
 // least min_start_parallax_deg.
-bool StartBlock(Block* block, const FlightTies& ties, const FlightOrientationOptions& options, std::string* why) {
+bool StartBlock(Block* block, const FlightTies& ties, const FlightOrientationOptions& options,
+                std::string* why) {
   std::vector<FlightPairStats> cand = ties.pairs;
-  std::sort(cand.begin(), cand.end(), [](const auto& x, const auto& y) { return x.tie_points > y.tie_points; });
+  std::sort(cand.begin(), cand.end(),
+            [](const auto& x, const auto& y) { return x.tie_points > y.tie_points; });
   if (cand.size() > 20) cand.resize(20);
   int best_inliers = 0;
   Eigen::Matrix3d best_r;
@@ -106,13 +112,15 @@ bool StartBlock(Block* block, const FlightTies& ties, const FlightOrientationOpt
     for (size_t k = 0; k < xa.size(); ++k) {
       if (!ro.inliers[k]) continue;
       const Eigen::Vector3d ua = geometry::BearingOfPixel(block->model, xa[k]);
-      const Eigen::Vector3d ub = ro.rotation.transpose() * geometry::BearingOfPixel(block->model, xb[k]);
-      angles.push_back(std::acos(std::clamp(ua.normalized().dot(ub.normalized()), -1.0, 1.0)) * 180.0 / M_PI);
+      const Eigen::Vector3d ub =
+          ro.rotation.transpose() * geometry::BearingOfPixel(block->model, xb[k]);
+      angles.push_back(std::acos(std::clamp(ua.normalized().dot(ub.normalized()), -1.0, 1.0)) *
+                       180.0 / M_PI);
     }
     const double parallax = Median(angles);
     if (parallax < options.min_start_parallax_deg) {
-      *why = Message("the pairs with most tie points have too little parallax (", block->tracks.empty() ? 0 : parallax,
-                     " deg)");
+      *why = Message("the pairs with most tie points have too little parallax (",
+                     block->tracks.empty() ? 0 : parallax, " deg)");
       continue;
     }
     best_inliers = ro.num_inliers;
@@ -122,7 +130,8 @@ bool StartBlock(Block* block, const FlightTies& ties, const FlightOrientationOpt
     best_t = ro.translation;
   }
   if (block->seed_a < 0) return false;
-  block->exterior[block->seed_a] = FromCamFromSite(Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+  block->exterior[block->seed_a] =
+      FromCamFromSite(Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
   block->exterior[block->seed_b] = FromCamFromSite(best_r, best_t);
   block->oriented[block->seed_a] = block->oriented[block->seed_b] = 1;
   IntersectNewTracks(block, options, block->seed_b);
@@ -168,8 +177,8 @@ bool ResectPhoto(Block* block, int photo, const FlightOrientationOptions& option
 
 struct SceneMaps {
   std::vector<int> photo_of_image;
-  std::vector<int> track_of_point;    // -1 for control points
-  std::vector<int> control_of_point;  // -1 for tie points
+  std::vector<int> track_of_point;             // -1 for control points
+  std::vector<int> control_of_point;           // -1 for tie points
   std::vector<std::pair<int, int>> track_obs;  // per observation: (track or -1, index in track)
 };
 
@@ -178,8 +187,8 @@ struct StageSetup {
   const FlightOrientationOptions* options = nullptr;
   bool use_gnss = false;
   bool use_control = false;
-  int leave_out = -1;  // control point left out (leave one out)
-  bool final = false;  // full self-calibration, covariance
+  int leave_out = -1;               // control point left out (leave one out)
+  bool final = false;               // full self-calibration, covariance
   bool without_covariance = false;  // the covariance failed once: solve without it
 };
 
@@ -190,12 +199,13 @@ std::vector<int> FreeInterior(const Block& block, const StageSetup& s) {
   // from 10 to 13 mm on the synthetic block), and the start pair held fixed
   // would carry that into every photo added.
   if (!s.final) return {camera::kK1};
-  if (block.Oriented() < s.options->min_photos_full_calibration) return {camera::kC, camera::kK1, camera::kK2};
+  if (block.Oriented() < s.options->min_photos_full_calibration)
+    return {camera::kC, camera::kK1, camera::kK2};
   return {camera::kC, camera::kX0, camera::kY0, camera::kK1, camera::kK2, camera::kK3};
 }
 
-void AddControlPoints(const Block& block, const StageSetup& s, adjustment::Scene* scene, SceneMaps* maps,
-                      const std::vector<int>& image_of_photo) {
+void AddControlPoints(const Block& block, const StageSetup& s, adjustment::Scene* scene,
+                      SceneMaps* maps, const std::vector<int>& image_of_photo) {
   const auto& control = s.input->control;
   for (size_t c = 0; c < control.size(); ++c) {
     const FlightControlPoint& cp = control[c];
@@ -219,7 +229,8 @@ void AddControlPoints(const Block& block, const StageSetup& s, adjustment::Scene
       o.image = image_of_photo[ph];
       o.point = index;
       o.pixel = px;
-      o.covariance = Eigen::Matrix2d::Identity() * s.options->pick_sigma_px * s.options->pick_sigma_px;
+      o.covariance =
+          Eigen::Matrix2d::Identity() * s.options->pick_sigma_px * s.options->pick_sigma_px;
       scene->observations.push_back(o);
       maps->track_obs.emplace_back(-1, -1);
     }
@@ -248,7 +259,8 @@ adjustment::Scene BuildScene(const Block& block, const StageSetup& s, SceneMaps*
     maps->photo_of_image.push_back(static_cast<int>(i));
     scene.images.push_back(im);
   }
-  const Eigen::Matrix2d tie_cov = Eigen::Matrix2d::Identity() * s.options->tie_sigma_px * s.options->tie_sigma_px;
+  const Eigen::Matrix2d tie_cov =
+      Eigen::Matrix2d::Identity() * s.options->tie_sigma_px * s.options->tie_sigma_px;
   for (size_t t = 0; t < block.tracks.size(); ++t) {
     if (!block.known[t]) continue;
     const auto& obs = block.tracks[t].observations;
@@ -300,16 +312,19 @@ adjustment::Options StageOptions(const StageSetup& s, bool datum_free) {
 // reprojection error exceeds max_px (and forgets points left with < 2).
 int WriteBack(const adjustment::Scene& scene, const SceneMaps& maps, double max_px, Block* block) {
   block->model = scene.cameras[0].model;
-  for (size_t i = 0; i < scene.images.size(); ++i) block->exterior[maps.photo_of_image[i]] = scene.images[i].exterior;
+  for (size_t i = 0; i < scene.images.size(); ++i)
+    block->exterior[maps.photo_of_image[i]] = scene.images[i].exterior;
   for (size_t p = 0; p < scene.points.size(); ++p)
-    if (maps.track_of_point[p] >= 0) block->position[maps.track_of_point[p]] = scene.points[p].position;
+    if (maps.track_of_point[p] >= 0)
+      block->position[maps.track_of_point[p]] = scene.points[p].position;
   std::set<std::pair<int, int>> drop;
   for (size_t k = 0; k < scene.observations.size(); ++k) {
     const auto [t, j] = maps.track_obs[k];
     if (t < 0) continue;
     const adjustment::Observation& o = scene.observations[k];
     Eigen::Vector2d px;
-    const bool front = scene.cameras[0].model.Project(scene.images[o.image].exterior, scene.points[o.point].position, &px);
+    const bool front = scene.cameras[0].model.Project(scene.images[o.image].exterior,
+                                                      scene.points[o.point].position, &px);
     if (!front || (px - o.pixel).norm() > max_px) drop.emplace(t, j);
   }
   for (auto it = drop.rbegin(); it != drop.rend(); ++it) {
@@ -334,7 +349,8 @@ StageResult Adjust(Block* block, const StageSetup& s) {
   StageResult r;
   r.scene = BuildScene(*block, s, &r.maps);
   const bool datum_free = !s.use_gnss && !s.use_control;
-  const adjustment::BundleAdjuster adjuster(StageOptions(s, datum_free), StageConfig(*block, s, r.maps));
+  const adjustment::BundleAdjuster adjuster(StageOptions(s, datum_free),
+                                            StageConfig(*block, s, r.maps));
   r.summary = adjuster.Solve(&r.scene);
   // While the block grows the interior is still settling: only gross errors go.
   const double max_px = s.options->max_reprojection_px * (s.final ? 1.0 : 2.0);
@@ -347,8 +363,8 @@ StageResult Adjust(Block* block, const StageSetup& s) {
 // ---------------------------------------------------------------------------
 
 // Intersects a control point from its picks in the oriented photos.
-PointResidual MeasurePoint(const Block& block, const FlightControlPoint& cp, const FlightOrientationOptions& options,
-                           Eigen::Vector3d* position) {
+PointResidual MeasurePoint(const Block& block, const FlightControlPoint& cp,
+                           const FlightOrientationOptions& options, Eigen::Vector3d* position) {
   PointResidual r;
   r.name = cp.name;
   r.check = cp.check;
@@ -364,7 +380,8 @@ PointResidual MeasurePoint(const Block& block, const FlightControlPoint& cp, con
   }
   r.picks = static_cast<int>(rays.size());
   if (rays.size() < 2) {
-    r.message = Message("picked in ", rays.size(), " oriented photo", rays.size() == 1 ? "" : "s", " (2 needed)");
+    r.message = Message("picked in ", rays.size(), " oriented photo", rays.size() == 1 ? "" : "s",
+                        " (2 needed)");
     return r;
   }
   geometry::IntersectionOptions io = options.intersection;
@@ -396,8 +413,8 @@ void TransformBlock(const geometry::Similarity3& t, Block* block) {
 
 // Model -> site from control points (>= 3 intersected) or GNSS (>= 3 photos
 // off one line); "" and *datum set on success, else why not.
-std::string Georeference(const FlightInput& input, const FlightOrientationOptions& options, Block* block,
-                         std::string* datum, bool* use_gnss, bool* use_control) {
+std::string Georeference(const FlightInput& input, const FlightOrientationOptions& options,
+                         Block* block, std::string* datum, bool* use_gnss, bool* use_control) {
   std::vector<Eigen::Vector3d> model, site;
   for (const FlightControlPoint& cp : input.control) {
     Eigen::Vector3d x;
@@ -411,7 +428,8 @@ std::string Georeference(const FlightInput& input, const FlightOrientationOption
     *datum = Message(model.size(), " control points");
   } else {
     if (!input.control.empty())
-      why = Message(model.size(), " control points intersected from their picks (3 needed off one line); ");
+      why = Message(model.size(),
+                    " control points intersected from their picks (3 needed off one line); ");
     model.clear();
     site.clear();
     for (size_t i = 0; i < block->oriented.size(); ++i) {
@@ -420,17 +438,18 @@ std::string Georeference(const FlightInput& input, const FlightOrientationOption
       site.push_back(*input.gnss_in_site[i]);
     }
     if (model.size() < 3 || geometry::AreCollinear(site, 0.02))
-      return why + Message(model.size(), " oriented photos with GNSS", model.size() >= 3 ? ", all on one line" : "",
+      return why + Message(model.size(), " oriented photos with GNSS",
+                           model.size() >= 3 ? ", all on one line" : "",
                            ": the block stays in its model frame");
     *datum = Message("GNSS of ", model.size(), " photos");
   }
   *use_gnss = input.gnss_in_site.size() > 0 &&
-              std::any_of(input.gnss_in_site.begin(), input.gnss_in_site.end(), [](const auto& g) { return g.has_value(); });
+              std::any_of(input.gnss_in_site.begin(), input.gnss_in_site.end(),
+                          [](const auto& g) { return g.has_value(); });
   TransformBlock(geometry::FitSimilarity(model, site, true), block);
   if (*use_gnss && *use_control) *datum += " and GNSS";
   return "";
 }
-
 
 // ---------------------------------------------------------------------------
 // The stages
@@ -443,7 +462,8 @@ Block MakeBlock(const FlightInput& input) {
   // A camera from EXIF (no distortion yet) is self-calibrated with radial
   // terms; a calibrated camera keeps its model and terms.
   b.model = nominal.model() == camera::DistortionModel::kNone
-                ? camera::CameraModel(nominal.sensor(), camera::DistortionModel::kRadial, nominal.interior())
+                ? camera::CameraModel(nominal.sensor(), camera::DistortionModel::kRadial,
+                                      nominal.interior())
                 : nominal;
   b.exterior.resize(n);
   b.oriented.assign(n, 0);
@@ -453,7 +473,8 @@ Block MakeBlock(const FlightInput& input) {
   b.known.assign(b.tracks.size(), 0);
   b.tracks_of_photo.resize(n);
   for (size_t t = 0; t < b.tracks.size(); ++t)
-    for (const auto& o : b.tracks[t].observations) b.tracks_of_photo[o.first].push_back(static_cast<int>(t));
+    for (const auto& o : b.tracks[t].observations)
+      b.tracks_of_photo[o.first].push_back(static_cast<int>(t));
   return b;
 }
 
@@ -473,7 +494,8 @@ void Grow(Block* block, const FlightInput& input, const FlightOrientationOptions
     if (block->Oriented() >= adjusted_at * options.growth_for_adjustment) {
       Adjust(block, s);
       for (size_t t = 0; t < block->tracks.size(); ++t)
-        if (!block->known[t]) IntersectTrack(block, static_cast<int>(t), options, options.max_reprojection_px);
+        if (!block->known[t])
+          IntersectTrack(block, static_cast<int>(t), options, options.max_reprojection_px);
       adjusted_at = block->Oriented();
     }
   }
@@ -646,10 +668,10 @@ void FlightOrientationOptions::Check() const {
   RequireOption(o, intermediate_iterations > 0, "intermediate_iterations", "must be > 0");
 }
 
-
 FlightResult OrientFlight(const FlightInput& input, const FlightOrientationOptions& options) {
   options.Check();
-  if (!input.photos || !input.ties) throw InvalidArgument("OrientFlight: photos and ties are required");
+  if (!input.photos || !input.ties)
+    throw InvalidArgument("OrientFlight: photos and ties are required");
   FlightResult result;
   FlightSummary& sum = result.summary;
   sum.photos = static_cast<int>(input.photos->photos.size());
@@ -670,9 +692,11 @@ FlightResult OrientFlight(const FlightInput& input, const FlightOrientationOptio
   s.input = &input;
   s.options = &options;
   s.final = true;
-  const std::string geo = Georeference(input, options, &block, &sum.datum, &s.use_gnss, &s.use_control);
+  const std::string geo =
+      Georeference(input, options, &block, &sum.datum, &s.use_gnss, &s.use_control);
   sum.georeferenced = geo.empty();
-  if (!geo.empty()) sum.datum = "model frame (no datum: arbitrary scale and orientation; " + geo + ")";
+  if (!geo.empty())
+    sum.datum = "model frame (no datum: arbitrary scale and orientation; " + geo + ")";
   sum.seconds["georeference"] = Since(t0);
   t0 = Clock::now();
   Adjust(&block, s);  // drops the observations the site frame's datum shows as blunders

@@ -24,22 +24,25 @@ bool HasImageExtension(const std::filesystem::path& p) {
 using CameraKey = std::tuple<std::string, std::string, int, int, long>;
 
 CameraKey KeyOf(const FlightPhoto& p) {
-  return {p.exif.make, p.exif.model, p.width, p.height, std::lround(p.exif.focal_length_mm * 100.0)};
+  return {p.exif.make, p.exif.model, p.width, p.height,
+          std::lround(p.exif.focal_length_mm * 100.0)};
 }
 
 std::string Describe(const CameraKey& k) {
-  const std::string name = Message(std::get<0>(k), std::get<0>(k).empty() ? "" : " ", std::get<1>(k));
-  return Message(name.empty() ? "unknown camera" : name, " ", std::get<2>(k), "x", std::get<3>(k), " f=",
-                 std::get<4>(k) / 100.0, " mm");
+  const std::string name =
+      Message(std::get<0>(k), std::get<0>(k).empty() ? "" : " ", std::get<1>(k));
+  return Message(name.empty() ? "unknown camera" : name, " ", std::get<2>(k), "x", std::get<3>(k),
+                 " f=", std::get<4>(k) / 100.0, " mm");
 }
 
 }  // namespace
 
 void FlightPhotoOptions::Check() const {
-  RequireOption("flight photo", pixel_size_mm >= 0.0 && std::isfinite(pixel_size_mm), "pixel_size_mm", "must be >= 0");
+  RequireOption("flight photo", pixel_size_mm >= 0.0 && std::isfinite(pixel_size_mm),
+                "pixel_size_mm", "must be >= 0");
   image.Check();
-  RequireOption("flight photo", focal_length_mm >= 0.0 && std::isfinite(focal_length_mm), "focal_length_mm",
-                "must be >= 0");
+  RequireOption("flight photo", focal_length_mm >= 0.0 && std::isfinite(focal_length_mm),
+                "focal_length_mm", "must be >= 0");
 }
 
 std::vector<std::string> ListPhotoFolder(const std::string& folder) {
@@ -51,12 +54,14 @@ std::vector<std::string> ListPhotoFolder(const std::string& folder) {
   for (const auto& e : fs::directory_iterator(folder, ec))
     if (e.is_regular_file() && HasImageExtension(e.path())) paths.push_back(e.path().string());
   if (ec) throw IoError(Message(folder, ": cannot be listed (", ec.message(), ")"));
-  if (paths.empty()) throw IoError(Message(folder, ": holds no photo (.jpg, .jpeg, .png, .tif, .tiff)"));
+  if (paths.empty())
+    throw IoError(Message(folder, ": holds no photo (.jpg, .jpeg, .png, .tif, .tiff)"));
   std::sort(paths.begin(), paths.end());
   return paths;
 }
 
-FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths, const FlightPhotoOptions& options) {
+FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths,
+                              const FlightPhotoOptions& options) {
   options.Check();
   FlightPhotos out;
   out.options = options;
@@ -89,7 +94,9 @@ FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths, const Fligh
       p.attitude.has_pixel_size = options.pixel_size_mm > 0.0;
     }
     if (!p.attitude.has_pixel_size) {
-      out.skipped.push_back({path, "no pixel size in its EXIF (FocalPlaneXResolution; give the camera's pixel size)"});
+      out.skipped.push_back(
+          {path,
+           "no pixel size in its EXIF (FocalPlaneXResolution; give the camera's pixel size)"});
       continue;
     }
     read.push_back(p);
@@ -103,13 +110,15 @@ FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths, const Fligh
     throw IoError(Message("none of the ", paths.size(), " photos can be used (", why, ")"));
   }
   const CameraKey main =
-      std::max_element(count.begin(), count.end(), [](const auto& a, const auto& b) { return a.second < b.second; })
-          ->first;
+      std::max_element(count.begin(), count.end(), [](const auto& a, const auto& b) {
+        return a.second < b.second;
+      })->first;
   out.camera_label = Describe(main);
   for (const FlightPhoto& p : read) {
     if (KeyOf(p) != main) {
-      out.skipped.push_back({p.path, Message("another camera or size (", Describe(KeyOf(p)), ") than the flight's ",
-                                             count[main], " photos (", out.camera_label, ")")});
+      out.skipped.push_back(
+          {p.path, Message("another camera or size (", Describe(KeyOf(p)), ") than the flight's ",
+                           count[main], " photos (", out.camera_label, ")")});
       continue;
     }
     out.with_gnss += p.exif.has_gps ? 1 : 0;
@@ -117,8 +126,8 @@ FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths, const Fligh
     out.photos.push_back(p);
   }
   const FlightPhoto& first = out.photos.front();
-  out.nominal = capture::NominalModelFromExif(first.exif, first.width, first.height, first.attitude.pixel_size_mm,
-                                              first.path);
+  out.nominal = capture::NominalModelFromExif(first.exif, first.width, first.height,
+                                              first.attitude.pixel_size_mm, first.path);
   return out;
 }
 

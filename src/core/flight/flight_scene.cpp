@@ -51,14 +51,17 @@ SceneFlight FromScene(const adjustment::Scene& scene, int cam, FlightOrientation
     f.photos.photos.push_back(p);
     f.input.gnss_in_site.push_back(im.position_prior);
     if (im.position_prior && !sigma_set) {
-      options->gnss_sigma_horizontal_m = std::sqrt(std::max(1e-6, im.position_prior_covariance(0, 0)));
-      options->gnss_sigma_vertical_m = std::sqrt(std::max(1e-6, im.position_prior_covariance(2, 2)));
+      options->gnss_sigma_horizontal_m =
+          std::sqrt(std::max(1e-6, im.position_prior_covariance(0, 0)));
+      options->gnss_sigma_vertical_m =
+          std::sqrt(std::max(1e-6, im.position_prior_covariance(2, 2)));
       sigma_set = true;
     }
   }
   std::vector<FlightTrack> track_of_point(scene.points.size());
   for (const adjustment::Observation& o : scene.observations)
-    if (photo_of_image[o.image] >= 0) track_of_point[o.point].observations.emplace_back(photo_of_image[o.image], o.pixel);
+    if (photo_of_image[o.image] >= 0)
+      track_of_point[o.point].observations.emplace_back(photo_of_image[o.image], o.pixel);
   for (size_t p = 0; p < scene.points.size(); ++p) {
     const adjustment::ObjectPoint& pt = scene.points[p];
     if (track_of_point[p].observations.empty()) continue;
@@ -69,7 +72,8 @@ SceneFlight FromScene(const adjustment::Scene& scene, int cam, FlightOrientation
       cp.covariance = pt.surveyed_covariance;
       cp.picks = track_of_point[p].observations;
       f.input.control.push_back(cp);
-    } else if (pt.role == adjustment::PointRole::kTie && track_of_point[p].observations.size() >= 2) {
+    } else if (pt.role == adjustment::PointRole::kTie &&
+               track_of_point[p].observations.size() >= 2) {
       f.ties.tracks.push_back(track_of_point[p]);
       f.point_of_track.push_back(static_cast<int>(p));
     }
@@ -85,7 +89,9 @@ FlightSummary OrientSceneFromTiePoints(adjustment::Scene* scene, const std::stri
   int cam = -1;
   for (size_t c = 0; c < scene->cameras.size(); ++c)
     if (scene->cameras[c].name == camera) cam = static_cast<int>(c);
-  if (cam < 0) throw InvalidArgument(Message("OrientSceneFromTiePoints: the scene has no camera '", camera, "'"));
+  if (cam < 0)
+    throw InvalidArgument(
+        Message("OrientSceneFromTiePoints: the scene has no camera '", camera, "'"));
   FlightOrientationOptions o = options;
   o.leave_one_out = false;
   SceneFlight f = FromScene(*scene, cam, &o);

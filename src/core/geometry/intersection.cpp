@@ -13,8 +13,10 @@ namespace geometry {
 
 void IntersectionOptions::Check() const {
   if (!(min_angle_deg >= 0.0 && min_angle_deg < 180.0))
-    throw ConfigError(Message("intersection min_angle_deg must be in [0, 180), got ", min_angle_deg));
-  if (max_iterations < 0) throw ConfigError(Message("intersection max_iterations must be >= 0, got ", max_iterations));
+    throw ConfigError(
+        Message("intersection min_angle_deg must be in [0, 180), got ", min_angle_deg));
+  if (max_iterations < 0)
+    throw ConfigError(Message("intersection max_iterations must be >= 0, got ", max_iterations));
 }
 
 namespace {
@@ -37,7 +39,8 @@ struct PointProjection {
 };
 }  // namespace
 
-IntersectionResult Intersect(const std::vector<RayObservation>& rays, const IntersectionOptions& options) {
+IntersectionResult Intersect(const std::vector<RayObservation>& rays,
+                             const IntersectionOptions& options) {
   options.Check();
   IntersectionResult r;
   if (rays.size() < 2) {
@@ -46,18 +49,21 @@ IntersectionResult Intersect(const std::vector<RayObservation>& rays, const Inte
   }
   std::vector<camera::Ray> lines;
   for (size_t i = 0; i < rays.size(); ++i) {
-    if (rays[i].model == nullptr) throw InvalidArgument(Message("intersection: ray ", i, " has no camera model"));
-    if (!rays[i].pixel.allFinite()) throw InvalidArgument(Message("intersection: ray ", i, " has a non-finite pixel"));
+    if (rays[i].model == nullptr)
+      throw InvalidArgument(Message("intersection: ray ", i, " has no camera model"));
+    if (!rays[i].pixel.allFinite())
+      throw InvalidArgument(Message("intersection: ray ", i, " has a non-finite pixel"));
     lines.push_back(rays[i].model->ImageToRay(rays[i].exterior, rays[i].pixel));
   }
   double max_angle = 0.0;
   for (size_t i = 0; i < lines.size(); ++i)
     for (size_t j = i + 1; j < lines.size(); ++j)
-      max_angle = std::max(max_angle, std::acos(std::clamp(lines[i].direction.dot(lines[j].direction), -1.0, 1.0)));
+      max_angle = std::max(
+          max_angle, std::acos(std::clamp(lines[i].direction.dot(lines[j].direction), -1.0, 1.0)));
   r.max_angle_deg = max_angle * 180.0 / M_PI;
   if (r.max_angle_deg < options.min_angle_deg) {
-    r.message = Message("rays nearly parallel: widest intersection angle ", r.max_angle_deg, " deg < ",
-                        options.min_angle_deg, " deg");
+    r.message = Message("rays nearly parallel: widest intersection angle ", r.max_angle_deg,
+                        " deg < ", options.min_angle_deg, " deg");
     return r;
   }
   // Closest point to all lines: sum (I - d d^T) (X - o) = 0.
@@ -75,7 +81,8 @@ IntersectionResult Intersect(const std::vector<RayObservation>& rays, const Inte
     normal.setZero();
     Eigen::Vector3d g = Eigen::Vector3d::Zero();
     for (const RayObservation& ray : rays) {
-      ceres::AutoDiffCostFunction<PointProjection, 2, 3> f(new PointProjection(*ray.model, ray.exterior));
+      ceres::AutoDiffCostFunction<PointProjection, 2, 3> f(
+          new PointProjection(*ray.model, ray.exterior));
       double px[2];
       Eigen::Matrix<double, 2, 3, Eigen::RowMajor> j;
       const double* params[] = {x.data()};
@@ -91,7 +98,8 @@ IntersectionResult Intersect(const std::vector<RayObservation>& rays, const Inte
     if (!dx.allFinite()) break;
     x += dx;
     if (dx.norm() < 1e-10) {
-      it = options.max_iterations - 1;  // one more pass to refresh the normal matrix at the solution
+      it =
+          options.max_iterations - 1;  // one more pass to refresh the normal matrix at the solution
     }
   }
   double ss = 0.0;
@@ -111,7 +119,8 @@ IntersectionResult Intersect(const std::vector<RayObservation>& rays, const Inte
     return r;
   }
   r.success = true;
-  r.message = Message(rays.size(), " rays, widest angle ", r.max_angle_deg, " deg, rms ", r.rms_px, " px");
+  r.message =
+      Message(rays.size(), " rays, widest angle ", r.max_angle_deg, " deg, rms ", r.rms_px, " px");
   return r;
 }
 

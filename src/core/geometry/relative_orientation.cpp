@@ -13,9 +13,15 @@ namespace slope_monitor {
 namespace geometry {
 
 void RelativeOrientationOptions::Check() const {
-  if (!(inlier_threshold_px > 0.0)) throw ConfigError(Message("relative orientation inlier_threshold_px must be > 0, got ", inlier_threshold_px));
-  if (!(confidence > 0.0 && confidence < 1.0)) throw ConfigError(Message("relative orientation confidence must be in (0, 1), got ", confidence));
-  if (max_iterations <= 0) throw ConfigError(Message("relative orientation max_iterations must be > 0, got ", max_iterations));
+  if (!(inlier_threshold_px > 0.0))
+    throw ConfigError(
+        Message("relative orientation inlier_threshold_px must be > 0, got ", inlier_threshold_px));
+  if (!(confidence > 0.0 && confidence < 1.0))
+    throw ConfigError(
+        Message("relative orientation confidence must be in (0, 1), got ", confidence));
+  if (max_iterations <= 0)
+    throw ConfigError(
+        Message("relative orientation max_iterations must be > 0, got ", max_iterations));
 }
 
 RelativeOrientationResult RelativeOrientation(const camera::CameraModel& model_a,
@@ -26,7 +32,8 @@ RelativeOrientationResult RelativeOrientation(const camera::CameraModel& model_a
   options.Check();
   RelativeOrientationResult r;
   if (pixels_a.size() != pixels_b.size())
-    throw InvalidArgument(Message("relative orientation: ", pixels_a.size(), " points in a, ", pixels_b.size(), " in b"));
+    throw InvalidArgument(Message("relative orientation: ", pixels_a.size(), " points in a, ",
+                                  pixels_b.size(), " in b"));
   const size_t n = pixels_a.size();
   if (n < 5) {
     r.message = Message("too few tie points: ", n, " (the five-point solution needs >= 5)");
@@ -47,8 +54,9 @@ RelativeOrientationResult RelativeOrientation(const camera::CameraModel& model_a
   cv::theRNG().state = options.seed;
   cv::Mat mask;
   const cv::Mat k = cv::Mat::eye(3, 3, CV_64F);
-  cv::Mat e = cv::findEssentialMat(na, nb, k, cv::RANSAC, options.confidence, options.inlier_threshold_px / focal_px,
-                                   options.max_iterations, mask);
+  cv::Mat e =
+      cv::findEssentialMat(na, nb, k, cv::RANSAC, options.confidence,
+                           options.inlier_threshold_px / focal_px, options.max_iterations, mask);
   if (e.empty() || e.rows != 3) {
     r.message = "the five-point solver found no essential matrix (degenerate tie points?)";
     return r;
@@ -56,7 +64,8 @@ RelativeOrientationResult RelativeOrientation(const camera::CameraModel& model_a
   cv::Mat rot, t;
   const int good = cv::recoverPose(e, na, nb, k, rot, t, mask);
   if (good < 5) {
-    r.message = Message("only ", good, " tie points in front of both images after the cheirality check");
+    r.message =
+        Message("only ", good, " tie points in front of both images after the cheirality check");
     return r;
   }
   Eigen::Matrix3d r_opt;
@@ -77,10 +86,12 @@ RelativeOrientationResult RelativeOrientation(const camera::CameraModel& model_a
   return r;
 }
 
-PairInSite OrientPairInSite(const RelativeOrientationResult& relative, const camera::CameraModel& model_a,
-                            const camera::CameraModel& model_b, const std::vector<Eigen::Vector2d>& control_pixels_a,
+PairInSite OrientPairInSite(const RelativeOrientationResult& relative,
+                            const camera::CameraModel& model_a, const camera::CameraModel& model_b,
+                            const std::vector<Eigen::Vector2d>& control_pixels_a,
                             const std::vector<Eigen::Vector2d>& control_pixels_b,
-                            const std::vector<Eigen::Vector3d>& control_in_site, const HelmertOptions& helmert) {
+                            const std::vector<Eigen::Vector3d>& control_in_site,
+                            const HelmertOptions& helmert) {
   PairInSite out;
   if (!relative.success) {
     out.message = "relative orientation failed: " + relative.message;
@@ -121,7 +132,8 @@ PairInSite OrientPairInSite(const RelativeOrientationResult& relative, const cam
   auto to_site = [&](const camera::ExteriorOrientation& e) {
     camera::ExteriorOrientation o;
     o.position = s * e.position;
-    o.angles = camera::AnglesFromRotation(camera::RotationFromAngles(e.angles) * s.rotation.transpose());
+    o.angles =
+        camera::AnglesFromRotation(camera::RotationFromAngles(e.angles) * s.rotation.transpose());
     return o;
   };
   out.exterior_a = to_site(ea);

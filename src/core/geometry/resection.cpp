@@ -7,8 +7,8 @@
 #include <random>
 
 #include <ceres/ceres.h>
-#include <Eigen/LU>
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <Eigen/SVD>
 
 #include "slope_monitor/core/common/error.h"
@@ -23,9 +23,13 @@ Eigen::Vector3d BearingOfPixel(const camera::CameraModel& model, const Eigen::Ve
 }
 
 void ResectionOptions::Check() const {
-  if (!(inlier_threshold_px > 0.0)) throw ConfigError(Message("resection inlier_threshold_px must be > 0, got ", inlier_threshold_px));
-  if (max_iterations <= 0) throw ConfigError(Message("resection max_iterations must be > 0, got ", max_iterations));
-  if (!(pixel_sigma > 0.0)) throw ConfigError(Message("resection pixel_sigma must be > 0, got ", pixel_sigma));
+  if (!(inlier_threshold_px > 0.0))
+    throw ConfigError(
+        Message("resection inlier_threshold_px must be > 0, got ", inlier_threshold_px));
+  if (max_iterations <= 0)
+    throw ConfigError(Message("resection max_iterations must be > 0, got ", max_iterations));
+  if (!(pixel_sigma > 0.0))
+    throw ConfigError(Message("resection pixel_sigma must be > 0, got ", pixel_sigma));
 }
 
 namespace {
@@ -34,7 +38,8 @@ namespace {
 // polished by Newton steps).
 std::vector<double> RealQuarticRoots(double a4, double a3, double a2, double a1, double a0) {
   std::vector<double> roots;
-  const double scale = std::max({std::abs(a4), std::abs(a3), std::abs(a2), std::abs(a1), std::abs(a0)});
+  const double scale =
+      std::max({std::abs(a4), std::abs(a3), std::abs(a2), std::abs(a1), std::abs(a0)});
   if (!(scale > 0.0)) return roots;
   if (std::abs(a4) < 1e-14 * scale) return roots;  // degenerate configuration
   Eigen::Matrix4d companion = Eigen::Matrix4d::Zero();
@@ -60,8 +65,8 @@ std::vector<double> RealQuarticRoots(double a4, double a3, double a2, double a1,
 }
 
 // Rigid transform with q_i = R p_i + t (three or more points).
-bool AbsoluteOrientation(const Eigen::Vector3d* p, const Eigen::Vector3d* q, int n, Eigen::Matrix3d* r,
-                         Eigen::Vector3d* t) {
+bool AbsoluteOrientation(const Eigen::Vector3d* p, const Eigen::Vector3d* q, int n,
+                         Eigen::Matrix3d* r, Eigen::Vector3d* t) {
   Eigen::Vector3d mp = Eigen::Vector3d::Zero(), mq = Eigen::Vector3d::Zero();
   for (int i = 0; i < n; ++i) {
     mp += p[i];
@@ -85,7 +90,8 @@ struct ResectionError {
       : interior(m.interior()), sensor(m.sensor()), pixel(px), point(x) {}
   template <typename T>
   bool operator()(const T* exterior, T* residuals) const {
-    T in[camera::kNumInterior], x[3] = {T(point.x()), T(point.y()), T(point.z())}, xy[2] = {T(0), T(0)};
+    T in[camera::kNumInterior], x[3] = {T(point.x()), T(point.y()), T(point.z())},
+                                xy[2] = {T(0), T(0)};
     for (int i = 0; i < camera::kNumInterior; ++i) in[i] = T(interior[i]);
     camera::ProjectToImageMm(exterior, in, x, xy);
     T col, row;
@@ -102,14 +108,16 @@ struct ResectionError {
 
 }  // namespace
 
-std::vector<camera::ExteriorOrientation> ResectThreePoints(const Eigen::Vector3d bearings[3],
-                                                           const Eigen::Vector3d points_in_site[3]) {
+std::vector<camera::ExteriorOrientation> ResectThreePoints(
+    const Eigen::Vector3d bearings[3], const Eigen::Vector3d points_in_site[3]) {
   std::vector<camera::ExteriorOrientation> out;
-  const Eigen::Vector3d j1 = bearings[0].normalized(), j2 = bearings[1].normalized(), j3 = bearings[2].normalized();
+  const Eigen::Vector3d j1 = bearings[0].normalized(), j2 = bearings[1].normalized(),
+                        j3 = bearings[2].normalized();
   const Eigen::Vector3d& p1 = points_in_site[0];
   const Eigen::Vector3d& p2 = points_in_site[1];
   const Eigen::Vector3d& p3 = points_in_site[2];
-  const double a2 = (p2 - p3).squaredNorm(), b2 = (p1 - p3).squaredNorm(), c2 = (p1 - p2).squaredNorm();
+  const double a2 = (p2 - p3).squaredNorm(), b2 = (p1 - p3).squaredNorm(),
+               c2 = (p1 - p2).squaredNorm();
   if (!(a2 > 0.0 && b2 > 0.0 && c2 > 0.0)) return out;
   const double ca = j2.dot(j3), cb = j1.dot(j3), cg = j1.dot(j2);
   const double k1 = (a2 - c2) / b2, k2 = (a2 + c2) / b2;
@@ -143,19 +151,23 @@ std::vector<camera::ExteriorOrientation> ResectThreePoints(const Eigen::Vector3d
 }
 
 ResectionResult Resect(const camera::CameraModel& model, const std::vector<Eigen::Vector2d>& pixels,
-                       const std::vector<Eigen::Vector3d>& points_in_site, const ResectionOptions& options) {
+                       const std::vector<Eigen::Vector3d>& points_in_site,
+                       const ResectionOptions& options) {
   options.Check();
   ResectionResult result;
   const size_t n = pixels.size();
   if (n != points_in_site.size()) {
-    throw InvalidArgument(Message("resection: ", n, " pixels but ", points_in_site.size(), " control points"));
+    throw InvalidArgument(
+        Message("resection: ", n, " pixels but ", points_in_site.size(), " control points"));
   }
   for (size_t i = 0; i < n; ++i) {
     if (!pixels[i].allFinite() || !points_in_site[i].allFinite())
-      throw InvalidArgument(Message("resection: control point ", i, " has a non-finite pixel or position"));
+      throw InvalidArgument(
+          Message("resection: control point ", i, " has a non-finite pixel or position"));
   }
   if (n < 4) {
-    result.message = Message("too few control points: ", n, " (need >= 4: three to solve, one to choose)");
+    result.message =
+        Message("too few control points: ", n, " (need >= 4: three to solve, one to choose)");
     return result;
   }
   if (AreCollinear(points_in_site)) {
@@ -219,8 +231,8 @@ ResectionResult Resect(const camera::CameraModel& model, const std::vector<Eigen
     }
   }
   if (best_n < 4) {
-    result.message = Message("no pose explains >= 4 control points within ", options.inlier_threshold_px,
-                             " px (best: ", best_n, " of ", n, ")");
+    result.message = Message("no pose explains >= 4 control points within ",
+                             options.inlier_threshold_px, " px (best: ", best_n, " of ", n, ")");
     return result;
   }
   result.exterior = best;
@@ -231,9 +243,10 @@ ResectionResult Resect(const camera::CameraModel& model, const std::vector<Eigen
     ceres::Problem problem;
     for (size_t i = 0; i < n; ++i) {
       if (!best_in[i]) continue;
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<ResectionError, 2, camera::kNumExterior>(
-                                   new ResectionError(model, pixels[i], points_in_site[i])),
-                               nullptr, e.data());
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<ResectionError, 2, camera::kNumExterior>(
+              new ResectionError(model, pixels[i], points_in_site[i])),
+          nullptr, e.data());
     }
     ceres::Solver::Options so;
     so.linear_solver_type = ceres::DENSE_QR;
@@ -266,7 +279,8 @@ ResectionResult Resect(const camera::CameraModel& model, const std::vector<Eigen
   }
   result.rms_px = std::sqrt(ss / std::max(1, result.num_inliers));
   result.success = true;
-  result.message = Message(result.num_inliers, " of ", n, " control points inliers, rms ", result.rms_px, " px");
+  result.message =
+      Message(result.num_inliers, " of ", n, " control points inliers, rms ", result.rms_px, " px");
   return result;
 }
 

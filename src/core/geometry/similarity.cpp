@@ -21,8 +21,10 @@ Similarity3 Similarity3::Inverse() const {
 }
 
 void HelmertOptions::Check() const {
-  if (!(inlier_threshold > 0.0)) throw ConfigError(Message("helmert inlier_threshold must be > 0, got ", inlier_threshold));
-  if (max_iterations <= 0) throw ConfigError(Message("helmert max_iterations must be > 0, got ", max_iterations));
+  if (!(inlier_threshold > 0.0))
+    throw ConfigError(Message("helmert inlier_threshold must be > 0, got ", inlier_threshold));
+  if (max_iterations <= 0)
+    throw ConfigError(Message("helmert max_iterations must be > 0, got ", max_iterations));
 }
 
 bool AreCollinear(const std::vector<Eigen::Vector3d>& points, double relative_tolerance) {
@@ -36,20 +38,26 @@ bool AreCollinear(const std::vector<Eigen::Vector3d>& points, double relative_to
   return !(s(0) > 0.0) || s(1) < relative_tolerance * s(0);
 }
 
-Similarity3 FitSimilarity(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
-                          bool estimate_scale, const std::vector<double>& weights) {
+Similarity3 FitSimilarity(const std::vector<Eigen::Vector3d>& source,
+                          const std::vector<Eigen::Vector3d>& target, bool estimate_scale,
+                          const std::vector<double>& weights) {
   if (source.size() != target.size())
-    throw InvalidArgument(Message("similarity: ", source.size(), " source points but ", target.size(), " target points"));
-  if (source.size() < 3) throw InvalidArgument(Message("similarity needs >= 3 point pairs, got ", source.size()));
+    throw InvalidArgument(Message("similarity: ", source.size(), " source points but ",
+                                  target.size(), " target points"));
+  if (source.size() < 3)
+    throw InvalidArgument(Message("similarity needs >= 3 point pairs, got ", source.size()));
   if (!weights.empty() && weights.size() != source.size())
-    throw InvalidArgument(Message("similarity: ", weights.size(), " weights for ", source.size(), " points"));
-  if (AreCollinear(source) || AreCollinear(target)) throw InvalidArgument("similarity: the points are collinear");
+    throw InvalidArgument(
+        Message("similarity: ", weights.size(), " weights for ", source.size(), " points"));
+  if (AreCollinear(source) || AreCollinear(target))
+    throw InvalidArgument("similarity: the points are collinear");
   double wsum = 0.0;
   Eigen::Vector3d ms = Eigen::Vector3d::Zero(), mt = Eigen::Vector3d::Zero();
   for (size_t i = 0; i < source.size(); ++i) {
     const double w = weights.empty() ? 1.0 : weights[i];
     if (!(w >= 0.0) || !source[i].allFinite() || !target[i].allFinite())
-      throw InvalidArgument(Message("similarity: point pair ", i, " is not finite or has a negative weight"));
+      throw InvalidArgument(
+          Message("similarity: point pair ", i, " is not finite or has a negative weight"));
     wsum += w;
     ms += w * source[i];
     mt += w * target[i];
@@ -76,7 +84,8 @@ Similarity3 FitSimilarity(const std::vector<Eigen::Vector3d>& source, const std:
 }
 
 HelmertResult FitSimilarityRobust(const std::vector<Eigen::Vector3d>& source,
-                                  const std::vector<Eigen::Vector3d>& target, const HelmertOptions& options) {
+                                  const std::vector<Eigen::Vector3d>& target,
+                                  const HelmertOptions& options) {
   options.Check();
   HelmertResult r;
   const size_t n = source.size();
@@ -89,7 +98,8 @@ HelmertResult FitSimilarityRobust(const std::vector<Eigen::Vector3d>& source,
     return r;
   }
   if (AreCollinear(source) || AreCollinear(target)) {
-    r.message = Message("all ", n, " points are collinear: the rotation about their line is undetermined");
+    r.message =
+        Message("all ", n, " points are collinear: the rotation about their line is undetermined");
     return r;
   }
   auto count_inliers = [&](const Similarity3& t, std::vector<bool>* in, double* sum) {
@@ -116,7 +126,8 @@ HelmertResult FitSimilarityRobust(const std::vector<Eigen::Vector3d>& source,
     for (int it = 0; it < options.max_iterations; ++it) {
       size_t a = pick(rng), b = pick(rng), c = pick(rng);
       if (a == b || b == c || a == c) continue;
-      std::vector<Eigen::Vector3d> s = {source[a], source[b], source[c]}, t = {target[a], target[b], target[c]};
+      std::vector<Eigen::Vector3d> s = {source[a], source[b], source[c]},
+                                   t = {target[a], target[b], target[c]};
       if (AreCollinear(s, 1e-2) || AreCollinear(t, 1e-2)) continue;
       const Similarity3 tr = FitSimilarity(s, t, options.estimate_scale);
       double sum;
@@ -137,7 +148,8 @@ HelmertResult FitSimilarityRobust(const std::vector<Eigen::Vector3d>& source,
         t.push_back(target[i]);
       }
     if (s.size() < 3 || AreCollinear(s) || AreCollinear(t)) {
-      r.message = Message("only ", s.size(), " inliers (or collinear inliers) within ", options.inlier_threshold, " m");
+      r.message = Message("only ", s.size(), " inliers (or collinear inliers) within ",
+                          options.inlier_threshold, " m");
       return r;
     }
     r.target_from_source = FitSimilarity(s, t, options.estimate_scale);

@@ -29,12 +29,15 @@ double GcpNumber(const std::string& text, const std::string& where, const char* 
 
 }  // namespace
 
-std::string WgsUtmEpsg(int zone, bool south) { return Message("EPSG:", (south ? 32700 : 32600) + zone); }
+std::string WgsUtmEpsg(int zone, bool south) {
+  return Message("EPSG:", (south ? 32700 : 32600) + zone);
+}
 
 std::string NormaliseGcpCrs(const std::string& crs) {
   std::istringstream in(crs);
   std::string datum, utm, zone;
-  if (in >> datum >> utm >> zone && (datum == "WGS84" || datum == "WGS 84") && utm == "UTM" && zone.size() >= 2) {
+  if (in >> datum >> utm >> zone && (datum == "WGS84" || datum == "WGS 84") && utm == "UTM" &&
+      zone.size() >= 2) {
     const char hemi = zone.back();
     const int z = std::atoi(zone.substr(0, zone.size() - 1).c_str());
     if (z >= 1 && z <= 60 && (hemi == 'N' || hemi == 'S' || hemi == 'n' || hemi == 's'))
@@ -49,10 +52,12 @@ std::string NormaliseGcpCrs(const std::string& crs) {
       const size_t eq = w.find('=');
       kv[w.substr(0, eq)] = eq == std::string::npos ? "" : w.substr(eq + 1);
     }
-    const bool wgs84 = kv["+datum"] == "WGS84" || (kv.count("+datum") == 0 && kv["+ellps"] == "WGS84");
+    const bool wgs84 =
+        kv["+datum"] == "WGS84" || (kv.count("+datum") == 0 && kv["+ellps"] == "WGS84");
     const int zone = std::atoi(kv["+zone"].c_str());
-    const bool plain = (kv.count("+units") == 0 || kv["+units"] == "m") && kv.count("+towgs84") == 0 &&
-                       kv.count("+x_0") == 0 && kv.count("+k") == 0 && kv.count("+k_0") == 0;
+    const bool plain = (kv.count("+units") == 0 || kv["+units"] == "m") &&
+                       kv.count("+towgs84") == 0 && kv.count("+x_0") == 0 && kv.count("+k") == 0 &&
+                       kv.count("+k_0") == 0;
     if (kv["+proj"] == "utm" && wgs84 && zone >= 1 && zone <= 60 && plain)
       return WgsUtmEpsg(zone, kv.count("+south") > 0);
     if (kv.count("+type") == 0) return crs + " +type=crs";
@@ -83,8 +88,9 @@ GcpList ReadGcpList(const std::string& path) {
     std::vector<std::string> f;
     for (std::string s; fields >> s;) f.push_back(s);
     if (f.size() < 6)
-      throw InvalidArgument(Message(where, ": ", f.size(),
-                                    " fields where 'geo_x geo_y geo_z im_x im_y image_name [gcp_name]' needs 6 or 7"));
+      throw InvalidArgument(Message(
+          where, ": ", f.size(),
+          " fields where 'geo_x geo_y geo_z im_x im_y image_name [gcp_name]' needs 6 or 7"));
     const Eigen::Vector3d geo(GcpNumber(f[0], where, "geo_x"), GcpNumber(f[1], where, "geo_y"),
                               GcpNumber(f[2], where, "geo_z"));
     GcpPick pick;
@@ -104,7 +110,8 @@ GcpList ReadGcpList(const std::string& path) {
     }
     GcpPoint& p = list.points[it->second];
     if ((p.geo - geo).norm() > 1e-6 * std::max(1.0, geo.norm()))
-      throw InvalidArgument(Message(where, ": point '", p.name, "' has other coordinates than on line ", p.line));
+      throw InvalidArgument(
+          Message(where, ": point '", p.name, "' has other coordinates than on line ", p.line));
     for (const GcpPick& q : p.picks)
       if (q.image == pick.image)
         throw InvalidArgument(Message(where, ": point '", p.name, "' is picked in '", pick.image,

@@ -33,7 +33,8 @@ GeoList ReadGeoList(const std::string& path) {
       continue;
     }
     if (f.size() < 4)
-      throw InvalidArgument(Message(path, ":", n, ": ", f.size(), " fields; need image_name geo_x geo_y geo_z"));
+      throw InvalidArgument(
+          Message(path, ":", n, ": ", f.size(), " fields; need image_name geo_x geo_y geo_z"));
     GeoEntry e;
     e.image = f[0];
     e.line = n;

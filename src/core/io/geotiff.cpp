@@ -51,11 +51,14 @@ std::string MemoryNameFor() {
 
 }  // namespace
 
-int GeoRaster::AddBand(const std::string& name) { return AddBand(name, static_cast<float>(nodata)); }
+int GeoRaster::AddBand(const std::string& name) {
+  return AddBand(name, static_cast<float>(nodata));
+}
 
 int GeoRaster::AddBand(const std::string& name, float fill) {
   if (width <= 0 || height <= 0)
-    throw InvalidArgument(Message("GeoRaster::AddBand('", name, "'): size ", width, "x", height, " must be positive"));
+    throw InvalidArgument(Message("GeoRaster::AddBand('", name, "'): size ", width, "x", height,
+                                  " must be positive"));
   band_names.push_back(name);
   bands.emplace_back(static_cast<size_t>(width) * height, fill);
   return num_bands() - 1;
@@ -79,12 +82,14 @@ bool GeoRaster::CellOf(double x, double y, int* row, int* col) const {
 double GeoRaster::Interpolate(int band, double x, double y) const {
   const double fc = (x - origin_x) / cell_size - 0.5;
   const double fr = (origin_y - y) / cell_size - 0.5;
-  if (!(fc >= 0 && fr >= 0 && fc <= width - 1 && fr <= height - 1)) return std::numeric_limits<double>::quiet_NaN();
+  if (!(fc >= 0 && fr >= 0 && fc <= width - 1 && fr <= height - 1))
+    return std::numeric_limits<double>::quiet_NaN();
   const int c0 = std::min(static_cast<int>(fc), std::max(width - 2, 0));
   const int r0 = std::min(static_cast<int>(fr), std::max(height - 2, 0));
   const int c1 = std::min(c0 + 1, width - 1), r1 = std::min(r0 + 1, height - 1);
   const double ac = fc - c0, ar = fr - r0;
-  const float v00 = At(band, r0, c0), v01 = At(band, r0, c1), v10 = At(band, r1, c0), v11 = At(band, r1, c1);
+  const float v00 = At(band, r0, c0), v01 = At(band, r0, c1), v10 = At(band, r1, c0),
+              v11 = At(band, r1, c1);
   if (IsNoData(v00) || IsNoData(v01) || IsNoData(v10) || IsNoData(v11))
     return std::numeric_limits<double>::quiet_NaN();
   return (1 - ar) * ((1 - ac) * v00 + ac * v01) + ar * ((1 - ac) * v10 + ac * v11);
@@ -92,18 +97,22 @@ double GeoRaster::Interpolate(int band, double x, double y) const {
 
 void GeoRaster::Check(const std::string& context) const {
   if (width <= 0 || height <= 0)
-    throw InvalidArgument(Message(context, ": raster size ", width, "x", height, " must be positive"));
+    throw InvalidArgument(
+        Message(context, ": raster size ", width, "x", height, " must be positive"));
   if (!(cell_size > 0.0) || !std::isfinite(cell_size))
     throw InvalidArgument(Message(context, ": cell_size ", cell_size, " must be > 0"));
   if (!std::isfinite(origin_x) || !std::isfinite(origin_y))
-    throw InvalidArgument(Message(context, ": origin (", origin_x, ", ", origin_y, ") must be finite"));
+    throw InvalidArgument(
+        Message(context, ": origin (", origin_x, ", ", origin_y, ") must be finite"));
   if (bands.empty()) throw InvalidArgument(Message(context, ": raster has no band"));
   if (band_names.size() != bands.size())
-    throw InvalidArgument(Message(context, ": ", band_names.size(), " band names for ", bands.size(), " bands"));
+    throw InvalidArgument(
+        Message(context, ": ", band_names.size(), " band names for ", bands.size(), " bands"));
   for (size_t b = 0; b < bands.size(); ++b)
     if (bands[b].size() != static_cast<size_t>(width) * height)
-      throw InvalidArgument(Message(context, ": band ", b, " ('", band_names[b], "') has ", bands[b].size(),
-                                    " values, expected ", static_cast<size_t>(width) * height));
+      throw InvalidArgument(Message(context, ": band ", b, " ('", band_names[b], "') has ",
+                                    bands[b].size(), " values, expected ",
+                                    static_cast<size_t>(width) * height));
   if (epsg < 0) throw InvalidArgument(Message(context, ": epsg ", epsg, " must be >= 0"));
 }
 
@@ -130,8 +139,8 @@ void WriteGeoTiff(const std::string& path, const GeoRaster& raster) {
   char** create_options = nullptr;
   create_options = CSLSetNameValue(create_options, "COMPRESS", "DEFLATE");
   create_options = CSLSetNameValue(create_options, "PREDICTOR", "3");
-  GDALDataset* ds = driver->Create(tmp.c_str(), raster.width, raster.height, raster.num_bands(), GDT_Float32,
-                                   create_options);
+  GDALDataset* ds = driver->Create(tmp.c_str(), raster.width, raster.height, raster.num_bands(),
+                                   GDT_Float32, create_options);
   CSLDestroy(create_options);
   if (!ds) throw IoError(Message(path, ": cannot create GeoTIFF", QuietGdal::Last()));
 
@@ -144,8 +153,8 @@ void WriteGeoTiff(const std::string& path, const GeoRaster& raster) {
     band->SetDescription(raster.band_names[b].c_str());
     ok = band->SetNoDataValue(raster.nodata) == CE_None;
     ok = ok && band->RasterIO(GF_Write, 0, 0, raster.width, raster.height,
-                              const_cast<float*>(raster.bands[b].data()), raster.width, raster.height,
-                              GDT_Float32, 0, 0) == CE_None;
+                              const_cast<float*>(raster.bands[b].data()), raster.width,
+                              raster.height, GDT_Float32, 0, 0) == CE_None;
   }
   std::string why = QuietGdal::Last();
   // GDALClose flushes; a failure there (disk full) is the last chance to notice.
@@ -182,12 +191,14 @@ GeoRaster ReadGeoTiff(const std::string& path) {
   r.height = ds->GetRasterYSize();
   if (ds->GetRasterCount() < 1) throw IoError(Message(path, ": raster has no band"));
   double gt[6];
-  if (ds->GetGeoTransform(gt) != CE_None) throw IoError(Message(path, ": raster has no geotransform"));
+  if (ds->GetGeoTransform(gt) != CE_None)
+    throw IoError(Message(path, ": raster has no geotransform"));
   if (gt[2] != 0.0 || gt[4] != 0.0)
-    throw IoError(Message(path, ": rotated geotransform (", gt[2], ", ", gt[4], ") is not supported"));
+    throw IoError(
+        Message(path, ": rotated geotransform (", gt[2], ", ", gt[4], ") is not supported"));
   if (!(gt[1] > 0.0) || std::abs(gt[1] + gt[5]) > 1e-9 * gt[1])
-    throw IoError(Message(path, ": cells must be square and north-up (geotransform dx ", gt[1], ", dy ", gt[5],
-                          ")"));
+    throw IoError(Message(path, ": cells must be square and north-up (geotransform dx ", gt[1],
+                          ", dy ", gt[5], ")"));
   r.origin_x = gt[0];
   r.origin_y = gt[3];
   r.cell_size = gt[1];
@@ -209,8 +220,8 @@ GeoRaster ReadGeoTiff(const std::string& path) {
     const char* desc = band->GetDescription();
     r.band_names.push_back(desc ? desc : "");
     r.bands.emplace_back(static_cast<size_t>(r.width) * r.height);
-    if (band->RasterIO(GF_Read, 0, 0, r.width, r.height, r.bands.back().data(), r.width, r.height, GDT_Float32, 0,
-                       0) != CE_None)
+    if (band->RasterIO(GF_Read, 0, 0, r.width, r.height, r.bands.back().data(), r.width, r.height,
+                       GDT_Float32, 0, 0) != CE_None)
       throw IoError(Message(path, ": cannot read band ", b + 1, QuietGdal::Last()));
     // Bands with their own nodata value are mapped to the raster's.
     if (has_nodata && b > 0 && !(nd == r.nodata || (std::isnan(nd) && std::isnan(r.nodata))))

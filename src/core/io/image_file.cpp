@@ -154,19 +154,18 @@ std::string Unrecognised(const uint8_t* b, size_t n) {
   }
   std::string first;
   for (size_t i = 0; i < std::min<size_t>(n, 8); ++i) first += (i ? " " : "") + Hex(b[i]);
-  return Message("not an image format this program reads (JPEG, PNG, TIFF, PGM/PPM): the content ",
-                 looks.empty() ? "starts with " + first : "looks like " + looks + " (" + first + ")");
+  return Message(
+      "not an image format this program reads (JPEG, PNG, TIFF, PGM/PPM): the content ",
+      looks.empty() ? "starts with " + first : "looks like " + looks + " (" + first + ")");
 }
 
-bool IsJpegSof(int m) {
-  return m >= 0xC0 && m <= 0xCF && m != 0xC4 && m != 0xC8 && m != 0xCC;
-}
+bool IsJpegSof(int m) { return m >= 0xC0 && m <= 0xCF && m != 0xC4 && m != 0xC8 && m != 0xCC; }
 bool IsStandaloneMarker(int m) { return m == 0x01 || (m >= 0xD0 && m <= 0xD7); }
 
 // "truncated JPEG: ..." with libjpeg's own words, which a user may have seen.
 [[noreturn]] void JpegTruncated(const ImageBytes& r, const std::string& where) {
-  r.Fail(Message("truncated JPEG: the data ends at byte ", r.position(), " of ", r.size(), " ", where,
-                 " (libjpeg: \"Premature end of JPEG file\")"));
+  r.Fail(Message("truncated JPEG: the data ends at byte ", r.position(), " of ", r.size(), " ",
+                 where, " (libjpeg: \"Premature end of JPEG file\")"));
 }
 
 // The marker of the next segment (after its 0xFF and fill bytes).
@@ -212,7 +211,9 @@ ImageHeader JpegHeader(ImageBytes& r) {
       h.width = (f[3] << 8) | f[4];
       h.channels = f[5];
       if (h.height == 0)
-        r.Fail("the JPEG frame header gives the height 0 (a DNL segment), which this program does not read");
+        r.Fail(
+            "the JPEG frame header gives the height 0 (a DNL segment), which this program does not "
+            "read");
       return h;
     }
     if (!r.Skip(len - 2)) JpegTruncated(r, Message("in segment FF", Hex(m)));
@@ -255,7 +256,8 @@ void CheckJpeg(ImageBytes& r) {
 
 ImageHeader PngHeader(ImageBytes& r) {
   uint8_t b[8 + 8 + 13];
-  if (!r.Read(b, sizeof(b))) r.Fail(Message("truncated PNG: ", r.size(), " bytes, too short for its header"));
+  if (!r.Read(b, sizeof(b)))
+    r.Fail(Message("truncated PNG: ", r.size(), " bytes, too short for its header"));
   if (Be32(b + 8) != 13 || std::memcmp(b + 12, "IHDR", 4) != 0)
     r.Fail("corrupt PNG: the first chunk is not the 13-byte header IHDR");
   const uint32_t w = Be32(b + 16), h = Be32(b + 20);
@@ -267,12 +269,23 @@ ImageHeader PngHeader(ImageBytes& r) {
   hd.width = static_cast<int>(w);
   hd.height = static_cast<int>(h);
   switch (colour) {
-    case 0: hd.channels = 1; break;
-    case 2: hd.channels = 3; break;
-    case 3: hd.channels = 3; break;  // palette
-    case 4: hd.channels = 2; break;
-    case 6: hd.channels = 4; break;
-    default: r.Fail(Message("corrupt PNG: colour type ", colour, " in the header"));
+    case 0:
+      hd.channels = 1;
+      break;
+    case 2:
+      hd.channels = 3;
+      break;
+    case 3:
+      hd.channels = 3;
+      break;  // palette
+    case 4:
+      hd.channels = 2;
+      break;
+    case 6:
+      hd.channels = 4;
+      break;
+    default:
+      r.Fail(Message("corrupt PNG: colour type ", colour, " in the header"));
   }
   if (depth != 1 && depth != 2 && depth != 4 && depth != 8 && depth != 16)
     r.Fail(Message("corrupt PNG: bit depth ", depth, " in the header"));
@@ -305,7 +318,9 @@ void CheckPng(ImageBytes& r) {
                      " before the end chunk IEND"));
     const uint32_t len = Be32(head);
     const std::string type(reinterpret_cast<const char*>(head + 4), 4);
-    if (len > 0x7FFFFFFFu || !std::all_of(type.begin(), type.end(), [](char c) { return std::isalpha(static_cast<unsigned char>(c)); }))
+    if (len > 0x7FFFFFFFu || !std::all_of(type.begin(), type.end(), [](char c) {
+          return std::isalpha(static_cast<unsigned char>(c));
+        }))
       r.Fail(Message("corrupt PNG: no valid chunk at byte ", at));
     uint32_t crc = Crc32(0xFFFFFFFFu, head + 4, 4);
     uint8_t stored[4];
@@ -334,7 +349,8 @@ ImageHeader TiffHeader(ImageBytes& r) {
     if (!r.Read(b + 8, 8)) r.Fail("truncated TIFF: no first IFD offset");
     ifd = u(b + 8, 8);
   }
-  const int count_size = big_tiff ? 8 : 2, entry_size = big_tiff ? 20 : 12, field = big_tiff ? 8 : 4;
+  const int count_size = big_tiff ? 8 : 2, entry_size = big_tiff ? 20 : 12,
+            field = big_tiff ? 8 : 4;
   if (!r.Seek(ifd) || !r.Read(b, count_size))
     r.Fail(Message("corrupt TIFF: the first IFD offset ", ifd, " is beyond the file's ", r.size(),
                    " bytes"));
@@ -365,7 +381,8 @@ ImageHeader TiffHeader(ImageBytes& r) {
     uint8_t s[2];
     if (r.Seek(bits_offset) && r.Read(s, 2)) bits = static_cast<int64_t>(u(s, 2));
   }
-  if (width < 0 || height < 0) r.Fail("corrupt TIFF: the first IFD has no ImageWidth or ImageLength");
+  if (width < 0 || height < 0)
+    r.Fail("corrupt TIFF: the first IFD has no ImageWidth or ImageLength");
   if (width == 0 || height == 0 || width > std::numeric_limits<int>::max() ||
       height > std::numeric_limits<int>::max())
     r.Fail(Message("corrupt TIFF: the header gives the size ", width, " x ", height, " px"));
@@ -395,10 +412,12 @@ ImageHeader PnmHeader(ImageBytes& r, int64_t* data_start, int* kind) {
         break;
       }
     }
-    if (c < '0' || c > '9') r.Fail("corrupt PGM/PPM: the header's width, height or maximum is missing");
+    if (c < '0' || c > '9')
+      r.Fail("corrupt PGM/PPM: the header's width, height or maximum is missing");
     for (; c >= '0' && c <= '9'; c = r.Get()) {
       v[k] = v[k] * 10 + (c - '0');
-      if (v[k] > std::numeric_limits<int>::max()) r.Fail("corrupt PGM/PPM: a header number is too large");
+      if (v[k] > std::numeric_limits<int>::max())
+        r.Fail("corrupt PGM/PPM: a header number is too large");
     }
   }
   *data_start = r.position();  // one white-space byte after the last number was read
@@ -414,7 +433,10 @@ ImageHeader PnmHeader(ImageBytes& r, int64_t* data_start, int* kind) {
 }
 
 const char* FormatName(const std::string& format) {
-  return format == "jpeg" ? "JPEG" : format == "png" ? "PNG" : format == "tiff" ? "TIFF" : "PGM/PPM";
+  return format == "jpeg"   ? "JPEG"
+         : format == "png"  ? "PNG"
+         : format == "tiff" ? "TIFF"
+                            : "PGM/PPM";
 }
 
 struct Opened {
@@ -449,8 +471,8 @@ Opened OpenImage(ImageBytes& r, const ImageFileOptions& options) {
   if (!(mp <= options.max_megapixels)) {
     char size[32];
     std::snprintf(size, sizeof(size), "%.1f", mp);
-    r.Fail(Message("the ", FormatName(h.format), " header claims ", h.width, " x ", h.height, " px (",
-                   size, " MP), more than max_megapixels ", options.max_megapixels,
+    r.Fail(Message("the ", FormatName(h.format), " header claims ", h.width, " x ", h.height,
+                   " px (", size, " MP), more than max_megapixels ", options.max_megapixels,
                    "; refused before decoding"));
   }
   return o;
@@ -492,13 +514,14 @@ ImageHeader CheckImageFile(const std::string& path, const ImageFileOptions& opti
     const int64_t need = o.pnm_data_start + int64_t(o.header.width) * o.header.height *
                                                 o.header.channels * (o.header.bit_depth / 8);
     if (r.size() < need)
-      r.Fail(Message("truncated PGM/PPM: ", r.size(), " bytes, the header's ", o.header.width, " x ",
-                     o.header.height, " px need ", need));
+      r.Fail(Message("truncated PGM/PPM: ", r.size(), " bytes, the header's ", o.header.width,
+                     " x ", o.header.height, " px need ", need));
   }
   return o.header;
 }
 
-cv::Mat ReadImageChecked(const std::string& path, int imread_flags, const ImageFileOptions& options) {
+cv::Mat ReadImageChecked(const std::string& path, int imread_flags,
+                         const ImageFileOptions& options) {
   const ImageHeader h = CheckImageFile(path, options);
   cv::Mat image;
   try {
@@ -509,21 +532,23 @@ cv::Mat ReadImageChecked(const std::string& path, int imread_flags, const ImageF
   }
   if (image.empty())
     throw IoError(Message("image '", path, "': OpenCV cannot decode this ", FormatName(h.format),
-                          " file (", h.width, " x ", h.height, " px, ", h.channels,
-                          " x ", h.bit_depth, " bit)"));
+                          " file (", h.width, " x ", h.height, " px, ", h.channels, " x ",
+                          h.bit_depth, " bit)"));
   return image;
 }
 
 std::string FormatNote(const std::string& path, const ImageHeader& header) {
   std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
   const std::string& f = header.format;
-  const bool matches = (f == "jpeg" && (ext == ".jpg" || ext == ".jpeg" || ext == ".jpe")) ||
-                       (f == "png" && ext == ".png") || (f == "tiff" && (ext == ".tif" || ext == ".tiff")) ||
-                       (f == "pnm" && (ext == ".pgm" || ext == ".ppm" || ext == ".pnm" || ext == ".pbm"));
+  const bool matches =
+      (f == "jpeg" && (ext == ".jpg" || ext == ".jpeg" || ext == ".jpe")) ||
+      (f == "png" && ext == ".png") || (f == "tiff" && (ext == ".tif" || ext == ".tiff")) ||
+      (f == "pnm" && (ext == ".pgm" || ext == ".ppm" || ext == ".pnm" || ext == ".pbm"));
   if (matches) return "";
-  return Message("image '", path, "': the content is ", FormatName(f), ", not what the name says; read as ",
-                 FormatName(f));
+  return Message("image '", path, "': the content is ", FormatName(f),
+                 ", not what the name says; read as ", FormatName(f));
 }
 
 }  // namespace io

@@ -26,7 +26,7 @@ bool ParseNumber(const std::string& token, double* value) {
 }  // namespace
 
 std::vector<PickedPoint> ParseSurveyedPoints(const std::string& text, const std::string& name,
-                                               PixelOrigin origin) {
+                                             PixelOrigin origin) {
   static const char* kColumns[5] = {"X", "Y", "Z", "u", "v"};
   std::vector<PickedPoint> points;
   std::istringstream in(text);

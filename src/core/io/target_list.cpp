@@ -20,14 +20,18 @@ TargetRole TargetRoleFromName(const std::string& name) {
   if (name == "control") return TargetRole::kControl;
   if (name == "monitoring") return TargetRole::kMonitoring;
   if (name == "check") return TargetRole::kCheck;
-  throw ConfigError(Message("unknown target role '", name, "' (expected control, monitoring or check)"));
+  throw ConfigError(
+      Message("unknown target role '", name, "' (expected control, monitoring or check)"));
 }
 
 std::string TargetRoleName(TargetRole role) {
   switch (role) {
-    case TargetRole::kControl: return "control";
-    case TargetRole::kMonitoring: return "monitoring";
-    case TargetRole::kCheck: return "check";
+    case TargetRole::kControl:
+      return "control";
+    case TargetRole::kMonitoring:
+      return "monitoring";
+    case TargetRole::kCheck:
+      return "check";
   }
   return "unknown";
 }
@@ -55,16 +59,19 @@ namespace {
 constexpr double kMaxCoordinate = 1e5;  // [m] |x|, |y|, |z| in the site frame (100 km)
 constexpr double kMinSigma = 1e-6;      // [m]
 constexpr double kMaxSigma = 1e3;       // [m]
-constexpr double kSamePosition = 1e-3;  // [m] two targets closer than this are one position written twice
+constexpr double kSamePosition =
+    1e-3;  // [m] two targets closer than this are one position written twice
 
 // Two surveyed targets at the same position are a copy-paste error.
 void CheckDistinctPositions(const TargetList& list, const YamlMap& root) {
   const auto& t = list.targets();
   for (size_t i = 0; i < t.size(); ++i)
     for (size_t j = i + 1; j < t.size(); ++j)
-      if (t[i].position && t[j].position && (*t[i].position - *t[j].position).norm() < kSamePosition)
-        root.Fail("targets", Message("targets ", t[i].Key(), " and ", t[j].Key(), " have the same position (",
-                                     t[i].position->x(), ", ", t[i].position->y(), ", ", t[i].position->z(), ")"));
+      if (t[i].position && t[j].position &&
+          (*t[i].position - *t[j].position).norm() < kSamePosition)
+        root.Fail("targets", Message("targets ", t[i].Key(), " and ", t[j].Key(),
+                                     " have the same position (", t[i].position->x(), ", ",
+                                     t[i].position->y(), ", ", t[i].position->z(), ")"));
 }
 
 TargetList FromMap(YamlMap root) {
@@ -74,15 +81,16 @@ TargetList FromMap(YamlMap root) {
   for (YamlMap t : root.List("targets")) {
     TargetSpec s;
     s.id = t.RequiredInt("id", 0, 1 << 30);
-    s.family = t.String("family", "tag36h11", {"tag36h11", "tag25h9", "tag16h5", "tagStandard41h12", "circle"});
+    s.family = t.String("family", "tag36h11",
+                        {"tag36h11", "tag25h9", "tag16h5", "tagStandard41h12", "circle"});
     s.size = t.RequiredDouble("size", 1e-3, 100.0, "m");
     s.role = TargetRoleFromName(t.String("role", "monitoring", {"control", "monitoring", "check"}));
     if (t.Has("position")) {
       const auto p = t.RequiredDoubles("position", 3);
       s.position = Eigen::Vector3d(p[0], p[1], p[2]);
       if (!s.position->allFinite() || s.position->cwiseAbs().maxCoeff() > kMaxCoordinate)
-        t.Fail("position", Message("of target ", s.Key(), " (", p[0], ", ", p[1], ", ", p[2], ") m is beyond ",
-                                   kMaxCoordinate, " m from the site origin"));
+        t.Fail("position", Message("of target ", s.Key(), " (", p[0], ", ", p[1], ", ", p[2],
+                                   ") m is beyond ", kMaxCoordinate, " m from the site origin"));
     } else if (s.role != TargetRole::kMonitoring) {
       t.Fail("position", Message("is missing: target ", s.Key(), " is a ", TargetRoleName(s.role),
                                  " point and needs surveyed coordinates"));
@@ -90,7 +98,8 @@ TargetList FromMap(YamlMap root) {
     const auto sigma = t.Doubles("sigma", {0.01, 0.01}, 2);
     for (double v : sigma)
       if (!(v >= kMinSigma && v <= kMaxSigma))
-        t.Fail("sigma", Message("of target ", s.Key(), ": ", v, " m is outside [", kMinSigma, ", ", kMaxSigma, "] m"));
+        t.Fail("sigma", Message("of target ", s.Key(), ": ", v, " m is outside [", kMinSigma, ", ",
+                                kMaxSigma, "] m"));
     s.sigma = Eigen::Vector2d(sigma[0], sigma[1]);
     if (t.Has("normal")) {
       const auto n = t.RequiredDoubles("normal", 3);
@@ -120,16 +129,20 @@ std::string TargetList::ToYaml() const {
   out << std::setprecision(10);
   out << "# slope_monitor target list (schema: include/slope_monitor/core/io/target_list.h)\n";
   out << "# id: int; family: tag36h11|...|circle; size [m]; role: control|monitoring|check;\n";
-  out << "# position [m] site frame; sigma [m] (horizontal, vertical); normal: unit vector (optional)\n";
+  out << "# position [m] site frame; sigma [m] (horizontal, vertical); normal: unit vector "
+         "(optional)\n";
   out << "frame: site\ntargets:\n";
   for (const auto& t : targets_) {
     out << "  - {id: " << t.id << ", family: " << t.family << ", size: " << t.size
         << ", role: " << TargetRoleName(t.role);
     if (t.position) {
-      out << ", position: [" << t.position->x() << ", " << t.position->y() << ", " << t.position->z() << "]";
+      out << ", position: [" << t.position->x() << ", " << t.position->y() << ", "
+          << t.position->z() << "]";
     }
     out << ", sigma: [" << t.sigma.x() << ", " << t.sigma.y() << "]";
-    if (t.normal) out << ", normal: [" << t.normal->x() << ", " << t.normal->y() << ", " << t.normal->z() << "]";
+    if (t.normal)
+      out << ", normal: [" << t.normal->x() << ", " << t.normal->y() << ", " << t.normal->z()
+          << "]";
     out << "}\n";
   }
   return out.str();

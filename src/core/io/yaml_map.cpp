@@ -22,7 +22,8 @@ YamlMap YamlMap::Load(const std::string& path) {
   } catch (const YAML::Exception& e) {
     throw IoError(Message("YAML file '", path, "' is malformed: ", e.what()));
   }
-  if (!node.IsMap()) throw IoError(Message("YAML file '", path, "' must hold a map at its top level"));
+  if (!node.IsMap())
+    throw IoError(Message("YAML file '", path, "' must hold a map at its top level"));
   return YamlMap(node, path);
 }
 
@@ -38,9 +39,12 @@ YamlMap YamlMap::Parse(const std::string& text, const std::string& context) {
   return YamlMap(node, context);
 }
 
-YamlMap::YamlMap(const YAML::Node& node, const std::string& context) : node_(node), context_(context) {}
+YamlMap::YamlMap(const YAML::Node& node, const std::string& context)
+    : node_(node), context_(context) {}
 
-bool YamlMap::Has(const std::string& key) const { return node_.IsMap() && node_[key].IsDefined() && !node_[key].IsNull(); }
+bool YamlMap::Has(const std::string& key) const {
+  return node_.IsMap() && node_[key].IsDefined() && !node_[key].IsNull();
+}
 
 void YamlMap::Fail(const std::string& key, const std::string& what) const {
   throw ConfigError(Message(context_, ": '", key, "' ", what));
@@ -52,7 +56,8 @@ YAML::Node YamlMap::Get(const std::string& key) {
   return node_[key];
 }
 
-double YamlMap::Double(const std::string& key, double default_value, double min, double max, const std::string& unit) {
+double YamlMap::Double(const std::string& key, double default_value, double min, double max,
+                       const std::string& unit) {
   const YAML::Node n = Get(key);
   if (!n.IsDefined() || n.IsNull()) return default_value;
   double v;
@@ -67,12 +72,15 @@ double YamlMap::Double(const std::string& key, double default_value, double min,
   return v;
 }
 
-double YamlMap::RequiredDouble(const std::string& key, double min, double max, const std::string& unit) {
-  if (!Has(key)) Fail(key, Message("is missing (a number", Unit(unit), " in [", min, ", ", max, "])"));
+double YamlMap::RequiredDouble(const std::string& key, double min, double max,
+                               const std::string& unit) {
+  if (!Has(key))
+    Fail(key, Message("is missing (a number", Unit(unit), " in [", min, ", ", max, "])"));
   return Double(key, 0.0, min, max, unit);
 }
 
-int YamlMap::Int(const std::string& key, int default_value, int min, int max, const std::string& unit) {
+int YamlMap::Int(const std::string& key, int default_value, int min, int max,
+                 const std::string& unit) {
   const YAML::Node n = Get(key);
   if (!n.IsDefined() || n.IsNull()) return default_value;
   int v;
@@ -81,12 +89,14 @@ int YamlMap::Int(const std::string& key, int default_value, int min, int max, co
   } catch (const YAML::Exception&) {
     Fail(key, Message("must be an integer", Unit(unit), ", got '", n.Scalar(), "'"));
   }
-  if (v < min || v > max) Fail(key, Message("= ", v, Unit(unit), " is outside [", min, ", ", max, "]"));
+  if (v < min || v > max)
+    Fail(key, Message("= ", v, Unit(unit), " is outside [", min, ", ", max, "]"));
   return v;
 }
 
 int YamlMap::RequiredInt(const std::string& key, int min, int max, const std::string& unit) {
-  if (!Has(key)) Fail(key, Message("is missing (an integer", Unit(unit), " in [", min, ", ", max, "])"));
+  if (!Has(key))
+    Fail(key, Message("is missing (an integer", Unit(unit), " in [", min, ", ", max, "])"));
   return Int(key, 0, min, max, unit);
 }
 
@@ -120,13 +130,14 @@ std::string YamlMap::String(const std::string& key, const std::string& default_v
   return v;
 }
 
-std::string YamlMap::RequiredString(const std::string& key, const std::vector<std::string>& allowed) {
+std::string YamlMap::RequiredString(const std::string& key,
+                                    const std::vector<std::string>& allowed) {
   if (!Has(key)) Fail(key, "is missing (a string)");
   return String(key, "", allowed);
 }
 
-std::vector<double> YamlMap::Doubles(const std::string& key, const std::vector<double>& default_value,
-                                     int size_required) {
+std::vector<double> YamlMap::Doubles(const std::string& key,
+                                     const std::vector<double>& default_value, int size_required) {
   const YAML::Node n = Get(key);
   if (!n.IsDefined() || n.IsNull()) return default_value;
   if (!n.IsSequence()) Fail(key, "must be a list of numbers");
@@ -152,7 +163,8 @@ std::vector<double> YamlMap::RequiredDoubles(const std::string& key, int size_re
   return Doubles(key, {}, size_required);
 }
 
-std::vector<std::string> YamlMap::Strings(const std::string& key, const std::vector<std::string>& default_value) {
+std::vector<std::string> YamlMap::Strings(const std::string& key,
+                                          const std::vector<std::string>& default_value) {
   const YAML::Node n = Get(key);
   if (!n.IsDefined() || n.IsNull()) return default_value;
   if (!n.IsSequence()) Fail(key, "must be a list of strings");
@@ -172,7 +184,8 @@ YamlMap YamlMap::Map(const std::string& key) {
 YamlMap YamlMap::OptionalMap(const std::string& key) {
   YAML::Node n = Get(key);
   if (n.IsDefined() && !n.IsNull() && !n.IsMap()) Fail(key, "must be a map");
-  return YamlMap(n.IsDefined() && !n.IsNull() ? n : YAML::Node(YAML::NodeType::Map), context_ + ": " + key);
+  return YamlMap(n.IsDefined() && !n.IsNull() ? n : YAML::Node(YAML::NodeType::Map),
+                 context_ + ": " + key);
 }
 
 std::vector<YamlMap> YamlMap::List(const std::string& key) {

@@ -18,12 +18,15 @@ void CheckSigma(double sigma, const char* what) {
   }
 }
 
-int KernelRadius(double sigma) { return std::max(1, static_cast<int>(std::ceil(kTruncation * sigma))); }
+int KernelRadius(double sigma) {
+  return std::max(1, static_cast<int>(std::ceil(kTruncation * sigma)));
+}
 
-cv::Mat SepFilter(const cv::Mat& image, const std::vector<float>& kx, const std::vector<float>& ky) {
+cv::Mat SepFilter(const cv::Mat& image, const std::vector<float>& kx,
+                  const std::vector<float>& ky) {
   cv::Mat out;
-  cv::sepFilter2D(image, out, CV_32F, cv::Mat(kx, false), cv::Mat(ky, false), cv::Point(-1, -1), 0.0,
-                  cv::BORDER_REFLECT_101);
+  cv::sepFilter2D(image, out, CV_32F, cv::Mat(kx, false), cv::Mat(ky, false), cv::Point(-1, -1),
+                  0.0, cv::BORDER_REFLECT_101);
   return out;
 }
 
@@ -47,7 +50,8 @@ inline float KeysDerivative(float d) {
 
 void CheckSampleImage(const cv::Mat& image) {
   if (image.type() != CV_32FC1 || image.empty()) {
-    throw InvalidArgument(Message("sampling: image must be non-empty CV_32FC1, got type ", image.type()));
+    throw InvalidArgument(
+        Message("sampling: image must be non-empty CV_32FC1, got type ", image.type()));
   }
 }
 
@@ -56,7 +60,8 @@ void CheckSampleImage(const cv::Mat& image) {
 Interpolation InterpolationFromName(const std::string& name) {
   if (name == "bilinear") return Interpolation::kBilinear;
   if (name == "bicubic") return Interpolation::kBicubic;
-  throw InvalidArgument(Message("interpolation '", name, "' unknown (use 'bilinear' or 'bicubic')"));
+  throw InvalidArgument(
+      Message("interpolation '", name, "' unknown (use 'bilinear' or 'bicubic')"));
 }
 
 const char* InterpolationName(Interpolation interpolation) {
@@ -66,12 +71,14 @@ const char* InterpolationName(Interpolation interpolation) {
 cv::Mat ToFloat(const cv::Mat& image, const char* what) {
   if (image.empty()) throw InvalidArgument(Message(what, ": image is empty"));
   if (image.channels() != 1) {
-    throw InvalidArgument(Message(what, ": expected a single-channel image, got ", image.channels(), " channels"));
+    throw InvalidArgument(
+        Message(what, ": expected a single-channel image, got ", image.channels(), " channels"));
   }
   const int depth = image.depth();
   if (depth == CV_32F) return image;
   if (depth != CV_8U && depth != CV_16U && depth != CV_64F) {
-    throw InvalidArgument(Message(what, ": unsupported pixel depth ", depth, " (use 8U, 16U, 32F or 64F)"));
+    throw InvalidArgument(
+        Message(what, ": unsupported pixel depth ", depth, " (use 8U, 16U, 32F or 64F)"));
   }
   cv::Mat out;
   image.convertTo(out, CV_32F);
@@ -158,14 +165,18 @@ cv::Mat ZeroCrossings(const cv::Mat& signed_image, double min_contrast) {
   cv::Mat mask(f.size(), CV_8U, cv::Scalar(0));
   const int rows = f.rows, cols = f.cols;
   auto crosses = [min_contrast](float a, float b) {
-    const bool opposite = (a > 0.0f && b < 0.0f) || (a < 0.0f && b > 0.0f) || (a == 0.0f) != (b == 0.0f);
+    const bool opposite =
+        (a > 0.0f && b < 0.0f) || (a < 0.0f && b > 0.0f) || (a == 0.0f) != (b == 0.0f);
     return opposite && std::fabs(a - b) >= min_contrast;
   };
   auto mark = [&](int r0, int c0, int r1, int c1) {
     const float a = f.at<float>(r0, c0), b = f.at<float>(r1, c1);
     if (!crosses(a, b)) return;
     int r = r0, c = c0;
-    if (std::fabs(b) < std::fabs(a)) { r = r1; c = c1; }
+    if (std::fabs(b) < std::fabs(a)) {
+      r = r1;
+      c = c1;
+    }
     if (r > 0 && c > 0 && r < rows - 1 && c < cols - 1) mask.at<uint8_t>(r, c) = 255;
   };
   for (int r = 0; r < rows; ++r) {
@@ -325,10 +336,12 @@ void SampleWindow(const cv::Mat& image, double x, double y, int half, Interpolat
 }
 
 float Sample(const cv::Mat& image, double x, double y, Interpolation interpolation) {
-  return interpolation == Interpolation::kBilinear ? SampleBilinear(image, x, y) : SampleBicubic(image, x, y);
+  return interpolation == Interpolation::kBilinear ? SampleBilinear(image, x, y)
+                                                   : SampleBicubic(image, x, y);
 }
 
-float SampleGrad(const cv::Mat& image, double x, double y, Interpolation interpolation, float* dx, float* dy) {
+float SampleGrad(const cv::Mat& image, double x, double y, Interpolation interpolation, float* dx,
+                 float* dy) {
   return interpolation == Interpolation::kBilinear ? SampleBilinearGrad(image, x, y, dx, dy)
                                                    : SampleBicubicGrad(image, x, y, dx, dy);
 }

@@ -51,7 +51,8 @@ class DescriptorCache {
   // Descriptor of cell (i, k) or nullptr (outside, border, flat).
   const float* Get(int i, int k) {
     if (!raster_.Contains(i, k)) return nullptr;
-    if (state_.empty()) return raster_.Descriptor(i, k, length_, &scratch_) ? scratch_.data() : nullptr;
+    if (state_.empty())
+      return raster_.Descriptor(i, k, length_, &scratch_) ? scratch_.data() : nullptr;
     const size_t c = static_cast<size_t>(i) * raster_.cols() + k;
     if (state_[c] == 0) {
       state_[c] = raster_.Descriptor(i, k, length_, &scratch_) ? 1 : 2;
@@ -131,9 +132,8 @@ SearchResult Search(const HexPyramid& pa, const HexPyramid& pb, Caches& cas, Cac
     res.reason = RejectReason::kLowScore;
     return res;
   }
-  const auto best = std::max_element(cands.begin(), cands.end(), [](const Cand& a, const Cand& b) {
-    return a.score < b.score;
-  });
+  const auto best = std::max_element(
+      cands.begin(), cands.end(), [](const Cand& a, const Cand& b) { return a.score < b.score; });
   if (best->score < o.min_score) {
     res.reason = RejectReason::kLowScore;
     return res;
@@ -192,16 +192,19 @@ void HexMatcherOptions::Check() const {
   if (!(min_score >= -1 && min_score <= 1)) fail("min_score", min_score, "[-1, 1]");
   if (!(max_ratio > 0 && max_ratio <= 1)) fail("max_ratio", max_ratio, "(0, 1]");
   if (!(mutual_tolerance > 0)) fail("mutual_tolerance", mutual_tolerance, "(0, inf)");
-  if (lsc_search_radius < 0 || lsc_search_radius > 20) fail("lsc_search_radius", lsc_search_radius, "[0, 20]");
+  if (lsc_search_radius < 0 || lsc_search_radius > 20)
+    fail("lsc_search_radius", lsc_search_radius, "[0, 20]");
   if (!(lsc_prefilter_sigma >= 0 && lsc_prefilter_sigma <= 5)) {
     fail("lsc_prefilter_sigma", lsc_prefilter_sigma, "[0, 5]");
   }
   if (!(quality.min_correlation >= -1 && quality.min_correlation <= 1)) {
     fail("quality.min_correlation", quality.min_correlation, "[-1, 1]");
   }
-  if (!(quality.max_residual_ratio > 1)) fail("quality.max_residual_ratio", quality.max_residual_ratio, "(1, inf)");
+  if (!(quality.max_residual_ratio > 1))
+    fail("quality.max_residual_ratio", quality.max_residual_ratio, "(1, inf)");
   if (!(quality.max_two_way > 0)) fail("quality.max_two_way", quality.max_two_way, "(0, inf)");
-  if (!(quality.neighbour_radius > 0)) fail("quality.neighbour_radius", quality.neighbour_radius, "(0, inf)");
+  if (!(quality.neighbour_radius > 0))
+    fail("quality.neighbour_radius", quality.neighbour_radius, "(0, inf)");
   if (!(quality.max_neighbour_deviation > 0)) {
     fail("quality.max_neighbour_deviation", quality.max_neighbour_deviation, "(0, inf)");
   }
@@ -226,13 +229,20 @@ std::string QualityFlagNames(unsigned flags) {
 
 const char* RejectReasonName(RejectReason reason) {
   switch (reason) {
-    case RejectReason::kNone: return "none";
-    case RejectReason::kNoDescriptor: return "no_descriptor";
-    case RejectReason::kLowScore: return "low_score";
-    case RejectReason::kAmbiguous: return "ambiguous";
-    case RejectReason::kNotMutual: return "not_mutual";
-    case RejectReason::kLsc: return "lsc";
-    case RejectReason::kEpipolar: return "epipolar";
+    case RejectReason::kNone:
+      return "none";
+    case RejectReason::kNoDescriptor:
+      return "no_descriptor";
+    case RejectReason::kLowScore:
+      return "low_score";
+    case RejectReason::kAmbiguous:
+      return "ambiguous";
+    case RejectReason::kNotMutual:
+      return "not_mutual";
+    case RejectReason::kLsc:
+      return "lsc";
+    case RejectReason::kEpipolar:
+      return "epipolar";
   }
   return "unknown";
 }
@@ -250,7 +260,8 @@ Eigen::Matrix3d FundamentalFromOrientation(const camera::CameraModel& camera_a,
   return kb.inverse().transpose() * tx * r * ka.inverse();
 }
 
-double EpipolarDistance(const Eigen::Matrix3d& f, const Eigen::Vector2d& xa, const Eigen::Vector2d& xb) {
+double EpipolarDistance(const Eigen::Matrix3d& f, const Eigen::Vector2d& xa,
+                        const Eigen::Vector2d& xb) {
   const Eigen::Vector3d l = f * Eigen::Vector3d(xa.x(), xa.y(), 1.0);
   const double n = l.head<2>().norm();
   if (n <= 0) return 0.0;
@@ -291,7 +302,8 @@ void ApplyMatchQualityControl(const HexMatcherOptions::Quality& q, HexMatchResul
     for (double& v : nx) v = std::fabs(v - median.x());
     for (double& v : ny) v = std::fabs(v - median.y());
     const double spread = 1.4826 * std::hypot(Median(&nx), Median(&ny));
-    if ((m.xb - m.xa - median).norm() > q.max_neighbour_deviation + 3.0 * spread) m.flags |= kFlagNeighbours;
+    if ((m.xb - m.xa - median).norm() > q.max_neighbour_deviation + 3.0 * spread)
+      m.flags |= kFlagNeighbours;
   }
   std::vector<HexMatch> kept;
   for (HexMatch& m : result.matches) {
@@ -315,19 +327,22 @@ void ApplyMatchQualityControl(const HexMatcherOptions::Quality& q, HexMatchResul
 
 }  // namespace
 
-HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b, const MatchPrior& prior) const {
+HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
+                                 const MatchPrior& prior) const {
   const auto t0 = std::chrono::steady_clock::now();
-  if (image_a.empty() || image_b.empty()) throw InvalidArgument("HexMatcher::Match: an input image is empty");
+  if (image_a.empty() || image_b.empty())
+    throw InvalidArgument("HexMatcher::Match: an input image is empty");
   if (image_a.size() != image_b.size()) {
-    throw InvalidArgument(Message("HexMatcher::Match: images differ in size (a ", image_a.cols, "x", image_a.rows,
-                                  ", b ", image_b.cols, "x", image_b.rows, ")"));
+    throw InvalidArgument(Message("HexMatcher::Match: images differ in size (a ", image_a.cols, "x",
+                                  image_a.rows, ", b ", image_b.cols, "x", image_b.rows, ")"));
   }
   if (image_a.type() != image_b.type()) {
-    throw InvalidArgument(Message("HexMatcher::Match: images differ in encoding (OpenCV type a ", image_a.type(),
-                                  ", b ", image_b.type(), ")"));
+    throw InvalidArgument(Message("HexMatcher::Match: images differ in encoding (OpenCV type a ",
+                                  image_a.type(), ", b ", image_b.type(), ")"));
   }
   if (!(prior.radius > 0) || !(prior.moving_radius > 0) || !(prior.epipolar_band > 0)) {
-    throw InvalidArgument("HexMatcher::Match: prior radius, moving_radius and epipolar_band must be > 0");
+    throw InvalidArgument(
+        "HexMatcher::Match: prior radius, moving_radius and epipolar_band must be > 0");
   }
   const cv::Mat fa = ToFloat(image_a, "image a"), fb = ToFloat(image_b, "image b");
   const HexPyramid pa(fa, options_.pyramid_levels, options_.sampling);
@@ -336,8 +351,10 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
   LscOptions lsc = options_.lsc;
   lsc.search_radius = options_.lsc_search_radius;
   // LSC on low-passed copies when asked (weak texture under noise).
-  const cv::Mat la = options_.lsc_prefilter_sigma > 0 ? GaussianBlur(fa, options_.lsc_prefilter_sigma) : fa;
-  const cv::Mat lb = options_.lsc_prefilter_sigma > 0 ? GaussianBlur(fb, options_.lsc_prefilter_sigma) : fb;
+  const cv::Mat la =
+      options_.lsc_prefilter_sigma > 0 ? GaussianBlur(fa, options_.lsc_prefilter_sigma) : fa;
+  const cv::Mat lb =
+      options_.lsc_prefilter_sigma > 0 ? GaussianBlur(fb, options_.lsc_prefilter_sigma) : fb;
   const Eigen::Matrix3d* f = prior.has_epipolar ? &prior.fundamental : nullptr;
   const Eigen::Matrix3d ft = prior.fundamental.transpose();
   const Eigen::Matrix3d* f_back = prior.has_epipolar ? &ft : nullptr;
@@ -351,12 +368,13 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
   lsc_back.min_eigen_ratio = 0.0;
   lsc_back.min_gradient_energy = 0.0;
   const HexMatcherOptions::Quality& q = options_.quality;
-  auto match_one = [&](const Eigen::Vector2d& xa, const Eigen::Vector2d& shift, double radius, HexMatch* m,
-                       bool final_pass) {
-    const SearchResult fw = Search(pa, pb, cache_a, cache_b, xa, xa + shift, radius, f, prior.epipolar_band, options_);
+  auto match_one = [&](const Eigen::Vector2d& xa, const Eigen::Vector2d& shift, double radius,
+                       HexMatch* m, bool final_pass) {
+    const SearchResult fw =
+        Search(pa, pb, cache_a, cache_b, xa, xa + shift, radius, f, prior.epipolar_band, options_);
     if (fw.reason != RejectReason::kNone) return std::string(RejectReasonName(fw.reason));
-    const SearchResult bw =
-        Search(pb, pa, cache_b, cache_a, fw.x, fw.x - shift, radius, f_back, prior.epipolar_band, options_);
+    const SearchResult bw = Search(pb, pa, cache_b, cache_a, fw.x, fw.x - shift, radius, f_back,
+                                   prior.epipolar_band, options_);
     if (bw.reason != RejectReason::kNone || (bw.x - xa).norm() > options_.mutual_tolerance) {
       return std::string(RejectReasonName(RejectReason::kNotMutual));
     }
@@ -370,7 +388,8 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
     m->covariance = s.covariance;
     m->score = fw.score;
     m->correlation = s.correlation;
-    m->quality = std::max(0.0, std::min(1.0, s.correlation)) * std::max(0.0, std::min(1.0, fw.score));
+    m->quality =
+        std::max(0.0, std::min(1.0, s.correlation)) * std::max(0.0, std::min(1.0, fw.score));
     m->sigma0 = s.sigma0;
     m->flags = 0;
     if (final_pass && q.enabled) {
@@ -416,7 +435,8 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
     ++result.summary.candidates;
     const bool moving = prior.moving && prior.moving(p.x);
     HexMatch m;
-    const std::string reason = match_one(p.x, shift, moving ? prior.moving_radius : prior.radius, &m, true);
+    const std::string reason =
+        match_one(p.x, shift, moving ? prior.moving_radius : prior.radius, &m, true);
     if (reason.empty()) {
       result.matches.push_back(m);
     } else {
@@ -425,7 +445,8 @@ HexMatchResult HexMatcher::Match(const cv::Mat& image_a, const cv::Mat& image_b,
   }
   if (q.enabled && !result.matches.empty()) ApplyMatchQualityControl(q, &result);
   result.summary.matched = static_cast<int>(result.matches.size());
-  result.summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  result.summary.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return result;
 }
 

@@ -58,12 +58,30 @@ void HexRaster::NearestCell(const Eigen::Vector2d& x, int* i, int* k) const {
 void HexRaster::Neighbour(int i, int k, int d, int* ni, int* nk) {
   const int odd = i & 1;
   switch (d) {
-    case 0: *ni = i; *nk = k + 1; return;
-    case 1: *ni = i - 1; *nk = k + odd; return;
-    case 2: *ni = i - 1; *nk = k - 1 + odd; return;
-    case 3: *ni = i; *nk = k - 1; return;
-    case 4: *ni = i + 1; *nk = k - 1 + odd; return;
-    default: *ni = i + 1; *nk = k + odd; return;
+    case 0:
+      *ni = i;
+      *nk = k + 1;
+      return;
+    case 1:
+      *ni = i - 1;
+      *nk = k + odd;
+      return;
+    case 2:
+      *ni = i - 1;
+      *nk = k - 1 + odd;
+      return;
+    case 3:
+      *ni = i;
+      *nk = k - 1;
+      return;
+    case 4:
+      *ni = i + 1;
+      *nk = k - 1 + odd;
+      return;
+    default:
+      *ni = i + 1;
+      *nk = k + odd;
+      return;
   }
 }
 
@@ -94,7 +112,8 @@ bool HexRaster::Descriptor(int i, int k, int length, std::vector<float>* descrip
 }
 
 HexPyramid::HexPyramid(const cv::Mat& image, int levels, HexSampling sampling) {
-  if (levels < 1 || levels > 8) throw InvalidArgument(Message("HexPyramid: levels must be in [1, 8], got ", levels));
+  if (levels < 1 || levels > 8)
+    throw InvalidArgument(Message("HexPyramid: levels must be in [1, 8], got ", levels));
   const cv::Mat f = ToFloat(image, "HexPyramid");
   for (int l = 0; l < levels; ++l) {
     const double s = std::pow(2.0, l);

@@ -11,10 +11,12 @@ namespace matching {
 
 void InterestPointOptions::Check() const {
   auto fail = [](const char* key, auto value, const char* range) {
-    throw ConfigError(Message("interest point option '", key, "' = ", value, " out of range ", range));
+    throw ConfigError(
+        Message("interest point option '", key, "' = ", value, " out of range ", range));
   };
   if (!(log_sigma > 0)) fail("log_sigma", log_sigma, "(0, inf)");
-  if (!(zero_crossing_contrast >= 0)) fail("zero_crossing_contrast", zero_crossing_contrast, "[0, inf)");
+  if (!(zero_crossing_contrast >= 0))
+    fail("zero_crossing_contrast", zero_crossing_contrast, "[0, inf)");
   if (!(max_corner_angle_deg > 0 && max_corner_angle_deg < 180)) {
     fail("max_corner_angle_deg", max_corner_angle_deg, "(0, 180)");
   }
@@ -46,7 +48,8 @@ bool IsEdgeCorner(const cv::Mat& edges, int col, int row, double max_corner_angl
   return angle <= max_corner_angle_deg + 1e-9;
 }
 
-std::vector<InterestPoint> DetectInterestPoints(const cv::Mat& image, const InterestPointOptions& options) {
+std::vector<InterestPoint> DetectInterestPoints(const cv::Mat& image,
+                                                const InterestPointOptions& options) {
   options.Check();
   const cv::Mat f = ToFloat(image, "DetectInterestPoints");
   const cv::Mat log = LaplacianOfGaussian(f, options.log_sigma);
@@ -87,8 +90,9 @@ std::vector<InterestPoint> DetectInterestPoints(const cv::Mat& image, const Inte
       cand.push_back(p);
     }
   }
-  std::stable_sort(cand.begin(), cand.end(),
-                   [](const InterestPoint& a, const InterestPoint& b) { return a.strength > b.strength; });
+  std::stable_sort(cand.begin(), cand.end(), [](const InterestPoint& a, const InterestPoint& b) {
+    return a.strength > b.strength;
+  });
   // Greedy spacing on a coarse grid of cells of size min_distance.
   const int d = options.min_distance;
   const int gc = f.cols / d + 1, gr = f.rows / d + 1;
@@ -97,8 +101,8 @@ std::vector<InterestPoint> DetectInterestPoints(const cv::Mat& image, const Inte
   // Spread (cells > 0): a cell of the image keeps at most `quota` points in
   // the first pass; the points over quota fill what is left, strongest first.
   const int cells = options.cells;
-  const int quota = cells > 0 ? (options.max_points + cells * cells - 1) / (cells * cells)
-                              : options.max_points;
+  const int quota =
+      cells > 0 ? (options.max_points + cells * cells - 1) / (cells * cells) : options.max_points;
   std::vector<int> per_cell(cells > 0 ? static_cast<size_t>(cells) * cells : 1, 0);
   const auto cell_of = [&](const InterestPoint& p) {
     if (cells <= 0) return 0;

@@ -14,7 +14,8 @@ namespace {
 
 void CheckImage(const cv::Mat& image, const char* what) {
   if (image.empty() || image.type() != CV_32FC1) {
-    throw InvalidArgument(Message("LSC: ", what, " must be a non-empty CV_32FC1 image (use ToFloat), got type ",
+    throw InvalidArgument(Message("LSC: ", what,
+                                  " must be a non-empty CV_32FC1 image (use ToFloat), got type ",
                                   image.type()));
   }
 }
@@ -42,7 +43,8 @@ double Ncc(const std::vector<double>& a, const std::vector<double>& b) {
 // Value and derivatives of b at (x, y). Bilinear derivatives are taken as
 // half-pixel central differences of the interpolant (continuous in x, y),
 // bicubic ones analytically.
-inline float ValueGrad(const cv::Mat& b, double x, double y, Interpolation interp, float* dx, float* dy) {
+inline float ValueGrad(const cv::Mat& b, double x, double y, Interpolation interp, float* dx,
+                       float* dy) {
   if (interp == Interpolation::kBicubic) return SampleBicubicGrad(b, x, y, dx, dy);
   const float v = SampleBilinear(b, x, y);
   *dx = SampleBilinear(b, x + 0.5, y) - SampleBilinear(b, x - 0.5, y);
@@ -88,8 +90,9 @@ bool LscWindowHasTexture(const std::vector<double>& wa, int h, const LscOptions&
 // solution (pixel locking). Central differences of a exclude the centre
 // pixel, so the Jacobian is uncorrelated with the residual's noise. False
 // when the patch leaves image a.
-bool LscTemplateGradient(const cv::Mat& image_a, const Eigen::Vector2d& xa, int h, double margin, Interpolation interp,
-                         const std::vector<double>& us, const std::vector<double>& vs, std::vector<double>* ga_u,
+bool LscTemplateGradient(const cv::Mat& image_a, const Eigen::Vector2d& xa, int h, double margin,
+                         Interpolation interp, const std::vector<double>& us,
+                         const std::vector<double>& vs, std::vector<double>* ga_u,
                          std::vector<double>* ga_v) {
   const int n = static_cast<int>(us.size());
   const int hp = h + 1;  // half size of the patch read from a
@@ -118,13 +121,26 @@ bool LscTemplateGradient(const cv::Mat& image_a, const Eigen::Vector2d& xa, int 
 // scale along an edge and settle in a wrong minimum (measured: errors up to
 // 1 px at 8 sigma on the warped Cones texture, doc/nodes/hex_matcher.md).
 struct LscSolve {
-  LscSolve(const cv::Mat& image_b_in, const LscOptions& options_in, int h_in, Interpolation interp_in,
-           double margin_in, const std::vector<double>& wa_in, const std::vector<double>& us_in,
-           const std::vector<double>& vs_in, const std::vector<double>& ga_u_in, const std::vector<double>& ga_v_in,
+  LscSolve(const cv::Mat& image_b_in, const LscOptions& options_in, int h_in,
+           Interpolation interp_in, double margin_in, const std::vector<double>& wa_in,
+           const std::vector<double>& us_in, const std::vector<double>& vs_in,
+           const std::vector<double>& ga_u_in, const std::vector<double>& ga_v_in,
            const Eigen::Vector2d& start)
-      : image_b(image_b_in), options(options_in), h(h_in), n(static_cast<int>(wa_in.size())), interp(interp_in),
-        margin(margin_in), wa(wa_in), us(us_in), vs(vs_in), ga_u(ga_u_in), ga_v(ga_v_in),
-        affine_model(options_in.model == LscModel::kAffine), gain(options_in.estimate_gain), xb(start), wb(n) {
+      : image_b(image_b_in),
+        options(options_in),
+        h(h_in),
+        n(static_cast<int>(wa_in.size())),
+        interp(interp_in),
+        margin(margin_in),
+        wa(wa_in),
+        us(us_in),
+        vs(vs_in),
+        ga_u(ga_u_in),
+        ga_v(ga_v_in),
+        affine_model(options_in.model == LscModel::kAffine),
+        gain(options_in.estimate_gain),
+        xb(start),
+        wb(n) {
     SetStage(false);
   }
 
@@ -137,7 +153,8 @@ struct LscSolve {
     jtr.resize(m);
   }
   bool Inside(double X, double Y) const {
-    return X >= margin && Y >= margin && X <= image_b.cols - 1 - margin && Y <= image_b.rows - 1 - margin;
+    return X >= margin && Y >= margin && X <= image_b.cols - 1 - margin &&
+           Y <= image_b.rows - 1 - margin;
   }
   void Map(int k, double* X, double* Y) const {
     *X = xb.x() + (1 + p_aff[0]) * us[k] + p_aff[1] * vs[k];
@@ -171,9 +188,8 @@ struct LscSolve {
     const double det = m11 * m22 - m12 * m21;
     // Shift stage (no affine part yet): window b is a shifted grid, sampled
     // with one set of weights.
-    const bool shifted_grid = options.gradient == LscGradient::kTemplate &&
-                              p_aff[0] == 0.0 && p_aff[1] == 0.0 && p_aff[2] == 0.0 &&
-                              p_aff[3] == 0.0;
+    const bool shifted_grid = options.gradient == LscGradient::kTemplate && p_aff[0] == 0.0 &&
+                              p_aff[1] == 0.0 && p_aff[2] == 0.0 && p_aff[3] == 0.0;
     if (shifted_grid) {
       if (!Inside(xb.x() - h, xb.y() - h) || !Inside(xb.x() + h, xb.y() + h)) return false;
       SampleWindow(image_b, xb.x(), xb.y(), h, interp, wb.data());
@@ -257,9 +273,12 @@ struct LscSolve {
       if (gain) g += step(ig);
       o += step(io);
       const bool diverged =
-          (xb - s.start).norm() > options.max_shift || !std::isfinite(xb.x()) || !std::isfinite(xb.y()) ||
-          (affine && (std::fabs(p_aff[0]) > options.max_affine || std::fabs(p_aff[1]) > options.max_affine ||
-                      std::fabs(p_aff[2]) > options.max_affine || std::fabs(p_aff[3]) > options.max_affine)) ||
+          (xb - s.start).norm() > options.max_shift || !std::isfinite(xb.x()) ||
+          !std::isfinite(xb.y()) ||
+          (affine &&
+           (std::fabs(p_aff[0]) > options.max_affine || std::fabs(p_aff[1]) > options.max_affine ||
+            std::fabs(p_aff[2]) > options.max_affine ||
+            std::fabs(p_aff[3]) > options.max_affine)) ||
           (gain && (g < 1.0 / options.max_gain_ratio || g > options.max_gain_ratio));
       if (diverged) {
         s.status = Status::kDiverged;
@@ -267,7 +286,8 @@ struct LscSolve {
         s.iterations = it + 1;
         return false;
       }
-      if (step.head<2>().norm() < options.convergence_shift && max_aff_step < options.convergence_affine) {
+      if (step.head<2>().norm() < options.convergence_shift &&
+          max_aff_step < options.convergence_affine) {
         if (affine_model && !affine) {
           // Eq. 2 converged: keep its solution and residual for the F test,
           // then release the affine parameters.
@@ -300,7 +320,8 @@ struct LscSolve {
     // shift is better determined (the affine terms would fit the noise).
     if (converged && affine && options.affine_min_f > 0 && ssr_shift >= 0) {
       const double ssr_affine = sum_r2;
-      s.affine_f = ((ssr_shift - ssr_affine) / 4.0) / std::max(ssr_affine / std::max(1, n - m), 1e-12);
+      s.affine_f =
+          ((ssr_shift - ssr_affine) / 4.0) / std::max(ssr_affine / std::max(1, n - m), 1e-12);
       if (s.affine_f < options.affine_min_f) {
         fallback_cov = (ssr_affine / std::max(1, n - m)) * Mat(jtj.inverse()).topLeftCorner(2, 2);
         fell_back = true;
@@ -324,7 +345,8 @@ struct LscSolve {
   const int h, n;
   const Interpolation interp;
   const double margin;
-  const std::vector<double>&wa, &us, &vs, &ga_u, &ga_v;  // window a, its offsets and template gradient
+  const std::vector<double>&wa, &us, &vs, &ga_u,
+      &ga_v;  // window a, its offsets and template gradient
   const bool affine_model, gain;
   bool affine = false;  // the stage: affine columns active
   int m = 0, ig = 0, io = 0;
@@ -356,7 +378,8 @@ const char* LscModelName(LscModel model) { return model == LscModel::kAffine ? "
 LscGradient LscGradientFromName(const std::string& name) {
   if (name == "template") return LscGradient::kTemplate;
   if (name == "resampled") return LscGradient::kResampled;
-  throw InvalidArgument(Message("LSC gradient '", name, "' unknown (use 'template' or 'resampled')"));
+  throw InvalidArgument(
+      Message("LSC gradient '", name, "' unknown (use 'template' or 'resampled')"));
 }
 
 const char* LscGradientName(LscGradient gradient) {
@@ -365,14 +388,22 @@ const char* LscGradientName(LscGradient gradient) {
 
 const char* LscStatusName(LscSummary::Status status) {
   switch (status) {
-    case LscSummary::Status::kConverged: return "converged";
-    case LscSummary::Status::kNotConverged: return "not_converged";
-    case LscSummary::Status::kOutside: return "outside";
-    case LscSummary::Status::kTextureless: return "textureless";
-    case LscSummary::Status::kDiverged: return "diverged";
-    case LscSummary::Status::kLowCorrelation: return "low_correlation";
-    case LscSummary::Status::kImprecise: return "imprecise";
-    case LscSummary::Status::kIllConditioned: return "ill_conditioned";
+    case LscSummary::Status::kConverged:
+      return "converged";
+    case LscSummary::Status::kNotConverged:
+      return "not_converged";
+    case LscSummary::Status::kOutside:
+      return "outside";
+    case LscSummary::Status::kTextureless:
+      return "textureless";
+    case LscSummary::Status::kDiverged:
+      return "diverged";
+    case LscSummary::Status::kLowCorrelation:
+      return "low_correlation";
+    case LscSummary::Status::kImprecise:
+      return "imprecise";
+    case LscSummary::Status::kIllConditioned:
+      return "ill_conditioned";
   }
   return "unknown";
 }
@@ -382,34 +413,40 @@ void LscOptions::Check() const {
     throw ConfigError(Message("LSC option '", key, "' = ", value, " out of range ", range));
   };
   if (half_window < 1 || half_window > 50) fail("half_window", half_window, "[1, 50]");
-  if (max_iterations < 1 || max_iterations > 1000) fail("max_iterations", max_iterations, "[1, 1000]");
+  if (max_iterations < 1 || max_iterations > 1000)
+    fail("max_iterations", max_iterations, "[1, 1000]");
   if (!(convergence_shift > 0)) fail("convergence_shift", convergence_shift, "(0, inf)");
   if (!(convergence_affine > 0)) fail("convergence_affine", convergence_affine, "(0, inf)");
   if (!(max_shift > 0)) fail("max_shift", max_shift, "(0, inf)");
   if (!(max_affine > 0)) fail("max_affine", max_affine, "(0, inf)");
   if (!(affine_min_f >= 0)) fail("affine_min_f", affine_min_f, "[0, inf)");
   if (!(max_gain_ratio > 1)) fail("max_gain_ratio", max_gain_ratio, "(1, inf)");
-  if (!(min_correlation >= -1 && min_correlation <= 1)) fail("min_correlation", min_correlation, "[-1, 1]");
+  if (!(min_correlation >= -1 && min_correlation <= 1))
+    fail("min_correlation", min_correlation, "[-1, 1]");
   if (!(min_gradient_energy >= 0)) fail("min_gradient_energy", min_gradient_energy, "[0, inf)");
   if (!(max_sigma > 0)) fail("max_sigma", max_sigma, "(0, inf)");
-  if (!(min_eigen_ratio >= 0 && min_eigen_ratio < 1)) fail("min_eigen_ratio", min_eigen_ratio, "[0, 1)");
+  if (!(min_eigen_ratio >= 0 && min_eigen_ratio < 1))
+    fail("min_eigen_ratio", min_eigen_ratio, "[0, 1)");
   if (!(max_shift_affine_correlation > 0 && max_shift_affine_correlation <= 1)) {
     fail("max_shift_affine_correlation", max_shift_affine_correlation, "(0, 1]");
   }
   if (search_radius < 0 || search_radius > 200) fail("search_radius", search_radius, "[0, 200]");
-  if (search_radius_y < -1 || search_radius_y > 200) fail("search_radius_y", search_radius_y, "[-1, 200]");
-  if (search_half_window < 0 || search_half_window > 50) fail("search_half_window", search_half_window, "[0, 50]");
+  if (search_radius_y < -1 || search_radius_y > 200)
+    fail("search_radius_y", search_radius_y, "[-1, 200]");
+  if (search_half_window < 0 || search_half_window > 50)
+    fail("search_half_window", search_half_window, "[0, 50]");
 }
 
-Eigen::Vector2d CorrelateInteger(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen::Vector2d& xa,
-                                 const Eigen::Vector2d& xb_start, int half_window, int radius, double* ncc,
-                                 int radius_y) {
+Eigen::Vector2d CorrelateInteger(const cv::Mat& image_a, const cv::Mat& image_b,
+                                 const Eigen::Vector2d& xa, const Eigen::Vector2d& xb_start,
+                                 int half_window, int radius, double* ncc, int radius_y) {
   if (radius_y < 0) radius_y = radius;
   CheckImage(image_a, "image a");
   CheckImage(image_b, "image b");
   const int h = half_window;
   const int ax = static_cast<int>(std::lround(xa.x())), ay = static_cast<int>(std::lround(xa.y()));
-  const int bx0 = static_cast<int>(std::lround(xb_start.x())), by0 = static_cast<int>(std::lround(xb_start.y()));
+  const int bx0 = static_cast<int>(std::lround(xb_start.x())),
+            by0 = static_cast<int>(std::lround(xb_start.y()));
   double best = -2.0;
   Eigen::Vector2d best_pos = xb_start;
   if (ax - h < 0 || ay - h < 0 || ax + h >= image_a.cols || ay + h >= image_a.rows) {
@@ -503,9 +540,10 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
   // Modified LSC: integer correlation first.
   if (options.search_radius > 0) {
     double c = -2;
-    const Eigen::Vector2d best = CorrelateInteger(image_a, image_b, xa, xb_start,
-                                                 options.search_half_window > 0 ? options.search_half_window : h,
-                                                 options.search_radius, &c, options.search_radius_y);
+    const Eigen::Vector2d best =
+        CorrelateInteger(image_a, image_b, xa, xb_start,
+                         options.search_half_window > 0 ? options.search_half_window : h,
+                         options.search_radius, &c, options.search_radius_y);
     if (c <= -2) {
       s.status = Status::kOutside;
       return s;
@@ -571,7 +609,8 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
   // Larger eigenvalue of the symmetric 2 x 2 covariance, closed form. After
   // the F test fell back to eq. 2, optionally checked on eq. 1's covariance
   // (the affine terms were not determined, not shown to be zero).
-  const Eigen::Matrix2d& check = st.fell_back && options.fallback_affine_precision ? st.fallback_cov : s.covariance;
+  const Eigen::Matrix2d& check =
+      st.fell_back && options.fallback_affine_precision ? st.fallback_cov : s.covariance;
   const double tr = 0.5 * (check(0, 0) + check(1, 1));
   const double df = 0.5 * (check(0, 0) - check(1, 1));
   const double lmax = tr + std::sqrt(df * df + check(0, 1) * check(0, 1));

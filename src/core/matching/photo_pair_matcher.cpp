@@ -246,9 +246,8 @@ PhotoFeatures::PhotoFeatures(const cv::Mat& image, const std::string& name,
 
 void PhotoFeatures::DetectSift(const PhotoFeatureOptions& options) {
   // SIFT's copy: the reduced one, or smaller (coarse_sift_max_side).
-  const double scale =
-      std::min(reduce_, static_cast<double>(options.coarse_sift_max_side) /
-                            std::max(grey_.cols, grey_.rows));
+  const double scale = std::min(reduce_, static_cast<double>(options.coarse_sift_max_side) /
+                                             std::max(grey_.cols, grey_.rows));
   cv::Mat copy = reduced_;
   if (scale < reduce_) cv::resize(grey_, copy, cv::Size(), scale, scale, cv::INTER_AREA);
   std::vector<cv::KeyPoint> keys;
@@ -386,8 +385,8 @@ WindowMatch MatchCandidate(const PhotoFeatures& a, const PhotoFeatures& b,
   WindowMatch out;
   PhotoTiePoint& tp = out.tie_point;
   Eigen::Matrix2d local;
-  if (!MatchWindow(a.reduced(), b.reduced(), Scaled(xa, ra), Scaled(xb0, rb), j, options.lsc,
-                   &tp, &local, &out.status)) {
+  if (!MatchWindow(a.reduced(), b.reduced(), Scaled(xa, ra), Scaled(xb0, rb), j, options.lsc, &tp,
+                   &local, &out.status)) {
     return out;
   }
   if (refine) {

@@ -32,8 +32,8 @@ void SequencePairOptions::Check() const {
 
 PhotoFootprint FootprintOf(const SequenceImage& image) {
   PhotoFootprint f;
-  f.has_position = image.has_position && image.ground_pixel > 0.0 && image.width > 0 &&
-                   image.height > 0;
+  f.has_position =
+      image.has_position && image.ground_pixel > 0.0 && image.width > 0 && image.height > 0;
   if (!f.has_position) return f;
   f.east_north = image.position;
   f.has_heading = image.has_heading;
@@ -103,7 +103,8 @@ double GroundPixelFromTies(const std::vector<Eigen::Vector2d>& xa,
     b.col(k) = xb[k];
   }
   const Eigen::Matrix3d b_from_a = Eigen::umeyama(a, b, true);
-  const Eigen::Vector2d p = b_from_a.topLeftCorner<2, 2>() * centre_a + b_from_a.topRightCorner<2, 1>();
+  const Eigen::Vector2d p =
+      b_from_a.topLeftCorner<2, 2>() * centre_a + b_from_a.topRightCorner<2, 1>();
   const double d = (p - centre_b).norm();
   return std::isfinite(d) && d >= 10.0 ? baseline / d : 0.0;
 }

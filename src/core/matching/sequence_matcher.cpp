@@ -255,7 +255,8 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
     cv::parallel_for_(
         cv::Range(0, n),
         [&](const cv::Range& range) {
-          for (int k = range.start; k < range.end; ++k) matched[k] = MatchPair(history_[plan[k]], b);
+          for (int k = range.start; k < range.end; ++k)
+            matched[k] = MatchPair(history_[plan[k]], b);
         },
         stripes);
     MeasureGroundPixel(plan, matched, &b);

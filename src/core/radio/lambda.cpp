@@ -113,7 +113,8 @@ void Search(const Eigen::MatrixXd& L, const Eigen::VectorXd& D, const Eigen::Vec
       step(k) = -step(k) - Sign(step(k));
     }
   }
-  if (found < m) {  // fewer candidates than asked (cannot happen for m <= infinite lattice, kept for safety)
+  if (found < m) {  // fewer candidates than asked (cannot happen for m <= infinite lattice, kept
+                    // for safety)
     cands->conservativeResize(n, found);
     norms->conservativeResize(found);
   }
@@ -134,7 +135,9 @@ void LtdlFactor(const Eigen::MatrixXd& q, Eigen::MatrixXd* l, Eigen::VectorXd* d
   d->setZero(n);
   for (int i = n - 1; i >= 0; --i) {
     const double di = a(i, i);
-    if (!(di > 0.0)) throw InvalidArgument(Message("LAMBDA: covariance is not positive definite (pivot ", i, " = ", di, ")"));
+    if (!(di > 0.0))
+      throw InvalidArgument(
+          Message("LAMBDA: covariance is not positive definite (pivot ", i, " = ", di, ")"));
     (*d)(i) = di;
     for (int j = 0; j <= i; ++j) (*l)(i, j) = a(i, j) / di;
     for (int j = 0; j < i; ++j)
@@ -149,10 +152,14 @@ LambdaResult LambdaSearch(const Eigen::VectorXd& a, const Eigen::MatrixXd& q, in
   const int n = static_cast<int>(a.size());
   if (n < 1) throw InvalidArgument("LAMBDA: no ambiguities");
   if (q.rows() != n || q.cols() != n)
-    throw InvalidArgument(Message("LAMBDA: covariance is ", q.rows(), "x", q.cols(), " for ", n, " ambiguities"));
-  if (m < 1) throw InvalidArgument(Message("LAMBDA: number of candidates m = ", m, " must be >= 1"));
-  if (!a.allFinite() || !q.allFinite()) throw InvalidArgument("LAMBDA: float ambiguities or covariance not finite");
-  if (!q.isApprox(q.transpose(), 1e-9)) throw InvalidArgument("LAMBDA: covariance is not symmetric");
+    throw InvalidArgument(
+        Message("LAMBDA: covariance is ", q.rows(), "x", q.cols(), " for ", n, " ambiguities"));
+  if (m < 1)
+    throw InvalidArgument(Message("LAMBDA: number of candidates m = ", m, " must be >= 1"));
+  if (!a.allFinite() || !q.allFinite())
+    throw InvalidArgument("LAMBDA: float ambiguities or covariance not finite");
+  if (!q.isApprox(q.transpose(), 1e-9))
+    throw InvalidArgument("LAMBDA: covariance is not symmetric");
 
   // Work on the fractional part: large ambiguities (1e9) lose no precision.
   const Eigen::VectorXd a_int = a.array().round().matrix();

@@ -14,20 +14,25 @@ namespace radio {
 void PhaseExtractionOptions::Check() const {
   if (!(min_snr > 0.0)) throw ConfigError(Message("min_snr = ", min_snr, " must be > 0"));
   if (!(max_saturated_fraction >= 0.0 && max_saturated_fraction <= 1.0))
-    throw ConfigError(Message("max_saturated_fraction = ", max_saturated_fraction, " must be in [0, 1]"));
+    throw ConfigError(
+        Message("max_saturated_fraction = ", max_saturated_fraction, " must be in [0, 1]"));
   if (!(sample_rate_tolerance >= 0.0)) throw ConfigError("sample_rate_tolerance must be >= 0");
 }
 
 PhaseExtractor::PhaseExtractor(std::vector<Tone> tones, double center_frequency, double sample_rate,
                                PhaseExtractionOptions options)
-    : tones_(std::move(tones)), center_frequency_(center_frequency), sample_rate_(sample_rate), options_(options) {
+    : tones_(std::move(tones)),
+      center_frequency_(center_frequency),
+      sample_rate_(sample_rate),
+      options_(options) {
   options_.Check();
-  if (!(sample_rate_ > 0.0)) throw ConfigError(Message("sample_rate = ", sample_rate_, " must be > 0 Hz"));
+  if (!(sample_rate_ > 0.0))
+    throw ConfigError(Message("sample_rate = ", sample_rate_, " must be > 0 Hz"));
   for (const Tone& t : tones_)
     if (!(std::abs(t.frequency - center_frequency_) < 0.5 * sample_rate_))
-      throw ConfigError(Message("transmitter '", t.transmitter_id, "' frequency ", std::fixed, t.frequency,
-                                " Hz is outside the receiver band ", center_frequency_, " +- ", 0.5 * sample_rate_,
-                                " Hz"));
+      throw ConfigError(Message("transmitter '", t.transmitter_id, "' frequency ", std::fixed,
+                                t.frequency, " Hz is outside the receiver band ", center_frequency_,
+                                " +- ", 0.5 * sample_rate_, " Hz"));
 }
 
 const PhaseExtractor::GramCache& PhaseExtractor::Gram(int n) const {
@@ -54,7 +59,8 @@ const PhaseExtractor::GramCache& PhaseExtractor::Gram(int n) const {
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd> es(g);
   if (es.eigenvalues().minCoeff() < 0.05 * n)
     throw InvalidArgument(Message("tone frequencies too close for blocks of ", n,
-                                  " samples (frequency resolution ", sample_rate_ / n, " Hz): joint fit ill-conditioned"));
+                                  " samples (frequency resolution ", sample_rate_ / n,
+                                  " Hz): joint fit ill-conditioned"));
   GramCache c;
   c.g_inverse = g.inverse();
   return gram_.emplace(n, c).first->second;
@@ -63,24 +69,29 @@ const PhaseExtractor::GramCache& PhaseExtractor::Gram(int n) const {
 std::vector<PhaseObservation> PhaseExtractor::Extract(const SampleBlock& block) const {
   const std::string& rx = block.receiver_id;
   if (std::abs(block.sample_rate - sample_rate_) > options_.sample_rate_tolerance * sample_rate_)
-    throw InvalidArgument(Message("receiver '", rx, "': sample_rate ", block.sample_rate, " Hz, the network expects ",
-                                  sample_rate_, " Hz"));
+    throw InvalidArgument(Message("receiver '", rx, "': sample_rate ", block.sample_rate,
+                                  " Hz, the network expects ", sample_rate_, " Hz"));
   if (std::abs(block.center_frequency - center_frequency_) > 1e-3)
-    throw InvalidArgument(Message("receiver '", rx, "': center_frequency ", std::fixed, block.center_frequency,
-                                  " Hz, the network expects ", center_frequency_, " Hz"));
-  if (block.q.empty()) throw InvalidArgument(Message("receiver '", rx, "': real sampling (empty q) is not supported"));
+    throw InvalidArgument(Message("receiver '", rx, "': center_frequency ", std::fixed,
+                                  block.center_frequency, " Hz, the network expects ",
+                                  center_frequency_, " Hz"));
+  if (block.q.empty())
+    throw InvalidArgument(Message("receiver '", rx, "': real sampling (empty q) is not supported"));
   if (block.q.size() != block.i.size())
-    throw InvalidArgument(Message("receiver '", rx, "': i has ", block.i.size(), " samples but q ", block.q.size()));
+    throw InvalidArgument(
+        Message("receiver '", rx, "': i has ", block.i.size(), " samples but q ", block.q.size()));
   const int n = static_cast<int>(block.i.size());
   const int k = static_cast<int>(tones_.size()) + (options_.fit_dc ? 1 : 0);
-  if (n < 4 * k + 16) throw InvalidArgument(Message("receiver '", rx, "': block of ", n, " samples is too short"));
+  if (n < 4 * k + 16)
+    throw InvalidArgument(Message("receiver '", rx, "': block of ", n, " samples is too short"));
   int saturated = 0;
   const double clip = block.full_scale * (1.0 - 1e-6);
   for (int s = 0; s < n; ++s) {
     if (!std::isfinite(block.i[s]) || !std::isfinite(block.q[s]))
-      throw InvalidArgument(Message("receiver '", rx, "' block ", block.sequence, ": sample ", s, " is not finite (",
-                                    block.i[s], ", ", block.q[s], ")"));
-    if (block.full_scale > 0.0 && (std::abs(block.i[s]) >= clip || std::abs(block.q[s]) >= clip)) ++saturated;
+      throw InvalidArgument(Message("receiver '", rx, "' block ", block.sequence, ": sample ", s,
+                                    " is not finite (", block.i[s], ", ", block.q[s], ")"));
+    if (block.full_scale > 0.0 && (std::abs(block.i[s]) >= clip || std::abs(block.q[s]) >= clip))
+      ++saturated;
   }
   std::vector<PhaseObservation> out(tones_.size());
   for (std::size_t t = 0; t < tones_.size(); ++t) {
@@ -133,8 +144,8 @@ std::vector<PhaseObservation> PhaseExtractor::Extract(const SampleBlock& block) 
     o.phase_variance = std::isfinite(o.snr) ? 1.0 / (2.0 * o.snr) : 0.0;
     o.valid = o.snr >= options_.min_snr;
     if (!o.valid)
-      o.problem = Message("receiver '", rx, "' transmitter '", o.transmitter_id, "': SNR ", o.snr, " below ",
-                          options_.min_snr, " (blocked path or transmitter off)");
+      o.problem = Message("receiver '", rx, "' transmitter '", o.transmitter_id, "': SNR ", o.snr,
+                          " below ", options_.min_snr, " (blocked path or transmitter off)");
   }
   return out;
 }

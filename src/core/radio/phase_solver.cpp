@@ -21,7 +21,8 @@ namespace {
 
 std::vector<Tone> TonesOf(const NetworkConfig& n) {
   std::vector<Tone> t;
-  for (const TransmitterConfig& c : n.transmitters) t.push_back({c.id, n.center_frequency + c.frequency_offset});
+  for (const TransmitterConfig& c : n.transmitters)
+    t.push_back({c.id, n.center_frequency + c.frequency_offset});
   return t;
 }
 
@@ -67,7 +68,6 @@ FixResult PartialFix(const Eigen::VectorXd& a, const Eigen::MatrixXd& q, double 
   return r;
 }
 
-
 // The circular mean of each link's phase over the buffered epochs where it
 // was valid, and its variance; a link valid in fewer than half of them is
 // not usable.
@@ -106,8 +106,8 @@ struct ReferenceParameters {
 
 ReferenceParameters ReferenceParameterLayout(const std::vector<bool>& tx_in,
                                              const std::vector<std::vector<bool>>& usable,
-                                             const std::vector<std::vector<bool>>& tree, const std::vector<bool>& seen,
-                                             int ref_rx) {
+                                             const std::vector<std::vector<bool>>& tree,
+                                             const std::vector<bool>& seen, int ref_rx) {
   const int nt = static_cast<int>(tx_in.size());
   const int nr = nt > 0 ? static_cast<int>(usable[0].size()) : 0;
   ReferenceParameters l;
@@ -139,8 +139,9 @@ ReferenceParameters ReferenceParameterLayout(const std::vector<bool>& tx_in,
 // The float solution conditioned on the fixed ambiguities: x and its
 // covariance updated by the fixed integers, the integers put in place;
 // *amb_fixed marks them.
-void ConditionOnFixedAmbiguities(const FixResult& fr, const Eigen::MatrixXd& cov, int first_amb, Eigen::VectorXd* x_io,
-                                 Eigen::MatrixXd* cov_fixed, std::vector<bool>* amb_fixed) {
+void ConditionOnFixedAmbiguities(const FixResult& fr, const Eigen::MatrixXd& cov, int first_amb,
+                                 Eigen::VectorXd* x_io, Eigen::MatrixXd* cov_fixed,
+                                 std::vector<bool>* amb_fixed) {
   Eigen::VectorXd& x = *x_io;
   const int np = static_cast<int>(cov.rows());
   const int nf = static_cast<int>(fr.fixed.size());
@@ -163,8 +164,8 @@ void ConditionOnFixedAmbiguities(const FixResult& fr, const Eigen::MatrixXd& cov
 // receivers nt..nt+nr-1) from the first receiver with usable links, whose
 // links get N = 0. Returns that receiver (-1: none); *seen the nodes
 // reached, *tree the tree's links.
-int ReferenceSpanningTree(const std::vector<std::vector<bool>>& usable, int nt, int nr, std::vector<bool>* seen,
-                          std::vector<std::vector<bool>>* tree) {
+int ReferenceSpanningTree(const std::vector<std::vector<bool>>& usable, int nt, int nr,
+                          std::vector<bool>* seen, std::vector<std::vector<bool>>* tree) {
   std::vector<bool>& s = *seen;
   std::vector<std::vector<bool>>& tr = *tree;
   int ref_rx = -1;
@@ -207,13 +208,15 @@ int ReferenceSpanningTree(const std::vector<std::vector<bool>>& usable, int nt, 
 // receiver's) and its ambiguity (non-tree links), weighted by the inverse
 // phase variance; the installation survey as a prior on each shift.
 // *reduced the reduced phases.
-void ReferenceNormalEquations(const NetworkConfig& network, double k, const std::vector<bool>& tx_in,
+void ReferenceNormalEquations(const NetworkConfig& network, double k,
+                              const std::vector<bool>& tx_in,
                               const std::vector<std::vector<bool>>& usable,
                               const std::vector<std::vector<double>>& mean,
-                              const std::vector<std::vector<double>>& var, const std::vector<int>& px,
-                              const std::vector<int>& ppsi, const std::vector<int>& pxi,
-                              const std::vector<std::vector<int>>& pn, Eigen::MatrixXd* normal_out,
-                              Eigen::VectorXd* rhs_out, std::vector<std::vector<double>>* reduced_out) {
+                              const std::vector<std::vector<double>>& var,
+                              const std::vector<int>& px, const std::vector<int>& ppsi,
+                              const std::vector<int>& pxi, const std::vector<std::vector<int>>& pn,
+                              Eigen::MatrixXd* normal_out, Eigen::VectorXd* rhs_out,
+                              std::vector<std::vector<double>>* reduced_out) {
   const int nt = static_cast<int>(network.transmitters.size());
   const int nr = static_cast<int>(network.receivers.size());
   const int np = static_cast<int>(normal_out->rows());
@@ -248,10 +251,14 @@ void ReferenceNormalEquations(const NetworkConfig& network, double k, const std:
 // ---------------------------------------------------------------------------
 std::string FixStateName(FixState s) {
   switch (s) {
-    case FixState::kNone: return "none";
-    case FixState::kFloat: return "float";
-    case FixState::kPartial: return "partial";
-    case FixState::kFixed: return "fixed";
+    case FixState::kNone:
+      return "none";
+    case FixState::kFloat:
+      return "float";
+    case FixState::kPartial:
+      return "partial";
+    case FixState::kFixed:
+      return "fixed";
   }
   return "?";
 }
@@ -273,7 +280,8 @@ NetworkConfig NetworkConfig::FromYaml(const std::string& text, const std::string
   for (io::YamlMap& t : root.List("transmitters")) {
     TransmitterConfig c;
     c.id = t.RequiredString("id");
-    c.frequency_offset = t.RequiredDouble("frequency_offset", -0.5 * n.sample_rate, 0.5 * n.sample_rate, "Hz");
+    c.frequency_offset =
+        t.RequiredDouble("frequency_offset", -0.5 * n.sample_rate, 0.5 * n.sample_rate, "Hz");
     c.initial_position = Vec3(t.RequiredDoubles("initial_position", 3));
     c.initial_sigma = t.Double("initial_sigma", 0.005, 1e-5, 10.0, "m");
     t.CheckNoUnknownKeys();
@@ -296,30 +304,35 @@ NetworkConfig NetworkConfig::Load(const std::string& path) {
 std::string NetworkConfig::ToYaml() const {
   std::ostringstream o;
   o.precision(12);
-  o << "format: slope_monitor_radio_network/1\nwavelength: " << wavelength << "\ncenter_frequency: "
-    << center_frequency << "\nsample_rate: " << sample_rate << "\nreceivers:\n";
+  o << "format: slope_monitor_radio_network/1\nwavelength: " << wavelength
+    << "\ncenter_frequency: " << center_frequency << "\nsample_rate: " << sample_rate
+    << "\nreceivers:\n";
   for (const auto& r : receivers)
-    o << "  - {id: " << r.id << ", position: [" << r.position.x() << ", " << r.position.y() << ", " << r.position.z()
-      << "]}\n";
+    o << "  - {id: " << r.id << ", position: [" << r.position.x() << ", " << r.position.y() << ", "
+      << r.position.z() << "]}\n";
   o << "transmitters:\n";
   for (const auto& t : transmitters)
-    o << "  - {id: " << t.id << ", frequency_offset: " << t.frequency_offset << ", initial_position: ["
-      << t.initial_position.x() << ", " << t.initial_position.y() << ", " << t.initial_position.z()
-      << "], initial_sigma: " << t.initial_sigma << "}\n";
+    o << "  - {id: " << t.id << ", frequency_offset: " << t.frequency_offset
+      << ", initial_position: [" << t.initial_position.x() << ", " << t.initial_position.y() << ", "
+      << t.initial_position.z() << "], initial_sigma: " << t.initial_sigma << "}\n";
   return o.str();
 }
 
 void NetworkConfig::Check(const std::string& context) const {
   if (receivers.size() < 3)
-    throw ConfigError(Message(context, ": receivers: ", receivers.size(),
-                              " configured, at least 3 are needed for a 3-D position of a transmitter"));
+    throw ConfigError(
+        Message(context, ": receivers: ", receivers.size(),
+                " configured, at least 3 are needed for a 3-D position of a transmitter"));
   if (transmitters.empty()) throw ConfigError(Message(context, ": transmitters: none configured"));
-  if (!(wavelength > 0.0)) throw ConfigError(Message(context, ": wavelength = ", wavelength, " must be > 0"));
+  if (!(wavelength > 0.0))
+    throw ConfigError(Message(context, ": wavelength = ", wavelength, " must be > 0"));
   std::set<std::string> ids;
   for (std::size_t j = 0; j < receivers.size(); ++j) {
-    if (receivers[j].id.empty()) throw ConfigError(Message(context, ": receivers[", j, "].id is empty"));
+    if (receivers[j].id.empty())
+      throw ConfigError(Message(context, ": receivers[", j, "].id is empty"));
     if (!ids.insert(receivers[j].id).second)
-      throw ConfigError(Message(context, ": receivers[", j, "].id '", receivers[j].id, "' repeated"));
+      throw ConfigError(
+          Message(context, ": receivers[", j, "].id '", receivers[j].id, "' repeated"));
   }
   ids.clear();
   for (std::size_t i = 0; i < transmitters.size(); ++i) {
@@ -328,8 +341,8 @@ void NetworkConfig::Check(const std::string& context) const {
     if (!ids.insert(t.id).second)
       throw ConfigError(Message(context, ": transmitters[", i, "].id '", t.id, "' repeated"));
     if (!(std::abs(t.frequency_offset) < 0.5 * sample_rate))
-      throw ConfigError(Message(context, ": transmitters[", i, "].frequency_offset = ", t.frequency_offset,
-                                " Hz outside +-sample_rate/2"));
+      throw ConfigError(Message(context, ": transmitters[", i, "].frequency_offset = ",
+                                t.frequency_offset, " Hz outside +-sample_rate/2"));
     if (!(t.initial_sigma > 0.0))
       throw ConfigError(Message(context, ": transmitters[", i, "].initial_sigma must be > 0"));
   }
@@ -350,17 +363,20 @@ int NetworkConfig::FindTransmitter(const std::string& id) const {
 void RadioSolverOptions::Check() const {
   extraction.Check();
   auto bad = [](const std::string& what) { throw ConfigError(what); };
-  if (init_epochs < 1 || init_epochs > 1000) bad(Message("init_epochs = ", init_epochs, " must be in [1, 1000]"));
+  if (init_epochs < 1 || init_epochs > 1000)
+    bad(Message("init_epochs = ", init_epochs, " must be in [1, 1000]"));
   if (!(ratio_threshold >= 1.0 && ratio_threshold <= 100.0))
     bad(Message("ratio_threshold = ", ratio_threshold, " must be in [1, 100]"));
   if (!(process_noise >= 0.0 && process_noise <= 1.0))
     bad(Message("process_noise = ", process_noise, " must be in [0, 1] m^2/s"));
   if (!(outlier_sigma >= 2.0 && outlier_sigma <= 100.0))
     bad(Message("outlier_sigma = ", outlier_sigma, " must be in [2, 100]"));
-  if (refix_after < 1 || refix_after > 1000) bad(Message("refix_after = ", refix_after, " must be in [1, 1000]"));
+  if (refix_after < 1 || refix_after > 1000)
+    bad(Message("refix_after = ", refix_after, " must be in [1, 1000]"));
   if (!(min_phase_sigma >= 0.0 && min_phase_sigma <= 1.0))
     bad(Message("min_phase_sigma = ", min_phase_sigma, " must be in [0, 1] rad"));
-  if (min_receivers < 3 || min_receivers > 100) bad(Message("min_receivers = ", min_receivers, " must be in [3, 100]"));
+  if (min_receivers < 3 || min_receivers > 100)
+    bad(Message("min_receivers = ", min_receivers, " must be in [3, 100]"));
   if (!(max_refix_sigma > 0.0)) bad(Message("max_refix_sigma = ", max_refix_sigma, " must be > 0"));
 }
 
@@ -374,11 +390,13 @@ bool RadioEpochSummary::IsSolutionUsable() const {
 RadioPhaseSolver::RadioPhaseSolver(NetworkConfig network, RadioSolverOptions options)
     : network_(std::move(network)),
       options_(options),
-      extractor_(TonesOf(network_), network_.center_frequency, network_.sample_rate, options.extraction) {
+      extractor_(TonesOf(network_), network_.center_frequency, network_.sample_rate,
+                 options.extraction) {
   network_.Check();
   options_.Check();
   if (options_.max_refix_sigma > network_.wavelength / 4)
-    throw ConfigError(Message("max_refix_sigma = ", options_.max_refix_sigma, " must be <= wavelength / 4"));
+    throw ConfigError(
+        Message("max_refix_sigma = ", options_.max_refix_sigma, " must be <= wavelength / 4"));
   tx_.resize(network_.transmitters.size());
   links_.assign(network_.transmitters.size(), std::vector<Link>(network_.receivers.size()));
   last_sequence_.resize(network_.receivers.size());
@@ -392,7 +410,8 @@ std::optional<double> RadioPhaseSolver::LinkConstant(int tx, int rx) const {
   return l.constant;
 }
 
-RadioEpochSummary RadioPhaseSolver::ProcessEpoch(double stamp, const std::vector<SampleBlock>& blocks) {
+RadioEpochSummary RadioPhaseSolver::ProcessEpoch(double stamp,
+                                                 const std::vector<SampleBlock>& blocks) {
   RadioEpochSummary summary;
   summary.stamp = stamp;
   const int nt = static_cast<int>(network_.transmitters.size());
@@ -407,13 +426,15 @@ RadioEpochSummary RadioPhaseSolver::ProcessEpoch(double stamp, const std::vector
       continue;
     }
     if (got[rx]) {
-      summary.problems.push_back(Message("receiver '", b.receiver_id, "': two blocks in one epoch, second ignored"));
+      summary.problems.push_back(
+          Message("receiver '", b.receiver_id, "': two blocks in one epoch, second ignored"));
       continue;
     }
     got[rx] = true;
     if (last_sequence_[rx] && b.sequence > *last_sequence_[rx] + 1)
-      summary.events.push_back(Message("receiver '", b.receiver_id, "': ", b.sequence - *last_sequence_[rx] - 1,
-                                       " block(s) dropped (sequence ", *last_sequence_[rx], " -> ", b.sequence, ")"));
+      summary.events.push_back(
+          Message("receiver '", b.receiver_id, "': ", b.sequence - *last_sequence_[rx] - 1,
+                  " block(s) dropped (sequence ", *last_sequence_[rx], " -> ", b.sequence, ")"));
     last_sequence_[rx] = b.sequence;
     std::vector<PhaseObservation> po;
     try {
@@ -484,7 +505,9 @@ RadioEpochSummary RadioPhaseSolver::ProcessEpoch(double stamp, const std::vector
       d.snr = obs[tx][rx].snr;
       d.rejected_streak = links_[tx][rx].rejected_streak;
       d.refixes = links_[tx][rx].refixes;
-      d.status = obs[tx][rx].valid ? "ok" : (obs[tx][rx].problem.empty() ? "no phase" : obs[tx][rx].problem);
+      d.status = obs[tx][rx].valid
+                     ? "ok"
+                     : (obs[tx][rx].problem.empty() ? "no phase" : obs[tx][rx].problem);
       summary.links.push_back(d);
     }
   }
@@ -511,7 +534,8 @@ void RadioPhaseSolver::SolveReference(RadioEpochSummary* summary) {
 
   // Circular mean of each link's phase over the epochs where it was valid.
   std::vector<std::vector<bool>> usable(nt, std::vector<bool>(nr, false));
-  std::vector<std::vector<double>> mean(nt, std::vector<double>(nr, 0.0)), var(nt, std::vector<double>(nr, 0.0));
+  std::vector<std::vector<double>> mean(nt, std::vector<double>(nr, 0.0)),
+      var(nt, std::vector<double>(nr, 0.0));
   LinkPhaseMeans(init_buffer_, nt, nr, &usable, &mean, &var);
   // Transmitters with too few receivers are left out (reported), the rest solved.
   std::vector<bool> tx_in(nt, false);
@@ -520,9 +544,10 @@ void RadioPhaseSolver::SolveReference(RadioEpochSummary* summary) {
     if (n >= options_.min_receivers) {
       tx_in[tx] = true;
     } else {
-      const std::string msg = Message("transmitter '", network_.transmitters[tx].id, "': only ", n,
-                                      " receiver(s) with a usable phase at the reference epochs, ",
-                                      options_.min_receivers, " needed for a 3-D position; not solved");
+      const std::string msg =
+          Message("transmitter '", network_.transmitters[tx].id, "': only ", n,
+                  " receiver(s) with a usable phase at the reference epochs, ",
+                  options_.min_receivers, " needed for a 3-D position; not solved");
       summary->problems.push_back(msg);
       reference_.excluded.push_back(network_.transmitters[tx].id);
       tx_[tx].status = msg;
@@ -535,13 +560,15 @@ void RadioPhaseSolver::SolveReference(RadioEpochSummary* summary) {
   std::vector<std::vector<bool>> tree(nt, std::vector<bool>(nr, false));
   const int ref_rx = ReferenceSpanningTree(usable, nt, nr, &seen, &tree);
   if (ref_rx < 0) {
-    summary->problems.push_back("radio reference solution: no transmitter has enough usable links; retrying");
+    summary->problems.push_back(
+        "radio reference solution: no transmitter has enough usable links; retrying");
     return;
   }
   for (int tx = 0; tx < nt; ++tx)
     if (tx_in[tx] && !seen[tx]) {  // not connected to the reference receiver
-      const std::string msg = Message("transmitter '", network_.transmitters[tx].id,
-                                      "': its receivers share no transmitter with the rest of the network; not solved");
+      const std::string msg =
+          Message("transmitter '", network_.transmitters[tx].id,
+                  "': its receivers share no transmitter with the rest of the network; not solved");
       summary->problems.push_back(msg);
       tx_[tx].status = msg;
       tx_in[tx] = false;
@@ -556,7 +583,8 @@ void RadioPhaseSolver::SolveReference(RadioEpochSummary* summary) {
   Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(np, np);
   Eigen::VectorXd rhs = Eigen::VectorXd::Zero(np);
   std::vector<std::vector<double>> reduced(nt, std::vector<double>(nr, 0.0));
-  ReferenceNormalEquations(network_, k, tx_in, usable, mean, var, px, ppsi, pxi, pn, &normal, &rhs, &reduced);
+  ReferenceNormalEquations(network_, k, tx_in, usable, mean, var, px, ppsi, pxi, pn, &normal, &rhs,
+                           &reduced);
   const Eigen::LDLT<Eigen::MatrixXd> ldlt(normal);
   if (ldlt.info() != Eigen::Success || ldlt.vectorD().minCoeff() <= 0.0) {
     summary->problems.push_back("radio reference solution: singular normal equations; retrying");
@@ -578,13 +606,15 @@ void RadioPhaseSolver::SolveReference(RadioEpochSummary* summary) {
     reference_.num_fixed = nf;
     net_state = nf == na ? FixState::kFixed : (nf > 0 ? FixState::kPartial : FixState::kFloat);
     if (nf > 0) ConditionOnFixedAmbiguities(fr, cov, first_amb, &x, &cov_fixed, &amb_fixed);
-    summary->events.push_back(Message("reference solution: ", nf, " of ", na, " ambiguities fixed, ratio ", fr.ratio,
-                                      " (", FixStateName(net_state), ")"));
+    summary->events.push_back(Message("reference solution: ", nf, " of ", na,
+                                      " ambiguities fixed, ratio ", fr.ratio, " (",
+                                      FixStateName(net_state), ")"));
   } else {
     reference_.ratio = std::numeric_limits<double>::infinity();
   }
   reference_.num_ambiguities = na;
-  reference_.mean_phase.assign(nt, std::vector<double>(nr, std::numeric_limits<double>::quiet_NaN()));
+  reference_.mean_phase.assign(nt,
+                               std::vector<double>(nr, std::numeric_limits<double>::quiet_NaN()));
   for (int tx = 0; tx < nt; ++tx)
     for (int rx = 0; rx < nr; ++rx)
       if (usable[tx][rx]) reference_.mean_phase[tx][rx] = mean[tx][rx];
@@ -610,9 +640,10 @@ void RadioPhaseSolver::SolveReference(RadioEpochSummary* summary) {
         ++own;
         own_fixed += amb_fixed[i] ? 1 : 0;
       }
-    s.fix_state = own == 0 ? net_state
-                           : (own_fixed == own ? FixState::kFixed
-                                               : (own_fixed > 0 ? FixState::kPartial : FixState::kFloat));
+    s.fix_state =
+        own == 0 ? net_state
+                 : (own_fixed == own ? FixState::kFixed
+                                     : (own_fixed > 0 ? FixState::kPartial : FixState::kFloat));
     s.ratio = reference_.ratio;
     s.status = "ok";
     for (int rx = 0; rx < nr; ++rx) {
@@ -625,9 +656,11 @@ void RadioPhaseSolver::SolveReference(RadioEpochSummary* summary) {
       l.constant = WrapPhase(mean[tx][rx] - k * r);
       // Model constant psi + xi + 2 pi N (+ the wrap of the reduced phase):
       // its double differences are 2 pi times integers (LinkConstant()).
-      const double r0 = (network_.transmitters[tx].initial_position - network_.receivers[rx].position).norm();
+      const double r0 =
+          (network_.transmitters[tx].initial_position - network_.receivers[rx].position).norm();
       double model = x(ppsi[tx]) + (pxi[rx] >= 0 ? x(pxi[rx]) : 0.0) +
-                     (pn[tx][rx] >= 0 ? 2.0 * M_PI * x(pn[tx][rx]) : 0.0) + (mean[tx][rx] - k * r0 - reduced[tx][rx]);
+                     (pn[tx][rx] >= 0 ? 2.0 * M_PI * x(pn[tx][rx]) : 0.0) +
+                     (mean[tx][rx] - k * r0 - reduced[tx][rx]);
       model_constant_[{tx, rx}] = model;
     }
   }
@@ -641,7 +674,8 @@ std::optional<double> RadioPhaseSolver::ModelConstant(int tx, int rx) const {
 
 // ---------------------------------------------------------------------------
 // Tracking: EKF of the displacement with per-epoch integer cycle counts.
-RadioPhaseSolver::TrackInfo RadioPhaseSolver::Track(int tx, double stamp, const std::vector<Obs>& obs,
+RadioPhaseSolver::TrackInfo RadioPhaseSolver::Track(int tx, double stamp,
+                                                    const std::vector<Obs>& obs,
                                                     RadioEpochSummary* summary) {
   const int nr = static_cast<int>(network_.receivers.size());
   const double k = Wavenumber();
@@ -689,7 +723,8 @@ RadioPhaseSolver::TrackInfo RadioPhaseSolver::Track(int tx, double stamp, const 
       cand.push_back(li);
     }
     for (int i = 0; i < m; ++i)
-      if (std::find(cand.begin(), cand.end(), i) == cand.end()) info.status[idx[i]] = "cycle count not fixed";
+      if (std::find(cand.begin(), cand.end(), i) == cand.end())
+        info.status[idx[i]] = "cycle count not fixed";
     // Outlier: the worst normalised innovation above the threshold is rejected.
     std::vector<bool> reject(nfix, false);
     if (nfix >= 2) {
@@ -709,8 +744,9 @@ RadioPhaseSolver::TrackInfo RadioPhaseSolver::Track(int tx, double stamp, const 
         Link& l = links_[tx][rx];
         ++l.rejected_streak;
         info.status[rx] = Message("outlier (", worst_t, " sigma, streak ", l.rejected_streak, ")");
-        summary->events.push_back(Message("link ", tx_id, "->", network_.receivers[rx].id, ": phase rejected, ",
-                                          v[worst], " rad from the prediction (", worst_t, " sigma)"));
+        summary->events.push_back(Message("link ", tx_id, "->", network_.receivers[rx].id,
+                                          ": phase rejected, ", v[worst],
+                                          " rad from the prediction (", worst_t, " sigma)"));
       }
     }
     for (int i = 0; i < nfix; ++i) {
@@ -756,16 +792,18 @@ RadioPhaseSolver::TrackInfo RadioPhaseSolver::Track(int tx, double stamp, const 
     l.rejected_streak = 0;
     ++l.refixes;
     info.status[rx] = refix ? "constant re-fixed" : "joined";
-    summary->events.push_back(Message("link ", tx_id, "->", network_.receivers[rx].id,
-                                      refix ? ": constant re-fixed after repeated rejections (multipath change or slip)"
-                                            : ": joined (constant fixed from the current estimate)"));
+    summary->events.push_back(
+        Message("link ", tx_id, "->", network_.receivers[rx].id,
+                refix ? ": constant re-fixed after repeated rejections (multipath change or slip)"
+                      : ": joined (constant fixed from the current estimate)"));
   }
   s.status = info.used >= 3 ? "ok" : Message("coasting: ", info.used, " link(s) in the update");
   return info;
 }
 
 // ---------------------------------------------------------------------------
-EpochAssembler::EpochAssembler(std::vector<std::string> receiver_ids, double tolerance, double max_wait)
+EpochAssembler::EpochAssembler(std::vector<std::string> receiver_ids, double tolerance,
+                               double max_wait)
     : receivers_(std::move(receiver_ids)), tolerance_(tolerance), max_wait_(max_wait) {}
 
 std::vector<EpochAssembler::Epoch> EpochAssembler::Add(SampleBlock block) {
@@ -806,14 +844,16 @@ std::vector<EpochAssembler::Epoch> EpochAssembler::Add(SampleBlock block) {
       keep.push_back(std::move(e));
   }
   pending_ = std::move(keep);
-  std::sort(done.begin(), done.end(), [](const Epoch& a, const Epoch& b) { return a.stamp < b.stamp; });
+  std::sort(done.begin(), done.end(),
+            [](const Epoch& a, const Epoch& b) { return a.stamp < b.stamp; });
   return done;
 }
 
 std::vector<EpochAssembler::Epoch> EpochAssembler::Flush() {
   std::vector<Epoch> done = std::move(pending_);
   pending_.clear();
-  std::sort(done.begin(), done.end(), [](const Epoch& a, const Epoch& b) { return a.stamp < b.stamp; });
+  std::sort(done.begin(), done.end(),
+            [](const Epoch& a, const Epoch& b) { return a.stamp < b.stamp; });
   return done;
 }
 

@@ -15,8 +15,8 @@ namespace {
 
 // A fault of `kind` on the path tx -> rx (tx empty: every block of rx) from
 // `start` for `duration` [s]; no bias, amplitude unchanged.
-RadioFault FaultOn(RadioFault::Kind kind, const std::string& tx, const std::string& rx, double start,
-                   double duration) {
+RadioFault FaultOn(RadioFault::Kind kind, const std::string& tx, const std::string& rx,
+                   double start, double duration) {
   RadioFault f;
   f.kind = kind;
   f.transmitter_id = tx;
@@ -28,15 +28,15 @@ RadioFault FaultOn(RadioFault::Kind kind, const std::string& tx, const std::stri
 
 }  // namespace
 
-RadioFault RadioFault::BlockedPath(const std::string& tx, const std::string& rx, double start, double duration,
-                                   double attenuation) {
+RadioFault RadioFault::BlockedPath(const std::string& tx, const std::string& rx, double start,
+                                   double duration, double attenuation) {
   RadioFault f = FaultOn(Kind::kBlockedPath, tx, rx, start, duration);
   f.attenuation = attenuation;
   return f;
 }
 
-RadioFault RadioFault::MultipathJump(const std::string& tx, const std::string& rx, double start, double duration,
-                                     double bias, double attenuation) {
+RadioFault RadioFault::MultipathJump(const std::string& tx, const std::string& rx, double start,
+                                     double duration, double bias, double attenuation) {
   RadioFault f = FaultOn(Kind::kMultipathJump, tx, rx, start, duration);
   f.bias = bias;
   f.attenuation = attenuation;
@@ -56,13 +56,15 @@ bool RadioFault::ActiveAt(double t) const {
 std::string RadioFault::Describe() const {
   switch (kind) {
     case Kind::kBlockedPath:
-      return Message("blocked ", transmitter_id, "->", receiver_id, " from ", std::fixed, start, " s for ", duration,
-                     " s (amplitude x", attenuation, ")");
+      return Message("blocked ", transmitter_id, "->", receiver_id, " from ", std::fixed, start,
+                     " s for ", duration, " s (amplitude x", attenuation, ")");
     case Kind::kMultipathJump:
-      return Message("multipath jump ", transmitter_id, "->", receiver_id, " of ", bias, " rad from ", std::fixed,
-                     start, " s", duration > 0 ? Message(" for ", duration, " s") : std::string(" on"));
+      return Message("multipath jump ", transmitter_id, "->", receiver_id, " of ", bias,
+                     " rad from ", std::fixed, start, " s",
+                     duration > 0 ? Message(" for ", duration, " s") : std::string(" on"));
     case Kind::kDroppedBlocks:
-      return Message("dropped blocks of ", receiver_id, " from ", std::fixed, start, " s for ", duration, " s");
+      return Message("dropped blocks of ", receiver_id, " from ", std::fixed, start, " s for ",
+                     duration, " s");
   }
   return "";
 }
@@ -78,8 +80,10 @@ void RadioSimConfig::Check() const {
   std::set<std::string> rx_ids, tx_ids;
   for (std::size_t j = 0; j < receivers.size(); ++j) {
     if (receivers[j].id.empty()) bad(Message("receivers[", j, "].id is empty"));
-    if (!rx_ids.insert(receivers[j].id).second) bad(Message("receivers[", j, "].id '", receivers[j].id, "' repeated"));
-    if (!receivers[j].position.allFinite()) bad(Message("receivers[", j, "].position is not finite"));
+    if (!rx_ids.insert(receivers[j].id).second)
+      bad(Message("receivers[", j, "].id '", receivers[j].id, "' repeated"));
+    if (!receivers[j].position.allFinite())
+      bad(Message("receivers[", j, "].position is not finite"));
   }
   const double bin = sample_rate / block_size;
   for (std::size_t i = 0; i < transmitters.size(); ++i) {
@@ -87,33 +91,39 @@ void RadioSimConfig::Check() const {
     if (t.id.empty()) bad(Message("transmitters[", i, "].id is empty"));
     if (!tx_ids.insert(t.id).second) bad(Message("transmitters[", i, "].id '", t.id, "' repeated"));
     if (!(std::abs(t.frequency_offset) < 0.5 * sample_rate))
-      bad(Message("transmitters[", i, "].frequency_offset = ", t.frequency_offset, " Hz outside +-sample_rate/2 = ",
-                  0.5 * sample_rate));
-    if (!(t.amplitude >= 0.0)) bad(Message("transmitters[", i, "].amplitude = ", t.amplitude, " must be >= 0"));
-    if (!t.position) bad(Message("transmitters[", i, "] ('", t.id, "').position function is not set"));
+      bad(Message("transmitters[", i, "].frequency_offset = ", t.frequency_offset,
+                  " Hz outside +-sample_rate/2 = ", 0.5 * sample_rate));
+    if (!(t.amplitude >= 0.0))
+      bad(Message("transmitters[", i, "].amplitude = ", t.amplitude, " must be >= 0"));
+    if (!t.position)
+      bad(Message("transmitters[", i, "] ('", t.id, "').position function is not set"));
     for (std::size_t k = 0; k < i; ++k)
       if (std::abs(transmitters[k].frequency_offset - t.frequency_offset) < bin)
-        bad(Message("transmitters '", transmitters[k].id, "' and '", t.id, "' are closer than one DFT bin (", bin,
-                    " Hz)"));
+        bad(Message("transmitters '", transmitters[k].id, "' and '", t.id,
+                    "' are closer than one DFT bin (", bin, " Hz)"));
   }
   for (std::size_t f = 0; f < faults.size(); ++f) {
     const RadioFault& fault = faults[f];
     if (!rx_ids.count(fault.receiver_id))
       bad(Message("faults[", f, "].receiver_id '", fault.receiver_id, "' is not a receiver"));
     if (fault.kind != RadioFault::Kind::kDroppedBlocks && !tx_ids.count(fault.transmitter_id))
-      bad(Message("faults[", f, "].transmitter_id '", fault.transmitter_id, "' is not a transmitter"));
+      bad(Message("faults[", f, "].transmitter_id '", fault.transmitter_id,
+                  "' is not a transmitter"));
     if (!(fault.attenuation >= 0.0)) bad(Message("faults[", f, "].attenuation must be >= 0"));
   }
 }
 
-RadioSimulator::RadioSimulator(RadioSimConfig config) : config_(std::move(config)) { config_.Check(); }
+RadioSimulator::RadioSimulator(RadioSimConfig config) : config_(std::move(config)) {
+  config_.Check();
+}
 
 double RadioSimulator::Range(int tx, int rx, double t) const {
   return (config_.transmitters.at(tx).position(t) - config_.receivers.at(rx).position).norm();
 }
 
 double RadioSimulator::UnwrappedPhase(int tx, int rx, double t) const {
-  return 2.0 * M_PI / config_.wavelength * Range(tx, rx, t) + config_.transmitters[tx].psi + config_.receivers[rx].xi;
+  return 2.0 * M_PI / config_.wavelength * Range(tx, rx, t) + config_.transmitters[tx].psi +
+         config_.receivers[rx].xi;
 }
 
 double RadioSimulator::WrappedPhase(int tx, int rx, double t) const {
@@ -128,7 +138,8 @@ int RadioSimulator::Ambiguity(int tx, int rx, double t) const {
 double RadioSimulator::FaultBias(int tx, int rx, double t) const {
   double b = 0.0;
   for (const RadioFault& f : config_.faults)
-    if (f.kind == RadioFault::Kind::kMultipathJump && f.transmitter_id == config_.transmitters.at(tx).id &&
+    if (f.kind == RadioFault::Kind::kMultipathJump &&
+        f.transmitter_id == config_.transmitters.at(tx).id &&
         f.receiver_id == config_.receivers.at(rx).id && f.ActiveAt(t))
       b += f.bias;
   return b;
@@ -137,7 +148,8 @@ double RadioSimulator::FaultBias(int tx, int rx, double t) const {
 double RadioSimulator::FaultAttenuation(int tx, int rx, double t) const {
   double a = 1.0;
   for (const RadioFault& f : config_.faults)
-    if (f.kind != RadioFault::Kind::kDroppedBlocks && f.transmitter_id == config_.transmitters.at(tx).id &&
+    if (f.kind != RadioFault::Kind::kDroppedBlocks &&
+        f.transmitter_id == config_.transmitters.at(tx).id &&
         f.receiver_id == config_.receivers.at(rx).id && f.ActiveAt(t))
       a *= f.attenuation;
   return a;
@@ -145,7 +157,8 @@ double RadioSimulator::FaultAttenuation(int tx, int rx, double t) const {
 
 bool RadioSimulator::Dropped(int rx, double t) const {
   for (const RadioFault& f : config_.faults)
-    if (f.kind == RadioFault::Kind::kDroppedBlocks && f.receiver_id == config_.receivers.at(rx).id && f.ActiveAt(t))
+    if (f.kind == RadioFault::Kind::kDroppedBlocks &&
+        f.receiver_id == config_.receivers.at(rx).id && f.ActiveAt(t))
       return true;
   return false;
 }
@@ -162,8 +175,10 @@ std::vector<std::string> RadioSimulator::FaultDescriptions() const {
   return out;
 }
 
-std::optional<radio::SampleBlock> RadioSimulator::Synthesize(int rx, double t_start, std::uint32_t sequence) const {
-  if (rx < 0 || rx >= NumReceivers()) throw InvalidArgument(Message("radio sim: receiver index ", rx, " out of range"));
+std::optional<radio::SampleBlock> RadioSimulator::Synthesize(int rx, double t_start,
+                                                             std::uint32_t sequence) const {
+  if (rx < 0 || rx >= NumReceivers())
+    throw InvalidArgument(Message("radio sim: receiver index ", rx, " out of range"));
   if (Dropped(rx, t_start)) return std::nullopt;
   const RadioSimReceiver& r = config_.receivers[rx];
   radio::SampleBlock b;
@@ -189,7 +204,8 @@ std::optional<radio::SampleBlock> RadioSimulator::Synthesize(int rx, double t_st
     }
   }
   // Noise from a generator of this block only.
-  std::seed_seq seq{config_.seed, static_cast<unsigned int>(rx), static_cast<unsigned int>(sequence), 0x5eedu};
+  std::seed_seq seq{config_.seed, static_cast<unsigned int>(rx),
+                    static_cast<unsigned int>(sequence), 0x5eedu};
   std::mt19937_64 rng(seq);
   std::normal_distribution<double> gauss(0.0, 1.0);
   const double fs = config_.full_scale;
@@ -208,7 +224,8 @@ std::optional<radio::SampleBlock> RadioSimulator::Synthesize(int rx, double t_st
   return b;
 }
 
-std::vector<radio::SampleBlock> RadioSimulator::SynthesizeAll(double t_start, std::uint32_t sequence) const {
+std::vector<radio::SampleBlock> RadioSimulator::SynthesizeAll(double t_start,
+                                                              std::uint32_t sequence) const {
   std::vector<radio::SampleBlock> out;
   for (int rx = 0; rx < NumReceivers(); ++rx)
     if (auto b = Synthesize(rx, t_start, sequence)) out.push_back(std::move(*b));

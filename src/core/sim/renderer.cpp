@@ -14,7 +14,7 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 struct Item {
-  int index = 0;       // plate or obstacle index
+  int index = 0;  // plate or obstacle index
   bool plate = true;
   int c0 = 0, c1 = -1, r0 = 0, r1 = -1;  // pixel bbox (inclusive)
 };
@@ -25,12 +25,12 @@ float Luma(const Rgb& c) { return 0.114f * c.z() + 0.587f * c.y() + 0.299f * c.x
 // (with the lens distortion) and its depth; a margin of 60 % beyond the
 // frame keeps the triangles that cross its edge.
 struct ProjectedMesh {
-  std::vector<float> vx, vy, vd;     // [px], [px], [m] per vertex
+  std::vector<float> vx, vy, vd;    // [px], [px], [m] per vertex
   std::vector<std::uint8_t> valid;  // 1: projected
 };
 
-ProjectedMesh ProjectVertices(const HeightGrid& grid, const camera::CameraModel& model, const Eigen::Matrix3d& m,
-                              const Eigen::Vector3d& origin) {
+ProjectedMesh ProjectVertices(const HeightGrid& grid, const camera::CameraModel& model,
+                              const Eigen::Matrix3d& m, const Eigen::Vector3d& origin) {
   const int w = model.sensor().width, h = model.sensor().height;
   const double c = model.principal_distance();
   const double ps = model.sensor().pixel_size;
@@ -69,7 +69,8 @@ std::vector<int> TriangleIds(const HeightGrid& grid, const ProjectedMesh& mesh, 
   std::vector<int> tri(static_cast<size_t>(w) * h, -1);
   for (int j = 0; j + 1 < grid.ny; ++j) {
     for (int i = 0; i + 1 < grid.nx; ++i) {
-      const size_t k00 = static_cast<size_t>(j) * grid.nx + i, k10 = k00 + 1, k01 = k00 + grid.nx, k11 = k01 + 1;
+      const size_t k00 = static_cast<size_t>(j) * grid.nx + i, k10 = k00 + 1, k01 = k00 + grid.nx,
+                   k11 = k01 + 1;
       for (int half = 0; half < 2; ++half) {
         const size_t ka = k00, kb = half == 0 ? k10 : k11, kc = half == 0 ? k11 : k01;
         if (!valid[ka] || !valid[kb] || !valid[kc]) continue;
@@ -137,7 +138,8 @@ std::vector<Item> ImageBoxes(const Scene::State& state, const camera::CameraMode
   for (size_t k = 0; k < state.obstacles.size(); ++k) {
     const Obstacle& o = state.obstacles[k];
     const double r = std::max(o.radius, 0.5 * o.height) + 0.2;
-    add_item(static_cast<int>(k), false, o.base + Eigen::Vector3d(0, 0, 0.5 * o.height) + o.crown_offset,
+    add_item(static_cast<int>(k), false,
+             o.base + Eigen::Vector3d(0, 0, 0.5 * o.height) + o.crown_offset,
              std::hypot(r, 0.5 * o.height));
   }
   return items;
@@ -146,8 +148,9 @@ std::vector<Item> ImageBoxes(const Scene::State& state, const camera::CameraMode
 // Distance along the ray `d` from `origin` to the terrain, starting from the
 // z-buffer's triangle at pixel (pc, pr) and its neighbours; *hit_tri the
 // triangle hit (-1: none, kInf returned).
-double TerrainHit(const HeightGrid& grid, const std::vector<int>& tri, int w, int h, const Eigen::Vector3d& origin,
-                  const Eigen::Vector3d& d, int pc, int pr, int* hit_tri) {
+double TerrainHit(const HeightGrid& grid, const std::vector<int>& tri, int w, int h,
+                  const Eigen::Vector3d& origin, const Eigen::Vector3d& d, int pc, int pr,
+                  int* hit_tri) {
   pc = std::clamp(pc, 0, w - 1);
   pr = std::clamp(pr, 0, h - 1);
   const int t0 = tri[static_cast<size_t>(pr) * w + pc];
@@ -197,7 +200,8 @@ struct RayShading {
   bool moved;
   const LandslideModel::InverseAt& reference_of;
 
-  Rgb Shade(const Eigen::Vector3d& d, int pc, int pr, const std::vector<const Item*>& here, int* plate_hit) const {
+  Rgb Shade(const Eigen::Vector3d& d, int pc, int pr, const std::vector<const Item*>& here,
+            int* plate_hit) const {
     *plate_hit = -1;
     int hit_tri = -1;
     const double t_ground = TerrainHit(grid, tri, w, h, origin, d, pc, pr, &hit_tri);
@@ -257,7 +261,8 @@ struct RayShading {
 
 }  // namespace
 
-Renderer::Renderer(const Scene& scene, const camera::CameraModel& model) : scene_(scene), model_(model) {
+Renderer::Renderer(const Scene& scene, const camera::CameraModel& model)
+    : scene_(scene), model_(model) {
   model_.Check();
   const int w = model_.sensor().width, h = model_.sensor().height;
   table_w_ = w + 2;
@@ -281,7 +286,8 @@ Renderer::Renderer(const Scene& scene, const camera::CameraModel& model) : scene
 Eigen::Vector2d Renderer::IdealAt(double col, double row) const {
   const double gx = std::clamp(col + 1.0, 0.0, table_w_ - 1.000001);
   const double gy = std::clamp(row + 1.0, 0.0, table_h_ - 1.000001);
-  const int ix = std::min(static_cast<int>(gx), table_w_ - 2), iy = std::min(static_cast<int>(gy), table_h_ - 2);
+  const int ix = std::min(static_cast<int>(gx), table_w_ - 2),
+            iy = std::min(static_cast<int>(gy), table_h_ - 2);
   const double fx = gx - ix, fy = gy - iy;
   const size_t k00 = 2 * (static_cast<size_t>(iy) * table_w_ + ix);
   const size_t k10 = k00 + 2, k01 = k00 + 2 * table_w_, k11 = k01 + 2;
@@ -296,12 +302,12 @@ Eigen::Vector2d Renderer::IdealAt(double col, double row) const {
 RenderResult Renderer::Render(const Scene::State& state, const camera::ExteriorOrientation& pose,
                               const RenderOptions& options) const {
   if (options.target_supersampling < 1 || options.target_supersampling > 32) {
-    throw InvalidArgument(Message("render option target_supersampling = ", options.target_supersampling,
-                                  " is outside [1, 32]"));
+    throw InvalidArgument(Message("render option target_supersampling = ",
+                                  options.target_supersampling, " is outside [1, 32]"));
   }
   if (options.obstacle_supersampling < 1 || options.obstacle_supersampling > 16) {
-    throw InvalidArgument(Message("render option obstacle_supersampling = ", options.obstacle_supersampling,
-                                  " is outside [1, 16]"));
+    throw InvalidArgument(Message("render option obstacle_supersampling = ",
+                                  options.obstacle_supersampling, " is outside [1, 16]"));
   }
   const int w = model_.sensor().width, h = model_.sensor().height;
   const double c = model_.principal_distance();
@@ -330,10 +336,11 @@ RenderResult Renderer::Render(const Scene::State& state, const camera::ExteriorO
   RenderResult result;
   result.radiance = cv::Mat(h, w, channels == 3 ? CV_32FC3 : CV_32FC1);
   const int nthreads = std::max(1, options.threads);
-  std::vector<std::vector<double>> coverage(nthreads, std::vector<double>(state.plates.size(), 0.0));
+  std::vector<std::vector<double>> coverage(nthreads,
+                                            std::vector<double>(state.plates.size(), 0.0));
 
-  const RayShading shading{scene_, state, options, light, sun, grid, tri, w, h, origin, c, ps, moved, reference_of};
-
+  const RayShading shading{scene_, state, options, light, sun, grid,  tri,
+                           w,      h,     origin,  c,     ps,  moved, reference_of};
 
   auto ray_at = [&](double col, double row) {
     const Eigen::Vector2d ideal = IdealAt(col, row);
@@ -354,7 +361,8 @@ RenderResult Renderer::Render(const Scene::State& state, const camera::ExteriorO
             (it.plate ? near_plate : near_obstacle) = true;
           }
         }
-        const int n = near_plate ? options.target_supersampling : (near_obstacle ? options.obstacle_supersampling : 1);
+        const int n = near_plate ? options.target_supersampling
+                                 : (near_obstacle ? options.obstacle_supersampling : 1);
         Rgb sum(0, 0, 0);
         int plate_hit = -1;
         if (n == 1) {
@@ -413,7 +421,8 @@ cv::Mat Expose(const cv::Mat& radiance, const ExposureOptions& o, std::mt19937* 
       for (int k = 0; k < ch; ++k) {
         double dn = o.gain * o.exposure * vig * in[ch * c + k];
         if (o.noise) {
-          const double sigma = std::sqrt(o.read_noise * o.read_noise + o.shot_noise * std::max(dn, 0.0));
+          const double sigma =
+              std::sqrt(o.read_noise * o.read_noise + o.shot_noise * std::max(dn, 0.0));
           dn += sigma * normal(*rng);
         }
         dst[ch * c + k] = static_cast<std::uint8_t>(std::clamp(std::lround(dn), 0L, 255L));

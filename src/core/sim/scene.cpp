@@ -6,8 +6,8 @@
 #include <random>
 
 #include <apriltag/apriltag.h>
-#include <cstdlib>
 #include <apriltag/tag36h11.h>
+#include <cstdlib>
 
 #include "slope_monitor/core/common/error.h"
 
@@ -40,7 +40,8 @@ double Smoothstep(double e0, double e1, double x) {
 }
 
 // Ray-sphere (centre c, radius r): nearest positive distance or -1.
-double RaySphere(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const Eigen::Vector3d& c, double r) {
+double RaySphere(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const Eigen::Vector3d& c,
+                 double r) {
   const Eigen::Vector3d oc = o - c;
   const double b = oc.dot(d);
   const double cc = oc.squaredNorm() - r * r;
@@ -56,8 +57,8 @@ double RaySphere(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const Eigen
 
 float LatticeNoise(std::int64_t ix, std::int64_t iy, std::uint32_t salt) {
   const std::uint64_t h =
-      SplitMix(static_cast<std::uint64_t>(ix) * 0x8da6b343ULL ^ SplitMix(static_cast<std::uint64_t>(iy) ^
-                                                                           (static_cast<std::uint64_t>(salt) << 32)));
+      SplitMix(static_cast<std::uint64_t>(ix) * 0x8da6b343ULL ^
+               SplitMix(static_cast<std::uint64_t>(iy) ^ (static_cast<std::uint64_t>(salt) << 32)));
   return static_cast<float>(static_cast<double>(h >> 11) * (2.0 / 9007199254740992.0) - 1.0);
 }
 
@@ -72,14 +73,15 @@ void HeightGrid::Triangle(int t, Eigen::Vector3d* a, Eigen::Vector3d* b, Eigen::
     *a = Vertex(i, j);
     *b = Vertex(i + 1, j);
     *c = Vertex(i + 1, j + 1);
-  } else {             // upper-left: (i,j) (i+1,j+1) (i,j+1)
+  } else {  // upper-left: (i,j) (i+1,j+1) (i,j+1)
     *a = Vertex(i, j);
     *b = Vertex(i + 1, j + 1);
     *c = Vertex(i, j + 1);
   }
 }
 
-double HeightGrid::IntersectTriangle(int t, const Eigen::Vector3d& o, const Eigen::Vector3d& d) const {
+double HeightGrid::IntersectTriangle(int t, const Eigen::Vector3d& o,
+                                     const Eigen::Vector3d& d) const {
   Eigen::Vector3d a, b, c;
   Triangle(t, &a, &b, &c);
   // Moeller-Trumbore.
@@ -100,16 +102,18 @@ double HeightGrid::IntersectTriangle(int t, const Eigen::Vector3d& o, const Eige
 
 double HeightGrid::HeightAt(double x, double y) const {
   const double gx = (x - xmin) / spacing, gy = (y - ymin) / spacing;
-  if (!(gx >= 0.0 && gy >= 0.0 && gx <= nx - 1 && gy <= ny - 1)) return std::numeric_limits<double>::quiet_NaN();
+  if (!(gx >= 0.0 && gy >= 0.0 && gx <= nx - 1 && gy <= ny - 1))
+    return std::numeric_limits<double>::quiet_NaN();
   int i = std::min(static_cast<int>(gx), nx - 2), j = std::min(static_cast<int>(gy), ny - 2);
   const double fx = gx - i, fy = gy - j;
   const double z00 = Z(i, j), z10 = Z(i + 1, j), z11 = Z(i + 1, j + 1), z01 = Z(i, j + 1);
   if (fx >= fy) return z00 + fx * (z10 - z00) + fy * (z11 - z10);  // lower-right triangle
-  return z00 + fy * (z01 - z00) + fx * (z11 - z01);                 // upper-left triangle
+  return z00 + fy * (z01 - z00) + fx * (z11 - z01);                // upper-left triangle
 }
 
 Eigen::Vector3d HeightGrid::NormalAt(double x, double y) const {
-  const double gx = std::clamp((x - xmin) / spacing, 0.0, nx - 1.0), gy = std::clamp((y - ymin) / spacing, 0.0, ny - 1.0);
+  const double gx = std::clamp((x - xmin) / spacing, 0.0, nx - 1.0),
+               gy = std::clamp((y - ymin) / spacing, 0.0, ny - 1.0);
   int i = std::min(static_cast<int>(gx), nx - 2), j = std::min(static_cast<int>(gy), ny - 2);
   const int t = 2 * (j * (nx - 1) + i) + ((gx - i) >= (gy - j) ? 0 : 1);
   Eigen::Vector3d a, b, c;
@@ -117,7 +121,8 @@ Eigen::Vector3d HeightGrid::NormalAt(double x, double y) const {
   return (b - a).cross(c - a).normalized();
 }
 
-double HeightGrid::IntersectRay(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_max) const {
+double HeightGrid::IntersectRay(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+                                double t_max) const {
   const double step = 0.5 * spacing;
   double prev_t = 0.0;
   double prev_above = 0.0;
@@ -137,7 +142,10 @@ double HeightGrid::IntersectRay(const Eigen::Vector3d& o, const Eigen::Vector3d&
         const double mid = 0.5 * (lo + hi);
         const Eigen::Vector3d q = o + mid * d;
         const double hq = HeightAt(q.x(), q.y());
-        if (std::isnan(hq) || q.z() > hq) lo = mid; else hi = mid;
+        if (std::isnan(hq) || q.z() > hq)
+          lo = mid;
+        else
+          hi = mid;
       }
       return 0.5 * (lo + hi);
     }
@@ -188,10 +196,22 @@ std::vector<Eigen::Vector3d> Plate::Outline(int n) const {
       const double f = p - side;
       const double h = half;
       switch (side) {
-        case 0: a = -h + 2 * h * f; b = -h; break;
-        case 1: a = h; b = -h + 2 * h * f; break;
-        case 2: a = h - 2 * h * f; b = h; break;
-        default: a = -h; b = h - 2 * h * f; break;
+        case 0:
+          a = -h + 2 * h * f;
+          b = -h;
+          break;
+        case 1:
+          a = h;
+          b = -h + 2 * h * f;
+          break;
+        case 2:
+          a = h - 2 * h * f;
+          b = h;
+          break;
+        default:
+          a = -h;
+          b = h - 2 * h * f;
+          break;
       }
     } else {
       a = half * std::cos(2 * M_PI * s);
@@ -274,7 +294,8 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
   // The texture's octaves (GroundAlbedo), coarsest first: wavelength and amplitude.
   const TextureOptions& tx = spec_.texture;
   octave_amplitude_sum_ = 0.0;
-  for (double lambda = tx.coarsest_wavelength; lambda >= tx.finest_wavelength * 0.999; lambda *= 0.5) {
+  for (double lambda = tx.coarsest_wavelength; lambda >= tx.finest_wavelength * 0.999;
+       lambda *= 0.5) {
     const double amp = 0.6 + 0.4 * std::clamp(std::log2(16.0 / lambda) / 8.0, 0.0, 1.0);
     octaves_.push_back({lambda, amp});
     octave_amplitude_sum_ += amp;
@@ -284,19 +305,25 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
   reference_.xmin = t.extent[0];
   reference_.ymin = t.extent[2];
   reference_.spacing = t.grid_spacing;
-  reference_.nx = static_cast<int>(std::floor((t.extent[1] - t.extent[0]) / t.grid_spacing + 1e-9)) + 1;
-  reference_.ny = static_cast<int>(std::floor((t.extent[3] - t.extent[2]) / t.grid_spacing + 1e-9)) + 1;
-  if (reference_.nx < 2 || reference_.ny < 2) throw InvalidArgument("scene grid has fewer than 2x2 vertices");
+  reference_.nx =
+      static_cast<int>(std::floor((t.extent[1] - t.extent[0]) / t.grid_spacing + 1e-9)) + 1;
+  reference_.ny =
+      static_cast<int>(std::floor((t.extent[3] - t.extent[2]) / t.grid_spacing + 1e-9)) + 1;
+  if (reference_.nx < 2 || reference_.ny < 2)
+    throw InvalidArgument("scene grid has fewer than 2x2 vertices");
   reference_.z.resize(static_cast<size_t>(reference_.nx) * reference_.ny);
   for (int j = 0; j < reference_.ny; ++j)
     for (int i = 0; i < reference_.nx; ++i)
-      reference_.z[static_cast<size_t>(j) * reference_.nx + i] = AnalyticHeight(reference_.X(i), reference_.Y(j));
+      reference_.z[static_cast<size_t>(j) * reference_.nx + i] =
+          AnalyticHeight(reference_.X(i), reference_.Y(j));
 
   // Obstacles on the ground.
   for (Obstacle o : spec_.obstacles) {
     if (std::isnan(o.base.z())) {
       const double h = reference_.HeightAt(o.base.x(), o.base.y());
-      if (std::isnan(h)) throw InvalidArgument(Message("obstacle at (", o.base.x(), ", ", o.base.y(), ") is outside the site"));
+      if (std::isnan(h))
+        throw InvalidArgument(
+            Message("obstacle at (", o.base.x(), ", ", o.base.y(), ") is outside the site"));
       o.base.z() = h;
     }
     o.moves = spec_.landslide.Weight(o.base.head<2>()) > 0.0;
@@ -310,13 +337,15 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
     const double h = reference_.HeightAt(p.xy.x(), p.xy.y());
     if (std::isnan(h)) {
       tag36h11_destroy(family);
-      throw InvalidArgument(Message("target ", p.family, "/", p.id, " at (", p.xy.x(), ", ", p.xy.y(),
-                                    ") is outside the site"));
+      throw InvalidArgument(Message("target ", p.family, "/", p.id, " at (", p.xy.x(), ", ",
+                                    p.xy.y(), ") is outside the site"));
     }
     // Plate normal: the analytic surface normal averaged over +-1 m.
     const double e = 1.0;
-    const double gx = (AnalyticHeight(p.xy.x() + e, p.xy.y()) - AnalyticHeight(p.xy.x() - e, p.xy.y())) / (2 * e);
-    const double gy = (AnalyticHeight(p.xy.x(), p.xy.y() + e) - AnalyticHeight(p.xy.x(), p.xy.y() - e)) / (2 * e);
+    const double gx =
+        (AnalyticHeight(p.xy.x() + e, p.xy.y()) - AnalyticHeight(p.xy.x() - e, p.xy.y())) / (2 * e);
+    const double gy =
+        (AnalyticHeight(p.xy.x(), p.xy.y() + e) - AnalyticHeight(p.xy.x(), p.xy.y() - e)) / (2 * e);
     const Eigen::Vector3d ground_normal = Eigen::Vector3d(-gx, -gy, 1.0).normalized();
     const Eigen::Vector3d ground(p.xy.x(), p.xy.y(), h);
     Eigen::Vector3d n = ground_normal;
@@ -326,13 +355,15 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
       const Eigen::Vector3d to = p.face_toward - centre;
       if (to.norm() < 1e-6) {
         tag36h11_destroy(family);
-        throw InvalidArgument(Message("target ", p.family, "/", p.id, ": face_toward is the plate centre itself"));
+        throw InvalidArgument(
+            Message("target ", p.family, "/", p.id, ": face_toward is the plate centre itself"));
       }
       n = to.normalized();
       if (n.z() <= 0.0) {
         tag36h11_destroy(family);
-        throw InvalidArgument(Message("target ", p.family, "/", p.id, ": face_toward (", p.face_toward.transpose(),
-                                      ") is not above the plate's horizon; the plate would face the ground"));
+        throw InvalidArgument(
+            Message("target ", p.family, "/", p.id, ": face_toward (", p.face_toward.transpose(),
+                    ") is not above the plate's horizon; the plate would face the ground"));
       }
     }
     // The plate's top: site north projected into the plate (flat plates), site
@@ -349,13 +380,16 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
     plate.centre = centre;
     if (p.facing) {  // the lower edge must clear the ground
       const double half_extent = (p.family == "circle" ? p.size : 0.5 * p.size * 10.0 / 8.0);
-      const double lowest = centre.z() - half_extent * std::abs(up.z()) - half_extent * std::abs(plate.right.z());
-      const double ground_below = std::max(h, AnalyticHeight(p.xy.x() + half_extent * n.x(), p.xy.y() + half_extent * n.y()));
+      const double lowest =
+          centre.z() - half_extent * std::abs(up.z()) - half_extent * std::abs(plate.right.z());
+      const double ground_below = std::max(
+          h, AnalyticHeight(p.xy.x() + half_extent * n.x(), p.xy.y() + half_extent * n.y()));
       if (lowest < ground_below + 0.02) {
         tag36h11_destroy(family);
-        throw InvalidArgument(Message("target ", p.family, "/", p.id, ": mount_height ", p.mount_height,
-                                      " m is too low for a ", p.size, " m plate turned to face_toward; its lower edge is ",
-                                      ground_below - lowest, " m in the ground (raise mount_height)"));
+        throw InvalidArgument(Message(
+            "target ", p.family, "/", p.id, ": mount_height ", p.mount_height,
+            " m is too low for a ", p.size, " m plate turned to face_toward; its lower edge is ",
+            ground_below - lowest, " m in the ground (raise mount_height)"));
       }
     }
     if (p.family == "tag36h11") {
@@ -371,7 +405,8 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
       plate.half = 0.5 * plate.cell * plate.cells;
       plate.pattern.resize(static_cast<size_t>(im->width) * im->height);
       for (int r = 0; r < im->height; ++r)
-        for (int c = 0; c < im->width; ++c) plate.pattern[r * im->width + c] = im->buf[r * im->stride + c];
+        for (int c = 0; c < im->width; ++c)
+          plate.pattern[r * im->width + c] = im->buf[r * im->stride + c];
       // libapriltag 3.3 exports image_u8_destroy only from libapriltag-utils;
       // apriltag_to_image allocates the struct and its buffer with malloc.
       std::free(im->buf);
@@ -382,7 +417,8 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
       plate.half = p.size;  // dark ring out to twice the disc diameter
     } else {
       tag36h11_destroy(family);
-      throw InvalidArgument(Message("target family '", p.family, "' is not rendered (tag36h11 or circle)"));
+      throw InvalidArgument(
+          Message("target family '", p.family, "' is not rendered (tag36h11 or circle)"));
     }
     reference_plates_.push_back(plate);
 
@@ -443,7 +479,8 @@ Scene::State Scene::AtTime(double t) const {
         const Eigen::Vector3d ref = l.ReferencePositionOf(now, t);
         if (l.Weight(ref.head<2>()) == 0.0) continue;
         const Eigen::Vector3d ref_on_ground(ref.x(), ref.y(), AnalyticHeight(ref.x(), ref.y()));
-        st.grid.z[static_cast<size_t>(j) * st.grid.nx + i] = ref_on_ground.z() + l.DisplacementAt(ref_on_ground, t).z();
+        st.grid.z[static_cast<size_t>(j) * st.grid.nx + i] =
+            ref_on_ground.z() + l.DisplacementAt(ref_on_ground, t).z();
       }
     }
   }
@@ -458,7 +495,8 @@ Scene::State Scene::AtTime(double t) const {
     for (size_t k = 0; k < st.obstacles.size(); ++k) {
       Obstacle& o = st.obstacles[k];
       if (o.kind != Obstacle::Kind::kTree) continue;
-      const std::uint64_t h = SplitMix(SplitMix(stamp ^ (static_cast<std::uint64_t>(spec_.seed) << 40)) + k);
+      const std::uint64_t h =
+          SplitMix(SplitMix(stamp ^ (static_cast<std::uint64_t>(spec_.seed) << 40)) + k);
       const double angle = 2.0 * M_PI * static_cast<double>(h & 0xffff) / 65536.0;
       const double amount = 0.3 + 0.7 * static_cast<double>((h >> 16) & 0xffff) / 65535.0;
       const double sway = spec_.foliage_sway * o.radius * amount;
@@ -491,15 +529,17 @@ Rgb Scene::GroundAlbedo(const Eigen::Vector2d& x, double footprint) const {
     const double lambda = octaves_[octave].wavelength;
     const double fade = std::clamp(lambda / (2.0 * std::max(footprint, 1e-6)) - 1.0, 0.0, 1.0);
     if (fade <= 0.0) continue;
-    fbm += fade * octaves_[octave].amplitude *
-           ValueNoise(x.x() / lambda, x.y() / lambda, seed + 100 + static_cast<std::uint32_t>(octave));
+    fbm +=
+        fade * octaves_[octave].amplitude *
+        ValueNoise(x.x() / lambda, x.y() / lambda, seed + 100 + static_cast<std::uint32_t>(octave));
   }
   const double norm = octave_amplitude_sum_;
   fbm /= std::max(norm, 1e-9) * 0.35;  // roughly unit amplitude
 
   // Low-texture scarp: fresh, uniform soil.
   double contrast = tx.contrast;
-  Rgb base = soil * Rgb(0.55f, 0.45f, 0.35f) + veg * Rgb(0.20f, 0.33f, 0.14f) + rock * Rgb(0.62f, 0.61f, 0.58f);
+  Rgb base = soil * Rgb(0.55f, 0.45f, 0.35f) + veg * Rgb(0.20f, 0.33f, 0.14f) +
+             rock * Rgb(0.62f, 0.61f, 0.58f);
   const LandslideModel& l = spec_.landslide;
   if (spec_.scarp.depth > 0.0) {
     const double dx = x.x() - l.centre.x(), dy = x.y() - l.centre.y();
@@ -528,14 +568,17 @@ Rgb Scene::ObstacleAlbedo(const Obstacle& o, const Eigen::Vector3d& p, int epoch
     // Foliage in the wind: leaf clusters (~0.12 m) with dark gaps, a new
     // pattern at every stamp, attached to the swaying crown.
     const Eigen::Vector3d c = q - o.crown_offset;
-    const double n1 = ValueNoise(c.x() / 0.12 + c.z() * 5.0, c.y() / 0.12 - c.z() * 3.0, o.foliage_phase);
-    const double n2 = ValueNoise(c.x() / 0.05 - c.z() * 9.0, c.y() / 0.05, o.foliage_phase ^ 0x5bd1e995u);
+    const double n1 =
+        ValueNoise(c.x() / 0.12 + c.z() * 5.0, c.y() / 0.12 - c.z() * 3.0, o.foliage_phase);
+    const double n2 =
+        ValueNoise(c.x() / 0.05 - c.z() * 9.0, c.y() / 0.05, o.foliage_phase ^ 0x5bd1e995u);
     const double leaf = std::clamp(1.0 + 0.7 * n1 + 0.3 * n2, 0.15, 2.0);
     const double gap = Smoothstep(-0.55, -0.35, n1);  // 0 in the gaps between clusters
     return Rgb(0.12f, 0.25f, 0.09f) * static_cast<float>(leaf * (0.35 + 0.65 * gap));
   }
   // Foliage: its pattern changes every epoch (wind) - matching must fail here.
-  const double n = ValueNoise(q.x() / 0.08 + q.z() * 7.0, q.y() / 0.08, spec_.seed + 1000 + epoch_salt);
+  const double n =
+      ValueNoise(q.x() / 0.08 + q.z() * 7.0, q.y() / 0.08, spec_.seed + 1000 + epoch_salt);
   return Rgb(0.12f, 0.25f, 0.09f) * static_cast<float>(1.0 + 0.6 * n);
 }
 

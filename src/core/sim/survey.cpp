@@ -59,7 +59,8 @@ std::vector<SurveyedPointTruth> PickSurveyedPoints(const CameraSpec& s, const Sc
   const int n = 16;
   for (int j = 0; j < n; ++j) {
     for (int i = 0; i < n; ++i) {
-      const Eigen::Vector2d px(w * (0.08 + 0.84 * (i + 0.5) / n), h * (0.08 + 0.84 * (j + 0.5) / n));
+      const Eigen::Vector2d px(w * (0.08 + 0.84 * (i + 0.5) / n),
+                               h * (0.08 + 0.84 * (j + 0.5) / n));
       const camera::Ray ray = s.model.ImageToRay(pose, px);
       const double d = ref.grid.IntersectRay(ray.origin, ray.direction, 20000.0);
       if (!std::isfinite(d)) continue;
@@ -90,7 +91,8 @@ std::vector<SurveyedPointTruth> PickSurveyedPoints(const CameraSpec& s, const Sc
                                                 Gauss(&rng, c.survey_sigma.y()));
     Eigen::Vector2d px;
     s.model.Project(pose, sp.position, &px);
-    sp.picked = px + Eigen::Vector2d(Gauss(&rng, s.picked_pixel_sigma), Gauss(&rng, s.picked_pixel_sigma));
+    sp.picked =
+        px + Eigen::Vector2d(Gauss(&rng, s.picked_pixel_sigma), Gauss(&rng, s.picked_pixel_sigma));
     out.push_back(sp);
   }
   return out;
@@ -116,24 +118,28 @@ camera::ExteriorOrientation LookAt(const Eigen::Vector3d& position, const Eigen:
   site_from_optical.col(0) = right;
   site_from_optical.col(1) = down;
   site_from_optical.col(2) = f;
-  const Eigen::Matrix3d roll_m = Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Matrix3d roll_m =
+      Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   site_from_optical = site_from_optical * roll_m;
   const Eigen::Matrix3d optical_from_site = site_from_optical.transpose();
-  return camera::ExteriorOrientation::FromOpticalFromSite(Rigid3(optical_from_site, -(optical_from_site * position)));
+  return camera::ExteriorOrientation::FromOpticalFromSite(
+      Rigid3(optical_from_site, -(optical_from_site * position)));
 }
 
-Eigen::Quaterniond FlightLogAttitude(const camera::ExteriorOrientation& pose, double sigma, unsigned int seed,
-                                     int camera, int image) {
-  std::seed_seq sequence{seed, 0x1e5a7u, static_cast<unsigned int>(camera), static_cast<unsigned int>(image)};
+Eigen::Quaterniond FlightLogAttitude(const camera::ExteriorOrientation& pose, double sigma,
+                                     unsigned int seed, int camera, int image) {
+  std::seed_seq sequence{seed, 0x1e5a7u, static_cast<unsigned int>(camera),
+                         static_cast<unsigned int>(image)};
   std::mt19937 rng(sequence);
   const Eigen::Vector3d w(Gauss(&rng, sigma), Gauss(&rng, sigma), Gauss(&rng, sigma));
   const Eigen::Quaterniond turn =
-      w.norm() > 0.0 ? Eigen::Quaterniond(Eigen::AngleAxisd(w.norm(), w.normalized())) : Eigen::Quaterniond::Identity();
+      w.norm() > 0.0 ? Eigen::Quaterniond(Eigen::AngleAxisd(w.norm(), w.normalized()))
+                     : Eigen::Quaterniond::Identity();
   return (turn * Eigen::Quaterniond(pose.SiteFromOptical().rotation)).normalized();
 }
 
-bool ImagedAt(const camera::CameraModel& model, const camera::ExteriorOrientation& pose, const Eigen::Vector3d& x,
-              double margin_px, Eigen::Vector2d* pixel) {
+bool ImagedAt(const camera::CameraModel& model, const camera::ExteriorOrientation& pose,
+              const Eigen::Vector3d& x, double margin_px, Eigen::Vector2d* pixel) {
   const int w = model.sensor().width, h = model.sensor().height;
   Eigen::Vector2d px;
   if (!model.Project(pose, x, &px) || !px.allFinite() || px.x() < margin_px || px.y() < margin_px ||
@@ -143,15 +149,18 @@ bool ImagedAt(const camera::CameraModel& model, const camera::ExteriorOrientatio
   // distortion (the radial polynomial turns over): require the ideal
   // coordinates to be near the image too.
   const Eigen::Vector3d u = camera::RotationFromAngles(pose.angles) * (x - pose.position);
-  const double xu = -model.principal_distance() * u.x() / u.z(), yu = -model.principal_distance() * u.y() / u.z();
-  if (std::abs(xu) > 0.8 * w * model.sensor().pixel_size || std::abs(yu) > 0.8 * h * model.sensor().pixel_size)
+  const double xu = -model.principal_distance() * u.x() / u.z(),
+               yu = -model.principal_distance() * u.y() / u.z();
+  if (std::abs(xu) > 0.8 * w * model.sensor().pixel_size ||
+      std::abs(yu) > 0.8 * h * model.sensor().pixel_size)
     return false;
   *pixel = px;
   return true;
 }
 
 std::vector<int> VisiblePlates(const Scene::State& state, const camera::CameraModel& model,
-                               const camera::ExteriorOrientation& pose, double margin_px, double tolerance) {
+                               const camera::ExteriorOrientation& pose, double margin_px,
+                               double tolerance) {
   std::vector<int> out;
   const Eigen::Vector3d cam = pose.position;
   for (size_t k = 0; k < state.plates.size(); ++k) {
@@ -198,11 +207,15 @@ void CheckSurveyPlacements(const SurveyConfig& c) {
   const LandslideModel& l = c.scene.landslide;
   for (size_t i = 0; i < c.scene.targets.size(); ++i) {
     const TargetPlacement& t = c.scene.targets[i];
-    const std::string key = i < c.target_keys_for_error.size() ? c.target_keys_for_error[i] : Message("targets.list[", i, "]");
-    if (!inside(t.xy)) throw ConfigError(Message(key, ": 'position' (", t.xy.x(), ", ", t.xy.y(), ") is outside site.extent"));
+    const std::string key = i < c.target_keys_for_error.size() ? c.target_keys_for_error[i]
+                                                               : Message("targets.list[", i, "]");
+    if (!inside(t.xy))
+      throw ConfigError(
+          Message(key, ": 'position' (", t.xy.x(), ", ", t.xy.y(), ") is outside site.extent"));
     if (t.role != io::TargetRole::kMonitoring && l.Weight(t.xy) > 0.0) {
       throw ConfigError(Message(key, ": 'role' = ", io::TargetRoleName(t.role),
-                                " but 'position' is on the moving landslide body (control and check points must be on stable ground)"));
+                                " but 'position' is on the moving landslide body (control and "
+                                "check points must be on stable ground)"));
     }
   }
   for (size_t i = 0; i < c.scene.obstacles.size(); ++i) {
@@ -215,7 +228,8 @@ void CheckSurveyPlacements(const SurveyConfig& c) {
 // A fixed camera's images: its surveyed pose with per-epoch jitter, the
 // mast's turn, and the stable-ground points surveyed in its reference photo.
 void PlanFixedCameraImages(const SurveyConfig& c, size_t ci, const Scene::State& ref,
-                           const std::vector<EpochTruth>& epochs, std::mt19937* rng_in, CameraTruth* ct_out) {
+                           const std::vector<EpochTruth>& epochs, std::mt19937* rng_in,
+                           CameraTruth* ct_out) {
   const CameraSpec& s = c.cameras[ci];
   std::mt19937& rng = *rng_in;
   CameraTruth& ct = *ct_out;
@@ -224,16 +238,18 @@ void PlanFixedCameraImages(const SurveyConfig& c, size_t ci, const Scene::State&
   ct.nominal_pose = s.pose;
   const camera::Ray ray = s.model.ImageToRay(s.pose, centre_px);
   if (!std::isfinite(ref.grid.IntersectRay(ray.origin, ray.direction, 20000.0))) {
-    throw ConfigError(Message(s.key, ": 'look_at' makes the camera look away from the slope "
-                                     "(its central ray does not hit the ground)"));
+    throw ConfigError(Message(s.key,
+                              ": 'look_at' makes the camera look away from the slope "
+                              "(its central ray does not hit the ground)"));
   }
   for (int k = 0; k < c.num_epochs; ++k) {
     ImageTruth im;
     im.epoch = k;
     im.stamp = epochs[k].stamp + 10.0 + 2.0 * ci;
     im.exterior = s.pose;
-    im.exterior.position += Eigen::Vector3d(Gauss(&rng, s.jitter_position), Gauss(&rng, s.jitter_position),
-                                            Gauss(&rng, s.jitter_position));
+    im.exterior.position +=
+        Eigen::Vector3d(Gauss(&rng, s.jitter_position), Gauss(&rng, s.jitter_position),
+                        Gauss(&rng, s.jitter_position));
     im.exterior.angles.theta += Gauss(&rng, s.jitter_angle);
     im.exterior.angles.phi += Gauss(&rng, s.jitter_angle);
     im.exterior.angles.kappa += Gauss(&rng, s.jitter_angle);
@@ -247,8 +263,9 @@ void PlanFixedCameraImages(const SurveyConfig& c, size_t ci, const Scene::State&
 // A UAV camera's images, flight after flight: each strip's photos at the
 // configured overlap (crab into the wind, altitude wander, track and
 // attitude noise, GNSS), the turn to the next strip, 30 s per turn.
-void PlanUavCameraImages(const SurveyConfig& c, size_t ci, const Scene& scene, const Scene::State& ref,
-                         const std::vector<EpochTruth>& epochs, std::mt19937* rng_in, CameraTruth* ct_out) {
+void PlanUavCameraImages(const SurveyConfig& c, size_t ci, const Scene& scene,
+                         const Scene::State& ref, const std::vector<EpochTruth>& epochs,
+                         std::mt19937* rng_in, CameraTruth* ct_out) {
   const CameraSpec& s = c.cameras[ci];
   std::mt19937& rng = *rng_in;
   CameraTruth& ct = *ct_out;
@@ -283,16 +300,20 @@ void PlanUavCameraImages(const SurveyConfig& c, size_t ci, const Scene& scene, c
                               : 0.0;
         const Eigen::Vector3d planned(xy.x(), xy.y(), z + dz);
         const Eigen::Vector3d tilt_dir(std::cos(st.tilt_azimuth), std::sin(st.tilt_azimuth), 0.0);
-        const Eigen::Vector3d forward = std::cos(st.tilt) * Eigen::Vector3d(0, 0, -1) + std::sin(st.tilt) * tilt_dir;
-        const Eigen::Vector3d up_hint =
-            st.tilt > 1e-3 ? Eigen::Vector3d(tilt_dir) : Eigen::Vector3d(heading.x(), heading.y(), 0.0);
+        const Eigen::Vector3d forward =
+            std::cos(st.tilt) * Eigen::Vector3d(0, 0, -1) + std::sin(st.tilt) * tilt_dir;
+        const Eigen::Vector3d up_hint = st.tilt > 1e-3
+                                            ? Eigen::Vector3d(tilt_dir)
+                                            : Eigen::Vector3d(heading.x(), heading.y(), 0.0);
         camera::ExteriorOrientation planned_pose = LookAt(planned, planned + forward, up_hint);
         if (k == 0 && q == 0) {
           const camera::Ray ray = s.model.ImageToRay(planned_pose, centre_px);
           if (!std::isfinite(ref.grid.IntersectRay(ray.origin, ray.direction, 20000.0))) {
-            throw ConfigError(Message(s.key, ": strips[", si, "]: the camera looks away from the slope "
-                                             "(the central ray of the first image does not hit the ground; "
-                                             "check 'start', 'tilt_deg', 'tilt_azimuth_deg')"));
+            throw ConfigError(
+                Message(s.key, ": strips[", si,
+                        "]: the camera looks away from the slope "
+                        "(the central ray of the first image does not hit the ground; "
+                        "check 'start', 'tilt_deg', 'tilt_azimuth_deg')"));
           }
         }
         ImageTruth im;
@@ -300,12 +321,14 @@ void PlanUavCameraImages(const SurveyConfig& c, size_t ci, const Scene& scene, c
         im.stamp = t;
         t += s.image_interval;
         im.exterior = planned_pose;
-        im.exterior.position += Eigen::Vector3d(Gauss(&rng, s.track_sigma), Gauss(&rng, s.track_sigma),
-                                                Gauss(&rng, 0.5 * s.track_sigma));
+        im.exterior.position +=
+            Eigen::Vector3d(Gauss(&rng, s.track_sigma), Gauss(&rng, s.track_sigma),
+                            Gauss(&rng, 0.5 * s.track_sigma));
         im.exterior.angles.theta += Gauss(&rng, s.attitude_sigma);
         im.exterior.angles.phi += Gauss(&rng, s.attitude_sigma);
         im.exterior.angles.kappa += Gauss(&rng, s.attitude_sigma);
-        im.gnss = im.exterior.position + Eigen::Vector3d(Gauss(&rng, s.gnss_sigma.x()), Gauss(&rng, s.gnss_sigma.x()),
+        im.gnss = im.exterior.position + Eigen::Vector3d(Gauss(&rng, s.gnss_sigma.x()),
+                                                         Gauss(&rng, s.gnss_sigma.x()),
                                                          Gauss(&rng, s.gnss_sigma.y()));
         ct.images.push_back(im);
       }
@@ -315,21 +338,25 @@ void PlanUavCameraImages(const SurveyConfig& c, size_t ci, const Scene& scene, c
         const Eigen::Vector2d e = st.start + ((n - 1) * base) * g, next = s.strips[si + 1].start;
         const Eigen::Vector2d m = 0.5 * (e + next);
         const double r = 0.5 * (next - e).norm();
-        const Eigen::Vector2d u = r > 1e-6 ? Eigen::Vector2d((e - m) / r) : Eigen::Vector2d(-g.y(), g.x());
+        const Eigen::Vector2d u =
+            r > 1e-6 ? Eigen::Vector2d((e - m) / r) : Eigen::Vector2d(-g.y(), g.x());
         const double bank = CameraSpec::kTurnBankDeg * M_PI / 180.0;
         for (int q = 1; q <= s.turn_images; ++q) {
           const double a = M_PI * q / (s.turn_images + 1);
           const Eigen::Vector2d radial = std::cos(a) * u + std::sin(a) * g;
           const Eigen::Vector2d xy = m + r * radial, tangent = -std::sin(a) * u + std::cos(a) * g;
           const Eigen::Vector3d planned(xy.x(), xy.y(), z);
-          const Eigen::Vector3d forward = std::cos(bank) * Eigen::Vector3d(0, 0, -1) -
-                                          std::sin(bank) * Eigen::Vector3d(radial.x(), radial.y(), 0.0);
+          const Eigen::Vector3d forward =
+              std::cos(bank) * Eigen::Vector3d(0, 0, -1) -
+              std::sin(bank) * Eigen::Vector3d(radial.x(), radial.y(), 0.0);
           ImageTruth im;
           im.epoch = k;
           im.stamp = t + 30.0 * q / (s.turn_images + 1);
-          im.exterior = LookAt(planned, planned + forward, Eigen::Vector3d(tangent.x(), tangent.y(), 0.0));
-          im.exterior.position += Eigen::Vector3d(Gauss(&rng, s.track_sigma), Gauss(&rng, s.track_sigma),
-                                                  Gauss(&rng, 0.5 * s.track_sigma));
+          im.exterior =
+              LookAt(planned, planned + forward, Eigen::Vector3d(tangent.x(), tangent.y(), 0.0));
+          im.exterior.position +=
+              Eigen::Vector3d(Gauss(&rng, s.track_sigma), Gauss(&rng, s.track_sigma),
+                              Gauss(&rng, 0.5 * s.track_sigma));
           im.gnss = im.exterior.position + Eigen::Vector3d(Gauss(&rng, s.gnss_sigma.x()),
                                                            Gauss(&rng, s.gnss_sigma.x()),
                                                            Gauss(&rng, s.gnss_sigma.y()));
@@ -353,8 +380,8 @@ void ApplyImageExposures(const CameraSpec& s, std::mt19937* rng_in, CameraTruth*
   }
 }
 
-void RequireControlInView(const CameraSpec& s, const Scene::State& ref, const std::vector<TargetTruth>& targets,
-                          const CameraTruth& ct) {
+void RequireControlInView(const CameraSpec& s, const Scene::State& ref,
+                          const std::vector<TargetTruth>& targets, const CameraTruth& ct) {
   // At least one control point in view in the reference epoch (a
   // fixed_targetless camera is re-oriented on stable ground instead).
   bool control = s.kind == "fixed_targetless";
@@ -365,16 +392,18 @@ void RequireControlInView(const CameraSpec& s, const Scene::State& ref, const st
     }
   }
   if (!control) {
-    throw ConfigError(Message(s.key, ": no control point is in view of camera '", s.name,
-                              "' in the reference epoch (check 'targets.list' roles/positions and the camera's "
-                              "pose keys)"));
+    throw ConfigError(
+        Message(s.key, ": no control point is in view of camera '", s.name,
+                "' in the reference epoch (check 'targets.list' roles/positions and the camera's "
+                "pose keys)"));
   }
 }
 
 // The radio network's simulator (receivers on stable ground, transmitters
 // on masts moving with the slope) and its truth.
 std::shared_ptr<RadioSimulator> MakeRadioSimulator(const SurveyConfig& c, const Scene::State& ref,
-                                                   const std::vector<EpochTruth>& epochs, RadioTruth* rt_out) {
+                                                   const std::vector<EpochTruth>& epochs,
+                                                   RadioTruth* rt_out) {
   const Eigen::Vector4d& ext = c.scene.terrain.extent;
   auto inside = [&](const Eigen::Vector2d& xy) {
     return xy.x() >= ext[0] && xy.x() <= ext[1] && xy.y() >= ext[2] && xy.y() <= ext[3];
@@ -384,21 +413,29 @@ std::shared_ptr<RadioSimulator> MakeRadioSimulator(const SurveyConfig& c, const 
   RadioSimConfig rc = c.radio.sim;
   for (size_t j = 0; j < rc.receivers.size(); ++j) {
     const Eigen::Vector2d xy = c.radio.receiver_xy[j];
-    if (!inside(xy)) throw ConfigError(Message(c.path, ": radio: receivers[", j, "]: 'position' is outside site.extent"));
+    if (!inside(xy))
+      throw ConfigError(
+          Message(c.path, ": radio: receivers[", j, "]: 'position' is outside site.extent"));
     if (l.Weight(xy) > 0.0) {
-      throw ConfigError(Message(c.path, ": radio: receivers[", j, "]: 'position' is on the moving body "
-                                         "(receivers stand on stable ground)"));
+      throw ConfigError(Message(c.path, ": radio: receivers[", j,
+                                "]: 'position' is on the moving body "
+                                "(receivers stand on stable ground)"));
     }
-    rc.receivers[j].position = Eigen::Vector3d(xy.x(), xy.y(), ref.grid.HeightAt(xy.x(), xy.y()) + c.radio.receiver_mast[j]);
+    rc.receivers[j].position = Eigen::Vector3d(
+        xy.x(), xy.y(), ref.grid.HeightAt(xy.x(), xy.y()) + c.radio.receiver_mast[j]);
   }
   for (size_t i = 0; i < rc.transmitters.size(); ++i) {
     const Eigen::Vector2d xy = c.radio.transmitter_xy[i];
-    if (!inside(xy)) throw ConfigError(Message(c.path, ": radio: transmitters[", i, "]: 'position' is outside site.extent"));
+    if (!inside(xy))
+      throw ConfigError(
+          Message(c.path, ": radio: transmitters[", i, "]: 'position' is outside site.extent"));
     const Eigen::Vector3d ground(xy.x(), xy.y(), ref.grid.HeightAt(xy.x(), xy.y()));
     const Eigen::Vector3d x0 = ground + Eigen::Vector3d(0, 0, c.radio.transmitter_mast[i]);
     const LandslideModel field = l;
     // The mast stands on the ground point and moves with it.
-    rc.transmitters[i].position = [field, ground, x0](double t) -> Eigen::Vector3d { return x0 + field.DisplacementAt(ground, t); };
+    rc.transmitters[i].position = [field, ground, x0](double t) -> Eigen::Vector3d {
+      return x0 + field.DisplacementAt(ground, t);
+    };
   }
   try {
     radio_ = std::make_shared<RadioSimulator>(rc);
@@ -452,7 +489,8 @@ SurveyGenerator::SurveyGenerator(const SurveyConfig& config) : config_(config) {
   truth_.config = c.path;
   truth_.origin = c.origin;
   truth_.extent = ext;
-  for (int k = 0; k < c.num_epochs; ++k) truth_.epochs.push_back({k, c.start_time + k * c.epoch_interval});
+  for (int k = 0; k < c.num_epochs; ++k)
+    truth_.epochs.push_back({k, c.start_time + k * c.epoch_interval});
   truth_.landslide = l;
   truth_.scarp = c.scene.scarp;
   truth_.obstacles = scene.obstacles();
@@ -468,7 +506,8 @@ SurveyGenerator::SurveyGenerator(const SurveyConfig& config) : config_(config) {
       t.survey_sigma = c.survey_sigma;
       const double ex = Gauss(&rng, c.survey_sigma.x()), ey = Gauss(&rng, c.survey_sigma.x());
       const double ez = Gauss(&rng, c.survey_sigma.y());
-      if (t.role != io::TargetRole::kMonitoring) t.surveyed = t.positions[0] + Eigen::Vector3d(ex, ey, ez);
+      if (t.role != io::TargetRole::kMonitoring)
+        t.surveyed = t.positions[0] + Eigen::Vector3d(ex, ey, ez);
     }
   }
 
@@ -506,7 +545,8 @@ Survey SurveyGenerator::Generate(const std::function<void(int, int)>& progress) 
   const Scene& scene = *scene_;
 
   std::vector<std::unique_ptr<Renderer>> renderers;
-  for (const CameraSpec& s : c.cameras) renderers.push_back(std::make_unique<Renderer>(scene, s.model));
+  for (const CameraSpec& s : c.cameras)
+    renderers.push_back(std::make_unique<Renderer>(scene, s.model));
 
   int total = 0, done = 0;
   for (const auto& ct : truth_.cameras) total += static_cast<int>(ct.images.size());
@@ -532,17 +572,20 @@ Survey SurveyGenerator::Generate(const std::function<void(int, int)>& progress) 
         out.stamp = im.stamp;
         out.pixels = Expose(rr.radiance, eo, &rng);
         im.visible.clear();
-        for (int p : VisiblePlates(state, s.model, im.exterior)) im.visible.push_back(survey.truth.targets[p].key);
+        for (int p : VisiblePlates(state, s.model, im.exterior))
+          im.visible.push_back(survey.truth.targets[p].key);
         survey.images.push_back(std::move(out));
         if (progress) progress(++done, total);
       }
     }
     // The true surface of this epoch, on the mesh vertices.
     const HeightGrid& g = state.grid;
-    io::GeoRaster r(g.nx, g.ny, g.xmin - 0.5 * g.spacing, g.Y(g.ny - 1) + 0.5 * g.spacing, g.spacing);
+    io::GeoRaster r(g.nx, g.ny, g.xmin - 0.5 * g.spacing, g.Y(g.ny - 1) + 0.5 * g.spacing,
+                    g.spacing);
     r.AddBand("height");
     for (int row = 0; row < g.ny; ++row)
-      for (int col = 0; col < g.nx; ++col) r.At(0, row, col) = static_cast<float>(g.Z(col, g.ny - 1 - row));
+      for (int col = 0; col < g.nx; ++col)
+        r.At(0, row, col) = static_cast<float>(g.Z(col, g.ny - 1 - row));
     survey.surfaces.push_back(std::move(r));
   }
   std::stable_sort(survey.images.begin(), survey.images.end(),
@@ -558,9 +601,11 @@ Survey SurveyGenerator::Generate(const std::function<void(int, int)>& progress) 
     if (t.surveyed) spec.position = *t.surveyed;
     spec.sigma = t.survey_sigma;
     if (!t.surveyed && t.role == io::TargetRole::kMonitoring && c.monitoring_approx_sigma > 0.0) {
-      std::mt19937 rng = Stream(c.seed, 4, static_cast<unsigned>(spec.id), spec.family == "circle" ? 1u : 0u);
+      std::mt19937 rng =
+          Stream(c.seed, 4, static_cast<unsigned>(spec.id), spec.family == "circle" ? 1u : 0u);
       const double a = c.monitoring_approx_sigma;
-      spec.position = t.positions[0] + Eigen::Vector3d(Gauss(&rng, a), Gauss(&rng, a), Gauss(&rng, a));
+      spec.position =
+          t.positions[0] + Eigen::Vector3d(Gauss(&rng, a), Gauss(&rng, a), Gauss(&rng, a));
       spec.sigma = Eigen::Vector2d(a, a);
     }
     spec.normal = t.normal;
@@ -569,7 +614,8 @@ Survey SurveyGenerator::Generate(const std::function<void(int, int)>& progress) 
 
   if (radio_) {
     const double end = truth_.epochs.back().stamp + c.radio.tail;
-    for (double t = c.start_time; t <= end + 1e-6; t += c.radio.sim.block_interval) survey.radio_block_starts.push_back(t);
+    for (double t = c.start_time; t <= end + 1e-6; t += c.radio.sim.block_interval)
+      survey.radio_block_starts.push_back(t);
   }
   return survey;
 }
@@ -581,7 +627,8 @@ void WriteSurveyFiles(Survey* survey, const std::string& stem) {
   survey->truth.surfaces.clear();
   for (size_t k = 0; k < survey->surfaces.size(); ++k) {
     const std::string file = name + ".surface" + EpochSuffix(static_cast<int>(k)) + ".tif";
-    io::WriteGeoTiff(base + ".surface" + EpochSuffix(static_cast<int>(k)) + ".tif", survey->surfaces[k]);
+    io::WriteGeoTiff(base + ".surface" + EpochSuffix(static_cast<int>(k)) + ".tif",
+                     survey->surfaces[k]);
     survey->truth.surfaces.push_back({static_cast<int>(k), file});
   }
   survey->truth.Save(base + ".truth.yaml");
@@ -589,7 +636,8 @@ void WriteSurveyFiles(Survey* survey, const std::string& stem) {
   WriteSiteOverlay(survey->truth, base + ".site.yaml");
 }
 
-std::vector<std::pair<std::string, std::string>> ColocatedPoints(const SurveyTruth& truth, double max_distance) {
+std::vector<std::pair<std::string, std::string>> ColocatedPoints(const SurveyTruth& truth,
+                                                                 double max_distance) {
   std::vector<std::pair<std::string, std::string>> out;
   for (const RadioTransmitterTruth& tx : truth.radio.transmitters) {
     if (tx.positions.empty()) continue;
@@ -610,12 +658,15 @@ std::vector<std::pair<std::string, std::string>> ColocatedPoints(const SurveyTru
 
 void WriteSiteOverlay(const SurveyTruth& truth, const std::string& path) {
   std::ostringstream out;
-  out << "# deformation_estimator overlay for this simulated site (written by make_survey_bag; load it with\n"
-         "# replay.launch site_config:=<this file>). Radio transmitters mounted on a monitoring target's post\n"
-         "# measure the same point: their ids are aliased to the target's, so the estimator fuses both\n"
+  out << "# deformation_estimator overlay for this simulated site (written by make_survey_bag; "
+         "load it with\n"
+         "# replay.launch site_config:=<this file>). Radio transmitters mounted on a monitoring "
+         "target's post\n"
+         "# measure the same point: their ids are aliased to the target's, so the estimator fuses "
+         "both\n"
          "# sources and reports when they disagree.\n";
-  out << std::setprecision(12) << "geodetic_origin: [" << truth.origin.x() << ", " << truth.origin.y() << ", "
-      << truth.origin.z() << "]\n";
+  out << std::setprecision(12) << "geodetic_origin: [" << truth.origin.x() << ", "
+      << truth.origin.y() << ", " << truth.origin.z() << "]\n";
   out << "aliases: [";
   const auto pairs = ColocatedPoints(truth, 0.5);
   for (size_t k = 0; k < pairs.size(); ++k)

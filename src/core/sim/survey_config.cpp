@@ -3,9 +3,9 @@
 #include <cmath>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/numeric.h"
 #include "slope_monitor/core/io/yaml_map.h"
 #include "slope_monitor/core/sim/survey.h"
-#include "slope_monitor/core/common/numeric.h"
 
 namespace slope_monitor {
 namespace sim {
@@ -21,8 +21,8 @@ Eigen::Vector3d Vec3(io::YamlMap& m, const std::string& key) {
   return Eigen::Vector3d(v[0], v[1], v[2]);
 }
 
-camera::CameraModel ReadInterior(io::YamlMap& cam, const camera::Sensor& sensor, const std::string& key,
-                                 camera::DistortionModel dm) {
+camera::CameraModel ReadInterior(io::YamlMap& cam, const camera::Sensor& sensor,
+                                 const std::string& key, camera::DistortionModel dm) {
   io::YamlMap in = cam.Map(key);
   std::array<double, camera::kNumInterior> a{};
   a[camera::kC] = in.RequiredDouble("c", 0.5, 1000.0, "mm");
@@ -89,7 +89,8 @@ void ReadSiteSection(io::YamlMap& root, SurveyConfig* out) {
   c.origin = Eigen::Vector3d(o[0], o[1], o[2]);
   if (std::abs(o[0]) > 90.0) site.Fail("origin", "latitude must be in [-90, 90] deg");
   const auto e = site.Doubles("extent", {0.0, 200.0, 0.0, 150.0}, 4);
-  if (!(e[1] > e[0] && e[3] > e[2])) site.Fail("extent", "must be [xmin, xmax, ymin, ymax] with xmax > xmin, ymax > ymin");
+  if (!(e[1] > e[0] && e[3] > e[2]))
+    site.Fail("extent", "must be [xmin, xmax, ymin, ymax] with xmax > xmin, ymax > ymin");
   if ((e[1] - e[0]) > 5000.0 || (e[3] - e[2]) > 5000.0) site.Fail("extent", "is larger than 5 km");
   TerrainOptions& t = c.scene.terrain;
   t.extent = Eigen::Vector4d(e[0], e[1], e[2], e[3]);
@@ -98,7 +99,8 @@ void ReadSiteSection(io::YamlMap& root, SurveyConfig* out) {
   if (cells > 4e6) site.Fail("grid_spacing", Message("gives ", cells, " cells (more than 4e6)"));
   t.relief = site.Double("relief", t.relief, 0.0, 1000.0, "m");
   t.undulation = site.Double("undulation", t.undulation, 0.0, 50.0, "m");
-  t.undulation_wavelength = site.Double("undulation_wavelength", t.undulation_wavelength, 1.0, 2000.0, "m");
+  t.undulation_wavelength =
+      site.Double("undulation_wavelength", t.undulation_wavelength, 1.0, 2000.0, "m");
   c.surface_cell = t.grid_spacing;
   site.CheckNoUnknownKeys();
 }
@@ -112,13 +114,15 @@ void ReadTextureAndLighting(io::YamlMap& root, SurveyConfig* out) {
   t.vegetation_fraction = tx.Double("vegetation_fraction", t.vegetation_fraction, 0.0, 1.0);
   t.rock_fraction = tx.Double("rock_fraction", t.rock_fraction, 0.0, 1.0);
   t.finest_wavelength = tx.Double("finest_wavelength", t.finest_wavelength, 0.001, 10.0, "m");
-  t.coarsest_wavelength = tx.Double("coarsest_wavelength", t.coarsest_wavelength, t.finest_wavelength, 1000.0, "m");
+  t.coarsest_wavelength =
+      tx.Double("coarsest_wavelength", t.coarsest_wavelength, t.finest_wavelength, 1000.0, "m");
   tx.CheckNoUnknownKeys();
   io::YamlMap li = root.OptionalMap("lighting");
   const double az = li.Double("sun_azimuth_deg", 200.0, -360.0, 360.0, "deg") * kRadPerDeg;
   const double el = li.Double("sun_elevation_deg", 45.0, 1.0, 90.0, "deg") * kRadPerDeg;
   // Azimuth clockwise from north (as a compass): x = sin, y = cos.
-  c.scene.lighting.sun = Eigen::Vector3d(std::cos(el) * std::sin(az), std::cos(el) * std::cos(az), std::sin(el));
+  c.scene.lighting.sun =
+      Eigen::Vector3d(std::cos(el) * std::sin(az), std::cos(el) * std::cos(az), std::sin(el));
   c.scene.lighting.ambient = li.Double("ambient", 0.35, 0.0, 1.0);
   c.scene.lighting.sky = li.Double("sky", 0.85, 0.0, 1.5);
   li.CheckNoUnknownKeys();
@@ -150,10 +154,13 @@ void ReadLandslideSection(io::YamlMap& root, SurveyConfig* out) {
   l.velocity0 = ls.Double("velocity", 0.05, 0.0, 100.0, "m/day") / 86400.0;
   l.reference_time = c.start_time;
   const double failure_after = ls.Double("failure_after", 2.0, 0.001, 36500.0, "day");
-  l.failure_time = l.velocity == LandslideModel::Velocity::kAccelerating ? c.start_time + failure_after * 86400.0 : 0.0;
+  l.failure_time = l.velocity == LandslideModel::Velocity::kAccelerating
+                       ? c.start_time + failure_after * 86400.0
+                       : 0.0;
   if (l.velocity == LandslideModel::Velocity::kAccelerating &&
       l.failure_time <= c.start_time + (c.num_epochs - 1) * c.epoch_interval + 3600.0) {
-    ls.Fail("failure_after", Message("= ", failure_after, " day falls before the last epoch (+1 h); "
+    ls.Fail("failure_after", Message("= ", failure_after,
+                                     " day falls before the last epoch (+1 h); "
                                      "the displacement is infinite at failure"));
   }
   c.scene.scarp.depth = ls.Double("scarp_depth", 3.0, 0.0, 50.0, "m");
@@ -172,7 +179,8 @@ void ReadObstacleSection(io::YamlMap& root, SurveyConfig* out) {
     const Eigen::Vector2d xy = Vec2(o, "position");
     ob.base = Eigen::Vector3d(xy.x(), xy.y(), std::nan(""));
     ob.radius = o.Double("radius", ob.kind == Obstacle::Kind::kTree ? 2.0 : 1.0, 0.1, 20.0, "m");
-    ob.height = o.Double("height", ob.kind == Obstacle::Kind::kTree ? 8.0 : 0.5 * ob.radius, 0.0, 60.0, "m");
+    ob.height = o.Double("height", ob.kind == Obstacle::Kind::kTree ? 8.0 : 0.5 * ob.radius, 0.0,
+                         60.0, "m");
     o.CheckNoUnknownKeys();
     c.scene.obstacles.push_back(ob);
   }
@@ -190,23 +198,27 @@ void ReadTargetSection(io::YamlMap& root, SurveyConfig* out) {
   const double tag_size = tg.Double("tag_size", 1.0, 0.05, 10.0, "m");
   const double circle_size = tg.Double("circle_size", 0.5, 0.05, 10.0, "m");
   const bool facing_default = tg.Has("face_toward");
-  const Eigen::Vector3d face_default = facing_default ? Vec3(tg, "face_toward") : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d face_default =
+      facing_default ? Vec3(tg, "face_toward") : Eigen::Vector3d::Zero();
   std::vector<io::YamlMap> list = tg.List("list");
   if (list.empty()) tg.Fail("list", "is empty (the survey needs targets)");
   for (io::YamlMap& t : list) {
     TargetPlacement p;
     p.family = t.String("family", "tag36h11", {"tag36h11", "circle"});
     p.id = t.RequiredInt("id", 0, 100000);
-    p.role = io::TargetRoleFromName(t.String("role", "control", {"control", "monitoring", "check"}));
+    p.role =
+        io::TargetRoleFromName(t.String("role", "control", {"control", "monitoring", "check"}));
     p.xy = Vec2(t, "position");
     p.size = t.Double("size", p.family == "circle" ? circle_size : tag_size, 0.05, 10.0, "m");
     p.mount_height = t.Double("mount_height", mount, 0.0, 2.0, "m");
     p.facing = facing_default || t.Has("face_toward");
     p.face_toward = t.Has("face_toward") ? Vec3(t, "face_toward") : face_default;
-    if (p.family == "tag36h11" && p.id >= 587) t.Fail("id", Message("= ", p.id, " is outside tag36h11's 587 codes"));
+    if (p.family == "tag36h11" && p.id >= 587)
+      t.Fail("id", Message("= ", p.id, " is outside tag36h11's 587 codes"));
     const std::string key = p.family + "/" + std::to_string(p.id);
     for (const auto& q : c.scene.targets) {
-      if (q.family + "/" + std::to_string(q.id) == key) t.Fail("id", Message("duplicates target ", key));
+      if (q.family + "/" + std::to_string(q.id) == key)
+        t.Fail("id", Message("duplicates target ", key));
     }
     c.target_keys_for_error.push_back(t.context());
     t.CheckNoUnknownKeys();
@@ -232,10 +244,12 @@ void ReadCameraSection(io::YamlMap& root, SurveyConfig* out) {
     sensor.pixel_size = sensor_map.RequiredDouble("pixel_size", 1e-4, 0.1, "mm");
     sensor_map.CheckNoUnknownKeys();
     camera::DistortionModel dm;
-    const std::string dm_name = cm.String("distortion_model", "brown", {"none", "radial", "brown", "brown_affinity"});
+    const std::string dm_name =
+        cm.String("distortion_model", "brown", {"none", "radial", "brown", "brown_affinity"});
     dm = camera::DistortionModelFromName(dm_name);
     s.model = ReadInterior(cm, sensor, "interior", dm);
-    // Nominal: what the camera_info says (a rounded principal distance, no distortion unless given).
+    // Nominal: what the camera_info says (a rounded principal distance, no distortion unless
+    // given).
     if (cm.Has("nominal_interior")) {
       s.nominal = ReadInterior(cm, sensor, "nominal_interior", dm);
     } else {
@@ -247,11 +261,13 @@ void ReadCameraSection(io::YamlMap& root, SurveyConfig* out) {
     if (s.kind != "uav") {  // fixed, fixed_targetless
       const Eigen::Vector3d position = Vec3(cm, "position");
       const Eigen::Vector3d look_at = Vec3(cm, "look_at");
-      if ((look_at - position).norm() < 1.0) cm.Fail("look_at", "is less than 1 m from the camera position");
+      if ((look_at - position).norm() < 1.0)
+        cm.Fail("look_at", "is less than 1 m from the camera position");
       const double roll = cm.Double("roll_deg", 0.0, -180.0, 180.0, "deg") * kRadPerDeg;
       s.pose = LookAt(position, look_at, Eigen::Vector3d::UnitZ(), roll);
       s.jitter_position = cm.Double("jitter_position", s.jitter_position, 0.0, 1.0, "m");
-      s.jitter_angle = cm.Double("jitter_angle_deg", s.jitter_angle / kRadPerDeg, 0.0, 5.0, "deg") * kRadPerDeg;
+      s.jitter_angle =
+          cm.Double("jitter_angle_deg", s.jitter_angle / kRadPerDeg, 0.0, 5.0, "deg") * kRadPerDeg;
       const std::vector<double> turn = cm.Doubles("mast_rotation_deg", {0.0, 0.0});
       if (turn.size() != 2 || !(turn[0] >= 0.0) || !(turn[1] >= turn[0]) || !(turn[1] <= 5.0))
         cm.Fail("mast_rotation_deg", "must be [min, max] with 0 <= min <= max <= 5 (deg)");
@@ -272,24 +288,30 @@ void ReadCameraSection(io::YamlMap& root, SurveyConfig* out) {
         st.CheckNoUnknownKeys();
         s.strips.push_back(strip);
       }
-      if (s.strips.empty()) cm.Fail("strips", "is missing or empty (a uav camera needs at least one strip)");
+      if (s.strips.empty())
+        cm.Fail("strips", "is missing or empty (a uav camera needs at least one strip)");
       s.image_interval = cm.Double("image_interval", s.image_interval, 0.1, 600.0, "s");
       s.start_offset = cm.Double("start_offset", s.start_offset, 0.0, 86400.0, "s");
       const auto g = cm.Doubles("gnss_sigma", {0.03, 0.05}, 2);
       if (g[0] < 0 || g[1] < 0) cm.Fail("gnss_sigma", "must be >= 0");
       s.gnss_sigma = Eigen::Vector2d(g[0], g[1]);
-      s.attitude_sigma = cm.Double("attitude_sigma_deg", s.attitude_sigma / kRadPerDeg, 0.0, 20.0, "deg") * kRadPerDeg;
+      s.attitude_sigma =
+          cm.Double("attitude_sigma_deg", s.attitude_sigma / kRadPerDeg, 0.0, 20.0, "deg") *
+          kRadPerDeg;
       s.track_sigma = cm.Double("track_sigma", s.track_sigma, 0.0, 50.0, "m");
-      s.imu_sigma = cm.Double("imu_sigma_deg", s.imu_sigma / kRadPerDeg, 0.0, 20.0, "deg") * kRadPerDeg;
+      s.imu_sigma =
+          cm.Double("imu_sigma_deg", s.imu_sigma / kRadPerDeg, 0.0, 20.0, "deg") * kRadPerDeg;
       s.crab = cm.Double("crab_deg", 0.0, -30.0, 30.0, "deg") * kRadPerDeg;
       s.altitude_variation = cm.Double("altitude_variation", 0.0, 0.0, 0.5);
       s.turn_images = cm.Int("turn_images", 0, 0, 20);
     }
     cm.CheckNoUnknownKeys();
     for (const auto& other : c.cameras) {
-      if (other.name == s.name) cm.Fail("name", Message("= '", s.name, "' is used by another camera"));
+      if (other.name == s.name)
+        cm.Fail("name", Message("= '", s.name, "' is used by another camera"));
     }
-    if (s.kind == "uav" && s.name != "uav") cm.Fail("name", "of a uav camera must be 'uav' (doc/simulator.md)");
+    if (s.kind == "uav" && s.name != "uav")
+      cm.Fail("name", "of a uav camera must be 'uav' (doc/simulator.md)");
     c.cameras.push_back(s);
   }
   if (c.cameras.empty()) root.Fail("cameras", "is missing or empty");
@@ -343,8 +365,10 @@ void ReadRadioSection(io::YamlMap& root, SurveyConfig* out) {
     s.transmitters.push_back(t);
   }
   for (io::YamlMap& f : ra.List("faults")) {
-    const std::string kind = f.String("kind", "blocked_path", {"blocked_path", "multipath_jump", "dropped_blocks"});
-    const double start = c.start_time + f.RequiredDouble("start", 0.0, 3.2e8, "s after epochs.start_time");
+    const std::string kind =
+        f.String("kind", "blocked_path", {"blocked_path", "multipath_jump", "dropped_blocks"});
+    const double start =
+        c.start_time + f.RequiredDouble("start", 0.0, 3.2e8, "s after epochs.start_time");
     const double duration = f.Double("duration", 60.0, -1.0, 3.2e8, "s");
     const std::string rx = f.RequiredString("receiver");
     if (kind == "dropped_blocks") {
@@ -352,7 +376,8 @@ void ReadRadioSection(io::YamlMap& root, SurveyConfig* out) {
     } else {
       const std::string tx = f.RequiredString("transmitter");
       if (kind == "blocked_path") {
-        s.faults.push_back(RadioFault::BlockedPath(tx, rx, start, duration, f.Double("attenuation", 0.02, 0.0, 1.0)));
+        s.faults.push_back(RadioFault::BlockedPath(tx, rx, start, duration,
+                                                   f.Double("attenuation", 0.02, 0.0, 1.0)));
       } else {
         s.faults.push_back(RadioFault::MultipathJump(tx, rx, start, duration,
                                                      f.RequiredDouble("bias", -M_PI, M_PI, "rad"),

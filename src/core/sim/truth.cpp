@@ -69,7 +69,8 @@ class Reader {
   }
 
   template <typename T>
-  T GetOr(const YAML::Node& map, const std::string& key, const T& fallback, const std::string& path) const {
+  T GetOr(const YAML::Node& map, const std::string& key, const T& fallback,
+          const std::string& path) const {
     if (!map.IsMap() || !map[key].IsDefined() || map[key].IsNull()) return fallback;
     return As<T>(map[key], path + key);
   }
@@ -77,11 +78,13 @@ class Reader {
   std::vector<double> Doubles(const YAML::Node& n, size_t size, const std::string& path) const {
     if (!n.IsSequence()) Fail(path, "must be a list of numbers");
     std::vector<double> v = As<std::vector<double>>(n, path);
-    if (size > 0 && v.size() != size) Fail(path, Message("must have ", size, " numbers, has ", v.size()));
+    if (size > 0 && v.size() != size)
+      Fail(path, Message("must have ", size, " numbers, has ", v.size()));
     return v;
   }
 
-  Eigen::Vector3d Vec3(const YAML::Node& map, const std::string& key, const std::string& path) const {
+  Eigen::Vector3d Vec3(const YAML::Node& map, const std::string& key,
+                       const std::string& path) const {
     const std::vector<double> v = Doubles(Need(map, key, path), 3, path + key);
     return Eigen::Vector3d(v[0], v[1], v[2]);
   }
@@ -99,7 +102,8 @@ class Reader {
     return out;
   }
 
-  camera::CameraModel Model(const YAML::Node& cam, const std::string& interior_key, const std::string& path) const {
+  camera::CameraModel Model(const YAML::Node& cam, const std::string& interior_key,
+                            const std::string& path) const {
     const YAML::Node sensor = Need(cam, "sensor", path);
     camera::Sensor s;
     s.width = Get<int>(sensor, "width", path + "sensor.");
@@ -111,7 +115,8 @@ class Reader {
     } catch (const InvalidArgument& e) {
       Fail(path + "distortion_model", e.what());
     }
-    const std::vector<double> v = Doubles(Need(cam, interior_key, path), camera::kNumInterior, path + interior_key);
+    const std::vector<double> v =
+        Doubles(Need(cam, interior_key, path), camera::kNumInterior, path + interior_key);
     std::array<double, camera::kNumInterior> a{};
     std::copy(v.begin(), v.end(), a.begin());
     camera::CameraModel m(s, dm, a);
@@ -123,7 +128,8 @@ class Reader {
     return m;
   }
 
-  camera::ExteriorOrientation Exterior(const YAML::Node& map, const std::string& key, const std::string& path) const {
+  camera::ExteriorOrientation Exterior(const YAML::Node& map, const std::string& key,
+                                       const std::string& path) const {
     const std::vector<double> v = Doubles(Need(map, key, path), camera::kNumExterior, path + key);
     return camera::ExteriorOrientation::FromArray(v.data());
   }
@@ -217,7 +223,8 @@ std::string LandslideModel::VelocityName(Velocity v) {
 LandslideModel::Velocity LandslideModel::VelocityFromName(const std::string& name) {
   if (name == "constant") return Velocity::kConstant;
   if (name == "accelerating") return Velocity::kAccelerating;
-  throw InvalidArgument(Message("unknown velocity model '", name, "' (expected constant or accelerating)"));
+  throw InvalidArgument(
+      Message("unknown velocity model '", name, "' (expected constant or accelerating)"));
 }
 
 std::string Obstacle::KindName(Kind k) { return k == Kind::kTree ? "tree" : "boulder"; }
@@ -288,10 +295,12 @@ void EmitCameraTruth(YAML::Emitter& out, const CameraTruth& c) {
   out << YAML::Key << "name" << YAML::Value << c.name;
   out << YAML::Key << "kind" << YAML::Value << c.kind;
   out << YAML::Key << "encoding" << YAML::Value << c.encoding;
-  out << YAML::Key << "sensor" << YAML::Value << YAML::Flow << YAML::BeginMap << YAML::Key << "width"
-      << YAML::Value << c.model.sensor().width << YAML::Key << "height" << YAML::Value << c.model.sensor().height
-      << YAML::Key << "pixel_size" << YAML::Value << c.model.sensor().pixel_size << YAML::EndMap;
-  out << YAML::Key << "distortion_model" << YAML::Value << camera::DistortionModelName(c.model.model());
+  out << YAML::Key << "sensor" << YAML::Value << YAML::Flow << YAML::BeginMap << YAML::Key
+      << "width" << YAML::Value << c.model.sensor().width << YAML::Key << "height" << YAML::Value
+      << c.model.sensor().height << YAML::Key << "pixel_size" << YAML::Value
+      << c.model.sensor().pixel_size << YAML::EndMap;
+  out << YAML::Key << "distortion_model" << YAML::Value
+      << camera::DistortionModelName(c.model.model());
   EmitCameraModel(out, "interior", c.model);
   EmitCameraModel(out, "nominal_interior", c.nominal);
   if (c.nominal_pose) {
@@ -398,8 +407,8 @@ std::string SurveyTruth::ToYaml() const {
 
   out << YAML::Key << "epochs" << YAML::Value << YAML::BeginSeq;
   for (const auto& e : epochs) {
-    out << YAML::Flow << YAML::BeginMap << YAML::Key << "index" << YAML::Value << e.index << YAML::Key << "stamp"
-        << YAML::Value << e.stamp << YAML::EndMap;
+    out << YAML::Flow << YAML::BeginMap << YAML::Key << "index" << YAML::Value << e.index
+        << YAML::Key << "stamp" << YAML::Value << e.stamp << YAML::EndMap;
   }
   out << YAML::EndSeq;
 
@@ -427,8 +436,9 @@ std::string SurveyTruth::ToYaml() const {
   out << YAML::EndMap;
 
   out << YAML::Key << "scarp" << YAML::Value << YAML::Flow << YAML::BeginMap;
-  out << YAML::Key << "depth" << YAML::Value << scarp.depth << YAML::Key << "band" << YAML::Value << scarp.band
-      << YAML::Key << "head_fraction" << YAML::Value << scarp.head_fraction << YAML::EndMap;
+  out << YAML::Key << "depth" << YAML::Value << scarp.depth << YAML::Key << "band" << YAML::Value
+      << scarp.band << YAML::Key << "head_fraction" << YAML::Value << scarp.head_fraction
+      << YAML::EndMap;
 
   out << YAML::Key << "obstacles" << YAML::Value << YAML::BeginSeq;
   for (const auto& o : obstacles) {
@@ -446,8 +456,8 @@ std::string SurveyTruth::ToYaml() const {
 
   out << YAML::Key << "surfaces" << YAML::Value << YAML::BeginSeq;
   for (const auto& s : surfaces) {
-    out << YAML::Flow << YAML::BeginMap << YAML::Key << "epoch" << YAML::Value << s.epoch << YAML::Key << "geotiff"
-        << YAML::Value << s.geotiff << YAML::EndMap;
+    out << YAML::Flow << YAML::BeginMap << YAML::Key << "epoch" << YAML::Value << s.epoch
+        << YAML::Key << "geotiff" << YAML::Value << s.geotiff << YAML::EndMap;
   }
   out << YAML::EndSeq;
   out << YAML::EndMap;
@@ -560,7 +570,8 @@ RadioTruth ReadRadioTruth(const Reader& r, const YAML::Node& rn) {
   }
   const YAML::Node amb = rn["ambiguities"];
   for (size_t i = 0; amb.IsDefined() && i < amb.size(); ++i) {
-    radio.ambiguities.push_back(r.As<std::vector<int>>(amb[i], Message("radio.ambiguities[", i, "]")));
+    radio.ambiguities.push_back(
+        r.As<std::vector<int>>(amb[i], Message("radio.ambiguities[", i, "]")));
   }
   radio.faults = r.GetOr<std::vector<std::string>>(rn, "faults", {}, "radio.");
   return radio;
@@ -579,7 +590,8 @@ SurveyTruth SurveyTruth::FromYaml(const std::string& text, const std::string& co
   Reader r(context);
   SurveyTruth t;
   t.format = r.Get<std::string>(root, "format", "");
-  if (t.format != "slope_monitor_sim_truth/1") r.Fail("format", Message("= '", t.format, "' is not supported"));
+  if (t.format != "slope_monitor_sim_truth/1")
+    r.Fail("format", Message("= '", t.format, "' is not supported"));
   t.seed = r.GetOr<unsigned int>(root, "seed", 0u, "");
   t.config = r.GetOr<std::string>(root, "config", "", "");
   const YAML::Node site = r.Need(root, "site", "");
@@ -649,7 +661,8 @@ SurveyTruth SurveyTruth::FromYaml(const std::string& text, const std::string& co
     t.obstacles.push_back(o);
   }
 
-  if (root["radio"].IsDefined() && !root["radio"].IsNull()) t.radio = ReadRadioTruth(r, root["radio"]);
+  if (root["radio"].IsDefined() && !root["radio"].IsNull())
+    t.radio = ReadRadioTruth(r, root["radio"]);
 
   const YAML::Node surf = root["surfaces"];
   for (size_t i = 0; surf.IsDefined() && i < surf.size(); ++i) {

@@ -80,25 +80,31 @@ TEST(AttitudePrior, AUavPhotoStartsFromTheFlightLogsAttitude) {
 
 TEST(AttitudePrior, AnAttitudeThatCannotBeUsedIsIgnored) {
   const CollectedImage a = Photo("uav", MakeStamp(100, 0)), b = Photo("uav", MakeStamp(102, 0)),
-                       c = Photo("fixed_cam_1", MakeStamp(104, 0)), d = Photo("uav", MakeStamp(106, 0));
+                       c = Photo("fixed_cam_1", MakeStamp(104, 0)),
+                       d = Photo("uav", MakeStamp(106, 0));
   BuildSceneOptions options;  // attitude_prior_max_sigma 5 deg
   options.min_images = 1;
-  const Built built =
-      Build({{a, Prior(a.stamp, Eigen::Vector3d(0, 0, 80), kNadir, 6.0 * kDeg)},       // beyond the limit
-             {b, Prior(b.stamp, Eigen::Vector3d(9, 0, 80), Eigen::Quaterniond(0, 0, 0, 0), 0.1 * kDeg)},  // not a rotation
-             {c, Prior(c.stamp, Eigen::Vector3d(0, -90, 30), kNadir, 0.1 * kDeg)},  // a fixed camera
-             {d, Prior(d.stamp, Eigen::Vector3d(18, 0, 80), Eigen::Quaterniond::Identity(), 0.0)}},  // all zero: unknown
-            options);
+  const Built built = Build(
+      {{a, Prior(a.stamp, Eigen::Vector3d(0, 0, 80), kNadir, 6.0 * kDeg)},  // beyond the limit
+       {b, Prior(b.stamp, Eigen::Vector3d(9, 0, 80), Eigen::Quaterniond(0, 0, 0, 0),
+                 0.1 * kDeg)},                                                // not a rotation
+       {c, Prior(c.stamp, Eigen::Vector3d(0, -90, 30), kNadir, 0.1 * kDeg)},  // a fixed camera
+       {d, Prior(d.stamp, Eigen::Vector3d(18, 0, 80), Eigen::Quaterniond::Identity(),
+                 0.0)}},  // all zero: unknown
+      options);
   for (const std::string& key : {a.key, b.key, c.key, d.key}) {
     EXPECT_FALSE(built.Of(key).exterior_known) << key;
     EXPECT_FALSE(built.Of(key).attitude_from_prior) << key;
   }
   // 0 turns the attitudes off.
   options.attitude_prior_max_sigma = 0.0;
-  const Built off = Build({{a, Prior(a.stamp, Eigen::Vector3d(0, 0, 80), kNadir, 0.1 * kDeg)}}, options);
+  const Built off =
+      Build({{a, Prior(a.stamp, Eigen::Vector3d(0, 0, 80), kNadir, 0.1 * kDeg)}}, options);
   EXPECT_FALSE(off.Of(a.key).exterior_known);
   options.attitude_prior_max_sigma = -1.0;
-  const auto build = [&]() { Build({{a, Prior(a.stamp, Eigen::Vector3d(0, 0, 80), kNadir, 0.1 * kDeg)}}, options); };
+  const auto build = [&]() {
+    Build({{a, Prior(a.stamp, Eigen::Vector3d(0, 0, 80), kNadir, 0.1 * kDeg)}}, options);
+  };
   EXPECT_THROW(build(), ConfigError);
 }
 

@@ -36,9 +36,11 @@ TEST(BalFuzz, LoadsOrThrowsError) {
       ++loaded;
     } catch (const Error& e) {
       ++refused;
-      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << "input " << i << ": " << e.what();
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos)
+          << "input " << i << ": " << e.what();
     } catch (const std::exception& e) {
-      ADD_FAILURE() << "input " << i << " escaped as " << typeid(e).name() << ": " << e.what() << "\n"
+      ADD_FAILURE() << "input " << i << " escaped as " << typeid(e).name() << ": " << e.what()
+                    << "\n"
                     << input.substr(0, 200);
     }
   }

@@ -21,15 +21,17 @@ TEST(BalTest, InitialCostsMatchTheReference) {
     double cost;
     int cameras, points, observations;
   };
-  const Case cases[] = {{"dubrovnik-1-1-pre.txt", 63.3164, 1, 1, 1},
-                        {"dubrovnik-3-7-pre.txt", 2764.2200, 3, 7, -1},
-                        {"dubrovnik-3-7-18-pre.txt", 2753.1739, 3, 7, 18},
-                        {"bal-ladybug-problem-49-7776-pre-shrink-1800.txt", 2.345198e+05, 49, 1800, 10863}};
+  const Case cases[] = {
+      {"dubrovnik-1-1-pre.txt", 63.3164, 1, 1, 1},
+      {"dubrovnik-3-7-pre.txt", 2764.2200, 3, 7, -1},
+      {"dubrovnik-3-7-18-pre.txt", 2753.1739, 3, 7, 18},
+      {"bal-ladybug-problem-49-7776-pre-shrink-1800.txt", 2.345198e+05, 49, 1800, 10863}};
   for (const Case& c : cases) {
     const BalProblem p = BalProblem::Load(Data(c.file));
     EXPECT_EQ(static_cast<int>(p.cameras.size()), c.cameras) << c.file;
     EXPECT_EQ(static_cast<int>(p.points.size()), c.points) << c.file;
-    if (c.observations > 0) EXPECT_EQ(static_cast<int>(p.observations.size()), c.observations) << c.file;
+    if (c.observations > 0)
+      EXPECT_EQ(static_cast<int>(p.observations.size()), c.observations) << c.file;
     // The reference figures carry 6-7 significant digits.
     EXPECT_NEAR(p.Cost(), c.cost, 1e-6 * c.cost + 1e-4) << c.file;
   }

@@ -37,7 +37,9 @@ double FractionWithin3Sigma(const Scene& truth, const Scene& solved, const Summa
 }
 
 double AngleError(const camera::AttitudeAngles& a, const camera::AttitudeAngles& b) {
-  return Eigen::AngleAxisd(camera::RotationFromAngles(a) * camera::RotationFromAngles(b).transpose()).angle();
+  return Eigen::AngleAxisd(camera::RotationFromAngles(a) *
+                           camera::RotationFromAngles(b).transpose())
+      .angle();
 }
 
 // Fixed cameras: 0.05 px (good circular / tag targets) must reach the issue's
@@ -74,10 +76,14 @@ TEST_P(FixedCameraTest, TwoEpochsDisplacements) {
     total_within += f * n;
     EXPECT_GE(f, 0.97) << n << " points";
     for (size_t i = 0; i < scene.images.size(); ++i) {
-      const double dp = (scene.images[i].exterior.position - ts.truth.images[i].exterior.position).norm();
-      const double da = AngleError(scene.images[i].exterior.angles, ts.truth.images[i].exterior.angles);
-      std::printf("  %s: position error %.4f m (sigma %.4f), attitude error %.3f mrad\n", scene.images[i].name.c_str(),
-                  dp, std::sqrt(s.precision.exterior_covariance[i].topLeftCorner<3, 3>().trace()), da * 1e3);
+      const double dp =
+          (scene.images[i].exterior.position - ts.truth.images[i].exterior.position).norm();
+      const double da =
+          AngleError(scene.images[i].exterior.angles, ts.truth.images[i].exterior.angles);
+      std::printf("  %s: position error %.4f m (sigma %.4f), attitude error %.3f mrad\n",
+                  scene.images[i].name.c_str(), dp,
+                  std::sqrt(s.precision.exterior_covariance[i].topLeftCorner<3, 3>().trace()),
+                  da * 1e3);
       EXPECT_LT(dp, 0.05);
       EXPECT_LT(da, 2e-4);
     }
@@ -95,7 +101,8 @@ TEST_P(FixedCameraTest, TwoEpochsDisplacements) {
   for (const Displacement& d : cmp.displacements) {
     const int j = scenes[1].truth.FindPoint(d.id);
     const int j0 = scenes[0].truth.FindPoint(d.id);
-    const Eigen::Vector3d truth = scenes[1].truth.points[j].position - scenes[0].truth.points[j0].position;
+    const Eigen::Vector3d truth =
+        scenes[1].truth.points[j].position - scenes[0].truth.points[j0].position;
     ss += (d.displacement - truth).squaredNorm();
     ++n;
     if (truth.norm() > 0.02) {
@@ -104,15 +111,18 @@ TEST_P(FixedCameraTest, TwoEpochsDisplacements) {
     }
   }
   const double rms = std::sqrt(ss / n);
-  std::printf("fixed cameras at 100-200 m, %.2f px: displacement RMS vs truth = %.2f mm over %d monitoring points\n",
-              pixel_sigma, rms * 1e3, n);
+  std::printf(
+      "fixed cameras at 100-200 m, %.2f px: displacement RMS vs truth = %.2f mm over %d monitoring "
+      "points\n",
+      pixel_sigma, rms * 1e3, n);
   EXPECT_EQ(n, 20);
   EXPECT_LT(rms, max_rms);
   EXPECT_EQ(significant_ok, moving);
 }
 
 INSTANTIATE_TEST_SUITE_P(PixelNoise, FixedCameraTest,
-                         ::testing::Values(std::make_pair(0.05, 0.005), std::make_pair(0.1, 0.007)));
+                         ::testing::Values(std::make_pair(0.05, 0.005),
+                                           std::make_pair(0.1, 0.007)));
 
 TEST(BundleAdjusterTest, UavSelfCalibrationWithGnssPriors) {
   Options options;
@@ -144,7 +154,8 @@ TEST(BundleAdjusterTest, UavSelfCalibrationWithGnssPriors) {
     const auto& tru = ts.truth.cameras[0].model.interior();
     const auto& sig = s.precision.interior_sigma[0];
     for (int k : {camera::kC, camera::kX0, camera::kY0, camera::kK1}) {
-      std::printf("  %s: estimated %.6g, truth %.6g, sigma %.3g\n", camera::InteriorNames()[k], est[k], tru[k], sig[k]);
+      std::printf("  %s: estimated %.6g, truth %.6g, sigma %.3g\n", camera::InteriorNames()[k],
+                  est[k], tru[k], sig[k]);
       EXPECT_LE(std::abs(est[k] - tru[k]), 3.5 * sig[k] + 1e-12) << camera::InteriorNames()[k];
     }
     EXPECT_NEAR(est[camera::kC], tru[camera::kC], 0.005);  // 5 um on 8.85 mm
@@ -153,11 +164,14 @@ TEST(BundleAdjusterTest, UavSelfCalibrationWithGnssPriors) {
     EXPECT_NEAR(est[camera::kK1], tru[camera::kK1], 5e-6);
     double worst_pos = 0.0, worst_att = 0.0;
     for (size_t i = 0; i < scene.images.size(); ++i) {
-      worst_pos = std::max(worst_pos, (scene.images[i].exterior.position - ts.truth.images[i].exterior.position).norm());
-      worst_att = std::max(worst_att, AngleError(scene.images[i].exterior.angles, ts.truth.images[i].exterior.angles));
+      worst_pos = std::max(
+          worst_pos,
+          (scene.images[i].exterior.position - ts.truth.images[i].exterior.position).norm());
+      worst_att = std::max(worst_att, AngleError(scene.images[i].exterior.angles,
+                                                 ts.truth.images[i].exterior.angles));
     }
-    std::printf("  %zu images: worst position error %.4f m, worst attitude error %.3f mrad\n", scene.images.size(),
-                worst_pos, worst_att * 1e3);
+    std::printf("  %zu images: worst position error %.4f m, worst attitude error %.3f mrad\n",
+                scene.images.size(), worst_pos, worst_att * 1e3);
     EXPECT_LT(worst_pos, 0.08);
     EXPECT_LT(worst_att, 1e-3);
     epochs.push_back(EpochPointsFromSolution(scene, s, epoch, 1000.0 * epoch));
@@ -175,7 +189,9 @@ TEST(BundleAdjusterTest, UavSelfCalibrationWithGnssPriors) {
     ++n;
   }
   const double rms = std::sqrt(ss / n);
-  std::printf("uav at ~60 m, 0.3 px: displacement RMS vs truth = %.2f mm over %d monitoring points\n", rms * 1e3, n);
+  std::printf(
+      "uav at ~60 m, 0.3 px: displacement RMS vs truth = %.2f mm over %d monitoring points\n",
+      rms * 1e3, n);
   EXPECT_GE(n, 15);
   EXPECT_LT(rms, 0.02);
 }
@@ -196,12 +212,14 @@ TEST(BundleAdjusterTest, InitializationFromControlPointsOnly) {
   const std::string init = InitializeScene(&scene);
   EXPECT_EQ(init, "");
   for (size_t i = 0; i < scene.images.size(); ++i)
-    EXPECT_LT((scene.images[i].exterior.position - ts.truth.images[i].exterior.position).norm(), 0.5);
+    EXPECT_LT((scene.images[i].exterior.position - ts.truth.images[i].exterior.position).norm(),
+              0.5);
   BundleAdjuster adjuster{Options(), Config()};
   const Summary s = adjuster.Solve(&scene);
   ASSERT_TRUE(s.IsSolutionUsable()) << s.BriefReport();
   for (size_t i = 0; i < scene.images.size(); ++i)
-    EXPECT_LT((scene.images[i].exterior.position - ts.truth.images[i].exterior.position).norm(), 0.05);
+    EXPECT_LT((scene.images[i].exterior.position - ts.truth.images[i].exterior.position).norm(),
+              0.05);
 }
 
 TEST(BundleAdjusterTest, ReportsOutliers) {
@@ -225,7 +243,8 @@ class BadInputTest : public ::testing::Test {
     EXPECT_FALSE(s.IsSolutionUsable());
     EXPECT_NE(s.reason.find(phrase), std::string::npos) << s.reason;
     ASSERT_EQ(before.points.size(), scene_.points.size());
-    for (size_t j = 0; j < before.points.size(); ++j) EXPECT_EQ(before.points[j].position, scene_.points[j].position);
+    for (size_t j = 0; j < before.points.size(); ++j)
+      EXPECT_EQ(before.points[j].position, scene_.points[j].position);
     for (size_t i = 0; i < before.images.size(); ++i)
       EXPECT_EQ(before.images[i].exterior.position, scene_.images[i].exterior.position);
   }
@@ -237,7 +256,8 @@ TEST_F(BadInputTest, TooFewControlPoints) {
   for (ObjectPoint& p : scene_.points)
     if (p.role == PointRole::kControl && ++kept > 2) p.role = PointRole::kTie;
   const Scene before = scene_;
-  ExpectRejected(BundleAdjuster(Options(), Config()).Solve(&scene_), before, "too few control points");
+  ExpectRejected(BundleAdjuster(Options(), Config()).Solve(&scene_), before,
+                 "too few control points");
 }
 
 TEST_F(BadInputTest, CollinearControlPoints) {
@@ -256,7 +276,8 @@ TEST_F(BadInputTest, ImageWithoutObservations) {
   extra.name = "fixed_cam_9";
   scene_.images.push_back(extra);
   const Scene before = scene_;
-  ExpectRejected(BundleAdjuster(Options(), Config()).Solve(&scene_), before, "'fixed_cam_9' has no observations");
+  ExpectRejected(BundleAdjuster(Options(), Config()).Solve(&scene_), before,
+                 "'fixed_cam_9' has no observations");
 }
 
 TEST_F(BadInputTest, NanObservation) {
@@ -276,8 +297,10 @@ TEST_F(BadInputTest, DivergingSolver) {
   const Scene before = scene_;
   const Summary s = BundleAdjuster(options, Config()).Solve(&scene_);
   ExpectRejected(s, before, "");
-  EXPECT_TRUE(s.reason.find("did not converge") != std::string::npos || s.reason.find("behind") != std::string::npos ||
-              s.reason.find("sigma0") != std::string::npos || s.reason.find("outliers") != std::string::npos)
+  EXPECT_TRUE(s.reason.find("did not converge") != std::string::npos ||
+              s.reason.find("behind") != std::string::npos ||
+              s.reason.find("sigma0") != std::string::npos ||
+              s.reason.find("outliers") != std::string::npos)
       << s.reason;
 }
 

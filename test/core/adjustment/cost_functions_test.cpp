@@ -18,8 +18,8 @@ namespace adjustment {
 namespace {
 
 // Ceres 2.1: the nullptr overload of the constructor is ambiguous.
-bool GradientOk(const ceres::CostFunction* cost, const std::vector<const double*>& params, double precision,
-                std::string* error) {
+bool GradientOk(const ceres::CostFunction* cost, const std::vector<const double*>& params,
+                double precision, std::string* error) {
   const std::vector<const ceres::Manifold*>* none = nullptr;
   ceres::NumericDiffOptions nd;
   ceres::GradientChecker checker(cost, none, nd);
@@ -47,20 +47,22 @@ TEST(CollinearityErrorTest, ZeroResidualAtTheProjectedPixel) {
   EXPECT_NEAR(r[0], 0.0, 1e-9);
   EXPECT_NEAR(r[1], 0.0, 1e-9);
   // One pixel off in the observation and a 0.5 px sigma: whitened residual -2.
-  std::unique_ptr<ceres::CostFunction> cost2(CollinearityError::Create(
-      TestSensor(), expected + Eigen::Vector2d(1.0, 0.0), SqrtInformation<2>(Eigen::Matrix2d::Identity() * 0.25)));
+  std::unique_ptr<ceres::CostFunction> cost2(
+      CollinearityError::Create(TestSensor(), expected + Eigen::Vector2d(1.0, 0.0),
+                                SqrtInformation<2>(Eigen::Matrix2d::Identity() * 0.25)));
   ASSERT_TRUE(cost2->Evaluate(params, r, nullptr));
   EXPECT_NEAR(r[0], -2.0, 1e-9);
 }
 
 TEST(CollinearityErrorTest, GradientCheckWithFullDistortion) {
   const std::array<double, 6> ext = {3.0, -2.0, 120.0, 0.05, -0.08, 0.3};
-  const std::array<double, 10> in = {50.0, 0.02, -0.03, 2e-5, -1e-8, 1e-11, 3e-6, -2e-6, 1e-4, -5e-5};
+  const std::array<double, 10> in = {50.0,  0.02, -0.03, 2e-5, -1e-8,
+                                     1e-11, 3e-6, -2e-6, 1e-4, -5e-5};
   const std::array<double, 3> x = {12.0, 8.0, 4.0};
   Eigen::Matrix2d cov;
   cov << 0.04, 0.01, 0.01, 0.09;
-  std::unique_ptr<ceres::CostFunction> cost(
-      CollinearityError::Create(TestSensor(), Eigen::Vector2d(3400, 1800), SqrtInformation<2>(cov)));
+  std::unique_ptr<ceres::CostFunction> cost(CollinearityError::Create(
+      TestSensor(), Eigen::Vector2d(3400, 1800), SqrtInformation<2>(cov)));
   std::string error;
   EXPECT_TRUE(GradientOk(cost.get(), {ext.data(), in.data(), x.data()}, 1e-6, &error)) << error;
 }
@@ -68,7 +70,8 @@ TEST(CollinearityErrorTest, GradientCheckWithFullDistortion) {
 TEST(ControlPointPriorTest, ResidualAndGradient) {
   const Eigen::Vector3d surveyed(10, 20, 30);
   Eigen::Matrix3d cov = Eigen::Vector3d(0.03 * 0.03, 0.03 * 0.03, 0.01 * 0.01).asDiagonal();
-  std::unique_ptr<ceres::CostFunction> cost(ControlPointPrior::Create(surveyed, SqrtInformation<3>(cov)));
+  std::unique_ptr<ceres::CostFunction> cost(
+      ControlPointPrior::Create(surveyed, SqrtInformation<3>(cov)));
   const std::array<double, 3> x = {10.03, 20.0, 29.98};  // +1 sigma east, -2 sigma down
   const double* params[] = {x.data()};
   double r[3];
@@ -83,7 +86,8 @@ TEST(ControlPointPriorTest, ResidualAndGradient) {
 TEST(PositionPriorTest, ResidualAndGradient) {
   Eigen::Matrix3d cov;
   cov << 0.0009, 0.0003, 0.0, 0.0003, 0.0009, 0.0, 0.0, 0.0, 0.0025;
-  std::unique_ptr<ceres::CostFunction> cost(PositionPriorError::Create(Eigen::Vector3d(1, 2, 80), SqrtInformation<3>(cov)));
+  std::unique_ptr<ceres::CostFunction> cost(
+      PositionPriorError::Create(Eigen::Vector3d(1, 2, 80), SqrtInformation<3>(cov)));
   const std::array<double, 6> e = {1.0, 2.0, 80.05, 0.1, 0.2, 0.3};  // 1 sigma high
   const double* params[] = {e.data()};
   double r[3];
@@ -110,8 +114,10 @@ TEST(SnavelyTest, AnalyticEqualsAutodiffAndPassesGradientCheck) {
     ASSERT_TRUE(an->Evaluate(params, r2, j2));
     EXPECT_NEAR(r1[0], r2[0], 1e-9);
     EXPECT_NEAR(r1[1], r2[1], 1e-9);
-    for (int i = 0; i < 18; ++i) EXPECT_NEAR(j1c[i], j2c[i], 1e-7 * (1.0 + std::abs(j1c[i]))) << "camera jac " << i;
-    for (int i = 0; i < 6; ++i) EXPECT_NEAR(j1p[i], j2p[i], 1e-7 * (1.0 + std::abs(j1p[i]))) << "point jac " << i;
+    for (int i = 0; i < 18; ++i)
+      EXPECT_NEAR(j1c[i], j2c[i], 1e-7 * (1.0 + std::abs(j1c[i]))) << "camera jac " << i;
+    for (int i = 0; i < 6; ++i)
+      EXPECT_NEAR(j1p[i], j2p[i], 1e-7 * (1.0 + std::abs(j1p[i]))) << "point jac " << i;
     std::string error;
     EXPECT_TRUE(GradientOk(an.get(), {cam.data(), x.data()}, 1e-6, &error)) << error;
     EXPECT_TRUE(GradientOk(ad.get(), {cam.data(), x.data()}, 1e-6, &error)) << error;

@@ -100,7 +100,8 @@ TEST(InitializeScene, OrientsAGnssImageFromTwoOrThreeKnownPoints) {
   truth.angles.theta = 0.01;
   truth.angles.phi = -0.02;
   truth.angles.kappa = 0.3;
-  const std::vector<Eigen::Vector3d> points = {{95.0, 55.0, 20.0}, {108.0, 57.0, 21.0}, {101.0, 70.0, 22.0}};
+  const std::vector<Eigen::Vector3d> points = {
+      {95.0, 55.0, 20.0}, {108.0, 57.0, 21.0}, {101.0, 70.0, 22.0}};
   for (size_t n : {2u, 3u}) {
     Scene s;
     s.cameras.push_back({"uav", model});
@@ -126,9 +127,11 @@ TEST(InitializeScene, OrientsAGnssImageFromTwoOrThreeKnownPoints) {
     ASSERT_TRUE(s.images[0].exterior_known) << n << " points";
     EXPECT_LT((s.images[0].exterior.position - *im.position_prior).norm(), 1e-9);
     // 5 cm at ~60 m: the attitude is right to about a milliradian.
-    const Eigen::Matrix3d r_true = camera::RotationFromAngles(truth.angles.theta, truth.angles.phi, truth.angles.kappa);
+    const Eigen::Matrix3d r_true =
+        camera::RotationFromAngles(truth.angles.theta, truth.angles.phi, truth.angles.kappa);
     const Eigen::Matrix3d r = camera::RotationFromAngles(s.images[0].exterior.angles.theta,
-                                                         s.images[0].exterior.angles.phi, s.images[0].exterior.angles.kappa);
+                                                         s.images[0].exterior.angles.phi,
+                                                         s.images[0].exterior.angles.kappa);
     EXPECT_LT(Eigen::AngleAxisd(r_true.transpose() * r).angle(), 2e-3) << n << " points";
     // Without the prior the image stays unknown (resection needs four).
     Scene no_prior = s;

@@ -8,10 +8,10 @@
 
 #include <gtest/gtest.h>
 
+#include "resect_scenario.h"
 #include "slope_monitor/core/adjustment/resect_camera.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/surveyed_points.h"
-#include "resect_scenario.h"
 
 namespace slope_monitor {
 namespace {

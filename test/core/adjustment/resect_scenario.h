@@ -40,8 +40,8 @@ inline camera::ExteriorOrientation TruePose() {
 // A surveyed-point list as a crew would have it: points on the slope 150-200 m
 // away, surveyed with xyz_sigma noise and picked with pixel_sigma noise.
 inline std::vector<io::PickedPoint> Survey(const camera::CameraModel& truth,
-                                      const camera::ExteriorOrientation& pose, int n,
-                                      double xyz_sigma, double pixel_sigma, unsigned seed) {
+                                           const camera::ExteriorOrientation& pose, int n,
+                                           double xyz_sigma, double pixel_sigma, unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> col(100, truth.sensor().width - 100),
       row(100, truth.sensor().height - 100), range(150, 200);

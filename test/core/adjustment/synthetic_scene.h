@@ -18,8 +18,8 @@ namespace slope_monitor {
 namespace adjustment {
 namespace testing {
 
-inline camera::ExteriorOrientation LookAt(const Eigen::Vector3d& position, const Eigen::Vector3d& target,
-                                          double kappa) {
+inline camera::ExteriorOrientation LookAt(const Eigen::Vector3d& position,
+                                          const Eigen::Vector3d& target, double kappa) {
   const Eigen::Vector3d z = (position - target).normalized();  // the camera looks along -z
   camera::ExteriorOrientation e;
   e.position = position;
@@ -29,30 +29,33 @@ inline camera::ExteriorOrientation LookAt(const Eigen::Vector3d& position, const
   return e;
 }
 
-inline double SlopeHeight(double x, double y, double rise) { return rise * y + 1.5 * std::sin(0.07 * x) * std::cos(0.05 * y); }
+inline double SlopeHeight(double x, double y, double rise) {
+  return rise * y + 1.5 * std::sin(0.07 * x) * std::cos(0.05 * y);
+}
 
 // The displacement of a monitoring point between epochs (truth).
 inline Eigen::Vector3d BodyMotion(const Eigen::Vector3d& x, double amount) {
   // Moves downslope (south and down), more near the body centre (100, 75).
-  const double w = std::exp(-((x.x() - 100.0) * (x.x() - 100.0) + (x.y() - 75.0) * (x.y() - 75.0)) / (2 * 40.0 * 40.0));
+  const double w = std::exp(-((x.x() - 100.0) * (x.x() - 100.0) + (x.y() - 75.0) * (x.y() - 75.0)) /
+                            (2 * 40.0 * 40.0));
   return amount * w * Eigen::Vector3d(0.1, -0.9, -0.42).normalized();
 }
 
 struct TruthScene {
-  Scene truth;       // true values everywhere
-  Scene observed;    // noisy observations and perturbed initial values
+  Scene truth;     // true values everywhere
+  Scene observed;  // noisy observations and perturbed initial values
 };
 
 struct SceneSpec {
   bool uav = false;
   unsigned int seed = 1;
-  double pixel_sigma = 0.1;        // [px]
-  double survey_sigma_h = 0.003;   // [m]
-  double survey_sigma_v = 0.003;   // [m]
-  double gnss_sigma = 0.03;        // [m]
+  double pixel_sigma = 0.1;       // [px]
+  double survey_sigma_h = 0.003;  // [m]
+  double survey_sigma_v = 0.003;  // [m]
+  double gnss_sigma = 0.03;       // [m]
   int num_tie = 60;
-  double motion = 0.0;             // [m] body motion of this epoch (0 = reference)
-  double camera_drift = 0.0;       // [rad] fixed cameras: attitude change of this epoch
+  double motion = 0.0;        // [m] body motion of this epoch (0 = reference)
+  double camera_drift = 0.0;  // [rad] fixed cameras: attitude change of this epoch
   bool perturb_initial = true;
   bool true_interior_differs = true;  // interior truth differs from the nominal (initial) one
 };
@@ -92,7 +95,8 @@ inline TruthScene MakeScene(const SceneSpec& spec) {
     nominal[camera::kK1] = 2e-5;
     truth_in = nominal;
     for (int c = 0; c < 3; ++c)
-      t.cameras.push_back({"fixed_cam_" + std::to_string(c + 1), camera::CameraModel(sensor, model, truth_in)});
+      t.cameras.push_back(
+          {"fixed_cam_" + std::to_string(c + 1), camera::CameraModel(sensor, model, truth_in)});
   }
 
   // Images.
@@ -106,7 +110,8 @@ inline TruthScene MakeScene(const SceneSpec& spec) {
         im.camera = 0;
         const double x = 30.0 + 28.0 * shot;
         const double y = 20.0 + 36.0 * strip;
-        im.exterior.position = Eigen::Vector3d(x + 0.5 * n01(rng), y + 0.5 * n01(rng), z_fly + 0.3 * n01(rng));
+        im.exterior.position =
+            Eigen::Vector3d(x + 0.5 * n01(rng), y + 0.5 * n01(rng), z_fly + 0.3 * n01(rng));
         im.exterior.angles.theta = 0.02 * n01(rng);
         im.exterior.angles.phi = 0.02 * n01(rng);
         im.exterior.angles.kappa = (strip % 2 ? M_PI : 0.0) + 0.02 * n01(rng);
@@ -118,7 +123,8 @@ inline TruthScene MakeScene(const SceneSpec& spec) {
       Image im;
       im.name = "uav_oblique_" + std::to_string(o);
       im.camera = 0;
-      const Eigen::Vector3d pos(o < 2 ? 20.0 + 160.0 * o : 100.0, o < 2 ? 75.0 : 5.0 + 140.0 * (o - 2), 75.0);
+      const Eigen::Vector3d pos(o < 2 ? 20.0 + 160.0 * o : 100.0,
+                                o < 2 ? 75.0 : 5.0 + 140.0 * (o - 2), 75.0);
       im.exterior = LookAt(pos, Eigen::Vector3d(100, 75, 10), 0.5 * o);
       t.images.push_back(im);
     }
@@ -146,17 +152,22 @@ inline TruthScene MakeScene(const SceneSpec& spec) {
     ObjectPoint p;
     p.id = id;
     p.role = role;
-    p.position = Eigen::Vector3d(x, y, SlopeHeight(x, y, rise) + (role == PointRole::kTie ? 0.0 : 0.8));
+    p.position =
+        Eigen::Vector3d(x, y, SlopeHeight(x, y, rise) + (role == PointRole::kTie ? 0.0 : 0.8));
     if (role == PointRole::kMonitoring) p.position += BodyMotion(p.position, spec.motion);
     t.points.push_back(p);
   };
-  const double ctrl[][2] = {{15, 10}, {100, 8}, {185, 12}, {12, 75}, {188, 80}, {18, 140}, {100, 142}, {182, 138}, {55, 40}, {150, 115}};
-  for (int i = 0; i < 10; ++i) add_point("tag36h11/" + std::to_string(i), PointRole::kControl, ctrl[i][0], ctrl[i][1]);
+  const double ctrl[][2] = {{15, 10},  {100, 8},   {185, 12},  {12, 75}, {188, 80},
+                            {18, 140}, {100, 142}, {182, 138}, {55, 40}, {150, 115}};
+  for (int i = 0; i < 10; ++i)
+    add_point("tag36h11/" + std::to_string(i), PointRole::kControl, ctrl[i][0], ctrl[i][1]);
   for (int i = 0; i < 4; ++i)
-    add_point("tag36h11/" + std::to_string(50 + i), PointRole::kCheck, 40.0 + 40.0 * i, i % 2 ? 25.0 : 125.0);
+    add_point("tag36h11/" + std::to_string(50 + i), PointRole::kCheck, 40.0 + 40.0 * i,
+              i % 2 ? 25.0 : 125.0);
   for (int i = 0; i < 20; ++i) {
     const double a = 2 * M_PI * i / 20.0, r = 10.0 + 25.0 * ((i * 7) % 10) / 10.0;
-    add_point("tag36h11/" + std::to_string(100 + i), PointRole::kMonitoring, 100 + r * std::cos(a), 75 + 0.8 * r * std::sin(a));
+    add_point("tag36h11/" + std::to_string(100 + i), PointRole::kMonitoring, 100 + r * std::cos(a),
+              75 + 0.8 * r * std::sin(a));
   }
   for (int i = 0; i < spec.num_tie; ++i) {
     const double x = ux(point_rng), y = uy(point_rng);
@@ -168,8 +179,10 @@ inline TruthScene MakeScene(const SceneSpec& spec) {
     if (p.role != PointRole::kControl && p.role != PointRole::kCheck) continue;
     p.surveyed_covariance = Eigen::Vector3d(spec.survey_sigma_h * spec.survey_sigma_h,
                                             spec.survey_sigma_h * spec.survey_sigma_h,
-                                            spec.survey_sigma_v * spec.survey_sigma_v).asDiagonal();
-    p.surveyed = p.position + Eigen::Vector3d(spec.survey_sigma_h * n01(survey_rng), spec.survey_sigma_h * n01(survey_rng),
+                                            spec.survey_sigma_v * spec.survey_sigma_v)
+                                .asDiagonal();
+    p.surveyed = p.position + Eigen::Vector3d(spec.survey_sigma_h * n01(survey_rng),
+                                              spec.survey_sigma_h * n01(survey_rng),
                                               spec.survey_sigma_v * n01(survey_rng));
   }
   // Observations (true projections inside the sensor with a margin).
@@ -178,7 +191,8 @@ inline TruthScene MakeScene(const SceneSpec& spec) {
     for (size_t j = 0; j < t.points.size(); ++j) {
       Eigen::Vector2d px;
       if (!cam.Project(t.images[i].exterior, t.points[j].position, &px)) continue;
-      if (px.x() < 20 || px.y() < 20 || px.x() > sensor.width - 21 || px.y() > sensor.height - 21) continue;
+      if (px.x() < 20 || px.y() < 20 || px.x() > sensor.width - 21 || px.y() > sensor.height - 21)
+        continue;
       Observation o;
       o.image = static_cast<int>(i);
       o.point = static_cast<int>(j);
@@ -191,14 +205,16 @@ inline TruthScene MakeScene(const SceneSpec& spec) {
   if (spec.uav) {
     for (Image& im : t.images) {
       im.position_prior = im.exterior.position;  // replaced by a noisy copy below
-      im.position_prior_covariance = Eigen::Matrix3d::Identity() * spec.gnss_sigma * spec.gnss_sigma;
+      im.position_prior_covariance =
+          Eigen::Matrix3d::Identity() * spec.gnss_sigma * spec.gnss_sigma;
     }
   }
 
   // Observed scene: noise on pixels and GNSS, nominal interior, perturbed
   // initial values.
   Scene o = t;
-  for (Observation& ob : o.observations) ob.pixel += spec.pixel_sigma * Eigen::Vector2d(n01(rng), n01(rng));
+  for (Observation& ob : o.observations)
+    ob.pixel += spec.pixel_sigma * Eigen::Vector2d(n01(rng), n01(rng));
   for (Image& im : o.images) {
     if (im.position_prior)
       *im.position_prior += spec.gnss_sigma * Eigen::Vector3d(n01(rng), n01(rng), n01(rng));

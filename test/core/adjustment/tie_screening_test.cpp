@@ -38,7 +38,8 @@ Scene Planted(int every, std::set<Key>* planted) {
 
 int TieObservations(const Scene& s) {
   int n = 0;
-  for (const Observation& o : s.observations) n += s.points[o.point].role == PointRole::kTie ? 1 : 0;
+  for (const Observation& o : s.observations)
+    n += s.points[o.point].role == PointRole::kTie ? 1 : 0;
   return n;
 }
 
@@ -55,7 +56,8 @@ TEST(TieScreening, PlantedMismatchesAreRemoved) {
   // Every planted one, and few good ones besides (a good observation of a
   // point that also carries a planted one may be pulled with it).
   EXPECT_GE(r.tie_outliers_removed, static_cast<int>(planted.size()));
-  EXPECT_LE(r.tie_outliers_removed, static_cast<int>(planted.size()) + TieObservations(scene) / 100);
+  EXPECT_LE(r.tie_outliers_removed,
+            static_cast<int>(planted.size()) + TieObservations(scene) / 100);
   EXPECT_LT(r.summary.sigma0, 1.5);
 }
 
@@ -70,7 +72,8 @@ TEST(TieScreening, AScreeningThatFlagsTooManyRemovesNothing) {
   EXPECT_NE(r.summary.reason.find(r.tie_screening_refused), std::string::npos) << r.summary.reason;
   // The message names the count: more than 30 % of the tie observations.
   std::printf("%s\n", r.tie_screening_refused.c_str());
-  EXPECT_NE(r.tie_screening_refused.find(Message(" of ", TieObservations(scene), " tie-point observations")),
+  EXPECT_NE(r.tie_screening_refused.find(
+                Message(" of ", TieObservations(scene), " tie-point observations")),
             std::string::npos);
   options.max_tie_outlier_share = 0.0;
   EXPECT_THROW(AdjustEpoch(scene, {}, {}, options), ConfigError);

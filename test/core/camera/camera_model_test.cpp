@@ -160,7 +160,8 @@ TEST(CameraModel, OpenCvAndCameraInfoRoundTrip) {
   const CameraModel cam = DistortedCamera();
   const CameraModel back = CameraModel::FromOpenCv(cam.ToOpenCv(), cam.sensor().pixel_size);
   for (int i = 0; i < kNumInterior; ++i) {
-    EXPECT_NEAR(back.interior()[i], cam.interior()[i], 1e-12 * std::max(1.0, std::abs(cam.interior()[i])))
+    EXPECT_NEAR(back.interior()[i], cam.interior()[i],
+                1e-12 * std::max(1.0, std::abs(cam.interior()[i])))
         << InteriorNames()[i];
   }
   const CameraInfoFields info = cam.ToCameraInfo();
@@ -187,8 +188,9 @@ struct ProjectFunctor {
 
 TEST(CameraModel, AutodiffJacobiansMatchNumericDifferences) {
   const CameraModel cam = DistortedCamera(1e-4);
-  ceres::CostFunction* cost = new ceres::AutoDiffCostFunction<ProjectFunctor, 2, kNumExterior, kNumInterior, 3>(
-      new ProjectFunctor(cam.sensor()));
+  ceres::CostFunction* cost =
+      new ceres::AutoDiffCostFunction<ProjectFunctor, 2, kNumExterior, kNumInterior, 3>(
+          new ProjectFunctor(cam.sensor()));
   ExteriorOrientation pose;
   pose.position = Eigen::Vector3d(5, -30, 60);
   pose.angles = AttitudeAngles{0.2, -0.5, 0.1};

@@ -122,7 +122,8 @@ TEST(Rotation, NadirOpticalFrameLooksDown) {
   // REP 103: the optical z axis is the viewing direction. A nadir camera
   // (all angles zero) looks along site -z; its optical x is site +x and its
   // optical y (image down) is site -y (image up is north).
-  const Eigen::Matrix3d site_from_optical = SiteFromOpticalFromAngles(AttitudeAngles{}).toRotationMatrix();
+  const Eigen::Matrix3d site_from_optical =
+      SiteFromOpticalFromAngles(AttitudeAngles{}).toRotationMatrix();
   EXPECT_TRUE(site_from_optical.col(2).isApprox(Eigen::Vector3d(0, 0, -1), kTol));
   EXPECT_TRUE(site_from_optical.col(0).isApprox(Eigen::Vector3d(1, 0, 0), kTol));
   EXPECT_TRUE(site_from_optical.col(1).isApprox(Eigen::Vector3d(0, -1, 0), kTol));

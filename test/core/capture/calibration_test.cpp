@@ -18,7 +18,8 @@ camera::CameraModel Model() {
   p[camera::kP1] = 1e-5;
   p[camera::kP2] = -2e-5;
   p[camera::kB1] = 1e-4;
-  return camera::CameraModel(camera::Sensor{640, 480, 0.0024}, camera::DistortionModel::kBrownAffinity, p);
+  return camera::CameraModel(camera::Sensor{640, 480, 0.0024},
+                             camera::DistortionModel::kBrownAffinity, p);
 }
 
 TEST(Calibration, PackageParametersRoundTripThroughCameraInfo) {

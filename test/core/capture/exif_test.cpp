@@ -11,8 +11,8 @@ namespace capture {
 namespace {
 
 using capture_test::ExifTags;
-using capture_test::TempDir;
 using capture_test::kMay1st10h;
+using capture_test::TempDir;
 
 TEST(Exif, ParseDateTime) {
   EXPECT_DOUBLE_EQ(ParseExifDateTime("2024:05:01 10:00:00", "", "t"), kMay1st10h);

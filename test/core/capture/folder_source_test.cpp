@@ -14,8 +14,8 @@ namespace capture {
 namespace {
 
 using capture_test::ExifTags;
-using capture_test::TempDir;
 using capture_test::kMay1st10h;
+using capture_test::TempDir;
 
 ExifTags Tags(const std::string& hms, const std::string& subsec) {
   ExifTags t;
@@ -42,7 +42,8 @@ class FolderFixture : public ::testing::Test {
     Write("c_fifth.jpg", 1, Tags("12:00:02", "0"), 4);
     // A truncated copy of a valid EXIF JPEG (EXIF intact, image data cut), time 10:00:04.
     const std::string full = dir_.File("full_tmp.jpeg");
-    capture_test::WriteJpeg(full, capture_test::TexturedImage(160, 120, 3, 9), Tags("10:00:04", ""));
+    capture_test::WriteJpeg(full, capture_test::TexturedImage(160, 120, 3, 9),
+                            Tags("10:00:04", ""));
     capture_test::WriteTruncatedCopy(full, dir_.File("truncated.jpg"), 0.6);
     std::filesystem::remove(full);
     // Not an image at all (no EXIF: file time, set to between the epochs).
@@ -66,19 +67,23 @@ class FolderFixture : public ::testing::Test {
 TEST(FolderSource, LeavesOutPhotosOfAnotherSizeAndWithoutPosition) {
   TempDir dir{"odd_photos"};
   for (int i = 0; i < 3; ++i)
-    capture_test::WriteJpeg(dir.File("p" + std::to_string(i) + ".jpg"), capture_test::TexturedImage(160, 120, 3, i),
+    capture_test::WriteJpeg(dir.File("p" + std::to_string(i) + ".jpg"),
+                            capture_test::TexturedImage(160, 120, 3, i),
                             Tags("10:00:0" + std::to_string(i), ""));
-  capture_test::WriteJpeg(dir.File("bigger.jpg"), capture_test::TexturedImage(200, 150, 3, 5), Tags("10:00:05", ""));
+  capture_test::WriteJpeg(dir.File("bigger.jpg"), capture_test::TexturedImage(200, 150, 3, 5),
+                          Tags("10:00:05", ""));
   ExifTags no_gps = Tags("10:00:06", "");
   no_gps.gps = false;
-  capture_test::WriteJpeg(dir.File("no_gps.jpg"), capture_test::TexturedImage(160, 120, 3, 6), no_gps);
+  capture_test::WriteJpeg(dir.File("no_gps.jpg"), capture_test::TexturedImage(160, 120, 3, 6),
+                          no_gps);
   FolderSourceOptions o;
   o.folder = dir.path();
   FolderSource source(o);
   EXPECT_EQ(source.size(), 3u);
   ASSERT_EQ(source.left_out().size(), 2u);
   EXPECT_NE(source.left_out()[0].name.find("bigger.jpg"), std::string::npos);
-  EXPECT_NE(source.left_out()[0].reason.find("200x150 px, not the folder's 160x120 px"), std::string::npos)
+  EXPECT_NE(source.left_out()[0].reason.find("200x150 px, not the folder's 160x120 px"),
+            std::string::npos)
       << source.left_out()[0].reason;
   EXPECT_NE(source.left_out()[1].name.find("no_gps.jpg"), std::string::npos);
   EXPECT_NE(source.left_out()[1].reason.find("no EXIF GNSS position"), std::string::npos);
@@ -93,14 +98,15 @@ TEST_F(FolderFixture, PublishesInExifTimeOrderAndSkipsBadFiles) {
   o.folder = dir_.path();
   o.clock_offset = -2.0;  // camera clock 2 s fast
   FolderSource source(o);
-  EXPECT_EQ(source.size(), 7u);  // 5 good + truncated + garbage (notes.txt ignored)
+  EXPECT_EQ(source.size(), 7u);                  // 5 good + truncated + garbage (notes.txt ignored)
   ASSERT_EQ(source.exif_warnings().size(), 1u);  // garbage.jpg: exiv2 cannot read it
   EXPECT_NE(source.exif_warnings()[0].name.find("garbage.jpg"), std::string::npos);
 
-  const std::vector<std::string> expected_names = {"z_first.jpg", "a_second.jpg", "m_third.jpg", "b_fourth.jpg",
-                                                   "c_fifth.jpg"};
-  const std::vector<double> expected_stamps = {kMay1st10h + 0.5 - 2, kMay1st10h + 2 - 2, kMay1st10h + 6.75 - 2,
-                                               kMay1st10h + 7200 - 2, kMay1st10h + 7202 - 2};
+  const std::vector<std::string> expected_names = {"z_first.jpg", "a_second.jpg", "m_third.jpg",
+                                                   "b_fourth.jpg", "c_fifth.jpg"};
+  const std::vector<double> expected_stamps = {kMay1st10h + 0.5 - 2, kMay1st10h + 2 - 2,
+                                               kMay1st10h + 6.75 - 2, kMay1st10h + 7200 - 2,
+                                               kMay1st10h + 7202 - 2};
   const std::vector<std::string> expected_enc = {"bgr8", "mono8", "bgr8", "bgr8", "mono8"};
   Frame f;
   size_t n = 0;
@@ -121,7 +127,8 @@ TEST_F(FolderFixture, PublishesInExifTimeOrderAndSkipsBadFiles) {
     // Decoded exactly as OpenCV's own reader does, and it is the image written
     // under that name (JPEG q95 with chroma subsampling of a sharp colour
     // checker: mean error < 10 grey levels; the images differ by >= 20 levels).
-    EXPECT_EQ(cv::norm(f.image, cv::imread(f.name, cv::IMREAD_UNCHANGED), cv::NORM_INF), 0.0) << f.name;
+    EXPECT_EQ(cv::norm(f.image, cv::imread(f.name, cv::IMREAD_UNCHANGED), cv::NORM_INF), 0.0)
+        << f.name;
     EXPECT_LT(capture_test::MeanAbsDiff(f.image, images_[expected_names[n]]), 10.0) << f.name;
     for (const auto& s : source.TakeSkipped()) skipped_names.push_back(s.name + ": " + s.reason);
     ++n;
@@ -148,14 +155,16 @@ TEST_F(FolderFixture, EpochsFromCaptureGaps) {
   Frame f;
   while (source.Next(&f)) {
     for (const auto& e : tracker.BeforeFrame(f.stamp)) {
-      log.push_back(e.end ? "E" + std::to_string(e.epoch) + "/" + std::to_string(e.count) : "S" + std::to_string(e.epoch));
+      log.push_back(e.end ? "E" + std::to_string(e.epoch) + "/" + std::to_string(e.count)
+                          : "S" + std::to_string(e.epoch));
     }
     log.push_back("F");
     for (const auto& e : tracker.AfterFrame(source.PeekNextStamp(), true)) {
       log.push_back("E" + std::to_string(e.epoch) + "/" + std::to_string(e.count));
     }
   }
-  if (auto e = tracker.Close()) log.push_back("E" + std::to_string(e->epoch) + "/" + std::to_string(e->count));
+  if (auto e = tracker.Close())
+    log.push_back("E" + std::to_string(e->epoch) + "/" + std::to_string(e->count));
   // Epoch 0: 10:00:00.5, :02, :06.75 (the truncated 10:00:04 file is skipped, and
   // the garbage file at 11:00 (file time) is skipped after epoch 0 ended by look-ahead).
   // Epoch 1: 12:00:00, 12:00:02, ended at the end of the folder.
@@ -212,24 +221,26 @@ TEST(JpegStructure, CompleteTruncatedAndNotJpeg) {
   EXPECT_EQ(CheckJpegStructure(bytes), "");
   // Any cut before the EOI is detected.
   for (double fraction : {0.01, 0.1, 0.5, 0.9}) {
-    std::vector<unsigned char> cut(bytes.begin(), bytes.begin() + static_cast<long>(bytes.size() * fraction));
+    std::vector<unsigned char> cut(bytes.begin(),
+                                   bytes.begin() + static_cast<long>(bytes.size() * fraction));
     EXPECT_NE(CheckJpegStructure(cut).find("truncated"), std::string::npos) << fraction;
   }
   std::vector<unsigned char> no_eoi(bytes.begin(), bytes.end() - 2);
   EXPECT_NE(CheckJpegStructure(no_eoi), "");
   // Progressive JPEGs (several scans) are complete too.
   std::vector<unsigned char> prog;
-  ASSERT_TRUE(cv::imencode(".jpg", capture_test::TexturedImage(64, 64, 3, 5), prog, {cv::IMWRITE_JPEG_PROGRESSIVE, 1}));
+  ASSERT_TRUE(cv::imencode(".jpg", capture_test::TexturedImage(64, 64, 3, 5), prog,
+                           {cv::IMWRITE_JPEG_PROGRESSIVE, 1}));
   EXPECT_EQ(CheckJpegStructure(prog), "");
   const std::vector<unsigned char> png = {0x89, 'P', 'N', 'G', 0, 0};
   EXPECT_NE(CheckJpegStructure(png).find("not a JPEG"), std::string::npos);
 }
 
-
 TEST(JpegStructure, FrameHeaderSizeAndComponents) {
   std::vector<unsigned char> colour, grey;
   ASSERT_TRUE(cv::imencode(".jpg", capture_test::TexturedImage(70, 50, 3, 4), colour));
-  ASSERT_TRUE(cv::imencode(".jpg", capture_test::TexturedImage(33, 21, 1, 4), grey, {cv::IMWRITE_JPEG_PROGRESSIVE, 1}));
+  ASSERT_TRUE(cv::imencode(".jpg", capture_test::TexturedImage(33, 21, 1, 4), grey,
+                           {cv::IMWRITE_JPEG_PROGRESSIVE, 1}));
   JpegFrameInfo c, g;
   EXPECT_EQ(CheckJpegStructure(colour, &c), "");
   EXPECT_EQ(CheckJpegStructure(grey, &g), "");
@@ -249,7 +260,8 @@ TEST(DecodeImageFile, IntoCallerBufferSamePixelsNoCopy) {
   capture_test::TempDir dir("buffer");
   const cv::Mat img = capture_test::TexturedImage(96, 64, 3, 2);
   capture_test::WriteJpeg(dir.File("c.jpg"), img, capture_test::ExifTags());
-  capture_test::WriteJpeg(dir.File("g.jpg"), capture_test::TexturedImage(40, 30, 1, 2), capture_test::ExifTags());
+  capture_test::WriteJpeg(dir.File("g.jpg"), capture_test::TexturedImage(40, 30, 1, 2),
+                          capture_test::ExifTags());
   std::vector<unsigned char> storage;
   int calls = 0;
   ImageBuffer buffer = [&](int rows, int cols, int type) {
@@ -291,7 +303,8 @@ TEST(FolderSource, DecodesIntoTheImageBuffer) {
   capture_test::ExifTags t;
   for (int i = 0; i < 3; ++i) {
     t.date_time = "2024:05:01 10:00:0" + std::to_string(i);
-    capture_test::WriteJpeg(dir.File("p" + std::to_string(i) + ".jpg"), capture_test::TexturedImage(48, 32, 3, i), t);
+    capture_test::WriteJpeg(dir.File("p" + std::to_string(i) + ".jpg"),
+                            capture_test::TexturedImage(48, 32, 3, i), t);
   }
   FolderSourceOptions o;
   o.folder = dir.path();
@@ -309,7 +322,8 @@ TEST(FolderSource, DecodesIntoTheImageBuffer) {
     EXPECT_TRUE(f.in_image_buffer);
     EXPECT_EQ(f.image.data, stores.back().data());
     std::string enc;
-    EXPECT_EQ(cv::norm(f.image, DecodeImageFile(f.name, "auto", &enc), cv::NORM_INF), 0.0) << f.name;
+    EXPECT_EQ(cv::norm(f.image, DecodeImageFile(f.name, "auto", &enc), cv::NORM_INF), 0.0)
+        << f.name;
     EXPECT_EQ(f.name, dir.File("p" + std::to_string(n) + ".jpg"));
     ++n;
   }

@@ -3,8 +3,8 @@
 // directories. Header-only, shared by the capture tests (core and ROS side).
 #pragma once
 
-#include <sys/stat.h>
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cstdio>
@@ -31,7 +31,8 @@ constexpr double kMay1st10h = 1714557600.0;  // 2024-05-01 10:00:00 UTC (date -u
 class TempDir {
  public:
   explicit TempDir(const std::string& tag) {
-    std::string pattern = (std::filesystem::temp_directory_path() / ("sm_capture_" + tag + "_XXXXXX")).string();
+    std::string pattern =
+        (std::filesystem::temp_directory_path() / ("sm_capture_" + tag + "_XXXXXX")).string();
     std::vector<char> buf(pattern.begin(), pattern.end());
     buf.push_back('\0');
     if (mkdtemp(buf.data()) == nullptr) throw std::runtime_error("mkdtemp failed for " + pattern);
@@ -55,7 +56,8 @@ inline cv::Mat TexturedImage(int width, int height, int channels, int seed, int 
   for (int r = 0; r < height; ++r) {
     for (int c = 0; c < width; ++c) {
       const int checker = (((r + seed) / 16 + (c + 3 * seed) / 16) % 2) * 60;
-      const int v = std::min(255, std::max(0, level + (r * 100) / height + (c * 60) / width + checker));
+      const int v =
+          std::min(255, std::max(0, level + (r * 100) / height + (c * 60) / width + checker));
       if (channels == 1) {
         img.at<uint8_t>(r, c) = static_cast<uint8_t>(v);
       } else {
@@ -68,9 +70,9 @@ inline cv::Mat TexturedImage(int width, int height, int channels, int seed, int 
 }
 
 struct ExifTags {
-  std::string date_time;      // "YYYY:MM:DD HH:MM:SS"; empty: not written
-  std::string subsec;         // "25" = 0.25 s
-  std::string offset;         // "+09:00"; empty: not written
+  std::string date_time;  // "YYYY:MM:DD HH:MM:SS"; empty: not written
+  std::string subsec;     // "25" = 0.25 s
+  std::string offset;     // "+09:00"; empty: not written
   std::string make, model;
   int focal_num = 0, focal_den = 1;  // FocalLength rational; 0/1: not written
   bool gps = false;
@@ -106,7 +108,8 @@ inline void WriteExifTags(const std::string& path, const ExifTags& t) {
     exif["Exif.GPSInfo.GPSLongitudeRef"] = t.lon_deg >= 0 ? "E" : "W";
     exif["Exif.GPSInfo.GPSLongitude"] = DmsRational(t.lon_deg);
     exif["Exif.GPSInfo.GPSAltitudeRef"] = t.alt_m >= 0 ? "0" : "1";
-    exif["Exif.GPSInfo.GPSAltitude"] = Exiv2::Rational(static_cast<int>(std::lround(std::abs(t.alt_m) * 1000)), 1000);
+    exif["Exif.GPSInfo.GPSAltitude"] =
+        Exiv2::Rational(static_cast<int>(std::lround(std::abs(t.alt_m) * 1000)), 1000);
   }
   image->setExifData(exif);
   image->writeMetadata();
@@ -114,7 +117,8 @@ inline void WriteExifTags(const std::string& path, const ExifTags& t) {
 
 // Writes a JPEG (quality 95) and its EXIF tags.
 inline void WriteJpeg(const std::string& path, const cv::Mat& img, const ExifTags& tags) {
-  if (!cv::imwrite(path, img, {cv::IMWRITE_JPEG_QUALITY, 95})) throw std::runtime_error("imwrite failed: " + path);
+  if (!cv::imwrite(path, img, {cv::IMWRITE_JPEG_QUALITY, 95}))
+    throw std::runtime_error("imwrite failed: " + path);
   WriteExifTags(path, tags);
 }
 
@@ -136,7 +140,8 @@ inline void SetFileTime(const std::string& path, double t) {
   struct timespec ts[2];
   ts[0].tv_sec = ts[1].tv_sec = static_cast<time_t>(std::floor(t));
   ts[0].tv_nsec = ts[1].tv_nsec = static_cast<long>((t - std::floor(t)) * 1e9);
-  if (utimensat(AT_FDCWD, path.c_str(), ts, 0) != 0) throw std::runtime_error("utimensat failed: " + path);
+  if (utimensat(AT_FDCWD, path.c_str(), ts, 0) != 0)
+    throw std::runtime_error("utimensat failed: " + path);
 }
 
 // Mean absolute difference of two images of the same size and type.

@@ -15,7 +15,7 @@ TEST(CaptureSchedule, IntervalAlignedToTheClock) {
   ScheduleOptions o;
   o.interval = 300.0;
   CaptureSchedule s(o);
-  EXPECT_DOUBLE_EQ(*s.NextCapture(kMay1st0h), kMay1st0h + 300.0);       // strictly after
+  EXPECT_DOUBLE_EQ(*s.NextCapture(kMay1st0h), kMay1st0h + 300.0);  // strictly after
   EXPECT_DOUBLE_EQ(*s.NextCapture(kMay1st0h + 1.0), kMay1st0h + 300.0);
   EXPECT_DOUBLE_EQ(*s.NextCapture(kMay1st0h + 299.9), kMay1st0h + 300.0);
   ScheduleOptions trigger_only;
@@ -31,9 +31,9 @@ TEST(CaptureSchedule, DailyWindowsInLocalTime) {
   // 06:00 local = 21:00 UTC the day before.
   EXPECT_TRUE(s.InWindow(kMay1st0h - 3 * 3600.0));
   EXPECT_FALSE(s.InWindow(kMay1st0h - 3 * 3600.0 - 1.0));
-  EXPECT_TRUE(s.InWindow(kMay1st0h - 3600.0 + 1799.0));  // 08:29:59 local
-  EXPECT_FALSE(s.InWindow(kMay1st0h - 3600.0 + 1800.0));  // 08:30 local: end excluded
-  EXPECT_TRUE(s.InWindow(kMay1st0h + 13 * 3600.0));       // 22:00 local
+  EXPECT_TRUE(s.InWindow(kMay1st0h - 3600.0 + 1799.0));       // 08:29:59 local
+  EXPECT_FALSE(s.InWindow(kMay1st0h - 3600.0 + 1800.0));      // 08:30 local: end excluded
+  EXPECT_TRUE(s.InWindow(kMay1st0h + 13 * 3600.0));           // 22:00 local
   EXPECT_TRUE(s.InWindow(kMay1st0h + 16 * 3600.0 + 3599.0));  // 01:59:59 local
   EXPECT_FALSE(s.InWindow(kMay1st0h + 17 * 3600.0));          // 02:00 local
   // From 09:00 local (00:00 UTC), the next hourly capture in a window is 22:00 local = 13:00 UTC.
@@ -77,8 +77,8 @@ TEST(EpochTracker, GapsWithoutLookAhead) {
   EXPECT_FALSE(ev[0].end);
   EXPECT_EQ(ev[0].epoch, 5u);
   EXPECT_TRUE(t.AfterFrame(std::nullopt, false).empty());  // next unknown: stays open
-  EXPECT_TRUE(t.BeforeFrame(10.0).empty());                 // gap == threshold: same epoch
-  ev = t.BeforeFrame(20.5);                                 // gap 10.5 > 10: new epoch
+  EXPECT_TRUE(t.BeforeFrame(10.0).empty());                // gap == threshold: same epoch
+  ev = t.BeforeFrame(20.5);                                // gap 10.5 > 10: new epoch
   ASSERT_EQ(ev.size(), 2u);
   EXPECT_TRUE(ev[0].end);
   EXPECT_EQ(ev[0].epoch, 5u);

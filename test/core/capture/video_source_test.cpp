@@ -22,9 +22,11 @@ constexpr double kFps = 5.0;
 // Frame i is a flat grey of level 20 * i (so each frame is identifiable after compression).
 std::string MakeVideo(const capture_test::TempDir& dir) {
   const std::string path = dir.File("clip.avi");
-  cv::VideoWriter writer(path, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), kFps, cv::Size(64, 48), true);
+  cv::VideoWriter writer(path, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), kFps, cv::Size(64, 48),
+                         true);
   if (!writer.isOpened()) throw std::runtime_error("VideoWriter cannot write MJPG .avi");
-  for (int i = 0; i < kFrames; ++i) writer.write(cv::Mat(48, 64, CV_8UC3, cv::Scalar(20 * i, 20 * i, 20 * i)));
+  for (int i = 0; i < kFrames; ++i)
+    writer.write(cv::Mat(48, 64, CV_8UC3, cv::Scalar(20 * i, 20 * i, 20 * i)));
   writer.release();
   return path;
 }
@@ -75,12 +77,14 @@ TEST(VideoSource, FrameStepFpsOverrideMonoAndEpochSplit) {
   std::vector<std::string> log;
   Frame f;
   while (source.Next(&f)) {
-    for (const auto& e : tracker.BeforeFrame(f.stamp)) log.push_back((e.end ? "E" : "S") + std::to_string(e.epoch));
+    for (const auto& e : tracker.BeforeFrame(f.stamp))
+      log.push_back((e.end ? "E" : "S") + std::to_string(e.epoch));
     indices.push_back(f.index);
     EXPECT_DOUBLE_EQ(f.stamp, 100.0 + f.index / 10.0);
     EXPECT_EQ(f.encoding, "mono8");
     EXPECT_NEAR(cv::mean(f.image)[0], 20.0 * f.index, 3.0);
-    for (const auto& e : tracker.AfterFrame(source.PeekNextStamp(), true)) log.push_back("E" + std::to_string(e.epoch));
+    for (const auto& e : tracker.AfterFrame(source.PeekNextStamp(), true))
+      log.push_back("E" + std::to_string(e.epoch));
   }
   EXPECT_EQ(indices, (std::vector<uint64_t>{0, 4, 8}));
   // 0.0 and 0.4 s in epoch 0; 0.8 s is 0.8 s after the epoch's first frame: epoch 1.
@@ -117,7 +121,8 @@ TEST(DeviceSource, MissingDeviceNamesIt) {
     source.Open();
     FAIL() << "no exception";
   } catch (const IoError& e) {
-    EXPECT_NE(std::string(e.what()).find("/dev/video_sm_capture_test_absent"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("/dev/video_sm_capture_test_absent"), std::string::npos)
+        << e.what();
   }
   EXPECT_FALSE(source.IsOpen());
   Frame f;
@@ -135,7 +140,6 @@ TEST(DeviceSource, MissingDeviceNamesIt) {
   EXPECT_THROW(DeviceSource bad(o), ConfigError);
 }
 
-
 // device_api "any": a video file opened as a live camera (the stand-in for a
 // network camera in tests): wall-clock stamps, frames in order, and at its
 // end the source closes with a message naming it, like an unplugged device.
@@ -145,10 +149,12 @@ TEST(DeviceSource, AnyApiReadsAVideoFileAsACamera) {
   o.api = "any";
   o.device = MakeVideo(dir);
   DeviceSource source(o);
-  EXPECT_NE(source.Describe().find("camera '" + o.device + "'"), std::string::npos) << source.Describe();
+  EXPECT_NE(source.Describe().find("camera '" + o.device + "'"), std::string::npos)
+      << source.Describe();
   source.Open();
   ASSERT_TRUE(source.IsOpen());
-  const double before = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  const double before =
+      std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
   Frame f;
   for (int i = 0; i < kFrames; ++i) {
     ASSERT_TRUE(source.Next(&f)) << i;

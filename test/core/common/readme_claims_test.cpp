@@ -169,7 +169,8 @@ std::vector<std::string> UnknownTopics(const std::string& text) {
         std::string node = source.filename().string();
         node = node.substr(0, node.size() - std::string("_nodelet.cpp").size());
         const fs::path defaults = kRoot / "config/defaults" / (node + ".yaml");
-        if (fs::exists(defaults) && ("\n" + ReadFile(defaults)).find("\n" + leaf + ":") != std::string::npos)
+        if (fs::exists(defaults) &&
+            ("\n" + ReadFile(defaults)).find("\n" + leaf + ":") != std::string::npos)
           found = true;
       }
     }

@@ -21,8 +21,8 @@ namespace deformation {
 namespace {
 
 using testing::kDay;
-using testing::kT0;
 using testing::kMmPerDay;
+using testing::kT0;
 
 struct HookTempDir {
   HookTempDir() {

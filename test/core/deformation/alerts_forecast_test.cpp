@@ -66,7 +66,8 @@ TEST(Alerts, RaisedForTheAcceleratingBodyNotForStableGround) {
     const bool body = p.id.rfind("body", 0) == 0;
     std::printf("%s speed %.2f +- %.2f mm/day alert %s (%s)\n", p.id.c_str(), p.speed / kMmPerDay,
                 p.speed_sigma / kMmPerDay, AlertName(p.alert).c_str(), p.alert_reason.c_str());
-    EXPECT_EQ(p.alert, body ? AlertLevel::kWarning : AlertLevel::kNone) << p.id << ": " << p.alert_reason;
+    EXPECT_EQ(p.alert, body ? AlertLevel::kWarning : AlertLevel::kNone)
+        << p.id << ": " << p.alert_reason;
   }
   EXPECT_EQ(s.alert, AlertLevel::kWarning);
 }
@@ -78,16 +79,19 @@ TEST(Alerts, ASingleUnconfirmedPointDoesNotRaise) {
   testing::SourceSpec radio;
   radio.sigma = Eigen::Vector3d(0.003, 0.003, 0.003);
   Estimator est(AlertTestOptions());
-  for (const Batch& b : testing::MakeBatches(radio, {"lonely"}, {m}, kT0 + 3 * kDay)) est.AddBatch(b);
+  for (const Batch& b : testing::MakeBatches(radio, {"lonely"}, {m}, kT0 + 3 * kDay))
+    est.AddBatch(b);
   const PointState p = est.GetSnapshot().points.at(0);
-  EXPECT_GT(p.speed - 3 * p.speed_sigma, AlertTestOptions().alerts.thresholds.warning);  // it is fast
+  EXPECT_GT(p.speed - 3 * p.speed_sigma,
+            AlertTestOptions().alerts.thresholds.warning);  // it is fast
   EXPECT_EQ(p.alert, AlertLevel::kNone);
   EXPECT_NE(p.alert_reason.find("not confirmed"), std::string::npos) << p.alert_reason;
   // With confirm_points = 1 the same data raises warning.
   EstimatorOptions o = AlertTestOptions();
   o.alerts.confirm_points = 1;
   Estimator est1(o);
-  for (const Batch& b : testing::MakeBatches(radio, {"lonely"}, {m}, kT0 + 3 * kDay)) est1.AddBatch(b);
+  for (const Batch& b : testing::MakeBatches(radio, {"lonely"}, {m}, kT0 + 3 * kDay))
+    est1.AddBatch(b);
   EXPECT_EQ(est1.GetSnapshot().points.at(0).alert, AlertLevel::kWarning);
 }
 
@@ -123,7 +127,11 @@ TEST(Alerts, HysteresisHoldsALevelJustBelowItsThreshold) {
   auto speed_at = [](double t) {
     const double day = (t - kT0) / kDay;
     // Ramps of one day between the steady phases (a landslide slows gradually).
-    const double v = day < 3 ? 20.0 : day < 4 ? 20.0 - 11.0 * (day - 3) : day < 6 ? 9.0 : day < 7 ? 9.0 - 4.0 * (day - 6) : 5.0;
+    const double v = day < 3   ? 20.0
+                     : day < 4 ? 20.0 - 11.0 * (day - 3)
+                     : day < 6 ? 9.0
+                     : day < 7 ? 9.0 - 4.0 * (day - 6)
+                               : 5.0;
     return v * kMmPerDay;
   };
   std::vector<AlertLevel> level_at_day_end;
@@ -164,7 +172,8 @@ TEST(Forecast, InverseVelocityFindsTheFailureTime) {
   std::mt19937 rng(9);
   std::normal_distribution<double> n(0.0, 0.05);
   std::vector<VelocitySample> samples;
-  for (double t = kT0; t <= kT0 + 4 * kDay; t += 3600.0) samples.push_back({t, v0 * T / (tf - t) * (1.0 + n(rng))});
+  for (double t = kT0; t <= kT0 + 4 * kDay; t += 3600.0)
+    samples.push_back({t, v0 * T / (tf - t) * (1.0 + n(rng))});
   ForecastOptions o;
   o.window = 2 * kDay;
   const Forecast f = ForecastFailure(samples, o);
@@ -197,7 +206,8 @@ TEST(Forecast, NotValidForASteadyPoint) {
   std::mt19937 rng(4);
   std::normal_distribution<double> n(0.0, 0.05);
   std::vector<VelocitySample> samples;
-  for (double t = kT0; t <= kT0 + 3 * kDay; t += 3600.0) samples.push_back({t, 5 * kMmPerDay * (1.0 + n(rng))});
+  for (double t = kT0; t <= kT0 + 3 * kDay; t += 3600.0)
+    samples.push_back({t, 5 * kMmPerDay * (1.0 + n(rng))});
   const Forecast f = ForecastFailure(samples, ForecastOptions());
   EXPECT_FALSE(f.valid);
   EXPECT_NE(f.reason.find("not accelerating"), std::string::npos) << f.reason;
@@ -226,7 +236,8 @@ TEST(Forecast, FromTheEstimatorOnAnAcceleratingBody) {
     radio.interval = 1800.0;
     radio.sigma = Eigen::Vector3d(0.004, 0.004, 0.004);
     radio.seed = 100 + seed;
-    for (const Batch& b : testing::MakeBatches(radio, ids, motions, kT0 + 5 * kDay)) est.AddBatch(b);
+    for (const Batch& b : testing::MakeBatches(radio, ids, motions, kT0 + 5 * kDay))
+      est.AddBatch(b);
     for (const PointState& p : est.GetSnapshot().points) {
       if (p.id == "stable1") {
         EXPECT_FALSE(p.forecast.valid) << "seed " << seed << ": " << p.forecast.reason;
@@ -241,8 +252,8 @@ TEST(Forecast, FromTheEstimatorOnAnAcceleratingBody) {
       within3 += z < 3.0;
     }
   }
-  std::printf("estimator forecasts: %d of %d made; truth within 1 sigma %d, within 3 sigma %d\n", made, total,
-              within1, within3);
+  std::printf("estimator forecasts: %d of %d made; truth within 1 sigma %d, within 3 sigma %d\n",
+              made, total, within1, within3);
   EXPECT_GE(made, total * 2 / 3);
   EXPECT_GE(within3, 0.9 * made);
   EXPECT_GE(within1, 0.65 * made);

@@ -52,7 +52,8 @@ TEST(Duplicate, IdenticalMeasurementIsRefusedAndNotStored) {
     ASSERT_EQ(again.messages.size(), 1u);
     EXPECT_NE(again.messages[0].find("'p1'"), std::string::npos) << again.messages[0];
     EXPECT_EQ(h.CountRows("observations"), 2);
-    EXPECT_EQ(e.GetSnapshot().points.at(0).displacement, after_two);  // bit for bit: not fused again
+    EXPECT_EQ(e.GetSnapshot().points.at(0).displacement,
+              after_two);  // bit for bit: not fused again
     EXPECT_EQ(e.GetSnapshot().points.at(0).num_measurements, 2u);
     // The same stamp with another value is a new measurement (e.g. a revised epoch).
     EXPECT_EQ(e.AddBatch(MakeBatch(1, 3600.0, -0.0021)).accepted, 1);

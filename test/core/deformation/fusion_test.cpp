@@ -41,7 +41,8 @@ struct FusionRun {
 // Feeds radio (sigma 5 mm, every 30 min) and targets (sigma 1.5/1.5/2.5 mm,
 // every 6 h) of one point with motion m for `days`; errors of the fused and
 // single-source filters are taken after every batch that updates them.
-FusionRun RunFusion(const testing::Motion& m, double days, const Eigen::Vector3d& target_bias = Eigen::Vector3d::Zero()) {
+FusionRun RunFusion(const testing::Motion& m, double days,
+                    const Eigen::Vector3d& target_bias = Eigen::Vector3d::Zero()) {
   testing::SourceSpec radio;
   radio.source = Source::kRadio;
   radio.interval = 1800.0;
@@ -90,7 +91,8 @@ void ExpectWithin3Sigma(const PointState& p, const Eigen::Vector3d& truth) {
   for (int k = 0; k < 3; ++k) {
     const double sigma = std::sqrt(p.displacement_covariance(k, k));
     EXPECT_LT(std::abs(p.displacement(k) - truth(k)), 3.0 * sigma)
-        << "axis " << k << ": " << p.displacement(k) << " vs truth " << truth(k) << " sigma " << sigma;
+        << "axis " << k << ": " << p.displacement(k) << " vs truth " << truth(k) << " sigma "
+        << sigma;
   }
 }
 
@@ -107,7 +109,8 @@ TEST(Fusion, ConstantVelocityBeatsEachSourceAlone) {
   // Velocity within 3 sigma of the truth along the motion.
   const Eigen::Vector3d v_true = m.Velocity(r.final_stamp);
   for (int k = 0; k < 3; ++k)
-    EXPECT_LT(std::abs(r.final_state.velocity(k) - v_true(k)), 3.0 * std::sqrt(r.final_state.velocity_covariance(k, k)));
+    EXPECT_LT(std::abs(r.final_state.velocity(k) - v_true(k)),
+              3.0 * std::sqrt(r.final_state.velocity_covariance(k, k)));
   EXPECT_FALSE(r.final_state.sources_disagree) << r.final_state.alert_reason;
 }
 
@@ -134,7 +137,8 @@ TEST(Fusion, BiasedSourceIsReportedNotAveraged) {
   const SourceComparison& c = r.final_state.comparisons.front();
   EXPECT_TRUE(c.disagree);
   EXPECT_NEAR(std::abs(c.difference.x()), 0.02, 0.006);  // the difference is the bias
-  EXPECT_NE(r.final_state.alert_reason.find("disagree"), std::string::npos) << r.final_state.alert_reason;
+  EXPECT_NE(r.final_state.alert_reason.find("disagree"), std::string::npos)
+      << r.final_state.alert_reason;
 }
 
 TEST(Fusion, OutOfOrderArrivalGivesTheSameEstimate) {
@@ -156,7 +160,8 @@ TEST(Fusion, OutOfOrderArrivalGivesTheSameEstimate) {
   std::vector<std::pair<double, const Batch*>> arrival;
   for (const Batch& b : radio_b) arrival.push_back({b.stamp, &b});
   for (const Batch& b : target_b) arrival.push_back({b.stamp + 3 * 3600.0, &b});
-  std::stable_sort(arrival.begin(), arrival.end(), [](auto& a, auto& b) { return a.first < b.first; });
+  std::stable_sort(arrival.begin(), arrival.end(),
+                   [](auto& a, auto& b) { return a.first < b.first; });
   for (const auto& a : arrival) late.AddBatch(*a.second);
   const PointState a = in_order.GetSnapshot().points.at(0), b = late.GetSnapshot().points.at(0);
   EXPECT_EQ(a.num_measurements, b.num_measurements);

@@ -26,8 +26,9 @@ namespace fs = std::filesystem;
 class HistoryLockTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("sm_history_lock_" + std::to_string(getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = fs::temp_directory_path() /
+           ("sm_history_lock_" + std::to_string(getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     db_ = (dir_ / "history.db").string();
@@ -54,8 +55,9 @@ TEST_F(HistoryLockTest, SecondWriterInThisProcessIsRefused) {
     const auto start = std::chrono::steady_clock::now();
     const std::string why = InUse();
     EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 0.5);
-    EXPECT_NE(why.find("history database '" + db_ + "' is in use by process " + std::to_string(getpid())),
-              std::string::npos)
+    EXPECT_NE(
+        why.find("history database '" + db_ + "' is in use by process " + std::to_string(getpid())),
+        std::string::npos)
         << why;
     EXPECT_NE(why.find("writer lock '" + db_ + ".lock'"), std::string::npos) << why;
     EXPECT_EQ(first.CountRows("batches"), 0);
@@ -84,7 +86,8 @@ TEST_F(HistoryLockTest, WriterInAnotherProcessIsNamedByItsPid) {
   char c = 0;
   ASSERT_EQ(read(ready[0], &c, 1), 1) << "the child could not open the history";
   const std::string why = InUse();
-  EXPECT_NE(why.find("is in use by process " + std::to_string(child) + " ("), std::string::npos) << why;
+  EXPECT_NE(why.find("is in use by process " + std::to_string(child) + " ("), std::string::npos)
+      << why;
   std::ifstream lock(db_ + ".lock");
   int pid = 0;
   lock >> pid;

@@ -28,9 +28,11 @@ TEST(HistorySchema, NegativeUserVersionIsRefusedUntouched) {
   {
     sqlite3* db = nullptr;
     ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
-    ASSERT_EQ(sqlite3_exec(db, "CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT); PRAGMA user_version = -3;",
-                           nullptr, nullptr, nullptr),
-              SQLITE_OK);
+    ASSERT_EQ(
+        sqlite3_exec(
+            db, "CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT); PRAGMA user_version = -3;",
+            nullptr, nullptr, nullptr),
+        SQLITE_OK);
     sqlite3_close(db);
   }
   const std::string before = Bytes(path);

@@ -142,7 +142,8 @@ TEST(History, ReferenceEpochSurvivesARestart) {
 
 TEST(History, CorruptFileIsRefusedAndLeftUntouched) {
   const std::string path = TempPath("corrupt.db");
-  const std::string junk = "this is not a database, it is a crew's note about the typhoon\n" + std::string(5000, 'x');
+  const std::string junk =
+      "this is not a database, it is a crew's note about the typhoon\n" + std::string(5000, 'x');
   {
     std::ofstream out(path, std::ios::binary);
     out << junk;
@@ -196,15 +197,19 @@ TEST(History, MigratesAVersion1Database) {
         "CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT NOT NULL);"
         "CREATE TABLE batches(id INTEGER PRIMARY KEY, received TEXT, epoch INTEGER, stamp REAL);"
         "CREATE TABLE observations(id INTEGER PRIMARY KEY, batch_id INTEGER REFERENCES batches(id),"
-        " point_id TEXT NOT NULL, source INTEGER, source_name TEXT, epoch INTEGER, stamp REAL, reference_stamp REAL,"
+        " point_id TEXT NOT NULL, source INTEGER, source_name TEXT, epoch INTEGER, stamp REAL, "
+        "reference_stamp REAL,"
         " rx REAL, ry REAL, rz REAL, dx REAL, dy REAL, dz REAL, covariance BLOB);"
-        "CREATE TABLE estimates(point_id TEXT NOT NULL, stamp REAL NOT NULL, epoch INTEGER, batch_id INTEGER,"
+        "CREATE TABLE estimates(point_id TEXT NOT NULL, stamp REAL NOT NULL, epoch INTEGER, "
+        "batch_id INTEGER,"
         " dx REAL, dy REAL, dz REAL, vx REAL, vy REAL, vz REAL, ax REAL, ay REAL, az REAL,"
         " displacement_covariance BLOB, velocity_covariance BLOB, PRIMARY KEY(point_id, stamp));"
         "INSERT INTO batches VALUES(1, '2026-01-01T00:00:00Z', 3, 1700010000.0);"
-        "INSERT INTO observations VALUES(1, 1, 'p1', 1, 'bundle_adjuster', 3, 1700010000.0, 1700000000.0,"
+        "INSERT INTO observations VALUES(1, 1, 'p1', 1, 'bundle_adjuster', 3, 1700010000.0, "
+        "1700000000.0,"
         " 1, 2, 3, 0.004, -0.012, -0.002, NULL);"
-        "INSERT INTO estimates(point_id, stamp, epoch, batch_id, dx) VALUES('p1', 1700010000.0, 3, 1, 0.004);"
+        "INSERT INTO estimates(point_id, stamp, epoch, batch_id, dx) VALUES('p1', 1700010000.0, 3, "
+        "1, 0.004);"
         "PRAGMA user_version = 1;";
     ASSERT_EQ(sqlite3_exec(db, v1, nullptr, nullptr, nullptr), SQLITE_OK);
     sqlite3_close(db);
@@ -227,7 +232,9 @@ TEST(History, NewerSchemaIsRefused) {
   const std::string path = TempPath("v9.db");
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db, "CREATE TABLE x(a); PRAGMA user_version = 9;", nullptr, nullptr, nullptr), SQLITE_OK);
+  ASSERT_EQ(
+      sqlite3_exec(db, "CREATE TABLE x(a); PRAGMA user_version = 9;", nullptr, nullptr, nullptr),
+      SQLITE_OK);
   sqlite3_close(db);
   try {
     History h(path);

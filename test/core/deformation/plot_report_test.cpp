@@ -25,8 +25,8 @@ namespace deformation {
 namespace {
 
 using testing::kDay;
-using testing::kT0;
 using testing::kMmPerDay;
+using testing::kT0;
 const std::string kScript = std::string(SM_SOURCE_DIR) + "/scripts/plot_report";
 
 struct PlotTempDir {
@@ -146,16 +146,18 @@ TEST(PlotReport, AnUnwritablePictureIsOneLineWithoutTraceback) {
   const std::string blocked = out + "/deformation_series.png";
   std::filesystem::create_directories(blocked);
   const std::string err = dir.path + "/stderr";
-  const int status =
-      std::system(("'" + kScript + "' --history '" + db + "' --out '" + out + "' 2> '" + err + "'").c_str());
+  const int status = std::system(
+      ("'" + kScript + "' --history '" + db + "' --out '" + out + "' 2> '" + err + "'").c_str());
   EXPECT_EQ(WEXITSTATUS(status), 1);
   std::ifstream in(err);
   std::stringstream s;
   s << in.rdbuf();
-  EXPECT_EQ(s.str(), "plot_report: cannot write '" + blocked +
-                         "': Is a directory; the pictures not yet written keep their previous version\n");
+  EXPECT_EQ(s.str(),
+            "plot_report: cannot write '" + blocked +
+                "': Is a directory; the pictures not yet written keep their previous version\n");
   for (const auto& f : std::filesystem::directory_iterator(out))
-    EXPECT_EQ(f.path().filename().string().rfind(".plot_report-", 0), std::string::npos) << f.path();
+    EXPECT_EQ(f.path().filename().string().rfind(".plot_report-", 0), std::string::npos)
+        << f.path();
 }
 
 }  // namespace

@@ -87,8 +87,9 @@ TEST_F(ReportConfinementTest, PlantedLinkAtTheTemporaryNameIsNotFollowed) {
   const fs::path victim = base_ / "outside" / "victim.txt";
   std::ofstream(victim) << "precious";
   const std::string pid = std::to_string(getpid());
-  const std::vector<std::string> planted = {"deformation.csv.tmp-" + pid, "deformation.geojson.tmp-" + pid,
-                                            "deformation_map.png.tmp-" + pid + ".png", "deformation.csv"};
+  const std::vector<std::string> planted = {
+      "deformation.csv.tmp-" + pid, "deformation.geojson.tmp-" + pid,
+      "deformation_map.png.tmp-" + pid + ".png", "deformation.csv"};
   for (const std::string& name : planted) fs::create_symlink(victim, fs::path(root_) / name);
   const auto files = WriteReports(e, root_, "", {"csv", "geojson", "png"}, ReportOptions());
   EXPECT_EQ(files.size(), 5u);  // csv, geojson, map, 2 series

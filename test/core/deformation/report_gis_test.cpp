@@ -211,7 +211,8 @@ double LatitudeOnTheCentralMeridian(double northing) {
   auto arc = [&](double p) {
     return a * ((1 - e2 / 4 - 3 * e4 / 64 - 5 * e6 / 256) * p -
                 (3 * e2 / 8 + 3 * e4 / 32 + 45 * e6 / 1024) * std::sin(2 * p) +
-                (15 * e4 / 256 + 45 * e6 / 1024) * std::sin(4 * p) - (35 * e6 / 3072) * std::sin(6 * p));
+                (15 * e4 / 256 + 45 * e6 / 1024) * std::sin(4 * p) -
+                (35 * e6 / 3072) * std::sin(6 * p));
   };
   double p = northing / 0.9996 / a;
   for (int i = 0; i < 20; ++i) p += (northing / 0.9996 - arc(p)) / a * 0.99;  // dM/dphi ~ a

@@ -13,8 +13,8 @@
 
 #include <gdal_priv.h>
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
 #include <yaml-cpp/yaml.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/deformation/report.h"
@@ -44,8 +44,8 @@ Estimator& ReportScenario() {
     testing::SourceSpec radio;
     radio.interval = 3600.0;
     radio.sigma = Eigen::Vector3d(0.002, 0.002, 0.002);
-    for (const Batch& b : testing::MakeBatches(radio, {"tag36h11/1", "tag36h11/2", "rock"}, motions,
-                                               kT0 + 2 * kDay))
+    for (const Batch& b :
+         testing::MakeBatches(radio, {"tag36h11/1", "tag36h11/2", "rock"}, motions, kT0 + 2 * kDay))
       e->AddBatch(b);
     return e;
   }();
@@ -150,7 +150,8 @@ TEST(Report, GeoJsonIsAFeatureCollection) {
         EXPECT_NEAR(y, 50.0, 1e-4);
       }
     }
-    EXPECT_NE(root["crs_note"].as<std::string>().find(geodetic ? "WGS 84" : "local site"), std::string::npos);
+    EXPECT_NE(root["crs_note"].as<std::string>().find(geodetic ? "WGS 84" : "local site"),
+              std::string::npos);
   }
 }
 
@@ -190,7 +191,8 @@ TEST(Report, GeoTiffReadsBackThroughGdal) {
   // The velocity bands in mm/day: the cell at x = 10, y = 50 (its centre
   // 0.25 m from the point) holds about the point's velocity.
   for (int k = 0; k < 3; ++k) {
-    ASSERT_EQ(ds->GetRasterBand(5 + k)->RasterIO(GF_Read, 29, 9, 1, 1, &v, 1, 1, GDT_Float32, 0, 0), CE_None);
+    ASSERT_EQ(ds->GetRasterBand(5 + k)->RasterIO(GF_Read, 29, 9, 1, 1, &v, 1, 1, GDT_Float32, 0, 0),
+              CE_None);
     const double expected = s.points[2].velocity(k) * 86400e3;
     EXPECT_NEAR(v, expected, 0.01 * std::abs(expected) + 0.001) << "band " << 5 + k;
   }
@@ -204,7 +206,8 @@ TEST(Report, PngsDecodeWithTheExpectedSize) {
   o.series_width = 800;
   o.series_height = 500;
   const std::string dir = ReportTempDir("png") + "/nested/reports";
-  const std::vector<std::string> files = WriteReports(est, ReportTempDir("png"), "nested/reports", {"png", "csv"}, o);
+  const std::vector<std::string> files =
+      WriteReports(est, ReportTempDir("png"), "nested/reports", {"png", "csv"}, o);
   ASSERT_EQ(files.size(), 5u);  // map + 3 series + csv
   const cv::Mat map = cv::imread(dir + "/deformation_map.png");
   ASSERT_FALSE(map.empty());
@@ -222,7 +225,8 @@ TEST(Report, PngsDecodeWithTheExpectedSize) {
   size_t entries = 0;
   for (const auto& entry : std::filesystem::directory_iterator(dir)) {
     ++entries;
-    EXPECT_NE(std::find(files.begin(), files.end(), entry.path().string()), files.end()) << entry.path();
+    EXPECT_NE(std::find(files.begin(), files.end(), entry.path().string()), files.end())
+        << entry.path();
   }
   EXPECT_EQ(entries, files.size());
 }
@@ -233,9 +237,11 @@ TEST(Report, UnwritableDirectoryNamesTheFile) {
     WriteCsv(s, "/proc/no_such_dir/points.csv");
     FAIL();
   } catch (const IoError& e) {
-    EXPECT_NE(std::string(e.what()).find("/proc/no_such_dir/points.csv"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("/proc/no_such_dir/points.csv"), std::string::npos)
+        << e.what();
   }
-  EXPECT_THROW(WriteReports(ReportScenario(), ReportTempDir("bad"), "", {"pdf"}, ReportOptions()), InvalidArgument);
+  EXPECT_THROW(WriteReports(ReportScenario(), ReportTempDir("bad"), "", {"pdf"}, ReportOptions()),
+               InvalidArgument);
 }
 
 }  // namespace

@@ -18,13 +18,13 @@ namespace testing {
 
 constexpr double kDay = 86400.0;
 constexpr double kMmPerDay = 1e-3 / kDay;  // 1 mm/day in m/s
-constexpr double kT0 = 1700000000.0;  // [s] reference stamp
+constexpr double kT0 = 1700000000.0;       // [s] reference stamp
 
 struct Motion {
   Eigen::Vector3d direction{0.0, -0.94, -0.34};  // unit-ish, normalised below
-  double v0 = 0.0;              // [m/s] speed at t0
+  double v0 = 0.0;                               // [m/s] speed at t0
   bool accelerating = false;
-  double failure_time = 0.0;    // [s] tf (accelerating)
+  double failure_time = 0.0;  // [s] tf (accelerating)
 
   double Travel(double t) const {
     const double dt = t - kT0;
@@ -44,9 +44,9 @@ struct Motion {
 struct SourceSpec {
   Source source = Source::kRadio;
   std::string name = "radio_phase_solver";
-  double interval = 1800.0;                    // [s]
-  double offset = 0.0;                         // [s] first measurement after t0
-  Eigen::Vector3d sigma{0.003, 0.003, 0.003};  // [m] per axis
+  double interval = 1800.0;                        // [s]
+  double offset = 0.0;                             // [s] first measurement after t0
+  Eigen::Vector3d sigma{0.003, 0.003, 0.003};      // [m] per axis
   Eigen::Vector3d bias = Eigen::Vector3d::Zero();  // [m]
   unsigned seed = 1;
 };
@@ -60,7 +60,8 @@ inline std::vector<Batch> MakeBatches(const SourceSpec& s, const std::vector<std
   uint32_t epoch = 0;
   for (double t = kT0 + s.offset; t <= t_end + 1e-6; t += s.interval) {
     Batch b;
-    b.epoch = s.source == Source::kRadio ? static_cast<uint32_t>((t - kT0) / (6 * 3600.0)) : epoch++;
+    b.epoch =
+        s.source == Source::kRadio ? static_cast<uint32_t>((t - kT0) / (6 * 3600.0)) : epoch++;
     b.stamp = t;
     for (size_t i = 0; i < ids.size(); ++i) {
       Measurement m;
@@ -85,7 +86,8 @@ inline std::vector<Batch> MakeBatches(const SourceSpec& s, const std::vector<std
 inline std::vector<Batch> Merge(std::vector<std::vector<Batch>> lists) {
   std::vector<Batch> all;
   for (auto& l : lists) all.insert(all.end(), l.begin(), l.end());
-  std::stable_sort(all.begin(), all.end(), [](const Batch& a, const Batch& b) { return a.stamp < b.stamp; });
+  std::stable_sort(all.begin(), all.end(),
+                   [](const Batch& a, const Batch& b) { return a.stamp < b.stamp; });
   return all;
 }
 

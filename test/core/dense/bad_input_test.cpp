@@ -40,14 +40,16 @@ SurfaceConfig BadInputConfig() {
 class BadInputTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("dense_bad_input_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = fs::temp_directory_path() /
+           ("dense_bad_input_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     if (!pair_) {  // rendered once for all tests
       static const test_scene::Scene scene;
-      pair_ = new std::pair<OrientedImage, OrientedImage>(test_scene::MakeImage(scene, "left", 16.0, -2e-3),
-                                                           test_scene::MakeImage(scene, "right", 24.0, 0.0));
+      pair_ = new std::pair<OrientedImage, OrientedImage>(
+          test_scene::MakeImage(scene, "left", 16.0, -2e-3),
+          test_scene::MakeImage(scene, "right", 24.0, 0.0));
     }
     left_ = pair_->first;
     right_ = pair_->second;
@@ -65,12 +67,14 @@ class BadInputTest : public ::testing::Test {
     return f;
   }
   // Expects InvalidArgument whose message contains every one of `parts`, and no file.
-  void ExpectRejected(const OrientedImage& l, const OrientedImage& r, const std::vector<std::string>& parts) {
+  void ExpectRejected(const OrientedImage& l, const OrientedImage& r,
+                      const std::vector<std::string>& parts) {
     try {
       MeasureSurfaceToFiles(l, r, BadInputOptions(), BadInputConfig(), Stem());
       ADD_FAILURE() << "no error";
     } catch (const InvalidArgument& e) {
-      for (const std::string& p : parts) EXPECT_NE(std::string(e.what()).find(p), std::string::npos) << e.what();
+      for (const std::string& p : parts)
+        EXPECT_NE(std::string(e.what()).find(p), std::string::npos) << e.what();
     }
     EXPECT_TRUE(Files().empty()) << Files().front();
   }

@@ -10,8 +10,8 @@
 #include <string>
 
 #include <gtest/gtest.h>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "slope_monitor/core/common/error.h"
@@ -56,9 +56,11 @@ TEST(Cones, ErrorRatesStayUnderTheMeasuredBound) {
   const ParallaxGrid grid = MatchRectified(left, right, o, &summary);
   ASSERT_EQ(grid.disparity.size(), left.size());
   const DisparityErrors e = EvaluateDisparity(grid.disparity, gt, occl, {1.0, 2.0});
-  std::printf("%s\nCones non-occluded: bad>1 %.4f bad>2 %.4f (estimated only %.4f / %.4f), missing %.4f, rms %.3f\n",
-              summary.BriefReport().c_str(), e.bad_fraction[0], e.bad_fraction[1], e.bad_fraction_valid[0],
-              e.bad_fraction_valid[1], static_cast<double>(e.missing) / e.evaluated, e.rms_valid);
+  std::printf(
+      "%s\nCones non-occluded: bad>1 %.4f bad>2 %.4f (estimated only %.4f / %.4f), missing %.4f, "
+      "rms %.3f\n",
+      summary.BriefReport().c_str(), e.bad_fraction[0], e.bad_fraction[1], e.bad_fraction_valid[0],
+      e.bad_fraction_valid[1], static_cast<double>(e.missing) / e.evaluated, e.rms_valid);
   EXPECT_GT(e.evaluated, 140000);
   // Measured (default options): 0.249 / 0.214, estimated only 0.112 / 0.070, missing 0.154.
   EXPECT_LT(e.bad_fraction[0], 0.27);
@@ -84,18 +86,21 @@ TEST(Cones, ConesConfigurationIsNoWorseThanSgbm) {
   const DisparityErrors raw = EvaluateDisparity(grid.disparity, gt, occl, {1.0, 2.0});
   const DisparityErrors e = EvaluateDisparity(filled, gt, occl, {1.0, 2.0});
   const int block = 5;
-  cv::Ptr<cv::StereoSGBM> sgbm = cv::StereoSGBM::create(0, 64, block, 8 * block * block, 32 * block * block, 1, 63,
-                                                        10, 100, 32, cv::StereoSGBM::MODE_SGBM);
+  cv::Ptr<cv::StereoSGBM> sgbm =
+      cv::StereoSGBM::create(0, 64, block, 8 * block * block, 32 * block * block, 1, 63, 10, 100,
+                             32, cv::StereoSGBM::MODE_SGBM);
   cv::Mat raw16, sgbm_disp;
   sgbm->compute(left, right, raw16);
   raw16.convertTo(sgbm_disp, CV_32F, 1.0 / 16.0);
   const DisparityErrors es = EvaluateDisparity(sgbm_disp, gt, occl, {1.0, 2.0}, -0.5f);
   const double density_raw = 1.0 - static_cast<double>(raw.missing) / raw.evaluated;
-  std::printf("Cones, config/dense_cones.yaml: before the fill bad>1 %.4f bad>2 %.4f (estimated only %.4f / %.4f) "
-              "density %.4f; filled bad>1 %.4f bad>2 %.4f; SGBM bad>1 %.4f bad>2 %.4f density %.4f\n",
-              raw.bad_fraction[0], raw.bad_fraction[1], raw.bad_fraction_valid[0], raw.bad_fraction_valid[1],
-              density_raw, e.bad_fraction[0], e.bad_fraction[1], es.bad_fraction[0], es.bad_fraction[1],
-              1.0 - static_cast<double>(es.missing) / es.evaluated);
+  std::printf(
+      "Cones, config/dense_cones.yaml: before the fill bad>1 %.4f bad>2 %.4f (estimated only %.4f "
+      "/ %.4f) "
+      "density %.4f; filled bad>1 %.4f bad>2 %.4f; SGBM bad>1 %.4f bad>2 %.4f density %.4f\n",
+      raw.bad_fraction[0], raw.bad_fraction[1], raw.bad_fraction_valid[0],
+      raw.bad_fraction_valid[1], density_raw, e.bad_fraction[0], e.bad_fraction[1],
+      es.bad_fraction[0], es.bad_fraction[1], 1.0 - static_cast<double>(es.missing) / es.evaluated);
   // Measured: filled 0.0902 / 0.0697 against SGBM 0.1357 / 0.1269; before
   // the fill 0.1287 / 0.1147 at density 0.918 (SGBM 0.902).
   EXPECT_EQ(e.missing, 0);
@@ -112,8 +117,8 @@ TEST(Cones, FillFromBackgroundTakesTheFartherSide) {
   // Row 0: a hole between 10 (near) and 4 (far) takes 4; row 1: border holes
   // take their only neighbour; row 2: a gap of 3 > max_gap 2 stays; row 3: all missing stays.
   cv::Mat d = (cv::Mat_<float>(4, 6) << 1, 10, n, n, 4, 4,  //
-               n, 7, 7, 7, 7, n,                               //
-               5, n, n, n, 6, 6,                               //
+               n, 7, 7, 7, 7, n,                            //
+               5, n, n, n, 6, 6,                            //
                n, n, n, n, n, n);
   cv::Mat mask;
   const cv::Mat f = FillFromBackground(d, 2, &mask);
@@ -124,7 +129,7 @@ TEST(Cones, FillFromBackgroundTakesTheFartherSide) {
   EXPECT_TRUE(std::isnan(f.at<float>(2, 2)));
   EXPECT_TRUE(std::isnan(f.at<float>(3, 0)));
   EXPECT_EQ(cv::countNonZero(mask), 4);
-  EXPECT_FLOAT_EQ(f.at<float>(0, 1), 10.0f);  // valid values untouched
+  EXPECT_FLOAT_EQ(f.at<float>(0, 1), 10.0f);   // valid values untouched
   EXPECT_TRUE(std::isnan(d.at<float>(0, 2)));  // input untouched
   EXPECT_THROW(FillFromBackground(cv::Mat(2, 2, CV_8U), 2), InvalidArgument);
 }
@@ -154,7 +159,8 @@ TEST(Cones, EdgeWindowReducesFatteningAtADepthStep) {
       truth.at<float>(y, x) = in_l ? d_fg : d_bg;
       // Right pixel x shows the left point x + d: the square if x + d_fg is in it.
       const bool in_r = square.contains(cv::Point(x + d_fg, y));
-      right.at<float>(y, x) = in_r ? fg.at<float>(y, x + d_fg + 32) : bg.at<float>(y, x + d_bg + 32);
+      right.at<float>(y, x) =
+          in_r ? fg.at<float>(y, x + d_fg + 32) : bg.at<float>(y, x + d_bg + 32);
     }
   CorrelationOptions o;
   o.final_grid_spacing = 1;
@@ -173,8 +179,8 @@ TEST(Cones, EdgeWindowReducesFatteningAtADepthStep) {
     for (int y = outer.y; y < outer.y + outer.height; ++y)
       for (int x = outer.x; x < outer.x + outer.width; ++x) {
         if (inner.contains(cv::Point(x, y))) continue;
-        const bool occluded = y >= square.y && y < square.y + square.height && x >= square.x - (d_fg - d_bg) &&
-                              x < square.x;
+        const bool occluded = y >= square.y && y < square.y + square.height &&
+                              x >= square.x - (d_fg - d_bg) && x < square.x;
         if (occluded) continue;
         const float d = g.disparity.at<float>(y, x);
         if (!(d == d))
@@ -189,8 +195,10 @@ TEST(Cones, EdgeWindowReducesFatteningAtADepthStep) {
   const Count c15 = count(o);
   o.edge_window = 5;
   const Count ce = count(o);
-  std::printf("near the step: 15x15 correct %d wrong %d missing %d; edge window 5x5 correct %d wrong %d missing %d\n",
-              c15.correct, c15.wrong, c15.missing, ce.correct, ce.wrong, ce.missing);
+  std::printf(
+      "near the step: 15x15 correct %d wrong %d missing %d; edge window 5x5 correct %d wrong %d "
+      "missing %d\n",
+      c15.correct, c15.wrong, c15.missing, ce.correct, ce.wrong, ce.missing);
   EXPECT_GT(ce.correct, c15.correct);
   EXPECT_LT(ce.wrong + ce.missing, c15.wrong + c15.missing);
 }
@@ -220,8 +228,9 @@ TEST(Cones, LscRefinementSharpensTheSubPixelParallax) {
   const double rms_parabola = rms(MatchRectified(smooth, shifted, o), &n0);
   o.lsc_iterations = 5;
   const double rms_lsc = rms(MatchRectified(smooth, shifted, o), &n1);
-  std::printf("constant 5.4 px shift: parabola RMS %.4f px (%d nodes), LSC RMS %.4f px (%d nodes)\n", rms_parabola,
-              n0, rms_lsc, n1);
+  std::printf(
+      "constant 5.4 px shift: parabola RMS %.4f px (%d nodes), LSC RMS %.4f px (%d nodes)\n",
+      rms_parabola, n0, rms_lsc, n1);
   ASSERT_GT(n1, 100);
   EXPECT_EQ(n0, n1);
   EXPECT_LT(rms_lsc, 0.9 * rms_parabola);
@@ -231,7 +240,8 @@ TEST(Cones, LscRefinementSharpensTheSubPixelParallax) {
 TEST(Cones, EvaluationCountsHolesAsErrors) {
   // 2 x 2 reference; one pixel unknown (0), one masked out.
   cv::Mat ref = (cv::Mat_<float>(2, 2) << 10.0f, 0.0f, 5.0f, 7.0f);
-  cv::Mat est = (cv::Mat_<float>(2, 2) << 10.5f, 3.0f, std::numeric_limits<float>::quiet_NaN(), 1.0f);
+  cv::Mat est =
+      (cv::Mat_<float>(2, 2) << 10.5f, 3.0f, std::numeric_limits<float>::quiet_NaN(), 1.0f);
   cv::Mat mask = (cv::Mat_<uchar>(2, 2) << 255, 255, 255, 0);
   const DisparityErrors e = EvaluateDisparity(est, ref, mask, {1.0});
   EXPECT_EQ(e.evaluated, 2);
@@ -252,11 +262,13 @@ TEST(Cones, BlackOrMismatchedImagesAreRejected) {
     MatchRectified(tex, black, o);
     FAIL();
   } catch (const InvalidArgument& e) {
-    EXPECT_NE(std::string(e.what()).find("right image has no texture"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("right image has no texture"), std::string::npos)
+        << e.what();
   }
   EXPECT_THROW(MatchRectified(tex, tex(cv::Rect(0, 0, 60, 64)).clone(), o), InvalidArgument);
-  EXPECT_THROW(MatchRectified(tex(cv::Rect(0, 0, 20, 20)).clone(), tex(cv::Rect(0, 0, 20, 20)).clone(), o),
-               InvalidArgument);
+  EXPECT_THROW(
+      MatchRectified(tex(cv::Rect(0, 0, 20, 20)).clone(), tex(cv::Rect(0, 0, 20, 20)).clone(), o),
+      InvalidArgument);
 }
 
 TEST(Cones, ConstantShiftIsRecoveredToSubPixel) {
@@ -278,7 +290,8 @@ TEST(Cones, ConstantShiftIsRecoveredToSubPixel) {
     for (int i = 0; i < g.disparity.rows; ++i)
       for (int j = 0; j < g.disparity.cols; ++j)
         if (g.Valid(i, j) && j * 4 > 20 && j * 4 < 108) {
-          EXPECT_NEAR(g.disparity.at<float>(i, j), kShift, 0.25) << "full_right_search " << full_right;
+          EXPECT_NEAR(g.disparity.at<float>(i, j), kShift, 0.25)
+              << "full_right_search " << full_right;
           sum += g.disparity.at<float>(i, j);
           ++n;
         }

@@ -45,14 +45,17 @@ sim::SceneSpec SimSiteSpec() {
 }
 
 // f = 800 px; at 35 m: 4.4 cm per pixel.
-camera::CameraModel SimCamera() { return sim::testing::SmallCamera(640, 480, 8.0, 0.01, -0.006, -1.0e-3); }
+camera::CameraModel SimCamera() {
+  return sim::testing::SmallCamera(640, 480, 8.0, 0.01, -0.006, -1.0e-3);
+}
 
 camera::ExteriorOrientation NadirAt(const sim::Scene& scene, double x, double y) {
   return sim::testing::NadirFrom(Eigen::Vector3d(x, y, scene.AnalyticHeight(20.0, 15.0) + 35.0));
 }
 
-OrientedImage Render(const sim::Scene& scene, const sim::Scene::State& state, const camera::CameraModel& model,
-                     const camera::ExteriorOrientation& pose, const std::string& name, unsigned seed) {
+OrientedImage Render(const sim::Scene& scene, const sim::Scene::State& state,
+                     const camera::CameraModel& model, const camera::ExteriorOrientation& pose,
+                     const std::string& name, unsigned seed) {
   const sim::Renderer renderer(scene, model);
   sim::RenderOptions ro;
   ro.threads = 2;
@@ -128,11 +131,13 @@ class DenseSimTest : public ::testing::Test {
     truth_->scarp = scene_->spec().scarp;
     truth_->obstacles = scene_->obstacles();
     const camera::CameraModel model = SimCamera();
-    const camera::ExteriorOrientation pl = NadirAt(*scene_, 17.0, 15.0), pr = NadirAt(*scene_, 23.0, 15.0);
-    images_ = new std::vector<OrientedImage>{Render(*scene_, *before_, model, pl, "sim/left_e0", 1),
-                                             Render(*scene_, *before_, model, pr, "sim/right_e0", 2),
-                                             Render(*scene_, *after_, model, pl, "sim/left_e1", 3),
-                                             Render(*scene_, *after_, model, pr, "sim/right_e1", 4)};
+    const camera::ExteriorOrientation pl = NadirAt(*scene_, 17.0, 15.0),
+                                      pr = NadirAt(*scene_, 23.0, 15.0);
+    images_ =
+        new std::vector<OrientedImage>{Render(*scene_, *before_, model, pl, "sim/left_e0", 1),
+                                       Render(*scene_, *before_, model, pr, "sim/right_e0", 2),
+                                       Render(*scene_, *after_, model, pl, "sim/left_e1", 3),
+                                       Render(*scene_, *after_, model, pr, "sim/right_e1", 4)};
     const SurfaceOptions o = SimSurfaceOptions();
     const SurfaceConfig c = SimSurfaceConfig();
     model0_ = new SurfaceResult(MeasureSurface((*images_)[0], (*images_)[1], o, c, &summary0_));
@@ -178,19 +183,22 @@ TEST_F(DenseSimTest, SurfaceModelAgreesWithTheTrueSurfaceOnBareGround) {
         const Eigen::Vector2d xy = m.CellCentre(r, c);
         const double zt = st.grid.HeightAt(xy.x(), xy.y());
         ASSERT_FALSE(std::isnan(zt));
-        const Eigen::Vector3d x_ref = truth_->landslide.ReferencePositionOf(Eigen::Vector3d(xy.x(), xy.y(), zt), st.t);
+        const Eigen::Vector3d x_ref =
+            truth_->landslide.ReferencePositionOf(Eigen::Vector3d(xy.x(), xy.y(), zt), st.t);
         const bool unmatchable = SimNear(*truth_, x_ref);
         bare_cells += !unmatchable;
         const float z = m.At(kHeight, r, c);
         if (m.IsNoData(z)) continue;
         (unmatchable ? hard : bare).push_back(z - zt);
-
       }
     const Stats b = Summarise(bare), h = Summarise(hard);
-    std::printf("epoch %d: %s\n  bare ground: %zu/%d cells filled, height error RMS %.4f m, mean %.4f m, p95 %.4f m\n"
-                "  near scarp / tree (<= 1.5 m of Unmatchable): %zu cells, RMS %.4f m, mean %.4f m, p95 %.4f m\n",
-                epoch, (epoch == 0 ? summary0_ : summary1_).BriefReport().c_str(), b.n, bare_cells, b.rms, b.mean,
-                b.p95, h.n, h.rms, h.mean, h.p95);
+    std::printf(
+        "epoch %d: %s\n  bare ground: %zu/%d cells filled, height error RMS %.4f m, mean %.4f m, "
+        "p95 %.4f m\n"
+        "  near scarp / tree (<= 1.5 m of Unmatchable): %zu cells, RMS %.4f m, mean %.4f m, p95 "
+        "%.4f m\n",
+        epoch, (epoch == 0 ? summary0_ : summary1_).BriefReport().c_str(), b.n, bare_cells, b.rms,
+        b.mean, b.p95, h.n, h.rms, h.mean, h.p95);
     // Expected precision: sigma_z = Z^2 / (f B) sigma_d = 35^2 / (800 * 6) * 0.1 px = 0.026 m.
     EXPECT_GT(b.n, 0.95 * bare_cells);
     EXPECT_LT(b.rms, 0.08);
@@ -226,8 +234,10 @@ TEST_F(DenseSimTest, ConesConfigurationOnTheSimulator) {
       if (!m.IsNoData(z)) bare.push_back(z - zt);
     }
   const Stats b = Summarise(bare);
-  std::printf("config/dense_cones.yaml, epoch 0: %s\n  bare ground: %zu/%d cells, RMS %.4f m, mean %.4f m, p95 %.4f m\n",
-              summary.BriefReport().c_str(), b.n, bare_cells, b.rms, b.mean, b.p95);
+  std::printf(
+      "config/dense_cones.yaml, epoch 0: %s\n  bare ground: %zu/%d cells, RMS %.4f m, mean %.4f m, "
+      "p95 %.4f m\n",
+      summary.BriefReport().c_str(), b.n, bare_cells, b.rms, b.mean, b.p95);
   EXPECT_GT(b.n, 0.95 * bare_cells);
   EXPECT_LT(b.rms, 0.16);
   EXPECT_LT(b.p95, 0.21);
@@ -243,16 +253,20 @@ TEST_F(DenseSimTest, ChangeVolumesMatchTheTrueMovedVolume) {
   for (int r = 0; r < g.height; ++r)
     for (int c = 0; c < g.width; ++c) {
       const Eigen::Vector2d xy = g.CellCentre(r, c);
-      const double dz = after_->grid.HeightAt(xy.x(), xy.y()) - before_->grid.HeightAt(xy.x(), xy.y());
+      const double dz =
+          after_->grid.HeightAt(xy.x(), xy.y()) - before_->grid.HeightAt(xy.x(), xy.y());
       (dz > 0 ? gain : loss) += std::abs(dz) * area;
       const float sig = g.At(kSignificant, r, c);
       if (!g.IsNoData(sig) && sig != 0.0f) (dz > 0 ? gain_sig : loss_sig) += std::abs(dz) * area;
     }
-  std::printf("change: %s\n  true over the grid: gain %.2f m3, loss %.2f m3, net %.2f m3; over the significant "
-              "cells: gain %.2f m3, loss %.2f m3\n  ratio gain measured/true %.3f, loss %.3f, net(all cells) %.3f\n",
-              ch.summary.BriefReport().c_str(), gain, loss, gain - loss, gain_sig, loss_sig,
-              ch.summary.volume_gain / gain, ch.summary.volume_loss / loss,
-              ch.summary.volume_net_all / (gain - loss));
+  std::printf(
+      "change: %s\n  true over the grid: gain %.2f m3, loss %.2f m3, net %.2f m3; over the "
+      "significant "
+      "cells: gain %.2f m3, loss %.2f m3\n  ratio gain measured/true %.3f, loss %.3f, net(all "
+      "cells) %.3f\n",
+      ch.summary.BriefReport().c_str(), gain, loss, gain - loss, gain_sig, loss_sig,
+      ch.summary.volume_gain / gain, ch.summary.volume_loss / loss,
+      ch.summary.volume_net_all / (gain - loss));
   // The body slides down with a plunge steeper than the slope: its surface
   // drops (loss), there is next to no gain.
   ASSERT_GT(loss, 20.0);
@@ -271,7 +285,8 @@ TEST_F(DenseSimTest, ChangeVolumesMatchTheTrueMovedVolume) {
   int false_cells = 0;
   for (const ChangePoint& p : ch.significant) {
     const Eigen::Vector2d d = p.x_in_site.head<2>() - truth_->landslide.centre;
-    const double rho = std::hypot(d.x() / (truth_->landslide.width + 2.0), d.y() / (truth_->landslide.length + 3.0));
+    const double rho = std::hypot(d.x() / (truth_->landslide.width + 2.0),
+                                  d.y() / (truth_->landslide.length + 3.0));
     false_cells += rho > 1.0;
   }
   EXPECT_LT(false_cells, 0.01 * ch.summary.cells_compared);

@@ -106,7 +106,8 @@ TEST_F(DenseSurfaceTest, RectifiedRowsAreEpipolarLines) {
   const Eigen::Vector3d back = g.Intersect(pl.x(), pl.y(), pl.x() - xr, &gap);
   EXPECT_NEAR((back - p).norm(), 0.0, 1e-6);
   EXPECT_LT(gap, 1e-6);
-  // The rectified left image shows at pl what the real (distorted) image shows at the projection of p.
+  // The rectified left image shows at pl what the real (distorted) image shows at the projection of
+  // p.
   Eigen::Vector2d real;
   ASSERT_TRUE(left_->camera.Project(left_->pose, p, &real));
   ASSERT_EQ(pair.patches.size(), 1u);
@@ -114,7 +115,8 @@ TEST_F(DenseSurfaceTest, RectifiedRowsAreEpipolarLines) {
                                                           static_cast<int>(std::lround(pl.x())));
   const float real_value = left_->image.at<uchar>(static_cast<int>(std::lround(real.y())),
                                                   static_cast<int>(std::lround(real.x())));
-  EXPECT_NEAR(rect_value, real_value, 25.0);  // same texture spot (0.5 px rounding on a ~3 px texture)
+  EXPECT_NEAR(rect_value, real_value,
+              25.0);  // same texture spot (0.5 px rounding on a ~3 px texture)
 }
 
 TEST_F(DenseSurfaceTest, SurfaceModelMatchesTheTrueHeights) {
@@ -165,8 +167,8 @@ TEST_F(DenseSurfaceTest, OrthophotoShowsTheGroundTexture) {
 
 TEST_F(DenseSurfaceTest, ChangeVolumesMatchTheMovedVolume) {
   Scene after = *ground_;
-  const Bump gain{22.0, 11.0, 2.0, 1.0};    // debris: 25.1 m^3
-  const Bump loss{14.0, 18.0, 1.8, -0.8};   // scar: 16.3 m^3
+  const Bump gain{22.0, 11.0, 2.0, 1.0};   // debris: 25.1 m^3
+  const Bump loss{14.0, 18.0, 1.8, -0.8};  // scar: 16.3 m^3
   after.bumps = {gain, loss};
   const OrientedImage l2 = test_scene::MakeImage(after, "left_e1", 16.0, kK1Left);
   const OrientedImage r2 = test_scene::MakeImage(after, "right_e1", 24.0, 0.0);
@@ -186,8 +188,10 @@ TEST_F(DenseSurfaceTest, ChangeVolumesMatchTheMovedVolume) {
       const double dz = after.Height(xy.x(), xy.y()) - ground_->Height(xy.x(), xy.y());
       (dz > 0 ? true_gain : true_loss) += std::abs(dz) * area;
     }
-  std::printf("change: %s\n  true over significant cells: gain %.2f loss %.2f; analytic totals gain %.2f loss %.2f\n",
-              ch.summary.BriefReport().c_str(), true_gain, true_loss, gain.Volume(), -loss.Volume());
+  std::printf(
+      "change: %s\n  true over significant cells: gain %.2f loss %.2f; analytic totals gain %.2f "
+      "loss %.2f\n",
+      ch.summary.BriefReport().c_str(), true_gain, true_loss, gain.Volume(), -loss.Volume());
   // The significant cells hold most of the analytic volume; the rest is the
   // bumps' thin tails below the level of detection (measured on this scene
   // with the per-cell uncertainty counting correlated neighbours, see
@@ -240,7 +244,8 @@ TEST_F(DenseSurfaceTest, BadPairsGiveClearErrors) {
     EXPECT_NE(std::string(e.what()).find("do not overlap"), std::string::npos) << e.what();
   }
   OrientedImage black = *right_;
-  black.image = cv::Mat(black.image.size(), CV_8U, cv::Scalar(0));  // new buffer: the copy shares pixels
+  black.image =
+      cv::Mat(black.image.size(), CV_8U, cv::Scalar(0));  // new buffer: the copy shares pixels
   try {
     MeasureSurface(*left_, black, Options(), Config());
     FAIL();
@@ -265,13 +270,15 @@ TEST_F(DenseSurfaceTest, BadPairsGiveClearErrors) {
 
 TEST_F(DenseSurfaceTest, SurfaceModelGeoTiffRoundTrip) {
   const SurfaceResult s = MeasureSurface(*left_, *right_, Options(), Config());
-  const fs::path dir = fs::temp_directory_path() / ("dense_surface_test_" + std::to_string(::getpid()));
+  const fs::path dir =
+      fs::temp_directory_path() / ("dense_surface_test_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   const std::string path = (dir / "dem.tif").string();
   io::WriteGeoTiff(path, s.model);
   const io::GeoRaster back = io::ReadGeoTiff(path);
   fs::remove_all(dir);
-  EXPECT_EQ(back.band_names, (std::vector<std::string>{"height", "uncertainty", "count", "spread"}));
+  EXPECT_EQ(back.band_names,
+            (std::vector<std::string>{"height", "uncertainty", "count", "spread"}));
   EXPECT_DOUBLE_EQ(back.origin_x, kRegion[0]);
   EXPECT_DOUBLE_EQ(back.origin_y, kRegion[3]);
   EXPECT_EQ(Compare(back, *ground_).filled, Compare(s.model, *ground_).filled);

@@ -32,15 +32,16 @@ struct Scene {
   double Height(double x, double y) const {
     double z = 10.0 + 2.0 * std::exp(-((x - 20) * (x - 20) + (y - 15) * (y - 15)) / (2.0 * 36.0));
     for (const Bump& b : bumps)
-      z += b.amplitude * std::exp(-((x - b.x) * (x - b.x) + (y - b.y) * (y - b.y)) / (2.0 * b.sigma * b.sigma));
+      z += b.amplitude *
+           std::exp(-((x - b.x) * (x - b.x) + (y - b.y) * (y - b.y)) / (2.0 * b.sigma * b.sigma));
     return z;
   }
 };
 
 // Deterministic lattice value noise in [0, 1).
 inline double Lattice(int64_t i, int64_t j, uint32_t seed) {
-  uint64_t h = static_cast<uint64_t>(i) * 0x9E3779B97F4A7C15ull ^ (static_cast<uint64_t>(j) + 0x632BE59BD9B4E019ull) *
-                                                                     0xC2B2AE3D27D4EB4Full ^ seed;
+  uint64_t h = static_cast<uint64_t>(i) * 0x9E3779B97F4A7C15ull ^
+               (static_cast<uint64_t>(j) + 0x632BE59BD9B4E019ull) * 0xC2B2AE3D27D4EB4Full ^ seed;
   h ^= h >> 31;
   h *= 0xBF58476D1CE4E5B9ull;
   h ^= h >> 29;
@@ -58,7 +59,8 @@ inline double ValueNoise(double x, double y, double cell, uint32_t seed) {
 
 // Ground texture (grey value) at site (x, y): three octaves.
 inline double Texture(double x, double y) {
-  return 30.0 + 90.0 * ValueNoise(x, y, 0.35, 11) + 60.0 * ValueNoise(x, y, 1.1, 23) + 50.0 * ValueNoise(x, y, 3.7, 37);
+  return 30.0 + 90.0 * ValueNoise(x, y, 0.35, 11) + 60.0 * ValueNoise(x, y, 1.1, 23) +
+         50.0 * ValueNoise(x, y, 3.7, 37);
 }
 
 inline camera::CameraModel MakeCamera(double k1) {
@@ -73,7 +75,8 @@ inline camera::CameraModel MakeCamera(double k1) {
 }
 
 // Renders the scene by ray casting from every pixel (2 x 2 supersampling).
-inline cv::Mat Render(const Scene& scene, const camera::CameraModel& cam, const camera::ExteriorOrientation& pose) {
+inline cv::Mat Render(const Scene& scene, const camera::CameraModel& cam,
+                      const camera::ExteriorOrientation& pose) {
   cv::Mat img(cam.sensor().height, cam.sensor().width, CV_8U);
   for (int r = 0; r < img.rows; ++r)
     for (int c = 0; c < img.cols; ++c) {

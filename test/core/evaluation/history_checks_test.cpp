@@ -29,9 +29,11 @@ std::string MakeDb(const std::string& name, int user_version) {
   std::remove(path.c_str());
   sqlite3* db = nullptr;
   EXPECT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
-  std::string sql = "PRAGMA page_size = 1024; CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT); BEGIN;";
+  std::string sql =
+      "PRAGMA page_size = 1024; CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT); BEGIN;";
   for (int i = 0; i < 2000; ++i)
-    sql += "INSERT INTO meta VALUES('key_" + std::to_string(i) + "', 'value " + std::to_string(i * 7) + "');";
+    sql += "INSERT INTO meta VALUES('key_" + std::to_string(i) + "', 'value " +
+           std::to_string(i * 7) + "');";
   sql += "COMMIT; PRAGMA user_version = " + std::to_string(user_version) + ";";
   EXPECT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr), SQLITE_OK);
   sqlite3_close(db);

@@ -27,7 +27,8 @@ camera::CameraModel TruthCamera() {
   in[camera::kX0] = 0.02;
   in[camera::kY0] = -0.015;
   in[camera::kK1] = -3e-4;  // 28 px at the corners
-  return camera::CameraModel(camera::Sensor{3000, 2000, 0.004}, camera::DistortionModel::kRadial, in);
+  return camera::CameraModel(camera::Sensor{3000, 2000, 0.004}, camera::DistortionModel::kRadial,
+                             in);
 }
 
 double Terrain(double x, double y) { return 5.0 * std::sin(x / 30.0) + 3.0 * std::cos(y / 25.0); }
@@ -60,22 +61,28 @@ Synthetic MakeBlock(unsigned seed) {
   for (int strip = 0; strip < 3; ++strip) {
     for (int k = 0; k < 6; ++k) {
       const double y = strip % 2 ? 100.0 - 20.0 * k : 20.0 * k;  // flown both ways
-      s.truth.push_back(Nadir({40.0 * strip, y, 100.0}, strip % 2 ? M_PI / 2 + 0.03 : M_PI / 2 - 0.02));
+      s.truth.push_back(
+          Nadir({40.0 * strip, y, 100.0}, strip % 2 ? M_PI / 2 + 0.03 : M_PI / 2 - 0.02));
       FlightPhoto p;
       p.name = Message("P", strip, k, ".jpg");
       p.width = 3000;
       p.height = 2000;
       s.photos.photos.push_back(p);
-      s.gnss.push_back(s.truth.back().position + Eigen::Vector3d(gnss_noise(rng), gnss_noise(rng), gnss_noise(rng)));
+      s.gnss.push_back(s.truth.back().position +
+                       Eigen::Vector3d(gnss_noise(rng), gnss_noise(rng), gnss_noise(rng)));
     }
   }
   const int n = static_cast<int>(s.truth.size());
-  auto observe = [&](const Eigen::Vector3d& x, double sigma_noise, std::normal_distribution<double>& noise) {
+  auto observe = [&](const Eigen::Vector3d& x, double sigma_noise,
+                     std::normal_distribution<double>& noise) {
     std::vector<std::pair<int, Eigen::Vector2d>> obs;
     for (int i = 0; i < n; ++i) {
       Eigen::Vector2d px;
-      if (!truth.Project(s.truth[i], x, &px) || px.x() < 5 || px.y() < 5 || px.x() > 2994 || px.y() > 1994) continue;
-      obs.emplace_back(i, px + Eigen::Vector2d(noise(rng), noise(rng)) * (sigma_noise > 0 ? 1.0 : 0.0));
+      if (!truth.Project(s.truth[i], x, &px) || px.x() < 5 || px.y() < 5 || px.x() > 2994 ||
+          px.y() > 1994)
+        continue;
+      obs.emplace_back(
+          i, px + Eigen::Vector2d(noise(rng), noise(rng)) * (sigma_noise > 0 ? 1.0 : 0.0));
     }
     return obs;
   };
@@ -136,7 +143,8 @@ TEST(FlightOrientation, GnssBlockWithUnknownDistortionIsOrientedAndSelfCalibrate
   // GNSS on the camera centres alone determine it weakly; its sigma must say so.
   ExpectWithinThreeSigma(r, camera::kC, 10.3);
   for (size_t i = 0; i < r.scene.images.size(); ++i) {
-    const Eigen::Vector3d d = r.scene.images[i].exterior.position - s.truth[r.photo_of_image[i]].position;
+    const Eigen::Vector3d d =
+        r.scene.images[i].exterior.position - s.truth[r.photo_of_image[i]].position;
     EXPECT_LT(d.head<2>().norm(), 1.5) << r.scene.images[i].name;  // GNSS 2 m each, 18 of them
   }
 }
@@ -158,14 +166,17 @@ TEST(FlightOrientation, ControlPointsPickedInPhotosGiveTheDatumAndCheckPointsSta
     EXPECT_LT(c.residual.norm(), 0.15) << c.name;  // ground pixel 4 cm
   }
   ASSERT_EQ(sum.control.size(), 5u);  // checks never in the adjustment
-  for (const PointResidual& c : sum.control) EXPECT_TRUE(c.name != "gcp4" && c.name != "gcp6") << c.name;
+  for (const PointResidual& c : sum.control)
+    EXPECT_TRUE(c.name != "gcp4" && c.name != "gcp6") << c.name;
   EXPECT_EQ(sum.check[0].name, "gcp4");
-  for (const PointResidual& c : sum.control) EXPECT_LT(c.pick_rms_px, 2.0) << c.name;  // picks 0.5 px noise
+  for (const PointResidual& c : sum.control)
+    EXPECT_LT(c.pick_rms_px, 2.0) << c.name;  // picks 0.5 px noise
   ASSERT_EQ(sum.leave_one_out.size(), 5u);
   EXPECT_LT(sum.leave_one_out_rms, 0.3);
   ExpectWithinThreeSigma(r, camera::kC, 10.3);
   for (size_t i = 0; i < r.scene.images.size(); ++i) {
-    const Eigen::Vector3d d = r.scene.images[i].exterior.position - s.truth[r.photo_of_image[i]].position;
+    const Eigen::Vector3d d =
+        r.scene.images[i].exterior.position - s.truth[r.photo_of_image[i]].position;
     // The principal point and the horizontal centre trade off on a nadir
     // block (the ground stays right: the check points above); the
     // adjustment's sigma must cover it.
@@ -228,7 +239,8 @@ void AddDroneEpoch(const Synthetic& s, const adjustment::Camera& drone, adjustme
     const int point = static_cast<int>(scene->points.size());
     scene->points.push_back(p);
     for (const auto& [photo, px] : s.ties.tracks[t].observations)
-      scene->observations.push_back({first_image + photo, point, px, Eigen::Matrix2d::Identity() * 0.09});
+      scene->observations.push_back(
+          {first_image + photo, point, px, Eigen::Matrix2d::Identity() * 0.09});
   }
 }
 
@@ -248,7 +260,8 @@ TEST(FlightScene, AUavEpochWithoutTargetsIsStartedFromItsTiePoints) {
   EXPECT_GT(known, static_cast<int>(scene.points.size()) * 9 / 10);
   for (size_t i = 0; i < scene.images.size(); ++i) {
     EXPECT_TRUE(scene.images[i].exterior_known);
-    EXPECT_LT((scene.images[i].exterior.position - s.truth[i].position).head<2>().norm(), 3.0) << i;  // GNSS 2 m
+    EXPECT_LT((scene.images[i].exterior.position - s.truth[i].position).head<2>().norm(), 3.0)
+        << i;  // GNSS 2 m
   }
   EXPECT_EQ(scene.cameras[1].model.model(), camera::DistortionModel::kRadial);
   EXPECT_NEAR(scene.cameras[1].model.interior()[camera::kK1], -3e-4, 0.1 * 3e-4);
@@ -262,8 +275,10 @@ TEST(FlightScene, ACalibratedCameraKeepsItsDistortionModel) {
   std::array<double, camera::kNumInterior> in = TruthCamera().interior();
   in[camera::kP1] = 6e-6;
   adjustment::Scene scene;
-  AddDroneEpoch(s, {"drone", camera::CameraModel(TruthCamera().sensor(), camera::DistortionModel::kBrown, in)},
-                &scene);
+  AddDroneEpoch(
+      s,
+      {"drone", camera::CameraModel(TruthCamera().sensor(), camera::DistortionModel::kBrown, in)},
+      &scene);
   const FlightSummary sum = OrientSceneFromTiePoints(&scene, "drone");
   ASSERT_TRUE(sum.success) << sum.message;
   EXPECT_EQ(sum.oriented, 18);
@@ -277,12 +292,13 @@ std::string WriteText(const std::string& name, const std::string& text) {
 }
 
 TEST(GcpList, ReadsOdmFormatWithNamedPoints) {
-  const std::string path = WriteText("gcp_ok.txt",
-                                     "WGS84 UTM 11N\n"
-                                     "235269.88\t3811198.11\t0.0\t3609.37\t2293.79\tIMG_0037.jpg\tgcp02\n"
-                                     "# a comment\n"
-                                     "235269.88 3811198.11 0.0 589.69 1026.48 IMG_0121.jpg gcp02\n"
-                                     "235262.54 3811203.5 1.5 3472.18 1000.56 IMG_0052.jpg\n");
+  const std::string path =
+      WriteText("gcp_ok.txt",
+                "WGS84 UTM 11N\n"
+                "235269.88\t3811198.11\t0.0\t3609.37\t2293.79\tIMG_0037.jpg\tgcp02\n"
+                "# a comment\n"
+                "235269.88 3811198.11 0.0 589.69 1026.48 IMG_0121.jpg gcp02\n"
+                "235262.54 3811203.5 1.5 3472.18 1000.56 IMG_0052.jpg\n");
   const io::GcpList list = io::ReadGcpList(path);
   EXPECT_EQ(list.crs, "EPSG:32611");
   ASSERT_EQ(list.points.size(), 2u);
@@ -293,7 +309,8 @@ TEST(GcpList, ReadsOdmFormatWithNamedPoints) {
   EXPECT_DOUBLE_EQ(list.points[0].picks[1].pixel.x(), 589.69);
   EXPECT_EQ(list.points[1].name, "line5");
   EXPECT_DOUBLE_EQ(list.points[1].geo.z(), 1.5);
-  EXPECT_EQ(io::NormaliseGcpCrs("+proj=utm +zone=11 +ellps=WGS84 +datum=WGS84 +units=m +no_defs"), "EPSG:32611");
+  EXPECT_EQ(io::NormaliseGcpCrs("+proj=utm +zone=11 +ellps=WGS84 +datum=WGS84 +units=m +no_defs"),
+            "EPSG:32611");
   EXPECT_EQ(io::NormaliseGcpCrs("+proj=utm +zone=54 +south +datum=WGS84"), "EPSG:32754");
   EXPECT_EQ(io::NormaliseGcpCrs("+proj=tmerc +lat_0=36 +lon_0=139.83 +k=0.9999 +ellps=GRS80"),
             "+proj=tmerc +lat_0=36 +lon_0=139.83 +k=0.9999 +ellps=GRS80 +type=crs");
@@ -310,12 +327,15 @@ TEST(GcpList, BadLinesAreNamedByFileAndLine) {
     return std::string("no error");
   };
   EXPECT_NE(message("EPSG:32611\n1 2 3 4 5\n").find("gcp_bad.txt:2: 5 fields"), std::string::npos);
-  EXPECT_NE(message("EPSG:32611\n1 2 x 4 5 a.jpg\n").find("gcp_bad.txt:2: geo_z 'x' is not a number"),
+  EXPECT_NE(
+      message("EPSG:32611\n1 2 x 4 5 a.jpg\n").find("gcp_bad.txt:2: geo_z 'x' is not a number"),
+      std::string::npos);
+  EXPECT_NE(message("EPSG:32611\n1 2 3 4 5 a.jpg p\n1 2 4 4 5 b.jpg p\n")
+                .find("other coordinates than on line 2"),
             std::string::npos);
-  EXPECT_NE(message("EPSG:32611\n1 2 3 4 5 a.jpg p\n1 2 4 4 5 b.jpg p\n").find("other coordinates than on line 2"),
-            std::string::npos);
-  EXPECT_NE(message("EPSG:32611\n1 2 3 4 5 a.jpg p\n1 2 3 6 7 a.jpg p\n").find("picked in 'a.jpg' again"),
-            std::string::npos);
+  EXPECT_NE(
+      message("EPSG:32611\n1 2 3 4 5 a.jpg p\n1 2 3 6 7 a.jpg p\n").find("picked in 'a.jpg' again"),
+      std::string::npos);
   EXPECT_NE(message("").find("empty"), std::string::npos);
   EXPECT_NE(message("EPSG:32611\n").find("no picks"), std::string::npos);
   EXPECT_THROW(io::ReadGcpList("/nonexistent/gcp_list.txt"), IoError);

@@ -72,7 +72,8 @@ TEST(FlightPairs, BeyondItTheFootprintsAtTheXmpHeightChooseThePartners) {
 }
 
 TEST(FlightPairs, TheRelativeAltitudeIsReadFromTheXmp) {
-  const std::string path = (std::filesystem::temp_directory_path() / "sm_flight_pairs_xmp.jpg").string();
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "sm_flight_pairs_xmp.jpg").string();
   ASSERT_TRUE(cv::imwrite(path, cv::Mat(30, 40, CV_8UC1, cv::Scalar(90))));
   Exiv2::XmpProperties::registerNs("http://www.dji.com/drone-dji/1.0/", "drone-dji");
   {

@@ -22,11 +22,12 @@ namespace flight {
 namespace {
 
 constexpr double kDemCell = 0.5;
-constexpr int kDemCells = 160;  // 80 m x 80 m
+constexpr int kDemCells = 160;                // 80 m x 80 m
 const Eigen::Vector2d kGnssShift(2.5, -1.8);  // [m] the later flight's GNSS error
-constexpr double kVerticalBias = 0.7;             // [m]
-constexpr double kDemNoise = 0.02;           // [m] per DEM
-constexpr double kDemSigma = 0.025;          // [m] the DEMs' uncertainty band (conservative, as the matcher's)
+constexpr double kVerticalBias = 0.7;         // [m]
+constexpr double kDemNoise = 0.02;            // [m] per DEM
+constexpr double kDemSigma =
+    0.025;  // [m] the DEMs' uncertainty band (conservative, as the matcher's)
 const Eigen::Vector2d kMound(55.0, 30.0);  // [m] site
 constexpr double kMoundRadius = 6.0, kMoundHeight = 1.0;
 
@@ -156,7 +157,8 @@ TEST(FlightSurfaceFiles, DemIsPlacedInItsEpsgCrsAndReadBack) {
   frame.crs = "EPSG:32611";
   frame.origin = Eigen::Vector3d(235200.0, 3811200.0, 10.0);
   const io::GeoRaster dem = SyntheticDem(false, 8);
-  const std::string path = (std::filesystem::temp_directory_path() / "flight_surface_test_dem.tif").string();
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "flight_surface_test_dem.tif").string();
   io::WriteGeoTiff(path, InCrs(dem, frame));
   const io::GeoRaster back = io::ReadGeoTiff(path);
   std::filesystem::remove(path);
@@ -173,7 +175,8 @@ TEST(FlightSurfaceFiles, DemIsPlacedInItsEpsgCrsAndReadBack) {
     InSite(back, other, "ref/surface_e01.tif");
     ADD_FAILURE() << "another zone accepted";
   } catch (const InvalidArgument& e) {
-    EXPECT_NE(std::string(e.what()).find("ref/surface_e01.tif: its CRS (EPSG:32611)"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("ref/surface_e01.tif: its CRS (EPSG:32611)"),
+              std::string::npos)
         << e.what();
   }
 }

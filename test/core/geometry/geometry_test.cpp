@@ -25,7 +25,8 @@ camera::CameraModel FixedCamera() {
   in[camera::kX0] = 0.03;
   in[camera::kY0] = -0.02;
   in[camera::kK1] = 2e-5;
-  return camera::CameraModel(camera::Sensor{6000, 4000, 0.0039}, camera::DistortionModel::kRadial, in);
+  return camera::CameraModel(camera::Sensor{6000, 4000, 0.0039}, camera::DistortionModel::kRadial,
+                             in);
 }
 
 // A pose at `position` looking at `target` (roll kappa).
@@ -36,7 +37,8 @@ camera::CameraModel WideCamera() {
   return m;
 }
 
-camera::ExteriorOrientation LookAt(const Eigen::Vector3d& position, const Eigen::Vector3d& target, double kappa) {
+camera::ExteriorOrientation LookAt(const Eigen::Vector3d& position, const Eigen::Vector3d& target,
+                                   double kappa) {
   // Row 3 of M is the camera z axis in site; the camera looks along -z.
   const Eigen::Vector3d z = (position - target).normalized();
   camera::AttitudeAngles a;
@@ -50,8 +52,8 @@ camera::ExteriorOrientation LookAt(const Eigen::Vector3d& position, const Eigen:
 }
 
 // Points on a slope rising to the north, 100-200 m north of the camera.
-std::vector<Eigen::Vector3d> SlopePoints(int n, unsigned seed, double half_width = 20.0, double y0 = 110.0,
-                                         double y1 = 190.0) {
+std::vector<Eigen::Vector3d> SlopePoints(int n, unsigned seed, double half_width = 20.0,
+                                         double y0 = 110.0, double y1 = 190.0) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> ux(-half_width, half_width), uy(y0, y1);
   std::vector<Eigen::Vector3d> pts;
@@ -87,10 +89,12 @@ TEST(ResectionTest, AmbiguousConfigurationHasSeveralCandidatesAndTheFourthPointC
   // (the projection centre and its mirror-like alternatives).
   std::array<double, camera::kNumInterior> in{};
   in[camera::kC] = 20.0;
-  const camera::CameraModel cam(camera::Sensor{4000, 4000, 0.005}, camera::DistortionModel::kNone, in);
+  const camera::CameraModel cam(camera::Sensor{4000, 4000, 0.005}, camera::DistortionModel::kNone,
+                                in);
   camera::ExteriorOrientation truth;
   truth.position = Eigen::Vector3d(0.5, 0.3, 30.0);
-  const std::vector<Eigen::Vector3d> pts = {{10, 0, 0}, {-5, 8.66, 0}, {-5, -8.66, 0}, {2, 3, 1.5}, {-3, -1, 0.5}};
+  const std::vector<Eigen::Vector3d> pts = {
+      {10, 0, 0}, {-5, 8.66, 0}, {-5, -8.66, 0}, {2, 3, 1.5}, {-3, -1, 0.5}};
   std::vector<Eigen::Vector2d> px(pts.size());
   for (size_t i = 0; i < pts.size(); ++i) ASSERT_TRUE(cam.Project(truth, pts[i], &px[i]));
   Eigen::Vector3d b[3], p[3];
@@ -120,13 +124,15 @@ TEST(ResectionTest, SixControlPointsWithOnePixelNoiseAt100m) {
   std::vector<double> errors;
   for (int trial = 0; trial < 5; ++trial) {
     // Ten control points spread over the image, 60-140 m away on a slope.
-    const camera::ExteriorOrientation truth = LookAt({3.0 * trial, 0, 10}, {0, 100, 0}, 0.01 * trial);
+    const camera::ExteriorOrientation truth =
+        LookAt({3.0 * trial, 0, 10}, {0, 100, 0}, 0.01 * trial);
     std::vector<Eigen::Vector3d> pts = SlopePoints(10, 100 + trial, 40.0, 60.0, 140.0);
     std::vector<Eigen::Vector2d> px;
     std::vector<Eigen::Vector3d> used;
     for (const auto& x : pts) {
       Eigen::Vector2d p;
-      if (!cam.Project(truth, x, &p) || p.x() < 0 || p.y() < 0 || p.x() > 5999 || p.y() > 3999) continue;
+      if (!cam.Project(truth, x, &p) || p.x() < 0 || p.y() < 0 || p.x() > 5999 || p.y() > 3999)
+        continue;
       px.push_back(p + Eigen::Vector2d(noise(rng), noise(rng)));
       used.push_back(x);
     }
@@ -137,19 +143,22 @@ TEST(ResectionTest, SixControlPointsWithOnePixelNoiseAt100m) {
     ASSERT_TRUE(r.success) << r.message;
     const double err = (r.exterior.position - truth.position).norm();
     worst = std::max(worst, err);
-    std::printf("  trial %d: %zu control points, position error %.4f m (sigma %.4f m)\n", trial, px.size(), err,
-                std::sqrt(r.covariance.topLeftCorner<3, 3>().trace()));
+    std::printf("  trial %d: %zu control points, position error %.4f m (sigma %.4f m)\n", trial,
+                px.size(), err, std::sqrt(r.covariance.topLeftCorner<3, 3>().trace()));
     // Within 3.5 sigma of its own covariance, and within a few centimetres.
     const double sigma = std::sqrt(r.covariance.topLeftCorner<3, 3>().trace());
     EXPECT_LT(err, 3.5 * sigma + 1e-3) << "trial " << trial;
     errors.push_back(err);
     const double att = Eigen::AngleAxisd(camera::RotationFromAngles(r.exterior.angles) *
-                                         camera::RotationFromAngles(truth.angles).transpose()).angle();
+                                         camera::RotationFromAngles(truth.angles).transpose())
+                           .angle();
     EXPECT_LT(att, 2e-3);
   }
   std::sort(errors.begin(), errors.end());
   EXPECT_LT(errors[errors.size() / 2], 0.08) << "median position error";
-  std::printf("resection, 6-8 control points, 1 px noise, ~100-200 m: worst position error %.4f m\n", worst);
+  std::printf(
+      "resection, 6-8 control points, 1 px noise, ~100-200 m: worst position error %.4f m\n",
+      worst);
 }
 
 TEST(ResectionTest, RejectsOutliersWithRansac) {
@@ -160,7 +169,8 @@ TEST(ResectionTest, RejectsOutliersWithRansac) {
   std::vector<Eigen::Vector3d> used;
   for (const auto& x : pts) {
     Eigen::Vector2d p;
-    if (!cam.Project(truth, x, &p) || p.x() < 0 || p.y() < 0 || p.x() > 5999 || p.y() > 3999) continue;
+    if (!cam.Project(truth, x, &p) || p.x() < 0 || p.y() < 0 || p.x() > 5999 || p.y() > 3999)
+      continue;
     px.push_back(p);
     used.push_back(x);
   }
@@ -178,7 +188,8 @@ TEST(ResectionTest, RejectsOutliersWithRansac) {
 TEST(ResectionTest, BadInput) {
   const camera::CameraModel cam = FixedCamera();
   const camera::ExteriorOrientation truth = LookAt({0, 0, 25}, {0, 150, 20}, 0.0);
-  std::vector<Eigen::Vector3d> line = {{0, 120, 5}, {5, 130, 5}, {10, 140, 5}, {15, 150, 5}, {20, 160, 5}};
+  std::vector<Eigen::Vector3d> line = {
+      {0, 120, 5}, {5, 130, 5}, {10, 140, 5}, {15, 150, 5}, {20, 160, 5}};
   std::vector<Eigen::Vector2d> px;
   for (const auto& x : line) {
     Eigen::Vector2d p;
@@ -197,8 +208,9 @@ TEST(ResectionTest, BadInput) {
 
 TEST(IntersectionTest, ThreeCamerasRecoverThePointWithinItsCovariance) {
   const camera::CameraModel cam = FixedCamera();
-  const std::vector<camera::ExteriorOrientation> poses = {
-      LookAt({-60, 0, 30}, {0, 150, 15}, 0), LookAt({0, -10, 25}, {0, 150, 15}, 0), LookAt({60, 0, 30}, {0, 150, 15}, 0)};
+  const std::vector<camera::ExteriorOrientation> poses = {LookAt({-60, 0, 30}, {0, 150, 15}, 0),
+                                                          LookAt({0, -10, 25}, {0, 150, 15}, 0),
+                                                          LookAt({60, 0, 30}, {0, 150, 15}, 0)};
   const std::vector<Eigen::Vector3d> pts = SlopePoints(200, 9);
   std::mt19937 rng(21);
   const double sigma_px = 0.2;
@@ -220,7 +232,8 @@ TEST(IntersectionTest, ThreeCamerasRecoverThePointWithinItsCovariance) {
     const Eigen::Vector3d err = res.position - x;
     ++n;
     bool ok = true;
-    for (int k = 0; k < 3; ++k) ok = ok && std::abs(err(k)) <= 3.0 * std::sqrt(res.covariance(k, k));
+    for (int k = 0; k < 3; ++k)
+      ok = ok && std::abs(err(k)) <= 3.0 * std::sqrt(res.covariance(k, k));
     within += ok;
     EXPECT_LT(err.norm(), 0.03);
   }
@@ -238,12 +251,14 @@ TEST(IntersectionTest, ThreeCamerasRecoverThePointWithinItsCovariance) {
 TEST(HelmertTest, RecoversSimilarityAndRejectsMovedPoints) {
   Similarity3 truth;
   truth.scale = 1.002;
-  truth.rotation = Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, -0.5, 1.0).normalized()).toRotationMatrix();
+  truth.rotation =
+      Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, -0.5, 1.0).normalized()).toRotationMatrix();
   truth.translation = Eigen::Vector3d(100, -50, 12);
   std::mt19937 rng(4);
   std::normal_distribution<double> noise(0.0, 0.002);
   std::vector<Eigen::Vector3d> src = SlopePoints(12, 8, 60.0, 60.0, 200.0), dst;
-  for (const auto& x : src) dst.push_back(truth * x + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+  for (const auto& x : src)
+    dst.push_back(truth * x + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
   dst[3] += Eigen::Vector3d(0.3, 0, -0.2);  // a "stable" point that moved
   HelmertOptions opt;
   opt.inlier_threshold = 0.02;
@@ -283,7 +298,8 @@ TEST(RelativeOrientationTest, FivePointRansacThenScaleFromControl) {
   ASSERT_TRUE(ro.success) << ro.message;
   for (int i = 0; i < 15; ++i) EXPECT_FALSE(ro.inliers[i * 10]) << i;
   // Truth: u_b = Mb Ma^T u_a + Mb (Xa - Xb).
-  const Eigen::Matrix3d ma = camera::RotationFromAngles(ea.angles), mb = camera::RotationFromAngles(eb.angles);
+  const Eigen::Matrix3d ma = camera::RotationFromAngles(ea.angles),
+                        mb = camera::RotationFromAngles(eb.angles);
   const Eigen::Matrix3d r_true = mb * ma.transpose();
   const Eigen::Vector3d t_true = (mb * (ea.position - eb.position)).normalized();
   // The five-point RANSAC result is an initial value (no joint refinement here).
@@ -305,7 +321,8 @@ TEST(RelativeOrientationTest, FivePointRansacThenScaleFromControl) {
   EXPECT_LT((pair.exterior_a.position - ea.position).norm(), 1.0);
   EXPECT_LT((pair.exterior_b.position - eb.position).norm(), 1.0);
   // Too few tie points.
-  EXPECT_FALSE(RelativeOrientation(cam, {pa[0], pa[1], pa[2]}, cam, {pb[0], pb[1], pb[2]}, opt).success);
+  EXPECT_FALSE(
+      RelativeOrientation(cam, {pa[0], pa[1], pa[2]}, cam, {pb[0], pb[1], pb[2]}, opt).success);
 }
 
 }  // namespace

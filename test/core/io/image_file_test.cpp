@@ -125,7 +125,8 @@ TEST_F(ImageFileTest, PngTruncatedOrDamagedIsRefused) {
   bytes[whole.size() / 2] ^= 0x55;  // a flipped byte in the image data
   Write(path, bytes);
   why = Refusal(path);
-  EXPECT_NE(why.find("image '" + path + "': corrupt PNG: CRC error in chunk 'IDAT'"), std::string::npos)
+  EXPECT_NE(why.find("image '" + path + "': corrupt PNG: CRC error in chunk 'IDAT'"),
+            std::string::npos)
       << why;
 }
 
@@ -149,7 +150,8 @@ TEST_F(ImageFileTest, EmptyMissingAndNonImageFilesAreNamed) {
   const std::string text = Path("notes.jpg");
   std::ofstream(text) << "not a photo\n";
   std::string why = Refusal(text);
-  EXPECT_NE(why.find("image '" + text + "': not an image format this program reads"), std::string::npos)
+  EXPECT_NE(why.find("image '" + text + "': not an image format this program reads"),
+            std::string::npos)
       << why;
   EXPECT_NE(why.find("looks like text"), std::string::npos) << why;
   const std::string gif = Path("anim.png");
@@ -172,7 +174,9 @@ TEST_F(ImageFileTest, ForgedHeaderOf20000x20000IsRefusedBeforeDecoding) {
   const std::string jpg = Photo("forged.jpg", ".jpg");
   std::vector<char> bytes = Bytes(jpg);
   size_t sof = 2;
-  while (sof + 1 < bytes.size() && !(uint8_t(bytes[sof]) == 0xFF && uint8_t(bytes[sof + 1]) == 0xC0)) ++sof;
+  while (sof + 1 < bytes.size() &&
+         !(uint8_t(bytes[sof]) == 0xFF && uint8_t(bytes[sof + 1]) == 0xC0))
+    ++sof;
   ASSERT_LT(sof + 9, bytes.size());
   for (size_t k : {sof + 5, sof + 7}) {
     bytes[k] = char(20000 >> 8);
@@ -191,7 +195,8 @@ TEST_F(ImageFileTest, ForgedHeaderOf20000x20000IsRefusedBeforeDecoding) {
   const long peak_before = PeakKb();
   const auto start = std::chrono::steady_clock::now();
   const std::string why_jpg = Refusal(jpg), why_png = Refusal(png);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EXPECT_EQ(why_jpg, "image '" + jpg +
                          "': the JPEG header claims 20000 x 20000 px (400.0 MP), more than "
                          "max_megapixels 100; refused before decoding");
@@ -212,7 +217,8 @@ TEST_F(ImageFileTest, ForgedHeaderOf20000x20000IsRefusedBeforeDecoding) {
 TEST_F(ImageFileTest, SixteenBitPng) {
   cv::Mat depth(48, 64, CV_16UC1);
   for (int r = 0; r < depth.rows; ++r)
-    for (int c = 0; c < depth.cols; ++c) depth.at<uint16_t>(r, c) = static_cast<uint16_t>(1000 * r + c);
+    for (int c = 0; c < depth.cols; ++c)
+      depth.at<uint16_t>(r, c) = static_cast<uint16_t>(1000 * r + c);
   const std::string path = Path("depth.png");
   ASSERT_TRUE(cv::imwrite(path, depth));
   const ImageHeader h = ReadImageHeader(path);
@@ -269,7 +275,8 @@ TEST(ImageFileOptionsCheck, MaxMegapixelsMustBePositive) {
     o.Check();
     FAIL() << "accepted max_megapixels 0";
   } catch (const ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("'max_megapixels' must be > 0"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("'max_megapixels' must be > 0"), std::string::npos)
+        << e.what();
   }
 }
 

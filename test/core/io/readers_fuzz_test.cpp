@@ -16,7 +16,8 @@ const char* kSeedList =
     "# fuzz seed\n"
     "frame: site\n"
     "targets:\n"
-    "  - {id: 1, family: tag36h11, size: 0.6, role: control, position: [10.5, 20.25, 301.0], sigma: [0.01, 0.02]}\n"
+    "  - {id: 1, family: tag36h11, size: 0.6, role: control, position: [10.5, 20.25, 301.0], "
+    "sigma: [0.01, 0.02]}\n"
     "  - {id: 2, family: tag36h11, size: 0.6, role: check, position: [40.0, -12.0, 310.5]}\n"
     "  - id: 7\n"
     "    family: circle\n"
@@ -37,9 +38,12 @@ TEST(ReadersFuzz, TargetListLoadsOrThrowsError) {
       ++loaded;
     } catch (const Error& e) {
       ++refused;
-      EXPECT_NE(std::string(e.what()).find("fuzz.yaml"), std::string::npos) << "input " << i << ": " << e.what();
+      EXPECT_NE(std::string(e.what()).find("fuzz.yaml"), std::string::npos)
+          << "input " << i << ": " << e.what();
     } catch (const std::exception& e) {
-      ADD_FAILURE() << "input " << i << " escaped as " << typeid(e).name() << ": " << e.what() << "\n" << input;
+      ADD_FAILURE() << "input " << i << " escaped as " << typeid(e).name() << ": " << e.what()
+                    << "\n"
+                    << input;
     }
   }
   // Both outcomes occur: the mutations reach past the parser into the checks.

@@ -151,7 +151,8 @@ TEST_F(SafeFileTest, CheckFolderWritableCreatesOrNamesTheFolder) {
     CheckFolderWritable(bad, "--report-dir");
     FAIL() << "no exception";
   } catch (const IoError& e) {
-    EXPECT_EQ(std::string(e.what()), "--report-dir '" + bad + "' cannot be created: Not a directory");
+    EXPECT_EQ(std::string(e.what()),
+              "--report-dir '" + bad + "' cannot be created: Not a directory");
   }
 }
 

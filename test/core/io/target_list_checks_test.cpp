@@ -20,21 +20,27 @@ std::string ChecksErrorOf(const std::string& yaml) {
 }
 
 TEST(TargetListChecks, AbsurdCoordinatesNamed) {
-  const std::string e = ChecksErrorOf("targets:\n  - {id: 4, size: 0.5, role: control, position: [1e300, 2, 3]}\n");
+  const std::string e =
+      ChecksErrorOf("targets:\n  - {id: 4, size: 0.5, role: control, position: [1e300, 2, 3]}\n");
   EXPECT_NE(e.find("site.targets.yaml"), std::string::npos) << e;
   EXPECT_NE(e.find("tag36h11/4"), std::string::npos) << e;
   EXPECT_NE(e.find("position"), std::string::npos) << e;
   // 100 km is the bound; 99 km is a (large) site.
-  EXPECT_EQ(ChecksErrorOf("targets:\n  - {id: 4, size: 0.5, role: control, position: [99000, 2, 3]}\n"), "");
+  EXPECT_EQ(
+      ChecksErrorOf("targets:\n  - {id: 4, size: 0.5, role: control, position: [99000, 2, 3]}\n"),
+      "");
 }
 
 TEST(TargetListChecks, AbsurdSigmaNamed) {
-  std::string e = ChecksErrorOf("targets:\n  - {id: 5, size: 0.5, role: check, position: [1, 2, 3], sigma: [1e300, 0.01]}\n");
+  std::string e = ChecksErrorOf(
+      "targets:\n  - {id: 5, size: 0.5, role: check, position: [1, 2, 3], sigma: [1e300, 0.01]}\n");
   EXPECT_NE(e.find("tag36h11/5"), std::string::npos) << e;
   EXPECT_NE(e.find("sigma"), std::string::npos) << e;
-  e = ChecksErrorOf("targets:\n  - {id: 5, size: 0.5, role: check, position: [1, 2, 3], sigma: [0.01, 1e-9]}\n");
+  e = ChecksErrorOf(
+      "targets:\n  - {id: 5, size: 0.5, role: check, position: [1, 2, 3], sigma: [0.01, 1e-9]}\n");
   EXPECT_NE(e.find("tag36h11/5"), std::string::npos) << e;
-  EXPECT_EQ(ChecksErrorOf("targets:\n  - {id: 5, size: 0.5, role: check, position: [1, 2, 3], sigma: [0.002, 0.004]}\n"),
+  EXPECT_EQ(ChecksErrorOf("targets:\n  - {id: 5, size: 0.5, role: check, position: [1, 2, 3], "
+                          "sigma: [0.002, 0.004]}\n"),
             "");
 }
 

@@ -21,7 +21,8 @@ TEST(TargetList, ParsesAndRoundTrips) {
   const TargetList list = TargetList::FromYaml(
       "frame: site\n"
       "targets:\n"
-      "  - {id: 3, family: tag36h11, size: 0.6, role: control, position: [1, 2, 3], sigma: [0.03, 0.01]}\n"
+      "  - {id: 3, family: tag36h11, size: 0.6, role: control, position: [1, 2, 3], sigma: [0.03, "
+      "0.01]}\n"
       "  - {id: 3, family: circle, size: 0.2, role: monitoring}\n",
       "test.yaml");
   ASSERT_EQ(list.targets().size(), 2u);
@@ -37,13 +38,16 @@ TEST(TargetList, ParsesAndRoundTrips) {
 }
 
 TEST(TargetList, BadInputNamesTheKey) {
-  EXPECT_NE(ErrorOf("targets:\n  - {id: 1, size: 0.5}\n  - {id: 1, size: 0.5}\n").find("duplicates target tag36h11/1"),
+  EXPECT_NE(ErrorOf("targets:\n  - {id: 1, size: 0.5}\n  - {id: 1, size: 0.5}\n")
+                .find("duplicates target tag36h11/1"),
             std::string::npos);
-  EXPECT_NE(ErrorOf("targets:\n  - {id: 1, size: 0.5, role: control}\n").find("'position'"), std::string::npos);
+  EXPECT_NE(ErrorOf("targets:\n  - {id: 1, size: 0.5, role: control}\n").find("'position'"),
+            std::string::npos);
   EXPECT_NE(ErrorOf("targets:\n  - {id: 1, size: 0.5, colour: red}\n").find("unknown key 'colour'"),
             std::string::npos);
   EXPECT_NE(ErrorOf("targets:\n  - {id: 1, size: -2}\n").find("'size'"), std::string::npos);
-  EXPECT_NE(ErrorOf("targets:\n  - {id: 1, size: 1, family: tag99}\n").find("tag99"), std::string::npos);
+  EXPECT_NE(ErrorOf("targets:\n  - {id: 1, size: 1, family: tag99}\n").find("tag99"),
+            std::string::npos);
 }
 
 }  // namespace

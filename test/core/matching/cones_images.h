@@ -34,8 +34,8 @@ struct ConesPair {
   cv::Mat left, right, gt, occl;
 };
 inline ConesPair LoadConesPair(int image_flags = cv::IMREAD_UNCHANGED) {
-  return {LoadCones("left.tif", image_flags), LoadCones("right.tif", image_flags), LoadCones("disp_left_gt.tif"),
-          LoadCones("occl.png", image_flags)};
+  return {LoadCones("left.tif", image_flags), LoadCones("right.tif", image_flags),
+          LoadCones("disp_left_gt.tif"), LoadCones("occl.png", image_flags)};
 }
 
 // f (CV_32F) plus Gaussian noise of `sigma` grey levels from cv::RNG(seed).

@@ -54,7 +54,8 @@ TEST(Filters, LogOfQuadraticIsItsLaplacian) {
   // I = x^2 + 3 y^2 -> Laplacian = 2 + 6 = 8; scale-normalised: -s^2 * 8.
   cv::Mat q(60, 60, CV_32F);
   for (int r = 0; r < 60; ++r)
-    for (int c = 0; c < 60; ++c) q.at<float>(r, c) = float((c - 30) * (c - 30) + 3 * (r - 30) * (r - 30));
+    for (int c = 0; c < 60; ++c)
+      q.at<float>(r, c) = float((c - 30) * (c - 30) + 3 * (r - 30) * (r - 30));
   const double s = 2.0;
   const cv::Mat plain = LaplacianOfGaussian(q, s, false);
   const cv::Mat norm = LaplacianOfGaussian(q, s, true);
@@ -120,14 +121,16 @@ TEST(Filters, BilinearIsExactOnRampsBicubicOnQuadratics) {
   const cv::Mat ramp = Ramp(20, 30, 0.7, -1.3, 5.0);
   cv::Mat quad(20, 30, CV_32F);
   for (int r = 0; r < 20; ++r)
-    for (int c = 0; c < 30; ++c) quad.at<float>(r, c) = float(0.1 * c * c - 0.05 * r * r + 0.02 * r * c);
+    for (int c = 0; c < 30; ++c)
+      quad.at<float>(r, c) = float(0.1 * c * c - 0.05 * r * r + 0.02 * r * c);
   for (double x : {3.0, 5.25, 10.5, 17.9}) {
     for (double y : {2.0, 4.6, 11.3}) {
       float dx, dy;
       EXPECT_NEAR(SampleBilinearGrad(ramp, x, y, &dx, &dy), 0.7 * x - 1.3 * y + 5.0, 1e-4);
       EXPECT_NEAR(dx, 0.7, 1e-4);
       EXPECT_NEAR(dy, -1.3, 1e-4);
-      EXPECT_NEAR(SampleBicubicGrad(quad, x, y, &dx, &dy), 0.1 * x * x - 0.05 * y * y + 0.02 * x * y, 1e-3);
+      EXPECT_NEAR(SampleBicubicGrad(quad, x, y, &dx, &dy),
+                  0.1 * x * x - 0.05 * y * y + 0.02 * x * y, 1e-3);
       EXPECT_NEAR(dx, 0.2 * x + 0.02 * y, 1e-3);
       EXPECT_NEAR(dy, -0.1 * y + 0.02 * x, 1e-3);
       EXPECT_NEAR(Sample(ramp, x, y, Interpolation::kBicubic), 0.7 * x - 1.3 * y + 5.0, 1e-4);
@@ -149,12 +152,14 @@ TEST(Filters, SampleWindowEqualsThePointSampler) {
   cv::RNG rng(3);
   rng.fill(noise, cv::RNG::UNIFORM, 0.0, 255.0);
   for (int r = 0; r < 40; ++r)
-    for (int c = 0; c < 50; ++c) quad.at<float>(r, c) = float(0.1 * c * c - 0.05 * r * r + 0.02 * r * c);
+    for (int c = 0; c < 50; ++c)
+      quad.at<float>(r, c) = float(0.1 * c * c - 0.05 * r * r + 0.02 * r * c);
   const int h = 5, w = 2 * h + 1;
   std::vector<double> out(w * w);
   for (const Interpolation interp : {Interpolation::kBicubic, Interpolation::kBilinear}) {
     for (const cv::Mat* image : {&quad, &noise}) {
-      for (const auto& [x, y] : std::vector<std::pair<double, double>>{{20.0, 17.0}, {21.37, 13.81}, {7.5, 30.25}}) {
+      for (const auto& [x, y] :
+           std::vector<std::pair<double, double>>{{20.0, 17.0}, {21.37, 13.81}, {7.5, 30.25}}) {
         SampleWindow(*image, x, y, h, interp, out.data());
         for (int v = -h, k = 0; v <= h; ++v)
           for (int u = -h; u <= h; ++u, ++k)
@@ -168,12 +173,15 @@ TEST(Filters, SampleWindowEqualsThePointSampler) {
     EXPECT_NEAR(out[(h - 1) * w + (h + 2)], 0.1 * x * x - 0.05 * y * y + 0.02 * x * y, 1e-3);
   }
   // Bicubic needs one pixel more around the window than bilinear.
-  EXPECT_THROW(SampleWindow(quad, 5.5, 20.0, h, Interpolation::kBicubic, out.data()), InvalidArgument);
+  EXPECT_THROW(SampleWindow(quad, 5.5, 20.0, h, Interpolation::kBicubic, out.data()),
+               InvalidArgument);
   EXPECT_NO_THROW(SampleWindow(quad, 5.5, 20.0, h, Interpolation::kBilinear, out.data()));
   EXPECT_NO_THROW(SampleWindow(quad, 44.0, 20.0, h, Interpolation::kBilinear, out.data()));
-  EXPECT_THROW(SampleWindow(quad, 44.5, 20.0, h, Interpolation::kBilinear, out.data()), InvalidArgument);
-  EXPECT_THROW(SampleWindow(cv::Mat(40, 50, CV_8U), 20.0, 20.0, h, Interpolation::kBilinear, out.data()),
+  EXPECT_THROW(SampleWindow(quad, 44.5, 20.0, h, Interpolation::kBilinear, out.data()),
                InvalidArgument);
+  EXPECT_THROW(
+      SampleWindow(cv::Mat(40, 50, CV_8U), 20.0, 20.0, h, Interpolation::kBilinear, out.data()),
+      InvalidArgument);
 }
 
 TEST(Filters, BadInputIsNamed) {

@@ -171,8 +171,8 @@ TEST(SequencePairs, LargestFootprintOverlapFirst) {
     s.ground_pixel = ground_pixel;
     return s;
   };
-  const std::vector<SequenceImage> earlier = {img(1, 0, 0, 27, 0), img(2, 2, 0, 18, 0),
-                                              img(3, 4, 0, 9, 0),  img(4, 30, 24, 9, 180),
+  const std::vector<SequenceImage> earlier = {img(1, 0, 0, 27, 0),    img(2, 2, 0, 18, 0),
+                                              img(3, 4, 0, 9, 0),     img(4, 30, 24, 9, 180),
                                               img(5, 32, 25, 0, 180), img(6, 34, 1, 1, 0, 0.0)};
   const SequenceImage b = img(7, 40, 0, 0, 0);
   EXPECT_NEAR(FootprintOverlap(FootprintOf(earlier[3]), FootprintOf(b)), 0.28, 1e-4);

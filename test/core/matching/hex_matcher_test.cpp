@@ -34,14 +34,16 @@ TEST(HexRaster, GeometryAndSampling) {
     for (int d = 0; d < 6; ++d) {
       int ni, nk;
       HexRaster::Neighbour(i, 20, d, &ni, &nk);
-      EXPECT_NEAR((h.Centre(ni, nk) - h.Centre(i, 20)).norm(), 1.0 / std::sqrt(3.0), 1e-12) << i << " " << d;
+      EXPECT_NEAR((h.Centre(ni, nk) - h.Centre(i, 20)).norm(), 1.0 / std::sqrt(3.0), 1e-12)
+          << i << " " << d;
     }
   }
   // Nearest: the value of the pixel whose centre holds the hexagon's centre.
   for (int i = 0; i < h.rows(); ++i)
     for (int k = 0; k < h.cols(); ++k) {
       const Eigen::Vector2d c = h.Centre(i, k);
-      const int r = std::min(29, std::max(0, int(std::lround(c.y())))), col = int(std::lround(c.x()));
+      const int r = std::min(29, std::max(0, int(std::lround(c.y())))),
+                col = int(std::lround(c.x()));
       ASSERT_EQ(h.value(i, k), img.at<float>(r, col)) << i << " " << k;
       int ii, kk;
       h.NearestCell(c, &ii, &kk);
@@ -65,14 +67,16 @@ TEST(HexRaster, GeometryAndSampling) {
   }
   EXPECT_NEAR(s, 0.0, 1e-4);
   EXPECT_NEAR(n, 1.0, 1e-4);
-  const HexRaster flat = HexRaster::FromImage(cv::Mat(20, 20, CV_8U, cv::Scalar(3)), HexSampling::kNearest);
+  const HexRaster flat =
+      HexRaster::FromImage(cv::Mat(20, 20, CV_8U, cv::Scalar(3)), HexSampling::kNearest);
   EXPECT_FALSE(flat.Descriptor(20, 10, 3, &d));
   const HexPyramid p(img, 3, HexSampling::kNearest);
   EXPECT_EQ(p.levels(), 3);
   EXPECT_NEAR(p.level(2).dx(), 4.0 / std::sqrt(3.0), 1e-12);
 }
 
-cv::Mat ShiftImage(const cv::Mat& f, const Eigen::Vector2d& t, const cv::Rect& moving_roi = cv::Rect(),
+cv::Mat ShiftImage(const cv::Mat& f, const Eigen::Vector2d& t,
+                   const cv::Rect& moving_roi = cv::Rect(),
                    const Eigen::Vector2d& t_moving = Eigen::Vector2d::Zero()) {
   cv::Mat out(f.size(), CV_32F);
   for (int r = 0; r < f.rows; ++r)
@@ -105,10 +109,12 @@ TEST(HexMatcher, FindsKnownShiftOnRealTexture) {
     if (e > 1.0) ++gross;
     s2 += e * e;
   }
-  std::printf("shift (7.3, -4.6): %d candidates, %d matches, %d within 0.2 px, RMS %.3f px, %.2f s\n",
-              r.summary.candidates, r.summary.matched, correct, std::sqrt(s2 / r.summary.matched),
-              r.summary.seconds);
-  for (const auto& kv : r.summary.rejects) std::printf("  reject %s: %d\n", kv.first.c_str(), kv.second);
+  std::printf(
+      "shift (7.3, -4.6): %d candidates, %d matches, %d within 0.2 px, RMS %.3f px, %.2f s\n",
+      r.summary.candidates, r.summary.matched, correct, std::sqrt(s2 / r.summary.matched),
+      r.summary.seconds);
+  for (const auto& kv : r.summary.rejects)
+    std::printf("  reject %s: %d\n", kv.first.c_str(), kv.second);
   EXPECT_GT(r.summary.matched, 50);
   EXPECT_GE(correct, 0.93 * r.summary.matched);
   EXPECT_LE(gross, 0.01 * r.summary.matched);
@@ -126,7 +132,8 @@ TEST(HexMatcher, EpochsWithAMovingArea) {
   prior.moving_radius = 30.0;  // the landslide: wider
   prior.estimate_global_shift = true;
   prior.moving = [&](const Eigen::Vector2d& x) {
-    return x.x() > roi.x - 20 && x.x() < roi.x + roi.width + 20 && x.y() > roi.y - 20 && x.y() < roi.y + roi.height + 20;
+    return x.x() > roi.x - 20 && x.x() < roi.x + roi.width + 20 && x.y() > roi.y - 20 &&
+           x.y() < roi.y + roi.height + 20;
   };
   const HexMatchResult r = matcher.Match(a, b, prior);
   EXPECT_LT((r.summary.global_shift - stable).norm(), 0.2);
@@ -142,8 +149,8 @@ TEST(HexMatcher, EpochsWithAMovingArea) {
       correct_moving += ok;
     }
   }
-  std::printf("epochs: %d matches (%d correct), %d inside the moving area (%d correct)\n", r.summary.matched, correct,
-              in_moving, correct_moving);
+  std::printf("epochs: %d matches (%d correct), %d inside the moving area (%d correct)\n",
+              r.summary.matched, correct, in_moving, correct_moving);
   EXPECT_GT(in_moving, 15);
   EXPECT_GE(correct_moving, 0.95 * in_moving);
 }
@@ -171,9 +178,12 @@ TEST(HexMatcher, ConesWithEpipolarPriorAgainstGroundTruth) {
     w05 += e <= 0.5;
     w1 += e <= 1.0;
   }
-  std::printf("Cones hex+LSC: %d matches, %d non-occluded with truth: %.1f %% within 0.5 px, %.1f %% within 1 px\n",
-              r.summary.matched, valid, 100.0 * w05 / valid, 100.0 * w1 / valid);
-  for (const auto& kv : r.summary.rejects) std::printf("  reject %s: %d\n", kv.first.c_str(), kv.second);
+  std::printf(
+      "Cones hex+LSC: %d matches, %d non-occluded with truth: %.1f %% within 0.5 px, %.1f %% "
+      "within 1 px\n",
+      r.summary.matched, valid, 100.0 * w05 / valid, 100.0 * w1 / valid);
+  for (const auto& kv : r.summary.rejects)
+    std::printf("  reject %s: %d\n", kv.first.c_str(), kv.second);
   EXPECT_GT(valid, 50);
   // Measured 87.2 % within 0.5 px, 91.5 % within 1 px (bicubic eq. 1).
   EXPECT_GT(double(w05) / valid, 0.8);
@@ -185,8 +195,8 @@ TEST(HexMatcher, ConesWithEpipolarPriorAgainstGroundTruth) {
 // the right image) that sways by another (4, 3) px between the images and
 // whose texture changes by a quarter (blended with a second piece, like
 // leaves in the wind; with half of it changed the descriptor search finds
-// no candidates on the object at all, which is the easy case). Truth: matches whose xa lies on the object in a, or whose true
-// position xa + t lies on the object in b (background hidden), are
+// no candidates on the object at all, which is the easy case). Truth: matches whose xa lies on the
+// object in a, or whose true position xa + t lies on the object in b (background hidden), are
 // unmatchable and must not have normal quality; windows reaching the object
 // must not be wrong with normal quality; the rest keeps its matches. With
 // quality.reject the flagged matches are dropped.
@@ -210,7 +220,8 @@ TEST(HexMatcher, QualityControlFlagsASwayingOccluder) {
     return x.x() >= rc.x - margin && x.y() >= rc.y - margin && x.x() <= rc.br().x - 1 + margin &&
            x.y() <= rc.br().y - 1 + margin;
   };
-  int on = 0, on_normal = 0, near = 0, near_normal_wrong = 0, clear = 0, clear_normal = 0, clear_normal_correct = 0;
+  int on = 0, on_normal = 0, near = 0, near_normal_wrong = 0, clear = 0, clear_normal = 0,
+      clear_normal_correct = 0;
   for (const HexMatch& m : r.matches) {
     const Eigen::Vector2d xt = m.xa + t;
     const double e = (m.xb - xt).norm();
@@ -228,12 +239,16 @@ TEST(HexMatcher, QualityControlFlagsASwayingOccluder) {
       }
     }
   }
-  std::printf("swaying occluder: %d matches (%d low quality", r.summary.matched, r.summary.low_quality);
+  std::printf("swaying occluder: %d matches (%d low quality", r.summary.matched,
+              r.summary.low_quality);
   for (const auto& kv : r.summary.flags) std::printf(", %s %d", kv.first.c_str(), kv.second);
-  for (const auto& kv : r.summary.rejects) std::printf("; reject %s %d", kv.first.c_str(), kv.second);
-  std::printf(")\n  on the object or hidden by it %d (%d normal quality), window reaching it %d (%d normal quality "
-              "> 0.5 px off), clear %d (%d normal quality, %d of them within 0.2 px)\n",
-              on, on_normal, near, near_normal_wrong, clear, clear_normal, clear_normal_correct);
+  for (const auto& kv : r.summary.rejects)
+    std::printf("; reject %s %d", kv.first.c_str(), kv.second);
+  std::printf(
+      ")\n  on the object or hidden by it %d (%d normal quality), window reaching it %d (%d normal "
+      "quality "
+      "> 0.5 px off), clear %d (%d normal quality, %d of them within 0.2 px)\n",
+      on, on_normal, near, near_normal_wrong, clear, clear_normal, clear_normal_correct);
   EXPECT_GT(on, 3);  // the matcher does find candidates on the object
   EXPECT_EQ(on_normal, 0);
   EXPECT_EQ(near_normal_wrong, 0);
@@ -278,7 +293,8 @@ TEST(HexMatcher, BadInput) {
     HexMatcher{bad_quality};
     ADD_FAILURE() << "quality.max_residual_ratio 0.5 accepted";
   } catch (const ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("quality.max_residual_ratio"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("quality.max_residual_ratio"), std::string::npos)
+        << e.what();
   }
 }
 

@@ -50,8 +50,8 @@ TEST(InterestPoints, RectangleCornersAreFound) {
     EXPECT_LT(std::min(dx, dy), 2.0) << p.x.transpose();
   }
   // Each of the four corners has a point within 6 px.
-  for (const cv::Point2d c : {cv::Point2d(29.5, 24.5), cv::Point2d(79.5, 24.5), cv::Point2d(29.5, 64.5),
-                              cv::Point2d(79.5, 64.5)}) {
+  for (const cv::Point2d c : {cv::Point2d(29.5, 24.5), cv::Point2d(79.5, 24.5),
+                              cv::Point2d(29.5, 64.5), cv::Point2d(79.5, 64.5)}) {
     double best = 1e9;
     for (const auto& p : pts) best = std::min(best, std::hypot(p.x.x() - c.x, p.x.y() - c.y));
     EXPECT_LT(best, 6.0) << c;
@@ -66,8 +66,8 @@ TEST(InterestPoints, CellsSpreadThePointsOverTheImage) {
   for (int r = 0; r < 4; ++r)
     for (int c = 0; c < 4; ++c) {
       const bool strong = r < 2 && c < 2;
-      cv::rectangle(img, cv::Rect(15 + 50 * c, 15 + 50 * r, 20, 20),
-                    cv::Scalar(strong ? 220 : 90), cv::FILLED);
+      cv::rectangle(img, cv::Rect(15 + 50 * c, 15 + 50 * r, 20, 20), cv::Scalar(strong ? 220 : 90),
+                    cv::FILLED);
     }
   const auto quarter = [](const InterestPoint& p) {
     return (p.x.y() >= 100 ? 2 : 0) + (p.x.x() >= 100 ? 1 : 0);
@@ -88,7 +88,8 @@ TEST(InterestPoints, CellsSpreadThePointsOverTheImage) {
 }
 
 TEST(InterestPoints, FlatImageHasNone) {
-  EXPECT_TRUE(DetectInterestPoints(cv::Mat(50, 50, CV_8U, cv::Scalar(90)), InterestPointOptions()).empty());
+  EXPECT_TRUE(
+      DetectInterestPoints(cv::Mat(50, 50, CV_8U, cv::Scalar(90)), InterestPointOptions()).empty());
   InterestPointOptions bad;
   bad.gradient_window = 10;
   EXPECT_THROW(bad.Check(), ConfigError);

@@ -69,7 +69,8 @@ WarpCase MakeWarp(const cv::Matx23d& m, double noise, unsigned seed) {
 }
 
 Eigen::Vector2d Apply(const cv::Matx23d& m, const Eigen::Vector2d& x) {
-  return Eigen::Vector2d(m(0, 0) * x.x() + m(0, 1) * x.y() + m(0, 2), m(1, 0) * x.x() + m(1, 1) * x.y() + m(1, 2));
+  return Eigen::Vector2d(m(0, 0) * x.x() + m(0, 1) * x.y() + m(0, 2),
+                         m(1, 0) * x.x() + m(1, 1) * x.y() + m(1, 2));
 }
 
 std::vector<InterestPoint> PointsInside(const cv::Mat& a, int margin) {
@@ -93,7 +94,8 @@ PrecisionResult Precision(const WarpCase& w, const LscOptions& o) {
   double sum_pred = 0;
   for (const InterestPoint& p : PointsInside(w.a, 20)) {
     const Eigen::Vector2d truth = Apply(w.m, p.x);
-    if (truth.x() < 20 || truth.y() < 20 || truth.x() > w.b.cols - 21 || truth.y() > w.b.rows - 21) continue;
+    if (truth.x() < 20 || truth.y() < 20 || truth.x() > w.b.cols - 21 || truth.y() > w.b.rows - 21)
+      continue;
     ++res.total;
     const Eigen::Vector2d start = truth.array().round();
     const LscSummary s = MatchLsc(w.a, w.b, p.x, start, o);
@@ -113,8 +115,9 @@ PrecisionResult Precision(const WarpCase& w, const LscOptions& o) {
 }
 
 const cv::Matx23d kShift(1, 0, 0.37, 0, 1, -0.81);
-const cv::Matx23d kAffine(1.02 * std::cos(0.035), -1.02 * std::sin(0.035), 3.3, 1.02 * std::sin(0.035),
-                          1.02 * std::cos(0.035), -5.6);  // 2 deg rotation, 2 % scale
+const cv::Matx23d kAffine(1.02 * std::cos(0.035), -1.02 * std::sin(0.035), 3.3,
+                          1.02 * std::sin(0.035), 1.02 * std::cos(0.035),
+                          -5.6);  // 2 deg rotation, 2 % scale
 
 TEST(Lsc, SubPixelPrecisionOnWarpedRealTexture) {
   // Noise per image [grey]: 2 is realistic for an 8-bit camera (the
@@ -142,10 +145,11 @@ TEST(Lsc, SubPixelPrecisionOnWarpedRealTexture) {
       o.interpolation = interp;
       o.half_window = 5;  // 11 x 11
       const PrecisionResult r = Precision(w, o);
-      std::printf("LSC 11x11 %-20s noise %.0f %-6s %-8s: %3d/%3d usable, error RMS %.4f px, median %.4f px "
-                  "(predicted %.4f px)\n",
-                  c.name, c.noise, LscModelName(c.model), InterpolationName(interp), r.n, r.total, r.rms, r.median,
-                  r.predicted);
+      std::printf(
+          "LSC 11x11 %-20s noise %.0f %-6s %-8s: %3d/%3d usable, error RMS %.4f px, median %.4f px "
+          "(predicted %.4f px)\n",
+          c.name, c.noise, LscModelName(c.model), InterpolationName(interp), r.n, r.total, r.rms,
+          r.median, r.predicted);
       ASSERT_GT(r.total, 100);
       EXPECT_GT(r.n, 0.4 * r.total);  // the rest: straight-edge windows (kTextureless)
       // The precision estimate is of the right size (within a factor 3).
@@ -179,7 +183,9 @@ TEST(Lsc, Eq1WithQualityControlWithinFiveHundredthsPixel) {
   const struct {
     const char* name;
     const cv::Matx23d* m;
-  } warps[] = {{"shift (0.37, -0.81)", &kShift}, {"shift (-0.62, 0.27)", &kShift2}, {"rot 2deg scale 1.02", &kAffine}};
+  } warps[] = {{"shift (0.37, -0.81)", &kShift},
+               {"shift (-0.62, 0.27)", &kShift2},
+               {"rot 2deg scale 1.02", &kAffine}};
   for (unsigned seed : {7u, 8u}) {
     for (const auto& c : warps) {
       const WarpCase w = MakeWarp(*c.m, 2.0, seed);
@@ -190,9 +196,12 @@ TEST(Lsc, Eq1WithQualityControlWithinFiveHundredthsPixel) {
       qc.max_shift_affine_correlation = 0.8;
       const PrecisionResult r0 = Precision(w, plain);
       const PrecisionResult r = Precision(w, qc);
-      std::printf("LSC 11x11 eq. 1 noise 2 seed %u %-20s: without QC %3d usable, RMS %.4f px; with QC %3d kept "
-                  "(%.0f %%), RMS %.4f px, median %.4f px (predicted %.4f px)\n",
-                  seed, c.name, r0.n, r0.rms, r.n, 100.0 * r.n / std::max(1, r0.n), r.rms, r.median, r.predicted);
+      std::printf(
+          "LSC 11x11 eq. 1 noise 2 seed %u %-20s: without QC %3d usable, RMS %.4f px; with QC %3d "
+          "kept "
+          "(%.0f %%), RMS %.4f px, median %.4f px (predicted %.4f px)\n",
+          seed, c.name, r0.n, r0.rms, r.n, 100.0 * r.n / std::max(1, r0.n), r.rms, r.median,
+          r.predicted);
       EXPECT_LE(r.rms, 0.05) << c.name << " seed " << seed;
       EXPECT_LT(r.rms, r0.rms) << c.name << " seed " << seed;
       EXPECT_GE(r.n, 0.4 * r0.n) << c.name << " seed " << seed;  // measured 45-59 %
@@ -216,9 +225,10 @@ TEST(Lsc, TemplateGradientAndAffineTestImproveEq1) {
   LscOptions plain = o;
   plain.affine_min_f = 0.0;  // always eq. 1
   const PrecisionResult r_plain = Precision(w, plain);
-  std::printf("eq. 1 bicubic, noise 2, true shift: median error template+F %.4f, resampled gradient %.4f, "
-              "no F test %.4f px\n",
-              ours.median, r_res.median, r_plain.median);
+  std::printf(
+      "eq. 1 bicubic, noise 2, true shift: median error template+F %.4f, resampled gradient %.4f, "
+      "no F test %.4f px\n",
+      ours.median, r_res.median, r_plain.median);
   EXPECT_LT(ours.median, r_res.median);
   EXPECT_LT(ours.median, r_plain.median);
 }
@@ -247,8 +257,8 @@ TEST(Lsc, ModifiedLscConvergesFromFivePixels) {
   }
   ASSERT_GT(n, 80);
   const double r_plain = double(ok_plain) / n, r_mlsc = double(ok_mlsc) / n;
-  std::printf("convergence from +-5 px (%d points): plain LSC %.1f %%, MLSC %.1f %%\n", n, 100 * r_plain,
-              100 * r_mlsc);
+  std::printf("convergence from +-5 px (%d points): plain LSC %.1f %%, MLSC %.1f %%\n", n,
+              100 * r_plain, 100 * r_mlsc);
   EXPECT_GT(r_mlsc, 0.9);
   EXPECT_GT(r_mlsc, r_plain + 0.05);
 }
@@ -261,8 +271,10 @@ struct PublishedCell {
   int h;
   double published;
 };
-const PublishedCell kPublishedCells[] = {
-    {LscModel::kAffine, 2, 0.48}, {LscModel::kShift, 2, 0.76}, {LscModel::kAffine, 5, 0.40}, {LscModel::kShift, 5, 0.44}};
+const PublishedCell kPublishedCells[] = {{LscModel::kAffine, 2, 0.48},
+                                         {LscModel::kShift, 2, 0.76},
+                                         {LscModel::kAffine, 5, 0.40},
+                                         {LscModel::kShift, 5, 0.44}};
 
 // The published LSC table on the real rectified pair, and disparities
 // against the ground truth outside occlusions.
@@ -336,13 +348,15 @@ TEST(Lsc, PublishedTableOnCones) {
   }
   for (double& c : common) c = std::sqrt(c / n_common);
   std::printf(
-      "Cones residual y-parallax RMS [px] (true 0), bicubic MLSC; %d points usable by all four cells ('common')\n"
+      "Cones residual y-parallax RMS [px] (true 0), bicubic MLSC; %d points usable by all four "
+      "cells ('common')\n"
       "  window model   published  ours    common  all     usable  disp|err|<=0.5  <=1px\n",
       n_common);
   for (int i = 0; i < 4; ++i) {
-    std::printf("  %2dx%-2d  %-6s   %.2f       %.3f   %.3f   %.3f   %4d    %5.1f %%         %5.1f %%\n",
-                2 * cells[i].h + 1, 2 * cells[i].h + 1, LscModelName(cells[i].model), cells[i].published, ours[i],
-                common[i], all_rms[i], usable[i], 100.0 * within05[i], 100.0 * within1[i]);
+    std::printf(
+        "  %2dx%-2d  %-6s   %.2f       %.3f   %.3f   %.3f   %4d    %5.1f %%         %5.1f %%\n",
+        2 * cells[i].h + 1, 2 * cells[i].h + 1, LscModelName(cells[i].model), cells[i].published,
+        ours[i], common[i], all_rms[i], usable[i], 100.0 * within05[i], 100.0 * within1[i]);
   }
   ASSERT_GE(n_common, 15);
   for (int i = 0; i < 4; ++i) {
@@ -380,7 +394,8 @@ TEST(Lsc, BadInputGivesAClearOutcome) {
   const cv::Mat flat(60, 60, CV_32F, cv::Scalar(120));
   EXPECT_EQ(MatchLsc(flat, flat, {30, 30}, {30, 30}, o).status, LscSummary::Status::kTextureless);
   // Texture in a but a flat b: no fake match.
-  const LscSummary s = MatchLsc(tex(cv::Rect(100, 100, 60, 60)).clone(), flat, {30, 30}, {30, 30}, o);
+  const LscSummary s =
+      MatchLsc(tex(cv::Rect(100, 100, 60, 60)).clone(), flat, {30, 30}, {30, 30}, o);
   EXPECT_FALSE(s.IsSolutionUsable());
   // Wrong encodings and options.
   EXPECT_THROW(MatchLsc(cv::Mat(60, 60, CV_8U), flat, {30, 30}, {30, 30}, o), InvalidArgument);
@@ -453,12 +468,14 @@ TEST(Lsc, PublishedTableWindowOrderingOnCones) {
       raw[i] = std::sqrt(s2 / common.size());
       rel[i] = std::sqrt(s2o / common.size());
     }
-    std::printf("Cones y-parallax on %zu common points of %zu (spacing %d px), pair offset %.3f px\n"
-                "  window model   published  RMS about offset  raw RMS  mean\n",
-                common.size(), np, spacing, offset);
+    std::printf(
+        "Cones y-parallax on %zu common points of %zu (spacing %d px), pair offset %.3f px\n"
+        "  window model   published  RMS about offset  raw RMS  mean\n",
+        common.size(), np, spacing, offset);
     for (int i = 0; i < 4; ++i) {
-      std::printf("  %2dx%-2d  %-6s   %.2f       %.3f             %.3f    %.3f\n", 2 * cells[i].h + 1,
-                  2 * cells[i].h + 1, LscModelName(cells[i].model), cells[i].published, rel[i], raw[i], mean[i]);
+      std::printf("  %2dx%-2d  %-6s   %.2f       %.3f             %.3f    %.3f\n",
+                  2 * cells[i].h + 1, 2 * cells[i].h + 1, LscModelName(cells[i].model),
+                  cells[i].published, rel[i], raw[i], mean[i]);
       EXPECT_LT(raw[i], cells[i].published) << i;
     }
     // The published orderings: 11 x 11 < 5 x 5 for each model, eq. 1 < eq. 2

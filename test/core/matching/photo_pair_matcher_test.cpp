@@ -145,8 +145,8 @@ TEST(PhotoPairMatcher, RotatedScaledRelitCopyOfARealPhotoAgainstItsMap) {
 struct RealPair {
   const char* a;
   const char* b;
-  int min_tie_points;  // measured count minus a margin (see the printout)
-  double max_rms;      // [px] measured epipolar RMS plus a margin
+  int min_tie_points;           // measured count minus a margin (see the printout)
+  double max_rms;               // [px] measured epipolar RMS plus a margin
   int min_sequence_tie_points;  // the same with the UAV sequence matcher's options
   double max_heading_error;     // [deg] relation's rotation against the headings' difference
 };
@@ -192,8 +192,9 @@ TEST_P(RealPairs, TiePointsAgreeWithTheAutopilotHeadingAndOutnumberSift) {
   const SequenceMatcherOptions so;
   const PhotoFeatures sa(a, p.a, so.photo), sb(b, p.b, so.photo);
   const PhotoPairSummary ss = MatchPhotoPair(sa, sb, so.photo_pair).summary;
-  std::printf("  sequence options: %d tie points, epipolar rms %.3f px, rotation %.1f deg, %.2f s\n",
-              ss.matched, ss.epipolar_rms, ss.rotation_deg, ss.seconds);
+  std::printf(
+      "  sequence options: %d tie points, epipolar rms %.3f px, rotation %.1f deg, %.2f s\n",
+      ss.matched, ss.epipolar_rms, ss.rotation_deg, ss.seconds);
   EXPECT_GE(ss.matched, p.min_sequence_tie_points);
   EXPECT_LT(ss.epipolar_rms, p.max_rms);
   if (ss.matched > 0) {

@@ -97,7 +97,8 @@ TEST(SequenceMatcher, TiePointsDoNotDependOnTheThreads) {
     m.SetPriorsExpected(false);
     std::vector<SequencePair> pairs;
     for (int i = 0; i < 5; ++i)
-      for (const SequencePair& p : m.AddImage(i * kSecond, "cam", Photo(i)).pairs) pairs.push_back(p);
+      for (const SequencePair& p : m.AddImage(i * kSecond, "cam", Photo(i)).pairs)
+        pairs.push_back(p);
     runs.push_back(pairs);
   }
   ASSERT_EQ(runs[0].size(), 11u);  // photo 0 alone, then 1 + 2 + 3 + 4 pairs

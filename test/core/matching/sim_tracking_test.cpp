@@ -44,7 +44,9 @@ sim::SceneSpec TrackingSite(bool foliage_motion = false, unsigned seed = 5) {
   return s;
 }
 
-camera::CameraModel Camera() { return sim::testing::SmallCamera(640, 480, 8.0, 0.02, -0.01, -1.0e-3); }
+camera::CameraModel Camera() {
+  return sim::testing::SmallCamera(640, 480, 8.0, 0.02, -0.01, -1.0e-3);
+}
 
 // A fixed camera on the opposite side, x_offset [m] east of the axis.
 camera::ExteriorOrientation FixedPose(const sim::Scene& scene, double x_offset) {
@@ -53,8 +55,8 @@ camera::ExteriorOrientation FixedPose(const sim::Scene& scene, double x_offset) 
   return sim::LookAt(pos, look, Eigen::Vector3d::UnitZ());
 }
 
-cv::Mat Shoot(const sim::Renderer& renderer, const sim::Scene::State& state, const camera::ExteriorOrientation& pose,
-              int epoch, unsigned seed) {
+cv::Mat Shoot(const sim::Renderer& renderer, const sim::Scene::State& state,
+              const camera::ExteriorOrientation& pose, int epoch, unsigned seed) {
   // (With SceneSpec::foliage_motion the state's crowns also sway and change
   // their leaf pattern with the stamp.)
   sim::RenderOptions ro;
@@ -67,7 +69,8 @@ cv::Mat Shoot(const sim::Renderer& renderer, const sim::Scene::State& state, con
 // nothing; *x (if given) the hit point in site, unset for the sky.
 enum class Seen { kGround, kCrown, kRigid, kSky };
 Seen WhatIsSeen(const sim::Scene::State& state, const camera::CameraModel& model,
-                const camera::ExteriorOrientation& pose, const Eigen::Vector2d& pixel, Eigen::Vector3d* x = nullptr) {
+                const camera::ExteriorOrientation& pose, const Eigen::Vector2d& pixel,
+                Eigen::Vector3d* x = nullptr) {
   const camera::Ray ray = model.ImageToRay(pose, pixel);
   const Eigen::Vector3d d = ray.direction.normalized();
   const double t_ground = state.grid.IntersectRay(ray.origin, d, 500.0);
@@ -91,18 +94,21 @@ Seen WhatIsSeen(const sim::Scene::State& state, const camera::CameraModel& model
 
 // True when the pixel sees the ground; *x the hit point in site.
 bool SeesGround(const sim::Scene::State& state, const camera::CameraModel& model,
-                const camera::ExteriorOrientation& pose, const Eigen::Vector2d& pixel, Eigen::Vector3d* x) {
+                const camera::ExteriorOrientation& pose, const Eigen::Vector2d& pixel,
+                Eigen::Vector3d* x) {
   return WhatIsSeen(state, model, pose, pixel, x) == Seen::kGround;
 }
 
 // Pixels within `margin` px of an obstacle's image (the LSC window reaches
 // that far): matches there are on or next to an unmatchable object.
 bool NearObstacle(const sim::Scene::State& state, const camera::CameraModel& model,
-                  const camera::ExteriorOrientation& pose, const Eigen::Vector2d& pixel, double margin) {
+                  const camera::ExteriorOrientation& pose, const Eigen::Vector2d& pixel,
+                  double margin) {
   Eigen::Vector3d x;
   for (int dy = -1; dy <= 1; ++dy)
     for (int dx = -1; dx <= 1; ++dx) {
-      if (!SeesGround(state, model, pose, pixel + margin * Eigen::Vector2d(dx, dy), &x)) return true;
+      if (!SeesGround(state, model, pose, pixel + margin * Eigen::Vector2d(dx, dy), &x))
+        return true;
     }
   return false;
 }
@@ -123,7 +129,11 @@ HexMatcherOptions TrackingSimOptions() {
 // reference epoch (t = 0, noise seed 1) and at kEpoch1 (noise seed 2).
 struct FixedCameraRun {
   explicit FixedCameraRun(const sim::SceneSpec& spec)
-      : scene(spec), model(Camera()), pose(FixedPose(scene, 0.0)), s0(scene.AtTime(0.0)), s1(scene.AtTime(kEpoch1)) {
+      : scene(spec),
+        model(Camera()),
+        pose(FixedPose(scene, 0.0)),
+        s0(scene.AtTime(0.0)),
+        s1(scene.AtTime(kEpoch1)) {
     const sim::Renderer renderer(scene, model);
     img0 = Shoot(renderer, s0, pose, 0, 1);
     img1 = Shoot(renderer, s1, pose, 1, 2);
@@ -165,7 +175,8 @@ TEST(SimTracking, NaturalFeaturesAcrossEpochsAgainstTruth) {
   const HexMatcher matcher(TrackingSimOptions());
   const HexMatchResult r = matcher.Match(run.img0, run.img1, run.Prior());
 
-  int ground = 0, correct = 0, moving = 0, moving_correct = 0, on_obstacle = 0, on_obstacle_wrong = 0;
+  int ground = 0, correct = 0, moving = 0, moving_correct = 0, on_obstacle = 0,
+      on_obstacle_wrong = 0;
   double sum2 = 0, sum2_moving = 0, max_disp = 0;
   for (const HexMatch& m : r.matches) {
     Eigen::Vector3d x_ref;
@@ -197,14 +208,19 @@ TEST(SimTracking, NaturalFeaturesAcrossEpochsAgainstTruth) {
   }
   const double rms = std::sqrt(sum2 / std::max(1, correct));
   const double rms_moving = std::sqrt(sum2_moving / std::max(1, moving_correct));
-  std::printf("sim tracking: %d candidates, %d matches, %.2f s; global shift (%.2f, %.2f) px\n", r.summary.candidates,
-              r.summary.matched, r.summary.seconds, r.summary.global_shift.x(), r.summary.global_shift.y());
-  std::printf("  ground: %d matches, %d within 1 px of truth (%.1f %%), RMS %.3f px\n", ground, correct,
-              100.0 * correct / std::max(1, ground), rms);
-  std::printf("  moving body: %d matches (true image displacement up to %.1f px), %d within 1 px, RMS %.3f px\n",
-              moving, max_disp, moving_correct, rms_moving);
-  std::printf("  on/next to obstacles: %d matches, %d of them moved > 1 px\n", on_obstacle, on_obstacle_wrong);
-  for (const auto& kv : r.summary.rejects) std::printf("  reject %s: %d\n", kv.first.c_str(), kv.second);
+  std::printf("sim tracking: %d candidates, %d matches, %.2f s; global shift (%.2f, %.2f) px\n",
+              r.summary.candidates, r.summary.matched, r.summary.seconds,
+              r.summary.global_shift.x(), r.summary.global_shift.y());
+  std::printf("  ground: %d matches, %d within 1 px of truth (%.1f %%), RMS %.3f px\n", ground,
+              correct, 100.0 * correct / std::max(1, ground), rms);
+  std::printf(
+      "  moving body: %d matches (true image displacement up to %.1f px), %d within 1 px, RMS %.3f "
+      "px\n",
+      moving, max_disp, moving_correct, rms_moving);
+  std::printf("  on/next to obstacles: %d matches, %d of them moved > 1 px\n", on_obstacle,
+              on_obstacle_wrong);
+  for (const auto& kv : r.summary.rejects)
+    std::printf("  reject %s: %d\n", kv.first.c_str(), kv.second);
 
   EXPECT_LT(r.summary.global_shift.norm(), 0.2);  // fixed camera: the stable ground does not move
   EXPECT_GT(ground, 100);
@@ -229,7 +245,8 @@ TEST(SimTracking, TiePointsBetweenTwoFixedCamerasAgainstTruth) {
   const sim::Renderer renderer(scene, model);
   const camera::ExteriorOrientation pose_a = FixedPose(scene, -2.0), pose_b = FixedPose(scene, 2.0);
   const sim::Scene::State s0 = scene.AtTime(0.0);
-  const cv::Mat img_a = Shoot(renderer, s0, pose_a, 0, 3), img_b = Shoot(renderer, s0, pose_b, 0, 4);
+  const cv::Mat img_a = Shoot(renderer, s0, pose_a, 0, 3),
+                img_b = Shoot(renderer, s0, pose_b, 0, 4);
 
   const HexMatcher matcher(TrackingSimOptions());
   MatchPrior prior;
@@ -256,11 +273,14 @@ TEST(SimTracking, TiePointsBetweenTwoFixedCamerasAgainstTruth) {
     }
   }
   const double rms = std::sqrt(sum2 / std::max(1, correct));
-  std::printf("sim tie points (4 m baseline): %d candidates, %d matches, %d checked against truth, %d within 1 px "
-              "(%.1f %%), RMS %.3f px, %.2f s\n",
-              r.summary.candidates, r.summary.matched, checked, correct, 100.0 * correct / std::max(1, checked), rms,
-              r.summary.seconds);
-  for (const auto& kv : r.summary.rejects) std::printf("  reject %s: %d\n", kv.first.c_str(), kv.second);
+  std::printf(
+      "sim tie points (4 m baseline): %d candidates, %d matches, %d checked against truth, %d "
+      "within 1 px "
+      "(%.1f %%), RMS %.3f px, %.2f s\n",
+      r.summary.candidates, r.summary.matched, checked, correct,
+      100.0 * correct / std::max(1, checked), rms, r.summary.seconds);
+  for (const auto& kv : r.summary.rejects)
+    std::printf("  reject %s: %d\n", kv.first.c_str(), kv.second);
   EXPECT_GT(checked, 100);
   EXPECT_GE(correct, 0.95 * checked);
   EXPECT_LT(rms, 0.4);  // measured 0.31 px (weak simulated texture, see TrackingSimOptions())
@@ -280,7 +300,7 @@ struct TrackingStats {
   double ground_rms = 0.0;
   int crown = 0, crown_normal = 0;  // a crown pixel in either epoch (or ground hidden by it)
   int rigid = 0, rigid_normal = 0, rigid_normal_wrong = 0;  // trunk or boulder
-  int near = 0, near_normal = 0, near_normal_wrong = 0;  // ground, window reaches an obstacle
+  int near = 0, near_normal = 0, near_normal_wrong = 0;     // ground, window reaches an obstacle
   int ground_low_quality = 0;
 };
 
@@ -308,7 +328,8 @@ bool InObstacleOutline(const sim::Scene::State& state, const camera::CameraModel
   return false;
 }
 
-TrackingStats TrackWith(bool foliage_motion, bool quality_control, unsigned seed, bool outline = false) {
+TrackingStats TrackWith(bool foliage_motion, bool quality_control, unsigned seed,
+                        bool outline = false) {
   const FixedCameraRun run(TrackingSite(foliage_motion, seed));
   const camera::CameraModel& model = run.model;
   const camera::ExteriorOrientation& pose = run.pose;
@@ -318,7 +339,10 @@ TrackingStats TrackWith(bool foliage_motion, bool quality_control, unsigned seed
   options.quality.enabled = quality_control;
   const HexMatcher matcher(options);
   MatchPrior prior = run.Prior();
-  if (outline) prior.excluded = [&](const Eigen::Vector2d& px) { return InObstacleOutline(s0, model, pose, px); };
+  if (outline)
+    prior.excluded = [&](const Eigen::Vector2d& px) {
+      return InObstacleOutline(s0, model, pose, px);
+    };
   const HexMatchResult r = matcher.Match(run.img0, run.img1, prior);
   TrackingStats st;
   st.matches = r.summary.matched;
@@ -341,15 +365,18 @@ TrackingStats TrackWith(bool foliage_motion, bool quality_control, unsigned seed
     } else if (WhatIsSeen(s1, model, pose, m.xa) == Seen::kCrown) {
       crown = true;
     }
-    const bool near = NearObstacle(s0, model, pose, m.xa, h + 1.0) || NearObstacle(s1, model, pose, xb_true, h + 1.0);
+    const bool near = NearObstacle(s0, model, pose, m.xa, h + 1.0) ||
+                      NearObstacle(s1, model, pose, xb_true, h + 1.0);
     const double e = (m.xb - xb_true).norm();
     if (crown) {
       ++st.crown;
       if (!m.IsLowQuality()) {
         ++st.crown_normal;
-        if (quality_control) std::printf("  normal-quality match on a crown pixel: xa (%.1f, %.1f) xb (%.1f, %.1f) corr %.3f "
-                    "sigma0 %.2f two-way %.3f\n", m.xa.x(), m.xa.y(), m.xb.x(), m.xb.y(), m.correlation, m.sigma0,
-                    m.two_way_error);
+        if (quality_control)
+          std::printf(
+              "  normal-quality match on a crown pixel: xa (%.1f, %.1f) xb (%.1f, %.1f) corr %.3f "
+              "sigma0 %.2f two-way %.3f\n",
+              m.xa.x(), m.xa.y(), m.xb.x(), m.xb.y(), m.correlation, m.sigma0, m.two_way_error);
       }
       continue;
     }
@@ -372,17 +399,18 @@ TrackingStats TrackWith(bool foliage_motion, bool quality_control, unsigned seed
     }
   }
   st.ground_rms = std::sqrt(sum2 / std::max(1, st.ground_correct));
-  std::printf("scene seed %u, foliage motion %s, quality control %s%s: %d matches (%d low quality", seed,
-              foliage_motion ? "on" : "off", quality_control ? "on" : "off", outline ? " + obstacle outline" : "",
-              st.matches, st.low_quality);
+  std::printf("scene seed %u, foliage motion %s, quality control %s%s: %d matches (%d low quality",
+              seed, foliage_motion ? "on" : "off", quality_control ? "on" : "off",
+              outline ? " + obstacle outline" : "", st.matches, st.low_quality);
   for (const auto& kv : r.summary.flags) std::printf(", %s %d", kv.first.c_str(), kv.second);
   std::printf(")\n  crown pixels: %d matches, %d of normal quality\n", st.crown, st.crown_normal);
-  std::printf("  trunk/boulder pixels: %d matches, %d of normal quality, %d of those > 1 px off\n", st.rigid,
-              st.rigid_normal, st.rigid_normal_wrong);
-  std::printf("  window reaching an obstacle: %d matches, %d of normal quality, %d of those > 1 px off\n", st.near,
-              st.near_normal, st.near_normal_wrong);
-  std::printf("  ground: %d normal quality, %d within 1 px, RMS %.3f px; %d flagged low quality\n", st.ground,
-              st.ground_correct, st.ground_rms, st.ground_low_quality);
+  std::printf("  trunk/boulder pixels: %d matches, %d of normal quality, %d of those > 1 px off\n",
+              st.rigid, st.rigid_normal, st.rigid_normal_wrong);
+  std::printf(
+      "  window reaching an obstacle: %d matches, %d of normal quality, %d of those > 1 px off\n",
+      st.near, st.near_normal, st.near_normal_wrong);
+  std::printf("  ground: %d normal quality, %d within 1 px, RMS %.3f px; %d flagged low quality\n",
+              st.ground, st.ground_correct, st.ground_rms, st.ground_low_quality);
   return st;
 }
 
@@ -391,7 +419,8 @@ TEST(SimTracking, OccludingFoliageIsNotReportedWithNormalQuality) {
     SCOPED_TRACE(seed);
     const TrackingStats base = TrackWith(false, false, seed);  // no wind, no quality control
     const TrackingStats wind = TrackWith(true, true, seed);
-    EXPECT_GT(wind.crown + wind.rigid + wind.near, 5);  // the matcher does find candidates on/at the obstacles
+    EXPECT_GT(wind.crown + wind.rigid + wind.near,
+              5);  // the matcher does find candidates on/at the obstacles
     EXPECT_EQ(wind.crown_normal, 0);
     // Trunks and boulders are rigid and static: matches on them are reported
     // and must be geometrically right (see doc/nodes/hex_matcher.md).

@@ -8,8 +8,8 @@
 #include <sstream>
 #include <string>
 
-#include <Eigen/Dense>
 #include <gtest/gtest.h>
+#include <Eigen/Dense>
 
 #include "slope_monitor/core/common/error.h"
 
@@ -68,7 +68,8 @@ TEST(Lambda, ReproducesRtklibVectors) {
     const LambdaResult r = LambdaSearch(c.a, c.q, c.m);
     ASSERT_EQ(r.candidates.cols(), c.m);
     for (int k = 0; k < c.m; ++k) {
-      for (int i = 0; i < c.n; ++i) EXPECT_NEAR(r.candidates(i, k), c.f(i, k), 1e-4) << "n=" << c.n << " cand " << k;
+      for (int i = 0; i < c.n; ++i)
+        EXPECT_NEAR(r.candidates(i, k), c.f(i, k), 1e-4) << "n=" << c.n << " cand " << k;
       EXPECT_NEAR(r.squared_norms(k), c.s(k), 1e-4) << "n=" << c.n << " cand " << k;
     }
     // The norms are those of the returned candidates in the original space.
@@ -137,8 +138,10 @@ TEST(Lambda, BadInputIsRejected) {
   Eigen::MatrixXd q = Eigen::MatrixXd::Identity(2, 2);
   q(1, 1) = -1.0;
   EXPECT_THROW(LambdaSearch(Eigen::Vector2d(0.2, 0.3), q, 2), InvalidArgument);
-  EXPECT_THROW(LambdaSearch(Eigen::Vector2d(0.2, NAN), Eigen::MatrixXd::Identity(2, 2), 2), InvalidArgument);
-  EXPECT_THROW(LambdaSearch(Eigen::Vector3d(0.2, 0.1, 0.0), Eigen::MatrixXd::Identity(2, 2), 2), InvalidArgument);
+  EXPECT_THROW(LambdaSearch(Eigen::Vector2d(0.2, NAN), Eigen::MatrixXd::Identity(2, 2), 2),
+               InvalidArgument);
+  EXPECT_THROW(LambdaSearch(Eigen::Vector3d(0.2, 0.1, 0.0), Eigen::MatrixXd::Identity(2, 2), 2),
+               InvalidArgument);
 }
 
 }  // namespace

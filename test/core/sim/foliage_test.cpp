@@ -98,10 +98,11 @@ TEST(Foliage, OnlyTheCrownChangesBetweenStamps) {
       if (std::fabs(w0.at<float>(r, c) - s0.at<float>(r, c)) > 1e-6f) ++changed_vs_still;
       if (c < tree_col_min) max_far = std::max(max_far, double(d));
     }
-  std::printf("foliage: %d pixels change between stamps, %d differ from the still scene\n", changed, changed_vs_still);
-  EXPECT_GT(changed, 500);          // the crown (~40 px across here: measured 2049 pixels) changes
+  std::printf("foliage: %d pixels change between stamps, %d differ from the still scene\n", changed,
+              changed_vs_still);
+  EXPECT_GT(changed, 500);  // the crown (~40 px across here: measured 2049 pixels) changes
   EXPECT_LT(changed, s0.total() / 20);  // ... and nothing else
-  EXPECT_EQ(max_far, 0.0);          // the left half (boulder, ground) is identical
+  EXPECT_EQ(max_far, 0.0);              // the left half (boulder, ground) is identical
 }
 
 }  // namespace

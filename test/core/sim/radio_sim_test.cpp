@@ -39,7 +39,9 @@ RadioSimConfig DemoConfig(double noise_sigma, int adc_bits, bool all_bin_centred
     t.amplitude = 150.0 + 10.0 * i;
     const Eigen::Vector3d x0(60.0 + 20.0 * i, 60.0 + 5.0 * i, 20.0 + 2.0 * i);
     // Moves 1 mm/s south and down (fast, so that a few seconds show it).
-    t.position = [x0](double t) { return Eigen::Vector3d(x0 + (t - kT0) * Eigen::Vector3d(0.0, -1e-3, -3e-4)); };
+    t.position = [x0](double t) {
+      return Eigen::Vector3d(x0 + (t - kT0) * Eigen::Vector3d(0.0, -1e-3, -3e-4));
+    };
     c.transmitters.push_back(t);
   }
   return c;
@@ -65,9 +67,11 @@ TEST(RadioSim, NoiseFreeDftPhaseIsTheModel) {
       EXPECT_EQ(blocks[j].receiver_id, sim.config().receivers[j].id);
       EXPECT_DOUBLE_EQ(blocks[j].stamp, kT0 + dt);
       for (int i = 0; i < 5; ++i) {  // bin-centred tones: exact up to float32 samples
-        const std::complex<double> x = Dft(blocks[j], sim.config().transmitters[i].frequency_offset);
-        const double model = 2.0 * M_PI / 0.125 * sim.Range(i, j, kT0 + dt) + sim.config().transmitters[i].psi +
-                             sim.config().receivers[j].xi + 2.0 * M_PI * sim.Ambiguity(i, j, kT0 + dt);
+        const std::complex<double> x =
+            Dft(blocks[j], sim.config().transmitters[i].frequency_offset);
+        const double model = 2.0 * M_PI / 0.125 * sim.Range(i, j, kT0 + dt) +
+                             sim.config().transmitters[i].psi + sim.config().receivers[j].xi +
+                             2.0 * M_PI * sim.Ambiguity(i, j, kT0 + dt);
         EXPECT_NEAR(radio::WrapPhase(std::arg(x) - model), 0.0, 1e-4) << "tx" << i << " rx" << j;
         EXPECT_NEAR(std::abs(x), sim.config().transmitters[i].amplitude, 1e-3);
         // wrapped model = sum with the truth ambiguity, exactly
@@ -77,8 +81,10 @@ TEST(RadioSim, NoiseFreeDftPhaseIsTheModel) {
       // With one tone off the bin grid a plain DFT leaks a little between
       // tones (rectangular window sidelobes): still within 5 mrad.
       for (int i = 0; i < 5; ++i) {
-        const std::complex<double> x = Dft(off_blocks[j], off_bin.config().transmitters[i].frequency_offset);
-        EXPECT_NEAR(radio::WrapPhase(std::arg(x) - off_bin.WrappedPhase(i, j, kT0 + dt)), 0.0, 5e-3);
+        const std::complex<double> x =
+            Dft(off_blocks[j], off_bin.config().transmitters[i].frequency_offset);
+        EXPECT_NEAR(radio::WrapPhase(std::arg(x) - off_bin.WrappedPhase(i, j, kT0 + dt)), 0.0,
+                    5e-3);
       }
     }
   }
@@ -86,7 +92,8 @@ TEST(RadioSim, NoiseFreeDftPhaseIsTheModel) {
   // 17.5 mm * (unit vector . motion) -> check the unwrapped model difference.
   const double dr = sim.Range(0, 0, kT0 + 17.5) - sim.Range(0, 0, kT0);
   EXPECT_GT(std::abs(dr), 1e-3);
-  EXPECT_NEAR(sim.UnwrappedPhase(0, 0, kT0 + 17.5) - sim.UnwrappedPhase(0, 0, kT0), 2.0 * M_PI / 0.125 * dr, 1e-9);
+  EXPECT_NEAR(sim.UnwrappedPhase(0, 0, kT0 + 17.5) - sim.UnwrappedPhase(0, 0, kT0),
+              2.0 * M_PI / 0.125 * dr, 1e-9);
 }
 
 TEST(RadioSim, NoisyPhaseScatterMatchesPhaseSigma) {
@@ -98,8 +105,9 @@ TEST(RadioSim, NoisyPhaseScatterMatchesPhaseSigma) {
   for (std::uint32_t k = 0; k < 200; ++k) {
     const auto b = sim.Synthesize(1, kT0 + k, k);
     ASSERT_TRUE(b.has_value());
-    const double e = radio::WrapPhase(std::arg(Dft(*b, sim.config().transmitters[0].frequency_offset)) -
-                                      sim.WrappedPhase(0, 1, kT0 + k));
+    const double e =
+        radio::WrapPhase(std::arg(Dft(*b, sim.config().transmitters[0].frequency_offset)) -
+                         sim.WrappedPhase(0, 1, kT0 + k));
     sum2 += e * e;
     ++n;
   }
@@ -137,8 +145,9 @@ TEST(RadioSim, FaultsBlockBiasAndDrop) {
   EXPECT_NEAR(amp(kT0 + 12, 1, 1), 160.0, 1e-3);  // other link untouched
   // Multipath: +1 rad from 20 s on.
   auto phase_err = [&](double t, int tx, int rx) {
-    return radio::WrapPhase(std::arg(Dft(*sim.Synthesize(rx, t, 0), sim.config().transmitters[tx].frequency_offset)) -
-                            sim.WrappedPhase(tx, rx, t));
+    return radio::WrapPhase(
+        std::arg(Dft(*sim.Synthesize(rx, t, 0), sim.config().transmitters[tx].frequency_offset)) -
+        sim.WrappedPhase(tx, rx, t));
   };
   EXPECT_NEAR(phase_err(kT0 + 19, 2, 1), 0.0, 1e-4);
   EXPECT_NEAR(phase_err(kT0 + 25, 2, 1), 1.0, 1e-4);

@@ -16,7 +16,8 @@ namespace {
 
 constexpr double kT0 = 1700000000.0;
 constexpr double kLambda = 0.125;
-const Eigen::Vector3d kVelocity(0.0, -1.0e-5, -0.4e-5);  // [m/s] 36 mm/h south and down: visible in 100 s
+const Eigen::Vector3d kVelocity(0.0, -1.0e-5,
+                                -0.4e-5);  // [m/s] 36 mm/h south and down: visible in 100 s
 
 struct Scenario {
   sim::RadioSimConfig sim;
@@ -43,8 +44,10 @@ Scenario MakeScenario(unsigned int seed, double prior_sigma) {
     s.sim.receivers.push_back({"rx" + std::to_string(j + 1), rx[j], uni(rng), ""});
     s.network.receivers.push_back({"rx" + std::to_string(j + 1), rx[j]});
   }
-  const std::vector<Eigen::Vector3d> tx = {{70, 60, 20}, {100, 55, 18}, {130, 62, 22}, {85, 90, 33}, {115, 95, 36}};
-  const std::vector<double> offsets = {-31001.3, -12507.9, 4003.7, 17498.2, 29013.5};  // off the bin grid
+  const std::vector<Eigen::Vector3d> tx = {
+      {70, 60, 20}, {100, 55, 18}, {130, 62, 22}, {85, 90, 33}, {115, 95, 36}};
+  const std::vector<double> offsets = {-31001.3, -12507.9, 4003.7, 17498.2,
+                                       29013.5};  // off the bin grid
   for (int i = 0; i < 5; ++i) {
     sim::RadioSimTransmitter t;
     t.id = "tx" + std::to_string(i + 1);
@@ -69,8 +72,8 @@ Scenario MakeScenario(unsigned int seed, double prior_sigma) {
 
 // Checks every double difference of the solver's link model constants
 // against the simulator's psi + xi + 2 pi N: true when all integers are right.
-bool AmbiguitiesCorrect(const radio::RadioPhaseSolver& solver, const sim::RadioSimulator& sim, double t_ref,
-                        double* worst_fraction) {
+bool AmbiguitiesCorrect(const radio::RadioPhaseSolver& solver, const sim::RadioSimulator& sim,
+                        double t_ref, double* worst_fraction) {
   const int nt = sim.NumTransmitters(), nr = sim.NumReceivers();
   const double k = 2.0 * M_PI / kLambda;
   std::vector<std::vector<double>> e(nt, std::vector<double>(nr));
@@ -82,7 +85,8 @@ bool AmbiguitiesCorrect(const radio::RadioPhaseSolver& solver, const sim::RadioS
       const double c_true = truth_phase - k * sim.Range(i, j, t_ref);  // psi + xi + 2 pi N_true
       // Bookkeeping of the wrap only: the measured mean phase may sit on the
       // other side of +-pi than the true phase.
-      const double wrap = std::round((solver.reference().mean_phase[i][j] - truth_phase) / (2.0 * M_PI));
+      const double wrap =
+          std::round((solver.reference().mean_phase[i][j] - truth_phase) / (2.0 * M_PI));
       e[i][j] = *b - c_true - 2.0 * M_PI * wrap;
     }
   bool ok = true;
@@ -114,8 +118,10 @@ TEST(RadioSolver, AmbiguitiesFixedOverManySeeds) {
     worst = std::max(worst, ok ? w : 0.0);
     EXPECT_TRUE(ok) << "seed " << 1000 + trial << " ratio " << solver.reference().ratio;
   }
-  std::printf("ambiguities: %d of %d trials fixed, %d fixed and correct (%.1f%%); worst |DD error| %.3f cycles\n",
-              fixed, trials, correct, 100.0 * correct / trials, worst);
+  std::printf(
+      "ambiguities: %d of %d trials fixed, %d fixed and correct (%.1f%%); worst |DD error| %.3f "
+      "cycles\n",
+      fixed, trials, correct, 100.0 * correct / trials, worst);
   EXPECT_GE(correct, static_cast<int>(std::ceil(0.99 * trials)));
 }
 
@@ -141,19 +147,21 @@ SolverRunResult RunScenario(const Scenario& s, int n_epochs, bool print) {
     for (int i = 0; i < sim.NumTransmitters(); ++i) {
       const auto& est = sum.transmitters[i];
       EXPECT_TRUE(est.initialized);
-      const Eigen::Vector3d truth =
-          s.sim.transmitters[i].position(t) - s.sim.transmitters[i].position(solver.reference().stamp);
+      const Eigen::Vector3d truth = s.sim.transmitters[i].position(t) -
+                                    s.sim.transmitters[i].position(solver.reference().stamp);
       const Eigen::Vector3d err = est.displacement - truth;
       for (int a = 0; a < 3; ++a) sum2[a] += err(a) * err(a);
       out.worst = std::max(out.worst, err.norm());
       ++n;
       if (print && e % 20 == 0 && i == 0)
-        std::printf("t=%3d tx1 d=(%.2f %.2f %.2f) mm truth=(%.2f %.2f %.2f) mm sigma=(%.2f %.2f %.2f) mm %s\n", e,
-                    1e3 * est.displacement.x(), 1e3 * est.displacement.y(), 1e3 * est.displacement.z(),
-                    1e3 * truth.x(), 1e3 * truth.y(), 1e3 * truth.z(),
-                    1e3 * std::sqrt(est.displacement_covariance(0, 0)),
-                    1e3 * std::sqrt(est.displacement_covariance(1, 1)),
-                    1e3 * std::sqrt(est.displacement_covariance(2, 2)), est.status.c_str());
+        std::printf(
+            "t=%3d tx1 d=(%.2f %.2f %.2f) mm truth=(%.2f %.2f %.2f) mm sigma=(%.2f %.2f %.2f) mm "
+            "%s\n",
+            e, 1e3 * est.displacement.x(), 1e3 * est.displacement.y(), 1e3 * est.displacement.z(),
+            1e3 * truth.x(), 1e3 * truth.y(), 1e3 * truth.z(),
+            1e3 * std::sqrt(est.displacement_covariance(0, 0)),
+            1e3 * std::sqrt(est.displacement_covariance(1, 1)),
+            1e3 * std::sqrt(est.displacement_covariance(2, 2)), est.status.c_str());
     }
   }
   for (int a = 0; a < 3; ++a) out.rms[a] = std::sqrt(sum2[a] / std::max(n, 1));
@@ -166,10 +174,12 @@ TEST(RadioSolver, DisplacementAccuracy) {
   const sim::RadioSimulator probe(s.sim);
   const double sigma_phi = probe.PhaseSigma(0);
   const SolverRunResult r = RunScenario(s, 105, true);
-  std::printf("phase noise %.4f rad; theoretical range limit lambda*sigma/2pi = %.3f mm per link and block\n",
-              sigma_phi, 1e3 * kLambda * sigma_phi / (2.0 * M_PI));
-  std::printf("displacement RMS x %.3f y %.3f z %.3f mm over %d estimates; worst %.3f mm\n", 1e3 * r.rms[0],
-              1e3 * r.rms[1], 1e3 * r.rms[2], r.epochs, 1e3 * r.worst);
+  std::printf(
+      "phase noise %.4f rad; theoretical range limit lambda*sigma/2pi = %.3f mm per link and "
+      "block\n",
+      sigma_phi, 1e3 * kLambda * sigma_phi / (2.0 * M_PI));
+  std::printf("displacement RMS x %.3f y %.3f z %.3f mm over %d estimates; worst %.3f mm\n",
+              1e3 * r.rms[0], 1e3 * r.rms[1], 1e3 * r.rms[2], r.epochs, 1e3 * r.worst);
   for (int a = 0; a < 3; ++a) EXPECT_LE(r.rms[a], 1e-3);
   EXPECT_LE(r.worst, 2e-3);
   EXPECT_TRUE(r.problems.empty()) << r.problems.front();
@@ -187,8 +197,8 @@ TEST(RadioSolver, FaultsHideOneMeasurement) {
   s.sim.faults.push_back(sim::RadioFault::MultipathJump("tx3", "rx2", kT0 + 40, 0.0, 1.5));
   s.sim.faults.push_back(sim::RadioFault::DroppedBlocks("rx3", kT0 + 60, 3));
   const SolverRunResult r = RunScenario(s, 105, false);
-  std::printf("with faults: displacement RMS x %.3f y %.3f z %.3f mm; worst %.3f mm\n", 1e3 * r.rms[0],
-              1e3 * r.rms[1], 1e3 * r.rms[2], 1e3 * r.worst);
+  std::printf("with faults: displacement RMS x %.3f y %.3f z %.3f mm; worst %.3f mm\n",
+              1e3 * r.rms[0], 1e3 * r.rms[1], 1e3 * r.rms[2], 1e3 * r.worst);
   for (const auto& e : r.events) std::printf("  event: %s\n", e.c_str());
   EXPECT_LE(r.worst, 2e-3);
   EXPECT_TRUE(Contains(r.events, "tx3->rx2", "rejected"));
@@ -223,12 +233,13 @@ TEST(RadioSolver, BadInputKeepsTheRestSolved) {
   std::vector<std::string> problems;
   for (int e = 0; e < 12; ++e) {
     std::vector<radio::SampleBlock> blocks = sim.SynthesizeAll(kT0 + e, e);
-    if (e == 6) blocks[0].i[100] = std::nanf("");            // NaN sample at rx1
-    if (e == 7) blocks[1].sample_rate = 50e3;                // wrong rate at rx2
-    if (e == 8) {                                            // saturated rx3
-      for (std::size_t k = 0; k < 200; ++k) blocks[2].i[k] = static_cast<float>(blocks[2].full_scale);
+    if (e == 6) blocks[0].i[100] = std::nanf("");  // NaN sample at rx1
+    if (e == 7) blocks[1].sample_rate = 50e3;      // wrong rate at rx2
+    if (e == 8) {                                  // saturated rx3
+      for (std::size_t k = 0; k < 200; ++k)
+        blocks[2].i[k] = static_cast<float>(blocks[2].full_scale);
     }
-    if (e == 9) {                                            // unknown receiver
+    if (e == 9) {  // unknown receiver
       radio::SampleBlock extra = blocks[0];
       extra.receiver_id = "rx9";
       blocks.push_back(extra);
@@ -239,9 +250,10 @@ TEST(RadioSolver, BadInputKeepsTheRestSolved) {
       EXPECT_TRUE(sum.IsSolutionUsable());
       for (int i = 0; i < 4; ++i) {
         EXPECT_TRUE(sum.transmitters[i].initialized);
-        const Eigen::Vector3d truth =
-            s.sim.transmitters[i].position(kT0 + e) - s.sim.transmitters[i].position(solver.reference().stamp);
-        EXPECT_LE((sum.transmitters[i].displacement - truth).norm(), 2e-3) << "epoch " << e << " tx" << i + 1;
+        const Eigen::Vector3d truth = s.sim.transmitters[i].position(kT0 + e) -
+                                      s.sim.transmitters[i].position(solver.reference().stamp);
+        EXPECT_LE((sum.transmitters[i].displacement - truth).norm(), 2e-3)
+            << "epoch " << e << " tx" << i + 1;
       }
       EXPECT_FALSE(sum.transmitters[4].initialized);
     }
@@ -267,8 +279,11 @@ TEST(RadioSolver, NetworkConfigRoundTripsAndNamesBadKeys) {
   const Scenario s = MakeScenario(1, 0.005);
   const radio::NetworkConfig back = radio::NetworkConfig::FromYaml(s.network.ToYaml(), "roundtrip");
   ASSERT_EQ(back.transmitters.size(), 5u);
-  EXPECT_NEAR((back.transmitters[2].initial_position - s.network.transmitters[2].initial_position).norm(), 0.0, 1e-9);
-  EXPECT_DOUBLE_EQ(back.transmitters[4].frequency_offset, s.network.transmitters[4].frequency_offset);
+  EXPECT_NEAR(
+      (back.transmitters[2].initial_position - s.network.transmitters[2].initial_position).norm(),
+      0.0, 1e-9);
+  EXPECT_DOUBLE_EQ(back.transmitters[4].frequency_offset,
+                   s.network.transmitters[4].frequency_offset);
   try {
     radio::NetworkConfig::FromYaml(s.network.ToYaml() + "wavelenght: 3\n", "net.yaml");
     FAIL();
@@ -323,8 +338,8 @@ TEST(RadioSolver, EpochAssemblerIsIndependentOfArrivalOrder) {
   radio::SampleBlock b;
   std::vector<radio::EpochAssembler::Epoch> all;
   const std::vector<std::pair<const char*, double>> order = {
-      {"rx1", 0.0},    {"rx2", 0.0},    {"rx1", 600.0},  {"rx2", 600.0},  {"rx1", 1200.0},
-      {"rx3", 0.0},    {"rx2", 1200.0}, {"rx3", 600.0},  {"rx3", 1200.0}};
+      {"rx1", 0.0}, {"rx2", 0.0},    {"rx1", 600.0}, {"rx2", 600.0}, {"rx1", 1200.0},
+      {"rx3", 0.0}, {"rx2", 1200.0}, {"rx3", 600.0}, {"rx3", 1200.0}};
   for (const auto& [rx, stamp] : order) {
     b.receiver_id = rx;
     b.stamp = 1700000000.0 + stamp;

@@ -21,7 +21,8 @@ SceneSpec SmallScene() {
   s.texture.rock_fraction = 0.0;
   testing::SetSouthwardBody(&s, Eigen::Vector2d(20, 15), 8.0, 6.0, 0.2, 1.0);  // 1 m per hour
   s.scarp.depth = 0.0;
-  const std::vector<Eigen::Vector2d> circles = {{20, 15}, {17, 12}, {23, 18}, {14, 20}, {26, 10}, {20, 21}};
+  const std::vector<Eigen::Vector2d> circles = {{20, 15}, {17, 12}, {23, 18},
+                                                {14, 20}, {26, 10}, {20, 21}};
   for (size_t k = 0; k < circles.size(); ++k) {
     TargetPlacement p;
     p.family = "circle";
@@ -46,11 +47,14 @@ camera::CameraModel SmallCamera(double c_mm = 8.0) {
 
 // Intensity centroid of a circle target: weights = radiance - ring radiance
 // inside a circular window of 1.5 disc radii around `guess`.
-Eigen::Vector2d Centroid(const cv::Mat& img, const Eigen::Vector2d& guess, double radius_px, double ring) {
+Eigen::Vector2d Centroid(const cv::Mat& img, const Eigen::Vector2d& guess, double radius_px,
+                         double ring) {
   double sw = 0, sx = 0, sy = 0;
   const double win = 1.5 * radius_px;
-  for (int r = static_cast<int>(std::floor(guess.y() - win)); r <= static_cast<int>(std::ceil(guess.y() + win)); ++r) {
-    for (int c = static_cast<int>(std::floor(guess.x() - win)); c <= static_cast<int>(std::ceil(guess.x() + win)); ++c) {
+  for (int r = static_cast<int>(std::floor(guess.y() - win));
+       r <= static_cast<int>(std::ceil(guess.y() + win)); ++r) {
+    for (int c = static_cast<int>(std::floor(guess.x() - win));
+         c <= static_cast<int>(std::ceil(guess.x() + win)); ++c) {
       if (std::hypot(c - guess.x(), r - guess.y()) > win) continue;
       const double w = std::max(0.0, img.at<float>(r, c) - ring);
       sw += w;
@@ -97,7 +101,8 @@ double RingRadiance(const Scene& scene, const Plate& p) {
   return 0.05 * (l.ambient + (1 - l.ambient) * std::max(0.0, p.normal.dot(l.sun.normalized())));
 }
 
-double ProjectedArea(const Plate& p, const camera::CameraModel& m, const camera::ExteriorOrientation& pose) {
+double ProjectedArea(const Plate& p, const camera::CameraModel& m,
+                     const camera::ExteriorOrientation& pose) {
   const std::vector<Eigen::Vector3d> outline = p.Outline(512);
   std::vector<Eigen::Vector2d> px(outline.size());
   for (size_t k = 0; k < outline.size(); ++k) m.Project(pose, outline[k], &px[k]);
@@ -133,18 +138,22 @@ TEST(RenderTest, CircleCentroidsAgreeWithProjectedCentres) {
       Eigen::Vector2d centre_px;
       ASSERT_TRUE(model.Project(pose, p.centre, &centre_px));
       const double depth = (p.centre - pose.position).norm();
-      const double r_px = model.principal_distance() / model.sensor().pixel_size * p.disc_radius / depth;
+      const double r_px =
+          model.principal_distance() / model.sensor().pixel_size * p.disc_radius / depth;
       const Eigen::Vector2d got = Centroid(rr.radiance, centre_px, r_px, RingRadiance(scene, p));
       const Eigen::Vector2d area_centroid = ProjectedDiscCentroid(p, model, pose);
       worst_centre = std::max(worst_centre, (got - centre_px).norm());
       worst_area = std::max(worst_area, (got - area_centroid).norm());
-      EXPECT_LT((got - centre_px).norm(), 0.02) << "target " << k << " at " << centre_px.transpose();
+      EXPECT_LT((got - centre_px).norm(), 0.02)
+          << "target " << k << " at " << centre_px.transpose();
       EXPECT_LT((got - area_centroid).norm(), 0.01) << "target " << k;
       ++checked;
     }
   }
-  std::printf("centroid vs projected centre: worst %.4f px; vs projected disc area centroid: worst %.4f px (%d)\n",
-              worst_centre, worst_area, checked);
+  std::printf(
+      "centroid vs projected centre: worst %.4f px; vs projected disc area centroid: worst %.4f px "
+      "(%d)\n",
+      worst_centre, worst_area, checked);
   EXPECT_GE(checked, 4);
 }
 
@@ -158,7 +167,8 @@ TEST(RenderTest, VisibleTargetsMatchTheGeometricCount) {
   RenderOptions ro;
   ro.target_supersampling = 6;
   const Scene::State state = scene.AtTime(0.0);
-  std::vector<camera::ExteriorOrientation> poses = {NadirOver(scene, 20, 15, 25.0), NadirOver(scene, 31.5, 14, 20.0)};
+  std::vector<camera::ExteriorOrientation> poses = {NadirOver(scene, 20, 15, 25.0),
+                                                    NadirOver(scene, 31.5, 14, 20.0)};
   {
     const Eigen::Vector3d look(18, 16, scene.AnalyticHeight(18, 16));
     poses.push_back(LookAt(look + Eigen::Vector3d(-3, -18, 5), look, Eigen::Vector3d::UnitZ()));
@@ -172,9 +182,10 @@ TEST(RenderTest, VisibleTargetsMatchTheGeometricCount) {
       const double area = ProjectedArea(state.plates[k], model, poses[i]);
       const bool seen_whole = rr.target_coverage[k] >= 0.99 * area;
       rendered += seen_whole ? 1 : 0;
-      const bool listed = std::find(geometric.begin(), geometric.end(), static_cast<int>(k)) != geometric.end();
-      EXPECT_EQ(seen_whole, listed) << "pose " << i << " plate " << k << " coverage " << rr.target_coverage[k]
-                                    << " of " << area << " px";
+      const bool listed =
+          std::find(geometric.begin(), geometric.end(), static_cast<int>(k)) != geometric.end();
+      EXPECT_EQ(seen_whole, listed) << "pose " << i << " plate " << k << " coverage "
+                                    << rr.target_coverage[k] << " of " << area << " px";
     }
     EXPECT_EQ(rendered, static_cast<int>(geometric.size())) << "pose " << i;
     total_visible += rendered;
@@ -227,13 +238,13 @@ TEST(RenderTest, TagPatternComesFromLibapriltag) {
   // tag36h11: 10 x 10 cells, white outer ring, black border ring (libapriltag 3.3 layout).
   ASSERT_EQ(tag.cells, 10);
   for (int i = 0; i < 10; ++i) {
-    EXPECT_GT(tag.pattern[i], 127);            // top row white
-    EXPECT_GT(tag.pattern[90 + i], 127);       // bottom row white
-    EXPECT_GT(tag.pattern[i * 10], 127);       // left column white
-    EXPECT_GT(tag.pattern[i * 10 + 9], 127);   // right column white
+    EXPECT_GT(tag.pattern[i], 127);           // top row white
+    EXPECT_GT(tag.pattern[90 + i], 127);      // bottom row white
+    EXPECT_GT(tag.pattern[i * 10], 127);      // left column white
+    EXPECT_GT(tag.pattern[i * 10 + 9], 127);  // right column white
   }
   for (int i = 1; i < 9; ++i) {
-    EXPECT_LT(tag.pattern[10 + i], 128);       // black border
+    EXPECT_LT(tag.pattern[10 + i], 128);  // black border
     EXPECT_LT(tag.pattern[80 + i], 128);
     EXPECT_LT(tag.pattern[i * 10 + 1], 128);
     EXPECT_LT(tag.pattern[i * 10 + 8], 128);

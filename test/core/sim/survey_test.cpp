@@ -54,7 +54,8 @@ TEST(SurveyTest, SameSeedGivesIdenticalImageBytes) {
   other.seed = config.seed + 1;
   other.scene.seed = other.seed;
   const Survey c = SurveyGenerator(other).Generate();
-  EXPECT_NE(0, std::memcmp(a.images[0].pixels.data, c.images[0].pixels.data, a.images[0].pixels.total()));
+  EXPECT_NE(
+      0, std::memcmp(a.images[0].pixels.data, c.images[0].pixels.data, a.images[0].pixels.total()));
 }
 
 TEST(SurveyTest, TruthIsConsistent) {
@@ -68,13 +69,15 @@ TEST(SurveyTest, TruthIsConsistent) {
   for (const SurveyImage& im : s.images) {
     EXPECT_EQ(im.pixels.channels(), t.cameras[im.camera].encoding == "bgr8" ? 3 : 1);
   }
-  // Targets: control points are surveyed with noise, don't move; monitoring points move with the field.
+  // Targets: control points are surveyed with noise, don't move; monitoring points move with the
+  // field.
   for (const TargetTruth& tt : t.targets) {
     ASSERT_EQ(tt.positions.size(), 3u);
     if (tt.role == io::TargetRole::kMonitoring) {
       EXPECT_FALSE(tt.surveyed.has_value());
       for (int k = 0; k < 3; ++k) {
-        const Eigen::Vector3d expect = tt.positions[0] + t.DisplacementAt(tt.positions[0], t.epochs[k].stamp);
+        const Eigen::Vector3d expect =
+            tt.positions[0] + t.DisplacementAt(tt.positions[0], t.epochs[k].stamp);
         EXPECT_LT((tt.positions[k] - expect).norm(), 1e-9) << tt.key;
       }
       EXPECT_GT((tt.positions[2] - tt.positions[0]).norm(), 0.3) << tt.key;
@@ -99,7 +102,8 @@ TEST(SurveyTest, TruthIsConsistent) {
   ASSERT_EQ(t.radio.ambiguities.size(), 5u);
   ASSERT_EQ(t.radio.ambiguities[0].size(), 3u);
   EXPECT_FALSE(t.radio.faults.empty());
-  EXPECT_GT((t.radio.transmitters[0].positions[2] - t.radio.transmitters[0].positions[0]).norm(), 0.3);
+  EXPECT_GT((t.radio.transmitters[0].positions[2] - t.radio.transmitters[0].positions[0]).norm(),
+            0.3);
   // Surfaces: the GeoTIFF grid holds the mesh heights.
   ASSERT_EQ(s.surfaces.size(), 3u);
   const Scene scene(config.scene);
@@ -132,7 +136,8 @@ TEST(SurveyTest, BadConfigurationsNameTheKey) {
   EXPECT_NE(e.find("no control point"), std::string::npos) << e;
   EXPECT_NE(e.find("cameras[0]"), std::string::npos) << e;
   // A control point on the moving body.
-  e = ErrorOf(Replace(good, "role: control, position: [30, 7]", "role: control, position: [30, 20]"));
+  e = ErrorOf(
+      Replace(good, "role: control, position: [30, 7]", "role: control, position: [30, 20]"));
   EXPECT_NE(e.find("targets: list[4]"), std::string::npos) << e;
   // A radio receiver on the body.
   e = ErrorOf(Replace(good, "position: [5, 42], xi", "position: [30, 21], xi"));
@@ -142,9 +147,9 @@ TEST(SurveyTest, BadConfigurationsNameTheKey) {
 TEST(SurveyTest, FacingPlatesStandOnPostsTurnedToThePoint) {
   const std::string good = ReadFile(kTiny);
   const Eigen::Vector3d face(30.0, -40.0, 40.0);
-  const SurveyConfig config =
-      SurveyConfig::Parse(Replace(good, "mount_height: 0.03", "mount_height: 0.8\n  face_toward: [30.0, -40.0, 40.0]"),
-                          "facing.yaml");
+  const SurveyConfig config = SurveyConfig::Parse(
+      Replace(good, "mount_height: 0.03", "mount_height: 0.8\n  face_toward: [30.0, -40.0, 40.0]"),
+      "facing.yaml");
   const Scene scene(config.scene);
   ASSERT_FALSE(scene.targets().empty());
   for (const TargetTruth& t : scene.targets()) {
@@ -156,10 +161,12 @@ TEST(SurveyTest, FacingPlatesStandOnPostsTurnedToThePoint) {
     EXPECT_GT(t.up_in_plate.z(), 0.0) << t.key;  // the tag's top row is up
   }
   // A plate whose lower edge would be in the ground is refused, naming the fix.
-  const std::string e = ErrorOf(Replace(good, "mount_height: 0.03", "mount_height: 0.05\n  face_toward: [30.0, -40.0, 40.0]"));
+  const std::string e = ErrorOf(Replace(good, "mount_height: 0.03",
+                                        "mount_height: 0.05\n  face_toward: [30.0, -40.0, 40.0]"));
   EXPECT_NE(e.find("mount_height"), std::string::npos) << e;
   // Facing below the horizon is refused too.
-  const std::string e2 = ErrorOf(Replace(good, "mount_height: 0.03", "mount_height: 1.0\n  face_toward: [30.0, -40.0, -400.0]"));
+  const std::string e2 = ErrorOf(Replace(
+      good, "mount_height: 0.03", "mount_height: 1.0\n  face_toward: [30.0, -40.0, -400.0]"));
   EXPECT_NE(e2.find("face_toward"), std::string::npos) << e2;
 }
 

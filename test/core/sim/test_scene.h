@@ -42,8 +42,8 @@ inline SceneSpec SmallSlope(unsigned int seed) {
 // A landslide body at `centre` [m], `length` x `width` [m], moving south
 // (azimuth -90 deg, down the slope) with `plunge` [rad] at `metres_per_hour`
 // from t = 0.
-inline void SetSouthwardBody(SceneSpec* s, const Eigen::Vector2d& centre, double length, double width,
-                             double plunge, double metres_per_hour) {
+inline void SetSouthwardBody(SceneSpec* s, const Eigen::Vector2d& centre, double length,
+                             double width, double plunge, double metres_per_hour) {
   s->landslide.centre = centre;
   s->landslide.length = length;
   s->landslide.width = width;
@@ -57,7 +57,8 @@ inline void SetSouthwardBody(SceneSpec* s, const Eigen::Vector2d& centre, double
 inline Obstacle Tree(double x, double y) {
   Obstacle tree;
   tree.kind = Obstacle::Kind::kTree;
-  tree.base = Eigen::Vector3d(x, y, std::numeric_limits<double>::quiet_NaN());  // NaN: on the ground
+  tree.base =
+      Eigen::Vector3d(x, y, std::numeric_limits<double>::quiet_NaN());  // NaN: on the ground
   tree.radius = 1.5;
   tree.height = 5.0;
   return tree;
@@ -76,8 +77,8 @@ inline Obstacle Boulder(double x, double y, double radius, double height) {
 // A Brown-affinity camera with 0.01 mm pixels: principal distance c, principal
 // point offset (x0, y0) [mm], radial k1, decentring p1 and affinity b1; the
 // other terms 0.
-inline camera::CameraModel SmallCamera(int width, int height, double c, double x0, double y0, double k1,
-                                       double p1 = 0.0, double b1 = 0.0) {
+inline camera::CameraModel SmallCamera(int width, int height, double c, double x0, double y0,
+                                       double k1, double p1 = 0.0, double b1 = 0.0) {
   camera::Sensor sensor{width, height, 0.01};
   std::array<double, camera::kNumInterior> in{};
   in[camera::kC] = c;
@@ -96,8 +97,9 @@ inline camera::ExteriorOrientation NadirFrom(const Eigen::Vector3d& position) {
 
 // An 8-bit photo of `state`: rendered with `options`, exposed with the
 // default exposure (read noise 1.5 DN + shot noise) from noise seed `seed`.
-inline cv::Mat Photo(const Renderer& renderer, const Scene::State& state, const camera::ExteriorOrientation& pose,
-                     const RenderOptions& options, unsigned seed) {
+inline cv::Mat Photo(const Renderer& renderer, const Scene::State& state,
+                     const camera::ExteriorOrientation& pose, const RenderOptions& options,
+                     unsigned seed) {
   const RenderResult rr = renderer.Render(state, pose, options);
   std::mt19937 rng(seed);
   return Expose(rr.radiance, ExposureOptions(), &rng);

@@ -61,7 +61,7 @@ TEST(LandslideModelTest, ReferencePositionInvertsTheMotion) {
   l.velocity0 = 1e-3;  // big motion: 3.6 m per hour
   const double t = 1000.0 + 3600.0;
   for (const Eigen::Vector3d& x : {Eigen::Vector3d(100, 75, 20), Eigen::Vector3d(118, 80, 21),
-                                  Eigen::Vector3d(100, 108, 25), Eigen::Vector3d(30, 30, 3)}) {
+                                   Eigen::Vector3d(100, 108, 25), Eigen::Vector3d(30, 30, 3)}) {
     const Eigen::Vector3d now = x + l.DisplacementAt(x, t);
     const Eigen::Vector3d back = l.ReferencePositionOf(now, t);
     EXPECT_NEAR((back - x).norm(), 0.0, 1e-8) << x.transpose();
@@ -79,7 +79,8 @@ SurveyTruth Example() {
   CameraTruth c;
   c.name = "fixed_cam_1";
   camera::Sensor s{1280, 960, 0.0048};
-  std::array<double, camera::kNumInterior> in{12.0, 0.01, -0.02, -1e-3, 2e-6, 0, 1e-5, -2e-5, 1e-4, 0};
+  std::array<double, camera::kNumInterior> in{12.0, 0.01, -0.02, -1e-3, 2e-6,
+                                              0,    1e-5, -2e-5, 1e-4,  0};
   c.model = camera::CameraModel(s, camera::DistortionModel::kBrownAffinity, in);
   c.nominal = c.model;
   c.nominal.mutable_interior()[camera::kC] = 12.1;

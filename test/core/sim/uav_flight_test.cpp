@@ -102,8 +102,11 @@ TEST(UavFlightTest, FlightLogAttitudeScattersBySigma) {
   // |w| of three N(0, sigma) components has mean sigma sqrt(8 / pi) = 1.596 sigma;
   // its standard deviation over 4000 draws is ~0.011 sigma.
   EXPECT_NEAR(sum / n / sigma, std::sqrt(8.0 / M_PI), 0.05);
-  EXPECT_EQ(FlightLogAttitude(pose, sigma, 7, 0, 5).coeffs(), FlightLogAttitude(pose, sigma, 7, 0, 5).coeffs());
-  EXPECT_GT(FlightLogAttitude(pose, sigma, 7, 0, 5).angularDistance(FlightLogAttitude(pose, sigma, 7, 0, 6)), 1e-6);
+  EXPECT_EQ(FlightLogAttitude(pose, sigma, 7, 0, 5).coeffs(),
+            FlightLogAttitude(pose, sigma, 7, 0, 5).coeffs());
+  EXPECT_GT(FlightLogAttitude(pose, sigma, 7, 0, 5)
+                .angularDistance(FlightLogAttitude(pose, sigma, 7, 0, 6)),
+            1e-6);
   EXPECT_LT(FlightLogAttitude(pose, 0.0, 7, 0, 5).angularDistance(truth), 1e-12);
 }
 

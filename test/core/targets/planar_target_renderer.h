@@ -41,8 +41,8 @@ struct Plate {
 
 // Plane (u, v) [m] -> pixel homography for a distortion-free camera model
 // with pixel size 1 (see camera_model.h: col = (W-1)/2 + x, row = (H-1)/2 - y).
-inline Eigen::Matrix3d PlaneToPixel(const camera::CameraModel& cam, const camera::ExteriorOrientation& pose,
-                                    const Plate& plate) {
+inline Eigen::Matrix3d PlaneToPixel(const camera::CameraModel& cam,
+                                    const camera::ExteriorOrientation& pose, const Plate& plate) {
   const Eigen::Matrix3d m = camera::RotationFromAngles(pose.angles);
   const double c = cam.principal_distance();
   const double cx = 0.5 * (cam.sensor().width - 1) + cam.interior()[camera::kX0];
@@ -65,7 +65,8 @@ inline Eigen::Vector2d Apply(const Eigen::Matrix3d& h, double u, double v) {
 using Pattern = std::function<double(double u, double v)>;
 
 // Circular target: bright disc of diameter d on a dark ring out to ring_factor * d / 2.
-inline Pattern CirclePattern(double diameter, double ring_factor = 2.0, double bright = 0.9, double dark = 0.08) {
+inline Pattern CirclePattern(double diameter, double ring_factor = 2.0, double bright = 0.9,
+                             double dark = 0.08) {
   return [=](double u, double v) {
     const double r2 = u * u + v * v, rd = 0.5 * diameter, rr = ring_factor * rd;
     if (r2 <= rd * rd) return bright;
@@ -78,7 +79,8 @@ inline Pattern CirclePattern(double diameter, double ring_factor = 2.0, double b
 // the tag's total width (white margin included).
 class TagPattern {
  public:
-  TagPattern(int id, double size, double bright = 0.9, double dark = 0.08) : bright_(bright), dark_(dark) {
+  TagPattern(int id, double size, double bright = 0.9, double dark = 0.08)
+      : bright_(bright), dark_(dark) {
     apriltag_family_t* fam = tag36h11_create();
     image_u8_t* im = apriltag_to_image(fam, id);
     total_ = fam->total_width;
@@ -121,12 +123,13 @@ struct RenderOptions {
 
 // Renders the plate into `image` (CV_32F, values in DN before noise); only
 // pixels within the projected plate's bounding box are touched.
-inline void RenderPlate(cv::Mat* image, const Eigen::Matrix3d& plane_to_pixel, const Pattern& pattern,
-                        double plate_half_extent, const RenderOptions& o) {
+inline void RenderPlate(cv::Mat* image, const Eigen::Matrix3d& plane_to_pixel,
+                        const Pattern& pattern, double plate_half_extent, const RenderOptions& o) {
   const Eigen::Matrix3d inv = plane_to_pixel.inverse();
   double xmin = 1e9, xmax = -1e9, ymin = 1e9, ymax = -1e9;
   for (int k = 0; k < 4; ++k) {
-    const Eigen::Vector2d p = Apply(plane_to_pixel, (k & 1 ? 1 : -1) * plate_half_extent, (k & 2 ? 1 : -1) * plate_half_extent);
+    const Eigen::Vector2d p = Apply(plane_to_pixel, (k & 1 ? 1 : -1) * plate_half_extent,
+                                    (k & 2 ? 1 : -1) * plate_half_extent);
     xmin = std::min(xmin, p.x());
     xmax = std::max(xmax, p.x());
     ymin = std::min(ymin, p.y());
@@ -138,13 +141,16 @@ inline void RenderPlate(cv::Mat* image, const Eigen::Matrix3d& plane_to_pixel, c
     return r < 0 ? o.background : r;
   };
   const int n = o.supersampling;
-  for (int r = std::max(0, int(std::floor(ymin)) - 1); r <= std::min(image->rows - 1, int(std::ceil(ymax)) + 1); ++r) {
+  for (int r = std::max(0, int(std::floor(ymin)) - 1);
+       r <= std::min(image->rows - 1, int(std::ceil(ymax)) + 1); ++r) {
     float* row = image->ptr<float>(r);
-    for (int c = std::max(0, int(std::floor(xmin)) - 1); c <= std::min(image->cols - 1, int(std::ceil(xmax)) + 1); ++c) {
+    for (int c = std::max(0, int(std::floor(xmin)) - 1);
+         c <= std::min(image->cols - 1, int(std::ceil(xmax)) + 1); ++c) {
       const double first = refl(c - 0.5, r - 0.5);
       bool uniform = true;
       for (int j = 0; j < 5 && uniform; ++j)
-        for (int i = 0; i < 5 && uniform; ++i) uniform = refl(c - 0.5 + 0.25 * i, r - 0.5 + 0.25 * j) == first;
+        for (int i = 0; i < 5 && uniform; ++i)
+          uniform = refl(c - 0.5 + 0.25 * i, r - 0.5 + 0.25 * j) == first;
       double value = first;
       if (!uniform) {
         double sum = 0;
@@ -172,7 +178,8 @@ inline cv::Mat ToMono8(const cv::Mat& f, const RenderOptions& o) {
     uint8_t* dst = out.ptr<uint8_t>(r);
     for (int c = 0; c < f.cols; ++c) {
       double v = in[c];
-      const double var = o.read_noise * o.read_noise + (o.photons_per_dn > 0 ? v / o.photons_per_dn : 0.0);
+      const double var =
+          o.read_noise * o.read_noise + (o.photons_per_dn > 0 ? v / o.photons_per_dn : 0.0);
       if (var > 0) v += std::sqrt(var) * g(rng);
       dst[c] = static_cast<uint8_t>(std::clamp(std::lround(v), 0L, 255L));
     }

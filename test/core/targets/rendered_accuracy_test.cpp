@@ -34,7 +34,7 @@ using testing::Plate;
 
 constexpr double kAccuracyFocal = 500.0;  // [px] short focal length: strong perspective
 constexpr double kAccuracyHeight = 10.0;  // [m] camera above the plate
-constexpr int kTrials = 5;        // random sub-pixel positions / azimuths per cell
+constexpr int kTrials = 5;                // random sub-pixel positions / azimuths per cell
 const std::vector<double> kSizes = {
     15.0, 20.0, 30.0, 45.0, 60.0};  // [px] tag border edge / disc diameter, facing the camera
 const std::vector<double> kTiltsDeg = {0.0, 20.0, 40.0, 60.0};

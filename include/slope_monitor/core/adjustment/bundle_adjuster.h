@@ -5,8 +5,8 @@
 //   adjustment::Config config;                // what is free / fixed
 //   adjustment::BundleAdjuster adjuster(options, config);
 //   adjustment::Summary summary = adjuster.Solve(&scene);
-//   if (summary.IsSolutionUsable()) { ... scene holds the solution, summary.precision the covariances }
-//   else { ... summary.reason says why; scene is left exactly as it was }
+//   if (summary.IsSolutionUsable()) { ... scene holds the solution, summary.precision the
+//   covariances } else { ... summary.reason says why; scene is left exactly as it was }
 //
 // Unknowns: per image the exterior orientation (X0 Y0 Z0 [m], theta phi kappa
 // [rad], camera_model.h), per camera (a group of images sharing a lens and
@@ -48,13 +48,14 @@ struct Camera {
 
 // One image (exposure): its exterior orientation.
 struct Image {
-  std::string name;     // e.g. camera name + stamp
-  int camera = 0;       // index into Scene::cameras
-  double stamp = 0.0;   // [s]
+  std::string name;                      // e.g. camera name + stamp
+  int camera = 0;                        // index into Scene::cameras
+  double stamp = 0.0;                    // [s]
   camera::ExteriorOrientation exterior;  // initial value / solution
   bool exterior_known = true;            // false: InitializeScene() resects it first
-  bool attitude_from_prior = false;     // exterior is the flight log's attitude at the GNSS centre (coarse)
-  std::optional<Eigen::Vector3d> position_prior;                 // [m] GNSS projection centre in site
+  bool attitude_from_prior =
+      false;  // exterior is the flight log's attitude at the GNSS centre (coarse)
+  std::optional<Eigen::Vector3d> position_prior;  // [m] GNSS projection centre in site
   Eigen::Matrix3d position_prior_covariance = Eigen::Matrix3d::Identity();  // [m^2]
 };
 
@@ -62,10 +63,10 @@ struct ObjectPoint {
   std::string id;  // "tag36h11/3", "tie/17"
   PointRole role = PointRole::kTie;
   Eigen::Vector3d position = Eigen::Vector3d::Zero();  // [m] initial value / solution, site
-  bool position_known = true;                          // false: InitializeScene() intersects it first
+  bool position_known = true;  // false: InitializeScene() intersects it first
   // Survey of a control (or check) point; used as a prior for control points
   // only (check points stay unconstrained so they can check the result).
-  std::optional<Eigen::Vector3d> surveyed;                          // [m] site
+  std::optional<Eigen::Vector3d> surveyed;                                   // [m] site
   Eigen::Matrix3d surveyed_covariance = Eigen::Matrix3d::Identity() * 1e-4;  // [m^2]
   // Approximate coordinates (a monitoring target's hand-held GNSS position in
   // the target list): only for orienting GNSS-prior images that see no known
@@ -74,10 +75,10 @@ struct ObjectPoint {
 };
 
 struct Observation {
-  int image = 0;  // index into Scene::images
-  int point = 0;  // index into Scene::points
-  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();                    // [px] OpenCV convention
-  Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity() * 0.01;    // [px^2]
+  int image = 0;                                                    // index into Scene::images
+  int point = 0;                                                    // index into Scene::points
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();                  // [px] OpenCV convention
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity() * 0.01;  // [px^2]
 };
 
 struct Scene {
@@ -86,8 +87,8 @@ struct Scene {
   std::vector<ObjectPoint> points;
   std::vector<Observation> observations;
 
-  int FindPoint(const std::string& id) const;   // -1 when absent
-  int FindImage(const std::string& name) const; // -1 when absent
+  int FindPoint(const std::string& id) const;    // -1 when absent
+  int FindImage(const std::string& name) const;  // -1 when absent
   // Throws InvalidArgument naming the first index that points nowhere.
   void CheckIndices() const;
 };
@@ -96,22 +97,26 @@ struct Scene {
 struct Options {
   // Robust loss on the whitened image residuals: "none" | "huber" | "cauchy".
   std::string loss = "huber";
-  double loss_scale = 3.0;            // [sigma] where the loss turns robust, > 0
-  double outlier_threshold = 5.0;     // [sigma] whitened residual norm above which an observation is reported as outlier
+  double loss_scale = 3.0;  // [sigma] where the loss turns robust, > 0
+  double outlier_threshold =
+      5.0;  // [sigma] whitened residual norm above which an observation is reported as outlier
   // "auto" (dense_schur for <= dense_schur_max_images images, else sparse_schur:
   // measured on UAV blocks of 150 / 300 photos, doc/uav_block_scaling.md)
   // | "dense_schur" | "sparse_schur" | "iterative_schur" | "dense_qr" | "sparse_normal_cholesky".
   std::string linear_solver = "auto";
   int dense_schur_max_images = 200;
-  int max_iterations = 100;           // [-] > 0
-  double function_tolerance = 1e-8;   // [-] relative cost change (1e-10 never ended a UAV block with 10^4 tie-point residuals: it crept on by 2e-9 a step)
+  int max_iterations = 100;          // [-] > 0
+  double function_tolerance = 1e-8;  // [-] relative cost change (1e-10 never ended a UAV block with
+                                     // 10^4 tie-point residuals: it crept on by 2e-9 a step)
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-10;
   // Ceres threads (solve, Jacobians, covariance). 1 keeps every run's numbers
   // bit-identical (with more, Ceres sums per-thread partial costs and
   // gradients in scheduling order); HardwareThreads() for big blocks.
   int num_threads = 1;
-  static int HardwareThreads() { return static_cast<int>(std::max(1u, std::thread::hardware_concurrency())); }
+  static int HardwareThreads() {
+    return static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  }
   bool compute_covariance = true;
   // Covariances are scaled by sigma0^2 (a posteriori) when true, else a priori.
   bool scale_covariance_by_sigma0 = true;
@@ -119,15 +124,15 @@ struct Options {
   // weights pessimistic) from shrinking the part of the covariance that comes
   // from the survey and GNSS priors, which are not better than stated. The
   // datum-free covariance below is always scaled by sigma0^2 alone.
-  double min_variance_factor = 0.0;   // [-] >= 0
+  double min_variance_factor = 0.0;  // [-] >= 0
   // Also the point covariance with the surveyed control points held at their
   // adjusted values (Precision::point_covariance_datum_free): the precision
   // of the points relative to the control, without the survey's own error,
   // which is the same in every epoch and cancels in displacements.
   bool compute_datum_free_covariance = false;
   // Datum and sanity limits for IsSolutionUsable().
-  int min_control_points = 3;         // control points observed in >= 2 images (or GNSS images, see below)
-  int min_position_priors = 3;        // images with GNSS priors that can replace control points
+  int min_control_points = 3;  // control points observed in >= 2 images (or GNSS images, see below)
+  int min_position_priors = 3;  // images with GNSS priors that can replace control points
   int min_observations_per_image = 4;
   // Images with a GNSS position prior (used): the prior fixes the centre, two
   // points the attitude; this many observations are enough (>= 2).
@@ -153,8 +158,8 @@ struct Config {
   // Interior parameters (InteriorIndex) left free per camera index; a camera
   // absent from the map has its whole interior fixed.
   std::map<int, std::vector<int>> free_interior;
-  std::set<int> fixed_images;   // exterior orientation held at its initial value
-  std::set<int> fixed_points;   // point coordinates held
+  std::set<int> fixed_images;       // exterior orientation held at its initial value
+  std::set<int> fixed_points;       // point coordinates held
   bool use_control_priors = true;   // false: control points are held at their survey
   bool use_position_priors = true;  // GNSS priors of images (when present)
 
@@ -166,10 +171,11 @@ struct Config {
 struct Precision {
   bool valid = false;
   std::string message;
-  double sigma0 = 0.0;                                   // [-] a posteriori
-  std::vector<Eigen::Matrix3d> point_covariance;         // [m^2] per point (zero when fixed)
-  std::vector<Eigen::Matrix3d> point_covariance_datum_free;  // [m^2] control held (Options); empty when not computed
-  std::vector<Eigen::Matrix<double, 6, 6>> exterior_covariance;  // [m^2, rad^2] per image
+  double sigma0 = 0.0;                            // [-] a posteriori
+  std::vector<Eigen::Matrix3d> point_covariance;  // [m^2] per point (zero when fixed)
+  std::vector<Eigen::Matrix3d>
+      point_covariance_datum_free;  // [m^2] control held (Options); empty when not computed
+  std::vector<Eigen::Matrix<double, 6, 6>> exterior_covariance;          // [m^2, rad^2] per image
   std::vector<std::array<double, camera::kNumInterior>> interior_sigma;  // per camera (0 = fixed)
 };
 
@@ -184,21 +190,21 @@ ErrorEllipsoid ErrorEllipsoidOf(const Eigen::Matrix3d& covariance, double k = 1.
 // What happened.
 struct Summary {
   bool usable = false;
-  std::string reason;             // why (not) usable, in words
-  std::string termination;        // Ceres' termination type and message
-  double initial_cost = 0.0;      // 0.5 sum r^2 (whitened, robustified)
+  std::string reason;         // why (not) usable, in words
+  std::string termination;    // Ceres' termination type and message
+  double initial_cost = 0.0;  // 0.5 sum r^2 (whitened, robustified)
   double final_cost = 0.0;
   int iterations = 0;
-  double solve_time = 0.0;        // [s] wall clock of the Ceres solve
-  double covariance_time = 0.0;   // [s] wall clock of the covariance (schur_covariance.h)
-  int num_observations = 0;       // image observations
+  double solve_time = 0.0;       // [s] wall clock of the Ceres solve
+  double covariance_time = 0.0;  // [s] wall clock of the covariance (schur_covariance.h)
+  int num_observations = 0;      // image observations
   int num_residuals = 0;
-  int num_parameters = 0;         // free (tangent) parameters
+  int num_parameters = 0;  // free (tangent) parameters
   int redundancy = 0;
   int num_outliers = 0;
-  std::vector<int> outliers;      // observation indices (whitened residual > outlier_threshold)
-  double rms_residual_px = 0.0;   // [px] of the inlier image observations
-  double sigma0 = 0.0;            // [-] sqrt(2 final_cost_unrobustified / redundancy)
+  std::vector<int> outliers;         // observation indices (whitened residual > outlier_threshold)
+  double rms_residual_px = 0.0;      // [px] of the inlier image observations
+  double sigma0 = 0.0;               // [-] sqrt(2 final_cost_unrobustified / redundancy)
   std::vector<double> image_rms_px;  // [px] per image
   // Ids of the points the solution leaves undetermined (the 3x3 normal block
   // of the point singular at the solution: rays parallel, or all but one

@@ -42,19 +42,20 @@ namespace adjustment {
 
 // A target seen in an image but not identified (id -1 from the centroider).
 struct UnidentifiedObservation {
-  int image = 0;                    // index into Scene::images
-  std::string family = "circle";    // only listed targets of this family can name it
+  int image = 0;                  // index into Scene::images
+  std::string family = "circle";  // only listed targets of this family can name it
   Eigen::Vector2d pixel = Eigen::Vector2d::Zero();                  // [px]
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity() * 0.01;  // [px^2]
 };
 
 // A target of the site's list that may name unidentified observations.
 struct ListedTarget {
-  std::string id;                   // "circle/12" (the point id in the scene)
+  std::string id;  // "circle/12" (the point id in the scene)
   std::string family = "circle";
   PointRole role = PointRole::kMonitoring;
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // [m] site: survey (control, check) or approximate (monitoring)
-  double position_sigma = 0.3;      // [m] 1-sigma of `position`, > 0
+  Eigen::Vector3d position =
+      Eigen::Vector3d::Zero();  // [m] site: survey (control, check) or approximate (monitoring)
+  double position_sigma = 0.3;  // [m] 1-sigma of `position`, > 0
   // Control / check: the survey used as the prior of a new point (as in the
   // scene's ObjectPoint).
   std::optional<Eigen::Vector3d> surveyed;
@@ -65,9 +66,9 @@ struct NamingOptions {
   // Gate around a listed target's projection: gate_sigma times its position
   // sigma projected into the image plus gate_extra_px for the orientation
   // error of the image; at least min_gate_px.
-  double gate_sigma = 3.0;       // [-] > 0
-  double gate_extra_px = 10.0;   // [px] >= 0
-  double min_gate_px = 8.0;      // [px] > 0
+  double gate_sigma = 3.0;      // [-] > 0
+  double gate_extra_px = 10.0;  // [px] >= 0
+  double min_gate_px = 8.0;     // [px] > 0
   // Another unidentified observation within ambiguity_factor x gate of the
   // projection, or another listed target projected within ambiguity_factor x
   // gate of the observation: ambiguous, not named.
@@ -76,19 +77,19 @@ struct NamingOptions {
   // this instead of gate_extra_px. Circles are >= 10 m apart on a site; the
   // ambiguity test and the residual test after the adjustment guard the rest.
   double coarse_extra_px = 100.0;  // [px] >= 0
-  void Check() const;             // throws ConfigError naming the field
+  void Check() const;              // throws ConfigError naming the field
 };
 
 struct NamingReport {
-  int considered = 0;    // unidentified observations in oriented images
+  int considered = 0;  // unidentified observations in oriented images
   int named = 0;
-  int ambiguous = 0;     // more than one candidate (target or observation) near
-  int unmatched = 0;     // no listed target projects within the gate
-  int not_oriented = 0;  // in images without an orientation: not tried
+  int ambiguous = 0;                    // more than one candidate (target or observation) near
+  int unmatched = 0;                    // no listed target projects within the gate
+  int not_oriented = 0;                 // in images without an orientation: not tried
   std::vector<int> named_observations;  // indices into Scene::observations of the named ones
   std::vector<int> named_inputs;        // indices into `unidentified` of the named ones
   std::vector<std::string> notes;       // one line per ambiguous observation
-  std::string Brief() const;            // "named 5 of 7 (1 ambiguous, 1 unmatched, 0 in unoriented images)"
+  std::string Brief() const;  // "named 5 of 7 (1 ambiguous, 1 unmatched, 0 in unoriented images)"
 };
 
 // Names unidentified observations in the oriented images of *scene (step 3
@@ -97,8 +98,10 @@ struct NamingReport {
 // Candidate positions: the scene's point when it has a position, else the
 // listed one. Images flagged in `coarse` (may be null) get the coarse gate.
 // Throws ConfigError from options.Check().
-NamingReport NameUnidentified(Scene* scene, const std::vector<UnidentifiedObservation>& unidentified,
-                              const std::vector<ListedTarget>& targets, const NamingOptions& options = {},
+NamingReport NameUnidentified(Scene* scene,
+                              const std::vector<UnidentifiedObservation>& unidentified,
+                              const std::vector<ListedTarget>& targets,
+                              const NamingOptions& options = {},
                               const std::vector<bool>* coarse = nullptr);
 
 // Orients the images with a GNSS prior that InitializeScene() left without
@@ -116,7 +119,7 @@ struct EpochAdjustmentOptions {
   Options adjustment;
   InitializationOptions initialization;
   NamingOptions naming;
-  std::vector<int> free_interior;     // self-calibrated interior parameters of every camera
+  std::vector<int> free_interior;  // self-calibrated interior parameters of every camera
   // Per camera (Camera::name): these instead of free_interior (an empty list
   // fixes that camera's interior), e.g. a UAV camera self-calibrated in
   // every flight while the fixed cameras keep their calibration.
@@ -126,7 +129,7 @@ struct EpochAdjustmentOptions {
   // The screening adjustment of the tie points removes what it flags (residual
   // above adjustment.outlier_threshold) only when that is at most this share
   // of the tie observations: more means the fit failed, not the points.
-  double max_tie_outlier_share = 0.3;   // (0, 1]
+  double max_tie_outlier_share = 0.3;  // (0, 1]
   // Images with a GNSS position prior need adjustment.min_observations_with_prior
   // observations of initialised points to stay (the others
   // adjustment.min_observations_per_image).
@@ -137,15 +140,17 @@ struct EpochAdjustmentOptions {
 struct PhotoStats {
   int total = 0;
   int kept = 0;
-  int not_oriented = 0;   // no resection, no attitude from the prior and the known / approximate points
+  int not_oriented =
+      0;  // no resection, no attitude from the prior and the known / approximate points
   int too_few_observations = 0;
   std::string Brief() const;  // "UAV photos: 7 of 9 kept (1 not oriented, 1 too few observations)"
 };
 
 struct EpochAdjustmentResult {
-  Scene scene;               // the adjusted scene (pruned and re-indexed); valid when summary is usable
+  Scene scene;  // the adjusted scene (pruned and re-indexed); valid when summary is usable
   Summary summary;
-  std::string initialization;  // InitializeScene's message of the last pass ("" = everything initialised)
+  std::string
+      initialization;  // InitializeScene's message of the last pass ("" = everything initialised)
   PruneReport pruned;
   NamingReport naming;
   PhotoStats photos;
@@ -157,14 +162,17 @@ struct EpochAdjustmentResult {
   // mismatch; tie points are plentiful, and a few gross ones in the robust
   // loss's linear range keep the solver creeping for hundreds of steps).
   int tie_outliers_removed = 0;
-  std::string tie_screening_refused;  // why the screening removed nothing although it flagged (empty: applied)
+  std::string tie_screening_refused;  // why the screening removed nothing although it flagged
+                                      // (empty: applied)
 };
 
 // Steps 1-5 on a copy of `scene`. Does not throw for bad observations (the
 // Summary says why); throws ConfigError for bad options and InvalidArgument
 // for indices that point nowhere.
-EpochAdjustmentResult AdjustEpoch(const Scene& scene, const std::vector<UnidentifiedObservation>& unidentified,
-                                  const std::vector<ListedTarget>& targets, const EpochAdjustmentOptions& options);
+EpochAdjustmentResult AdjustEpoch(const Scene& scene,
+                                  const std::vector<UnidentifiedObservation>& unidentified,
+                                  const std::vector<ListedTarget>& targets,
+                                  const EpochAdjustmentOptions& options);
 
 }  // namespace adjustment
 }  // namespace slope_monitor

@@ -103,7 +103,8 @@ struct PositionPrior {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();        // [m] site
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  // [m^2]
   Eigen::Quaterniond site_from_optical = Eigen::Quaterniond::Identity();
-  Eigen::Vector3d attitude_variance = Eigen::Vector3d::Constant(1e6);  // [rad^2]; >= 1e6: no attitude
+  Eigen::Vector3d attitude_variance =
+      Eigen::Vector3d::Constant(1e6);  // [rad^2]; >= 1e6: no attitude
 };
 
 // An epoch end marker (EpochMarker with end = true).
@@ -147,11 +148,11 @@ struct EpochCollectorOptions {
   std::vector<std::string> cameras;            // cameras that must end an epoch; empty: any source
   std::vector<std::string> tie_point_cameras;  // cameras whose images wait for their tie points
   std::vector<std::string> uav_cameras = DefaultUavCameras();  // kind uav (site file)
-  double pixel_sigma = 0.3;                    // [px] observations without a covariance, > 0
-  double pixel_sigma_floor = 0.05;             // [px] added in quadrature, fixed cameras, >= 0
-  double uav_pixel_sigma_floor = 1.0;          // [px] added in quadrature, UAV cameras, >= 0
-  double tie_pixel_sigma_floor = 0.2;          // [px] added in quadrature to tie points, >= 0
-  double min_tie_quality = 0.25;               // [0..1] tie points at or below are skipped
+  double pixel_sigma = 0.3;            // [px] observations without a covariance, > 0
+  double pixel_sigma_floor = 0.05;     // [px] added in quadrature, fixed cameras, >= 0
+  double uav_pixel_sigma_floor = 1.0;  // [px] added in quadrature, UAV cameras, >= 0
+  double tie_pixel_sigma_floor = 0.2;  // [px] added in quadrature to tie points, >= 0
+  double min_tie_quality = 0.25;       // [0..1] tie points at or below are skipped
   double max_pixel_sigma =
       100.0;                      // [px] an observation with a larger sigma is absurd: dropped, > 0
   double epoch_gap = 600.0;       // [s] message gap ending an epoch without markers; 0: off
@@ -254,9 +255,9 @@ struct BuildSceneOptions {
   // starts from it (GNSS centre + flight-log attitude) instead of being
   // resected or oriented incrementally; 0 ignores the priors' attitudes.
   double attitude_prior_max_sigma = 5.0 * 3.14159265358979323846 / 180.0;  // [rad], >= 0
-  int min_images = 2;                      // images with a camera model, >= 1
+  int min_images = 2;                                          // images with a camera model, >= 1
   std::vector<std::string> uav_cameras = DefaultUavCameras();  // kind uav (site file)
-  void Check() const;                      // throws ConfigError naming the field
+  void Check() const;  // throws ConfigError naming the field
 };
 
 // Accepted epochs: the poses and calibration the next epoch starts from, the

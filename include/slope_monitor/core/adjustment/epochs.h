@@ -18,8 +18,8 @@ namespace adjustment {
 
 struct PointState {
   PointRole role = PointRole::kTie;
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();      // [m] site
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();    // [m^2]
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();    // [m] site
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // [m^2]
 };
 
 struct EpochPoints {
@@ -33,14 +33,15 @@ struct EpochPoints {
 // With `datum_free` and Precision::point_covariance_datum_free computed, the
 // points carry that covariance (control survey error left out: it is the same
 // in every epoch and the co-registration removes it).
-EpochPoints EpochPointsFromSolution(const Scene& scene, const Summary& summary, int epoch, double stamp,
-                                   bool datum_free = false);
+EpochPoints EpochPointsFromSolution(const Scene& scene, const Summary& summary, int epoch,
+                                    double stamp, bool datum_free = false);
 
 struct DisplacementOptions {
-  bool estimate_scale = false;         // co-registration: rigid (false) or similarity
-  double stable_threshold = 0.02;      // [m] residual above which a "stable" point is rejected as moved, > 0
-  int min_stable_points = 3;           // >= 3
-  double significance_threshold = 3.0; // [-] |d| / sigma above which a displacement is significant
+  bool estimate_scale = false;  // co-registration: rigid (false) or similarity
+  double stable_threshold =
+      0.02;                   // [m] residual above which a "stable" point is rejected as moved, > 0
+  int min_stable_points = 3;  // >= 3
+  double significance_threshold = 3.0;  // [-] |d| / sigma above which a displacement is significant
   void Check() const;
 };
 
@@ -57,11 +58,11 @@ struct Displacement {
 struct EpochComparison {
   bool success = false;
   std::string message;
-  geometry::Similarity3 reference_from_current;   // co-registration
+  geometry::Similarity3 reference_from_current;  // co-registration
   std::vector<std::string> stable_points_used;
   std::vector<std::string> stable_points_rejected;  // moved "stable" points
-  double coregistration_rms = 0.0;                // [m]
-  std::vector<Displacement> displacements;        // monitoring points in both epochs
+  double coregistration_rms = 0.0;                  // [m]
+  std::vector<Displacement> displacements;          // monitoring points in both epochs
 };
 
 EpochComparison CompareEpochs(const EpochPoints& reference, const EpochPoints& current,

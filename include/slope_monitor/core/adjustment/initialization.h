@@ -17,7 +17,8 @@ namespace adjustment {
 struct InitializationOptions {
   geometry::ResectionOptions resection;
   geometry::IntersectionOptions intersection;
-  int max_passes = 20;  // resection / intersection rounds (a strip of photos tied by tie points orients one more photo a round)
+  int max_passes = 20;  // resection / intersection rounds (a strip of photos tied by tie points
+                        // orients one more photo a round)
   // Images with a GNSS position prior that cannot be resected (fewer than four
   // known points, as a UAV photo seeing two or three targets): the attitude is
   // fitted to the known points seen (>= 2) with the prior as projection centre,
@@ -36,7 +37,9 @@ struct PruneReport {
   std::vector<std::string> dropped_images;
   std::vector<std::string> dropped_points;
   std::vector<std::string> dropped_cameras;
-  bool Empty() const { return dropped_images.empty() && dropped_points.empty() && dropped_cameras.empty(); }
+  bool Empty() const {
+    return dropped_images.empty() && dropped_points.empty() && dropped_cameras.empty();
+  }
   std::string Summary() const;  // one line: counts and the first few reasons
 };
 

@@ -1,7 +1,8 @@
 // The collinearity camera model (doc/design.md):
 //
-//   x = x0 + dx - c * (m11 (X-X0) + m12 (Y-Y0) + m13 (Z-Z0)) / (m31 (X-X0) + m32 (Y-Y0) + m33 (Z-Z0))
-//   y = y0 + dy - c * (m21 (X-X0) + m22 (Y-Y0) + m23 (Z-Z0)) / (m31 (X-X0) + m32 (Y-Y0) + m33 (Z-Z0))
+//   x = x0 + dx - c * (m11 (X-X0) + m12 (Y-Y0) + m13 (Z-Z0)) / (m31 (X-X0) + m32 (Y-Y0) + m33
+//   (Z-Z0)) y = y0 + dy - c * (m21 (X-X0) + m22 (Y-Y0) + m23 (Z-Z0)) / (m31 (X-X0) + m32 (Y-Y0) +
+//   m33 (Z-Z0))
 //
 // Image coordinates (x, y) are millimetres in the photogrammetric image frame:
 // origin at the image centre, x right, y up. The distortion (dx, dy) is a
@@ -46,7 +47,16 @@ constexpr int kNumInterior = 10;
 
 // Indices into the interior block.
 enum InteriorIndex : int {
-  kC = 0, kX0 = 1, kY0 = 2, kK1 = 3, kK2 = 4, kK3 = 5, kP1 = 6, kP2 = 7, kB1 = 8, kB2 = 9
+  kC = 0,
+  kX0 = 1,
+  kY0 = 2,
+  kK1 = 3,
+  kK2 = 4,
+  kK3 = 5,
+  kP1 = 6,
+  kP2 = 7,
+  kB1 = 8,
+  kB2 = 9
 };
 // Names of the interior parameters, in block order ("c", "x0", ..., "b2").
 const std::array<const char*, kNumInterior>& InteriorNames();
@@ -74,8 +84,10 @@ template <typename T>
 void Distort(const T* interior, const T& xu, const T& yu, T* xd, T* yd) {
   const T r2 = xu * xu + yu * yu;
   const T radial = interior[kK1] * r2 + interior[kK2] * r2 * r2 + interior[kK3] * r2 * r2 * r2;
-  const T xl = xu + xu * radial + interior[kP1] * (r2 + T(2) * xu * xu) + T(2) * interior[kP2] * xu * yu;
-  const T yl = yu + yu * radial + interior[kP2] * (r2 + T(2) * yu * yu) + T(2) * interior[kP1] * xu * yu;
+  const T xl =
+      xu + xu * radial + interior[kP1] * (r2 + T(2) * xu * xu) + T(2) * interior[kP2] * xu * yu;
+  const T yl =
+      yu + yu * radial + interior[kP2] * (r2 + T(2) * yu * yu) + T(2) * interior[kP1] * xu * yu;
   *xd = xl + interior[kB1] * xl + interior[kB2] * yl;
   *yd = yl;
 }
@@ -107,9 +119,9 @@ bool ProjectToImageMm(const T* exterior, const T* interior, const T* point_in_si
 
 // Sensor geometry: size in pixels and the (square) pixel pitch.
 struct Sensor {
-  int width = 0;             // [px]
-  int height = 0;            // [px]
-  double pixel_size = 0.0;   // [mm/px]; 1.0 makes "mm" mean pixels
+  int width = 0;            // [px]
+  int height = 0;           // [px]
+  double pixel_size = 0.0;  // [mm/px]; 1.0 makes "mm" mean pixels
 };
 
 template <typename T>
@@ -157,7 +169,7 @@ struct OpenCvCamera {
 struct CameraInfoFields {
   int width = 0;
   int height = 0;
-  std::string distortion_model;   // "plumb_bob" or "rational_polynomial"
+  std::string distortion_model;  // "plumb_bob" or "rational_polynomial"
   std::vector<double> d;
   std::array<double, 9> k{};
   std::array<double, 9> r{};
@@ -170,7 +182,8 @@ struct CameraInfoFields {
 class CameraModel {
  public:
   CameraModel() = default;
-  CameraModel(const Sensor& sensor, DistortionModel model, const std::array<double, kNumInterior>& interior);
+  CameraModel(const Sensor& sensor, DistortionModel model,
+              const std::array<double, kNumInterior>& interior);
 
   // Throws InvalidArgument naming the parameter when any value is NaN or
   // infinite, c <= 0, the sensor size or pixel size is not positive, or a term

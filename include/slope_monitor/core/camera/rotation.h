@@ -98,7 +98,9 @@ AttitudeAngles AnglesFromRotation(const Eigen::Matrix3d& m);
 
 // The half turn between the photogrammetric camera frame and the REP 103
 // optical frame (its own inverse).
-inline Eigen::Matrix3d OpticalFromPhotogrammetric() { return Eigen::Vector3d(1.0, -1.0, -1.0).asDiagonal(); }
+inline Eigen::Matrix3d OpticalFromPhotogrammetric() {
+  return Eigen::Vector3d(1.0, -1.0, -1.0).asDiagonal();
+}
 
 // Quaternion of cam_from_site (photogrammetric) for the given angles, and back.
 Eigen::Quaterniond QuaternionFromAngles(const AttitudeAngles& a);

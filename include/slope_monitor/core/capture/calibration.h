@@ -22,15 +22,15 @@ namespace capture {
 // Nominal camera: c = EXIF focal length [mm], x0 = y0 = 0, no distortion.
 // Throws InvalidArgument naming `file` when there is no focal length, or the
 // size / pixel size is not positive.
-camera::CameraModel NominalModelFromExif(const ExifInfo& exif, int width, int height, double pixel_size,
-                                         const std::string& file);
+camera::CameraModel NominalModelFromExif(const ExifInfo& exif, int width, int height,
+                                         double pixel_size, const std::string& file);
 
 // Converts camera_info fields to the collinearity model and back and checks
 // the round trip reproduces K, D (5 plumb_bob terms) and the size to a
 // relative 1e-9, and that the size matches the image (when width/height > 0).
 // Returns the model. Throws InvalidArgument naming `context` and the field.
-camera::CameraModel CheckCameraInfo(const camera::CameraInfoFields& info, double pixel_size, int image_width,
-                                    int image_height, const std::string& context);
+camera::CameraModel CheckCameraInfo(const camera::CameraInfoFields& info, double pixel_size,
+                                    int image_width, int image_height, const std::string& context);
 
 }  // namespace capture
 }  // namespace slope_monitor

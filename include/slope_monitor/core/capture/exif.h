@@ -17,15 +17,15 @@ struct ExifInfo {
   double time = 0.0;
   bool time_zone_applied = false;  // OffsetTimeOriginal was present and used
 
-  std::string make;               // Exif.Image.Make ("" when absent)
-  std::string model;              // Exif.Image.Model
-  double focal_length_mm = 0.0;   // Exif.Photo.FocalLength [mm]; 0 when absent
+  std::string make;              // Exif.Image.Make ("" when absent)
+  std::string model;             // Exif.Image.Model
+  double focal_length_mm = 0.0;  // Exif.Photo.FocalLength [mm]; 0 when absent
 
   // Exif.GPSInfo.GPSLatitude/GPSLongitude (deg/min/sec with N/S, E/W refs)
   // and GPSAltitude (with GPSAltitudeRef: 0 above, 1 below sea level) [m].
   bool has_gps = false;
   bool has_gps_altitude = false;
-  Geodetic gps;                   // height_m is the EXIF altitude (usually above sea level)
+  Geodetic gps;  // height_m is the EXIF altitude (usually above sea level)
 };
 
 // Reads the EXIF block of an image file. Throws IoError naming the file when
@@ -36,7 +36,8 @@ ExifInfo ReadExif(const std::string& path);
 
 // "YYYY:MM:DD HH:MM:SS" (+ sub-second digits "123" = 0.123 s) as UTC -> s since
 // the Unix epoch. Throws InvalidArgument naming `context` and the text.
-double ParseExifDateTime(const std::string& text, const std::string& subsec, const std::string& context);
+double ParseExifDateTime(const std::string& text, const std::string& subsec,
+                         const std::string& context);
 
 // "+09:00" / "-05:30" -> seconds east of UTC. Throws InvalidArgument.
 double ParseExifTimeOffset(const std::string& text, const std::string& context);

@@ -33,8 +33,8 @@ struct PhotoAttitude {
   double pixel_size_mm = 0.0;  // [mm]
   bool has_height_above_ground = false;
   double height_above_ground_m = 0.0;  // [m] the autopilot's relative altitude
-  int width = 0;               // [px] from the image header (exiv2), 0 when unknown
-  int height = 0;              // [px]
+  int width = 0;                       // [px] from the image header (exiv2), 0 when unknown
+  int height = 0;                      // [px]
 };
 
 // Throws IoError naming the file when exiv2 cannot open it, or when a tag

@@ -27,14 +27,14 @@ enum class StampSource { kExif, kFile, kVideo, kClock };
 const char* StampSourceName(StampSource s);
 
 struct Frame {
-  cv::Mat image;              // 8-bit: CV_8UC1 (mono8) or CV_8UC3 (bgr8); 16-bit likewise (mono16/bgr16)
-  std::string encoding;       // sensor_msgs encoding name of `image`
-  double stamp = 0.0;         // [s] since the Unix epoch, UTC
+  cv::Mat image;         // 8-bit: CV_8UC1 (mono8) or CV_8UC3 (bgr8); 16-bit likewise (mono16/bgr16)
+  std::string encoding;  // sensor_msgs encoding name of `image`
+  double stamp = 0.0;    // [s] since the Unix epoch, UTC
   StampSource stamp_source = StampSource::kClock;
-  std::string name;           // file path, "video.avi#17" or device path
-  uint64_t index = 0;         // position in the source (0-based, counts skipped items)
-  ExifInfo exif;              // folder sources only (empty otherwise)
-  PhotoAttitude attitude;     // folder sources only: the XMP attitude (photo_attitude.h)
+  std::string name;              // file path, "video.avi#17" or device path
+  uint64_t index = 0;            // position in the source (0-based, counts skipped items)
+  ExifInfo exif;                 // folder sources only (empty otherwise)
+  PhotoAttitude attitude;        // folder sources only: the XMP attitude (photo_attitude.h)
   bool in_image_buffer = false;  // `image` lies in memory from the source's ImageBuffer (see below)
 };
 
@@ -95,24 +95,28 @@ struct JpegFrameInfo {
 // segments are intact, and the entropy-coded data ends with an EOI marker.
 // Returns "" when complete, otherwise why not (e.g. "truncated: ...").
 // `info` (optional) receives the frame header.
-std::string CheckJpegStructure(const std::vector<unsigned char>& bytes, JpegFrameInfo* info = nullptr);
+std::string CheckJpegStructure(const std::vector<unsigned char>& bytes,
+                               JpegFrameInfo* info = nullptr);
 
 // Reads and decodes one image file (JPEG structure checked first). Throws
 // IoError naming the file when it cannot be read, is truncated or does not decode.
 // With `buffer`, an 8-bit grey or colour JPEG whose stored layout is the
 // requested encoding is decoded straight into the buffer's memory (no copy);
 // *in_buffer tells whether that happened.
-cv::Mat DecodeImageFile(const std::string& path, const std::string& encoding, std::string* encoding_out,
-                        const ImageBuffer& buffer = {}, bool* in_buffer = nullptr);
+cv::Mat DecodeImageFile(const std::string& path, const std::string& encoding,
+                        std::string* encoding_out, const ImageBuffer& buffer = {},
+                        bool* in_buffer = nullptr);
 
 // ---------------------------------------------------------------------------
 struct FolderSourceOptions {
-  std::string folder;                                                     // directory of images
-  std::vector<std::string> extensions = {".jpg", ".jpeg", ".png", ".tif", ".tiff"};  // case-insensitive
-  std::string time_source = "exif";  // "exif": EXIF capture time, file time as fallback; "file": file time only
-  double clock_offset = 0.0;         // [s] added to EXIF times (camera clock error / time zone), any value
-  std::string encoding = "auto";     // see CheckEncodingOption
-  void Check() const;                // throws ConfigError naming the key
+  std::string folder;  // directory of images
+  std::vector<std::string> extensions = {".jpg", ".jpeg", ".png", ".tif",
+                                         ".tiff"};  // case-insensitive
+  std::string time_source =
+      "exif";  // "exif": EXIF capture time, file time as fallback; "file": file time only
+  double clock_offset = 0.0;  // [s] added to EXIF times (camera clock error / time zone), any value
+  std::string encoding = "auto";  // see CheckEncodingOption
+  void Check() const;             // throws ConfigError naming the key
 };
 
 // Photos in a folder, sorted by capture time (EXIF DateTimeOriginal +
@@ -158,10 +162,10 @@ class FolderSource : public FrameSource {
 
 // ---------------------------------------------------------------------------
 struct VideoSourceOptions {
-  std::string path;              // video file (any container/codec the OpenCV build reads, e.g. MJPG in .avi)
-  double start_time = -1.0;      // [s] UTC stamp of frame 0; < 0: the file's modification time
-  double fps = 0.0;              // [Hz] override of the container's frame rate; 0: use the container's
-  int frame_step = 1;            // publish every n-th frame, >= 1
+  std::string path;  // video file (any container/codec the OpenCV build reads, e.g. MJPG in .avi)
+  double start_time = -1.0;  // [s] UTC stamp of frame 0; < 0: the file's modification time
+  double fps = 0.0;          // [Hz] override of the container's frame rate; 0: use the container's
+  int frame_step = 1;        // publish every n-th frame, >= 1
   std::string encoding = "auto";
   void Check() const;
 };
@@ -190,16 +194,17 @@ class VideoSource : public FrameSource {
 
 // ---------------------------------------------------------------------------
 struct DeviceSourceOptions {
-  std::string device = "/dev/video0";  // V4L2 device path (api "v4l2"), else what cv::VideoCapture opens
+  std::string device =
+      "/dev/video0";  // V4L2 device path (api "v4l2"), else what cv::VideoCapture opens
   // "v4l2": a V4L2 device through OpenCV's V4L2 backend; "any": anything
   // cv::VideoCapture opens with its default backends (a network camera's
   // RTSP/HTTP URL, a GStreamer pipeline, a video file replayed as a live
   // camera: at its end it is reopened like a disconnected device).
   std::string api = "v4l2";
-  int width = 0;                       // [px] requested; 0: device default
-  int height = 0;                      // [px] requested; 0: device default
-  double fps = 0.0;                    // [Hz] requested; 0: device default
-  double exposure = -1.0;              // device units (V4L2 exposure_absolute, 100 us); < 0: auto exposure
+  int width = 0;           // [px] requested; 0: device default
+  int height = 0;          // [px] requested; 0: device default
+  double fps = 0.0;        // [Hz] requested; 0: device default
+  double exposure = -1.0;  // device units (V4L2 exposure_absolute, 100 us); < 0: auto exposure
   std::string encoding = "auto";
   void Check() const;
 };

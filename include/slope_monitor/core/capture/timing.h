@@ -22,17 +22,17 @@ namespace slope_monitor {
 namespace capture {
 
 struct EpochEvent {
-  bool end = false;       // false: epoch starts (before its first frame); true: epoch complete
-  uint32_t epoch = 0;     // epoch number (consecutive from first_epoch)
-  uint32_t count = 0;     // frames in the epoch (on end)
-  double stamp = 0.0;     // [s] the first frame's stamp (start) / the last frame's stamp (end)
+  bool end = false;    // false: epoch starts (before its first frame); true: epoch complete
+  uint32_t epoch = 0;  // epoch number (consecutive from first_epoch)
+  uint32_t count = 0;  // frames in the epoch (on end)
+  double stamp = 0.0;  // [s] the first frame's stamp (start) / the last frame's stamp (end)
 };
 
 struct EpochOptions {
-  double gap = 600.0;          // [s] a capture-time gap larger than this ends an epoch, > 0
-  double max_duration = 0.0;   // [s] an epoch longer than this is split; 0: no limit
-  uint32_t first_epoch = 0;    // number of the first epoch
-  void Check() const;          // throws ConfigError naming the key
+  double gap = 600.0;         // [s] a capture-time gap larger than this ends an epoch, > 0
+  double max_duration = 0.0;  // [s] an epoch longer than this is split; 0: no limit
+  uint32_t first_epoch = 0;   // number of the first epoch
+  void Check() const;         // throws ConfigError naming the key
 };
 
 class EpochTracker {
@@ -64,12 +64,14 @@ class EpochTracker {
 };
 
 struct ScheduleOptions {
-  double interval = 0.0;               // [s] periodic capture every `interval` s (aligned to multiples of it since
-                                       // 1970-01-01 00:00 UTC); 0: no periodic capture (trigger only); else >= 1
-  std::vector<std::string> windows;    // daily "HH:MM-HH:MM" windows (may wrap midnight); empty: all day
-  double utc_offset_hours = 0.0;       // [h] the windows' local time = UTC + offset, [-14, 14]
-  int frames_per_epoch = 1;            // frames per capture (one epoch), [1, 1000]
-  void Check() const;                  // throws ConfigError naming the key/window
+  double interval =
+      0.0;  // [s] periodic capture every `interval` s (aligned to multiples of it since
+            // 1970-01-01 00:00 UTC); 0: no periodic capture (trigger only); else >= 1
+  std::vector<std::string>
+      windows;                    // daily "HH:MM-HH:MM" windows (may wrap midnight); empty: all day
+  double utc_offset_hours = 0.0;  // [h] the windows' local time = UTC + offset, [-14, 14]
+  int frames_per_epoch = 1;       // frames per capture (one epoch), [1, 1000]
+  void Check() const;             // throws ConfigError naming the key/window
 };
 
 class CaptureSchedule {

@@ -15,10 +15,14 @@ struct Rigid3 {
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
 
   Rigid3() = default;
-  Rigid3(const Eigen::Quaterniond& r, const Eigen::Vector3d& t) : rotation(r.normalized()), translation(t) {}
-  Rigid3(const Eigen::Matrix3d& r, const Eigen::Vector3d& t) : rotation(Eigen::Quaterniond(r).normalized()), translation(t) {}
+  Rigid3(const Eigen::Quaterniond& r, const Eigen::Vector3d& t)
+      : rotation(r.normalized()), translation(t) {}
+  Rigid3(const Eigen::Matrix3d& r, const Eigen::Vector3d& t)
+      : rotation(Eigen::Quaterniond(r).normalized()), translation(t) {}
 
-  Eigen::Vector3d operator*(const Eigen::Vector3d& x_in_a) const { return rotation * x_in_a + translation; }
+  Eigen::Vector3d operator*(const Eigen::Vector3d& x_in_a) const {
+    return rotation * x_in_a + translation;
+  }
   Rigid3 operator*(const Rigid3& b_from_a) const {
     return Rigid3(rotation * b_from_a.rotation, rotation * b_from_a.translation + translation);
   }

@@ -54,7 +54,14 @@ namespace deformation {
 class History;
 
 // Values equal to slope_monitor/PointDisplacement SOURCE_*.
-enum class Source : uint8_t { kTarget = 1, kFeature = 2, kRadio = 3, kSurface = 4, kFused = 5, kOther = 9 };
+enum class Source : uint8_t {
+  kTarget = 1,
+  kFeature = 2,
+  kRadio = 3,
+  kSurface = 4,
+  kFused = 5,
+  kOther = 9
+};
 std::string SourceName(Source s);
 Source SourceFromInt(int value);  // throws InvalidArgument naming the value
 
@@ -66,10 +73,10 @@ std::string AlertName(AlertLevel level);
 struct Measurement {
   std::string point_id;
   Source source = Source::kOther;
-  std::string source_name;                                   // node or sensor
+  std::string source_name;  // node or sensor
   uint32_t epoch = 0;
-  double stamp = 0.0;                                        // [s] time of the measurement
-  double reference_stamp = 0.0;                              // [s] time of the source's reference epoch
+  double stamp = 0.0;            // [s] time of the measurement
+  double reference_stamp = 0.0;  // [s] time of the source's reference epoch
   Eigen::Vector3d reference_position = Eigen::Vector3d::Zero();  // [m] site
   Eigen::Vector3d displacement = Eigen::Vector3d::Zero();        // [m] site
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();      // [m^2]
@@ -105,9 +112,9 @@ struct AreaBatch {
 
 // Velocity thresholds [m/s] of the three levels (watch < warning < alarm).
 struct Thresholds {
-  double watch = 1.0 / 86400.0 * 1e-3 * 2.0;    // [m/s] 2 mm/day
-  double warning = 1.0 / 86400.0 * 1e-3 * 10.0; // [m/s] 10 mm/day
-  double alarm = 1.0 / 86400.0 * 1e-3 * 50.0;   // [m/s] 50 mm/day
+  double watch = 1.0 / 86400.0 * 1e-3 * 2.0;     // [m/s] 2 mm/day
+  double warning = 1.0 / 86400.0 * 1e-3 * 10.0;  // [m/s] 10 mm/day
+  double alarm = 1.0 / 86400.0 * 1e-3 * 50.0;    // [m/s] 50 mm/day
   double Of(AlertLevel level) const;
   void Check(const std::string& context) const;  // throws ConfigError
 };
@@ -115,10 +122,10 @@ struct Thresholds {
 struct AlertOptions {
   Thresholds thresholds;
   std::map<std::string, Thresholds> point_thresholds;  // per point overrides (by point_id)
-  double significance = 3.0;   // [-] k: the speed must exceed the threshold by k sigma
-  int confirm_points = 2;      // [-] points that must be candidates for a level (>= 1)
-  int confirm_sources = 2;     // [-] or sources of the same point that exceed it (>= 1)
-  double hysteresis = 0.8;     // [-] lower a level only below hysteresis * threshold, (0, 1]
+  double significance = 3.0;  // [-] k: the speed must exceed the threshold by k sigma
+  int confirm_points = 2;     // [-] points that must be candidates for a level (>= 1)
+  int confirm_sources = 2;    // [-] or sources of the same point that exceed it (>= 1)
+  double hysteresis = 0.8;    // [-] lower a level only below hysteresis * threshold, (0, 1]
   void Check() const;
 };
 
@@ -131,31 +138,33 @@ struct AreaOptions {
 
 struct EstimatorOptions {
   FilterOptions filter;
-  double reorder_window = 3.0 * 86400.0;      // [s] how late a measurement may arrive and still be used
-  double reference_tolerance = 3600.0;        // [s] sources' reference stamps must agree within this
-  double disagreement_threshold = 16.27;      // [-] chi2(3) at 99.9 %: sources disagree above it
-  double comparison_max_gap = 86400.0;        // [s] compare two sources only if both measured within this
-  double innovation_gate = 0.0;               // [-] chi2(3) gate of the fused filter; 0: no gating
-  double velocity_sample_interval = 3600.0;   // [s] spacing of the velocity / displacement series kept per point
-  std::map<std::string, std::string> aliases; // measured id -> monitoring point id (e.g. "radio/tx1" -> "tag36h11/5")
+  double reorder_window = 3.0 * 86400.0;  // [s] how late a measurement may arrive and still be used
+  double reference_tolerance = 3600.0;    // [s] sources' reference stamps must agree within this
+  double disagreement_threshold = 16.27;  // [-] chi2(3) at 99.9 %: sources disagree above it
+  double comparison_max_gap = 86400.0;  // [s] compare two sources only if both measured within this
+  double innovation_gate = 0.0;         // [-] chi2(3) gate of the fused filter; 0: no gating
+  double velocity_sample_interval =
+      3600.0;  // [s] spacing of the velocity / displacement series kept per point
+  std::map<std::string, std::string>
+      aliases;  // measured id -> monitoring point id (e.g. "radio/tx1" -> "tag36h11/5")
   AlertOptions alerts;
   AreaOptions areas;
   ForecastOptions forecast;
-  void Check() const;                         // throws ConfigError naming the field
+  void Check() const;  // throws ConfigError naming the field
 };
 
 struct SeriesSample {
-  double stamp = 0.0;                                    // [s]
+  double stamp = 0.0;                                      // [s]
   Eigen::Vector3d displacement = Eigen::Vector3d::Zero();  // [m] relative to the reference epoch
-  double sigma = 0.0;                                    // [m] sqrt(trace(P_d)/3)
-  double speed = 0.0;                                    // [m/s]
-  double speed_sigma = 0.0;                              // [m/s]
+  double sigma = 0.0;                                      // [m] sqrt(trace(P_d)/3)
+  double speed = 0.0;                                      // [m/s]
+  double speed_sigma = 0.0;                                // [m/s]
 };
 
 struct SourceComparison {
   Source a = Source::kOther, b = Source::kOther;
   double stamp = 0.0;
-  double statistic = 0.0;                          // chi2(3)
+  double statistic = 0.0;                                // chi2(3)
   Eigen::Vector3d difference = Eigen::Vector3d::Zero();  // [m] d_a - d_b
   bool disagree = false;
 };
@@ -172,13 +181,13 @@ struct SourceEstimate {
 struct PointState {
   std::string id;
   Eigen::Vector3d reference_position = Eigen::Vector3d::Zero();  // [m] site
-  double stamp = 0.0;                                           // [s] of the estimate
-  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();       // [m]
+  double stamp = 0.0;                                            // [s] of the estimate
+  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();        // [m]
   Eigen::Matrix3d displacement_covariance = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();           // [m/s]
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  // [m/s]
   Eigen::Matrix3d velocity_covariance = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d acceleration = Eigen::Vector3d::Zero();       // [m/s^2]
-  double speed = 0.0, speed_sigma = 0.0;                        // [m/s]
+  Eigen::Vector3d acceleration = Eigen::Vector3d::Zero();  // [m/s^2]
+  double speed = 0.0, speed_sigma = 0.0;                   // [m/s]
   AlertLevel alert = AlertLevel::kNone;
   std::string alert_reason;
   Forecast forecast;
@@ -187,7 +196,7 @@ struct PointState {
   bool sources_disagree = false;
   std::vector<SourceComparison> comparisons;  // latest comparison per source pair
   uint64_t num_measurements = 0;
-  uint64_t num_rejected = 0;                  // gated by the innovation test
+  uint64_t num_rejected = 0;  // gated by the innovation test
 };
 
 struct AreaState {
@@ -201,13 +210,13 @@ struct AreaState {
 };
 
 struct Snapshot {
-  double stamp = 0.0;             // [s] newest measurement
-  uint32_t epoch = 0;             // newest epoch
+  double stamp = 0.0;  // [s] newest measurement
+  uint32_t epoch = 0;  // newest epoch
   uint32_t reference_epoch = 0;
-  double reference_stamp = 0.0;   // [s]
+  double reference_stamp = 0.0;  // [s]
   bool has_reference = false;
-  std::vector<PointState> points;  // sorted by id
-  std::vector<AreaState> areas;    // the latest area epoch's polygons, largest first
+  std::vector<PointState> points;             // sorted by id
+  std::vector<AreaState> areas;               // the latest area epoch's polygons, largest first
   AlertLevel area_alert = AlertLevel::kNone;  // the highest of `areas`
   AlertLevel alert = AlertLevel::kNone;       // the slope's: points and areas
   std::string summary;
@@ -215,7 +224,7 @@ struct Snapshot {
 
 struct BatchSummary {
   int accepted = 0;
-  int refused = 0;          // other datum, too late, bad covariance
+  int refused = 0;                    // other datum, too late, bad covariance
   std::vector<std::string> messages;  // one per refused measurement
 };
 

@@ -21,13 +21,14 @@ namespace slope_monitor {
 namespace deformation {
 
 struct ForecastOptions {
-  double window = 2.0 * 86400.0;   // [s] length of the fitting window (ending at the last sample)
-  double alpha = 2.0;              // [-] Fukuzono exponent, (1, 10]
-  int min_samples = 6;             // [-] samples in the window needed for a forecast
-  double min_velocity = 0.0;       // [m/s] samples slower than this are left out (1/v explodes)
-  double significance = 3.0;       // [-] the slope of y(t) must be below 0 by this many sigma
-  double max_horizon = 365.0 * 86400.0;  // [s] a forecast further than this after t_last is not valid
-  void Check() const;              // throws ConfigError naming the field
+  double window = 2.0 * 86400.0;  // [s] length of the fitting window (ending at the last sample)
+  double alpha = 2.0;             // [-] Fukuzono exponent, (1, 10]
+  int min_samples = 6;            // [-] samples in the window needed for a forecast
+  double min_velocity = 0.0;      // [m/s] samples slower than this are left out (1/v explodes)
+  double significance = 3.0;      // [-] the slope of y(t) must be below 0 by this many sigma
+  double max_horizon =
+      365.0 * 86400.0;  // [s] a forecast further than this after t_last is not valid
+  void Check() const;   // throws ConfigError naming the field
 };
 
 struct VelocitySample {
@@ -44,13 +45,14 @@ struct Forecast {
   double window = 0.0;        // [s] window_end - window_start
   int num_samples = 0;
   double alpha = 2.0;
-  double slope = 0.0;         // [d y / d t] fitted
+  double slope = 0.0;  // [d y / d t] fitted
   double slope_sigma = 0.0;
-  std::string reason;         // why it is not valid (or "ok")
+  std::string reason;  // why it is not valid (or "ok")
 };
 
 // Fits the samples (any order; sorted internally).
-Forecast ForecastFailure(const std::vector<VelocitySample>& samples, const ForecastOptions& options);
+Forecast ForecastFailure(const std::vector<VelocitySample>& samples,
+                         const ForecastOptions& options);
 
 // The same law fitted to the measured displacements themselves, which have
 // independent errors (filtered velocities are autocorrelated and lag an
@@ -71,7 +73,8 @@ struct DisplacementSample {
   double displacement = 0.0;  // [m] along the direction of motion
   double sigma = 0.0;         // [m] 1-sigma (> 0)
 };
-Forecast ForecastFromDisplacements(const std::vector<DisplacementSample>& samples, const ForecastOptions& options);
+Forecast ForecastFromDisplacements(const std::vector<DisplacementSample>& samples,
+                                   const ForecastOptions& options);
 
 }  // namespace deformation
 }  // namespace slope_monitor

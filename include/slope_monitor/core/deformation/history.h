@@ -45,9 +45,11 @@
 //           velocity_covariance BLOB,                     -- 9 doubles [m^2/s^2]
 //           alert_level INTEGER,                          -- (v2) DeformationPoint.ALERT_*
 //           forecast_time REAL, forecast_sigma REAL,      -- (v2) [s]; NULL when no forecast
-//           PRIMARY KEY(point_id, stamp))                 -- the estimate published after each batch
+//           PRIMARY KEY(point_id, stamp))                 -- the estimate published after each
+//           batch
 //   reference_offsets(point_id TEXT PRIMARY KEY,          -- (v2) fused displacement at the
-//           dx REAL, dy REAL, dz REAL, covariance BLOB)   --   reference epoch, subtracted on output
+//           dx REAL, dy REAL, dz REAL, covariance BLOB)   --   reference epoch, subtracted on
+//           output
 //
 // Migrations: version 0 (empty file) -> 2 creates everything; 1 -> 2 adds
 // the estimates' alert and forecast columns and reference_offsets.
@@ -106,7 +108,8 @@ class History {
   void SetMeta(const std::string& key, const std::string& value);
   std::optional<std::string> Meta(const std::string& key) const;
 
-  void StoreReferenceOffsets(const std::map<std::string, std::pair<Eigen::Vector3d, Eigen::Matrix3d>>& offsets);
+  void StoreReferenceOffsets(
+      const std::map<std::string, std::pair<Eigen::Vector3d, Eigen::Matrix3d>>& offsets);
   std::map<std::string, std::pair<Eigen::Vector3d, Eigen::Matrix3d>> LoadReferenceOffsets() const;
 
   int64_t CountRows(const std::string& table) const;

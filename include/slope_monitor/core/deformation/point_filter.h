@@ -7,7 +7,8 @@
 //   d' = v, v' = a, a' = j(t), E[j(t) j(s)] = q delta(t - s)
 // Discretised over tau seconds:
 //   F = [[I, tau I, tau^2/2 I], [0, I, tau I], [0, 0, I]]
-//   Q = q [[tau^5/20, tau^4/8, tau^3/6], [tau^4/8, tau^3/3, tau^2/2], [tau^3/6, tau^2/2, tau]] (x) I3
+//   Q = q [[tau^5/20, tau^4/8, tau^3/6], [tau^4/8, tau^3/3, tau^2/2], [tau^3/6, tau^2/2, tau]] (x)
+//   I3
 // Measurement model: z = d + e, e ~ N(0, R) with R the source's 3x3 covariance.
 //
 // Internally the state is kept in metres and days so that the
@@ -29,10 +30,13 @@ using Vector9d = Eigen::Matrix<double, 9, 1>;
 using Matrix9d = Eigen::Matrix<double, 9, 9>;
 
 struct FilterOptions {
-  double jerk_spectral_density = 2.0e-29;   // [m^2/s^5] q of the white jerk (2e-29 ~ (10 mm/day^2)^2 per day)
-  double initial_velocity_sigma = 1.0e-6;   // [m/s] prior sigma of the velocity at the first measurement (~86 mm/day)
-  double initial_acceleration_sigma = 1.0e-10;  // [m/s^2] prior sigma of the acceleration (~0.75 m/day^2)
-  void Check() const;                       // throws ConfigError naming the field
+  double jerk_spectral_density =
+      2.0e-29;  // [m^2/s^5] q of the white jerk (2e-29 ~ (10 mm/day^2)^2 per day)
+  double initial_velocity_sigma =
+      1.0e-6;  // [m/s] prior sigma of the velocity at the first measurement (~86 mm/day)
+  double initial_acceleration_sigma =
+      1.0e-10;         // [m/s^2] prior sigma of the acceleration (~0.75 m/day^2)
+  void Check() const;  // throws ConfigError naming the field
 };
 
 // Filter state at one instant (internal units: m, m/day, m/day^2).
@@ -62,9 +66,11 @@ class PointFilter {
   // not predicted backwards: the state is returned unchanged).
   FilterState Predict(const FilterState& state, double stamp) const;
   // Initialises (first measurement) or predicts and updates with z, R.
-  UpdateResult Update(FilterState* state, double stamp, const Eigen::Vector3d& z, const Eigen::Matrix3d& R) const;
+  UpdateResult Update(FilterState* state, double stamp, const Eigen::Vector3d& z,
+                      const Eigen::Matrix3d& R) const;
   // Innovation of a measurement against the prediction, without updating.
-  UpdateResult Test(const FilterState& state, double stamp, const Eigen::Vector3d& z, const Eigen::Matrix3d& R) const;
+  UpdateResult Test(const FilterState& state, double stamp, const Eigen::Vector3d& z,
+                    const Eigen::Matrix3d& R) const;
   const FilterOptions& options() const { return options_; }
 
  private:
@@ -85,7 +91,7 @@ class OrderedFilter {
     uint64_t sequence = 0;
     Eigen::Vector3d z = Eigen::Vector3d::Zero();
     Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-    FilterState after;   // state after this measurement
+    FilterState after;  // state after this measurement
     UpdateResult result;
   };
 

@@ -68,14 +68,15 @@ struct ReportOptions {
   // shifted CRS the GeoTIFF and the GeoPackage are written in that CRS (site
   // coordinates plus the origin), e.g. UTM or a national grid.
   std::optional<SiteCrsOptions> site_crs;
-  double grid_resolution = 1.0;     // [m] GeoTIFF cell size
-  double grid_margin = 10.0;        // [m] grid extends this far beyond the points
-  double idw_power = 2.0;           // [-] inverse-distance weighting exponent
-  double idw_radius = 50.0;         // [m] cells farther than this from every point are nodata
-  int map_width = 1200;             // [px] displacement map width (height follows the extent)
-  int series_width = 1000;          // [px] time series plot size
-  int series_height = 600;          // [px]
-  double arrow_scale = 0.0;         // [m of map per m of displacement]; 0: chosen so the largest arrow spans 15 % of the map
+  double grid_resolution = 1.0;  // [m] GeoTIFF cell size
+  double grid_margin = 10.0;     // [m] grid extends this far beyond the points
+  double idw_power = 2.0;        // [-] inverse-distance weighting exponent
+  double idw_radius = 50.0;      // [m] cells farther than this from every point are nodata
+  int map_width = 1200;          // [px] displacement map width (height follows the extent)
+  int series_width = 1000;       // [px] time series plot size
+  int series_height = 600;       // [px]
+  double arrow_scale = 0.0;      // [m of map per m of displacement]; 0: chosen so the largest arrow
+                                 // spans 15 % of the map
   void Check() const;
 };
 
@@ -89,19 +90,24 @@ Eigen::Vector3d ReportCrsOffset(const std::optional<SiteCrs>& site);
 // The largest displacement of the field in metres per pixel etc. is not
 // needed by callers; each writer returns the path it wrote.
 std::string WriteCsv(const Snapshot& snapshot, const std::string& path);  // lon, lat empty
-std::string WriteCsv(const Snapshot& snapshot, const std::string& path, const ReportOptions& options);
-std::string WriteGeoPackage(const Snapshot& snapshot, const std::string& path, const ReportOptions& options);
-std::string WriteGeoJson(const Snapshot& snapshot, const std::string& path, const ReportOptions& options);
+std::string WriteCsv(const Snapshot& snapshot, const std::string& path,
+                     const ReportOptions& options);
+std::string WriteGeoPackage(const Snapshot& snapshot, const std::string& path,
+                            const ReportOptions& options);
+std::string WriteGeoJson(const Snapshot& snapshot, const std::string& path,
+                         const ReportOptions& options);
 // Displacement magnitude [m] (band 1), dx, dy, dz [m] (bands 2-4) and the
 // velocity components vx, vy, vz [mm/day] (bands 5-7), float32, each
 // interpolated from the points by inverse distance; north-up grid in the site
 // frame (x east, y north), nodata -9999.
 std::string WriteDisplacementGeoTiff(const Snapshot& snapshot, const std::string& path,
                                      const ReportOptions& options);
-std::string WriteDisplacementMap(const Snapshot& snapshot, const std::string& path, const ReportOptions& options);
+std::string WriteDisplacementMap(const Snapshot& snapshot, const std::string& path,
+                                 const ReportOptions& options);
 // One plot: |d| [mm] (top) and speed [mm/day] with the point's thresholds (bottom).
 std::string WriteTimeSeries(const std::string& point_id, const std::vector<SeriesSample>& series,
-                            const Thresholds& thresholds, const std::string& path, const ReportOptions& options);
+                            const Thresholds& thresholds, const std::string& path,
+                            const ReportOptions& options);
 
 // Writes every requested format ("csv", "geojson", "geotiff", "gpkg", "png"; empty:
 // all) into root/subfolder and returns the files written. `root` is the
@@ -111,7 +117,8 @@ std::string WriteTimeSeries(const std::string& point_id, const std::vector<Serie
 // says why). A time series is named after its point id, cut to
 // io::kMaxIdLength characters.
 std::vector<std::string> WriteReports(const Estimator& estimator, const std::string& root,
-                                      const std::string& subfolder, const std::vector<std::string>& formats,
+                                      const std::string& subfolder,
+                                      const std::vector<std::string>& formats,
                                       const ReportOptions& options);
 
 // ENU (site, metres) -> WGS 84 [lon, lat, h] for the given origin [lat, lon, h].

@@ -55,22 +55,23 @@ namespace slope_monitor {
 namespace dense {
 
 struct CorrelationOptions {
-  int levels = 3;                 // [-] pyramid levels, resampling 2^(levels-1) ... 1; [1, 5]
-  double peak_frequency = 1.0;    // [rad/level-pixel] LoG peak at every level; (0, 3]
-  int grid_spacing = 8;           // [level px] node spacing on levels 0 .. levels-2; [1, 64]
-  int final_grid_spacing = 8;     // [px] node spacing on the full-resolution level; [1, 64]
-  int window = 15;                // [px] correlation window (odd) of levels 0 .. levels-2; [3, 51]
-  int final_window = 0;           // [px] window of the full-resolution level (odd, [3, 51]); 0: `window`
-  int search_radius = 3;          // [level px] search around the prediction; [1, 16]
-  int final_search_radius = 0;    // [px] search of the full-resolution level; [1, 16]; 0: search_radius
-  double min_disparity = 0.0;     // [px, full resolution] search range of the coarsest level
-  double max_disparity = 64.0;    // [px, full resolution]; > min_disparity
-  double min_correlation = 0.3;   // [-] ZNCC below this: invalid; [-1, 1)
-  double lr_tolerance = 1.0;      // [px, full resolution] left/right agreement; > 0
-  double order_tolerance = 0.5;   // [level px] slack of the order-consistency check; >= 0
-  bool median_filter = true;      // 3 x 3 median of parallaxes
-  bool order_check = true;        // order-consistency per line
-  bool two_way = true;            // left->right and right->left; false: left->right only
+  int levels = 3;               // [-] pyramid levels, resampling 2^(levels-1) ... 1; [1, 5]
+  double peak_frequency = 1.0;  // [rad/level-pixel] LoG peak at every level; (0, 3]
+  int grid_spacing = 8;         // [level px] node spacing on levels 0 .. levels-2; [1, 64]
+  int final_grid_spacing = 8;   // [px] node spacing on the full-resolution level; [1, 64]
+  int window = 15;              // [px] correlation window (odd) of levels 0 .. levels-2; [3, 51]
+  int final_window = 0;   // [px] window of the full-resolution level (odd, [3, 51]); 0: `window`
+  int search_radius = 3;  // [level px] search around the prediction; [1, 16]
+  int final_search_radius =
+      0;  // [px] search of the full-resolution level; [1, 16]; 0: search_radius
+  double min_disparity = 0.0;    // [px, full resolution] search range of the coarsest level
+  double max_disparity = 64.0;   // [px, full resolution]; > min_disparity
+  double min_correlation = 0.3;  // [-] ZNCC below this: invalid; [-1, 1)
+  double lr_tolerance = 1.0;     // [px, full resolution] left/right agreement; > 0
+  double order_tolerance = 0.5;  // [level px] slack of the order-consistency check; >= 0
+  bool median_filter = true;     // 3 x 3 median of parallaxes
+  bool order_check = true;       // order-consistency per line
+  bool two_way = true;           // left->right and right->left; false: left->right only
   // The right->left matches from a second ZNCC search over the right image
   // (true), or from the left search's correlation volume (false: each right
   // pixel takes its best-scoring left candidate; the same window pairs up to
@@ -95,13 +96,15 @@ struct CorrelationOptions {
 
 struct CorrelationSummary {
   int levels = 0;
-  int nodes = 0;              // final-level nodes
-  int valid_nodes = 0;        // final-level nodes with a parallax
+  int nodes = 0;        // final-level nodes
+  int valid_nodes = 0;  // final-level nodes with a parallax
   int rejected_correlation = 0;
   int rejected_order = 0;
   int rejected_left_right = 0;
   double seconds = 0.0;
-  double ValidFraction() const { return nodes > 0 ? static_cast<double>(valid_nodes) / nodes : 0.0; }
+  double ValidFraction() const {
+    return nodes > 0 ? static_cast<double>(valid_nodes) / nodes : 0.0;
+  }
   bool IsSolutionUsable() const { return valid_nodes > 0; }
   std::string BriefReport() const;
 };
@@ -109,9 +112,9 @@ struct CorrelationSummary {
 // The parallax grid on the left rectified image. Node (i, j) sits at pixel
 // (x, y) = (j * spacing, i * spacing) of the full-resolution left image.
 struct ParallaxGrid {
-  int spacing = 1;       // [px]
-  cv::Mat disparity;     // CV_32F, d = x_left - x_right [px]; NaN where invalid
-  cv::Mat correlation;   // CV_32F, ZNCC of the final level (NaN where invalid)
+  int spacing = 1;      // [px]
+  cv::Mat disparity;    // CV_32F, d = x_left - x_right [px]; NaN where invalid
+  cv::Mat correlation;  // CV_32F, ZNCC of the final level (NaN where invalid)
   bool Valid(int i, int j) const { return disparity.at<float>(i, j) == disparity.at<float>(i, j); }
 };
 
@@ -121,8 +124,10 @@ struct ParallaxGrid {
 // windows touching invalid pixels are rejected. Throws InvalidArgument when
 // the images are empty, of different size, smaller than the coarsest level
 // needs, or carry no texture (all black / constant: the LoG is zero).
-ParallaxGrid MatchRectified(const cv::Mat& left, const cv::Mat& right, const CorrelationOptions& options,
-                            CorrelationSummary* summary = nullptr, const cv::Mat& valid_left = cv::Mat(),
+ParallaxGrid MatchRectified(const cv::Mat& left, const cv::Mat& right,
+                            const CorrelationOptions& options,
+                            CorrelationSummary* summary = nullptr,
+                            const cv::Mat& valid_left = cv::Mat(),
                             const cv::Mat& valid_right = cv::Mat());
 
 // A copy of a per-pixel parallax map (spacing 1) with the holes of each

@@ -52,7 +52,7 @@ struct DemChangeOptions {
 };
 
 struct Coregistration {
-  Eigen::Vector2d shift = Eigen::Vector2d::Zero();   // [m] s: the after DEM is read at x + s
+  Eigen::Vector2d shift = Eigen::Vector2d::Zero();  // [m] s: the after DEM is read at x + s
   // [m] 1 sigma of s: the final residual's variance times the normal matrix's
   // inverse (no ridge), inflated by the cells one correlation range holds;
   // infinite where the stable terrain's slopes cannot reveal the shift.

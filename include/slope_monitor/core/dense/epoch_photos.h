@@ -69,7 +69,8 @@ struct EpochOrientations {
 
 struct PhotoCollectorOptions {
   // Paired by overlap: kind uav (site file, or io::DefaultCameras()).
-  std::vector<std::string> uav_cameras = io::CameraNames(io::DefaultCameras(), io::CameraKind::kUav);
+  std::vector<std::string> uav_cameras =
+      io::CameraNames(io::DefaultCameras(), io::CameraKind::kUav);
   std::vector<std::pair<std::string, std::string>> stereo_pairs;  // fixed cameras (left, right)
   int max_photos = 64;            // [-] photos held, all cameras; [1, 10000]
   double max_megabytes = 1024.0;  // [MB] pixels held; (0, 1e5]

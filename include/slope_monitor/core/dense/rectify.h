@@ -34,32 +34,34 @@ namespace dense {
 // One image with its camera and orientation. `oriented` must be true: an
 // image whose pose is unknown cannot be rectified.
 struct OrientedImage {
-  std::string name;                       // for messages ("uav/0012")
-  cv::Mat image;                          // CV_8U or CV_32F, 1 channel (colour is converted)
+  std::string name;  // for messages ("uav/0012")
+  cv::Mat image;     // CV_8U or CV_32F, 1 channel (colour is converted)
   camera::CameraModel camera;
   camera::ExteriorOrientation pose;
   bool oriented = false;
 };
 
 struct RectifyOptions {
-  double scale = 1.0;            // [-] rectified focal length / mean real focal length; (0, 4]
-  int patch_size = 0;            // [px] square patch side; 0: one patch for the whole pair; 0 or [64, 8192]
-  int patch_overlap = 32;        // [px] shared border between neighbouring patches; [0, patch_size / 2)
-  double min_baseline = 1e-3;    // [m] shorter baselines are degenerate; > 0
-  double min_overlap = 0.05;     // [-] share of the left rectified image that must also be seen on the right
-  void Check() const;            // throws ConfigError naming the field
+  double scale = 1.0;  // [-] rectified focal length / mean real focal length; (0, 4]
+  int patch_size = 0;  // [px] square patch side; 0: one patch for the whole pair; 0 or [64, 8192]
+  int patch_overlap = 32;  // [px] shared border between neighbouring patches; [0, patch_size / 2)
+  double min_baseline = 1e-3;  // [m] shorter baselines are degenerate; > 0
+  double min_overlap =
+      0.05;            // [-] share of the left rectified image that must also be seen on the right
+  void Check() const;  // throws ConfigError naming the field
 };
 
 // The virtual camera pair. Rectified pixel (x, y) of camera i looks along
-//   ray_in_rect = ((x - cx[i]) / f, (y - cy) / f, 1),  direction_in_site = site_from_rect * ray_in_rect.
+//   ray_in_rect = ((x - cx[i]) / f, (y - cy) / f, 1),  direction_in_site = site_from_rect *
+//   ray_in_rect.
 struct RectifiedGeometry {
   Eigen::Matrix3d site_from_rect = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d centre[2];     // projection centres in site [m]
-  double f = 0.0;                // [px]
-  double cx[2] = {0.0, 0.0};     // [px]
-  double cy = 0.0;               // [px]
-  int width = 0, height = 0;     // [px] full rectified image size
-  double baseline = 0.0;         // [m]
+  Eigen::Vector3d centre[2];  // projection centres in site [m]
+  double f = 0.0;             // [px]
+  double cx[2] = {0.0, 0.0};  // [px]
+  double cy = 0.0;            // [px]
+  int width = 0, height = 0;  // [px] full rectified image size
+  double baseline = 0.0;      // [m]
 
   Eigen::Vector3d RayDirection(int camera_index, double x, double y) const;
   // Parallax d = x_l - x_r of a point at depth z [m] along the rectified axis.
@@ -73,15 +75,16 @@ struct RectifiedGeometry {
 };
 
 struct RectifiedPatch {
-  cv::Rect roi;                  // in the full rectified image
-  cv::Mat left, right;           // CV_32F rectified patch images
+  cv::Rect roi;                     // in the full rectified image
+  cv::Mat left, right;              // CV_32F rectified patch images
   cv::Mat valid_left, valid_right;  // CV_8U 255 where the pixel came from inside the real image
 };
 
 struct RectifiedPair {
   RectifiedGeometry geometry;
   std::vector<RectifiedPatch> patches;
-  double overlap = 0.0;          // share of valid left pixels whose depth-range epipolar segment meets the right image
+  double overlap =
+      0.0;  // share of valid left pixels whose depth-range epipolar segment meets the right image
 };
 
 // Rectifies a pair. min_depth / max_depth [m] (along the viewing direction)
@@ -92,8 +95,8 @@ struct RectifiedPair {
 // differs from the camera's sensor; when the baseline is shorter than
 // min_baseline ("zero baseline"); when the depth range is not 0 < min < max;
 // and when the images do not overlap (share < min_overlap).
-RectifiedPair Rectify(const OrientedImage& left, const OrientedImage& right, double min_depth, double max_depth,
-                      const RectifyOptions& options = RectifyOptions());
+RectifiedPair Rectify(const OrientedImage& left, const OrientedImage& right, double min_depth,
+                      double max_depth, const RectifyOptions& options = RectifyOptions());
 
 // Converts an image to single-channel float (BGR -> gray), naming `what` in errors.
 cv::Mat ToGrayFloat(const cv::Mat& image, const std::string& what);

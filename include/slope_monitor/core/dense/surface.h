@@ -45,38 +45,38 @@ namespace dense {
 struct SurfaceOptions {
   CorrelationOptions correlation;
   RectifyOptions rectify;
-  double cell_size = 0.5;            // [m] surface model cell; (0, 100]
-  int min_points_per_cell = 1;       // [-] fewer points: hole; [1, 1000]
-  double parallax_sigma = 0.15;      // [px] a-priori parallax standard deviation; (0, 10]
-  double max_ray_gap = 0.0;          // [m] reject intersections whose rays miss by more; 0: 10 x cell_size
-  double ortho_cell_size = 0.0;      // [m] orthophoto cell; 0: cell_size
-  void Check() const;                // throws ConfigError naming the field
+  double cell_size = 0.5;        // [m] surface model cell; (0, 100]
+  int min_points_per_cell = 1;   // [-] fewer points: hole; [1, 1000]
+  double parallax_sigma = 0.15;  // [px] a-priori parallax standard deviation; (0, 10]
+  double max_ray_gap = 0.0;  // [m] reject intersections whose rays miss by more; 0: 10 x cell_size
+  double ortho_cell_size = 0.0;  // [m] orthophoto cell; 0: cell_size
+  void Check() const;            // throws ConfigError naming the field
 };
 
 // What is fixed for one measurement: where the surface can be.
 struct SurfaceConfig {
-  double min_depth = 0.0;            // [m] nearest surface distance from the cameras, > 0
-  double max_depth = 0.0;            // [m] farthest, > min_depth
+  double min_depth = 0.0;  // [m] nearest surface distance from the cameras, > 0
+  double max_depth = 0.0;  // [m] farthest, > min_depth
   // Site region of the surface model [m]: xmin, xmax, ymin, ymax. All zero:
   // the bounding box of the intersected points, snapped to cell_size.
   Eigen::Vector4d region = Eigen::Vector4d::Zero();
 };
 
 struct SurfacePoint {
-  Eigen::Vector3d x_in_site;         // [m]
-  float sigma_z = 0.0f;              // [m]
-  float correlation = 0.0f;          // [-] ZNCC
-  float intensity = 0.0f;            // [0, 255] left image grey value
+  Eigen::Vector3d x_in_site;  // [m]
+  float sigma_z = 0.0f;       // [m]
+  float correlation = 0.0f;   // [-] ZNCC
+  float intensity = 0.0f;     // [0, 255] left image grey value
 };
 
 struct SurfaceSummary {
   CorrelationSummary correlation;
   int patches = 0;
-  int points = 0;                    // intersected points
-  int rejected_points = 0;           // rays that do not meet / behind / outside the region
-  int cells = 0;                     // surface model cells
-  int filled_cells = 0;              // cells with a height
-  double rectified_overlap = 0.0;    // [-]
+  int points = 0;                  // intersected points
+  int rejected_points = 0;         // rays that do not meet / behind / outside the region
+  int cells = 0;                   // surface model cells
+  int filled_cells = 0;            // cells with a height
+  double rectified_overlap = 0.0;  // [-]
   double seconds = 0.0;
   bool IsSolutionUsable() const { return filled_cells > 0; }
   std::string BriefReport() const;
@@ -94,8 +94,9 @@ enum SurfaceBand : int { kHeight = 0, kUncertainty = 1, kCount = 2, kSpread = 3 
 // The whole chain. Throws InvalidArgument for a bad pair (see Rectify), for
 // images without texture (see MatchRectified), and when no point could be
 // measured; ConfigError for bad options.
-SurfaceResult MeasureSurface(const OrientedImage& left, const OrientedImage& right, const SurfaceOptions& options,
-                             const SurfaceConfig& config, SurfaceSummary* summary = nullptr);
+SurfaceResult MeasureSurface(const OrientedImage& left, const OrientedImage& right,
+                             const SurfaceOptions& options, const SurfaceConfig& config,
+                             SurfaceSummary* summary = nullptr);
 
 // Measures the pair (MeasureSurface) and writes <stem>_surface.tif (bands
 // above) and <stem>_ortho.tif (MakeOrthophoto of the left image,
@@ -110,15 +111,17 @@ SurfaceResult MeasureSurfaceToFiles(const OrientedImage& left, const OrientedIma
 
 // Grids points into a surface model (weighted mean, see the file comment).
 // points_per_window: m above (1: every point independent).
-io::GeoRaster GridSurface(const std::vector<SurfacePoint>& points, double cell_size, int min_points_per_cell,
-                          const Eigen::Vector4d& region, double points_per_window = 1.0);
+io::GeoRaster GridSurface(const std::vector<SurfacePoint>& points, double cell_size,
+                          int min_points_per_cell, const Eigen::Vector4d& region,
+                          double points_per_window = 1.0);
 
 // Orthophoto of `image` on the surface model: each cell of the ortho grid
 // (cell_size, same extent) takes its height from the model (bilinear between
 // cell centres), is projected into the image with its camera model and takes
 // the bilinear grey value. Band "gray"; nodata where the model has no height
 // or the point is outside the image.
-io::GeoRaster MakeOrthophoto(const io::GeoRaster& model, const OrientedImage& image, double cell_size);
+io::GeoRaster MakeOrthophoto(const io::GeoRaster& model, const OrientedImage& image,
+                             double cell_size);
 
 }  // namespace dense
 }  // namespace slope_monitor

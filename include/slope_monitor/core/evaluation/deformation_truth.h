@@ -21,20 +21,20 @@ namespace slope_monitor {
 namespace evaluation {
 
 struct PointEvaluation {
-  std::string id;                     // point id ("tag36h11/10", "tx1")
-  std::string role;                   // control | monitoring | check | radio | unknown
-  double stamp = 0.0;                 // [s] of the latest estimate
+  std::string id;      // point id ("tag36h11/10", "tx1")
+  std::string role;    // control | monitoring | check | radio | unknown
+  double stamp = 0.0;  // [s] of the latest estimate
   Eigen::Vector3d reference_position = Eigen::Vector3d::Zero();  // [m] site
   Eigen::Vector3d estimate = Eigen::Vector3d::Zero();            // [m] fused displacement
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();          // [m^2]
   Eigen::Vector3d truth = Eigen::Vector3d::Zero();               // [m] true displacement at stamp
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();            // [m/s] fused
-  double true_speed = 0.0;            // [m/s] at stamp
-  int alert_level = 0;                // DeformationPoint.ALERT_*
+  double true_speed = 0.0;                                       // [m/s] at stamp
+  int alert_level = 0;                                           // DeformationPoint.ALERT_*
   bool forecast_valid = false;
-  double forecast_time = 0.0;         // [s]
-  double forecast_sigma = 0.0;        // [s]
-  std::map<int, int> measurements;    // source -> count
+  double forecast_time = 0.0;       // [s]
+  double forecast_sigma = 0.0;      // [s]
+  std::map<int, int> measurements;  // source -> count
   Eigen::Vector3d Error() const { return estimate - truth; }
   // Error in units of its standard deviation along the error: |e| / sigma_e.
   double NormalisedError() const;
@@ -42,20 +42,21 @@ struct PointEvaluation {
 };
 
 struct SourceEvaluation {
-  int source = 0;                     // PointDisplacement.SOURCE_*
-  std::string name;                   // "target", "radio", ...
-  int count = 0;                      // measurements compared
-  double rms = 0.0;                   // [m] 3-D RMS error of raw measurements vs truth
-  double fused_rms = 0.0;             // [m] 3-D RMS of the fused estimates of the same points at the same times
+  int source = 0;    // PointDisplacement.SOURCE_*
+  std::string name;  // "target", "radio", ...
+  int count = 0;     // measurements compared
+  double rms = 0.0;  // [m] 3-D RMS error of raw measurements vs truth
+  double fused_rms =
+      0.0;  // [m] 3-D RMS of the fused estimates of the same points at the same times
 };
 
 struct DeformationEvaluation {
   std::vector<PointEvaluation> points;
   std::vector<SourceEvaluation> sources;
-  double fused_rms = 0.0;             // [m] 3-D RMS of the latest estimates of moving-body points
+  double fused_rms = 0.0;  // [m] 3-D RMS of the latest estimates of moving-body points
   int fused_count = 0;
-  double true_failure_time = 0.0;     // [s]; 0 when the truth has no failure
-  double reference_stamp = 0.0;       // [s] datum of the history
+  double true_failure_time = 0.0;  // [s]; 0 when the truth has no failure
+  double reference_stamp = 0.0;    // [s] datum of the history
 
   const PointEvaluation* Find(const std::string& id) const;
 };

@@ -25,7 +25,7 @@ namespace slope_monitor {
 namespace flight {
 
 struct FlightFrame {
-  std::string crs;                                   // "EPSG:32611", a PROJ string, or "" (model frame)
+  std::string crs;  // "EPSG:32611", a PROJ string, or "" (model frame)
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();  // site origin in the CRS
   std::string wkt;                                   // the CRS as WKT ("" without one)
 };
@@ -47,7 +47,8 @@ void WriteColmapModel(const FlightReportInput& in, const std::string& sparse_dir
 void WritePointsPly(const FlightReportInput& in, const std::string& path);
 void WriteCamerasCsv(const FlightReportInput& in, const std::string& path);
 void WriteFrame(const FlightFrame& frame, const std::string& path);
-void WriteFlightReport(const FlightReportInput& in, const std::string& json_path, const std::string& md_path);
+void WriteFlightReport(const FlightReportInput& in, const std::string& json_path,
+                       const std::string& md_path);
 
 // All of the above into dir (created).
 void WriteFlightOutputs(const FlightReportInput& in, const std::string& dir);

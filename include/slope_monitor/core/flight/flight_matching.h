@@ -59,13 +59,13 @@ struct FlightMatchingOptions {
   // [px] tracks are joined where one's observation in photo b lies this
   // close to the interest point another starts at in b (0: not joined), >= 0.
   double join_radius_px = 1.0;
-  int threads = 0;               // pairs matched at once (0: the hardware's), [0, 64]
-  void Check() const;            // throws ConfigError naming the field
+  int threads = 0;     // pairs matched at once (0: the hardware's), [0, 64]
+  void Check() const;  // throws ConfigError naming the field
 };
 
 struct FlightTrack {
   std::vector<std::pair<int, Eigen::Vector2d>> observations;  // (photo index, pixel), photo a first
-  std::uint8_t grey = 128;                                     // photo a's grey value at the point
+  std::uint8_t grey = 128;                                    // photo a's grey value at the point
 };
 
 struct FlightPairStats {
@@ -77,9 +77,9 @@ struct FlightPairStats {
 
 struct FlightTies {
   std::vector<FlightTrack> tracks;
-  std::vector<FlightPairStats> pairs;  // every pair tried, in order
-  int pairs_tied = 0;                  // with >= min_pair_tie_points
-  long tie_points = 0;                 // pairwise tie points kept
+  std::vector<FlightPairStats> pairs;   // every pair tried, in order
+  int pairs_tied = 0;                   // with >= min_pair_tie_points
+  long tie_points = 0;                  // pairwise tie points kept
   std::vector<std::string> unreadable;  // "<photo>: <reason>" photos that could not be decoded
   double feature_seconds = 0.0, pair_seconds = 0.0;  // CPU time summed over threads
   double wall_seconds = 0.0;
@@ -87,7 +87,8 @@ struct FlightTies {
 };
 
 // The pairs to try (i < j, indices into photos.photos).
-std::vector<std::pair<int, int>> PlanFlightPairs(const FlightPhotos& photos, const FlightMatchingOptions& options);
+std::vector<std::pair<int, int>> PlanFlightPairs(const FlightPhotos& photos,
+                                                 const FlightMatchingOptions& options);
 
 // Decodes the photos, matches the planned pairs and builds the tracks.
 FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& options);

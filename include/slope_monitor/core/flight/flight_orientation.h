@@ -59,7 +59,7 @@ struct FlightOrientationOptions {
     o.min_angle_deg = 1.5;
     return o;
   }();
-  int min_resection_points = 15;       // known points a photo must see to be resected, >= 6
+  int min_resection_points = 15;        // known points a photo must see to be resected, >= 6
   double growth_for_adjustment = 1.25;  // adjust when the oriented photos grow by this factor, > 1
   double max_reprojection_px = 4.0;     // observations farther after an adjustment are dropped, > 0
   double tie_sigma_px = 0.5;            // [px] a tie point's standard deviation, > 0
@@ -87,9 +87,9 @@ struct FlightOrientationOptions {
 // A control or check point with its picks.
 struct FlightControlPoint {
   std::string name;
-  Eigen::Vector3d site = Eigen::Vector3d::Zero();                           // [m] survey in the site frame
+  Eigen::Vector3d site = Eigen::Vector3d::Zero();  // [m] survey in the site frame
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity() * 0.05 * 0.05;  // [m^2]
-  bool check = false;                                  // true: never in the adjustment
+  bool check = false;  // true: never in the adjustment
   // false: the height is not known (a gcp list with every height 0): give
   // covariance(2, 2) loose; the residuals' dz is reported as 0.
   bool has_height = true;
@@ -106,7 +106,7 @@ struct FlightInput {
 struct PointResidual {
   std::string name;
   bool check = false;
-  int picks = 0;        // picks in oriented photos
+  int picks = 0;          // picks in oriented photos
   bool measured = false;  // false: too few picks in oriented photos (message)
   std::string message;
   Eigen::Vector3d residual = Eigen::Vector3d::Zero();  // [m] photogrammetric - survey
@@ -123,20 +123,23 @@ struct FlightSummary {
   double rms_px = 0.0, mean_px = 0.0;  // reprojection error of the kept observations
   double sigma0 = 0.0;
   std::string covariance_note;  // "" or why the final adjustment has no covariance (sigmas then 0)
-  std::string datum;  // "7 control points", "GNSS of 8 photos", "model frame (no datum: arbitrary scale)"
+  std::string
+      datum;  // "7 control points", "GNSS of 8 photos", "model frame (no datum: arbitrary scale)"
   bool georeferenced = false;
   std::vector<std::string> not_oriented;  // "<photo>: <reason>"
   std::vector<PointResidual> control, check, leave_one_out;
   double control_rms = 0.0, check_rms = 0.0, leave_one_out_rms = 0.0;  // [m] 3-D
-  std::map<std::string, double> seconds;  // "start", "growth", "georeference", "adjustment", "leave_one_out"
+  std::map<std::string, double>
+      seconds;  // "start", "growth", "georeference", "adjustment", "leave_one_out"
   std::array<double, camera::kNumInterior> interior_sigma{};
 };
 
 struct FlightResult {
-  adjustment::Scene scene;  // oriented photos and their tie points ("tie/<k>"; control points are in the summary)
-  std::vector<int> photo_of_image;  // scene image -> photo index
-  std::vector<std::uint8_t> point_grey;  // per scene point
-  std::vector<double> point_error_px;    // per scene point: mean reprojection error
+  adjustment::Scene
+      scene;  // oriented photos and their tie points ("tie/<k>"; control points are in the summary)
+  std::vector<int> photo_of_image;           // scene image -> photo index
+  std::vector<std::uint8_t> point_grey;      // per scene point
+  std::vector<double> point_error_px;        // per scene point: mean reprojection error
   std::vector<double> observation_error_px;  // per scene observation
   adjustment::Summary bundle;
   FlightSummary summary;

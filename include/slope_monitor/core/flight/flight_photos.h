@@ -56,11 +56,11 @@ struct SkippedPhoto {
 struct FlightPhotos {
   std::vector<FlightPhoto> photos;  // used, in name order
   std::vector<SkippedPhoto> skipped;
-  camera::CameraModel nominal;      // the shared camera's nominal model
-  std::string camera_label;         // "Canon EOS DIGITAL REBEL XSi 4272x2848 f=18 mm"
-  int with_gnss = 0;                // photos with an EXIF position
-  int with_yaw = 0;                 // photos with the autopilot's heading
-  FlightPhotoOptions options;       // as read with
+  camera::CameraModel nominal;  // the shared camera's nominal model
+  std::string camera_label;     // "Canon EOS DIGITAL REBEL XSi 4272x2848 f=18 mm"
+  int with_gnss = 0;            // photos with an EXIF position
+  int with_yaw = 0;             // photos with the autopilot's heading
+  FlightPhotoOptions options;   // as read with
 };
 
 // Image files of a folder (.jpg .jpeg .png .tif .tiff, any case), sorted by
@@ -71,7 +71,8 @@ std::vector<std::string> ListPhotoFolder(const std::string& folder);
 // Reads the headers and EXIF/XMP of the photos (nothing is decoded). Throws
 // IoError when no photo is usable (the message says why, naming the first
 // few); otherwise the unusable ones are in `skipped`.
-FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths, const FlightPhotoOptions& options = {});
+FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths,
+                              const FlightPhotoOptions& options = {});
 
 }  // namespace flight
 }  // namespace slope_monitor

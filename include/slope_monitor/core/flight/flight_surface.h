@@ -59,9 +59,10 @@ namespace slope_monitor {
 namespace flight {
 
 struct FlightSurfaceOptions {
-  int working_size = 1100;     // [px] longer side of the decoded photos at most this; [100, 100000]
-  double cell_size = 0.0;      // [m] DEM cell; 0: final node spacing x median ground sample distance; >= 0
-  int ortho_subdivision = 4;   // [-] orthophoto cells per DEM cell side; [1, 16]
+  int working_size = 1100;  // [px] longer side of the decoded photos at most this; [100, 100000]
+  double cell_size =
+      0.0;  // [m] DEM cell; 0: final node spacing x median ground sample distance; >= 0
+  int ortho_subdivision = 4;         // [-] orthophoto cells per DEM cell side; [1, 16]
   double max_dem_megabytes = 512.0;  // [MB] DEM grid limit (refused before matching); > 0
   // The dense chain (dense/epoch_surface.h). Its surface.cell_size and region
   // are set here (cell_size above, the region of the call).
@@ -77,19 +78,19 @@ struct FlightSurfaceOptions {
 };
 
 struct FlightSurfaceSummary {
-  int photos = 0;                // oriented photos used
-  int decode_factor = 1;         // photos decoded at 1 / this
+  int photos = 0;                             // oriented photos used
+  int decode_factor = 1;                      // photos decoded at 1 / this
   int working_width = 0, working_height = 0;  // [px]
-  double ground_sample = 0.0;    // [m] median, working resolution
-  double cell_size = 0.0;        // [m] DEM
+  double ground_sample = 0.0;                 // [m] median, working resolution
+  double cell_size = 0.0;                     // [m] DEM
   dense::EpochSurfaceSummary dense;
   std::map<std::string, double> seconds;  // "decode", "matching", "ortho"
   std::string BriefReport() const;
 };
 
 struct FlightSurface {
-  io::GeoRaster dem;    // site frame; bands height, uncertainty, count, spread
-  io::GeoRaster ortho;  // site frame; bands red, green, blue [0, 255]
+  io::GeoRaster dem;                     // site frame; bands height, uncertainty, count, spread
+  io::GeoRaster ortho;                   // site frame; bands red, green, blue [0, 255]
   std::vector<dense::EpochPoint> cloud;  // site frame, sigma_z and colour per point
   FlightSurfaceSummary summary;
 };
@@ -109,8 +110,8 @@ FlightSurface MeasureFlightSurface(const FlightPhotos& photos, const FlightResul
                                    const std::function<void(const std::string&)>& progress = {});
 
 // The RGB orthophoto of BGR photos on a DEM (see the file comment).
-io::GeoRaster ColourOrthophoto(const io::GeoRaster& dem, const std::vector<dense::OrientedImage>& photos,
-                               int subdivision);
+io::GeoRaster ColourOrthophoto(const io::GeoRaster& dem,
+                               const std::vector<dense::OrientedImage>& photos, int subdivision);
 
 // A site-frame raster placed in the frame's CRS (origin added, CRS as WKT)
 // for a GeoTIFF a GIS reads; unchanged when the frame has no CRS.
@@ -118,7 +119,8 @@ io::GeoRaster InCrs(const io::GeoRaster& raster, const FlightFrame& frame);
 // The inverse: a raster read from a GeoTIFF written with InCrs, in this
 // frame's site coordinates. Throws InvalidArgument naming `what` when the
 // file's CRS is not the frame's (EPSG codes differ, or one has none).
-io::GeoRaster InSite(const io::GeoRaster& raster, const FlightFrame& frame, const std::string& what);
+io::GeoRaster InSite(const io::GeoRaster& raster, const FlightFrame& frame,
+                     const std::string& what);
 
 // The dense cloud as binary PLY (x, y, z site [m] as float; sigma_z [m];
 // red, green, blue). Throws IoError naming the path.
@@ -156,12 +158,12 @@ struct FlightChangeInput {
 struct FlightChangeSummary {
   dense::DemChangeSummary dem;  // its co-registration's shift includes the search's
   Eigen::Vector2d searched_shift = Eigen::Vector2d::Zero();  // [m] the search's whole-cell start
-  int common_cells = 0;        // a height in both DEMs
-  int stable_common = 0;       // ... and stable
-  double stable_median = 0.0;  // [m] median dz on stable ground after co-registration
-  double stable_nmad = 0.0;    // [m] 1.4826 x median |dz - median| there
-  double stable_flagged = 0.0; // [-] share of the stable common cells with |class| >= 1
-  double flagged = 0.0;        // [-] share of all common cells with |class| >= 1
+  int common_cells = 0;                                      // a height in both DEMs
+  int stable_common = 0;                                     // ... and stable
+  double stable_median = 0.0;   // [m] median dz on stable ground after co-registration
+  double stable_nmad = 0.0;     // [m] 1.4826 x median |dz - median| there
+  double stable_flagged = 0.0;  // [-] share of the stable common cells with |class| >= 1
+  double flagged = 0.0;         // [-] share of all common cells with |class| >= 1
   std::string BriefReport() const;
 };
 
@@ -171,7 +173,8 @@ struct FlightChange {
 };
 
 // Throws InvalidArgument (see the file comment) and what dense::DemChange throws.
-FlightChange CompareFlights(const FlightChangeInput& input, const FlightChangeOptions& options = {});
+FlightChange CompareFlights(const FlightChangeInput& input,
+                            const FlightChangeOptions& options = {});
 
 // surface_report.json / .md beside the flight's report: the surface's
 // figures and, when `change` is non-null, the change's.

@@ -30,13 +30,14 @@ struct IntersectionOptions {
 struct IntersectionResult {
   bool success = false;
   std::string message;
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // [m] site
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();    // [m] site
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // [m^2]
-  double rms_px = 0.0;        // [px]
-  double max_angle_deg = 0.0; // [deg] widest ray pair
+  double rms_px = 0.0;                                   // [px]
+  double max_angle_deg = 0.0;                            // [deg] widest ray pair
 };
 
-IntersectionResult Intersect(const std::vector<RayObservation>& rays, const IntersectionOptions& options = {});
+IntersectionResult Intersect(const std::vector<RayObservation>& rays,
+                             const IntersectionOptions& options = {});
 
 }  // namespace geometry
 }  // namespace slope_monitor

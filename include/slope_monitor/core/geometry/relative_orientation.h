@@ -51,10 +51,12 @@ struct PairInSite {
 };
 
 // Scale and datum from >= 3 control points seen in both images.
-PairInSite OrientPairInSite(const RelativeOrientationResult& relative, const camera::CameraModel& model_a,
-                            const camera::CameraModel& model_b, const std::vector<Eigen::Vector2d>& control_pixels_a,
+PairInSite OrientPairInSite(const RelativeOrientationResult& relative,
+                            const camera::CameraModel& model_a, const camera::CameraModel& model_b,
+                            const std::vector<Eigen::Vector2d>& control_pixels_a,
                             const std::vector<Eigen::Vector2d>& control_pixels_b,
-                            const std::vector<Eigen::Vector3d>& control_in_site, const HelmertOptions& helmert);
+                            const std::vector<Eigen::Vector3d>& control_in_site,
+                            const HelmertOptions& helmert);
 
 }  // namespace geometry
 }  // namespace slope_monitor

@@ -44,7 +44,7 @@ struct ResectionResult {
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();  // [m^2, rad^2]
   std::vector<bool> inliers;
   int num_inliers = 0;
-  double rms_px = 0.0;               // [px] over the inliers
+  double rms_px = 0.0;                 // [px] over the inliers
   int num_candidates_best_sample = 0;  // candidates of the three-point solution that won
 };
 
@@ -52,7 +52,8 @@ struct ResectionResult {
 // collinear; otherwise success = false with the reason. Non-finite inputs are
 // an InvalidArgument.
 ResectionResult Resect(const camera::CameraModel& model, const std::vector<Eigen::Vector2d>& pixels,
-                       const std::vector<Eigen::Vector3d>& points_in_site, const ResectionOptions& options);
+                       const std::vector<Eigen::Vector3d>& points_in_site,
+                       const ResectionOptions& options);
 
 }  // namespace geometry
 }  // namespace slope_monitor

@@ -18,7 +18,9 @@ struct Similarity3 {
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
 
-  Eigen::Vector3d operator*(const Eigen::Vector3d& x) const { return scale * (rotation * x) + translation; }
+  Eigen::Vector3d operator*(const Eigen::Vector3d& x) const {
+    return scale * (rotation * x) + translation;
+  }
   Similarity3 Inverse() const;
   // Covariance of a transformed point from the covariance in the source frame.
   Eigen::Matrix3d TransformCovariance(const Eigen::Matrix3d& c) const {
@@ -27,32 +29,34 @@ struct Similarity3 {
 };
 
 struct HelmertOptions {
-  bool estimate_scale = true;       // false: rigid (scale 1)
-  double inlier_threshold = 0.05;   // [m] residual distance for a RANSAC inlier, > 0
-  int max_iterations = 500;         // RANSAC samples, > 0
-  unsigned int seed = 1;            // RANSAC random seed (deterministic)
-  void Check() const;               // throws ConfigError naming the field
+  bool estimate_scale = true;      // false: rigid (scale 1)
+  double inlier_threshold = 0.05;  // [m] residual distance for a RANSAC inlier, > 0
+  int max_iterations = 500;        // RANSAC samples, > 0
+  unsigned int seed = 1;           // RANSAC random seed (deterministic)
+  void Check() const;              // throws ConfigError naming the field
 };
 
 struct HelmertResult {
   bool success = false;
   std::string message;
   Similarity3 target_from_source;
-  std::vector<bool> inliers;        // per point pair
+  std::vector<bool> inliers;  // per point pair
   int num_inliers = 0;
-  std::vector<double> residuals;    // [m] |T(source) - target| per pair
-  double rms = 0.0;                 // [m] over the inliers
+  std::vector<double> residuals;  // [m] |T(source) - target| per pair
+  double rms = 0.0;               // [m] over the inliers
 };
 
 // Least-squares similarity (weights >= 0; empty: all 1). Needs >= 3 non-collinear
 // pairs; throws InvalidArgument otherwise (naming the count or "collinear").
-Similarity3 FitSimilarity(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
-                          bool estimate_scale, const std::vector<double>& weights = {});
+Similarity3 FitSimilarity(const std::vector<Eigen::Vector3d>& source,
+                          const std::vector<Eigen::Vector3d>& target, bool estimate_scale,
+                          const std::vector<double>& weights = {});
 
 // Robust fit. Fails (success = false, message says why) on fewer than 3
 // pairs, collinear points, or fewer than 3 inliers.
 HelmertResult FitSimilarityRobust(const std::vector<Eigen::Vector3d>& source,
-                                  const std::vector<Eigen::Vector3d>& target, const HelmertOptions& options);
+                                  const std::vector<Eigen::Vector3d>& target,
+                                  const HelmertOptions& options);
 
 // True when the points lie (within relative tolerance) on one line.
 bool AreCollinear(const std::vector<Eigen::Vector3d>& points, double relative_tolerance = 1e-3);

@@ -26,10 +26,10 @@ struct GcpPick {
 };
 
 struct GcpPoint {
-  std::string name;                                // gcp_name, or "line<N>" when unnamed
-  Eigen::Vector3d geo = Eigen::Vector3d::Zero();   // in the file's CRS
+  std::string name;                               // gcp_name, or "line<N>" when unnamed
+  Eigen::Vector3d geo = Eigen::Vector3d::Zero();  // in the file's CRS
   std::vector<GcpPick> picks;
-  int line = 0;                                    // its first line
+  int line = 0;  // its first line
 };
 
 struct GcpList {

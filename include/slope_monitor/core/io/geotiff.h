@@ -48,20 +48,24 @@ namespace slope_monitor {
 namespace io {
 
 struct GeoRaster {
-  int width = 0;              // [cells] columns
-  int height = 0;             // [cells] rows
-  double origin_x = 0.0;      // [m] site x of the western edge
-  double origin_y = 0.0;      // [m] site y of the northern edge
-  double cell_size = 1.0;     // [m] square cells, > 0
+  int width = 0;                                             // [cells] columns
+  int height = 0;                                            // [cells] rows
+  double origin_x = 0.0;                                     // [m] site x of the western edge
+  double origin_y = 0.0;                                     // [m] site y of the northern edge
+  double cell_size = 1.0;                                    // [m] square cells, > 0
   double nodata = std::numeric_limits<double>::quiet_NaN();  // marks missing cells (NaN or finite)
-  int epsg = 0;               // 0: local engineering CRS "site"; > 0: EPSG code
-  std::string srs_wkt;        // filled on read; on write, when not empty, the CRS written
-  std::vector<std::string> band_names;     // one description per band
-  std::vector<std::vector<float>> bands;   // [band][row * width + col]
+  int epsg = 0;                         // 0: local engineering CRS "site"; > 0: EPSG code
+  std::string srs_wkt;                  // filled on read; on write, when not empty, the CRS written
+  std::vector<std::string> band_names;  // one description per band
+  std::vector<std::vector<float>> bands;  // [band][row * width + col]
 
   GeoRaster() = default;
   GeoRaster(int width_cells, int height_cells, double x_west, double y_north, double cell)
-      : width(width_cells), height(height_cells), origin_x(x_west), origin_y(y_north), cell_size(cell) {}
+      : width(width_cells),
+        height(height_cells),
+        origin_x(x_west),
+        origin_y(y_north),
+        cell_size(cell) {}
 
   // Appends a band filled with `fill` (default: nodata) and returns its index.
   int AddBand(const std::string& name);
@@ -70,8 +74,12 @@ struct GeoRaster {
   // Index of the band with this description, or -1.
   int BandIndex(const std::string& name) const;
 
-  float& At(int band, int row, int col) { return bands[band][static_cast<size_t>(row) * width + col]; }
-  float At(int band, int row, int col) const { return bands[band][static_cast<size_t>(row) * width + col]; }
+  float& At(int band, int row, int col) {
+    return bands[band][static_cast<size_t>(row) * width + col];
+  }
+  float At(int band, int row, int col) const {
+    return bands[band][static_cast<size_t>(row) * width + col];
+  }
   bool IsNoData(float v) const {
     return std::isnan(v) || (!std::isnan(nodata) && static_cast<double>(v) == nodata);
   }

@@ -21,8 +21,9 @@
 //
 // Every refusal throws IoError starting "image '<path>': " and giving the
 // reason, e.g.
-//   image 'a.jpg': truncated JPEG: the data ends at byte 16384 of 16384 before the end-of-image marker FFD9 (libjpeg: "Premature end of JPEG file")
-//   image 'b.png': the PNG header claims 20000 x 20000 px (400.0 MP), more than max_megapixels 100; refused before decoding
+//   image 'a.jpg': truncated JPEG: the data ends at byte 16384 of 16384 before the end-of-image
+//   marker FFD9 (libjpeg: "Premature end of JPEG file") image 'b.png': the PNG header claims 20000
+//   x 20000 px (400.0 MP), more than max_megapixels 100; refused before decoding
 #pragma once
 
 #include <string>
@@ -42,9 +43,9 @@ struct ImageFileOptions {
 
 struct ImageHeader {
   int width = 0, height = 0;
-  int channels = 0;   // samples per pixel in the file (a PNG palette counts as 3)
-  int bit_depth = 8;  // bits per sample: 8 or 16 (JPEG: its precision, 8 or 12)
-  std::string format; // "jpeg", "png", "tiff", "pnm"
+  int channels = 0;    // samples per pixel in the file (a PNG palette counts as 3)
+  int bit_depth = 8;   // bits per sample: 8 or 16 (JPEG: its precision, 8 or 12)
+  std::string format;  // "jpeg", "png", "tiff", "pnm"
 };
 
 // Reads only the header. Throws IoError naming the path and what is wrong:

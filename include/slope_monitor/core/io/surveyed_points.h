@@ -34,7 +34,7 @@ enum class PixelOrigin { kOpenCv, kCorner };
 std::vector<PickedPoint> ReadSurveyedPoints(const std::string& path, PixelOrigin origin);
 // The same from text already read (`name` is used in the messages).
 std::vector<PickedPoint> ParseSurveyedPoints(const std::string& text, const std::string& name,
-                                               PixelOrigin origin);
+                                             PixelOrigin origin);
 
 }  // namespace io
 }  // namespace slope_monitor

@@ -7,12 +7,13 @@
 //   targets:                     # list of maps:
 //     - id: 3                    # int >= 0, unique within its family
 //       family: tag36h11         # tag36h11 | tag25h9 | tag16h5 | tagStandard41h12 | circle
-//       size: 0.60               # [m] tag: edge of the black border square; circle: bright disc diameter
-//       role: control            # control | monitoring | check
-//       position: [x, y, z]      # [m] site frame; required for control and check,
+//       size: 0.60               # [m] tag: edge of the black border square; circle: bright disc
+//       diameter role: control            # control | monitoring | check position: [x, y, z]      #
+//       [m] site frame; required for control and check,
 //                                #     optional (approximate) for monitoring
-//       sigma: [0.03, 0.01]      # [m] survey std (horizontal, vertical); control/check; default [0.01, 0.01]
-//       normal: [nx, ny, nz]     # optional unit normal of the target plane (site), for the
+//       sigma: [0.03, 0.01]      # [m] survey std (horizontal, vertical); control/check; default
+//       [0.01, 0.01] normal: [nx, ny, nz]     # optional unit normal of the target plane (site),
+//       for the
 //                                #     perspective correction of circle centres
 #pragma once
 
@@ -36,8 +37,8 @@ struct TargetSpec {
   double size = 0.0;  // [m]
   TargetRole role = TargetRole::kMonitoring;
   std::optional<Eigen::Vector3d> position;  // [m] site
-  Eigen::Vector2d sigma{0.01, 0.01};         // [m] horizontal, vertical
-  std::optional<Eigen::Vector3d> normal;     // unit, site
+  Eigen::Vector2d sigma{0.01, 0.01};        // [m] horizontal, vertical
+  std::optional<Eigen::Vector3d> normal;    // unit, site
 
   // "tag36h11/3", "circle/12": the key used across the package.
   std::string Key() const { return family + "/" + std::to_string(id); }

@@ -26,9 +26,12 @@ class YamlMap {
   bool Has(const std::string& key) const;
   const std::string& context() const { return context_; }
 
-  double Double(const std::string& key, double default_value, double min, double max, const std::string& unit = "");
-  double RequiredDouble(const std::string& key, double min, double max, const std::string& unit = "");
-  int Int(const std::string& key, int default_value, int min, int max, const std::string& unit = "");
+  double Double(const std::string& key, double default_value, double min, double max,
+                const std::string& unit = "");
+  double RequiredDouble(const std::string& key, double min, double max,
+                        const std::string& unit = "");
+  int Int(const std::string& key, int default_value, int min, int max,
+          const std::string& unit = "");
   int RequiredInt(const std::string& key, int min, int max, const std::string& unit = "");
   bool Bool(const std::string& key, bool default_value);
   std::string String(const std::string& key, const std::string& default_value,
@@ -38,7 +41,8 @@ class YamlMap {
   std::vector<double> Doubles(const std::string& key, const std::vector<double>& default_value,
                               int size_required = -1);
   std::vector<double> RequiredDoubles(const std::string& key, int size_required = -1);
-  std::vector<std::string> Strings(const std::string& key, const std::vector<std::string>& default_value);
+  std::vector<std::string> Strings(const std::string& key,
+                                   const std::vector<std::string>& default_value);
 
   // A nested map (required or optional: an absent optional map is empty).
   YamlMap Map(const std::string& key);

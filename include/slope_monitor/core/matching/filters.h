@@ -74,7 +74,7 @@ cv::Mat ToFloat(const cv::Mat& image, const char* what = "image");
 
 // One-dimensional kernels, length 2 r + 1 with r = ceil(kTruncation * sigma),
 // index r is x = 0. sigma must be > 0 (InvalidArgument otherwise).
-std::vector<float> GaussianKernel(double sigma);             // g, sums to 1
+std::vector<float> GaussianKernel(double sigma);                  // g, sums to 1
 std::vector<float> GaussianSecondDerivativeKernel(double sigma);  // g'', see above
 
 // Gaussian smoothing (separable). sigma [px] > 0.

@@ -63,13 +63,13 @@ namespace slope_monitor {
 namespace matching {
 
 struct HexMatcherOptions {
-  int pyramid_levels = 3;          // [1, 6]
+  int pyramid_levels = 3;  // [1, 6]
   HexSampling sampling = HexSampling::kNearest;
-  int profile_length = 4;          // [cells] per profile, [1, 16]
-  double min_score = 0.6;          // [-1, 1] descriptor correlation
-  double max_ratio = 0.85;         // (0, 1]
-  double mutual_tolerance = 2.0;   // [px] > 0
-  int lsc_search_radius = 3;       // [px] MLSC integer search, [0, 20]
+  int profile_length = 4;         // [cells] per profile, [1, 16]
+  double min_score = 0.6;         // [-1, 1] descriptor correlation
+  double max_ratio = 0.85;        // (0, 1]
+  double mutual_tolerance = 2.0;  // [px] > 0
+  int lsc_search_radius = 3;      // [px] MLSC integer search, [0, 20]
   // [px] Gaussian low-pass of both images before LSC, [0, 5]; 0 = none. For
   // weak texture whose gradient is comparable to the noise (the simulator's
   // ground: 2.4 DN/px vs 2.7 DN noise), 1 px.
@@ -84,31 +84,31 @@ struct HexMatcherOptions {
     double max_neighbour_deviation = 1.5;  // [px] > 0
     bool reject = false;                   // drop flagged matches instead of marking them
   } quality;
-  InterestPointOptions interest;   // interest points in image a
-  LscOptions lsc;                  // refinement (search_radius set from lsc_search_radius)
-  void Check() const;              // throws ConfigError naming the field
+  InterestPointOptions interest;  // interest points in image a
+  LscOptions lsc;                 // refinement (search_radius set from lsc_search_radius)
+  void Check() const;             // throws ConfigError naming the field
 };
 
 // Where to look for xa's match in b.
 struct MatchPrior {
-  Eigen::Vector2d shift = Eigen::Vector2d::Zero();  // [px] predicted xb - xa
-  double radius = 24.0;                             // [px] search radius around xa + shift, > 0
+  Eigen::Vector2d shift = Eigen::Vector2d::Zero();     // [px] predicted xb - xa
+  double radius = 24.0;                                // [px] search radius around xa + shift, > 0
   std::function<bool(const Eigen::Vector2d&)> moving;  // true where the ground may move (optional)
   // The operator's outline of known non-ground objects in image a (trees,
   // boulders, structures; optional): matches whose xa lies there are flagged
   // kFlagExcluded (low quality). Rigid, static objects match perfectly well
   // and no image-based test can tell them from the ground.
   std::function<bool(const Eigen::Vector2d&)> excluded;
-  double moving_radius = 48.0;                      // [px] search radius there
+  double moving_radius = 48.0;  // [px] search radius there
   // Only the interest points xa with within(xa) true are matched (optional;
   // e.g. the part of a that the global shift puts inside b). The points are
   // still detected on the whole image a (same points, same positions for
   // every b); the others are not counted as candidates.
   std::function<bool(const Eigen::Vector2d&)> within;
-  bool estimate_global_shift = false;               // first match stable points, take their median shift
+  bool estimate_global_shift = false;  // first match stable points, take their median shift
   bool has_epipolar = false;
   Eigen::Matrix3d fundamental = Eigen::Matrix3d::Zero();  // xb^T F xa = 0 (homogeneous pixels)
-  double epipolar_band = 2.0;                       // [px] > 0
+  double epipolar_band = 2.0;                             // [px] > 0
 };
 
 // Fundamental matrix from approximate orientations (pinhole part of the
@@ -118,15 +118,16 @@ Eigen::Matrix3d FundamentalFromOrientation(const camera::CameraModel& camera_a,
                                            const camera::CameraModel& camera_b,
                                            const camera::ExteriorOrientation& pose_b);
 // Distance [px] of xb from the epipolar line F xa.
-double EpipolarDistance(const Eigen::Matrix3d& f, const Eigen::Vector2d& xa, const Eigen::Vector2d& xb);
+double EpipolarDistance(const Eigen::Matrix3d& f, const Eigen::Vector2d& xa,
+                        const Eigen::Vector2d& xb);
 
 enum class RejectReason {
   kNone,
-  kNoDescriptor,   // descriptor of xa not available (border, flat)
+  kNoDescriptor,  // descriptor of xa not available (border, flat)
   kLowScore,
   kAmbiguous,
   kNotMutual,
-  kLsc,            // LSC failed; see lsc_status
+  kLsc,  // LSC failed; see lsc_status
   kEpipolar,
 };
 const char* RejectReasonName(RejectReason reason);
@@ -143,15 +144,16 @@ constexpr double kLowQuality = 0.25;
 std::string QualityFlagNames(unsigned flags);
 
 struct HexMatch {
-  Eigen::Vector2d xa = Eigen::Vector2d::Zero();  // [px]
-  Eigen::Vector2d xb = Eigen::Vector2d::Zero();  // [px]
+  Eigen::Vector2d xa = Eigen::Vector2d::Zero();          // [px]
+  Eigen::Vector2d xb = Eigen::Vector2d::Zero();          // [px]
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();  // [px^2] of xb
-  double score = 0.0;        // descriptor correlation (coarsest level)
-  double correlation = 0.0;  // LSC NCC at the solution
-  double quality = 0.0;      // [0, 1]; <= kLowQuality when flagged
-  double sigma0 = 0.0;       // [grey] LSC residual RMS
-  double two_way_error = 0.0;  // [px] back-matching error (-1 when the back LSC failed; 0 when not run)
-  unsigned flags = 0;        // kFlag* (0 = normal quality)
+  double score = 0.0;                                    // descriptor correlation (coarsest level)
+  double correlation = 0.0;                              // LSC NCC at the solution
+  double quality = 0.0;                                  // [0, 1]; <= kLowQuality when flagged
+  double sigma0 = 0.0;                                   // [grey] LSC residual RMS
+  double two_way_error =
+      0.0;             // [px] back-matching error (-1 when the back LSC failed; 0 when not run)
+  unsigned flags = 0;  // kFlag* (0 = normal quality)
   bool IsLowQuality() const { return flags != 0; }
 };
 
@@ -159,8 +161,8 @@ struct HexMatchSummary {
   int candidates = 0;
   int matched = 0;
   std::map<std::string, int> rejects;  // reason name -> count (LSC: "lsc_<status>")
-  int low_quality = 0;                 // matches flagged by quality control (kept when !quality.reject)
-  std::map<std::string, int> flags;    // flag name -> count of matches carrying it
+  int low_quality = 0;  // matches flagged by quality control (kept when !quality.reject)
+  std::map<std::string, int> flags;  // flag name -> count of matches carrying it
   Eigen::Vector2d global_shift = Eigen::Vector2d::Zero();  // [px] used for the final pass
   double seconds = 0.0;
   bool IsSolutionUsable() const { return matched > 0; }
@@ -177,7 +179,8 @@ class HexMatcher {
   // Throws InvalidArgument when the images are empty, multi-channel, of
   // different sizes or different depths (naming both). Textureless images
   // give no matches (kNoDescriptor / LSC textureless rejects).
-  HexMatchResult Match(const cv::Mat& image_a, const cv::Mat& image_b, const MatchPrior& prior) const;
+  HexMatchResult Match(const cv::Mat& image_a, const cv::Mat& image_b,
+                       const MatchPrior& prior) const;
 
  private:
   HexMatcherOptions options_;

@@ -35,13 +35,13 @@ struct InterestPointOptions {
   // strength, so the points cover the image instead of its most contrasted
   // part (a real photo's 1000 strongest left 16 in the overlap of a turn pair).
   int cells = 0;
-  int border = 8;                       // [px] >= 0
-  void Check() const;                   // throws ConfigError naming the field
+  int border = 8;      // [px] >= 0
+  void Check() const;  // throws ConfigError naming the field
 };
 
 struct InterestPoint {
   Eigen::Vector2d x = Eigen::Vector2d::Zero();  // [px] column, row
-  double strength = 0.0;                         // [grey/px] Sobel magnitude
+  double strength = 0.0;                        // [grey/px] Sobel magnitude
 };
 
 // Corner test of the rule above on an edge mask (CV_8U, non-zero = edge) at
@@ -51,7 +51,8 @@ bool IsEdgeCorner(const cv::Mat& edges, int col, int row, double max_corner_angl
 // Detects interest points in a single-channel image (8U/16U/32F/64F).
 // Throws InvalidArgument for an empty or multi-channel image. A textureless
 // image gives no points.
-std::vector<InterestPoint> DetectInterestPoints(const cv::Mat& image, const InterestPointOptions& options);
+std::vector<InterestPoint> DetectInterestPoints(const cv::Mat& image,
+                                                const InterestPointOptions& options);
 
 }  // namespace matching
 }  // namespace slope_monitor

@@ -86,22 +86,22 @@ struct LscOptions {
   LscModel model = LscModel::kAffine;
   Interpolation interpolation = Interpolation::kBicubic;
   LscGradient gradient = LscGradient::kTemplate;
-  int half_window = 5;              // [px] window is (2 h + 1)^2; h in [1, 50]
-  bool estimate_gain = false;       // radiometric gain besides the offset
-  int max_iterations = 30;          // [1, 1000]
-  double convergence_shift = 1e-3;  // [px] > 0
-  double convergence_affine = 1e-4; // [-] > 0
-  double max_shift = 6.0;           // [px] > 0, from the start position
-  double max_affine = 0.5;          // [-] > 0
+  int half_window = 5;               // [px] window is (2 h + 1)^2; h in [1, 50]
+  bool estimate_gain = false;        // radiometric gain besides the offset
+  int max_iterations = 30;           // [1, 1000]
+  double convergence_shift = 1e-3;   // [px] > 0
+  double convergence_affine = 1e-4;  // [-] > 0
+  double max_shift = 6.0;            // [px] > 0, from the start position
+  double max_affine = 0.5;           // [-] > 0
   // Eq. 1: smallest F statistic of the four affine parameters against the
   // eq. 2 fit of the same window to keep them, >= 0; below it the eq. 2
   // solution is returned (Summary::affine_used false). 0 = always eq. 1.
   // 2.45 is the 95 % quantile of F(4, 100) (11 x 11 window).
   double affine_min_f = 2.45;
-  double max_gain_ratio = 3.0;      // [-] > 1
-  double min_correlation = 0.7;     // [-1, 1]
-  double min_gradient_energy = 1.0; // [grey^2/px^2] mean squared gradient in window a, >= 0
-  double max_sigma = 0.5;           // [px] > 0
+  double max_gain_ratio = 3.0;       // [-] > 1
+  double min_correlation = 0.7;      // [-1, 1]
+  double min_gradient_energy = 1.0;  // [grey^2/px^2] mean squared gradient in window a, >= 0
+  double max_sigma = 0.5;            // [px] > 0
   // Eq. 1 quality control, (0, 1]: largest |correlation| between a shift
   // parameter and an affine one in (J^T J)^-1 when the affine terms are
   // kept; above it the match is kIllConditioned. 1 = off.
@@ -177,9 +177,9 @@ LscSummary MatchLsc(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen:
 // over positions within +-radius of the rounded xb_start; returns the best
 // position (integer) and its NCC in *ncc (-2 if no position was inside).
 // radius_y < 0 means radius_y = radius.
-Eigen::Vector2d CorrelateInteger(const cv::Mat& image_a, const cv::Mat& image_b, const Eigen::Vector2d& xa,
-                                 const Eigen::Vector2d& xb_start, int half_window, int radius, double* ncc,
-                                 int radius_y = -1);
+Eigen::Vector2d CorrelateInteger(const cv::Mat& image_a, const cv::Mat& image_b,
+                                 const Eigen::Vector2d& xa, const Eigen::Vector2d& xb_start,
+                                 int half_window, int radius, double* ncc, int radius_y = -1);
 
 }  // namespace matching
 }  // namespace slope_monitor

@@ -157,7 +157,7 @@ struct PhotoPairOptions {
   // pool, as many as the hardware's), each into its own slot taken in
   // candidate order: the tie points do not depend on it. Inside another
   // cv::parallel_for_ (pairs matched at once) the windows run serially.
-  int threads = 0;  // [0, 64]
+  int threads = 0;     // [0, 64]
   void Check() const;  // throws ConfigError naming the field
 };
 

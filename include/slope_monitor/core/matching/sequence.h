@@ -44,9 +44,9 @@ struct SequencePairOptions {
   double min_overlap = 0.2;
   // [m] > 0: without footprints, horizontal distance of the position priors.
   double max_pair_distance = 30.0;
-  int max_pairs_per_image = 4;      // [1, 100]
-  int sequence_depth = 2;           // previous images without priors, [1, 100]
-  void Check() const;               // throws ConfigError naming the field
+  int max_pairs_per_image = 4;  // [1, 100]
+  int sequence_depth = 2;       // previous images without priors, [1, 100]
+  void Check() const;           // throws ConfigError naming the field
 };
 
 struct SequenceImage {

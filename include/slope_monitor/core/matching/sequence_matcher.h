@@ -121,7 +121,7 @@ struct SequenceMatcherOptions {
   // A photo's pairs are matched at once on this many threads (0: the
   // hardware's). Each pair is matched on its own and the results are kept in
   // the pairs' order, so the tie points do not depend on it.
-  int threads = 0;  // [0, 64]
+  int threads = 0;     // [0, 64]
   void Check() const;  // throws ConfigError naming the field
 };
 
@@ -177,7 +177,7 @@ struct SequenceMatcherSummary {
   std::uint32_t epoch = 0;
   int images_in_memory = 0;
   std::size_t memory_bytes = 0, peak_memory_bytes = 0;
-  int released = 0;  // photos released before the end of their epoch
+  int released = 0;           // photos released before the end of their epoch
   int footprint_planned = 0;  // images whose partners were chosen by footprint overlap
   double ground_pixel = 0.0;  // [m/px] the latest measured (GroundPixelFromTies), 0: none
   double feature_seconds = 0.0, pair_seconds = 0.0;  // totals

@@ -30,11 +30,13 @@ namespace slope_monitor {
 namespace radio {
 
 struct PhaseExtractionOptions {
-  double min_snr = 100.0;                // [-] tones below it are invalid (phase sigma 0.07 rad); > 0
-  double max_saturated_fraction = 1e-3;  // [-] share of samples at full scale above which the block is rejected; [0, 1]
-  double sample_rate_tolerance = 1e-6;   // [-] relative difference to the configured rate that is accepted
-  bool fit_dc = true;                    // also fit a DC term (LO leakage)
-  void Check() const;                    // throws ConfigError naming the field
+  double min_snr = 100.0;  // [-] tones below it are invalid (phase sigma 0.07 rad); > 0
+  double max_saturated_fraction =
+      1e-3;  // [-] share of samples at full scale above which the block is rejected; [0, 1]
+  double sample_rate_tolerance =
+      1e-6;            // [-] relative difference to the configured rate that is accepted
+  bool fit_dc = true;  // also fit a DC term (LO leakage)
+  void Check() const;  // throws ConfigError naming the field
 };
 
 struct Tone {

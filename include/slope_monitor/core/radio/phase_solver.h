@@ -83,7 +83,8 @@ struct TransmitterConfig {
 //   center_frequency: 2.4e9      # [Hz] receivers' LO
 //   sample_rate: 100000          # [Hz] expected complex sample rate
 //   receivers:    [{id: rx1, position: [x, y, z]}]
-//   transmitters: [{id: tx1, frequency_offset: 2441.4, initial_position: [x, y, z], initial_sigma: 0.005}]
+//   transmitters: [{id: tx1, frequency_offset: 2441.4, initial_position: [x, y, z], initial_sigma:
+//   0.005}]
 struct NetworkConfig {
   double wavelength = 0.125;
   double center_frequency = 2.4e9;
@@ -91,7 +92,8 @@ struct NetworkConfig {
   std::vector<ReceiverConfig> receivers;
   std::vector<TransmitterConfig> transmitters;
 
-  static NetworkConfig Load(const std::string& path);  // throws IoError / ConfigError naming file and key
+  static NetworkConfig Load(
+      const std::string& path);  // throws IoError / ConfigError naming file and key
   static NetworkConfig FromYaml(const std::string& text, const std::string& context);
   std::string ToYaml() const;
   // Throws ConfigError: fewer than 3 receivers (no 3-D geometry), no
@@ -103,15 +105,19 @@ struct NetworkConfig {
 
 struct RadioSolverOptions {
   PhaseExtractionOptions extraction;
-  int init_epochs = 5;             // [epochs] averaged for the reference solution; [1, 1000]
-  double ratio_threshold = 3.0;    // [-] ratio test s2/s1 to accept integers; [1, 100]
-  double process_noise = 1e-9;     // [m^2/s] random-walk spectral density of the displacement per axis; [0, 1]
-  double outlier_sigma = 5.0;      // [-] normalised innovation above which a link is rejected; [2, 100]
-  int refix_after = 5;             // [epochs] consecutive rejections before a link's constant is re-fixed; [1, 1000]
-  double min_phase_sigma = 0.01;   // [rad] floor on the phase standard deviation (multipath, model errors); [0, 1]
-  int min_receivers = 3;           // receivers a transmitter needs at the reference solution; [3, 100]
-  double max_refix_sigma = 0.01;   // [m] displacement sigma up to which a link may (re-)join; (0, lambda/4]
-  void Check() const;              // throws ConfigError naming the field
+  int init_epochs = 5;           // [epochs] averaged for the reference solution; [1, 1000]
+  double ratio_threshold = 3.0;  // [-] ratio test s2/s1 to accept integers; [1, 100]
+  double process_noise =
+      1e-9;  // [m^2/s] random-walk spectral density of the displacement per axis; [0, 1]
+  double outlier_sigma = 5.0;  // [-] normalised innovation above which a link is rejected; [2, 100]
+  int refix_after =
+      5;  // [epochs] consecutive rejections before a link's constant is re-fixed; [1, 1000]
+  double min_phase_sigma =
+      0.01;  // [rad] floor on the phase standard deviation (multipath, model errors); [0, 1]
+  int min_receivers = 3;  // receivers a transmitter needs at the reference solution; [3, 100]
+  double max_refix_sigma =
+      0.01;            // [m] displacement sigma up to which a link may (re-)join; (0, lambda/4]
+  void Check() const;  // throws ConfigError naming the field
 };
 
 enum class FixState { kNone = 0, kFloat = 1, kPartial = 2, kFixed = 3 };
@@ -120,41 +126,42 @@ std::string FixStateName(FixState s);
 struct TransmitterEstimate {
   std::string id;
   bool initialized = false;
-  FixState fix_state = FixState::kNone;  // of the reference solution's integers touching this transmitter
-  double ratio = 0.0;                    // ratio test value of the reference solution
+  FixState fix_state =
+      FixState::kNone;  // of the reference solution's integers touching this transmitter
+  double ratio = 0.0;   // ratio test value of the reference solution
   FixState epoch_fix_state = FixState::kNone;  // of this epoch's cycle counts
   double epoch_ratio = 0.0;
-  int links_used = 0;                    // links in this epoch's update
-  double reference_stamp = 0.0;          // [s]
-  Eigen::Vector3d reference_position{0, 0, 0};               // [m] site
+  int links_used = 0;                                              // links in this epoch's update
+  double reference_stamp = 0.0;                                    // [s]
+  Eigen::Vector3d reference_position{0, 0, 0};                     // [m] site
   Eigen::Matrix3d reference_covariance = Eigen::Matrix3d::Zero();  // [m^2]
-  Eigen::Vector3d position{0, 0, 0};                         // [m] site, now
+  Eigen::Vector3d position{0, 0, 0};                               // [m] site, now
   Eigen::Matrix3d position_covariance = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d displacement{0, 0, 0};                     // [m] now minus reference
+  Eigen::Vector3d displacement{0, 0, 0};  // [m] now minus reference
   Eigen::Matrix3d displacement_covariance = Eigen::Matrix3d::Zero();
-  std::string status;                    // "ok", "initialising", why not solved
+  std::string status;  // "ok", "initialising", why not solved
 };
 
 struct LinkDiagnostics {
   std::string transmitter_id, receiver_id;
-  bool observed = false;       // a valid phase this epoch
-  bool used = false;           // in the update
-  double phase = 0.0;          // [rad]
-  double phase_sigma = 0.0;    // [rad]
-  double snr = 0.0;            // [-]
-  double innovation = 0.0;     // [rad] after the integer fix
-  int rejected_streak = 0;     // consecutive outlier rejections
-  int refixes = 0;             // times its constant was (re-)fixed after the reference
-  std::string status;          // "ok", "outlier", "low SNR", "no block", "float", ...
+  bool observed = false;     // a valid phase this epoch
+  bool used = false;         // in the update
+  double phase = 0.0;        // [rad]
+  double phase_sigma = 0.0;  // [rad]
+  double snr = 0.0;          // [-]
+  double innovation = 0.0;   // [rad] after the integer fix
+  int rejected_streak = 0;   // consecutive outlier rejections
+  int refixes = 0;           // times its constant was (re-)fixed after the reference
+  std::string status;        // "ok", "outlier", "low SNR", "no block", "float", ...
 };
 
 struct RadioEpochSummary {
   double stamp = 0.0;
   std::vector<PhaseObservation> observations;  // all extracted phases (valid or not)
   std::vector<TransmitterEstimate> transmitters;
-  std::vector<LinkDiagnostics> links;          // transmitter-major
-  std::vector<std::string> problems;           // bad input of this epoch (one line each)
-  std::vector<std::string> events;             // faults handled (outliers, re-fixes, dropped blocks)
+  std::vector<LinkDiagnostics> links;  // transmitter-major
+  std::vector<std::string> problems;   // bad input of this epoch (one line each)
+  std::vector<std::string> events;     // faults handled (outliers, re-fixes, dropped blocks)
   bool reference_solved_now = false;
   // True when at least one transmitter has an initialised estimate.
   bool IsSolutionUsable() const;
@@ -234,10 +241,10 @@ class RadioPhaseSolver {
   RadioSolverOptions options_;
   PhaseExtractor extractor_;
   std::vector<TxState> tx_;
-  std::vector<std::vector<Link>> links_;                       // [tx][rx]
-  std::vector<std::vector<std::vector<Obs>>> init_buffer_;     // [epoch][tx][rx]
+  std::vector<std::vector<Link>> links_;                    // [tx][rx]
+  std::vector<std::vector<std::vector<Obs>>> init_buffer_;  // [epoch][tx][rx]
   std::vector<double> init_stamps_;
-  std::vector<std::optional<std::uint32_t>> last_sequence_;    // per receiver
+  std::vector<std::optional<std::uint32_t>> last_sequence_;  // per receiver
   ReferenceSolution reference_;
   std::map<std::pair<int, int>, double> model_constant_;
 };
@@ -252,7 +259,8 @@ class RadioPhaseSolver {
 // order in which the receivers' blocks arrive.
 class EpochAssembler {
  public:
-  EpochAssembler(std::vector<std::string> receiver_ids, double tolerance = 1e-3, double max_wait = 2.5);
+  EpochAssembler(std::vector<std::string> receiver_ids, double tolerance = 1e-3,
+                 double max_wait = 2.5);
   struct Epoch {
     double stamp = 0.0;
     std::vector<SampleBlock> blocks;

@@ -33,7 +33,9 @@ struct SampleBlock {
   std::vector<float> q;           // quadrature samples [ADC units]; empty for real sampling
 
   std::size_t size() const { return i.size(); }
-  double Duration() const { return sample_rate > 0.0 ? static_cast<double>(i.size()) / sample_rate : 0.0; }
+  double Duration() const {
+    return sample_rate > 0.0 ? static_cast<double>(i.size()) / sample_rate : 0.0;
+  }
 };
 
 // Phase of one transmitter's carrier at one receiver read from one block
@@ -45,9 +47,9 @@ struct PhaseObservation {
   double phase = 0.0;           // [rad] in (-pi, pi], at the block's start time
   double phase_variance = 0.0;  // [rad^2] from the SNR
   double amplitude = 0.0;       // [ADC units]
-  double snr = 0.0;             // [-] linear power ratio of the tone to the noise in its bin (after the DFT)
-  bool valid = false;           // false: the tone was not usable (low SNR, saturated block, ...)
-  std::string problem;          // why it is not valid (empty when valid)
+  double snr = 0.0;    // [-] linear power ratio of the tone to the noise in its bin (after the DFT)
+  bool valid = false;  // false: the tone was not usable (low SNR, saturated block, ...)
+  std::string problem;  // why it is not valid (empty when valid)
 };
 
 // Wraps an angle to (-pi, pi].

@@ -92,10 +92,10 @@ struct RadioSimReceiver {
 };
 
 struct RadioSimTransmitter {
-  std::string id;                     // "tx1"
-  double frequency_offset = 0.0;      // [Hz] carrier minus center_frequency; |.| < sample_rate / 2
-  double psi = 0.0;                   // [rad] phase offset psi_i
-  double amplitude = 100.0;           // [ADC units] tone amplitude at every receiver
+  std::string id;                 // "tx1"
+  double frequency_offset = 0.0;  // [Hz] carrier minus center_frequency; |.| < sample_rate / 2
+  double psi = 0.0;               // [rad] phase offset psi_i
+  double amplitude = 100.0;       // [ADC units] tone amplitude at every receiver
   // Antenna position in site [m] at time t [s] (bag time); the simulator
   // supplies it from its displacement field. Must be set.
   std::function<Eigen::Vector3d(double t)> position;
@@ -104,31 +104,31 @@ struct RadioSimTransmitter {
 struct RadioFault {
   enum class Kind { kBlockedPath, kMultipathJump, kDroppedBlocks };
   Kind kind = Kind::kBlockedPath;
-  std::string transmitter_id;   // blocked path / multipath jump
-  std::string receiver_id;      // all kinds
-  double start = 0.0;           // [s] bag time
-  double duration = 0.0;        // [s]; multipath jump: <= 0 means until the end
-  double bias = 0.0;            // [rad] multipath jump
-  double attenuation = 1.0;     // [-] amplitude factor while active
+  std::string transmitter_id;  // blocked path / multipath jump
+  std::string receiver_id;     // all kinds
+  double start = 0.0;          // [s] bag time
+  double duration = 0.0;       // [s]; multipath jump: <= 0 means until the end
+  double bias = 0.0;           // [rad] multipath jump
+  double attenuation = 1.0;    // [-] amplitude factor while active
 
-  static RadioFault BlockedPath(const std::string& tx, const std::string& rx, double start, double duration,
-                                double attenuation = 0.02);
-  static RadioFault MultipathJump(const std::string& tx, const std::string& rx, double start, double duration,
-                                  double bias, double attenuation = 1.0);
+  static RadioFault BlockedPath(const std::string& tx, const std::string& rx, double start,
+                                double duration, double attenuation = 0.02);
+  static RadioFault MultipathJump(const std::string& tx, const std::string& rx, double start,
+                                  double duration, double bias, double attenuation = 1.0);
   static RadioFault DroppedBlocks(const std::string& rx, double start, double duration);
   bool ActiveAt(double t) const;
   std::string Describe() const;  // "blocked tx2->rx1 from 1700000060 s for 10 s (amplitude x0.02)"
 };
 
 struct RadioSimConfig {
-  double wavelength = 0.125;          // [m] lambda of the phase model
-  double center_frequency = 2.4e9;    // [Hz] receivers' LO frequency (0 Hz in the samples)
-  double sample_rate = 100e3;         // [Hz] complex (I/Q) sample rate
-  int block_size = 4096;              // [samples] per block
-  double block_interval = 1.0;        // [s] nominal time between block starts (for callers; not enforced)
-  double noise_sigma = 10.0;          // [ADC units] Gaussian noise per I and Q component
-  double full_scale = 2048.0;         // [ADC units] saturation level of I and Q
-  int adc_bits = 12;                  // quantisation bits (0: no quantisation)
+  double wavelength = 0.125;        // [m] lambda of the phase model
+  double center_frequency = 2.4e9;  // [Hz] receivers' LO frequency (0 Hz in the samples)
+  double sample_rate = 100e3;       // [Hz] complex (I/Q) sample rate
+  int block_size = 4096;            // [samples] per block
+  double block_interval = 1.0;  // [s] nominal time between block starts (for callers; not enforced)
+  double noise_sigma = 10.0;    // [ADC units] Gaussian noise per I and Q component
+  double full_scale = 2048.0;   // [ADC units] saturation level of I and Q
+  int adc_bits = 12;            // quantisation bits (0: no quantisation)
   unsigned int seed = 1;
   std::vector<RadioSimReceiver> receivers;
   std::vector<RadioSimTransmitter> transmitters;
@@ -151,18 +151,19 @@ class RadioSimulator {
 
   // The block of receiver `rx` (index into config.receivers) starting at
   // t_start, or nothing when a dropped-blocks fault covers t_start.
-  std::optional<radio::SampleBlock> Synthesize(int rx, double t_start, std::uint32_t sequence) const;
+  std::optional<radio::SampleBlock> Synthesize(int rx, double t_start,
+                                               std::uint32_t sequence) const;
   // Blocks of all receivers starting at t_start (dropped ones left out).
   std::vector<radio::SampleBlock> SynthesizeAll(double t_start, std::uint32_t sequence) const;
 
   // Truth, noise- and fault-free, for transmitter index tx and receiver index rx:
-  double Range(int tx, int rx, double t) const;               // [m] |x_i(t) - X_j|
-  double UnwrappedPhase(int tx, int rx, double t) const;      // [rad] 2pi/lambda range + psi + xi
-  double WrappedPhase(int tx, int rx, double t) const;        // [rad] the above wrapped to (-pi, pi]
-  int Ambiguity(int tx, int rx, double t) const;              // N_ij(t) (see the model above)
-  double FaultBias(int tx, int rx, double t) const;           // [rad] multipath bias active at t
-  double FaultAttenuation(int tx, int rx, double t) const;    // [-] product of active attenuations
-  bool Dropped(int rx, double t) const;                       // a dropped-blocks fault covers t
+  double Range(int tx, int rx, double t) const;             // [m] |x_i(t) - X_j|
+  double UnwrappedPhase(int tx, int rx, double t) const;    // [rad] 2pi/lambda range + psi + xi
+  double WrappedPhase(int tx, int rx, double t) const;      // [rad] the above wrapped to (-pi, pi]
+  int Ambiguity(int tx, int rx, double t) const;            // N_ij(t) (see the model above)
+  double FaultBias(int tx, int rx, double t) const;         // [rad] multipath bias active at t
+  double FaultAttenuation(int tx, int rx, double t) const;  // [-] product of active attenuations
+  bool Dropped(int rx, double t) const;                     // a dropped-blocks fault covers t
   // Expected phase standard deviation of a rectangular-window DFT over one
   // block, noise_sigma / (A sqrt(N)) [rad] (no attenuation, no quantisation).
   double PhaseSigma(int tx) const;

@@ -35,17 +35,18 @@ namespace slope_monitor {
 namespace sim {
 
 struct RenderOptions {
-  int target_supersampling = 8;    // samples per axis on pixels that may see a target plate, [1, 32]
+  int target_supersampling = 8;  // samples per axis on pixels that may see a target plate, [1, 32]
   int obstacle_supersampling = 3;  // samples per axis near obstacles, [1, 16]
   int threads = 2;                 // worker threads (rows are split statically: deterministic)
   bool colour = false;             // CV_32FC3 (b, g, r) radiance instead of CV_32FC1
-  double plate_tolerance = 0.3;    // [m] a plate is seen when it is at most this far behind the ground hit
-  int epoch_salt = 0;              // varies the foliage texture between epochs (wind)
+  double plate_tolerance =
+      0.3;             // [m] a plate is seen when it is at most this far behind the ground hit
+  int epoch_salt = 0;  // varies the foliage texture between epochs (wind)
 };
 
 struct RenderResult {
-  cv::Mat radiance;                      // CV_32FC1 or CV_32FC3
-  std::vector<double> target_coverage;   // [plate index] image area (px) where the plate was seen
+  cv::Mat radiance;                     // CV_32FC1 or CV_32FC3
+  std::vector<double> target_coverage;  // [plate index] image area (px) where the plate was seen
 };
 
 class Renderer {

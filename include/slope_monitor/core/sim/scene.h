@@ -50,16 +50,16 @@ struct HeightGrid {
 
 // A target plate at one instant.
 struct Plate {
-  int target = 0;               // index into Scene::targets()
+  int target = 0;  // index into Scene::targets()
   bool is_tag = true;
   Eigen::Vector3d centre{0, 0, 0};
   Eigen::Vector3d normal{0, 0, 1};
-  Eigen::Vector3d right{1, 0, 0};  // in-plane, the tag's x (columns)
-  Eigen::Vector3d up{0, 1, 0};     // in-plane, the tag's top
-  double half = 0.5;            // [m] tag: half side of the whole plate; circle: plate radius
-  double disc_radius = 0.0;     // [m] circle: bright disc radius
-  double cell = 0.1;            // [m] tag cell size (size / width_at_border)
-  int cells = 10;               // tag: total_width
+  Eigen::Vector3d right{1, 0, 0};     // in-plane, the tag's x (columns)
+  Eigen::Vector3d up{0, 1, 0};        // in-plane, the tag's top
+  double half = 0.5;                  // [m] tag: half side of the whole plate; circle: plate radius
+  double disc_radius = 0.0;           // [m] circle: bright disc radius
+  double cell = 0.1;                  // [m] tag cell size (size / width_at_border)
+  int cells = 10;                     // tag: total_width
   std::vector<std::uint8_t> pattern;  // tag: cells x cells, row 0 at the top (libapriltag image)
 
   // Intersect: distance along the ray and the plate's reflectance there
@@ -72,18 +72,18 @@ struct Plate {
 
 struct TerrainOptions {
   Eigen::Vector4d extent{0.0, 200.0, 0.0, 150.0};  // [m] xmin xmax ymin ymax
-  double grid_spacing = 0.5;                        // [m]
-  double relief = 40.0;                             // [m] height difference foot -> crest
-  double undulation = 1.5;                          // [m] amplitude of the rolling relief
-  double undulation_wavelength = 40.0;              // [m] longest wavelength of it
+  double grid_spacing = 0.5;                       // [m]
+  double relief = 40.0;                            // [m] height difference foot -> crest
+  double undulation = 1.5;                         // [m] amplitude of the rolling relief
+  double undulation_wavelength = 40.0;             // [m] longest wavelength of it
 };
 
 struct TextureOptions {
-  double contrast = 0.35;            // [-] relative amplitude of the fine texture
-  double vegetation_fraction = 0.3;  // [-] share of the ground under vegetation-like patches
-  double rock_fraction = 0.2;        // [-] share under rock outcrops
-  double finest_wavelength = 0.02;   // [m] finest texture scale
-  double coarsest_wavelength = 16.0; // [m]
+  double contrast = 0.35;             // [-] relative amplitude of the fine texture
+  double vegetation_fraction = 0.3;   // [-] share of the ground under vegetation-like patches
+  double rock_fraction = 0.2;         // [-] share under rock outcrops
+  double finest_wavelength = 0.02;    // [m] finest texture scale
+  double coarsest_wavelength = 16.0;  // [m]
 };
 
 struct Lighting {
@@ -96,11 +96,11 @@ struct Lighting {
 struct TargetPlacement {
   std::string family = "tag36h11";  // tag36h11 | circle
   int id = 0;
-  double size = 0.6;                // [m] tag: black border edge; circle: bright disc diameter
+  double size = 0.6;  // [m] tag: black border edge; circle: bright disc diameter
   io::TargetRole role = io::TargetRole::kControl;
-  Eigen::Vector2d xy{0, 0};         // [m] site
-  double mount_height = 0.03;       // [m] plate above the ground (flat plates: along the normal;
-                                    //     facing plates: the post height of the plate centre)
+  Eigen::Vector2d xy{0, 0};    // [m] site
+  double mount_height = 0.03;  // [m] plate above the ground (flat plates: along the normal;
+                               //     facing plates: the post height of the plate centre)
   // Facing plates: a plate on a post turned towards this site point (e.g. the
   // fixed cameras), as crews mount targets for cameras on the opposite side.
   // Without it the plate lies flat on the ground (normal = the surface's).
@@ -165,8 +165,8 @@ class Scene {
     double amplitude;   // [-]
   };
   SceneSpec spec_;
-  std::vector<Octave> octaves_;        // GroundAlbedo's texture, coarsest first
-  double octave_amplitude_sum_ = 0.0;  // their amplitudes' sum
+  std::vector<Octave> octaves_;                   // GroundAlbedo's texture, coarsest first
+  double octave_amplitude_sum_ = 0.0;             // their amplitudes' sum
   double cos_azimuth_ = 1.0, sin_azimuth_ = 0.0;  // of the landslide's motion azimuth
   HeightGrid reference_;
   std::vector<TargetTruth> targets_;

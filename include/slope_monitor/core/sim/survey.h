@@ -2,10 +2,11 @@
 // scene, the camera flights / fixed cameras across the epochs, the radio
 // network, and the ground truth.
 //
-//   sim::SurveyConfig config = sim::SurveyConfig::Load("config/sim/demo_site.yaml");  // ConfigError names the key
-//   sim::SurveyGenerator gen(config);          // checks cameras see the slope and control points
-//   sim::Survey survey = gen.Generate();       // images, truth, target list, surfaces
-//   sim::WriteSurveyFiles(survey, "demo");     // demo.truth.yaml, demo.targets.yaml, demo.surface_eNN.tif, demo.site.yaml
+//   sim::SurveyConfig config = sim::SurveyConfig::Load("config/sim/demo_site.yaml");  //
+//   ConfigError names the key sim::SurveyGenerator gen(config);          // checks cameras see the
+//   slope and control points sim::Survey survey = gen.Generate();       // images, truth, target
+//   list, surfaces sim::WriteSurveyFiles(survey, "demo");     // demo.truth.yaml,
+//   demo.targets.yaml, demo.surface_eNN.tif, demo.site.yaml
 //
 // The ROS side (src/ros/sim_bag_writer.cpp) turns a Survey into a bag.
 #pragma once
@@ -31,23 +32,23 @@ namespace slope_monitor {
 namespace sim {
 
 struct StripSpec {
-  Eigen::Vector2d start{0, 0};   // [m] site x, y of the first exposure
-  Eigen::Vector2d end{0, 0};     // [m] of the last
-  double altitude = 60.0;        // [m] above the ground at the strip's midpoint
-  double overlap = 0.7;          // [-] forward overlap of consecutive images
-  double tilt = 0.0;             // [rad] off-nadir tilt (0: nadir)
+  Eigen::Vector2d start{0, 0};     // [m] site x, y of the first exposure
+  Eigen::Vector2d end{0, 0};       // [m] of the last
+  double altitude = 60.0;          // [m] above the ground at the strip's midpoint
+  double overlap = 0.7;            // [-] forward overlap of consecutive images
+  double tilt = 0.0;               // [rad] off-nadir tilt (0: nadir)
   double tilt_azimuth = M_PI / 2;  // [rad] horizontal direction the tilted camera looks to
 };
 
 struct CameraSpec {
-  std::string name;                // fixed_cam_1, ..., uav
-  std::string kind = "fixed";      // fixed | fixed_targetless (no control point needed in view) | uav
+  std::string name;            // fixed_cam_1, ..., uav
+  std::string kind = "fixed";  // fixed | fixed_targetless (no control point needed in view) | uav
   std::string encoding = "mono8";  // mono8 | bgr8
   std::string key;                 // config path for messages ("cameras[0]")
   camera::CameraModel model;       // true
   camera::CameraModel nominal;     // camera_info
   ExposureOptions exposure;
-  double exposure_jitter = 0.03;   // [-] relative sigma of the per-image exposure
+  double exposure_jitter = 0.03;         // [-] relative sigma of the per-image exposure
   std::map<int, double> exposure_jumps;  // epoch -> exposure factor from that epoch on
   // fixed
   camera::ExteriorOrientation pose;  // nominal installed pose
@@ -60,57 +61,58 @@ struct CameraSpec {
   // Surveyed stable-ground points in the truth (the crew's GNSS points picked
   // in the reference photo): how many, and the picking noise.
   int surveyed_points = 0;
-  double picked_pixel_sigma = 0.5;   // [px]
+  double picked_pixel_sigma = 0.5;  // [px]
   // uav
   std::vector<StripSpec> strips;
-  double image_interval = 2.0;       // [s]
-  double start_offset = 300.0;       // [s] after the epoch start
+  double image_interval = 2.0;             // [s]
+  double start_offset = 300.0;             // [s] after the epoch start
   Eigen::Vector2d gnss_sigma{0.03, 0.05};  // [m] horizontal, vertical
-  double attitude_sigma = 0.01;      // [rad] deviation of the true attitude from the plan
-  double track_sigma = 0.3;          // [m] deviation of the true position from the plan
+  double attitude_sigma = 0.01;            // [rad] deviation of the true attitude from the plan
+  double track_sigma = 0.3;                // [m] deviation of the true position from the plan
   // The flight log's attitude written with each photo's position_prior: the
   // true attitude rotated by this sigma about each axis; 0 = the log has no
   // attitude (the prior's orientation variance is 1e6).
-  double imu_sigma = 0.0;            // [rad]
+  double imu_sigma = 0.0;  // [rad]
   // A real flight (all 0 = the ideal plan): the heading off the track into a
   // constant cross wind (its sign flips on strips flown the other way), the
   // height wandering within +-altitude_variation of the strip's altitude
   // (barometer, terrain follow), and photos taken in the turns between strips
   // (on a half circle, banked kTurnBankDeg toward its centre).
-  double crab = 0.0;                 // [rad]
-  double altitude_variation = 0.0;   // [-] of the strip altitude
-  int turn_images = 0;               // per turn
+  double crab = 0.0;                // [rad]
+  double altitude_variation = 0.0;  // [-] of the strip altitude
+  int turn_images = 0;              // per turn
   static constexpr double kTurnBankDeg = 15.0;
 };
 
 struct RadioNetworkSpec {
   bool enabled = false;
-  RadioSimConfig sim;                  // receivers / transmitters positions are filled in (transmitter position functions too)
+  RadioSimConfig
+      sim;  // receivers / transmitters positions are filled in (transmitter position functions too)
   std::vector<Eigen::Vector2d> receiver_xy;
-  std::vector<double> receiver_mast;   // [m] antenna above ground
+  std::vector<double> receiver_mast;  // [m] antenna above ground
   std::vector<Eigen::Vector2d> transmitter_xy;
   std::vector<double> transmitter_mast;
-  double tail = 3600.0;                // [s] radio keeps recording after the last epoch
+  double tail = 3600.0;  // [s] radio keeps recording after the last epoch
 };
 
 struct SurveyConfig {
-  std::string path;                    // the file it was loaded from
+  std::string path;  // the file it was loaded from
   unsigned int seed = 7;
   Eigen::Vector3d origin{46.5, 8.0, 1200.0};  // [deg, deg, m]
   SceneSpec scene;
   int num_epochs = 4;
-  double start_time = 1700000000.0;    // [s]
-  double epoch_interval = 21600.0;     // [s]
+  double start_time = 1700000000.0;          // [s]
+  double epoch_interval = 21600.0;           // [s]
   Eigen::Vector2d survey_sigma{0.03, 0.01};  // [m] horizontal, vertical
   // Monitoring targets: the approximate position a crew notes when placing
   // them (hand-held GNSS), written to the target list with this std so the
   // centroider can identify circles; 0 = monitoring targets have no position.
-  double monitoring_approx_sigma = 0.0;       // [m]
+  double monitoring_approx_sigma = 0.0;            // [m]
   std::vector<std::string> target_keys_for_error;  // "targets.list[i]" per target
   std::vector<CameraSpec> cameras;
   RadioNetworkSpec radio;
   RenderOptions render;
-  double surface_cell = 0.5;           // [m] GeoTIFF cell (resampled from the mesh)
+  double surface_cell = 0.5;  // [m] GeoTIFF cell (resampled from the mesh)
 
   // Throws ConfigError naming the file and key (unknown key, bad value, ...).
   static SurveyConfig Load(const std::string& path);
@@ -118,21 +120,21 @@ struct SurveyConfig {
 };
 
 struct SurveyImage {
-  int camera = 0;       // index into config.cameras / truth.cameras
-  int image = 0;        // index into truth.cameras[camera].images
+  int camera = 0;  // index into config.cameras / truth.cameras
+  int image = 0;   // index into truth.cameras[camera].images
   int epoch = 0;
-  double stamp = 0.0;   // [s]
-  cv::Mat pixels;       // CV_8UC1 (mono8) or CV_8UC3 (bgr8)
+  double stamp = 0.0;  // [s]
+  cv::Mat pixels;      // CV_8UC1 (mono8) or CV_8UC3 (bgr8)
 };
 
 struct Survey {
   SurveyConfig config;
   SurveyTruth truth;
   io::TargetList target_list;
-  std::vector<SurveyImage> images;          // in stamp order
-  std::vector<io::GeoRaster> surfaces;      // per epoch
-  std::shared_ptr<RadioSimulator> radio;    // null when the site has no radio
-  std::vector<double> radio_block_starts;   // [s] start of every radio block (all receivers)
+  std::vector<SurveyImage> images;         // in stamp order
+  std::vector<io::GeoRaster> surfaces;     // per epoch
+  std::shared_ptr<RadioSimulator> radio;   // null when the site has no radio
+  std::vector<double> radio_block_starts;  // [s] start of every radio block (all receivers)
 };
 
 // A camera pose looking from `position` at `look_at` with the image's up
@@ -144,16 +146,16 @@ camera::ExteriorOrientation LookAt(const Eigen::Vector3d& position, const Eigen:
 // by `margin_px`, and not folded back into it by the lens distortion (the
 // radial polynomial of a far-off-axis point turns over: the ideal image
 // coordinates must lie near the image too). *pixel: where.
-bool ImagedAt(const camera::CameraModel& model, const camera::ExteriorOrientation& pose, const Eigen::Vector3d& x,
-              double margin_px, Eigen::Vector2d* pixel);
+bool ImagedAt(const camera::CameraModel& model, const camera::ExteriorOrientation& pose,
+              const Eigen::Vector3d& x, double margin_px, Eigen::Vector2d* pixel);
 
 // The attitude a UAV's flight log records for a photo: the true optical
 // frame in site (pose.SiteFromOptical()) turned by a small rotation whose
 // components about site x, y, z are N(0, sigma) [rad]. Deterministic: drawn
 // from its own generator seeded by (seed, camera, image), so the survey's
 // other random draws do not change with it.
-Eigen::Quaterniond FlightLogAttitude(const camera::ExteriorOrientation& pose, double sigma, unsigned int seed,
-                                     int camera, int image);
+Eigen::Quaterniond FlightLogAttitude(const camera::ExteriorOrientation& pose, double sigma,
+                                     unsigned int seed, int camera, int image);
 
 // Plates fully visible in an image: every outline point (and the centre)
 // inside the image by `margin_px`, in front, the plate facing the camera, and
@@ -189,7 +191,8 @@ void WriteSurveyFiles(Survey* survey, const std::string& stem);  // also <stem>.
 
 // Radio transmitters standing within max_distance [m] (horizontally) of a
 // monitoring target: (transmitter id, target key) pairs, nearest target each.
-std::vector<std::pair<std::string, std::string>> ColocatedPoints(const SurveyTruth& truth, double max_distance);
+std::vector<std::pair<std::string, std::string>> ColocatedPoints(const SurveyTruth& truth,
+                                                                 double max_distance);
 // The deformation_estimator overlay of a simulated site: geodetic_origin and
 // aliases "tx1 = tag36h11/10" for co-located transmitters and targets.
 void WriteSiteOverlay(const SurveyTruth& truth, const std::string& path);

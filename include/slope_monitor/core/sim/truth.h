@@ -60,12 +60,12 @@ struct LandslideModel {
   double length = 40.0;                 // [m] semi-axis along the motion azimuth
   double width = 25.0;                  // [m] semi-axis across it
   double taper = 0.25;                  // [-] boundary zone as a fraction of rho, (0, 1]
-  double azimuth = -M_PI / 2.0;         // [rad] motion azimuth from +x counter-clockwise (-pi/2: south)
-  double plunge = 0.35;                 // [rad] motion direction below the horizontal
+  double azimuth = -M_PI / 2.0;  // [rad] motion azimuth from +x counter-clockwise (-pi/2: south)
+  double plunge = 0.35;          // [rad] motion direction below the horizontal
   Velocity velocity = Velocity::kConstant;
-  double velocity0 = 0.0;               // [m/s] v0 at t0
-  double reference_time = 0.0;          // [s] t0 (stamp of the reference epoch)
-  double failure_time = 0.0;            // [s] tf (accelerating only; > t0)
+  double velocity0 = 0.0;       // [m/s] v0 at t0
+  double reference_time = 0.0;  // [s] t0 (stamp of the reference epoch)
+  double failure_time = 0.0;    // [s] tf (accelerating only; > t0)
 
   Eigen::Vector3d Direction() const;                       // unit motion vector in site
   double Weight(const Eigen::Vector2d& xy_in_site) const;  // w in [0, 1]
@@ -105,8 +105,8 @@ struct Obstacle {
   Kind kind = Kind::kBoulder;
   Eigen::Vector3d base{0, 0, 0};  // [m] ground point under its centre (reference epoch)
   double radius = 1.0;            // [m] boulder sphere / tree crown radius
-  double height = 1.0;            // [m] boulder: sphere centre height above base; tree: total height
-  bool moves = false;             // true when it stands on the landslide body and moves with it
+  double height = 1.0;  // [m] boulder: sphere centre height above base; tree: total height
+  bool moves = false;   // true when it stands on the landslide body and moves with it
   // Tree crowns in the wind (SceneSpec::foliage_motion; Scene::AtTime fills
   // both, zero otherwise): the crown's horizontal displacement at the
   // instant [m] (moves its silhouette), and the foliage phase (0 = the static
@@ -126,9 +126,9 @@ struct Obstacle {
 // rho in [1 - band, 1] and -u / length > head_fraction are the scarp
 // (unmatchable: steep, low texture).
 struct Scarp {
-  double depth = 3.0;           // [m]
-  double band = 0.05;           // [-] width of the step as a fraction of rho
-  double head_fraction = 0.0;   // [-] scarp where u / length exceeds this
+  double depth = 3.0;          // [m]
+  double band = 0.05;          // [-] width of the step as a fraction of rho
+  double head_fraction = 0.0;  // [-] scarp where u / length exceeds this
 };
 
 struct EpochTruth {
@@ -138,65 +138,66 @@ struct EpochTruth {
 
 struct ImageTruth {
   int epoch = 0;
-  double stamp = 0.0;                       // [s] exposure time (image header stamp)
-  camera::ExteriorOrientation exterior;     // true pose
-  std::vector<std::string> visible;         // target keys fully in the image and not occluded
-  std::optional<Eigen::Vector3d> gnss;      // [m] site: the noisy position the UAV recorded (uav only)
-  double exposure = 1.0;                    // [-] exposure gain applied to this image
+  double stamp = 0.0;                    // [s] exposure time (image header stamp)
+  camera::ExteriorOrientation exterior;  // true pose
+  std::vector<std::string> visible;      // target keys fully in the image and not occluded
+  std::optional<Eigen::Vector3d> gnss;   // [m] site: the noisy position the UAV recorded (uav only)
+  double exposure = 1.0;                 // [-] exposure gain applied to this image
 };
 
 // A point of stable ground surveyed by the crew and picked by hand in a fixed
 // camera's reference photo (resect_camera's input).
 struct SurveyedPointTruth {
-  std::string id;             // "s1", "s2", ...
-  Eigen::Vector3d position;   // [m] true, site
-  Eigen::Vector3d surveyed;   // [m] with the survey noise (targets.survey_sigma)
-  Eigen::Vector2d picked;     // [px] true projection in the reference image + picking noise
+  std::string id;            // "s1", "s2", ...
+  Eigen::Vector3d position;  // [m] true, site
+  Eigen::Vector3d surveyed;  // [m] with the survey noise (targets.survey_sigma)
+  Eigen::Vector2d picked;    // [px] true projection in the reference image + picking noise
 };
 
 struct CameraTruth {
-  std::string name;                         // fixed_cam_1, ..., uav
-  std::string kind = "fixed";               // fixed | fixed_targetless | uav
-  std::string encoding = "mono8";           // mono8 | bgr8
-  camera::CameraModel model;                // true interior + distortion
-  camera::CameraModel nominal;              // what camera_info says
-  std::optional<camera::ExteriorOrientation> nominal_pose;  // fixed cameras: installed pose (tf_static)
+  std::string name;                // fixed_cam_1, ..., uav
+  std::string kind = "fixed";      // fixed | fixed_targetless | uav
+  std::string encoding = "mono8";  // mono8 | bgr8
+  camera::CameraModel model;       // true interior + distortion
+  camera::CameraModel nominal;     // what camera_info says
+  std::optional<camera::ExteriorOrientation>
+      nominal_pose;  // fixed cameras: installed pose (tf_static)
   std::vector<ImageTruth> images;
   std::vector<SurveyedPointTruth> surveyed_points;  // fixed cameras: in the reference image
 };
 
 struct TargetTruth {
-  std::string key;                          // "tag36h11/3", "circle/12"
+  std::string key;  // "tag36h11/3", "circle/12"
   int id = 0;
-  std::string family = "tag36h11";          // tag36h11 | circle
-  double size = 0.0;                        // [m] tag: black border edge; circle: bright disc diameter
+  std::string family = "tag36h11";  // tag36h11 | circle
+  double size = 0.0;                // [m] tag: black border edge; circle: bright disc diameter
   io::TargetRole role = io::TargetRole::kControl;
-  Eigen::Vector3d normal{0, 0, 1};          // unit plate normal in site (constant: plates translate)
-  Eigen::Vector3d up_in_plate{0, 1, 0};     // unit in-plane direction of the tag's "up" (top row)
-  std::vector<Eigen::Vector3d> positions;   // [m] true centre per epoch (index = epoch)
-  std::optional<Eigen::Vector3d> surveyed;  // [m] noisy surveyed coordinates (control / check)
-  Eigen::Vector2d survey_sigma{0.03, 0.01}; // [m] horizontal, vertical
+  Eigen::Vector3d normal{0, 0, 1};         // unit plate normal in site (constant: plates translate)
+  Eigen::Vector3d up_in_plate{0, 1, 0};    // unit in-plane direction of the tag's "up" (top row)
+  std::vector<Eigen::Vector3d> positions;  // [m] true centre per epoch (index = epoch)
+  std::optional<Eigen::Vector3d> surveyed;   // [m] noisy surveyed coordinates (control / check)
+  Eigen::Vector2d survey_sigma{0.03, 0.01};  // [m] horizontal, vertical
 };
 
 struct RadioReceiverTruth {
-  std::string id;                           // "rx1"
-  Eigen::Vector3d position{0, 0, 0};        // [m] antenna phase centre in site (stable)
-  double xi = 0.0;                          // [rad] channel delay xi_j
+  std::string id;                     // "rx1"
+  Eigen::Vector3d position{0, 0, 0};  // [m] antenna phase centre in site (stable)
+  double xi = 0.0;                    // [rad] channel delay xi_j
 };
 
 struct RadioTransmitterTruth {
-  std::string id;                           // "tx1"
-  double frequency = 0.0;                   // [Hz] carrier (each transmitter its own offset)
-  double psi = 0.0;                         // [rad] phase offset psi_i
-  std::vector<Eigen::Vector3d> positions;   // [m] true antenna position per epoch
+  std::string id;                          // "tx1"
+  double frequency = 0.0;                  // [Hz] carrier (each transmitter its own offset)
+  double psi = 0.0;                        // [rad] phase offset psi_i
+  std::vector<Eigen::Vector3d> positions;  // [m] true antenna position per epoch
 };
 
 // phi_ij = (2 pi / lambda) |x_i - X_j| + psi_i + xi_j + 2 pi N_ij  (doc/design.md).
 // ambiguities[i][j] is N_ij of transmitter i and receiver j at the reference
 // epoch, defined so that phi_ij (wrapped to (-pi, pi]) is exactly the sum.
 struct RadioTruth {
-  double wavelength = 0.125;                // [m]
-  double center_frequency = 2.4e9;          // [Hz]
+  double wavelength = 0.125;        // [m]
+  double center_frequency = 2.4e9;  // [Hz]
   std::vector<RadioReceiverTruth> receivers;
   std::vector<RadioTransmitterTruth> transmitters;
   std::vector<std::vector<int>> ambiguities;  // [transmitter][receiver]
@@ -207,15 +208,15 @@ struct RadioTruth {
 
 struct SurfaceTruth {
   int epoch = 0;
-  std::string geotiff;                      // file name, relative to the truth file's directory
+  std::string geotiff;  // file name, relative to the truth file's directory
 };
 
 struct SurveyTruth {
   std::string format = "slope_monitor_sim_truth/1";
   unsigned int seed = 0;
-  std::string config;                       // path of the site config it was made from
-  Eigen::Vector3d origin{0, 0, 0};          // [deg, deg, m] geodetic origin of site
-  Eigen::Vector4d extent{0, 200, 0, 150};   // [m] xmin, xmax, ymin, ymax
+  std::string config;                      // path of the site config it was made from
+  Eigen::Vector3d origin{0, 0, 0};         // [deg, deg, m] geodetic origin of site
+  Eigen::Vector4d extent{0, 200, 0, 150};  // [m] xmin, xmax, ymin, ymax
   std::vector<EpochTruth> epochs;
   std::vector<CameraTruth> cameras;
   std::vector<TargetTruth> targets;

@@ -54,9 +54,11 @@ class CollinearityError {
 
   // sqrt_information: upper-triangular L^T with L L^T = covariance^-1 (see
   // SqrtInformation()).
-  static ceres::CostFunction* Create(const camera::Sensor& sensor, const Eigen::Vector2d& observed_px,
+  static ceres::CostFunction* Create(const camera::Sensor& sensor,
+                                     const Eigen::Vector2d& observed_px,
                                      const Eigen::Matrix2d& sqrt_information) {
-    return new ceres::AutoDiffCostFunction<CollinearityError, 2, camera::kNumExterior, camera::kNumInterior, 3>(
+    return new ceres::AutoDiffCostFunction<CollinearityError, 2, camera::kNumExterior,
+                                           camera::kNumInterior, 3>(
         new CollinearityError(sensor, observed_px, sqrt_information));
   }
 
@@ -78,7 +80,8 @@ class CollinearityErrorAnalytic
                             const Eigen::Matrix2d& sqrt_information)
       : sensor_(sensor), observed_(observed_px), sqrt_information_(sqrt_information) {}
 
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
 
  private:
   camera::Sensor sensor_;

@@ -20,7 +20,8 @@ class ControlPointPrior : public ceres::SizedCostFunction<3, 3> {
   ControlPointPrior(const Eigen::Vector3d& surveyed, const Eigen::Matrix3d& sqrt_information)
       : surveyed_(surveyed), sqrt_information_(sqrt_information) {}
 
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
     const Eigen::Map<const Eigen::Vector3d> x(parameters[0]);
     Eigen::Map<Eigen::Vector3d> r(residuals);
     r = sqrt_information_ * (x - surveyed_);
@@ -31,7 +32,8 @@ class ControlPointPrior : public ceres::SizedCostFunction<3, 3> {
     return true;
   }
 
-  static ceres::CostFunction* Create(const Eigen::Vector3d& surveyed, const Eigen::Matrix3d& sqrt_information) {
+  static ceres::CostFunction* Create(const Eigen::Vector3d& surveyed,
+                                     const Eigen::Matrix3d& sqrt_information) {
     return new ControlPointPrior(surveyed, sqrt_information);
   }
 

@@ -21,7 +21,8 @@ class PositionPriorError : public ceres::SizedCostFunction<3, camera::kNumExteri
   PositionPriorError(const Eigen::Vector3d& measured, const Eigen::Matrix3d& sqrt_information)
       : measured_(measured), sqrt_information_(sqrt_information) {}
 
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
     const Eigen::Map<const Eigen::Vector3d> x0(parameters[0]);
     Eigen::Map<Eigen::Vector3d> r(residuals);
     r = sqrt_information_ * (x0 - measured_);
@@ -33,7 +34,8 @@ class PositionPriorError : public ceres::SizedCostFunction<3, camera::kNumExteri
     return true;
   }
 
-  static ceres::CostFunction* Create(const Eigen::Vector3d& measured, const Eigen::Matrix3d& sqrt_information) {
+  static ceres::CostFunction* Create(const Eigen::Vector3d& measured,
+                                     const Eigen::Matrix3d& sqrt_information) {
     return new PositionPriorError(measured, sqrt_information);
   }
 

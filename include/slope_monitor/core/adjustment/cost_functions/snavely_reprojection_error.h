@@ -31,7 +31,8 @@ namespace adjustment {
 
 class SnavelyReprojectionError {
  public:
-  SnavelyReprojectionError(double observed_x, double observed_y) : observed_x_(observed_x), observed_y_(observed_y) {}
+  SnavelyReprojectionError(double observed_x, double observed_y)
+      : observed_x_(observed_x), observed_y_(observed_y) {}
 
   template <typename T>
   bool operator()(const T* camera, const T* point, T* residuals) const {
@@ -64,7 +65,8 @@ class SnavelyReprojectionErrorAnalytic : public ceres::SizedCostFunction<2, 9, 3
   SnavelyReprojectionErrorAnalytic(double observed_x, double observed_y)
       : observed_x_(observed_x), observed_y_(observed_y) {}
 
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
 
   static ceres::CostFunction* Create(double observed_x, double observed_y) {
     return new SnavelyReprojectionErrorAnalytic(observed_x, observed_y);
