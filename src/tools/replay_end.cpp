@@ -20,20 +20,8 @@
 // camera never sent its end marker) is processed as process_bag's end of
 // input does, and the same bag gives the same numbers at any rate and load.
 //
-// The end of the bag: the player leaving the master, or, for a player kept
-// alive (replay.launch plays with --keep-alive: rosbag play that exits drops
-// what its publishers still queue, and a real flight's 36 MB photos were
-// lost that way, 6 of 8), once replay_start has resumed it (it sets
-// /replay/resumed): the clock at the bag's last message (from bag_check's
-// report in `bag_check_param`), or the player's process writing nothing for
-// `quiet` s (/proc/<pid>/io wchar: its messages and clock are all sent; a
-// fast replay publishes no clock at its end, and a player kept alive spins
-// on a CPU, so neither the clock nor the thread state can tell).
-//
 // Private parameters:
 //   player  (string, "/player")  the rosbag play node
-//   bag_check_param (string, "/replay/bag_check")  bag_check's report of the bag
-//           ("time span: <first> .. <last>")
 //   quiet   (double, 1.0 s)      how long the graph must stay idle (0.1..60)
 //   timeout (double, 3600 s)     wall time after the player's end; then exit 1 naming the busy
 //   nodes
@@ -145,51 +133,6 @@ bool WaitIdle(const std::map<std::string, int>& graph, int needed, Clock::time_p
   return true;
 }
 
-// The bag time of the last message from bag_check's report ("time span:
-// <first> .. <last> (...)"), 0 when the report has none.
-double BagEnd(const std::string& report) {
-  const size_t at = report.find("time span: ");
-  if (at == std::string::npos) return 0.0;
-  std::istringstream in(report.substr(at + 11));
-  double first = 0.0, last = 0.0;
-  std::string dots;
-  if (!(in >> first >> dots >> last) || dots != "..") return 0.0;
-  return last;
-}
-
-// Bytes a process has written so far (sockets included), -1 if unknown.
-long long WrittenBytes(int pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/io");
-  std::string key;
-  long long value = 0;
-  while (in >> key >> value)
-    if (key == "wchar:") return value;
-  return -1;
-}
-
-// Returns when the player (running) has played the bag: it left the master,
-// or (kept alive) after replay_start resumed it (/replay/resumed), the clock
-// reached `bag_end` or the player wrote nothing for `needed` 0.1 s steps.
-void WaitForPlayed(const std::string& player, double bag_end, int needed) {
-  const auto step = std::chrono::milliseconds(100);
-  bool resumed = false;
-  const int pid = PidOf(player);
-  long long last_written = -1;
-  int still = 0;
-  while (ros::ok() && NodeRunning(player)) {
-    std::this_thread::sleep_for(step);
-    if (!resumed) {
-      ros::param::getCached("/replay/resumed", resumed);
-      continue;
-    }
-    if (bag_end > 0.0 && ros::Time::now().toSec() >= bag_end) return;
-    const long long written = pid > 0 ? WrittenBytes(pid) : -1;
-    still = written >= 0 && written == last_written ? still + 1 : 0;
-    last_written = written;
-    if (still >= needed) return;
-  }
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -212,11 +155,9 @@ int main(int argc, char** argv) {
       nh.advertise<std_msgs::UInt8>(slope_monitor::ros_adapters::kEndOfInputTopic,
                                     slope_monitor::ros_adapters::kEndOfInputStages, true);
   const auto step = std::chrono::milliseconds(100);
-  std::string bag_check_param, report;
-  pnh.param<std::string>("bag_check_param", bag_check_param, "/replay/bag_check");
-  const double bag_end = ros::param::get(bag_check_param, report) ? BagEnd(report) : 0.0;
+  // The player: seen, then gone.
   while (ros::ok() && !NodeRunning(player)) std::this_thread::sleep_for(step);
-  WaitForPlayed(player, bag_end, static_cast<int>(quiet / 0.1 + 0.5));
+  while (ros::ok() && NodeRunning(player)) std::this_thread::sleep_for(step);
   if (!ros::ok()) return 0;
   const auto ended = Clock::now();
   const std::map<std::string, int> graph = GraphProcesses(player);

@@ -103,7 +103,5 @@ int main(int argc, char** argv) {
               resume.response.message.c_str());
     return 1;
   }
-  // replay_end watches the player only from here on (a paused player is idle too).
-  ros::param::set("/replay/resumed", true);
   return 0;
 }

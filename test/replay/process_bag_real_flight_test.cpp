@@ -10,9 +10,7 @@
 // Must hold: the capture ends by itself at the end of the folder, the bag
 // holds every photo with its position prior, and process_bag (exit 0) accepts
 // one epoch with every photo oriented (tie points and GNSS only; measured:
-// 8 of 8 photos, 2667 points, 7055 observations, rms 0.35 px, sigma0 1.64);
-// replay.launch on the same bag and site (exit 0) accepts the same epoch with
-// the same points and observations.
+// 8 of 8 photos, 2667 points, 7055 observations, rms 0.35 px, sigma0 1.64).
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <signal.h>
@@ -211,8 +209,6 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
 
   rosbag::Bag out((dir / "out.bag").string(), rosbag::bagmode::Read);
   int accepted = 0;
-  size_t points = 0;
-  int observations = 0;
   for (const rosbag::MessageInstance& m :
        rosbag::View(out, rosbag::TopicQuery("/bundle_adjuster/solution"))) {
     const auto s = m.instantiate<slope_monitor::AdjustmentSolution>();
@@ -230,42 +226,9 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
     std::cout << "epoch " << s->epoch << ": " << photos_oriented.size() << " of 8 photos oriented, "
               << s->points.size() << " points, " << s->num_observations << " observations, rms "
               << s->rms_residual_px << " px, sigma0 " << s->sigma0 << "\n";
-    points = s->points.size();
-    observations = s->num_observations;
   }
   EXPECT_EQ(accepted, 1) << err;
 
-  // The same bag through the graph: replay.launch with the site file and the
-  // defaults (but the dense step, as above) accepts the same epoch with the
-  // same points and observations (its bundle adjuster's log line).
-  ASSERT_EQ(bags.size(), 1u);
-  const int replay_port = FreePort();
-  const std::vector<std::string> replay_env = {
-      "ROS_MASTER_URI=http://127.0.0.1:" + std::to_string(replay_port),
-      "ROS_LOG_DIR=" + (dir / "log").string(), "ROS_HOME=" + (dir / "ros_home").string()};
-  fs::create_directories(dir / "replay");
-  const auto replay_start = std::chrono::steady_clock::now();
-  const int replay_status =
-      WaitAtMost(Spawn({"roslaunch", "-p", std::to_string(replay_port), "slope_monitor",
-                        "replay.launch", "site:=" + site.string(), "bag:=" + bags.front(),
-                        "dense:=false", "database:=" + (dir / "replay.db").string(),
-                        "report_dir:=" + (dir / "replay_reports").string()},
-                       dir / "replay", replay_env),
-                 std::chrono::seconds(300));
-  std::cout
-      << "replay.launch: "
-      << std::chrono::duration<double>(std::chrono::steady_clock::now() - replay_start).count()
-      << " s\n";
-  const std::string log = ReadFile(dir / "replay" / "stdout") + ReadFile(dir / "replay" / "stderr");
-  EXPECT_EQ(replay_status, 0) << log;
-  const std::string accepted_line = "bundle_adjuster: epoch 0 accepted: 8 images, " +
-                                    std::to_string(points) + " points, " +
-                                    std::to_string(observations) + " observations";
-  EXPECT_NE(log.find(accepted_line), std::string::npos) << "expected '" << accepted_line << "' in\n"
-                                                        << log;
-  EXPECT_NE(log.find("no target stage"), std::string::npos) << log;
-  EXPECT_EQ(log.find("not advertising"), std::string::npos) << log;
-  EXPECT_EQ(log.find("cannot open"), std::string::npos) << log;
   // The recording is 200 MB: kept only when something failed.
   if (!::testing::Test::HasFailure()) fs::remove_all(dir / "bags");
 }
