@@ -113,6 +113,10 @@ sm_build_targets() {
 
 sm_source_ws() {
   [ -f "$SM_WS/devel/setup.bash" ] || sm_die "no built workspace at $SM_WS: run scripts/demo or scripts/test first"
+  # catkin's setup puts devel's Python folder on PYTHONPATH only if it exists
+  # when sourced; on a new workspace genpy writes our message modules there
+  # later in the same build, and rosservice / rostopic must find them.
+  mkdir -p "$SM_WS/devel/lib/python3/dist-packages"
   # shellcheck disable=SC1091
   set +u; source "$SM_WS/devel/setup.bash"; set -u
 }
