@@ -9,6 +9,7 @@
 
 #include "slope_monitor/core/camera/rotation.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/numeric.h"
 #include "slope_monitor/core/common/rigid3.h"
 #include "slope_monitor/core/geometry/similarity.h"
 
@@ -17,10 +18,6 @@ namespace flight {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double Since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
 // The state of the block while it grows.
 struct Block {
   camera::CameraModel model;
@@ -571,7 +568,7 @@ void LeaveOneOut(const Block& block, const StageSetup& final_setup, const Flight
     summary->leave_one_out.push_back(r);
   }
   summary->leave_one_out_rms = Rms3(summary->leave_one_out);
-  summary->seconds["leave_one_out"] = Since(t0);
+  summary->seconds["leave_one_out"] = SecondsSince(t0);
 }
 
 // Reprojection errors of the final scene, per observation and point.
@@ -683,10 +680,10 @@ FlightResult OrientFlight(const FlightInput& input, const FlightOrientationOptio
     sum.not_oriented = NotOriented(block, input, options);
     return result;
   }
-  sum.seconds["start"] = Since(t0);
+  sum.seconds["start"] = SecondsSince(t0);
   t0 = Clock::now();
   Grow(&block, input, options);
-  sum.seconds["growth"] = Since(t0);
+  sum.seconds["growth"] = SecondsSince(t0);
   t0 = Clock::now();
   StageSetup s;
   s.input = &input;
@@ -697,7 +694,7 @@ FlightResult OrientFlight(const FlightInput& input, const FlightOrientationOptio
   sum.georeferenced = geo.empty();
   if (!geo.empty())
     sum.datum = "model frame (no datum: arbitrary scale and orientation; " + geo + ")";
-  sum.seconds["georeference"] = Since(t0);
+  sum.seconds["georeference"] = SecondsSince(t0);
   t0 = Clock::now();
   Adjust(&block, s);  // drops the observations the site frame's datum shows as blunders
   StageResult final_stage = Adjust(&block, s);
@@ -710,7 +707,7 @@ FlightResult OrientFlight(const FlightInput& input, const FlightOrientationOptio
     s.without_covariance = true;
     final_stage = Adjust(&block, s);
   }
-  sum.seconds["adjustment"] = Since(t0);
+  sum.seconds["adjustment"] = SecondsSince(t0);
   sum.not_oriented = NotOriented(block, input, options);
   if (!final_stage.summary.IsSolutionUsable()) {
     sum.message = "the final adjustment is not usable: " + final_stage.summary.reason;

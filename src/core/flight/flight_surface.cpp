@@ -23,10 +23,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double SecondsSince(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
 // Smallest JPEG DCT scale (1, 2, 4, 8) that brings the longer side to at most `size`.
 int DecodeFactor(int width, int height, int size) {
   int f = 1;
