@@ -175,10 +175,14 @@ double CorrelatedCells(double length, double cell_area) {
   return std::max(1.0, 2 * M_PI * length * length / cell_area);
 }
 
-// 1-sigma of the horizontal shift at the final state (see Coregistration::shift_sigma).
-Eigen::Vector2d ShiftSigma(const io::GeoRaster& reference, const StableResiduals& s,
-                           const Coregistration& c, double correlated_cells) {
-  Eigen::Matrix<double, 5, 5> n = Eigen::Matrix<double, 5, 5>::Zero();
+// Normal equations of the co-registration step over the stable inliers:
+// unknowns (shift x, shift y, vertical, tilt x, tilt y), one row per cell
+// with a gradient of the reference, right-hand side its dz.
+void StableNormals(const io::GeoRaster& reference, const StableResiduals& s,
+                   const Coregistration& c, Eigen::Matrix<double, 5, 5>* n,
+                   Eigen::Matrix<double, 5, 1>* b) {
+  n->setZero();
+  b->setZero();
   for (size_t i = 0; i < s.cells.size(); ++i) {
     if (!s.inlier[i]) continue;
     const int row = s.cells[i] / reference.width, col = s.cells[i] % reference.width;
@@ -187,8 +191,17 @@ Eigen::Vector2d ShiftSigma(const io::GeoRaster& reference, const StableResiduals
     const Eigen::Vector2d xy = reference.CellCentre(row, col) - c.centre;
     Eigen::Matrix<double, 5, 1> a;
     a << -g.x(), -g.y(), 1.0, xy.x(), xy.y();
-    n += a * a.transpose();
+    *n += a * a.transpose();
+    *b += a * s.dz[i];
   }
+}
+
+// 1-sigma of the horizontal shift at the final state (see Coregistration::shift_sigma).
+Eigen::Vector2d ShiftSigma(const io::GeoRaster& reference, const StableResiduals& s,
+                           const Coregistration& c, double correlated_cells) {
+  Eigen::Matrix<double, 5, 5> n;
+  Eigen::Matrix<double, 5, 1> b;
+  StableNormals(reference, s, c, &n, &b);
   const double inf = std::numeric_limits<double>::infinity();
   Eigen::FullPivLU<Eigen::Matrix<double, 5, 5>> lu(n);
   if (lu.rank() < 5) return Eigen::Vector2d(inf, inf);
@@ -274,19 +287,9 @@ Coregistration Coregister(const io::GeoRaster& reference, const io::GeoRaster& a
                 "outline and inside the stable mask) have a height in both DEMs; need ",
                 o.min_stable_cells, " (min_stable_cells)"));
   for (int it = 0; it < o.coregistration_iterations; ++it) {
-    Eigen::Matrix<double, 5, 5> n = Eigen::Matrix<double, 5, 5>::Zero();
-    Eigen::Matrix<double, 5, 1> b = Eigen::Matrix<double, 5, 1>::Zero();
-    for (size_t i = 0; i < s.cells.size(); ++i) {
-      if (!s.inlier[i]) continue;
-      const int row = s.cells[i] / reference.width, col = s.cells[i] % reference.width;
-      Eigen::Vector2d g;
-      if (!Gradient(reference, row, col, &g)) continue;
-      const Eigen::Vector2d xy = reference.CellCentre(row, col) - c.centre;
-      Eigen::Matrix<double, 5, 1> a;
-      a << -g.x(), -g.y(), 1.0, xy.x(), xy.y();
-      n += a * a.transpose();
-      b += a * s.dz[i];
-    }
+    Eigen::Matrix<double, 5, 5> n;
+    Eigen::Matrix<double, 5, 1> b;
+    StableNormals(reference, s, c, &n, &b);
     // Ridge on the shift: a direction the terrain does not reveal stays put.
     const double ridge = 0.05 * (n(0, 0) + n(1, 1)) / 2 + 1e-9;
     n(0, 0) += ridge;
