@@ -162,13 +162,22 @@ double TerrainHit(const HeightGrid& grid, const std::vector<int>& tri, int w, in
     return t;
   }
   // Neighbouring cells (the rasteriser used straight edges in the image).
+  // A cell whose square the ray's ground track (the line through origin
+  // along d's x-y part) misses holds no hit and is skipped: the line meets a
+  // square of side s centred on c iff |d_xy x (c - o_xy)| <= (|dx| + |dy|) s/2
+  // (kept with a relative margin far above the rounding of the triangle
+  // test, so the nearest hit, and so the image, is the same as testing all).
   const int cell = t0 >> 1;
   const int ci = cell % (grid.nx - 1), cj = cell / (grid.nx - 1);
+  const double reach = (std::abs(d.x()) + std::abs(d.y())) * 0.5 * grid.spacing * (1.0 + 1e-6);
   double best = kInf;
   for (int dj = -2; dj <= 2; ++dj) {
     for (int di = -2; di <= 2; ++di) {
       const int ni = ci + di, nj = cj + dj;
       if (ni < 0 || nj < 0 || ni >= grid.nx - 1 || nj >= grid.ny - 1) continue;
+      const double cx = grid.X(ni) + 0.5 * grid.spacing - origin.x();
+      const double cy = grid.Y(nj) + 0.5 * grid.spacing - origin.y();
+      if (std::abs(d.x() * cy - d.y() * cx) > reach) continue;
       for (int hh = 0; hh < 2; ++hh) {
         const int id = 2 * (nj * (grid.nx - 1) + ni) + hh;
         const double tt = grid.IntersectTriangle(id, origin, d);

@@ -24,13 +24,24 @@ std::uint64_t SplitMix(std::uint64_t x) {
 
 inline double Quintic(double t) { return t * t * t * (t * (t * 6.0 - 15.0) + 10.0); }
 
+// LatticeNoise in two steps: the row's hash (of iy and the salt), shared by
+// the lattice points of one row, then the point's value.
+inline std::uint64_t RowHash(std::int64_t iy, std::uint32_t salt) {
+  return SplitMix(static_cast<std::uint64_t>(iy) ^ (static_cast<std::uint64_t>(salt) << 32));
+}
+inline float LatticeValue(std::int64_t ix, std::uint64_t row_hash) {
+  const std::uint64_t h = SplitMix(static_cast<std::uint64_t>(ix) * 0x8da6b343ULL ^ row_hash);
+  return static_cast<float>(static_cast<double>(h >> 11) * (2.0 / 9007199254740992.0) - 1.0);
+}
+
 // Smooth value noise in [-1, 1] with unit lattice spacing.
 double ValueNoise(double x, double y, std::uint32_t salt) {
   const double fx = std::floor(x), fy = std::floor(y);
   const auto ix = static_cast<std::int64_t>(fx), iy = static_cast<std::int64_t>(fy);
   const double tx = Quintic(x - fx), ty = Quintic(y - fy);
-  const double a = LatticeNoise(ix, iy, salt), b = LatticeNoise(ix + 1, iy, salt);
-  const double c = LatticeNoise(ix, iy + 1, salt), d = LatticeNoise(ix + 1, iy + 1, salt);
+  const std::uint64_t row0 = RowHash(iy, salt), row1 = RowHash(iy + 1, salt);
+  const double a = LatticeValue(ix, row0), b = LatticeValue(ix + 1, row0);
+  const double c = LatticeValue(ix, row1), d = LatticeValue(ix + 1, row1);
   return (a + (b - a) * tx) * (1.0 - ty) + (c + (d - c) * tx) * ty;
 }
 
@@ -56,10 +67,7 @@ double RaySphere(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const Eigen
 }  // namespace
 
 float LatticeNoise(std::int64_t ix, std::int64_t iy, std::uint32_t salt) {
-  const std::uint64_t h =
-      SplitMix(static_cast<std::uint64_t>(ix) * 0x8da6b343ULL ^
-               SplitMix(static_cast<std::uint64_t>(iy) ^ (static_cast<std::uint64_t>(salt) << 32)));
-  return static_cast<float>(static_cast<double>(h >> 11) * (2.0 / 9007199254740992.0) - 1.0);
+  return LatticeValue(ix, RowHash(iy, salt));
 }
 
 // ---------------------------------------------------------------------------
