@@ -16,7 +16,8 @@
 // --geo FILE: the photos' positions in ODM's geo.txt format (io/geo_list.h),
 // used instead of their EXIF GNSS (same sigma, --gnss-sigma).
 //
-// Frame: the CRS of the gcp list (its first line), else the site file's,
+// Frame: the CRS of the gcp list (its first line), else the site file's (a local_enu
+// site's: the UTM zone of its origin),
 // else the geo list's, else the UTM zone of the first photo with GNSS (EPSG:326NN / 327NN); the
 // site frame is that CRS minus a rounded origin (crs.txt). Without control
 // points or GNSS the block stays in a model frame (said in the report).
@@ -203,6 +204,16 @@ std::optional<SiteCrs> MakeFrame(const Args& args, const std::optional<io::GcpLi
         Eigen::Vector3d(std::round(g.x() / 100.0) * 100.0, std::round(g.y() / 100.0) * 100.0, 0.0);
   } else if (!args.site.empty()) {
     o = io::LoadSiteFile(args.site).crs;
+    if (o.frame == SiteCrsOptions::Frame::kLocalEnu) {
+      // A local_enu site: the run's frame is the UTM zone of its origin
+      // (SiteCrs::MapCrs), so the GeoTIFFs carry that EPSG code.
+      const SiteCrs site(o);
+      const Eigen::Vector3d u = site.MapFromSite(Eigen::Vector3d::Zero());
+      o.crs = site.MapCrs();
+      o.frame = SiteCrsOptions::Frame::kShiftedCrs;
+      o.origin = Eigen::Vector3d(std::round(u.x() / 100.0) * 100.0,
+                                 std::round(u.y() / 100.0) * 100.0, 0.0);
+    }
   } else if (geo && !geo->entries.empty()) {
     o.crs = geo->crs;
     const Eigen::Vector3d g = geo->entries.front().geo;

@@ -21,6 +21,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -186,6 +187,54 @@ TEST(ProcessBag, FullGraphReplayMatchesTruth) {
   EXPECT_EQ(ogr_status, 0) << ogr;
   EXPECT_NE(ogr.find("points"), std::string::npos) << ogr;
   EXPECT_NE(ogr.find("latest_displacement"), std::string::npos) << ogr;
+  // Issue 38: an EPSG CRS on every raster and vector output (this local_enu
+  // site's origin, 46.5 N 8.0 E, is in UTM zone 32: EPSG:32632; was a custom
+  // orthographic CRS named "unknown"), times as DateTime, the GeoJSON split by
+  // geometry type, and each taken to EPSG:4326 by GDAL's tools.
+  const auto [srs_status, srs] =
+      Tool({"gdalsrsinfo", "-o", "epsg", (reports / "deformation.tif").string()}, dir / "srsinfo");
+  EXPECT_EQ(srs_status, 0) << srs;
+  EXPECT_NE(srs.find("EPSG:32632"), std::string::npos) << srs;
+  const auto [json_status, json] =
+      Tool({"gdalinfo", "-json", (reports / "deformation.tif").string()}, dir / "gdalinfo_json");
+  EXPECT_EQ(json_status, 0) << json;
+  EXPECT_NE(json.find(R"(ID[\"EPSG\",32632]])"), std::string::npos) << json;
+  EXPECT_NE(json.find(R"("proj:epsg":32632)"), std::string::npos) << json;
+  const auto [layer_status, layer] = Tool(
+      {"ogrinfo", "-ro", "-so", (reports / "deformation.gpkg").string(), "latest_displacement"},
+      dir / "ogrinfo_latest");
+  EXPECT_EQ(layer_status, 0) << layer;
+  EXPECT_NE(layer.find("time_utc: DateTime"), std::string::npos) << layer;
+  EXPECT_NE(layer.find("forecast_failure_time_utc: DateTime"), std::string::npos) << layer;
+  EXPECT_NE(layer.find(R"(ID["EPSG",32632]])"), std::string::npos) << layer;
+  for (const char* gpkg_layer : {"points", "change_polygons"}) {
+    const auto [status, out] =
+        Tool({"ogrinfo", "-ro", "-so", (reports / "deformation.gpkg").string(), gpkg_layer},
+             dir / (std::string("ogrinfo_") + gpkg_layer));
+    EXPECT_EQ(status, 0) << out;
+    EXPECT_NE(out.find(R"(ID["EPSG",32632]])"), std::string::npos) << gpkg_layer << ": " << out;
+  }
+  const auto [to_wgs84_status, to_wgs84] = Tool(
+      {"ogr2ogr", "-f", "GeoJSON", "-t_srs", "EPSG:4326", (dir / "latest_wgs84.geojson").string(),
+       (reports / "deformation.gpkg").string(), "latest_displacement"},
+      dir / "ogr2ogr");
+  EXPECT_EQ(to_wgs84_status, 0) << to_wgs84;
+  const std::string latest_wgs84 = ReadFile(dir / "latest_wgs84.geojson");
+  EXPECT_NE(latest_wgs84.find(R"("time_utc": ")"), std::string::npos) << latest_wgs84;
+  // RFC 7946 GeoJSON, one geometry type per file, nothing but "type" and "features".
+  for (const auto& [file, geometry, other] :
+       std::vector<std::tuple<std::string, std::string, std::string>>{
+           {"deformation.geojson", "(3D Point)", "Polygon"},
+           {"deformation_areas.geojson", "", "Point"}}) {
+    const std::string text = ReadFile(reports / file);
+    EXPECT_EQ(text.find("crs_note"), std::string::npos) << file;
+    EXPECT_EQ(text.find("\"summary\""), std::string::npos) << file;
+    const auto [status, out] =
+        Tool({"ogrinfo", "-ro", "-so", (reports / file).string()}, dir / ("ogrinfo_" + file));
+    EXPECT_EQ(status, 0) << out;
+    if (!geometry.empty()) EXPECT_NE(out.find(geometry), std::string::npos) << file << ": " << out;
+    EXPECT_EQ(out.find(other), std::string::npos) << file << " mixes geometry types: " << out;
+  }
 }
 
 // ----------------------------------------------- estimator_no_radio's truth

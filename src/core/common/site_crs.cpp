@@ -1,6 +1,8 @@
 #include "slope_monitor/core/common/site_crs.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <mutex>
 
 #include <proj.h>
@@ -47,10 +49,13 @@ struct SiteCrs::Impl {
   PJ* crs = nullptr;           // the site CRS
   PJ* crs_to_wgs84 = nullptr;  // site CRS (x east, y north) -> WGS 84 (lon, lat, h)
   PJ* wgs84_to_enu = nullptr;  // WGS 84 (lon, lat deg, h) -> ENU at the origin
+  std::string map_crs;         // MapCrs()
+  int map_epsg = 0;
+  PJ* wgs84_to_map = nullptr;  // kLocalEnu: WGS 84 (lon, lat, h) -> UTM (E, N, h)
   mutable std::mutex mutex;
 
   ~Impl() {
-    for (PJ* p : {crs, crs_to_wgs84, wgs84_to_enu}) {
+    for (PJ* p : {crs, crs_to_wgs84, wgs84_to_enu, wgs84_to_map}) {
       if (p) proj_destroy(p);
     }
     if (ctx) proj_context_destroy(ctx);
@@ -104,6 +109,26 @@ SiteCrs::SiteCrs(const SiteCrsOptions& options) : impl_(std::make_unique<Impl>()
     throw InvalidArgument(Message("site origin of crs '", options.crs,
                                   "': PROJ cannot set up the local frame: ", ProjError(m.ctx)));
   }
+  PJ* map = m.crs;
+  if (options.frame == SiteCrsOptions::Frame::kShiftedCrs) {
+    m.map_crs = options.crs;
+  } else {
+    const double lon = m.origin_wgs84.x(), lat = m.origin_wgs84.y();
+    const int zone = std::clamp(static_cast<int>(std::floor((lon + 180.0) / 6.0)) + 1, 1, 60);
+    m.map_crs = Message("EPSG:", (lat < 0.0 ? 32700 : 32600) + zone);
+    PJ* to_map = proj_create_crs_to_crs(m.ctx, kWgs84_3d, m.map_crs.c_str(), nullptr);
+    m.wgs84_to_map = to_map ? proj_normalize_for_visualization(m.ctx, to_map) : nullptr;
+    if (to_map) proj_destroy(to_map);
+    if (!m.wgs84_to_map) {
+      throw InvalidArgument(Message("site origin of crs '", options.crs, "': PROJ cannot set up ",
+                                    m.map_crs, ": ", ProjError(m.ctx)));
+    }
+    map = proj_create(m.ctx, m.map_crs.c_str());
+  }
+  const char* auth = map ? proj_get_id_auth_name(map, 0) : nullptr;
+  const char* code = map ? proj_get_id_code(map, 0) : nullptr;
+  if (auth && code && std::string(auth) == "EPSG") m.map_epsg = std::atoi(code);
+  if (map && map != m.crs) proj_destroy(map);
 }
 
 SiteCrs SiteCrs::LocalEnuAtWgs84(double latitude_deg, double longitude_deg, double height_m) {
@@ -131,23 +156,32 @@ SiteCrs& SiteCrs::operator=(SiteCrs&&) noexcept = default;
 const SiteCrsOptions& SiteCrs::options() const { return impl_->options; }
 const Eigen::Vector3d& SiteCrs::origin_wgs84() const { return impl_->origin_wgs84; }
 
-std::string SiteCrs::SiteFrameCrsProj() const {
-  if (impl_->options.frame == SiteCrsOptions::Frame::kShiftedCrs) return "";
-  return "+proj=ortho +ellps=WGS84 +lon_0=" + Fixed(impl_->origin_wgs84.x()) +
-         " +lat_0=" + Fixed(impl_->origin_wgs84.y()) + " +x_0=0 +y_0=0 +units=m +no_defs +type=crs";
-}
+const std::string& SiteCrs::MapCrs() const { return impl_->map_crs; }
+int SiteCrs::MapEpsg() const { return impl_->map_epsg; }
 
 std::string SiteCrs::CrsWkt() const {
   const Impl& m = *impl_;
   std::lock_guard<std::mutex> lock(m.mutex);
-  const std::string proj = SiteFrameCrsProj();
-  PJ* crs = proj.empty() ? proj_clone(m.ctx, m.crs) : proj_create(m.ctx, proj.c_str());
+  PJ* crs = proj_create(m.ctx, m.map_crs.c_str());
   const char* wkt = crs ? proj_as_wkt(m.ctx, crs, PJ_WKT1_GDAL, nullptr) : nullptr;
   std::string out = wkt ? wkt : "";
   if (crs) proj_destroy(crs);
   if (out.empty())
-    throw InvalidArgument(Message("site crs '", m.options.crs, "': PROJ cannot write it as WKT"));
+    throw InvalidArgument(
+        Message("site crs '", m.options.crs, "': PROJ cannot write ", m.map_crs, " as WKT"));
   return out;
+}
+
+Eigen::Vector3d SiteCrs::MapFromSite(const Eigen::Vector3d& x_in_site) const {
+  if (impl_->options.frame == SiteCrsOptions::Frame::kShiftedCrs)
+    return x_in_site + impl_->options.origin;
+  return impl_->Trans(impl_->wgs84_to_map, PJ_FWD, Wgs84FromSite(x_in_site), "site point");
+}
+
+Eigen::Vector3d SiteCrs::SiteFromMap(const Eigen::Vector3d& x_in_map) const {
+  if (impl_->options.frame == SiteCrsOptions::Frame::kShiftedCrs)
+    return x_in_map - impl_->options.origin;
+  return SiteFromWgs84(impl_->Trans(impl_->wgs84_to_map, PJ_INV, x_in_map, "map point"));
 }
 
 Eigen::Vector3d SiteCrs::SiteFromWgs84(const Eigen::Vector3d& lon_lat_h) const {

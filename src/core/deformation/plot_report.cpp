@@ -1,5 +1,7 @@
 #include "slope_monitor/core/deformation/plot_report.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -72,8 +74,24 @@ std::vector<std::string> WriteAllReports(const Estimator& estimator, const std::
   if (matplotlib) {
     PlotReportOptions o = plot;
     if (o.dem.empty()) o.dem = LatestSurface(root);
-    for (const std::string& f : files)
-      if (f.size() > 5 && f.compare(f.size() - 5, 5, ".gpkg") == 0) o.polygons = f;
+    // The map is drawn in the site frame (the history's coordinates), the
+    // report GeoPackage is in the map CRS: the areas go to the script in a
+    // site-frame copy (no georeference), removed after.
+    namespace fs = std::filesystem;
+    const Snapshot s = estimator.GetSnapshot();
+    fs::path site_frame;
+    if (!s.areas.empty()) {
+      site_frame = fs::temp_directory_path() /
+                   Message("slope_monitor_plot_areas_", getpid(), "_", &estimator, ".gpkg");
+      o.polygons = WriteGeoPackage(s, site_frame.string(), ReportOptions());
+    }
+    struct Remove {
+      fs::path p;
+      ~Remove() {
+        std::error_code ec;
+        if (!p.empty()) fs::remove(p, ec);
+      }
+    } remove{site_frame};
     const std::vector<std::string> pictures = RunPlotReport(
         o, history, io::ResolveSubfolder(root, subfolder), estimator.options().alerts.thresholds);
     files.insert(files.end(), pictures.begin(), pictures.end());

@@ -140,12 +140,6 @@ std::optional<SiteCrs> ReportSiteCrs(const ReportOptions& options) {
   return SiteCrs::LocalEnuAtWgs84(g(0), g(1), g(2));
 }
 
-Eigen::Vector3d ReportCrsOffset(const std::optional<SiteCrs>& site) {
-  return site && site->options().frame == SiteCrsOptions::Frame::kShiftedCrs
-             ? site->options().origin
-             : Eigen::Vector3d::Zero();
-}
-
 void ReportOptions::Check() const {
   if (!(grid_resolution > 0.0))
     throw ConfigError(Message("report grid_resolution = ", grid_resolution, " m must be > 0"));
@@ -208,77 +202,39 @@ std::string WriteCsv(const Snapshot& s, const std::string& path, const ReportOpt
 
 namespace {
 
-// The areas of significant surface change as Polygon features (exterior
-// ring and holes; WGS 84 lon, lat with a site CRS, else site x, y).
-void WriteAreaFeatures(const Snapshot& s, const std::optional<SiteCrs>& site, bool comma,
-                       std::ostringstream& o) {
-  const auto ring = [&](const std::vector<Eigen::Vector2d>& pts) {
-    o << "[";
-    for (size_t k = 0; k <= pts.size(); ++k) {  // closed: the first vertex again
-      const Eigen::Vector2d& v = pts[k % pts.size()];
-      const Eigen::Vector3d c = site ? site->Wgs84FromSite(Eigen::Vector3d(v.x(), v.y(), 0.0))
-                                     : Eigen::Vector3d(v.x(), v.y(), 0.0);
-      o << (k ? ", " : "") << "[" << Num(c(0), site ? 9 : 3) << ", " << Num(c(1), site ? 9 : 3)
-        << "]";
-    }
-    o << "]";
-  };
-  for (const AreaState& a : s.areas) {
-    o << (comma ? "," : "")
-      << "\n    {\"type\": \"Feature\", \"geometry\": {\"type\": \"Polygon\", \"coordinates\": [";
-    comma = true;
-    ring(a.area.outline);
-    for (const auto& h : a.area.holes) {
-      o << ", ";
-      ring(h);
-    }
-    o << "]},\n     \"properties\": {\"id\": \"" << a.id
-      << "\", \"kind\": \"change_area\", \"source\": \"surface\""
-      << ", \"epoch\": " << a.epoch << ", \"time_utc\": \"" << Utc(a.stamp)
-      << "\", \"sign\": " << a.area.sign << ", \"area_m2\": " << Num(a.area.area, 2)
-      << ", \"volume_m3\": " << Num(a.area.volume, 3)
-      << ", \"mean_change_m\": " << Num(a.area.mean_change, 3)
-      << ", \"max_change_m\": " << Num(a.area.max_change, 3)
-      << ", \"growth_m2\": " << Num(a.growth, 2) << ", \"alert\": \"" << AlertName(a.alert)
-      << "\", \"alert_level\": " << static_cast<int>(a.alert) << ", \"alert_reason\": \""
-      << JsonEscape(a.reason) << "\"}}";
-  }
+// RFC 7946 GeoJSON is WGS 84 longitude, latitude: a site without a georeference has none.
+SiteCrs GeoJsonSite(const ReportOptions& options, const std::string& path) {
+  std::optional<SiteCrs> site = ReportSiteCrs(options);
+  if (!site)
+    throw InvalidArgument(Message("GeoJSON '", path,
+                                  "': the site has no georeference (a site file, or the "
+                                  "estimator's geodetic_origin) and GeoJSON is WGS 84 (RFC 7946)"));
+  return std::move(*site);
+}
+
+// A FeatureCollection of `features` (each "{...}"), nothing else.
+void WriteCollection(const std::vector<std::string>& features, const std::string& path) {
+  std::string o = "{\n  \"type\": \"FeatureCollection\",\n  \"features\": [";
+  for (size_t i = 0; i < features.size(); ++i)
+    o += (i ? "," : "") + std::string("\n    ") + features[i];
+  o += "\n  ]\n}\n";
+  io::WriteFileAtomically(path, o);
 }
 
 }  // namespace
 
 std::string WriteGeoJson(const Snapshot& s, const std::string& path, const ReportOptions& options) {
-  const std::optional<SiteCrs> site = ReportSiteCrs(options);
-  std::ostringstream o;
-  o << "{\n  \"type\": \"FeatureCollection\",\n";
-  if (site) {
-    o << "  \"crs_note\": \"WGS 84 longitude, latitude [deg], ellipsoidal height [m] (RFC 7946), "
-         "from the site "
-         "frame origin "
-      << Num(site->origin_wgs84().y(), 8) << ", " << Num(site->origin_wgs84().x(), 8) << ", "
-      << Num(site->origin_wgs84().z(), 3) << "\",\n";
-  } else {
-    o << "  \"crs_note\": \"local site frame: x east, y north, z up, metres (not geodetic)\",\n";
-  }
-  o << "  \"reference_epoch\": " << s.reference_epoch
-    << ",\n  \"reference_stamp\": " << Num(s.reference_stamp, 3)
-    << ",\n  \"stamp\": " << Num(s.stamp, 3) << ",\n  \"time_utc\": \"" << Utc(s.stamp)
-    << "\",\n  \"alert\": \"" << AlertName(s.alert) << "\",\n"
-    << "  \"summary\": \"" << JsonEscape(s.summary) << "\",\n  \"features\": [";
-  for (size_t i = 0; i < s.points.size(); ++i) {
-    const PointState& p = s.points[i];
-    Eigen::Vector3d c = p.reference_position;
-    int digits = 4;
-    if (site) {
-      c = site->Wgs84FromSite(p.reference_position);
-      digits = 9;
-    }
+  const SiteCrs site = GeoJsonSite(options, path);
+  std::vector<std::string> features;
+  for (const PointState& p : s.points) {
+    const Eigen::Vector3d c = site.Wgs84FromSite(p.reference_position);
     // Flat properties: one number or word each (no lists, no nested objects).
-    o << (i ? "," : "")
-      << "\n    {\"type\": \"Feature\", \"geometry\": {\"type\": \"Point\", \"coordinates\": ["
-      << Num(c(0), digits) << ", " << Num(c(1), digits) << ", " << Num(c(2), 4)
+    std::ostringstream o;
+    o << "{\"type\": \"Feature\", \"geometry\": {\"type\": \"Point\", \"coordinates\": ["
+      << Num(c(0), 9) << ", " << Num(c(1), 9) << ", " << Num(c(2), 4)
       << "]},\n     \"properties\": {"
-      << "\"id\": \"" << JsonEscape(p.id) << "\", \"time_utc\": \"" << Utc(s.stamp) << "\"";
+      << "\"id\": \"" << JsonEscape(p.id) << "\", \"time_utc\": \"" << Utc(s.stamp)
+      << "\", \"reference_epoch\": " << s.reference_epoch;
     const char* axes = "xyz";
     for (int k = 0; k < 3; ++k)
       o << ", \"d" << axes[k] << "_mm\": " << Num(p.displacement(k) * 1e3, 3);
@@ -303,10 +259,53 @@ std::string WriteGeoJson(const Snapshot& s, const std::string& path, const Repor
       o << ", \"forecast_reason\": \"" << JsonEscape(p.forecast.reason) << "\"";
     }
     o << "}}";
+    features.push_back(o.str());
   }
-  WriteAreaFeatures(s, site, !s.points.empty(), o);
-  o << "\n  ]\n}\n";
-  io::WriteFileAtomically(path, o.str());
+  WriteCollection(features, path);
+  return path;
+}
+
+std::string WriteAreasGeoJson(const Snapshot& s, const std::string& path,
+                              const ReportOptions& options) {
+  const SiteCrs site = GeoJsonSite(options, path);
+  std::vector<std::string> features;
+  for (const AreaState& a : s.areas) {
+    std::ostringstream o;
+    // RFC 7946: exterior ring counter-clockwise, holes clockwise, each closed.
+    const auto ring = [&](std::vector<Eigen::Vector2d> pts, bool exterior) {
+      double twice_area = 0.0;
+      for (size_t k = 0; k < pts.size(); ++k) {
+        const Eigen::Vector2d &u = pts[k], &v = pts[(k + 1) % pts.size()];
+        twice_area += u.x() * v.y() - v.x() * u.y();
+      }
+      if ((twice_area > 0.0) != exterior) std::reverse(pts.begin(), pts.end());
+      o << "[";
+      for (size_t k = 0; k <= pts.size(); ++k) {  // closed: the first vertex again
+        const Eigen::Vector2d& v = pts[k % pts.size()];
+        const Eigen::Vector3d c = site.Wgs84FromSite(Eigen::Vector3d(v.x(), v.y(), 0.0));
+        o << (k ? ", " : "") << "[" << Num(c(0), 9) << ", " << Num(c(1), 9) << "]";
+      }
+      o << "]";
+    };
+    o << "{\"type\": \"Feature\", \"geometry\": {\"type\": \"Polygon\", \"coordinates\": [";
+    ring(a.area.outline, true);
+    for (const auto& h : a.area.holes) {
+      o << ", ";
+      ring(h, false);
+    }
+    o << "]},\n     \"properties\": {\"id\": \"" << JsonEscape(a.id)
+      << "\", \"kind\": \"change_area\", \"source\": \"surface\""
+      << ", \"epoch\": " << a.epoch << ", \"time_utc\": \"" << Utc(a.stamp)
+      << "\", \"sign\": " << a.area.sign << ", \"area_m2\": " << Num(a.area.area, 2)
+      << ", \"volume_m3\": " << Num(a.area.volume, 3)
+      << ", \"mean_change_m\": " << Num(a.area.mean_change, 3)
+      << ", \"max_change_m\": " << Num(a.area.max_change, 3)
+      << ", \"growth_m2\": " << Num(a.growth, 2) << ", \"alert\": \"" << AlertName(a.alert)
+      << "\", \"alert_level\": " << static_cast<int>(a.alert) << ", \"alert_reason\": \""
+      << JsonEscape(a.reason) << "\"}}";
+    features.push_back(o.str());
+  }
+  WriteCollection(features, path);
   return path;
 }
 
@@ -314,10 +313,19 @@ std::string WriteDisplacementGeoTiff(const Snapshot& s, const std::string& path,
                                      const ReportOptions& options) {
   if (s.points.empty())
     throw InvalidArgument(Message("no points to interpolate for GeoTIFF '", path, "'"));
+  // The grid is north-up in the map CRS (SiteCrs::MapFromSite: a shifted CRS
+  // itself, or the UTM zone of a local_enu site's origin; the site frame
+  // without a georeference); every cell centre is taken to the site frame by
+  // PROJ and the field interpolated there, so nothing is resampled.
+  const std::optional<SiteCrs> site = ReportSiteCrs(options);
+  const auto to_map = [&site](const Eigen::Vector3d& x) { return site ? site->MapFromSite(x) : x; };
   Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+  std::vector<cv::Point2f> xy, hull;  // map x, y relative to the grid's corner
+  std::vector<Eigen::Vector2d> in_map;
   for (const PointState& p : s.points) {
-    lo = lo.cwiseMin(p.reference_position.head<2>());
-    hi = hi.cwiseMax(p.reference_position.head<2>());
+    in_map.push_back(to_map(p.reference_position).head<2>());
+    lo = lo.cwiseMin(in_map.back());
+    hi = hi.cwiseMax(in_map.back());
   }
   const double cell = options.grid_resolution;
   const double x0 = std::floor((lo.x() - options.grid_margin) / cell) * cell;
@@ -329,12 +337,13 @@ std::string WriteDisplacementGeoTiff(const Snapshot& s, const std::string& path,
                                   " cells; increase grid_resolution"));
   // nodata NaN, the band's nodata value, as in every GeoTIFF of the package (io::GeoRaster)
   io::GeoRaster r(std::max(1, width), std::max(1, height), x0, y1, cell);
-  const std::optional<SiteCrs> site = ReportSiteCrs(options);
-  if (site) r.srs_wkt = site->CrsWkt();
-  // Cells farther than grid_margin outside the points' convex hull stay nodata.
-  std::vector<cv::Point2f> xy, hull;
-  for (const PointState& p : s.points)
-    xy.emplace_back(p.reference_position.x(), p.reference_position.y());
+  if (site) {
+    r.epsg = site->MapEpsg();
+    if (r.epsg == 0) r.srs_wkt = site->CrsWkt();
+  }
+  // Cells farther than grid_margin outside the points' convex hull stay nodata
+  // (float precision: coordinates relative to the grid's corner).
+  for (const Eigen::Vector2d& m : in_map) xy.emplace_back(m.x() - x0, m.y() - y1);
   cv::convexHull(xy, hull);
   r.AddBand("displacement_magnitude_m");
   r.AddBand("dx_m");
@@ -350,11 +359,16 @@ std::string WriteDisplacementGeoTiff(const Snapshot& s, const std::string& path,
     f << p.displacement, p.velocity * kMmPerDay;
     return f;
   };
+  // Cell centres at the origin's height (map z of site z = 0).
+  const double map_z = site ? to_map(Eigen::Vector3d::Zero()).z() : 0.0;
   for (int row = 0; row < r.height; ++row) {
     for (int col = 0; col < r.width; ++col) {
-      const Eigen::Vector2d c = r.CellCentre(row, col);
-      if (cv::pointPolygonTest(hull, cv::Point2f(c.x(), c.y()), true) < -options.grid_margin)
+      const Eigen::Vector2d m = r.CellCentre(row, col);
+      if (cv::pointPolygonTest(hull, cv::Point2f(m.x() - x0, m.y() - y1), true) <
+          -options.grid_margin)
         continue;
+      const Eigen::Vector2d c =
+          site ? site->SiteFromMap(Eigen::Vector3d(m.x(), m.y(), map_z)).head<2>().eval() : m;
       Vector6d sum = Vector6d::Zero();
       double wsum = 0.0;
       for (const PointState& p : s.points) {
@@ -375,10 +389,6 @@ std::string WriteDisplacementGeoTiff(const Snapshot& s, const std::string& path,
       for (int k = 0; k < 6; ++k) r.At(1 + k, row, col) = static_cast<float>(f(k));
     }
   }
-  // In a shifted site CRS itself: site coordinates plus the origin.
-  const Eigen::Vector3d offset = ReportCrsOffset(site);
-  r.origin_x += offset.x();
-  r.origin_y += offset.y();
   io::WriteGeoTiff(path, r);
   return path;
 }
@@ -607,7 +617,11 @@ std::vector<std::string> WriteReports(const Estimator& estimator, const std::str
   for (const std::string& f : formats) {
     if (f == "csv") files.push_back(WriteCsv(s, base + ".csv", options));
     if (f == "gpkg") files.push_back(WriteGeoPackage(s, base + ".gpkg", options));
-    if (f == "geojson") files.push_back(WriteGeoJson(s, base + ".geojson", options));
+    // RFC 7946 GeoJSON is WGS 84: written for a georeferenced site only.
+    if (f == "geojson" && ReportSiteCrs(options)) {
+      files.push_back(WriteGeoJson(s, base + ".geojson", options));
+      files.push_back(WriteAreasGeoJson(s, base + "_areas.geojson", options));
+    }
     if (f == "geotiff" && !s.points.empty())
       files.push_back(WriteDisplacementGeoTiff(s, base + ".tif", options));
     if (f == "png") {

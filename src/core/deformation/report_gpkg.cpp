@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstring>
 #include <ctime>
+#include <functional>
 #include <iterator>
 
 #include <gdal_priv.h>
@@ -22,9 +23,14 @@ namespace slope_monitor {
 namespace deformation {
 namespace {
 
+// The map CRS (SiteCrs::MapCrs: an EPSG code where it has one), else the
+// local engineering CRS "site".
 OGRSpatialReference ReportSrs(const std::optional<SiteCrs>& site, const std::string& path) {
   OGRSpatialReference srs;
-  if (site) {
+  if (site && site->MapEpsg() > 0) {
+    if (srs.importFromEPSG(site->MapEpsg()) != OGRERR_NONE)
+      throw IoError(Message("GeoPackage '", path, "': GDAL does not know ", site->MapCrs()));
+  } else if (site) {
     const std::string wkt = site->CrsWkt();
     if (srs.importFromWkt(wkt.c_str()) != OGRERR_NONE)
       throw IoError(Message("GeoPackage '", path, "': GDAL cannot read the site CRS"));
@@ -34,6 +40,20 @@ OGRSpatialReference ReportSrs(const std::optional<SiteCrs>& site, const std::str
   }
   srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   return srs;
+}
+
+// Site -> the layers' coordinates (the map CRS; the site frame without a georeference).
+using ToMap = std::function<Eigen::Vector3d(const Eigen::Vector3d&)>;
+
+// A UTC time as an OGR DateTime field (time zone flag 100: UTC), to the millisecond.
+void SetTime(OGRFeature* f, const char* field, double stamp) {
+  const double whole = std::floor(stamp);
+  const std::time_t t = static_cast<std::time_t>(whole);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  const double seconds = tm.tm_sec + std::round((stamp - whole) * 1e3) / 1e3;
+  f->SetField(field, tm.tm_year + 1900, tm.tm_mon + 1, tm.tm_mday, tm.tm_hour, tm.tm_min,
+              static_cast<float>(seconds), 100);
 }
 
 OGRLayer* NewLayer(GDALDataset* ds, const char* name, OGRSpatialReference* srs,
@@ -52,10 +72,10 @@ void AddField(OGRLayer* layer, const char* name, OGRFieldType type, const std::s
         Message("GeoPackage '", path, "': cannot add field ", name, ": ", CPLGetLastErrorMsg()));
 }
 
-// x in site; offset: site -> the layer's CRS (the origin of a shifted CRS, else 0).
-void AddPoint(OGRLayer* layer, OGRFeature* f, const Eigen::Vector3d& x,
-              const Eigen::Vector3d& offset, const std::string& path) {
-  const Eigen::Vector3d c = x + offset;
+// x in site, written in the layer's CRS.
+void AddPoint(OGRLayer* layer, OGRFeature* f, const Eigen::Vector3d& x, const ToMap& to_map,
+              const std::string& path) {
+  const Eigen::Vector3d c = to_map(x);
   OGRPoint pt(c.x(), c.y(), c.z());
   f->SetGeometry(&pt);
   if (layer->CreateFeature(f) != OGRERR_NONE)
@@ -64,7 +84,7 @@ void AddPoint(OGRLayer* layer, OGRFeature* f, const Eigen::Vector3d& x,
 }
 
 void WritePointsLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* srs,
-                      const Eigen::Vector3d& offset, const std::string& path) {
+                      const ToMap& to_map, const std::string& path) {
   OGRLayer* layer = NewLayer(ds, "points", srs, path);
   AddField(layer, "point_id", OFTString, path);
   AddField(layer, "sources", OFTString, path);
@@ -74,12 +94,12 @@ void WritePointsLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* s
     std::string sources;
     for (Source src : p.sources) sources += (sources.empty() ? "" : "+") + SourceName(src);
     f.SetField("sources", sources.c_str());
-    AddPoint(layer, &f, p.reference_position, offset, path);
+    AddPoint(layer, &f, p.reference_position, to_map, path);
   }
 }
 
 void WriteDisplacementLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* srs,
-                            const Eigen::Vector3d& offset, const std::string& path) {
+                            const ToMap& to_map, const std::string& path) {
   OGRLayer* layer = NewLayer(ds, "latest_displacement", srs, path);
   const char* reals[] = {"dx_mm",
                          "dy_mm",
@@ -95,16 +115,16 @@ void WriteDisplacementLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialRefere
                          "sigma_speed_mm_per_day",
                          "forecast_sigma_h"};
   AddField(layer, "point_id", OFTString, path);
-  AddField(layer, "time_utc", OFTString, path);
+  AddField(layer, "time_utc", OFTDateTime, path);
   for (const char* r : reals) AddField(layer, r, OFTReal, path);
   AddField(layer, "alert", OFTString, path);
   AddField(layer, "alert_level", OFTInteger, path);
   AddField(layer, "forecast_valid", OFTInteger, path);
-  AddField(layer, "forecast_failure_time_utc", OFTString, path);
+  AddField(layer, "forecast_failure_time_utc", OFTDateTime, path);
   for (const PointState& p : s.points) {
     OGRFeature f(layer->GetLayerDefn());
     f.SetField("point_id", p.id.c_str());
-    f.SetField("time_utc", Utc(s.stamp).c_str());
+    SetTime(&f, "time_utc", s.stamp);
     const double values[] = {p.displacement.x() * 1e3,
                              p.displacement.y() * 1e3,
                              p.displacement.z() * 1e3,
@@ -124,9 +144,8 @@ void WriteDisplacementLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialRefere
     f.SetField("alert", AlertName(p.alert).c_str());
     f.SetField("alert_level", static_cast<int>(p.alert));
     f.SetField("forecast_valid", p.forecast.valid ? 1 : 0);
-    if (p.forecast.valid)
-      f.SetField("forecast_failure_time_utc", Utc(p.forecast.failure_time).c_str());
-    AddPoint(layer, &f, p.reference_position, offset, path);
+    if (p.forecast.valid) SetTime(&f, "forecast_failure_time_utc", p.forecast.failure_time);
+    AddPoint(layer, &f, p.reference_position, to_map, path);
   }
 }
 
@@ -134,11 +153,11 @@ void WriteDisplacementLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialRefere
 // each with its holes, in the site CRS; written even when empty, so a reader
 // finds the layer.
 void WriteChangePolygonsLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialReference* srs,
-                              const Eigen::Vector3d& offset, const std::string& path) {
+                              const ToMap& to_map, const std::string& path) {
   OGRLayer* layer = NewLayer(ds, "change_polygons", srs, path, wkbPolygon);
   AddField(layer, "area_id", OFTString, path);
   AddField(layer, "epoch", OFTInteger, path);
-  AddField(layer, "time_utc", OFTString, path);
+  AddField(layer, "time_utc", OFTDateTime, path);
   AddField(layer, "sign", OFTInteger, path);
   const char* reals[] = {"area_m2", "volume_m3", "mean_change_m", "max_change_m", "growth_m2"};
   for (const char* r : reals) AddField(layer, r, OFTReal, path);
@@ -149,7 +168,7 @@ void WriteChangePolygonsLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialRefe
     OGRFeature f(layer->GetLayerDefn());
     f.SetField("area_id", a.id.c_str());
     f.SetField("epoch", static_cast<int>(a.epoch));
-    f.SetField("time_utc", Utc(a.stamp).c_str());
+    SetTime(&f, "time_utc", a.stamp);
     f.SetField("sign", a.area.sign);
     const double values[] = {a.area.area, a.area.volume, a.area.mean_change, a.area.max_change,
                              a.growth};
@@ -158,9 +177,13 @@ void WriteChangePolygonsLayer(GDALDataset* ds, const Snapshot& s, OGRSpatialRefe
     f.SetField("alert_level", static_cast<int>(a.alert));
     f.SetField("alert_reason", a.reason.c_str());
     OGRPolygon poly;
-    const auto add_ring = [&poly, &offset](const std::vector<Eigen::Vector2d>& pts) {
+    // Vertices at the origin's height (site z = 0): the outlines are horizontal.
+    const auto add_ring = [&poly, &to_map](const std::vector<Eigen::Vector2d>& pts) {
       OGRLinearRing ring;
-      for (const Eigen::Vector2d& v : pts) ring.addPoint(v.x() + offset.x(), v.y() + offset.y());
+      for (const Eigen::Vector2d& v : pts) {
+        const Eigen::Vector3d m = to_map(Eigen::Vector3d(v.x(), v.y(), 0.0));
+        ring.addPoint(m.x(), m.y());
+      }
       ring.closeRings();
       poly.addRing(&ring);
     };
@@ -182,15 +205,17 @@ std::string WriteGeoPackage(const Snapshot& s, const std::string& path,
   if (!driver) throw IoError(Message("GeoPackage '", path, "': GDAL has no GPKG driver"));
   const std::optional<SiteCrs> site = ReportSiteCrs(options);
   OGRSpatialReference srs = ReportSrs(site, path);
-  const Eigen::Vector3d offset = ReportCrsOffset(site);
+  const ToMap to_map = [&site](const Eigen::Vector3d& x) {
+    return site ? site->MapFromSite(x) : x;
+  };
   const std::string tmp = path + ".tmp-" + std::to_string(getpid()) + ".gpkg";
   std::remove(tmp.c_str());
   GDALDataset* ds = driver->Create(tmp.c_str(), 0, 0, 0, GDT_Unknown, nullptr);
   if (!ds) throw IoError(Message("cannot create GeoPackage '", path, "': ", CPLGetLastErrorMsg()));
   try {
-    WritePointsLayer(ds, s, &srs, offset, path);
-    WriteDisplacementLayer(ds, s, &srs, offset, path);
-    WriteChangePolygonsLayer(ds, s, &srs, offset, path);
+    WritePointsLayer(ds, s, &srs, to_map, path);
+    WriteDisplacementLayer(ds, s, &srs, to_map, path);
+    WriteChangePolygonsLayer(ds, s, &srs, to_map, path);
   } catch (...) {
     GDALClose(ds);
     std::remove(tmp.c_str());

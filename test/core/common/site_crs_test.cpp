@@ -71,5 +71,45 @@ TEST(SiteCrs, BadCrsAndOriginAreNamed) {
   EXPECT_EQ(ParseSiteFrame("shifted_crs"), SiteCrsOptions::Frame::kShiftedCrs);
 }
 
+// The map CRS of a local_enu site (the outputs' EPSG code): the UTM zone of
+// its origin. At 35 N, 139 E (zone 54, central meridian 141 E, 2 deg east)
+// the hand values of transverse Mercator to first order: meridian convergence
+// gamma = dlon sin(lat) = 1.1472 deg (true north points west of grid north
+// there, so a step north in ENU goes east in UTM), and scale 0.9996 (1 +
+// (dlon cos(lat))^2 / 2) = 1.0000087, times R / (R + h) = 0.9999843 for ENU
+// metres 100 m above the ellipsoid (R = 6 371 km): 0.999993.
+TEST(SiteCrs, LocalEnuSiteMapsToTheUtmZoneOfItsOrigin) {
+  const SiteCrs site = SiteCrs::LocalEnuAtWgs84(35.0, 139.0, 100.0);
+  EXPECT_EQ(site.MapCrs(), "EPSG:32654");
+  EXPECT_EQ(site.MapEpsg(), 32654);
+  const Eigen::Vector3d o = site.MapFromSite(Eigen::Vector3d::Zero());
+  EXPECT_NEAR(o.z(), 100.0, 1e-6);  // WGS 84 ellipsoidal height
+  const Eigen::Vector3d north = site.MapFromSite({0.0, 100.0, 0.0}) - o;
+  const Eigen::Vector3d east = site.MapFromSite({100.0, 0.0, 0.0}) - o;
+  const double gamma = std::atan2(north.x(), north.y()) * 180.0 / M_PI;
+  EXPECT_NEAR(gamma, 2.0 * std::sin(35.0 * M_PI / 180.0), 0.002);
+  const double scale =
+      0.9996 * (1.0 + std::pow(2.0 * M_PI / 180.0 * std::cos(35.0 * M_PI / 180.0), 2) / 2.0) *
+      6371000.0 / (6371000.0 + 100.0);
+  EXPECT_NEAR(east.head<2>().norm() / 100.0, scale, 3e-6);
+  EXPECT_NEAR(north.head<2>().norm() / 100.0, scale, 3e-6);
+  // Back to the site exactly (PROJ both ways).
+  for (const Eigen::Vector3d x :
+       {Eigen::Vector3d(250.0, -120.0, 35.0), Eigen::Vector3d(-400.0, 300.0, -20.0)})
+    EXPECT_LT((site.SiteFromMap(site.MapFromSite(x)) - x).norm(), 1e-6);
+  // South of the equator: zone 34 south (Cape Town, 33.9 S, 18.4 E).
+  EXPECT_EQ(SiteCrs::LocalEnuAtWgs84(-33.9, 18.4, 0.0).MapCrs(), "EPSG:32734");
+  // A shifted CRS is its own map CRS: site plus the origin.
+  SiteCrsOptions shifted;
+  shifted.crs = "EPSG:6677";
+  shifted.origin = Eigen::Vector3d(-21000.0, -11000.0, 120.0);
+  shifted.frame = SiteCrsOptions::Frame::kShiftedCrs;
+  const SiteCrs zone_ix(shifted);
+  EXPECT_EQ(zone_ix.MapEpsg(), 6677);
+  EXPECT_LT(
+      (zone_ix.MapFromSite({1.0, 2.0, 3.0}) - Eigen::Vector3d(-20999.0, -10998.0, 123.0)).norm(),
+      1e-9);
+}
+
 }  // namespace
 }  // namespace slope_monitor

@@ -1,5 +1,5 @@
 // Areas of significant surface change in the reports: the GeoPackage layer
-// change_polygons (site CRS) and the GeoJSON Polygon features (WGS 84),
+// change_polygons (the map CRS, EPSG:32654 here) and the GeoJSON Polygon features (WGS 84),
 // checked against the hand-made squares that went in.
 #include <sys/stat.h>
 #include <unistd.h>
@@ -76,18 +76,43 @@ TEST(ReportAreas, GeoPackageLayerChangePolygons) {
   EXPECT_STREQ(f->GetFieldAsString("alert"), "watch");
   EXPECT_DOUBLE_EQ(f->GetFieldAsDouble("area_m2"), 64.0);
   EXPECT_DOUBLE_EQ(f->GetFieldAsDouble("growth_m2"), 39.0);
+  EXPECT_EQ(layer->GetLayerDefn()
+                ->GetFieldDefn(layer->GetLayerDefn()->GetFieldIndex("time_utc"))
+                ->GetType(),
+            OFTDateTime);
+  // In EPSG:32654 (the UTM zone of 35 N, 139 E), 2 deg west of the central
+  // meridian: scale 0.9996 (1 + (2 deg cos 35)^2 / 2) = 1.000009, and 100 m up
+  // (the origin's height) ENU metres are R / (R + h) = 0.999984 of the
+  // ellipsoid's: 64 m^2 becomes 64 x 0.99999^2, 0.001 m^2 less.
   const OGRPolygon* g = f->GetGeometryRef()->toPolygon();
-  EXPECT_DOUBLE_EQ(g->get_Area(), 64.0);  // site metres
-  OGREnvelope env;
-  g->getEnvelope(&env);
-  EXPECT_DOUBLE_EQ(env.MinX, 10.0);
-  EXPECT_DOUBLE_EQ(env.MaxY, 28.0);
+  EXPECT_NEAR(g->get_Area(), 64.0, 0.005);
+  EXPECT_STREQ(layer->GetSpatialRef()->GetAuthorityCode(nullptr), "32654");
+  // Its corner (10, 20) at the hand values (as report_gis_test): lon = 139 + x /
+  // 91288, lat = 35 + y / 110941.
+  OGRSpatialReference wgs84;
+  wgs84.importFromEPSG(4326);
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  std::unique_ptr<OGRCoordinateTransformation> to_wgs84(
+      OGRCreateCoordinateTransformation(layer->GetSpatialRef(), &wgs84));
+  ASSERT_NE(to_wgs84, nullptr);
+  OGRPoint corner;
+  g->getExteriorRing()->getPoint(0, &corner);
+  double x = corner.getX(), y = corner.getY();
+  ASSERT_TRUE(to_wgs84->Transform(1, &x, &y));
+  EXPECT_NEAR(x, 139.0 + 10.0 / 91288.0, 2e-7);
+  EXPECT_NEAR(y, 35.0 + 20.0 / 110941.0, 2e-7);
 }
 
 TEST(ReportAreas, GeoJsonPolygonInWgs84) {
+  // Split by geometry type (issue 38): the points in one file, the areas in another.
+  const std::string dir = TempDir("json");
+  const YAML::Node points =
+      YAML::LoadFile(WriteGeoJson(Scenario(), dir + "/deformation.geojson", Georeferenced()));
+  EXPECT_EQ(points["features"].size(), 0u);  // this scenario has areas only
   const std::string path =
-      WriteGeoJson(Scenario(), TempDir("json") + "/deformation.geojson", Georeferenced());
+      WriteAreasGeoJson(Scenario(), dir + "/deformation_areas.geojson", Georeferenced());
   const YAML::Node root = YAML::LoadFile(path);
+  EXPECT_EQ(root.size(), 2u);  // "type" and "features" only
   ASSERT_EQ(root["features"].size(), 1u);
   const YAML::Node f = root["features"][0];
   EXPECT_EQ(f["geometry"]["type"].as<std::string>(), "Polygon");
@@ -99,7 +124,13 @@ TEST(ReportAreas, GeoJsonPolygonInWgs84) {
   EXPECT_EQ(f["properties"]["kind"].as<std::string>(), "change_area");
   EXPECT_DOUBLE_EQ(f["properties"]["area_m2"].as<double>(), 64.0);
   EXPECT_EQ(f["properties"]["alert_level"].as<int>(), 1);
-  EXPECT_EQ(root["alert"].as<std::string>(), "watch");
+  EXPECT_EQ(f["properties"]["alert"].as<std::string>(), "watch");
+  // RFC 7946: the exterior ring counter-clockwise (shoelace sum > 0).
+  double twice_area = 0.0;
+  for (size_t k = 0; k + 1 < ring.size(); ++k)
+    twice_area += ring[k][0].as<double>() * ring[k + 1][1].as<double>() -
+                  ring[k + 1][0].as<double>() * ring[k][1].as<double>();
+  EXPECT_GT(twice_area, 0.0);
 }
 
 }  // namespace

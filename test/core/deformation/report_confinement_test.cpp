@@ -91,8 +91,10 @@ TEST_F(ReportConfinementTest, PlantedLinkAtTheTemporaryNameIsNotFollowed) {
       "deformation.csv.tmp-" + pid, "deformation.geojson.tmp-" + pid,
       "deformation_map.png.tmp-" + pid + ".png", "deformation.csv"};
   for (const std::string& name : planted) fs::create_symlink(victim, fs::path(root_) / name);
-  const auto files = WriteReports(e, root_, "", {"csv", "geojson", "png"}, ReportOptions());
-  EXPECT_EQ(files.size(), 5u);  // csv, geojson, map, 2 series
+  ReportOptions georeferenced;  // GeoJSON (WGS 84) needs one
+  georeferenced.geodetic_origin = Eigen::Vector3d(35.0, 139.0, 100.0);
+  const auto files = WriteReports(e, root_, "", {"csv", "geojson", "png"}, georeferenced);
+  EXPECT_EQ(files.size(), 6u);  // csv, geojson of the points and of the areas, map, 2 series
   std::ifstream in(victim);
   std::stringstream content;
   content << in.rdbuf();
@@ -104,9 +106,13 @@ TEST_F(ReportConfinementTest, LongPointIdDoesNotBreakReports) {
   Estimator e{EstimatorOptions()};
   const std::string long_id(250, 'L');
   Fill(&e, {"rock", long_id});
-  const auto files = WriteReports(e, root_, "", {}, ReportOptions());
-  // csv, geojson, tif, gpkg, map, one series per point.
-  ASSERT_EQ(files.size(), 7u);
+  ReportOptions georeferenced;
+  georeferenced.geodetic_origin = Eigen::Vector3d(35.0, 139.0, 100.0);
+  const auto files = WriteReports(e, root_, "", {}, georeferenced);
+  // csv, geojson of the points and of the areas, tif, gpkg, map, one series per point.
+  ASSERT_EQ(files.size(), 8u);
+  // Without a georeference no GeoJSON (RFC 7946 is WGS 84): csv, tif, gpkg, map, 2 series.
+  EXPECT_EQ(WriteReports(e, root_, "", {}, ReportOptions()).size(), 6u);
   for (const std::string& f : files) {
     EXPECT_TRUE(fs::exists(f)) << f;
     EXPECT_LE(fs::path(f).filename().string().size(), 100u) << f;

@@ -1,18 +1,21 @@
 // The reports as GIS tools see them (GDAL's own utilities through its API,
 // the equivalents of gdalinfo, gdalwarp -t_srs EPSG:4326 and ogrinfo):
-//  * the GeoTIFF carries a CRS that gdalwarp takes to EPSG:4326, and the
+//  * the GeoTIFF carries the EPSG code of the UTM zone of the site's origin
+//    (local_enu) or of the site's CRS (shifted_crs), gdalwarp takes it to EPSG:4326, and the
 //    warped raster holds each point's displacement at the point's longitude
 //    and latitude (hand values: at 35 N one degree of latitude is 110.94 km
 //    and one of longitude 91.29 km on WGS 84); cells beyond the points'
 //    convex hull plus the margin are nodata;
 //  * the GeoJSON's properties are flat: a number or a word each;
-//  * the GeoPackage has layers points and latest_displacement in the site
-//    CRS; a feature transformed by OGR to EPSG:4326 lands on the hand values;
+//  * the GeoPackage has layers points and latest_displacement in that EPSG
+//    CRS, times as DateTime; a feature transformed by OGR to EPSG:4326 lands
+//    on the hand values;
 //  * the CSV has lon/lat and ISO 8601 UTC times.
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <cmath>
+#include <ctime>
 #include <fstream>
 #include <memory>
 #include <regex>
@@ -107,17 +110,28 @@ TEST(ReportGis, GeoTiffWarpsToWgs84WithThePointsInPlace) {
   GDALAllRegister();
   GDALDatasetH src = GDALOpen(path.c_str(), GA_ReadOnly);
   ASSERT_NE(src, nullptr);
-  // gdalinfo: a projected CRS.
-  char* info = GDALInfo(src, nullptr);
+  // gdalinfo -json: the UTM zone of the origin (35 N, 139 E: zone 54, EPSG:32654) by its
+  // EPSG code, a north-up grid (issue 38: was a custom orthographic CRS named "unknown").
+  const char* json[] = {"-json", nullptr};
+  GDALInfoOptions* io = GDALInfoOptionsNew(const_cast<char**>(json), nullptr);
+  char* info = GDALInfo(src, io);
+  GDALInfoOptionsFree(io);
   ASSERT_NE(info, nullptr);
-  EXPECT_NE(std::string(info).find("Orthographic"), std::string::npos) << info;
+  EXPECT_NE(std::string(info).find("ID[\\\"EPSG\\\",32654]]"), std::string::npos) << info;
+  EXPECT_EQ(std::string(info).find("unknown"), std::string::npos) << info;
   CPLFree(info);
+  double gt[6];
+  ASSERT_EQ(GDALGetGeoTransform(src, gt), CE_None);
+  EXPECT_EQ(gt[2], 0.0);
+  EXPECT_EQ(gt[4], 0.0);
   // Masked: the corner cell (13.4 m from the nearest point, margin 10 m) is nodata, the points'
-  // cells are not.
+  // cells are not (tag36h11/2 at site (10, 50) taken to UTM by SiteCrs, site_crs_test).
   GDALDataset* tif = GDALDataset::FromHandle(src);
   // nodata is NaN and declared so on every band, as in the dense GeoTIFFs (issue 38: was -9999)
-  EXPECT_TRUE(std::isnan(Sample(tif, -9.5, 59.5)));
-  EXPECT_TRUE(std::isfinite(Sample(tif, 10.25, 50.25)));
+  EXPECT_TRUE(std::isnan(Sample(tif, gt[0] + 0.5, gt[3] - 0.5)));  // its north-west corner cell
+  const Eigen::Vector3d at_point =
+      SiteCrs::LocalEnuAtWgs84(35.0, 139.0, 100.0).MapFromSite(Eigen::Vector3d(10.0, 50.0, 0.0));
+  EXPECT_TRUE(std::isfinite(Sample(tif, at_point.x(), at_point.y())));
   for (int b = 1; b <= tif->GetRasterCount(); ++b) {
     int has_nodata = 0;
     EXPECT_TRUE(std::isnan(tif->GetRasterBand(b)->GetNoDataValue(&has_nodata))) << "band " << b;
@@ -177,6 +191,23 @@ TEST(ReportGis, GeoPackageHasThePointLayersInTheSiteCrs) {
   EXPECT_EQ(latest->GetFeatureCount(), 3);
   ASSERT_NE(latest->GetSpatialRef(), nullptr);
   EXPECT_TRUE(latest->GetSpatialRef()->IsProjected());
+  // ogrinfo: EPSG:32654, the UTM zone of the origin (35 N, 139 E), on every layer.
+  for (OGRLayer* l : {points, latest, ds->GetLayerByName("change_polygons")}) {
+    ASSERT_NE(l, nullptr);
+    ASSERT_NE(l->GetSpatialRef(), nullptr) << l->GetName();
+    EXPECT_STREQ(l->GetSpatialRef()->GetAuthorityName(nullptr), "EPSG") << l->GetName();
+    EXPECT_STREQ(l->GetSpatialRef()->GetAuthorityCode(nullptr), "32654") << l->GetName();
+  }
+  // Times are DateTime fields in UTC (issue 38: were text).
+  OGRFeatureDefn* defn = latest->GetLayerDefn();
+  for (const char* field : {"time_utc", "forecast_failure_time_utc"}) {
+    const int k = defn->GetFieldIndex(field);
+    ASSERT_GE(k, 0) << field;
+    EXPECT_EQ(defn->GetFieldDefn(k)->GetType(), OFTDateTime) << field;
+  }
+  const std::time_t stamp = static_cast<std::time_t>(std::floor(s.stamp));
+  std::tm utc{};
+  gmtime_r(&stamp, &utc);
   OGRSpatialReference wgs84;
   wgs84.importFromEPSG(4326);
   wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
@@ -188,8 +219,20 @@ TEST(ReportGis, GeoPackageHasThePointLayersInTheSiteCrs) {
     const PointState& p = PointById(s, f->GetFieldAsString("point_id"));
     EXPECT_NEAR(f->GetFieldAsDouble("d_mm"), p.displacement.norm() * 1e3, 1e-9);
     EXPECT_STREQ(f->GetFieldAsString("alert"), AlertName(p.alert).c_str());
+    int year = 0, month = 0, day = 0, hour = 0, minute = 0, tz = 0;
+    float second = 0.0f;
+    ASSERT_TRUE(f->GetFieldAsDateTime(defn->GetFieldIndex("time_utc"), &year, &month, &day, &hour,
+                                      &minute, &second, &tz));
+    EXPECT_EQ(year, utc.tm_year + 1900);
+    EXPECT_EQ(month, utc.tm_mon + 1);
+    EXPECT_EQ(day, utc.tm_mday);
+    EXPECT_EQ(hour * 3600 + minute * 60 + second,
+              utc.tm_hour * 3600 + utc.tm_min * 60 + utc.tm_sec + (s.stamp - std::floor(s.stamp)));
+    EXPECT_EQ(tz, 100);  // UTC
     const OGRPoint* g = f->GetGeometryRef()->toPoint();
-    EXPECT_NEAR(g->getX(), p.reference_position.x(), 1e-9);
+    // z: WGS 84 ellipsoidal height; the origin is 100 m, and a point 50 m from it
+    // is below the tangent plane by 50^2 / (2 R) = 0.2 mm.
+    EXPECT_NEAR(g->getZ(), 100.0 + p.reference_position.z(), 0.001);
     double x = g->getX(), y = g->getY();
     ASSERT_TRUE(to_wgs84->Transform(1, &x, &y));
     EXPECT_NEAR(x, Lon(p.reference_position.x()), 2e-7);

@@ -115,43 +115,45 @@ TEST(Report, CsvParsesBackToTheEstimates) {
 TEST(Report, GeoJsonIsAFeatureCollection) {
   const Snapshot s = ReportScenario().GetSnapshot();
   const std::string dir = ReportTempDir("geojson");
-  for (bool geodetic : {false, true}) {
-    ReportOptions o;
-    if (geodetic) o.geodetic_origin = Eigen::Vector3d(35.0, 139.0, 100.0);
-    const std::string path = dir + (geodetic ? "/geo.geojson" : "/local.geojson");
-    WriteGeoJson(s, path, o);
-    const YAML::Node root = YAML::LoadFile(path);
-    EXPECT_EQ(root["type"].as<std::string>(), "FeatureCollection");
-    ASSERT_TRUE(root["features"].IsSequence());
-    ASSERT_EQ(root["features"].size(), 3u);
-    for (size_t i = 0; i < 3; ++i) {
-      const YAML::Node f = root["features"][i];
-      EXPECT_EQ(f["type"].as<std::string>(), "Feature");
-      EXPECT_EQ(f["geometry"]["type"].as<std::string>(), "Point");
-      ASSERT_EQ(f["geometry"]["coordinates"].size(), 3u);
-      const YAML::Node p = f["properties"];
-      EXPECT_EQ(p["id"].as<std::string>(), s.points[i].id);
-      EXPECT_NEAR(p["d_mm"].as<double>(), s.points[i].displacement.norm() * 1e3, 1e-3);
-      EXPECT_NEAR(p["dx_mm"].as<double>(), s.points[i].displacement.x() * 1e3, 1e-3);
-      EXPECT_TRUE(p["vz_mm_per_day"].IsScalar());
-      EXPECT_TRUE(p["sigma_dz_mm"].IsScalar());
-      EXPECT_TRUE(p["alert"].IsScalar());
-      EXPECT_TRUE(p["forecast_valid"].IsScalar());
-      const double x = f["geometry"]["coordinates"][0].as<double>();
-      const double y = f["geometry"]["coordinates"][1].as<double>();
-      const double east = s.points[i].reference_position.x();
-      if (geodetic) {
-        // `east` metres east, 50 m north of (35 N, 139 E): 1 deg of latitude
-        // there is 110.94 km, 1 deg of longitude 91.29 km (WGS 84).
-        EXPECT_NEAR(y, 35.0 + 50.0 / 110941.0, 2e-7);
-        EXPECT_NEAR(x, 139.0 + east / 91288.0, 2e-7);
-      } else {
-        EXPECT_NEAR(x, east, 1e-4);
-        EXPECT_NEAR(y, 50.0, 1e-4);
-      }
-    }
-    EXPECT_NE(root["crs_note"].as<std::string>().find(geodetic ? "WGS 84" : "local site"),
-              std::string::npos);
+  ReportOptions o;
+  o.geodetic_origin = Eigen::Vector3d(35.0, 139.0, 100.0);
+  const std::string path = dir + "/geo.geojson";
+  WriteGeoJson(s, path, o);
+  const YAML::Node root = YAML::LoadFile(path);
+  // RFC 7946 members only (issue 38: no "crs_note" nor snapshot members beside them).
+  ASSERT_TRUE(root.IsMap());
+  EXPECT_EQ(root.size(), 2u);
+  EXPECT_EQ(root["type"].as<std::string>(), "FeatureCollection");
+  ASSERT_TRUE(root["features"].IsSequence());
+  ASSERT_EQ(root["features"].size(), 3u);
+  for (size_t i = 0; i < 3; ++i) {
+    const YAML::Node f = root["features"][i];
+    EXPECT_EQ(f["type"].as<std::string>(), "Feature");
+    EXPECT_EQ(f["geometry"]["type"].as<std::string>(), "Point");
+    ASSERT_EQ(f["geometry"]["coordinates"].size(), 3u);
+    const YAML::Node p = f["properties"];
+    EXPECT_EQ(p["id"].as<std::string>(), s.points[i].id);
+    EXPECT_NEAR(p["d_mm"].as<double>(), s.points[i].displacement.norm() * 1e3, 1e-3);
+    EXPECT_NEAR(p["dx_mm"].as<double>(), s.points[i].displacement.x() * 1e3, 1e-3);
+    EXPECT_TRUE(p["vz_mm_per_day"].IsScalar());
+    EXPECT_TRUE(p["sigma_dz_mm"].IsScalar());
+    EXPECT_TRUE(p["alert"].IsScalar());
+    EXPECT_TRUE(p["forecast_valid"].IsScalar());
+    EXPECT_EQ(p["reference_epoch"].as<long>(), s.reference_epoch);
+    const double x = f["geometry"]["coordinates"][0].as<double>();
+    const double y = f["geometry"]["coordinates"][1].as<double>();
+    const double east = s.points[i].reference_position.x();
+    // `east` metres east, 50 m north of (35 N, 139 E): 1 deg of latitude
+    // there is 110.94 km, 1 deg of longitude 91.29 km (WGS 84).
+    EXPECT_NEAR(y, 35.0 + 50.0 / 110941.0, 2e-7);
+    EXPECT_NEAR(x, 139.0 + east / 91288.0, 2e-7);
+  }
+  // Without a georeference there are no WGS 84 coordinates to write: refused, named.
+  try {
+    WriteGeoJson(s, dir + "/local.geojson", ReportOptions());
+    FAIL() << "a GeoJSON in site metres was written";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("RFC 7946"), std::string::npos) << e.what();
   }
 }
 

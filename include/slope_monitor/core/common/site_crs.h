@@ -62,14 +62,21 @@ class SiteCrs {
   const SiteCrsOptions& options() const;
   // The origin as WGS 84 [lon deg, lat deg, h m].
   const Eigen::Vector3d& origin_wgs84() const;
-  // The site CRS as WKT (for GeoTIFF / GeoPackage); with kLocalEnu a
-  // projected CRS whose x, y are the site's (see SiteFrameCrsProj()).
+  // The map CRS of every output a GIS reads (GeoTIFF, GeoPackage): with
+  // kShiftedCrs the site CRS itself; with kLocalEnu WGS 84 / UTM, the zone of
+  // the origin ("EPSG:326zz" north of the equator, "EPSG:327zz" south; zone
+  // floor((lon + 180) / 6) + 1, without the Norway / Svalbard exceptions).
+  // Map coordinates are x easting, y northing, z height (kLocalEnu: WGS 84
+  // ellipsoidal height; kShiftedCrs: the CRS's z).
+  const std::string& MapCrs() const;
+  // The map CRS's EPSG code; 0 when it has none (a site CRS given as a PROJ string).
+  int MapEpsg() const;
+  // The map CRS as WKT (for a CRS without EPSG code).
   std::string CrsWkt() const;
-  // A PROJ string of a projected CRS whose x, y equal the site frame's
-  // horizontal coordinates (kLocalEnu: an orthographic projection at the
-  // origin, exact for points at the origin's height; kShiftedCrs: "" since
-  // the site CRS itself is used).
-  std::string SiteFrameCrsProj() const;
+  // site [m] <-> map CRS. kShiftedCrs: plus / minus the origin (exact);
+  // kLocalEnu: through WGS 84 by PROJ. Throw InvalidArgument naming the point.
+  Eigen::Vector3d MapFromSite(const Eigen::Vector3d& x_in_site) const;
+  Eigen::Vector3d SiteFromMap(const Eigen::Vector3d& x_in_map) const;
 
   // Coordinates in the site CRS <-> site [m]. Throw InvalidArgument naming
   // the point when PROJ cannot convert it.

@@ -21,31 +21,44 @@
 //   sources_disagree                 0 | 1
 //   reason                           alert reason and disagreements (quoted)
 //
-// GeoJSON: a FeatureCollection of Point features. Without a geodetic
-// origin, coordinates are local site metres [x, y, z] and the collection
-// carries "crs_note": "local site frame ..."; with an origin (lat, lon, h of
-// the site frame's origin, x east, y north, z up), coordinates are WGS 84
-// [lon, lat, h] (RFC 7946) computed by PROJ (common/site_crs.h). Properties
-// are flat, one number or word each, named like the CSV columns (id,
-// time_utc, dx_mm ... d_mm, sigma_dx_mm ..., vx_mm_per_day ...,
-// speed_mm_per_day, sigma_speed_mm_per_day, alert, alert_level 0-3,
-// alert_reason, sources, sources_disagree 0/1, forecast_valid 0/1 and, when
-// valid, forecast_failure_time_utc, forecast_sigma_h, forecast_window_h,
-// forecast_alpha, else forecast_reason).
+// GeoJSON (RFC 7946: WGS 84 longitude, latitude [deg], ellipsoidal height
+// [m], computed by PROJ, common/site_crs.h; no member beyond "type" and
+// "features"), split by geometry type and written only for a georeferenced
+// site (WriteGeoJson throws InvalidArgument without one; WriteReports skips
+// it): <base>.geojson, a FeatureCollection of Point features, one per
+// point, with flat properties, one number or word each, named like the CSV
+// columns (id, time_utc, reference_epoch, dx_mm ... d_mm, sigma_dx_mm ...,
+// vx_mm_per_day ..., speed_mm_per_day, sigma_speed_mm_per_day, alert,
+// alert_level 0-3, alert_reason, sources, sources_disagree 0/1,
+// forecast_valid 0/1 and, when valid, forecast_failure_time_utc,
+// forecast_sigma_h, forecast_window_h, forecast_alpha, else
+// forecast_reason); <base>_areas.geojson, a FeatureCollection of the latest
+// areas of significant surface change (Snapshot::areas) as Polygon features
+// (exterior ring counter-clockwise, holes clockwise; "kind": "change_area",
+// id, epoch, time_utc, sign, area_m2, volume_m3, mean_change_m,
+// max_change_m, growth_m2, alert, alert_level, alert_reason), empty without
+// areas.
 //
-// GeoTIFF: with a geodetic origin its CRS is the site frame as a projected
-// CRS PROJ and GDAL know (an orthographic projection at the origin, so
-// gdalwarp can take it to EPSG:4326 or any map CRS); without one a local
-// engineering CRS "site". Cells farther than grid_margin outside the points'
+// The map CRS of the GeoTIFF and the GeoPackage (SiteCrs::MapCrs): a
+// shifted_crs site's CRS itself, or for a local_enu site WGS 84 / UTM of the
+// origin's zone, written as its EPSG code; without a georeference the local
+// engineering CRS "site" (site metres). See doc/coordinates.md.
+//
+// GeoTIFF: a north-up grid in the map CRS; each cell centre is taken to the
+// site frame by PROJ (at the origin's height) and the field interpolated
+// there; dx, dy, dz and vx, vy, vz stay site-frame components (true east,
+// north, up; in a UTM grid, grid north differs from true north by the
+// meridian convergence). Cells farther than grid_margin outside the points'
 // convex hull are nodata.
 //
 // GeoPackage (OGR): layer "points" (id, reference position) and layer
-// "latest_displacement" (the CSV's numbers per point), both Point layers in
-// the GeoTIFF's CRS, and layer "change_polygons" (Polygon, same CRS: the
-// latest areas of significant surface change, Snapshot::areas, with area_id,
-// epoch, time_utc, sign, area_m2, volume_m3, mean_change_m, max_change_m,
-// growth_m2, alert, alert_level, alert_reason; empty without areas). The
-// GeoJSON carries the same areas as Polygon features ("kind": "change_area").
+// "latest_displacement" (the CSV's numbers per point, times as DateTime
+// fields in UTC), both Point layers in the map CRS (z: the map CRS's height,
+// WGS 84 ellipsoidal for UTM), and layer "change_polygons" (Polygon, same
+// CRS, vertices at the origin's height: the latest areas of significant
+// surface change, Snapshot::areas, with area_id, epoch, time_utc (DateTime),
+// sign, area_m2, volume_m3, mean_change_m, max_change_m, growth_m2, alert,
+// alert_level, alert_reason; empty without areas).
 #pragma once
 
 #include <map>
@@ -83,10 +96,6 @@ struct ReportOptions {
 // The reports' georeference: the site CRS (site_crs), else local ENU at
 // geodetic_origin, else none (reports in the local frame `site`).
 std::optional<SiteCrs> ReportSiteCrs(const ReportOptions& options);
-// Site -> the reports' CRS coordinates: a shifted CRS's origin, else zero
-// (local ENU and the local frame are written in site coordinates).
-Eigen::Vector3d ReportCrsOffset(const std::optional<SiteCrs>& site);
-
 // The largest displacement of the field in metres per pixel etc. is not
 // needed by callers; each writer returns the path it wrote.
 std::string WriteCsv(const Snapshot& snapshot, const std::string& path);  // lon, lat empty
@@ -95,11 +104,13 @@ std::string WriteCsv(const Snapshot& snapshot, const std::string& path,
 std::string WriteGeoPackage(const Snapshot& snapshot, const std::string& path,
                             const ReportOptions& options);
 std::string WriteGeoJson(const Snapshot& snapshot, const std::string& path,
-                         const ReportOptions& options);
+                         const ReportOptions& options);  // the points
+std::string WriteAreasGeoJson(const Snapshot& snapshot, const std::string& path,
+                              const ReportOptions& options);  // the change areas
 // Displacement magnitude [m] (band 1), dx, dy, dz [m] (bands 2-4) and the
 // velocity components vx, vy, vz [mm/day] (bands 5-7), float32, each
-// interpolated from the points by inverse distance; north-up grid in the site
-// frame (x east, y north), nodata -9999.
+// interpolated from the points by inverse distance; north-up grid in the map
+// CRS (above), nodata NaN.
 std::string WriteDisplacementGeoTiff(const Snapshot& snapshot, const std::string& path,
                                      const ReportOptions& options);
 std::string WriteDisplacementMap(const Snapshot& snapshot, const std::string& path,
