@@ -35,6 +35,7 @@
 #include "slope_monitor/core/io/geotiff.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/dense_conversions.h"
+#include "slope_monitor/ros/image_limits.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
 
@@ -122,6 +123,7 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
       throw InvalidArgument(Message("no camera_info received yet on ", role, "/camera_info"));
     dense::OrientedImage im;
     im.name = s.image->header.frame_id;
+    ros_adapters::CheckImageMessage(*s.image);  // pixel budget and data size, named below
     const cv_bridge::CvImageConstPtr cv = cv_bridge::toCvShare(s.image);
     im.image = cv->image;
     im.camera = ros_adapters::CameraModelFromCameraInfo(*s.info, pixel_size_);

@@ -12,6 +12,7 @@
 #include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/dense_epoch_step.h"
+#include "slope_monitor/ros/image_limits.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -23,6 +24,7 @@ dense::EpochImage EpochImageFromEstimate(const slope_monitor::CameraEstimate& e,
   dense::Photo photo;
   photo.camera = e.camera_name;
   photo.stamp_ns = static_cast<int64_t>(e.image_header.stamp.toNSec());
+  CheckImageMessage(image);
   photo.image = cv_bridge::toCvCopy(image)->image;
   slope_monitor::AdjustmentSolution one;
   one.cameras.push_back(e);

@@ -7,6 +7,7 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/ros/image_limits.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -67,6 +68,7 @@ std::vector<dense::PhotoEpoch> DenseEpochStep::OnImage(const std::string& camera
   photo.camera = camera;
   photo.stamp_ns = Nanoseconds(image.header.stamp);
   try {
+    CheckImageMessage(image);
     photo.image = cv_bridge::toCvCopy(image)->image;
   } catch (const std::exception& e) {
     log_.push_back({LogLine::kWarn, Message("image of '", camera, "' at ",

@@ -7,11 +7,13 @@
 
 #include "slope_monitor/core/common/numeric.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
+#include "slope_monitor/ros/image_limits.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
 
 cv::Mat ImageForMatching(const sensor_msgs::ImageConstPtr& msg) {
+  CheckImageMessage(*msg);
   if (sensor_msgs::image_encodings::numChannels(msg->encoding) == 1)
     return cv_bridge::toCvShare(msg)->image;
   return cv_bridge::toCvShare(msg, sensor_msgs::image_encodings::MONO8)->image;

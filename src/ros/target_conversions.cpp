@@ -7,6 +7,7 @@
 
 #include "slope_monitor/core/common/rigid3.h"
 #include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/ros/image_limits.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -16,6 +17,12 @@ CentroidedImage CentroidImage(const targets::TargetCentroider& centroider,
                               const std::optional<Eigen::Isometry3d>& site_from_optical,
                               const std::string& camera_name, double pixel_size,
                               const std::string& topic) {
+  // Size against the pixel budget and the data, before anything converts it.
+  try {
+    CheckImageMessage(image);
+  } catch (const InvalidArgument& e) {
+    throw InvalidArgument(Message(topic, ": ", e.what()));
+  }
   // Encoding, empty image, size against camera_info: named with the topic.
   targets::CheckImageInput(topic, image.width, image.height, image.encoding, info.width,
                            info.height);

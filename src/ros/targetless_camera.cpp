@@ -17,6 +17,7 @@
 #include "slope_monitor/core/io/camera_pose_file.h"
 #include "slope_monitor/core/io/image_polygons.h"
 #include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/ros/image_limits.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -180,6 +181,7 @@ TargetlessOutputs TargetlessCameraRunner::Reference(const sensor_msgs::Image& im
                                     "' has no EXIF capture time (camera '", camera_.name, "')"));
     time = exif.time;
   } else {
+    CheckImageMessage(image);
     ref = cv_bridge::toCvCopy(image, "mono8")->image;
   }
   tracker_->SetReference(ref, time);
@@ -197,6 +199,7 @@ TargetlessOutputs TargetlessCameraRunner::Reference(const sensor_msgs::Image& im
 TargetlessOutputs TargetlessCameraRunner::OnImage(const sensor_msgs::Image& image,
                                                   const sensor_msgs::CameraInfo& info) {
   if (!tracker_) return Reference(image, info);
+  CheckImageMessage(image);
   const cv::Mat img = cv_bridge::toCvCopy(image, "mono8")->image;
   const dense::TargetlessEpoch e = tracker_->Process(img, image.header.stamp.toSec(), camera_.dem);
   TargetlessOutputs out;

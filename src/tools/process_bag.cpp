@@ -29,7 +29,10 @@
 //
 // Exit status: 0 every bag read to its end; 2 input ended early (a cut bag,
 // processed up to its break, the break named at the end with the epochs then
-// accepted incomplete) or nothing solved; 1 a usage error, an unreadable
+// accepted incomplete), messages skipped (an image message above
+// --max-megapixels, default 100, or whose header does not describe its data:
+// named with its topic, bag time and size when met and again at the end; the
+// rest processed) or nothing solved; 1 a usage error, an unreadable
 // input or another writer on the history.
 #include <unistd.h>
 
@@ -83,6 +86,7 @@
 #include "slope_monitor/ros/epoch_solver.h"
 #include "slope_monitor/ros/estimator_step.h"
 #include "slope_monitor/ros/hex_matcher_parameters.h"
+#include "slope_monitor/ros/image_limits.h"
 #include "slope_monitor/ros/node_parameters.h"
 #include "slope_monitor/ros/offline_dense.h"
 #include "slope_monitor/ros/param_files.h"
@@ -105,7 +109,8 @@ constexpr char kUsage[] =
     "[--target-list FILE]\n"
     "                   [--radio-network FILE] [--adjuster-config FILE] [--uav-tie-points]\n"
     "                   [--database FILE] [--report-dir DIR] [--output-bag FILE] [--no-dense] "
-    "[--verbose]\n";
+    "[--verbose]\n"
+    "                   [--max-megapixels MP]\n";
 
 // Topics of the replay graph (launch/include/processing_graph.xml).
 constexpr char kAdjusterDisplacements[] = "/bundle_adjuster/displacements";
@@ -122,6 +127,9 @@ struct Args {
   bool dense = true;     // the dense epoch step (replay.launch dense:=true)
   bool verbose = false;  // the bundle adjuster's INFO lines too
   std::string database, report_dir, output_bag;
+  // Image messages above this many pixels, or whose header does not describe
+  // their data, are skipped before conversion, named (ros/image_limits.h).
+  ros_adapters::ImageMessageLimits image_limits;
 };
 
 // Throws InvalidArgument naming the flag.
@@ -151,6 +159,14 @@ Args ParseArgs(int argc, char** argv) {
     }
     if (flag == "--verbose") {
       a.verbose = true;
+      continue;
+    }
+    if (flag == "--max-megapixels") {
+      const std::string v = i + 1 < argc ? argv[++i] : "";
+      char* end = nullptr;
+      a.image_limits.max_megapixels = std::strtod(v.c_str(), &end);
+      if (v.empty() || *end != '\0' || !(a.image_limits.max_megapixels > 0))
+        throw InvalidArgument("--max-megapixels '" + v + "' is not a number > 0");
       continue;
     }
     const bool is_bag = flag == "--bag";
@@ -408,12 +424,19 @@ class OfflineGraph {
     // A message the graph takes no input from (e.g. /uav/gnss/fix) leaves a
     // photo being centroided running.
     if (!Handled(m.getDataType())) return;
+    // An image is read once, and only when its record and its header are
+    // within the pixel budget (issue 38); else it is skipped, named.
+    sensor_msgs::Image::ConstPtr image;
+    if (m.getDataType() == ros::message_traits::datatype<sensor_msgs::Image>()) {
+      image = CheckedImage(m);
+      if (!image) return;
+    }
     TakeCentroided();
     now_ = m.getTime();
     if (topic == "/tf" || topic == "/tf_static") {
       if (const auto tf = m.instantiate<tf2_msgs::TFMessage>()) OnTf(*tf, topic == "/tf_static");
-    } else if (OnTargetlessMessage(m)) {
-    } else if (const auto image = m.instantiate<sensor_msgs::Image>()) {
+    } else if (OnTargetlessMessage(m, image)) {
+    } else if (image) {
       if (UavMatcher* uav = UavMatcherOf(topic, &ros_adapters::UavTopics::image))
         OnUavImage(uav, image);
       if (Centroider* c = CameraOf(topic, "/camera/image_raw")) {
@@ -504,6 +527,8 @@ class OfflineGraph {
            "warnings above)";
   }
   bool has_points() const { return !estimator_->GetSnapshot().points.empty(); }
+  // The messages skipped (CheckedImage), one line each.
+  const std::vector<std::string>& skipped() const { return skipped_; }
 
  private:
   void Log(const std::string& line) const { log_(line); }
@@ -624,15 +649,15 @@ class OfflineGraph {
 
   // A photo or camera_info of a fixed_targetless camera: re-orientation,
   // field, fused. False for any other message.
-  bool OnTargetlessMessage(const rosbag::MessageInstance& m) {
+  bool OnTargetlessMessage(const rosbag::MessageInstance& m,
+                           const sensor_msgs::Image::ConstPtr& image) {
     if (!targetless_) return false;
     const std::string& topic = m.getTopic();
     for (const std::string& cam : targetless_->cameras()) {
       std::optional<ros_adapters::TargetlessOutputs> out;
       try {
         if (topic == "/" + cam + "/camera/image_raw") {
-          if (const auto image = m.instantiate<sensor_msgs::Image>())
-            out = targetless_->AddImage(cam, image);
+          if (image) out = targetless_->AddImage(cam, image);
         } else if (topic == "/" + cam + "/camera/camera_info") {
           if (const auto info = m.instantiate<sensor_msgs::CameraInfo>())
             out = targetless_->AddCameraInfo(cam, info);
@@ -758,6 +783,35 @@ class OfflineGraph {
   }
 
   // Message types the graph takes input from (OnMessage's branches).
+  // The image of `m`, or null when its record is larger than an image within
+  // the limits can be (not read) or its header claims more pixels than the
+  // limit or does not describe its data; a skipped message is named with its
+  // topic and bag time (skipped()).
+  sensor_msgs::Image::ConstPtr CheckedImage(const rosbag::MessageInstance& m) {
+    const ros_adapters::ImageMessageLimits& limits = args_.image_limits;
+    std::string why;
+    sensor_msgs::Image::ConstPtr image;
+    if (m.size() > ros_adapters::MaxImageMessageBytes(limits)) {
+      why = Message("a record of ", m.size(), " bytes, more than an image of max_megapixels ",
+                    limits.max_megapixels, " can hold (",
+                    ros_adapters::MaxImageMessageBytes(limits), " bytes); not read");
+    } else {
+      image = m.instantiate<sensor_msgs::Image>();
+      try {
+        if (image) ros_adapters::CheckImageMessage(*image, limits);
+      } catch (const InvalidArgument& e) {
+        why = e.what();
+        image.reset();
+      }
+    }
+    if (image) return image;
+    char at[32];
+    std::snprintf(at, sizeof at, "%.3f", m.getTime().toSec());
+    skipped_.push_back(Message("image message on ", m.getTopic(), " at ", at, " s: ", why));
+    Log("skipped " + skipped_.back());
+    return nullptr;
+  }
+
   static bool Handled(const std::string& type) {
     static const std::set<std::string> types = {
         ros::message_traits::datatype<tf2_msgs::TFMessage>(),
@@ -997,6 +1051,7 @@ class OfflineGraph {
   // bundle_adjuster
   std::unique_ptr<ros_adapters::AdjusterStep> adjuster_;
   std::string last_failure_;          // the last epoch not accepted and why
+  std::vector<std::string> skipped_;  // messages skipped, named (CheckedImage)
   std::optional<io::SiteFile> site_;  // --site
   // hex_matcher (mode sequence; --uav-tie-points): one per UAV camera
   std::vector<UavMatcher> uav_matchers_;
@@ -1107,6 +1162,11 @@ int Run(Args args) {
   std::cerr << "process_bag: " << view.size() << " messages of " << args.bags.size() << " bag(s) ("
             << cameras.size() << " cameras) processed in " << progress.elapsed() << " s\n";
   SayBreaks(breaks, incomplete_at_end);
+  // Messages skipped (the rest processed): named again at the end, exit 2.
+  if (!graph.skipped().empty()) {
+    std::cerr << "process_bag: " << graph.skipped().size() << " message(s) skipped:\n";
+    for (const std::string& line : graph.skipped()) std::cerr << "  " << line << "\n";
+  }
   if (graph.epochs_solved() == 0 && !graph.has_points()) {
     // A run that solves nothing (no adjusted or radio epoch, and no point
     // from elsewhere, e.g. a fixed_targetless camera's field) fails, saying
@@ -1134,8 +1194,9 @@ int Run(Args args) {
   for (const std::string& f : files) std::cout << "  " << f << "\n";
   std::cout << "History (SQLite): " << args.database << "\n";
   if (output) std::cout << "Outputs (rosbag play --clock): " << args.output_bag << "\n";
-  // Input that ended early: processed up to the break, named above, exit 2.
-  return breaks.empty() ? 0 : 2;
+  // Input that ended early (processed up to the break) or messages skipped
+  // (the rest processed), named above: exit 2.
+  return breaks.empty() && graph.skipped().empty() ? 0 : 2;
 }
 
 }  // namespace

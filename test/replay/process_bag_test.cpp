@@ -13,6 +13,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -28,6 +29,7 @@
 #include <gtest/gtest.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
+#include <sensor_msgs/Image.h>
 
 #include "process_bag_run.h"
 #include "replay_test_util.h"
@@ -469,6 +471,79 @@ TEST(ProcessBag, TruncatedBagIsProcessedUpToTheBreak) {
       << err;
   EXPECT_GT(ObservationKeys(dir / "history.db").size(), 0u) << "nothing processed before the break";
   EXPECT_TRUE(fs::exists(dir / "reports" / "deformation.csv")) << "no report of what was processed";
+}
+
+// Bounded memory on bag messages (issue 38): the full_graph_replay survey
+// rewritten by the test with its photos replaced by forged image messages (a
+// header claiming 20000 x 20000 px over 64 bytes, a header whose step x
+// height is not the data's size, a record larger than an image within
+// --max-megapixels can be). Each is skipped before conversion, named with
+// topic, bag time and size; the rest (the radio receivers, markers, tf) is
+// processed; exit status 2 (inputs skipped). Cheap: no photo is measured.
+TEST(ProcessBag, ForgedImageMessagesAreSkippedAndNamed) {
+  const fs::path dir = Scratch("forged_images");
+  const fs::path forged = dir / "forged.bag";
+  std::vector<std::string> expected;
+  {
+    rosbag::Bag in(Survey("full_graph_replay", ".bag"), rosbag::bagmode::Read);
+    rosbag::Bag out(forged.string(), rosbag::bagmode::Write);
+    int n = 0;
+    for (const rosbag::MessageInstance& m : rosbag::View(in)) {
+      const auto image = m.instantiate<sensor_msgs::Image>();
+      if (!image) {
+        out.write(m.getTopic(), m.getTime(), m, m.getConnectionHeader());
+        continue;
+      }
+      sensor_msgs::Image f;
+      f.header = image->header;
+      f.encoding = "mono8";
+      char at[32];
+      std::snprintf(at, sizeof at, "%.3f", m.getTime().toSec());
+      const std::string where = "image message on " + m.getTopic() + " at " + at + " s: ";
+      switch (n++ % 3) {
+        case 0:  // 400 MP claimed over 64 bytes
+          f.width = f.height = f.step = 20000;
+          f.data.assign(64, 0);
+          expected.push_back(where +
+                             "image 20000 x 20000 px (400.0 MP), more than max_megapixels 1");
+          break;
+        case 1:  // 0.3 MP, a third of its rows
+          f.width = f.step = 640;
+          f.height = 480;
+          f.data.assign(640 * 160, 0);
+          expected.push_back(where +
+                             "image 640 x 480 px: step 640 x height 480 = 307200 bytes, but the "
+                             "message holds 102400");
+          break;
+        default:  // 12 MB: more than an image of 1 MP can be (9 MB with the 1 MiB margin)
+          f.width = f.step = 4000;
+          f.height = 3000;
+          f.data.assign(4000 * 3000, 0);
+          expected.push_back(where + "a record of ");
+          break;
+      }
+      out.write(m.getTopic(), m.getTime(), f);
+    }
+    EXPECT_EQ(n, 8);  // 4 photos of each of the 2 fixed cameras
+  }
+  fs::copy_file(Survey("full_graph_replay", ".targets.yaml"), dir / "forged.targets.yaml");
+  fs::copy_file(Survey("full_graph_replay", ".truth.yaml"), dir / "forged.truth.yaml");
+  const int status = Wait(Spawn(
+      {SM_PROCESS_BAG, "--bag", forged.string(), "--max-megapixels", "1", "--no-dense",
+       "--database", (dir / "history.db").string(), "--report-dir", (dir / "reports").string()},
+      dir));
+  const std::string err = ReadFile(dir / "stderr");
+  EXPECT_EQ(status, 2) << err;
+  for (const std::string& line : expected)
+    EXPECT_NE(err.find("process_bag: skipped " + line), std::string::npos) << line << "\n" << err;
+  EXPECT_NE(err.find("process_bag: 8 message(s) skipped:"), std::string::npos) << err;
+  EXPECT_NE(err.find("bytes, more than an image of max_megapixels 1 can hold (9048576 bytes); not "
+                     "read"),
+            std::string::npos)
+      << err;
+  // The rest processed: the radio receivers' epochs solved and in the history.
+  EXPECT_GT(ObservationKeys(dir / "history.db").size(), 0u) << err;
+  EXPECT_TRUE(fs::exists(dir / "reports" / "deformation.csv")) << err;
 }
 
 }  // namespace
