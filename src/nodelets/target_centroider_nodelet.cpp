@@ -2,7 +2,8 @@
 // debug_image (lazy), diagnostics. Thin: parameters once, convert, call
 // targets::TargetCentroider, publish. With `site_file`, one channel per camera
 // of kind fixed or uav the site lists (any number), on /<camera>/camera/...
-// and /<camera>/targets. See doc/nodes/target_centroider.md.
+// and /<camera>/targets; with graph_cameras and no site file that lists
+// cameras, the same for io::DefaultCameras(). See doc/nodes/target_centroider.md.
 #include <atomic>
 #include <map>
 #include <memory>
@@ -114,12 +115,19 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
     it_ = std::make_unique<image_transport::ImageTransport>(nh);
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh);
     try {
-      if (site && !site->cameras.empty()) {
-        // The site's cameras with targets, in one queue (images and poses in
-        // arrival order, as above); the camera kind is the site's field.
-        for (const io::SiteCamera* cam : site->CamerasWithTargets())
-          AddChannel(cam->name, cam->pixel_size > 0.0 ? cam->pixel_size : node.pixel_size,
-                     "/" + cam->name + "/camera/", "/" + cam->name + "/", o, list, node.queue_size);
+      if ((site && !site->cameras.empty()) || node.graph_cameras) {
+        // The site's cameras with targets, else the graph's default ones, in
+        // one queue (images and poses in arrival order, as above); the camera
+        // kind is the site's field.
+        std::vector<io::SiteCamera> cameras;
+        if (site && !site->cameras.empty())
+          for (const io::SiteCamera* cam : site->CamerasWithTargets()) cameras.push_back(*cam);
+        else
+          for (const io::SiteCamera& cam : io::DefaultCameras())
+            if (cam.kind != io::CameraKind::kFixedTargetless) cameras.push_back(cam);
+        for (const io::SiteCamera& cam : cameras)
+          AddChannel(cam.name, cam.pixel_size > 0.0 ? cam.pixel_size : node.pixel_size,
+                     "/" + cam.name + "/camera/", "/" + cam.name + "/", o, list, node.queue_size);
         updater_->setHardwareID("target_centroider");
       } else {
         std::string name = node.camera_name;
@@ -139,9 +147,12 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
     diag_timer_ = nh.createWallTimer(ros::WallDuration(1.0),
                                      [this](const ros::WallTimerEvent&) { updater_->update(); });
     start_ = ros::WallTime::now();
-    if (channels_.size() > 1 || site)
-      NODELET_INFO("target_centroider: %zu camera(s) of the site file '%s'", channels_.size(),
-                   node.site_file.c_str());
+    if (channels_.size() > 1 || site) {
+      const std::string from = site && !site->cameras.empty()
+                                   ? "the site file '" + node.site_file + "'"
+                                   : "the graph's defaults (no site file lists cameras)";
+      NODELET_INFO("target_centroider: %zu camera(s) of %s", channels_.size(), from.c_str());
+    }
   }
 
   // The site file's targets when it lists them, else target_list. A bad list:

@@ -20,9 +20,10 @@ std::vector<std::string> ReplayCameras(const AdjusterParameters& parameters,
   for (const std::string& camera : cameras) (present(camera) ? kept : left_out).push_back(camera);
   if (kept.empty() || left_out.empty()) return cameras;
   for (const std::string& camera : left_out)
-    log->push_back({LogLine::kInfo, "camera '" + camera +
-                                        "' of the site file has no input in this replay: epochs "
-                                        "do not wait for it"});
+    log->push_back({LogLine::kInfo,
+                    "camera '" + camera + "' of the " +
+                        (parameters.site_file.empty() ? "graph's default cameras" : "site file") +
+                        " has no input in this replay: epochs do not wait for it"});
   return kept;
 }
 

@@ -87,24 +87,31 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   std::vector<std::string> site_cameras, site_targets, site_epochs;
   a.prior_topics = {"position_prior"};
   a.tie_topics = {"tie_points"};
-  if (site) {
-    std::vector<std::string> priors, ties;
-    for (const io::SiteCamera* cam : site->CamerasWithTargets()) {
-      site_cameras.push_back(cam->name);
-      site_targets.push_back("/" + cam->name + "/targets");
-      site_epochs.push_back("/" + cam->name + "/camera/epoch");
-      if (cam->kind == io::CameraKind::kUav) {
-        priors.push_back(UavCameraTopics(cam->name).prior);
-        ties.push_back(UavCameraTopics(cam->name).tie_points);
-      }
-    }
-    if (!site_cameras.empty()) {
-      a.prior_topics = priors;
-      a.tie_topics = ties;
+  // The graph's cameras: the site file's when it lists any, else (graph_cameras)
+  // io::DefaultCameras(); those with targets (kind fixed or uav).
+  a.graph_cameras = p.Bool("graph_cameras", a.graph_cameras);
+  std::vector<io::SiteCamera> graph_cameras;
+  if (site && !site->cameras.empty())
+    for (const io::SiteCamera* cam : site->CamerasWithTargets()) graph_cameras.push_back(*cam);
+  else if (a.graph_cameras)
+    for (const io::SiteCamera& cam : io::DefaultCameras())
+      if (cam.kind != io::CameraKind::kFixedTargetless) graph_cameras.push_back(cam);
+  std::vector<std::string> priors, ties;
+  for (const io::SiteCamera& cam : graph_cameras) {
+    site_cameras.push_back(cam.name);
+    site_targets.push_back("/" + cam.name + "/targets");
+    site_epochs.push_back("/" + cam.name + "/camera/epoch");
+    if (cam.kind == io::CameraKind::kUav) {
+      priors.push_back(UavCameraTopics(cam.name).prior);
+      ties.push_back(UavCameraTopics(cam.name).tie_points);
     }
   }
-  // A site file that lists cameras decides them (cameras, target_topics and
-  // epoch_topics are then not used, as target_list is not).
+  if (!site_cameras.empty()) {
+    a.prior_topics = priors;
+    a.tie_topics = ties;
+  }
+  // A site file that lists cameras (or graph_cameras) decides them (cameras,
+  // target_topics and epoch_topics are then not used, as target_list is not).
   a.cameras_from_site = !site_cameras.empty();
   adjustment::EpochCollectorOptions& c = a.collector;
   a.target_topics = p.StringList("target_topics", a.target_topics);

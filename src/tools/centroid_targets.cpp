@@ -8,7 +8,7 @@
 //
 //   centroid_targets --images DIR [--out targets.csv] [--targets list.yaml] [--config
 //   target_centroider.yaml] [--explain] centroid_targets --bag survey.bag --topic
-//   /fixed_cam_1/camera/image_raw [--out targets.csv] [...]
+//   /north_ridge/camera/image_raw [--out targets.csv] [...]
 //
 // One line per image on stderr: "<image>: <t> tags, <c> circles, <r> rejected".
 // --layout FILE (a board layout: ringgrid's target JSON or our YAML, see

@@ -13,9 +13,10 @@
 //
 // Pair from a simulated survey, with the simulator's TRUE orientation and the
 // truth comparison (doc/simulator.md):
-//   dense_surface --truth demo.truth.yaml --bag demo.bag --left-camera fixed_cam_1
-//                 --right-camera fixed_cam_2 --epoch 1 [--reference-epoch 0] --out-dir DIR
+//   dense_surface --truth demo.truth.yaml --bag demo.bag [--left-camera NAME]
+//                 [--right-camera NAME] --epoch 1 [--reference-epoch 0] --out-dir DIR
 //                 [--config ...]
+//   (the cameras default to the truth's first and second camera of kind fixed)
 //   prints the height error against demo.surface_eNN.tif (RMS and 95th
 //   percentile on bare ground, and near the scarp / obstacles separately) and,
 //   with --reference-epoch, the measured cut-and-fill against the true one.
@@ -297,6 +298,19 @@ int RunBagEpochs(const Args& a) {
   return series.reference() ? 0 : 1;
 }
 
+// The name of the truth's `index`-th camera of kind fixed (the default
+// --left-camera 0 and --right-camera 1): no camera name is assumed.
+std::string FixedCameraOfTruth(const sim::SurveyTruth& truth, size_t index) {
+  std::vector<std::string> fixed;
+  for (const sim::CameraTruth& c : truth.cameras)
+    if (c.kind == "fixed") fixed.push_back(c.name);
+  if (index >= fixed.size())
+    throw InvalidArgument(
+        Message("the truth has ", fixed.size(),
+                " camera(s) of kind fixed: give --left-camera and --right-camera"));
+  return fixed[index];
+}
+
 int Run(const Args& a) {
   if (a.Has("--bag") && !a.Has("--truth")) return RunBagEpochs(a);
   dense::SurfaceOptions options;
@@ -311,13 +325,17 @@ int Run(const Args& a) {
   fs::create_directories(out_dir);
 
   dense::OrientedImage left, right;
+  std::string left_camera, right_camera;  // --truth: their names
   std::unique_ptr<sim::SurveyTruth> truth;
   int epoch = 0;
   if (a.Has("--truth")) {
     epoch = IntArg(a, "--epoch", "0");  // before loading anything
     truth = std::make_unique<sim::SurveyTruth>(sim::SurveyTruth::Load(a.Get("--truth")));
-    left = ImageFromTruth(*truth, a.Get("--bag"), a.Get("--left-camera", "fixed_cam_1"), epoch);
-    right = ImageFromTruth(*truth, a.Get("--bag"), a.Get("--right-camera", "fixed_cam_2"), epoch);
+    left_camera = a.Has("--left-camera") ? a.Get("--left-camera") : FixedCameraOfTruth(*truth, 0);
+    right_camera =
+        a.Has("--right-camera") ? a.Get("--right-camera") : FixedCameraOfTruth(*truth, 1);
+    left = ImageFromTruth(*truth, a.Get("--bag"), left_camera, epoch);
+    right = ImageFromTruth(*truth, a.Get("--bag"), right_camera, epoch);
     if (config.region.isZero())
       config.region =
           Eigen::Vector4d(truth->extent[0], truth->extent[1], truth->extent[2], truth->extent[3]);
@@ -348,10 +366,8 @@ int Run(const Args& a) {
   std::unique_ptr<io::GeoRaster> reference;
   if (truth && a.Has("--reference-epoch")) {
     const int ref_epoch = IntArg(a, "--reference-epoch", "");
-    const dense::OrientedImage l0 =
-        ImageFromTruth(*truth, a.Get("--bag"), a.Get("--left-camera", "fixed_cam_1"), ref_epoch);
-    const dense::OrientedImage r0 =
-        ImageFromTruth(*truth, a.Get("--bag"), a.Get("--right-camera", "fixed_cam_2"), ref_epoch);
+    const dense::OrientedImage l0 = ImageFromTruth(*truth, a.Get("--bag"), left_camera, ref_epoch);
+    const dense::OrientedImage r0 = ImageFromTruth(*truth, a.Get("--bag"), right_camera, ref_epoch);
     reference =
         std::make_unique<io::GeoRaster>(dense::MeasureSurface(l0, r0, options, config).model);
   } else if (a.Has("--reference")) {

@@ -4,19 +4,11 @@
 // time) at two rates: the reports and the history are byte for byte the
 // same, and the same as process_bag's on that bag (the graph and the
 // offline processor are one product). Issue 16, "Determinism".
-#include <netinet/in.h>
-#include <signal.h>
 #include <sqlite3.h>
-#include <sys/socket.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include <chrono>
 #include <filesystem>
-#include <iostream>
 #include <map>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -37,54 +29,12 @@ using replay_test::Survey;
 
 const char kSurvey[] = "replay_rates";
 
-// A TCP port no one listens on now (for the run's own ROS master).
-int FreePort() {
-  const int s = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = 0;
-  socklen_t len = sizeof(a);
-  const bool ok = bind(s, reinterpret_cast<sockaddr*>(&a), sizeof(a)) == 0 &&
-                  getsockname(s, reinterpret_cast<sockaddr*>(&a), &len) == 0;
-  close(s);
-  return ok ? ntohs(a.sin_port) : -1;
-}
-
-// Waits for `pid` at most `timeout`; a process still running then gets
-// SIGINT (roslaunch then stops its nodes), later SIGKILL. The exit status,
-// -1 when it did not exit by itself in time.
-int WaitAtMost(pid_t pid, std::chrono::seconds timeout) {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  int status = 0;
-  while (std::chrono::steady_clock::now() < deadline) {
-    if (waitpid(pid, &status, WNOHANG) == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
-  kill(pid, SIGINT);
-  std::this_thread::sleep_for(std::chrono::seconds(10));
-  if (waitpid(pid, &status, WNOHANG) != pid) {
-    kill(pid, SIGKILL);
-    waitpid(pid, &status, 0);
-  }
-  return -1;
-}
-
-// `roslaunch slope_monitor replay.launch` on the survey at `rate`, with the
-// launch file's defaults but for the survey's cameras (no UAV flight, so no
-// dense surface either) and the outputs in `dir` (history.db, reports/).
-// Its own master on a free port and its own log folder, so that it meets
-// no other test's graph.
+// replay.launch on the survey at `rate`, with the launch file's defaults but
+// for the survey's cameras (no UAV flight, so no dense surface either) and
+// the outputs in `dir` (history.db, reports/).
 int RunReplayLaunch(const fs::path& dir, int rate,
                     const std::string& bag = Survey(kSurvey, ".bag")) {
-  const int port = FreePort();
-  EXPECT_GT(port, 0);
-  std::vector<std::string> args = {"roslaunch",
-                                   "-p",
-                                   std::to_string(port),
-                                   "slope_monitor",
-                                   "replay.launch",
-                                   "bag:=" + bag,
+  std::vector<std::string> args = {"bag:=" + bag,
                                    "rate:=" + std::to_string(rate),
                                    "uav:=false",
                                    "dense:=false",
@@ -92,16 +42,7 @@ int RunReplayLaunch(const fs::path& dir, int rate,
                                    "report_dir:=" + (dir / "reports").string()};
   if (fs::exists(Survey(kSurvey, ".site.yaml")))
     args.push_back("site_config:=" + Survey(kSurvey, ".site.yaml"));
-  const std::vector<std::string> env = {"ROS_MASTER_URI=http://127.0.0.1:" + std::to_string(port),
-                                        "ROS_LOG_DIR=" + (dir / "log").string(),
-                                        "ROS_HOME=" + (dir / "ros_home").string()};
-  const auto start = std::chrono::steady_clock::now();
-  const int status = WaitAtMost(Spawn(args, dir, env), std::chrono::seconds(180));
-  std::cout << "replay.launch rate " << rate << ": exit " << status << " after "
-            << std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()
-            << " s\n";
-  if (status != 0) std::cerr << ReadFile(dir / "stdout") << ReadFile(dir / "stderr");
-  return status;
+  return replay_test::RunReplayLaunch(dir, args, "replay.launch rate " + std::to_string(rate));
 }
 
 // Observations in the history per source (1 target, 3 radio).

@@ -5,17 +5,23 @@
 #pragma once
 
 #include <fcntl.h>
+#include <netinet/in.h>
+#include <signal.h>
 #include <spawn.h>
 #include <sqlite3.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iostream>
 #include <set>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -99,6 +105,63 @@ inline int Wait(pid_t pid) {
   int status = 0;
   if (pid <= 0 || waitpid(pid, &status, 0) != pid) return -1;
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// A TCP port no one listens on now (for a run's own ROS master).
+inline int FreePort() {
+  const int s = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = 0;
+  socklen_t len = sizeof(a);
+  const bool ok = bind(s, reinterpret_cast<sockaddr*>(&a), sizeof(a)) == 0 &&
+                  getsockname(s, reinterpret_cast<sockaddr*>(&a), &len) == 0;
+  close(s);
+  return ok ? ntohs(a.sin_port) : -1;
+}
+
+// Waits for `pid` at most `timeout`; a process still running then gets
+// SIGINT (roslaunch then stops its nodes), later SIGKILL. The exit status,
+// -1 when it did not exit by itself in time.
+inline int WaitAtMost(pid_t pid, std::chrono::seconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  int status = 0;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (waitpid(pid, &status, WNOHANG) == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  kill(pid, SIGINT);
+  std::this_thread::sleep_for(std::chrono::seconds(10));
+  if (waitpid(pid, &status, WNOHANG) != pid) {
+    kill(pid, SIGKILL);
+    waitpid(pid, &status, 0);
+  }
+  return -1;
+}
+
+// `roslaunch slope_monitor replay.launch` with `args` (name:=value), as a
+// user runs it, stdout and stderr to files in `dir`; its own master on a
+// free port and its own log folder, so that it meets no other test's graph.
+// The exit status (printed with `what` and the time taken; the output too
+// when not 0), -1 when it did not end within 180 s.
+inline int RunReplayLaunch(const fs::path& dir, const std::vector<std::string>& args,
+                           const std::string& what) {
+  const int port = FreePort();
+  EXPECT_GT(port, 0);
+  std::vector<std::string> argv = {"roslaunch", "-p", std::to_string(port), "slope_monitor",
+                                   "replay.launch"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  const std::vector<std::string> env = {"ROS_MASTER_URI=http://127.0.0.1:" + std::to_string(port),
+                                        "ROS_LOG_DIR=" + (dir / "log").string(),
+                                        "ROS_HOME=" + (dir / "ros_home").string()};
+  const auto start = std::chrono::steady_clock::now();
+  const int status = WaitAtMost(Spawn(argv, dir, env), std::chrono::seconds(180));
+  std::cout << what << ": exit " << status << " after "
+            << std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()
+            << " s\n";
+  if (status != 0) std::cerr << ReadFile(dir / "stdout") << ReadFile(dir / "stderr");
+  return status;
 }
 
 // process_bag on `name`'s survey, outputs in `dir` (history.db, reports/).

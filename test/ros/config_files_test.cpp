@@ -326,8 +326,8 @@ TEST(ConfigFiles, EveryLaunchFileLoadsAndItsNodesParametersRead) {
       {"bundle_adjuster.launch", {"target_list:=" + kCfTargets}},
       {"replay.launch", {"bag:=" + bag}},
       {"replay.launch ", {"bag:=" + bag, site, "uav_tie_points:=true"}},
-      {"live.launch", {}},
-      {"live.launch ", {site}},
+      {"live.launch", {site}},                                       // its site file is required
+      {"target_centroider.launch", {"camera:=north_ridge/camera"}},  // no default camera name
   };
   std::set<std::string> launch_files;
   for (const std::string& path : CfFilesUnder(kCfSource + "/launch"))

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/ros/dense_conversions.h"
 #include "slope_monitor/ros/hex_matcher_parameters.h"
 #include "slope_monitor/ros/node_parameters.h"
@@ -77,6 +78,42 @@ TEST(SiteCameras, WithoutASiteTheParametersAndRelativeTopicsStay) {
   EXPECT_EQ(a.tie_topics, (Strings{"tie_points"}));
   EXPECT_EQ(a.CameraInfoTopic("fixed_cam_1"), "fixed_cam_1/camera_info");
   EXPECT_EQ(a.collector.uav_cameras, (Strings{"uav"}));  // io::DefaultCameras()' kind uav
+}
+
+// Issue 36: the graph (launch/include/processing_graph.xml) names no camera:
+// it sets graph_cameras, and without a site file the adjuster takes the
+// default cameras (io::DefaultCameras()) with their topics as if a site file
+// listed them; a site file's cameras still decide with it set.
+TEST(SiteCameras, GraphCamerasAreTheSitesElseTheDefaultOnesOnTheirTopics) {
+  XmlRpc::XmlRpcValue p = Defaults("bundle_adjuster");
+  SetParam(&p, "target_list",
+           std::string(SM_SOURCE_DIR) + "/test/rostest/service_switches.targets.yaml");
+  SetParam(&p, "graph_cameras", true);
+  ParamReader r(p, "/bundle_adjuster");
+  const AdjusterParameters a = ReadAdjusterParameters(r);
+  Strings cameras, targets, epochs, priors;
+  for (const io::SiteCamera& c : io::DefaultCameras()) {
+    cameras.push_back(c.name);
+    targets.push_back("/" + c.name + "/targets");
+    epochs.push_back("/" + c.name + "/camera/epoch");
+    if (c.kind == io::CameraKind::kUav) priors.push_back("/" + c.name + "/camera/position_prior");
+  }
+  ASSERT_EQ(cameras.size(), 3u);
+  ASSERT_EQ(priors.size(), 1u);
+  EXPECT_TRUE(a.cameras_from_site);  // epochs in a replay wait only for the bag's cameras
+  EXPECT_EQ(a.collector.cameras, cameras);
+  EXPECT_EQ(a.target_topics, targets);
+  EXPECT_EQ(a.epoch_topics, epochs);
+  EXPECT_EQ(a.prior_topics, priors);
+  EXPECT_EQ(a.CameraInfoTopic(cameras[0]), "/" + cameras[0] + "/camera/camera_info");
+
+  const std::string site = WriteSite();
+  SetParam(&p, "site_file", site);
+  ParamReader rs(p, "/bundle_adjuster");
+  const AdjusterParameters b = ReadAdjusterParameters(rs);
+  EXPECT_EQ(b.collector.cameras, (Strings{"north_mast", "drone", "south_mast"}));
+  EXPECT_EQ(b.prior_topics, (Strings{"/drone/camera/position_prior"}));
+  ::unlink(site.c_str());
 }
 
 // uav_tie_points: the UAV cameras' photos wait for their tie points, the

@@ -34,10 +34,11 @@ namespace ros_adapters {
 
 // The cameras a replay's epochs wait for: without live time-outs, a camera
 // of the site file that never sends (the UAV did not fly) would hold every
-// epoch to the end, so a site file's cameras are kept only where
-// `present(camera)` (the replay has its input); all of them when none or
-// every one is present, and the parameters' cameras when they are not the
-// site file's. One kInfo line in `*log` per camera left out.
+// epoch to the end, so a site file's cameras (or the graph's default ones,
+// graph_cameras) are kept only where `present(camera)` (the replay has its
+// input); all of them when none or every one is present, and the
+// parameters' cameras when they are neither. One kInfo line in `*log` per
+// camera left out.
 std::vector<std::string> ReplayCameras(const AdjusterParameters& parameters,
                                        const std::function<bool(const std::string&)>& present,
                                        std::vector<LogLine>* log);

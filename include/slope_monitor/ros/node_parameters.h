@@ -51,8 +51,11 @@ struct AdjusterParameters {
   // A site file that lists cameras decides them: its cameras with targets
   // (kind fixed or uav) are `cameras`, target_topics (/<camera>/targets) and
   // epoch_topics (/<camera>/camera/epoch), in the site's order; those three
-  // parameters are then not read.
-  bool cameras_from_site = false;
+  // parameters are then not read. Without one, graph_cameras (set by
+  // launch/include/processing_graph.xml) does the same with the graph's
+  // default cameras (io::DefaultCameras()).
+  bool graph_cameras = false;
+  bool cameras_from_site = false;  // the site's cameras or, with graph_cameras, the default ones
   std::vector<std::string>
       prior_topics;  // site: /<uav>/camera/position_prior each; else position_prior
   std::vector<std::string> tie_topics;  // site: /<uav>/tie_points each; else tie_points

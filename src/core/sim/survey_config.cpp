@@ -310,8 +310,6 @@ void ReadCameraSection(io::YamlMap& root, SurveyConfig* out) {
       if (other.name == s.name)
         cm.Fail("name", Message("= '", s.name, "' is used by another camera"));
     }
-    if (s.kind == "uav" && s.name != "uav")
-      cm.Fail("name", "of a uav camera must be 'uav' (doc/simulator.md)");
     c.cameras.push_back(s);
   }
   if (c.cameras.empty()) root.Fail("cameras", "is missing or empty");

@@ -88,6 +88,26 @@ TEST(UavFlightTest, CrabAltitudeAndTurns) {
 
 // The flight log's attitude: the truth turned by N(0, sigma) about each axis,
 // the same for the same (seed, camera, image), different for another image.
+// A camera's name is only its topic namespace: a UAV camera named as a crew
+// names it (issue 36) flies the same flight as one named uav.
+TEST(UavFlightTest, UavCameraMayHaveAnyName) {
+  const std::string yaml = Flight("");
+  std::string renamed = yaml;
+  const std::string from = "  - name: uav\n";
+  const size_t at = renamed.find(from);
+  ASSERT_NE(at, std::string::npos);
+  renamed.replace(at, from.size(), "  - name: drone\n");
+  const SurveyGenerator uav(SurveyConfig::Parse(yaml, "uav.yaml"));
+  const SurveyGenerator drone(SurveyConfig::Parse(renamed, "drone.yaml"));
+  const CameraTruth &a = Uav(uav), &b = Uav(drone);
+  EXPECT_EQ(a.name, "uav");
+  EXPECT_EQ(b.name, "drone");
+  ASSERT_EQ(a.images.size(), b.images.size());
+  ASSERT_GT(a.images.size(), 0u);
+  for (size_t i = 0; i < a.images.size(); ++i)
+    EXPECT_EQ(a.images[i].exterior.position, b.images[i].exterior.position) << i;
+}
+
 TEST(UavFlightTest, FlightLogAttitudeScattersBySigma) {
   camera::ExteriorOrientation pose;
   pose.position = Eigen::Vector3d(10, 20, 80);

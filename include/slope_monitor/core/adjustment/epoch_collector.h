@@ -52,7 +52,7 @@ namespace adjustment {
 using StampNs = int64_t;
 StampNs MakeStamp(int64_t sec, int64_t nsec);
 double StampSeconds(StampNs stamp);  // sec + 1e-9 nsec, as ros::Time::toSec()
-// "fixed_cam_1@1700000000.500000000": the image's name in the scene.
+// "north_ridge@1700000000.500000000": the image's name in the scene.
 std::string ImageKey(const std::string& camera, StampNs stamp);
 // A UAV camera (self-calibrated per flight, never keeps a pose between
 // epochs): one of `uav_cameras`, the cameras of kind uav of the site file
@@ -136,11 +136,11 @@ struct CollectedEpoch {
   std::vector<CollectedObservation> observations, unidentified;
   std::vector<PositionPrior> priors;
   StampNs latest_stamp = 0;  // of its images
-  // Inputs given up on: "uav_1: no end marker (3 images left out)",
-  // "fixed_cam_2: 1 of 2 announced images", "tie points of 'uav_1@...': 1 of 3 messages".
+  // Inputs given up on: "drone: no end marker (3 images left out)",
+  // "gully_2: 1 of 2 announced images", "tie points of 'drone@...': 1 of 3 messages".
   std::vector<std::string> incomplete;
   std::vector<std::string>
-      dropped;         // bad observations: "fixed_cam_1@...: tag36h11/3: covariance not finite"
+      dropped;         // bad observations: "north_ridge@...: tag36h11/3: covariance not finite"
   std::string reason;  // what completed it: "end markers", "time-out", "end of input", ...
 };
 

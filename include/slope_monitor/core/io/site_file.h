@@ -9,7 +9,7 @@
 //   (required) frame: local_enu                # local_enu | shifted_crs (local_enu;
 //   common/site_crs.h) cameras:                        # any number, each {name, kind,
 //   calibration_url, pixel_size}
-//     - {name: fixed_cam_1, kind: fixed, pixel_size: 0.0048}
+//     - {name: north_ridge, kind: fixed, pixel_size: 0.0048}
 //   radio_network: radio.yaml       # radio network file (radio::NetworkConfig); absent: no radio
 //   targets: {file: targets.csv}    # a target list file (.yaml: io::TargetList, .csv:
 //   target_csv.h), or targets: {crs: site, size: 1.0, list: [{id: tag36h11/3, role: control,
@@ -96,8 +96,12 @@ struct SiteFile {
 };
 
 // The graph's cameras when no site file lists them (replay.launch without
-// `site`, launch/include/processing_graph.xml): fixed_cam_1 and fixed_cam_2
-// (kind fixed) and uav (kind uav). The one place this default is written.
+// `site` on a simulator bag; the graph_cameras parameter of the centroider
+// and the adjuster, process_bag's kinds): the simulator's names
+// (config/sim/*.yaml), fixed_cam_1 and fixed_cam_2 (kind fixed) and uav
+// (kind uav). The one place this default is written (dense_epoch.yaml's
+// `cameras` mirrors it: test/ros/config_files_test.cpp); no name is special
+// once a site file lists cameras.
 std::vector<SiteCamera> DefaultCameras();
 // The names of the cameras of `kind`, in their order.
 std::vector<std::string> CameraNames(const std::vector<SiteCamera>& cameras, CameraKind kind);

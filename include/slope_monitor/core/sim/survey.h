@@ -41,7 +41,7 @@ struct StripSpec {
 };
 
 struct CameraSpec {
-  std::string name;            // fixed_cam_1, ..., uav
+  std::string name;            // the camera namespace in the bag (config: cameras[].name)
   std::string kind = "fixed";  // fixed | fixed_targetless (no control point needed in view) | uav
   std::string encoding = "mono8";  // mono8 | bgr8
   std::string key;                 // config path for messages ("cameras[0]")

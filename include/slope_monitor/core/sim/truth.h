@@ -155,7 +155,7 @@ struct SurveyedPointTruth {
 };
 
 struct CameraTruth {
-  std::string name;                // fixed_cam_1, ..., uav
+  std::string name;                // the camera namespace in the bag (config: cameras[].name)
   std::string kind = "fixed";      // fixed | fixed_targetless | uav
   std::string encoding = "mono8";  // mono8 | bgr8
   camera::CameraModel model;       // true interior + distortion

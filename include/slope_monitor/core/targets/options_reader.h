@@ -29,6 +29,10 @@ struct NodeOptions {
   double pixel_size = 1.0;  // [mm/px]
   int queue_size = 100;     // [images]
   std::string site_file;    // the node: one camera per site camera of kind fixed/uav ("" = one)
+  // The node without a site file that lists cameras: true, one camera per
+  // default camera of the graph (io::DefaultCameras(), kind fixed or uav;
+  // launch/include/processing_graph.xml); false, one camera on relative topics.
+  bool graph_cameras = false;
 };
 
 namespace detail {
@@ -97,6 +101,7 @@ NodeOptions ReadNodeOptions(Reader& r) {
   n.pixel_size = r.Double("pixel_size", n.pixel_size, 1e-6, 1.0, "mm");
   n.queue_size = r.Int("queue_size", n.queue_size, 1, 10000, "images");
   n.site_file = r.String("site_file", n.site_file);
+  n.graph_cameras = r.Bool("graph_cameras", n.graph_cameras);
   return n;
 }
 
