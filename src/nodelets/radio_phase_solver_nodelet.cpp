@@ -117,8 +117,10 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
       for (const ros_adapters::LogLine& line : out.log) {
         if (line.level == ros_adapters::LogLine::kError)
           NODELET_ERROR_THROTTLE(5.0, "radio_phase_solver: %s", line.text.c_str());
-        else
+        else if (line.level == ros_adapters::LogLine::kWarn)
           NODELET_WARN_THROTTLE(5.0, "radio_phase_solver: %s", line.text.c_str());
+        else  // routine results (every ambiguity fixed): INFO (issue 38)
+          NODELET_INFO("radio_phase_solver: %s", line.text.c_str());
       }
       obs_pub_.publish(out.messages.observations);
       if (out.messages.displacements) disp_pub_.publish(*out.messages.displacements);

@@ -75,6 +75,7 @@ RadioEpochOutput RadioStep::Solve(const radio::EpochAssembler::Epoch& epoch,
     out.log.push_back({LogLine::kWarn, e});
     last_event_ = e;
   }
+  for (const std::string& n : s.notes) out.log.push_back({LogLine::kInfo, n});
   last_ = s;
   std_msgs::Header header = input_header;
   header.stamp = ros::Time(epoch.stamp);

@@ -29,7 +29,8 @@ std::string RadioReceiverOfTopic(const std::string& topic);
 
 struct RadioEpochOutput {
   RadioOutputs messages;  // phase_observations, and radio_displacements when usable
-  // The solver's problems (kError) and events (kWarn), without the node's name.
+  // The solver's problems (kError), events (kWarn: faults handled) and notes
+  // (kInfo: routine results), without the node's name.
   std::vector<LogLine> log;
 };
 

@@ -606,9 +606,11 @@ void RadioPhaseSolver::SolveReference(RadioEpochSummary* summary) {
     reference_.num_fixed = nf;
     net_state = nf == na ? FixState::kFixed : (nf > 0 ? FixState::kPartial : FixState::kFloat);
     if (nf > 0) ConditionOnFixedAmbiguities(fr, cov, first_amb, &x, &cov_fixed, &amb_fixed);
-    summary->events.push_back(Message("reference solution: ", nf, " of ", na,
-                                      " ambiguities fixed, ratio ", fr.ratio, " (",
-                                      FixStateName(net_state), ")"));
+    // Every ambiguity fixed is the normal outcome (a note); a partial or
+    // float reference solution is worth a warning (an event).
+    (net_state == FixState::kFixed ? summary->notes : summary->events)
+        .push_back(Message("reference solution: ", nf, " of ", na, " ambiguities fixed, ratio ",
+                           fr.ratio, " (", FixStateName(net_state), ")"));
   } else {
     reference_.ratio = std::numeric_limits<double>::infinity();
   }

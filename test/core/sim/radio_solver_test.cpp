@@ -126,7 +126,7 @@ TEST(RadioSolver, AmbiguitiesFixedOverManySeeds) {
 }
 
 struct SolverRunResult {
-  std::vector<std::string> events, problems;
+  std::vector<std::string> events, problems, notes;
   double rms[3] = {0, 0, 0};
   double worst = 0.0;
   int epochs = 0;
@@ -143,6 +143,7 @@ SolverRunResult RunScenario(const Scenario& s, int n_epochs, bool print) {
     const radio::RadioEpochSummary sum = solver.ProcessEpoch(t, sim.SynthesizeAll(t, e));
     for (const auto& ev : sum.events) out.events.push_back(ev);
     for (const auto& p : sum.problems) out.problems.push_back(p);
+    for (const auto& n : sum.notes) out.notes.push_back(n);
     if (!solver.reference().solved || sum.reference_solved_now) continue;
     for (int i = 0; i < sim.NumTransmitters(); ++i) {
       const auto& est = sum.transmitters[i];
@@ -183,6 +184,12 @@ TEST(RadioSolver, DisplacementAccuracy) {
   for (int a = 0; a < 3; ++a) EXPECT_LE(r.rms[a], 1e-3);
   EXPECT_LE(r.worst, 2e-3);
   EXPECT_TRUE(r.problems.empty()) << r.problems.front();
+  // Every ambiguity fixed is a routine result: a note (INFO), not an event
+  // (WARN) as the replay logged it before issue 38.
+  ASSERT_EQ(r.notes.size(), 1u);
+  EXPECT_NE(r.notes.front().find("ambiguities fixed"), std::string::npos) << r.notes.front();
+  EXPECT_NE(r.notes.front().find("(fixed)"), std::string::npos) << r.notes.front();
+  for (const auto& e : r.events) EXPECT_EQ(e.find("ambiguities fixed"), std::string::npos) << e;
 }
 
 bool Contains(const std::vector<std::string>& v, const std::string& a, const std::string& b = "") {

@@ -162,6 +162,9 @@ struct RadioEpochSummary {
   std::vector<LinkDiagnostics> links;  // transmitter-major
   std::vector<std::string> problems;   // bad input of this epoch (one line each)
   std::vector<std::string> events;     // faults handled (outliers, re-fixes, dropped blocks)
+  // Routine results, nothing wrong (the reference solution with every
+  // ambiguity fixed): logged at INFO, where events are WARN.
+  std::vector<std::string> notes;
   bool reference_solved_now = false;
   // True when at least one transmitter has an initialised estimate.
   bool IsSolutionUsable() const;
