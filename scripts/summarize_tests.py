@@ -50,4 +50,7 @@ def main(results_dir):
 
 
 if __name__ == "__main__":
+    if sys.argv[1:2] in (["-h"], ["--help"]):
+        print("usage: summarize_tests.py [RESULTS_DIR]\n" + __doc__)
+        sys.exit(0)
     sys.exit(main(sys.argv[1] if len(sys.argv) > 1 else "."))

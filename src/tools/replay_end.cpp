@@ -136,6 +136,19 @@ bool WaitIdle(const std::map<std::string, int>& graph, int needed, Clock::time_p
 }  // namespace
 
 int main(int argc, char** argv) {
+  // --help: the usage, before ros::init (no master contacted, nothing changed).
+  for (int i = 1; i < argc; ++i)
+    if (std::string(argv[i]) == "-h" || std::string(argv[i]) == "--help") {
+      std::cout << "usage: replay_end [__name:=NAME] [_player:=/player] [_quiet:=1.0] "
+                   "[_timeout:=3600]\n"
+                   "Started by launch/replay.launch (required): waits for the rosbag player to\n"
+                   "end, announces the end of input on /replay/end_of_input stage by stage, waits\n"
+                   "until the graph's processes have been idle for `quiet` s after each, and\n"
+                   "exits, which ends the launch (the estimator then writes its reports). Exit\n"
+                   "status 0 when the graph went idle, 1 on a bad parameter or when it was still\n"
+                   "busy `timeout` s after the player's end (the busy nodes named).\n";
+      return 0;
+    }
   ros::init(argc, argv, "replay_end");
   ros::NodeHandle pnh("~");
   std::string player;

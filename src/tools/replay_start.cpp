@@ -20,6 +20,7 @@
 //   settle  (double, 1.0 s)      wall time between ready and play (0..60)
 //   timeout (double, 120 s)      wall time to wait for the nodes (> 0)
 #include <chrono>
+#include <iostream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -58,6 +59,18 @@ std::string Join(const std::vector<std::string>& v) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // --help: the usage, before ros::init (no master contacted, nothing changed).
+  for (int i = 1; i < argc; ++i)
+    if (std::string(argv[i]) == "-h" || std::string(argv[i]) == "--help") {
+      std::cout << "usage: replay_start [__name:=NAME] [_player:=/player] [_settle:=1.0] "
+                   "[_timeout:=120]\n"
+                   "Started by launch/replay.launch: resumes the paused rosbag player (its\n"
+                   "pause_playback service) once every node's ~graph_ready parameter is true,\n"
+                   "then `settle` s later; past `timeout` s it names the nodes not ready and\n"
+                   "starts the player anyway. Exit status 0 when the player was started, 1 on a\n"
+                   "bad parameter or when the player could not be resumed.\n";
+      return 0;
+    }
   ros::init(argc, argv, "replay_start");
   ros::NodeHandle pnh("~");
   std::string player;

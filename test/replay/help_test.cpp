@@ -18,19 +18,21 @@ using replay_test::ReadFile;
 using replay_test::Spawn;
 using replay_test::Wait;
 
-// The tools (devel/lib/slope_monitor, beside process_bag) a user runs by hand.
-// Not here: the graph's nodes and the test nodes (*_node, rostest_*), and
-// replay_start / replay_end, which replay.launch starts.
-const std::vector<std::string> kTools = {"bag_check",     "centroid_targets", "deformation_summary",
-                                         "dense_surface", "make_survey_bag",  "match_images",
-                                         "process_bag",   "process_flight",   "resect_camera",
-                                         "solve_bal",     "track_camera"};
+// The tools (devel/lib/slope_monitor, beside process_bag) a user runs by hand,
+// and replay_start / replay_end, which replay.launch starts (their --help
+// before ros::init: no master is contacted). Not here: the graph's nodes and
+// the test nodes (*_node, rostest_*).
+const std::vector<std::string> kTools = {
+    "bag_check",     "centroid_targets", "deformation_summary", "dense_surface", "make_survey_bag",
+    "match_images",  "process_bag",      "process_flight",      "replay_end",    "replay_start",
+    "resect_camera", "solve_bal",        "track_camera"};
 
-// Every script of scripts/ but lib.sh and env.sh (sourced, not run) and
-// check_launch (its own argument handling, not yet: see the note).
+// Every script of scripts/ but lib.sh and env.sh (sourced, not run), and
+// the notification hooks of scripts/hooks.
 const std::vector<std::string> kScripts = {"bench",
                                            "build",
                                            "check_format",
+                                           "check_launch",
                                            "check_listeners",
                                            "compare_columbia",
                                            "demo",
@@ -39,9 +41,12 @@ const std::vector<std::string> kScripts = {"bench",
                                            "plot_report",
                                            "render_survey",
                                            "rviz_screenshot",
+                                           "summarize_tests.py",
                                            "test",
                                            "tidy",
-                                           "uav_block_process_bag"};
+                                           "uav_block_process_bag",
+                                           "hooks/notify_email",
+                                           "hooks/notify_mqtt"};
 
 void ExpectHelp(const std::string& program) {
   const fs::path dir = replay_test::Scratch("help_test", fs::path(program).filename().string());
