@@ -27,6 +27,7 @@
 #include "slope_monitor/TargetObservationArray.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/site_file.h"
+#include "slope_monitor/core/io/target_file.h"
 #include "slope_monitor/core/targets/options_reader.h"
 #include "slope_monitor/core/targets/target_centroider.h"
 #include "slope_monitor/ros/conversions.h"
@@ -164,7 +165,8 @@ class TargetCentroiderNodelet : public nodelet::Nodelet {
     if (site && site->targets) return *site->targets;
     if (node.target_list.empty()) return io::TargetList();
     try {
-      return io::TargetList::Load(node.target_list);  // names the file and the key
+      // YAML or a surveyors' CSV; names the file and the key
+      return io::LoadTargetFileInSite(node.target_list, site ? &site->crs : nullptr);
     } catch (const Error& e) {
       target_list_error_ = Message("target list '", node.target_list, "' not used: ", e.what(),
                                    "; every target is published as unknown");

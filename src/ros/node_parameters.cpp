@@ -3,6 +3,7 @@
 #include "slope_monitor/core/adjustment/site_options.h"
 #include "slope_monitor/core/deformation/site_options.h"
 #include "slope_monitor/core/io/site_file.h"
+#include "slope_monitor/core/io/target_file.h"
 
 #include <cmath>
 #include <filesystem>
@@ -77,7 +78,8 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
     a.target_list_path = site_file + " (no targets)";
     a.site_without_targets = true;
   } else if (!a.target_list_path.empty()) {
-    a.targets = io::TargetList::Load(a.target_list_path);
+    // YAML or a surveyors' CSV (in the site's CRS when a site file is given).
+    a.targets = io::LoadTargetFileInSite(a.target_list_path, site ? &site->crs : nullptr);
   } else {
     throw ConfigError("parameter '" + p.FullKey("target_list") + "' is required (or '" +
                       p.FullKey("site_file") + "' naming a site file with targets)");

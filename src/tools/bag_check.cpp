@@ -9,7 +9,8 @@
 // one report over all of them in time order, so an epoch or gap that spans a
 // split is reported once.
 //
-// Exit status: 0 all bags readable, 1 some bag unreadable, 2 usage error.
+// Exit status: 0 all bags readable, 1 some bag unreadable or a usage error
+// (the tools' convention, doc/security.md; a usage error was 2 before issue 38).
 #include <cstdlib>
 #include <iostream>
 #include <string>
@@ -24,7 +25,7 @@ int Usage(const std::string& why) {
   std::cerr << "bag_check: " << why << "\n"
             << "usage: bag_check [--gap SECONDS] [--epoch-gap SECONDS] [--session] file.bag "
                "[more.bag ...]\n";
-  return 2;
+  return 1;
 }
 
 bool ParsePositive(const std::string& text, double* out) {

@@ -58,6 +58,7 @@
 #include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/image_file.h"
+#include "slope_monitor/core/io/target_file.h"
 #include "slope_monitor/core/io/yaml_map.h"
 #include "slope_monitor/core/targets/board_layout.h"
 #include "slope_monitor/core/targets/options_reader.h"
@@ -238,7 +239,7 @@ int main(int argc, char** argv) {
         LoadOptions(args.count("--config") ? args["--config"] : "", &node);
     const std::string list_path = args.count("--targets") ? args["--targets"] : node.target_list;
     const io::TargetList list =
-        list_path.empty() ? io::TargetList() : io::TargetList::Load(list_path);
+        list_path.empty() ? io::TargetList() : io::LoadTargetFile(list_path, nullptr);
     targets::TargetCentroider centroider(options, list);
     std::optional<targets::BoardLayout> layout;
     if (args.count("--layout")) layout = targets::BoardLayout::Load(args["--layout"]);

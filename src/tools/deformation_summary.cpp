@@ -4,6 +4,8 @@
 // file; prints one row per point (displacement, velocity, sigma, alert,
 // error against truth), the RMS error of each source and of the fused
 // estimate, and the failure-time forecast beside the true one.
+// Exit status (the tools' convention, doc/security.md): 0 the table printed;
+// 1 a usage error, an unreadable file or a history without estimates.
 #include <cstdio>
 #include <iostream>
 #include <string>
@@ -23,13 +25,15 @@ int main(int argc, char** argv) {
       std::cout << "usage: deformation_summary --database FILE.db --truth FILE.truth.yaml\n";
       return 0;
     } else {
-      std::cerr << "usage: deformation_summary --database FILE.db --truth FILE.truth.yaml\n";
-      return 2;
+      std::cerr << "deformation_summary: unknown argument '" << a << "'\n"
+                << "usage: deformation_summary --database FILE.db --truth FILE.truth.yaml\n";
+      return 1;
     }
   }
   if (database.empty() || truth_path.empty()) {
-    std::cerr << "deformation_summary: --database and --truth are required\n";
-    return 2;
+    std::cerr << "deformation_summary: --database and --truth are required\n"
+              << "usage: deformation_summary --database FILE.db --truth FILE.truth.yaml\n";
+    return 1;
   }
   try {
     const auto truth = slope_monitor::sim::SurveyTruth::Load(truth_path);

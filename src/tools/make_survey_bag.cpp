@@ -14,6 +14,7 @@
 
 #include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/progress_line.h"
 #include "slope_monitor/core/sim/survey.h"
 #include "slope_monitor/ros/sim_bag_writer.h"
 
@@ -41,7 +42,7 @@ int main(int argc, char** argv) {
       if (i + 1 >= argc) {
         std::cerr << "make_survey_bag: " << name << " needs a value\n";
         Usage();
-        std::exit(2);
+        std::exit(1);
       }
       return argv[++i];
     };
@@ -75,12 +76,13 @@ int main(int argc, char** argv) {
     } else {
       std::cerr << "make_survey_bag: unknown argument '" << a << "'\n";
       Usage();
-      return 2;
+      return 1;
     }
   }
   if (config_path.empty() || out.empty()) {
+    std::cerr << "make_survey_bag: --config and --out are required\n";
     Usage();
-    return 2;
+    return 1;
   }
   std::string stem = out;
   if (stem.size() > 4 && stem.substr(stem.size() - 4) == ".bag")
@@ -96,10 +98,13 @@ int main(int argc, char** argv) {
       config.radio.sim.seed = config.seed;
     }
     slope_monitor::sim::SurveyGenerator generator(config);
+    // Redrawn on a terminal, plain lines in a log (core/common/progress_line.h).
+    slope_monitor::ProgressLine progress(stderr);
     slope_monitor::sim::Survey survey = generator.Generate([&](int i, int n) {
-      if (!quiet) std::fprintf(stderr, "\rrendered %d/%d images", i, n);
+      if (!quiet && progress.Due(i == n))
+        progress.Show("rendered " + std::to_string(i) + "/" + std::to_string(n) + " images");
     });
-    if (!quiet) std::fprintf(stderr, "\n");
+    progress.End();
     slope_monitor::sim::WriteSurveyFiles(&survey, stem);
     const auto s = slope_monitor::ros_adapters::WriteSurveyBag(survey, bag_path, compression);
     const double secs =

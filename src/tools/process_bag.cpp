@@ -17,8 +17,9 @@
 // Parameters: config/defaults/<node>.yaml, then config/process_bag/<node>.yaml
 // (what the launch files add), then the command line and overlays, as
 // replay.launch loads them. Defaults of the options: those of replay.launch
-// (target list and truth beside the bag, database and reports under
-// ~/.ros/slope_monitor). See doc/process_bag.md.
+// (target list and truth beside the bag, reports under ~/.ros/slope_monitor,
+// the history ~/.ros/slope_monitor/<first bag's name>.db: one per bag,
+// ros/replay_defaults.h). See doc/process_bag.md.
 //
 // One writer per history: while another process_bag (or an estimator node)
 // writes the --database, this run ends at once, before processing anything,
@@ -27,13 +28,14 @@
 //   writer lock '<file>.lock'; one writer per history: wait for it to end or use another database
 // (deformation/history.h).
 //
-// Exit status: 0 every bag read to its end; 2 input ended early (a cut bag,
-// processed up to its break, the break named at the end with the epochs then
-// accepted incomplete), messages skipped (an image message above
-// --max-megapixels, default 100, or whose header does not describe its data:
-// named with its topic, bag time and size when met and again at the end; the
-// rest processed) or nothing solved; 1 a usage error, an unreadable
-// input or another writer on the history.
+// Exit status (the tools' convention, doc/security.md): 0 every bag read to
+// its end and something solved; 2 input ended early (a cut bag, processed up
+// to its break, the break named at the end with the epochs then accepted
+// incomplete) or messages skipped (an image message above --max-megapixels,
+// default 100, or whose header does not describe its data: named with its
+// topic, bag time and size when met and again at the end; the rest
+// processed); 1 nothing solved (said why in one line), a usage error, an
+// unreadable input or another writer on the history.
 #include <unistd.h>
 
 #include <algorithm>
@@ -70,6 +72,7 @@
 #include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/input_order.h"
+#include "slope_monitor/core/common/progress_line.h"
 #include "slope_monitor/core/deformation/alert_hook.h"
 #include "slope_monitor/core/deformation/alert_log.h"
 #include "slope_monitor/core/deformation/history.h"
@@ -77,6 +80,7 @@
 #include "slope_monitor/core/deformation/report.h"
 #include "slope_monitor/core/evaluation/deformation_truth.h"
 #include "slope_monitor/core/io/safe_file.h"
+#include "slope_monitor/core/io/target_file.h"
 #include "slope_monitor/core/targets/options_reader.h"
 #include "slope_monitor/ros/adjuster_step.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
@@ -91,6 +95,7 @@
 #include "slope_monitor/ros/offline_dense.h"
 #include "slope_monitor/ros/param_files.h"
 #include "slope_monitor/ros/radio_step.h"
+#include "slope_monitor/ros/replay_defaults.h"
 #include "slope_monitor/ros/sequence_conversions.h"
 #include "slope_monitor/ros/sequence_step.h"
 #include "slope_monitor/ros/target_conversions.h"
@@ -182,10 +187,11 @@ Args ParseArgs(int argc, char** argv) {
   if (a.bags.empty()) throw InvalidArgument("--bag FILE is required");
   for (const std::string& bag : a.bags)
     if (!fs::is_regular_file(bag)) throw InvalidArgument("bag '" + bag + "' not found");
-  // The defaults of replay.launch.
+  // The defaults of replay.launch: a history per bag (ros/replay_defaults.h).
   const char* home = std::getenv("HOME");
   const std::string ros_dir = std::string(home ? home : ".") + "/.ros/slope_monitor";
-  if (a.database.empty()) a.database = ros_dir + "/replay.db";
+  if (a.database.empty())
+    a.database = ros_adapters::DefaultHistoryOfBag(a.bags.front(), home ? home : ".");
   if (a.report_dir.empty()) a.report_dir = ros_dir + "/reports";
   return a;
 }
@@ -549,7 +555,9 @@ class OfflineGraph {
     // gets an empty target list, what a centroider would find).
     if (!args_.no_targets)
       c.centroider = std::make_unique<targets::TargetCentroider>(
-          o, site_ && site_->targets ? *site_->targets : io::TargetList::Load(args_.target_list));
+          o, site_ && site_->targets
+                 ? *site_->targets
+                 : io::LoadTargetFileInSite(args_.target_list, site_ ? &site_->crs : nullptr));
     centroiders_[cam] = std::move(c);
   }
 
@@ -1063,39 +1071,31 @@ class OfflineGraph {
 
 // ---------------------------------------------------------------- progress
 
-// One line on stderr, redrawn: bag time reached, percent, epochs solved,
-// time left (from the wall time so far).
+// One line on stderr: bag time reached, percent, epochs solved, time left
+// (from the wall time so far); redrawn on a terminal, plain lines in a log
+// (core/common/progress_line.h).
 class Progress {
  public:
   Progress(const ros::Time& begin, const ros::Time& end) : begin_(begin), end_(end) {}
 
   void Update(const ros::Time& t, int epochs, bool force = false) {
-    const auto now = std::chrono::steady_clock::now();
-    if (!force && now - last_ < std::chrono::milliseconds(200)) return;
-    last_ = now;
+    if (!line_.Due(force)) return;
     const double span = (end_ - begin_).toSec();
     const double done = span > 0 ? std::clamp((t - begin_).toSec() / span, 0.0, 1.0) : 1.0;
-    const double elapsed = std::chrono::duration<double>(now - start_).count();
+    const double elapsed = this->elapsed();
     char line[160];
     std::snprintf(
-        line, sizeof(line), "\rprocess_bag: bag time %.1f s (%.0f %%), %d epochs solved, %s",
+        line, sizeof(line), "process_bag: bag time %.1f s (%.0f %%), %d epochs solved, %s",
         (t - begin_).toSec(), 100.0 * done, epochs,
         done > 0.01
             ? (std::to_string(static_cast<int>(elapsed * (1 - done) / done + 0.5)) + " s left")
                   .c_str()
             : "time left unknown");
-    std::fprintf(stderr, "%-90s", line);
-    drawn_ = true;
+    line_.Show(line);
   }
   // A log line: on a line of its own, the progress line redrawn after.
-  void Print(const std::string& text) {
-    std::fprintf(stderr, "%s%s\n", drawn_ ? "\r\033[K" : "", text.c_str());
-    drawn_ = false;
-  }
-  void End() {
-    if (drawn_) std::fprintf(stderr, "\n");
-    drawn_ = false;
-  }
+  void Print(const std::string& text) { line_.Print(text); }
+  void End() { line_.End(); }
   double elapsed() const {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   }
@@ -1103,8 +1103,7 @@ class Progress {
  private:
   ros::Time begin_, end_;
   std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
-  std::chrono::steady_clock::time_point last_{};
-  bool drawn_ = false;
+  ProgressLine line_{stderr};
 };
 
 int Run(Args args) {
@@ -1169,10 +1168,10 @@ int Run(Args args) {
   }
   if (graph.epochs_solved() == 0 && !graph.has_points()) {
     // A run that solves nothing (no adjusted or radio epoch, and no point
-    // from elsewhere, e.g. a fixed_targetless camera's field) fails, saying
-    // why in one line.
+    // from elsewhere, e.g. a fixed_targetless camera's field) fails with
+    // status 1 (nothing produced), saying why in one line.
     std::cerr << "process_bag: nothing solved: " << graph.WhyNothingSolved() << "\n";
-    return 2;
+    return 1;
   }
 
   // The summary scripts/demo prints (the deformation_summary tool's table).

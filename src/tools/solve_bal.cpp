@@ -3,6 +3,8 @@
 //
 //   solve_bal <problem.txt> [--solver auto|dense_schur|sparse_schur|iterative_schur]
 //             [--autodiff] [--iterations N] [--threads N] [--loss none|huber|cauchy] [--progress]
+//
+// Exit status: 0 solved; 1 a usage error, a bad file or a failed solve.
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -20,7 +22,7 @@ int main(int argc, char** argv) {
         "[--autodiff]\n"
         "          [--iterations N] [--threads N] [--loss none|huber|cauchy] [--progress]\n",
         argv[0]);
-    return help ? 0 : 2;
+    return help ? 0 : 1;  // a usage error: 1 (the tools' convention, doc/security.md)
   }
   adjustment::Options options;
   options.loss = "none";

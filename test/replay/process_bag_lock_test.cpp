@@ -11,6 +11,8 @@
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
+#include <iostream>
 #include <map>
 #include <string>
 #include <thread>
@@ -97,6 +99,61 @@ TEST(ProcessBagLock, SecondWriterOnOneDatabaseFailsAtOnce) {
   const auto stored = StoredObservations(db);
   EXPECT_GT(stored.size(), 10u);
   for (const auto& [key, n] : stored) EXPECT_EQ(n, 1) << key << " stored " << n << " times";
+}
+
+// Safe defaults (issue 38 item 6), on bags cut to their first messages (no
+// epoch: nothing is solved, a run takes about a second):
+//   * without --database each bag keeps its own history,
+//     ~/.ros/slope_monitor/<bag name>.db (both used ~/.ros/slope_monitor/replay.db);
+//   * --target-list takes a surveyors' CSV (was: "YAML file '…csv' must hold a map");
+//   * the progress goes to a log as plain lines, no '\r', no ESC[K;
+//   * a run that solves nothing exits 1 (nothing produced; was 2).
+TEST(ProcessBagDefaults, EachBagItsOwnHistoryACsvTargetListPlainProgress) {
+  const fs::path dir = Scratch("defaults");
+  const fs::path home = dir / "home";
+  fs::create_directories(home);
+  // Bag a: the static transforms, the first photo of fixed_cam_1 and its
+  // camera_info; bag b: only the transforms and the camera_infos.
+  int photos = 0;
+  const std::string bag_a = CopySurvey(
+      "replay_rates", dir, "site_a", [&photos](const rosbag::MessageInstance& m, rosbag::Bag* out) {
+        const std::string& t = m.getTopic();
+        if (t == "/tf_static" || (t.rfind("/fixed_cam_1/camera/", 0) == 0 &&
+                                  t.find("/epoch") == std::string::npos && photos < 2)) {
+          photos += t != "/tf_static";
+          out->write(t, m.getTime(), m);
+        }
+      });
+  const std::string bag_b = CopySurvey(
+      "replay_rates", dir, "site_b", [](const rosbag::MessageInstance& m, rosbag::Bag* out) {
+        const std::string& t = m.getTopic();
+        if (t == "/tf_static" || t.find("/camera_info") != std::string::npos)
+          out->write(t, m.getTime(), m);
+      });
+  // The surveyors' CSV of doc/your_own_site.md, in the site frame.
+  const fs::path csv = dir / "targets.csv";
+  std::ofstream(csv) << "# crs: site\nid,role,x,y,z,sigma_h,sigma_v\n"
+                        "tag36h11/0,control,0.0,0.0,0.0,0.010,0.020\n"
+                        "tag36h11/1,monitoring,5.0,5.0,1.0,0.30,0.50\n";
+  for (const std::string& bag : {bag_a, bag_b}) {
+    const fs::path run = dir / fs::path(bag).stem();
+    fs::create_directories(run);
+    const int status = Wait(Spawn({SM_PROCESS_BAG, "--bag", bag, "--target-list", csv.string(),
+                                   "--report-dir", (run / "reports").string()},
+                                  run, {"HOME=" + home.string()}));
+    const std::string err = ReadFile(run / "stderr");
+    std::cout << fs::path(bag).filename().string() << ": exit " << status << ", stderr:\n" << err;
+    EXPECT_EQ(status, 1) << "nothing solved is nothing produced";
+    EXPECT_NE(err.find("process_bag: nothing solved: "), std::string::npos) << err;
+    EXPECT_EQ(err.find("must hold a map"), std::string::npos) << "the CSV was refused:\n" << err;
+    EXPECT_NE(err.find("process_bag: bag time "), std::string::npos) << "no progress line:\n"
+                                                                     << err;
+    EXPECT_EQ(err.find('\r'), std::string::npos) << "a carriage return in the log";
+    EXPECT_EQ(err.find('\033'), std::string::npos) << "an escape sequence in the log";
+  }
+  EXPECT_TRUE(fs::is_regular_file(home / ".ros/slope_monitor/site_a.db"));
+  EXPECT_TRUE(fs::is_regular_file(home / ".ros/slope_monitor/site_b.db"));
+  EXPECT_FALSE(fs::exists(home / ".ros/slope_monitor/replay.db")) << "a history shared by bags";
 }
 
 }  // namespace

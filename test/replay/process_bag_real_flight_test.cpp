@@ -234,7 +234,7 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
 }
 
 // The run's messages on bad input: no target list without a site file, and
-// a run that solves nothing (a bag without photos, a UAV-only site) exits 2
+// a run that solves nothing (a bag without photos, a UAV-only site) exits 1
 // with one line saying why. A real bag that holds no images (turtlesim).
 TEST(ProcessBagRealFlight, NoTargetListAndNothingSolvedAreNamed) {
   const fs::path dir = replay_test::Scratch("process_bag_real_flight_test", "bad");
@@ -255,7 +255,7 @@ TEST(ProcessBagRealFlight, NoTargetListAndNothingSolvedAreNamed) {
                 Spawn({SM_PROCESS_BAG, "--bag", bag, "--site", site.string(), "--database",
                        (dir / "history.db").string(), "--report-dir", (dir / "reports").string()},
                       dir)),
-            2);
+            1);  // nothing produced (doc/security.md's convention; was 2)
   const std::string err = ReadFile(dir / "stderr");
   EXPECT_NE(err.find("process_bag: nothing solved: "), std::string::npos) << err;
   EXPECT_EQ(err.find("truth file"), std::string::npos) << err;

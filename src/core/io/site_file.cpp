@@ -8,6 +8,7 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/target_csv.h"
+#include "slope_monitor/core/io/target_file.h"
 #include "slope_monitor/core/io/yaml_map.h"
 
 namespace slope_monitor {
@@ -17,10 +18,6 @@ namespace {
 std::string Resolve(const std::string& folder, const std::string& file) {
   if (file.empty() || file[0] == '/' || folder.empty()) return file;
   return folder + "/" + file;
-}
-
-bool EndsWith(const std::string& s, const std::string& tail) {
-  return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
 }
 
 std::vector<Eigen::Vector2d> ReadPolygon(const YAML::Node& node, const std::string& where,
@@ -80,17 +77,11 @@ void ReadCameras(YamlMap& root, const std::string& folder, SiteFile* s) {
 void ReadTargets(YamlMap& root, const std::string& folder, const SiteCrs& site, SiteFile* s) {
   if (!root.Has("targets")) return;
   YamlMap t = root.Map("targets");
-  const double size = t.Double("size", 1.0, 0.01, 100.0, "m");
+  const double size = t.Double("size", kDefaultTargetSize, 0.01, 100.0, "m");
   if (t.Has("file")) {
     if (t.Has("list")) t.Fail("list", "and 'file' are both given; give one");
     s->targets_file = Resolve(folder, t.RequiredString("file"));
-    if (EndsWith(s->targets_file, ".csv")) {
-      TargetList list;
-      ApplySurveyedPoints(ReadTargetCsv(s->targets_file, site), size, &list);
-      s->targets = list;
-    } else {
-      s->targets = TargetList::Load(s->targets_file);
-    }
+    s->targets = LoadTargetFile(s->targets_file, &site, size);
   } else {
     const std::string crs = t.String("crs", site.options().crs);
     TargetList list;
