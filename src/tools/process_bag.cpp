@@ -132,6 +132,7 @@ struct Args {
   bool dense = true;     // the dense epoch step (replay.launch dense:=true)
   bool verbose = false;  // the bundle adjuster's INFO lines too
   std::string database, report_dir, output_bag;
+  bool default_database = false;  // --database not given: the bag's own history
   // Image messages above this many pixels, or whose header does not describe
   // their data, are skipped before conversion, named (ros/image_limits.h).
   ros_adapters::ImageMessageLimits image_limits;
@@ -190,7 +191,8 @@ Args ParseArgs(int argc, char** argv) {
   // The defaults of replay.launch: a history per bag (ros/replay_defaults.h).
   const char* home = std::getenv("HOME");
   const std::string ros_dir = std::string(home ? home : ".") + "/.ros/slope_monitor";
-  if (a.database.empty())
+  a.default_database = a.database.empty();
+  if (a.default_database)
     a.database = ros_adapters::DefaultHistoryOfBag(a.bags.front(), home ? home : ".");
   if (a.report_dir.empty()) a.report_dir = ros_dir + "/reports";
   return a;
@@ -1119,6 +1121,11 @@ int Run(Args args) {
   std::vector<BagBreak> breaks;
   for (const std::string& path : args.bags) bags.push_back(OpenBag(path, &temporaries, &breaks));
   CheckInputFiles(args);
+  // The bag's own history from an earlier run: continued, and said so.
+  if (args.default_database && fs::exists(args.database))
+    std::cerr << "process_bag: continuing the history '" << args.database
+              << "' of an earlier run of this bag (no --database given); --database FILE "
+                 "starts another\n";
   rosbag::View view;
   for (const auto& bag : bags) view.addQuery(*bag);
   if (view.size() == 0) throw InvalidArgument("bag '" + args.bags.front() + "' holds no messages");

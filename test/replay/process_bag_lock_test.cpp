@@ -150,7 +150,23 @@ TEST(ProcessBagDefaults, EachBagItsOwnHistoryACsvTargetListPlainProgress) {
                                                                      << err;
     EXPECT_EQ(err.find('\r'), std::string::npos) << "a carriage return in the log";
     EXPECT_EQ(err.find('\033'), std::string::npos) << "an escape sequence in the log";
+    EXPECT_EQ(err.find("continuing the history"), std::string::npos)
+        << "a new bag continued a history";
   }
+  // The same bag again continues its own history, and says so.
+  const fs::path again = dir / "site_b_again";
+  fs::create_directories(again);
+  EXPECT_EQ(Wait(Spawn({SM_PROCESS_BAG, "--bag", bag_b, "--target-list", csv.string(),
+                        "--report-dir", (again / "reports").string()},
+                       again, {"HOME=" + home.string()})),
+            1);
+  EXPECT_NE(ReadFile(again / "stderr")
+                .find("process_bag: continuing the history '" +
+                      (home / ".ros/slope_monitor/site_b.db").string() +
+                      "' of an earlier run of this bag (no --database given); --database FILE "
+                      "starts another\n"),
+            std::string::npos)
+      << ReadFile(again / "stderr");
   EXPECT_TRUE(fs::is_regular_file(home / ".ros/slope_monitor/site_a.db"));
   EXPECT_TRUE(fs::is_regular_file(home / ".ros/slope_monitor/site_b.db"));
   EXPECT_FALSE(fs::exists(home / ".ros/slope_monitor/replay.db")) << "a history shared by bags";
