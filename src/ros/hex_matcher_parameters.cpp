@@ -161,20 +161,21 @@ void ReadSequenceOptions(ParamReader& p, matching::SequenceMatcherOptions* s) {
       p.Double("photo_screen_threshold", s->photo_pair.screen_threshold, 1e-3, 100.0, "px");
 }
 
-// Sequence mode with a site file: its camera of kind uav and that camera's
-// topics (the kind is the site's field, never the name).
-void UseSiteUavCamera(const io::SiteFile& site, ParamReader& p, HexMatcherParameters* h) {
-  if (site.cameras.empty()) return;  // the site says nothing about cameras
-  const std::vector<std::string> uav = io::CameraNames(site.cameras, io::CameraKind::kUav);
+// Sequence mode with a site file that lists cameras (or, graph_cameras, the
+// graph's default ones; `source` names them): their camera of kind uav and
+// that camera's topics (the kind is the site's field, never the name).
+void UseUavCamera(const std::vector<io::SiteCamera>& cameras, const std::string& source,
+                  ParamReader& p, HexMatcherParameters* h) {
+  const std::vector<std::string> uav = io::CameraNames(cameras, io::CameraKind::kUav);
   if (uav.empty())
-    throw ConfigError("parameter '" + p.FullKey("site_file") + "': site file '" + site.path +
-                      "' lists no camera of kind uav (mode sequence ties a UAV camera's photos)");
+    throw ConfigError("parameter '" + p.FullKey("site_file") + "': " + source +
+                      " lists no camera of kind uav (mode sequence ties a UAV camera's photos)");
   if (std::find(uav.begin(), uav.end(), h->camera) == uav.end()) {
     if (uav.size() > 1) {
       std::string names;
       for (const std::string& n : uav) names += (names.empty() ? "" : ", ") + n;
       throw ConfigError("parameter '" + p.FullKey("camera") + "': '" + h->camera +
-                        "' is not a camera of kind uav of site file '" + site.path + "' (" + names +
+                        "' is not a camera of kind uav of " + source + " (" + names +
                         "); one hex_matcher per UAV camera, each with its camera");
     }
     h->camera = uav.front();
@@ -199,17 +200,23 @@ HexMatcherParameters ReadHexMatcherParameters(ParamReader& p) {
   h.site_file = p.String("site_file", h.site_file);
   h.only_without_targets = p.Bool("only_without_targets", h.only_without_targets);
   h.target_list = p.String("target_list", h.target_list);
+  h.graph_cameras = p.Bool("graph_cameras", h.graph_cameras);
+  bool site_cameras = false;  // a site file that lists cameras decided the camera
   if (h.mode == "sequence" && !h.site_file.empty()) {
     const io::SiteFile site = io::LoadSiteFile(h.site_file);
+    site_cameras = !site.cameras.empty();
     if (h.only_without_targets && !io::SiteWithoutTargets(site, h.target_list))
       h.idle =
           "site '" + site.name +
           "' has targets: its UAV photos are tied by them (uav_tie_points:=true ties them too)";
     else if (h.only_without_targets && io::CameraNames(site.cameras, io::CameraKind::kUav).empty())
       h.idle = "site '" + site.name + "' lists no camera of kind uav";
-    else
-      UseSiteUavCamera(site, p, &h);
+    else if (site_cameras)
+      UseUavCamera(site.cameras, "site file '" + site.path + "'", p, &h);
   }
+  if (h.mode == "sequence" && h.graph_cameras && !site_cameras && h.idle.empty())
+    UseUavCamera(io::DefaultCameras(), "the graph's default cameras (no site file lists cameras)",
+                 p, &h);
   h.site_frame = p.String("site_frame", h.site_frame);
   h.image_queue = p.Int("image_queue", h.image_queue, 1, 100000);
   ReadSequenceOptions(p, &h.sequence);

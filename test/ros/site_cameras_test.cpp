@@ -169,6 +169,21 @@ TEST(SiteCameras, TheSequenceMatcherTakesTheSitesUavCamera) {
   EXPECT_EQ(plain.camera, "uav");
   EXPECT_EQ(plain.image_topic, "image");
   EXPECT_EQ(plain.tie_topic, "tie_points");
+  // In the graph (graph_cameras, issue 36): without a site, the default
+  // cameras' UAV on its topics; with one, still the site's.
+  SetParam(&d, "graph_cameras", true);
+  ParamReader rg(d, "/hex_matcher");
+  const HexMatcherParameters graph = ReadHexMatcherParameters(rg);
+  const std::vector<std::string> default_uav =
+      io::CameraNames(io::DefaultCameras(), io::CameraKind::kUav);
+  ASSERT_EQ(default_uav.size(), 1u);
+  EXPECT_EQ(graph.camera, default_uav[0]);
+  EXPECT_EQ(graph.image_topic, "/" + default_uav[0] + "/camera/image_raw");
+  EXPECT_EQ(graph.prior_topic, "/" + default_uav[0] + "/camera/position_prior");
+  EXPECT_EQ(graph.tie_topic, "/" + default_uav[0] + "/tie_points");
+  SetParam(&p, "graph_cameras", true);
+  ParamReader rgs(p, "/hex_matcher");
+  EXPECT_EQ(ReadHexMatcherParameters(rgs).tie_topic, "/drone/tie_points");
 
   const std::string two = site + ".two.yaml";
   std::ofstream(two) << "name: two_uavs\ncrs: EPSG:4979\norigin: [8.0, 46.5, 1200.0]\ncameras:\n"

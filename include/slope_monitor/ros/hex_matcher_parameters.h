@@ -35,7 +35,10 @@ struct HexMatcherParameters {
   // `camera` is its camera of kind uav (the key picks one when it lists
   // several) and the topics are that camera's, /<camera>/camera/image_raw,
   // /<camera>/camera/position_prior and /<camera>/tie_points; without one,
-  // the relative names below (remapped by the launch file).
+  // graph_cameras (set by launch/include/processing_graph.xml) does the same
+  // with the graph's default cameras (io::DefaultCameras()), else the
+  // relative names below (remapped by the launch file).
+  bool graph_cameras = false;
   // Sequence mode with a site file, started by the graph for every site
   // (launch/include/processing_graph.xml): only_without_targets makes the
   // matcher idle unless the site has no targets (io::SiteWithoutTargets with
