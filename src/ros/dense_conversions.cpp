@@ -1,5 +1,7 @@
 #include "slope_monitor/ros/dense_conversions.h"
 
+#include "slope_monitor/ros/param_files.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -142,6 +144,7 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
   d.site_file = p.String("site_file", d.site_file);
   if (!d.site_file.empty()) {
     const io::SiteFile site = io::LoadSiteFile(d.site_file);
+    d.site_crs = site.crs;
     if (!site.cameras.empty()) {
       d.cameras.clear();
       d.uav_cameras.clear();
@@ -150,6 +153,19 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
         if (cam->kind == io::CameraKind::kUav) d.uav_cameras.push_back(cam->name);
       }
     }
+  }
+  // Without a site file, the estimator overlay's geodetic_origin (as the
+  // reports: deformation::ReportSiteCrs) georeferences the GeoTIFFs.
+  d.site_config = p.String("site_config", d.site_config);
+  if (!d.site_crs && !d.site_config.empty()) {
+    XmlRpc::XmlRpcValue overlay = LoadParamFile(d.site_config);
+    ParamReader o(overlay, d.site_config);
+    const std::vector<double> origin = o.DoubleList("geodetic_origin", {});
+    if (!origin.empty() && origin.size() != 3)
+      throw ConfigError(Message("'geodetic_origin' in ", d.site_config,
+                                " must be [latitude, longitude, height] (deg, deg, m)"));
+    if (origin.size() == 3)
+      d.site_crs = SiteCrs::LocalEnuAtWgs84(origin[0], origin[1], origin[2]).options();
   }
   std::vector<std::string> default_pairs;
   for (const auto& pair : d.stereo_pairs)

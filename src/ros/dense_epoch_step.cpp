@@ -25,6 +25,7 @@ dense::SurfaceSeriesOptions SeriesOptions(const DenseEpochParameters& p) {
   o.outlines = p.outlines;
   o.stable_mask = p.stable_mask;
   o.report_dir = p.report_dir;
+  o.site_crs = p.site_crs;
   return o;
 }
 

@@ -706,6 +706,10 @@ class OfflineGraph {
   void SetUpDense() {
     XmlRpc::XmlRpcValue p = NodeParams("dense_epoch");
     ros_adapters::SetParam(&p, "report_dir", args_.report_dir);
+    // The site's CRS (site file, else the overlay's geodetic_origin) is the
+    // GeoTIFFs' map CRS, as in processing_graph.xml.
+    if (!args_.site.empty()) ros_adapters::SetParam(&p, "site_file", args_.site);
+    if (!args_.site_config.empty()) ros_adapters::SetParam(&p, "site_config", args_.site_config);
     dense_ = std::make_unique<ros_adapters::OfflineDense>(
         p,
         [this](const ros_adapters::DenseEpochOutput& out) {

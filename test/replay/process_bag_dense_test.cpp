@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -29,8 +30,10 @@
 #include <visualization_msgs/MarkerArray.h>
 
 #include "slope_monitor/AdjustmentSolution.h"
+#include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
 #include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/core/io/map_raster.h"
 #include "slope_monitor/core/sim/truth.h"
 
 namespace slope_monitor {
@@ -69,6 +72,15 @@ int RunProcessBag(const fs::path& dir, const std::string& extra) {
   const int status = std::system(cmd.c_str());
   if (status != 0) std::cerr << ReadFile(dir / "stderr");
   return status;
+}
+
+// A GDAL command line tool on `args` (outputs in `dir`/`name`): its exit
+// status and what it printed.
+std::pair<int, std::string> Gdal(const std::string& args, const fs::path& dir,
+                                 const std::string& name) {
+  const fs::path out = dir / name;
+  const int status = std::system((args + " > " + out.string() + " 2>&1").c_str());
+  return {status, ReadFile(out)};
 }
 
 struct Outputs {
@@ -203,19 +215,61 @@ TEST(ProcessBagDense, ACloudPerEpochTheGeoTiffsAndTheTruth) {
   ExpectViewMarkers(out);
 
   // The GeoTIFFs, and each DEM against the true surface on bare ground.
+  // Issue 38: they carry the EPSG code of the site's map CRS: this local_enu
+  // site's (--site-config geodetic_origin 46.5 N, 8.0 E, 1200 m) UTM zone 32,
+  // EPSG:32632 (they were in the local CRS "site"), GDAL's tools read and warp
+  // them, and the DEM is read back into the site frame through SiteCrs.
+  const SiteCrs site = SiteCrs::LocalEnuAtWgs84(46.5, 8.0, 1200.0);
   for (const auto& [stamp, epoch] : out.solutions) {
     const fs::path surface = dir / "reports" / dense::EpochSurfaceFileName(epoch);
+    const fs::path change = dir / "reports" / dense::EpochChangeFileName(epoch);
     ASSERT_TRUE(fs::exists(surface)) << surface;
-    EXPECT_EQ(fs::exists(dir / "reports" / dense::EpochChangeFileName(epoch)), epoch != reference)
-        << epoch;
+    EXPECT_EQ(fs::exists(change), epoch != reference) << epoch;
+    for (const fs::path& tif : {surface, change}) {
+      if (!fs::exists(tif)) continue;
+      const std::string stem = tif.stem().string();
+      const auto [srs_status, srs] =
+          Gdal("gdalsrsinfo -o epsg " + tif.string(), dir, stem + ".srsinfo");
+      EXPECT_EQ(srs_status, 0) << srs;
+      EXPECT_NE(srs.find("EPSG:32632"), std::string::npos) << tif << ": " << srs;
+      const fs::path warped = dir / (stem + "_wgs84.tif");
+      const auto [warp_status, warp] = Gdal(
+          "gdalwarp -t_srs EPSG:4326 " + tif.string() + " " + warped.string(), dir, stem + ".warp");
+      EXPECT_EQ(warp_status, 0) << warp;
+      // The warped raster's centre is on the surveyed slope: about 100 m east
+      // and 80 m north of the origin (dense_graph_replay.sim.yaml), i.e.
+      // 8.0 E + 100 / (111 320 cos 46.5 deg) = 8.0013, 46.5 N + 80 / 111 150 = 46.5007.
+      const auto [info_status, info] = Gdal("gdalinfo " + warped.string(), dir, stem + ".info");
+      EXPECT_EQ(info_status, 0) << info;
+      std::smatch m;
+      ASSERT_TRUE(
+          std::regex_search(info, m, std::regex(R"(Center\s*\(\s*([-0-9.]+),\s*([-0-9.]+)\))")))
+          << info;
+      EXPECT_NEAR(std::stod(m[1]), 8.0013, 0.0010) << info;
+      EXPECT_NEAR(std::stod(m[2]), 46.5007, 0.0006) << info;
+    }
     const sim::SurfaceTruth* t = nullptr;
     for (const sim::SurfaceTruth& s : truth.surfaces)
       if (s.epoch == epoch) t = &s;
     ASSERT_NE(t, nullptr) << "no true surface for epoch " << epoch;
-    const std::vector<double> e = BareGroundErrors(
-        io::ReadGeoTiff(surface.string()),
-        io::ReadGeoTiff((fs::path(Survey(".truth.yaml")).parent_path() / t->geotiff).string()),
-        truth);
+    const io::GeoRaster truth_dem =
+        io::ReadGeoTiff((fs::path(Survey(".truth.yaml")).parent_path() / t->geotiff).string());
+    const io::GeoRaster in_map = io::ReadGeoTiff(surface.string());
+    EXPECT_EQ(in_map.epsg, 32632);
+    // The DEM back in the site frame (SiteRasterFromMap) on a north-up site
+    // grid of its cell size covering it.
+    Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+    for (const double x : {in_map.origin_x, in_map.origin_x + in_map.width * in_map.cell_size})
+      for (const double y : {in_map.origin_y, in_map.origin_y - in_map.height * in_map.cell_size}) {
+        const Eigen::Vector2d c = site.SiteFromMap(Eigen::Vector3d(x, y, 1200.0)).head<2>();
+        lo = lo.cwiseMin(c);
+        hi = hi.cwiseMax(c);
+      }
+    const double cell = in_map.cell_size;
+    const io::GeoRaster grid(static_cast<int>((hi.x() - lo.x()) / cell) + 1,
+                             static_cast<int>((hi.y() - lo.y()) / cell) + 1, lo.x(), hi.y(), cell);
+    const std::vector<double> e =
+        BareGroundErrors(io::SiteRasterFromMap(in_map, &site, grid), truth_dem, truth);
     std::printf("epoch %d DEM vs truth, bare ground: %zu cells, median |e| %.3f m, p90 %.3f m\n",
                 epoch, e.size(), Quantile(e, 0.5), Quantile(e, 0.9));
     EXPECT_GE(e.size(), 5000u);

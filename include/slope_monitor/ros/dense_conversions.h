@@ -3,6 +3,8 @@
 // camera_info -> dense::EpochImage, and an epoch's surface -> PointCloud2.
 #pragma once
 
+#include <optional>
+
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/PointCloud2.h>
@@ -10,6 +12,7 @@
 #include <visualization_msgs/MarkerArray.h>
 
 #include "slope_monitor/AdjustmentSolution.h"
+#include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/dense/change.h"
 #include "slope_monitor/core/dense/dem_change.h"
 #include "slope_monitor/core/dense/epoch_photos.h"
@@ -60,6 +63,10 @@ struct DenseEpochParameters {
   std::vector<std::pair<std::string, std::string>> stereo_pairs;
   std::string
       site_file;  // its cameras and their kinds, when it lists them ("" = cameras, uav_cameras)
+  std::string site_config;  // estimator overlay: its geodetic_origin when no site file is given
+  // The GeoTIFFs' map CRS: the site file's CRS, else local ENU at site_config's
+  // geodetic_origin, else none (local CRS `site`).
+  std::optional<SiteCrsOptions> site_crs;
   double pixel_size =
       0.0048;  // [mm/px] of a camera the site file does not give (the simulator's cameras)
   // uav_cameras, stereo_pairs as above; max_cached_images, max_cached_megabytes, photo_wait.

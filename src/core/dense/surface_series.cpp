@@ -5,6 +5,7 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/core/io/map_raster.h"
 
 namespace slope_monitor {
 namespace dense {
@@ -12,6 +13,7 @@ namespace dense {
 SurfaceSeries::SurfaceSeries(const SurfaceSeriesOptions& options) : options_(options) {
   options_.surface.Check();
   options_.change.Check();
+  if (options_.site_crs) site_ = std::make_unique<SiteCrs>(*options_.site_crs);
 }
 
 std::string SurfaceSeries::ReportPath(const std::string& name) const {
@@ -34,7 +36,7 @@ SeriesEpoch SurfaceSeries::Measure(const EpochSurfaceInput& input,
   if (!options_.report_dir.empty()) {
     try {
       const std::string path = ReportPath(EpochSurfaceFileName(input.epoch));
-      io::WriteGeoTiff(path, out.surface->dem);
+      io::WriteGeoTiff(path, io::MapRasterFromSite(out.surface->dem, site_.get()));
       out.files.push_back(path);
     } catch (const std::exception& e) {
       out.errors.push_back(Message("epoch ", input.epoch, " surface file: ", e.what()));
@@ -56,7 +58,7 @@ SeriesEpoch SurfaceSeries::Measure(const EpochSurfaceInput& input,
         DemChange(*reference_, out.surface->dem, options_.outlines, stable, options_.change);
     if (!options_.report_dir.empty()) {
       const std::string path = ReportPath(EpochChangeFileName(input.epoch));
-      io::WriteGeoTiff(path, out.change->change);
+      io::WriteGeoTiff(path, io::MapRasterFromSite(out.change->change, site_.get()));
       out.files.push_back(path);
     }
   } catch (const std::exception& e) {

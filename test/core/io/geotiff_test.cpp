@@ -1,5 +1,6 @@
 #include "slope_monitor/core/io/geotiff.h"
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -9,6 +10,8 @@
 #include <gtest/gtest.h>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/site_crs.h"
+#include "slope_monitor/core/io/map_raster.h"
 
 namespace slope_monitor {
 namespace io {
@@ -144,6 +147,94 @@ TEST_F(GeoTiffTest, InconsistentRasterIsRejectedBeforeWriting) {
   WriteGeoTiff(Path("keep.tif"), MakeRaster());
   EXPECT_THROW(WriteGeoTiff(Path("keep.tif"), r), InvalidArgument);
   EXPECT_EQ(ReadGeoTiff(Path("keep.tif")).width, 5);
+}
+
+// A site raster for the map CRS tests: 100 x 80 cells of 1 m, corner
+// (-50, 40), a plane z = 10 + 0.1 x + 0.05 y and a categorical band (the
+// column number).
+GeoRaster PlaneInSite() {
+  GeoRaster r(100, 80, -50.0, 40.0, 1.0);
+  r.AddBand("height");
+  r.AddBand("count", 0.0f);
+  for (int row = 0; row < r.height; ++row)
+    for (int col = 0; col < r.width; ++col) {
+      const Eigen::Vector2d xy = r.CellCentre(row, col);
+      r.At(0, row, col) = static_cast<float>(10.0 + 0.1 * xy.x() + 0.05 * xy.y());
+      r.At(1, row, col) = static_cast<float>(col);
+    }
+  return r;
+}
+
+// A shifted_crs site (JGD2011 zone IX, EPSG:6677): the same cells, the corner
+// and the heights moved by the origin, nothing resampled.
+TEST_F(GeoTiffTest, ShiftedCrsSiteRasterIsTheSameCellsMovedByTheOrigin) {
+  SiteCrsOptions o;
+  o.crs = "EPSG:6677";
+  o.origin = {-21000.0, -11000.0, 120.0};
+  o.frame = SiteCrsOptions::Frame::kShiftedCrs;
+  const SiteCrs site(o);
+  const GeoRaster r = PlaneInSite();
+  WriteGeoTiff(Path("shifted.tif"), MapRasterFromSite(r, &site));
+  const GeoRaster m = ReadGeoTiff(Path("shifted.tif"));
+  EXPECT_EQ(m.epsg, 6677);
+  EXPECT_EQ(m.width, 100);
+  EXPECT_EQ(m.height, 80);
+  EXPECT_DOUBLE_EQ(m.origin_x, -21050.0);
+  EXPECT_DOUBLE_EQ(m.origin_y, -10960.0);
+  EXPECT_NEAR(m.At(0, 0, 0), 120.0 + 10.0 + 0.1 * -49.5 + 0.05 * 39.5, 1e-4);
+  const GeoRaster back = SiteRasterFromMap(m, &site, r);
+  for (size_t i = 0; i < r.bands[0].size(); ++i) {
+    ASSERT_NEAR(back.bands[0][i], r.bands[0][i], 1e-4) << i;
+    ASSERT_EQ(back.bands[1][i], r.bands[1][i]) << i;
+  }
+}
+
+// A local_enu site at 46.5 N 8.0 E, 1200 m (the simulated sites): the
+// raster in UTM zone 32 (EPSG:32632) on a north-up grid turned by the
+// meridian convergence (0.725 deg: the 100 x 80 m site raster needs about
+// 100 cos g + 80 sin g = 101.0 by 80 cos g + 100 sin g = 81.3 cells, plus a
+// cell of rounding), heights ellipsoidal (1200 m + z within the tangent
+// plane's 1 mm at 60 m; the edge cells their own value), and back in the site frame: the plane
+// within 1 mm where bilinear (cells inside), the categorical band a cell's own value.
+TEST_F(GeoTiffTest, LocalEnuSiteRasterGoesToTheUtmZoneOfItsOriginAndBack) {
+  const SiteCrs site = SiteCrs::LocalEnuAtWgs84(46.5, 8.0, 1200.0);
+  const GeoRaster r = PlaneInSite();
+  WriteGeoTiff(Path("utm.tif"), MapRasterFromSite(r, &site));
+  const GeoRaster m = ReadGeoTiff(Path("utm.tif"));
+  EXPECT_EQ(m.epsg, 32632);
+  EXPECT_GE(m.width, 101);
+  EXPECT_LE(m.width, 103);
+  EXPECT_GE(m.height, 81);
+  EXPECT_LE(m.height, 83);
+  int heights = 0;
+  for (int row = 0; row < m.height; ++row)
+    for (int col = 0; col < m.width; ++col) {
+      const float h = m.At(0, row, col);
+      if (m.IsNoData(h)) continue;
+      const Eigen::Vector2d c = m.CellCentre(row, col);
+      const Eigen::Vector3d s = site.SiteFromMap(Eigen::Vector3d(c.x(), c.y(), 1200.0));
+      // Between the outer cell centres bilinear, outside them the edge
+      // cell's value (off the plane by up to half a cell: 0.075 m).
+      const bool inside = std::abs(s.x()) <= 49.5 && std::abs(s.y()) <= 39.5;
+      ASSERT_NEAR(h, 1200.0 + 10.0 + 0.1 * s.x() + 0.05 * s.y(), inside ? 0.002 : 0.076)
+          << row << " " << col;
+      ++heights;
+    }
+  EXPECT_GT(heights, 0.97 * 100 * 80);  // the edges kept (nearest cell)
+  const GeoRaster back = SiteRasterFromMap(m, &site, r);
+  int checked = 0;
+  for (int row = 2; row < r.height - 2; ++row)
+    for (int col = 2; col < r.width - 2; ++col) {
+      ASSERT_NEAR(back.At(0, row, col), r.At(0, row, col), 0.001) << row << " " << col;
+      const float k = back.At(1, row, col);
+      ASSERT_EQ(k, std::round(k));
+      ASSERT_LE(std::abs(k - col), 1.0f) << row << " " << col;
+      ++checked;
+    }
+  EXPECT_EQ(checked, 96 * 76);
+  // Without a georeference: the local CRS, the raster as it is.
+  EXPECT_EQ(MapRasterFromSite(r, nullptr).epsg, 0);
+  EXPECT_THROW(SiteRasterFromMap(m, nullptr, r), InvalidArgument);
 }
 
 }  // namespace

@@ -1,7 +1,10 @@
 // The surfaces of a survey, epoch after epoch, with no ROS in it: the first
 // epoch measured is the reference; its grid is the grid of every later epoch,
 // whose DoD against it (dense/dem_change.h) is computed. With a report
-// directory, surface_eNN.tif and change_eNN.tif are written there. The
+// directory, surface_eNN.tif and change_eNN.tif are written there, in the
+// site's map CRS when a site CRS is given (io::MapRasterFromSite: its EPSG
+// code; a local_enu site's rasters resampled onto a north-up UTM grid), else
+// in the local CRS `site`; the DoD itself is computed in `site`. The
 // dense_epoch nodelet, process_bag and `dense_surface --bag` use it.
 //
 // A failing step is named in SeriesEpoch::errors and the epoch's other
@@ -14,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/dense/dem_change.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
 
@@ -26,6 +30,8 @@ struct SurfaceSeriesOptions {
   std::vector<Polygon> outlines;  // monitored outline(s), site
   std::string stable_mask;        // GeoTIFF on the DEM grid, non-zero = stable; "" = none
   std::string report_dir;         // "" = no files
+  // The site's CRS: the files' map CRS (none: the local CRS `site`).
+  std::optional<SiteCrsOptions> site_crs;
 };
 
 struct SeriesEpoch {
@@ -48,6 +54,7 @@ class SurfaceSeries {
   std::string ReportPath(const std::string& name) const;
   SurfaceSeriesOptions options_;
   std::unique_ptr<io::GeoRaster> reference_;
+  std::unique_ptr<SiteCrs> site_;  // from options_.site_crs
 };
 
 }  // namespace dense
