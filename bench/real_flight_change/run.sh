@@ -14,7 +14,13 @@
 #     points and these positions (process_flight --geo);
 #  3. the even flight co-registered to the odd one's DEM (--reference) and
 #     its DoD written: the shift found, median dz and % flagged on stable
-#     ground (no change happened: everything is stable).
+#     ground (no change happened: everything is stable);
+#  4. the change stage alone, again, with one global LoD and the error
+#     model's two bin spreads side by side (bench_flight_change, built by
+#     `cmake --build ... --target bench_flight_change`; skipped when absent):
+#     `bench_flight_change WORK/out_odd/flight_1/surface_e01.tif
+#     WORK/out_even/flight_1/surface_e01.tif` redoes it in seconds on an
+#     earlier run's DEMs without orienting the flights again.
 #
 #   bench/real_flight_change/run.sh [WORK] [SHIFT_E] [SHIFT_N] [SHIFT_U] [WORKING_SIZE]
 set -euo pipefail
@@ -68,3 +74,8 @@ PY
 done
 run odd --photos "$work/odd" --geo "$work/geo_odd.txt"
 run even --photos "$work/even" --geo "$work/geo_even.txt" --reference "$work/out_odd"
+compare="$SM_WS/build/slope_monitor/bin/bench_flight_change"
+if [ -x "$compare" ]; then
+  "$compare" "$work/out_odd/flight_1/surface_e01.tif" "$work/out_even/flight_1/surface_e01.tif" |
+      tee "$work/flight_change.txt" | grep -v "^  "
+fi

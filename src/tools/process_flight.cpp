@@ -340,13 +340,15 @@ bool FlightChangeStage(int k, const io::GeoRaster& dem, const flight::FlightFram
       "flight %d: change against %s: shift (%.3f +- %.3f, %.3f +- %.3f) m, vertical %.3f +- %.3f "
       "m, stable "
       "median dz %.4f m, NMAD %.3f m, flagged %.2f %% of stable and %.2f %% of %d common cells, "
-      "gain %.1f +- "
+      "held-out stable cells flagged %.2f %% of %d (LoD by slope x roughness, %d bins), gain "
+      "%.1f +- "
       "%.1f m3, loss %.1f +- %.1f m3\n",
       k, st.reference_name.c_str(), c.shift.x(), c.shift_sigma.x(), c.shift.y(), c.shift_sigma.y(),
       c.vertical, c.level_sigma, summary->stable_median, summary->stable_nmad,
       100 * summary->stable_flagged, 100 * summary->flagged, summary->common_cells,
-      summary->dem.volume_fill, summary->dem.sigma_fill, summary->dem.volume_cut,
-      summary->dem.sigma_cut);
+      100 * summary->dem.holdout_flagged, summary->dem.holdout_cells,
+      static_cast<int>(summary->dem.error_model.bins.size()), summary->dem.volume_fill,
+      summary->dem.sigma_fill, summary->dem.volume_cut, summary->dem.sigma_cut);
   return true;
 }
 

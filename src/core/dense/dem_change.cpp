@@ -211,9 +211,178 @@ Eigen::Vector2d ShiftSigma(const io::GeoRaster& reference, const StableResiduals
                          std::sqrt(std::max(0.0, v * q(1, 1))));
 }
 
+// Predictors of the error model at every cell with a reference height:
+// slope [deg] of the least-squares plane of the heights in the (2r+1)^2
+// window and roughness [m], their RMS about it (with fewer than 4 heights
+// or a degenerate window: the cell's own gradient and 0). NaN elsewhere.
+void Predictors(const io::GeoRaster& ref, int radius, std::vector<double>* slope,
+                std::vector<double>* roughness) {
+  const size_t n = static_cast<size_t>(ref.width) * ref.height;
+  slope->assign(n, NAN);
+  roughness->assign(n, NAN);
+  for (int row = 0; row < ref.height; ++row)
+    for (int col = 0; col < ref.width; ++col) {
+      const size_t i = static_cast<size_t>(row) * ref.width + col;
+      if (ref.IsNoData(ref.bands[kHeight][i])) continue;
+      Eigen::Vector2d g;
+      (*slope)[i] = Gradient(ref, row, col, &g) ? std::atan(g.norm()) * kDegPerRad : 0.0;
+      Eigen::Matrix3d n3 = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d b = Eigen::Vector3d::Zero();
+      double zz = 0, z0 = ref.bands[kHeight][i];
+      int count = 0;
+      for (int dr = -radius; dr <= radius; ++dr)
+        for (int dc = -radius; dc <= radius; ++dc) {
+          const int rr = row + dr, cc = col + dc;
+          if (rr < 0 || cc < 0 || rr >= ref.height || cc >= ref.width) continue;
+          const float v = ref.At(kHeight, rr, cc);
+          if (ref.IsNoData(v)) continue;
+          const Eigen::Vector3d a(1.0, dc, dr);
+          const double z = v - z0;
+          n3 += a * a.transpose();
+          b += a * z;
+          zz += z * z;
+          ++count;
+        }
+      if (count < 4) {
+        (*roughness)[i] = 0.0;
+        continue;
+      }
+      Eigen::FullPivLU<Eigen::Matrix3d> lu(n3);
+      if (lu.rank() < 3) {
+        (*roughness)[i] = 0.0;
+        continue;
+      }
+      const Eigen::Vector3d plane = lu.solve(b);
+      (*roughness)[i] = std::sqrt(std::max(0.0, zz - b.dot(plane)) / count);
+      // The window's plane: a slope less noisy than the cell's own differences.
+      (*slope)[i] = std::atan(plane.tail<2>().norm() / ref.cell_size) * kDegPerRad;
+    }
+}
+
+struct ModelSample {
+  double slope, roughness, dz;
+};
+
+// The bin's spread (ErrorModelOptions::spread) of dz about `median`.
+double Spread(const std::vector<double>& dz, double median, const ErrorModelOptions& o,
+              double lod_factor) {
+  std::vector<double> dev(dz.size());
+  for (size_t i = 0; i < dz.size(); ++i) dev[i] = std::abs(dz[i] - median);
+  if (o.spread == ErrorModelOptions::Spread::kNmad) return 1.4826 * UpperMedian(dev);
+  const double coverage = std::erf(lod_factor / std::sqrt(2.0));
+  const size_t k = std::min(dev.size() - 1, static_cast<size_t>(coverage * dev.size()));
+  std::nth_element(dev.begin(), dev.begin() + k, dev.end());
+  return dev[k] / lod_factor;
+}
+
+// Equal-count bins by slope, then by roughness within each slope bin; fewer
+// bins when there are fewer than min_bin_cells per bin.
+ErrorModel FitErrorModel(std::vector<ModelSample> s, const ErrorModelOptions& o,
+                         double lod_factor) {
+  ErrorModel m;
+  const int n = static_cast<int>(s.size());
+  int ns = o.slope_bins, nr = o.roughness_bins;
+  while (ns * nr > 1 && ns * nr * o.min_bin_cells > n) (ns >= nr ? ns : nr) -= 1;
+  if (n < o.min_bin_cells || n == 0) return m;
+  m.slope_bins = ns;
+  m.roughness_bins = nr;
+  std::sort(s.begin(), s.end(),
+            [](const ModelSample& a, const ModelSample& b) { return a.slope < b.slope; });
+  for (int i = 0; i < ns; ++i) {
+    const auto b0 = s.begin() + static_cast<long>(n) * i / ns;
+    const auto b1 = s.begin() + static_cast<long>(n) * (i + 1) / ns;
+    std::vector<double> slopes;
+    for (auto it = b0; it != b1; ++it) slopes.push_back(it->slope);
+    const double slope_median = UpperMedian(slopes);
+    std::sort(b0, b1,
+              [](const ModelSample& a, const ModelSample& b) { return a.roughness < b.roughness; });
+    const long m_i = b1 - b0;
+    for (int j = 0; j < nr; ++j) {
+      const auto c0 = b0 + m_i * j / nr, c1 = b0 + m_i * (j + 1) / nr;
+      ErrorBin bin;
+      bin.slope = slope_median;
+      bin.slope_min = *std::min_element(slopes.begin(), slopes.end());
+      bin.slope_max = *std::max_element(slopes.begin(), slopes.end());
+      std::vector<double> rough, dz;
+      for (auto it = c0; it != c1; ++it) rough.push_back(it->roughness), dz.push_back(it->dz);
+      bin.cells = static_cast<int>(dz.size());  // >= min_bin_cells (the loop above)
+      bin.roughness = UpperMedian(rough);
+      bin.roughness_min = rough.front();
+      bin.roughness_max = rough.back();
+      bin.median = UpperMedian(dz);
+      bin.sigma = Spread(dz, bin.median, o, lod_factor);
+      m.bins.push_back(bin);
+    }
+  }
+  return m;
+}
+
+// Linear weights of `x` between sorted `centres` (clamped outside).
+void Bracket(const std::vector<double>& centres, double x, int* i0, int* i1, double* w1) {
+  const int n = static_cast<int>(centres.size());
+  *i0 = *i1 = 0;
+  *w1 = 0.0;
+  if (n == 0 || x <= centres.front()) return;
+  if (x >= centres.back()) {
+    *i0 = *i1 = n - 1;
+    return;
+  }
+  int k = static_cast<int>(std::upper_bound(centres.begin(), centres.end(), x) - centres.begin());
+  *i0 = k - 1;
+  *i1 = k;
+  const double d = centres[k] - centres[k - 1];
+  *w1 = d > 0 ? (x - centres[k - 1]) / d : 0.0;
+}
+
+// Per-cell model sigma of the compared cells (0 where no model or no predictor).
+std::vector<double> ModelSigma(const ErrorModel& m, const std::vector<double>& slope,
+                               const std::vector<double>& roughness) {
+  std::vector<double> out(slope.size(), 0.0);
+  if (m.empty()) return out;
+  for (size_t i = 0; i < out.size(); ++i)
+    if (!std::isnan(slope[i])) out[i] = m.Sigma(slope[i], roughness[i]);
+  return out;
+}
+
 }  // namespace
 
+double ErrorModel::Sigma(double slope_deg, double roughness) const {
+  if (bins.empty()) return 0.0;
+  std::vector<double> sc;
+  for (int i = 0; i < slope_bins; ++i)
+    sc.push_back(bins[static_cast<size_t>(i) * roughness_bins].slope);
+  int i0, i1;
+  double w;
+  Bracket(sc, slope_deg, &i0, &i1, &w);
+  auto along_roughness = [&](int i) {
+    std::vector<double> rc;
+    for (int j = 0; j < roughness_bins; ++j)
+      rc.push_back(bins[static_cast<size_t>(i) * roughness_bins + j].roughness);
+    int j0, j1;
+    double v;
+    Bracket(rc, roughness, &j0, &j1, &v);
+    const size_t b = static_cast<size_t>(i) * roughness_bins;
+    return (1 - v) * bins[b + j0].sigma + v * bins[b + j1].sigma;
+  };
+  return (1 - w) * along_roughness(i0) + w * along_roughness(i1);
+}
+
+void ErrorModelOptions::Check() const {
+  RequireOption("DEM change", slope_bins >= 1 && slope_bins <= 50, "error_model.slope_bins",
+                Message("= ", slope_bins, " must be in [1, 50]"));
+  RequireOption("DEM change", roughness_bins >= 1 && roughness_bins <= 50,
+                "error_model.roughness_bins", Message("= ", roughness_bins, " must be in [1, 50]"));
+  RequireOption("DEM change", roughness_radius >= 1 && roughness_radius <= 20,
+                "error_model.roughness_radius",
+                Message("= ", roughness_radius, " must be in [1, 20]"));
+  RequireOption("DEM change", min_bin_cells >= 5, "error_model.min_bin_cells",
+                Message("= ", min_bin_cells, " must be >= 5"));
+  RequireOption("DEM change", holdout_block >= 0, "error_model.holdout_block",
+                Message("= ", holdout_block, " m must be >= 0"));
+}
+
 void DemChangeOptions::Check() const {
+  error_model.Check();
   RequireOption("DEM change", lod_factor > 0 && lod_factor <= 10, "lod_factor",
                 Message("= ", lod_factor, " must be in (0, 10]"));
   RequireOption("DEM change", coregistration_iterations >= 0 && coregistration_iterations <= 20,
@@ -340,6 +509,48 @@ DemChangeResult DemChange(const io::GeoRaster& reference, const io::GeoRaster& a
                                            ? std::vector<uint8_t>(ch.bands[kChange].size(), 0)
                                            : StableMask(reference, outlines, {}, "");
   const double area = reference.cell_size * reference.cell_size;
+  // The heteroscedastic model (file comment): predictors, the stable cells'
+  // dz (unclipped: every stable cell counts), the model on all of them and
+  // the two-fold held-out check on a checkerboard of blocks.
+  std::vector<double> model_sigma;
+  if (o.error_model.enabled) {
+    const ErrorModelOptions& e = o.error_model;
+    std::vector<double> slope, roughness;
+    Predictors(reference, e.roughness_radius, &slope, &roughness);
+    const double block_m = e.holdout_block > 0 ? e.holdout_block : 4 * c.correlation_length;
+    const int block = std::max(8, static_cast<int>(std::ceil(block_m / reference.cell_size)));
+    sum.holdout_block = block * reference.cell_size;
+    std::vector<ModelSample> all, fold[2];
+    std::vector<double> fold_u2[2];
+    for (size_t i = 0; i < s.cells.size(); ++i) {
+      const size_t k = s.cells[i];
+      if (std::isnan(slope[k])) continue;
+      const float u0 = reference.bands[kUncertainty][k], u1 = a.bands[kUncertainty][k];
+      if (reference.IsNoData(u0) || a.IsNoData(u1)) continue;
+      const ModelSample m{slope[k], roughness[k], s.dz[i]};
+      all.push_back(m);
+      const int row = static_cast<int>(k) / reference.width,
+                col = static_cast<int>(k) % reference.width;
+      const int f = (row / block + col / block) % 2;
+      fold[f].push_back(m);
+      fold_u2[f].push_back(static_cast<double>(u0) * u0 + static_cast<double>(u1) * u1);
+    }
+    sum.error_model = FitErrorModel(all, e, o.lod_factor);
+    int flagged = 0;
+    for (int f = 0; f < 2; ++f) {
+      const ErrorModel other = FitErrorModel(fold[1 - f], e, o.lod_factor);
+      if (other.empty() || fold[f].empty()) continue;
+      for (size_t i = 0; i < fold[f].size(); ++i) {
+        const double sg =
+            std::max(other.Sigma(fold[f][i].slope, fold[f][i].roughness), std::sqrt(fold_u2[f][i]));
+        flagged += std::abs(fold[f][i].dz) > o.lod_factor * sg;
+        ++sum.holdout_cells;
+      }
+    }
+    sum.holdout_flagged =
+        sum.holdout_cells > 0 ? static_cast<double>(flagged) / sum.holdout_cells : 0.0;
+    if (!sum.error_model.empty()) model_sigma = ModelSigma(sum.error_model, slope, roughness);
+  }
   double var_net = 0, var_fill = 0, var_cut = 0;
   int n_fill = 0, n_cut = 0;
   for (size_t i = 0; i < ch.bands[kChange].size(); ++i) {
@@ -351,8 +562,9 @@ DemChangeResult DemChange(const io::GeoRaster& reference, const io::GeoRaster& a
     }
     ++sum.cells_compared;
     const double dz = static_cast<double>(z1) - z0;
-    const double var = static_cast<double>(u0) * u0 + static_cast<double>(u1) * u1 +
-                       sum.sigma_extra * sum.sigma_extra;
+    const double u2 = static_cast<double>(u0) * u0 + static_cast<double>(u1) * u1;
+    const double var = model_sigma.empty() ? u2 + sum.sigma_extra * sum.sigma_extra
+                                           : std::max(model_sigma[i] * model_sigma[i], u2);
     const double lod = o.lod_factor * std::sqrt(var);
     const int cls = std::abs(dz) > 2 * lod ? 2 : std::abs(dz) > lod ? 1 : 0;
     ch.bands[kChange][i] = static_cast<float>(dz);

@@ -464,8 +464,13 @@ std::string FlightChangeSummary::BriefReport() const {
     << c.shift_sigma.y() << ") m, vertical " << c.vertical << " +- " << c.level_sigma << " m on "
     << c.inliers << " stable cells; stable median dz " << stable_median << " m, NMAD "
     << stable_nmad << " m, flagged " << Pct(stable_flagged) << " % of stable, " << Pct(flagged)
-    << " % of " << common_cells << " common cells; gain " << dem.volume_fill << " +- "
-    << dem.sigma_fill << " m3, loss " << dem.volume_cut << " +- " << dem.sigma_cut << " m3";
+    << " % of " << common_cells << " common cells";
+  if (!dem.error_model.empty())
+    s << " (LoD by slope x roughness, " << dem.error_model.bins.size()
+      << " bins; held-out stable cells flagged " << Pct(dem.holdout_flagged) << " % of "
+      << dem.holdout_cells << ")";
+  s << "; gain " << dem.volume_fill << " +- " << dem.sigma_fill << " m3, loss " << dem.volume_cut
+    << " +- " << dem.sigma_cut << " m3";
   return s.str();
 }
 
@@ -525,10 +530,10 @@ FlightChange CompareFlights(const FlightChangeInput& in, const FlightChangeOptio
     cv::Mat zr, za, st, unused;
     Coarsen(ref, stable, f, &zr, &st);
     Coarsen(aft, stable, f, &za, &unused);
-    const int need = std::max(4, need / (f * f));
-    const cv::Point coarse =
-        BestShift(zr, za, st, 0, 0,
-                  static_cast<int>(std::ceil(options.search_radius / (f * ref.cell_size))), need);
+    const int coarse_need = std::max(4, need / (f * f));
+    const cv::Point coarse = BestShift(
+        zr, za, st, 0, 0, static_cast<int>(std::ceil(options.search_radius / (f * ref.cell_size))),
+        coarse_need);
     cv::Mat fr, fa, fs;
     Coarsen(ref, stable, 1, &fr, &fs);
     Coarsen(aft, stable, 1, &fa, &unused);
@@ -591,6 +596,7 @@ void WriteSurfaceReport(const FlightSurfaceSummary& s, const FlightChangeSummary
   if (change) {
     const dense::DemChangeSummary& d = change->dem;
     const dense::Coregistration& c = d.coregistration;
+    m << "\n# Change against " << reference << "\n\n" << change->BriefReport() << "\n";
     j << ",\n  \"change\": {\"reference\": \"" << reference << "\", \"shift_m\": [" << c.shift.x()
       << ", " << c.shift.y() << "], \"searched_shift_m\": [" << change->searched_shift.x() << ", "
       << change->searched_shift.y() << "], \"shift_sigma_m\": [" << c.shift_sigma.x() << ", "
@@ -604,8 +610,27 @@ void WriteSurfaceReport(const FlightSurfaceSummary& s, const FlightChangeSummary
       << ", \"common_cells\": " << change->common_cells << ", \"flagged\": " << change->flagged
       << ", \"gain_m3\": [" << d.volume_fill << ", " << d.sigma_fill << "], \"loss_m3\": ["
       << d.volume_cut << ", " << d.sigma_cut << "], \"net_m3\": [" << d.volume_net << ", "
-      << d.sigma_net << "]}";
-    m << "\n# Change against " << reference << "\n\n" << change->BriefReport() << "\n";
+      << d.sigma_net << "], \"lod_model\": \""
+      << (d.error_model.empty() ? "global" : "slope_roughness") << "\"";
+    if (!d.error_model.empty()) {
+      j << ", \"holdout_flagged\": " << d.holdout_flagged
+        << ", \"holdout_cells\": " << d.holdout_cells
+        << ", \"holdout_block_m\": " << d.holdout_block << ", \"error_bins\": [";
+      for (size_t i = 0; i < d.error_model.bins.size(); ++i) {
+        const dense::ErrorBin& b = d.error_model.bins[i];
+        j << (i ? ", " : "") << "{\"slope_deg\": [" << b.slope_min << ", " << b.slope_max
+          << "], \"roughness_m\": [" << b.roughness_min << ", " << b.roughness_max
+          << "], \"cells\": " << b.cells << ", \"median_m\": " << b.median
+          << ", \"sigma_m\": " << b.sigma << "}";
+      }
+      j << "]";
+      m << "\n| slope [deg] | roughness [m] | stable cells | median dz [m] | sigma [m] |\n"
+        << "|---|---|---|---|---|\n";
+      for (const dense::ErrorBin& b : d.error_model.bins)
+        m << "| " << b.slope_min << " .. " << b.slope_max << " | " << b.roughness_min << " .. "
+          << b.roughness_max << " | " << b.cells << " | " << b.median << " | " << b.sigma << " |\n";
+    }
+    j << "}";
   }
   j << "\n}\n";
   io::WriteFileAtomically(json_path, j.str());

@@ -18,6 +18,16 @@
 //    residual variance that the matching uncertainty does not explain), the
 //    level of detection LoD = lod_factor * sigma_dz, and the class
 //    +-1 (|dz| > LoD) or +-2 (|dz| > 2 LoD), 0 otherwise.
+//    With error_model.enabled (heteroscedastic, after Hugonnet et al. 2022)
+//    sigma_extra is replaced by a per-cell sigma: the stable cells' dz binned
+//    by the reference's slope and, within each slope bin, by its roughness
+//    (RMS of the heights about their local plane), the spread of each bin
+//    (NMAD, or the LoD's quantile of |dz - median| / lod_factor), linearly
+//    interpolated between the bins' median predictors (clamped outside):
+//      sigma_dz = max(model(slope, roughness), sqrt(u_ref^2 + u_after^2)).
+//    Held-out check: the stable cells split in a checkerboard of blocks
+//    larger than the error correlation range; a model fitted on one colour
+//    flags the other colour's cells, both ways; the share is reported.
 // 4. Volumes inside the outlines (no outline: the whole DEM): net over every compared cell; fill
 // and cut
 //    over the significant cells. Their 1-sigma uncertainty adds a random part,
@@ -40,6 +50,23 @@ namespace dense {
 
 using Polygon = std::vector<Eigen::Vector2d>;  // site x, y [m], closed implicitly
 
+// The heteroscedastic error model of the DoD (see the file comment).
+struct ErrorModelOptions {
+  bool enabled = false;      // false: one stable residual (sigma_extra) for every cell
+  int slope_bins = 8;        // [-] equal-count bins of the reference's slope; [1, 50]
+  int roughness_bins = 3;    // [-] equal-count bins of roughness within each slope bin; [1, 50]
+  int roughness_radius = 2;  // [cells] roughness window (2 r + 1)^2; [1, 20]
+  int min_bin_cells = 50;    // [-] fewer stable cells per bin: fewer bins; [5, 1e9]
+  // Spread of a bin: kNmad (the literature's) or kQuantile (the LoD's
+  // two-sided coverage quantile of |dz - median| over lod_factor: holds the
+  // flagged share at the nominal rate when the errors have heavy tails).
+  enum class Spread { kNmad, kQuantile };
+  Spread spread = Spread::kNmad;
+  double holdout_block = 0.0;  // [m] held-out checkerboard block; 0: 4 x the correlation
+                               // range, at least 8 cells; >= 0
+  void Check() const;          // ConfigError naming the field
+};
+
 struct DemChangeOptions {
   double lod_factor = 1.96;  // [-] LoD = lod_factor * sigma_dz; (0, 10]
   int coregistration_iterations =
@@ -48,7 +75,25 @@ struct DemChangeOptions {
   double max_shift = 5.0;     // [m] larger horizontal shift: co-registration failed; > 0
   int min_stable_cells = 30;  // [-] fewer: co-registration refused; [4, 1e9]
   double max_correlation_length = 20.0;  // [m] cap of the estimated error correlation range; > 0
-  void Check() const;                    // ConfigError naming the field
+  ErrorModelOptions error_model;
+  void Check() const;  // ConfigError naming the field
+};
+
+// One bin of the error model: its predictors' range and median, its stable
+// cells and their dz's median and spread.
+struct ErrorBin {
+  double slope_min = 0, slope_max = 0, slope = 0;              // [deg] the bin's median
+  double roughness_min = 0, roughness_max = 0, roughness = 0;  // [m]
+  int cells = 0;
+  double median = 0;  // [m] dz
+  double sigma = 0;   // [m] the spread (ErrorModelOptions::spread)
+};
+
+struct ErrorModel {
+  std::vector<ErrorBin> bins;  // slope-major: slope_bins x roughness_bins
+  int slope_bins = 0, roughness_bins = 0;
+  bool empty() const { return bins.empty(); }
+  double Sigma(double slope_deg, double roughness) const;  // [m] interpolated
 };
 
 struct Coregistration {
@@ -72,12 +117,16 @@ struct DemChangeSummary {
   Coregistration coregistration;
   int cells_compared = 0;  // inside or outside the outlines
   int cells_missing = 0;
-  int cells_inside = 0;       // compared cells inside the outlines
-  int cells_significant = 0;  // |class| >= 1 inside the outlines
-  double sigma_extra = 0.0;   // [m] unexplained stable residual
-  double volume_net = 0.0;    // [m^3] inside, all compared cells
-  double volume_fill = 0.0;   // [m^3] inside, significant gain
-  double volume_cut = 0.0;    // [m^3] inside, significant loss (positive)
+  int cells_inside = 0;          // compared cells inside the outlines
+  int cells_significant = 0;     // |class| >= 1 inside the outlines
+  double sigma_extra = 0.0;      // [m] unexplained stable residual
+  ErrorModel error_model;        // empty unless options.error_model.enabled
+  int holdout_cells = 0;         // stable cells of the two-fold held-out check
+  double holdout_flagged = 0.0;  // [-] their share flagged by the other fold's model
+  double holdout_block = 0.0;    // [m] checkerboard block
+  double volume_net = 0.0;       // [m^3] inside, all compared cells
+  double volume_fill = 0.0;      // [m^3] inside, significant gain
+  double volume_cut = 0.0;       // [m^3] inside, significant loss (positive)
   double sigma_net = 0.0, sigma_fill = 0.0, sigma_cut = 0.0;  // [m^3] 1 sigma
   std::string BriefReport() const;
 };
