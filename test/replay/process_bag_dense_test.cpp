@@ -256,20 +256,10 @@ TEST(ProcessBagDense, ACloudPerEpochTheGeoTiffsAndTheTruth) {
         io::ReadGeoTiff((fs::path(Survey(".truth.yaml")).parent_path() / t->geotiff).string());
     const io::GeoRaster in_map = io::ReadGeoTiff(surface.string());
     EXPECT_EQ(in_map.epsg, 32632);
-    // The DEM back in the site frame (SiteRasterFromMap) on a north-up site
-    // grid of its cell size covering it.
-    Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
-    for (const double x : {in_map.origin_x, in_map.origin_x + in_map.width * in_map.cell_size})
-      for (const double y : {in_map.origin_y, in_map.origin_y - in_map.height * in_map.cell_size}) {
-        const Eigen::Vector2d c = site.SiteFromMap(Eigen::Vector3d(x, y, 1200.0)).head<2>();
-        lo = lo.cwiseMin(c);
-        hi = hi.cwiseMax(c);
-      }
-    const double cell = in_map.cell_size;
-    const io::GeoRaster grid(static_cast<int>((hi.x() - lo.x()) / cell) + 1,
-                             static_cast<int>((hi.y() - lo.y()) / cell) + 1, lo.x(), hi.y(), cell);
+    // The DEM back in the site frame (SiteRasterFromMap: a north-up site grid
+    // of its cell size covering it).
     const std::vector<double> e =
-        BareGroundErrors(io::SiteRasterFromMap(in_map, &site, grid), truth_dem, truth);
+        BareGroundErrors(io::SiteRasterFromMap(in_map, &site), truth_dem, truth);
     std::printf("epoch %d DEM vs truth, bare ground: %zu cells, median |e| %.3f m, p90 %.3f m\n",
                 epoch, e.size(), Quantile(e, 0.5), Quantile(e, 0.9));
     EXPECT_GE(e.size(), 5000u);

@@ -5,12 +5,15 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <regex>
 #include <sstream>
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/subprocess.h"
 #include "slope_monitor/core/deformation/units.h"
+#include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/core/io/map_raster.h"
 #include "slope_monitor/core/io/safe_file.h"
 
 namespace slope_monitor {
@@ -73,25 +76,42 @@ std::vector<std::string> WriteAllReports(const Estimator& estimator, const std::
   if (!formats.empty()) files = WriteReports(estimator, root, subfolder, formats, options);
   if (matplotlib) {
     PlotReportOptions o = plot;
-    if (o.dem.empty()) o.dem = LatestSurface(root);
     // The map is drawn in the site frame (the history's coordinates), the
-    // report GeoPackage is in the map CRS: the areas go to the script in a
-    // site-frame copy (no georeference), removed after.
+    // report GeoPackage and the dense step's surface_eNN.tif are in the map
+    // CRS: the areas and the latest DEM go to the script in site-frame copies
+    // (no georeference), removed after.
     namespace fs = std::filesystem;
-    const Snapshot s = estimator.GetSnapshot();
-    fs::path site_frame;
-    if (!s.areas.empty()) {
-      site_frame = fs::temp_directory_path() /
-                   Message("slope_monitor_plot_areas_", getpid(), "_", &estimator, ".gpkg");
-      o.polygons = WriteGeoPackage(s, site_frame.string(), ReportOptions());
-    }
     struct Remove {
-      fs::path p;
+      std::vector<fs::path> p;
       ~Remove() {
         std::error_code ec;
-        if (!p.empty()) fs::remove(p, ec);
+        for (const fs::path& f : p) fs::remove(f, ec);
       }
-    } remove{site_frame};
+    } remove;
+    const std::string stem = Message("slope_monitor_plot_", getpid(), "_", &estimator);
+    if (o.dem.empty()) o.dem = LatestSurface(root);
+    if (!o.dem.empty() && plot.dem.empty()) {
+      // A DEM in a map CRS that is not the report's cannot be drawn (named on stderr).
+      try {
+        const io::GeoRaster dem = io::ReadGeoTiff(o.dem);
+        if (dem.epsg != 0) {  // in a map CRS (a local-CRS DEM is in the site frame)
+          const std::optional<SiteCrs> site = ReportSiteCrs(options);
+          const fs::path copy = fs::temp_directory_path() / (stem + "_dem.tif");
+          remove.p.push_back(copy);
+          io::WriteGeoTiff(copy.string(), io::SiteRasterFromMap(dem, site ? &*site : nullptr));
+          o.dem = copy.string();
+        }
+      } catch (const Error& e) {
+        std::fprintf(stderr, "plot report: no hillshade: %s\n", e.what());
+        o.dem.clear();
+      }
+    }
+    const Snapshot s = estimator.GetSnapshot();
+    if (!s.areas.empty()) {
+      const fs::path site_frame = fs::temp_directory_path() / (stem + ".gpkg");
+      remove.p.push_back(site_frame);
+      o.polygons = WriteGeoPackage(s, site_frame.string(), ReportOptions());
+    }
     const std::vector<std::string> pictures = RunPlotReport(
         o, history, io::ResolveSubfolder(root, subfolder), estimator.options().alerts.thresholds);
     files.insert(files.end(), pictures.begin(), pictures.end());

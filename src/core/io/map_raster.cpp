@@ -131,5 +131,23 @@ GeoRaster SiteRasterFromMap(const GeoRaster& in_map, const SiteCrs* site,
   return out;
 }
 
+GeoRaster SiteRasterFromMap(const GeoRaster& in_map, const SiteCrs* site) {
+  in_map.Check("SiteRasterFromMap");
+  if (!site) return SiteRasterFromMap(in_map, site, in_map);
+  const double map_z = site->MapFromSite(Eigen::Vector3d::Zero()).z(), cell = in_map.cell_size;
+  Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+  for (const double x : {in_map.origin_x, in_map.origin_x + in_map.width * cell})
+    for (const double y : {in_map.origin_y, in_map.origin_y - in_map.height * cell}) {
+      const Eigen::Vector2d c = site->SiteFromMap(Eigen::Vector3d(x, y, map_z)).head<2>();
+      lo = lo.cwiseMin(c);
+      hi = hi.cwiseMax(c);
+    }
+  const double x0 = std::floor(lo.x() / cell) * cell, y1 = std::ceil(hi.y() / cell) * cell;
+  const GeoRaster grid(std::max(1, static_cast<int>(std::ceil((hi.x() - x0) / cell))),
+                       std::max(1, static_cast<int>(std::ceil((y1 - lo.y()) / cell))), x0, y1,
+                       cell);
+  return SiteRasterFromMap(in_map, site, grid);
+}
+
 }  // namespace io
 }  // namespace slope_monitor

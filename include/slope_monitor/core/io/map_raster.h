@@ -53,6 +53,9 @@ GeoRaster MapRasterFromSite(const GeoRaster& in_site, const SiteCrs* site);
 // code is not the site's map CRS (naming both).
 GeoRaster SiteRasterFromMap(const GeoRaster& in_map, const SiteCrs* site,
                             const GeoRaster& site_grid);
+// The same on a north-up site grid of the raster's cell size covering it
+// (its corners taken to the site frame at the origin's height).
+GeoRaster SiteRasterFromMap(const GeoRaster& in_map, const SiteCrs* site);
 
 }  // namespace io
 }  // namespace slope_monitor
