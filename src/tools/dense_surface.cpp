@@ -28,8 +28,12 @@
 //   dense_surface --bag run.bag --out-dir DIR [--config config/defaults/dense_epoch.yaml]
 //                 [--epoch K] [--solution-topic /bundle_adjuster/solution] [--compare-truth
 //                 T.truth.yaml]
+//                 [--site SITE.yaml | --site-config OVERLAY.yaml]
 //   prints progress per pair and writes DIR/surface_eNN.tif per epoch and
-//   DIR/change_eNN.tif per later epoch (against the first epoch measured).
+//   DIR/change_eNN.tif per later epoch (against the first epoch measured),
+//   in the site's map CRS when --site (its crs) or --site-config (its
+//   geodetic_origin; the config's site_file / site_config alike) gives one,
+//   else in the local CRS `site` (doc/coordinates.md).
 //
 // The pair modes write DIR/dense_surface.tif (height, uncertainty, count, spread),
 // DIR/dense_ortho.tif and, with a reference, DIR/change.tif. Exit status 0 on success, 1 on an
@@ -211,16 +215,22 @@ int IntArg(const Args& a, const std::string& flag, const std::string& default_va
 // The keys of config/defaults/dense_epoch.yaml, read as the dense matcher
 // node reads them (ros_adapters::ReadDenseEpochParameters); no file: the
 // defaults.
-ros_adapters::DenseEpochParameters ReadEpochConfig(const std::string& path) {
-  const XmlRpc::XmlRpcValue params =
+// --site and --site-config win over the file's site_file and site_config.
+ros_adapters::DenseEpochParameters ReadEpochConfig(const std::string& path,
+                                                   const Args* site_args = nullptr) {
+  XmlRpc::XmlRpcValue params =
       path.empty() ? XmlRpc::XmlRpcValue() : ros_adapters::LoadParamFile(path);
+  if (site_args && site_args->Has("--site"))
+    ros_adapters::SetParam(&params, "site_file", site_args->Get("--site"));
+  if (site_args && site_args->Has("--site-config"))
+    ros_adapters::SetParam(&params, "site_config", site_args->Get("--site-config"));
   ros_adapters::ParamReader reader(params, path);
   return ros_adapters::ReadDenseEpochParameters(reader);
 }
 
 // Every adjusted epoch of the bag (see the file header).
 int RunBagEpochs(const Args& a) {
-  const ros_adapters::DenseEpochParameters cfg = ReadEpochConfig(a.Get("--config"));
+  const ros_adapters::DenseEpochParameters cfg = ReadEpochConfig(a.Get("--config"), &a);
   const std::string bag_path = a.Get("--bag"),
                     topic = a.Get("--solution-topic", "/bundle_adjuster/solution");
   const std::string out_dir = a.Get("--out-dir", ".");
@@ -420,6 +430,8 @@ int main(int argc, char** argv) {
           "usage: dense_surface --bag B.bag --out-dir DIR [--config "
           "config/defaults/dense_epoch.yaml] "
           "[--epoch K] [--solution-topic T] [--compare-truth T.truth.yaml]\n"
+          "                     [--site SITE.yaml | --site-config OVERLAY.yaml]  (the GeoTIFFs' "
+          "map CRS)\n"
           "       dense_surface --pair pair.yaml --out-dir DIR [--config FILE] [--reference "
           "surface.tif]\n"
           "       dense_surface --truth T.truth.yaml --bag T.bag --left-camera C1 --right-camera "
