@@ -55,10 +55,9 @@ std::vector<std::string> InteriorNamesOf(const std::vector<int>& indices) {
   return names;
 }
 
-}  // namespace
-
-AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
-  AdjusterParameters a;
+// ReadAdjusterParameters, stage 1: the targets (site file, target list) and
+// the cameras with their topics (the site file's, else the parameters').
+void ReadAdjusterTargetsAndCameras(ParamReader& p, AdjusterParameters& a) {
   // The site file (io::LoadSiteFile) gives the targets when it lists them
   // (target_list is then not read: replay.launch defaults it to the bag's),
   // and each camera's pixel size and kind.
@@ -124,6 +123,11 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
     a.target_topics = site_targets;
     a.epoch_topics = site_epochs;
   }
+}
+
+// Stage 2: how an epoch is collected (waits, sigmas) and the scene's priors.
+void ReadAdjusterCollectorAndScene(ParamReader& p, AdjusterParameters& a) {
+  adjustment::EpochCollectorOptions& c = a.collector;
   c.epoch_wait = p.Double("epoch_wait", c.epoch_wait, 0.0, 3600.0, "s");
   // The UAV cameras' photos wait for their tie points (replay.launch
   // uav_tie_points:=true, process_bag --uav-tie-points).
@@ -154,6 +158,12 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
                180.0, "deg") *
       M_PI / 180.0;
   a.scene.Check();
+}
+
+// Stage 3: the epoch adjustment (interior parameters set free, the solver,
+// the robust loss, naming of unidentified targets).
+void ReadAdjusterEpochOptions(ParamReader& p, AdjusterParameters& a) {
+  const adjustment::EpochCollectorOptions& c = a.collector;
   auto interior_list = [&p](const std::string& key, const std::vector<std::string>& names) {
     std::vector<int> out;
     for (const std::string& name : names) {
@@ -209,6 +219,15 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   e.naming.ambiguity_factor =
       p.Double("naming_ambiguity_factor", e.naming.ambiguity_factor, 1.0, 100.0);
   e.Check();
+}
+
+}  // namespace
+
+AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
+  AdjusterParameters a;
+  ReadAdjusterTargetsAndCameras(p, a);
+  ReadAdjusterCollectorAndScene(p, a);
+  ReadAdjusterEpochOptions(p, a);
   a.displacement.stable_threshold =
       p.Double("stable_threshold", a.displacement.stable_threshold, 1e-6, 100.0, "m");
   a.displacement.significance_threshold =
@@ -217,7 +236,7 @@ AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   a.displacement.Check();
   a.frustums.depth = p.Double("frustum_depth", a.frustums.depth, 1e-3, 1e4, "m");
   a.frustums.line_width = p.Double("frustum_line_width", a.frustums.line_width, 1e-3, 100.0, "m");
-  a.frustums.uav_cameras = c.uav_cameras;
+  a.frustums.uav_cameras = a.collector.uav_cameras;
   a.frustums.Check();
   p.CheckNoUnknownKeys();
   return a;

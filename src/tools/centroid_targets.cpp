@@ -43,6 +43,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iomanip>
 #include <iostream>
 #include <map>
@@ -178,6 +179,95 @@ int Usage() {
   return 1;
 }
 
+// The image files of --images DIR (.png .jpg .jpeg .tif .tiff .pgm), sorted;
+// a folder that is missing or holds none is named.
+std::vector<std::filesystem::path> ImageFilesIn(const std::filesystem::path& dir) {
+  std::error_code ec;
+  if (!std::filesystem::is_directory(dir, ec)) {
+    throw IoError(Message("--images '", dir.string(), "' ",
+                          std::filesystem::exists(dir, ec) ? "is not a folder" : "does not exist"));
+  }
+  std::vector<std::filesystem::path> files;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    std::string ext = e.path().extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+    if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" ||
+        ext == ".pgm")
+      files.push_back(e.path());
+  }
+  if (files.empty()) {
+    throw IoError(
+        Message("--images '", dir.string(), "' holds no image (.png .jpg .jpeg .tif .tiff .pgm)"));
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+// What main does with each image's result (print, identify, write a row).
+using TakeResult = std::function<void(const std::string& name, double stamp, targets::Result)>;
+
+// Each image file through the centroider; an unreadable or refused file is
+// named and skipped. Returns the number skipped.
+int CentroidFiles(const std::vector<std::filesystem::path>& files,
+                  const io::ImageFileOptions& image_options, targets::TargetCentroider& centroider,
+                  const TakeResult& take) {
+  int failed = 0;
+  for (const auto& f : files) {
+    cv::Mat img;
+    try {
+      const io::ImageHeader header = io::ReadImageHeader(f.string(), image_options);
+      const std::string note = io::FormatNote(f.string(), header);
+      if (!note.empty()) std::cerr << "centroid_targets: note: " << note << "\n";
+      img = io::ReadImageChecked(f.string(), cv::IMREAD_UNCHANGED, image_options);
+    } catch (const IoError& e) {
+      std::cerr << "centroid_targets: skipped " << e.what() << "\n";
+      ++failed;
+      continue;
+    }
+    try {
+      const std::string enc = img.depth() == CV_16U ? "mono16"
+                              : img.channels() == 3 ? "bgr8"
+                              : img.channels() == 4 ? "bgra8"
+                                                    : "mono8";
+      take(f.filename().string(), 0.0, centroider.Detect(img, enc));
+    } catch (const Error& e) {
+      std::cerr << "centroid_targets: skipped " << f << ": " << e.what() << "\n";
+      ++failed;
+    }
+  }
+  return failed;
+}
+
+// Each sensor_msgs/Image of `topic` in the bag through the centroider; an
+// image that does not convert is named and skipped. Returns the number skipped.
+int CentroidBagTopic(const std::string& bag_path, const std::string& topic,
+                     targets::TargetCentroider& centroider, const TakeResult& take) {
+  rosbag::Bag bag;
+  try {
+    bag.open(bag_path, rosbag::bagmode::Read);
+  } catch (const rosbag::BagException& e) {
+    throw IoError(Message("cannot read bag '", bag_path, "': ", e.what()));
+  }
+  rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{topic}));
+  if (view.size() == 0)
+    throw IoError(Message("bag '", bag_path, "' has no messages on topic '", topic, "'"));
+  int failed = 0;
+  for (const rosbag::MessageInstance& m : view) {
+    sensor_msgs::ImageConstPtr img = m.instantiate<sensor_msgs::Image>();
+    if (!img) throw IoError(Message("topic '", topic, "' is not sensor_msgs/Image"));
+    try {
+      const cv_bridge::CvImageConstPtr cv_img = cv_bridge::toCvShare(img);
+      take(topic + "#" + std::to_string(img->header.seq), img->header.stamp.toSec(),
+           centroider.Detect(cv_img->image, img->encoding));
+    } catch (const std::exception& e) {
+      std::cerr << "centroid_targets: skipped image at " << img->header.stamp.toSec() << ": "
+                << e.what() << "\n";
+      ++failed;
+    }
+  }
+  return failed;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -205,26 +295,7 @@ int main(int argc, char** argv) {
   try {
     // The input first: a bad one is named before anything is written.
     std::vector<std::filesystem::path> files;
-    if (args.count("--images")) {
-      const std::filesystem::path dir = args["--images"];
-      std::error_code ec;
-      if (!std::filesystem::is_directory(dir, ec)) {
-        throw IoError(
-            Message("--images '", dir.string(), "' ",
-                    std::filesystem::exists(dir, ec) ? "is not a folder" : "does not exist"));
-      }
-      for (const auto& e : std::filesystem::directory_iterator(dir)) {
-        std::string ext = e.path().extension().string();
-        std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
-        if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" ||
-            ext == ".pgm")
-          files.push_back(e.path());
-      }
-      if (files.empty()) {
-        throw IoError(Message("--images '", dir.string(),
-                              "' holds no image (.png .jpg .jpeg .tif .tiff .pgm)"));
-      }
-    }
+    if (args.count("--images")) files = ImageFilesIn(args["--images"]);
     io::ImageFileOptions image_options;
     if (args.count("--max-megapixels")) {
       const std::string& v = args["--max-megapixels"];
@@ -264,55 +335,10 @@ int main(int argc, char** argv) {
       ++images;
     };
     if (args.count("--images")) {
-      std::sort(files.begin(), files.end());
-      for (const auto& f : files) {
-        cv::Mat img;
-        try {
-          const io::ImageHeader header = io::ReadImageHeader(f.string(), image_options);
-          const std::string note = io::FormatNote(f.string(), header);
-          if (!note.empty()) std::cerr << "centroid_targets: note: " << note << "\n";
-          img = io::ReadImageChecked(f.string(), cv::IMREAD_UNCHANGED, image_options);
-        } catch (const IoError& e) {
-          std::cerr << "centroid_targets: skipped " << e.what() << "\n";
-          ++failed;
-          continue;
-        }
-        try {
-          const std::string enc = img.depth() == CV_16U ? "mono16"
-                                  : img.channels() == 3 ? "bgr8"
-                                  : img.channels() == 4 ? "bgra8"
-                                                        : "mono8";
-          take(f.filename().string(), 0.0, centroider.Detect(img, enc));
-        } catch (const Error& e) {
-          std::cerr << "centroid_targets: skipped " << f << ": " << e.what() << "\n";
-          ++failed;
-        }
-      }
+      failed = CentroidFiles(files, image_options, centroider, take);
     } else {
       if (!args.count("--topic")) return Usage();
-      rosbag::Bag bag;
-      try {
-        bag.open(args["--bag"], rosbag::bagmode::Read);
-      } catch (const rosbag::BagException& e) {
-        throw IoError(Message("cannot read bag '", args["--bag"], "': ", e.what()));
-      }
-      rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{args["--topic"]}));
-      if (view.size() == 0)
-        throw IoError(
-            Message("bag '", args["--bag"], "' has no messages on topic '", args["--topic"], "'"));
-      for (const rosbag::MessageInstance& m : view) {
-        sensor_msgs::ImageConstPtr img = m.instantiate<sensor_msgs::Image>();
-        if (!img) throw IoError(Message("topic '", args["--topic"], "' is not sensor_msgs/Image"));
-        try {
-          const cv_bridge::CvImageConstPtr cv_img = cv_bridge::toCvShare(img);
-          take(args["--topic"] + "#" + std::to_string(img->header.seq), img->header.stamp.toSec(),
-               centroider.Detect(cv_img->image, img->encoding));
-        } catch (const std::exception& e) {
-          std::cerr << "centroid_targets: skipped image at " << img->header.stamp.toSec() << ": "
-                    << e.what() << "\n";
-          ++failed;
-        }
-      }
+      failed = CentroidBagTopic(args["--bag"], args["--topic"], centroider, take);
     }
     std::cerr << "centroid_targets: " << images << " images, " << tags << " tags, " << circles
               << " circles, " << rejected << " rejected, " << discarded
