@@ -1,6 +1,7 @@
 // Plays the dense_graph_replay survey through the whole graph and checks the
 // dense_matcher's per-epoch cloud and GeoTIFFs (dense_graph_replay.test.in).
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -76,6 +77,16 @@ TEST(DenseGraphReplay, ACloudPerEpochAndTheGeoTiffs) {
     const std::string name = f.path().filename().string();
     surfaces += name.rfind("surface_e", 0) == 0 && f.path().extension() == ".tif";
     changes += name.rfind("change_e", 0) == 0 && f.path().extension() == ".tif";
+    // Issue 38: in the map CRS of the launch's site_config (geodetic_origin
+    // 46.5 N, 8.0 E: UTM zone 32), as GDAL's own tool reads it.
+    if (f.path().extension() != ".tif" || name.rfind("deformation", 0) == 0) continue;
+    std::string srs;
+    if (FILE* p = popen(("gdalsrsinfo -o epsg '" + f.path().string() + "' 2>&1").c_str(), "r")) {
+      char buf[256];
+      while (fgets(buf, sizeof buf, p)) srs += buf;
+      pclose(p);
+    }
+    EXPECT_NE(srs.find("EPSG:32632"), std::string::npos) << f.path() << ": " << srs;
   }
   EXPECT_EQ(surfaces, epochs);
   EXPECT_EQ(changes, epochs - 1);
