@@ -98,6 +98,11 @@ sm_build() {
   else
     sm_say "building with catkin_make --use-ninja (-j$jobs, Release${SM_CCACHE:+, SM_CCACHE=$SM_CCACHE})"
   fi
+  # devel's Python folder exists before CMake runs: catkin writes the test
+  # environment (build/catkin_generated/setup_cached.sh, which every run_tests
+  # target sources) with only the folders that exist then, and without this
+  # one the rostests' rosservice / rostopic cannot load our message types.
+  mkdir -p "$SM_WS/devel/lib/python3/dist-packages"
   (cd "$SM_WS" && catkin_make --use-ninja -DCMAKE_BUILD_TYPE=Release -DCATKIN_ENABLE_TESTING=ON "${cache[@]}" \
      -j"$jobs" "${targets[@]}" >"$SM_WS/build.log" 2>&1) || {
     tail -n 60 "$SM_WS/build.log" >&2
