@@ -1079,13 +1079,16 @@ class OfflineGraph {
 
 // One line on stderr: bag time reached, percent, epochs solved, time left
 // (from the wall time so far); redrawn on a terminal, plain lines in a log
-// (core/common/progress_line.h).
+// (core/common/progress_line.h): every 30 s and at each epoch solved.
 class Progress {
  public:
   Progress(const ros::Time& begin, const ros::Time& end) : begin_(begin), end_(end) {}
 
+  // In a log, besides the interval's lines, a line whenever another epoch
+  // is solved (what a crew watching the log, or a test, waits for).
   void Update(const ros::Time& t, int epochs, bool force = false) {
-    if (!line_.Due(force)) return;
+    if (!line_.Due(force || epochs != shown_epochs_)) return;
+    shown_epochs_ = epochs;
     const double span = (end_ - begin_).toSec();
     const double done = span > 0 ? std::clamp((t - begin_).toSec() / span, 0.0, 1.0) : 1.0;
     const double elapsed = this->elapsed();
@@ -1110,6 +1113,7 @@ class Progress {
   ros::Time begin_, end_;
   std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   ProgressLine line_{stderr};
+  int shown_epochs_ = 0;
 };
 
 int Run(Args args) {
