@@ -430,6 +430,56 @@ void RightFromVolume(const float* sc, const int* b, int k_min, int n, int w, flo
   }
 }
 
+// Search's padded right image (ws.rp: zero outside the mask and in the
+// padding of `pad` columns each side, row offset 2 pad) and its index
+// (ws.idx: x - direction base(y, x), clamped to the padding, plus the
+// offset), so that v = rp[idx - k] needs no branch.
+void PadRightImage(const cv::Mat& right, const cv::Mat& mask_right, const cv::Mat& base,
+                   int direction, int pad, SearchWorkspace& ws) {
+  const int w = right.cols, h = right.rows;
+  const int off = 2 * pad, wp = w + 4 * pad;
+  ws.rp.create(h, wp, CV_32F);
+  ws.idx.create(h, w, CV_32S);
+  cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      std::fill(ws.rp.ptr<float>(y), ws.rp.ptr<float>(y) + wp, 0.0f);
+      const float* rr = right.ptr<float>(y);
+      const uchar* mr = mask_right.ptr<uchar>(y);
+      float* o = ws.rp.ptr<float>(y) + off;
+      for (int x = 0; x < w; ++x) o[x] = mr[x] ? rr[x] : 0.0f;
+      const int* b = base.empty() ? nullptr : base.ptr<int>(y);
+      int* id = ws.idx.ptr<int>(y);
+      for (int x = 0; x < w; ++x)
+        id[x] = std::clamp(x - direction * (b ? b[x] : 0), -pad, w - 1 + pad) + off;
+    }
+  });
+}
+
+// One row of Search's result from its scores `sc` (n rows of w, one per
+// parallax step) and each pixel's best step: the parallax refined by the
+// parabola through the best score and its neighbours (at most half a step),
+// NaN where the best is at the border of the range or below min_corr.
+void SubPixelRow(const float* sc, const float* best_s, const int* best_k, const int* b, int k_min,
+                 int n, int w, float min_corr, float* d, float* cc) {
+  for (int x = 0; x < w; ++x) {
+    const int best = best_k[x];
+    const float bs = best_s[x];
+    if (best <= 0 || best >= n - 1 || bs < min_corr) {
+      d[x] = kNaN;
+      cc[x] = kNaN;
+      continue;
+    }
+    const float sm = sc[static_cast<size_t>(best - 1) * w + x],
+                sp = sc[static_cast<size_t>(best + 1) * w + x];
+    float delta = 0.0f;
+    const float curv = sm - 2.0f * bs + sp;
+    if (sm > -2.0f && sp > -2.0f && curv < 0.0f)
+      delta = std::clamp(0.5f * (sm - sp) / curv, -0.5f, 0.5f);
+    d[x] = static_cast<float>((b ? b[x] : 0) + k_min + best) + delta;
+    cc[x] = bs;
+  }
+}
+
 // ZNCC search of `left` against `right` for parallaxes base(x) + k, k in
 // [k_min, k_max] (base: per-pixel integer prediction, CV_32S, or empty = 0).
 // Masks: CV_8U 1 = content. The right image is warped by base + k and the
@@ -475,23 +525,7 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
   if (two_windows)
     for (int y = 0; y < h; ++y) row_has_edge[y] = cv::countNonZero(edge.row(y)) > 0;
 
-  // Padded right image. idx(y, x) = x - base(y, x) clamped to the padding, so
-  // v = right_padded[idx - k] needs no branch.
-  ws.rp.create(h, wp, CV_32F);
-  ws.idx.create(h, w, CV_32S);
-  cv::parallel_for_(cv::Range(0, h), [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
-      std::fill(ws.rp.ptr<float>(y), ws.rp.ptr<float>(y) + wp, 0.0f);
-      const float* rr = right.ptr<float>(y);
-      const uchar* mr = mask_right.ptr<uchar>(y);
-      float* o = ws.rp.ptr<float>(y) + off;
-      for (int x = 0; x < w; ++x) o[x] = mr[x] ? rr[x] : 0.0f;
-      const int* b = base.empty() ? nullptr : base.ptr<int>(y);
-      int* id = ws.idx.ptr<int>(y);
-      for (int x = 0; x < w; ++x)
-        id[x] = std::clamp(x - direction * (b ? b[x] : 0), -pad, w - 1 + pad) + off;
-    }
-  });
+  PadRightImage(right, mask_right, base, direction, pad, ws);
 
   out.disparity.create(h, w, CV_32F);
   out.correlation.create(h, w, CV_32F);
@@ -585,26 +619,9 @@ void Search(const cv::Mat& left, const cv::Mat& right, const cv::Mat& base, int 
               ArgMaxRow(score, ki, w, best_s, best_k);
             }
             const int* b = base.empty() ? nullptr : base.ptr<int>(y);
-            float* d = out.disparity.ptr<float>(y);
-            float* cc = out.correlation.ptr<float>(y);
             const float* sc = buf.scores.data();
-            for (int x = 0; x < w; ++x) {
-              const int best = best_k[x];
-              const float bs = best_s[x];
-              if (best <= 0 || best >= n - 1 || bs < min_corr) {
-                d[x] = kNaN;
-                cc[x] = kNaN;
-                continue;
-              }
-              const float sm = sc[static_cast<size_t>(best - 1) * w + x],
-                          sp = sc[static_cast<size_t>(best + 1) * w + x];
-              float delta = 0.0f;
-              const float curv = sm - 2.0f * bs + sp;
-              if (sm > -2.0f && sp > -2.0f && curv < 0.0f)
-                delta = std::clamp(0.5f * (sm - sp) / curv, -0.5f, 0.5f);
-              d[x] = static_cast<float>((b ? b[x] : 0) + k_min + best) + delta;
-              cc[x] = bs;
-            }
+            SubPixelRow(sc, best_s, best_k, b, k_min, n, w, min_corr, out.disparity.ptr<float>(y),
+                        out.correlation.ptr<float>(y));
             if (out_right)
               RightFromVolume(sc, b, k_min, n, w, min_corr, buf, out_right->disparity.ptr<float>(y),
                               out_right->correlation.ptr<float>(y));
