@@ -13,9 +13,11 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/format.h"
 #include "slope_monitor/core/common/numeric.h"
+#include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/dense/field_picture.h"
 #include "slope_monitor/core/io/camera_pose_file.h"
 #include "slope_monitor/core/io/image_polygons.h"
+#include "slope_monitor/core/io/map_raster.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/image_limits.h"
 
@@ -139,6 +141,12 @@ TargetlessCameraRunner::TargetlessCameraRunner(const TargetlessParameters& param
   reference_pose_ = io::ReadCameraPoseFile(camera.pose_file, key + " pose_file");
   try {
     dem_ = io::ReadGeoTiff(camera.dem);
+    // A DEM in the site's map CRS (the dense step's surface_eNN.tif) back
+    // in the site frame; another EPSG code is refused, naming both.
+    if (dem_.epsg != 0) {
+      const SiteCrs site(params.site.crs);
+      dem_ = io::SiteRasterFromMap(dem_, &site);
+    }
   } catch (const Error& e) {
     throw ConfigError(Message(key, " dem: ", e.what()));
   }

@@ -47,6 +47,9 @@
 #include "slope_monitor/PointDisplacementArray.h"
 #include "slope_monitor/core/adjustment/resect_camera.h"
 #include "slope_monitor/core/camera/rotation.h"
+#include "slope_monitor/core/common/site_crs.h"
+#include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/core/io/map_raster.h"
 #include "slope_monitor/core/sim/survey.h"
 #include "slope_monitor/core/sim/truth.h"
 #include "slope_monitor/ros/conversions.h"
@@ -95,11 +98,17 @@ class TargetlessCameraReplay : public ::testing::Test {
          << "]\nangles_deg: {theta: " << e.angles.theta * kDeg << ", phi: " << e.angles.phi * kDeg
          << ", kappa: " << e.angles.kappa * kDeg << "}\n";
     pose.close();
+    // The DEM as the dense step writes it (issue 38): in the site's map CRS,
+    // UTM zone 32 (EPSG:32632), which the node takes back to the site frame.
+    const SiteCrs crs = SiteCrs::LocalEnuAtWgs84(46.5, 8.0, 1200.0);
+    const std::string dem = (dir_ / "surface_e00.tif").string();
+    io::WriteGeoTiff(dem, io::MapRasterFromSite(io::ReadGeoTiff(Survey(".surface_e00.tif")), &crs));
+    ASSERT_EQ(io::ReadGeoTiff(dem).epsg, 32632);
     // The site: the simulator's origin; the operator's outline around the body.
     std::ofstream site(dir_ / "site.yaml");
     site << "name: targetless_test\ncrs: EPSG:4979\norigin: [8.0, 46.5, 1200.0]\n"
          << "cameras:\n  - {name: north_cam, kind: fixed_targetless, pixel_size: 0.01, "
-         << "pose_file: north_cam.pose.yaml, dem: " << Survey(".surface_e00.tif") << "}\n"
+         << "pose_file: north_cam.pose.yaml, dem: " << dem << "}\n"
          << "areas:\n  crs: site\n  outline: [[89, 71], [111, 71], [111, 89], [89, 89]]\n";
     site.close();
     const std::string cmd = std::string(SM_PROCESS_BAG) + " --bag " + Survey(".bag") + " --site " +
