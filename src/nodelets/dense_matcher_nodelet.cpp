@@ -6,7 +6,10 @@
 // core does the rest. Outputs: the measured points (PointCloud2 in `site`,
 // fields x y z intensity sigma_z), the significant change against the
 // reference epoch (PointCloud2, fields x y z dz lod), and, when output_dir is
-// set, GeoTIFFs of the surface model, orthophoto and change per pair.
+// set, GeoTIFFs of the surface model, orthophoto and change per pair: in the
+// site's map CRS (an EPSG code, io::MapRasterFromSite) when site_file (its
+// crs) or site_config (its geodetic_origin) georeferences them, else in the
+// local CRS `site` (said in the log at start).
 //
 // A pair is formed from the latest left and right image whose stamps differ
 // by at most max_pair_dt; each image is used once. Subscriptions are not lazy:
@@ -33,6 +36,7 @@
 #include "slope_monitor/core/dense/change.h"
 #include "slope_monitor/core/dense/surface.h"
 #include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/core/io/map_raster.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/dense_conversions.h"
 #include "slope_monitor/ros/image_limits.h"
@@ -89,6 +93,17 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
     frame_id_ = d.frame_id;
     output_dir_ = d.output_dir;
     tf_timeout_ = d.tf_timeout;
+    if (d.site_crs) site_ = std::make_unique<SiteCrs>(*d.site_crs);
+    if (output_dir_.empty()) return;
+    if (site_)
+      NODELET_INFO("dense_matcher: GeoTIFFs in %s (the site's map CRS, from %s)",
+                   site_->MapCrs().c_str(),
+                   d.site_file.empty() ? ("site_config " + d.site_config).c_str()
+                                       : ("site_file " + d.site_file).c_str());
+    else
+      NODELET_INFO(
+          "dense_matcher: GeoTIFFs in the local CRS 'site' (no EPSG code): neither site_file "
+          "nor site_config's geodetic_origin georeferences them");
   }
 
   void OnInfo(int side, const sensor_msgs::CameraInfoConstPtr& msg) {
@@ -154,9 +169,9 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
     // With output_dir: surface and orthophoto written only after a successful
     // measurement (temporary names, renamed), never a half set.
     const dense::SurfaceResult s =
-        output_dir_.empty()
-            ? dense::MeasureSurface(left, right, options_, config_, &summary)
-            : dense::MeasureSurfaceToFiles(left, right, options_, config_, stem.str(), &summary);
+        output_dir_.empty() ? dense::MeasureSurface(left, right, options_, config_, &summary)
+                            : dense::MeasureSurfaceToFiles(left, right, options_, config_,
+                                                           stem.str(), &summary, site_.get());
     std_msgs::Header header = l.image->header;
     header.frame_id = frame_id_;
     surface_pub_.publish(SurfaceCloud(s, header));
@@ -177,7 +192,8 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
     state.unlock();
     NODELET_INFO("dense_matcher: %s", c.summary.BriefReport().c_str());
     change_pub_.publish(ChangeCloud(c, header));
-    if (!output_dir_.empty()) io::WriteGeoTiff(stem.str() + "_change.tif", c.change);
+    if (!output_dir_.empty())
+      io::WriteGeoTiff(stem.str() + "_change.tif", io::MapRasterFromSite(c.change, site_.get()));
   }
 
   static sensor_msgs::PointCloud2 SurfaceCloud(const dense::SurfaceResult& s,
@@ -254,6 +270,7 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
   double tf_timeout_ = 0.0;
   std::string frame_id_;
   std::string output_dir_;
+  std::unique_ptr<SiteCrs> site_;  // the GeoTIFFs' map CRS (none: local CRS `site`)
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   ros::Publisher surface_pub_, change_pub_;

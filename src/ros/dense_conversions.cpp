@@ -157,16 +157,7 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
   // Without a site file, the estimator overlay's geodetic_origin (as the
   // reports: deformation::ReportSiteCrs) georeferences the GeoTIFFs.
   d.site_config = p.String("site_config", d.site_config);
-  if (!d.site_crs && !d.site_config.empty()) {
-    XmlRpc::XmlRpcValue overlay = LoadParamFile(d.site_config);
-    ParamReader o(overlay, d.site_config);
-    const std::vector<double> origin = o.DoubleList("geodetic_origin", {});
-    if (!origin.empty() && origin.size() != 3)
-      throw ConfigError(Message("'geodetic_origin' in ", d.site_config,
-                                " must be [latitude, longitude, height] (deg, deg, m)"));
-    if (origin.size() == 3)
-      d.site_crs = SiteCrs::LocalEnuAtWgs84(origin[0], origin[1], origin[2]).options();
-  }
+  if (!d.site_crs && !d.site_config.empty()) d.site_crs = SiteCrsOfOverlay(d.site_config);
   std::vector<std::string> default_pairs;
   for (const auto& pair : d.stereo_pairs)
     default_pairs.insert(default_pairs.end(), {pair.first, pair.second});
@@ -199,6 +190,17 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
   d.change.Check();
   d.photos.Check();
   return d;
+}
+
+std::optional<SiteCrsOptions> SiteCrsOfOverlay(const std::string& site_config) {
+  XmlRpc::XmlRpcValue overlay = LoadParamFile(site_config);
+  ParamReader o(overlay, site_config);
+  const std::vector<double> origin = o.DoubleList("geodetic_origin", {});
+  if (!origin.empty() && origin.size() != 3)
+    throw ConfigError(Message("'geodetic_origin' in ", site_config,
+                              " must be [latitude, longitude, height] (deg, deg, m)"));
+  if (origin.size() != 3) return std::nullopt;
+  return SiteCrs::LocalEnuAtWgs84(origin[0], origin[1], origin[2]).options();
 }
 
 DenseMatcherParameters ReadDenseMatcherParameters(ParamReader& p) {
@@ -248,6 +250,11 @@ DenseMatcherParameters ReadDenseMatcherParameters(ParamReader& p) {
   d.frame_id = p.String("frame_id", d.frame_id);
   d.output_dir = p.String("output_dir", d.output_dir);
   d.tf_timeout = p.Double("tf_timeout", d.tf_timeout, 0.0, 60.0, "s");
+  // The GeoTIFFs' map CRS: the site file's crs, else the overlay's geodetic_origin.
+  d.site_file = p.String("site_file", d.site_file);
+  if (!d.site_file.empty()) d.site_crs = io::LoadSiteFile(d.site_file).crs;
+  d.site_config = p.String("site_config", d.site_config);
+  if (!d.site_crs && !d.site_config.empty()) d.site_crs = SiteCrsOfOverlay(d.site_config);
   p.CheckNoUnknownKeys();
   d.surface.Check();
   d.change.Check();

@@ -4,7 +4,8 @@
 //
 // Pair from files (camera models and orientations in a YAML file):
 //   dense_surface --pair pair.yaml --out-dir DIR [--config config/defaults/dense_matcher.yaml]
-//                 [--reference DIR_OR_FILE_surface.tif]
+//                 [--reference DIR_OR_FILE_surface.tif] [--site SITE.yaml | --site-config
+//                 OVERLAY.yaml]
 //   pair.yaml:
 //     left:  {image: l.png, sensor: [width, height, pixel_size_mm], distortion_model: brown,
 //             interior: [c, x0, y0, k1, k2, k3, p1, p2, b1, b2], exterior: [X0, Y0, Z0, theta, phi,
@@ -36,7 +37,12 @@
 //   else in the local CRS `site` (doc/coordinates.md).
 //
 // The pair modes write DIR/dense_surface.tif (height, uncertainty, count, spread),
-// DIR/dense_ortho.tif and, with a reference, DIR/change.tif. Exit status 0 on success, 1 on an
+// DIR/dense_ortho.tif and, with a reference, DIR/change.tif, in the site's map
+// CRS when --site (its crs) or --site-config (its geodetic_origin; else the
+// --config file's site_file / site_config, as the dense_matcher node) gives
+// one, else in the local CRS `site` (printed either way). A --reference
+// surface in that map CRS (written by a run with the same georeference) is
+// sampled back onto the new model's site grid. Exit status 0 on success, 1 on an
 // error (message on stderr naming the file or key; nothing half-written).
 #include <algorithm>
 #include <cstdio>
@@ -62,6 +68,8 @@
 #include "slope_monitor/core/dense/surface.h"
 #include "slope_monitor/core/dense/surface_series.h"
 #include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/core/io/map_raster.h"
+#include "slope_monitor/core/io/site_file.h"
 #include "slope_monitor/core/io/yaml_map.h"
 #include "slope_monitor/core/sim/truth.h"
 #include "slope_monitor/ros/dense_conversions.h"
@@ -84,14 +92,23 @@ struct Args {
 
 // The dense_matcher node's reader (config/defaults/dense_matcher.yaml): the
 // same keys, defaults and checks; the node-only keys are read and not used.
-void ReadOptions(const std::string& path, dense::SurfaceOptions* o, dense::SurfaceConfig* c,
-                 dense::ChangeOptions* co) {
-  if (path.empty()) return;
-  ros_adapters::ParamReader p(ros_adapters::LoadParamFile(path), path);
-  const ros_adapters::DenseMatcherParameters d = ros_adapters::ReadDenseMatcherParameters(p);
-  *o = d.surface;
-  *c = d.config;
-  *co = d.change;
+// The rasters' map CRS: --site's crs, else --site-config's geodetic_origin,
+// else the file's site_file / site_config (none: the local CRS `site`).
+void ReadOptions(const Args& a, dense::SurfaceOptions* o, dense::SurfaceConfig* c,
+                 dense::ChangeOptions* co, std::optional<SiteCrsOptions>* site_crs) {
+  const std::string path = a.Get("--config");
+  if (!path.empty()) {
+    ros_adapters::ParamReader p(ros_adapters::LoadParamFile(path), path);
+    const ros_adapters::DenseMatcherParameters d = ros_adapters::ReadDenseMatcherParameters(p);
+    *o = d.surface;
+    *c = d.config;
+    *co = d.change;
+    *site_crs = d.site_crs;
+  }
+  if (a.Has("--site"))
+    *site_crs = io::LoadSiteFile(a.Get("--site")).crs;
+  else if (a.Has("--site-config"))
+    *site_crs = ros_adapters::SiteCrsOfOverlay(a.Get("--site-config"));
 }
 
 dense::OrientedImage ImageFromYaml(io::YamlMap m, const std::string& dir, const std::string& role) {
@@ -330,7 +347,15 @@ int Run(const Args& a) {
   config.min_depth = 5.0;
   config.max_depth = 500.0;
   dense::ChangeOptions change_options;
-  ReadOptions(a.Get("--config"), &options, &config, &change_options);
+  std::optional<SiteCrsOptions> site_crs;
+  ReadOptions(a, &options, &config, &change_options, &site_crs);
+  const std::unique_ptr<SiteCrs> site = site_crs ? std::make_unique<SiteCrs>(*site_crs) : nullptr;
+  if (site)
+    std::printf("rasters in %s (the site's map CRS)\n", site->MapCrs().c_str());
+  else
+    std::printf(
+        "rasters in the local CRS 'site' (no EPSG code: give --site or --site-config to "
+        "georeference them)\n");
   const std::string out_dir = a.Get("--out-dir", ".");
   fs::create_directories(out_dir);
 
@@ -364,7 +389,7 @@ int Run(const Args& a) {
   dense::SurfaceSummary summary;
   // DIR/dense_surface.tif and DIR/dense_ortho.tif, written only after the measurement succeeded.
   const dense::SurfaceResult s = dense::MeasureSurfaceToFiles(
-      left, right, options, config, (fs::path(out_dir) / "dense").string(), &summary);
+      left, right, options, config, (fs::path(out_dir) / "dense").string(), &summary, site.get());
   std::printf("%s\n", summary.BriefReport().c_str());
 
   io::GeoRaster true_now;
@@ -381,12 +406,24 @@ int Run(const Args& a) {
     reference =
         std::make_unique<io::GeoRaster>(dense::MeasureSurface(l0, r0, options, config).model);
   } else if (a.Has("--reference")) {
-    reference = std::make_unique<io::GeoRaster>(io::ReadGeoTiff(a.Get("--reference")));
+    // Written in the map CRS: sampled back onto the model's site grid (cells
+    // it does not cover: nodata); in `site` (no georeference): as it is, its
+    // grid the model's.
+    const std::string ref_path = a.Get("--reference");
+    try {
+      const io::GeoRaster ref = io::ReadGeoTiff(ref_path);
+      reference =
+          std::make_unique<io::GeoRaster>(site ? io::SiteRasterFromMap(ref, site.get(), s.model)
+                                               : io::SiteRasterFromMap(ref, nullptr));
+    } catch (const InvalidArgument& e) {
+      throw InvalidArgument(Message("--reference ", ref_path, ": ", e.what()));
+    }
   }
   if (reference) {
     const dense::ChangeResult c = dense::SurfaceChange(*reference, s.model, change_options);
     std::printf("%s\n", c.summary.BriefReport().c_str());
-    io::WriteGeoTiff((fs::path(out_dir) / "change.tif").string(), c.change);
+    io::WriteGeoTiff((fs::path(out_dir) / "change.tif").string(),
+                     io::MapRasterFromSite(c.change, site.get()));
     if (truth && a.Has("--reference-epoch")) {
       const io::GeoRaster true_ref = io::ReadGeoTiff(
           TruthSurfacePath(*truth, a.Get("--truth"), IntArg(a, "--reference-epoch", "")));
@@ -434,6 +471,8 @@ int main(int argc, char** argv) {
           "map CRS)\n"
           "       dense_surface --pair pair.yaml --out-dir DIR [--config FILE] [--reference "
           "surface.tif]\n"
+          "                     [--site SITE.yaml | --site-config OVERLAY.yaml]  (the rasters' map "
+          "CRS; also with --truth)\n"
           "       dense_surface --truth T.truth.yaml --bag T.bag --left-camera C1 --right-camera "
           "C2 "
           "--epoch K [--reference-epoch K0] --out-dir DIR [--config FILE]\n");

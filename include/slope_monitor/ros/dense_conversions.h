@@ -78,6 +78,12 @@ struct DenseEpochParameters {
 };
 DenseEpochParameters ReadDenseEpochParameters(ParamReader& p);
 
+// The estimator overlay's geodetic_origin [lat, lon, h] as a local ENU site
+// (the GeoTIFFs' map CRS when no site file gives one, as the reports'
+// deformation::ReportSiteCrs); none when the file has no geodetic_origin.
+// Throws ConfigError naming the file for a list that is not 3 numbers.
+std::optional<SiteCrsOptions> SiteCrsOfOverlay(const std::string& site_config);
+
 // The stereo dense matcher's keys (config/defaults/dense_matcher.yaml), read
 // once for the dense_matcher nodelet (parameter server) and for the
 // dense_surface tool (--config, the same file). The in-class values are the
@@ -92,6 +98,11 @@ struct DenseMatcherParameters {
   std::string frame_id = "site";
   std::string output_dir;   // GeoTIFFs written here ("" = none)
   double tf_timeout = 0.5;  // [s] wait for the camera transform
+  std::string site_file;    // its crs: the GeoTIFFs' map CRS ("" = none)
+  std::string site_config;  // estimator overlay: its geodetic_origin when no site file is given
+  // The GeoTIFFs' map CRS (as DenseEpochParameters::site_crs): the site file's
+  // CRS, else local ENU at site_config's geodetic_origin, else none (local CRS `site`).
+  std::optional<SiteCrsOptions> site_crs;
 };
 DenseMatcherParameters ReadDenseMatcherParameters(ParamReader& p);
 

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/map_raster.h"
 #include "slope_monitor/core/matching/filters.h"
 
 namespace slope_monitor {
@@ -174,11 +175,14 @@ SurfaceResult MeasureSurface(const OrientedImage& left, const OrientedImage& rig
 
 SurfaceResult MeasureSurfaceToFiles(const OrientedImage& left, const OrientedImage& right,
                                     const SurfaceOptions& options, const SurfaceConfig& config,
-                                    const std::string& stem, SurfaceSummary* summary) {
+                                    const std::string& stem, SurfaceSummary* summary,
+                                    const SiteCrs* site) {
   SurfaceResult s = MeasureSurface(left, right, options, config, summary);
-  const io::GeoRaster ortho = MakeOrthophoto(s.model, left, options.ortho_cell_size);
+  const io::GeoRaster ortho =
+      io::MapRasterFromSite(MakeOrthophoto(s.model, left, options.ortho_cell_size), site);
+  const io::GeoRaster model = io::MapRasterFromSite(s.model, site);
   const std::string surface_path = stem + "_surface.tif", ortho_path = stem + "_ortho.tif";
-  io::WriteGeoTiff(surface_path, s.model);
+  io::WriteGeoTiff(surface_path, model);
   try {
     io::WriteGeoTiff(ortho_path, ortho);
   } catch (...) {

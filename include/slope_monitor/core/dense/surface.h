@@ -40,6 +40,9 @@
 #include "slope_monitor/core/io/geotiff.h"
 
 namespace slope_monitor {
+
+class SiteCrs;  // core/common/site_crs.h
+
 namespace dense {
 
 struct SurfaceOptions {
@@ -104,10 +107,14 @@ SurfaceResult MeasureSurface(const OrientedImage& left, const OrientedImage& rig
 // orthophoto succeeded; each file goes to a temporary name and is renamed
 // (io::WriteGeoTiff), and when the second file cannot be written the first is
 // removed again, so a failure never leaves a file that looks valid. Throws
-// what MeasureSurface throws, and IoError naming the file.
+// what MeasureSurface throws, and IoError naming the file. With a site CRS
+// both files are written in its map CRS (io::MapRasterFromSite: an EPSG
+// code; a local_enu site's resampled onto a north-up UTM grid), else in the
+// local CRS `site`; the returned model is in `site` either way.
 SurfaceResult MeasureSurfaceToFiles(const OrientedImage& left, const OrientedImage& right,
                                     const SurfaceOptions& options, const SurfaceConfig& config,
-                                    const std::string& stem, SurfaceSummary* summary = nullptr);
+                                    const std::string& stem, SurfaceSummary* summary = nullptr,
+                                    const SiteCrs* site = nullptr);
 
 // Grids points into a surface model (weighted mean, see the file comment).
 // points_per_window: m above (1: every point independent).
