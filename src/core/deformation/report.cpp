@@ -21,6 +21,7 @@
 #include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/deformation/units.h"
 #include "slope_monitor/core/io/geotiff.h"
+#include "slope_monitor/core/io/map_raster.h"
 #include "slope_monitor/core/io/safe_file.h"
 
 namespace slope_monitor {
@@ -337,10 +338,7 @@ std::string WriteDisplacementGeoTiff(const Snapshot& s, const std::string& path,
                                   " cells; increase grid_resolution"));
   // nodata NaN, the band's nodata value, as in every GeoTIFF of the package (io::GeoRaster)
   io::GeoRaster r(std::max(1, width), std::max(1, height), x0, y1, cell);
-  if (site) {
-    r.epsg = site->MapEpsg();
-    if (r.epsg == 0) r.srs_wkt = site->CrsWkt();
-  }
+  if (site) io::SetMapCrs(&r, *site);
   // Cells farther than grid_margin outside the points' convex hull stay nodata
   // (float precision: coordinates relative to the grid's corner).
   for (const Eigen::Vector2d& m : in_map) xy.emplace_back(m.x() - x0, m.y() - y1);

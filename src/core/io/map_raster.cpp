@@ -44,6 +44,11 @@ GeoRaster EmptyLike(const GeoRaster& bands_of, int width, int height, double x0,
 
 }  // namespace
 
+void SetMapCrs(GeoRaster* raster, const SiteCrs& site) {
+  raster->epsg = site.MapEpsg();
+  raster->srs_wkt = raster->epsg == 0 ? site.CrsWkt() : std::string();
+}
+
 GeoRaster MapRasterFromSite(const GeoRaster& in_site, const SiteCrs* site) {
   in_site.Check("MapRasterFromSite");
   if (!site) return in_site;
@@ -56,8 +61,7 @@ GeoRaster MapRasterFromSite(const GeoRaster& in_site, const SiteCrs* site) {
     if (height_band >= 0)
       for (float& z : out.bands[height_band])
         if (!out.IsNoData(z)) z = static_cast<float>(z + o.z());
-    out.epsg = site->MapEpsg();
-    out.srs_wkt = out.epsg == 0 ? site->CrsWkt() : std::string();
+    SetMapCrs(&out, *site);
     return out;
   }
   // The site raster's outline in the map (edges sampled every 16 cells: the
@@ -81,8 +85,7 @@ GeoRaster MapRasterFromSite(const GeoRaster& in_site, const SiteCrs* site) {
   const int width = static_cast<int>(std::ceil((hi.x() - mx0) / cell));
   const int height = static_cast<int>(std::ceil((my1 - lo.y()) / cell));
   GeoRaster out = EmptyLike(in_site, std::max(1, width), std::max(1, height), mx0, my1, cell);
-  out.epsg = site->MapEpsg();
-  if (out.epsg == 0) out.srs_wkt = site->CrsWkt();
+  SetMapCrs(&out, *site);
   std::vector<bool> categorical;
   for (const std::string& name : in_site.band_names) categorical.push_back(IsCategorical(name));
   // Cell centres at the origin's height (map z of site z = 0).

@@ -42,6 +42,11 @@ namespace io {
 // Bands resampled from the containing cell only (never interpolated).
 extern const char* const kCategoricalBands[3];  // "count", "class", "significant"
 
+// Labels `raster` (already gridded in the site's map CRS) with that CRS: the
+// EPSG code SiteCrs::MapEpsg, or, where the map CRS has none (0), the site's
+// CRS as WKT (SiteCrs::CrsWkt); srs_wkt is emptied when there is an EPSG code.
+void SetMapCrs(GeoRaster* raster, const SiteCrs& site);
+
 // The raster in the site's map CRS (see above). Throws InvalidArgument for an
 // inconsistent raster or a cell PROJ cannot convert (naming it).
 GeoRaster MapRasterFromSite(const GeoRaster& in_site, const SiteCrs* site);
