@@ -62,9 +62,6 @@
 #include <rosbag/view.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
-#include <tf2/buffer_core.h>
-#include <tf2/exceptions.h>
-#include <tf2_eigen/tf2_eigen.h>
 #include <tf2_msgs/TFMessage.h>
 
 #include "slope_monitor/EpochMarker.h"
@@ -81,7 +78,6 @@
 #include "slope_monitor/core/evaluation/deformation_truth.h"
 #include "slope_monitor/core/io/safe_file.h"
 #include "slope_monitor/core/io/target_file.h"
-#include "slope_monitor/core/targets/options_reader.h"
 #include "slope_monitor/ros/adjuster_step.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
 #include "slope_monitor/ros/change_area_conversions.h"
@@ -98,7 +94,7 @@
 #include "slope_monitor/ros/replay_defaults.h"
 #include "slope_monitor/ros/sequence_conversions.h"
 #include "slope_monitor/ros/sequence_step.h"
-#include "slope_monitor/ros/target_conversions.h"
+#include "slope_monitor/ros/target_centroider_step.h"
 #include "slope_monitor/ros/targetless_camera.h"
 #include "slope_monitor/ros/uav_topics.h"
 #include "slope_monitor/ros/validation.h"
@@ -385,9 +381,7 @@ double PeakMemoryMb() {
 }
 
 struct Centroider {
-  std::string camera;
-  targets::NodeOptions node;
-  std::unique_ptr<targets::TargetCentroider> centroider;
+  std::unique_ptr<ros_adapters::TargetCentroiderStep> step;      // the node's, shared
   std::map<ros::Time, sensor_msgs::Image::ConstPtr> images;      // waiting for their camera_info
   std::map<ros::Time, sensor_msgs::CameraInfo::ConstPtr> infos;  // waiting for their image
   // The latest centroided photo (its image kept: `mono` may share its pixels),
@@ -401,7 +395,7 @@ class OfflineGraph {
   // `log`: a line for the user (stderr, with the progress line redrawn).
   OfflineGraph(const Args& args, const std::vector<std::string>& cameras, rosbag::Bag* output,
                std::function<void(const std::string&)> log)
-      : log_(std::move(log)), args_(args), output_(output), tf_(ros::Duration(1e6)) {
+      : log_(std::move(log)), args_(args), output_(output) {
     SetUpTargetless();
     std::vector<std::string> with_targets;
     for (const std::string& cam : cameras)
@@ -450,13 +444,13 @@ class OfflineGraph {
       if (Centroider* c = CameraOf(topic, "/camera/image_raw")) {
         c->images[image->header.stamp] = image;
         if (dense_)
-          Timed(&stages_.dense, [&] { dense_->OnImage(c->camera, *image, now_.toSec()); });
+          Timed(&stages_.dense, [&] { dense_->OnImage(c->step->camera(), *image, now_.toSec()); });
         Pair(c, image->header.stamp);
       }
     } else if (const auto info = m.instantiate<sensor_msgs::CameraInfo>()) {
       if (Centroider* c = CameraOf(topic, "/camera/camera_info")) {
-        OnCameraInfo(c->camera, *info);
-        if (dense_) dense_->OnCameraInfo(c->camera, *info);
+        OnCameraInfo(c->step->camera(), *info);
+        if (dense_) dense_->OnCameraInfo(c->step->camera(), *info);
         c->infos[info->header.stamp] = info;
         Pair(c, info->header.stamp);
       }
@@ -547,20 +541,16 @@ class OfflineGraph {
     ros_adapters::SetParam(&p, "target_list", args_.target_list);
     ros_adapters::SetParam(&p, "camera_name", cam);
     ros_adapters::ParamReader r(p, "/" + cam + "/target_centroider");
-    Centroider c;
-    c.camera = cam;
-    const targets::Options o = targets::ReadOptions(r);
-    c.node = targets::ReadNodeOptions(r);
-    r.CheckNoUnknownKeys();
-    o.Check();
-    // A site without targets: nothing to look for, no centroider (each photo
-    // gets an empty target list, what a centroider would find).
-    if (!args_.no_targets)
-      c.centroider = std::make_unique<targets::TargetCentroider>(
-          o, site_ && site_->targets
-                 ? *site_->targets
-                 : io::LoadTargetFileInSite(args_.target_list, site_ ? &site_->crs : nullptr));
-    centroiders_[cam] = std::move(c);
+    const ros_adapters::TargetCentroiderParameters params =
+        ros_adapters::ReadTargetCentroiderParameters(r);
+    const io::SiteFile* site = site_ ? &*site_ : nullptr;
+    // A site without targets: nothing to look for (each photo gets an empty
+    // target list, what a centroider would find).
+    std::optional<io::TargetList> targets;
+    if (!args_.no_targets) targets = ros_adapters::CentroiderTargets(params.node, site);
+    centroiders_[cam].step = std::make_unique<ros_adapters::TargetCentroiderStep>(
+        cam, ros_adapters::CameraPixelSize(params.node, site ? site->FindCamera(cam) : nullptr),
+        params, targets, "/" + cam + "/camera/image_raw");
   }
 
   void SetUpAdjuster(const std::vector<std::string>& cameras) {
@@ -738,8 +728,9 @@ class OfflineGraph {
   }
 
   void OnTf(const tf2_msgs::TFMessage& tf, bool is_static) {
-    for (const geometry_msgs::TransformStamped& t : tf.transforms)
-      tf_.setTransform(t, "bag", is_static);
+    std::vector<std::string> problems;
+    poses_.Add(tf, is_static, &problems);
+    for (const std::string& line : problems) Log("target_centroider: " + line);
     Write(is_static ? "/tf_static" : "/tf", tf);
   }
 
@@ -759,36 +750,19 @@ class OfflineGraph {
     if (image == c->images.end() || info == c->infos.end()) return;
     Centroiding task;
     task.c = c;
-    task.stamp = stamp;
     task.bag_time = now_;
     task.image = image->second;
-    task.topic = "/" + c->camera + "/camera/image_raw";
-    std::optional<Eigen::Isometry3d> site_from_optical;
-    if (c->node.use_tf_pose && info->second->K[0] > 0) {
-      try {
-        site_from_optical = tf2::transformToEigen(
-            tf_.lookupTransform(c->node.site_frame, image->second->header.frame_id, stamp));
-      } catch (const tf2::TransformException&) {
-      }
-    }
-    if (!c->centroider) {
+    const ros_adapters::TargetCentroiderStep* step = c->step.get();
+    const auto pose = step->Pose(poses_.buffer(), *image->second, *info->second);
+    if (!step->has_targets()) {
       // No targets to look for: the photo's empty target list at once.
-      ros_adapters::CentroidedImage none;
-      none.targets.header = image->second->header;
-      none.targets.camera_name = c->camera;
-      none.targets.image_width = image->second->width;
-      none.targets.image_height = image->second->height;
       std::promise<ros_adapters::CentroidedImage> ready;
-      ready.set_value(std::move(none));
+      ready.set_value(step->Centroid(*image->second, *info->second, pose));
       task.result = ready.get_future();
     } else {
-      task.result =
-          std::async(std::launch::async, [this, c, image = image->second, info = info->second,
-                                          site_from_optical, topic = task.topic] {
-            return Timed(&stages_.targets, [&] {
-              return ros_adapters::CentroidImage(*c->centroider, *image, *info, site_from_optical,
-                                                 c->camera, c->node.pixel_size, topic);
-            });
+      task.result = std::async(
+          std::launch::async, [this, step, image = image->second, info = info->second, pose] {
+            return Timed(&stages_.targets, [&] { return step->Centroid(*image, *info, pose); });
           });
     }
     centroiding_ = std::move(task);
@@ -846,15 +820,15 @@ class OfflineGraph {
     try {
       const ros_adapters::CentroidedImage out = task.result.get();
       Centroider* c = task.c;
-      Write("/" + c->camera + "/targets", out.targets);
-      if (c->centroider) {
+      Write("/" + c->step->camera() + "/targets", out.targets);
+      c->step->Count(out);
+      if (c->step->has_targets()) {
         c->last_image = task.image;
         c->last = out;
       }
       Solve(adjuster_->AddTargets(out.targets, now_.toSec()));
     } catch (const std::exception& e) {
-      Log("target_centroider: dropped image (topic " + task.topic + ", stamp " +
-          std::to_string(task.stamp.toSec()) + "): " + e.what());
+      Log("target_centroider: " + task.c->step->Dropped(task.image->header, e.what()));
     }
     now_ = now;
   }
@@ -1049,17 +1023,16 @@ class OfflineGraph {
   // The photo being centroided on another thread (Pair, TakeCentroided).
   struct Centroiding {
     Centroider* c = nullptr;
-    ros::Time stamp, bag_time;
+    ros::Time bag_time;
     sensor_msgs::Image::ConstPtr image;
-    std::string topic;
     std::future<ros_adapters::CentroidedImage> result;
   };
   std::optional<Centroiding> centroiding_;
   std::function<void(const std::string&)> log_;
   const Args& args_;
   rosbag::Bag* output_;
-  ros::Time now_;  // bag time of the message being processed
-  tf2::BufferCore tf_;
+  ros::Time now_;                         // bag time of the message being processed
+  ros_adapters::CameraPoses poses_{1e6};  // the centroiders' (a bag's length of /tf)
   std::map<std::string, Centroider> centroiders_;
   std::unique_ptr<ros_adapters::TargetlessCameras> targetless_;  // fixed_targetless cameras
   // bundle_adjuster
