@@ -15,7 +15,9 @@
 // estimator waits for it. Outputs: a latched PointCloud2 `surface_cloud` in
 // `site` per epoch (fields x y z rgb sigma_z change lod), the colour scale
 // of `change` beside it (MarkerArray `change_legend`, latched) and, with
-// report_dir, surface_eNN.tif and change_eNN.tif there; per later epoch the
+// report_dir, what process_flight writes per flight (dense::SurfaceSeries):
+// surface_eNN.tif, ortho_eNN.tif, cloud_eNN.ply, change_eNN.tif and
+// surface_report_eNN.json / .md (co-registration, volumes); per later epoch the
 // polygons of significant change (ChangeAreaArray `change_areas`, latched)
 // for the deformation estimator. A failing step is
 // named (log, diagnostics) and the epoch's other outputs are kept.

@@ -118,10 +118,13 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
     throw ConfigError(
         Message("parameter '", p.FullKey("region"), "' must be [xmin, xmax, ymin, ymax] (m)"));
   d.surface.region = Eigen::Vector4d(region[0], region[1], region[2], region[3]);
-  d.change.lod_factor = p.Double("lod_factor", d.change.lod_factor, 0.01, 10.0);
-  d.change.coregistration_iterations =
-      p.Int("coregistration_iterations", d.change.coregistration_iterations, 0, 20);
-  d.change.min_stable_cells = p.Int("min_stable_cells", d.change.min_stable_cells, 4, 1000000000);
+  dense::DemChangeOptions& dc = d.change.change;
+  dc.lod_factor = p.Double("lod_factor", dc.lod_factor, 0.01, 10.0);
+  dc.coregistration_iterations =
+      p.Int("coregistration_iterations", dc.coregistration_iterations, 0, 20);
+  dc.min_stable_cells = p.Int("min_stable_cells", dc.min_stable_cells, 4, 1000000000);
+  d.change.search_radius =
+      p.Double("coregistration_search_radius", d.change.search_radius, 0.0, dc.max_shift, "m");
   d.monitored_outline = p.DoubleList("monitored_outline", d.monitored_outline);
   const std::vector<double>& outline = d.monitored_outline;
   if (outline.size() % 2 != 0 || (!outline.empty() && outline.size() < 6))

@@ -117,9 +117,9 @@ DenseEpochOutput DenseEpochStep::Measure(const dense::PhotoEpoch& e,
   out.files = s.files;
   if (!s.surface) return out;
   out.log.push_back({LogLine::kInfo, s.surface->summary.BriefReport()});
-  if (s.change)
+  if (s.change_summary)
     out.log.push_back({LogLine::kInfo, Message("epoch ", e.input.epoch,
-                                               " change: ", s.change->summary.BriefReport())});
+                                               " change: ", s.change_summary->BriefReport())});
   std_msgs::Header header;
   header.stamp.fromNSec(static_cast<uint64_t>(e.stamp_ns));
   header.frame_id = parameters_.frame_id;

@@ -373,9 +373,8 @@ bool DenseStage(int k, const flight::FlightPhotos& photos, const flight::FlightR
     flight::FlightSurface s = flight::MeasureFlightSurface(photos, result, o, region);
     io::WriteGeoTiff(Message(dir, "/", dense::EpochSurfaceFileName(k)),
                      flight::InCrs(s.dem, frame));
-    char name[32];
-    std::snprintf(name, sizeof name, "ortho_e%02d.tif", k);
-    io::WriteGeoTiff(Message(dir, "/", name), flight::InCrs(s.ortho, frame));
+    io::WriteGeoTiff(Message(dir, "/", dense::EpochOrthoFileName(k)),
+                     flight::InCrs(s.ortho, frame));
     flight::WriteCloudPly(s.cloud, dir + "/cloud.ply");
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

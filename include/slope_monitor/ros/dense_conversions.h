@@ -18,6 +18,7 @@
 #include "slope_monitor/core/dense/epoch_photos.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
 #include "slope_monitor/core/dense/surface.h"
+#include "slope_monitor/core/dense/surface_products.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/view_markers.h"
 
@@ -55,7 +56,7 @@ inline dense::EpochSurfaceOptions GraphEpochSurfaceOptions() {
 // ConfigError naming the key (CheckNoUnknownKeys is called).
 struct DenseEpochParameters {
   dense::EpochSurfaceOptions surface = GraphEpochSurfaceOptions();
-  dense::DemChangeOptions change;
+  dense::SurfaceChangeOptions change;     // co-registration (shift search, Nuth-Kaab) and DoD
   std::vector<double> monitored_outline;  // [x1, y1, x2, y2, ...] (m, site) as written
   std::vector<dense::Polygon> outlines;   // monitored_outline (site)
   std::string stable_mask;                // GeoTIFF, "" = none

@@ -2,8 +2,10 @@
 // camera_info of the surface cameras are collected by message
 // (dense::EpochPhotoCollector), each usable AdjustmentSolution names the
 // photos it oriented, and a complete epoch is measured into one surface and
-// its DoD against the reference epoch (dense::SurfaceSeries), giving a
-// PointCloud2 in frame_id with fields x y z rgb sigma_z change lod. The
+// its change against the reference epoch, co-registered on stable ground
+// (dense::SurfaceSeries, with report_dir also the files process_flight
+// writes per flight), giving a PointCloud2 in frame_id with fields x y z rgb
+// sigma_z change lod. The
 // dense_epoch nodelet (its worker thread measures, its callbacks collect) and
 // process_bag (in bag-time order, in one thread) use this same class.
 // Not thread-safe: Measure() may run on another thread than the On*() calls

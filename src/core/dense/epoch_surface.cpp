@@ -271,5 +271,17 @@ std::string EpochChangeFileName(int epoch) {
   return b;
 }
 
+std::string EpochOrthoFileName(int epoch) {
+  char b[32];
+  std::snprintf(b, sizeof b, "ortho_e%02d.tif", epoch);
+  return b;
+}
+
+std::string EpochCloudFileName(int epoch) {
+  char b[32];
+  std::snprintf(b, sizeof b, "cloud_e%02d.ply", epoch);
+  return b;
+}
+
 }  // namespace dense
 }  // namespace slope_monitor

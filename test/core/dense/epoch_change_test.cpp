@@ -16,6 +16,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -25,6 +27,8 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/dense/dem_change.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
+#include "slope_monitor/core/dense/surface_series.h"
+#include "slope_monitor/core/io/geotiff.h"
 #include "slope_monitor/core/sim/renderer.h"
 #include "slope_monitor/core/sim/scene.h"
 #include "slope_monitor/core/sim/truth.h"
@@ -135,6 +139,7 @@ class EpochChangeTest : public ::testing::Test {
         for (double y : {8.0, 15.0, 22.0})
           in.adjusted_points.push_back(d * Eigen::Vector3d(x, y, states_[e]->grid.HeightAt(x, y)));
       surfaces_[e] = new EpochSurfaceResult(MeasureEpochSurface(in, EpochChangeOptions()));
+      inputs_[e] = new EpochSurfaceInput(in);
       std::printf("%s\n", surfaces_[e]->summary.BriefReport().c_str());
     }
     const std::vector<uint8_t> stable = StableMask(surfaces_[0]->dem, {Outline()}, {}, "test");
@@ -150,6 +155,8 @@ class EpochChangeTest : public ::testing::Test {
     delete surfaces_[0];
     delete surfaces_[1];
     delete change_;
+    delete inputs_[0];
+    delete inputs_[1];
   }
   // Height errors of a DEM on bare ground (not near the tree / scarp).
   static std::vector<double> BareErrors(const io::GeoRaster& dem, const sim::Scene::State& st,
@@ -176,12 +183,14 @@ class EpochChangeTest : public ::testing::Test {
   static sim::Scene::State* states_[2];
   static sim::SurveyTruth* truth_;
   static EpochSurfaceResult* surfaces_[2];
+  static EpochSurfaceInput* inputs_[2];  // as measured (photos, orientations, adjusted points)
   static DemChangeResult* change_;
 };
 sim::Scene* EpochChangeTest::scene_ = nullptr;
 sim::Scene::State* EpochChangeTest::states_[2] = {nullptr, nullptr};
 sim::SurveyTruth* EpochChangeTest::truth_ = nullptr;
 EpochSurfaceResult* EpochChangeTest::surfaces_[2] = {nullptr, nullptr};
+EpochSurfaceInput* EpochChangeTest::inputs_[2] = {nullptr, nullptr};
 DemChangeResult* EpochChangeTest::change_ = nullptr;
 
 TEST_F(EpochChangeTest, PairsAreChosenByFootprintOverlap) {
@@ -290,6 +299,79 @@ TEST_F(EpochChangeTest, GeoTiffsSurfaceAndChange) {
   ASSERT_EQ(back.num_bands(), 3);
   EXPECT_EQ(back.band_names, (std::vector<std::string>{"change", "lod", "class"}));
   EXPECT_EQ(io::ReadGeoTiff(dir + "/surface_e01.tif").width, 40);
+}
+
+// Issue 35, must-show on the simulator: a second epoch oriented by a
+// consumer GNSS alone is off by metres. Such a block is the true block moved
+// rigidly (one receiver bias for the whole flight), so its DEM is the true
+// surface moved by that offset: epoch 1's photos, as rendered, with every
+// photo's orientation and every adjusted point moved by kGnss on top of its
+// datum error D. That epoch goes through the graph's path (SurfaceSeries, the
+// dense_epoch nodelet's and process_bag's) against epoch 0: the whole-cell
+// search and the Nuth-Kaab co-registration on the stable strips outside the
+// outline must bring it back within the shift's sigma, and the stable ground
+// must stay within its LoD. The series writes what process_flight writes per
+// flight: DEM, orthophoto, cloud, change and the report.
+TEST_F(EpochChangeTest, ShiftedGnssEpochIsCoregisteredWithinItsSigmaByTheSeries) {
+  const Eigen::Vector3d kGnss(2.3, -1.7, 0.9);  // [m] a consumer receiver's bias
+  EpochSurfaceInput shifted = *inputs_[1];
+  for (EpochImage& im : shifted.images) im.image.pose.position += kGnss;
+  for (Eigen::Vector3d& p : shifted.adjusted_points) p += kGnss;
+  const std::string dir = ::testing::TempDir() + "/epoch_change_test_series";
+  std::filesystem::remove_all(dir);
+  SurfaceSeriesOptions o;
+  o.surface = EpochChangeOptions();
+  o.outlines = {Outline()};
+  o.report_dir = dir;
+  SurfaceSeries series(o);
+  const SeriesEpoch e0 = series.Measure(*inputs_[0]);
+  ASSERT_TRUE(e0.errors.empty()) << e0.errors.front();
+  const SeriesEpoch e1 = series.Measure(shifted);
+  ASSERT_TRUE(e1.errors.empty()) << e1.errors.front();
+  ASSERT_TRUE(e1.change && e1.change_summary);
+  const SurfaceChangeSummary& s = *e1.change_summary;
+  const Coregistration& c = s.dem.coregistration;
+  // The truth at the stable cells' centre: D and then kGnss move it by e.
+  const Eigen::Vector3d centre(c.centre.x(), c.centre.y(),
+                               states_[1]->grid.HeightAt(c.centre.x(), c.centre.y()));
+  const Eigen::Vector3d e = DatumError(*scene_) * centre - centre + kGnss;
+  std::printf(
+      "shifted GNSS epoch: %s\n  applied (%.3f, %.3f, %.3f) m at the stable centre (%.1f, %.1f)\n",
+      s.BriefReport().c_str(), e.x(), e.y(), e.z(), c.centre.x(), c.centre.y());
+  EXPECT_GT(c.residual_before, 0.5);  // metres of false change before co-registration
+  for (int k = 0; k < 2; ++k) {
+    EXPECT_GT(c.shift_sigma[k], 0.0);
+    EXPECT_LT(c.shift_sigma[k], 0.1);  // a sigma that says something
+    EXPECT_LE(std::abs(c.shift[k] - e[k]), 3 * c.shift_sigma[k]) << "axis " << k;
+  }
+  EXPECT_NEAR(c.vertical, e.z(), 0.05);
+  // No false change on the stable ground: median dz within 1 cm, at most
+  // 5 % of it beyond its LoD.
+  EXPECT_GT(s.stable_common, 300);
+  EXPECT_LT(std::abs(s.stable_median), 0.01);
+  EXPECT_LE(s.stable_flagged, 0.05);
+
+  // The files of the epoch, as process_flight's per flight.
+  for (const std::string& name :
+       {EpochSurfaceFileName(1), EpochOrthoFileName(1), EpochCloudFileName(1),
+        EpochChangeFileName(1), std::string("surface_report_e01.json"),
+        std::string("surface_report_e01.md")})
+    EXPECT_TRUE(std::filesystem::exists(dir + "/" + name)) << name;
+  const io::GeoRaster ortho = io::ReadGeoTiff(dir + "/" + EpochOrthoFileName(1));
+  EXPECT_EQ(ortho.band_names, (std::vector<std::string>{"red", "green", "blue"}));
+  EXPECT_EQ(ortho.width, 4 * e1.surface->dem.width);  // 4 x 4 cells per DEM cell
+  std::ifstream ply(dir + "/" + EpochCloudFileName(1), std::ios::binary);
+  std::string line;
+  std::getline(ply, line);
+  EXPECT_EQ(line, "ply");
+  std::stringstream report;
+  report << std::ifstream(dir + "/surface_report_e01.json").rdbuf();
+  EXPECT_NE(report.str().find("\"shift_sigma_m\""), std::string::npos) << report.str();
+  EXPECT_NE(report.str().find("\"gain_m3\""), std::string::npos) << report.str();
+  EXPECT_NE(report.str().find("\"reference\": \"surface_e00.tif\""), std::string::npos);
+  // The reference epoch: its files, no change.
+  EXPECT_TRUE(std::filesystem::exists(dir + "/" + EpochOrthoFileName(0)));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/" + EpochChangeFileName(0)));
 }
 
 TEST_F(EpochChangeTest, BadInputIsNamed) {

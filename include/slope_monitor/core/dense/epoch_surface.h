@@ -119,9 +119,11 @@ EpochSurfaceResult MeasureEpochSurface(
 // reference epoch's grid so their DEMs can be differenced.
 Eigen::Vector4d RegionOf(const io::GeoRaster& dem);
 
-// "surface_e03.tif", "change_e03.tif".
+// "surface_e03.tif", "change_e03.tif", "ortho_e03.tif", "cloud_e03.ply".
 std::string EpochSurfaceFileName(int epoch);
 std::string EpochChangeFileName(int epoch);
+std::string EpochOrthoFileName(int epoch);
+std::string EpochCloudFileName(int epoch);
 
 }  // namespace dense
 }  // namespace slope_monitor

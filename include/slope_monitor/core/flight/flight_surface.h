@@ -22,25 +22,12 @@
 // point does not blow up the grid), or the given one (a later flight takes
 // the reference's grid).
 //
-// Orthophoto: RGB, the DEM's extent and origin with ortho_subdivision x
-// ortho_subdivision cells per DEM cell (so it lines up with the DEM); each
-// cell takes the DEM height (bilinear), is projected into every photo whose
-// footprint can hold it (found by projecting every 4th DEM cell: nadir and
-// oblique photos alike), and takes the bilinear colour of the photo where it
-// lies closest to the principal point (the most nadir view; no blending).
-// Nodata where the DEM has a hole.
-//
-// Change (CompareFlights): both DEMs on one grid; stable ground is inside the
-// stable polygons when any is given, else everywhere outside the moving
-// outlines; co-registration and DoD are dense/dem_change.h (Nuth-Kaab on the
-// reference's slope, iterated, with vertical shift and tilt; LoD from both
-// DEMs' sigma and a heteroscedastic model of the stable residual by slope
-// and roughness, with its held-out check), started
-// from a whole-cell shift search (FlightChangeOptions::search_radius). Bad input
-// is refused before anything is computed, each with its own message: no
-// common cell ("no overlap"), a stable area with no cell on the grid
-// ("outside the surface"), a stable area with fewer than min_stable_cells
-// cells holding a height in both DEMs ("holes over the stable area").
+// Orthophoto, cloud file and change (CompareFlights) are
+// core/dense/surface_products.h's, which the graph's dense step calls too
+// (issue 35 item 4): ColourOrthophoto of the decoded photos on the DEM,
+// WriteCloudPly, and dense::CompareSurfaces with a real flight's options
+// (FlightChangeOptions: more co-registration passes, an 8 m shift search,
+// the heteroscedastic LoD). The flight names below are those functions.
 #pragma once
 
 #include <functional>
@@ -52,6 +39,7 @@
 
 #include "slope_monitor/core/dense/dem_change.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
+#include "slope_monitor/core/dense/surface_products.h"
 #include "slope_monitor/core/flight/flight_export.h"
 #include "slope_monitor/core/flight/flight_orientation.h"
 #include "slope_monitor/core/flight/flight_photos.h"
@@ -110,9 +98,8 @@ FlightSurface MeasureFlightSurface(const FlightPhotos& photos, const FlightResul
                                    const Eigen::Vector4d& region = Eigen::Vector4d::Zero(),
                                    const std::function<void(const std::string&)>& progress = {});
 
-// The RGB orthophoto of BGR photos on a DEM (see the file comment).
-io::GeoRaster ColourOrthophoto(const io::GeoRaster& dem,
-                               const std::vector<dense::OrientedImage>& photos, int subdivision);
+using dense::ColourOrthophoto;
+using dense::WriteCloudPly;
 
 // A site-frame raster placed in the frame's CRS (origin added, CRS as WKT)
 // for a GeoTIFF a GIS reads; unchanged when the frame has no CRS.
@@ -123,65 +110,20 @@ io::GeoRaster InCrs(const io::GeoRaster& raster, const FlightFrame& frame);
 io::GeoRaster InSite(const io::GeoRaster& raster, const FlightFrame& frame,
                      const std::string& what);
 
-// The dense cloud as binary PLY (x, y, z site [m] as float; sigma_z [m];
-// red, green, blue). Throws IoError naming the path.
-void WriteCloudPly(const std::vector<dense::EpochPoint>& cloud, const std::string& path);
-
-struct FlightChangeOptions {
-  dense::DemChangeOptions change = [] {
-    dense::DemChangeOptions o;
-    o.coregistration_iterations = 10;  // a consumer GNSS shift of metres needs a few passes
-    o.max_shift = 10.0;
-    o.min_stable_cells = 100;
-    // Heteroscedastic LoD: real surfaces' errors grow on steep and rough
-    // ground (bushes, edges), one global residual flags them (issue 35).
-    // Each bin's spread from its 95 % quantile: real DoDs have heavy tails
-    // (blunders of metres on 1 % of copr's cells) that the NMAD does not see
-    // (copr split: 10.8 % flagged with NMAD bins, 4.1 % with quantile bins;
-    // doc/real_surfaces.md).
-    o.error_model.enabled = true;
-    o.error_model.spread = dense::ErrorModelOptions::Spread::kQuantile;
-    return o;
-  }();
-  // Start of the co-registration: the whole-cell shift within search_radius
-  // [m] that minimises the NMAD of dz about its least-squares plane on the
-  // stable cells (GNSS-oriented flights also differ by a tilt; among the shifts
-  // keeping at least half the largest overlap), searched on DEMs
-  // averaged to ~search_cell [m] and then on the full grid around the best
-  // (a consumer GNSS's metres are more than the linearised Nuth-Kaab step
-  // converges from on terrain whose features are smaller; at least 2 x 2
-  // cells per block); 0: no search.
-  double search_radius = 8.0;  // [m] >= 0, <= change.max_shift
-  double search_cell = 0.3;    // [m] > 0
-  void Check() const;
+// A real flight's change options (the graph's are dense::SurfaceChangeOptions'
+// own): the defaults are set in the constructor (doc/real_surfaces.md).
+struct FlightChangeOptions : dense::SurfaceChangeOptions {
+  // change: 10 co-registration passes (a consumer GNSS shift of metres needs a
+  // few), max_shift 10 m, min_stable_cells 100, the heteroscedastic LoD with
+  // each bin's 95 % quantile spread (real DoDs have heavy tails: copr split
+  // 10.8 % flagged with NMAD bins, 4.1 % with quantile bins); search_radius 8 m.
+  FlightChangeOptions();
 };
+using FlightChangeInput = dense::SurfaceChangeInput;
+using FlightChangeSummary = dense::SurfaceChangeSummary;
+using FlightChange = dense::CoregisteredChange;
 
-struct FlightChangeInput {
-  const io::GeoRaster* reference = nullptr;  // the earlier flight's DEM (site frame)
-  const io::GeoRaster* after = nullptr;      // this flight's DEM on the same grid
-  std::vector<dense::Polygon> stable;        // [m] site; empty: outside `moving`
-  std::vector<dense::Polygon> moving;        // [m] site: never stable, volumes inside
-  std::string stable_name = "areas.stable";  // names the stable polygons in messages
-};
-
-struct FlightChangeSummary {
-  dense::DemChangeSummary dem;  // its co-registration's shift includes the search's
-  Eigen::Vector2d searched_shift = Eigen::Vector2d::Zero();  // [m] the search's whole-cell start
-  int common_cells = 0;                                      // a height in both DEMs
-  int stable_common = 0;                                     // ... and stable
-  double stable_median = 0.0;   // [m] median dz on stable ground after co-registration
-  double stable_nmad = 0.0;     // [m] 1.4826 x median |dz - median| there
-  double stable_flagged = 0.0;  // [-] share of the stable common cells with |class| >= 1
-  double flagged = 0.0;         // [-] share of all common cells with |class| >= 1
-  std::string BriefReport() const;
-};
-
-struct FlightChange {
-  dense::DemChangeResult result;  // change raster: bands change, lod, class
-  FlightChangeSummary summary;
-};
-
-// Throws InvalidArgument (see the file comment) and what dense::DemChange throws.
+// dense::CompareSurfaces with a flight's options.
 FlightChange CompareFlights(const FlightChangeInput& input,
                             const FlightChangeOptions& options = {});
 
