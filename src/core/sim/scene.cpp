@@ -290,16 +290,60 @@ double IntersectObstacle(const Obstacle& o, const Eigen::Vector3d& origin, const
 // Scene
 // ---------------------------------------------------------------------------
 
-Scene::Scene(const SceneSpec& spec) : spec_(spec) {
-  const TerrainOptions& t = spec_.terrain;
+namespace {
+
+void CheckSpec(const SceneSpec& spec) {
+  const TerrainOptions& t = spec.terrain;
   if (!(t.extent[1] > t.extent[0] && t.extent[3] > t.extent[2])) {
     throw InvalidArgument("scene extent must have xmax > xmin and ymax > ymin");
   }
   if (!(t.grid_spacing > 0.0)) throw InvalidArgument("scene grid_spacing must be > 0");
-  if (!(spec_.foliage_sway >= 0.0 && spec_.foliage_sway <= 1.0)) {
-    throw InvalidArgument(Message("scene foliage_sway ", spec_.foliage_sway, " outside [0, 1]"));
+  if (!(spec.foliage_sway >= 0.0 && spec.foliage_sway <= 1.0)) {
+    throw InvalidArgument(Message("scene foliage_sway ", spec.foliage_sway, " outside [0, 1]"));
   }
-  // The texture's octaves (GroundAlbedo), coarsest first: wavelength and amplitude.
+}
+
+// The plate's pattern: a tag36h11 code's cells, or a circle's disc and ring.
+void SetPlatePattern(const TargetPlacement& p, apriltag_family_t* family, Plate* plate) {
+  if (p.family == "tag36h11") {
+    if (p.id < 0 || p.id >= static_cast<int>(family->ncodes)) {
+      throw InvalidArgument(Message("tag36h11 id ", p.id, " is outside [0, ", family->ncodes, ")"));
+    }
+    image_u8_t* im = apriltag_to_image(family, p.id);
+    plate->is_tag = true;
+    plate->cells = im->width;
+    plate->cell = p.size / family->width_at_border;
+    plate->half = 0.5 * plate->cell * plate->cells;
+    plate->pattern.resize(static_cast<size_t>(im->width) * im->height);
+    for (int r = 0; r < im->height; ++r)
+      for (int c = 0; c < im->width; ++c)
+        plate->pattern[r * im->width + c] = im->buf[r * im->stride + c];
+    // libapriltag 3.3 exports image_u8_destroy only from libapriltag-utils;
+    // apriltag_to_image allocates the struct and its buffer with malloc.
+    std::free(im->buf);
+    std::free(im);
+  } else if (p.family == "circle") {
+    plate->is_tag = false;
+    plate->disc_radius = 0.5 * p.size;
+    plate->half = p.size;  // dark ring out to twice the disc diameter
+  } else {
+    throw InvalidArgument(
+        Message("target family '", p.family, "' is not rendered (tag36h11 or circle)"));
+  }
+}
+
+}  // namespace
+
+Scene::Scene(const SceneSpec& spec) : spec_(spec) {
+  CheckSpec(spec_);
+  BuildTexture();
+  BuildReferenceGrid();
+  PlaceObstacles();
+  PlaceTargets();
+}
+
+// The texture's octaves (GroundAlbedo), coarsest first: wavelength and amplitude.
+void Scene::BuildTexture() {
   const TextureOptions& tx = spec_.texture;
   octave_amplitude_sum_ = 0.0;
   for (double lambda = tx.coarsest_wavelength; lambda >= tx.finest_wavelength * 0.999;
@@ -310,6 +354,10 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
   }
   cos_azimuth_ = std::cos(spec_.landslide.azimuth);
   sin_azimuth_ = std::sin(spec_.landslide.azimuth);
+}
+
+void Scene::BuildReferenceGrid() {
+  const TerrainOptions& t = spec_.terrain;
   reference_.xmin = t.extent[0];
   reference_.ymin = t.extent[2];
   reference_.spacing = t.grid_spacing;
@@ -324,8 +372,10 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
     for (int i = 0; i < reference_.nx; ++i)
       reference_.z[static_cast<size_t>(j) * reference_.nx + i] =
           AnalyticHeight(reference_.X(i), reference_.Y(j));
+}
 
-  // Obstacles on the ground.
+// Obstacles on the ground.
+void Scene::PlaceObstacles() {
   for (Obstacle o : spec_.obstacles) {
     if (std::isnan(o.base.z())) {
       const double h = reference_.HeightAt(o.base.x(), o.base.y());
@@ -337,97 +387,16 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
     o.moves = spec_.landslide.Weight(o.base.head<2>()) > 0.0;
     obstacles_.push_back(o);
   }
+}
 
-  // Target plates.
-  apriltag_family_t* family = tag36h11_create();
+// Target plates and their truth.
+void Scene::PlaceTargets() {
+  const std::unique_ptr<apriltag_family_t, void (*)(apriltag_family_t*)> family(tag36h11_create(),
+                                                                                tag36h11_destroy);
   for (size_t k = 0; k < spec_.targets.size(); ++k) {
     const TargetPlacement& p = spec_.targets[k];
-    const double h = reference_.HeightAt(p.xy.x(), p.xy.y());
-    if (std::isnan(h)) {
-      tag36h11_destroy(family);
-      throw InvalidArgument(Message("target ", p.family, "/", p.id, " at (", p.xy.x(), ", ",
-                                    p.xy.y(), ") is outside the site"));
-    }
-    // Plate normal: the analytic surface normal averaged over +-1 m.
-    const double e = 1.0;
-    const double gx =
-        (AnalyticHeight(p.xy.x() + e, p.xy.y()) - AnalyticHeight(p.xy.x() - e, p.xy.y())) / (2 * e);
-    const double gy =
-        (AnalyticHeight(p.xy.x(), p.xy.y() + e) - AnalyticHeight(p.xy.x(), p.xy.y() - e)) / (2 * e);
-    const Eigen::Vector3d ground_normal = Eigen::Vector3d(-gx, -gy, 1.0).normalized();
-    const Eigen::Vector3d ground(p.xy.x(), p.xy.y(), h);
-    Eigen::Vector3d n = ground_normal;
-    Eigen::Vector3d centre = ground + p.mount_height * n;
-    if (p.facing) {  // on a vertical post, turned towards face_toward
-      centre = ground + Eigen::Vector3d(0.0, 0.0, p.mount_height);
-      const Eigen::Vector3d to = p.face_toward - centre;
-      if (to.norm() < 1e-6) {
-        tag36h11_destroy(family);
-        throw InvalidArgument(
-            Message("target ", p.family, "/", p.id, ": face_toward is the plate centre itself"));
-      }
-      n = to.normalized();
-      if (n.z() <= 0.0) {
-        tag36h11_destroy(family);
-        throw InvalidArgument(
-            Message("target ", p.family, "/", p.id, ": face_toward (", p.face_toward.transpose(),
-                    ") is not above the plate's horizon; the plate would face the ground"));
-      }
-    }
-    // The plate's top: site north projected into the plate (flat plates), site
-    // up projected into it (facing plates, whose normal may point north).
-    const Eigen::Vector3d top = p.facing ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitY();
-    Eigen::Vector3d up = top - top.dot(n) * n;
-    if (up.norm() < 1e-6) up = Eigen::Vector3d::UnitY() - n.y() * n;  // facing straight up
-    up.normalize();
-    Plate plate;
-    plate.target = static_cast<int>(k);
-    plate.normal = n;
-    plate.up = up;
-    plate.right = up.cross(n).normalized();
-    plate.centre = centre;
-    if (p.facing) {  // the lower edge must clear the ground
-      const double half_extent = (p.family == "circle" ? p.size : 0.5 * p.size * 10.0 / 8.0);
-      const double lowest =
-          centre.z() - half_extent * std::abs(up.z()) - half_extent * std::abs(plate.right.z());
-      const double ground_below = std::max(
-          h, AnalyticHeight(p.xy.x() + half_extent * n.x(), p.xy.y() + half_extent * n.y()));
-      if (lowest < ground_below + 0.02) {
-        tag36h11_destroy(family);
-        throw InvalidArgument(Message(
-            "target ", p.family, "/", p.id, ": mount_height ", p.mount_height,
-            " m is too low for a ", p.size, " m plate turned to face_toward; its lower edge is ",
-            ground_below - lowest, " m in the ground (raise mount_height)"));
-      }
-    }
-    if (p.family == "tag36h11") {
-      if (p.id < 0 || p.id >= static_cast<int>(family->ncodes)) {
-        const unsigned n_codes = family->ncodes;
-        tag36h11_destroy(family);
-        throw InvalidArgument(Message("tag36h11 id ", p.id, " is outside [0, ", n_codes, ")"));
-      }
-      image_u8_t* im = apriltag_to_image(family, p.id);
-      plate.is_tag = true;
-      plate.cells = im->width;
-      plate.cell = p.size / family->width_at_border;
-      plate.half = 0.5 * plate.cell * plate.cells;
-      plate.pattern.resize(static_cast<size_t>(im->width) * im->height);
-      for (int r = 0; r < im->height; ++r)
-        for (int c = 0; c < im->width; ++c)
-          plate.pattern[r * im->width + c] = im->buf[r * im->stride + c];
-      // libapriltag 3.3 exports image_u8_destroy only from libapriltag-utils;
-      // apriltag_to_image allocates the struct and its buffer with malloc.
-      std::free(im->buf);
-      std::free(im);
-    } else if (p.family == "circle") {
-      plate.is_tag = false;
-      plate.disc_radius = 0.5 * p.size;
-      plate.half = p.size;  // dark ring out to twice the disc diameter
-    } else {
-      tag36h11_destroy(family);
-      throw InvalidArgument(
-          Message("target family '", p.family, "' is not rendered (tag36h11 or circle)"));
-    }
+    Plate plate = PlateGeometry(p, static_cast<int>(k));
+    SetPlatePattern(p, family.get(), &plate);
     reference_plates_.push_back(plate);
 
     TargetTruth tt;
@@ -436,12 +405,71 @@ Scene::Scene(const SceneSpec& spec) : spec_(spec) {
     tt.key = p.family + "/" + std::to_string(p.id);
     tt.size = p.size;
     tt.role = p.role;
-    tt.normal = n;
-    tt.up_in_plate = up;
+    tt.normal = plate.normal;
+    tt.up_in_plate = plate.up;
     tt.positions = {plate.centre};
     targets_.push_back(tt);
   }
-  tag36h11_destroy(family);
+}
+
+// A plate's centre and axes on the reference surface: flat on the ground at
+// its mount height, or on a vertical post turned towards face_toward.
+Plate Scene::PlateGeometry(const TargetPlacement& p, int k) const {
+  const double h = reference_.HeightAt(p.xy.x(), p.xy.y());
+  if (std::isnan(h)) {
+    throw InvalidArgument(Message("target ", p.family, "/", p.id, " at (", p.xy.x(), ", ", p.xy.y(),
+                                  ") is outside the site"));
+  }
+  // Plate normal: the analytic surface normal averaged over +-1 m.
+  const double e = 1.0;
+  const double gx =
+      (AnalyticHeight(p.xy.x() + e, p.xy.y()) - AnalyticHeight(p.xy.x() - e, p.xy.y())) / (2 * e);
+  const double gy =
+      (AnalyticHeight(p.xy.x(), p.xy.y() + e) - AnalyticHeight(p.xy.x(), p.xy.y() - e)) / (2 * e);
+  const Eigen::Vector3d ground_normal = Eigen::Vector3d(-gx, -gy, 1.0).normalized();
+  const Eigen::Vector3d ground(p.xy.x(), p.xy.y(), h);
+  Eigen::Vector3d n = ground_normal;
+  Eigen::Vector3d centre = ground + p.mount_height * n;
+  if (p.facing) {  // on a vertical post, turned towards face_toward
+    centre = ground + Eigen::Vector3d(0.0, 0.0, p.mount_height);
+    const Eigen::Vector3d to = p.face_toward - centre;
+    if (to.norm() < 1e-6) {
+      throw InvalidArgument(
+          Message("target ", p.family, "/", p.id, ": face_toward is the plate centre itself"));
+    }
+    n = to.normalized();
+    if (n.z() <= 0.0) {
+      throw InvalidArgument(
+          Message("target ", p.family, "/", p.id, ": face_toward (", p.face_toward.transpose(),
+                  ") is not above the plate's horizon; the plate would face the ground"));
+    }
+  }
+  // The plate's top: site north projected into the plate (flat plates), site
+  // up projected into it (facing plates, whose normal may point north).
+  const Eigen::Vector3d top = p.facing ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitY();
+  Eigen::Vector3d up = top - top.dot(n) * n;
+  if (up.norm() < 1e-6) up = Eigen::Vector3d::UnitY() - n.y() * n;  // facing straight up
+  up.normalize();
+  Plate plate;
+  plate.target = k;
+  plate.normal = n;
+  plate.up = up;
+  plate.right = up.cross(n).normalized();
+  plate.centre = centre;
+  if (p.facing) {  // the lower edge must clear the ground
+    const double half_extent = (p.family == "circle" ? p.size : 0.5 * p.size * 10.0 / 8.0);
+    const double lowest =
+        centre.z() - half_extent * std::abs(up.z()) - half_extent * std::abs(plate.right.z());
+    const double ground_below =
+        std::max(h, AnalyticHeight(p.xy.x() + half_extent * n.x(), p.xy.y() + half_extent * n.y()));
+    if (lowest < ground_below + 0.02) {
+      throw InvalidArgument(Message(
+          "target ", p.family, "/", p.id, ": mount_height ", p.mount_height, " m is too low for a ",
+          p.size, " m plate turned to face_toward; its lower edge is ", ground_below - lowest,
+          " m in the ground (raise mount_height)"));
+    }
+  }
+  return plate;
 }
 
 double Scene::ScarpDrop(double x, double y) const {

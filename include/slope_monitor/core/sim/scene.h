@@ -159,6 +159,12 @@ class Scene {
   Rgb ObstacleAlbedo(const Obstacle& o, const Eigen::Vector3d& p, int epoch_salt) const;
 
  private:
+  // The constructor's stages, in this order.
+  void BuildTexture();
+  void BuildReferenceGrid();
+  void PlaceObstacles();
+  void PlaceTargets();
+  Plate PlateGeometry(const TargetPlacement& p, int k) const;
   double ScarpDrop(double x, double y) const;
   struct Octave {
     double wavelength;  // [m]
