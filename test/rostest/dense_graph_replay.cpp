@@ -1,5 +1,6 @@
 // Plays the dense_graph_replay survey through the whole graph and checks the
-// dense_matcher's per-epoch cloud and GeoTIFFs (dense_graph_replay.test.in).
+// dense_matcher's per-epoch cloud and GeoTIFFs (dense_graph_replay.test.in),
+// and the orthophoto, cloud file and report of each epoch (issue 35 item 4).
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -72,11 +73,15 @@ TEST(DenseGraphReplay, ACloudPerEpochAndTheGeoTiffs) {
     with_change += finite_change > n / 4;
   }
   EXPECT_EQ(with_change, epochs - 1);  // every epoch but the reference
-  int surfaces = 0, changes = 0;
+  int surfaces = 0, changes = 0, orthos = 0, clouds_written = 0, reports = 0;
   for (const auto& f : std::filesystem::directory_iterator(report_dir)) {
     const std::string name = f.path().filename().string();
     surfaces += name.rfind("surface_e", 0) == 0 && f.path().extension() == ".tif";
     changes += name.rfind("change_e", 0) == 0 && f.path().extension() == ".tif";
+    // Issue 35 item 4: what process_flight writes per flight, per epoch.
+    orthos += name.rfind("ortho_e", 0) == 0 && f.path().extension() == ".tif";
+    clouds_written += name.rfind("cloud_e", 0) == 0 && f.path().extension() == ".ply";
+    reports += name.rfind("surface_report_e", 0) == 0 && f.path().extension() == ".json";
     // Issue 38: in the map CRS of the launch's site_config (geodetic_origin
     // 46.5 N, 8.0 E: UTM zone 32), as GDAL's own tool reads it.
     if (f.path().extension() != ".tif" || name.rfind("deformation", 0) == 0) continue;
@@ -90,6 +95,9 @@ TEST(DenseGraphReplay, ACloudPerEpochAndTheGeoTiffs) {
   }
   EXPECT_EQ(surfaces, epochs);
   EXPECT_EQ(changes, epochs - 1);
+  EXPECT_EQ(orthos, epochs);  // each in EPSG:32632 (above)
+  EXPECT_EQ(clouds_written, epochs);
+  EXPECT_EQ(reports, epochs);
 }
 
 }  // namespace
