@@ -30,7 +30,8 @@
 //                 [--epoch K] [--solution-topic /bundle_adjuster/solution] [--compare-truth
 //                 T.truth.yaml]
 //                 [--site SITE.yaml | --site-config OVERLAY.yaml]
-//   prints progress per pair and writes DIR/surface_eNN.tif per epoch and
+//   prints progress per pair and writes DIR/surface_eNN.tif, ortho_eNN.tif,
+//   cloud_eNN.ply and surface_report_eNN.json / .md per epoch and
 //   DIR/change_eNN.tif per later epoch (against the first epoch measured),
 //   in the site's map CRS when --site (its crs) or --site-config (its
 //   geodetic_origin; the config's site_file / site_config alike) gives one,
@@ -270,7 +271,7 @@ int RunBagEpochs(const Args& a) {
                 (only_epoch >= 0 ? Message(" for epoch ", only_epoch) : std::string()),
                 " (record a replay with record.launch, or run process_bag --output-bag)"));
   fs::create_directories(out_dir);
-  // The node's epoch series (reference, DoD, surface_eNN.tif / change_eNN.tif in --out-dir).
+  // The node's epoch series (reference, DoD, its files in --out-dir: dense/surface_series.h).
   ros_adapters::DenseEpochParameters series_cfg = cfg;
   series_cfg.report_dir = out_dir;
   dense::SurfaceSeries series(ros_adapters::SeriesOptions(series_cfg));
@@ -319,8 +320,8 @@ int RunBagEpochs(const Args& a) {
       CompareWithTruth(r.surface->dem,
                        io::ReadGeoTiff(TruthSurfacePath(truth, truth_path, in.epoch)), truth);
     }
-    if (r.change)
-      std::printf("epoch %d change: %s\n", in.epoch, r.change->summary.BriefReport().c_str());
+    if (r.change_summary)
+      std::printf("epoch %d change: %s\n", in.epoch, r.change_summary->BriefReport().c_str());
   }
   return series.reference() ? 0 : 1;
 }
