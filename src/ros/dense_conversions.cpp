@@ -125,6 +125,21 @@ DenseEpochParameters ReadDenseEpochParameters(ParamReader& p) {
   dc.min_stable_cells = p.Int("min_stable_cells", dc.min_stable_cells, 4, 1000000000);
   d.change.search_radius =
       p.Double("coregistration_search_radius", d.change.search_radius, 0.0, dc.max_shift, "m");
+  // The LoD: one global stable residual, or process_flight's heteroscedastic
+  // model (bins by slope and roughness; doc/real_surfaces.md).
+  dense::ErrorModelOptions& em = dc.error_model;
+  const std::string lod_model = p.String("lod_model", em.enabled ? "slope_roughness" : "global");
+  if (lod_model != "global" && lod_model != "slope_roughness")
+    throw ConfigError(Message("parameter '", p.FullKey("lod_model"), "' = '", lod_model,
+                              "' must be global or slope_roughness"));
+  em.enabled = lod_model == "slope_roughness";
+  using Spread = dense::ErrorModelOptions::Spread;
+  const std::string spread =
+      p.String("lod_bin_spread", em.spread == Spread::kQuantile ? "quantile" : "nmad");
+  if (spread != "nmad" && spread != "quantile")
+    throw ConfigError(Message("parameter '", p.FullKey("lod_bin_spread"), "' = '", spread,
+                              "' must be nmad or quantile"));
+  em.spread = spread == "quantile" ? Spread::kQuantile : Spread::kNmad;
   d.monitored_outline = p.DoubleList("monitored_outline", d.monitored_outline);
   const std::vector<double>& outline = d.monitored_outline;
   if (outline.size() % 2 != 0 || (!outline.empty() && outline.size() < 6))

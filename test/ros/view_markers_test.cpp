@@ -213,6 +213,37 @@ TEST(ChangeScale, DefaultsFileOptionsAndRvizLayoutAgree) {
   EXPECT_EQ(clouds, 1);
 }
 
+// The dense step's LoD model (issue 35): the defaults file keeps the graph's
+// global residual; lod_model slope_roughness with lod_bin_spread quantile is
+// process_flight's (flight::FlightChangeOptions); a bad value is named.
+TEST(DenseEpochParameters, LodModelSelectsProcessFlightsErrorModel) {
+  const std::string path = std::string(SM_SOURCE_DIR) + "/config/defaults/dense_epoch.yaml";
+  XmlRpc::XmlRpcValue p = LoadParamFile(path);
+  {
+    ParamReader r(p, "/dense/dense_matcher");
+    const dense::SurfaceChangeOptions o = ReadDenseEpochParameters(r).change;
+    EXPECT_FALSE(o.change.error_model.enabled);
+    EXPECT_EQ(o.search_radius, 4.0);
+  }
+  SetParam(&p, "lod_model", std::string("slope_roughness"));
+  SetParam(&p, "lod_bin_spread", std::string("quantile"));
+  {
+    ParamReader r(p, "/dense/dense_matcher");
+    const dense::ErrorModelOptions e = ReadDenseEpochParameters(r).change.change.error_model;
+    EXPECT_TRUE(e.enabled);
+    EXPECT_EQ(e.spread, dense::ErrorModelOptions::Spread::kQuantile);
+  }
+  SetParam(&p, "lod_model", std::string("bins"));
+  ParamReader r(p, "/dense/dense_matcher");
+  try {
+    ReadDenseEpochParameters(r);
+    FAIL() << "lod_model 'bins' accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("/dense/dense_matcher/lod_model"), std::string::npos)
+        << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace ros_adapters
 }  // namespace slope_monitor
