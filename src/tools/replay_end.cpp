@@ -2,32 +2,37 @@
 //
 //   <node pkg="slope_monitor" type="replay_end" name="replay_end" required="true"/>
 //
-// rosbag play ends when it has published the bag's last message; on a fast
-// replay or a busy machine the graph is then still epochs behind (images
-// waiting for the centroiders, an adjustment being solved), and a launch
-// that stopped with the player would drop what its nodes had not processed
-// yet: the reports would depend on the rate and on the CPU. replay_end waits
-// for the player to finish, then until no thread of the graph's processes
-// (every node of this master but the player, rosout and itself, on this
+// The player (replay_player) says when it has published the bag's last
+// message (`<player>/finished`, std_msgs/Bool, latched) and stays up; on a
+// fast replay or a busy machine the graph is then still epochs behind
+// (images waiting for the centroiders, an adjustment being solved) and the
+// player's publishers may still be sending photos: a launch that stopped
+// then would drop what its nodes had not processed yet, and the reports
+// would depend on the rate and on the CPU. replay_end waits for the player
+// to finish (or to end: another player, such as rosbag play, that exits at
+// the end of its bag), then until no thread of the graph's processes (every
+// node of this master but rosout and itself, the player included, on this
 // machine) is running or waiting for the CPU or the disk (state R or D in
 // /proc/<pid>/task/*/stat) in every sample of `quiet` seconds, and exits:
-// roslaunch then stops the nodes, and the deformation estimator writes its
-// reports. In a replay the graph has no time-outs (ros/setup.h LiveTimeouts),
-// so before it exits replay_end announces the end of the input on
-// /replay/end_of_input, stage by stage, waiting for the graph to be idle
-// after each (ros/setup.h kEndOfMatching ... kEndOfSurfaces): what a live
-// time-out would have released (a photo waiting for its prior, an epoch whose
-// camera never sent its end marker) is processed as process_bag's end of
-// input does, and the same bag gives the same numbers at any rate and load.
+// roslaunch then stops the nodes and the player, and the deformation
+// estimator writes its reports. In a replay the graph has no time-outs
+// (ros/setup.h LiveTimeouts), so before it exits replay_end announces the
+// end of the input on /replay/end_of_input, stage by stage, waiting for the
+// graph to be idle after each (ros/setup.h kEndOfMatching ...
+// kEndOfSurfaces): what a live time-out would have released (a photo waiting
+// for its prior, an epoch whose camera never sent its end marker) is
+// processed as process_bag's end of input does, and the same bag gives the
+// same numbers at any rate and load.
 //
 // Private parameters:
-//   player  (string, "/player")  the rosbag play node
+//   player  (string, "/player")  the player node (replay_player)
 //   quiet   (double, 1.0 s)      how long the graph must stay idle (0.1..60)
 //   timeout (double, 3600 s)     wall time after the player's end; then exit 1 naming the busy
 //   nodes
 #include <dirent.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <fstream>
 #include <iostream>
@@ -40,6 +45,7 @@
 #include <ros/master.h>
 #include <ros/network.h>
 #include <ros/ros.h>
+#include <std_msgs/Bool.h>
 #include <std_msgs/UInt8.h>
 #include <xmlrpcpp/XmlRpcClient.h>
 
@@ -80,13 +86,13 @@ int PidOf(const std::string& node) {
   return text.find("__name:=" + node.substr(node.rfind('/') + 1)) != std::string::npos ? pid : -1;
 }
 
-// The graph's processes: node name -> pid.
-std::map<std::string, int> GraphProcesses(const std::string& player) {
+// The graph's processes, the player's included: node name -> pid.
+std::map<std::string, int> GraphProcesses() {
   std::vector<std::string> nodes;
   ros::master::getNodes(nodes);
   std::map<std::string, int> out;
   for (const std::string& n : nodes) {
-    if (n == player || n == "/rosout" || n == ros::this_node::getName()) continue;
+    if (n == "/rosout" || n == ros::this_node::getName()) continue;
     const int pid = PidOf(n);
     if (pid > 0) out[n] = pid;
   }
@@ -141,10 +147,11 @@ int main(int argc, char** argv) {
     if (std::string(argv[i]) == "-h" || std::string(argv[i]) == "--help") {
       std::cout << "usage: replay_end [__name:=NAME] [_player:=/player] [_quiet:=1.0] "
                    "[_timeout:=3600]\n"
-                   "Started by launch/replay.launch (required): waits for the rosbag player to\n"
-                   "end, announces the end of input on /replay/end_of_input stage by stage, waits\n"
-                   "until the graph's processes have been idle for `quiet` s after each, and\n"
-                   "exits, which ends the launch (the estimator then writes its reports). Exit\n"
+                   "Started by launch/replay.launch (required): waits for the player to finish\n"
+                   "the bag (its ~finished, or its end), announces the end of input on\n"
+                   "/replay/end_of_input stage by stage, waits until the graph's processes (the\n"
+                   "player's included) have been idle for `quiet` s after each, and exits,\n"
+                   "which ends the launch (the estimator then writes its reports). Exit\n"
                    "status 0 when the graph went idle, 1 on a bad parameter or when it was still\n"
                    "busy `timeout` s after the player's end (the busy nodes named).\n";
       return 0;
@@ -168,14 +175,19 @@ int main(int argc, char** argv) {
       nh.advertise<std_msgs::UInt8>(slope_monitor::ros_adapters::kEndOfInputTopic,
                                     slope_monitor::ros_adapters::kEndOfInputStages, true);
   const auto step = std::chrono::milliseconds(100);
-  // The player: seen, then gone.
-  while (ros::ok() && !NodeRunning(player)) std::this_thread::sleep_for(step);
-  while (ros::ok() && NodeRunning(player)) std::this_thread::sleep_for(step);
+  // The player: seen, then finished (its ~finished) or gone.
+  std::atomic<bool> finished{false};
+  ros::Subscriber finished_sub = nh.subscribe<std_msgs::Bool>(
+      player + "/finished", 1, [&finished](const std_msgs::BoolConstPtr& m) {
+        if (m->data) finished = true;
+      });
+  while (ros::ok() && !finished && !NodeRunning(player)) std::this_thread::sleep_for(step);
+  while (ros::ok() && !finished && NodeRunning(player)) std::this_thread::sleep_for(step);
   if (!ros::ok()) return 0;
   const auto ended = Clock::now();
-  const std::map<std::string, int> graph = GraphProcesses(player);
-  ROS_INFO("replay_end: %s has ended; waiting for %zu node process(es) to finish their work",
-           player.c_str(), graph.size());
+  const std::map<std::string, int> graph = GraphProcesses();
+  ROS_INFO("replay_end: %s has %s the bag; waiting for %zu node process(es) to finish their work",
+           player.c_str(), finished ? "finished" : "ended", graph.size());
   const int needed = static_cast<int>(quiet / 0.1 + 0.5);
   if (!WaitIdle(graph, needed, ended, timeout)) return 1;
   for (int stage = 1; stage <= slope_monitor::ros_adapters::kEndOfInputStages && ros::ok();

@@ -1,7 +1,7 @@
 // replay_start: starts replay.launch's player when every node of the graph is
 // ready, so that no node misses the first photos of a bag.
 //
-//   <node pkg="rosbag" type="play" name="player" args="--pause --clock ..."/>
+//   <node pkg="slope_monitor" type="replay_player" name="player" args="--pause ..."/>
 //   <node pkg="slope_monitor" type="replay_start" name="replay_start"/>
 //
 // roslaunch starts the player and the graph together; a node that is still
@@ -16,7 +16,7 @@
 // ready and starts the player anyway (their inputs are then incomplete).
 //
 // Private parameters:
-//   player  (string, "/player")  the rosbag play node (started with --pause)
+//   player  (string, "/player")  the player node (replay_player, started with --pause)
 //   settle  (double, 1.0 s)      wall time between ready and play (0..60)
 //   timeout (double, 120 s)      wall time to wait for the nodes (> 0)
 #include <chrono>
@@ -62,13 +62,14 @@ int main(int argc, char** argv) {
   // --help: the usage, before ros::init (no master contacted, nothing changed).
   for (int i = 1; i < argc; ++i)
     if (std::string(argv[i]) == "-h" || std::string(argv[i]) == "--help") {
-      std::cout << "usage: replay_start [__name:=NAME] [_player:=/player] [_settle:=1.0] "
-                   "[_timeout:=120]\n"
-                   "Started by launch/replay.launch: resumes the paused rosbag player (its\n"
-                   "pause_playback service) once every node's ~graph_ready parameter is true,\n"
-                   "then `settle` s later; past `timeout` s it names the nodes not ready and\n"
-                   "starts the player anyway. Exit status 0 when the player was started, 1 on a\n"
-                   "bad parameter or when the player could not be resumed.\n";
+      std::cout
+          << "usage: replay_start [__name:=NAME] [_player:=/player] [_settle:=1.0] "
+             "[_timeout:=120]\n"
+             "Started by launch/replay.launch: resumes the paused player (replay_player,\n"
+             "its pause_playback service) once every node's ~graph_ready parameter is\n"
+             "true, then `settle` s later; past `timeout` s it names the nodes not ready\n"
+             "and starts the player anyway. Exit status 0 when the player was started, 1 on a\n"
+             "bad parameter or when the player could not be resumed.\n";
       return 0;
     }
   ros::init(argc, argv, "replay_start");

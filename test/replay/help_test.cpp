@@ -24,13 +24,13 @@ using replay_test::Spawn;
 using replay_test::Wait;
 
 // The tools (devel/lib/slope_monitor, beside process_bag) a user runs by hand,
-// and replay_start / replay_end, which replay.launch starts (their --help
-// before ros::init: no master is contacted). Not here: the graph's nodes and
+// and replay_player / replay_start / replay_end, which replay.launch starts
+// (their --help before ros::init: no master is contacted). Not here: the graph's nodes and
 // the test nodes (*_node, rostest_*).
 const std::vector<std::string> kTools = {
-    "bag_check",     "centroid_targets", "deformation_summary", "dense_surface", "make_survey_bag",
-    "match_images",  "process_bag",      "process_flight",      "replay_end",    "replay_start",
-    "resect_camera", "solve_bal",        "track_camera"};
+    "bag_check",    "centroid_targets", "deformation_summary", "dense_surface", "make_survey_bag",
+    "match_images", "process_bag",      "process_flight",      "replay_end",    "replay_player",
+    "replay_start", "resect_camera",    "solve_bal",           "track_camera"};
 
 // Every script of scripts/ but lib.sh and env.sh (sourced, not run), and
 // the notification hooks of scripts/hooks.
