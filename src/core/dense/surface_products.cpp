@@ -185,6 +185,7 @@ io::GeoRaster ColourOrthophoto(const io::GeoRaster& dem, const std::vector<Orien
                   dem.cell_size / subdivision);
   o.epsg = dem.epsg;
   o.srs_wkt = dem.srs_wkt;
+  o.rgb = true;  // an 8-bit RGB picture with alpha in the file (io::GeoRaster::rgb)
   o.AddBand("red");
   o.AddBand("green");
   o.AddBand("blue");

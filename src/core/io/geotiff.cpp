@@ -1,6 +1,8 @@
 #include "slope_monitor/core/io/geotiff.h"
 
+#include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstdio>
 #include <mutex>
 #include <random>
@@ -114,7 +116,38 @@ void GeoRaster::Check(const std::string& context) const {
                                     bands[b].size(), " values, expected ",
                                     static_cast<size_t>(width) * height));
   if (epsg < 0) throw InvalidArgument(Message(context, ": epsg ", epsg, " must be >= 0"));
+  if (rgb && bands.size() != 3)
+    throw InvalidArgument(Message(context, ": an RGB raster needs 3 bands, not ", bands.size()));
 }
+
+namespace {
+
+// An RGB raster's bands as bytes (rounded, clamped to 0..255) and its alpha
+// band: 255 where all three have a value, 0 (and 0 in each band) elsewhere.
+bool WriteRgbBands(const GeoRaster& raster, GDALDataset* ds) {
+  const size_t n = static_cast<size_t>(raster.width) * raster.height;
+  std::vector<GByte> alpha(n, 255);
+  for (int b = 0; b < 3; ++b)
+    for (size_t i = 0; i < n; ++i)
+      if (raster.IsNoData(raster.bands[b][i])) alpha[i] = 0;
+  std::vector<GByte> bytes(n);
+  for (int b = 0; b < 4; ++b) {
+    for (size_t i = 0; b < 3 && i < n; ++i)
+      bytes[i] = alpha[i] == 0
+                     ? 0
+                     : static_cast<GByte>(std::clamp(
+                           std::lround(static_cast<double>(raster.bands[b][i])), 0L, 255L));
+    GDALRasterBand* band = ds->GetRasterBand(b + 1);
+    band->SetDescription(b < 3 ? raster.band_names[b].c_str() : "alpha");
+    GByte* data = b < 3 ? bytes.data() : alpha.data();
+    if (band->RasterIO(GF_Write, 0, 0, raster.width, raster.height, data, raster.width,
+                       raster.height, GDT_Byte, 0, 0) != CE_None)
+      return false;
+  }
+  return true;
+}
+
+}  // namespace
 
 void WriteGeoTiff(const std::string& path, const GeoRaster& raster) {
   raster.Check(path);
@@ -138,9 +171,14 @@ void WriteGeoTiff(const std::string& path, const GeoRaster& raster) {
   const std::string tmp = MemoryNameFor();
   char** create_options = nullptr;
   create_options = CSLSetNameValue(create_options, "COMPRESS", "DEFLATE");
-  create_options = CSLSetNameValue(create_options, "PREDICTOR", "3");
-  GDALDataset* ds = driver->Create(tmp.c_str(), raster.width, raster.height, raster.num_bands(),
-                                   GDT_Float32, create_options);
+  create_options = CSLSetNameValue(create_options, "PREDICTOR", raster.rgb ? "2" : "3");
+  if (raster.rgb) {
+    create_options = CSLSetNameValue(create_options, "PHOTOMETRIC", "RGB");
+    create_options = CSLSetNameValue(create_options, "ALPHA", "YES");
+  }
+  GDALDataset* ds =
+      driver->Create(tmp.c_str(), raster.width, raster.height, raster.num_bands() + raster.rgb,
+                     raster.rgb ? GDT_Byte : GDT_Float32, create_options);
   CSLDestroy(create_options);
   if (!ds) throw IoError(Message(path, ": cannot create GeoTIFF", QuietGdal::Last()));
 
@@ -148,13 +186,17 @@ void WriteGeoTiff(const std::string& path, const GeoRaster& raster) {
   std::vector<double> gt = raster.GeoTransform();
   ok = ok && ds->SetGeoTransform(gt.data()) == CE_None;
   ok = ok && ds->SetSpatialRef(&srs) == CE_None;
-  for (int b = 0; ok && b < raster.num_bands(); ++b) {
-    GDALRasterBand* band = ds->GetRasterBand(b + 1);
-    band->SetDescription(raster.band_names[b].c_str());
-    ok = band->SetNoDataValue(raster.nodata) == CE_None;
-    ok = ok && band->RasterIO(GF_Write, 0, 0, raster.width, raster.height,
-                              const_cast<float*>(raster.bands[b].data()), raster.width,
-                              raster.height, GDT_Float32, 0, 0) == CE_None;
+  if (raster.rgb) {
+    ok = ok && WriteRgbBands(raster, ds);
+  } else {
+    for (int b = 0; ok && b < raster.num_bands(); ++b) {
+      GDALRasterBand* band = ds->GetRasterBand(b + 1);
+      band->SetDescription(raster.band_names[b].c_str());
+      ok = band->SetNoDataValue(raster.nodata) == CE_None;
+      ok = ok && band->RasterIO(GF_Write, 0, 0, raster.width, raster.height,
+                                const_cast<float*>(raster.bands[b].data()), raster.width,
+                                raster.height, GDT_Float32, 0, 0) == CE_None;
+    }
   }
   std::string why = QuietGdal::Last();
   // GDALClose flushes; a failure there (disk full) is the last chance to notice.
@@ -212,7 +254,21 @@ GeoRaster ReadGeoTiff(const std::string& path) {
     if (code && name && std::string(name) == "EPSG") r.epsg = std::atoi(code);
   }
 
-  for (int b = 0; b < ds->GetRasterCount(); ++b) {
+  // An RGB picture with an alpha band (WriteGeoTiff of an rgb raster, and
+  // the usual orthophoto of other tools): its colour bands, NaN where alpha is 0.
+  const int count = ds->GetRasterCount();
+  r.rgb = count == 4 && ds->GetRasterBand(1)->GetColorInterpretation() == GCI_RedBand &&
+          ds->GetRasterBand(2)->GetColorInterpretation() == GCI_GreenBand &&
+          ds->GetRasterBand(3)->GetColorInterpretation() == GCI_BlueBand &&
+          ds->GetRasterBand(4)->GetColorInterpretation() == GCI_AlphaBand;
+  std::vector<float> alpha;
+  if (r.rgb) {
+    alpha.resize(static_cast<size_t>(r.width) * r.height);
+    if (ds->GetRasterBand(4)->RasterIO(GF_Read, 0, 0, r.width, r.height, alpha.data(), r.width,
+                                       r.height, GDT_Float32, 0, 0) != CE_None)
+      throw IoError(Message(path, ": cannot read its alpha band", QuietGdal::Last()));
+  }
+  for (int b = 0; b < (r.rgb ? 3 : count); ++b) {
     GDALRasterBand* band = ds->GetRasterBand(b + 1);
     int has_nodata = 0;
     const double nd = band->GetNoDataValue(&has_nodata);
@@ -227,6 +283,8 @@ GeoRaster ReadGeoTiff(const std::string& path) {
     if (has_nodata && b > 0 && !(nd == r.nodata || (std::isnan(nd) && std::isnan(r.nodata))))
       for (float& v : r.bands.back())
         if (static_cast<double>(v) == nd) v = static_cast<float>(r.nodata);
+    for (size_t i = 0; i < alpha.size(); ++i)
+      if (alpha[i] == 0.0f) r.bands.back()[i] = static_cast<float>(r.nodata);
   }
   return r;
 }

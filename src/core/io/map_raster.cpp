@@ -38,6 +38,7 @@ float SampleBand(const GeoRaster& r, int band, bool categorical, double x, doubl
 GeoRaster EmptyLike(const GeoRaster& bands_of, int width, int height, double x0, double y1,
                     double cell) {
   GeoRaster out(width, height, x0, y1, cell);
+  out.rgb = bands_of.rgb;
   for (const std::string& name : bands_of.band_names) out.AddBand(name);
   return out;
 }

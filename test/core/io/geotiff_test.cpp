@@ -4,9 +4,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include <unistd.h>
 
+#include <gdal_priv.h>
 #include <gtest/gtest.h>
 
 #include "slope_monitor/core/common/error.h"
@@ -67,6 +69,51 @@ TEST_F(GeoTiffTest, RoundTripKeepsValuesBandsAndNoData) {
   int files = 0;
   for (const auto& e : fs::directory_iterator(dir_)) files += e.is_regular_file();
   EXPECT_EQ(files, 1);
+}
+
+// An orthophoto (rgb): an 8-bit RGB GeoTIFF with an alpha band, as GIS
+// tools expect a picture (GDAL itself checks the file), and read back as
+// three bands with the hole as nodata and the values rounded to bytes.
+TEST_F(GeoTiffTest, RgbPictureIsWrittenAsBytesWithAlpha) {
+  GeoRaster r(4, 2, 10.0, 20.0, 0.5);
+  r.epsg = 32632;
+  r.rgb = true;
+  for (const char* name : {"red", "green", "blue"}) r.AddBand(name, 0.0f);
+  r.At(0, 0, 0) = 12.4f;                         // -> 12
+  r.At(1, 0, 0) = 254.6f;                        // -> 255
+  r.At(2, 0, 0) = 300.0f;                        // clamped to 255
+  r.At(1, 1, 3) = static_cast<float>(r.nodata);  // a hole in one band: transparent
+  WriteGeoTiff(Path("ortho.tif"), r);
+
+  GDALAllRegister();
+  GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen(Path("ortho.tif").c_str(), GA_ReadOnly));
+  ASSERT_NE(ds, nullptr);
+  ASSERT_EQ(ds->GetRasterCount(), 4);
+  const GDALColorInterp expected[4] = {GCI_RedBand, GCI_GreenBand, GCI_BlueBand, GCI_AlphaBand};
+  for (int b = 0; b < 4; ++b) {
+    EXPECT_EQ(ds->GetRasterBand(b + 1)->GetRasterDataType(), GDT_Byte) << "band " << b + 1;
+    EXPECT_EQ(ds->GetRasterBand(b + 1)->GetColorInterpretation(), expected[b]) << "band " << b + 1;
+  }
+  GByte alpha[8];
+  ASSERT_EQ(ds->GetRasterBand(4)->RasterIO(GF_Read, 0, 0, 4, 2, alpha, 4, 2, GDT_Byte, 0, 0),
+            CE_None);
+  for (int i = 0; i < 8; ++i) EXPECT_EQ(alpha[i], i == 7 ? 0 : 255) << "cell " << i;
+  GDALClose(ds);
+
+  const GeoRaster b = ReadGeoTiff(Path("ortho.tif"));
+  EXPECT_TRUE(b.rgb);
+  ASSERT_EQ(b.num_bands(), 3);
+  EXPECT_EQ(b.band_names, (std::vector<std::string>{"red", "green", "blue"}));
+  EXPECT_EQ(b.epsg, 32632);
+  EXPECT_FLOAT_EQ(b.At(0, 0, 0), 12.0f);
+  EXPECT_FLOAT_EQ(b.At(1, 0, 0), 255.0f);
+  EXPECT_FLOAT_EQ(b.At(2, 0, 0), 255.0f);
+  for (int band = 0; band < 3; ++band) EXPECT_TRUE(b.IsNoData(b.At(band, 1, 3)));
+  EXPECT_FLOAT_EQ(b.At(0, 1, 2), 0.0f);
+
+  r.bands.pop_back();  // two bands cannot be a picture
+  r.band_names.pop_back();
+  EXPECT_THROW(WriteGeoTiff(Path("two.tif"), r), InvalidArgument);
 }
 
 TEST_F(GeoTiffTest, GeoTransformAndCellCentres) {

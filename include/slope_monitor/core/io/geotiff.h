@@ -58,6 +58,11 @@ struct GeoRaster {
   std::string srs_wkt;                  // filled on read; on write, when not empty, the CRS written
   std::vector<std::string> band_names;  // one description per band
   std::vector<std::vector<float>> bands;  // [band][row * width + col]
+  // A picture (an orthophoto): 3 bands of 0..255 written as an 8-bit RGB
+  // GeoTIFF with an alpha band, 0 where a band is nodata (what GIS tools
+  // show as colour with transparent holes; Float32 bands they show as grey).
+  // ReadGeoTiff gives such a file back as 3 bands with NaN where alpha is 0.
+  bool rgb = false;
 
   GeoRaster() = default;
   GeoRaster(int width_cells, int height_cells, double x_west, double y_north, double cell)
