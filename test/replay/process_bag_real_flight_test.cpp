@@ -53,18 +53,6 @@ fs::path Photos() {
   return fs::canonical(SM_SOURCE_DIR).parent_path() / "shared" / "data" / "uav_real_caliterra";
 }
 
-int FreePort() {
-  const int s = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof(a);
-  const bool ok = bind(s, reinterpret_cast<sockaddr*>(&a), sizeof(a)) == 0 &&
-                  getsockname(s, reinterpret_cast<sockaddr*>(&a), &len) == 0;
-  close(s);
-  return ok ? ntohs(a.sin_port) : -1;
-}
-
 // Whether something listens on 127.0.0.1:port (the run's ROS master).
 bool Listening(int port) {
   const int s = socket(AF_INET, SOCK_STREAM, 0);
@@ -124,7 +112,7 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
   // Record while the capture publishes the folder: record.launch first (it
   // starts the run's own master), then camera_capture.launch, which ends by
   // itself at the end of the folder.
-  const int port = FreePort();
+  const int port = replay_test::FreePort();
   ASSERT_GT(port, 0);
   const std::vector<std::string> env = {"ROS_MASTER_URI=http://127.0.0.1:" + std::to_string(port),
                                         "ROS_LOG_DIR=" + (dir / "log").string(),

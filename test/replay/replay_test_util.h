@@ -28,6 +28,8 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
+#include "../ros/run_command.h"
+
 extern char** environ;
 
 namespace slope_monitor {
@@ -107,19 +109,7 @@ inline int Wait(pid_t pid) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-// A TCP port no one listens on now (for a run's own ROS master).
-inline int FreePort() {
-  const int s = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = 0;
-  socklen_t len = sizeof(a);
-  const bool ok = bind(s, reinterpret_cast<sockaddr*>(&a), sizeof(a)) == 0 &&
-                  getsockname(s, reinterpret_cast<sockaddr*>(&a), &len) == 0;
-  close(s);
-  return ok ? ntohs(a.sin_port) : -1;
-}
+using run_command::FreePort;  // a TCP port for a run's own ROS master
 
 // Waits for `pid` at most `timeout`; a process still running then gets
 // SIGINT (roslaunch then stops its nodes), later SIGKILL. The exit status,

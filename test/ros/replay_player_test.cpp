@@ -45,18 +45,6 @@ constexpr uint32_t kWidth = 4000, kHeight = 3000;  // [px], rgb8
 constexpr double kInterval = 4.0;                  // [s] bag time
 const char kTopic[] = "/replay_player_test/camera/image_raw";
 
-int FreePort() {
-  const int s = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof(a);
-  const bool ok = bind(s, reinterpret_cast<sockaddr*>(&a), sizeof(a)) == 0 &&
-                  getsockname(s, reinterpret_cast<sockaddr*>(&a), &len) == 0;
-  close(s);
-  return ok ? ntohs(a.sin_port) : -1;
-}
-
 // The process whose command line holds both `a` and `b`; -1 if none.
 int FindProcess(const std::string& a, const std::string& b) {
   DIR* d = opendir("/proc");
@@ -118,7 +106,7 @@ TEST(ReplayPlayer, EveryFullSizePhotoReachesTheGraphAndTheLaunchEnds) {
                         << "    <arg name=\"start_delay\" value=\"1\"/>\n"
                         << "  </include>\n"
                         << "</launch>\n";
-  const int port = FreePort();
+  const int port = slope_monitor::run_command::FreePort();
   ASSERT_GT(port, 0);
   const std::string master = "http://127.0.0.1:" + std::to_string(port);
   slope_monitor::run_command::CommandRun run;

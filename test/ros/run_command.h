@@ -2,7 +2,11 @@
 // its exit status and its output (stdout and stderr, in order).
 #pragma once
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
 #include <cstdio>
@@ -15,6 +19,20 @@ struct CommandRun {
   int status = -1;  // exit status; 128 + signal when killed
   std::string output;
 };
+
+// A TCP port no one listens on now (for a run's own ROS master).
+inline int FreePort() {
+  const int s = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = 0;
+  socklen_t len = sizeof(a);
+  const bool ok = bind(s, reinterpret_cast<sockaddr*>(&a), sizeof(a)) == 0 &&
+                  getsockname(s, reinterpret_cast<sockaddr*>(&a), &len) == 0;
+  close(s);
+  return ok ? ntohs(a.sin_port) : -1;
+}
 
 // Runs `command` by /bin/sh with stderr folded into the output.
 inline CommandRun Run(const std::string& command) {

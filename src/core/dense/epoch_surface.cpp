@@ -259,29 +259,16 @@ Eigen::Vector4d RegionOf(const io::GeoRaster& dem) {
                          dem.origin_y - dem.height * dem.cell_size, dem.origin_y);
 }
 
-std::string EpochSurfaceFileName(int epoch) {
-  char b[32];
-  std::snprintf(b, sizeof b, "surface_e%02d.tif", epoch);
+std::string EpochFileName(const char* stem, int epoch, const char* extension) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%s_e%02d.%s", stem, epoch, extension);
   return b;
 }
 
-std::string EpochChangeFileName(int epoch) {
-  char b[32];
-  std::snprintf(b, sizeof b, "change_e%02d.tif", epoch);
-  return b;
-}
-
-std::string EpochOrthoFileName(int epoch) {
-  char b[32];
-  std::snprintf(b, sizeof b, "ortho_e%02d.tif", epoch);
-  return b;
-}
-
-std::string EpochCloudFileName(int epoch) {
-  char b[32];
-  std::snprintf(b, sizeof b, "cloud_e%02d.ply", epoch);
-  return b;
-}
+std::string EpochSurfaceFileName(int epoch) { return EpochFileName("surface", epoch, "tif"); }
+std::string EpochChangeFileName(int epoch) { return EpochFileName("change", epoch, "tif"); }
+std::string EpochOrthoFileName(int epoch) { return EpochFileName("ortho", epoch, "tif"); }
+std::string EpochCloudFileName(int epoch) { return EpochFileName("cloud", epoch, "ply"); }
 
 }  // namespace dense
 }  // namespace slope_monitor

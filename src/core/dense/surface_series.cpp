@@ -11,16 +11,6 @@
 namespace slope_monitor {
 namespace dense {
 
-namespace {
-
-std::string EpochFileName(const char* stem, int epoch, const char* ext) {
-  char name[64];
-  std::snprintf(name, sizeof name, "%s_e%02d.%s", stem, epoch, ext);
-  return name;
-}
-
-}  // namespace
-
 SurfaceSeries::SurfaceSeries(const SurfaceSeriesOptions& options) : options_(options) {
   options_.surface.Check();
   options_.change.Check();

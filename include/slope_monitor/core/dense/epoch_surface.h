@@ -119,7 +119,10 @@ EpochSurfaceResult MeasureEpochSurface(
 // reference epoch's grid so their DEMs can be differenced.
 Eigen::Vector4d RegionOf(const io::GeoRaster& dem);
 
+// The per-epoch files: `<stem>_e<epoch, two digits>.<extension>`, e.g.
+// ("surface_report", 3, "json") -> "surface_report_e03.json"; then
 // "surface_e03.tif", "change_e03.tif", "ortho_e03.tif", "cloud_e03.ply".
+std::string EpochFileName(const char* stem, int epoch, const char* extension);
 std::string EpochSurfaceFileName(int epoch);
 std::string EpochChangeFileName(int epoch);
 std::string EpochOrthoFileName(int epoch);
