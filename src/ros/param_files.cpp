@@ -1,5 +1,8 @@
 #include "slope_monitor/ros/param_files.h"
 
+#include <filesystem>
+
+#include <ros/package.h>
 #include <yaml-cpp/yaml.h>
 
 #include "slope_monitor/core/common/error.h"
@@ -88,6 +91,27 @@ void SetParam(XmlRpc::XmlRpcValue* params, const std::string& key,
               const XmlRpc::XmlRpcValue& value) {
   if (params->getType() != XmlRpc::XmlRpcValue::TypeStruct) params->begin();
   (*params)[key] = value;
+}
+
+XmlRpc::XmlRpcValue StringListParam(const std::vector<std::string>& values) {
+  XmlRpc::XmlRpcValue list;
+  list.setSize(static_cast<int>(values.size()));
+  for (size_t i = 0; i < values.size(); ++i) list[static_cast<int>(i)] = values[i];
+  return list;
+}
+
+std::string PackageConfigDir() {
+  const std::string pkg = ros::package::getPath("slope_monitor");
+  if (pkg.empty())
+    throw ConfigError("package 'slope_monitor' not found (source the workspace's setup.bash)");
+  return pkg + "/config";
+}
+
+XmlRpc::XmlRpcValue LoadNodeParams(const std::string& config_dir, const std::string& node) {
+  XmlRpc::XmlRpcValue p = LoadParamFile(config_dir + "/defaults/" + node + ".yaml");
+  const std::string overlay = config_dir + "/process_bag/" + node + ".yaml";
+  if (std::filesystem::exists(overlay)) MergeParams(&p, LoadParamFile(overlay));
+  return p;
 }
 
 }  // namespace ros_adapters

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <xmlrpcpp/XmlRpcValue.h>
 
@@ -25,6 +26,18 @@ void MergeParams(XmlRpc::XmlRpcValue* into, const XmlRpc::XmlRpcValue& from);
 
 void SetParam(XmlRpc::XmlRpcValue* params, const std::string& key,
               const XmlRpc::XmlRpcValue& value);
+
+// A list parameter of strings (e.g. a node's `cameras`).
+XmlRpc::XmlRpcValue StringListParam(const std::vector<std::string>& values);
+
+// The installed package's config/ folder (ros::package); ConfigError when the
+// package is not found (the workspace not sourced).
+std::string PackageConfigDir();
+
+// A node's parameters as replay.launch loads them, without the command line's:
+// <config_dir>/defaults/<node>.yaml, then <config_dir>/process_bag/<node>.yaml
+// (what the launch files add) when there is one.
+XmlRpc::XmlRpcValue LoadNodeParams(const std::string& config_dir, const std::string& node);
 
 }  // namespace ros_adapters
 }  // namespace slope_monitor
