@@ -2,13 +2,14 @@
 // (core/dense/surface.h) and its change between epochs (core/dense/change.h).
 //
 // Thin wrapper: parameters -> SurfaceOptions; left/right images + camera_info
-// + tf (site -> <camera>_optical at the image stamp) -> OrientedImage; the
-// core does the rest. Outputs: the measured points (PointCloud2 in `site`,
-// fields x y z intensity sigma_z), the significant change against the
-// reference epoch (PointCloud2, fields x y z dz lod), and, when output_dir is
-// set, GeoTIFFs of the surface model, orthophoto and change per pair: in the
-// site's map CRS (an EPSG code, io::MapRasterFromSite) when site_file (its
-// crs) or site_config (its geodetic_origin) georeferences them, else in the
+// + tf (site -> <camera>_optical at the image stamp) -> OrientedImage
+// (ros/dense_conversions.h, as the clouds); the core does the rest.
+// Outputs: the measured points (PointCloud2 in `site`, fields x y z
+// intensity sigma_z), the significant change against the reference epoch
+// (PointCloud2, fields x y z dz lod), and, when output_dir is set, GeoTIFFs
+// of the surface model, orthophoto and change per pair: in the site's map
+// CRS (an EPSG code, io::MapRasterFromSite) when site_file (its crs) or
+// site_config (its geodetic_origin) georeferences them, else in the
 // local CRS `site` (said in the log at start).
 //
 // A pair is formed from the latest left and right image whose stamps differ
@@ -19,15 +20,12 @@
 #include <mutex>
 #include <sstream>
 
-#include <cv_bridge/cv_bridge.h>
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/PointCloud2.h>
-#include <sensor_msgs/point_cloud2_iterator.h>
-#include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 #include <pluginlib/class_list_macros.hpp>
@@ -37,9 +35,7 @@
 #include "slope_monitor/core/dense/surface.h"
 #include "slope_monitor/core/io/geotiff.h"
 #include "slope_monitor/core/io/map_raster.h"
-#include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/dense_conversions.h"
-#include "slope_monitor/ros/image_limits.h"
 #include "slope_monitor/ros/parameters.h"
 #include "slope_monitor/ros/setup.h"
 
@@ -136,12 +132,7 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
   dense::OrientedImage ToOriented(const Side& s, const char* role) {
     if (!s.info)
       throw InvalidArgument(Message("no camera_info received yet on ", role, "/camera_info"));
-    dense::OrientedImage im;
-    im.name = s.image->header.frame_id;
-    ros_adapters::CheckImageMessage(*s.image);  // pixel budget and data size, named below
-    const cv_bridge::CvImageConstPtr cv = cv_bridge::toCvShare(s.image);
-    im.image = cv->image;
-    im.camera = ros_adapters::CameraModelFromCameraInfo(*s.info, pixel_size_);
+    dense::OrientedImage im = ros_adapters::PairImage(s.image, *s.info, pixel_size_);
     geometry_msgs::TransformStamped t;
     try {
       t = tf_buffer_->lookupTransform(frame_id_, s.image->header.frame_id, s.image->header.stamp,
@@ -151,12 +142,7 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
                                     "' is not oriented: no transform ", frame_id_, " <- ",
                                     s.image->header.frame_id, " (", e.what(), ")"));
     }
-    const Eigen::Isometry3d site_from_optical = tf2::transformToEigen(t);
-    const Rigid3 optical_from_site =
-        Rigid3(Eigen::Matrix3d(site_from_optical.rotation()), site_from_optical.translation())
-            .Inverse();
-    im.pose = camera::ExteriorOrientation::FromOpticalFromSite(optical_from_site);
-    im.oriented = true;
+    ros_adapters::OrientPairImage(t, &im);
     return im;
   }
 
@@ -174,7 +160,7 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
                                                            stem.str(), &summary, site_.get());
     std_msgs::Header header = l.image->header;
     header.frame_id = frame_id_;
-    surface_pub_.publish(SurfaceCloud(s, header));
+    surface_pub_.publish(ros_adapters::PairSurfaceCloud(s, header));
     {
       std::lock_guard<std::mutex> state(state_mutex_);
       ++pairs_;
@@ -191,55 +177,9 @@ class DenseMatcherNodelet : public nodelet::Nodelet {
     last_change_ = c.summary.BriefReport();
     state.unlock();
     NODELET_INFO("dense_matcher: %s", c.summary.BriefReport().c_str());
-    change_pub_.publish(ChangeCloud(c, header));
+    change_pub_.publish(ros_adapters::PairChangeCloud(c, header));
     if (!output_dir_.empty())
       io::WriteGeoTiff(stem.str() + "_change.tif", io::MapRasterFromSite(c.change, site_.get()));
-  }
-
-  static sensor_msgs::PointCloud2 SurfaceCloud(const dense::SurfaceResult& s,
-                                               const std_msgs::Header& header) {
-    sensor_msgs::PointCloud2 cloud;
-    cloud.header = header;
-    sensor_msgs::PointCloud2Modifier mod(cloud);
-    mod.setPointCloud2Fields(
-        5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z",
-        1, sensor_msgs::PointField::FLOAT32, "intensity", 1, sensor_msgs::PointField::FLOAT32,
-        "sigma_z", 1, sensor_msgs::PointField::FLOAT32);
-    mod.resize(s.points.size());
-    sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"),
-        in(cloud, "intensity"), sz(cloud, "sigma_z");
-    for (const dense::SurfacePoint& p : s.points) {
-      *x = p.x_in_site.x();
-      *y = p.x_in_site.y();
-      *z = p.x_in_site.z();
-      *in = p.intensity;
-      *sz = p.sigma_z;
-      ++x, ++y, ++z, ++in, ++sz;
-    }
-    return cloud;
-  }
-
-  static sensor_msgs::PointCloud2 ChangeCloud(const dense::ChangeResult& c,
-                                              const std_msgs::Header& header) {
-    sensor_msgs::PointCloud2 cloud;
-    cloud.header = header;
-    sensor_msgs::PointCloud2Modifier mod(cloud);
-    mod.setPointCloud2Fields(
-        5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z",
-        1, sensor_msgs::PointField::FLOAT32, "dz", 1, sensor_msgs::PointField::FLOAT32, "lod", 1,
-        sensor_msgs::PointField::FLOAT32);
-    mod.resize(c.significant.size());
-    sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"),
-        dz(cloud, "dz"), lod(cloud, "lod");
-    for (const dense::ChangePoint& p : c.significant) {
-      *x = p.x_in_site.x();
-      *y = p.x_in_site.y();
-      *z = p.x_in_site.z();
-      *dz = p.dz;
-      *lod = p.lod;
-      ++x, ++y, ++z, ++dz, ++lod;
-    }
-    return cloud;
   }
 
   void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {

@@ -16,16 +16,15 @@
 //          (core/matching/sequence_matcher.h: pairs, prior association by
 //          messages, epochs, pair method, track IDs, pairs_b; process_bag
 //          --uav-tie-points runs the same). Callbacks only queue; one worker
-//          thread feeds the images and priors to it in arrival order and
-//          polls it with the wall clock (prior_wait, live sensors only; not
-//          in a replay, ros/setup.h LiveTimeouts).
+//          thread (ros/worker_queue.h) feeds the images and priors to it in
+//          arrival order and polls it with the wall clock (prior_wait, live
+//          sensors only; not in a replay, ros/setup.h LiveTimeouts).
 // Output: tie_points (slope_monitor/TiePointArray, header of image b,
 // per-match 2x2 covariance), diagnostics (matches, rejects by reason, time).
-#include <condition_variable>
-#include <deque>
+#include <chrono>
 #include <memory>
 #include <mutex>
-#include <thread>
+#include <optional>
 
 #include <cv_bridge/cv_bridge.h>
 #include <diagnostic_updater/diagnostic_updater.h>
@@ -45,19 +44,14 @@
 #include "slope_monitor/ros/sequence_conversions.h"
 #include "slope_monitor/ros/sequence_step.h"
 #include "slope_monitor/ros/setup.h"
+#include "slope_monitor/ros/worker_queue.h"
 
 namespace slope_monitor {
 
 class HexMatcherNodelet : public nodelet::Nodelet {
  public:
-  ~HexMatcherNodelet() override {
-    {
-      std::lock_guard<std::mutex> lock(queue_mutex_);
-      stop_ = true;
-    }
-    queue_cv_.notify_all();
-    if (worker_.joinable()) worker_.join();
-  }
+  // The worker stops (after the input it is matching) before the rest goes.
+  ~HexMatcherNodelet() override { queue_.reset(); }
 
  private:
   void onInit() override {
@@ -90,11 +84,13 @@ class HexMatcherNodelet : public nodelet::Nodelet {
     } else {
       // Large queues: a fast bag replay must lose no image (the callbacks
       // only queue; the worker matches).
+      queue_ = std::make_unique<ros_adapters::WorkerQueue<Input>>(
+          [this](const std::optional<Input>& in) { SequenceStep(in); },
+          std::chrono::milliseconds(50));
       sub_a_ = nh.subscribe(params_.image_topic, params_.image_queue,
                             &HexMatcherNodelet::OnSequenceImage, this);
       sub_b_ = nh.subscribe(params_.prior_topic, params_.image_queue,
                             &HexMatcherNodelet::OnPositionPrior, this);
-      worker_ = std::thread([this] { SequenceWorker(); });
       end_sub_ = ros_adapters::SubscribeEndOfInput(nh, ros_adapters::kEndOfMatching,
                                                    [this] { OnEndOfInput(); });
     }
@@ -154,25 +150,7 @@ class HexMatcherNodelet : public nodelet::Nodelet {
                              a->header.frame_id.c_str(), b->header.frame_id.c_str(), e.what());
       return;
     }
-    slope_monitor::TiePointArray out;
-    out.header = b->header;
-    out.header_a = a->header;
-    out.camera_a = cam_a;
-    out.camera_b = cam_b;
-    for (const matching::HexMatch& m : r.matches) {
-      slope_monitor::TiePoint t;
-      t.xa = m.xa.x();
-      t.ya = m.xa.y();
-      t.xb = m.xb.x();
-      t.yb = m.xb.y();
-      t.covariance = {m.covariance(0, 0), m.covariance(0, 1), m.covariance(1, 0),
-                      m.covariance(1, 1)};
-      t.correlation = m.correlation;
-      t.quality = m.quality;
-      t.method = slope_monitor::TiePoint::METHOD_LSC;
-      out.points.push_back(t);
-    }
-    pub_.publish(out);
+    pub_.publish(ros_adapters::ToMsg(r, a->header, b->header, cam_a, cam_b));
     last_summary_ = r.summary;
     ++pairs_;
   }
@@ -184,21 +162,9 @@ class HexMatcherNodelet : public nodelet::Nodelet {
     bool end_of_input = false;  // or the end of a replay (ros/setup.h)
   };
 
-  void OnEndOfInput() {
-    {
-      std::lock_guard<std::mutex> lock(queue_mutex_);
-      inputs_.push_back({nullptr, nullptr, true});
-    }
-    queue_cv_.notify_all();
-  }
+  void OnEndOfInput() { queue_->Push({nullptr, nullptr, true}); }
 
-  void OnSequenceImage(const sensor_msgs::ImageConstPtr& msg) {
-    {
-      std::lock_guard<std::mutex> lock(queue_mutex_);
-      inputs_.push_back({msg, nullptr});
-    }
-    queue_cv_.notify_all();
-  }
+  void OnSequenceImage(const sensor_msgs::ImageConstPtr& msg) { queue_->Push({msg, nullptr}); }
 
   void OnPositionPrior(const geometry_msgs::PoseWithCovarianceStampedConstPtr& msg) {
     if (const auto why = sequence_->CheckPrior(*msg)) {
@@ -207,45 +173,29 @@ class HexMatcherNodelet : public nodelet::Nodelet {
       ++bad_priors_;
       return;
     }
-    {
-      std::lock_guard<std::mutex> lock(queue_mutex_);
-      inputs_.push_back({nullptr, msg});
-    }
-    queue_cv_.notify_all();
+    queue_->Push({nullptr, msg});
   }
 
-  void SequenceWorker() {
-    while (true) {
-      Input next;
-      {
-        std::unique_lock<std::mutex> lock(queue_mutex_);
-        queue_cv_.wait_for(lock, std::chrono::milliseconds(50),
-                           [this] { return stop_ || !inputs_.empty(); });
-        if (stop_) return;
-        if (!inputs_.empty()) {
-          next = inputs_.front();
-          inputs_.pop_front();
-        }
-      }
-      const double now = ros::WallTime::now().toSec();
-      ros_adapters::SequenceOutput out;
-      if (next.image) {
-        // Replay: no prior_wait, so an image waits for a prior only when the
-        // bag has a prior topic (its player advertises every topic at start),
-        // as process_bag decides it.
-        if (!ros_adapters::LiveTimeouts())
-          sequence_->matcher().SetPriorsExpected(sub_b_.getNumPublishers() > 0);
-        out = sequence_->AddImage(next.image, now);
-      } else if (next.prior) {
-        out = sequence_->AddPrior(*next.prior);
-      } else if (next.end_of_input) {
-        NODELET_INFO("hex_matcher: end of the replay: matching the photos still waiting");
-        out = sequence_->Finish();
-      } else if (ros_adapters::LiveTimeouts()) {
-        out = sequence_->Poll(now);
-      }
-      Publish(out);
+  // The worker's next input (none: nothing came for 50 ms).
+  void SequenceStep(const std::optional<Input>& next) {
+    const double now = ros::WallTime::now().toSec();
+    ros_adapters::SequenceOutput out;
+    if (next && next->image) {
+      // Replay: no prior_wait, so an image waits for a prior only when the
+      // bag has a prior topic (its player advertises every topic at start),
+      // as process_bag decides it.
+      if (!ros_adapters::LiveTimeouts())
+        sequence_->matcher().SetPriorsExpected(sub_b_.getNumPublishers() > 0);
+      out = sequence_->AddImage(next->image, now);
+    } else if (next && next->prior) {
+      out = sequence_->AddPrior(*next->prior);
+    } else if (next && next->end_of_input) {
+      NODELET_INFO("hex_matcher: end of the replay: matching the photos still waiting");
+      out = sequence_->Finish();
+    } else if (ros_adapters::LiveTimeouts()) {
+      out = sequence_->Poll(now);
     }
+    Publish(out);
   }
 
   void Publish(const ros_adapters::SequenceOutput& out) {
@@ -312,11 +262,7 @@ class HexMatcherNodelet : public nodelet::Nodelet {
   std::string last_error_;
   // Sequence mode.
   std::unique_ptr<ros_adapters::SequenceMatcherStep> sequence_;  // worker only (and CheckPrior)
-  std::mutex queue_mutex_;                                       // inputs_, stop_
-  std::condition_variable queue_cv_;
-  std::deque<Input> inputs_;
-  bool stop_ = false;
-  std::thread worker_;
+  std::unique_ptr<ros_adapters::WorkerQueue<Input>> queue_;      // the inputs, to the worker
   ros::Subscriber end_sub_;  // replay only: the end of the input
   // Diagnostics (mutex_).
   int bad_priors_ = 0;

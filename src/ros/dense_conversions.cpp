@@ -9,6 +9,7 @@
 
 #include <cv_bridge/cv_bridge.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
+#include <tf2_eigen/tf2_eigen.h>
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/io/site_file.h"
@@ -280,6 +281,71 @@ DenseMatcherParameters ReadDenseMatcherParameters(ParamReader& p) {
     throw ConfigError(Message("parameter '", p.FullKey("max_depth"), "' = ", d.config.max_depth,
                               " must be > min_depth = ", d.config.min_depth));
   return d;
+}
+
+dense::OrientedImage PairImage(const sensor_msgs::Image::ConstPtr& image,
+                               const sensor_msgs::CameraInfo& info, double pixel_size) {
+  dense::OrientedImage im;
+  im.name = image->header.frame_id;
+  CheckImageMessage(*image);  // pixel budget and data size
+  const cv_bridge::CvImageConstPtr cv = cv_bridge::toCvShare(image);
+  im.image = cv->image;
+  im.camera = CameraModelFromCameraInfo(info, pixel_size);
+  return im;
+}
+
+void OrientPairImage(const geometry_msgs::TransformStamped& site_from_optical,
+                     dense::OrientedImage* image) {
+  const Eigen::Isometry3d t = tf2::transformToEigen(site_from_optical);
+  const Rigid3 optical_from_site = Rigid3(Eigen::Matrix3d(t.rotation()), t.translation()).Inverse();
+  image->pose = camera::ExteriorOrientation::FromOpticalFromSite(optical_from_site);
+  image->oriented = true;
+}
+
+sensor_msgs::PointCloud2 PairSurfaceCloud(const dense::SurfaceResult& s,
+                                          const std_msgs::Header& header) {
+  sensor_msgs::PointCloud2 cloud;
+  cloud.header = header;
+  sensor_msgs::PointCloud2Modifier mod(cloud);
+  mod.setPointCloud2Fields(
+      5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z", 1,
+      sensor_msgs::PointField::FLOAT32, "intensity", 1, sensor_msgs::PointField::FLOAT32, "sigma_z",
+      1, sensor_msgs::PointField::FLOAT32);
+  mod.resize(s.points.size());
+  sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"),
+      in(cloud, "intensity"), sz(cloud, "sigma_z");
+  for (const dense::SurfacePoint& p : s.points) {
+    *x = p.x_in_site.x();
+    *y = p.x_in_site.y();
+    *z = p.x_in_site.z();
+    *in = p.intensity;
+    *sz = p.sigma_z;
+    ++x, ++y, ++z, ++in, ++sz;
+  }
+  return cloud;
+}
+
+sensor_msgs::PointCloud2 PairChangeCloud(const dense::ChangeResult& c,
+                                         const std_msgs::Header& header) {
+  sensor_msgs::PointCloud2 cloud;
+  cloud.header = header;
+  sensor_msgs::PointCloud2Modifier mod(cloud);
+  mod.setPointCloud2Fields(
+      5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z", 1,
+      sensor_msgs::PointField::FLOAT32, "dz", 1, sensor_msgs::PointField::FLOAT32, "lod", 1,
+      sensor_msgs::PointField::FLOAT32);
+  mod.resize(c.significant.size());
+  sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"),
+      dz(cloud, "dz"), lod(cloud, "lod");
+  for (const dense::ChangePoint& p : c.significant) {
+    *x = p.x_in_site.x();
+    *y = p.x_in_site.y();
+    *z = p.x_in_site.z();
+    *dz = p.dz;
+    *lod = p.lod;
+    ++x, ++y, ++z, ++dz, ++lod;
+  }
+  return cloud;
 }
 
 }  // namespace ros_adapters

@@ -34,6 +34,26 @@ matching::SequencePrior FromPriorMsg(const geometry_msgs::PoseWithCovarianceStam
   return out;
 }
 
+namespace {
+
+// A least-squares matched point (a matching::SequenceTie or HexMatch) as a
+// TiePoint: pixels, covariance of xb row-major, correlation, quality.
+template <typename Match>
+slope_monitor::TiePoint LscTiePoint(const Match& t) {
+  slope_monitor::TiePoint p;
+  p.xa = t.xa.x();
+  p.ya = t.xa.y();
+  p.xb = t.xb.x();
+  p.yb = t.xb.y();
+  p.covariance = {t.covariance(0, 0), t.covariance(0, 1), t.covariance(1, 0), t.covariance(1, 1)};
+  p.correlation = t.correlation;
+  p.quality = t.quality;
+  p.method = slope_monitor::TiePoint::METHOD_LSC;
+  return p;
+}
+
+}  // namespace
+
 slope_monitor::TiePointArray ToMsg(const matching::SequencePair& pair, const std::string& camera) {
   slope_monitor::TiePointArray out;
   out.header.stamp = ToRosTime(pair.stamp_b);
@@ -49,18 +69,22 @@ slope_monitor::TiePointArray ToMsg(const matching::SequencePair& pair, const std
   out.pairs_b = pair.pairs_b;
   out.points.reserve(pair.points.size());
   for (const matching::SequenceTie& t : pair.points) {
-    slope_monitor::TiePoint p;
-    p.id = t.id;
-    p.xa = t.xa.x();
-    p.ya = t.xa.y();
-    p.xb = t.xb.x();
-    p.yb = t.xb.y();
-    p.covariance = {t.covariance(0, 0), t.covariance(0, 1), t.covariance(1, 0), t.covariance(1, 1)};
-    p.correlation = t.correlation;
-    p.quality = t.quality;
-    p.method = slope_monitor::TiePoint::METHOD_LSC;
-    out.points.push_back(p);
+    out.points.push_back(LscTiePoint(t));
+    out.points.back().id = t.id;
   }
+  return out;
+}
+
+slope_monitor::TiePointArray ToMsg(const matching::HexMatchResult& result,
+                                   const std_msgs::Header& header_a,
+                                   const std_msgs::Header& header_b, const std::string& camera_a,
+                                   const std::string& camera_b) {
+  slope_monitor::TiePointArray out;
+  out.header = header_b;
+  out.header_a = header_a;
+  out.camera_a = camera_a;
+  out.camera_b = camera_b;
+  for (const matching::HexMatch& m : result.matches) out.points.push_back(LscTiePoint(m));
   return out;
 }
 

@@ -5,6 +5,8 @@
 
 #include <optional>
 
+#include <geometry_msgs/TransformStamped.h>
+
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/PointCloud2.h>
@@ -132,6 +134,26 @@ sensor_msgs::PointCloud2 MakeSurfaceCloud(const dense::EpochSurfaceResult& surfa
 visualization_msgs::MarkerArray MakeChangeScaleBeside(const dense::EpochSurfaceResult& surface,
                                                       const ChangeScaleOptions& options,
                                                       const std_msgs::Header& header);
+
+// ---- the dense_matcher node (a stereo pair, core/dense/surface.h).
+
+// An image of a pair with its camera (from `info`, pixel_size [mm]), not
+// yet oriented. Throws InvalidArgument when the image message is beyond the
+// pixel budget or does not describe its data (ros/image_limits.h).
+dense::OrientedImage PairImage(const sensor_msgs::Image::ConstPtr& image,
+                               const sensor_msgs::CameraInfo& info, double pixel_size);
+
+// `image` oriented by the transform site <- <camera>_optical at its stamp.
+void OrientPairImage(const geometry_msgs::TransformStamped& site_from_optical,
+                     dense::OrientedImage* image);
+
+// The measured points: fields x y z intensity sigma_z (FLOAT32), in header.frame_id.
+sensor_msgs::PointCloud2 PairSurfaceCloud(const dense::SurfaceResult& s,
+                                          const std_msgs::Header& header);
+
+// The significant change against the reference: fields x y z dz lod (FLOAT32).
+sensor_msgs::PointCloud2 PairChangeCloud(const dense::ChangeResult& c,
+                                         const std_msgs::Header& header);
 
 }  // namespace ros_adapters
 }  // namespace slope_monitor

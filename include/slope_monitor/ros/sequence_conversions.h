@@ -7,9 +7,11 @@
 
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <sensor_msgs/Image.h>
+#include <std_msgs/Header.h>
 #include <opencv2/core.hpp>
 
 #include "slope_monitor/TiePointArray.h"
+#include "slope_monitor/core/matching/hex_matcher.h"
 #include "slope_monitor/core/matching/sequence_matcher.h"
 
 namespace slope_monitor {
@@ -31,6 +33,14 @@ matching::SequencePrior FromPriorMsg(const geometry_msgs::PoseWithCovarianceStam
 // camera_a/_b `camera`, epochs, pairs_b, points (id, pixels, covariance
 // row-major, correlation, quality, METHOD_LSC).
 slope_monitor::TiePointArray ToMsg(const matching::SequencePair& pair, const std::string& camera);
+
+// The hex matcher's pair or track result (core/matching/hex_matcher.h) as it
+// publishes it: header of image b, header_a of image a, cameras, points
+// (pixels, covariance row-major, correlation, quality, METHOD_LSC; no id).
+slope_monitor::TiePointArray ToMsg(const matching::HexMatchResult& result,
+                                   const std_msgs::Header& header_a,
+                                   const std_msgs::Header& header_b, const std::string& camera_a,
+                                   const std::string& camera_b);
 
 }  // namespace ros_adapters
 }  // namespace slope_monitor
