@@ -20,7 +20,8 @@ std::string Seconds(double s) { return Message(static_cast<long long>(std::llrou
 StampNs MakeStamp(int64_t sec, int64_t nsec) { return sec * kNsPerSecond + nsec; }
 
 double StampSeconds(StampNs stamp) {
-  return static_cast<double>(stamp / kNsPerSecond) +
+  // Whole seconds (integer division on purpose), then the nanoseconds.
+  return static_cast<double>(stamp / kNsPerSecond) +  // NOLINT(bugprone-integer-division)
          1e-9 * static_cast<double>(stamp % kNsPerSecond);
 }
 
@@ -141,7 +142,7 @@ std::vector<CollectedEpoch> EpochCollector::AddTargets(const ImageTargets& image
     std::optional<Eigen::Matrix2d> cov = Covariance(t.covariance, floor, &why);
     if (!t.pixel.allFinite()) why = "pixel not finite";
     if (!why.empty()) {
-      dropped_.push_back({key, key + ": " + name + ": " + why + " (dropped)"});
+      dropped_.push_back({key, Message(key, ": ", name, ": ", why, " (dropped)")});
       ++observations_dropped_;
       continue;
     }
@@ -185,7 +186,7 @@ std::vector<CollectedEpoch> EpochCollector::AddTies(const ImageTies& ties, doubl
         Covariance(t.covariance, options_.tie_pixel_sigma_floor, &why);
     if (!(t.a.allFinite() && t.b.allFinite())) why = "pixel not finite";
     if (!why.empty()) {
-      dropped_.push_back({kb, kb + ": " + id + " (with " + ka + "): " + why + " (dropped)"});
+      dropped_.push_back({kb, Message(kb, ": ", id, " (with ", ka, "): ", why, " (dropped)")});
       ++observations_dropped_;
       continue;
     }
@@ -565,6 +566,7 @@ BuiltScene BuildScene(const CollectedEpoch& epoch,
   // tie observations depending on it).
   auto sorted = [](const std::vector<CollectedObservation>& all, bool by_point) {
     std::vector<const CollectedObservation*> out;
+    out.reserve(all.size());
     for (const CollectedObservation& c : all) out.push_back(&c);
     std::stable_sort(out.begin(), out.end(),
                      [by_point](const CollectedObservation* a, const CollectedObservation* b) {

@@ -85,7 +85,7 @@ camera::ExteriorOrientation StartFromPosition(const camera::CameraModel& model,
 Eigen::VectorXd Standardized(const Eigen::MatrixXd& j, const Eigen::VectorXd& whitened, int rows,
                              int* rank) {
   Eigen::JacobiSVD<Eigen::MatrixXd> svd(j, Eigen::ComputeThinU);
-  const Eigen::VectorXd s = svd.singularValues();
+  const Eigen::VectorXd& s = svd.singularValues();
   const double tol = s.size() ? s(0) * 1e-10 : 0.0;
   *rank = 0;
   for (int k = 0; k < s.size(); ++k)

@@ -258,7 +258,7 @@ std::vector<int> FindUndeterminedPoints(const SchurCovarianceOptions& options,
       problem->GetParameterBlocksForResidualBlock(id, &blocks);
       const int m = problem->GetCostFunctionForResidualBlock(id)->num_residuals();
       residuals.resize(m);
-      jacobian.resize(3 * m);
+      jacobian.resize(3 * static_cast<size_t>(m));
       std::vector<double*> jacobians(blocks.size(), nullptr);
       for (size_t b = 0; b < blocks.size(); ++b)
         if (blocks[b] == point_blocks[j]) jacobians[b] = jacobian.data();

@@ -67,7 +67,7 @@ struct SiteCrs::Impl {
     std::lock_guard<std::mutex> lock(mutex);
     proj_errno_reset(pj);
     const PJ_COORD out = proj_trans(pj, dir, proj_coord(x.x(), x.y(), x.z(), 0.0));
-    const Eigen::Vector3d y(out.xyzt.x, out.xyzt.y, out.xyzt.z);
+    Eigen::Vector3d y(out.xyzt.x, out.xyzt.y, out.xyzt.z);
     if (proj_errno(pj) != 0 || !y.allFinite()) {
       throw InvalidArgument(Message(what, " [", x.x(), ", ", x.y(), ", ", x.z(), "] (site crs '",
                                     options.crs, "'): PROJ cannot convert it: ", ProjError(ctx)));

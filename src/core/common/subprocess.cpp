@@ -50,6 +50,7 @@ RunResult RunProgram(const std::vector<std::string>& argv, const std::string& in
   posix_spawn_file_actions_adddup2(&actions, in_read.fd, STDIN_FILENO);
   posix_spawn_file_actions_adddup2(&actions, out_write.fd, STDOUT_FILENO);
   std::vector<char*> args;
+  args.reserve(argv.size() + 1);
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
   pid_t pid = 0;

@@ -142,7 +142,7 @@ std::string AlertHook::RunOnce(const std::string& json) const {
 std::vector<AlertChange> AnnounceAlertChanges(
     const Snapshot& snapshot, const std::string& site, AlertChangeTracker* tracker, AlertHook* hook,
     const std::function<void(LogLevel, const std::string&)>& log) {
-  const std::vector<AlertChange> changes = tracker->Update(snapshot);
+  std::vector<AlertChange> changes = tracker->Update(snapshot);
   for (const AlertChange& c : changes) {
     if (hook) {
       for (const PointState& p : snapshot.points)

@@ -53,6 +53,7 @@ std::vector<AreaState> AssessAreas(const std::vector<AreaState>& previous,
                                    const AreaOptions& options) {
   for (size_t k = 0; k < current.areas.size(); ++k) CheckArea(current.areas[k], current.epoch, k);
   std::vector<std::unique_ptr<OGRPolygon>> before;
+  before.reserve(previous.size());
   for (const AreaState& p : previous) before.push_back(ToOgr(p.area));
   std::vector<ChangeArea> sorted = current.areas;
   std::stable_sort(sorted.begin(), sorted.end(),

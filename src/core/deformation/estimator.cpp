@@ -402,6 +402,7 @@ BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>&
   UpdateAlerts();
   if (history_ && !replay) {
     std::vector<PointState> states;
+    states.reserve(touched.size());
     for (const std::string& id : touched) states.push_back(StateOf(*points_[id]));
     history_->StoreEstimates(states, batch.epoch);
   }

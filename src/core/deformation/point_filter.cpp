@@ -26,8 +26,8 @@ void Transition(double tau, double q_day, Matrix9d* F, Matrix9d* Q) {
       t4 / 8.0, t3 / 3.0, t2 / 2.0,     //
       t3 / 6.0, t2 / 2.0, tau;
   q1 *= q_day;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) Q->block<3, 3>(3 * r, 3 * c) = q1(r, c) * I;
+  for (Eigen::Index r = 0; r < 3; ++r)
+    for (Eigen::Index c = 0; c < 3; ++c) Q->block<3, 3>(3 * r, 3 * c) = q1(r, c) * I;
 }
 
 }  // namespace

@@ -128,7 +128,7 @@ double Nice(double x) {
 }
 
 void Text(cv::Mat& img, const std::string& s, cv::Point p, double scale = 0.5,
-          cv::Scalar c = cv::Scalar(0, 0, 0), int thick = 1) {
+          const cv::Scalar& c = cv::Scalar(0, 0, 0), int thick = 1) {
   cv::putText(img, s, p, cv::FONT_HERSHEY_SIMPLEX, scale, c, thick, cv::LINE_AA);
 }
 

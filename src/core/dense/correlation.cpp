@@ -639,7 +639,7 @@ cv::Mat SampleGrid(const cv::Mat& dense_map, int g) {
   for (int i = 0; i < ni; ++i) {
     const float* src = dense_map.ptr<float>(i * g);
     float* dst = grid.ptr<float>(i);
-    for (int j = 0; j < nj; ++j) dst[j] = src[j * g];
+    for (int j = 0; j < nj; ++j) dst[j] = src[static_cast<ptrdiff_t>(j) * g];
   }
   return grid;
 }

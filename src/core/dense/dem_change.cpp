@@ -349,6 +349,7 @@ std::vector<double> ModelSigma(const ErrorModel& m, const std::vector<double>& s
 double ErrorModel::Sigma(double slope_deg, double roughness) const {
   if (bins.empty()) return 0.0;
   std::vector<double> sc;
+  sc.reserve(static_cast<size_t>(slope_bins));
   for (int i = 0; i < slope_bins; ++i)
     sc.push_back(bins[static_cast<size_t>(i) * roughness_bins].slope);
   int i0, i1;
@@ -356,6 +357,7 @@ double ErrorModel::Sigma(double slope_deg, double roughness) const {
   Bracket(sc, slope_deg, &i0, &i1, &w);
   auto along_roughness = [&](int i) {
     std::vector<double> rc;
+    rc.reserve(static_cast<size_t>(roughness_bins));
     for (int j = 0; j < roughness_bins; ++j)
       rc.push_back(bins[static_cast<size_t>(i) * roughness_bins + j].roughness);
     int j0, j1;

@@ -93,7 +93,8 @@ void Coarsen(const io::GeoRaster& dem, const std::vector<uint8_t>& stable, int f
       int n = 0;
       for (int i = 0; i < f; ++i)
         for (int j = 0; j < f; ++j) {
-          const size_t k = static_cast<size_t>(r * f + i) * dem.width + c * f + j;
+          const size_t k =
+              static_cast<size_t>(r * f + i) * dem.width + static_cast<size_t>(c) * f + j;
           const float v = dem.bands[kHeight][k];
           if (!dem.IsNoData(v)) sum += v, ++n;
           if (stable[k]) st->at<uint8_t>(r, c) = 1;

@@ -37,7 +37,7 @@ void SurfaceSeries::WriteProducts(const EpochSurfaceInput& input, SeriesEpoch* o
     }
   };
   attempt("surface file", [&] {
-    const std::string path = ReportPath(EpochSurfaceFileName(k));
+    std::string path = ReportPath(EpochSurfaceFileName(k));
     io::WriteGeoTiff(path, io::MapRasterFromSite(s.dem, site_.get()));
     return path;
   });
@@ -47,14 +47,14 @@ void SurfaceSeries::WriteProducts(const EpochSurfaceInput& input, SeriesEpoch* o
       if (im.kind == ImageKind::kUav && im.image.oriented && !im.image.image.empty())
         uav.push_back(im.image);
     if (uav.empty()) return std::string();  // fixed stereo pairs only: no orthophoto
-    const std::string path = ReportPath(EpochOrthoFileName(k));
+    std::string path = ReportPath(EpochOrthoFileName(k));
     io::WriteGeoTiff(path,
                      io::MapRasterFromSite(ColourOrthophoto(s.dem, uav, options_.ortho_subdivision),
                                            site_.get()));
     return path;
   });
   attempt("cloud file", [&] {
-    const std::string path = ReportPath(EpochCloudFileName(k));
+    std::string path = ReportPath(EpochCloudFileName(k));
     WriteCloudPly(s.points, path);
     return path;
   });

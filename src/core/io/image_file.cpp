@@ -273,11 +273,9 @@ ImageHeader PngHeader(ImageBytes& r) {
       hd.channels = 1;
       break;
     case 2:
+    case 3:  // palette
       hd.channels = 3;
       break;
-    case 3:
-      hd.channels = 3;
-      break;  // palette
     case 4:
       hd.channels = 2;
       break;

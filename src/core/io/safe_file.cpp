@@ -106,7 +106,7 @@ void CheckFileName(const std::string& name, const std::string& what) {
 std::string ResolveSubfolder(const std::string& root, const std::string& subfolder) {
   if (root.empty()) throw InvalidArgument("the report folder (root) is empty");
   MakeDirectories(root);
-  const std::string real_root = RealPath(root);
+  std::string real_root = RealPath(root);
   if (subfolder.empty()) return real_root;
   const std::string what = Message("subfolder '", Printable(subfolder), "'");
   if (subfolder.front() == '/')
@@ -140,7 +140,7 @@ std::string ResolveSubfolder(const std::string& root, const std::string& subfold
     dir.Reset(next);
   }
   // Checked again after resolution: the folder really lies inside the root.
-  const std::string resolved = RealPath(real_root + "/" + subfolder);
+  std::string resolved = RealPath(real_root + "/" + subfolder);
   if (resolved.compare(0, real_root.size() + 1, real_root + "/") != 0)
     throw InvalidArgument(
         Message(what, " resolves to '", resolved, "', outside '", real_root, "'"));

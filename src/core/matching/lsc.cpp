@@ -102,7 +102,7 @@ bool LscTemplateGradient(const cv::Mat& image_a, const Eigen::Vector2d& xa, int 
     return false;
   }
   const int w = 2 * hp + 1;
-  std::vector<double> patch(w * w);
+  std::vector<double> patch(static_cast<size_t>(w) * w);
   for (int v = -hp, k = 0; v <= hp; ++v)
     for (int u = -hp; u <= hp; ++u, ++k) patch[k] = Sample(image_a, xa.x() + u, xa.y() + v, interp);
   auto at = [&](int u, int v) { return patch[(v + hp) * w + (u + hp)]; };

@@ -299,7 +299,7 @@ Eigen::Vector2d Renderer::IdealAt(double col, double row) const {
             iy = std::min(static_cast<int>(gy), table_h_ - 2);
   const double fx = gx - ix, fy = gy - iy;
   const size_t k00 = 2 * (static_cast<size_t>(iy) * table_w_ + ix);
-  const size_t k10 = k00 + 2, k01 = k00 + 2 * table_w_, k11 = k01 + 2;
+  const size_t k10 = k00 + 2, k01 = k00 + 2 * static_cast<size_t>(table_w_), k11 = k01 + 2;
   Eigen::Vector2d out;
   for (int a = 0; a < 2; ++a) {
     out[a] = (1 - fy) * ((1 - fx) * ideal_[k00 + a] + fx * ideal_[k10 + a]) +
@@ -390,9 +390,10 @@ RenderResult Renderer::Render(const Scene::State& state, const camera::ExteriorO
           sum *= static_cast<float>(w_s);
         }
         if (channels == 3) {
-          row_ptr[3 * col] = sum.z();
-          row_ptr[3 * col + 1] = sum.y();
-          row_ptr[3 * col + 2] = sum.x();
+          float* bgr = row_ptr + 3 * static_cast<ptrdiff_t>(col);
+          bgr[0] = sum.z();
+          bgr[1] = sum.y();
+          bgr[2] = sum.x();
         } else {
           row_ptr[col] = Luma(sum);
         }
@@ -403,6 +404,7 @@ RenderResult Renderer::Render(const Scene::State& state, const camera::ExteriorO
     work(0);
   } else {
     std::vector<std::thread> pool;
+    pool.reserve(nthreads);
     for (int k = 0; k < nthreads; ++k) pool.emplace_back(work, k);
     for (auto& t : pool) t.join();
   }

@@ -621,19 +621,18 @@ Survey SurveyGenerator::Generate(const std::function<void(int, int)>& progress) 
 }
 
 void WriteSurveyFiles(Survey* survey, const std::string& stem) {
-  std::string base = stem;
   const size_t slash = stem.find_last_of('/');
   const std::string name = slash == std::string::npos ? stem : stem.substr(slash + 1);
   survey->truth.surfaces.clear();
   for (size_t k = 0; k < survey->surfaces.size(); ++k) {
     const std::string file = name + ".surface" + EpochSuffix(static_cast<int>(k)) + ".tif";
-    io::WriteGeoTiff(base + ".surface" + EpochSuffix(static_cast<int>(k)) + ".tif",
+    io::WriteGeoTiff(stem + ".surface" + EpochSuffix(static_cast<int>(k)) + ".tif",
                      survey->surfaces[k]);
     survey->truth.surfaces.push_back({static_cast<int>(k), file});
   }
-  survey->truth.Save(base + ".truth.yaml");
-  survey->target_list.Save(base + ".targets.yaml");
-  WriteSiteOverlay(survey->truth, base + ".site.yaml");
+  survey->truth.Save(stem + ".truth.yaml");
+  survey->target_list.Save(stem + ".targets.yaml");
+  WriteSiteOverlay(survey->truth, stem + ".site.yaml");
 }
 
 std::vector<std::pair<std::string, std::string>> ColocatedPoints(const SurveyTruth& truth,

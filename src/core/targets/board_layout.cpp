@@ -91,6 +91,7 @@ Growth Grow(const std::vector<Eigen::Vector2d>& c, const BoardLayout& layout, in
   const std::vector<std::pair<int, int>> one =
       hex ? std::vector<std::pair<int, int>>{{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, -1}, {-1, 1}}
           : std::vector<std::pair<int, int>>{{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
+  steps.reserve(2 * one.size());
   for (const auto& s : one) steps.push_back(s);
   for (const auto& s : one) steps.emplace_back(2 * s.first, 2 * s.second);
   for (int iter = 0; iter < 200; ++iter) {

@@ -44,6 +44,7 @@ std::vector<int> NearestOthers(const std::vector<Eigen::Vector2d>& pts, int i, i
   const int take = std::min<int>(k, d.size());
   std::partial_sort(d.begin(), d.begin() + take, d.end());
   std::vector<int> out;
+  out.reserve(take);
   for (int q = 0; q < take; ++q) out.push_back(d[q].second);
   return out;
 }
@@ -172,6 +173,7 @@ LatticeFit FitListLayout(const std::vector<Eigen::Vector2d>& centres, const Boar
   }
   fit.image_from_board = h;
   std::vector<double> nearest;
+  nearest.reserve(centres.size());
   for (int k = 0; k < static_cast<int>(centres.size()); ++k)
     nearest.push_back((centres[NearestOthers(centres, k, 1)[0]] - centres[k]).norm());
   std::nth_element(nearest.begin(), nearest.begin() + nearest.size() / 2, nearest.end());

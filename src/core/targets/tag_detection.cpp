@@ -133,7 +133,7 @@ double DarkSurroundFraction(const ImageView& im, const std::array<Eigen::Vector2
   Eigen::Matrix<double, 8, 8> a;
   Eigen::Matrix<double, 8, 1> rhs;
   const double uv[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
-  for (int k = 0; k < 4; ++k) {
+  for (Eigen::Index k = 0; k < 4; ++k) {
     const double u = uv[k][0], v = uv[k][1], x = corners[k].x(), y = corners[k].y();
     a.row(2 * k) << u, v, 1, 0, 0, 0, -u * x, -v * x;
     a.row(2 * k + 1) << 0, 0, 0, u, v, 1, -u * y, -v * y;
@@ -361,14 +361,13 @@ std::pair<int, int> SaturatedSurround(const Observation& o, const TagEdges& t, d
 // to the band): the share of the whole surround that is dark.
 double OccludedShare(const apriltag_detection_t* det, const TagEdges& t,
                      const std::array<Line, 4>& lines, double cell, const Frame& f) {
-  std::array<Line, 4> l0 = lines;
   std::array<Eigen::Vector2d, 4> outer;
   double black = 0.0, white = 0.0;
   for (int k = 0; k < 4; ++k) {
     black += 0.25 * t.edges[k].b;
     white += 0.25 * t.edges[k].w;
   }
-  if (!CornersFromEdges(l0, &outer)) return 0.0;
+  if (!CornersFromEdges(lines, &outer)) return 0.0;
   return DarkSurroundFraction(f.im, outer, det->family->width_at_border, cell, 1.5 * t.blur + 0.5,
                               black, white);
 }

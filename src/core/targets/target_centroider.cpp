@@ -309,7 +309,7 @@ bool TargetCentroider::GrayWeightedCentroid(const cv::Mat& intensity, const Eige
             y1 = static_cast<int>(std::ceil(seed.y() + radius));
   if (x0 < 0 || y0 < 0 || x1 >= intensity.cols || y1 >= intensity.rows) return false;
   std::vector<float> sorted;
-  sorted.reserve((x1 - x0 + 1) * (y1 - y0 + 1));
+  sorted.reserve(static_cast<size_t>(x1 - x0 + 1) * (y1 - y0 + 1));
   for (int y = y0; y <= y1; ++y)
     for (int x = x0; x <= x1; ++x) sorted.push_back(im.At(x, y));
   std::sort(sorted.begin(), sorted.end());

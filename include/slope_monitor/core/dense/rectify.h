@@ -54,6 +54,9 @@ struct RectifyOptions {
 // The virtual camera pair. Rectified pixel (x, y) of camera i looks along
 //   ray_in_rect = ((x - cx[i]) / f, (y - cy) / f, 1),  direction_in_site = site_from_rect *
 //   ray_in_rect.
+// clang-tidy 14 reports '__i0' here: the index of the copy the compiler
+// writes for the array members (centre, cx), not a name of ours.
+// NOLINTNEXTLINE(bugprone-reserved-identifier)
 struct RectifiedGeometry {
   Eigen::Matrix3d site_from_rect = Eigen::Matrix3d::Identity();
   Eigen::Vector3d centre[2];  // projection centres in site [m]
