@@ -41,24 +41,13 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     // inputs (they have ended), then write the reports once more.
     std::lock_guard<std::mutex> lock(mutex_);
     if (!step_) return;
-    step_->Flush(false);
-    const ros_adapters::EstimatorParameters& p = step_->parameters();
-    if (!p.report_on_shutdown || p.report_dir.empty()) return;
-    if (step_->GetSnapshot().points.empty()) {
-      // An empty, unreadable or truncated bag, or one without the input
-      // topics: empty report files would look like a result.
-      ROS_WARN(
-          "deformation_estimator: no point was ever measured (history '%s'); no reports written to "
-          "%s (was the bag empty, unreadable, or without the topics %s?)",
-          p.database.c_str(), p.report_dir.c_str(), TopicList().c_str());
-      return;
-    }
-    try {
-      const auto files = step_->WriteReports("", p.report_formats);
-      ROS_INFO("deformation_estimator: wrote %zu report file(s) to %s at shutdown", files.size(),
-               p.report_dir.c_str());
-    } catch (const std::exception& e) {
-      ROS_ERROR("deformation_estimator: reports at shutdown failed: %s", e.what());
+    for (const ros_adapters::LogLine& line : step_->FinalReports()) {
+      if (line.level == ros_adapters::LogLine::kError)
+        ROS_ERROR("deformation_estimator: %s", line.text.c_str());
+      else if (line.level == ros_adapters::LogLine::kWarn)
+        ROS_WARN("deformation_estimator: %s", line.text.c_str());
+      else
+        ROS_INFO("deformation_estimator: %s", line.text.c_str());
     }
   }
 
@@ -192,22 +181,13 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   }
 
   // A node that cannot do its job says so: ERROR on /diagnostics every
-  // second until it is restarted with the cause fixed.
+  // second until it is restarted with the cause fixed (ros/setup.h).
   void ReportSetUpFailure(const std::string& cause) {
     step_.reset();
-    setup_error_ = cause;
-    updater_ =
-        std::make_unique<diagnostic_updater::Updater>(getNodeHandle(), getPrivateNodeHandle());
-    updater_->setHardwareID("deformation_estimator");
-    updater_->add("deformation_estimator", this, &DeformationEstimatorNodelet::Diagnose);
-    diag_timer_ = getNodeHandle().createWallTimer(
-        ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_->force_update(); });
-  }
-
-  std::string TopicList() const {
-    std::string t;
-    for (const std::string& x : params_.input_topics) t += (t.empty() ? "" : ", ") + x;
-    return t;
+    setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(
+        getNodeHandle(), getPrivateNodeHandle(), "deformation_estimator", cause,
+        std::vector<std::pair<std::string, std::string>>{
+            {"database", params_.database.empty() ? "(none)" : params_.database}});
   }
 
   // Caller holds mutex_.
@@ -293,10 +273,7 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     try {
       // output_dir names a subfolder of report_dir, never a path of its own.
-      if (params_.report_dir.empty())
-        throw InvalidArgument(
-            "parameter 'report_dir' is empty: export_report writes only inside it");
-      res.files = step_->WriteReports(req.output_dir, req.formats);
+      res.files = step_->ExportReports(req.output_dir, req.formats);
       res.success = true;
       res.message = Message("wrote ", res.files.size(), " file(s) to ", params_.report_dir, "/",
                             req.output_dir);
@@ -304,18 +281,12 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
       res.success = false;
       res.files.clear();  // never present a partial set as complete
       res.message = e.what();
-      step_->set_last_problem(e.what());
     }
     return true;
   }
 
   void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (!setup_error_.empty()) {
-      stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "not running: " + setup_error_);
-      stat.add("database", params_.database.empty() ? "(none)" : params_.database);
-      return;
-    }
     step_->Diagnose(stat);
   }
 
@@ -331,7 +302,8 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
   ros::ServiceServer reference_srv_, export_srv_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;
   ros::WallTimer diag_timer_;
-  std::string setup_error_;  // why the node is not running; "" when it is
+  std::unique_ptr<ros_adapters::SetUpFailureDiagnostics>
+      setup_failure_;  // onInit failed: ERROR diagnostics
 };
 
 }  // namespace slope_monitor

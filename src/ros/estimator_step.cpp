@@ -152,6 +152,40 @@ std::vector<std::string> EstimatorStep::WriteReports(const std::string& subfolde
                                       parameters_.report);
 }
 
+std::vector<LogLine> EstimatorStep::FinalReports() {
+  Flush(false);
+  const EstimatorParameters& p = parameters_;
+  if (!p.report_on_shutdown || p.report_dir.empty()) return {};
+  if (GetSnapshot().points.empty()) {
+    // An empty, unreadable or truncated bag, or one without the input topics.
+    std::string topics;
+    for (const std::string& x : p.input_topics) topics += (topics.empty() ? "" : ", ") + x;
+    return {{LogLine::kWarn,
+             Message("no point was ever measured (history '", p.database,
+                     "'); no reports written to ", p.report_dir,
+                     " (was the bag empty, unreadable, or without the topics ", topics, "?)")}};
+  }
+  try {
+    const auto files = WriteReports("", p.report_formats);
+    return {{LogLine::kInfo,
+             Message("wrote ", files.size(), " report file(s) to ", p.report_dir, " at shutdown")}};
+  } catch (const std::exception& e) {
+    return {{LogLine::kError, std::string("reports at shutdown failed: ") + e.what()}};
+  }
+}
+
+std::vector<std::string> EstimatorStep::ExportReports(const std::string& subfolder,
+                                                      const std::vector<std::string>& formats) {
+  try {
+    if (parameters_.report_dir.empty())
+      throw InvalidArgument("parameter 'report_dir' is empty: export_report writes only inside it");
+    return WriteReports(subfolder, formats);
+  } catch (const std::exception& e) {
+    last_problem_ = e.what();
+    throw;
+  }
+}
+
 void EstimatorStep::Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) const {
   if (errors_ > 0 && !last_problem_.empty()) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "dropped messages: " + last_problem_);

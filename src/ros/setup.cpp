@@ -19,13 +19,14 @@ std::optional<std::string> SetUpError(const std::function<void()>& set_up) {
   return std::nullopt;
 }
 
-SetUpFailureDiagnostics::SetUpFailureDiagnostics(const ros::NodeHandle& nh,
-                                                 const ros::NodeHandle& pnh,
-                                                 const std::string& name, const std::string& cause)
-    : cause_(cause), updater_(nh, pnh) {
+SetUpFailureDiagnostics::SetUpFailureDiagnostics(
+    const ros::NodeHandle& nh, const ros::NodeHandle& pnh, const std::string& name,
+    const std::string& cause, std::vector<std::pair<std::string, std::string>> values)
+    : cause_(cause), values_(std::move(values)), updater_(nh, pnh) {
   updater_.setHardwareID(name);
   updater_.add(name, [this](diagnostic_updater::DiagnosticStatusWrapper& stat) {
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "not running: " + cause_);
+    for (const auto& [key, value] : values_) stat.add(key, value);
   });
   ros::NodeHandle timer_nh(nh);
   timer_ = timer_nh.createWallTimer(

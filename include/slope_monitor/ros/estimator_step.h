@@ -88,6 +88,18 @@ class EstimatorStep {
   std::vector<std::string> WriteReports(const std::string& subfolder,
                                         const std::vector<std::string>& formats);
 
+  // The reports once more at the end of the input (a replay's end,
+  // shutdown): what still waits for the other inputs is fused first; with
+  // report_on_shutdown and a report_dir the reports are written, but none
+  // when no point was ever measured (empty files would look like a result).
+  // The lines to log (INFO written, WARN nothing measured, ERROR failed).
+  std::vector<LogLine> FinalReports();
+  // The export_report service: the reports under report_dir/subfolder, the
+  // files written. InvalidArgument when report_dir is empty (an export
+  // writes only inside it); a failure is kept as the last problem, thrown.
+  std::vector<std::string> ExportReports(const std::string& subfolder,
+                                         const std::vector<std::string>& formats);
+
   // The node's diagnostics (counts, last problem).
   void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) const;
   const std::string& last_problem() const { return last_problem_; }

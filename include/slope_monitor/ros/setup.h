@@ -19,6 +19,8 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <diagnostic_updater/diagnostic_updater.h>
 #include <ros/ros.h>
@@ -37,13 +39,17 @@ std::optional<std::string> SetUpError(const std::function<void()>& set_up);
 //
 //   setup_failure_ = std::make_unique<SetUpFailureDiagnostics>(nh, pnh, "my_node",
 //                                                              "parameters rejected: " + *error);
+//
+// `values`: key-value pairs added to the status (e.g. the refused database).
 class SetUpFailureDiagnostics {
  public:
   SetUpFailureDiagnostics(const ros::NodeHandle& nh, const ros::NodeHandle& pnh,
-                          const std::string& name, const std::string& cause);
+                          const std::string& name, const std::string& cause,
+                          std::vector<std::pair<std::string, std::string>> values = {});
 
  private:
   std::string cause_;
+  std::vector<std::pair<std::string, std::string>> values_;
   diagnostic_updater::Updater updater_;
   ros::WallTimer timer_;
 };
