@@ -6,8 +6,7 @@
 // with their sigma, the camera frustums (rviz), and displacements of monitoring points against the
 // reference epoch. The work is ros_adapters::AdjusterStep (ros/adjuster_step.h),
 // which process_bag drives too; this nodelet subscribes, orders the cameras'
-// markers, publishes and diagnoses.
-#include <algorithm>
+// markers (ros_adapters::EpochMarkerOrder), publishes and diagnoses.
 #include <map>
 #include <memory>
 #include <mutex>
@@ -34,7 +33,6 @@
 #include "slope_monitor/TargetObservationArray.h"
 #include "slope_monitor/TiePointArray.h"
 #include "slope_monitor/core/common/error.h"
-#include "slope_monitor/core/common/input_order.h"
 #include "slope_monitor/ros/adjuster_step.h"
 #include "slope_monitor/ros/node_parameters.h"
 #include "slope_monitor/ros/parameters.h"
@@ -67,6 +65,8 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     displacements_pub_ =
         pnh.advertise<slope_monitor::PointDisplacementArray>("displacements", 5, true);
     frustums_pub_ = pnh.advertise<visualization_msgs::MarkerArray>("frustums", 1, true);
+    // The configured cameras' markers in epoch order (ros/adjuster_step.h).
+    marker_order_ = std::make_unique<ros_adapters::EpochMarkerOrder>(params().collector.cameras);
     for (const std::string& topic : params().target_topics)
       target_subs_.push_back(nh.subscribe(topic, 500, &BundleAdjusterNodelet::OnTargets, this));
     for (const std::string& cam : params().collector.cameras) {
@@ -82,12 +82,6 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
           nh.subscribe(topic, 500, &BundleAdjusterNodelet::OnPositionPrior, this));
     for (const std::string& topic : params().epoch_topics)
       epoch_subs_.push_back(nh.subscribe(topic, 20, &BundleAdjusterNodelet::OnEpoch, this));
-    // The configured cameras' markers in epoch order: each camera's topic is
-    // in order, but on a fast replay or a busy machine one camera's next
-    // epoch can overtake another's end marker, which would cut that one short.
-    if (!params().collector.cameras.empty())
-      marker_order_ = std::make_unique<InputOrder<slope_monitor::EpochMarkerConstPtr>>(
-          params().collector.cameras);
     // A live installation may switch off the services that change state (ROS 1
     // has no authentication; doc/security.md).
     if (params().enable_run_adjustment)
@@ -141,7 +135,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     Log(log);
     if (kept == params().collector.cameras) return;
     step_->KeepCameras(kept);
-    marker_order_ = std::make_unique<InputOrder<slope_monitor::EpochMarkerConstPtr>>(kept);
+    marker_order_ = std::make_unique<ros_adapters::EpochMarkerOrder>(kept);
   }
 
   // Whether a matcher publishes tie points (none started, or it failed on
@@ -183,15 +177,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   void OnEpoch(const slope_monitor::EpochMarkerConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     CheckReplayCameras();
-    const auto& cameras = params().collector.cameras;
-    // A camera's marker of epoch k waits until every camera has begun epoch k
-    // (unnumbered markers, epoch 0, are not held).
-    if (!marker_order_ || msg->epoch == 0 ||
-        std::find(cameras.begin(), cameras.end(), msg->source) == cameras.end()) {
-      RouteEnd(msg);
-      return;
-    }
-    for (auto& r : marker_order_->Add(msg->source, msg->epoch, msg, Now())) RouteEnd(r.item);
+    for (const auto& marker : marker_order_->Add(msg, Now())) RouteEnd(marker);
   }
 
   // Caller holds mutex_.
@@ -208,10 +194,10 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       const double wait = params().collector.epoch_wait;
-      if (marker_order_ && ros_adapters::LiveTimeouts()) {
+      if (ros_adapters::LiveTimeouts()) {
         // Live: a camera silent for epoch_wait no longer holds the others' markers.
         std::vector<std::string> given_up;
-        for (auto& r : marker_order_->Expire(Now(), wait, &given_up)) RouteEnd(r.item);
+        for (const auto& marker : marker_order_->Expire(Now(), wait, &given_up)) RouteEnd(marker);
         for (const std::string& c : given_up)
           NODELET_WARN(
               "bundle_adjuster: no epoch marker of '%s' for epoch_wait %.0f s: the other "
@@ -231,8 +217,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   // has (process_bag's Finish); the log names what was missing.
   void OnEndOfInput() {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (marker_order_)
-      for (auto& r : marker_order_->Flush()) RouteEnd(r.item);
+    for (const auto& marker : marker_order_->Flush()) RouteEnd(marker);
     step_->SetTiePointsExpected(MatcherPublishing());
     if (const std::optional<ros_adapters::SolvedEpoch> e = step_->Finish()) {
       NODELET_INFO("bundle_adjuster: end of the replay: solving the epoch still open");
@@ -326,8 +311,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
   ros::ServiceServer run_srv_, reference_srv_, resect_srv_;
   ros::WallTimer gap_timer_;
   ros::Subscriber end_sub_;  // replay only: the end of the input
-  std::unique_ptr<InputOrder<slope_monitor::EpochMarkerConstPtr>>
-      marker_order_;  // null without cameras
+  std::unique_ptr<ros_adapters::EpochMarkerOrder> marker_order_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
   tf2_ros::StaticTransformBroadcaster static_broadcaster_;
   std::unique_ptr<diagnostic_updater::Updater> updater_;

@@ -27,6 +27,35 @@ std::vector<std::string> ReplayCameras(const AdjusterParameters& parameters,
   return kept;
 }
 
+EpochMarkerOrder::EpochMarkerOrder(const std::vector<std::string>& cameras) : cameras_(cameras) {
+  if (!cameras_.empty()) order_ = std::make_unique<InputOrder<Marker>>(cameras_);
+}
+
+std::vector<EpochMarkerOrder::Marker> EpochMarkerOrder::Add(const Marker& msg, double now) {
+  if (!order_ || msg->epoch == 0 ||
+      std::find(cameras_.begin(), cameras_.end(), msg->source) == cameras_.end())
+    return {msg};
+  return Items(order_->Add(msg->source, msg->epoch, msg, now));
+}
+
+std::vector<EpochMarkerOrder::Marker> EpochMarkerOrder::Expire(double now, double wait,
+                                                               std::vector<std::string>* given_up) {
+  if (!order_) return {};
+  return Items(order_->Expire(now, wait, given_up));
+}
+
+std::vector<EpochMarkerOrder::Marker> EpochMarkerOrder::Flush() {
+  if (!order_) return {};
+  return Items(order_->Flush());
+}
+
+std::vector<EpochMarkerOrder::Marker> EpochMarkerOrder::Items(
+    const std::vector<InputOrder<Marker>::Released>& released) const {
+  std::vector<Marker> out;
+  for (const auto& r : released) out.push_back(r.item);
+  return out;
+}
+
 AdjusterStep::AdjusterStep(const AdjusterParameters& parameters, const std::string& source_name)
     : parameters_(parameters),
       source_name_(source_name),

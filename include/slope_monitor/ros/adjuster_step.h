@@ -26,6 +26,7 @@
 #include "slope_monitor/TiePointArray.h"
 #include "slope_monitor/core/adjustment/epoch_collector.h"
 #include "slope_monitor/core/adjustment/epochs.h"
+#include "slope_monitor/core/common/input_order.h"
 #include "slope_monitor/ros/epoch_solver.h"
 #include "slope_monitor/ros/node_parameters.h"
 
@@ -42,6 +43,31 @@ namespace ros_adapters {
 std::vector<std::string> ReplayCameras(const AdjusterParameters& parameters,
                                        const std::function<bool(const std::string&)>& present,
                                        std::vector<LogLine>* log);
+
+// The configured cameras' epoch markers in epoch order (the live node; a
+// bag is read in order): each camera's topic is in order, but on a fast
+// replay or a busy machine one camera's next epoch can overtake another's
+// end marker, which would cut that one short. A camera's marker of epoch k
+// waits until every camera has begun epoch k; unnumbered markers (epoch 0)
+// and those of other sources pass at once, as every marker without cameras.
+class EpochMarkerOrder {
+ public:
+  using Marker = slope_monitor::EpochMarkerConstPtr;
+  explicit EpochMarkerOrder(const std::vector<std::string>& cameras);
+
+  // The markers that may go on now (`msg` among them or not), in order.
+  std::vector<Marker> Add(const Marker& msg, double now);
+  // Live: a camera silent for `wait` [s] no longer holds the others' markers
+  // (named in `*given_up`).
+  std::vector<Marker> Expire(double now, double wait, std::vector<std::string>* given_up);
+  std::vector<Marker> Flush();  // end of input: every marker held
+
+ private:
+  std::vector<Marker> Items(const std::vector<InputOrder<Marker>::Released>& released) const;
+
+  std::vector<std::string> cameras_;
+  std::unique_ptr<InputOrder<Marker>> order_;  // null without cameras
+};
 
 class AdjusterStep {
  public:
