@@ -4,8 +4,6 @@
 #include <cmath>
 #include <set>
 
-#include <sensor_msgs/point_cloud2_iterator.h>
-
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/deformation_conversions.h"
@@ -158,26 +156,16 @@ slope_monitor::AdjustmentSolution MakeSolution(const adjustment::CollectedEpoch&
 sensor_msgs::PointCloud2 MakePointCloud(const adjustment::Scene& scene,
                                         const adjustment::Summary& s,
                                         const std_msgs::Header& header) {
-  sensor_msgs::PointCloud2 cloud;
-  cloud.header = header;
-  sensor_msgs::PointCloud2Modifier mod(cloud);
-  mod.setPointCloud2Fields(
-      6, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z", 1,
-      sensor_msgs::PointField::FLOAT32, "sigma_x", 1, sensor_msgs::PointField::FLOAT32, "sigma_y",
-      1, sensor_msgs::PointField::FLOAT32, "sigma_z", 1, sensor_msgs::PointField::FLOAT32);
-  mod.resize(scene.points.size());
-  sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"),
-      sx(cloud, "sigma_x"), sy(cloud, "sigma_y"), sz(cloud, "sigma_z");
-  for (size_t j = 0; j < scene.points.size(); ++j, ++x, ++y, ++z, ++sx, ++sy, ++sz) {
-    const Eigen::Matrix3d& c = s.precision.point_covariance[j];
-    *x = static_cast<float>(scene.points[j].position.x());
-    *y = static_cast<float>(scene.points[j].position.y());
-    *z = static_cast<float>(scene.points[j].position.z());
-    *sx = static_cast<float>(std::sqrt(std::max(0.0, c(0, 0))));
-    *sy = static_cast<float>(std::sqrt(std::max(0.0, c(1, 1))));
-    *sz = static_cast<float>(std::sqrt(std::max(0.0, c(2, 2))));
-  }
-  return cloud;
+  return MakeFloatCloud(header, {"x", "y", "z", "sigma_x", "sigma_y", "sigma_z"},
+                        scene.points.size(), [&](size_t j, float* v) {
+                          const Eigen::Matrix3d& c = s.precision.point_covariance[j];
+                          v[0] = static_cast<float>(scene.points[j].position.x());
+                          v[1] = static_cast<float>(scene.points[j].position.y());
+                          v[2] = static_cast<float>(scene.points[j].position.z());
+                          v[3] = static_cast<float>(std::sqrt(std::max(0.0, c(0, 0))));
+                          v[4] = static_cast<float>(std::sqrt(std::max(0.0, c(1, 1))));
+                          v[5] = static_cast<float>(std::sqrt(std::max(0.0, c(2, 2))));
+                        });
 }
 
 CameraTransforms MakeTransforms(const adjustment::Scene& scene,

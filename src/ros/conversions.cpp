@@ -1,5 +1,9 @@
 #include "slope_monitor/ros/conversions.h"
 
+#include <cstring>
+
+#include <sensor_msgs/point_cloud2_iterator.h>
+
 namespace slope_monitor {
 namespace ros_adapters {
 
@@ -34,6 +38,29 @@ sensor_msgs::CameraInfo ToMsg(const camera::CameraInfoFields& f) {
 camera::CameraModel CameraModelFromCameraInfo(const sensor_msgs::CameraInfo& msg,
                                               double pixel_size) {
   return camera::CameraModel::FromCameraInfo(FromMsg(msg), pixel_size);
+}
+
+sensor_msgs::PointCloud2 MakeFloatCloud(const std_msgs::Header& header,
+                                        const std::vector<std::string>& fields, std::size_t n,
+                                        const std::function<void(std::size_t, float*)>& row) {
+  sensor_msgs::PointCloud2 cloud;
+  cloud.header = header;
+  for (std::size_t k = 0; k < fields.size(); ++k) {
+    sensor_msgs::PointField f;
+    f.name = fields[k];
+    f.offset = static_cast<uint32_t>(k * sizeof(float));
+    f.datatype = sensor_msgs::PointField::FLOAT32;
+    f.count = 1;
+    cloud.fields.push_back(f);
+  }
+  cloud.point_step = static_cast<uint32_t>(fields.size() * sizeof(float));
+  sensor_msgs::PointCloud2Modifier(cloud).resize(n);
+  std::vector<float> values(fields.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    row(i, values.data());
+    std::memcpy(&cloud.data[i * cloud.point_step], values.data(), cloud.point_step);
+  }
+  return cloud;
 }
 
 geometry_msgs::Pose ToPose(const Rigid3& t) {

@@ -304,48 +304,28 @@ void OrientPairImage(const geometry_msgs::TransformStamped& site_from_optical,
 
 sensor_msgs::PointCloud2 PairSurfaceCloud(const dense::SurfaceResult& s,
                                           const std_msgs::Header& header) {
-  sensor_msgs::PointCloud2 cloud;
-  cloud.header = header;
-  sensor_msgs::PointCloud2Modifier mod(cloud);
-  mod.setPointCloud2Fields(
-      5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z", 1,
-      sensor_msgs::PointField::FLOAT32, "intensity", 1, sensor_msgs::PointField::FLOAT32, "sigma_z",
-      1, sensor_msgs::PointField::FLOAT32);
-  mod.resize(s.points.size());
-  sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"),
-      in(cloud, "intensity"), sz(cloud, "sigma_z");
-  for (const dense::SurfacePoint& p : s.points) {
-    *x = p.x_in_site.x();
-    *y = p.x_in_site.y();
-    *z = p.x_in_site.z();
-    *in = p.intensity;
-    *sz = p.sigma_z;
-    ++x, ++y, ++z, ++in, ++sz;
-  }
-  return cloud;
+  return MakeFloatCloud(header, {"x", "y", "z", "intensity", "sigma_z"}, s.points.size(),
+                        [&](size_t i, float* v) {
+                          const dense::SurfacePoint& p = s.points[i];
+                          v[0] = p.x_in_site.x();
+                          v[1] = p.x_in_site.y();
+                          v[2] = p.x_in_site.z();
+                          v[3] = p.intensity;
+                          v[4] = p.sigma_z;
+                        });
 }
 
 sensor_msgs::PointCloud2 PairChangeCloud(const dense::ChangeResult& c,
                                          const std_msgs::Header& header) {
-  sensor_msgs::PointCloud2 cloud;
-  cloud.header = header;
-  sensor_msgs::PointCloud2Modifier mod(cloud);
-  mod.setPointCloud2Fields(
-      5, "x", 1, sensor_msgs::PointField::FLOAT32, "y", 1, sensor_msgs::PointField::FLOAT32, "z", 1,
-      sensor_msgs::PointField::FLOAT32, "dz", 1, sensor_msgs::PointField::FLOAT32, "lod", 1,
-      sensor_msgs::PointField::FLOAT32);
-  mod.resize(c.significant.size());
-  sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z"),
-      dz(cloud, "dz"), lod(cloud, "lod");
-  for (const dense::ChangePoint& p : c.significant) {
-    *x = p.x_in_site.x();
-    *y = p.x_in_site.y();
-    *z = p.x_in_site.z();
-    *dz = p.dz;
-    *lod = p.lod;
-    ++x, ++y, ++z, ++dz, ++lod;
-  }
-  return cloud;
+  return MakeFloatCloud(header, {"x", "y", "z", "dz", "lod"}, c.significant.size(),
+                        [&](size_t i, float* v) {
+                          const dense::ChangePoint& p = c.significant[i];
+                          v[0] = p.x_in_site.x();
+                          v[1] = p.x_in_site.y();
+                          v[2] = p.x_in_site.z();
+                          v[3] = p.dz;
+                          v[4] = p.lod;
+                        });
 }
 
 }  // namespace ros_adapters

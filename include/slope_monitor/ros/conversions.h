@@ -3,10 +3,16 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
+#include <functional>
+#include <string>
+#include <vector>
 
 #include <geometry_msgs/Pose.h>
 #include <geometry_msgs/Transform.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <std_msgs/Header.h>
 #include <Eigen/Core>
 
 #include "slope_monitor/core/camera/camera_model.h"
@@ -21,6 +27,14 @@ sensor_msgs::CameraInfo ToMsg(const camera::CameraInfoFields& fields);
 // Camera model from a CameraInfo (throws InvalidArgument naming what it cannot represent).
 camera::CameraModel CameraModelFromCameraInfo(const sensor_msgs::CameraInfo& msg,
                                               double pixel_size);
+
+// A cloud of `n` points in header.frame_id, one FLOAT32 field per name in
+// that order (as PointCloud2Modifier::setPointCloud2Fields lays them out:
+// height 1, packed, little-endian); `row(i, values)` writes point i's
+// fields.size() values.
+sensor_msgs::PointCloud2 MakeFloatCloud(const std_msgs::Header& header,
+                                        const std::vector<std::string>& fields, std::size_t n,
+                                        const std::function<void(std::size_t, float*)>& row);
 
 geometry_msgs::Pose ToPose(const Rigid3& t);
 geometry_msgs::Transform ToTransform(const Rigid3& t);
