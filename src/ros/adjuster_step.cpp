@@ -115,6 +115,7 @@ SolvedEpoch AdjusterStep::SolveNow() { return Solve(collector_->TakeNow()); }
 std::vector<SolvedEpoch> AdjusterStep::Solve(
     const std::vector<adjustment::CollectedEpoch>& epochs) {
   std::vector<SolvedEpoch> out;
+  out.reserve(epochs.size());
   for (const adjustment::CollectedEpoch& e : epochs) out.push_back(Solve(e));
   return out;
 }

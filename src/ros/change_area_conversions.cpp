@@ -53,7 +53,7 @@ deformation::AreaBatch AreaBatchFromMsg(const slope_monitor::ChangeAreaArray& ms
   b.source_name = source_name;
   for (const slope_monitor::ChangeArea& m : msg.areas) {
     deformation::ChangeArea a;
-    a.sign = m.sign;
+    a.sign = m.sign;  // NOLINT(bugprone-signed-char-misuse): an int8 number, +1 or -1
     a.area = m.area;
     a.volume = m.volume;
     a.mean_change = m.mean_change;

@@ -51,6 +51,7 @@ radio::NetworkConfig NetworkFromTruth(const sim::SurveyTruth& truth, double sigm
 // The names (camera::InteriorNames) of interior parameter indices.
 std::vector<std::string> InteriorNamesOf(const std::vector<int>& indices) {
   std::vector<std::string> names;
+  names.reserve(indices.size());
   for (int i : indices) names.push_back(camera::InteriorNames()[i]);
   return names;
 }

@@ -5,6 +5,7 @@
 #include <cv_bridge/cv_bridge.h>
 #include <sensor_msgs/image_encodings.h>
 
+#include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/rigid3.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/image_limits.h"
@@ -59,7 +60,7 @@ CentroidedImage CentroidImage(const targets::TargetCentroider& centroider,
     const auto cov = ToRowMajor<2>(o.covariance);
     std::copy(cov.begin(), cov.end(), m.covariance.begin());
     if (o.has_corners) {
-      for (int k = 0; k < 4; ++k) {
+      for (size_t k = 0; k < 4; ++k) {
         m.corners[2 * k] = o.corners[k].x();
         m.corners[2 * k + 1] = o.corners[k].y();
       }

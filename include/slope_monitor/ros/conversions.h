@@ -41,8 +41,9 @@ geometry_msgs::Transform ToTransform(const Rigid3& t);
 Rigid3 FromPose(const geometry_msgs::Pose& pose);
 
 template <int N>
-std::array<double, N * N> ToRowMajor(const Eigen::Matrix<double, N, N>& m) {
-  std::array<double, N * N> out{};
+std::array<double, static_cast<std::size_t>(N) * N> ToRowMajor(
+    const Eigen::Matrix<double, N, N>& m) {
+  std::array<double, static_cast<std::size_t>(N) * N> out{};
   for (int r = 0; r < N; ++r)
     for (int c = 0; c < N; ++c) out[N * r + c] = m(r, c);
   return out;
