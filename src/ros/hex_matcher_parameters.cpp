@@ -124,6 +124,9 @@ void ReadSequenceOptions(ParamReader& p, matching::SequenceMatcherOptions* s) {
   s->pairing.max_pairs_per_image =
       p.Int("max_pairs_per_image", s->pairing.max_pairs_per_image, 1, 100);
   s->pairing.sequence_depth = p.Int("sequence_depth", s->pairing.sequence_depth, 1, 100);
+  s->pairing.exhaustive_max_photos =
+      p.Int("exhaustive_max_photos", s->pairing.exhaustive_max_photos, 0, 1000);
+  s->min_pair_tie_points = p.Int("min_pair_tie_points", s->min_pair_tie_points, 0, 100000);
   s->position_prior_max_dt =
       p.Double("position_prior_max_dt", s->position_prior_max_dt, 0.0, 60.0, "s");
   s->prior_wait = p.Double("prior_wait", s->prior_wait, 0.0, 600.0, "s");

@@ -89,7 +89,7 @@ struct Args {
   std::vector<std::string> folders;
   std::string gcp, site, out, geo;
   std::set<std::string> check;
-  double gcp_sigma = 0.05, gnss_sigma = 3.0;
+  double gcp_sigma = 0.05, gnss_sigma = capture::kExifGnssSigmaHorizontal;
   flight::FlightPhotoOptions photo;
   bool leave_one_out = true;
   int threads = 0;
@@ -461,7 +461,8 @@ FlightOutcome ProcessFlight(int k, const std::string& folder, const Args& args,
   }
   flight::FlightOrientationOptions oo;
   oo.gnss_sigma_horizontal_m = args.gnss_sigma;
-  oo.gnss_sigma_vertical_m = 2.0 * args.gnss_sigma;
+  oo.gnss_sigma_vertical_m =
+      args.gnss_sigma * capture::kExifGnssSigmaVertical / capture::kExifGnssSigmaHorizontal;
   oo.leave_one_out = args.leave_one_out;
   const flight::FlightResult result = flight::OrientFlight(input, oo);
   const flight::FlightSummary& s = result.summary;

@@ -14,6 +14,7 @@
 #include <std_msgs/Header.h>
 
 #include "slope_monitor/EpochMarker.h"
+#include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/capture/geodesy.h"
 #include "slope_monitor/core/capture/sources.h"
 #include "slope_monitor/core/capture/timing.h"
@@ -28,9 +29,10 @@ std_msgs::Header FrameHeader(const capture::Frame& frame, const std::string& fra
 sensor_msgs::ImagePtr ToImageMsg(const capture::Frame& frame, const std_msgs::Header& header);
 
 struct GnssOptions {
-  double sigma_horizontal = 5.0;  // [m] 1-sigma of the EXIF GNSS position, east and north
-  double sigma_vertical = 10.0;   // [m] 1-sigma, up
-  double geoid_height = 0.0;      // [m] N: ellipsoidal height = EXIF altitude (above sea level) + N
+  // [m] 1-sigma of the EXIF GNSS position (exif.h: shared with process_flight)
+  double sigma_horizontal = capture::kExifGnssSigmaHorizontal;  // east and north
+  double sigma_vertical = capture::kExifGnssSigmaVertical;      // up
+  double geoid_height = 0.0;  // [m] N: ellipsoidal height = EXIF altitude (above sea level) + N
 };
 
 // NavSatFix from an EXIF GNSS position (altitude converted to ellipsoidal

@@ -151,13 +151,11 @@ int Root(std::vector<int>* parent, int i) {
   return i;
 }
 
-// Joins tracks through their common photos: an observation (b, xb) of one
-// track within `radius` px of the interest point a track of photo b starts
-// at is the same ground point, so the two are one track (the pairs of b
-// start at b's interest points, the pairs into b end at LSC positions near
-// them). A joined track keeps one observation per photo (the first).
-void JoinTracks(double radius, FlightTies* ties) {
-  std::vector<FlightTrack>& tracks = ties->tracks;
+}  // namespace
+
+std::vector<std::vector<std::pair<int, int>>> JoinTracks(double radius,
+                                                         std::vector<FlightTrack>* tracks_in) {
+  std::vector<FlightTrack>& tracks = *tracks_in;
   std::map<std::pair<int, std::pair<long, long>>, std::vector<int>> start_cell;
   auto cell = [&](const Eigen::Vector2d& x) {
     return std::make_pair(static_cast<long>(std::floor(x.x() / radius)),
@@ -188,24 +186,28 @@ void JoinTracks(double radius, FlightTies* ties) {
   }
   std::map<int, int> joined_of_root;
   std::vector<FlightTrack> joined;
+  std::vector<std::vector<std::pair<int, int>>> origin;
   for (size_t t = 0; t < tracks.size(); ++t) {
     const int r = Root(&parent, static_cast<int>(t));
     auto it = joined_of_root.find(r);
     if (it == joined_of_root.end()) {
       it = joined_of_root.emplace(r, static_cast<int>(joined.size())).first;
       joined.push_back(FlightTrack{{}, tracks[t].grey});
+      origin.emplace_back();
     }
     FlightTrack& j = joined[it->second];
-    for (const auto& o : tracks[t].observations) {
+    for (size_t k = 0; k < tracks[t].observations.size(); ++k) {
+      const auto& o = tracks[t].observations[k];
       bool have = false;
       for (const auto& q : j.observations) have |= q.first == o.first;
-      if (!have) j.observations.push_back(o);
+      if (have) continue;
+      j.observations.push_back(o);
+      origin[it->second].emplace_back(static_cast<int>(t), static_cast<int>(k));
     }
   }
   tracks.swap(joined);
+  return origin;
 }
-
-}  // namespace
 
 void FlightMatchingOptions::Check() const {
   RequireOption("flight matching", exhaustive_max_photos >= 2, "exhaustive_max_photos",
@@ -288,7 +290,7 @@ FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& 
     ties.pairs.push_back(st);
   }
   BuildTracks(pairs, results, used, grey_of, &ties);
-  if (options.join_radius_px > 0.0) JoinTracks(options.join_radius_px, &ties);
+  if (options.join_radius_px > 0.0) JoinTracks(options.join_radius_px, &ties.tracks);
   ties.feature_seconds = cache.seconds();
   ties.peak_feature_bytes = cache.peak_bytes();
   ties.unreadable = cache.unreadable();

@@ -1,5 +1,7 @@
 #include "slope_monitor/core/flight/flight_scene.h"
 
+#include <cmath>
+#include <cstdint>
 #include <map>
 #include <unordered_map>
 
@@ -16,22 +18,55 @@ struct SceneFlight {
   FlightInput input;
   std::vector<int> image_of_photo;  // photo -> scene image
   std::vector<int> point_of_track;  // track -> scene point
+  // Per track, the scene observation of each of its observations.
+  std::vector<std::vector<int>> observation_of;
 };
 
+// The pairs' tie points as the matcher gave them: a track starts at an
+// interest point of photo a (observations[0]) and holds one observation per
+// photo it was matched into, so (a, b) counts the tracks of a seen in b.
 void CountPairs(SceneFlight* f) {
   std::map<std::pair<int, int>, int> shared;
   for (const FlightTrack& t : f->ties.tracks)
-    for (size_t i = 0; i < t.observations.size(); ++i)
-      for (size_t j = i + 1; j < t.observations.size(); ++j) {
-        const int a = std::min(t.observations[i].first, t.observations[j].first);
-        const int b = std::max(t.observations[i].first, t.observations[j].first);
-        if (a != b) ++shared[{a, b}];
-      }
+    for (size_t j = 1; j < t.observations.size(); ++j) {
+      const int a = std::min(t.observations[0].first, t.observations[j].first);
+      const int b = std::max(t.observations[0].first, t.observations[j].first);
+      if (a != b) ++shared[{a, b}];
+    }
   for (const auto& [ab, n] : shared) {
     f->ties.pairs.push_back({ab.first, ab.second, n, 0.0, ""});
     ++f->ties.pairs_tied;
     f->ties.tie_points += n;
   }
+}
+
+// Puts the observation a sequence track starts at first: its ID
+// (matching::SequenceTrackId, "tie/<id>") holds row * width + col of the
+// rounded interest point of photo a, and a is the earliest photo of the
+// track (a photo is matched with earlier ones only).
+void StartFirst(const std::string& id, int width, const std::vector<int>& image_of_photo,
+                const adjustment::Scene& scene, FlightTrack* track,
+                std::vector<int>* observations) {
+  std::uint64_t key = 0;
+  try {
+    key = std::stoull(id.substr(4));
+  } catch (const std::exception&) {
+    return;  // not a sequence track: as collected
+  }
+  const std::uint64_t pixel = key & 0xffffffffULL;
+  int start = -1;
+  for (size_t k = 0; k < track->observations.size(); ++k) {
+    const auto& [photo, x] = track->observations[k];
+    const std::uint64_t at = static_cast<std::uint64_t>(std::lround(x.y())) * width +
+                             static_cast<std::uint64_t>(std::lround(x.x()));
+    if (at != pixel || x.x() < -0.5 || x.y() < -0.5) continue;
+    if (start < 0 || scene.images[image_of_photo[photo]].stamp <
+                         scene.images[image_of_photo[track->observations[start].first]].stamp)
+      start = static_cast<int>(k);
+  }
+  if (start <= 0) return;
+  std::swap(track->observations[0], track->observations[start]);
+  std::swap((*observations)[0], (*observations)[start]);
 }
 
 SceneFlight FromScene(const adjustment::Scene& scene, int cam, FlightOrientationOptions* options) {
@@ -59,9 +94,13 @@ SceneFlight FromScene(const adjustment::Scene& scene, int cam, FlightOrientation
     }
   }
   std::vector<FlightTrack> track_of_point(scene.points.size());
-  for (const adjustment::Observation& o : scene.observations)
-    if (photo_of_image[o.image] >= 0)
-      track_of_point[o.point].observations.emplace_back(photo_of_image[o.image], o.pixel);
+  std::vector<std::vector<int>> observations_of_point(scene.points.size());
+  for (size_t k = 0; k < scene.observations.size(); ++k) {
+    const adjustment::Observation& o = scene.observations[k];
+    if (photo_of_image[o.image] < 0) continue;
+    track_of_point[o.point].observations.emplace_back(photo_of_image[o.image], o.pixel);
+    observations_of_point[o.point].push_back(static_cast<int>(k));
+  }
   for (size_t p = 0; p < scene.points.size(); ++p) {
     const adjustment::ObjectPoint& pt = scene.points[p];
     if (track_of_point[p].observations.empty()) continue;
@@ -74,12 +113,59 @@ SceneFlight FromScene(const adjustment::Scene& scene, int cam, FlightOrientation
       f.input.control.push_back(cp);
     } else if (pt.role == adjustment::PointRole::kTie &&
                track_of_point[p].observations.size() >= 2) {
+      StartFirst(pt.id, f.photos.nominal.sensor().width, f.image_of_photo, scene,
+                 &track_of_point[p], &observations_of_point[p]);
       f.ties.tracks.push_back(track_of_point[p]);
       f.point_of_track.push_back(static_cast<int>(p));
+      f.observation_of.push_back(observations_of_point[p]);
     }
   }
   CountPairs(&f);
   return f;
+}
+
+// Joins the tracks as process_flight does (JoinTracks) and makes the scene
+// say the same: the observations of a joined track move to its first
+// track's point; those it does not keep (a second observation in one photo)
+// and the points left without observations leave the scene.
+void JoinAsTheFlight(adjustment::Scene* scene, SceneFlight* f) {
+  const double radius = FlightMatchingOptions().join_radius_px;
+  if (radius <= 0.0) return;
+  const std::vector<std::vector<std::pair<int, int>>> origin = JoinTracks(radius, &f->ties.tracks);
+  std::vector<char> drop(scene->observations.size(), 0);
+  for (const std::vector<int>& obs : f->observation_of)
+    for (int k : obs) drop[k] = 1;
+  std::vector<int> point_of_track;
+  for (const std::vector<std::pair<int, int>>& from : origin) {
+    const int point = f->point_of_track[from.front().first];
+    point_of_track.push_back(point);
+    for (const auto& [t, k] : from) {
+      const int obs = f->observation_of[t][k];
+      drop[obs] = 0;
+      scene->observations[obs].point = point;
+    }
+  }
+  std::vector<adjustment::Observation> kept;
+  std::vector<int> count(scene->points.size(), 0);
+  for (size_t k = 0; k < scene->observations.size(); ++k)
+    if (!drop[k]) {
+      kept.push_back(scene->observations[k]);
+      ++count[kept.back().point];
+    }
+  std::vector<int> renumber(scene->points.size(), -1);
+  std::vector<adjustment::ObjectPoint> points;
+  for (size_t p = 0; p < scene->points.size(); ++p) {
+    const bool merged_away = count[p] == 0 && scene->points[p].role == adjustment::PointRole::kTie;
+    if (merged_away) continue;
+    renumber[p] = static_cast<int>(points.size());
+    points.push_back(scene->points[p]);
+  }
+  for (adjustment::Observation& o : kept) o.point = renumber[o.point];
+  for (int& p : point_of_track) p = renumber[p];
+  scene->points.swap(points);
+  scene->observations.swap(kept);
+  f->point_of_track.swap(point_of_track);
+  f->observation_of.clear();
 }
 
 }  // namespace
@@ -95,10 +181,13 @@ FlightSummary OrientSceneFromTiePoints(adjustment::Scene* scene, const std::stri
   FlightOrientationOptions o = options;
   o.leave_one_out = false;
   SceneFlight f = FromScene(*scene, cam, &o);
+  adjustment::Scene joined = *scene;
+  JoinAsTheFlight(&joined, &f);
   f.input.photos = &f.photos;
   f.input.ties = &f.ties;
   const FlightResult r = OrientFlight(f.input, o);
   if (!r.summary.success) return r.summary;
+  *scene = std::move(joined);
   for (size_t i = 0; i < r.scene.images.size(); ++i) {
     adjustment::Image& im = scene->images[f.image_of_photo[r.photo_of_image[i]]];
     im.exterior = r.scene.images[i].exterior;

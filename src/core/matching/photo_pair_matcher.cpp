@@ -199,6 +199,15 @@ Eigen::Vector2d LocalCorrection(const CoarseRelation& rel, const Eigen::Vector2d
 
 }  // namespace
 
+PhotoFeatureOptions BlockPhotoFeatureOptions() {
+  PhotoFeatureOptions o;
+  o.coarse_max_features = 2000;
+  o.coarse_sift_max_side = 640;
+  o.interest.max_points = 2000;
+  o.interest.cells = 8;
+  return o;
+}
+
 void PhotoFeatureOptions::Check() const {
   if (coarse_max_side < 200 || coarse_max_side > 10000)
     throw ConfigError("coarse_max_side must be in [200, 10000]");

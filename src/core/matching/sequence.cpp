@@ -24,6 +24,11 @@ void SequencePairOptions::Check() const {
     throw ConfigError(Message("SequencePairOptions.max_pairs_per_image must be in [1, 100], got ",
                               max_pairs_per_image));
   }
+  if (exhaustive_max_photos < 0 || exhaustive_max_photos > 1000) {
+    throw ConfigError(
+        Message("SequencePairOptions.exhaustive_max_photos must be in [0, 1000], got ",
+                exhaustive_max_photos));
+  }
   if (sequence_depth < 1 || sequence_depth > 100) {
     throw ConfigError(
         Message("SequencePairOptions.sequence_depth must be in [1, 100], got ", sequence_depth));
@@ -49,9 +54,20 @@ bool PlansByFootprint(const std::vector<SequenceImage>& earlier, const SequenceI
                      [](const SequenceImage& s) { return FootprintOf(s).has_position; });
 }
 
+bool PlansExhaustively(int epoch_images, const SequencePairOptions& options) {
+  return epoch_images <= options.exhaustive_max_photos;
+}
+
 std::vector<size_t> PlanSequencePairs(const std::vector<SequenceImage>& earlier,
-                                      const SequenceImage& b, const SequencePairOptions& options) {
+                                      const SequenceImage& b, const SequencePairOptions& options,
+                                      int epoch_images) {
   options.Check();
+  if (epoch_images <= 0) epoch_images = static_cast<int>(earlier.size()) + 1;
+  if (PlansExhaustively(epoch_images, options)) {
+    std::vector<size_t> all(earlier.size());
+    for (size_t k = 0; k < all.size(); ++k) all[k] = all.size() - 1 - k;  // latest first
+    return all;
+  }
   // The first max_pairs_per_image of (key, -stamp, index), smallest key first.
   const auto take = [&](std::vector<std::tuple<double, double, size_t>>* c) {
     std::sort(c->begin(), c->end());

@@ -75,6 +75,8 @@ void SequenceMatcherOptions::Check() const {
        Message("max_memory_mb must be > 0, got ", max_memory_mb));
   need(border >= 0.0 && std::isfinite(border), Message("border must be >= 0 px, got ", border));
   need(threads >= 0 && threads <= 64, Message("threads must be in [0, 64], got ", threads));
+  need(min_pair_tie_points >= 0 && min_pair_tie_points <= 100000,
+       Message("min_pair_tie_points must be in [0, 100000], got ", min_pair_tie_points));
   pairing.Check();
   shift.Check();
   hex.Check();
@@ -196,6 +198,7 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
     while (!history_.empty()) Release(history_.size() - 1);
     ++summary_.epoch;
     ground_pixel_ = 0.0;
+    epoch_images_ = 0;
   }
   last_stamp_ = t;
   // The image's features (or grey copy), once.
@@ -233,9 +236,12 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
 
   std::vector<SequenceImage> infos;
   for (const Earlier& e : history_) infos.push_back(e.info);
-  const std::vector<size_t> plan = PlanSequencePairs(infos, b.info, options_.pairing);
+  ++epoch_images_;
+  const bool exhaustive = PlansExhaustively(epoch_images_, options_.pairing);
+  const std::vector<size_t> plan =
+      PlanSequencePairs(infos, b.info, options_.pairing, epoch_images_);
   ++summary_.images;
-  if (PlansByFootprint(infos, b.info)) ++summary_.footprint_planned;
+  if (!exhaustive && PlansByFootprint(infos, b.info)) ++summary_.footprint_planned;
   if (plan.empty()) {
     SequencePair out;
     out.epoch = summary_.epoch;
@@ -256,7 +262,8 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
         cv::Range(0, n),
         [&](const cv::Range& range) {
           for (int k = range.start; k < range.end; ++k)
-            matched[k] = MatchPair(history_[plan[k]], b);
+            matched[k] = MatchPair(history_[plan[k]], b,
+                                   !exhaustive || ExpectedToOverlap(history_[plan[k]], b));
         },
         stripes);
     MeasureGroundPixel(plan, matched, &b);
@@ -315,7 +322,14 @@ void SequenceMatcher::MeasureGroundPixel(const std::vector<size_t>& plan,
   if (b->info.ground_pixel > 0.0) ground_pixel_ = b->info.ground_pixel;
 }
 
-SequencePair SequenceMatcher::MatchPair(const Earlier& a, const Earlier& b) const {
+bool SequenceMatcher::ExpectedToOverlap(const Earlier& a, const Earlier& b) const {
+  const PhotoFootprint fa = FootprintOf(a.info), fb = FootprintOf(b.info);
+  return fa.has_position && fb.has_position &&
+         FootprintOverlap(fa, fb) >= options_.pairing.min_overlap;
+}
+
+SequencePair SequenceMatcher::MatchPair(const Earlier& a, const Earlier& b,
+                                        bool may_fall_back) const {
   SequencePair out;
   const std::string names = Format("pair %.3f / %.3f: ", a.info.stamp, b.info.stamp);
   const auto start = std::chrono::steady_clock::now();
@@ -325,7 +339,7 @@ SequencePair SequenceMatcher::MatchPair(const Earlier& a, const Earlier& b) cons
     } else {
       MatchPhotos(a, b, &out);
       // No SIFT relation (weak texture): the global shift of nadir photos of one size.
-      if (out.reason == "no_relation" && options_.fallback_shift_hex &&
+      if (out.reason == "no_relation" && options_.fallback_shift_hex && may_fall_back &&
           a.features->size() == b.features->size()) {
         SequencePair shift_hex;
         MatchShiftHex(a.features->grey(), b.features->grey(), a.info.serial, &shift_hex);
@@ -337,6 +351,12 @@ SequencePair SequenceMatcher::MatchPair(const Earlier& a, const Earlier& b) cons
     out.points.clear();
     out.reason = "error";
     out.message = e.what();
+  }
+  if (out.reason.empty() && static_cast<int>(out.points.size()) < options_.min_pair_tie_points) {
+    out.reason = "too_few_tie_points";
+    out.message += Message(" (fewer than min_pair_tie_points = ", options_.min_pair_tie_points,
+                           ": none used)");
+    out.points.clear();
   }
   out.message = names + out.message;
   out.seconds = SecondsSince(start);
@@ -411,7 +431,9 @@ void SequenceMatcher::Keep(Earlier b, SequenceStep* step) {
   const int depth = options_.pairing.sequence_depth;
   // Outside the last sequence_depth images, only an image with a position
   // prior can still be chosen (by distance), and only when priors come.
-  for (size_t i = 0; i + depth < history_.size();) {
+  // While the epoch is planned exhaustively, the next image pairs with all.
+  const bool all_partners = PlansExhaustively(epoch_images_ + 1, options_.pairing);
+  for (size_t i = 0; !all_partners && i + depth < history_.size();) {
     if (!priors_expected_ || !history_[i].info.has_position) {
       Release(i);
       ++summary_.released;

@@ -125,11 +125,35 @@ SequenceImage Img(std::uint32_t serial, double stamp, double x, double y, bool p
   return s;
 }
 
+// Up to exhaustive_max_photos images in the epoch (b included), b pairs with
+// every earlier image, latest first, whatever the priors say (process_flight
+// pairs a flight of that size alike); beyond, the rules below.
+TEST(SequencePairs, EveryEarlierImageWhileTheEpochIsSmall) {
+  const std::vector<SequenceImage> earlier = {Img(1, 0, 0, 0), Img(2, 2, 0, 10), Img(3, 4, 0, 20),
+                                              Img(4, 6, 0, 30), Img(5, 20, 25, 30)};
+  SequencePairOptions o;
+  EXPECT_EQ(o.exhaustive_max_photos, 60);
+  // b 200 m away from all of them: still every one.
+  EXPECT_EQ(PlanSequencePairs(earlier, Img(6, 22, 200, 200), o),
+            (std::vector<size_t>{4, 3, 2, 1, 0}));
+  EXPECT_TRUE(PlansExhaustively(60, o));
+  EXPECT_FALSE(PlansExhaustively(61, o));
+  // The 61st image of the epoch (earlier partners released or not): the rules.
+  EXPECT_TRUE(PlanSequencePairs(earlier, Img(6, 22, 200, 200), o, 61).empty());
+  o.exhaustive_max_photos = 6;
+  EXPECT_EQ(PlanSequencePairs(earlier, Img(6, 22, 200, 200), o).size(), 5u);
+  o.exhaustive_max_photos = 5;
+  EXPECT_TRUE(PlanSequencePairs(earlier, Img(6, 22, 200, 200), o).empty());
+  o.exhaustive_max_photos = -1;
+  EXPECT_THROW(PlanSequencePairs(earlier, Img(6, 22, 0, 0), o), ConfigError);
+}
+
 TEST(SequencePairs, NearestPriorsFirstAtMostMaxPairs) {
   // Strip 1 northwards (y 0, 10, 20, 30), strip 2 southwards 25 m east.
   const std::vector<SequenceImage> earlier = {Img(1, 0, 0, 0), Img(2, 2, 0, 10), Img(3, 4, 0, 20),
                                               Img(4, 6, 0, 30), Img(5, 20, 25, 30)};
   SequencePairOptions o;
+  o.exhaustive_max_photos = 0;  // the rules of a flight beyond it
   // b at (25, 20): distances 5: 25.0 (y 30 -> sqrt(625+100)=26.9), 4: 26.9, 3: 25, 2: 26.9,
   // 1: 32.0.
   const std::vector<size_t> p = PlanSequencePairs(earlier, Img(6, 22, 25, 20), o);
@@ -176,7 +200,8 @@ TEST(SequencePairs, LargestFootprintOverlapFirst) {
                                               img(5, 32, 25, 0, 180), img(6, 34, 1, 1, 0, 0.0)};
   const SequenceImage b = img(7, 40, 0, 0, 0);
   EXPECT_NEAR(FootprintOverlap(FootprintOf(earlier[3]), FootprintOf(b)), 0.28, 1e-4);
-  SequencePairOptions o;  // min_overlap 0.2, 4 pairs
+  SequencePairOptions o;        // min_overlap 0.2, 4 pairs
+  o.exhaustive_max_photos = 0;  // the rules of a flight beyond it
   const std::vector<size_t> p = PlanSequencePairs(earlier, b, o);
   // 0.70 (image 3), 0.40 (image 2), 0.375 (image 5), 0.28 (image 4); image 1 shares 0.10 < 0.2.
   const std::vector<size_t> expected = {2, 1, 4, 3};

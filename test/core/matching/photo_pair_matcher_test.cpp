@@ -185,11 +185,12 @@ TEST_P(RealPairs, TiePointsAgreeWithTheAutopilotHeadingAndOutnumberSift) {
   const PhotoPairResult rp = MatchPhotoPair(fa, fb, PhotoPairOptions(), prior);
   EXPECT_GE(rp.summary.matched, p.min_tie_points);
   EXPECT_LT(std::abs(Wrap(rp.summary.rotation_deg - s.rotation_deg)), 2.0);
-  // The UAV sequence matcher's options (the graph's hex_matcher, mode
-  // sequence: SIFT on a 640 px copy, 1000 interest points spread over 8 x 8
-  // cells; measured 114 and 52 tie points, 7 and 22 before the spread): the
-  // same relation.
+  // The block's features (BlockPhotoFeatureOptions: the graph's sequence
+  // matcher and process_flight; SIFT on a 640 px copy, 2000 interest points
+  // spread over 8 x 8 cells; measured 220, 119, 56 and 20 tie points; with
+  // SIFT on the 1200 px copy the turn pairs got none): the same relation.
   const SequenceMatcherOptions so;
+  EXPECT_EQ(so.photo.coarse_sift_max_side, BlockPhotoFeatureOptions().coarse_sift_max_side);
   const PhotoFeatures sa(a, p.a, so.photo), sb(b, p.b, so.photo);
   const PhotoPairSummary ss = MatchPhotoPair(sa, sb, so.photo_pair).summary;
   std::printf(

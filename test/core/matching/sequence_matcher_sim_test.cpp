@@ -104,6 +104,7 @@ TEST(SequenceMatcherSim, PartnersByFootprintOverlapFromTheMeasuredGroundPixel) {
   const testing::Flight& f = testing::TheFlight();
   const auto run = [&](double min_overlap) {
     SequenceMatcherOptions o;
+    o.pairing.exhaustive_max_photos = 0;  // the rule of a flight beyond it
     o.pairing.min_overlap = min_overlap;
     SequenceMatcher m(o);
     std::vector<SequencePair> third;

@@ -45,6 +45,14 @@ SequenceMatcherOptions Options(SequencePairMethod method) {
   return o;
 }
 
+// The pair rules of a flight beyond exhaustive_max_photos photos (priors,
+// footprints, the previous images), tested on a few photos.
+SequenceMatcherOptions RulesOptions(SequencePairMethod method) {
+  SequenceMatcherOptions o = Options(method);
+  o.pairing.exhaustive_max_photos = 0;
+  return o;
+}
+
 TEST(SequenceMatcher, TiePointsOfShiftedPhotosAgainstTheHandCheckedRelation) {
   for (const SequencePairMethod method :
        {SequencePairMethod::kPhoto, SequencePairMethod::kGlobalShiftHex}) {
@@ -177,7 +185,7 @@ TEST(SequenceMatcher, StampsRunningBackwardsStartANewEpoch) {
 }
 
 TEST(SequenceMatcher, ImageWaitsForItsPriorThatComesAfterIt) {
-  SequenceMatcher m(Options(SequencePairMethod::kGlobalShiftHex));
+  SequenceMatcher m(RulesOptions(SequencePairMethod::kGlobalShiftHex));
   EXPECT_TRUE(m.AddImage(1 * kSecond, "cam", Photo(0)).pairs.empty());  // its prior not in yet
   const SequenceStep s0 = m.AddPrior(1 * kSecond, Eigen::Vector2d(0, 0));
   ASSERT_EQ(s0.pairs.size(), 1u);
@@ -210,7 +218,7 @@ TEST(SequenceMatcher, WaitingImageIsCopied) {
 }
 
 TEST(SequenceMatcher, MissingPriorIsGivenUpWhenThePriorsMovePastIt) {
-  SequenceMatcher m(Options(SequencePairMethod::kGlobalShiftHex));
+  SequenceMatcher m(RulesOptions(SequencePairMethod::kGlobalShiftHex));
   m.AddPrior(1 * kSecond, Eigen::Vector2d(0, 0));
   m.AddImage(1 * kSecond, "cam", Photo(0));
   // Image 2 has no prior; it waits until a later prior shows its own is not coming.
@@ -291,9 +299,24 @@ TEST(SequenceMatcher, ImageOfAnotherSizeIsNamed) {
   }
 }
 
+// While the epoch has at most exhaustive_max_photos photos, every photo is
+// kept and every later one pairs with all of them (process_flight's pairs).
+TEST(SequenceMatcher, SmallFlightPairsEveryPhotoWithEveryEarlierOne) {
+  SequenceMatcher m(Options(SequencePairMethod::kPhoto));
+  m.SetPriorsExpected(false);
+  std::vector<SequencePair> last;
+  for (int i = 0; i < 5; ++i) last = m.AddImage(i * kSecond, "cam", Photo(i)).pairs;
+  EXPECT_EQ(m.summary().images_in_memory, 5);
+  EXPECT_EQ(m.summary().released, 0);
+  EXPECT_EQ(m.summary().pairs, 1 + 2 + 3 + 4);
+  ASSERT_EQ(last.size(), 4u);
+  for (size_t k = 0; k < last.size(); ++k)
+    EXPECT_EQ(last[k].stamp_a, static_cast<std::int64_t>(3 - k) * kSecond);  // latest first
+}
+
 TEST(SequenceMatcher, PhotosNoLaterImageCanPairWithAreReleased) {
   // Without priors only the previous sequence_depth (2) photos can be partners.
-  SequenceMatcher m(Options(SequencePairMethod::kPhoto));
+  SequenceMatcher m(RulesOptions(SequencePairMethod::kPhoto));
   m.SetPriorsExpected(false);
   for (int i = 0; i < 5; ++i) m.AddImage(i * kSecond, "cam", Photo(i));
   EXPECT_EQ(m.summary().images_in_memory, 2);

@@ -9,6 +9,12 @@
 namespace slope_monitor {
 namespace capture {
 
+// The 1-sigma of a photo's EXIF GNSS position (a consumer receiver in the
+// aircraft): the one default of the capture's position priors
+// (camera_capture) and of process_flight's (flight_orientation.h).
+inline constexpr double kExifGnssSigmaHorizontal = 3.0;  // [m] east, north
+inline constexpr double kExifGnssSigmaVertical = 6.0;    // [m] up
+
 struct ExifInfo {
   // Exif.Photo.DateTimeOriginal (+ SubSecTimeOriginal), read as UTC; when
   // Exif.Photo.OffsetTimeOriginal ("+09:00") is present it is removed so the

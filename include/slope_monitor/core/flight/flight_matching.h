@@ -33,29 +33,21 @@ namespace slope_monitor {
 namespace flight {
 
 struct FlightMatchingOptions {
-  int exhaustive_max_photos = 60;  // all pairs up to this many photos, >= 2
-  int sequence_window = 8;         // photos without GNSS: each with the next N by name, >= 1
+  int exhaustive_max_photos = matching::kBlockExhaustiveMaxPhotos;  // all pairs up to it, >= 2
+  int sequence_window = 8;  // photos without GNSS: each with the next N by name, >= 1
   // Beyond exhaustive_max_photos, with GNSS: footprint overlap; the flying
   // height above ground is taken from the photos' XMP relative altitude when
   // they have one, else footprint.height_above_ground.
   matching::PairSelectionOptions footprint;
-  // Features per photo: SIFT (2000 on the 1200 px copy) for the pair's
-  // relation, interest points spread over 8 x 8 cells for the tie points.
-  // 2000 interest points per photo (COLMAP kept 20 202 points for 50 photos
-  // of this kind of block; the pair default 8000 only costs time).
-  matching::PhotoFeatureOptions features = [] {
-    matching::PhotoFeatureOptions o;
-    o.coarse_max_features = 2000;
-    o.interest.max_points = 2000;
-    o.interest.cells = 8;
-    return o;
-  }();
+  // Features per photo (photo_pair_matcher.h: the block's, shared with the
+  // graph's sequence matcher).
+  matching::PhotoFeatureOptions features = matching::BlockPhotoFeatureOptions();
   matching::PhotoPairOptions pair = [] {
     matching::PhotoPairOptions o;
     o.threads = 1;  // pairs run in parallel instead
     return o;
   }();
-  int min_pair_tie_points = 15;  // a pair with fewer is not used, >= 5
+  int min_pair_tie_points = matching::kBlockMinPairTiePoints;  // a pair with fewer: not used, >= 5
   // [px] tracks are joined where one's observation in photo b lies this
   // close to the interest point another starts at in b (0: not joined), >= 0.
   double join_radius_px = 1.0;
@@ -89,6 +81,15 @@ struct FlightTies {
 // The pairs to try (i < j, indices into photos.photos).
 std::vector<std::pair<int, int>> PlanFlightPairs(const FlightPhotos& photos,
                                                  const FlightMatchingOptions& options);
+
+// Joins tracks through the photos they share (observations[0] of a track is
+// the interest point it starts at): an observation (b, xb) of one track
+// within radius_px of the point another track starts at in b makes them one
+// track. A joined track keeps one observation per photo (the first, in track
+// order). Returns, per joined track, where each of its observations came
+// from: (index of the track given, index of its observation).
+std::vector<std::vector<std::pair<int, int>>> JoinTracks(double radius_px,
+                                                         std::vector<FlightTrack>* tracks);
 
 // Decodes the photos, matches the planned pairs and builds the tracks.
 FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& options);

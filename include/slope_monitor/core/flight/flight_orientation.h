@@ -33,6 +33,7 @@
 #include <Eigen/Core>
 
 #include "slope_monitor/core/adjustment/bundle_adjuster.h"
+#include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/flight/flight_matching.h"
 #include "slope_monitor/core/geometry/intersection.h"
 #include "slope_monitor/core/geometry/relative_orientation.h"
@@ -64,8 +65,8 @@ struct FlightOrientationOptions {
   double max_reprojection_px = 4.0;     // observations farther after an adjustment are dropped, > 0
   double tie_sigma_px = 0.5;            // [px] a tie point's standard deviation, > 0
   double pick_sigma_px = 2.0;           // [px] a control point picked by hand, > 0
-  double gnss_sigma_horizontal_m = 3.0;  // [m] consumer GNSS in EXIF, > 0
-  double gnss_sigma_vertical_m = 6.0;    // [m] > 0
+  double gnss_sigma_horizontal_m = capture::kExifGnssSigmaHorizontal;  // [m] > 0
+  double gnss_sigma_vertical_m = capture::kExifGnssSigmaVertical;      // [m] > 0
   int min_photos_full_calibration = 12;  // fewer oriented photos: only c, k1, k2 free, >= 3
   bool leave_one_out = true;             // re-adjust once per control point without it
   adjustment::Options bundle = [] {

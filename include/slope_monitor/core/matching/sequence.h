@@ -3,6 +3,9 @@
 // same interest point of an earlier photo one multi-ray tie point.
 //
 // Pairs for a new image b (PlanSequencePairs):
+//   * while the epoch has at most exhaustive_max_photos images (b included):
+//     every earlier image, latest first (process_flight's rule for a
+//     flight of that size, flight_matching.h: the same pairs);
 //   * b and earlier images have a ground footprint (a position prior and a
 //     ground pixel size; a heading from the prior's attitude, else the disc
 //     inside the rectangle): the earlier images whose footprint overlaps b's
@@ -46,7 +49,10 @@ struct SequencePairOptions {
   double max_pair_distance = 30.0;
   int max_pairs_per_image = 4;  // [1, 100]
   int sequence_depth = 2;       // previous images without priors, [1, 100]
-  void Check() const;           // throws ConfigError naming the field
+  // Every earlier image is a partner while the epoch has at most this many
+  // images (photo_pair_matcher.h: the block's rule), [0, 1000]; 0: never.
+  int exhaustive_max_photos = kBlockExhaustiveMaxPhotos;
+  void Check() const;  // throws ConfigError naming the field
 };
 
 struct SequenceImage {
@@ -70,10 +76,14 @@ PhotoFootprint FootprintOf(const SequenceImage& image);
 // at least one earlier image have a footprint.
 bool PlansByFootprint(const std::vector<SequenceImage>& earlier, const SequenceImage& b);
 
-// Indices into `earlier` (the epoch's earlier images, in time order) of
-// image b's partners, in the order they are to be matched.
+// Indices into `earlier` (the epoch's earlier images kept as partners, in
+// time order) of image b's partners, in the order they are to be matched.
+// epoch_images: the epoch's images so far, b included (0: earlier.size() + 1).
 std::vector<size_t> PlanSequencePairs(const std::vector<SequenceImage>& earlier,
-                                      const SequenceImage& b, const SequencePairOptions& options);
+                                      const SequenceImage& b, const SequencePairOptions& options,
+                                      int epoch_images = 0);
+// Whether the epoch's images so far (b included) are all paired.
+bool PlansExhaustively(int epoch_images, const SequencePairOptions& options);
 
 // Ground pixel size [m/px] of image b from its tie points with image a
 // (xa -> xb) and the horizontal GNSS baseline [m] of the pair: a similarity

@@ -90,34 +90,27 @@ struct SequenceMatcherOptions {
     return o;
   }();
   MatchPrior hex_prior;  // search radii, excluded areas; shift and within set per pair
-  // kPhoto. Interest points per photo: as many as the hexagonal matcher's
-  // (about the same tie points per pair): with the pair default (8000) the
-  // uav_block_replay survey gave more than twice the tie points and its
-  // first epoch's adjustment had not finished after 8 minutes. SIFT: 2000
-  // features on a 640 px copy, once per photo (0.10 s instead of 0.27 s for
-  // 1000 on the 1200 px copy of a simulated 1280 x 960 photo) and compared
-  // by every pair, brute force (0.05 s against 0.18 s with 4000); plain
-  // RANSAC homography inliers: 114-856 on the simulated blocks' strip
-  // pairs, 51-58 on the real snowpeak pairs (full size; 11-74 with the
-  // 1200 px copy). Measured with OpenCV 4.6 on this package's machines.
-  // Interest points spread over 8 x 8 cells: the 1000 strongest of a real
-  // photo left 16 candidates (7 tie points) in the overlap of the snowpeak
-  // turn pair, spread 149 (114).
-  PhotoFeatureOptions photo = [] {
-    PhotoFeatureOptions o;
-    o.interest.max_points = 1000;
-    o.interest.cells = 8;
-    o.coarse_max_features = 2000;
-    o.coarse_sift_max_side = 640;
-    return o;
-  }();
+  // kPhoto: features per photo, the block's (photo_pair_matcher.h: shared
+  // with process_flight, so the graph ties a real flight as process_flight
+  // does). Interest points spread over 8 x 8 cells: the 1000 strongest of a
+  // real photo left 16 candidates (7 tie points) in the overlap of the
+  // snowpeak turn pair, spread 149 (114). Until 29 Nov 2026 the sequence
+  // had its own (1000 interest points, SIFT on a 640 px copy): half the tie
+  // points of process_flight on the real caliterra flight.
+  PhotoFeatureOptions photo = BlockPhotoFeatureOptions();
   PhotoPairOptions photo_pair;
   // kPhoto: a pair without a SIFT relation (weak texture: with OpenCV's
   // contrast threshold 0.04 the simulator's ground gave 7 consistent SIFT
   // matches where 12 are needed; with 0.01: 2 of 1083 pairs of the simulated
   // 150-photo block)
   // of photos of one size is matched by the global shift + hex matcher.
+  // Only for a pair expected to overlap: planned by footprint, or both
+  // footprints known and overlapping (an exhaustively planned pair without
+  // a relation mostly does not overlap at all).
   bool fallback_shift_hex = true;
+  // A pair with fewer tie points gives none (reason "too_few_tie_points"),
+  // [0, 100000]: the block's rule (process_flight drops such pairs too).
+  int min_pair_tie_points = kBlockMinPairTiePoints;
   // A photo's pairs are matched at once on this many threads (0: the
   // hardware's). Each pair is matched on its own and the results are kept in
   // the pairs' order, so the tie points do not depend on it.
@@ -154,7 +147,8 @@ struct SequencePair {
   std::uint32_t index = 1;    // this one's number among them, from 1
   std::vector<SequenceTie> points;
   // "" when matched; else "no_relation" (kPhoto: no coarse relation),
-  // "shift_unusable" (kGlobalShiftHex) or "error" (a bad image, named).
+  // "shift_unusable" (kGlobalShiftHex), "too_few_tie_points"
+  // (min_pair_tie_points) or "error" (a bad image, named).
   std::string reason;
   std::string message;   // what happened (a line for the log)
   double seconds = 0.0;  // matching this pair (features of the photos not included)
@@ -229,7 +223,8 @@ class SequenceMatcher {
   std::optional<SequencePrior> TakePrior(double t);
   void MeasureGroundPixel(const std::vector<size_t>& plan, const std::vector<SequencePair>& pairs,
                           Earlier* b);
-  SequencePair MatchPair(const Earlier& a, const Earlier& b) const;
+  SequencePair MatchPair(const Earlier& a, const Earlier& b, bool may_fall_back) const;
+  bool ExpectedToOverlap(const Earlier& a, const Earlier& b) const;
   void MatchPhotos(const Earlier& a, const Earlier& b, SequencePair* out) const;
   void MatchShiftHex(const cv::Mat& a, const cv::Mat& b, std::uint32_t serial_a,
                      SequencePair* out) const;
@@ -246,6 +241,7 @@ class SequenceMatcher {
   std::uint32_t serial_ = 0;
   double last_stamp_ = 0.0;
   double ground_pixel_ = 0.0;  // [m/px] the latest measured in this epoch (0: none yet)
+  int epoch_images_ = 0;       // images of this epoch so far
   SequenceMatcherSummary summary_;
 };
 
