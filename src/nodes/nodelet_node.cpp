@@ -46,7 +46,7 @@ int main(int argc, char** argv) {
   const std::string nodelet = "slope_monitor/" + CamelCase(name);
   ros::init(argc, argv, name);
   nodelet::Loader loader(false);
-  nodelet::M_string remappings(ros::names::getRemappings());
+  const nodelet::M_string& remappings = ros::names::getRemappings();
   nodelet::V_string my_argv(argv + 1, argv + argc);
   if (!loader.load(ros::this_node::getName(), nodelet, remappings, my_argv)) {
     ROS_FATAL("%s: cannot load the nodelet %s", exe.c_str(), nodelet.c_str());

@@ -52,6 +52,7 @@ std::vector<EpochMarkerOrder::Marker> EpochMarkerOrder::Flush() {
 std::vector<EpochMarkerOrder::Marker> EpochMarkerOrder::Items(
     const std::vector<InputOrder<Marker>::Released>& released) const {
   std::vector<Marker> out;
+  out.reserve(released.size());
   for (const auto& r : released) out.push_back(r.item);
   return out;
 }

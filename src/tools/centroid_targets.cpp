@@ -75,7 +75,7 @@ namespace {
 targets::Options LoadOptions(const std::string& path, targets::NodeOptions* node) {
   if (path.empty()) return targets::Options();
   io::YamlMap m = io::YamlMap::Load(path);
-  const targets::Options o = targets::ReadOptions(m);
+  targets::Options o = targets::ReadOptions(m);
   *node = targets::ReadNodeOptions(m);
   m.CheckNoUnknownKeys();
   return o;

@@ -151,6 +151,7 @@ int main(int argc, char** argv) {
       return 1;
     }
     std::vector<matching::PhotoFootprint> footprints;
+    footprints.reserve(photos.size());
     for (const Photo& p : photos) footprints.push_back(p.footprint);
     const auto pairs = matching::SelectOverlappingPairs(footprints, selection);
     // A photo's features are computed at its first pair and released after

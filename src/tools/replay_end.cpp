@@ -34,6 +34,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -188,7 +189,7 @@ int main(int argc, char** argv) {
   const std::map<std::string, int> graph = GraphProcesses();
   ROS_INFO("replay_end: %s has %s the bag; waiting for %zu node process(es) to finish their work",
            player.c_str(), finished ? "finished" : "ended", graph.size());
-  const int needed = static_cast<int>(quiet / 0.1 + 0.5);
+  const int needed = static_cast<int>(std::lround(quiet / 0.1));
   if (!WaitIdle(graph, needed, ended, timeout)) return 1;
   for (int stage = 1; stage <= slope_monitor::ros_adapters::kEndOfInputStages && ros::ok();
        ++stage) {

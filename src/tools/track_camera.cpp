@@ -116,6 +116,7 @@ cv::Mat StableMask(const std::map<std::string, std::vector<std::string>>& a, con
   if (a.count("--stable-polygons")) {
     for (const auto& p : io::ReadImagePolygons(a.at("--stable-polygons")[0], "--stable-polygons")) {
       std::vector<cv::Point> q;
+      q.reserve(p.size());
       for (const auto& v : p) q.emplace_back(cvRound(v.x()), cvRound(v.y()));
       cv::fillPoly(m, std::vector<std::vector<cv::Point>>{q}, cv::Scalar(255));
     }
