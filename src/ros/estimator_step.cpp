@@ -82,7 +82,7 @@ void EstimatorStep::Fuse(const Incoming& in, const std::string& topic, bool publ
     accepted_ += s.accepted;
     refused_ += s.refused;
     for (const std::string& m : s.messages) {
-      out->problems.push_back({LogLine::kWarn, "topic '" + topic + "': " + m});
+      out->problems.push_back({LogLine::kWarn, Message("topic '", topic, "': ", m)});
       last_problem_ = m;
     }
   } catch (const Error& e) {

@@ -295,7 +295,8 @@ bool OfflineGraph::OnTargetlessMessage(const rosbag::MessageInstance& m,
         continue;
       }
     } catch (const std::exception& e) {
-      Log("targetless_camera: dropped photo of '" + cam + "' (topic " + topic + "): " + e.what());
+      Log(Message("targetless_camera: dropped photo of '", cam, "' (topic ", topic,
+                  "): ", e.what()));
       return true;
     }
     if (out) PublishTargetless(*out);

@@ -28,9 +28,8 @@ SetUpFailureDiagnostics::SetUpFailureDiagnostics(
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "not running: " + cause_);
     for (const auto& [key, value] : values_) stat.add(key, value);
   });
-  ros::NodeHandle timer_nh(nh);
-  timer_ = timer_nh.createWallTimer(
-      ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { updater_.force_update(); });
+  timer_ = nh.createWallTimer(ros::WallDuration(1.0),
+                              [this](const ros::WallTimerEvent&) { updater_.force_update(); });
   updater_.force_update();
 }
 
