@@ -73,7 +73,10 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     }
 
     image_transport::ImageTransport it(nh);
-    camera_pub_ = it.advertiseCamera("image_raw", 4);
+    // A folder or video is published once: a recorder that falls behind
+    // (a loaded machine, 36 MB photos) must not lose a photo to the
+    // publisher's queue (4 lost the oldest of eight 12 MP photos at load 5).
+    camera_pub_ = it.advertiseCamera("image_raw", source_kind_ == "device" ? 4 : 32);
     epoch_pub_ = nh.advertise<slope_monitor::EpochMarker>("epoch", 16, true);
     if (source_kind_ == "folder") {
       fix_pub_ = nh.advertise<sensor_msgs::NavSatFix>("gnss/fix", 16);
@@ -220,7 +223,7 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
           if (exit_at_end_) {
             // The last messages reach the subscribers, then the node ends
             // (camera_capture.launch: a folder or video is done).
-            if (Wait(2.0, false)) NODELET_INFO("camera_capture: exiting (exit_at_end)");
+            if (Wait(5.0, false)) NODELET_INFO("camera_capture: exiting (exit_at_end)");
             ros::requestShutdown();
           }
           return;

@@ -126,6 +126,8 @@ void ReadSequenceOptions(ParamReader& p, matching::SequenceMatcherOptions* s) {
   s->pairing.sequence_depth = p.Int("sequence_depth", s->pairing.sequence_depth, 1, 100);
   s->pairing.exhaustive_max_photos =
       p.Int("exhaustive_max_photos", s->pairing.exhaustive_max_photos, 0, 1000);
+  s->pairing.exhaustive_footprint_scale =
+      p.Double("exhaustive_footprint_scale", s->pairing.exhaustive_footprint_scale, 0.0, 100.0);
   s->min_pair_tie_points = p.Int("min_pair_tie_points", s->min_pair_tie_points, 0, 100000);
   s->position_prior_max_dt =
       p.Double("position_prior_max_dt", s->position_prior_max_dt, 0.0, 60.0, "s");

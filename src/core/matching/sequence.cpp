@@ -24,6 +24,12 @@ void SequencePairOptions::Check() const {
     throw ConfigError(Message("SequencePairOptions.max_pairs_per_image must be in [1, 100], got ",
                               max_pairs_per_image));
   }
+  if (!(exhaustive_footprint_scale == 0.0 ||
+        (exhaustive_footprint_scale >= 1.0 && exhaustive_footprint_scale <= 100.0))) {
+    throw ConfigError(
+        Message("SequencePairOptions.exhaustive_footprint_scale must be 0 or in [1, 100], got ",
+                exhaustive_footprint_scale));
+  }
   if (exhaustive_max_photos < 0 || exhaustive_max_photos > 1000) {
     throw ConfigError(
         Message("SequencePairOptions.exhaustive_max_photos must be in [0, 1000], got ",
@@ -64,8 +70,20 @@ std::vector<size_t> PlanSequencePairs(const std::vector<SequenceImage>& earlier,
   options.Check();
   if (epoch_images <= 0) epoch_images = static_cast<int>(earlier.size()) + 1;
   if (PlansExhaustively(epoch_images, options)) {
-    std::vector<size_t> all(earlier.size());
-    for (size_t k = 0; k < all.size(); ++k) all[k] = all.size() - 1 - k;  // latest first
+    const double scale = options.exhaustive_footprint_scale;
+    const auto scaled = [scale](PhotoFootprint f) {
+      f.width *= scale;
+      f.length *= scale;
+      return f;
+    };
+    const PhotoFootprint fb = scaled(FootprintOf(b));
+    std::vector<size_t> all;
+    for (size_t k = earlier.size(); k-- > 0;) {  // latest first
+      const PhotoFootprint fa = scaled(FootprintOf(earlier[k]));
+      if (scale > 0.0 && fa.has_position && fb.has_position && FootprintOverlap(fa, fb) <= 0.0)
+        continue;
+      all.push_back(k);
+    }
     return all;
   }
   // The first max_pairs_per_image of (key, -stamp, index), smallest key first.

@@ -146,6 +146,26 @@ TEST(SequencePairs, EveryEarlierImageWhileTheEpochIsSmall) {
   EXPECT_TRUE(PlanSequencePairs(earlier, Img(6, 22, 200, 200), o).empty());
   o.exhaustive_max_photos = -1;
   EXPECT_THROW(PlanSequencePairs(earlier, Img(6, 22, 0, 0), o), ConfigError);
+  // Footprints known (40 x 30 m: 400 x 300 px of 0.1 m; no heading: the
+  // 30 m disc): at twice their size (discs of 60 m) an image 50 m away still
+  // touches b, one 200 m away does not and is skipped; one without a
+  // footprint is kept.
+  const auto with_footprint = [](SequenceImage s) {
+    s.width = 400;
+    s.height = 300;
+    s.ground_pixel = 0.1;
+    return s;
+  };
+  const std::vector<SequenceImage> footprints = {
+      with_footprint(Img(1, 0, 0, 50)), with_footprint(Img(2, 2, 0, 200)), Img(3, 4, 0, 400)};
+  SequencePairOptions e;
+  EXPECT_EQ(e.exhaustive_footprint_scale, 2.0);
+  EXPECT_EQ(PlanSequencePairs(footprints, with_footprint(Img(4, 6, 0, 0)), e),
+            (std::vector<size_t>{2, 0}));
+  e.exhaustive_footprint_scale = 0.0;  // every one
+  EXPECT_EQ(PlanSequencePairs(footprints, with_footprint(Img(4, 6, 0, 0)), e).size(), 3u);
+  e.exhaustive_footprint_scale = 0.5;
+  EXPECT_THROW(PlanSequencePairs(footprints, Img(4, 6, 0, 0), e), ConfigError);
 }
 
 TEST(SequencePairs, NearestPriorsFirstAtMostMaxPairs) {

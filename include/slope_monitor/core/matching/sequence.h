@@ -5,7 +5,9 @@
 // Pairs for a new image b (PlanSequencePairs):
 //   * while the epoch has at most exhaustive_max_photos images (b included):
 //     every earlier image, latest first (process_flight's rule for a
-//     flight of that size, flight_matching.h: the same pairs);
+//     flight of that size, flight_matching.h: the same pairs), but for those
+//     whose footprint does not touch b's even at exhaustive_footprint_scale
+//     times their size (both footprints known);
 //   * b and earlier images have a ground footprint (a position prior and a
 //     ground pixel size; a heading from the prior's attitude, else the disc
 //     inside the rectangle): the earlier images whose footprint overlaps b's
@@ -52,6 +54,13 @@ struct SequencePairOptions {
   // Every earlier image is a partner while the epoch has at most this many
   // images (photo_pair_matcher.h: the block's rule), [0, 1000]; 0: never.
   int exhaustive_max_photos = kBlockExhaustiveMaxPhotos;
+  // ... but for an image whose footprint and b's, each scaled by this
+  // factor about its centre, do not overlap at all (such a pair shares no
+  // ground: process_flight tries it and gets no tie points), [1, 100]; 0:
+  // every one. The sequence cannot know whether a flight stays within
+  // exhaustive_max_photos: without this a 150-photo flight pairs its first
+  // 60 photos all with all (1770 pairs).
+  double exhaustive_footprint_scale = 2.0;
   void Check() const;  // throws ConfigError naming the field
 };
 
