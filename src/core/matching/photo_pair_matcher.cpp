@@ -84,7 +84,7 @@ MatchShape PairShape(const std::vector<MatchShape>& shapes, const PhotoPairOptio
     return std::clamp(static_cast<int>(std::floor(l / ws + 0.5)) + ns / 2, 0, ns - 1);
   };
   auto abin = [&](double r) { return static_cast<int>(std::floor((r + 180.0) / wa)) % na; };
-  std::vector<int> votes(na * ns, 0);
+  std::vector<int> votes(static_cast<size_t>(na) * ns, 0);
   for (const MatchShape& m : shapes) {
     if (prior.has_rotation &&
         std::abs(Wrap(m.rotation - prior.rotation_deg)) > o.rotation_tolerance_deg)
@@ -105,7 +105,8 @@ MatchShape PairShape(const std::vector<MatchShape>& shapes, const PhotoPairOptio
       if (v > best_votes) best_votes = v, best = is * na + ia;
     }
   }
-  MatchShape peak{(best % na + 0.5) * wa - 180.0, (best / na - ns / 2) * ws};
+  const int rotation_bin = best % na, scale_bin = best / na - ns / 2;  // scale 0 at ns / 2
+  MatchShape peak{(rotation_bin + 0.5) * wa - 180.0, scale_bin * ws};
   if (prior.has_rotation) peak.rotation = prior.rotation_deg;
   if (prior.has_scale) peak.log2_scale = std::log2(prior.scale);
   return peak;
