@@ -41,6 +41,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -249,10 +250,8 @@ class Progress {
     std::snprintf(
         line, sizeof(line), "process_bag: bag time %.1f s (%.0f %%), %d epochs solved, %s",
         (t - begin_).toSec(), 100.0 * done, epochs,
-        done > 0.01
-            ? (std::to_string(static_cast<int>(elapsed * (1 - done) / done + 0.5)) + " s left")
-                  .c_str()
-            : "time left unknown");
+        done > 0.01 ? (std::to_string(std::lround(elapsed * (1 - done) / done)) + " s left").c_str()
+                    : "time left unknown");
     line_.Show(line);
   }
   // A log line: on a line of its own, the progress line redrawn after.
