@@ -46,8 +46,10 @@ SequenceOutput SequenceMatcherStep::Output(const matching::SequenceStep& step) c
   SequenceOutput out;
   for (const std::string& line : step.log) out.log.push_back({LogLine::kInfo, line});
   for (const matching::SequencePair& p : step.pairs) {
-    if (!p.reason.empty())
-      out.log.push_back({LogLine::kError, "sequence " + p.message + " (empty tie points)"});
+    if (!p.reason.empty())  // a failure, unless a small flight's all-with-all pair shares no ground
+      out.log.push_back(
+          {p.expected_to_overlap || p.reason == "error" ? LogLine::kError : LogLine::kDebug,
+           "sequence " + p.message + " (empty tie points)"});
     else if (p.has_a)
       out.log.push_back({LogLine::kDebug, "sequence " + p.message + " (" + std::to_string(p.index) +
                                               " of " + std::to_string(p.pairs_b) + ")"});

@@ -261,9 +261,11 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
     cv::parallel_for_(
         cv::Range(0, n),
         [&](const cv::Range& range) {
-          for (int k = range.start; k < range.end; ++k)
-            matched[k] = MatchPair(history_[plan[k]], b,
-                                   !exhaustive || ExpectedToOverlap(history_[plan[k]], b));
+          for (int k = range.start; k < range.end; ++k) {
+            const bool expected = !exhaustive || ExpectedToOverlap(history_[plan[k]], b);
+            matched[k] = MatchPair(history_[plan[k]], b, expected);
+            matched[k].expected_to_overlap = expected;
+          }
         },
         stripes);
     MeasureGroundPixel(plan, matched, &b);

@@ -149,7 +149,7 @@ TEST(SequencePairs, EveryEarlierImageWhileTheEpochIsSmall) {
   // Footprints known (40 x 30 m: 400 x 300 px of 0.1 m; no heading: the
   // 30 m disc): at twice their size (discs of 60 m) an image 50 m away still
   // touches b, one 200 m away does not and is skipped; one without a
-  // footprint is kept.
+  // footprint is kept. At their own size the one 50 m away is skipped too.
   const auto with_footprint = [](SequenceImage s) {
     s.width = 400;
     s.height = 300;
@@ -162,6 +162,9 @@ TEST(SequencePairs, EveryEarlierImageWhileTheEpochIsSmall) {
   EXPECT_EQ(e.exhaustive_footprint_scale, 2.0);
   EXPECT_EQ(PlanSequencePairs(footprints, with_footprint(Img(4, 6, 0, 0)), e),
             (std::vector<size_t>{2, 0}));
+  e.exhaustive_footprint_scale = 1.0;
+  EXPECT_EQ(PlanSequencePairs(footprints, with_footprint(Img(4, 6, 0, 0)), e),
+            (std::vector<size_t>{2}));
   e.exhaustive_footprint_scale = 0.0;  // every one
   EXPECT_EQ(PlanSequencePairs(footprints, with_footprint(Img(4, 6, 0, 0)), e).size(), 3u);
   e.exhaustive_footprint_scale = 0.5;

@@ -152,6 +152,10 @@ struct SequencePair {
   std::string reason;
   std::string message;   // what happened (a line for the log)
   double seconds = 0.0;  // matching this pair (features of the photos not included)
+  // Whether the photos were expected to share ground: false for a pair of a
+  // small flight's all-with-all pairs whose footprints do not overlap (or
+  // are not known yet), where no tie points are no failure.
+  bool expected_to_overlap = true;
 };
 
 struct SequenceStep {
