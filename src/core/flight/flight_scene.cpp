@@ -1,11 +1,11 @@
 #include "slope_monitor/core/flight/flight_scene.h"
 
-#include <cmath>
 #include <cstdint>
 #include <map>
 #include <unordered_map>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/matching/sequence.h"
 
 namespace slope_monitor {
 namespace flight {
@@ -53,13 +53,10 @@ void StartFirst(const std::string& id, int width, const std::vector<int>& image_
   } catch (const std::exception&) {
     return;  // not a sequence track: as collected
   }
-  const std::uint64_t pixel = key & 0xffffffffULL;
   int start = -1;
   for (size_t k = 0; k < track->observations.size(); ++k) {
     const auto& [photo, x] = track->observations[k];
-    const std::uint64_t at = static_cast<std::uint64_t>(std::lround(x.y())) * width +
-                             static_cast<std::uint64_t>(std::lround(x.x()));
-    if (at != pixel || x.x() < -0.5 || x.y() < -0.5) continue;
+    if (!matching::SequenceTrackStartsAt(key, x, width)) continue;
     if (start < 0 || scene.images[image_of_photo[photo]].stamp <
                          scene.images[image_of_photo[track->observations[start].first]].stamp)
       start = static_cast<int>(k);

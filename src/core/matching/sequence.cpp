@@ -154,5 +154,11 @@ std::uint64_t SequenceTrackId(std::uint32_t serial_a, const Eigen::Vector2d& xa,
   return (static_cast<std::uint64_t>(serial_a) << 32) | static_cast<std::uint64_t>(index);
 }
 
+bool SequenceTrackStartsAt(std::uint64_t id, const Eigen::Vector2d& x, int width) {
+  const long long col = std::llround(x.x()), row = std::llround(x.y());
+  if (width <= 0 || col < 0 || row < 0 || col >= width) return false;
+  return static_cast<std::uint64_t>(row * width + col) == (id & 0xffffffffULL);
+}
+
 }  // namespace matching
 }  // namespace slope_monitor

@@ -262,9 +262,8 @@ void SequenceMatcher::ProcessFront(SequenceStep* step) {
         cv::Range(0, n),
         [&](const cv::Range& range) {
           for (int k = range.start; k < range.end; ++k) {
-            const bool expected = !exhaustive || ExpectedToOverlap(history_[plan[k]], b);
-            matched[k] = MatchPair(history_[plan[k]], b, expected);
-            matched[k].expected_to_overlap = expected;
+            matched[k] = MatchPair(history_[plan[k]], b,
+                                   !exhaustive || ExpectedToOverlap(history_[plan[k]], b));
           }
         },
         stripes);
@@ -331,7 +330,7 @@ bool SequenceMatcher::ExpectedToOverlap(const Earlier& a, const Earlier& b) cons
 }
 
 SequencePair SequenceMatcher::MatchPair(const Earlier& a, const Earlier& b,
-                                        bool may_fall_back) const {
+                                        bool expected_to_overlap) const {
   SequencePair out;
   const std::string names = Format("pair %.3f / %.3f: ", a.info.stamp, b.info.stamp);
   const auto start = std::chrono::steady_clock::now();
@@ -341,7 +340,7 @@ SequencePair SequenceMatcher::MatchPair(const Earlier& a, const Earlier& b,
     } else {
       MatchPhotos(a, b, &out);
       // No SIFT relation (weak texture): the global shift of nadir photos of one size.
-      if (out.reason == "no_relation" && options_.fallback_shift_hex && may_fall_back &&
+      if (out.reason == "no_relation" && options_.fallback_shift_hex && expected_to_overlap &&
           a.features->size() == b.features->size()) {
         SequencePair shift_hex;
         MatchShiftHex(a.features->grey(), b.features->grey(), a.info.serial, &shift_hex);
@@ -362,6 +361,7 @@ SequencePair SequenceMatcher::MatchPair(const Earlier& a, const Earlier& b,
   }
   out.message = names + out.message;
   out.seconds = SecondsSince(start);
+  out.expected_to_overlap = expected_to_overlap;
   if (out.reason.empty()) out.message += Format(" in %.2f s", out.seconds);
   return out;
 }

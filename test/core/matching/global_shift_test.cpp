@@ -267,6 +267,13 @@ TEST(SequencePairs, TrackIdsAreUniqueAndNeverZero) {
   EXPECT_NE(SequenceTrackId(1, Eigen::Vector2d(1279, 959), 1280),
             SequenceTrackId(2, Eigen::Vector2d(0, 0), 1280));
   EXPECT_THROW(SequenceTrackId(0, Eigen::Vector2d(1, 1), 1280), InvalidArgument);
+  // Read back: the pixel the track starts at (rounded), whatever the serial.
+  const std::uint64_t id = SequenceTrackId(3, Eigen::Vector2d(5.2, 2.9), 1280);
+  EXPECT_TRUE(SequenceTrackStartsAt(id, Eigen::Vector2d(4.6, 3.4), 1280));
+  EXPECT_FALSE(SequenceTrackStartsAt(id, Eigen::Vector2d(6.0, 3.0), 1280));
+  EXPECT_FALSE(SequenceTrackStartsAt(id, Eigen::Vector2d(5.0, 3.0), 1000));
+  EXPECT_FALSE(SequenceTrackStartsAt(SequenceTrackId(1, Eigen::Vector2d(1279, 0), 1280),
+                                     Eigen::Vector2d(-1.0, 1.0), 1280));
   EXPECT_THROW(SequenceTrackId(1, Eigen::Vector2d(1300, 1), 1280), InvalidArgument);
 }
 

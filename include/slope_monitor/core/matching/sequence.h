@@ -111,6 +111,9 @@ double GroundPixelFromTies(const std::vector<Eigen::Vector2d>& xa,
 // Track ID of interest point xa [px] of image a (serial >= 1) of width
 // `width` [px]; throws InvalidArgument for serial 0 or xa outside 2^32 pixels.
 std::uint64_t SequenceTrackId(std::uint32_t serial_a, const Eigen::Vector2d& xa, int width);
+// Whether x (rounded) is the interest point track `id` starts at, in an
+// image `width` px wide: the pixel part of SequenceTrackId read back.
+bool SequenceTrackStartsAt(std::uint64_t id, const Eigen::Vector2d& x, int width);
 
 }  // namespace matching
 }  // namespace slope_monitor

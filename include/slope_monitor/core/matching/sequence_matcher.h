@@ -227,7 +227,9 @@ class SequenceMatcher {
   std::optional<SequencePrior> TakePrior(double t);
   void MeasureGroundPixel(const std::vector<size_t>& plan, const std::vector<SequencePair>& pairs,
                           Earlier* b);
-  SequencePair MatchPair(const Earlier& a, const Earlier& b, bool may_fall_back) const;
+  // expected_to_overlap: the shift_hex fallback is tried (and the pair's
+  // field of that name set).
+  SequencePair MatchPair(const Earlier& a, const Earlier& b, bool expected_to_overlap) const;
   bool ExpectedToOverlap(const Earlier& a, const Earlier& b) const;
   void MatchPhotos(const Earlier& a, const Earlier& b, SequencePair* out) const;
   void MatchShiftHex(const cv::Mat& a, const cv::Mat& b, std::uint32_t serial_a,
