@@ -48,9 +48,7 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     if (const auto error = ros_adapters::SetUpError([&] { ReadParameters(pnh); })) {
-      NODELET_ERROR("camera_capture: %s; not advertising", error->c_str());
-      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(
-          nh, pnh, "camera_capture", "parameters rejected: " + *error);
+      FailSetUp(*error, "parameters rejected: " + *error);
       return;
     }
     camera_info_manager_ =
@@ -59,13 +57,9 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
       if (!camera_info_manager_->validateURL(camera_info_url_) ||
           !camera_info_manager_->loadCameraInfo(camera_info_url_) ||
           !camera_info_manager_->isCalibrated()) {
-        NODELET_ERROR(
-            "camera_capture: parameter '%s' = '%s' cannot be loaded as a calibration; not "
-            "advertising",
-            pnh.resolveName("camera_info_url").c_str(), camera_info_url_.c_str());
-        setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(
-            nh, pnh, "camera_capture",
-            "camera_info_url '" + camera_info_url_ + "' is not a calibration");
+        FailSetUp("parameter '" + pnh.resolveName("camera_info_url") + "' = '" + camera_info_url_ +
+                      "' cannot be loaded as a calibration",
+                  "camera_info_url '" + camera_info_url_ + "' is not a calibration");
         return;
       }
       publisher_options_.has_camera_info = true;
@@ -106,9 +100,7 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
     try {
       publisher_ = std::make_unique<ros_adapters::FramePublisher>(publisher_options_, out);
     } catch (const Error& e) {
-      NODELET_ERROR("camera_capture: %s; not advertising", e.what());
-      setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(
-          nh, pnh, "camera_capture", e.what());
+      FailSetUp(e.what(), e.what());
       return;
     }
 
@@ -120,6 +112,24 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
 
     running_ = true;
     worker_ = std::thread(&CameraCaptureNodelet::Run, this);
+  }
+
+  // The setup failed: a live camera stays loaded, advertises nothing and
+  // names the cause on /diagnostics (ros/setup.h); a folder or video run to
+  // its end (exit_at_end, camera_capture.launch) has nothing to wait for, so
+  // the process ends with status 1 and the recording script sees it.
+  void FailSetUp(const std::string& message, const std::string& cause) {
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+    bool exit_at_end = ros_adapters::CaptureParameters{}.exit_at_end;
+    pnh.getParam("exit_at_end", exit_at_end);  // also when the other parameters were refused
+    if (exit_at_end) {
+      NODELET_FATAL("camera_capture: %s; exiting (exit_at_end)", message.c_str());
+      ros_adapters::EndProcess(1);
+      return;
+    }
+    NODELET_ERROR("camera_capture: %s; not advertising", message.c_str());
+    setup_failure_ = std::make_unique<ros_adapters::SetUpFailureDiagnostics>(
+        getNodeHandle(), pnh, "camera_capture", cause);
   }
 
   void ReadParameters(ros::NodeHandle& pnh) {
@@ -204,9 +214,13 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
         source = std::make_unique<capture::VideoSource>(video_);
       }
     } catch (const Error& e) {
-      NODELET_ERROR("camera_capture: %s", e.what());
       SetStatus(e.what());
-      if (exit_at_end_) ros::requestShutdown();  // nothing to publish
+      if (exit_at_end_) {  // nothing to publish
+        NODELET_FATAL("camera_capture: %s; exiting (exit_at_end)", e.what());
+        ros_adapters::EndProcess(1);
+      } else {
+        NODELET_ERROR("camera_capture: %s", e.what());
+      }
       return;
     }
     SetStatus("publishing " + source->Describe());
@@ -223,6 +237,12 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
           if (exit_at_end_) {
             // The last messages reach the subscribers, then the node ends
             // (camera_capture.launch: a folder or video is done).
+            if (published_.load() == 0) {
+              NODELET_FATAL("camera_capture: no image of %s could be published; exiting",
+                            source->Describe().c_str());
+              ros_adapters::EndProcess(1);
+              return;
+            }
             if (Wait(5.0, false)) NODELET_INFO("camera_capture: exiting (exit_at_end)");
             ros::requestShutdown();
           }

@@ -2,7 +2,8 @@
 // (nodelet::Loader), so `rosrun slope_monitor <name>_node` works without a
 // manager. One source compiled once for all of them (CMakeLists.txt): the
 // executable's own name says which nodelet it loads (hex_matcher_node ->
-// node hex_matcher, nodelet slope_monitor/HexMatcher).
+// node hex_matcher, nodelet slope_monitor/HexMatcher). Its exit status is
+// the nodelet's (ros/setup.h: EndProcess), 0 unless it recorded a failure.
 #include <cctype>
 #include <cstdio>
 #include <string>
@@ -11,6 +12,7 @@
 #include <ros/ros.h>
 
 #include "slope_monitor/core/common/allocator.h"
+#include "slope_monitor/ros/setup.h"
 
 namespace {
 
@@ -53,5 +55,6 @@ int main(int argc, char** argv) {
     return 1;
   }
   ros::spin();
-  return 0;
+  // A one-shot nodelet that could not do its job (ros/setup.h: EndProcess).
+  return slope_monitor::ros_adapters::ProcessExitStatus();
 }

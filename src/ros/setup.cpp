@@ -1,5 +1,6 @@
 #include "slope_monitor/ros/setup.h"
 
+#include <atomic>
 #include <memory>
 
 #include <std_msgs/UInt8.h>
@@ -34,6 +35,19 @@ SetUpFailureDiagnostics::SetUpFailureDiagnostics(
 }
 
 GraphReady::~GraphReady() { pnh_.setParam(kGraphReadyParam, true); }
+
+namespace {
+std::atomic<int> g_exit_status{0};
+}  // namespace
+
+void EndProcess(int status) {
+  int seen = g_exit_status.load();
+  while (status > seen && !g_exit_status.compare_exchange_weak(seen, status)) {
+  }
+  ros::requestShutdown();
+}
+
+int ProcessExitStatus() { return g_exit_status.load(); }
 
 bool LiveTimeouts() { return !ros::Time::isSimTime(); }
 

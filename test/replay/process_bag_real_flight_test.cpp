@@ -11,7 +11,8 @@
 // holds every photo with its position prior, and process_bag (exit 0) accepts
 // one epoch with every photo oriented (tie points and GNSS only; measured:
 // 8 of 8 photos, 5168 points, 13157 observations, rms 0.42 px, sigma0 2.02),
-// with the numbers process_flight gives on the folder.
+// its flight start within reach of process_flight on the folder (the two side
+// by side: bench/flight_vs_colmap --graph).
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <signal.h>
@@ -175,8 +176,7 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
   // surface (--no-dense): on these 12 MP photos it takes 143 s and 2.4 GB
   // (13 pairs, 171 880 points; measured 29 Nov 2026), too long for CI, and
   // it is not what this test checks.
-  // --verbose: the adjuster's line on the flight's orientation, compared
-  // with process_flight's below (output only).
+  // --verbose: the adjuster's line on the flight's orientation (output only).
   std::vector<std::string> args = {SM_PROCESS_BAG, "--no-dense", "--verbose"};
   for (const std::string& b : bags) {
     args.push_back("--bag");
@@ -221,42 +221,22 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
   }
   EXPECT_EQ(accepted, 1) << err;
 
-  // The same numbers as process_flight on the folder (issue 34): the graph's
-  // UAV epoch without targets is oriented by the flight module from the
-  // sequence matcher's tie points, which pair and track the photos as
-  // process_flight does (photo_pair_matcher.h: the block's features and
-  // pairs, flight_scene.cc: the tracks joined alike). Not bit-identical: the
-  // graph's photos are the capture's 8-bit BGR images turned grey by OpenCV,
-  // process_flight decodes the JPEG's luma directly.
+  // The graph's UAV epoch without targets is oriented by the flight module
+  // from the sequence matcher's tie points, which pair and track the photos
+  // as process_flight does (photo_pair_matcher.h: the block's features and
+  // pairs, flight_scene.cc: the tracks joined alike). Measured side by side
+  // on these photos (bench/flight_vs_colmap --graph, doc/uav_real_flight.md):
+  // graph 8 of 8, 5 474 points, 0.785 px; process_flight 8 of 8, 5 455
+  // points, 0.776 px; COLMAP 3.8 8 of 8. Before the shared steps the graph
+  // kept 2 667 points: the bound below fails on that.
   const std::regex graph_line(
       R"(started from its tie points: (\d+) of (\d+) photos oriented, (\d+) points, rms ([0-9.]+) px)");
   std::smatch g;
   ASSERT_TRUE(std::regex_search(err, g, graph_line)) << err;
-  fs::create_directories(dir / "flight_run");
-  const auto flight_start = std::chrono::steady_clock::now();
-  EXPECT_EQ(replay_test::Wait(
-                Spawn({std::string(SM_TOOL_DIR) + "/process_flight", "--photos", photos.string(),
-                       "--site", site.string(), "--no-dense", "--out", (dir / "flight").string()},
-                      dir / "flight_run")),
-            0)
-      << ReadFile(dir / "flight_run" / "stderr");
-  std::cout
-      << "process_flight: "
-      << std::chrono::duration<double>(std::chrono::steady_clock::now() - flight_start).count()
-      << " s\n";
-  const std::string flight_out = ReadFile(dir / "flight_run" / "stdout");
-  std::smatch f;
-  ASSERT_TRUE(std::regex_search(
-      flight_out, f,
-      std::regex(
-          R"(flight 1: (\d+) of (\d+) photos oriented, (\d+) points, reprojection rms ([0-9.]+) px)")))
-      << flight_out;
-  std::cout << "graph: " << g[0] << "\nprocess_flight: " << f[0] << "\n";
+  std::cout << "graph: " << g[0] << "\n";
   EXPECT_EQ(std::stoi(g[1]), 8);
-  EXPECT_EQ(std::stoi(f[1]), 8);
-  const double graph_points = std::stod(g[3]), flight_points = std::stod(f[3]);
-  EXPECT_NEAR(graph_points / flight_points, 1.0, 0.02);  // measured 5 474 / 5 455
-  EXPECT_NEAR(std::stod(g[4]), std::stod(f[4]), 0.03);   // measured 0.785 / 0.776 px
+  EXPECT_GT(std::stoi(g[3]), 5000);
+  EXPECT_LT(std::stod(g[4]), 0.85);
 
   // The recording is 200 MB: kept only when something failed.
   if (!::testing::Test::HasFailure()) fs::remove_all(dir / "bags");
@@ -289,6 +269,55 @@ TEST(ProcessBagRealFlight, NoTargetListAndNothingSolvedAreNamed) {
   EXPECT_NE(err.find("process_bag: nothing solved: "), std::string::npos) << err;
   EXPECT_EQ(err.find("truth file"), std::string::npos) << err;
   EXPECT_EQ(ReadFile(dir / "stdout").find("Reports in"), std::string::npos);
+}
+
+// A folder the capture cannot publish ends the capture with status 1 and one
+// line saying why, instead of a node that stays up (a recording script
+// waits for camera_capture.launch to end): a site camera without a pixel
+// pitch (copr's photos carry none in EXIF), and a folder without photos.
+// roslaunch itself exits 0; it reports the required node's status.
+TEST(ProcessBagRealFlight, CaptureThatCannotPublishEndsWithStatusOne) {
+  const fs::path dir = replay_test::Scratch("process_bag_real_flight_test", "bad_capture");
+  const fs::path photos = dir / "photos", empty = dir / "empty";
+  fs::create_directories(photos);
+  fs::create_directories(empty);
+  fs::create_symlink(Photos() / "IMG_9377.jpg", photos / "IMG_9377.jpg");
+  const fs::path site = dir / "no_pixel_size.yaml";
+  std::ofstream(site) << "name: copr\ncrs: EPSG:32611\norigin: [235269.88, 3811198.11, 0]\n"
+                         "cameras:\n  - {name: uav, kind: uav}\n";
+  struct Case {
+    std::string name, folder, site, reason;
+  };
+  const std::vector<Case> cases = {
+      {"no_pixel_size", photos.string(), site.string(),
+       "cameras[0]: 'pixel_size' is required when no calibration_url is given"},
+      {"empty_folder", empty.string(), "", "holds no file with a listed extension"}};
+  std::vector<pid_t> runs;  // both at once: most of each run is roslaunch starting and stopping
+  for (const Case& c : cases) {
+    const fs::path run = dir / c.name;
+    fs::create_directories(run);
+    const int port = replay_test::FreePort();
+    ASSERT_GT(port, 0);
+    std::vector<std::string> argv = {"roslaunch",
+                                     "-p",
+                                     std::to_string(port),
+                                     "slope_monitor",
+                                     "camera_capture.launch",
+                                     "ns:=uav/camera",
+                                     "source:=folder",
+                                     "folder:=" + c.folder};
+    if (!c.site.empty()) argv.push_back("site:=" + c.site);
+    runs.push_back(Spawn(argv, run, {"ROS_LOG_DIR=" + (run / "log").string()}));
+  }
+  for (size_t i = 0; i < cases.size(); ++i) {
+    const Case& c = cases[i];
+    const int status = WaitAtMost(runs[i], std::chrono::seconds(60));
+    const std::string out = ReadFile(dir / c.name / "stdout") + ReadFile(dir / c.name / "stderr");
+    EXPECT_EQ(status, 0) << c.name << ": roslaunch did not end\n" << out;
+    EXPECT_NE(out.find(c.reason), std::string::npos) << c.name << "\n" << out;
+    EXPECT_NE(out.find("exiting (exit_at_end)"), std::string::npos) << c.name << "\n" << out;
+    EXPECT_NE(out.find("exit code 1"), std::string::npos) << c.name << "\n" << out;
+  }
 }
 
 }  // namespace

@@ -61,14 +61,15 @@ void LoadCapture(const std::string& name,
   nodelet::NodeletLoad srv;
   srv.request.name = name;
   srv.request.type = "slope_monitor/CameraCapture";
-  ASSERT_TRUE(ros::service::call(service, srv)) << "calling " << service;
+  ASSERT_TRUE(rostest_node::CallWithin(service, &srv, 30.0)) << "calling " << service;
   ASSERT_TRUE(srv.response.success) << "the manager did not load " << name;
 }
 
 void UnloadCapture(const std::string& name) {
   nodelet::NodeletUnload srv;
   srv.request.name = name;
-  EXPECT_TRUE(ros::service::call(ManagerName() + "/unload_nodelet", srv) && srv.response.success)
+  EXPECT_TRUE(rostest_node::CallWithin(ManagerName() + "/unload_nodelet", &srv, 30.0) &&
+              srv.response.success)
       << name;
   ros::param::del(name);
 }
@@ -483,7 +484,7 @@ TEST(CameraCaptureLive, FixedCameraScheduleWindowsAndTrigger) {
   // Outside the window the trigger still captures one epoch of frames_per_epoch frames.
   std_srvs::Trigger trigger;
   const double asked = ros::WallTime::now().toSec();
-  ASSERT_TRUE(ros::service::call("/closed/camera/trigger", trigger));
+  ASSERT_TRUE(rostest_node::CallWithin("/closed/camera/trigger", &trigger, 10.0));
   EXPECT_TRUE(trigger.response.success) << trigger.response.message;
   ASSERT_TRUE(WaitFor([&] { return closed_rec.HasEpochEnd(0); }, 10.0))
       << "no epoch after the trigger";
@@ -540,7 +541,7 @@ TEST(CameraCaptureLive, MissingDeviceNodeStaysUpAndRetries) {
   EXPECT_NE(std::find(nodes.begin(), nodes.end(), node), nodes.end())
       << node << " is not registered";
   std_srvs::Trigger trigger;
-  ASSERT_TRUE(ros::service::call("/missing_cam/camera/trigger", trigger))
+  ASSERT_TRUE(rostest_node::CallWithin("/missing_cam/camera/trigger", &trigger, 10.0))
       << "the node does not answer";
   EXPECT_FALSE(trigger.response.success);
   EXPECT_TRUE(Contains(trigger.response.message, device)) << trigger.response.message;

@@ -1,10 +1,14 @@
 // What the rostest test nodes share (header only): waiting for a condition
-// in wall time or for the bag's clock, reading a parameter, and the test
-// node's main().
+// in wall time or for the bag's clock, reading a parameter, a service call
+// with a time-out, and the test node's main().
 #pragma once
 
+#include <chrono>
 #include <functional>
+#include <future>
+#include <memory>
 #include <string>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <ros/ros.h>
@@ -44,6 +48,27 @@ inline double Param(const ros::NodeHandle& nh, const std::string& key, double fa
 
 // The test node's main(): gtest, then the ROS node `node_name` with two
 // spinner threads (callbacks run while a test waits), then every test.
+// ros::service::call that cannot hang a test: false when the call fails
+// or has not returned after `timeout` seconds (the call goes on in a
+// thread of its own; its answer is then dropped). A hung call would leave
+// rostest to kill the test at its time-limit without any result.
+template <class Service>
+bool CallWithin(const std::string& name, Service* srv, double timeout) {
+  auto request = std::make_shared<Service>(*srv);
+  auto answered = std::make_shared<std::promise<bool>>();
+  std::future<bool> done = answered->get_future();
+  std::thread([name, request, answered] {
+    answered->set_value(ros::service::call(name, *request));
+  }).detach();
+  if (done.wait_for(std::chrono::duration<double>(timeout)) != std::future_status::ready) {
+    ADD_FAILURE() << name << " did not answer within " << timeout << " s";
+    return false;
+  }
+  if (!done.get()) return false;
+  *srv = *request;
+  return true;
+}
+
 inline int RunTests(int argc, char** argv, const std::string& node_name) {
   ::testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, node_name);

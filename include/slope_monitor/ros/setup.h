@@ -54,6 +54,15 @@ class SetUpFailureDiagnostics {
   ros::WallTimer timer_;
 };
 
+// A one-shot node (camera_capture with a folder or video and `exit_at_end`:
+// a recording script waits for it) that cannot do its job ends the process
+// instead of staying up: EndProcess(1) records the status and requests the
+// shutdown; the node shim (src/nodes/nodelet_node.cpp) returns
+// ProcessExitStatus() from main, so roslaunch and the script see the failure.
+// The highest status recorded wins; 0 until a failure is recorded.
+void EndProcess(int status);
+int ProcessExitStatus();
+
 // The replay graph starts playing a bag only when every node of it is ready
 // (replay_start): the launch sets `~graph_ready: false` for each node, and
 // the nodelet's onInit holds a GraphReady whose destructor sets it true on
