@@ -15,8 +15,8 @@ namespace {
 
 TEST(ServiceSwitches, DefaultsAdvertiseSwitchedOffDoNot) {
   // The switched-on services show that the nodes are up.
-  for (const std::string& s : {"/adjuster_on/run_adjustment", "/adjuster_on/set_reference_epoch",
-                               "/estimator_on/export_report", "/estimator_on/set_reference_epoch"})
+  for (const char* s : {"/adjuster_on/run_adjustment", "/adjuster_on/set_reference_epoch",
+                        "/estimator_on/export_report", "/estimator_on/set_reference_epoch"})
     ASSERT_TRUE(ros::service::waitForService(s, ros::Duration(30.0))) << s << " not advertised";
   // Both "off" nodes started alongside; their other outputs show that they are up.
   ASSERT_TRUE(rostest_node::WaitFor(
@@ -30,9 +30,8 @@ TEST(ServiceSwitches, DefaultsAdvertiseSwitchedOffDoNot) {
       },
       30.0))
       << "the switched-off nodes did not come up";
-  for (const std::string& s :
-       {"/adjuster_off/run_adjustment", "/adjuster_off/set_reference_epoch",
-        "/estimator_off/export_report", "/estimator_off/set_reference_epoch"})
+  for (const char* s : {"/adjuster_off/run_adjustment", "/adjuster_off/set_reference_epoch",
+                        "/estimator_off/export_report", "/estimator_off/set_reference_epoch"})
     EXPECT_FALSE(ros::service::exists(s, false)) << s << " is advertised although switched off";
 }
 
