@@ -3,6 +3,7 @@
 #include <cctype>
 #include <cmath>
 #include <ctime>
+#include <tuple>
 
 // exiv2 0.27 still uses std::auto_ptr in its headers.
 #pragma GCC diagnostic push
@@ -101,6 +102,27 @@ double ParseExifTimeOffset(const std::string& text, const std::string& context) 
         Message(context, ": time offset '", text, "' is not '+HH:MM' or '-HH:MM'"));
   }
   return (sign == '-' ? -1.0 : 1.0) * (3600.0 * h + 60.0 * m);
+}
+
+PhotoCamera PhotoCamera::Of(const ExifInfo& exif, int width, int height) {
+  PhotoCamera c;
+  c.make = exif.make;
+  c.model = exif.model;
+  c.width = width;
+  c.height = height;
+  c.focal_centi_mm = std::lround(exif.focal_length_mm * 100.0);
+  return c;
+}
+
+std::string PhotoCamera::Describe() const {
+  const std::string name = Message(make, make.empty() ? "" : " ", model);
+  return Message(name.empty() ? "unknown camera" : name, " ", width, "x", height,
+                 " f=", focal_centi_mm / 100.0, " mm");
+}
+
+bool PhotoCamera::operator<(const PhotoCamera& o) const {
+  return std::tie(make, model, width, height, focal_centi_mm) <
+         std::tie(o.make, o.model, o.width, o.height, o.focal_centi_mm);
 }
 
 ExifInfo ReadExif(const std::string& path) {

@@ -271,23 +271,31 @@ FolderSource::FolderSource(const FolderSourceOptions& options) : options_(option
 }
 
 void FolderSource::LeaveOutOddPhotos() {
-  std::map<std::pair<int, int>, int> sizes;
+  // One camera per flight (PhotoCamera: make, model, size, focal length), the
+  // folder's most common; photos whose header could not be read are kept
+  // here and named by the decoder.
+  std::map<PhotoCamera, int> cameras;
   size_t with_gps = 0;
   for (const Entry& e : entries_) {
-    if (e.attitude.width > 0) ++sizes[{e.attitude.width, e.attitude.height}];
+    if (e.attitude.width > 0)
+      ++cameras[PhotoCamera::Of(e.exif, e.attitude.width, e.attitude.height)];
     if (e.exif.has_gps) ++with_gps;
   }
-  std::pair<int, int> common{0, 0};
+  PhotoCamera common;
   int most = 0;
-  for (const auto& [size, n] : sizes)
-    if (n > most) most = n, common = size;
+  for (const auto& [camera, n] : cameras)
+    if (n > most) most = n, common = camera;
   const bool gnss_folder = 2 * with_gps > entries_.size();
   std::vector<Entry> kept;
   for (Entry& e : entries_) {
-    if (e.attitude.width > 0 && std::make_pair(e.attitude.width, e.attitude.height) != common) {
+    const PhotoCamera camera = PhotoCamera::Of(e.exif, e.attitude.width, e.attitude.height);
+    if (e.attitude.width > 0 && camera != common) {
+      const bool size = camera.width != common.width || camera.height != common.height;
       left_out_.push_back(
-          {e.path, Message(e.attitude.width, "x", e.attitude.height, " px, not the folder's ",
-                           common.first, "x", common.second, " px (", most, " photos)")});
+          {e.path, size ? Message(camera.width, "x", camera.height, " px, not the folder's ",
+                                  common.width, "x", common.height, " px (", most, " photos)")
+                        : Message("another camera (", camera.Describe(), ") than the folder's ",
+                                  most, " photos (", common.Describe(), ")")});
     } else if (gnss_folder && !e.exif.has_gps &&
                e.attitude.width > 0) {  // (unreadable: the decoder names it)
       left_out_.push_back({e.path, Message("no EXIF GNSS position (", with_gps, " of ",

@@ -5,7 +5,6 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
-#include <tuple>
 
 #include "slope_monitor/core/capture/calibration.h"
 #include "slope_monitor/core/common/error.h"
@@ -20,19 +19,10 @@ bool HasImageExtension(const std::filesystem::path& p) {
   return e == ".jpg" || e == ".jpeg" || e == ".png" || e == ".tif" || e == ".tiff";
 }
 
-// The camera of a photo: what must be equal for photos to share one model.
-using CameraKey = std::tuple<std::string, std::string, int, int, long>;
-
-CameraKey KeyOf(const FlightPhoto& p) {
-  return {p.exif.make, p.exif.model, p.width, p.height,
-          std::lround(p.exif.focal_length_mm * 100.0)};
-}
-
-std::string Describe(const CameraKey& k) {
-  const std::string name =
-      Message(std::get<0>(k), std::get<0>(k).empty() ? "" : " ", std::get<1>(k));
-  return Message(name.empty() ? "unknown camera" : name, " ", std::get<2>(k), "x", std::get<3>(k),
-                 " f=", std::get<4>(k) / 100.0, " mm");
+// The camera of a photo: what must be equal for photos to share one model
+// (the capture's folder scan uses the same rule).
+capture::PhotoCamera KeyOf(const FlightPhoto& p) {
+  return capture::PhotoCamera::Of(p.exif, p.width, p.height);
 }
 
 }  // namespace
@@ -101,7 +91,7 @@ FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths,
     }
     read.push_back(p);
   }
-  std::map<CameraKey, int> count;
+  std::map<capture::PhotoCamera, int> count;
   for (const FlightPhoto& p : read) ++count[KeyOf(p)];
   if (count.empty()) {
     std::string why;
@@ -109,15 +99,15 @@ FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths,
       why += Message(i ? "; " : "", out.skipped[i].path, ": ", out.skipped[i].reason);
     throw IoError(Message("none of the ", paths.size(), " photos can be used (", why, ")"));
   }
-  const CameraKey main =
+  const capture::PhotoCamera main =
       std::max_element(count.begin(), count.end(), [](const auto& a, const auto& b) {
         return a.second < b.second;
       })->first;
-  out.camera_label = Describe(main);
+  out.camera_label = main.Describe();
   for (const FlightPhoto& p : read) {
     if (KeyOf(p) != main) {
       out.skipped.push_back(
-          {p.path, Message("another camera or size (", Describe(KeyOf(p)), ") than the flight's ",
+          {p.path, Message("another camera or size (", KeyOf(p).Describe(), ") than the flight's ",
                            count[main], " photos (", out.camera_label, ")")});
       continue;
     }

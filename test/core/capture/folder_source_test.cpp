@@ -93,6 +93,41 @@ TEST(FolderSource, LeavesOutPhotosOfAnotherSizeAndWithoutPosition) {
   EXPECT_EQ(names, (std::vector<std::string>{"p0.jpg", "p1.jpg", "p2.jpg"}));
 }
 
+// Photos of a second camera in the flight's folder (the same size: a second
+// drone, or the same one zoomed): named and left out by the rule
+// process_flight uses (PhotoCamera: make, model, size, focal length).
+TEST(FolderSource, LeavesOutPhotosOfAnotherCamera) {
+  TempDir dir{"two_cameras"};
+  for (int i = 0; i < 3; ++i)
+    capture_test::WriteJpeg(dir.File("p" + std::to_string(i) + ".jpg"),
+                            capture_test::TexturedImage(160, 120, 3, i),
+                            Tags("10:00:0" + std::to_string(i), ""));
+  ExifTags other = Tags("10:00:05", "");
+  other.model = "OtherModel";
+  capture_test::WriteJpeg(dir.File("other.jpg"), capture_test::TexturedImage(160, 120, 3, 5),
+                          other);
+  ExifTags zoomed = Tags("10:00:06", "");
+  zoomed.focal_num = 35;
+  capture_test::WriteJpeg(dir.File("zoomed.jpg"), capture_test::TexturedImage(160, 120, 3, 6),
+                          zoomed);
+  FolderSourceOptions o;
+  o.folder = dir.path();
+  FolderSource source(o);
+  EXPECT_EQ(source.size(), 3u);
+  ASSERT_EQ(source.left_out().size(), 2u);
+  EXPECT_NE(source.left_out()[0].name.find("other.jpg"), std::string::npos);
+  EXPECT_EQ(source.left_out()[0].reason,
+            "another camera (TestMake OtherModel 160x120 f=24 mm) than the folder's 3 photos "
+            "(TestMake TestModel 160x120 f=24 mm)");
+  EXPECT_NE(source.left_out()[1].name.find("zoomed.jpg"), std::string::npos);
+  EXPECT_NE(source.left_out()[1].reason.find("(TestMake TestModel 160x120 f=35 mm)"),
+            std::string::npos)
+      << source.left_out()[1].reason;
+  // The same key as process_flight's (flight_photos.cc).
+  EXPECT_EQ(PhotoCamera::Of(ReadExif(dir.File("p0.jpg")), 160, 120).Describe(),
+            "TestMake TestModel 160x120 f=24 mm");
+}
+
 TEST_F(FolderFixture, PublishesInExifTimeOrderAndSkipsBadFiles) {
   FolderSourceOptions o;
   o.folder = dir_.path();

@@ -40,6 +40,24 @@ struct ExifInfo {
 // the file and the tag.
 ExifInfo ReadExif(const std::string& path);
 
+// The camera a photo was taken with, as a flight tells its photos apart:
+// photos share one camera model only when all of this is equal (EXIF make
+// and model, the image size, the focal length to 0.01 mm). One rule for the
+// capture's folder scan and process_flight (flight_photos.cc): a photo of
+// another camera or size is left out of the flight, named with Describe().
+struct PhotoCamera {
+  std::string make, model;
+  int width = 0, height = 0;
+  long focal_centi_mm = 0;  // EXIF focal length [0.01 mm]; 0 when absent
+
+  static PhotoCamera Of(const ExifInfo& exif, int width, int height);
+  // "Canon Canon PowerShot S100 4000x3000 f=5.2 mm" ("unknown camera" without make and model).
+  std::string Describe() const;
+  bool operator<(const PhotoCamera& o) const;
+  bool operator==(const PhotoCamera& o) const { return !(*this < o) && !(o < *this); }
+  bool operator!=(const PhotoCamera& o) const { return !(*this == o); }
+};
+
 // "YYYY:MM:DD HH:MM:SS" (+ sub-second digits "123" = 0.123 s) as UTC -> s since
 // the Unix epoch. Throws InvalidArgument naming `context` and the text.
 double ParseExifDateTime(const std::string& text, const std::string& subsec,

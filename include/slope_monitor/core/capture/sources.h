@@ -151,8 +151,9 @@ class FolderSource : public FrameSource {
     ExifInfo exif;
     PhotoAttitude attitude;
   };
-  // Moves the entries of another size or (in a GNSS-tagged folder) without a
-  // position to left_out_.
+  // Moves the entries of another camera or size than the folder's most
+  // common (PhotoCamera) or (in a GNSS-tagged folder) without a position to
+  // left_out_.
   void LeaveOutOddPhotos();
   FolderSourceOptions options_;
   std::vector<Entry> entries_;
