@@ -62,23 +62,36 @@ class FolderFixture : public ::testing::Test {
   std::map<std::string, cv::Mat> images_;
 };
 
-// A flight's folder with a photo of another size and one without a GNSS
-// position: both named and left out at the scan, the rest kept in order.
-TEST(FolderSource, LeavesOutPhotosOfAnotherSizeAndWithoutPosition) {
-  TempDir dir{"odd_photos"};
+// A flight's folder: three photos of one camera (p0-p2.jpg, 160x120,
+// TestMake TestModel f=24 mm, GNSS) and the odd ones given, taken after them.
+struct OddPhoto {
+  std::string name;
+  int width, height;
+  ExifTags tags;
+};
+FolderSourceOptions FlightFolder(const TempDir& dir, const std::vector<OddPhoto>& odd) {
   for (int i = 0; i < 3; ++i)
     capture_test::WriteJpeg(dir.File("p" + std::to_string(i) + ".jpg"),
                             capture_test::TexturedImage(160, 120, 3, i),
                             Tags("10:00:0" + std::to_string(i), ""));
-  capture_test::WriteJpeg(dir.File("bigger.jpg"), capture_test::TexturedImage(200, 150, 3, 5),
-                          Tags("10:00:05", ""));
-  ExifTags no_gps = Tags("10:00:06", "");
-  no_gps.gps = false;
-  capture_test::WriteJpeg(dir.File("no_gps.jpg"), capture_test::TexturedImage(160, 120, 3, 6),
-                          no_gps);
+  for (size_t k = 0; k < odd.size(); ++k)
+    capture_test::WriteJpeg(
+        dir.File(odd[k].name),
+        capture_test::TexturedImage(odd[k].width, odd[k].height, 3, 5 + static_cast<int>(k)),
+        odd[k].tags);
   FolderSourceOptions o;
   o.folder = dir.path();
-  FolderSource source(o);
+  return o;
+}
+
+// A flight's folder with a photo of another size and one without a GNSS
+// position: both named and left out at the scan, the rest kept in order.
+TEST(FolderSource, LeavesOutPhotosOfAnotherSizeAndWithoutPosition) {
+  TempDir dir{"odd_photos"};
+  ExifTags no_gps = Tags("10:00:06", "");
+  no_gps.gps = false;
+  FolderSource source(FlightFolder(
+      dir, {{"bigger.jpg", 200, 150, Tags("10:00:05", "")}, {"no_gps.jpg", 160, 120, no_gps}}));
   EXPECT_EQ(source.size(), 3u);
   ASSERT_EQ(source.left_out().size(), 2u);
   EXPECT_NE(source.left_out()[0].name.find("bigger.jpg"), std::string::npos);
@@ -98,21 +111,12 @@ TEST(FolderSource, LeavesOutPhotosOfAnotherSizeAndWithoutPosition) {
 // process_flight uses (PhotoCamera: make, model, size, focal length).
 TEST(FolderSource, LeavesOutPhotosOfAnotherCamera) {
   TempDir dir{"two_cameras"};
-  for (int i = 0; i < 3; ++i)
-    capture_test::WriteJpeg(dir.File("p" + std::to_string(i) + ".jpg"),
-                            capture_test::TexturedImage(160, 120, 3, i),
-                            Tags("10:00:0" + std::to_string(i), ""));
   ExifTags other = Tags("10:00:05", "");
   other.model = "OtherModel";
-  capture_test::WriteJpeg(dir.File("other.jpg"), capture_test::TexturedImage(160, 120, 3, 5),
-                          other);
   ExifTags zoomed = Tags("10:00:06", "");
   zoomed.focal_num = 35;
-  capture_test::WriteJpeg(dir.File("zoomed.jpg"), capture_test::TexturedImage(160, 120, 3, 6),
-                          zoomed);
-  FolderSourceOptions o;
-  o.folder = dir.path();
-  FolderSource source(o);
+  FolderSource source(
+      FlightFolder(dir, {{"other.jpg", 160, 120, other}, {"zoomed.jpg", 160, 120, zoomed}}));
   EXPECT_EQ(source.size(), 3u);
   ASSERT_EQ(source.left_out().size(), 2u);
   EXPECT_NE(source.left_out()[0].name.find("other.jpg"), std::string::npos);
