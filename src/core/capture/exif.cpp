@@ -3,6 +3,7 @@
 #include <cctype>
 #include <cmath>
 #include <ctime>
+#include <map>
 #include <tuple>
 
 // exiv2 0.27 still uses std::auto_ptr in its headers.
@@ -123,6 +124,15 @@ std::string PhotoCamera::Describe() const {
 bool PhotoCamera::operator<(const PhotoCamera& o) const {
   return std::tie(make, model, width, height, focal_centi_mm) <
          std::tie(o.make, o.model, o.width, o.height, o.focal_centi_mm);
+}
+
+std::pair<PhotoCamera, int> MostCommonCamera(const std::vector<PhotoCamera>& cameras) {
+  std::map<PhotoCamera, int> count;
+  for (const PhotoCamera& c : cameras) ++count[c];
+  std::pair<PhotoCamera, int> most{PhotoCamera(), 0};
+  for (const auto& [camera, n] : count)
+    if (n > most.second) most = {camera, n};
+  return most;
 }
 
 ExifInfo ReadExif(const std::string& path) {

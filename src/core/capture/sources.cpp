@@ -8,7 +8,6 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <map>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -274,21 +273,20 @@ void FolderSource::LeaveOutOddPhotos() {
   // One camera per flight (PhotoCamera: make, model, size, focal length), the
   // folder's most common; photos whose header could not be read are kept
   // here and named by the decoder.
-  std::map<PhotoCamera, int> cameras;
+  std::vector<PhotoCamera> cameras;  // per entry
+  std::vector<PhotoCamera> readable;
   size_t with_gps = 0;
   for (const Entry& e : entries_) {
-    if (e.attitude.width > 0)
-      ++cameras[PhotoCamera::Of(e.exif, e.attitude.width, e.attitude.height)];
+    cameras.push_back(PhotoCamera::Of(e.exif, e.attitude.width, e.attitude.height));
+    if (e.attitude.width > 0) readable.push_back(cameras.back());
     if (e.exif.has_gps) ++with_gps;
   }
-  PhotoCamera common;
-  int most = 0;
-  for (const auto& [camera, n] : cameras)
-    if (n > most) most = n, common = camera;
+  const auto [common, most] = MostCommonCamera(readable);
   const bool gnss_folder = 2 * with_gps > entries_.size();
   std::vector<Entry> kept;
-  for (Entry& e : entries_) {
-    const PhotoCamera camera = PhotoCamera::Of(e.exif, e.attitude.width, e.attitude.height);
+  for (size_t i = 0; i < entries_.size(); ++i) {
+    Entry& e = entries_[i];
+    const PhotoCamera& camera = cameras[i];
     if (e.attitude.width > 0 && camera != common) {
       const bool size = camera.width != common.width || camera.height != common.height;
       left_out_.push_back(

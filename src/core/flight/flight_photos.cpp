@@ -4,7 +4,6 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
-#include <map>
 
 #include "slope_monitor/core/capture/calibration.h"
 #include "slope_monitor/core/common/error.h"
@@ -91,24 +90,21 @@ FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths,
     }
     read.push_back(p);
   }
-  std::map<capture::PhotoCamera, int> count;
-  for (const FlightPhoto& p : read) ++count[KeyOf(p)];
-  if (count.empty()) {
+  std::vector<capture::PhotoCamera> cameras;
+  for (const FlightPhoto& p : read) cameras.push_back(KeyOf(p));
+  const auto [main, main_count] = capture::MostCommonCamera(cameras);
+  if (main_count == 0) {
     std::string why;
     for (size_t i = 0; i < out.skipped.size() && i < 3; ++i)
       why += Message(i ? "; " : "", out.skipped[i].path, ": ", out.skipped[i].reason);
     throw IoError(Message("none of the ", paths.size(), " photos can be used (", why, ")"));
   }
-  const capture::PhotoCamera main =
-      std::max_element(count.begin(), count.end(), [](const auto& a, const auto& b) {
-        return a.second < b.second;
-      })->first;
   out.camera_label = main.Describe();
   for (const FlightPhoto& p : read) {
     if (KeyOf(p) != main) {
       out.skipped.push_back(
           {p.path, Message("another camera or size (", KeyOf(p).Describe(), ") than the flight's ",
-                           count[main], " photos (", out.camera_label, ")")});
+                           main_count, " photos (", out.camera_label, ")")});
       continue;
     }
     out.with_gnss += p.exif.has_gps ? 1 : 0;

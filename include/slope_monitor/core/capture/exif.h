@@ -3,6 +3,8 @@
 #pragma once
 
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "slope_monitor/core/capture/geodesy.h"
 
@@ -57,6 +59,10 @@ struct PhotoCamera {
   bool operator==(const PhotoCamera& o) const { return !(*this < o) && !(o < *this); }
   bool operator!=(const PhotoCamera& o) const { return !(*this == o); }
 };
+
+// The camera most of `cameras` share (on a tie the first in PhotoCamera
+// order) and how many photos it has; {PhotoCamera(), 0} for none.
+std::pair<PhotoCamera, int> MostCommonCamera(const std::vector<PhotoCamera>& cameras);
 
 // "YYYY:MM:DD HH:MM:SS" (+ sub-second digits "123" = 0.123 s) as UTC -> s since
 // the Unix epoch. Throws InvalidArgument naming `context` and the text.
