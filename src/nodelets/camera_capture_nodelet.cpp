@@ -77,6 +77,8 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
       if (publisher_options_.has_site_origin) {
         prior_pub_ = nh.advertise<geometry_msgs::PoseWithCovarianceStamped>("position_prior", 16);
       }
+      if (!publisher_options_.picks.empty())  // the site's gcp list
+        picks_pub_ = nh.advertise<slope_monitor::TargetObservationArray>("picks", 32);
     }
     if (source_kind_ == "device")
       trigger_srv_ = nh.advertiseService("trigger", &CameraCaptureNodelet::OnTrigger, this);
@@ -91,6 +93,7 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
       prior_pub_.publish(p);
     };
     out.epoch = [this](const slope_monitor::EpochMarker& m) { epoch_pub_.publish(m); };
+    out.picks = [this](const slope_monitor::TargetObservationArray& m) { picks_pub_.publish(m); };
     out.warn = [this](const std::string& w) {
       NODELET_WARN("camera_capture: %s", w.c_str());
       std::lock_guard<std::mutex> lock(mutex_);
@@ -348,7 +351,7 @@ class CameraCaptureNodelet : public nodelet::Nodelet {
   // ROS.
   std::unique_ptr<camera_info_manager::CameraInfoManager> camera_info_manager_;
   image_transport::CameraPublisher camera_pub_;
-  ros::Publisher epoch_pub_, fix_pub_, prior_pub_;
+  ros::Publisher epoch_pub_, fix_pub_, prior_pub_, picks_pub_;
   ros::ServiceServer trigger_srv_;
   std::unique_ptr<diagnostic_updater::Updater> diagnostics_;
   ros::WallTimer diag_timer_;

@@ -1,6 +1,7 @@
 #include "slope_monitor/ros/capture_conversions.h"
 
 #include <cmath>
+#include <filesystem>
 #include <limits>
 
 #include <cv_bridge/cv_bridge.h>
@@ -87,7 +88,9 @@ slope_monitor::EpochMarker ToEpochMarker(const capture::EpochEvent& e, const std
 // ---------------------------------------------------------------------------
 #include "slope_monitor/core/capture/calibration.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/gcp_list.h"
 #include "slope_monitor/ros/conversions.h"
+#include "slope_monitor/ros/target_conversions.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -137,8 +140,60 @@ void FramePublisher::PublishEpoch(const capture::EpochEvent& event) {
   if (outputs_.epoch) outputs_.epoch(ToEpochMarker(event, options_.source_name, options_.frame_id));
 }
 
+std::map<std::string, std::vector<slope_monitor::TargetObservation>> PhotoPicks(
+    const std::string& gcp_file, const io::TargetList& targets) {
+  io::GcpList gcp;
+  try {
+    gcp = io::ReadGcpList(gcp_file);
+  } catch (const std::exception& e) {
+    throw ConfigError(Message("gcp list: ", e.what()));
+  }
+  const std::map<std::string, int> ids = io::GcpTargetIds(gcp);
+  std::map<std::string, std::vector<slope_monitor::TargetObservation>> out;
+  for (const io::GcpPoint& p : gcp.points) {
+    const io::TargetSpec* spec = targets.Find(io::kGcpFamily, ids.at(p.name));
+    for (const io::GcpPick& k : p.picks) {
+      slope_monitor::TargetObservation o;
+      o.id = ids.at(p.name);
+      o.family = io::kGcpFamily;
+      o.role = TargetRoleToMsg(spec ? std::optional<io::TargetRole>(spec->role) : std::nullopt);
+      o.x = k.pixel.x();
+      o.y = k.pixel.y();
+      const double v = io::kGcpPickSigmaPx * io::kGcpPickSigmaPx;
+      o.covariance = {v, 0.0, 0.0, v};
+      o.quality = 1.0;
+      out[k.image].push_back(o);
+    }
+  }
+  return out;
+}
+
+// The picks of the frame's photo (by file name), on `picks` with the image's header.
+void FramePublisher::PublishPicks(const capture::Frame& frame, const std_msgs::Header& header) {
+  const std::string name = std::filesystem::path(frame.name).filename().string();
+  const auto it = options_.picks.find(name);
+  if (it == options_.picks.end()) return;
+  slope_monitor::TargetObservationArray msg;
+  msg.header = header;
+  msg.camera_name = options_.source_name;
+  msg.image_width = static_cast<uint32_t>(frame.image.cols);
+  msg.image_height = static_cast<uint32_t>(frame.image.rows);
+  msg.observations = it->second;
+  outputs_.picks(msg);
+  picked_photos_published_.insert(name);
+}
+
+// At the end of the source: photos of the gcp list that were not published.
+void FramePublisher::WarnUnpublishedPicks() {
+  for (const auto& [name, picks] : options_.picks)
+    if (!picked_photos_published_.count(name))
+      Warn(Message(options_.picks_file, ": photo '", name, "' was not published (not in the ",
+                   "source, or left out): its ", picks.size(), " pick(s) left out"));
+}
+
 void FramePublisher::PublishFrame(const capture::Frame& frame, sensor_msgs::ImagePtr image) {
   const std_msgs::Header header = FrameHeader(frame, options_.frame_id);
+  if (outputs_.picks && !options_.picks.empty()) PublishPicks(frame, header);
   if (outputs_.image) {
     sensor_msgs::CameraInfoPtr info(new sensor_msgs::CameraInfo(CameraInfoFor(frame)));
     info->header = header;
@@ -201,6 +256,7 @@ FramePublisher::StepResult FramePublisher::Step(capture::FrameSource* source,
   }
   if (!got) {
     if (auto end = tracker->Close()) PublishEpoch(*end);
+    WarnUnpublishedPicks();
     return StepResult::kEnd;
   }
   for (const auto& e : tracker->BeforeFrame(frame.stamp)) PublishEpoch(e);

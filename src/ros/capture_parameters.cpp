@@ -8,6 +8,7 @@
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/io/site_file.h"
+#include "slope_monitor/core/io/target_file.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/uav_topics.h"
 
@@ -17,8 +18,9 @@ namespace {
 
 // The site file (io::LoadSiteFile): the position priors' origin (a local_enu
 // site's origin, unless site_origin is set) and this camera's pixel size
-// (its entry, by the camera's name, unless pixel_size is set).
-void ApplyCaptureSiteFile(const std::string& path, bool origin_from_site,
+// (its entry, by the camera's name, unless pixel_size is set); a folder's
+// picks from the site's gcp list.
+void ApplyCaptureSiteFile(const std::string& path, bool origin_from_site, bool folder,
                           FramePublisherOptions* o) {
   const io::SiteFile site = io::LoadSiteFile(path);
   if (origin_from_site) {
@@ -33,6 +35,13 @@ void ApplyCaptureSiteFile(const std::string& path, bool origin_from_site,
   }
   const io::SiteCamera* camera = site.FindCamera(o->source_name);
   if (camera && !(o->pixel_size > 0.0)) o->pixel_size = camera->pixel_size;
+  // Points picked in this UAV camera's photos (a gcp list as the site's
+  // targets): published with each photo of a folder (names).
+  if (folder && camera && camera->kind == io::CameraKind::kUav && site.targets &&
+      io::IsGcpListName(site.targets_file)) {
+    o->picks = PhotoPicks(site.targets_file, *site.targets);
+    o->picks_file = site.targets_file;
+  }
 }
 
 // site_origin and interior, checked (after the site file).
@@ -143,7 +152,7 @@ CaptureParameters ReadCaptureParameters(ParamReader& p, const std::string& node_
   o.gnss.geoid_height = p.Double("geoid_height", o.gnss.geoid_height, -200.0, 200.0, "m");
   o.attitude_sigma = p.Double("attitude_sigma", o.attitude_sigma, 0.01, 180.0, "deg");
   p.CheckNoUnknownKeys();
-  if (!c.site_file.empty()) ApplyCaptureSiteFile(c.site_file, c.site_origin.empty(), &o);
+  if (!c.site_file.empty()) ApplyCaptureSiteFile(c.site_file, c.site_origin.empty(), c.source == "folder", &o);
   ApplyOriginAndInterior(p, &c);
   c.epochs.Check();
   if (c.source == "folder") {

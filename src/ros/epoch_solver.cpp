@@ -39,9 +39,10 @@ void LogResult(uint32_t n, const adjustment::EpochAdjustmentResult& result, bool
 
 // The UAV cameras of the scene whose photos the existing initialisation
 // (InitializeScene, OrientFromApproximatePoints) cannot start: no photo of
-// the camera sees a target (control, check or monitoring point) or has the
-// flight log's attitude (Image::attitude_from_prior), but the camera's photos
-// have tie points (a UAV-only site without targets).
+// the camera sees 4 targets (control, check or monitoring points; 2 with a
+// GNSS prior) or has the flight log's attitude (Image::attitude_from_prior),
+// but the camera's photos have tie points (a UAV-only site without targets,
+// or with a few control points picked in each photo).
 std::vector<int> UavCamerasWithoutControl(const adjustment::Scene& scene,
                                           const AdjusterParameters& params) {
   std::vector<int> targets_seen(scene.images.size(), 0), ties_seen(scene.images.size(), 0);
@@ -54,7 +55,9 @@ std::vector<int> UavCamerasWithoutControl(const adjustment::Scene& scene,
     bool started = false, tied = false;
     for (size_t i = 0; i < scene.images.size(); ++i) {
       if (scene.images[i].camera != static_cast<int>(c)) continue;
-      started = started || targets_seen[i] > 0 || scene.images[i].attitude_from_prior;
+      const adjustment::Image& im = scene.images[i];
+      started = started || targets_seen[i] >= 4 ||
+                (im.position_prior && targets_seen[i] >= 2) || im.attitude_from_prior;
       tied = tied || ties_seen[i] > 0;
     }
     if (!started && tied) out.push_back(static_cast<int>(c));
@@ -78,7 +81,7 @@ std::string StartFlightsFromTiePoints(adjustment::Scene* scene, const AdjusterPa
     const flight::FlightSummary f = flight::OrientSceneFromTiePoints(scene, camera);
     if (!f.success) {
       failed = Message("UAV camera '", camera,
-                       "' sees no target in its photos and its tie points could not orient ",
+                       "' sees too few targets to start from and its tie points could not orient ",
                        "them: ", f.message);
       Log(out, LogLine::kError, Message("epoch ", n, ": ", failed));
       continue;

@@ -210,7 +210,7 @@ HexMatcherParameters ReadHexMatcherParameters(ParamReader& p) {
   if (h.mode == "sequence" && !h.site_file.empty()) {
     const io::SiteFile site = io::LoadSiteFile(h.site_file);
     site_cameras = !site.cameras.empty();
-    if (h.only_without_targets && !io::SiteWithoutTargets(site, h.target_list))
+    if (h.only_without_targets && !io::SiteWithoutDetectableTargets(site, h.target_list))
       h.idle =
           "site '" + site.name +
           "' has targets: its UAV photos are tied by them (uav_tie_points:=true ties them too)";

@@ -69,6 +69,7 @@ void ReadAdjusterTargetsAndCameras(ParamReader& p, AdjusterParameters& a) {
   a.target_list_path = p.String("target_list", a.target_list_path);
   if (site && site->targets) {
     a.targets = *site->targets;
+    a.site_without_targets = !a.targets.HasDetectable();  // picked points only (a gcp list)
     a.target_list_path =
         site->targets_file.empty() ? site_file + " (inline targets)" : site->targets_file;
   } else if (site && io::SiteWithoutTargets(*site, a.target_list_path)) {
@@ -106,6 +107,7 @@ void ReadAdjusterTargetsAndCameras(ParamReader& p, AdjusterParameters& a) {
     if (cam.kind == io::CameraKind::kUav) {
       priors.push_back(UavCameraTopics(cam.name).prior);
       ties.push_back(UavCameraTopics(cam.name).tie_points);
+      site_targets.push_back(UavCameraTopics(cam.name).picks);
     }
   }
   if (!site_cameras.empty()) {

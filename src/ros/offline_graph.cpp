@@ -51,7 +51,8 @@ bool GraphInputType(const std::string& type) {
       ros::message_traits::datatype<sensor_msgs::CameraInfo>(),
       ros::message_traits::datatype<slope_monitor::EpochMarker>(),
       ros::message_traits::datatype<geometry_msgs::PoseWithCovarianceStamped>(),
-      ros::message_traits::datatype<slope_monitor::RadioSampleBlock>()};
+      ros::message_traits::datatype<slope_monitor::RadioSampleBlock>(),
+      ros::message_traits::datatype<slope_monitor::TargetObservationArray>()};
   return types.count(type) > 0;
 }
 
@@ -87,6 +88,9 @@ void OfflineGraph::OnMessage(const rosbag::MessageInstance& m) {
     if (IsPriorTopic(topic)) adjuster_->AddPrior(*prior);
   } else if (const auto block = m.instantiate<slope_monitor::RadioSampleBlock>()) {
     OnRadioBlock(*block, topic);
+  } else if (const auto picks = m.instantiate<slope_monitor::TargetObservationArray>()) {
+    // Points picked in a photo (camera_capture with a site's gcp list).
+    if (IsPicksTopic(topic)) Solve(adjuster_->AddTargets(*picks, now_.toSec()));
   }
 }
 
@@ -251,6 +255,12 @@ bool OfflineGraph::IsPriorTopic(const std::string& topic) const {
     return topic == UavCameraTopics(adjustment::DefaultUavCameras().front()).prior;
   const std::vector<std::string>& topics = params.prior_topics;
   return std::find(topics.begin(), topics.end(), topic) != topics.end();
+}
+
+bool OfflineGraph::IsPicksTopic(const std::string& topic) const {
+  for (const std::string& cam : adjuster_->parameters().collector.uav_cameras)
+    if (topic == UavCameraTopics(cam).picks) return true;
+  return false;
 }
 
 // A receiver's block (/radio/<id>/samples) through the radio step, as the

@@ -19,6 +19,16 @@ void ResolveReplayTargets(OfflineGraphOptions* a,
                           const std::function<void(const std::string&)>& log) {
   const std::optional<io::SiteFile> site =
       a->site.empty() ? std::nullopt : std::optional<io::SiteFile>(io::LoadSiteFile(a->site));
+  if (site && site->targets && !site->targets->HasDetectable()) {
+    // Points picked in the photos only (a gcp list): the picks come from the
+    // bag (camera_capture), the photos are tied by their tie points.
+    if (!a->uav_tie_points)
+      log("site '" + site->name +
+          "' lists only points picked in photos: no target stage; UAV photos tied by their tie "
+          "points (as --uav-tie-points)");
+    a->uav_tie_points = true;
+    return;
+  }
   if (site && site->targets) return;
   if (!a->target_list.empty()) return;
   const std::string beside =

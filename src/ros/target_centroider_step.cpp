@@ -54,7 +54,8 @@ TargetCentroiderStep::TargetCentroiderStep(const std::string& camera, double pix
                                            const std::optional<io::TargetList>& targets,
                                            const std::string& topic)
     : camera_(camera), topic_(topic), pixel_size_(pixel_size), node_(parameters.node) {
-  if (targets)
+  // Points picked by hand (a gcp list) reach the adjuster from the capture.
+  if (targets && targets->HasDetectable())
     centroider_ = std::make_unique<targets::TargetCentroider>(parameters.options, *targets);
 }
 

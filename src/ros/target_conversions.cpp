@@ -13,6 +13,13 @@
 namespace slope_monitor {
 namespace ros_adapters {
 
+uint8_t TargetRoleToMsg(const std::optional<io::TargetRole>& role) {
+  return !role                               ? TargetObservation::ROLE_UNKNOWN
+         : *role == io::TargetRole::kControl ? TargetObservation::ROLE_CONTROL
+         : *role == io::TargetRole::kCheck   ? TargetObservation::ROLE_CHECK
+                                             : TargetObservation::ROLE_MONITORING;
+}
+
 CentroidedImage CentroidImage(const targets::TargetCentroider& centroider,
                               const sensor_msgs::Image& image, const sensor_msgs::CameraInfo& info,
                               const std::optional<Eigen::Isometry3d>& site_from_optical,
@@ -51,10 +58,7 @@ CentroidedImage CentroidImage(const targets::TargetCentroider& centroider,
     TargetObservation m;
     m.id = o.id;
     m.family = o.family;
-    m.role = !o.role                               ? TargetObservation::ROLE_UNKNOWN
-             : *o.role == io::TargetRole::kControl ? TargetObservation::ROLE_CONTROL
-             : *o.role == io::TargetRole::kCheck   ? TargetObservation::ROLE_CHECK
-                                                   : TargetObservation::ROLE_MONITORING;
+    m.role = TargetRoleToMsg(o.role);
     m.x = o.centre.x();
     m.y = o.centre.y();
     const auto cov = ToRowMajor<2>(o.covariance);

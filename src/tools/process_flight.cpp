@@ -72,9 +72,6 @@ using namespace slope_monitor;
 
 namespace {
 
-// [m] sigma of the height of a control point whose list gives none.
-constexpr double kNoHeightSigma = 10.0;
-
 const char* kUsage =
     "usage: process_flight --photos DIR [--photos DIR2 ...] [--gcp FILE] [--geo FILE] [--check "
     "NAME[,NAME...]]\n"
@@ -89,7 +86,7 @@ struct Args {
   std::vector<std::string> folders;
   std::string gcp, site, out, geo;
   std::set<std::string> check;
-  double gcp_sigma = 0.05, gnss_sigma = capture::kExifGnssSigmaHorizontal;
+  double gcp_sigma = io::kDefaultGcpSigma, gnss_sigma = capture::kExifGnssSigmaHorizontal;
   flight::FlightPhotoOptions photo;
   bool leave_one_out = true;
   int threads = 0;
@@ -238,13 +235,6 @@ std::optional<SiteCrs> MakeFrame(const Args& args, const std::optional<io::GcpLi
   return crs;
 }
 
-// false: every height of the list is 0 (a list without heights).
-bool HasHeights(const io::GcpList& gcp) {
-  for (const io::GcpPoint& p : gcp.points)
-    if (p.geo.z() != 0.0) return true;
-  return false;
-}
-
 // Control points of the gcp list in this flight's photos; picks naming a
 // photo not in the flight are named on stderr (*skipped counts them).
 std::vector<flight::FlightControlPoint> ControlPoints(const io::GcpList& gcp, const SiteCrs& crs,
@@ -252,12 +242,12 @@ std::vector<flight::FlightControlPoint> ControlPoints(const io::GcpList& gcp, co
                                                       const Args& args, int* skipped) {
   std::vector<flight::FlightControlPoint> out;
   const double s = args.gcp_sigma;
-  const bool heights = HasHeights(gcp);
+  const bool heights = io::HasHeights(gcp);
   for (const io::GcpPoint& p : gcp.points) {
     flight::FlightControlPoint cp;
     cp.name = p.name;
     cp.site = crs.SiteFromCrs(p.geo);
-    const double sz = heights ? 2.0 * s : kNoHeightSigma;
+    const double sz = heights ? 2.0 * s : io::kNoHeightSigma;
     cp.covariance = Eigen::Vector3d(s * s, s * s, sz * sz).asDiagonal();
     cp.has_height = heights;
     cp.check = args.check.count(p.name) > 0;
@@ -505,10 +495,10 @@ int main(int argc, char** argv) {
     io::CheckFolderWritable(args.out, "--out");  // fail early (issue 38): before any photo is read
     std::optional<io::GcpList> gcp;
     if (!args.gcp.empty()) gcp = io::ReadGcpList(args.gcp);
-    if (gcp && !HasHeights(*gcp))
+    if (gcp && !io::HasHeights(*gcp))
       std::cerr << "process_flight: " << gcp->path
                 << ": every height is 0: taken as not given (horizontal control;"
-                << " heights held within " << kNoHeightSigma << " m of 0)\n";
+                << " heights held within " << io::kNoHeightSigma << " m of 0)\n";
     std::optional<io::GeoList> geo;
     if (!args.geo.empty()) geo = io::ReadGeoList(args.geo);
     std::optional<SiteCrs> crs;

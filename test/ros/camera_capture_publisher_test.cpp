@@ -3,12 +3,15 @@
 // master: messages, stamps, encodings, camera_info, NavSatFix, position prior,
 // epoch markers, and a truncated JPEG skipped with a message and counted.
 #include <cmath>
+#include <fstream>
 
 #include <gtest/gtest.h>
 
 #include "../core/capture/test_images.h"
 #include "capture_test_util.h"
 #include "slope_monitor/core/capture/geodesy.h"
+#include "slope_monitor/core/common/site_crs.h"
+#include "slope_monitor/core/io/target_file.h"
 #include "slope_monitor/ros/capture_conversions.h"
 #include "slope_monitor/ros/conversions.h"
 
@@ -161,6 +164,57 @@ TEST_F(PublisherFixture, FolderThroughThePublishingPath) {
   ASSERT_EQ(r.warnings.size(), 1u);
   EXPECT_NE(r.warnings[0].find("img_cut.jpg"), std::string::npos) << r.warnings[0];
   EXPECT_NE(r.warnings[0].find("truncated"), std::string::npos) << r.warnings[0];
+}
+
+// A site's gcp list: each photo's picks published just before its image,
+// with its header, the camera's name, the ID its name gives and the role the
+// site gives; a pick in a photo the folder does not have is named at the end.
+TEST_F(PublisherFixture, PicksOfTheGcpListBeforeTheirPhotos) {
+  const std::string gcp = dir_.File("gcp_list.txt");
+  std::ofstream(gcp) << "EPSG:4979\n"
+                     << "139.0001 35.0001 100.0 10.25 20.5 img_002.jpg gcp4\n"
+                     << "139.0001 35.0001 100.0 30.0 40.0 img_001.jpg gcp4\n"
+                     << "139.0002 35.0002 101.0 50.0 10.0 img_002.jpg gcp7\n"
+                     << "139.0002 35.0002 101.0 1.0 2.0 img_999.jpg gcp7\n";
+  const SiteCrs site = SiteCrs::LocalEnuAtWgs84(kOriginLat, kOriginLon, kOriginH);
+  ros_adapters::FramePublisherOptions o = Options();
+  o.picks = ros_adapters::PhotoPicks(gcp, io::LoadGcpTargets(gcp, site, {"gcp7"}));
+  o.picks_file = gcp;
+  Recorded r;
+  ros_adapters::FramePublisher publisher(o, Outputs(&r));
+  capture::FolderSourceOptions fo;
+  fo.folder = dir_.path();
+  capture::FolderSource source(fo);
+  capture::EpochTracker tracker(capture::EpochOptions{});
+  while (publisher.Step(&source, &tracker, true) ==
+         ros_adapters::FramePublisher::StepResult::kPublished) {
+  }
+  EXPECT_EQ(r.order,
+            (std::vector<std::string>{"S0", "P", "I", "P", "I", "I", "E0", "S1", "I", "E1"}));
+  ASSERT_EQ(r.picks.size(), 2u);
+  for (int k = 0; k < 2; ++k) {
+    EXPECT_EQ(r.picks[k].header.stamp, r.images[k]->header.stamp);
+    EXPECT_EQ(r.picks[k].header.frame_id, "uav_optical");
+    EXPECT_EQ(r.picks[k].camera_name, "/uav/camera");
+    EXPECT_EQ(r.picks[k].image_width, 80u);
+  }
+  ASSERT_EQ(r.picks[0].observations.size(), 1u);  // img_001: gcp4
+  EXPECT_EQ(r.picks[0].observations[0].id, 4);
+  EXPECT_EQ(r.picks[0].observations[0].family, "gcp");
+  EXPECT_EQ(r.picks[0].observations[0].role, slope_monitor::TargetObservation::ROLE_CONTROL);
+  EXPECT_EQ(r.picks[0].observations[0].x, 30.0);
+  ASSERT_EQ(r.picks[1].observations.size(), 2u);  // img_002: gcp4, gcp7 (check)
+  EXPECT_EQ(r.picks[1].observations[0].x, 10.25);
+  EXPECT_EQ(r.picks[1].observations[0].y, 20.5);
+  EXPECT_EQ(r.picks[1].observations[1].id, 7);
+  EXPECT_EQ(r.picks[1].observations[1].role, slope_monitor::TargetObservation::ROLE_CHECK);
+  EXPECT_EQ(r.picks[1].observations[1].covariance[0], io::kGcpPickSigmaPx * io::kGcpPickSigmaPx);
+  EXPECT_EQ(r.picks[1].observations[1].covariance[1], 0.0);
+  bool named = false;
+  for (const std::string& w : r.warnings)
+    named = named || (w.find(gcp + ": photo 'img_999.jpg' was not published") == 0 &&
+                      w.find("1 pick(s) left out") != std::string::npos);
+  EXPECT_TRUE(named) << ::testing::PrintToString(r.warnings);
 }
 
 TEST_F(PublisherFixture, CalibrationFromThePackageParameters) {

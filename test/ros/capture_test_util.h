@@ -32,13 +32,15 @@ inline ExifTags UavPhotoTags(const std::string& model, const std::string& hms,
 }
 
 // Everything a FramePublisher published, in order; `order` lists images and
-// epoch markers as they came ("S0" epoch 0 starts, "I" an image, "E0" it ends).
+// epoch markers as they came ("S0" epoch 0 starts, "I" an image, "P" picks,
+// "E0" it ends).
 struct Recorded {
   std::vector<sensor_msgs::ImagePtr> images;
   std::vector<sensor_msgs::CameraInfoPtr> infos;
   std::vector<sensor_msgs::NavSatFix> fixes;
   std::vector<geometry_msgs::PoseWithCovarianceStamped> priors;
   std::vector<slope_monitor::EpochMarker> epochs;
+  std::vector<slope_monitor::TargetObservationArray> picks;
   std::vector<std::string> warnings;
   std::vector<std::string> order;
 };
@@ -56,6 +58,10 @@ inline ros_adapters::CaptureOutputs RecordInto(Recorded* r) {
   out.epoch = [r](const slope_monitor::EpochMarker& m) {
     r->epochs.push_back(m);
     r->order.push_back((m.end ? "E" : "S") + std::to_string(m.epoch));
+  };
+  out.picks = [r](const slope_monitor::TargetObservationArray& m) {
+    r->picks.push_back(m);
+    r->order.push_back("P");
   };
   out.warn = [r](const std::string& w) { r->warnings.push_back(w); };
   return out;

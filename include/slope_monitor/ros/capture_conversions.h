@@ -3,7 +3,9 @@
 #pragma once
 
 #include <functional>
+#include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -14,10 +16,12 @@
 #include <std_msgs/Header.h>
 
 #include "slope_monitor/EpochMarker.h"
+#include "slope_monitor/TargetObservationArray.h"
 #include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/capture/geodesy.h"
 #include "slope_monitor/core/capture/sources.h"
 #include "slope_monitor/core/capture/timing.h"
+#include "slope_monitor/core/io/target_list.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -66,6 +70,7 @@ struct CaptureOutputs {
   std::function<void(const sensor_msgs::NavSatFix&)> fix;
   std::function<void(const geometry_msgs::PoseWithCovarianceStamped&)> prior;
   std::function<void(const slope_monitor::EpochMarker&)> epoch;
+  std::function<void(const slope_monitor::TargetObservationArray&)> picks;
   std::function<void(const std::string&)> warn;  // skipped files, calibration problems
 };
 
@@ -85,7 +90,17 @@ struct FramePublisherOptions {
   // pixel_size > 0, else an uncalibrated camera_info (size only, K = 0).
   bool has_camera_info = false;
   sensor_msgs::CameraInfo camera_info;
+  // Points picked in the photos (the site's gcp list, PhotoPicks), by photo
+  // file name: published on `picks` just before the photo's image.
+  std::map<std::string, std::vector<slope_monitor::TargetObservation>> picks;
+  std::string picks_file;  // the gcp list they came from (messages)
 };
+
+// The picks of a site's gcp list (io::LoadGcpTargets: family "gcp", the
+// role the site gives each point) by photo file name, each with the pick
+// sigma of io::kGcpPickSigmaPx. Throws ConfigError naming the file.
+std::map<std::string, std::vector<slope_monitor::TargetObservation>> PhotoPicks(
+    const std::string& gcp_file, const io::TargetList& targets);
 
 class FramePublisher {
  public:
@@ -116,6 +131,8 @@ class FramePublisher {
 
  private:
   void Warn(const std::string& text);
+  void PublishPicks(const capture::Frame& frame, const std_msgs::Header& header);
+  void WarnUnpublishedPicks();
   FramePublisherOptions options_;
   CaptureOutputs outputs_;
   std::unique_ptr<capture::LocalTangentPlane> site_;
@@ -123,6 +140,7 @@ class FramePublisher {
   uint64_t published_ = 0;
   uint64_t skipped_ = 0;
   std::string last_warning_;
+  std::set<std::string> picked_photos_published_;
 };
 
 // ---------------------------------------------------------------------------

@@ -67,8 +67,9 @@ struct AdjusterParameters {
   std::string frame_id = "site";
   bool enable_run_adjustment = true, enable_set_reference_epoch = true;
   bool uav_tie_points = false;  // the UAV cameras' photos wait for their tie points
-  bool site_without_targets =
-      false;  // io::SiteWithoutTargets: no target list, UAV photos by tie points
+  // io::SiteWithoutDetectableTargets: no target list, or points picked in
+  // the photos only; the UAV photos are tied by their tie points.
+  bool site_without_targets = false;
   // Interior parameters (camera::InteriorNames) free for the UAV cameras in
   // every flight; empty: free_interior's (and the UAV start's c, k1, k2)
   std::vector<std::string> uav_free_interior;

@@ -172,6 +172,7 @@ class OfflineGraph {
                            const sensor_msgs::Image::ConstPtr& image);
   void PublishTargetless(const TargetlessOutputs& out);
   bool IsPriorTopic(const std::string& topic) const;
+  bool IsPicksTopic(const std::string& topic) const;
 
   // ---- the hex matcher (mode sequence), one per UAV camera.
   UavMatcher* UavMatcherOf(const std::string& topic, std::string UavTopics::*field);

@@ -12,10 +12,14 @@
 #include <Eigen/Geometry>
 
 #include "slope_monitor/TargetObservationArray.h"
+#include "slope_monitor/core/io/target_list.h"
 #include "slope_monitor/core/targets/target_centroider.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
+
+// TargetObservation::ROLE_* of a listed target's role (nullopt: not listed).
+uint8_t TargetRoleToMsg(const std::optional<io::TargetRole>& role);
 
 struct CentroidedImage {
   slope_monitor::TargetObservationArray targets;

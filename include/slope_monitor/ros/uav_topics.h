@@ -1,5 +1,5 @@
 // The topics of a moving (UAV) camera in the graph, written once: its photos
-// and GNSS priors from the driver, its tie points from the hex_matcher (mode
+// GNSS priors and picked points from the driver, its tie points from the hex_matcher (mode
 // sequence). Used by the hex_matcher and bundle adjuster parameters with a
 // site file and by process_bag. And the one rule that names a camera by its
 // driver's namespace (camera_capture's EpochMarker.source).
@@ -14,11 +14,14 @@ struct UavTopics {
   std::string image;       // /<camera>/camera/image_raw
   std::string prior;       // /<camera>/camera/position_prior
   std::string tie_points;  // /<camera>/tie_points
+  // Points picked in the photos (a site's gcp list), TargetObservationArray
+  // per photo from camera_capture: /<camera>/camera/picks
+  std::string picks;
 };
 
 inline UavTopics UavCameraTopics(const std::string& camera) {
   return {"/" + camera + "/camera/image_raw", "/" + camera + "/camera/position_prior",
-          "/" + camera + "/tie_points"};
+          "/" + camera + "/tie_points", "/" + camera + "/camera/picks"};
 }
 
 // A camera's name (the site file's cameras[].name, EpochMarker.source, the

@@ -4,6 +4,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include "slope_monitor/core/common/error.h"
@@ -121,6 +122,26 @@ GcpList ReadGcpList(const std::string& path) {
   if (!have_crs) throw IoError(Message(path, ": empty (the first line must name the CRS)"));
   if (list.points.empty()) throw IoError(Message(path, ": names a CRS but no picks"));
   return list;
+}
+
+bool HasHeights(const GcpList& list) {
+  for (const GcpPoint& p : list.points)
+    if (p.geo.z() != 0.0) return true;
+  return false;
+}
+
+std::map<std::string, int> GcpTargetIds(const GcpList& list) {
+  std::map<std::string, int> by_number, by_order;
+  std::set<int> numbers;
+  for (const GcpPoint& p : list.points) {
+    by_order[p.name] = static_cast<int>(by_order.size());
+    const size_t digits = p.name.find_last_not_of("0123456789") + 1;  // npos + 1 == 0
+    const std::string tail = p.name.substr(digits);
+    if (tail.empty() || tail.size() > 9) continue;
+    const int n = std::stoi(tail);
+    if (numbers.insert(n).second) by_number[p.name] = n;
+  }
+  return by_number.size() == list.points.size() ? by_number : by_order;
 }
 
 }  // namespace io

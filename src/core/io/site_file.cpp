@@ -81,7 +81,14 @@ void ReadTargets(YamlMap& root, const std::string& folder, const SiteCrs& site, 
   if (t.Has("file")) {
     if (t.Has("list")) t.Fail("list", "and 'file' are both given; give one");
     s->targets_file = Resolve(folder, t.RequiredString("file"));
-    s->targets = LoadTargetFile(s->targets_file, &site, size);
+    if (IsGcpListName(s->targets_file)) {
+      // A gcp list: which of its points are checks, and what its coordinates are worth.
+      const std::vector<std::string> check = t.Strings("check", {});
+      const double sigma = t.Double("sigma", kDefaultGcpSigma, 1e-4, 100.0, "m");
+      s->targets = LoadGcpTargets(s->targets_file, site, check, sigma, size);
+    } else {
+      s->targets = LoadTargetFile(s->targets_file, &site, size);
+    }
   } else {
     const std::string crs = t.String("crs", site.options().crs);
     TargetList list;
@@ -227,6 +234,10 @@ std::vector<const SiteCamera*> SiteFile::CamerasWithTargets() const {
 
 bool SiteWithoutTargets(const SiteFile& site, const std::string& target_list) {
   return !site.targets && (target_list.empty() || !std::filesystem::is_regular_file(target_list));
+}
+
+bool SiteWithoutDetectableTargets(const SiteFile& site, const std::string& target_list) {
+  return SiteWithoutTargets(site, target_list) || (site.targets && !site.targets->HasDetectable());
 }
 
 SiteFile ParseSiteFile(const std::string& text, const std::string& context,

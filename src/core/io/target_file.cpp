@@ -12,17 +12,62 @@ namespace slope_monitor {
 namespace io {
 namespace {
 
-bool IsCsvName(const std::string& path) {
+bool HasExtension(const std::string& path, const char* extension) {
   if (path.size() < 4) return false;
   std::string ext = path.substr(path.size() - 4);
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return ext == ".csv";
+  return ext == extension;
 }
+
+bool IsCsvName(const std::string& path) { return HasExtension(path, ".csv"); }
 
 }  // namespace
 
+bool IsGcpListName(const std::string& path) { return HasExtension(path, ".txt"); }
+
+TargetList LoadGcpTargets(const std::string& path, const SiteCrs& site,
+                          const std::vector<std::string>& check, double sigma, double size) {
+  GcpList gcp;
+  try {
+    gcp = ReadGcpList(path);
+  } catch (const std::exception& e) {
+    throw ConfigError(Message("gcp list: ", e.what()));
+  }
+  const std::map<std::string, int> ids = GcpTargetIds(gcp);
+  for (const std::string& name : check)
+    if (ids.count(name) == 0)
+      throw ConfigError(Message(path, ": check point '", name, "' is not in the list"));
+  const bool heights = HasHeights(gcp);
+  std::vector<SurveyedPoint> points;
+  for (const GcpPoint& p : gcp.points) {
+    SurveyedPoint s;
+    s.family = kGcpFamily;
+    s.id = ids.at(p.name);
+    s.role = std::find(check.begin(), check.end(), p.name) != check.end() ? TargetRole::kCheck
+                                                                           : TargetRole::kControl;
+    try {
+      s.position_in_site = SiteFromListCrs(site, gcp.crs, p.geo);
+    } catch (const std::exception& e) {
+      throw ConfigError(Message(path, ":", p.line, ": point '", p.name, "': ", e.what()));
+    }
+    s.sigma = Eigen::Vector2d(sigma, heights ? 2.0 * sigma : kNoHeightSigma);
+    points.push_back(s);
+  }
+  TargetList list;
+  ApplySurveyedPoints(points, size, &list);
+  return list;
+}
+
 TargetList LoadTargetFile(const std::string& path, const SiteCrs* site, double size) {
+  if (IsGcpListName(path)) {
+    if (!site)
+      throw ConfigError(Message("gcp list '", path,
+                                "': no site file gives the site frame to turn its coordinates "
+                                "into: give the site file (process_bag --site, the launch's "
+                                "site:=)"));
+    return LoadGcpTargets(path, *site, {}, kDefaultGcpSigma, size);
+  }
   if (!IsCsvName(path)) return TargetList::Load(path);
   std::ifstream in(path);
   if (!in) throw ConfigError(Message("cannot open target list '", path, "'"));
@@ -54,7 +99,8 @@ TargetList LoadTargetFile(const std::string& path, const SiteCrs* site, double s
 
 TargetList LoadTargetFileInSite(const std::string& path, const SiteCrsOptions* site_crs,
                                 double size) {
-  if (!site_crs || !IsCsvName(path)) return LoadTargetFile(path, nullptr, size);
+  if (!site_crs || !(IsCsvName(path) || IsGcpListName(path)))
+    return LoadTargetFile(path, nullptr, size);
   const SiteCrs site(*site_crs);
   return LoadTargetFile(path, &site, size);
 }

@@ -43,6 +43,12 @@ void TargetList::Add(const TargetSpec& spec) {
   targets_.push_back(spec);
 }
 
+bool TargetList::HasDetectable() const {
+  for (const TargetSpec& t : targets_)
+    if (t.family != "gcp") return true;
+  return false;
+}
+
 const TargetSpec* TargetList::Find(const std::string& family, int id) const {
   const auto it = index_.find(family + "/" + std::to_string(id));
   return it == index_.end() ? nullptr : &targets_[it->second];
@@ -82,7 +88,7 @@ TargetList FromMap(YamlMap root) {
     TargetSpec s;
     s.id = t.RequiredInt("id", 0, 1 << 30);
     s.family = t.String("family", "tag36h11",
-                        {"tag36h11", "tag25h9", "tag16h5", "tagStandard41h12", "circle"});
+                        {"tag36h11", "tag25h9", "tag16h5", "tagStandard41h12", "circle", "gcp"});
     s.size = t.RequiredDouble("size", 1e-3, 100.0, "m");
     s.role = TargetRoleFromName(t.String("role", "monitoring", {"control", "monitoring", "check"}));
     if (t.Has("position")) {

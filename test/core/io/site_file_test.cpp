@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/gcp_list.h"
 
 namespace slope_monitor {
 namespace io {
@@ -112,6 +113,63 @@ TEST(SiteFile, TargetCsvBesideTheSiteFile) {
   ASSERT_EQ(s.targets->targets().size(), 1u);
   EXPECT_EQ(*s.targets->targets()[0].position, Eigen::Vector3d(1.5, 2.5, 3.5));
   EXPECT_DOUBLE_EQ(s.targets->targets()[0].size, 2.0);
+  std::system(("rm -rf '" + dir + "'").c_str());
+}
+
+// A crew's ODM gcp_list.txt as the site's targets: family gcp, the ID the
+// point's name ends in, roles from `check`, sigma from `sigma` (vertical
+// 10 m when every height is 0), UTM turned into the shifted site frame by
+// hand subtraction; mistakes name the file.
+TEST(SiteFile, GcpListAsTargets) {
+  char tmpl[] = "/tmp/site_file_test_XXXXXX";
+  const std::string dir = mkdtemp(tmpl);
+  std::ofstream(dir + "/gcp_list.txt")
+      << "WGS84 UTM 32N\n"
+      << "500010.0 5150020.0 0.0 100.5 200.5 IMG_1.JPG gcp07\n"
+      << "500010.0 5150020.0 0.0 300.0 210.0 IMG_2.JPG gcp07\n"
+      << "500030.0 5150005.0 0.0 50.0 60.0 IMG_2.JPG gcp2\n";
+  const std::string head =
+      "name: gcp\ncrs: EPSG:32632\norigin: [500000, 5150000, 0]\nframe: shifted_crs\n";
+  std::ofstream(dir + "/site.yaml") << head
+                                    << "targets: {file: gcp_list.txt, check: [gcp2], sigma: 0.5}\n";
+  const SiteFile s = LoadSiteFile(dir + "/site.yaml");
+  ASSERT_TRUE(s.targets.has_value());
+  EXPECT_FALSE(s.targets->HasDetectable());
+  EXPECT_TRUE(SiteWithoutDetectableTargets(s, ""));
+  const TargetSpec* g7 = s.targets->Find("gcp", 7);
+  const TargetSpec* g2 = s.targets->Find("gcp", 2);
+  ASSERT_TRUE(g7 && g2);
+  EXPECT_EQ(g7->role, TargetRole::kControl);
+  EXPECT_EQ(g2->role, TargetRole::kCheck);
+  EXPECT_NEAR((*g7->position - Eigen::Vector3d(10.0, 20.0, 0.0)).norm(), 0.0, 1e-6);
+  EXPECT_NEAR((*g2->position - Eigen::Vector3d(30.0, 5.0, 0.0)).norm(), 0.0, 1e-6);
+  EXPECT_EQ(g7->sigma, Eigen::Vector2d(0.5, kNoHeightSigma));
+  // Without `sigma`: the gcp list's default, vertical twice when heights are given.
+  std::ofstream(dir + "/with_heights.txt") << "EPSG:32632\n500010 5150020 12.5 1 1 a.jpg p\n";
+  std::ofstream(dir + "/site2.yaml") << head << "targets: {file: with_heights.txt}\n";
+  const SiteFile h = LoadSiteFile(dir + "/site2.yaml");
+  ASSERT_EQ(h.targets->targets().size(), 1u);
+  EXPECT_EQ(h.targets->targets()[0].Key(), "gcp/0");  // no number in the name: its place
+  EXPECT_EQ(h.targets->targets()[0].sigma,
+            Eigen::Vector2d(kDefaultGcpSigma, 2.0 * kDefaultGcpSigma));
+  EXPECT_NEAR(h.targets->targets()[0].position->z(), 12.5, 1e-9);
+  // A check point the list does not have, and a gcp list that is not there.
+  std::ofstream(dir + "/site3.yaml") << head << "targets: {file: gcp_list.txt, check: [gcp9]}\n";
+  try {
+    LoadSiteFile(dir + "/site3.yaml");
+    ADD_FAILURE() << "a check point not in the list was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("gcp_list.txt: check point 'gcp9' is not in the list"),
+              std::string::npos)
+        << e.what();
+  }
+  std::ofstream(dir + "/site4.yaml") << head << "targets: {file: missing.txt}\n";
+  try {
+    LoadSiteFile(dir + "/site4.yaml");
+    ADD_FAILURE() << "a missing gcp list was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("missing.txt"), std::string::npos) << e.what();
+  }
   std::system(("rm -rf '" + dir + "'").c_str());
 }
 

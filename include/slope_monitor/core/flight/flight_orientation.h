@@ -33,6 +33,7 @@
 #include <Eigen/Core>
 
 #include "slope_monitor/core/adjustment/bundle_adjuster.h"
+#include "slope_monitor/core/io/gcp_list.h"
 #include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/flight/flight_matching.h"
 #include "slope_monitor/core/geometry/intersection.h"
@@ -64,7 +65,7 @@ struct FlightOrientationOptions {
   double growth_for_adjustment = 1.25;  // adjust when the oriented photos grow by this factor, > 1
   double max_reprojection_px = 4.0;     // observations farther after an adjustment are dropped, > 0
   double tie_sigma_px = 0.5;            // [px] a tie point's standard deviation, > 0
-  double pick_sigma_px = 2.0;           // [px] a control point picked by hand, > 0
+  double pick_sigma_px = io::kGcpPickSigmaPx;  // [px] a control point picked by hand, > 0
   double gnss_sigma_horizontal_m = capture::kExifGnssSigmaHorizontal;  // [m] > 0
   double gnss_sigma_vertical_m = capture::kExifGnssSigmaVertical;      // [m] > 0
   int min_photos_full_calibration = 12;  // fewer oriented photos: only c, k1, k2 free, >= 3

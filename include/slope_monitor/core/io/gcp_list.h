@@ -11,6 +11,7 @@
 // differs by 0.5 px, far below a pick's precision).
 #pragma once
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -43,6 +44,22 @@ struct GcpList {
 // number that is not one, a point named twice with other coordinates, the
 // same point picked twice in one photo.
 GcpList ReadGcpList(const std::string& path);
+
+// What a gcp list leaves unsaid, one place for process_flight and a site
+// file's targets (io::LoadGcpTargets):
+constexpr double kDefaultGcpSigma = 0.05;  // [m] a control point, horizontal; vertical twice
+constexpr double kNoHeightSigma = 10.0;    // [m] vertical, when the list has no heights
+constexpr double kGcpPickSigmaPx = 2.0;    // [px] a point picked by hand in a photo
+constexpr char kGcpFamily[] = "gcp";       // the target family of picked points (never detected)
+
+// false: every height of the list is 0 (a list without heights: handheld
+// GNSS averages written as 2-D coordinates).
+bool HasHeights(const GcpList& list);
+
+// The target ID of each point (by name) in the family kGcpFamily: the
+// number its name ends in when those tell every point apart ("gcp03" -> 3),
+// else its place in the list (0, 1, ...).
+std::map<std::string, int> GcpTargetIds(const GcpList& list);
 
 // "EPSG:326NN" (north) / "EPSG:327NN" (south): WGS 84 / UTM zone NN, 1..60.
 std::string WgsUtmEpsg(int zone, bool south);

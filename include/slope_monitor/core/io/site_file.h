@@ -113,6 +113,12 @@ std::vector<std::string> CameraNames(const std::vector<SiteCamera>& cameras, Cam
 // and GNSS): no target stage, its UAV cameras tied by their tie points.
 bool SiteWithoutTargets(const SiteFile& site, const std::string& target_list);
 
+// SiteWithoutTargets, or a site whose targets are only points picked in the
+// photos (a gcp list, family "gcp"): nothing for a target stage to find, and
+// the UAV photos are tied by their tie points (the picks come from
+// camera_capture).
+bool SiteWithoutDetectableTargets(const SiteFile& site, const std::string& target_list);
+
 // Reads and checks a site file (every key validated, unknown keys refused,
 // the CRS checked by PROJ).
 SiteFile LoadSiteFile(const std::string& path);

@@ -7,8 +7,10 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "slope_monitor/core/common/site_crs.h"
+#include "slope_monitor/core/io/gcp_list.h"
 #include "slope_monitor/core/io/target_list.h"
 
 namespace slope_monitor {
@@ -18,9 +20,25 @@ namespace io {
 // rows carry none): doc/sites.md's targets.size default.
 constexpr double kDefaultTargetSize = 1.0;
 
+// A crew's control points picked in photos, OpenDroneMap's gcp_list.txt
+// (gcp_list.h), as targets of family "gcp" (never detected: the picks reach
+// the graph from camera_capture, doc/uav_real_flight.md): each point a
+// control point with `sigma` [m] horizontal (vertical twice that; 10 m when
+// the list has no heights), those named in `check` check points; positions
+// turned from the list's CRS into `site`. Throws ConfigError naming the file
+// (unreadable, bad line, a check name not in the list).
+TargetList LoadGcpTargets(const std::string& path, const SiteCrs& site,
+                          const std::vector<std::string>& check = {},
+                          double sigma = kDefaultGcpSigma, double size = kDefaultTargetSize);
+
+// Whether `path` names a gcp list (".txt", any case).
+bool IsGcpListName(const std::string& path);
+
 // `path` ending in ".csv" (any case): the CSV, its coordinates turned into
 // the site frame of `site` (null: no site known, and then the CSV must be in
-// '# crs: site'), each target `size` [m]; any other name: the YAML list.
+// '# crs: site'), each target `size` [m]; ending in ".txt": a gcp list
+// (LoadGcpTargets with its defaults; it needs the site); any other name: the
+// YAML list.
 // Throws ConfigError naming the file (and line, key or CRS).
 TargetList LoadTargetFile(const std::string& path, const SiteCrs* site,
                           double size = kDefaultTargetSize);
