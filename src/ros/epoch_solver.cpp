@@ -5,6 +5,7 @@
 #include "slope_monitor/core/camera/camera_model.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/flight/flight_scene.h"
+#include "slope_monitor/core/io/gcp_list.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
 
 namespace slope_monitor {
@@ -21,6 +22,10 @@ void LogResult(uint32_t n, const adjustment::EpochAdjustmentResult& result, bool
     Log(out, LogLine::kWarn, Message("initialisation: ", result.initialization));
   if (!result.pruned.dropped_images.empty() || !result.pruned.dropped_cameras.empty())
     Log(out, LogLine::kWarn, Message("epoch ", n, ": ", result.pruned.Summary()));
+  if (result.wrong_picks_removed > 0)
+    Log(out, LogLine::kWarn,
+        Message("epoch ", n, ": ", result.wrong_picks_removed,
+                " pick(s) of points picked in the photos removed: far off the other picks"));
   for (const std::string& r : result.rejected_names)
     Log(out, LogLine::kWarn,
         Message("epoch ", n, ": target name given by projection rejected: ", r));
@@ -56,13 +61,29 @@ std::vector<int> UavCamerasWithoutControl(const adjustment::Scene& scene,
     for (size_t i = 0; i < scene.images.size(); ++i) {
       if (scene.images[i].camera != static_cast<int>(c)) continue;
       const adjustment::Image& im = scene.images[i];
-      started = started || targets_seen[i] >= 4 ||
-                (im.position_prior && targets_seen[i] >= 2) || im.attitude_from_prior;
+      started = started || targets_seen[i] >= 4 || (im.position_prior && targets_seen[i] >= 2) ||
+                im.attitude_from_prior;
       tied = tied || ties_seen[i] > 0;
     }
     if (!started && tied) out.push_back(static_cast<int>(c));
   }
   return out;
+}
+
+// Whether the heights of camera `cam`'s block are given: a photo with a
+// GNSS position prior, or a control point it sees whose survey has a height
+// (a gcp list without heights gives io::kNoHeightSigma).
+bool HeightsInDatum(const adjustment::Scene& scene, int cam) {
+  for (const adjustment::Image& im : scene.images)
+    if (im.camera == cam && im.position_prior) return true;
+  const double loose = 0.5 * io::kNoHeightSigma * io::kNoHeightSigma;
+  for (const adjustment::Observation& o : scene.observations) {
+    const adjustment::ObjectPoint& p = scene.points[o.point];
+    if (scene.images[o.image].camera == cam && p.role == adjustment::PointRole::kControl &&
+        p.surveyed && p.surveyed_covariance(2, 2) < loose)
+      return true;
+  }
+  return false;
 }
 
 // A UAV flight without targets in its photos (a UAV-only site): its photos
@@ -91,10 +112,19 @@ std::string StartFlightsFromTiePoints(adjustment::Scene* scene, const AdjusterPa
                 "' started from its tie points: ", f.oriented, " of ", f.photos,
                 " photos oriented, ", f.points, " points, rms ", f.rms_px, " px, datum ", f.datum));
     if (options->free_interior_by_camera.count(camera) == 0) {
+      // Without heights in the datum c and the flying height trade off
+      // exactly over a nadir block: c stays at the flight start's value.
+      const bool heights = HeightsInDatum(*scene, c);
+      if (!heights)
+        Log(out, LogLine::kInfo,
+            Message("epoch ", n, ": UAV camera '", camera,
+                    "': no heights in the datum (no GNSS, control points without heights): c "
+                    "held, k1 and k2 self-calibrated"));
       std::vector<int> free;
       for (const char* name : {"c", "k1", "k2"})
-        for (int i = 0; i < camera::kNumInterior; ++i)
-          if (camera::InteriorNames()[i] == std::string(name)) free.push_back(i);
+        if (heights || name != std::string("c"))
+          for (int i = 0; i < camera::kNumInterior; ++i)
+            if (camera::InteriorNames()[i] == std::string(name)) free.push_back(i);
       options->free_interior_by_camera[camera] = free;
     }
   }

@@ -69,7 +69,7 @@ void ReadAdjusterTargetsAndCameras(ParamReader& p, AdjusterParameters& a) {
   a.target_list_path = p.String("target_list", a.target_list_path);
   if (site && site->targets) {
     a.targets = *site->targets;
-    a.site_without_targets = !a.targets.HasDetectable();  // picked points only (a gcp list)
+    a.site_without_targets = a.targets.OnlyPicked();  // picked points only (a gcp list)
     a.target_list_path =
         site->targets_file.empty() ? site_file + " (inline targets)" : site->targets_file;
   } else if (site && io::SiteWithoutTargets(*site, a.target_list_path)) {

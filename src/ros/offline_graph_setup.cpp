@@ -19,7 +19,7 @@ void ResolveReplayTargets(OfflineGraphOptions* a,
                           const std::function<void(const std::string&)>& log) {
   const std::optional<io::SiteFile> site =
       a->site.empty() ? std::nullopt : std::optional<io::SiteFile>(io::LoadSiteFile(a->site));
-  if (site && site->targets && !site->targets->HasDetectable()) {
+  if (site && site->targets && site->targets->OnlyPicked()) {
     // Points picked in the photos only (a gcp list): the picks come from the
     // bag (camera_capture), the photos are tied by their tie points.
     if (!a->uav_tie_points)

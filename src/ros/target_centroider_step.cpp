@@ -55,7 +55,7 @@ TargetCentroiderStep::TargetCentroiderStep(const std::string& camera, double pix
                                            const std::string& topic)
     : camera_(camera), topic_(topic), pixel_size_(pixel_size), node_(parameters.node) {
   // Points picked by hand (a gcp list) reach the adjuster from the capture.
-  if (targets && targets->HasDetectable())
+  if (targets && !targets->OnlyPicked())
     centroider_ = std::make_unique<targets::TargetCentroider>(parameters.options, *targets);
 }
 

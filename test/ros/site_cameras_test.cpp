@@ -51,8 +51,9 @@ TEST(SiteCameras, TheSiteDecidesTheAdjustersCamerasAndTopics) {
   const AdjusterParameters a = ReadAdjusterParameters(r);
   EXPECT_TRUE(a.cameras_from_site);
   EXPECT_EQ(a.collector.cameras, (Strings{"north_mast", "drone", "south_mast"}));
-  EXPECT_EQ(a.target_topics,
-            (Strings{"/north_mast/targets", "/drone/targets", "/south_mast/targets"}));
+  // The UAV camera's picks (camera_capture with a gcp list) are target observations too.
+  EXPECT_EQ(a.target_topics, (Strings{"/north_mast/targets", "/drone/targets",
+                                      "/drone/camera/picks", "/south_mast/targets"}));
   EXPECT_EQ(a.epoch_topics, (Strings{"/north_mast/camera/epoch", "/drone/camera/epoch",
                                      "/south_mast/camera/epoch"}));
   EXPECT_EQ(a.prior_topics, (Strings{"/drone/camera/position_prior"}));
@@ -96,7 +97,10 @@ TEST(SiteCameras, GraphCamerasAreTheSitesElseTheDefaultOnesOnTheirTopics) {
     cameras.push_back(c.name);
     targets.push_back("/" + c.name + "/targets");
     epochs.push_back("/" + c.name + "/camera/epoch");
-    if (c.kind == io::CameraKind::kUav) priors.push_back("/" + c.name + "/camera/position_prior");
+    if (c.kind == io::CameraKind::kUav) {
+      priors.push_back("/" + c.name + "/camera/position_prior");
+      targets.push_back("/" + c.name + "/camera/picks");
+    }
   }
   ASSERT_EQ(cameras.size(), 3u);
   ASSERT_EQ(priors.size(), 1u);

@@ -308,7 +308,9 @@ void StartFrom(const Scene& from, Scene* to) {
 
 // The tie-point screening: an adjustment without the usability limits (at
 // most 50 iterations) whose tie observations beyond the outlier threshold are
-// mismatches. Applied only when it lowered the cost and flags at most
+// mismatches, and so are the picks of points picked by hand in the photos
+// (a gcp list: a pick in the wrong photo or on the wrong mark, as copr's
+// gcp04 in IMG_0031, 3 563 px off). Applied only when it lowered the cost and flags at most
 // max_share of the tie observations (more: the fit failed, not the points).
 // A converged screening is also the final adjustment's start: from a flight
 // log's attitude the raw start left the 20-photo block of
@@ -318,7 +320,8 @@ void StartFrom(const Scene& from, Scene* to) {
 struct TieScreening {
   bool applied = false;
   bool converged = false;
-  std::set<ObservationKey> mismatches;
+  std::set<ObservationKey> mismatches;  // with the wrong picks
+  int wrong_picks = 0;                  // picks of points picked by hand among them
   Scene solution;
   std::string refused;  // why nothing was removed although the fit flagged
 };
@@ -341,9 +344,11 @@ TieScreening ScreenTiePoints(const Scene& pruned, const Options& ao, const Confi
   const Summary ts = BundleAdjuster(so, config).Solve(&t.solution);
   if (!(std::isfinite(ts.final_cost) && ts.final_cost < ts.initial_cost)) return t;
   int ties = 0;
+  std::set<ObservationKey> picks;  // points picked by hand (io::kGcpFamily): screened alike
   for (const Observation& o : t.solution.observations) {
-    if (t.solution.points[o.point].role != PointRole::kTie) continue;
-    ++ties;
+    const bool picked = t.solution.points[o.point].id.rfind("gcp/", 0) == 0;
+    if (t.solution.points[o.point].role != PointRole::kTie && !picked) continue;
+    ties += !picked;
     const Image& im = t.solution.images[o.image];
     Eigen::Vector2d px;
     bool out = !t.solution.cameras[im.camera].model.Project(
@@ -352,15 +357,18 @@ TieScreening ScreenTiePoints(const Scene& pruned, const Options& ao, const Confi
       const Eigen::Vector2d e = px - o.pixel;
       out = !(std::sqrt(e.dot(o.covariance.inverse() * e)) <= ao.outlier_threshold);
     }
-    if (out) t.mismatches.insert(KeyOf(t.solution, o));
+    if (out) (picked ? picks : t.mismatches).insert(KeyOf(t.solution, o));
   }
+  t.wrong_picks = static_cast<int>(picks.size());
   if (static_cast<double>(t.mismatches.size()) > max_share * ties) {
     t.refused = Message("the screening adjustment flagged ", t.mismatches.size(), " of ", ties,
                         " tie-point observations (more than max_tie_outlier_share ", max_share,
                         "): none removed");
     t.mismatches.clear();
+    t.wrong_picks = 0;
     return t;
   }
+  t.mismatches.insert(picks.begin(), picks.end());
   t.applied = true;
   t.converged = ts.termination.rfind("CONVERGENCE", 0) == 0;
   return t;
@@ -491,6 +499,10 @@ void FinishEpochReport(const Scene& s, const Options& ao, const std::string& nam
     r.summary.reason += Message("; ", r.tie_outliers_removed,
                                 " tie-point observation(s) removed as mismatches (residual above ",
                                 ao.outlier_threshold, " sigma in a screening adjustment)");
+  if (r.wrong_picks_removed > 0)
+    r.summary.reason += Message("; ", r.wrong_picks_removed,
+                                " pick(s) of points picked in the photos removed (residual above ",
+                                ao.outlier_threshold, " sigma in a screening adjustment)");
   if (!r.tie_screening_refused.empty()) r.summary.reason += "; " + r.tie_screening_refused;
   if (r.retried_without_names)
     r.summary.reason += "; not usable with the targets named by projection (" + named_failure +
@@ -575,7 +587,9 @@ EpochAdjustmentResult AdjustEpoch(const Scene& scene,
           std::vector<Observation> kept;
           for (const Observation& o : s.observations)
             if (!t.mismatches.count(KeyOf(s, o))) kept.push_back(o);
-          r.tie_outliers_removed += static_cast<int>(s.observations.size() - kept.size());
+          r.tie_outliers_removed +=
+              static_cast<int>(s.observations.size() - kept.size()) - t.wrong_picks;
+          r.wrong_picks_removed += t.wrong_picks;
           s.observations.swap(kept);
           continue;
         }

@@ -237,7 +237,7 @@ bool SiteWithoutTargets(const SiteFile& site, const std::string& target_list) {
 }
 
 bool SiteWithoutDetectableTargets(const SiteFile& site, const std::string& target_list) {
-  return SiteWithoutTargets(site, target_list) || (site.targets && !site.targets->HasDetectable());
+  return SiteWithoutTargets(site, target_list) || (site.targets && site.targets->OnlyPicked());
 }
 
 SiteFile ParseSiteFile(const std::string& text, const std::string& context,

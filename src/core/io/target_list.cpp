@@ -43,10 +43,10 @@ void TargetList::Add(const TargetSpec& spec) {
   targets_.push_back(spec);
 }
 
-bool TargetList::HasDetectable() const {
+bool TargetList::OnlyPicked() const {
   for (const TargetSpec& t : targets_)
-    if (t.family != "gcp") return true;
-  return false;
+    if (t.family != "gcp") return false;
+  return !targets_.empty();
 }
 
 const TargetSpec* TargetList::Find(const std::string& family, int id) const {

@@ -123,18 +123,17 @@ TEST(SiteFile, TargetCsvBesideTheSiteFile) {
 TEST(SiteFile, GcpListAsTargets) {
   char tmpl[] = "/tmp/site_file_test_XXXXXX";
   const std::string dir = mkdtemp(tmpl);
-  std::ofstream(dir + "/gcp_list.txt")
-      << "WGS84 UTM 32N\n"
-      << "500010.0 5150020.0 0.0 100.5 200.5 IMG_1.JPG gcp07\n"
-      << "500010.0 5150020.0 0.0 300.0 210.0 IMG_2.JPG gcp07\n"
-      << "500030.0 5150005.0 0.0 50.0 60.0 IMG_2.JPG gcp2\n";
+  std::ofstream(dir + "/gcp_list.txt") << "WGS84 UTM 32N\n"
+                                       << "500010.0 5150020.0 0.0 100.5 200.5 IMG_1.JPG gcp07\n"
+                                       << "500010.0 5150020.0 0.0 300.0 210.0 IMG_2.JPG gcp07\n"
+                                       << "500030.0 5150005.0 0.0 50.0 60.0 IMG_2.JPG gcp2\n";
   const std::string head =
       "name: gcp\ncrs: EPSG:32632\norigin: [500000, 5150000, 0]\nframe: shifted_crs\n";
-  std::ofstream(dir + "/site.yaml") << head
-                                    << "targets: {file: gcp_list.txt, check: [gcp2], sigma: 0.5}\n";
+  std::ofstream(dir + "/site.yaml")
+      << head << "targets: {file: gcp_list.txt, check: [gcp2], sigma: 0.5}\n";
   const SiteFile s = LoadSiteFile(dir + "/site.yaml");
   ASSERT_TRUE(s.targets.has_value());
-  EXPECT_FALSE(s.targets->HasDetectable());
+  EXPECT_TRUE(s.targets->OnlyPicked());
   EXPECT_TRUE(SiteWithoutDetectableTargets(s, ""));
   const TargetSpec* g7 = s.targets->Find("gcp", 7);
   const TargetSpec* g2 = s.targets->Find("gcp", 2);

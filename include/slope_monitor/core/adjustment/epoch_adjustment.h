@@ -162,6 +162,8 @@ struct EpochAdjustmentResult {
   // mismatch; tie points are plentiful, and a few gross ones in the robust
   // loss's linear range keep the solver creeping for hundreds of steps).
   int tie_outliers_removed = 0;
+  // Picks of points picked by hand (a gcp list) removed by the same screening.
+  int wrong_picks_removed = 0;
   std::string tie_screening_refused;  // why the screening removed nothing although it flagged
                                       // (empty: applied)
 };

@@ -58,9 +58,9 @@ class TargetList {
   const TargetSpec* Find(const std::string& family, int id) const;
   const std::vector<TargetSpec>& targets() const { return targets_; }
   std::vector<std::string> Families() const;
-  // Whether any target can be found in a photo: false when the list is
-  // empty or holds only points picked by hand (family "gcp", gcp_list.h).
-  bool HasDetectable() const;
+  // Whether the list holds targets and all of them are points picked by hand
+  // in the photos (family "gcp", gcp_list.h): nothing to look for.
+  bool OnlyPicked() const;
 
  private:
   std::vector<TargetSpec> targets_;
