@@ -152,7 +152,8 @@ CaptureParameters ReadCaptureParameters(ParamReader& p, const std::string& node_
   o.gnss.geoid_height = p.Double("geoid_height", o.gnss.geoid_height, -200.0, 200.0, "m");
   o.attitude_sigma = p.Double("attitude_sigma", o.attitude_sigma, 0.01, 180.0, "deg");
   p.CheckNoUnknownKeys();
-  if (!c.site_file.empty()) ApplyCaptureSiteFile(c.site_file, c.site_origin.empty(), c.source == "folder", &o);
+  if (!c.site_file.empty())
+    ApplyCaptureSiteFile(c.site_file, c.site_origin.empty(), c.source == "folder", &o);
   ApplyOriginAndInterior(p, &c);
   c.epochs.Check();
   if (c.source == "folder") {

@@ -45,7 +45,7 @@ TargetList LoadGcpTargets(const std::string& path, const SiteCrs& site,
     s.family = kGcpFamily;
     s.id = ids.at(p.name);
     s.role = std::find(check.begin(), check.end(), p.name) != check.end() ? TargetRole::kCheck
-                                                                           : TargetRole::kControl;
+                                                                          : TargetRole::kControl;
     try {
       s.position_in_site = SiteFromListCrs(site, gcp.crs, p.geo);
     } catch (const std::exception& e) {

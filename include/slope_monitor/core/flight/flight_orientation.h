@@ -33,12 +33,12 @@
 #include <Eigen/Core>
 
 #include "slope_monitor/core/adjustment/bundle_adjuster.h"
-#include "slope_monitor/core/io/gcp_list.h"
 #include "slope_monitor/core/capture/exif.h"
 #include "slope_monitor/core/flight/flight_matching.h"
 #include "slope_monitor/core/geometry/intersection.h"
 #include "slope_monitor/core/geometry/relative_orientation.h"
 #include "slope_monitor/core/geometry/resection.h"
+#include "slope_monitor/core/io/gcp_list.h"
 
 namespace slope_monitor {
 namespace flight {
