@@ -71,6 +71,13 @@ class PublisherFixture : public ::testing::Test {
     return o;
   }
 
+  // The fixture's folder as a capture source.
+  capture::FolderSource Folder() const {
+    capture::FolderSourceOptions fo;
+    fo.folder = dir_.path();
+    return capture::FolderSource(fo);
+  }
+
   capture_test::TempDir dir_{"publisher"};
 };
 
@@ -182,9 +189,7 @@ TEST_F(PublisherFixture, PicksOfTheGcpListBeforeTheirPhotos) {
   o.picks_file = gcp;
   Recorded r;
   ros_adapters::FramePublisher publisher(o, Outputs(&r));
-  capture::FolderSourceOptions fo;
-  fo.folder = dir_.path();
-  capture::FolderSource source(fo);
+  capture::FolderSource source = Folder();
   capture::EpochTracker tracker(capture::EpochOptions{});
   while (publisher.Step(&source, &tracker, true) ==
          ros_adapters::FramePublisher::StepResult::kPublished) {
