@@ -95,7 +95,7 @@ bool HeightsInDatum(const adjustment::Scene& scene, int cam) {
 // not be oriented ("" when all were; logged as an error too).
 std::string StartFlightsFromTiePoints(adjustment::Scene* scene, const AdjusterParameters& params,
                                       uint32_t n, adjustment::EpochAdjustmentOptions* options,
-                                      SolvedEpoch* out) {
+                                      SolvedEpoch* out, bool* no_heights) {
   std::string failed;
   for (const int c : UavCamerasWithoutControl(*scene, params)) {
     const std::string camera = scene->cameras[c].name;
@@ -115,6 +115,7 @@ std::string StartFlightsFromTiePoints(adjustment::Scene* scene, const AdjusterPa
       // Without heights in the datum c and the flying height trade off
       // exactly over a nadir block: c stays at the flight start's value.
       const bool heights = HeightsInDatum(*scene, c);
+      *no_heights = *no_heights || !heights;
       if (!heights)
         Log(out, LogLine::kInfo,
             Message("epoch ", n, ": UAV camera '", camera,
@@ -155,7 +156,9 @@ SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
     adjustment::BuiltScene built =
         adjustment::BuildScene(epoch, models, *store, params.targets, params.scene);
     adjustment::EpochAdjustmentOptions options = params.epoch;
-    const std::string failed = StartFlightsFromTiePoints(&built.scene, params, n, &options, &out);
+    bool no_heights = false;
+    const std::string failed =
+        StartFlightsFromTiePoints(&built.scene, params, n, &options, &out, &no_heights);
     if (!failed.empty()) {
       s_out.message = failed;
       return out;
@@ -167,8 +170,12 @@ SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
     out.covariance_time = s.covariance_time;
     s_out = MakeSolution(epoch, result.scene, s, params.frame_id);
     if (!s.IsSolutionUsable()) {
+      if (no_heights && s.reason.rfind("covariance could not be computed", 0) == 0)
+        s_out.message +=
+            "; the datum has no heights (no GNSS, control points without heights): the block's "
+            "tilt is not determined; give the control points' heights";
       Log(&out, LogLine::kError,
-          Message("epoch ", n, " not usable: ", s.reason, " (previous solution kept)"));
+          Message("epoch ", n, " not usable: ", s_out.message, " (previous solution kept)"));
       return out;
     }
     // Accepted: the store keeps poses and calibration.

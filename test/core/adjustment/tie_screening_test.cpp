@@ -2,7 +2,8 @@
 // noise, the true interior): planted mismatches (15 px) on 1 tie observation
 // in 20 are all removed and the epoch is solved; on 1 in 2 the screening
 // flags more than max_tie_outlier_share and removes nothing, saying so (a
-// robust fit cannot tell half of the observations from the other half).
+// robust fit cannot tell half of the observations from the other half); a
+// wrong pick of a point picked by hand is removed alike.
 #include <cstdio>
 #include <set>
 #include <string>
@@ -77,6 +78,43 @@ TEST(TieScreening, AScreeningThatFlagsTooManyRemovesNothing) {
             std::string::npos);
   options.max_tie_outlier_share = 0.0;
   EXPECT_THROW(AdjustEpoch(scene, {}, {}, options), ConfigError);
+}
+
+// Points picked by hand in the photos (a gcp list, "gcp/<N>"): a pick in the
+// wrong place (copr's gcp04 in IMG_0031, 3 563 px off; here 400 px) is
+// removed by the same screening, counted apart from the tie points, and the
+// epoch is solved; the other picks stay.
+TEST(TieScreening, AWrongPickOfAPickedPointIsRemoved) {
+  testing::SceneSpec spec;
+  spec.uav = true;
+  spec.true_interior_differs = false;
+  Scene s = testing::MakeScene(spec).observed;
+  int picks = 0;
+  for (ObjectPoint& p : s.points)
+    if (p.role == PointRole::kControl) p.id = "gcp/" + std::to_string(picks++);
+  ASSERT_GE(picks, 4);
+  Key wrong;
+  for (Observation& o : s.observations)
+    if (s.points[o.point].id == "gcp/1") {
+      o.pixel += Eigen::Vector2d(400.0, 0.0);
+      wrong = {s.images[o.image].name, s.points[o.point].id};
+      break;
+    }
+  ASSERT_FALSE(wrong.first.empty());
+  int picked_before = 0;
+  for (const Observation& o : s.observations)
+    picked_before += s.points[o.point].id.rfind("gcp/", 0) == 0;
+  const EpochAdjustmentResult r = AdjustEpoch(s, {}, {}, EpochAdjustmentOptions());
+  ASSERT_TRUE(r.summary.IsSolutionUsable()) << r.summary.reason;
+  EXPECT_EQ(r.wrong_picks_removed, 1);
+  int picked_after = 0;
+  for (const Observation& o : r.scene.observations) {
+    const Key k{r.scene.images[o.image].name, r.scene.points[o.point].id};
+    EXPECT_NE(k, wrong);
+    picked_after += k.second.rfind("gcp/", 0) == 0;
+  }
+  EXPECT_EQ(picked_after, picked_before - 1);
+  EXPECT_LT(r.summary.sigma0, 1.5);
 }
 
 }  // namespace
