@@ -12,6 +12,7 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/rigid3.h"
+#include "slope_monitor/core/io/gcp_list.h"
 
 namespace slope_monitor {
 namespace adjustment {
@@ -344,9 +345,10 @@ TieScreening ScreenTiePoints(const Scene& pruned, const Options& ao, const Confi
   const Summary ts = BundleAdjuster(so, config).Solve(&t.solution);
   if (!(std::isfinite(ts.final_cost) && ts.final_cost < ts.initial_cost)) return t;
   int ties = 0;
-  std::set<ObservationKey> picks;  // points picked by hand (io::kGcpFamily): screened alike
+  std::set<ObservationKey> picks;  // of points picked by hand: screened alike
   for (const Observation& o : t.solution.observations) {
-    const bool picked = t.solution.points[o.point].id.rfind("gcp/", 0) == 0;
+    const bool picked =
+        t.solution.points[o.point].id.rfind(io::kGcpFamily + std::string("/"), 0) == 0;
     if (t.solution.points[o.point].role != PointRole::kTie && !picked) continue;
     ties += !picked;
     const Image& im = t.solution.images[o.image];

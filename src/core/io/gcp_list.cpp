@@ -134,7 +134,8 @@ std::map<std::string, int> GcpTargetIds(const GcpList& list) {
   std::map<std::string, int> by_number, by_order;
   std::set<int> numbers;
   for (const GcpPoint& p : list.points) {
-    by_order[p.name] = static_cast<int>(by_order.size());
+    const int place = static_cast<int>(by_order.size());
+    by_order[p.name] = place;
     const size_t digits = p.name.find_last_not_of("0123456789") + 1;  // npos + 1 == 0
     const std::string tail = p.name.substr(digits);
     if (tail.empty() || tail.size() > 9) continue;

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/gcp_list.h"
 #include "slope_monitor/core/io/yaml_map.h"
 
 namespace slope_monitor {
@@ -45,7 +46,7 @@ void TargetList::Add(const TargetSpec& spec) {
 
 bool TargetList::OnlyPicked() const {
   for (const TargetSpec& t : targets_)
-    if (t.family != "gcp") return false;
+    if (t.family != kGcpFamily) return false;
   return !targets_.empty();
 }
 
@@ -87,8 +88,9 @@ TargetList FromMap(YamlMap root) {
   for (YamlMap t : root.List("targets")) {
     TargetSpec s;
     s.id = t.RequiredInt("id", 0, 1 << 30);
-    s.family = t.String("family", "tag36h11",
-                        {"tag36h11", "tag25h9", "tag16h5", "tagStandard41h12", "circle", "gcp"});
+    s.family =
+        t.String("family", "tag36h11",
+                 {"tag36h11", "tag25h9", "tag16h5", "tagStandard41h12", "circle", kGcpFamily});
     s.size = t.RequiredDouble("size", 1e-3, 100.0, "m");
     s.role = TargetRoleFromName(t.String("role", "monitoring", {"control", "monitoring", "check"}));
     if (t.Has("position")) {
