@@ -241,14 +241,13 @@ std::vector<flight::FlightControlPoint> ControlPoints(const io::GcpList& gcp, co
                                                       const flight::FlightPhotos& photos,
                                                       const Args& args, int* skipped) {
   std::vector<flight::FlightControlPoint> out;
-  const double s = args.gcp_sigma;
+  const Eigen::Vector2d sigma = io::GcpSigma(gcp, args.gcp_sigma);  // horizontal, vertical
   const bool heights = io::HasHeights(gcp);
   for (const io::GcpPoint& p : gcp.points) {
     flight::FlightControlPoint cp;
     cp.name = p.name;
     cp.site = crs.SiteFromCrs(p.geo);
-    const double sz = heights ? 2.0 * s : io::kNoHeightSigma;
-    cp.covariance = Eigen::Vector3d(s * s, s * s, sz * sz).asDiagonal();
+    cp.covariance = Eigen::Vector3d(sigma.x(), sigma.x(), sigma.y()).cwiseAbs2().asDiagonal();
     cp.has_height = heights;
     cp.check = args.check.count(p.name) > 0;
     for (const io::GcpPick& k : p.picks) {

@@ -130,6 +130,10 @@ bool HasHeights(const GcpList& list) {
   return false;
 }
 
+Eigen::Vector2d GcpSigma(const GcpList& list, double sigma) {
+  return {sigma, HasHeights(list) ? 2.0 * sigma : kNoHeightSigma};
+}
+
 std::map<std::string, int> GcpTargetIds(const GcpList& list) {
   std::map<std::string, int> by_number, by_order;
   std::set<int> numbers;

@@ -38,7 +38,7 @@ TargetList LoadGcpTargets(const std::string& path, const SiteCrs& site,
   for (const std::string& name : check)
     if (ids.count(name) == 0)
       throw ConfigError(Message(path, ": check point '", name, "' is not in the list"));
-  const bool heights = HasHeights(gcp);
+  const Eigen::Vector2d sigmas = GcpSigma(gcp, sigma);
   std::vector<SurveyedPoint> points;
   for (const GcpPoint& p : gcp.points) {
     SurveyedPoint s;
@@ -51,7 +51,7 @@ TargetList LoadGcpTargets(const std::string& path, const SiteCrs& site,
     } catch (const std::exception& e) {
       throw ConfigError(Message(path, ":", p.line, ": point '", p.name, "': ", e.what()));
     }
-    s.sigma = Eigen::Vector2d(sigma, heights ? 2.0 * sigma : kNoHeightSigma);
+    s.sigma = sigmas;
     points.push_back(s);
   }
   TargetList list;

@@ -56,6 +56,10 @@ constexpr char kGcpFamily[] = "gcp";       // the target family of picked points
 // GNSS averages written as 2-D coordinates).
 bool HasHeights(const GcpList& list);
 
+// The survey sigma [m] (horizontal, vertical) of the list's points given
+// `sigma` horizontal: vertical twice that, kNoHeightSigma without heights.
+Eigen::Vector2d GcpSigma(const GcpList& list, double sigma);
+
 // The target ID of each point (by name) in the family kGcpFamily: the
 // number its name ends in when those tell every point apart ("gcp03" -> 3),
 // else its place in the list (0, 1, ...).
