@@ -2,6 +2,7 @@
 
 #include <set>
 
+#include "slope_monitor/core/adjustment/survey_residuals.h"
 #include "slope_monitor/core/camera/camera_model.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/flight/flight_scene.h"
@@ -76,11 +77,10 @@ std::vector<int> UavCamerasWithoutControl(const adjustment::Scene& scene,
 bool HeightsInDatum(const adjustment::Scene& scene, int cam) {
   for (const adjustment::Image& im : scene.images)
     if (im.camera == cam && im.position_prior) return true;
-  const double loose = 0.5 * io::kNoHeightSigma * io::kNoHeightSigma;
   for (const adjustment::Observation& o : scene.observations) {
     const adjustment::ObjectPoint& p = scene.points[o.point];
     if (scene.images[o.image].camera == cam && p.role == adjustment::PointRole::kControl &&
-        p.surveyed && p.surveyed_covariance(2, 2) < loose)
+        p.surveyed && !io::HeightUnknown(p.surveyed_covariance(2, 2)))
       return true;
   }
   return false;
@@ -177,6 +177,20 @@ SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
       Log(&out, LogLine::kError,
           Message("epoch ", n, " not usable: ", s_out.message, " (previous solution kept)"));
       return out;
+    }
+    if (s.precision.relative_to_control)
+      Log(&out, LogLine::kWarn,
+          Message("epoch ", n,
+                  ": the absolute covariance is singular; precisions and "
+                  "displacement significance are relative to the control points held",
+                  no_heights ? " (the datum has no heights: the block's tilt rests on the control "
+                               "points; give their heights for absolute heights)"
+                             : ""));
+    const adjustment::SurveyResiduals survey = adjustment::ComputeSurveyResiduals(result.scene);
+    if (!survey.control.empty() || !survey.check.empty()) {
+      Log(&out, LogLine::kInfo, Message("epoch ", n, ": ", survey.Brief()));
+      for (const std::string& line : survey.Lines())
+        Log(&out, LogLine::kDebug, Message("epoch ", n, ": ", line));
     }
     // Accepted: the store keeps poses and calibration.
     const adjustment::EpochPoints ep =

@@ -282,12 +282,19 @@ void PrintSummary(const Args& args, bool has_points, bool has_output) {
               << evaluation::FormatTable(evaluation);
   }
   // As scripts/demo ends.
-  std::cout << "\nReports in " << args.report_dir << ":\n";
   std::vector<std::string> files;
   if (fs::is_directory(args.report_dir))
     for (const fs::directory_entry& f : fs::directory_iterator(args.report_dir))
       files.push_back(f.path().filename().string());
   std::sort(files.begin(), files.end());
+  if (files.empty())
+    std::cout << "\nNo reports in " << args.report_dir << ": no monitoring point was measured"
+              << (has_output ? " (the adjusted epochs are on /bundle_adjuster/solution and "
+                               "/bundle_adjuster/points in the output bag)"
+                             : "")
+              << "\n";
+  else
+    std::cout << "\nReports in " << args.report_dir << ":\n";
   for (const std::string& f : files) std::cout << "  " << f << "\n";
   std::cout << "History (SQLite): " << args.database << "\n";
   if (has_output) std::cout << "Outputs (rosbag play --clock): " << args.output_bag << "\n";

@@ -659,14 +659,14 @@ bool ComputePrecision(const Scene& scene, const Options& options, const SchurCov
       summary.reason = "covariance could not be computed: " + cov.message;
       return false;
     }
-    const double scale =
-        options.scale_covariance_by_sigma0
-            ? std::max(summary.sigma0 * summary.sigma0, options.min_variance_factor)
-            : 1.0;
     // With the control points held, what is left comes from the image (and
     // GNSS) weights alone, whose scale sigma0 estimates: no floor there.
     const double datum_free_scale =
         options.scale_covariance_by_sigma0 ? summary.sigma0 * summary.sigma0 : 1.0;
+    const double scale =
+        options.scale_covariance_by_sigma0 && !cov.relative_to_held
+            ? std::max(summary.sigma0 * summary.sigma0, options.min_variance_factor)
+            : datum_free_scale;
     pr.point_covariance.assign(scene.points.size(), Eigen::Matrix3d::Zero());
     pr.exterior_covariance.assign(scene.images.size(), Eigen::Matrix<double, 6, 6>::Zero());
     pr.interior_sigma.assign(scene.cameras.size(), std::array<double, camera::kNumInterior>{});
@@ -690,8 +690,11 @@ bool ComputePrecision(const Scene& scene, const Options& options, const SchurCov
               datum_free_scale * cov.point_covariance_held[point_index[j]];
     }
     pr.valid = true;
+    pr.relative_to_control = cov.relative_to_held;
     pr.message =
         options.scale_covariance_by_sigma0 ? "a posteriori (scaled by sigma0^2)" : "a priori";
+    if (cov.relative_to_held)
+      pr.message += Message(", relative to the control points held: ", cov.message);
   } else {
     pr.message = "not computed (compute_covariance = false)";
   }
@@ -791,7 +794,10 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
               summary.undetermined_points.empty()
                   ? std::string()
                   : Message("; ", summary.undetermined_points.size(),
-                            " undetermined point(s) dropped (", summary.UndeterminedList(), ")"));
+                            " undetermined point(s) dropped (", summary.UndeterminedList(), ")"),
+              summary.precision.relative_to_control
+                  ? "; covariance relative to the control points (the absolute one is singular)"
+                  : "");
   return summary;
 }
 

@@ -178,17 +178,42 @@ SchurCovarianceResult ComputeSchurCovariance(const SchurCovarianceOptions& optio
     CouplingOf(n.hpc[j], &cols[j], &w[j]);
     AddPointTerm(cols[j], w[j], hpp_inv[j], -1.0, &s);
   }
-  Eigen::MatrixXd scc;
-  if (!InvertSpd(s, options.min_reciprocal_condition, &scc)) {
-    result.message =
-        "the reduced camera system is singular (datum defect or unobservable self-calibration "
-        "parameters)";
+  // The held points' terms added back: the system with those points held.
+  std::vector<bool> is_held(np, false);
+  Eigen::MatrixXd s_held;
+  if (!held.empty()) {
+    s_held = s;
+    for (const int j : held) {
+      if (j < 0 || j >= np)
+        throw InvalidArgument(Message("ComputeSchurCovariance: held index ", j, " out of range"));
+      is_held[j] = true;
+      AddPointTerm(cols[j], w[j], hpp_inv[j], +1.0, &s_held);
+    }
+  }
+  const char* singular =
+      "the reduced camera system is singular (datum defect or unobservable self-calibration "
+      "parameters)";
+  Eigen::MatrixXd scc, scc_held;
+  const bool absolute = InvertSpd(s, options.min_reciprocal_condition, &scc);
+  const bool with_held =
+      !held.empty() && InvertSpd(s_held, options.min_reciprocal_condition, &scc_held);
+  if (!absolute && !with_held) {
+    result.message = singular;
     return result;
   }
-
+  if (!absolute) {
+    // A datum the held points fix but the free system does not (control
+    // without heights: the tilt): everything relative to the held points.
+    result.relative_to_held = true;
+    result.message = Message(singular, "; covariance relative to the held points");
+  } else if (!held.empty() && !with_held) {
+    result.message =
+        "the reduced camera system with the held points is singular: no held covariance";
+  }
+  const Eigen::MatrixXd& inverse = absolute ? scc : scc_held;
   for (size_t b = 0; b < camera_blocks.size(); ++b) {
     const int t = problem->ParameterBlockTangentSize(camera_blocks[b]);
-    const Eigen::MatrixXd tangent = scc.block(offset[b], offset[b], t, t);
+    const Eigen::MatrixXd tangent = inverse.block(offset[b], offset[b], t, t);
     const ceres::Manifold* m = problem->GetManifold(camera_blocks[b]);
     if (m == nullptr) {
       result.camera_covariance.push_back(tangent);
@@ -199,28 +224,15 @@ SchurCovarianceResult ComputeSchurCovariance(const SchurCovarianceOptions& optio
     m->PlusJacobian(camera_blocks[b], plus.data());
     result.camera_covariance.push_back(plus * tangent * plus.transpose());
   }
-  result.point_covariance.resize(np);
+  result.point_covariance.assign(np, Eigen::Matrix3d::Zero());
   for (int j = 0; j < np; ++j)
-    result.point_covariance[j] = PointCovariance(cols[j], w[j], hpp_inv[j], scc);
-
-  if (!held.empty()) {
-    std::vector<bool> is_held(np, false);
-    for (const int j : held) {
-      if (j < 0 || j >= np)
-        throw InvalidArgument(Message("ComputeSchurCovariance: held index ", j, " out of range"));
-      is_held[j] = true;
-      AddPointTerm(cols[j], w[j], hpp_inv[j], +1.0, &s);
-    }
-    Eigen::MatrixXd scc_held;
-    if (InvertSpd(s, options.min_reciprocal_condition, &scc_held)) {
-      result.point_covariance_held.assign(np, Eigen::Matrix3d::Zero());
-      for (int j = 0; j < np; ++j)
-        if (!is_held[j])
-          result.point_covariance_held[j] = PointCovariance(cols[j], w[j], hpp_inv[j], scc_held);
-    } else {
-      result.message =
-          "the reduced camera system with the held points is singular: no held covariance";
-    }
+    if (absolute || !is_held[j])
+      result.point_covariance[j] = PointCovariance(cols[j], w[j], hpp_inv[j], inverse);
+  if (with_held) {
+    result.point_covariance_held.assign(np, Eigen::Matrix3d::Zero());
+    for (int j = 0; j < np; ++j)
+      if (!is_held[j])
+        result.point_covariance_held[j] = PointCovariance(cols[j], w[j], hpp_inv[j], scc_held);
   }
   result.ok = true;
   return result;

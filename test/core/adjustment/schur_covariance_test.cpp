@@ -3,6 +3,7 @@
 // UAV photos, 40 points, a camera with c and k1 free (SubsetManifold), a
 // Huber loss, four surveyed control points; and the datum-free covariance
 // (control held) against ceres::Covariance with the control points constant.
+#include <algorithm>
 #include <array>
 #include <memory>
 #include <random>
@@ -160,6 +161,82 @@ TEST(SchurCovarianceTest, DatumDefectIsReportedNotInverted) {
       ComputeSchurCovariance(SchurCovarianceOptions(), cameras, point_blocks, {}, &problem);
   EXPECT_FALSE(r.ok);
   EXPECT_NE(r.message.find("singular"), std::string::npos) << r.message;
+}
+
+TEST(SchurCovarianceTest, ControlWithoutHeightsGivesTheCovarianceRelativeToTheHeldControl) {
+  // A nadir pair over flat ground, four control points surveyed in x and y
+  // only (a gcp list without heights): the block's height and tilt are not
+  // determined, so the absolute covariance is singular; with the control
+  // held it is not, and that is what comes back, as ceres::Covariance gives
+  // it with the control points constant.
+  const camera::Sensor sensor{4000, 3000, 0.004};
+  std::array<double, camera::kNumInterior> interior{};
+  interior[camera::kC] = 24.0;
+  std::vector<std::array<double, 6>> exterior = {{0, 0, 60, 0.01, -0.02, 0.0},
+                                                 {20, 1, 61, -0.01, 0.01, 0.02}};
+  std::vector<std::array<double, 3>> points;
+  for (int j = 0; j < 16; ++j) points.push_back({-10.0 + 6.0 * (j % 4), -8.0 + 5.0 * (j / 4), 0.0});
+  ceres::Problem problem;
+  for (auto& e : exterior)
+    for (auto& p : points) {
+      const double* params[] = {e.data(), interior.data(), p.data()};
+      Eigen::Vector2d predicted;
+      const CollinearityErrorAnalytic zero(sensor, Eigen::Vector2d::Zero(),
+                                           Eigen::Matrix2d::Identity());
+      ASSERT_TRUE(zero.Evaluate(params, predicted.data(), nullptr));
+      problem.AddResidualBlock(
+          new CollinearityErrorAnalytic(sensor, predicted, Eigen::Matrix2d::Identity()), nullptr,
+          e.data(), interior.data(), p.data());
+    }
+  const std::vector<int> control = {0, 3, 12, 15};  // the corners
+  Eigen::Matrix3d horizontal_only = Eigen::Matrix3d::Zero();
+  horizontal_only(0, 0) = horizontal_only(1, 1) = 1.0;  // 1 m in x and y, nothing in z
+  for (const int j : control)
+    problem.AddResidualBlock(
+        ControlPointPrior::Create(Eigen::Vector3d(points[j][0], points[j][1], points[j][2]),
+                                  horizontal_only),
+        nullptr, points[j].data());
+  problem.SetParameterBlockConstant(interior.data());
+  std::vector<double*> cameras = {exterior[0].data(), exterior[1].data()};
+  std::vector<double*> point_blocks;
+  for (auto& p : points) point_blocks.push_back(p.data());
+
+  const SchurCovarianceResult absolute =
+      ComputeSchurCovariance(SchurCovarianceOptions(), cameras, point_blocks, {}, &problem);
+  EXPECT_FALSE(absolute.ok) << "the tilt of a horizontal-only datum is not determined";
+  const SchurCovarianceResult r =
+      ComputeSchurCovariance(SchurCovarianceOptions(), cameras, point_blocks, control, &problem);
+  ASSERT_TRUE(r.ok) << r.message;
+  EXPECT_TRUE(r.relative_to_held);
+  EXPECT_NE(r.message.find("relative to the held points"), std::string::npos) << r.message;
+  ASSERT_EQ(r.point_covariance.size(), points.size());
+  ASSERT_EQ(r.point_covariance_held.size(), points.size());
+
+  for (const int j : control) problem.SetParameterBlockConstant(point_blocks[j]);
+  ceres::Covariance::Options co;
+  co.algorithm_type = ceres::DENSE_SVD;
+  ceres::Covariance held(co);
+  std::vector<std::pair<const double*, const double*>> blocks;
+  for (double* b : cameras) blocks.emplace_back(b, b);
+  for (size_t j = 0; j < points.size(); ++j)
+    if (std::find(control.begin(), control.end(), static_cast<int>(j)) == control.end())
+      blocks.emplace_back(point_blocks[j], point_blocks[j]);
+  ASSERT_TRUE(held.Compute(blocks, &problem));
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    Eigen::Matrix<double, 6, 6, Eigen::RowMajor> c;
+    held.GetCovarianceBlock(cameras[i], cameras[i], c.data());
+    EXPECT_LT(RelativeError(c, r.camera_covariance[i]), 1e-8) << "exterior " << i;
+  }
+  for (size_t j = 0; j < points.size(); ++j) {
+    if (std::find(control.begin(), control.end(), static_cast<int>(j)) != control.end()) {
+      EXPECT_EQ(r.point_covariance[j].norm(), 0.0) << "a held point has no variance";
+      continue;
+    }
+    Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c;
+    held.GetCovarianceBlock(point_blocks[j], point_blocks[j], c.data());
+    EXPECT_LT(RelativeError(c, r.point_covariance[j]), 1e-8) << "point " << j;
+    EXPECT_LT(RelativeError(c, r.point_covariance_held[j]), 1e-8) << "point " << j;
+  }
 }
 
 }  // namespace

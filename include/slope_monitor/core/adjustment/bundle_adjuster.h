@@ -128,7 +128,9 @@ struct Options {
   // Also the point covariance with the surveyed control points held at their
   // adjusted values (Precision::point_covariance_datum_free): the precision
   // of the points relative to the control, without the survey's own error,
-  // which is the same in every epoch and cancels in displacements.
+  // which is the same in every epoch and cancels in displacements. When the
+  // absolute covariance is singular but this one is not, it is the only one
+  // (Precision::relative_to_control) and the solution stays usable.
   bool compute_datum_free_covariance = false;
   // Datum and sanity limits for IsSolutionUsable().
   int min_control_points = 3;  // control points observed in >= 2 images (or GNSS images, see below)
@@ -171,6 +173,10 @@ struct Config {
 struct Precision {
   bool valid = false;
   std::string message;
+  // The absolute covariance was singular (a datum the control fixes only when
+  // held, e.g. control without heights): every covariance below is relative
+  // to the control points held (needs compute_datum_free_covariance).
+  bool relative_to_control = false;
   double sigma0 = 0.0;                            // [-] a posteriori
   std::vector<Eigen::Matrix3d> point_covariance;  // [m^2] per point (zero when fixed)
   std::vector<Eigen::Matrix3d>

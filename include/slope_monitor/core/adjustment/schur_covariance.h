@@ -15,6 +15,9 @@
 // Holding points (the datum-free covariance: surveyed control held) removes
 // their terms from the sum: S_held = S + sum_{j held} Hcj Hjj^-1 Hjc, a
 // second Cholesky of the small camera system, from the same assembled pieces.
+// When S is singular but S_held is not (a datum only the held points fix:
+// control without heights leaves a nadir block's tilt free), every result is
+// the held system's, and relative_to_held says so.
 // Covariances are unscaled ((J^T J)^-1) and in the ambient parameter space
 // (manifolds, e.g. SubsetManifold, are lifted with their PlusJacobian).
 #pragma once
@@ -38,7 +41,10 @@ struct SchurCovarianceOptions {
 
 struct SchurCovarianceResult {
   bool ok = false;
-  std::string message;                             // why not ok
+  std::string message;  // why not ok; when ok, what was left (relative, no held covariance)
+  // S was singular and S_held not: camera_covariance and point_covariance are
+  // those with the held points held (zero for them), as point_covariance_held.
+  bool relative_to_held = false;
   std::vector<Eigen::MatrixXd> camera_covariance;  // per camera block, ambient size
   std::vector<Eigen::Matrix3d> point_covariance;   // per point block
   // Per point block with the points `held` held constant (zero for held

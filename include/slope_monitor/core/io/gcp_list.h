@@ -52,6 +52,12 @@ constexpr double kNoHeightSigma = 10.0;    // [m] vertical, when the list has no
 constexpr double kGcpPickSigmaPx = 2.0;    // [px] a point picked by hand in a photo
 constexpr char kGcpFamily[] = "gcp";       // the target family of picked points (never detected)
 
+// Whether a surveyed point's vertical variance [m^2] says its height is not
+// known (a list without heights gives kNoHeightSigma^2).
+inline bool HeightUnknown(double vertical_variance) {
+  return vertical_variance >= 0.5 * kNoHeightSigma * kNoHeightSigma;
+}
+
 // false: every height of the list is 0 (a list without heights: handheld
 // GNSS averages written as 2-D coordinates).
 bool HasHeights(const GcpList& list);

@@ -1,0 +1,74 @@
+#include "slope_monitor/core/adjustment/survey_residuals.h"
+
+#include <cmath>
+#include <cstdio>
+#include <set>
+
+#include "slope_monitor/core/io/gcp_list.h"
+
+namespace slope_monitor {
+namespace adjustment {
+namespace {
+
+double Rms(const std::vector<SurveyResidual>& v) {
+  if (v.empty()) return 0.0;
+  double sum = 0.0;
+  for (const SurveyResidual& r : v) sum += r.residual.squaredNorm();
+  return std::sqrt(sum / static_cast<double>(v.size()));
+}
+
+std::string Line(const SurveyResidual& r, const char* role) {
+  char z[32] = "no height";
+  if (r.has_height) std::snprintf(z, sizeof z, "%.3f", r.residual.z());
+  char text[200];
+  std::snprintf(text, sizeof text, "%s %s (%.3f, %.3f, %s) m", role, r.id.c_str(), r.residual.x(),
+                r.residual.y(), z);
+  return text;
+}
+
+}  // namespace
+
+std::string SurveyResiduals::Brief() const {
+  bool any_height = false;
+  for (const auto* v : {&control, &check})
+    for (const SurveyResidual& r : *v) any_height = any_height || r.has_height;
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "control rms %.3f m over %zu points, check rms %.3f m over %zu points%s",
+                control_rms, control.size(), check_rms, check.size(),
+                any_height || (control.empty() && check.empty())
+                    ? ""
+                    : ", horizontal only: the survey has no heights");
+  return text;
+}
+
+std::vector<std::string> SurveyResiduals::Lines() const {
+  std::vector<std::string> out;
+  for (const SurveyResidual& r : check) out.push_back(Line(r, "check"));
+  for (const SurveyResidual& r : control) out.push_back(Line(r, "control"));
+  return out;
+}
+
+SurveyResiduals ComputeSurveyResiduals(const Scene& scene) {
+  // Only points the photos measured: seen in two photos or more.
+  std::vector<std::set<int>> seen(scene.points.size());
+  for (const Observation& o : scene.observations) seen[o.point].insert(o.image);
+  SurveyResiduals out;
+  for (size_t j = 0; j < scene.points.size(); ++j) {
+    const ObjectPoint& p = scene.points[j];
+    if (!p.surveyed || !p.position_known || seen[j].size() < 2) continue;
+    if (p.role != PointRole::kControl && p.role != PointRole::kCheck) continue;
+    SurveyResidual r;
+    r.id = p.id;
+    r.residual = p.position - *p.surveyed;
+    r.has_height = !io::HeightUnknown(p.surveyed_covariance(2, 2));
+    if (!r.has_height) r.residual.z() = 0.0;
+    (p.role == PointRole::kControl ? out.control : out.check).push_back(r);
+  }
+  out.control_rms = Rms(out.control);
+  out.check_rms = Rms(out.check);
+  return out;
+}
+
+}  // namespace adjustment
+}  // namespace slope_monitor
