@@ -206,6 +206,8 @@ SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
     out.fixed_transforms = std::move(tfs.fixed);
     out.moving_transforms = std::move(tfs.moving);
     out.points = MakePointCloud(result.scene, s, s_out.header);
+    for (const std::string& camera : moving)
+      out.uav_blocks.emplace_back(camera, flight::BlockOfCamera(result.scene, s, camera));
     Log(&out, LogLine::kInfo,
         Message("epoch ", n, " accepted: ", result.scene.images.size(), " images, ",
                 result.scene.points.size(), " points, ", s.num_observations,

@@ -218,6 +218,32 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
     std::cout << "epoch " << s->epoch << ": " << photos_oriented.size() << " of 8 photos oriented, "
               << s->points.size() << " points, " << s->num_observations << " observations, rms "
               << s->rms_residual_px << " px, sigma0 " << s->sigma0 << "\n";
+    // The block other tools read: COLMAP's text model, the points, the
+    // cameras and the frame, in <report_dir>/epoch_<n>/uav/.
+    const fs::path block = dir / "reports" / ("epoch_" + std::to_string(s->epoch)) / "uav";
+    auto data_lines = [](const fs::path& file) {
+      std::ifstream in(file);
+      int n = 0;
+      for (std::string line; std::getline(in, line);) n += !line.empty() && line[0] != '#';
+      return n;
+    };
+    EXPECT_EQ(data_lines(block / "sparse" / "images.txt"), 2 * 8) << "two lines per photo";
+    EXPECT_EQ(data_lines(block / "sparse" / "points3D.txt"), static_cast<int>(s->points.size()));
+    EXPECT_EQ(data_lines(block / "sparse" / "cameras.txt"), 1);
+    EXPECT_EQ(data_lines(block / "cameras.csv"), 1 + 8);
+    const std::string frame = ReadFile(block / "crs.txt");
+    EXPECT_NE(frame.find("crs: EPSG:4979"), std::string::npos) << frame;
+    EXPECT_NE(frame.find("frame: local_enu"), std::string::npos) << frame;
+    EXPECT_NE(
+        ReadFile(block / "points.ply").find("element vertex " + std::to_string(s->points.size())),
+        std::string::npos);
+    // Its mean reprojection error (as COLMAP's model_analyzer computes it)
+    // is at most the rms of the solution.
+    std::smatch mean;
+    ASSERT_TRUE(std::regex_search(err, mean, std::regex(R"(mean reprojection error ([0-9.]+) px)")))
+        << err;
+    EXPECT_GT(std::stod(mean[1]), 0.0);
+    EXPECT_LE(std::stod(mean[1]), s->rms_residual_px + 1e-6);
   }
   EXPECT_EQ(accepted, 1) << err;
 

@@ -76,9 +76,9 @@ std::string MdResiduals(const char* title, const std::vector<PointResidual>& v, 
 
 }  // namespace
 
-void WriteColmapModel(const FlightReportInput& in, const std::string& sparse_dir) {
+void WriteColmapModel(const FlightResult& block, const std::string& sparse_dir) {
   std::filesystem::create_directories(sparse_dir);
-  const adjustment::Scene& sc = in.result->scene;
+  const adjustment::Scene& sc = block.scene;
   const camera::OpenCvCamera cv = sc.cameras[0].model.ToOpenCv();
   auto d = [&](size_t i) { return i < cv.distortion.size() ? cv.distortion[i] : 0.0; };
   std::ostringstream cams;
@@ -123,9 +123,9 @@ void WriteColmapModel(const FlightReportInput& in, const std::string& sparse_dir
       << "# Number of points: " << sc.points.size() << "\n";
   for (size_t p = 0; p < sc.points.size(); ++p) {
     const Eigen::Vector3d& x = sc.points[p].position;
-    const int g = in.result->point_grey[p];
+    const int g = block.point_grey[p];
     pts << p + 1 << " " << x.x() << " " << x.y() << " " << x.z() << " " << g << " " << g << " " << g
-        << " " << in.result->point_error_px[p];
+        << " " << block.point_error_px[p];
     for (int k : obs_of_point[p])
       pts << " " << sc.observations[k].image + 1 << " " << index_in_image[k];
     pts << "\n";
@@ -133,35 +133,34 @@ void WriteColmapModel(const FlightReportInput& in, const std::string& sparse_dir
   io::WriteFileAtomically(sparse_dir + "/points3D.txt", pts.str());
 }
 
-void WritePointsPly(const FlightReportInput& in, const std::string& path) {
-  const adjustment::Scene& sc = in.result->scene;
+void WritePointsPly(const FlightResult& block, const std::string& path) {
+  const adjustment::Scene& sc = block.scene;
   std::vector<int> images(sc.points.size(), 0);
   for (const auto& o : sc.observations) ++images[o.point];
   std::ostringstream o;
-  o << "ply\nformat ascii 1.0\ncomment slope_monitor process_flight: tie points in the site frame"
-    << " (crs.txt: site = CRS - origin)\nelement vertex " << sc.points.size()
+  o << "ply\nformat ascii 1.0\ncomment slope_monitor: tie points in the site frame"
+    << " (crs.txt says which)\nelement vertex " << sc.points.size()
     << "\nproperty double x\nproperty double y\nproperty double z\nproperty uchar red\nproperty "
        "uchar green\n"
     << "property uchar blue\nproperty float error_px\nproperty int images\nend_header\n";
   o.precision(10);
   for (size_t p = 0; p < sc.points.size(); ++p) {
     const Eigen::Vector3d& x = sc.points[p].position;
-    const int g = in.result->point_grey[p];
+    const int g = block.point_grey[p];
     o << x.x() << " " << x.y() << " " << x.z() << " " << g << " " << g << " " << g << " "
-      << Fmt("%.3f", in.result->point_error_px[p]) << " " << images[p] << "\n";
+      << Fmt("%.3f", block.point_error_px[p]) << " " << images[p] << "\n";
   }
   io::WriteFileAtomically(path, o.str());
 }
 
-void WriteCamerasCsv(const FlightReportInput& in, const std::string& path) {
-  const adjustment::Scene& sc = in.result->scene;
-  const auto& prec = in.result->bundle.precision;
+void WriteCamerasCsv(const FlightResult& block, const std::string& path) {
+  const adjustment::Scene& sc = block.scene;
+  const auto& prec = block.bundle.precision;
   std::vector<int> n(sc.images.size(), 0);
   std::vector<double> ss(sc.images.size(), 0.0);
   for (size_t k = 0; k < sc.observations.size(); ++k) {
     ++n[sc.observations[k].image];
-    ss[sc.observations[k].image] +=
-        in.result->observation_error_px[k] * in.result->observation_error_px[k];
+    ss[sc.observations[k].image] += block.observation_error_px[k] * block.observation_error_px[k];
   }
   std::ostringstream o;
   o << "image,x,y,z,theta_deg,phi_deg,kappa_deg,sigma_x,sigma_y,sigma_z,sigma_theta_deg,sigma_phi_"
@@ -185,6 +184,17 @@ void WriteCamerasCsv(const FlightReportInput& in, const std::string& path) {
   io::WriteFileAtomically(path, o.str());
 }
 
+FlightFrame FrameOfSite(const SiteCrsOptions& crs) {
+  FlightFrame f;
+  f.crs = crs.crs;
+  f.origin = crs.origin;
+  const SiteCrs site(crs);
+  f.wkt = site.CrsWkt();
+  f.map_crs = site.MapCrs();
+  f.local_enu = crs.frame == SiteCrsOptions::Frame::kLocalEnu;
+  return f;
+}
+
 void WriteFrame(const FlightFrame& frame, const std::string& path) {
   std::ostringstream o;
   o.precision(12);
@@ -193,7 +203,11 @@ void WriteFrame(const FlightFrame& frame, const std::string& path) {
   } else {
     o << "crs: " << frame.crs << "\norigin: " << frame.origin.x() << " " << frame.origin.y() << " "
       << frame.origin.z()
-      << "\n# site = CRS coordinates - origin (x east, y north, z up)\nwkt: " << frame.wkt << "\n";
+      << (frame.local_enu ? "\n# site = east, north, up [m] on the tangent plane at the origin"
+                          : "\n# site = CRS coordinates - origin (x east, y north, z up)")
+      << "\nframe: " << (frame.local_enu ? "local_enu" : "shifted_crs")
+      << (frame.local_enu ? "\nmap_crs: " + frame.map_crs + "\nmap_crs_wkt: " : "\nwkt: ")
+      << frame.wkt << "\n";
   }
   io::WriteFileAtomically(path, o.str());
 }
@@ -268,12 +282,22 @@ void WriteFlightOutputs(const FlightReportInput& in, const std::string& dir) {
   std::filesystem::create_directories(dir, ec);
   if (ec) throw IoError(Message(dir, ": cannot be created (", ec.message(), ")"));
   if (in.result->summary.success) {
-    WriteColmapModel(in, dir + "/sparse");
-    WritePointsPly(in, dir + "/points.ply");
-    WriteCamerasCsv(in, dir + "/cameras.csv");
+    WriteBlockOutputs(*in.result, in.frame, dir);
+  } else {
+    WriteFrame(in.frame, dir + "/crs.txt");
   }
-  WriteFrame(in.frame, dir + "/crs.txt");
   WriteFlightReport(in, dir + "/report.json", dir + "/report.md");
+}
+
+void WriteBlockOutputs(const FlightResult& block, const FlightFrame& frame,
+                       const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw IoError(Message(dir, ": cannot be created (", ec.message(), ")"));
+  WriteColmapModel(block, dir + "/sparse");
+  WritePointsPly(block, dir + "/points.ply");
+  WriteCamerasCsv(block, dir + "/cameras.csv");
+  WriteFrame(frame, dir + "/crs.txt");
 }
 
 }  // namespace flight

@@ -571,8 +571,9 @@ void LeaveOneOut(const Block& block, const StageSetup& final_setup, const Flight
   summary->seconds["leave_one_out"] = SecondsSince(t0);
 }
 
-// Reprojection errors of the final scene, per observation and point.
-void Statistics(FlightResult* result) {
+}  // namespace
+
+void MeasureReprojection(FlightResult* result) {
   const adjustment::Scene& sc = result->scene;
   result->observation_error_px.assign(sc.observations.size(), 0.0);
   result->point_error_px.assign(sc.points.size(), 0.0);
@@ -597,6 +598,8 @@ void Statistics(FlightResult* result) {
   result->summary.mean_px = sum / n;
   result->summary.rms_px = std::sqrt(sum_sq / n);
 }
+
+namespace {
 
 // The control points' pick residuals into the summary; then the control
 // points leave the result's scene (it holds the photos and tie points).
@@ -642,7 +645,7 @@ void FillResult(const Block& block, StageResult&& stage, FlightResult* result) {
   result->summary.sigma0 = result->bundle.sigma0;
   if (result->bundle.precision.valid && !result->bundle.precision.interior_sigma.empty())
     result->summary.interior_sigma = result->bundle.precision.interior_sigma[0];
-  Statistics(result);
+  MeasureReprojection(result);
 }
 
 }  // namespace

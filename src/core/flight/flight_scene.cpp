@@ -165,13 +165,17 @@ void JoinAsTheFlight(adjustment::Scene* scene, SceneFlight* f) {
   f->observation_of.clear();
 }
 
+int CameraIndex(const adjustment::Scene& scene, const std::string& camera) {
+  for (size_t c = 0; c < scene.cameras.size(); ++c)
+    if (scene.cameras[c].name == camera) return static_cast<int>(c);
+  return -1;
+}
+
 }  // namespace
 
 FlightSummary OrientSceneFromTiePoints(adjustment::Scene* scene, const std::string& camera,
                                        const FlightOrientationOptions& options) {
-  int cam = -1;
-  for (size_t c = 0; c < scene->cameras.size(); ++c)
-    if (scene->cameras[c].name == camera) cam = static_cast<int>(c);
+  const int cam = CameraIndex(*scene, camera);
   if (cam < 0)
     throw InvalidArgument(
         Message("OrientSceneFromTiePoints: the scene has no camera '", camera, "'"));
@@ -199,6 +203,54 @@ FlightSummary OrientSceneFromTiePoints(adjustment::Scene* scene, const std::stri
   }
   scene->cameras[cam].model = r.scene.cameras[0].model;
   return r.summary;
+}
+
+FlightResult BlockOfCamera(const adjustment::Scene& scene, const adjustment::Summary& summary,
+                           const std::string& camera) {
+  const int cam = CameraIndex(scene, camera);
+  if (cam < 0)
+    throw InvalidArgument(Message("BlockOfCamera: the scene has no camera '", camera, "'"));
+  FlightResult r;
+  adjustment::Scene& b = r.scene;
+  b.cameras = {scene.cameras[cam]};
+  const adjustment::Precision& from = summary.precision;
+  adjustment::Precision& to = r.bundle.precision;
+  to.valid = from.valid;
+  to.message = from.message;
+  to.relative_to_control = from.relative_to_control;
+  to.sigma0 = from.sigma0;
+  if (from.interior_sigma.size() > static_cast<size_t>(cam))
+    to.interior_sigma = {from.interior_sigma[cam]};
+  std::vector<int> image(scene.images.size(), -1), point(scene.points.size(), -1);
+  for (size_t i = 0; i < scene.images.size(); ++i) {
+    if (scene.images[i].camera != cam) continue;
+    image[i] = static_cast<int>(b.images.size());
+    b.images.push_back(scene.images[i]);
+    b.images.back().camera = 0;
+    if (i < from.exterior_covariance.size())
+      to.exterior_covariance.push_back(from.exterior_covariance[i]);
+  }
+  for (adjustment::Observation o : scene.observations) {
+    if (image[o.image] < 0 || !scene.points[o.point].position_known) continue;
+    if (point[o.point] < 0) {
+      point[o.point] = static_cast<int>(b.points.size());
+      b.points.push_back(scene.points[o.point]);
+      if (static_cast<size_t>(o.point) < from.point_covariance.size())
+        to.point_covariance.push_back(from.point_covariance[o.point]);
+    }
+    o.image = image[o.image];
+    o.point = point[o.point];
+    b.observations.push_back(o);
+  }
+  r.bundle.usable = summary.usable;
+  r.bundle.reason = summary.reason;
+  r.bundle.sigma0 = summary.sigma0;
+  r.point_grey.assign(b.points.size(), 128);
+  MeasureReprojection(&r);
+  r.summary.success = summary.usable;
+  r.summary.photos = r.summary.oriented = static_cast<int>(b.images.size());
+  r.summary.sigma0 = summary.sigma0;
+  return r;
 }
 
 }  // namespace flight

@@ -18,6 +18,7 @@
 
 #include <Eigen/Core>
 
+#include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/flight/flight_matching.h"
 #include "slope_monitor/core/flight/flight_orientation.h"
 
@@ -28,7 +29,16 @@ struct FlightFrame {
   std::string crs;  // "EPSG:32611", a PROJ string, or "" (model frame)
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();  // site origin in the CRS
   std::string wkt;                                   // the CRS as WKT ("" without one)
+  // false: site = CRS coordinates - origin; true: east, north, up [m] on the
+  // tangent plane at the origin (a site file's local_enu frame); wkt is then
+  // that of map_crs, the CRS of the GIS outputs (SiteCrs::MapCrs).
+  bool local_enu = false;
+  std::string map_crs;
 };
+
+// The frame of a site file's CRS options (throws InvalidArgument when PROJ
+// does not know the CRS, naming it).
+FlightFrame FrameOfSite(const SiteCrsOptions& crs);
 
 struct FlightReportInput {
   int flight = 1;  // k of flight_<k>
@@ -43,14 +53,20 @@ struct FlightReportInput {
 
 // Each throws IoError naming the file that cannot be written. Files are
 // written to a temporary name and renamed.
-void WriteColmapModel(const FlightReportInput& in, const std::string& sparse_dir);
-void WritePointsPly(const FlightReportInput& in, const std::string& path);
-void WriteCamerasCsv(const FlightReportInput& in, const std::string& path);
+// The block writers need of a FlightResult only scene (one camera),
+// point_grey, point_error_px, observation_error_px and bundle.precision.
+void WriteColmapModel(const FlightResult& block, const std::string& sparse_dir);
+void WritePointsPly(const FlightResult& block, const std::string& path);
+void WriteCamerasCsv(const FlightResult& block, const std::string& path);
 void WriteFrame(const FlightFrame& frame, const std::string& path);
 void WriteFlightReport(const FlightReportInput& in, const std::string& json_path,
                        const std::string& md_path);
 
-// All of the above into dir (created).
+// sparse/, points.ply, cameras.csv and crs.txt of an oriented block into
+// dir (created): what the graph leaves of an accepted UAV epoch.
+void WriteBlockOutputs(const FlightResult& block, const FlightFrame& frame, const std::string& dir);
+
+// All of the above and the report into dir (created).
 void WriteFlightOutputs(const FlightReportInput& in, const std::string& dir);
 
 }  // namespace flight

@@ -149,5 +149,10 @@ struct FlightResult {
 
 FlightResult OrientFlight(const FlightInput& input, const FlightOrientationOptions& options = {});
 
+// The reprojection error of result->scene (one camera) per observation and
+// point (observation_error_px, point_error_px) and the summary's
+// observations, points, mean_px and rms_px.
+void MeasureReprojection(FlightResult* result);
+
 }  // namespace flight
 }  // namespace slope_monitor

@@ -27,5 +27,12 @@ namespace flight {
 FlightSummary OrientSceneFromTiePoints(adjustment::Scene* scene, const std::string& camera,
                                        const FlightOrientationOptions& options = {});
 
+// The block of camera `camera` in an adjusted scene, as the flight writers
+// (flight_export.h) take it: its images, the points they see (any role) and
+// those observations, the precision of both, points grey 128 (the graph
+// keeps no colour), the reprojection errors (MeasureReprojection).
+FlightResult BlockOfCamera(const adjustment::Scene& scene, const adjustment::Summary& summary,
+                           const std::string& camera);
+
 }  // namespace flight
 }  // namespace slope_monitor
