@@ -5,6 +5,7 @@
 #include "slope_monitor/core/adjustment/survey_residuals.h"
 #include "slope_monitor/core/camera/camera_model.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/flight/flight_export.h"
 #include "slope_monitor/core/flight/flight_scene.h"
 #include "slope_monitor/core/io/gcp_list.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
@@ -132,6 +133,28 @@ std::string StartFlightsFromTiePoints(adjustment::Scene* scene, const AdjusterPa
   return failed;
 }
 
+// Each UAV camera's block of an accepted epoch into
+// <dir>/epoch_<n>/<camera>/ (flight_export.h), said in the log.
+void WriteUavBlocks(const adjustment::Scene& scene, const adjustment::Summary& summary,
+                    const std::set<std::string>& cameras, const SiteCrsOptions& crs,
+                    const std::string& dir, uint32_t n, SolvedEpoch* out) {
+  for (const std::string& camera : cameras) {
+    const std::string to = Message(dir, "/epoch_", n, "/", camera);
+    try {
+      const flight::FlightResult block = flight::BlockOfCamera(scene, summary, camera);
+      flight::WriteBlockOutputs(block, flight::FrameOfSite(crs), to);
+      Log(out, LogLine::kInfo,
+          Message("epoch ", n, ": ", camera, "'s block (", block.scene.images.size(), " photos, ",
+                  block.scene.points.size(), " points, mean reprojection error ",
+                  block.summary.mean_px, " px) written to ", to,
+                  " (COLMAP text model in sparse/, points.ply, cameras.csv, crs.txt)"));
+    } catch (const std::exception& e) {
+      Log(out, LogLine::kError,
+          Message("epoch ", n, ": ", camera, "'s block not written: ", e.what()));
+    }
+  }
+}
+
 }  // namespace
 
 SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
@@ -206,8 +229,8 @@ SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
     out.fixed_transforms = std::move(tfs.fixed);
     out.moving_transforms = std::move(tfs.moving);
     out.points = MakePointCloud(result.scene, s, s_out.header);
-    for (const std::string& camera : moving)
-      out.uav_blocks.emplace_back(camera, flight::BlockOfCamera(result.scene, s, camera));
+    if (!params.block_dir.empty() && params.site_crs)
+      WriteUavBlocks(result.scene, s, moving, *params.site_crs, params.block_dir, n, &out);
     Log(&out, LogLine::kInfo,
         Message("epoch ", n, " accepted: ", result.scene.images.size(), " images, ",
                 result.scene.points.size(), " points, ", s.num_observations,

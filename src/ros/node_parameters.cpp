@@ -66,6 +66,8 @@ void ReadAdjusterTargetsAndCameras(ParamReader& p, AdjusterParameters& a) {
   const std::string& site_file = a.site_file;
   std::optional<io::SiteFile> site;
   if (!site_file.empty()) site = io::LoadSiteFile(site_file);
+  if (site) a.site_crs = site->crs;
+  a.block_dir = p.String("block_dir", a.block_dir);
   a.target_list_path = p.String("target_list", a.target_list_path);
   if (site && site->targets) {
     a.targets = *site->targets;

@@ -11,7 +11,6 @@
 #include <diagnostic_msgs/DiagnosticArray.h>
 
 #include "slope_monitor/core/common/error.h"
-#include "slope_monitor/core/flight/flight_export.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
 #include "slope_monitor/ros/change_area_conversions.h"
 #include "slope_monitor/ros/conversions.h"
@@ -393,25 +392,7 @@ void OfflineGraph::Solve(const SolvedEpoch& out) {
   for (const LogLine& line : out.log)
     if (line.level >= LogLine::kWarn || options_.verbose) Log("bundle_adjuster: " + line.text);
   Publish(out);
-  WriteUavBlocks(out);
   LogStages(epoch, out, adjustment);
-}
-
-void OfflineGraph::WriteUavBlocks(const SolvedEpoch& out) {
-  const std::string& reports = estimator_->parameters().report_dir;
-  if (!out.accepted || !site_ || reports.empty()) return;
-  for (const auto& [camera, block] : out.uav_blocks) {
-    const std::string dir = Message(reports, "/epoch_", out.solution.epoch, "/", camera);
-    try {
-      flight::WriteBlockOutputs(block, flight::FrameOfSite(site_->crs), dir);
-      Log(Message("epoch ", out.solution.epoch, ": ", camera, "'s block (",
-                  block.scene.images.size(), " photos, ", block.scene.points.size(),
-                  " points, mean reprojection error ", block.summary.mean_px, " px) written to ",
-                  dir, " (COLMAP text model in sparse/, points.ply, cameras.csv, crs.txt)"));
-    } catch (const std::exception& e) {
-      Log(Message("epoch ", out.solution.epoch, ": ", camera, "'s block not written: ", e.what()));
-    }
-  }
 }
 
 // Wall time of each stage since the previous adjustment epoch, and the

@@ -125,6 +125,8 @@ void OfflineGraph::SetUpAdjuster(const std::vector<std::string>& cameras) {
   if (!options_.site.empty()) SetParam(&p, "site_file", options_.site);
   if (!options_.adjuster_config.empty()) MergeParams(&p, LoadParamFile(options_.adjuster_config));
   if (options_.uav_tie_points) SetParam(&p, "uav_tie_points", true);
+  // As processing_graph.xml: the UAV blocks beside the reports.
+  if (!options_.report_dir.empty()) SetParam(&p, "block_dir", options_.report_dir);
   ParamReader r(p, "/bundle_adjuster");
   adjuster_ = std::make_unique<AdjusterStep>(ReadAdjusterParameters(r), "/bundle_adjuster");
   // The site's cameras that this bag has (a UAV that did not fly is not

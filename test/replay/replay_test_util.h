@@ -219,16 +219,18 @@ inline std::string DumpSqlite(const fs::path& db, const std::set<std::string>& e
 }
 
 // Two runs' outputs (`a` and `b`, each with history.db and reports/): every
-// report file byte for byte (a GeoPackage as its SQL dump), the same set of
+// report file (in subfolders too) byte for byte (a GeoPackage as its SQL dump), the same set of
 // files, and the history dump, less the wall-clock fields. Report files
 // whose extension is in `skip` are left out of both. `what` names the pair
 // in the failure messages.
 inline void ExpectSameResults(const fs::path& a, const fs::path& b, const std::string& what,
                               const std::set<std::string>& skip = {}) {
+  // Files in subfolders too (the UAV blocks' epoch_<n>/<camera>/...).
   const auto list = [&skip](const fs::path& dir) {
     std::set<std::string> files;
-    for (const auto& f : fs::directory_iterator(dir))
-      if (!skip.count(f.path().extension().string())) files.insert(f.path().filename().string());
+    for (const auto& f : fs::recursive_directory_iterator(dir))
+      if (f.is_regular_file() && !skip.count(f.path().extension().string()))
+        files.insert(fs::relative(f.path(), dir).string());
     return files;
   };
   const std::set<std::string> files = list(a / "reports");

@@ -8,7 +8,6 @@
 #include <map>
 #include <optional>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include <geometry_msgs/TransformStamped.h>
@@ -18,7 +17,6 @@
 #include "slope_monitor/PointDisplacementArray.h"
 #include "slope_monitor/core/adjustment/epoch_adjustment.h"
 #include "slope_monitor/core/adjustment/epoch_collector.h"
-#include "slope_monitor/core/flight/flight_orientation.h"
 #include "slope_monitor/ros/node_parameters.h"
 
 namespace slope_monitor {
@@ -37,9 +35,6 @@ struct SolvedEpoch {
   std::vector<geometry_msgs::TransformStamped> fixed_transforms, moving_transforms;
   sensor_msgs::PointCloud2 points;
   std::optional<slope_monitor::PointDisplacementArray> displacements;
-  // Each UAV camera's oriented block (name, block) for the writers of
-  // core/flight/flight_export.h (process_bag: <report_dir>/epoch_<n>/<camera>/).
-  std::vector<std::pair<std::string, flight::FlightResult>> uav_blocks;
   std::vector<LogLine> log;
   // For diagnostics (valid when an adjustment ran).
   bool adjusted = false;

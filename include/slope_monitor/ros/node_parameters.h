@@ -44,7 +44,11 @@ inline adjustment::EpochAdjustmentOptions MonitoringEpochOptions() {
 // them from here; test/ros/config_files_test.cpp checks the yaml files
 // against them).
 struct AdjusterParameters {
-  std::string site_file;         // "" = none: target_list and the parameters decide
+  std::string site_file;                   // "" = none: target_list and the parameters decide
+  std::optional<SiteCrsOptions> site_crs;  // the site file's frame (when there is one)
+  // "" = off; else each accepted epoch's UAV blocks (with a site file) go to
+  // <block_dir>/epoch_<n>/<camera>/ as process_flight writes a flight.
+  std::string block_dir;
   std::string target_list_path;  // or "<site file> (inline targets)"
   io::TargetList targets;        // the site file's when it lists them, else target_list's
   std::vector<std::string> target_topics = {"targets"}, epoch_topics = {"epoch"};

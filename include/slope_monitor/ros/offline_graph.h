@@ -186,9 +186,6 @@ class OfflineGraph {
   void Solve(const std::vector<SolvedEpoch>& epochs);
   void Solve(const SolvedEpoch& out);
   void LogStages(uint32_t epoch, const SolvedEpoch& out, double adjustment);
-  // An accepted epoch's UAV blocks into <report_dir>/epoch_<n>/<camera>/
-  // (flight::WriteBlockOutputs), with a site file (its frame) only.
-  void WriteUavBlocks(const SolvedEpoch& out);
   void Publish(const SolvedEpoch& out);
 
   // ---- the deformation estimator (its inputs in one stamp order, no time-out).
