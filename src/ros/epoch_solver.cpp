@@ -133,6 +133,25 @@ std::string StartFlightsFromTiePoints(adjustment::Scene* scene, const AdjusterPa
   return failed;
 }
 
+// An accepted epoch's datum (a covariance relative to the control) and its
+// control and check points' residuals.
+void LogDatumAndSurvey(uint32_t n, const adjustment::Scene& scene, const adjustment::Summary& s,
+                       bool no_heights, SolvedEpoch* out) {
+  if (s.precision.relative_to_control)
+    Log(out, LogLine::kWarn,
+        Message("epoch ", n,
+                ": the absolute covariance is singular; precisions and "
+                "displacement significance are relative to the control points held",
+                no_heights ? " (the datum has no heights: the block's tilt rests on the control "
+                             "points; give their heights for absolute heights)"
+                           : ""));
+  const adjustment::SurveyResiduals survey = adjustment::ComputeSurveyResiduals(scene);
+  if (survey.control.empty() && survey.check.empty()) return;
+  Log(out, LogLine::kInfo, Message("epoch ", n, ": ", survey.Brief()));
+  for (const std::string& line : survey.Lines())
+    Log(out, LogLine::kDebug, Message("epoch ", n, ": ", line));
+}
+
 // Each UAV camera's block of an accepted epoch into
 // <dir>/epoch_<n>/<camera>/ (flight_export.h), said in the log.
 void WriteUavBlocks(const adjustment::Scene& scene, const adjustment::Summary& summary,
@@ -153,6 +172,48 @@ void WriteUavBlocks(const adjustment::Scene& scene, const adjustment::Summary& s
           Message("epoch ", n, ": ", camera, "'s block not written: ", e.what()));
     }
   }
+}
+
+// An accepted epoch: the store keeps poses and calibration; its transforms,
+// points, UAV blocks (block_dir) and displacements against the reference.
+void TakeAccepted(const adjustment::CollectedEpoch& epoch,
+                  const adjustment::EpochAdjustmentResult& result, const AdjusterParameters& params,
+                  const std::string& source_name, bool no_heights, adjustment::EpochStore* store,
+                  SolvedEpoch* out) {
+  const uint32_t n = epoch.epoch;
+  const adjustment::Summary& s = result.summary;
+  LogDatumAndSurvey(n, result.scene, s, no_heights, out);
+  const adjustment::EpochPoints ep =
+      store->Accept(result.scene, s, static_cast<int>(n), out->solution.header.stamp.toSec(),
+                    params.epoch.adjustment.compute_datum_free_covariance);
+  out->accepted = true;
+  std::set<std::string> moving;  // the site file's kind uav, else the name rule
+  for (const auto& camera : result.scene.cameras)
+    if (adjustment::IsUavCamera(camera.name, params.collector.uav_cameras))
+      moving.insert(camera.name);
+  CameraTransforms tfs =
+      MakeTransforms(result.scene, epoch, params.frame_id, out->solution.header.stamp, moving);
+  out->fixed_transforms = std::move(tfs.fixed);
+  out->moving_transforms = std::move(tfs.moving);
+  out->points = MakePointCloud(result.scene, s, out->solution.header);
+  if (!params.block_dir.empty() && params.site_crs)
+    WriteUavBlocks(result.scene, s, moving, *params.site_crs, params.block_dir, n, out);
+  Log(out, LogLine::kInfo,
+      Message("epoch ", n, " accepted: ", result.scene.images.size(), " images, ",
+              result.scene.points.size(), " points, ", s.num_observations, " observations, sigma0 ",
+              s.sigma0, ", rms ", s.rms_residual_px, " px"));
+  const std::optional<adjustment::EpochComparison> cmp =
+      store->CompareWithReference(ep, params.displacement);
+  if (!cmp) return;
+  if (!cmp->success) {
+    Log(out, LogLine::kError, cmp->message);
+    return;
+  }
+  const adjustment::EpochPoints& ref = *store->Reference();
+  Log(out, LogLine::kInfo,
+      Message("epoch ", ep.epoch, " vs reference ", ref.epoch, ": ", cmp->displacements.size(),
+              " monitoring displacements"));
+  out->displacements = MakeDisplacements(*cmp, ref, ep.epoch, source_name, out->solution.header);
 }
 
 }  // namespace
@@ -201,52 +262,7 @@ SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
           Message("epoch ", n, " not usable: ", s_out.message, " (previous solution kept)"));
       return out;
     }
-    if (s.precision.relative_to_control)
-      Log(&out, LogLine::kWarn,
-          Message("epoch ", n,
-                  ": the absolute covariance is singular; precisions and "
-                  "displacement significance are relative to the control points held",
-                  no_heights ? " (the datum has no heights: the block's tilt rests on the control "
-                               "points; give their heights for absolute heights)"
-                             : ""));
-    const adjustment::SurveyResiduals survey = adjustment::ComputeSurveyResiduals(result.scene);
-    if (!survey.control.empty() || !survey.check.empty()) {
-      Log(&out, LogLine::kInfo, Message("epoch ", n, ": ", survey.Brief()));
-      for (const std::string& line : survey.Lines())
-        Log(&out, LogLine::kDebug, Message("epoch ", n, ": ", line));
-    }
-    // Accepted: the store keeps poses and calibration.
-    const adjustment::EpochPoints ep =
-        store->Accept(result.scene, s, static_cast<int>(n), s_out.header.stamp.toSec(),
-                      params.epoch.adjustment.compute_datum_free_covariance);
-    out.accepted = true;
-    std::set<std::string> moving;  // the site file's kind uav, else the name rule
-    for (const auto& camera : result.scene.cameras)
-      if (adjustment::IsUavCamera(camera.name, params.collector.uav_cameras))
-        moving.insert(camera.name);
-    CameraTransforms tfs =
-        MakeTransforms(result.scene, epoch, params.frame_id, s_out.header.stamp, moving);
-    out.fixed_transforms = std::move(tfs.fixed);
-    out.moving_transforms = std::move(tfs.moving);
-    out.points = MakePointCloud(result.scene, s, s_out.header);
-    if (!params.block_dir.empty() && params.site_crs)
-      WriteUavBlocks(result.scene, s, moving, *params.site_crs, params.block_dir, n, &out);
-    Log(&out, LogLine::kInfo,
-        Message("epoch ", n, " accepted: ", result.scene.images.size(), " images, ",
-                result.scene.points.size(), " points, ", s.num_observations,
-                " observations, sigma0 ", s.sigma0, ", rms ", s.rms_residual_px, " px"));
-    const std::optional<adjustment::EpochComparison> cmp =
-        store->CompareWithReference(ep, params.displacement);
-    if (!cmp) return out;
-    if (!cmp->success) {
-      Log(&out, LogLine::kError, cmp->message);
-      return out;
-    }
-    const adjustment::EpochPoints& ref = *store->Reference();
-    Log(&out, LogLine::kInfo,
-        Message("epoch ", ep.epoch, " vs reference ", ref.epoch, ": ", cmp->displacements.size(),
-                " monitoring displacements"));
-    out.displacements = MakeDisplacements(*cmp, ref, ep.epoch, source_name, s_out.header);
+    TakeAccepted(epoch, result, params, source_name, no_heights, store, &out);
   } catch (const std::exception& e) {
     s_out.usable = false;
     s_out.message = std::string("adjustment failed: ") + e.what();
