@@ -132,6 +132,24 @@ TEST(SchurCovarianceTest, EqualsCeresCovarianceOnASmallBlockAndWithControlHeld) 
   }
 }
 
+// Every point observed in every photo without error (1 px sigma).
+void AddExactObservations(const camera::Sensor& sensor,
+                          std::vector<std::array<double, 6>>* exterior,
+                          std::array<double, camera::kNumInterior>* interior,
+                          std::vector<std::array<double, 3>>* points, ceres::Problem* problem) {
+  for (auto& e : *exterior)
+    for (auto& p : *points) {
+      const double* params[] = {e.data(), interior->data(), p.data()};
+      Eigen::Vector2d predicted;
+      const CollinearityErrorAnalytic zero(sensor, Eigen::Vector2d::Zero(),
+                                           Eigen::Matrix2d::Identity());
+      ASSERT_TRUE(zero.Evaluate(params, predicted.data(), nullptr));
+      problem->AddResidualBlock(
+          new CollinearityErrorAnalytic(sensor, predicted, Eigen::Matrix2d::Identity()), nullptr,
+          e.data(), interior->data(), p.data());
+    }
+}
+
 TEST(SchurCovarianceTest, DatumDefectIsReportedNotInverted) {
   // Two photos, points, no control and no prior: seven datum parameters free.
   const camera::Sensor sensor{4000, 3000, 0.004};
@@ -142,17 +160,7 @@ TEST(SchurCovarianceTest, DatumDefectIsReportedNotInverted) {
   for (int j = 0; j < 12; ++j)
     points.push_back({-10.0 + 4.0 * (j % 4), -6.0 + 5.0 * (j / 4), 0.5 * (j % 3)});
   ceres::Problem problem;
-  for (auto& e : exterior)
-    for (auto& p : points) {
-      const double* params[] = {e.data(), interior.data(), p.data()};
-      Eigen::Vector2d predicted;
-      const CollinearityErrorAnalytic zero(sensor, Eigen::Vector2d::Zero(),
-                                           Eigen::Matrix2d::Identity());
-      ASSERT_TRUE(zero.Evaluate(params, predicted.data(), nullptr));
-      problem.AddResidualBlock(
-          new CollinearityErrorAnalytic(sensor, predicted, Eigen::Matrix2d::Identity()), nullptr,
-          e.data(), interior.data(), p.data());
-    }
+  AddExactObservations(sensor, &exterior, &interior, &points, &problem);
   problem.SetParameterBlockConstant(interior.data());
   std::vector<double*> cameras = {exterior[0].data(), exterior[1].data()};
   std::vector<double*> point_blocks;
@@ -177,17 +185,7 @@ TEST(SchurCovarianceTest, ControlWithoutHeightsGivesTheCovarianceRelativeToTheHe
   std::vector<std::array<double, 3>> points;
   for (int j = 0; j < 16; ++j) points.push_back({-10.0 + 6.0 * (j % 4), -8.0 + 5.0 * (j / 4), 0.0});
   ceres::Problem problem;
-  for (auto& e : exterior)
-    for (auto& p : points) {
-      const double* params[] = {e.data(), interior.data(), p.data()};
-      Eigen::Vector2d predicted;
-      const CollinearityErrorAnalytic zero(sensor, Eigen::Vector2d::Zero(),
-                                           Eigen::Matrix2d::Identity());
-      ASSERT_TRUE(zero.Evaluate(params, predicted.data(), nullptr));
-      problem.AddResidualBlock(
-          new CollinearityErrorAnalytic(sensor, predicted, Eigen::Matrix2d::Identity()), nullptr,
-          e.data(), interior.data(), p.data());
-    }
+  AddExactObservations(sensor, &exterior, &interior, &points, &problem);
   const std::vector<int> control = {0, 3, 12, 15};  // the corners
   Eigen::Matrix3d horizontal_only = Eigen::Matrix3d::Zero();
   horizontal_only(0, 0) = horizontal_only(1, 1) = 1.0;  // 1 m in x and y, nothing in z
