@@ -136,7 +136,7 @@ std::string StartFlightsFromTiePoints(adjustment::Scene* scene, const AdjusterPa
 // An accepted epoch's datum (a covariance relative to the control) and its
 // control and check points' residuals.
 void LogDatumAndSurvey(uint32_t n, const adjustment::Scene& scene, const adjustment::Summary& s,
-                       bool no_heights, SolvedEpoch* out) {
+                       const io::TargetList& targets, bool no_heights, SolvedEpoch* out) {
   if (s.precision.relative_to_control)
     Log(out, LogLine::kWarn,
         Message("epoch ", n,
@@ -145,7 +145,11 @@ void LogDatumAndSurvey(uint32_t n, const adjustment::Scene& scene, const adjustm
                 no_heights ? " (the datum has no heights: the block's tilt rests on the control "
                              "points; give their heights for absolute heights)"
                            : ""));
-  const adjustment::SurveyResiduals survey = adjustment::ComputeSurveyResiduals(scene);
+  std::vector<std::string> listed;
+  for (const adjustment::ListedTarget& t : adjustment::ListedTargets(targets))
+    if (t.role == adjustment::PointRole::kControl || t.role == adjustment::PointRole::kCheck)
+      listed.push_back(t.id);
+  const adjustment::SurveyResiduals survey = adjustment::ComputeSurveyResiduals(scene, listed);
   if (survey.control.empty() && survey.check.empty()) return;
   Log(out, LogLine::kInfo, Message("epoch ", n, ": ", survey.Brief()));
   for (const std::string& line : survey.Lines())
@@ -182,7 +186,7 @@ void TakeAccepted(const adjustment::CollectedEpoch& epoch,
                   SolvedEpoch* out) {
   const uint32_t n = epoch.epoch;
   const adjustment::Summary& s = result.summary;
-  LogDatumAndSurvey(n, result.scene, s, no_heights, out);
+  LogDatumAndSurvey(n, result.scene, s, params.targets, no_heights, out);
   const adjustment::EpochPoints ep =
       store->Accept(result.scene, s, static_cast<int>(n), out->solution.header.stamp.toSec(),
                     params.epoch.adjustment.compute_datum_free_covariance);

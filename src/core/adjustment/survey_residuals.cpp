@@ -39,7 +39,10 @@ std::string SurveyResiduals::Brief() const {
                 any_height || (control.empty() && check.empty())
                     ? ""
                     : ", horizontal only: the survey has no heights");
-  return text;
+  std::string out = text;
+  for (size_t i = 0; i < not_measured.size(); ++i)
+    out += (i ? ", " : "; not measured (in fewer than two oriented photos): ") + not_measured[i];
+  return out;
 }
 
 std::vector<std::string> SurveyResiduals::Lines() const {
@@ -49,7 +52,7 @@ std::vector<std::string> SurveyResiduals::Lines() const {
   return out;
 }
 
-SurveyResiduals ComputeSurveyResiduals(const Scene& scene) {
+SurveyResiduals ComputeSurveyResiduals(const Scene& scene, const std::vector<std::string>& listed) {
   // Only points the photos measured: seen in two photos or more.
   std::vector<std::set<int>> seen(scene.points.size());
   for (const Observation& o : scene.observations) seen[o.point].insert(o.image);
@@ -67,6 +70,11 @@ SurveyResiduals ComputeSurveyResiduals(const Scene& scene) {
   }
   out.control_rms = Rms(out.control);
   out.check_rms = Rms(out.check);
+  std::set<std::string> measured;
+  for (const auto* v : {&out.control, &out.check})
+    for (const SurveyResidual& r : *v) measured.insert(r.id);
+  for (const std::string& id : listed)
+    if (!measured.count(id)) out.not_measured.push_back(id);
   return out;
 }
 

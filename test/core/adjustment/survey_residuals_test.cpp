@@ -45,13 +45,17 @@ TEST(SurveyResiduals, HandCheckedResidualsAndRms) {
   SeenBy(&s, 2, 2);
   SeenBy(&s, 3, 1);
   SeenBy(&s, 4, 2);
-  const SurveyResiduals r = ComputeSurveyResiduals(s);
+  const SurveyResiduals r =
+      ComputeSurveyResiduals(s, {"gcp/1", "gcp/2", "gcp/3", "gcp/4", "gcp/9"});
   ASSERT_EQ(r.control.size(), 2u);
   ASSERT_EQ(r.check.size(), 1u) << "a point seen in one photo is not measured";
   EXPECT_EQ(r.control[0].residual, Eigen::Vector3d(3, 4, 0));
   EXPECT_DOUBLE_EQ(r.control_rms, std::sqrt(25.0 / 2.0));
   EXPECT_DOUBLE_EQ(r.check_rms, 2.0);
-  EXPECT_EQ(r.Brief(), "control rms 3.536 m over 2 points, check rms 2.000 m over 1 points");
+  EXPECT_EQ(r.not_measured, (std::vector<std::string>{"gcp/4", "gcp/9"}));
+  EXPECT_EQ(r.Brief(),
+            "control rms 3.536 m over 2 points, check rms 2.000 m over 1 points; not measured (in "
+            "fewer than two oriented photos): gcp/4, gcp/9");
   ASSERT_EQ(r.Lines().size(), 3u);
   EXPECT_EQ(r.Lines()[0], "check gcp/3 (0.000, 0.000, 2.000) m");
 }

@@ -27,16 +27,22 @@ struct SurveyResidual {
 struct SurveyResiduals {
   std::vector<SurveyResidual> control, check;  // scene order
   double control_rms = 0.0, check_rms = 0.0;   // [m] 3-D, 0 when none
+  // Listed control and check points the photos did not measure (list order).
+  std::vector<std::string> not_measured;
   // "control rms 1.547 m over 6 points, check rms 2.017 m over 2 points"
-  // (", horizontal only: the survey has no heights" when no point has one).
+  // (", horizontal only: the survey has no heights" when no point has one;
+  // "; not measured (in fewer than two oriented photos): gcp/4, gcp/10").
   std::string Brief() const;
   // "gcp/3 (0.512, -1.234, 0.000) m", one per point, check points first.
   std::vector<std::string> Lines() const;
 };
 
 // The control and check points of `scene` (role, a survey, an adjusted
-// position, observed in two images or more) after an adjustment.
-SurveyResiduals ComputeSurveyResiduals(const Scene& scene);
+// position, observed in two images or more) after an adjustment; `listed`:
+// the ids of the target list's control and check points, those not among
+// them go to not_measured.
+SurveyResiduals ComputeSurveyResiduals(const Scene& scene,
+                                       const std::vector<std::string>& listed = {});
 
 }  // namespace adjustment
 }  // namespace slope_monitor
