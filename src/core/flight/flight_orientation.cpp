@@ -297,6 +297,9 @@ adjustment::Config StageConfig(const Block& block, const StageSetup& s, const Sc
 adjustment::Options StageOptions(const StageSetup& s, bool datum_free) {
   adjustment::Options o = s.options->bundle;
   o.compute_covariance = s.final && s.leave_out < 0 && !s.without_covariance;
+  // With control points: a datum only the held control fixes (no heights)
+  // still gets a covariance, relative to the control (as in the graph).
+  o.compute_datum_free_covariance = o.compute_covariance && s.use_control;
   // Leave one out starts from the final solution: a few steps reach the new minimum.
   if (!s.final || s.leave_out >= 0) o.max_iterations = s.options->intermediate_iterations;
   o.write_back_unconverged = !s.final;
@@ -701,6 +704,9 @@ FlightResult OrientFlight(const FlightInput& input, const FlightOrientationOptio
   t0 = Clock::now();
   Adjust(&block, s);  // drops the observations the site frame's datum shows as blunders
   StageResult final_stage = Adjust(&block, s);
+  if (final_stage.summary.precision.relative_to_control)
+    sum.covariance_note =
+        "sigmas relative to the control points held (the absolute covariance is singular)";
   if (!final_stage.summary.IsSolutionUsable() &&
       final_stage.summary.reason.find("covariance") != std::string::npos) {
     // A weak datum (control points known to metres, heights not given) can
