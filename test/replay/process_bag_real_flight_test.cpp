@@ -322,7 +322,7 @@ TEST(ProcessBagRealFlight, NoTargetListAndNothingSolvedAreNamed) {
 // A folder the capture cannot publish ends the capture with status 1 and one
 // line saying why, instead of a node that stays up (a recording script
 // waits for camera_capture.launch to end): a site camera without a pixel
-// pitch (copr's photos carry none in EXIF), and a folder without photos.
+// pitch (the capture does not read it from EXIF), and a folder without photos.
 // roslaunch itself exits 0; it reports the required node's status.
 TEST(ProcessBagRealFlight, CaptureThatCannotPublishEndsWithStatusOne) {
   const fs::path dir = replay_test::Scratch("process_bag_real_flight_test", "bad_capture");
