@@ -1,5 +1,6 @@
 #include "slope_monitor/ros/epoch_solver.h"
 
+#include <optional>
 #include <set>
 
 #include "slope_monitor/core/adjustment/survey_residuals.h"
@@ -136,7 +137,8 @@ std::string StartFlightsFromTiePoints(adjustment::Scene* scene, const AdjusterPa
 // An accepted epoch's datum (a covariance relative to the control) and its
 // control and check points' residuals.
 void LogDatumAndSurvey(uint32_t n, const adjustment::Scene& scene, const adjustment::Summary& s,
-                       const io::TargetList& targets, bool no_heights, SolvedEpoch* out) {
+                       const std::vector<adjustment::ListedTarget>& targets, bool no_heights,
+                       SolvedEpoch* out) {
   if (s.precision.relative_to_control)
     Log(out, LogLine::kWarn,
         Message("epoch ", n,
@@ -146,7 +148,7 @@ void LogDatumAndSurvey(uint32_t n, const adjustment::Scene& scene, const adjustm
                              "points; give their heights for absolute heights)"
                            : ""));
   std::vector<std::string> listed;
-  for (const adjustment::ListedTarget& t : adjustment::ListedTargets(targets))
+  for (const adjustment::ListedTarget& t : targets)
     if (t.role == adjustment::PointRole::kControl || t.role == adjustment::PointRole::kCheck)
       listed.push_back(t.id);
   const adjustment::SurveyResiduals survey = adjustment::ComputeSurveyResiduals(scene, listed);
@@ -161,11 +163,13 @@ void LogDatumAndSurvey(uint32_t n, const adjustment::Scene& scene, const adjustm
 void WriteUavBlocks(const adjustment::Scene& scene, const adjustment::Summary& summary,
                     const std::set<std::string>& cameras, const SiteCrsOptions& crs,
                     const std::string& dir, uint32_t n, SolvedEpoch* out) {
+  std::optional<flight::FlightFrame> frame;
   for (const std::string& camera : cameras) {
     const std::string to = Message(dir, "/epoch_", n, "/", camera);
     try {
       const flight::FlightResult block = flight::BlockOfCamera(scene, summary, camera);
-      flight::WriteBlockOutputs(block, flight::FrameOfSite(crs), to);
+      if (!frame) frame = flight::FrameOfSite(crs);
+      flight::WriteBlockOutputs(block, *frame, to);
       Log(out, LogLine::kInfo,
           Message("epoch ", n, ": ", camera, "'s block (", block.scene.images.size(), " photos, ",
                   block.scene.points.size(), " points, mean reprojection error ",
@@ -181,12 +185,13 @@ void WriteUavBlocks(const adjustment::Scene& scene, const adjustment::Summary& s
 // An accepted epoch: the store keeps poses and calibration; its transforms,
 // points, UAV blocks (block_dir) and displacements against the reference.
 void TakeAccepted(const adjustment::CollectedEpoch& epoch,
-                  const adjustment::EpochAdjustmentResult& result, const AdjusterParameters& params,
-                  const std::string& source_name, bool no_heights, adjustment::EpochStore* store,
-                  SolvedEpoch* out) {
+                  const adjustment::EpochAdjustmentResult& result,
+                  const std::vector<adjustment::ListedTarget>& listed,
+                  const AdjusterParameters& params, const std::string& source_name, bool no_heights,
+                  adjustment::EpochStore* store, SolvedEpoch* out) {
   const uint32_t n = epoch.epoch;
   const adjustment::Summary& s = result.summary;
-  LogDatumAndSurvey(n, result.scene, s, params.targets, no_heights, out);
+  LogDatumAndSurvey(n, result.scene, s, listed, no_heights, out);
   const adjustment::EpochPoints ep =
       store->Accept(result.scene, s, static_cast<int>(n), out->solution.header.stamp.toSec(),
                     params.epoch.adjustment.compute_datum_free_covariance);
@@ -251,8 +256,9 @@ SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
       s_out.message = failed;
       return out;
     }
-    const adjustment::EpochAdjustmentResult result = adjustment::AdjustEpoch(
-        built.scene, built.unidentified, adjustment::ListedTargets(params.targets), options);
+    const std::vector<adjustment::ListedTarget> listed = adjustment::ListedTargets(params.targets);
+    const adjustment::EpochAdjustmentResult result =
+        adjustment::AdjustEpoch(built.scene, built.unidentified, listed, options);
     LogResult(n, result, built.unidentified.empty(), &out);
     const adjustment::Summary& s = result.summary;
     out.covariance_time = s.covariance_time;
@@ -266,7 +272,7 @@ SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
           Message("epoch ", n, " not usable: ", s_out.message, " (previous solution kept)"));
       return out;
     }
-    TakeAccepted(epoch, result, params, source_name, no_heights, store, &out);
+    TakeAccepted(epoch, result, listed, params, source_name, no_heights, store, &out);
   } catch (const std::exception& e) {
     s_out.usable = false;
     s_out.message = std::string("adjustment failed: ") + e.what();
