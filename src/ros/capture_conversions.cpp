@@ -122,10 +122,15 @@ sensor_msgs::CameraInfo FramePublisher::CameraInfoFor(const capture::Frame& fram
     }
     return options_.camera_info;
   }
-  if (options_.pixel_size > 0.0 && frame.exif.focal_length_mm > 0.0) {
+  // The pixel pitch: the parameter (or the site file's entry), else the
+  // photo's own EXIF (FocalPlaneXResolution), as process_flight reads it.
+  const double pixel_size = options_.pixel_size > 0.0       ? options_.pixel_size
+                            : frame.attitude.has_pixel_size ? frame.attitude.pixel_size_mm
+                                                            : 0.0;
+  if (pixel_size > 0.0 && frame.exif.focal_length_mm > 0.0) {
     try {
-      return ToMsg(capture::NominalModelFromExif(frame.exif, w, h, options_.pixel_size, frame.name)
-                       .ToCameraInfo());
+      return ToMsg(
+          capture::NominalModelFromExif(frame.exif, w, h, pixel_size, frame.name).ToCameraInfo());
     } catch (const Error& e) {
       Warn(e.what());
     }

@@ -1,8 +1,10 @@
 #include "slope_monitor/ros/epoch_solver.h"
 
+#include <map>
 #include <optional>
 #include <set>
 
+#include "slope_monitor/core/adjustment/leave_one_out.h"
 #include "slope_monitor/core/adjustment/survey_residuals.h"
 #include "slope_monitor/core/camera/camera_model.h"
 #include "slope_monitor/core/common/error.h"
@@ -134,11 +136,12 @@ std::string StartFlightsFromTiePoints(adjustment::Scene* scene, const AdjusterPa
   return failed;
 }
 
-// An accepted epoch's datum (a covariance relative to the control) and its
-// control and check points' residuals.
+// An accepted epoch's datum (a covariance relative to the control), its
+// control and check points' residuals and (leave_one_out) each control
+// point's residual with it left out.
 void LogDatumAndSurvey(uint32_t n, const adjustment::Scene& scene, const adjustment::Summary& s,
                        const std::vector<adjustment::ListedTarget>& targets, bool no_heights,
-                       SolvedEpoch* out) {
+                       const AdjusterParameters& params, SolvedEpoch* out) {
   if (s.precision.relative_to_control)
     Log(out, LogLine::kWarn,
         Message("epoch ", n,
@@ -148,13 +151,22 @@ void LogDatumAndSurvey(uint32_t n, const adjustment::Scene& scene, const adjustm
                              "points; give their heights for absolute heights)"
                            : ""));
   std::vector<std::string> listed;
+  std::map<std::string, std::string> names;
   for (const adjustment::ListedTarget& t : targets)
-    if (t.role == adjustment::PointRole::kControl || t.role == adjustment::PointRole::kCheck)
+    if (t.role == adjustment::PointRole::kControl || t.role == adjustment::PointRole::kCheck) {
       listed.push_back(t.id);
-  const adjustment::SurveyResiduals survey = adjustment::ComputeSurveyResiduals(scene, listed);
+      names[t.id] = t.name;
+    }
+  const adjustment::SurveyResiduals survey =
+      adjustment::ComputeSurveyResiduals(scene, listed, names);
   if (survey.control.empty() && survey.check.empty()) return;
   Log(out, LogLine::kInfo, Message("epoch ", n, ": ", survey.Brief()));
   for (const std::string& line : survey.Lines())
+    Log(out, LogLine::kDebug, Message("epoch ", n, ": ", line));
+  if (!params.leave_one_out || survey.control.empty()) return;
+  const adjustment::LeaveOneOutReport loo = adjustment::LeaveOneOut(scene, params.epoch, names);
+  Log(out, LogLine::kInfo, Message("epoch ", n, ": ", loo.Brief(), " (", loo.seconds, " s)"));
+  for (const std::string& line : loo.Lines())
     Log(out, LogLine::kDebug, Message("epoch ", n, ": ", line));
 }
 
@@ -191,7 +203,7 @@ void TakeAccepted(const adjustment::CollectedEpoch& epoch,
                   adjustment::EpochStore* store, SolvedEpoch* out) {
   const uint32_t n = epoch.epoch;
   const adjustment::Summary& s = result.summary;
-  LogDatumAndSurvey(n, result.scene, s, listed, no_heights, out);
+  LogDatumAndSurvey(n, result.scene, s, listed, no_heights, params, out);
   const adjustment::EpochPoints ep =
       store->Accept(result.scene, s, static_cast<int>(n), out->solution.header.stamp.toSec(),
                     params.epoch.adjustment.compute_datum_free_covariance);

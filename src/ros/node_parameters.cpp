@@ -68,6 +68,7 @@ void ReadAdjusterTargetsAndCameras(ParamReader& p, AdjusterParameters& a) {
   if (!site_file.empty()) site = io::LoadSiteFile(site_file);
   if (site) a.site_crs = site->crs;
   a.block_dir = p.String("block_dir", a.block_dir);
+  a.leave_one_out = p.Bool("leave_one_out", a.leave_one_out);
   a.target_list_path = p.String("target_list", a.target_list_path);
   if (site && site->targets) {
     a.targets = *site->targets;

@@ -97,19 +97,19 @@ TEST(ProcessBagRealFlight, CapturedFolderRecordedAndProcessedOrientsEveryPhoto) 
   const fs::path dir = replay_test::Scratch("process_bag_real_flight_test", "run");
 
   // The site file of a UAV-only site: its origin at the first photo's GNSS
-  // position, one camera `uav` of kind uav with the sensor's pixel pitch
-  // (EXIF FocalPlaneXResolution); no targets, no radio network.
+  // position, one camera `uav` of kind uav and nothing more: no pixel pitch
+  // (the capture reads it from the photos' EXIF FocalPlaneXResolution, as
+  // process_flight does), no targets, no radio network.
   const capture::ExifInfo exif = capture::ReadExif(files.front().string());
   ASSERT_TRUE(exif.has_gps && exif.has_gps_altitude);
-  const capture::PhotoAttitude attitude = capture::ReadPhotoAttitude(files.front().string());
-  const double pixel_size = attitude.has_pixel_size ? attitude.pixel_size_mm : 0.00154;
+  ASSERT_TRUE(capture::ReadPhotoAttitude(files.front().string()).has_pixel_size);
   const fs::path site = dir / "caliterra.yaml";
   std::ofstream(site) << std::setprecision(12) << "name: caliterra\n"
                       << "crs: EPSG:4979\n"
                       << "origin: [" << exif.gps.longitude_deg << ", " << exif.gps.latitude_deg
                       << ", " << exif.gps.height_m << "]\n"
                       << "cameras:\n"
-                      << "  - {name: uav, kind: uav, pixel_size: " << pixel_size << "}\n";
+                      << "  - {name: uav, kind: uav}\n";
 
   // Record while the capture publishes the folder: record.launch first (it
   // starts the run's own master), then camera_capture.launch, which ends by
@@ -321,8 +321,8 @@ TEST(ProcessBagRealFlight, NoTargetListAndNothingSolvedAreNamed) {
 
 // A folder the capture cannot publish ends the capture with status 1 and one
 // line saying why, instead of a node that stays up (a recording script
-// waits for camera_capture.launch to end): a site camera without a pixel
-// pitch (the capture does not read it from EXIF), and a folder without photos.
+// waits for camera_capture.launch to end): a site file the capture cannot
+// read (a fixed camera without its pixel pitch), and a folder without photos.
 // roslaunch itself exits 0; it reports the required node's status.
 TEST(ProcessBagRealFlight, CaptureThatCannotPublishEndsWithStatusOne) {
   const fs::path dir = replay_test::Scratch("process_bag_real_flight_test", "bad_capture");
@@ -332,7 +332,7 @@ TEST(ProcessBagRealFlight, CaptureThatCannotPublishEndsWithStatusOne) {
   fs::create_symlink(Photos() / "IMG_9377.jpg", photos / "IMG_9377.jpg");
   const fs::path site = dir / "no_pixel_size.yaml";
   std::ofstream(site) << "name: copr\ncrs: EPSG:32611\norigin: [235269.88, 3811198.11, 0]\n"
-                         "cameras:\n  - {name: uav, kind: uav}\n";
+                         "cameras:\n  - {name: uav, kind: fixed}\n";
   struct Case {
     std::string name, folder, site, reason;
   };

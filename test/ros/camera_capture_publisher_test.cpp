@@ -173,6 +173,36 @@ TEST_F(PublisherFixture, FolderThroughThePublishingPath) {
   EXPECT_NE(r.warnings[0].find("truncated"), std::string::npos) << r.warnings[0];
 }
 
+// Without a pixel_size (parameter or site entry) the nominal camera takes the
+// photo's own pitch from EXIF FocalPlaneXResolution (as process_flight):
+// 10 px/mm = 0.1 mm, fx = 8.8 / 0.1 = 88 px; a photo without it gets an
+// uncalibrated camera_info (K = 0).
+TEST(CapturePixelSize, FromThePhotosExifWhenNotGiven) {
+  capture_test::TempDir dir("publisher_exif_pitch");
+  ExifTags tags = capture_test::UavPhotoTags("S1", "10:00:00", "", kOriginLat, kOriginLon, 150.0);
+  tags.focal_plane_x_resolution = 10;
+  capture_test::WriteJpeg(dir.File("a.jpg"), capture_test::TexturedImage(80, 60, 3, 1), tags);
+  tags = capture_test::UavPhotoTags("S1", "10:00:02", "", kOriginLat, kOriginLon, 150.0);
+  capture_test::WriteJpeg(dir.File("b.jpg"), capture_test::TexturedImage(80, 60, 3, 2), tags);
+  Recorded r;
+  ros_adapters::FramePublisherOptions o;
+  o.source_name = "uav";
+  ros_adapters::FramePublisher publisher(o, Outputs(&r));
+  capture::FolderSourceOptions fo;
+  fo.folder = dir.path();
+  capture::FolderSource source(fo);
+  capture::EpochTracker tracker(capture::EpochOptions{});
+  while (publisher.Step(&source, &tracker, true) ==
+         ros_adapters::FramePublisher::StepResult::kPublished) {
+  }
+  ASSERT_EQ(r.infos.size(), 2u);
+  EXPECT_NEAR(r.infos[0]->K[0], 88.0, 1e-9);
+  EXPECT_NEAR(r.infos[0]->K[4], 88.0, 1e-9);
+  EXPECT_NEAR(r.infos[0]->K[2], 39.5, 1e-12);
+  EXPECT_EQ(r.infos[1]->K[0], 0.0);
+  EXPECT_EQ(r.infos[1]->width, 80u);
+}
+
 // A site's gcp list: each photo's picks published just before its image,
 // with its header, the camera's name, the ID its name gives and the role the
 // site gives; a pick in a photo the folder does not have is named at the end.

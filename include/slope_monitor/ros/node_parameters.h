@@ -49,6 +49,9 @@ struct AdjusterParameters {
   // "" = off; else each accepted epoch's UAV blocks (with a site file) go to
   // <block_dir>/epoch_<n>/<camera>/ as process_flight writes a flight.
   std::string block_dir;
+  // Each accepted epoch with control points: every control point left out in
+  // turn and its residual logged (adjustment::LeaveOneOut).
+  bool leave_one_out = true;
   std::string target_list_path;  // or "<site file> (inline targets)"
   io::TargetList targets;        // the site file's when it lists them, else target_list's
   std::vector<std::string> target_topics = {"targets"}, epoch_topics = {"epoch"};

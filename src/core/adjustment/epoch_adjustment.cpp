@@ -408,24 +408,6 @@ Scene PruneForAdjustment(const Scene& s, const Options& ao, PruneReport* report)
   return pruned;
 }
 
-// What the adjustment holds: the interior parameters free for every camera
-// (free_interior), or a camera's own list (free_interior_by_camera; empty:
-// none free).
-Config ConfigFor(const Scene& pruned, const EpochAdjustmentOptions& options) {
-  Config config;
-  if (!options.free_interior.empty())
-    config.FreeInteriorOfAll(static_cast<int>(pruned.cameras.size()), options.free_interior);
-  for (size_t c = 0; c < pruned.cameras.size(); ++c) {
-    auto own = options.free_interior_by_camera.find(pruned.cameras[c].name);
-    if (own == options.free_interior_by_camera.end()) continue;
-    if (own->second.empty())
-      config.free_interior.erase(static_cast<int>(c));
-    else
-      config.free_interior[static_cast<int>(c)] = own->second;
-  }
-  return config;
-}
-
 // The named observation with the largest whitened residual in the adjusted
 // `trial` (sigmas 0 when none projects).
 struct WorstName {
@@ -512,6 +494,24 @@ void FinishEpochReport(const Scene& s, const Options& ao, const std::string& nam
 }
 
 }  // namespace
+
+// What the adjustment holds: the interior parameters free for every camera
+// (free_interior), or a camera's own list (free_interior_by_camera; empty:
+// none free).
+Config ConfigFor(const Scene& pruned, const EpochAdjustmentOptions& options) {
+  Config config;
+  if (!options.free_interior.empty())
+    config.FreeInteriorOfAll(static_cast<int>(pruned.cameras.size()), options.free_interior);
+  for (size_t c = 0; c < pruned.cameras.size(); ++c) {
+    auto own = options.free_interior_by_camera.find(pruned.cameras[c].name);
+    if (own == options.free_interior_by_camera.end()) continue;
+    if (own->second.empty())
+      config.free_interior.erase(static_cast<int>(c));
+    else
+      config.free_interior[static_cast<int>(c)] = own->second;
+  }
+  return config;
+}
 
 EpochAdjustmentResult AdjustEpoch(const Scene& scene,
                                   const std::vector<UnidentifiedObservation>& unidentified,

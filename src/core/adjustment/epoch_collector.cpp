@@ -605,6 +605,7 @@ std::vector<ListedTarget> ListedTargets(const io::TargetList& targets) {
     if (!t.position) continue;
     ListedTarget l;
     l.id = t.Key();
+    l.name = t.Label();
     l.family = t.family;
     l.role = RoleOf(&t);
     l.position = *t.position;

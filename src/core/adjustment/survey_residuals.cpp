@@ -17,16 +17,16 @@ double Rms(const std::vector<SurveyResidual>& v) {
   return std::sqrt(sum / static_cast<double>(v.size()));
 }
 
-std::string Line(const SurveyResidual& r, const char* role) {
+}  // namespace
+
+std::string ResidualLine(const SurveyResidual& r, const std::string& role) {
   char z[32] = "no height";
   if (r.has_height) std::snprintf(z, sizeof z, "%.3f", r.residual.z());
   char text[200];
-  std::snprintf(text, sizeof text, "%s %s (%.3f, %.3f, %s) m", role, r.id.c_str(), r.residual.x(),
-                r.residual.y(), z);
+  std::snprintf(text, sizeof text, "%s %s (%.3f, %.3f, %s) m", role.c_str(), r.name.c_str(),
+                r.residual.x(), r.residual.y(), z);
   return text;
 }
-
-}  // namespace
 
 std::string SurveyResiduals::Brief() const {
   bool any_height = false;
@@ -47,12 +47,17 @@ std::string SurveyResiduals::Brief() const {
 
 std::vector<std::string> SurveyResiduals::Lines() const {
   std::vector<std::string> out;
-  for (const SurveyResidual& r : check) out.push_back(Line(r, "check"));
-  for (const SurveyResidual& r : control) out.push_back(Line(r, "control"));
+  for (const SurveyResidual& r : check) out.push_back(ResidualLine(r, "check"));
+  for (const SurveyResidual& r : control) out.push_back(ResidualLine(r, "control"));
   return out;
 }
 
-SurveyResiduals ComputeSurveyResiduals(const Scene& scene, const std::vector<std::string>& listed) {
+SurveyResiduals ComputeSurveyResiduals(const Scene& scene, const std::vector<std::string>& listed,
+                                       const std::map<std::string, std::string>& names) {
+  auto name_of = [&](const std::string& id) {
+    const auto it = names.find(id);
+    return it == names.end() ? id : it->second;
+  };
   // Only points the photos measured: seen in two photos or more.
   std::vector<std::set<int>> seen(scene.points.size());
   for (const Observation& o : scene.observations) seen[o.point].insert(o.image);
@@ -63,6 +68,7 @@ SurveyResiduals ComputeSurveyResiduals(const Scene& scene, const std::vector<std
     if (p.role != PointRole::kControl && p.role != PointRole::kCheck) continue;
     SurveyResidual r;
     r.id = p.id;
+    r.name = name_of(p.id);
     r.residual = p.position - *p.surveyed;
     r.has_height = !io::HeightUnknown(p.surveyed_covariance(2, 2));
     if (!r.has_height) r.residual.z() = 0.0;
@@ -74,7 +80,7 @@ SurveyResiduals ComputeSurveyResiduals(const Scene& scene, const std::vector<std
   for (const auto* v : {&out.control, &out.check})
     for (const SurveyResidual& r : *v) measured.insert(r.id);
   for (const std::string& id : listed)
-    if (!measured.count(id)) out.not_measured.push_back(id);
+    if (!measured.count(id)) out.not_measured.push_back(name_of(id));
   return out;
 }
 

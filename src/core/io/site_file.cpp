@@ -59,7 +59,9 @@ void ReadCameras(YamlMap& root, const std::string& folder, SiteFile* s) {
     cam.kind = CameraKindFromName(c.RequiredString("kind", {"fixed", "fixed_targetless", "uav"}));
     cam.calibration_url = c.String("calibration_url", "");
     cam.pixel_size = c.Double("pixel_size", 0.0, 0.0, 1.0, "mm/px");
-    if (cam.calibration_url.empty() && cam.pixel_size == 0.0)
+    // A UAV camera's photos carry their pitch in EXIF (the capture reads it);
+    // without it the graph works in pixels.
+    if (cam.calibration_url.empty() && cam.pixel_size == 0.0 && cam.kind != CameraKind::kUav)
       c.Fail("pixel_size", "is required when no calibration_url is given [mm/px]");
     if (cam.kind == CameraKind::kFixedTargetless) {
       cam.pose_file = Resolve(folder, c.RequiredString("pose_file"));

@@ -178,6 +178,7 @@ void ApplySurveyedPoints(const std::vector<SurveyedPoint>& points, double size, 
       spec.role = it->second->role;
       spec.position = it->second->position_in_site;
       spec.sigma = it->second->sigma;
+      if (!it->second->name.empty()) spec.name = it->second->name;
       by_key.erase(it);
     }
     out.Add(spec);
@@ -195,6 +196,7 @@ void ApplySurveyedPoints(const std::vector<SurveyedPoint>& points, double size, 
     spec.role = p.role;
     spec.position = p.position_in_site;
     spec.sigma = p.sigma;
+    spec.name = p.name;
     out.Add(spec);
   }
   *list = out;

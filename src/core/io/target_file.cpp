@@ -44,6 +44,7 @@ TargetList LoadGcpTargets(const std::string& path, const SiteCrs& site,
     SurveyedPoint s;
     s.family = kGcpFamily;
     s.id = ids.at(p.name);
+    s.name = p.name;
     s.role = std::find(check.begin(), check.end(), p.name) != check.end() ? TargetRole::kCheck
                                                                           : TargetRole::kControl;
     try {

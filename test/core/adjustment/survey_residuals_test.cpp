@@ -58,6 +58,13 @@ TEST(SurveyResiduals, HandCheckedResidualsAndRms) {
             "fewer than two oriented photos): gcp/4, gcp/9");
   ASSERT_EQ(r.Lines().size(), 3u);
   EXPECT_EQ(r.Lines()[0], "check gcp/3 (0.000, 0.000, 2.000) m");
+  // With the survey's names (a gcp list's gcp_name): the lines name them.
+  const SurveyResiduals named = ComputeSurveyResiduals(s, {"gcp/1", "gcp/2", "gcp/3", "gcp/4"},
+                                                       {{"gcp/3", "gcp03"}, {"gcp/4", "gcp04"}});
+  EXPECT_EQ(named.check[0].id, "gcp/3");
+  EXPECT_EQ(named.Lines()[0], "check gcp03 (0.000, 0.000, 2.000) m");
+  EXPECT_EQ(named.Lines()[1], "control gcp/1 (3.000, 4.000, 0.000) m");
+  EXPECT_EQ(named.not_measured, (std::vector<std::string>{"gcp04"}));
 }
 
 TEST(SurveyResiduals, ASurveyWithoutHeightGivesHorizontalResidualsOnly) {

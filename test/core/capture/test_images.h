@@ -75,6 +75,8 @@ struct ExifTags {
   std::string offset;     // "+09:00"; empty: not written
   std::string make, model;
   int focal_num = 0, focal_den = 1;  // FocalLength rational; 0/1: not written
+  // FocalPlaneXResolution [pixels per unit] and its unit (2 inch, 3 cm, 4 mm); 0: not written
+  int focal_plane_x_resolution = 0, focal_plane_unit = 4;
   bool gps = false;
   double lat_deg = 0.0, lon_deg = 0.0;  // signed
   double alt_m = 0.0;                   // signed (below sea level negative)
@@ -101,6 +103,10 @@ inline void WriteExifTags(const std::string& path, const ExifTags& t) {
   if (!t.make.empty()) exif["Exif.Image.Make"] = t.make;
   if (!t.model.empty()) exif["Exif.Image.Model"] = t.model;
   if (t.focal_num > 0) exif["Exif.Photo.FocalLength"] = Exiv2::Rational(t.focal_num, t.focal_den);
+  if (t.focal_plane_x_resolution > 0) {
+    exif["Exif.Photo.FocalPlaneXResolution"] = Exiv2::Rational(t.focal_plane_x_resolution, 1);
+    exif["Exif.Photo.FocalPlaneResolutionUnit"] = static_cast<uint16_t>(t.focal_plane_unit);
+  }
   if (t.gps) {
     exif["Exif.GPSInfo.GPSVersionID"] = "2 3 0 0";
     exif["Exif.GPSInfo.GPSLatitudeRef"] = t.lat_deg >= 0 ? "N" : "S";

@@ -140,6 +140,8 @@ TEST(SiteFile, GcpListAsTargets) {
   ASSERT_TRUE(g7 && g2);
   EXPECT_EQ(g7->role, TargetRole::kControl);
   EXPECT_EQ(g2->role, TargetRole::kCheck);
+  EXPECT_EQ(g7->Label(), "gcp07");  // the crew's name in messages, the key inside
+  EXPECT_EQ(g7->Key(), "gcp/7");
   EXPECT_NEAR((*g7->position - Eigen::Vector3d(10.0, 20.0, 0.0)).norm(), 0.0, 1e-6);
   EXPECT_NEAR((*g2->position - Eigen::Vector3d(30.0, 5.0, 0.0)).norm(), 0.0, 1e-6);
   EXPECT_EQ(g7->sigma, Eigen::Vector2d(0.5, kNoHeightSigma));
@@ -149,6 +151,7 @@ TEST(SiteFile, GcpListAsTargets) {
   const SiteFile h = LoadSiteFile(dir + "/site2.yaml");
   ASSERT_EQ(h.targets->targets().size(), 1u);
   EXPECT_EQ(h.targets->targets()[0].Key(), "gcp/0");  // no number in the name: its place
+  EXPECT_EQ(h.targets->targets()[0].Label(), "p");
   EXPECT_EQ(h.targets->targets()[0].sigma,
             Eigen::Vector2d(kDefaultGcpSigma, 2.0 * kDefaultGcpSigma));
   EXPECT_NEAR(h.targets->targets()[0].position->z(), 12.5, 1e-9);
@@ -170,6 +173,19 @@ TEST(SiteFile, GcpListAsTargets) {
     EXPECT_NE(std::string(e.what()).find("missing.txt"), std::string::npos) << e.what();
   }
   std::system(("rm -rf '" + dir + "'").c_str());
+}
+
+// A UAV camera's photos carry their pixel pitch in EXIF (the capture reads
+// FocalPlaneXResolution): its entry needs no pixel_size; a fixed camera's does.
+TEST(SiteFile, UavCameraWithoutPixelSizeReadsItFromThePhotos) {
+  const SiteFile s = ParseSiteFile(
+      "name: x\ncrs: EPSG:32632\norigin: [500000, 5150000, 0]\n"
+      "cameras: [{name: drone, kind: uav}, {name: toe, kind: fixed, pixel_size: 0.004}]\n",
+      "uav.yaml", "/sites");
+  ASSERT_EQ(s.cameras.size(), 2u);
+  EXPECT_EQ(s.FindCamera("drone")->kind, CameraKind::kUav);
+  EXPECT_EQ(s.FindCamera("drone")->pixel_size, 0.0);
+  EXPECT_DOUBLE_EQ(s.FindCamera("toe")->pixel_size, 0.004);
 }
 
 std::string SiteFileErrorOf(const std::string& text) {

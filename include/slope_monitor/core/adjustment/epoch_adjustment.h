@@ -50,7 +50,8 @@ struct UnidentifiedObservation {
 
 // A target of the site's list that may name unidentified observations.
 struct ListedTarget {
-  std::string id;  // "circle/12" (the point id in the scene)
+  std::string id;    // "circle/12" (the point id in the scene)
+  std::string name;  // what the crew calls it (io::TargetSpec::Label: "gcp03", else the id)
   std::string family = "circle";
   PointRole role = PointRole::kMonitoring;
   Eigen::Vector3d position =
@@ -167,6 +168,11 @@ struct EpochAdjustmentResult {
   std::string tie_screening_refused;  // why the screening removed nothing although it flagged
                                       // (empty: applied)
 };
+
+// What an epoch's adjustment of `scene` holds: the interior parameters free
+// for every camera (free_interior), or a camera's own list
+// (free_interior_by_camera; empty: none free).
+Config ConfigFor(const Scene& scene, const EpochAdjustmentOptions& options);
 
 // Steps 1-5 on a copy of `scene`. Does not throw for bad observations (the
 // Summary says why); throws ConfigError for bad options and InvalidArgument

@@ -34,6 +34,7 @@ struct SurveyedPoint {
   TargetRole role = TargetRole::kControl;
   Eigen::Vector3d position_in_site = Eigen::Vector3d::Zero();  // [m]
   Eigen::Vector2d sigma{0.01, 0.01};                           // [m] horizontal, vertical
+  std::string name;  // the survey's own name (a gcp list's gcp_name); "": none
 };
 
 // Throws ConfigError naming the file (context), line and column.

@@ -39,9 +39,12 @@ struct TargetSpec {
   std::optional<Eigen::Vector3d> position;  // [m] site
   Eigen::Vector2d sigma{0.01, 0.01};        // [m] horizontal, vertical
   std::optional<Eigen::Vector3d> normal;    // unit, site
+  std::string name;  // the survey's own name ("gcp03" of a gcp list); "": none
 
   // "tag36h11/3", "circle/12": the key used across the package.
   std::string Key() const { return family + "/" + std::to_string(id); }
+  // What a crew calls it in messages: its name, else its key.
+  std::string Label() const { return name.empty() ? Key() : name; }
 };
 
 class TargetList {

@@ -1,0 +1,70 @@
+#include "slope_monitor/core/adjustment/leave_one_out.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "slope_monitor/core/common/error.h"
+
+namespace slope_monitor {
+namespace adjustment {
+
+void LeaveOneOutOptions::Check() const {
+  RequireOption("leave-one-out", max_iterations > 0, "max_iterations", "must be > 0");
+}
+
+std::string LeaveOneOutReport::Brief() const {
+  if (residuals.empty() && failed.empty()) return "";
+  char text[120];
+  std::snprintf(text, sizeof text, "leave-one-out rms %.3f m over %zu control points", rms,
+                residuals.size());
+  std::string out = text;
+  for (size_t i = 0; i < failed.size(); ++i)
+    out += (i ? "; " : "; not adjusted without: ") + failed[i];
+  return out;
+}
+
+std::vector<std::string> LeaveOneOutReport::Lines() const {
+  std::vector<std::string> out;
+  for (const SurveyResidual& r : residuals) out.push_back(ResidualLine(r, "left out"));
+  return out;
+}
+
+LeaveOneOutReport LeaveOneOut(const Scene& adjusted, const EpochAdjustmentOptions& options,
+                              const std::map<std::string, std::string>& names,
+                              const LeaveOneOutOptions& leave_one_out) {
+  leave_one_out.Check();
+  const auto start = std::chrono::steady_clock::now();
+  LeaveOneOutReport out;
+  Options o = options.adjustment;
+  o.compute_covariance = false;
+  o.compute_datum_free_covariance = false;
+  o.max_sigma0 = 1e12;  // the datum is what is tested here, not the fit
+  o.max_outlier_fraction = 1.0;
+  o.max_iterations = std::min(o.max_iterations, leave_one_out.max_iterations);
+  const BundleAdjuster adjuster(o, ConfigFor(adjusted, options));
+  const SurveyResiduals measured = ComputeSurveyResiduals(adjusted, {}, names);
+  double sum = 0.0;
+  for (const SurveyResidual& control : measured.control) {
+    Scene without = adjusted;
+    const int j = without.FindPoint(control.id);
+    without.points[j].role = PointRole::kCheck;  // free: its survey is not a prior any more
+    const Summary s = adjuster.Solve(&without);
+    if (!s.IsSolutionUsable()) {
+      out.failed.push_back(control.name + " (" + s.reason + ")");
+      continue;
+    }
+    SurveyResidual r = control;
+    r.residual = without.points[j].position - *without.points[j].surveyed;
+    if (!r.has_height) r.residual.z() = 0.0;
+    sum += r.residual.squaredNorm();
+    out.residuals.push_back(r);
+  }
+  if (!out.residuals.empty()) out.rms = std::sqrt(sum / static_cast<double>(out.residuals.size()));
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+}  // namespace adjustment
+}  // namespace slope_monitor
