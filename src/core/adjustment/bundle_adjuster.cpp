@@ -295,7 +295,8 @@ std::string BundleAdjuster::CheckInput(const Scene& scene) const {
 }
 
 SolveReport SolveCeresProblem(const Options& options, const std::vector<double*>& point_blocks,
-                              int num_cameras, ceres::Problem* problem) {
+                              int num_cameras, ceres::Problem* problem,
+                              const std::vector<double*>& last_blocks) {
   ceres::Solver::Options so;
   std::string solver = options.linear_solver;
   if (solver == "auto")
@@ -319,11 +320,12 @@ SolveReport SolveCeresProblem(const Options& options, const std::vector<double*>
     auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
     std::vector<double*> blocks;
     problem->GetParameterBlocks(&blocks);
-    std::set<double*> points(point_blocks.begin(), point_blocks.end());
+    const std::set<double*> points(point_blocks.begin(), point_blocks.end());
+    const std::set<double*> last(last_blocks.begin(), last_blocks.end());
     int num_in_group0 = 0;
     for (double* b : blocks) {
       const bool is_point = points.count(b) > 0;
-      ordering->AddElementToGroup(b, is_point ? 0 : 1);
+      ordering->AddElementToGroup(b, is_point ? 0 : last.count(b) ? 2 : 1);
       if (is_point) ++num_in_group0;
     }
     if (num_in_group0 > 0 && num_in_group0 < static_cast<int>(blocks.size())) {
@@ -739,8 +741,11 @@ Summary BundleAdjuster::Solve(Scene* scene_in) const {
   }
 
   // Solver options and the solve (SolveCeresProblem).
-  const SolveReport report =
-      SolveCeresProblem(options_, point_blocks, static_cast<int>(scene.images.size()), &prob);
+  std::vector<double*> interior_blocks;  // after the exteriors: one array each (see there)
+  for (auto& block : b.interior)
+    if (prob.HasParameterBlock(block.data())) interior_blocks.push_back(block.data());
+  const SolveReport report = SolveCeresProblem(
+      options_, point_blocks, static_cast<int>(scene.images.size()), &prob, interior_blocks);
   summary.termination = report.termination;
   summary.initial_cost = report.initial_cost;
   summary.final_cost = report.final_cost;

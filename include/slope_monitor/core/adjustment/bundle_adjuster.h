@@ -251,7 +251,15 @@ class BundleAdjuster {
 
 // Solver setup shared by the collinearity adjustment and the BAL solver:
 // builds ceres::Solver::Options from ours and runs it, points in elimination
-// group 0 (Schur). Returns Ceres' summary fields in *summary.
+// group 0 (Schur), `last_blocks` (a camera's interior) in a group after the
+// other blocks. Returns Ceres' summary fields in *summary.
+//
+// Ceres orders the blocks of one group by their address, so the reduced
+// camera system's column order (and with it its rounding) follows the heap
+// unless each group's blocks lie in one array: pass the blocks of one array
+// as points, of another as last_blocks, of a third as the rest. A block's
+// place in an ill-conditioned system (a datum without heights: reciprocal
+// condition 1e-15) moved a copr camera by 1 cm from run to run before.
 struct SolveReport {
   bool converged = false;
   bool failed = false;
@@ -262,7 +270,8 @@ struct SolveReport {
   double time = 0.0;
 };
 SolveReport SolveCeresProblem(const Options& options, const std::vector<double*>& point_blocks,
-                              int num_cameras, ceres::Problem* problem);
+                              int num_cameras, ceres::Problem* problem,
+                              const std::vector<double*>& last_blocks = {});
 
 }  // namespace adjustment
 }  // namespace slope_monitor
