@@ -136,12 +136,23 @@ std::string StartFlightsFromTiePoints(adjustment::Scene* scene, const AdjusterPa
   return failed;
 }
 
+// One epoch's adjustment as SolveCollectedEpoch ran it, for TakeAccepted.
+struct EpochSolve {
+  const adjustment::CollectedEpoch& epoch;
+  const adjustment::EpochAdjustmentResult& result;
+  const std::vector<adjustment::ListedTarget>& listed;
+  const adjustment::EpochAdjustmentOptions& options;  // as adjusted (a flight start may hold c)
+  bool no_heights = false;  // the datum has no heights (no GNSS, control without heights)
+};
+
 // An accepted epoch's datum (a covariance relative to the control), its
 // control and check points' residuals and (leave_one_out) each control
 // point's residual with it left out.
-void LogDatumAndSurvey(uint32_t n, const adjustment::Scene& scene, const adjustment::Summary& s,
-                       const std::vector<adjustment::ListedTarget>& targets, bool no_heights,
-                       const AdjusterParameters& params, SolvedEpoch* out) {
+void LogDatumAndSurvey(const EpochSolve& e, bool leave_one_out, SolvedEpoch* out) {
+  const uint32_t n = e.epoch.epoch;
+  const adjustment::Scene& scene = e.result.scene;
+  const adjustment::Summary& s = e.result.summary;
+  const bool no_heights = e.no_heights;
   if (s.precision.relative_to_control)
     Log(out, LogLine::kWarn,
         Message("epoch ", n,
@@ -152,7 +163,7 @@ void LogDatumAndSurvey(uint32_t n, const adjustment::Scene& scene, const adjustm
                            : ""));
   std::vector<std::string> listed;
   std::map<std::string, std::string> names;
-  for (const adjustment::ListedTarget& t : targets)
+  for (const adjustment::ListedTarget& t : e.listed)
     if (t.role == adjustment::PointRole::kControl || t.role == adjustment::PointRole::kCheck) {
       listed.push_back(t.id);
       names[t.id] = t.name;
@@ -163,8 +174,8 @@ void LogDatumAndSurvey(uint32_t n, const adjustment::Scene& scene, const adjustm
   Log(out, LogLine::kInfo, Message("epoch ", n, ": ", survey.Brief()));
   for (const std::string& line : survey.Lines())
     Log(out, LogLine::kDebug, Message("epoch ", n, ": ", line));
-  if (!params.leave_one_out || survey.control.empty()) return;
-  const adjustment::LeaveOneOutReport loo = adjustment::LeaveOneOut(scene, params.epoch, names);
+  if (!leave_one_out || survey.control.empty()) return;
+  const adjustment::LeaveOneOutReport loo = adjustment::LeaveOneOut(scene, e.options, names);
   Log(out, LogLine::kInfo, Message("epoch ", n, ": ", loo.Brief(), " (", loo.seconds, " s)"));
   for (const std::string& line : loo.Lines())
     Log(out, LogLine::kDebug, Message("epoch ", n, ": ", line));
@@ -196,14 +207,13 @@ void WriteUavBlocks(const adjustment::Scene& scene, const adjustment::Summary& s
 
 // An accepted epoch: the store keeps poses and calibration; its transforms,
 // points, UAV blocks (block_dir) and displacements against the reference.
-void TakeAccepted(const adjustment::CollectedEpoch& epoch,
-                  const adjustment::EpochAdjustmentResult& result,
-                  const std::vector<adjustment::ListedTarget>& listed,
-                  const AdjusterParameters& params, const std::string& source_name, bool no_heights,
-                  adjustment::EpochStore* store, SolvedEpoch* out) {
+void TakeAccepted(const EpochSolve& solve, const AdjusterParameters& params,
+                  const std::string& source_name, adjustment::EpochStore* store, SolvedEpoch* out) {
+  const adjustment::CollectedEpoch& epoch = solve.epoch;
+  const adjustment::EpochAdjustmentResult& result = solve.result;
   const uint32_t n = epoch.epoch;
   const adjustment::Summary& s = result.summary;
-  LogDatumAndSurvey(n, result.scene, s, listed, no_heights, params, out);
+  LogDatumAndSurvey(solve, params.leave_one_out, out);
   const adjustment::EpochPoints ep =
       store->Accept(result.scene, s, static_cast<int>(n), out->solution.header.stamp.toSec(),
                     params.epoch.adjustment.compute_datum_free_covariance);
@@ -284,7 +294,7 @@ SolvedEpoch SolveCollectedEpoch(const adjustment::CollectedEpoch& epoch,
           Message("epoch ", n, " not usable: ", s_out.message, " (previous solution kept)"));
       return out;
     }
-    TakeAccepted(epoch, result, listed, params, source_name, no_heights, store, &out);
+    TakeAccepted({epoch, result, listed, options, no_heights}, params, source_name, store, &out);
   } catch (const std::exception& e) {
     s_out.usable = false;
     s_out.message = std::string("adjustment failed: ") + e.what();

@@ -6,9 +6,57 @@
 #include <cstdio>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/rigid3.h"
+#include "slope_monitor/core/geometry/similarity.h"
 
 namespace slope_monitor {
 namespace adjustment {
+
+namespace {
+
+// The scene moved by `t` (x -> s R x + t): every image and point.
+void Transform(const geometry::Similarity3& t, Scene* scene) {
+  for (Image& im : scene->images) {
+    const Eigen::Matrix3d r =
+        im.exterior.OpticalFromSite().RotationMatrix() * t.rotation.transpose();
+    const Eigen::Vector3d centre = t * im.exterior.position;
+    im.exterior = camera::ExteriorOrientation::FromOpticalFromSite(Rigid3(r, -(r * centre)));
+  }
+  for (ObjectPoint& p : scene->points) p.position = t * p.position;
+}
+
+// The block placed on the control points but `left_out` (PlacementOnControl).
+void PlaceOnTheOthers(const std::vector<SurveyResidual>& control, const std::string& left_out,
+                      Scene* scene) {
+  std::vector<Eigen::Vector3d> from, to;
+  std::vector<double> weights;
+  bool heights = false;
+  for (const SurveyResidual& c : control) {
+    if (c.id == left_out) continue;
+    const ObjectPoint& p = scene->points[scene->FindPoint(c.id)];
+    from.push_back(p.position);
+    to.push_back(*p.surveyed);
+    weights.push_back(1.0 / std::max(p.surveyed_covariance(0, 0), 1e-12));
+    heights = heights || c.has_height;
+  }
+  if (const auto t = PlacementOnControl(from, to, weights, heights)) Transform(*t, scene);
+}
+
+}  // namespace
+
+std::optional<geometry::Similarity3> PlacementOnControl(
+    const std::vector<Eigen::Vector3d>& adjusted, const std::vector<Eigen::Vector3d>& surveyed,
+    const std::vector<double>& weights, bool heights) {
+  if (adjusted.size() < 3) return std::nullopt;
+  std::vector<Eigen::Vector3d> from = adjusted, to = surveyed;
+  if (!heights)
+    for (size_t k = 0; k < from.size(); ++k) from[k].z() = to[k].z() = 0.0;
+  try {
+    return geometry::FitSimilarity(from, to, true, weights);
+  } catch (const InvalidArgument&) {
+    return std::nullopt;  // collinear
+  }
+}
 
 void LeaveOneOutOptions::Check() const {
   RequireOption("leave-one-out", max_iterations > 0, "max_iterations", "must be > 0");
@@ -50,6 +98,7 @@ LeaveOneOutReport LeaveOneOut(const Scene& adjusted, const EpochAdjustmentOption
     Scene without = adjusted;
     const int j = without.FindPoint(control.id);
     without.points[j].role = PointRole::kCheck;  // free: its survey is not a prior any more
+    PlaceOnTheOthers(measured.control, control.id, &without);
     const Summary s = adjuster.Solve(&without);
     if (!s.IsSolutionUsable()) {
       out.failed.push_back(control.name + " (" + s.reason + ")");

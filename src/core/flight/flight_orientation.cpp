@@ -7,6 +7,7 @@
 #include <set>
 #include <unordered_map>
 
+#include "slope_monitor/core/adjustment/leave_one_out.h"
 #include "slope_monitor/core/camera/rotation.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/numeric.h"
@@ -549,6 +550,26 @@ void ControlReport(const Block& block, const StageResult& stage, const FlightInp
   summary->check_rms = Rms3(summary->check);
 }
 
+// The block placed on the control points but `left_out`, as the adjustment
+// without it starts (adjustment::PlacementOnControl).
+void PlaceOnTheOthers(const FlightInput& input, const FlightOrientationOptions& options,
+                      size_t left_out, Block* block) {
+  std::vector<Eigen::Vector3d> from, to;
+  std::vector<double> weights;
+  bool heights = false;
+  for (size_t c = 0; c < input.control.size(); ++c) {
+    const FlightControlPoint& cp = input.control[c];
+    Eigen::Vector3d x;
+    if (cp.check || c == left_out || !MeasurePoint(*block, cp, options, &x).measured) continue;
+    from.push_back(x);
+    to.push_back(cp.site);
+    weights.push_back(1.0 / std::max(cp.covariance(0, 0), 1e-12));
+    heights = heights || cp.has_height;
+  }
+  if (const auto t = adjustment::PlacementOnControl(from, to, weights, heights))
+    TransformBlock(*t, block);
+}
+
 void LeaveOneOut(const Block& block, const StageSetup& final_setup, const FlightInput& input,
                  const FlightOrientationOptions& options, FlightSummary* summary) {
   const auto t0 = Clock::now();
@@ -564,6 +585,7 @@ void LeaveOneOut(const Block& block, const StageSetup& final_setup, const Flight
     if (usable - 1 < 3 && !s.use_gnss) {
       r.message = "too few other control points for a datum";
     } else {
+      PlaceOnTheOthers(input, options, c, &b);
       const StageResult st = Adjust(&b, s);
       r = MeasurePoint(b, input.control[c], options, nullptr);
       if (!st.summary.IsSolutionUsable()) r.measured = false, r.message = st.summary.reason;

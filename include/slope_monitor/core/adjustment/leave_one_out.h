@@ -10,11 +10,13 @@
 #pragma once
 
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "slope_monitor/core/adjustment/epoch_adjustment.h"
 #include "slope_monitor/core/adjustment/survey_residuals.h"
+#include "slope_monitor/core/geometry/similarity.h"
 
 namespace slope_monitor {
 namespace adjustment {
@@ -37,6 +39,20 @@ struct LeaveOneOutReport {
   // "left out gcp03 (0.512, -1.234, no height) m", one per point.
   std::vector<std::string> Lines() const;
 };
+
+// The similarity that places a block on control points: from their adjusted
+// positions to their surveys, weighted by `weights` (1 / horizontal
+// variance), in x and y only when `heights` is false (nothing but a loose
+// prior holds the block's height and tilt then, and the similarity leaves
+// them). nullopt for fewer than 3 points or collinear ones. Leaving a control
+// point out starts from it: from the solution with the point, Levenberg-
+// Marquardt's damped first steps would not move a block along a weak datum
+// (control to 1 m, no GNSS: its shift is 1e-15 of the normal matrix) and the
+// function tolerance stops it there (copr: every residual came back as the
+// control residual).
+std::optional<geometry::Similarity3> PlacementOnControl(
+    const std::vector<Eigen::Vector3d>& adjusted, const std::vector<Eigen::Vector3d>& surveyed,
+    const std::vector<double>& weights, bool heights);
 
 // `adjusted`: an epoch's adjusted scene (EpochAdjustmentResult::scene);
 // `options`: the options it was adjusted with (covariance and the
