@@ -1,8 +1,9 @@
 // Leave-one-out over the control points of an adjusted epoch: each control
 // point the photos measured (seen in two images or more) is in turn made a
-// check point (its survey out of the adjustment), the epoch is adjusted
-// again from its solution with the epoch's own options, and that point's
-// residual (adjusted - surveyed) is taken. It says how well the block places
+// check point (its survey out of the adjustment), the block is placed on
+// the other control points (PlacementOnControl) and adjusted again with the
+// epoch's own options, and that point's residual (adjusted - surveyed) is
+// taken. It says how well the block places
 // a point the survey does not hold, for every control point, where the check
 // points say it only for the few set aside (COLMAP #767, ODM #883: what
 // crews ask for). process_flight reports the same for a folder
@@ -23,7 +24,8 @@ namespace adjustment {
 
 struct LeaveOneOutOptions {
   // Iterations of each adjustment without one point: it starts from the
-  // epoch's solution, a few steps reach the new minimum (> 0).
+  // epoch's solution placed on the other control points, a few steps reach
+  // the new minimum (> 0).
   int max_iterations = 50;
   void Check() const;  // throws ConfigError naming the field
 };
