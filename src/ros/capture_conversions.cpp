@@ -38,7 +38,7 @@ sensor_msgs::NavSatFix ToNavSatFix(const capture::ExifInfo& exif, const GnssOpti
 }
 
 geometry_msgs::PoseWithCovarianceStamped ToPositionPrior(const sensor_msgs::NavSatFix& fix,
-                                                         const capture::LocalTangentPlane& site,
+                                                         const capture::SiteFrame& site,
                                                          const std::string& site_frame) {
   const capture::Geodetic g{fix.latitude, fix.longitude, fix.altitude};
   const Eigen::Vector3d x = site.ToSite(g);
@@ -97,8 +97,10 @@ namespace ros_adapters {
 
 FramePublisher::FramePublisher(const FramePublisherOptions& options, CaptureOutputs outputs)
     : options_(options), outputs_(std::move(outputs)) {
-  if (options_.has_site_origin)
-    site_ = std::make_unique<capture::LocalTangentPlane>(options_.site_origin);
+  if (options_.site_crs)
+    site_ = std::make_unique<capture::SiteFrame>(*options_.site_crs);
+  else if (options_.has_site_origin)
+    site_ = std::make_unique<capture::SiteFrame>(options_.site_origin);
 }
 
 void FramePublisher::Warn(const std::string& text) {
@@ -223,8 +225,11 @@ void FramePublisher::PublishFrame(const capture::Frame& frame, sensor_msgs::Imag
       if (frame.exif.has_gps_altitude) {
         geometry_msgs::PoseWithCovarianceStamped prior =
             ToPositionPrior(fix, *site_, options_.site_frame);
-        if (frame.attitude.has_yaw)
-          SetNadirAttitude(frame.attitude.yaw_deg, options_.attitude_sigma, &prior);
+        if (frame.attitude.has_yaw) {
+          const capture::Geodetic at{fix.latitude, fix.longitude, fix.altitude};
+          SetNadirAttitude(site_->HeadingToSite(at, frame.attitude.yaw_deg),
+                           options_.attitude_sigma, &prior);
+        }
         outputs_.prior(prior);
       } else {
         Warn(Message(frame.name, ": EXIF GNSS position has no altitude; no position prior"));

@@ -16,22 +16,21 @@ namespace slope_monitor {
 namespace ros_adapters {
 namespace {
 
-// The site file (io::LoadSiteFile): the position priors' origin (a local_enu
-// site's origin, unless site_origin is set) and this camera's pixel size
+// The site file (io::LoadSiteFile): the position priors' frame (its
+// local_enu origin or its shifted_crs grid, unless site_origin is set) and this camera's pixel size
 // (its entry, by the camera's name, unless pixel_size is set); a folder's
 // picks from the site's gcp list.
 void ApplyCaptureSiteFile(const std::string& path, bool origin_from_site, bool folder,
                           FramePublisherOptions* o) {
   const io::SiteFile site = io::LoadSiteFile(path);
   if (origin_from_site) {
-    if (site.crs.frame != SiteCrsOptions::Frame::kLocalEnu)
-      throw ConfigError(
-          Message(path,
-                  ": frame shifted_crs: camera_capture's position priors need a local_enu site "
-                  "(or set site_origin)"));
-    const Eigen::Vector3d lon_lat_h = SiteCrs(site.crs).origin_wgs84();
     o->has_site_origin = true;
-    o->site_origin = {lon_lat_h.y(), lon_lat_h.x(), lon_lat_h.z()};
+    if (site.crs.frame == SiteCrsOptions::Frame::kLocalEnu) {
+      const Eigen::Vector3d lon_lat_h = SiteCrs(site.crs).origin_wgs84();
+      o->site_origin = {lon_lat_h.y(), lon_lat_h.x(), lon_lat_h.z()};
+    } else {
+      o->site_crs = site.crs;  // shifted_crs: the priors in its grid
+    }
   }
   const io::SiteCamera* camera = site.FindCamera(o->source_name);
   if (camera && !(o->pixel_size > 0.0)) o->pixel_size = camera->pixel_size;

@@ -203,6 +203,36 @@ TEST(CapturePixelSize, FromThePhotosExifWhenNotGiven) {
   EXPECT_EQ(r.infos[1]->width, 80u);
 }
 
+// A shifted_crs site (UTM 31N less (500 000, 0)): the position prior in its
+// grid, as geodesy_test's SiteFrameOfAShiftedUtmSite works it out by hand
+// (0.001 deg north of the equator on the central meridian: 110.530 m).
+TEST(CapturePositionPrior, InTheGridOfAShiftedCrsSite) {
+  capture_test::TempDir dir("publisher_utm");
+  capture_test::WriteJpeg(dir.File("a.jpg"), capture_test::TexturedImage(80, 60, 3, 1),
+                          capture_test::UavPhotoTags("S1", "10:00:00", "", 0.001, 3.0, 100.0));
+  Recorded r;
+  ros_adapters::FramePublisherOptions o;
+  o.source_name = "uav";
+  o.has_site_origin = true;
+  SiteCrsOptions utm;
+  utm.crs = "EPSG:32631";
+  utm.origin = Eigen::Vector3d(500000.0, 0.0, 0.0);
+  utm.frame = SiteCrsOptions::Frame::kShiftedCrs;
+  o.site_crs = utm;
+  ros_adapters::FramePublisher publisher(o, Outputs(&r));
+  capture::FolderSourceOptions fo;
+  fo.folder = dir.path();
+  capture::FolderSource source(fo);
+  capture::EpochTracker tracker(capture::EpochOptions{});
+  while (publisher.Step(&source, &tracker, true) ==
+         ros_adapters::FramePublisher::StepResult::kPublished) {
+  }
+  ASSERT_EQ(r.priors.size(), 1u);
+  EXPECT_NEAR(r.priors[0].pose.pose.position.x, 0.0, 3e-3);  // EXIF: 1e-4 arc-second steps
+  EXPECT_NEAR(r.priors[0].pose.pose.position.y, 110.574 * 0.9996, 5e-3);
+  EXPECT_NEAR(r.priors[0].pose.pose.position.z, 100.0, 1e-6);
+}
+
 // A site's gcp list: each photo's picks published just before its image,
 // with its header, the camera's name, the ID its name gives and the role the
 // site gives; a pick in a photo the folder does not have is named at the end.

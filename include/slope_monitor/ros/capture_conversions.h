@@ -5,6 +5,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -49,7 +50,7 @@ sensor_msgs::NavSatFix ToNavSatFix(const capture::ExifInfo& exif, const GnssOpti
 // the local tangent plane, the fix covariance rotated into site axes,
 // identity orientation with variance 1e6 rad^2 (unknown).
 geometry_msgs::PoseWithCovarianceStamped ToPositionPrior(const sensor_msgs::NavSatFix& fix,
-                                                         const capture::LocalTangentPlane& site,
+                                                         const capture::SiteFrame& site,
                                                          const std::string& site_frame);
 
 // The orientation of *prior: a nadir photo flown at heading yaw_deg
@@ -79,12 +80,15 @@ struct FramePublisherOptions {
   std::string source_name = "camera";       // EpochMarker.source
   std::string site_frame = "site";          // frame of the position prior
   GnssOptions gnss;
-  bool has_site_origin = false;  // publish position priors (needs site_origin)
+  bool has_site_origin = false;  // publish position priors (needs site_origin or site_crs)
   capture::Geodetic site_origin;
+  // A site file's frame that is not a tangent plane at a WGS 84 origin
+  // (shifted_crs: the priors in its grid, through PROJ); wins over site_origin.
+  std::optional<SiteCrsOptions> site_crs;
   // [deg] 1-sigma of the attitude a photo's XMP heading gives the position
   // prior (nadir, SetNadirAttitude); photos without a heading: unknown (1e6 rad^2).
   double attitude_sigma = 10.0;
-  double pixel_size = 0.0;  // [mm] sensor pixel pitch; 0: unknown (no nominal EXIF camera_info)
+  double pixel_size = 0.0;  // [mm] sensor pixel pitch; 0: each photo's EXIF pitch, if any
   // A calibration (from camera_info_manager or the package's interior
   // parameters); without one, a nominal one from the EXIF focal length when
   // pixel_size > 0, else an uncalibrated camera_info (size only, K = 0).
@@ -135,7 +139,7 @@ class FramePublisher {
   void WarnUnpublishedPicks();
   FramePublisherOptions options_;
   CaptureOutputs outputs_;
-  std::unique_ptr<capture::LocalTangentPlane> site_;
+  std::unique_ptr<capture::SiteFrame> site_;
   bool calibration_checked_ = false;
   uint64_t published_ = 0;
   uint64_t skipped_ = 0;

@@ -58,5 +58,37 @@ Eigen::Matrix3d LocalTangentPlane::CovarianceToSite(const Geodetic& g,
   return site_from_local * cov * site_from_local.transpose();
 }
 
+SiteFrame::SiteFrame(const Geodetic& local_enu_origin)
+    : plane_(std::make_shared<const LocalTangentPlane>(local_enu_origin)) {}
+
+SiteFrame::SiteFrame(const SiteCrsOptions& crs) : crs_(std::make_shared<const SiteCrs>(crs)) {}
+
+Eigen::Vector3d SiteFrame::ToSite(const Geodetic& g) const {
+  if (plane_) return plane_->ToSite(g);
+  return crs_->SiteFromWgs84(Eigen::Vector3d(g.longitude_deg, g.latitude_deg, g.height_m));
+}
+
+// Columns: the site vectors of 1 m east, north and up at g (PROJ's
+// conversion differenced; its curvature over 1 m is below 1e-7 m).
+Eigen::Matrix3d SiteFrame::SiteFromLocalEnu(const Geodetic& g) const {
+  const LocalTangentPlane at(g);
+  const Eigen::Vector3d x = ToSite(g);
+  Eigen::Matrix3d j;
+  for (int k = 0; k < 3; ++k) j.col(k) = ToSite(at.ToGeodetic(Eigen::Vector3d::Unit(k))) - x;
+  return j;
+}
+
+Eigen::Matrix3d SiteFrame::CovarianceToSite(const Geodetic& g, const Eigen::Matrix3d& cov) const {
+  if (plane_) return plane_->CovarianceToSite(g, cov);
+  const Eigen::Matrix3d j = SiteFromLocalEnu(g);
+  return j * cov * j.transpose();
+}
+
+double SiteFrame::HeadingToSite(const Geodetic& g, double heading_deg) const {
+  if (plane_) return heading_deg;
+  const Eigen::Vector3d north = SiteFromLocalEnu(g).col(1);
+  return heading_deg + std::atan2(north.x(), north.y()) * 180.0 / M_PI;
+}
+
 }  // namespace capture
 }  // namespace slope_monitor

@@ -86,6 +86,44 @@ TEST(Geodesy, InvalidOriginNamesTheValue) {
   EXPECT_THROW(LocalTangentPlane({0.0, 0.0, NAN}), InvalidArgument);
 }
 
+// A shifted_crs site in UTM zone 31N (central meridian 3 E) with its origin
+// at (500 000, 0): on the central meridian the grid is the local ENU scaled
+// by k0 = 0.9996; 0.001 deg of latitude at the equator is a(1 - e^2) * pi /
+// 180 / 1000 = 110.574 m of meridian, 110.530 m of grid. At 45 N, 2.9 deg
+// east of the central meridian, true north points toward the central
+// meridian, west of grid north by the meridian convergence atan(tan(2.9 deg)
+// sin(45 deg)) = 2.051 deg (a heading of 10 deg true is 7.949 deg from grid
+// north); the local tangent plane
+// leaves headings as they are. The covariance scales by the grid's scale at
+// the photo's height.
+TEST(Geodesy, SiteFrameOfAShiftedUtmSite) {
+  SiteCrsOptions utm;
+  utm.crs = "EPSG:32631";
+  utm.origin = Eigen::Vector3d(500000.0, 0.0, 0.0);
+  utm.frame = SiteCrsOptions::Frame::kShiftedCrs;
+  const SiteFrame frame(utm);
+  const Eigen::Vector3d x = frame.ToSite({0.001, 3.0, 100.0});
+  EXPECT_NEAR(x.x(), 0.0, 1e-6);
+  EXPECT_NEAR(x.y(), 110.574 * 0.9996, 2e-3);
+  EXPECT_NEAR(x.z(), 100.0, 1e-6);
+  const Eigen::Matrix3d cov =
+      frame.CovarianceToSite({0.001, 3.0, 100.0}, Eigen::Vector3d(4.0, 4.0, 9.0).asDiagonal());
+  // 1 m at 100 m above the ellipsoid is a / (a + 100) m on it east (the prime
+  // vertical radius at the equator is a), M / (M + 100) north (M = a (1 - e^2)).
+  const double e2 = kWgs84F * (2.0 - kWgs84F), m = kWgs84A * (1.0 - e2);
+  const double k_east = 0.9996 * kWgs84A / (kWgs84A + 100.0), k_north = 0.9996 * m / (m + 100.0);
+  EXPECT_NEAR(cov(0, 0), 4.0 * k_east * k_east, 1e-5);
+  EXPECT_NEAR(cov(1, 1), 4.0 * k_north * k_north, 1e-5);
+  EXPECT_NEAR(cov(2, 2), 9.0, 1e-6);
+  EXPECT_NEAR(cov(0, 1), 0.0, 1e-6);
+  const double convergence =
+      std::atan(std::tan(2.9 * M_PI / 180.0) * std::sin(M_PI / 4.0)) * 180.0 / M_PI;
+  EXPECT_NEAR(frame.HeadingToSite({45.0, 5.9, 300.0}, 10.0), 10.0 - convergence, 0.01);
+  EXPECT_NEAR(frame.HeadingToSite({45.0, 3.0, 300.0}, 10.0), 10.0, 1e-6);
+  const SiteFrame plane(Geodetic{45.0, 5.9, 300.0});
+  EXPECT_EQ(plane.HeadingToSite({45.0, 5.9, 300.0}, 10.0), 10.0);
+}
+
 }  // namespace
 }  // namespace capture
 }  // namespace slope_monitor

@@ -63,5 +63,31 @@ class LocalTangentPlane {
   std::shared_ptr<const SiteCrs> site_;
 };
 
+// A site file's frame for GNSS positions (camera_capture's position priors):
+// a local tangent plane at a WGS 84 origin (as LocalTangentPlane), or any
+// site frame of a site file, e.g. shifted_crs (UTM coordinates minus the
+// origin), through PROJ. Covariances and headings given in the local
+// east-north-up axes of a point are turned into the site's axes; in a
+// projected CRS these differ by the meridian convergence (up to ~3 deg at a
+// UTM zone's edge) and the scale factor.
+class SiteFrame {
+ public:
+  explicit SiteFrame(const Geodetic& local_enu_origin);  // throws InvalidArgument
+  explicit SiteFrame(const SiteCrsOptions& crs);  // throws ConfigError (SiteCrs) naming the CRS
+
+  Eigen::Vector3d ToSite(const Geodetic& g) const;
+  // A covariance in the ENU axes at g (e.g. NavSatFix.position_covariance).
+  Eigen::Matrix3d CovarianceToSite(const Geodetic& g,
+                                   const Eigen::Matrix3d& cov_in_local_enu) const;
+  // A heading at g [deg, clockwise from true north] as clockwise from the
+  // site's +y axis (a local tangent plane: unchanged, as its site axes).
+  double HeadingToSite(const Geodetic& g, double heading_deg) const;
+
+ private:
+  Eigen::Matrix3d SiteFromLocalEnu(const Geodetic& g) const;  // the local Jacobian
+  std::shared_ptr<const LocalTangentPlane> plane_;            // local_enu at a WGS 84 origin
+  std::shared_ptr<const SiteCrs> crs_;                        // else
+};
+
 }  // namespace capture
 }  // namespace slope_monitor
