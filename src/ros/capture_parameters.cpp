@@ -17,9 +17,10 @@ namespace ros_adapters {
 namespace {
 
 // The site file (io::LoadSiteFile): the position priors' frame (its
-// local_enu origin or its shifted_crs grid, unless site_origin is set) and this camera's pixel size
-// (its entry, by the camera's name, unless pixel_size is set); a folder's
-// picks from the site's gcp list.
+// local_enu origin or its shifted_crs grid, unless site_origin is set), this
+// camera's pixel size (its entry, by the camera's name, unless pixel_size is
+// set; none: the photos' EXIF pitch) and a folder's picks from the site's gcp
+// list.
 void ApplyCaptureSiteFile(const std::string& path, bool origin_from_site, bool folder,
                           FramePublisherOptions* o) {
   const io::SiteFile site = io::LoadSiteFile(path);
