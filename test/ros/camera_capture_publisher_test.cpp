@@ -71,13 +71,6 @@ class PublisherFixture : public ::testing::Test {
     return o;
   }
 
-  // The fixture's folder as a capture source.
-  capture::FolderSource Folder() const {
-    capture::FolderSourceOptions fo;
-    fo.folder = dir_.path();
-    return capture::FolderSource(fo);
-  }
-
   capture_test::TempDir dir_{"publisher"};
 };
 
@@ -184,17 +177,9 @@ TEST(CapturePixelSize, FromThePhotosExifWhenNotGiven) {
   capture_test::WriteJpeg(dir.File("a.jpg"), capture_test::TexturedImage(80, 60, 3, 1), tags);
   tags = capture_test::UavPhotoTags("S1", "10:00:02", "", kOriginLat, kOriginLon, 150.0);
   capture_test::WriteJpeg(dir.File("b.jpg"), capture_test::TexturedImage(80, 60, 3, 2), tags);
-  Recorded r;
   ros_adapters::FramePublisherOptions o;
   o.source_name = "uav";
-  ros_adapters::FramePublisher publisher(o, Outputs(&r));
-  capture::FolderSourceOptions fo;
-  fo.folder = dir.path();
-  capture::FolderSource source(fo);
-  capture::EpochTracker tracker(capture::EpochOptions{});
-  while (publisher.Step(&source, &tracker, true) ==
-         ros_adapters::FramePublisher::StepResult::kPublished) {
-  }
+  const Recorded r = capture_test::PublishFolder(dir.path(), o);
   ASSERT_EQ(r.infos.size(), 2u);
   EXPECT_NEAR(r.infos[0]->K[0], 88.0, 1e-9);
   EXPECT_NEAR(r.infos[0]->K[4], 88.0, 1e-9);
@@ -210,7 +195,6 @@ TEST(CapturePositionPrior, InTheGridOfAShiftedCrsSite) {
   capture_test::TempDir dir("publisher_utm");
   capture_test::WriteJpeg(dir.File("a.jpg"), capture_test::TexturedImage(80, 60, 3, 1),
                           capture_test::UavPhotoTags("S1", "10:00:00", "", 0.001, 3.0, 100.0));
-  Recorded r;
   ros_adapters::FramePublisherOptions o;
   o.source_name = "uav";
   o.has_site_origin = true;
@@ -219,14 +203,7 @@ TEST(CapturePositionPrior, InTheGridOfAShiftedCrsSite) {
   utm.origin = Eigen::Vector3d(500000.0, 0.0, 0.0);
   utm.frame = SiteCrsOptions::Frame::kShiftedCrs;
   o.site_crs = utm;
-  ros_adapters::FramePublisher publisher(o, Outputs(&r));
-  capture::FolderSourceOptions fo;
-  fo.folder = dir.path();
-  capture::FolderSource source(fo);
-  capture::EpochTracker tracker(capture::EpochOptions{});
-  while (publisher.Step(&source, &tracker, true) ==
-         ros_adapters::FramePublisher::StepResult::kPublished) {
-  }
+  const Recorded r = capture_test::PublishFolder(dir.path(), o);
   ASSERT_EQ(r.priors.size(), 1u);
   EXPECT_NEAR(r.priors[0].pose.pose.position.x, 0.0, 3e-3);  // EXIF: 1e-4 arc-second steps
   EXPECT_NEAR(r.priors[0].pose.pose.position.y, 110.574 * 0.9996, 5e-3);
@@ -247,13 +224,7 @@ TEST_F(PublisherFixture, PicksOfTheGcpListBeforeTheirPhotos) {
   ros_adapters::FramePublisherOptions o = Options();
   o.picks = ros_adapters::PhotoPicks(gcp, io::LoadGcpTargets(gcp, site, {"gcp7"}));
   o.picks_file = gcp;
-  Recorded r;
-  ros_adapters::FramePublisher publisher(o, Outputs(&r));
-  capture::FolderSource source = Folder();
-  capture::EpochTracker tracker(capture::EpochOptions{});
-  while (publisher.Step(&source, &tracker, true) ==
-         ros_adapters::FramePublisher::StepResult::kPublished) {
-  }
+  const Recorded r = capture_test::PublishFolder(dir_.path(), o);
   EXPECT_EQ(r.order,
             (std::vector<std::string>{"S0", "P", "I", "P", "I", "I", "E0", "S1", "I", "E1"}));
   ASSERT_EQ(r.picks.size(), 2u);

@@ -87,18 +87,9 @@ class SimImages : public ::testing::Test {
     o.site_origin = {truth.origin.x(), truth.origin.y(), truth.origin.z()};
     o.gnss.sigma_horizontal = 0.03;
     o.gnss.sigma_vertical = 0.05;
-    Published p;
-    ros_adapters::FramePublisher publisher(o, capture_test::RecordInto(&p));
-    capture::FolderSourceOptions fo;
-    fo.folder = dir.path();
-    capture::FolderSource source(fo);
-    capture::EpochOptions eo;
-    eo.gap = 600.0;  // epochs are an hour apart, images within one a few seconds
-    capture::EpochTracker tracker(eo);
-    while (publisher.Step(&source, &tracker, true) ==
-           ros_adapters::FramePublisher::StepResult::kPublished) {
-    }
-    return p;
+    // Epochs by the default 600 s gap: they are an hour apart, images within
+    // one a few seconds.
+    return capture_test::PublishFolder(dir.path(), o);
   }
 
   // Checks what was published against camera `name`'s truth.

@@ -67,5 +67,21 @@ inline ros_adapters::CaptureOutputs RecordInto(Recorded* r) {
   return out;
 }
 
+// Everything a FramePublisher with `options` publishes from `folder`, read
+// to its end as camera_capture reads a folder (epochs by the default gap).
+inline Recorded PublishFolder(const std::string& folder,
+                              const ros_adapters::FramePublisherOptions& options) {
+  Recorded r;
+  ros_adapters::FramePublisher publisher(options, RecordInto(&r));
+  capture::FolderSourceOptions fo;
+  fo.folder = folder;
+  capture::FolderSource source(fo);
+  capture::EpochTracker tracker(capture::EpochOptions{});
+  while (publisher.Step(&source, &tracker, true) ==
+         ros_adapters::FramePublisher::StepResult::kPublished) {
+  }
+  return r;
+}
+
 }  // namespace capture_test
 }  // namespace slope_monitor
