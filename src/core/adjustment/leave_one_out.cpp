@@ -6,7 +6,6 @@
 #include <cstdio>
 
 #include "slope_monitor/core/common/error.h"
-#include "slope_monitor/core/common/rigid3.h"
 #include "slope_monitor/core/geometry/similarity.h"
 
 namespace slope_monitor {
@@ -16,12 +15,7 @@ namespace {
 
 // The scene moved by `t` (x -> s R x + t): every image and point.
 void Transform(const geometry::Similarity3& t, Scene* scene) {
-  for (Image& im : scene->images) {
-    const Eigen::Matrix3d r =
-        im.exterior.OpticalFromSite().RotationMatrix() * t.rotation.transpose();
-    const Eigen::Vector3d centre = t * im.exterior.position;
-    im.exterior = camera::ExteriorOrientation::FromOpticalFromSite(Rigid3(r, -(r * centre)));
-  }
+  for (Image& im : scene->images) im.exterior = geometry::TransformExterior(t, im.exterior);
   for (ObjectPoint& p : scene->points) p.position = t * p.position;
 }
 

@@ -400,13 +400,8 @@ PointResidual MeasurePoint(const Block& block, const FlightControlPoint& cp,
 }
 
 void TransformBlock(const geometry::Similarity3& t, Block* block) {
-  for (size_t i = 0; i < block->exterior.size(); ++i) {
-    if (!block->oriented[i]) continue;
-    const Rigid3 cam = block->exterior[i].CamFromSite();
-    const Eigen::Matrix3d r = cam.RotationMatrix() * t.rotation.transpose();
-    const Eigen::Vector3d centre = t * block->exterior[i].position;
-    block->exterior[i] = FromCamFromSite(r, -(r * centre));
-  }
+  for (size_t i = 0; i < block->exterior.size(); ++i)
+    if (block->oriented[i]) block->exterior[i] = geometry::TransformExterior(t, block->exterior[i]);
   for (size_t k = 0; k < block->position.size(); ++k)
     if (block->known[k]) block->position[k] = t * block->position[k];
   block->site = true;

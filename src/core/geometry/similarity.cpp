@@ -7,7 +7,9 @@
 #include <Eigen/LU>
 #include <Eigen/SVD>
 
+#include "slope_monitor/core/camera/rotation.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/rigid3.h"
 
 namespace slope_monitor {
 namespace geometry {
@@ -36,6 +38,15 @@ bool AreCollinear(const std::vector<Eigen::Vector3d>& points, double relative_to
   for (size_t i = 0; i < points.size(); ++i) a.row(i) = (points[i] - mean).transpose();
   const Eigen::Vector3d s = Eigen::JacobiSVD<Eigen::MatrixXd>(a).singularValues();
   return !(s(0) > 0.0) || s(1) < relative_tolerance * s(0);
+}
+
+camera::ExteriorOrientation TransformExterior(const Similarity3& t,
+                                              const camera::ExteriorOrientation& e) {
+  const Eigen::Matrix3d r = e.CamFromSite().RotationMatrix() * t.rotation.transpose();
+  const Eigen::Vector3d centre = t * e.position;
+  const Eigen::Matrix3d d = camera::OpticalFromPhotogrammetric();
+  return camera::ExteriorOrientation::FromOpticalFromSite(
+      Rigid3(Eigen::Matrix3d(d * r), Eigen::Vector3d(d * -(r * centre))));
 }
 
 Similarity3 FitSimilarity(const std::vector<Eigen::Vector3d>& source,

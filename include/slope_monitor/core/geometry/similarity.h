@@ -10,6 +10,8 @@
 
 #include <Eigen/Core>
 
+#include "slope_monitor/core/camera/camera_model.h"
+
 namespace slope_monitor {
 namespace geometry {
 
@@ -57,6 +59,12 @@ Similarity3 FitSimilarity(const std::vector<Eigen::Vector3d>& source,
 HelmertResult FitSimilarityRobust(const std::vector<Eigen::Vector3d>& source,
                                   const std::vector<Eigen::Vector3d>& target,
                                   const HelmertOptions& options);
+
+// A camera's exterior orientation carried along by `t` (a block moved into
+// the site, or onto its control points): its centre moved by t, its attitude
+// turned by t's rotation (the scale changes no direction).
+camera::ExteriorOrientation TransformExterior(const Similarity3& t,
+                                              const camera::ExteriorOrientation& e);
 
 // True when the points lie (within relative tolerance) on one line.
 bool AreCollinear(const std::vector<Eigen::Vector3d>& points, double relative_tolerance = 1e-3);
