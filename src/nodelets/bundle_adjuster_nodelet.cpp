@@ -57,6 +57,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
           nh, pnh, "bundle_adjuster", "parameters rejected: " + *error);
       return;
     }
+    if (!step_->resumed().empty()) NODELET_INFO("bundle_adjuster: %s", step_->resumed().c_str());
     // Outputs and services under the node's own name (launched at the root as
     // /bundle_adjuster: parameters /bundle_adjuster/<key>, outputs
     // /bundle_adjuster/solution, ...); inputs relative to its namespace.
@@ -257,7 +258,11 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
         step_->store().SetReference(req.use_latest, static_cast<int>(req.epoch), &chosen);
     res.success = error.empty();
     res.message = error.empty() ? "reference epoch set to " + std::to_string(chosen) : error;
-    if (res.success) res.reference_epoch = chosen;
+    if (res.success) {
+      res.reference_epoch = chosen;
+      const adjustment::EpochPoints* ref = step_->store().Reference();
+      step_->SaveStore(ref ? ref->stamp : 0.0);  // the site's history keeps the reference
+    }
     return true;
   }
 

@@ -4,12 +4,17 @@
 #include <chrono>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/format.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
 #include "slope_monitor/ros/conversions.h"
 #include "slope_monitor/ros/view_markers.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
+namespace {
+// The adjuster's epoch store in the site's history (deformation::SavedStates).
+constexpr char kStoreKey[] = "adjuster";
+}  // namespace
 
 std::vector<std::string> ReplayCameras(const AdjusterParameters& parameters,
                                        const std::function<bool(const std::string&)>& present,
@@ -61,7 +66,21 @@ AdjusterStep::AdjusterStep(const AdjusterParameters& parameters, const std::stri
     : parameters_(parameters),
       source_name_(source_name),
       collector_(std::make_unique<adjustment::EpochCollector>(parameters_.collector,
-                                                              &parameters_.targets)) {}
+                                                              &parameters_.targets)) {
+  if (parameters_.database.empty()) return;
+  states_ = std::make_unique<deformation::SavedStates>(parameters_.database);
+  if (const auto saved = states_->Get(kStoreKey)) {
+    store_.Load(saved->value);
+    if (const adjustment::EpochPoints* ref = store_.Reference())
+      resumed_ = Message("reference epoch ", ref->epoch, " (stamp ", Fixed(ref->stamp, 3), ", ",
+                         ref->points.size(), " points) from the history '",
+                         parameters_.database, "'");
+  }
+}
+
+void AdjusterStep::SaveStore(double stamp) {
+  if (states_) states_->Put(kStoreKey, stamp, store_.Save());
+}
 
 void AdjusterStep::KeepCameras(const std::vector<std::string>& cameras) {
   if (cameras == parameters_.collector.cameras) return;
@@ -132,7 +151,10 @@ SolvedEpoch AdjusterStep::Solve(const adjustment::CollectedEpoch& epoch) {
   }
   last_message_ = out.solution.message;
   last_usable_ = out.accepted;
-  if (out.accepted) ++accepted_;
+  if (out.accepted) {
+    ++accepted_;
+    SaveStore(out.solution.header.stamp.toSec());
+  }
   return out;
 }
 

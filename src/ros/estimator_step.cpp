@@ -29,9 +29,13 @@ EstimatorStep::EstimatorStep(const EstimatorParameters& parameters,
                              const std::vector<std::string>& ordered_inputs,
                              deformation::AlertHook::Log hook_log)
     : parameters_(parameters) {
-  if (!parameters_.database.empty())
+  if (!parameters_.database.empty()) {
     history_ = std::make_unique<deformation::History>(parameters_.database);
+    history_->CheckReference();
+    history_->CheckSite(parameters_.site ? parameters_.site->name : parameters_.site_name);
+  }
   estimator_ = std::make_unique<deformation::Estimator>(parameters_.options, history_.get());
+  estimator_->SetRecording(parameters_.recording);
   if (!ordered_inputs.empty()) order_ = std::make_unique<InputOrder<Incoming>>(ordered_inputs);
   if (parameters_.site && !parameters_.site->notification.hook.empty())
     hook_ = std::make_unique<deformation::AlertHook>(parameters_.site->notification,
@@ -81,6 +85,7 @@ void EstimatorStep::Fuse(const Incoming& in, const std::string& topic, bool publ
     const deformation::BatchSummary s = estimator_->AddBatch(FromMsg(in.valid, topic));
     accepted_ += s.accepted;
     refused_ += s.refused;
+    already_held_ += s.already_held;
     for (const std::string& m : s.messages) {
       out->problems.push_back({LogLine::kWarn, Message("topic '", topic, "': ", m)});
       last_problem_ = m;
@@ -93,6 +98,27 @@ void EstimatorStep::Fuse(const Incoming& in, const std::string& topic, bool publ
     return;
   }
   if (publish) out->publications.push_back(Publication(in.valid.header));
+}
+
+EstimatorResult EstimatorStep::ReviseDisplacements(
+    const slope_monitor::PointDisplacementArray& msg, const std::string& topic) {
+  EstimatorResult out;
+  ++messages_;
+  const slope_monitor::PointDisplacementArray valid = validator_.Filter(msg, topic, 0.0);
+  try {
+    const deformation::BatchSummary s = estimator_->ReviseBatch(FromMsg(valid, topic));
+    accepted_ += s.accepted;
+    revised_ += s.revised;
+    for (const std::string& m : s.messages) out.problems.push_back({LogLine::kWarn, m});
+  } catch (const Error& e) {
+    ++errors_;
+    last_problem_ = e.what();
+    out.problems.push_back(
+        {LogLine::kError, "topic '" + topic + "': " + e.what() + "; revision dropped"});
+    return out;
+  }
+  out.publications.push_back(Publication(valid.header));
+  return out;
 }
 
 EstimatorResult EstimatorStep::AddAreas(const slope_monitor::ChangeAreaArray& msg,

@@ -6,17 +6,45 @@
 #include "slope_monitor/core/io/target_file.h"
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <sstream>
 
 #include "slope_monitor/core/camera/camera_model.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/sim/truth.h"
+#include "slope_monitor/ros/replay_defaults.h"
 #include "slope_monitor/ros/uav_topics.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
 namespace {
+
+// The `database` parameter ("auto": the site's history, ros/replay_defaults.h)
+// with what names the site: site_name (given), site_config (the estimator
+// overlay's site_name), truth_file, recording. *site_name: the site's name.
+std::string ReadDatabase(ParamReader& p, const std::string& site_file,
+                         const std::string& truth_file, std::string* site_name) {
+  const std::string database = p.String("database", "");
+  SiteNameSources sources;
+  sources.site_file = site_file;
+  sources.site_config = p.String("site_config", "");
+  sources.truth_file = truth_file.empty() ? p.String("truth_file", "") : truth_file;
+  sources.recording = p.String("recording", "");
+  const std::string given = p.String("site_name", "");
+  *site_name = SiteNameOf(sources);
+  if (site_name->empty()) *site_name = given;
+  if (database != "auto") return database;
+  if (!given.empty() && sources.site_file.empty()) {
+    const char* home = std::getenv("HOME");
+    return std::string(home ? home : ".") + "/.ros/slope_monitor/" + given + ".db";
+  }
+  try {
+    return ResolveDatabase(database, sources);
+  } catch (const ConfigError& e) {
+    throw ConfigError(Message("parameter '", p.FullKey("database"), "': ", e.what()));
+  }
+}
 
 std::string Trim(const std::string& s) {
   const size_t a = s.find_first_not_of(" \t");
@@ -232,6 +260,8 @@ void ReadAdjusterEpochOptions(ParamReader& p, AdjusterParameters& a) {
 AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   AdjusterParameters a;
   ReadAdjusterTargetsAndCameras(p, a);
+  std::string site_name;
+  a.database = ReadDatabase(p, a.site_file, "", &site_name);
   ReadAdjusterCollectorAndScene(p, a);
   ReadAdjusterEpochOptions(p, a);
   a.displacement.stable_threshold =
@@ -253,6 +283,8 @@ RadioParameters ReadRadioParameters(ParamReader& p) {
   r.network_file = p.String("network_file", r.network_file);
   r.site_file = p.String("site_file", r.site_file);  // its radio_network, when it names one
   r.truth_file = p.String("truth_file", r.truth_file);
+  std::string site_name;
+  r.database = ReadDatabase(p, r.site_file, r.truth_file, &site_name);
   r.truth_initial_sigma = p.Double("truth_initial_sigma", r.truth_initial_sigma, 1e-5, 10.0, "m");
   r.truth_sample_rate = p.Double("truth_sample_rate", r.truth_sample_rate, 1.0, 1e10, "Hz");
   const std::string &network_file = r.network_file, &site_file = r.site_file,
@@ -314,7 +346,8 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
   o->areas.growth_warning =
       p.Double("area_growth_warning", o->areas.growth_warning, 1e-6, 1e9, "m^2");
   e.frame_id = p.String("frame_id", e.frame_id);
-  e.database = p.String("database", e.database);
+  e.recording = p.String("recording", e.recording);
+  e.database = ReadDatabase(p, p.String("site_file", e.site_file), "", &e.site_name);
   e.report_dir = p.String("report_dir", e.report_dir);
   e.report_on_shutdown = p.Bool("report_on_shutdown", e.report_on_shutdown);
   e.report_formats = p.StringList("report_formats", e.report_formats);
@@ -332,6 +365,13 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
   th.watch = p.Double("threshold_watch", th.watch / to_si, 0.0, 1e6, unit) * to_si;
   th.warning = p.Double("threshold_warning", th.warning / to_si, 0.0, 1e6, unit) * to_si;
   th.alarm = p.Double("threshold_alarm", th.alarm / to_si, 0.0, 1e6, unit) * to_si;
+  th.displacement_watch =
+      p.Double("threshold_displacement_watch", th.displacement_watch * 1e3, 0.0, 1e7, "mm") * 1e-3;
+  th.displacement_warning =
+      p.Double("threshold_displacement_warning", th.displacement_warning * 1e3, 0.0, 1e7, "mm") *
+      1e-3;
+  th.displacement_alarm =
+      p.Double("threshold_displacement_alarm", th.displacement_alarm * 1e3, 0.0, 1e7, "mm") * 1e-3;
   e.point_thresholds = p.StringList("point_thresholds", e.point_thresholds);
   for (const std::string& entry : e.point_thresholds) {
     // "point_id: watch, warning, alarm" in velocity_unit
@@ -352,7 +392,7 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
     if (colon == std::string::npos || v.size() != 3 || Trim(entry.substr(0, colon)).empty())
       throw ConfigError(Message("parameter '", p.FullKey("point_thresholds"), "' entry '", entry,
                                 "' must read 'point_id: watch, warning, alarm' (", unit, ")"));
-    deformation::Thresholds t;
+    deformation::Thresholds t = th;  // the displacement thresholds of the site
     t.watch = v[0] * to_si;
     t.warning = v[1] * to_si;
     t.alarm = v[2] * to_si;
@@ -378,6 +418,8 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
       p.Double("initial_velocity_sigma", o->filter.initial_velocity_sigma, 1e-12, 1.0, "m/s");
   o->filter.initial_acceleration_sigma = p.Double(
       "initial_acceleration_sigma", o->filter.initial_acceleration_sigma, 1e-18, 1.0, "m/s^2");
+  o->filter.origin_velocity_sigma =
+      p.Double("origin_velocity_sigma", o->filter.origin_velocity_sigma, 1e-9, 1.0, "m/s");
   o->reorder_window = p.Double("reorder_window", o->reorder_window, 0.0, 365 * 86400.0, "s");
   o->reference_tolerance =
       p.Double("reference_tolerance", o->reference_tolerance, 0.0, 30 * 86400.0, "s");

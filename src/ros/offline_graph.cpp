@@ -484,6 +484,19 @@ void OfflineGraph::Finish() {
   if (const std::optional<SolvedEpoch> e = adjuster_->Finish()) Solve(*e);
   // The inputs have ended: what waits for a later stamp of another input is fused.
   Publish(WallTimed(&stages_.estimator, [&] { return estimator_->Flush(); }));
+  if (radio_) {
+    // A recording before radio epochs already in the history: those tracked
+    // again after it, their displacements revised (RadioStep::Finish).
+    std::vector<LogLine> log;
+    for (const RadioEpochOutput& out : radio_->Finish(&log)) {
+      if (!out.messages.displacements) continue;
+      Write(kRadioDisplacements, *out.messages.displacements);
+      Publish(WallTimed(&stages_.estimator, [&] {
+        return estimator_->ReviseDisplacements(*out.messages.displacements, kRadioDisplacements);
+      }));
+    }
+    for (const LogLine& line : log) Log("radio_phase_solver: " + line.text);
+  }
   if (dense_) {
     dense_->Finish();
     char line[120];

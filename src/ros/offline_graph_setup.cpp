@@ -127,8 +127,10 @@ void OfflineGraph::SetUpAdjuster(const std::vector<std::string>& cameras) {
   if (options_.uav_tie_points) SetParam(&p, "uav_tie_points", true);
   // As processing_graph.xml: the UAV blocks beside the reports.
   if (!options_.report_dir.empty()) SetParam(&p, "block_dir", options_.report_dir);
+  SetParam(&p, "database", options_.database);  // the reference epoch is the site's
   ParamReader r(p, "/bundle_adjuster");
   adjuster_ = std::make_unique<AdjusterStep>(ReadAdjusterParameters(r), "/bundle_adjuster");
+  if (!adjuster_->resumed().empty()) Log("bundle_adjuster: " + adjuster_->resumed());
   // The site's cameras that this bag has (a UAV that did not fly is not
   // waited for), as the replay graph decides it.
   std::vector<LogLine> log;
@@ -154,6 +156,7 @@ void OfflineGraph::SetUpRadio() {
   } else
     SetParam(&p, "network_file", options_.radio_network);
   if (!options_.site.empty()) SetParam(&p, "site_file", options_.site);
+  SetParam(&p, "database", options_.database);  // the reference solution is the site's
   ParamReader r(p, "/radio/radio_phase_solver");
   RadioParameters params;
   try {
@@ -177,6 +180,11 @@ void OfflineGraph::SetUpEstimator() {
   if (!options_.site.empty()) SetParam(&p, "site_file", options_.site);
   SetParam(&p, "database", options_.database);
   SetParam(&p, "report_dir", options_.report_dir);
+  if (!options_.site_name.empty()) SetParam(&p, "site_name", options_.site_name);
+  std::string recording;
+  for (const std::string& bag : options_.bags)
+    recording += (recording.empty() ? "" : ", ") + std::filesystem::path(bag).filename().string();
+  SetParam(&p, "recording", recording);
   std::vector<std::string> inputs = {kAdjusterDisplacements, kRadioDisplacements};
   if (targetless_) inputs.push_back(kTargetlessDisplacements);
   SetParam(&p, "input_topics", StringListParam(inputs));

@@ -1,8 +1,11 @@
 #include "slope_monitor/ros/radio_step.h"
 
+#include <algorithm>
 #include <exception>
+#include <map>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/format.h"
 
 namespace slope_monitor {
 namespace ros_adapters {
@@ -46,10 +49,28 @@ bool RadioStep::Accept(const slope_monitor::RadioSampleBlock& block, const std::
   return false;
 }
 
+void RadioStep::Resume(double first_stamp, std::vector<LogLine>* log) {
+  resumed_ = true;
+  if (parameters_.database.empty()) return;
+  states_ = std::make_unique<deformation::SavedStates>(parameters_.database);
+  run_key_ = Message(kStatePrefix, Fixed(first_stamp, 3));
+  // Epochs of a later recording already in the history: tracked again after this one (Finish).
+  late_ = !states_->After(kPhasesPrefix, first_stamp).empty();
+  const auto saved = states_->LatestBefore(kStatePrefix, first_stamp);
+  if (!saved) return;
+  solver_.Load(saved->value);
+  log->push_back({LogLine::kInfo,
+                  Message("radio reference solution of stamp ",
+                          Fixed(solver_.reference().stamp, 3), " and tracking state of stamp ",
+                          Fixed(saved->stamp, 3), " loaded from the history '",
+                          parameters_.database, "'")});
+}
+
 std::vector<RadioEpochOutput> RadioStep::Assemble(const slope_monitor::RadioSampleBlock& block,
                                                   std::vector<LogLine>* dropped) {
   std::vector<RadioEpochOutput> out;
   try {
+    if (!resumed_) Resume(block.header.stamp.toSec(), dropped);
     for (const radio::EpochAssembler::Epoch& epoch : assembler_.Add(FromMsg(block)))
       out.push_back(Solve(epoch, block.header));
   } catch (const std::exception& e) {
@@ -61,9 +82,43 @@ std::vector<RadioEpochOutput> RadioStep::Assemble(const slope_monitor::RadioSamp
   return out;
 }
 
+std::vector<RadioEpochOutput> RadioStep::Finish(std::vector<LogLine>* log) {
+  std::vector<RadioEpochOutput> out;
+  if (!late_ || !states_) return out;
+  late_ = false;
+  std::map<double, std::string> state_keys;  // the later runs' states, by their last stamp
+  for (const auto& s : states_->After(kStatePrefix, last_stamp_)) state_keys[s.stamp] = s.key;
+  const auto later = states_->After(kPhasesPrefix, last_stamp_);
+  if (later.empty()) return out;
+  log->push_back({LogLine::kWarn,
+                  Message("this recording precedes ", later.size(),
+                          " radio epoch(s) already in the history: tracked again after it, in "
+                          "time order; their displacements revised")});
+  std_msgs::Header header;
+  for (const auto& phases : later) {
+    const radio::RadioEpochSummary s = solver_.ProcessPhases(phases.value);
+    header.stamp = ros::Time(s.stamp);
+    out.push_back(Output(s, header));
+    out.back().revision = true;
+    auto key = state_keys.find(phases.stamp);
+    if (key != state_keys.end()) states_->Put(key->second, phases.stamp, solver_.Save());
+  }
+  return out;
+}
+
 RadioEpochOutput RadioStep::Solve(const radio::EpochAssembler::Epoch& epoch,
                                   const std_msgs::Header& input_header) {
   const radio::RadioEpochSummary s = solver_.ProcessEpoch(epoch.stamp, epoch.blocks);
+  if (states_) {
+    states_->Put(Message(kPhasesPrefix, Fixed(epoch.stamp, 6)), epoch.stamp, solver_.LastPhases());
+    states_->Put(run_key_, epoch.stamp, solver_.Save());
+  }
+  last_stamp_ = std::max(last_stamp_, epoch.stamp);
+  return Output(s, input_header);
+}
+
+RadioEpochOutput RadioStep::Output(const radio::RadioEpochSummary& s,
+                                   const std_msgs::Header& input_header) {
   ++epochs_;
   RadioEpochOutput out;
   for (const std::string& p : s.problems) {
@@ -78,7 +133,7 @@ RadioEpochOutput RadioStep::Solve(const radio::EpochAssembler::Epoch& epoch,
   for (const std::string& n : s.notes) out.log.push_back({LogLine::kInfo, n});
   last_ = s;
   std_msgs::Header header = input_header;
-  header.stamp = ros::Time(epoch.stamp);
+  header.stamp = ros::Time(s.stamp);
   header.frame_id = parameters_.frame_id;
   out.messages = MakeRadioOutputs(s, header, epochs_);
   return out;

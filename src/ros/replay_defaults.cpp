@@ -1,14 +1,68 @@
 #include "slope_monitor/ros/replay_defaults.h"
 
+#include <cstdlib>
+#include <filesystem>
+
+#include <yaml-cpp/yaml.h>
+
+#include "slope_monitor/core/common/error.h"
+
 namespace slope_monitor {
 namespace ros_adapters {
+namespace {
 
-std::string DefaultHistoryOfBag(const std::string& bag, const std::string& home) {
-  // As replay.launch's $(eval arg('bag').split('/')[-1][:-4]).
-  const size_t slash = bag.rfind('/');
-  const std::string name = slash == std::string::npos ? bag : bag.substr(slash + 1);
-  const std::string stem = name.size() > 4 ? name.substr(0, name.size() - 4) : "";
-  return home + "/.ros/slope_monitor/" + stem + ".db";
+// The string at `path` (keys) in a YAML file; "" when the file or the key is absent.
+std::string YamlString(const std::string& file, const std::vector<std::string>& path) {
+  if (file.empty() || !std::filesystem::is_regular_file(file)) return "";
+  YAML::Node node;
+  try {
+    node = YAML::LoadFile(file);
+    for (const std::string& key : path) {
+      if (!node.IsMap() || !node[key]) return "";
+      node = node[key];
+    }
+    return node.IsScalar() ? node.as<std::string>() : "";
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(Message("'", file, "': cannot read its site name: ", e.what()));
+  }
+}
+
+}  // namespace
+
+std::string SiteNameOf(const SiteNameSources& s, std::string* from) {
+  const struct {
+    const std::string& file;
+    std::vector<std::string> path;
+    const char* what;
+  } candidates[] = {{s.site_file, {"name"}, "site file"},
+                    {s.site_config, {"site_name"}, "estimator overlay"},
+                    {s.truth_file, {"site", "name"}, "simulator truth"}};
+  for (const auto& c : candidates) {
+    const std::string name = YamlString(c.file, c.path);
+    if (name.empty()) continue;
+    if (from) *from = Message(c.what, " '", c.file, "'");
+    return name;
+  }
+  return "";
+}
+
+std::string DefaultHistory(const SiteNameSources& s, const std::string& home) {
+  std::string name = SiteNameOf(s);
+  if (name.empty() && !s.recording.empty()) {
+    name = std::filesystem::path(s.recording).filename().string();
+    if (name.size() > 4 && name.substr(name.size() - 4) == ".bag") name.resize(name.size() - 4);
+  }
+  if (name.empty())
+    throw ConfigError(
+        "database 'auto': no site name (a site file, an overlay with site_name or a simulator "
+        "truth) and no recording name; name the history with database:=FILE");
+  return home + "/.ros/slope_monitor/" + name + ".db";
+}
+
+std::string ResolveDatabase(const std::string& database, const SiteNameSources& s) {
+  if (database != "auto") return database;
+  const char* home = std::getenv("HOME");
+  return DefaultHistory(s, home ? home : ".");
 }
 
 }  // namespace ros_adapters

@@ -4,7 +4,7 @@
 //   rosrun slope_monitor process_bag --bag FILE [--bag FILE2 ...] [--site-config FILE]
 //       [--target-list FILE] [--radio-network FILE] [--adjuster-config FILE]
 //       [--uav-tie-points] [--database FILE] [--report-dir DIR] [--output-bag FILE]
-//       [--no-dense] [--verbose]
+//       [--no-dense] [--verbose] [--new-reference]
 //
 // The bags are read with rosbag::View in bag-time order (several bags, e.g.
 // the split files of one recording, merged by time) and every message goes,
@@ -18,9 +18,23 @@
 // Parameters: config/defaults/<node>.yaml, then config/process_bag/<node>.yaml
 // (what the launch files add), then the command line and overlays, as
 // replay.launch loads them. Defaults of the options: those of replay.launch
-// (target list and truth beside the bag, reports under ~/.ros/slope_monitor,
-// the history ~/.ros/slope_monitor/<first bag's name>.db: one per bag,
-// ros/replay_defaults.h). See doc/process_bag.md.
+// (target list and truth beside the bag, reports under ~/.ros/slope_monitor).
+// See doc/process_bag.md.
+//
+// The site's one history (issue 48): without --database, every recording of
+// a site continues ~/.ros/slope_monitor/<site name>.db (the name from the
+// --site file, the overlay's site_name, the truth beside the bag; else the
+// bag's name: ros/replay_defaults.h). The first line says which history and
+// what it holds:
+//   process_bag: history '<file>' of site '<name>': continuing: reference epoch <n> (<UTC>, from
+//   <recording>), <k> epochs
+// or that it starts one. The references (the adjuster's reference epoch, the
+// radio network's reference solution) are the history's; they change only
+// with --new-reference (the next epoch becomes the reference; the
+// observations stay). A recording already in the history adds nothing:
+//   process_bag: <bag>: already in the history: <n> epochs
+// A recording of another site than the history's is refused with one line
+// naming both (exit 1, nothing written).
 //
 // One writer per history: while another process_bag (or an estimator node)
 // writes the --database, this run ends at once, before processing anything,
@@ -58,6 +72,7 @@
 
 #include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/format.h"
 #include "slope_monitor/core/common/progress_line.h"
 #include "slope_monitor/core/deformation/history.h"
 #include "slope_monitor/core/evaluation/deformation_truth.h"
@@ -76,12 +91,14 @@ constexpr char kUsage[] =
     "                   [--radio-network FILE] [--adjuster-config FILE] [--uav-tie-points]\n"
     "                   [--database FILE] [--report-dir DIR] [--output-bag FILE] [--no-dense] "
     "[--verbose]\n"
-    "                   [--max-megapixels MP]\n";
+    "                   [--max-megapixels MP] [--new-reference]\n";
 
 // The graph's options (ros/offline_graph.h) and what only the tool uses.
 struct Args : ros_adapters::OfflineGraphOptions {
   std::string output_bag;
-  bool default_database = false;  // --database not given: the bag's own history
+  bool default_database = false;  // --database not given: the site's history
+  bool new_reference = false;     // --new-reference
+  std::string site_from;          // where the site name was read
 };
 
 // Throws InvalidArgument naming the flag.
@@ -113,6 +130,10 @@ Args ParseArgs(int argc, char** argv) {
       a.verbose = true;
       continue;
     }
+    if (flag == "--new-reference") {
+      a.new_reference = true;
+      continue;
+    }
     if (flag == "--max-megapixels") {
       const std::string v = i + 1 < argc ? argv[++i] : "";
       char* end = nullptr;
@@ -134,12 +155,17 @@ Args ParseArgs(int argc, char** argv) {
   if (a.bags.empty()) throw InvalidArgument("--bag FILE is required");
   for (const std::string& bag : a.bags)
     if (!fs::is_regular_file(bag)) throw InvalidArgument("bag '" + bag + "' not found");
-  // The defaults of replay.launch: a history per bag (ros/replay_defaults.h).
+  // The defaults of replay.launch: the site's history (ros/replay_defaults.h).
   const char* home = std::getenv("HOME");
   const std::string ros_dir = std::string(home ? home : ".") + "/.ros/slope_monitor";
+  ros_adapters::SiteNameSources sources;
+  sources.site_file = a.site;
+  sources.site_config = a.site_config;
+  sources.truth_file = a.bags.front().substr(0, a.bags.front().size() - 4) + ".truth.yaml";
+  sources.recording = a.bags.front();
+  a.site_name = ros_adapters::SiteNameOf(sources, &a.site_from);
   a.default_database = a.database.empty();
-  if (a.default_database)
-    a.database = ros_adapters::DefaultHistoryOfBag(a.bags.front(), home ? home : ".");
+  if (a.default_database) a.database = ros_adapters::DefaultHistory(sources, home ? home : ".");
   if (a.report_dir.empty()) a.report_dir = ros_dir + "/reports";
   return a;
 }
@@ -300,6 +326,46 @@ void PrintSummary(const Args& args, bool has_points, bool has_output) {
   if (has_output) std::cout << "Outputs (rosbag play --clock): " << args.output_bag << "\n";
 }
 
+// The first line: which history this run continues (its reference epoch,
+// the recording it came from, its epochs) or that it starts one. False (said
+// in one line) when the history is of another site, or --new-reference is
+// refused.
+bool SayHistory(const Args& a) {
+  const deformation::HistoryInfo h = deformation::DescribeHistory(a.database);
+  const std::string site = a.site_name.empty() ? "(unnamed)" : a.site_name;
+  if (!h.site.empty() && !a.site_name.empty() && h.site != a.site_name) {
+    std::cerr << "process_bag: the recording '" << a.bags.front() << "' is of site '"
+              << a.site_name << "' (" << a.site_from << ") but the history '" << a.database
+              << "' is of site '" << h.site << "': refused, nothing written\n";
+    return false;
+  }
+  std::cerr << "process_bag: history '" << a.database << "' of site '" << site << "'";
+  if (!h.exists || h.observations == 0) {
+    std::cerr << ": a new history; its reference epoch is this recording's first\n";
+  } else {
+    std::cerr << ": continuing: ";
+    if (h.has_reference)
+      std::cerr << "reference epoch " << h.reference_epoch << " (" << Utc(h.reference_stamp)
+                << (h.reference_recording.empty() ? "" : ", from " + h.reference_recording)
+                << "), ";
+    else
+      std::cerr << "no reference epoch yet, ";
+    std::cerr << h.epochs << " survey epochs and " << h.radio_epochs << " radio epochs"
+              << (a.new_reference ? "; a new reference from this recording (--new-reference)" : "")
+              << "\n";
+  }
+  if (a.new_reference && h.exists) deformation::History(a.database).StartNewReference();
+  return true;
+}
+
+// A recording whose every measurement the history already held.
+void SayAlreadyHeld(const Args& a, const ros_adapters::OfflineGraph& graph) {
+  if (graph.estimator().accepted() > 0 || graph.estimator().already_held() == 0) return;
+  const deformation::HistoryInfo h = deformation::DescribeHistory(a.database);
+  std::cerr << "process_bag: " << a.bags.front() << ": already in the history: " << h.epochs
+            << " epochs (and " << h.radio_epochs << " radio epochs)\n";
+}
+
 int Run(Args args) {
   std::vector<fs::path> temporaries;
   struct Cleanup {
@@ -313,11 +379,7 @@ int Run(Args args) {
   std::vector<BagBreak> breaks;
   for (const std::string& path : args.bags) bags.push_back(OpenBag(path, &temporaries, &breaks));
   CheckInputFiles(args);
-  // The bag's own history from an earlier run: continued, and said so.
-  if (args.default_database && fs::exists(args.database))
-    std::cerr << "process_bag: continuing the history '" << args.database
-              << "' of an earlier run of this bag (no --database given); --database FILE "
-                 "starts another\n";
+  if (!SayHistory(args)) return 1;
   rosbag::View view;
   for (const auto& bag : bags) view.addQuery(*bag);
   if (view.size() == 0) throw InvalidArgument("bag '" + args.bags.front() + "' holds no messages");
@@ -358,6 +420,7 @@ int Run(Args args) {
   progress.End();
   graph.Finish();
   if (output) output->close();
+  SayAlreadyHeld(args, graph);
   std::cerr << "process_bag: " << view.size() << " messages of " << args.bags.size() << " bag(s) ("
             << cameras.size() << " cameras) processed in " << progress.elapsed() << " s\n";
   SayBreaks(breaks, incomplete_at_end);

@@ -67,20 +67,32 @@ std::string SdValue(SdParams& params, const std::string& node, const std::string
 
 // Two check_launch runs: replay.launch of two bags, live.launch with its
 // defaults and with services:=true.
-TEST(SafeDefaults, OneHistoryPerBagAndNoDataChangingServicesOnALiveSite) {
+TEST(SafeDefaults, OneHistoryPerSiteAndNoDataChangingServicesOnALiveSite) {
   const std::string home = std::getenv("HOME");
   const std::string site = "site:=" + kSdSource + "/config/sites/demo.yaml";
   const std::string bag_a = "/data/north/site_a.bag", bag_b = "/data/south/site_b.bag";
-  EXPECT_EQ(DefaultHistoryOfBag(bag_a, home), home + "/.ros/slope_monitor/site_a.db");
-  EXPECT_EQ(DefaultHistoryOfBag("site_b.bag", home), home + "/.ros/slope_monitor/site_b.db");
+  // Without anything naming the site: the recording's name.
+  EXPECT_EQ(DefaultHistory({"", "", "", bag_a}, home), home + "/.ros/slope_monitor/site_a.db");
+  EXPECT_EQ(DefaultHistory({"", "", "", "site_b.bag"}, home),
+            home + "/.ros/slope_monitor/site_b.db");
+  // The site file's name wins over the recording's: every recording of a site, one history.
+  EXPECT_EQ(DefaultHistory({kSdSource + "/config/sites/demo.yaml", "", "", bag_a}, home),
+            home + "/.ros/slope_monitor/demo.db");
+  EXPECT_EQ(ResolveDatabase("/data/x.db", {"", "", "", bag_a}), "/data/x.db");
+  EXPECT_EQ(ResolveDatabase("", {"", "", "", bag_a}), "");
+  EXPECT_THROW(DefaultHistory({}, home), ConfigError);
   SdParams first = SdLaunchParams({{"replay.launch", "bag:=" + bag_a}, {"live.launch", site}});
   SdParams second = SdLaunchParams(
       {{"replay.launch", "bag:=" + bag_b}, {"live.launch", site + " services:=true"}});
-  // The history: replay.launch's default is process_bag's, one per bag.
-  EXPECT_EQ(SdValue(first, "replay.launch /deformation_estimator", "database"),
-            DefaultHistoryOfBag(bag_a, home));
-  EXPECT_EQ(SdValue(second, "replay.launch /deformation_estimator", "database"),
-            DefaultHistoryOfBag(bag_b, home));
+  // The history: "auto" in replay.launch and live.launch, for every node
+  // that keeps a reference, resolved by the same rule as process_bag's.
+  for (const char* node : {" /deformation_estimator", " /bundle_adjuster",
+                           " /radio/radio_phase_solver"}) {
+    EXPECT_EQ(SdValue(first, std::string("replay.launch") + node, "database"), "auto") << node;
+    EXPECT_EQ(SdValue(first, std::string("live.launch") + node, "database"), "auto") << node;
+  }
+  EXPECT_EQ(SdValue(first, "replay.launch /deformation_estimator", "recording"), bag_a);
+  EXPECT_EQ(SdValue(second, "replay.launch /bundle_adjuster", "recording"), bag_b);
   // The services that change data: off in live.launch unless services:=true;
   // otherwise as config/defaults says (on), in replay.launch too.
   const std::vector<std::pair<std::string, std::string>> switches = {

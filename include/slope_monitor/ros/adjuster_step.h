@@ -27,6 +27,7 @@
 #include "slope_monitor/core/adjustment/epoch_collector.h"
 #include "slope_monitor/core/adjustment/epochs.h"
 #include "slope_monitor/core/common/input_order.h"
+#include "slope_monitor/core/deformation/history.h"
 #include "slope_monitor/ros/epoch_solver.h"
 #include "slope_monitor/ros/node_parameters.h"
 
@@ -102,6 +103,12 @@ class AdjusterStep {
   visualization_msgs::MarkerArray Frustums(const SolvedEpoch& epoch) const;
   adjustment::EpochStore& store() { return store_; }
   int accepted() const { return accepted_; }
+  // The store into the site's history (parameters().database), e.g. after
+  // the set_reference_epoch service; nothing without a database.
+  void SaveStore(double stamp);
+  // How the run started (a line for the log): the reference epoch loaded
+  // from the site's history, or "" when it starts without one.
+  const std::string& resumed() const { return resumed_; }
 
   // The node's diagnostics: the last epoch, the collector's counts.
   void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) const;
@@ -114,6 +121,8 @@ class AdjusterStep {
   std::string source_name_;
   std::unique_ptr<adjustment::EpochCollector> collector_;  // reads parameters_.targets
   adjustment::EpochStore store_;
+  std::unique_ptr<deformation::SavedStates> states_;  // the site's history; null: none
+  std::string resumed_;
   std::map<std::string, camera::CameraModel> models_;
   size_t reported_ignored_ = 0;
   // The last epoch, for the diagnostics.

@@ -70,6 +70,10 @@ class EstimatorStep {
   EstimatorResult AddDisplacements(const slope_monitor::PointDisplacementArray& msg,
                                    const std::string& topic, double now);
   EstimatorResult AddAreas(const slope_monitor::ChangeAreaArray& msg, const std::string& topic);
+  // A source's revised displacements (RadioStep::Finish): they replace the
+  // ones received for the same stamps (deformation::Estimator::ReviseBatch).
+  EstimatorResult ReviseDisplacements(const slope_monitor::PointDisplacementArray& msg,
+                                      const std::string& topic);
   // Live: batches that waited `timeout` for a silent input, fused without it.
   EstimatorResult Expire(double now, double timeout, std::vector<std::string>* given_up);
   // End of the inputs: what waits for a later stamp of another input is fused
@@ -103,6 +107,11 @@ class EstimatorStep {
   // The node's diagnostics (counts, last problem).
   void Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) const;
   const std::string& last_problem() const { return last_problem_; }
+  // Measurements fused, and refused as already in the history (a recording processed again).
+  uint64_t accepted() const { return accepted_; }
+  uint64_t already_held() const { return already_held_; }
+  uint64_t revised() const { return revised_; }
+  deformation::History* history() { return history_.get(); }
   void set_last_problem(const std::string& problem) { last_problem_ = problem; }
 
  private:
@@ -121,7 +130,8 @@ class EstimatorStep {
   MessageValidator validator_;
   deformation::AlertChangeTracker alert_changes_;
   std::unique_ptr<deformation::AlertHook> hook_;  // the site's notification hook, if any
-  uint64_t messages_ = 0, accepted_ = 0, refused_ = 0, errors_ = 0;
+  uint64_t messages_ = 0, accepted_ = 0, refused_ = 0, errors_ = 0, already_held_ = 0,
+           revised_ = 0;
   size_t num_points_ = 0;
   deformation::AlertLevel last_alert_ = deformation::AlertLevel::kNone;
   std::string last_problem_;

@@ -44,6 +44,10 @@ inline adjustment::EpochAdjustmentOptions MonitoringEpochOptions() {
 // them from here; test/ros/config_files_test.cpp checks the yaml files
 // against them).
 struct AdjusterParameters {
+  // The site's history (deformation/history.h, the estimator's database):
+  // the reference epoch is kept there (SavedStates "adjuster") and a later
+  // run measures from it; "" = the reference lives in this run only.
+  std::string database;
   std::string site_file;                   // "" = none: target_list and the parameters decide
   std::optional<SiteCrsOptions> site_crs;  // the site file's frame (when there is one)
   // "" = off; else each accepted epoch's UAV blocks (with a site file) go to
@@ -108,6 +112,10 @@ struct RadioParameters {
   // transmitters started at truth_initial_sigma; the truth does not hold the
   // sample rate).
   std::string site_file, network_file, truth_file;
+  // The site's history: the reference solution and tracking state are kept
+  // there (SavedStates "radio/<run>"), a run goes on from the state saved
+  // before its first block; "" = a run solves its own reference.
+  std::string database;
   double truth_initial_sigma = 0.005;  // [m]
   double truth_sample_rate = 20000.0;  // [Hz]
 };
@@ -130,6 +138,10 @@ struct EstimatorParameters {
   std::vector<std::string> input_topics = {"displacements"};
   std::vector<std::string> area_topics;  // ChangeAreaArray (areas of surface change)
   std::string frame_id = "site", database, report_dir;
+  // The site the history belongs to (the site file's name, else the
+  // parameter site_name): a history of another site is refused. "" = not checked.
+  std::string site_name;
+  std::string recording;  // the input's name (bag files), kept with the reference epoch
   std::string velocity_unit =
       "mm/day";  // of the thresholds and forecast_min_velocity: mm/day or mm/h
   // As written in the file: "point_id: watch, warning, alarm" and

@@ -62,6 +62,7 @@ struct OfflineGraphOptions {
   bool dense = true;     // the dense epoch step (replay.launch dense:=true)
   bool verbose = false;  // the bundle adjuster's INFO lines too
   std::string database, report_dir;
+  std::string site_name;  // the site the history belongs to (ros/replay_defaults.h); "" = unchecked
   // Image messages above this many pixels, or whose header does not describe
   // their data, are skipped before conversion, named (ros/image_limits.h).
   ImageMessageLimits image_limits;
@@ -113,6 +114,7 @@ class OfflineGraph {
   // Why no epoch was solved, in one line (epochs_solved() == 0).
   std::string WhyNothingSolved() const;
   bool has_points() const { return !estimator_->GetSnapshot().points.empty(); }
+  const EstimatorStep& estimator() const { return *estimator_; }
   // The messages skipped (CheckedImage), one line each.
   const std::vector<std::string>& skipped() const { return skipped_; }
 

@@ -14,6 +14,7 @@
 #include <diagnostic_updater/DiagnosticStatusWrapper.h>
 
 #include "slope_monitor/RadioSampleBlock.h"
+#include "slope_monitor/core/deformation/history.h"
 #include "slope_monitor/core/radio/phase_solver.h"
 #include "slope_monitor/ros/epoch_solver.h"
 #include "slope_monitor/ros/node_parameters.h"
@@ -29,6 +30,9 @@ std::string RadioReceiverOfTopic(const std::string& topic);
 
 struct RadioEpochOutput {
   RadioOutputs messages;  // phase_observations, and radio_displacements when usable
+  // An epoch of a later recording tracked again (Finish): its displacements
+  // replace those the history holds for the same stamps.
+  bool revision = false;
   // The solver's problems (kError), events (kWarn: faults handled) and notes
   // (kInfo: routine results), without the node's name.
   std::vector<LogLine> log;
@@ -50,9 +54,17 @@ class RadioStep {
 
   // An accepted block into its epoch: the epochs it completes, solved. A
   // block the assembler or the solver refuses is dropped: one kError line
-  // in `*dropped` (the epochs before it stand).
+  // in `*dropped` (the epochs before it stand). With a database, the first
+  // block loads the state saved before it (a kInfo line in `*dropped`) and
+  // every solved epoch saves the state (parameters.database).
   std::vector<RadioEpochOutput> Assemble(const slope_monitor::RadioSampleBlock& block,
                                          std::vector<LogLine>* dropped);
+
+  // End of a recording: when it preceded radio epochs already in the
+  // history (a recording processed after a later one), those epochs are
+  // tracked again from its end, in time order, from their saved phases, and
+  // returned as revisions (one kWarn line in `*log`). Empty otherwise.
+  std::vector<RadioEpochOutput> Finish(std::vector<LogLine>* log);
 
   unsigned int epochs() const { return epochs_; }
   const std::string& last_problem() const { return last_error_; }
@@ -63,12 +75,22 @@ class RadioStep {
  private:
   RadioEpochOutput Solve(const radio::EpochAssembler::Epoch& epoch,
                          const std_msgs::Header& input_header);
+  RadioEpochOutput Output(const radio::RadioEpochSummary& s, const std_msgs::Header& input_header);
+  // The state saved in the history before `first_stamp`, if any.
+  void Resume(double first_stamp, std::vector<LogLine>* log);
+  static constexpr char kStatePrefix[] = "radio/";          // a run's state, by its first stamp
+  static constexpr char kPhasesPrefix[] = "radio_phases/";  // each epoch's phases, by its stamp
 
   RadioParameters parameters_;
   radio::RadioPhaseSolver solver_;
   radio::EpochAssembler assembler_;
   MessageValidator validator_;
   radio::RadioEpochSummary last_;
+  std::unique_ptr<deformation::SavedStates> states_;  // the site's history; null: none
+  bool resumed_ = false;
+  bool late_ = false;        // epochs of later recordings are in the history
+  double last_stamp_ = 0.0;  // of this run's last epoch
+  std::string run_key_;  // this run's state: radio/<first block's stamp>
   long blocks_received_ = 0, errors_ = 0;
   unsigned int epochs_ = 0;
   std::string last_error_, last_event_;

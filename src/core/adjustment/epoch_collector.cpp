@@ -7,6 +7,7 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/rigid3.h"
+#include "slope_monitor/core/common/state_text.h"
 
 namespace slope_monitor {
 namespace adjustment {
@@ -119,6 +120,20 @@ std::vector<CollectedEpoch> EpochCollector::AddTargets(const ImageTargets& image
           Take(Message("an image ", Seconds(StampSeconds(image.stamp) - StampSeconds(latest)),
                        " after the previous one (epoch_gap)"),
                {}, now));
+  }
+  // Each camera its own optical frame (one transform per frame is published):
+  // a second camera in a frame already in use is refused, naming both.
+  const std::string frame = image.frame_id.empty() ? image.camera + "_optical" : image.frame_id;
+  const auto owner = frame_owner_.emplace(frame, image.camera).first;
+  if (owner->second != image.camera) {
+    const std::string line =
+        Message("camera '", image.camera, "' sends its images in frame '", frame,
+                "', the frame of camera '", owner->second,
+                "': its images are refused (each camera its own frame: camera_capture.launch "
+                "camera_name:=", image.camera, ")");
+    if (std::find(ignored_.begin(), ignored_.end(), line) == ignored_.end())
+      ignored_.push_back(line);
+    return done;
   }
   const std::string key = ImageKey(image.camera, image.stamp);
   RememberImage(key, image.camera, image.frame_id, image.stamp);
@@ -663,6 +678,74 @@ std::string EpochStore::SetReference(bool use_latest, int epoch, int* chosen) {
   reference_epoch_ = wanted;
   *chosen = wanted;
   return "";
+}
+
+namespace {
+constexpr char kStoreKind[] = "epoch_store";
+constexpr int kStoreVersion = 1;
+}  // namespace
+
+std::string EpochStore::Save() const {
+  StateWriter w(kStoreKind, kStoreVersion);
+  const EpochPoints* ref = Reference();
+  w.Put(ref != nullptr);
+  if (ref) {
+    w.Put(ref->epoch).Put(ref->stamp).Put(static_cast<int>(ref->points.size()));
+    for (const auto& [id, p] : ref->points)
+      w.Put(id).Put(static_cast<int>(p.role)).Put(p.position).Put(p.covariance);
+  }
+  w.Put(static_cast<int>(calibrated_.size()));
+  for (const auto& [name, model] : calibrated_) {
+    w.Put(name).Put(model.sensor().width).Put(model.sensor().height);
+    w.Put(model.sensor().pixel_size).Put(static_cast<int>(model.model()));
+    for (double v : model.interior()) w.Put(v);
+  }
+  w.Put(static_cast<int>(last_pose_.size()));
+  for (const auto& [name, pose] : last_pose_) {
+    w.Put(name);
+    for (double v : pose.ToArray()) w.Put(v);
+  }
+  return w.str();
+}
+
+void EpochStore::Load(const std::string& text) {
+  StateReader r(text, kStoreKind, kStoreVersion);
+  EpochStore loaded;
+  if (r.Bool()) {
+    EpochPoints ref;
+    ref.epoch = r.Int();
+    ref.stamp = r.Double();
+    const int n = r.Int();
+    for (int i = 0; i < n; ++i) {
+      const std::string id = r.String();
+      PointState& p = ref.points[id];
+      p.role = static_cast<PointRole>(r.Int());
+      r.Get(&p.position);
+      r.Get(&p.covariance);
+    }
+    loaded.epochs_[ref.epoch] = ref;
+    loaded.reference_epoch_ = ref.epoch;
+  }
+  const int cameras = r.Int();
+  for (int i = 0; i < cameras; ++i) {
+    const std::string name = r.String();
+    camera::Sensor sensor;
+    sensor.width = r.Int();
+    sensor.height = r.Int();
+    sensor.pixel_size = r.Double();
+    const auto model = static_cast<camera::DistortionModel>(r.Int());
+    std::array<double, camera::kNumInterior> interior{};
+    for (double& v : interior) v = r.Double();
+    loaded.calibrated_[name] = camera::CameraModel(sensor, model, interior);
+  }
+  const int poses = r.Int();
+  for (int i = 0; i < poses; ++i) {
+    const std::string name = r.String();
+    double e[camera::kNumExterior];
+    for (double& v : e) v = r.Double();
+    loaded.last_pose_[name] = camera::ExteriorOrientation::FromArray(e);
+  }
+  *this = std::move(loaded);
 }
 
 }  // namespace adjustment

@@ -92,11 +92,32 @@ double Thresholds::Of(AlertLevel level) const {
   }
 }
 
+double Thresholds::DisplacementOf(AlertLevel level) const {
+  switch (level) {
+    case AlertLevel::kWatch:
+      return displacement_watch;
+    case AlertLevel::kWarning:
+      return displacement_warning;
+    case AlertLevel::kAlarm:
+      return displacement_alarm;
+    default:
+      return 0.0;
+  }
+}
+
 void Thresholds::Check(const std::string& context) const {
   if (!(watch > 0.0 && warning > watch && alarm > warning) || !std::isfinite(alarm))
     throw ConfigError(Message(
         context, ": velocity thresholds must satisfy 0 < watch < warning < alarm, got ",
         watch * kMmPerDay, " / ", warning * kMmPerDay, " / ", alarm * kMmPerDay, " mm/day"));
+  if (!(displacement_watch > 0.0 && displacement_warning > displacement_watch &&
+        displacement_alarm > displacement_warning) ||
+      !std::isfinite(displacement_alarm))
+    throw ConfigError(Message(context,
+                              ": displacement thresholds must satisfy 0 < watch < warning < "
+                              "alarm, got ",
+                              displacement_watch * 1e3, " / ", displacement_warning * 1e3, " / ",
+                              displacement_alarm * 1e3, " mm"));
 }
 
 void AlertOptions::Check() const {
@@ -168,8 +189,15 @@ Estimator::Estimator(const EstimatorOptions& options, History* history)
     : options_(options), history_(history) {
   options_.Check();
   if (!history_) return;
-  for (const History::StoredBatch& sb : history_->LoadBatches())
-    Process(sb.batch, sb.sequences, true);
+  if (auto d = history_->Meta("datum_stamp")) {
+    datum_pending_ = d->empty();
+    has_history_datum_ = !d->empty();
+    if (has_history_datum_) history_datum_ = std::stod(*d);
+  }
+  for (History::StoredBatch& sb : history_->LoadBatches())
+    held_.push_back({std::move(sb.batch), std::move(sb.sequences)});
+  Rerun();
+  reruns_ = 0;
   if (auto e = history_->Meta("reference_epoch"))
     reference_epoch_ = static_cast<uint32_t>(std::stoul(*e));
   if (auto s = history_->Meta("reference_stamp")) reference_stamp_ = std::stod(*s);
@@ -212,14 +240,19 @@ void Estimator::Validate(const Measurement& m) const {
 
 namespace {
 
-// Identity of a measurement: the same values from the same source again are a re-delivery.
+// Identity of a measurement: what it measures (point, source, source name,
+// stamp), not its values: the same recording processed again (whatever the
+// settings) or a latched topic re-delivered is received once.
 std::string MeasurementKey(const Measurement& m) {
   std::ostringstream k;
   k << std::setprecision(17) << m.point_id << '|' << static_cast<int>(m.source) << '|'
-    << m.source_name << '|' << m.stamp << '|' << m.displacement.x() << '|' << m.displacement.y()
-    << '|' << m.displacement.z();
-  for (int i = 0; i < 9; ++i) k << '|' << m.covariance(i);
+    << m.source_name << '|' << m.stamp;
   return k.str();
+}
+
+// Stamp order of the batches held: by stamp, then by arrival (first observation id).
+bool StampOrder(const Batch& a, uint64_t sa, const Batch& b, uint64_t sb) {
+  return a.stamp < b.stamp || (a.stamp == b.stamp && sa < sb);
 }
 
 }  // namespace
@@ -231,10 +264,11 @@ BatchSummary Estimator::AddBatch(const Batch& batch_in) {
   for (const Measurement& m : batch_in.measurements) {
     if (received_.count(MeasurementKey(m))) {
       ++summary.refused;
-      summary.messages.push_back(Message(
-          "point '", m.point_id, "' from '", m.source_name, "' at stamp ", Fixed(m.stamp, 3),
-          ": identical to a measurement already received (a latched topic re-delivered"
-          " after a restart?); not stored or fused again"));
+      if (++summary.already_held == 1)
+        summary.messages.push_back(Message(
+            "point '", m.point_id, "' from '", m.source_name, "' at stamp ", Fixed(m.stamp, 3),
+            ": already received (a recording processed again, or a latched topic re-delivered"
+            " after a restart); not stored or fused again"));
       continue;
     }
     try {
@@ -245,6 +279,8 @@ BatchSummary Estimator::AddBatch(const Batch& batch_in) {
       summary.messages.push_back(e.what());
     }
   }
+  if (summary.already_held > 1)
+    summary.messages[0] += Message(" (and ", summary.already_held - 1, " more of this batch)");
   if (batch.measurements.empty()) return summary;
   std::vector<uint64_t> sequences;
   if (history_) {
@@ -252,10 +288,92 @@ BatchSummary Estimator::AddBatch(const Batch& batch_in) {
   } else {
     for (size_t i = 0; i < batch.measurements.size(); ++i) sequences.push_back(next_sequence_++);
   }
-  BatchSummary s = Process(batch, sequences, false);
+  const uint64_t first = sequences.empty() ? 0 : sequences.front();
+  const bool late = !held_.empty() && StampOrder(batch, first, held_.back().batch,
+                                                 held_.back().sequences.empty()
+                                                     ? 0
+                                                     : held_.back().sequences.front());
+  held_.push_back({batch, sequences});
+  BatchSummary s;
+  if (late) {
+    // Older than a batch already processed: every point again in stamp order.
+    Rerun();
+    s.accepted = static_cast<int>(batch.measurements.size());
+    if (history_) {
+      std::vector<PointState> states;
+      for (const auto& [id, p] : points_) states.push_back(StateOf(*p));
+      history_->StoreEstimates(states, newest_epoch_);
+    }
+  } else {
+    s = Process(batch, sequences, false);
+  }
   s.refused += summary.refused;
+  s.already_held += summary.already_held;
   s.messages.insert(s.messages.begin(), summary.messages.begin(), summary.messages.end());
   return s;
+}
+
+BatchSummary Estimator::ReviseBatch(const Batch& batch) {
+  BatchSummary summary;
+  Batch fresh = batch;
+  fresh.measurements.clear();
+  for (const Measurement& m : batch.measurements) {
+    if (!received_.count(MeasurementKey(m))) {
+      fresh.measurements.push_back(m);
+      continue;
+    }
+    Validate(m);
+    for (Held& h : held_)
+      for (Measurement& held : h.batch.measurements)
+        if (held.stamp == m.stamp && MeasurementKey(held) == MeasurementKey(m)) held = m;
+    if (history_) history_->ReviseObservation(m);
+    ++summary.revised;
+  }
+  if (summary.revised > 0) {
+    Rerun();
+    if (history_) {
+      std::vector<PointState> states;
+      for (const auto& [id, p] : points_) states.push_back(StateOf(*p));
+      history_->StoreEstimates(states, newest_epoch_);
+    }
+  }
+  if (!fresh.measurements.empty()) {
+    const BatchSummary added = AddBatch(fresh);
+    summary.accepted += added.accepted;
+    summary.refused += added.refused;
+    summary.messages = added.messages;
+  }
+  return summary;
+}
+
+void Estimator::ResetState() {
+  points_.clear();
+  epochs_.clear();
+  has_datum_ = has_history_datum_;
+  datum_stamp_ = history_datum_;
+  newest_stamp_ = 0.0;
+  newest_epoch_ = 0;
+  received_.clear();
+  areas_.clear();
+  has_areas_ = false;
+  last_area_epoch_ = 0;
+}
+
+void Estimator::Rerun() {
+  std::stable_sort(held_.begin(), held_.end(), [](const Held& a, const Held& b) {
+    return StampOrder(a.batch, a.sequences.empty() ? 0 : a.sequences.front(), b.batch,
+                      b.sequences.empty() ? 0 : b.sequences.front());
+  });
+  const uint32_t reference_epoch = reference_epoch_;
+  const double reference_stamp = reference_stamp_;
+  const bool had_datum = has_datum_;
+  ResetState();
+  for (const Held& h : held_) Process(h.batch, h.sequences, true);
+  if (had_datum) {  // the reference (set by meta or SetReferenceEpoch) stands
+    reference_epoch_ = reference_epoch;
+    reference_stamp_ = reference_stamp;
+  }
+  ++reruns_;
 }
 
 BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>& sequences,
@@ -280,8 +398,13 @@ BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>&
     }
     if (!epochs_.count(m.epoch)) epochs_[m.epoch] = m.stamp;
     if (!has_datum_) {
+      // A new reference was asked for (meta datum_stamp ""): the held batches
+      // of the old one wait out; the first new measurement sets the datum.
+      if (datum_pending_ && replay) continue;
       has_datum_ = true;
-      datum_stamp_ = m.reference_stamp;
+      datum_pending_ = false;
+      has_history_datum_ = true;  // kept through a re-run
+      datum_stamp_ = history_datum_ = m.reference_stamp;
       reference_stamp_ = datum_stamp_;
       reference_epoch_ = 0;
       for (const auto& [e, t] : epochs_)
@@ -293,6 +416,7 @@ BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>&
         history_->SetMeta("datum_stamp", Fixed(datum_stamp_, 6));
         history_->SetMeta("reference_epoch", std::to_string(reference_epoch_));
         history_->SetMeta("reference_stamp", Fixed(reference_stamp_, 6));
+        if (!recording_.empty()) history_->SetMeta("reference_recording", recording_);
       }
     }
     if (std::abs(m.reference_stamp - datum_stamp_) > options_.reference_tolerance) {
@@ -310,6 +434,8 @@ BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>&
       slot->id = id;
       slot->reference_position = m.reference_position;
       slot->reference_from_target = m.source == Source::kTarget;
+      // The origin: zero displacement at the reference epoch (point_filter.h).
+      if (m.stamp > datum_stamp_) slot->fused.AddOrigin(datum_stamp_);
     } else if (m.source == Source::kTarget && !slot->reference_from_target) {
       slot->reference_position = m.reference_position;
       slot->reference_from_target = true;
@@ -346,7 +472,10 @@ BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>&
       p.raw.erase(p.raw.begin(), p.raw.begin() + drop);
     }
     auto it = p.sources.find(m.source);
-    if (it == p.sources.end()) it = p.sources.emplace(m.source, SourceTrack(options_)).first;
+    if (it == p.sources.end()) {
+      it = p.sources.emplace(m.source, SourceTrack(options_)).first;
+      if (m.stamp > m.reference_stamp) it->second.filter.AddOrigin(m.reference_stamp);
+    }
     it->second.filter.Add(m.stamp, seq, m.displacement, m.covariance);
     it->second.last_stamp = std::max(it->second.last_stamp, m.stamp);
     ++summary.accepted;
@@ -409,37 +538,61 @@ BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>&
   return summary;
 }
 
+namespace {
+
+// The highest level whose speed or displacement threshold the state exceeds
+// by k sigma (0: none); *by_displacement: the displacement decided it.
+int ExceededLevel(const FilterState& s, const Eigen::Vector3d& offset,
+                  const Eigen::Matrix3d& offset_cov, const Thresholds& th, double k,
+                  bool* by_displacement = nullptr) {
+  double speed, speed_sigma, d, d_sigma;
+  SpeedOf(s.Velocity(), s.VelocityCovariance(), &speed, &speed_sigma);
+  SpeedOf(s.Displacement() - offset, s.DisplacementCovariance() + offset_cov, &d, &d_sigma);
+  int level = 0;
+  if (by_displacement) *by_displacement = false;
+  for (int l = 1; l <= 3; ++l) {
+    const AlertLevel al = static_cast<AlertLevel>(l);
+    const bool by_speed = speed - k * speed_sigma > th.Of(al);
+    const bool by_d = d - k * d_sigma > th.DisplacementOf(al);
+    if (by_speed || by_d) {
+      level = l;
+      if (by_displacement) *by_displacement = !by_speed;
+    }
+  }
+  return level;
+}
+
+}  // namespace
+
 void Estimator::UpdateAlerts() {
   const AlertOptions& a = options_.alerts;
   const double k = a.significance;
-  const AlertLevel levels[3] = {AlertLevel::kWatch, AlertLevel::kWarning, AlertLevel::kAlarm};
   std::map<std::string, int> candidate;
+  std::map<std::string, bool> by_displacement;
   int count[4] = {0, 0, 0, 0};  // points that are candidates for >= level
   for (const auto& [id, p] : points_) {
-    const FilterState& s = p->fused.latest();
-    double speed, sigma;
-    SpeedOf(s.Velocity(), s.VelocityCovariance(), &speed, &sigma);
-    const Thresholds th = ThresholdsOf(id);
-    int c = 0;
-    for (AlertLevel l : levels)
-      if (speed - k * sigma > th.Of(l)) c = static_cast<int>(l);
+    Eigen::Matrix3d offset_cov;
+    const Eigen::Vector3d offset = ReferenceOffset(*p, &offset_cov);
+    bool by_d = false;
+    const int c = ExceededLevel(p->fused.latest(), offset, offset_cov, ThresholdsOf(id), k, &by_d);
     candidate[id] = c;
+    by_displacement[id] = by_d;
     for (int l = 1; l <= c; ++l) ++count[l];
   }
   for (auto& [id, p] : points_) {
     const FilterState& s = p->fused.latest();
-    double speed, sigma;
+    Eigen::Matrix3d offset_cov;
+    const Eigen::Vector3d offset = ReferenceOffset(*p, &offset_cov);
+    double speed, sigma, d, d_sigma;
     SpeedOf(s.Velocity(), s.VelocityCovariance(), &speed, &sigma);
+    SpeedOf(s.Displacement() - offset, s.DisplacementCovariance() + offset_cov, &d, &d_sigma);
     const Thresholds th = ThresholdsOf(id);
     int confirmed = 0, by_sources = 0;
     for (int l = candidate[id]; l >= 1; --l) {
       int n_sources = 0;
       for (const auto& [src, track] : p->sources) {
-        if (track.filter.count() < 2) continue;
-        const FilterState& ss = track.filter.latest();
-        double sp, sg;
-        SpeedOf(ss.Velocity(), ss.VelocityCovariance(), &sp, &sg);
-        if (sp - k * sg > th.Of(static_cast<AlertLevel>(l))) ++n_sources;
+        if (!track.filter.has_velocity()) continue;
+        if (ExceededLevel(track.filter.latest(), offset, offset_cov, th, k) >= l) ++n_sources;
       }
       if (count[l] >= a.confirm_points || n_sources >= a.confirm_sources) {
         confirmed = l;
@@ -451,21 +604,34 @@ void Estimator::UpdateAlerts() {
     const int current = static_cast<int>(p->alert);
     if (current > level) {
       level = current;
-      while (level > confirmed && speed < a.hysteresis * th.Of(static_cast<AlertLevel>(level)))
+      while (level > confirmed) {
+        const AlertLevel l = static_cast<AlertLevel>(level);
+        if (speed >= a.hysteresis * th.Of(l) || d >= a.hysteresis * th.DisplacementOf(l)) break;
         --level;
+      }
     }
     p->alert = static_cast<AlertLevel>(level);
     if (level == 0) {
       p->alert_reason = candidate[id] > 0
-                            ? Message("speed ", Fixed(speed * kMmPerDay, 2), " mm/day exceeds ",
-                                      AlertName(static_cast<AlertLevel>(candidate[id])),
+                            ? Message(by_displacement[id] ? "displacement " : "speed ",
+                                      by_displacement[id] ? Fixed(d * 1e3, 1) + " mm"
+                                                          : Fixed(speed * kMmPerDay, 2) + " mm/day",
+                                      " exceeds ", AlertName(static_cast<AlertLevel>(candidate[id])),
                                       " but is not confirmed (", count[candidate[id]], " of ",
                                       a.confirm_points, " points)")
                             : "";
     } else if (level > confirmed) {
       p->alert_reason = Message("held by hysteresis: speed ", Fixed(speed * kMmPerDay, 2),
-                                " mm/day > ", a.hysteresis, " x ", AlertName(p->alert),
-                                " threshold ", Fixed(th.Of(p->alert) * kMmPerDay, 2), " mm/day");
+                                " mm/day, displacement ", Fixed(d * 1e3, 1), " mm > ",
+                                a.hysteresis, " x ", AlertName(p->alert), " threshold ",
+                                Fixed(th.Of(p->alert) * kMmPerDay, 2), " mm/day or ",
+                                Fixed(th.DisplacementOf(p->alert) * 1e3, 1), " mm");
+    } else if (by_displacement[id] && candidate[id] == level) {
+      p->alert_reason = Message(
+          "displacement ", Fixed(d * 1e3, 1), " +- ", Fixed(d_sigma * 1e3, 1), " mm > ",
+          AlertName(p->alert), " threshold ", Fixed(th.DisplacementOf(p->alert) * 1e3, 1),
+          " mm by ", k, " sigma; confirmed by ", count[level], " point(s), ", by_sources,
+          " source(s)");
     } else {
       p->alert_reason = Message(
           "speed ", Fixed(speed * kMmPerDay, 2), " +- ", Fixed(sigma * kMmPerDay, 2), " mm/day > ",

@@ -247,6 +247,143 @@ int History::schema_version() const {
   return v;
 }
 
+namespace {
+
+const char* kSavedStates =
+    "CREATE TABLE IF NOT EXISTS saved_states(key TEXT PRIMARY KEY, stamp REAL NOT NULL, "
+    "value TEXT NOT NULL, written TEXT)";
+
+// Opens (creating when `create`) a SQLite file; IoError naming it.
+sqlite3* OpenDatabase(const std::string& path, bool create) {
+  sqlite3* db = nullptr;
+  const int flags = create ? SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE : SQLITE_OPEN_READONLY;
+  if (sqlite3_open_v2(path.c_str(), &db, flags, nullptr) != SQLITE_OK) {
+    const std::string msg = db ? sqlite3_errmsg(db) : "out of memory";
+    sqlite3_close(db);
+    throw IoError(Message("cannot open history database '", path, "': ", msg));
+  }
+  sqlite3_busy_timeout(db, 10000);
+  return db;
+}
+
+}  // namespace
+
+HistoryInfo DescribeHistory(const std::string& path) {
+  HistoryInfo info;
+  struct stat st {};
+  if (stat(path.c_str(), &st) != 0) return info;
+  info.exists = true;
+  sqlite3* db = OpenDatabase(path, false);
+  try {
+    auto meta = [&](const std::string& key) -> std::optional<std::string> {
+      Statement q(db, "SELECT value FROM meta WHERE key = ?", path);
+      q.Bind(1, key);
+      if (!q.Step()) return std::nullopt;
+      return q.Text(0);
+    };
+    Statement tables(db, "SELECT count(*) FROM sqlite_master WHERE name = 'meta'", path);
+    if (tables.Step() && tables.Int(0) > 0) {
+      info.site = meta("site").value_or("");
+      if (auto s = meta("reference_stamp"); s && !s->empty()) {
+        info.has_reference = true;
+        info.reference_stamp = std::stod(*s);
+        info.reference_epoch = static_cast<uint32_t>(std::stoul(meta("reference_epoch").value_or("0")));
+      }
+      info.reference_recording = meta("reference_recording").value_or("");
+      Statement e(db,
+                  "SELECT count(DISTINCT CASE WHEN source != 3 THEN stamp END), "
+                  "count(DISTINCT CASE WHEN source = 3 THEN stamp END), max(stamp) FROM "
+                  "observations",
+                  path);
+      if (e.Step()) {
+        info.epochs = e.Int(0);
+        info.radio_epochs = e.Int(1);
+        info.newest_stamp = e.Double(2);
+      }
+      Statement o(db, "SELECT count(*) FROM observations", path);
+      if (o.Step()) info.observations = o.Int(0);
+    }
+  } catch (...) {
+    sqlite3_close(db);
+    throw;
+  }
+  sqlite3_close(db);
+  return info;
+}
+
+SavedStates::SavedStates(const std::string& path) : path_(path) {
+  db_ = OpenDatabase(path, true);
+  try {
+    Exec(kSavedStates);
+  } catch (...) {
+    sqlite3_close(db_);
+    db_ = nullptr;
+    throw;
+  }
+}
+
+SavedStates::~SavedStates() {
+  if (db_) sqlite3_close(db_);
+}
+
+void SavedStates::Exec(const std::string& sql) const {
+  char* err = nullptr;
+  if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
+    const std::string msg = err ? err : sqlite3_errmsg(db_);
+    sqlite3_free(err);
+    throw IoError(Message("history database '", path_, "': ", msg));
+  }
+}
+
+void SavedStates::Put(const std::string& key, double stamp, const std::string& value) {
+  Statement q(db_,
+              "INSERT OR REPLACE INTO saved_states(key, stamp, value, written) VALUES(?, ?, ?, ?)",
+              path_);
+  q.Bind(1, key);
+  q.Bind(2, stamp);
+  q.Bind(3, value);
+  q.Bind(4, UtcNow());
+  q.Step();
+}
+
+std::optional<SavedStates::Saved> SavedStates::Get(const std::string& key) const {
+  Statement q(db_, "SELECT key, stamp, value FROM saved_states WHERE key = ?", path_);
+  q.Bind(1, key);
+  if (!q.Step()) return std::nullopt;
+  return Saved{q.Text(0), q.Double(1), q.Text(2)};
+}
+
+std::optional<SavedStates::Saved> SavedStates::LatestBefore(const std::string& prefix,
+                                                            double stamp) const {
+  Statement q(db_,
+              "SELECT key, stamp, value FROM saved_states WHERE substr(key, 1, length(?1)) = ?1 "
+              "AND stamp < ?2 ORDER BY stamp DESC LIMIT 1",
+              path_);
+  q.Bind(1, prefix);
+  q.Bind(2, stamp);
+  if (!q.Step()) return std::nullopt;
+  return Saved{q.Text(0), q.Double(1), q.Text(2)};
+}
+
+std::vector<SavedStates::Saved> SavedStates::After(const std::string& prefix,
+                                                   double stamp) const {
+  Statement q(db_,
+              "SELECT key, stamp, value FROM saved_states WHERE substr(key, 1, length(?1)) = ?1 "
+              "AND stamp > ?2 ORDER BY stamp, key",
+              path_);
+  q.Bind(1, prefix);
+  q.Bind(2, stamp);
+  std::vector<Saved> out;
+  while (q.Step()) out.push_back({q.Text(0), q.Double(1), q.Text(2)});
+  return out;
+}
+
+void SavedStates::Erase(const std::string& prefix) {
+  Statement q(db_, "DELETE FROM saved_states WHERE substr(key, 1, length(?1)) = ?1", path_);
+  q.Bind(1, prefix);
+  q.Step();
+}
+
 void History::Migrate() {
   int version = schema_version();
   if (version == kSchemaVersion) return;
@@ -267,6 +404,24 @@ void History::Migrate() {
     sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
     throw;
   }
+}
+
+bool History::ReviseObservation(const Measurement& m) {
+  Statement q(db_,
+              "UPDATE observations SET rx = ?, ry = ?, rz = ?, dx = ?, dy = ?, dz = ?, "
+              "covariance = ?, reference_stamp = ? WHERE point_id = ? AND source = ? AND "
+              "source_name = ? AND stamp = ?",
+              path_);
+  for (int k = 0; k < 3; ++k) q.Bind(1 + k, m.reference_position(k));
+  for (int k = 0; k < 3; ++k) q.Bind(4 + k, m.displacement(k));
+  q.BindMatrix(7, m.covariance);
+  q.Bind(8, m.reference_stamp);
+  q.Bind(9, m.point_id);
+  q.Bind(10, static_cast<int64_t>(m.source));
+  q.Bind(11, m.source_name);
+  q.Bind(12, m.stamp);
+  q.Step();
+  return sqlite3_changes(db_) > 0;
 }
 
 std::vector<uint64_t> History::AppendBatch(const Batch& batch) {
@@ -433,6 +588,44 @@ int64_t History::CountRows(const std::string& table) const {
   Statement s(db_, "SELECT COUNT(*) FROM " + table, path_);
   s.Step();
   return s.Int(0);
+}
+
+void History::CheckSite(const std::string& site) {
+  if (site.empty()) return;
+  const std::optional<std::string> held = Meta("site");
+  if (!held || held->empty()) {
+    SetMeta("site", site);
+    return;
+  }
+  if (*held != site)
+    throw ConfigError(Message("the recording is of site '", site, "' but the history '", path_,
+                              "' is of site '", *held,
+                              "'; nothing written (--database names the history of site '", site,
+                              "')"));
+}
+
+void History::CheckReference() const {
+  const int64_t observations = CountRows("observations");
+  if (observations > 0 && !Meta("datum_stamp"))
+    Fail(Message("holds ", observations,
+                 " observations but no reference epoch (meta datum_stamp missing); refused, "
+                 "nothing written (process_bag --new-reference starts a new reference)"));
+}
+
+void History::StartNewReference() {
+  Exec("BEGIN IMMEDIATE");
+  try {
+    Exec("INSERT OR REPLACE INTO meta(key, value) VALUES('datum_stamp', '')");
+    Exec("DELETE FROM meta WHERE key IN ('reference_epoch', 'reference_stamp', "
+         "'reference_recording')");
+    Exec("DELETE FROM reference_offsets");
+    Exec(kSavedStates);
+    Exec("DELETE FROM saved_states");
+    Exec("COMMIT");
+  } catch (...) {
+    sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+    throw;
+  }
 }
 
 }  // namespace deformation

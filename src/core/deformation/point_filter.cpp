@@ -42,6 +42,20 @@ void FilterOptions::Check() const {
   if (!(initial_acceleration_sigma > 0.0) || !std::isfinite(initial_acceleration_sigma))
     throw ConfigError(
         Message("initial_acceleration_sigma = ", initial_acceleration_sigma, " m/s^2 must be > 0"));
+  if (!(origin_velocity_sigma > 0.0) || !std::isfinite(origin_velocity_sigma))
+    throw ConfigError(
+        Message("origin_velocity_sigma = ", origin_velocity_sigma, " m/s must be > 0"));
+}
+
+FilterState PointFilter::Origin(double stamp) const {
+  FilterState s;
+  s.initialized = true;
+  s.stamp = stamp;
+  const double sv = options_.origin_velocity_sigma * kDay;
+  const double sa = options_.initial_acceleration_sigma * kDay * kDay;
+  s.P.block<3, 3>(3, 3) = sv * sv * Eigen::Matrix3d::Identity();
+  s.P.block<3, 3>(6, 6) = sa * sa * Eigen::Matrix3d::Identity();
+  return s;
 }
 
 Eigen::Vector3d FilterState::Velocity() const { return x.segment<3>(3) / kDay; }
@@ -109,6 +123,13 @@ UpdateResult PointFilter::Update(FilterState* state, double stamp, const Eigen::
   state->P = IKH * state->P * IKH.transpose() + K * R * K.transpose();
   state->P = 0.5 * (state->P + state->P.transpose());
   return r;
+}
+
+bool OrderedFilter::AddOrigin(double stamp) {
+  if (base_.initialized || !entries_.empty()) return false;
+  base_ = filter_.Origin(stamp);
+  has_origin_ = true;
+  return true;
 }
 
 bool OrderedFilter::Add(double stamp, uint64_t sequence, const Eigen::Vector3d& z,

@@ -170,7 +170,8 @@ std::string WriteCsv(const Snapshot& s, const std::string& path) {
 std::string WriteCsv(const Snapshot& s, const std::string& path, const ReportOptions& options) {
   const std::optional<SiteCrs> site = ReportSiteCrs(options);
   std::ostringstream o;
-  o << "id,x,y,z,lon,lat,h,time_utc,dx_mm,dy_mm,dz_mm,d_mm,sigma_dx_mm,sigma_dy_mm,sigma_dz_mm,vx_"
+  // reference_epoch, reference_time_utc: what every displacement is measured from.
+  o << "id,x,y,z,lon,lat,h,time_utc,reference_epoch,reference_time_utc,dx_mm,dy_mm,dz_mm,d_mm,sigma_dx_mm,sigma_dy_mm,sigma_dz_mm,vx_"
        "mm_per_day,"
        "vy_mm_per_day,vz_mm_per_day,speed_mm_per_day,sigma_speed_mm_per_day,alert,forecast_valid,"
        "forecast_failure_time_utc,forecast_sigma_h,forecast_window_h,sources,sources_disagree,"
@@ -184,7 +185,8 @@ std::string WriteCsv(const Snapshot& s, const std::string& path, const ReportOpt
     } else {
       o << ",,,";
     }
-    o << ',' << Utc(s.stamp);
+    o << ',' << Utc(s.stamp) << ',' << s.reference_epoch << ','
+      << (s.has_reference ? Utc(s.reference_stamp) : "");
     for (int k = 0; k < 3; ++k) o << ',' << Num(p.displacement(k) * 1e3, 3);
     o << ',' << Num(p.displacement.norm() * 1e3, 3);
     for (int k = 0; k < 3; ++k)

@@ -149,6 +149,12 @@ void ReadThresholds(YamlMap& root, SiteFile* s) {
     if (t.Has(key)) *value = t.RequiredDouble(key, 1e-9, 1e6, s->thresholds.unit);
   }
   for (const auto& [key, value] :
+       {std::make_pair("displacement_watch", &s->thresholds.displacement_watch),
+        std::make_pair("displacement_warning", &s->thresholds.displacement_warning),
+        std::make_pair("displacement_alarm", &s->thresholds.displacement_alarm)}) {
+    if (t.Has(key)) *value = t.RequiredDouble(key, 1e-6, 1e7, "mm");
+  }
+  for (const auto& [key, value] :
        {std::make_pair("area_growth_watch", &s->thresholds.area_growth_watch),
         std::make_pair("area_growth_warning", &s->thresholds.area_growth_warning)}) {
     if (t.Has(key)) *value = t.RequiredDouble(key, 1e-6, 1e9, "m^2");
@@ -159,6 +165,12 @@ void ReadThresholds(YamlMap& root, SiteFile* s) {
     t.Fail("area_growth_watch", "must be below area_growth_warning");
   if (th.watch && th.warning && *th.watch >= *th.warning) t.Fail("watch", "must be below warning");
   if (th.warning && th.alarm && *th.warning >= *th.alarm) t.Fail("warning", "must be below alarm");
+  if (th.displacement_watch && th.displacement_warning &&
+      *th.displacement_watch >= *th.displacement_warning)
+    t.Fail("displacement_watch", "must be below displacement_warning");
+  if (th.displacement_warning && th.displacement_alarm &&
+      *th.displacement_warning >= *th.displacement_alarm)
+    t.Fail("displacement_warning", "must be below displacement_alarm");
   t.CheckNoUnknownKeys();
 }
 

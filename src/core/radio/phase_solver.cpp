@@ -12,6 +12,7 @@
 #include <Eigen/Dense>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/state_text.h"
 #include "slope_monitor/core/io/yaml_map.h"
 #include "slope_monitor/core/radio/lambda.h"
 
@@ -462,7 +463,25 @@ RadioEpochSummary RadioPhaseSolver::ProcessEpoch(double stamp,
   for (int rx = 0; rx < nr; ++rx)
     if (!got[rx])
       for (int tx = 0; tx < nt; ++tx) obs[tx][rx].problem = "no block";
+  last_phases_ = {stamp, obs};
+  Solve(stamp, obs, &summary);
+  return summary;
+}
 
+RadioEpochSummary RadioPhaseSolver::ProcessPhases(const std::string& text) {
+  EpochPhases phases = LoadPhases(text);
+  RadioEpochSummary summary;
+  summary.stamp = phases.stamp;
+  last_phases_ = phases;
+  Solve(phases.stamp, phases.obs, &summary);
+  return summary;
+}
+
+void RadioPhaseSolver::Solve(double stamp, const std::vector<std::vector<Obs>>& obs,
+                             RadioEpochSummary* out) {
+  RadioEpochSummary& summary = *out;
+  const int nt = static_cast<int>(network_.transmitters.size());
+  const int nr = static_cast<int>(network_.receivers.size());
   if (!reference_.solved) {
     init_buffer_.push_back(obs);
     init_stamps_.push_back(stamp);
@@ -522,7 +541,6 @@ RadioEpochSummary RadioPhaseSolver::ProcessEpoch(double stamp,
       if (!infos[tx].status[rx].empty()) d.status = infos[tx].status[rx];
     }
   }
-  return summary;
 }
 
 // ---------------------------------------------------------------------------
@@ -857,6 +875,165 @@ std::vector<EpochAssembler::Epoch> EpochAssembler::Flush() {
   std::sort(done.begin(), done.end(),
             [](const Epoch& a, const Epoch& b) { return a.stamp < b.stamp; });
   return done;
+}
+
+namespace {
+constexpr char kSolverKind[] = "radio_phase_solver";
+constexpr int kSolverVersion = 1;
+
+std::string NetworkIds(const NetworkConfig& n) {
+  std::string ids = "transmitters";
+  for (const TransmitterConfig& t : n.transmitters) ids += " " + t.id;
+  ids += ", receivers";
+  for (const ReceiverConfig& r : n.receivers) ids += " " + r.id;
+  return ids;
+}
+}  // namespace
+
+std::string RadioPhaseSolver::Save() const {
+  StateWriter w(kSolverKind, kSolverVersion);
+  w.Put(NetworkIds(network_));
+  for (const TxState& t : tx_) {
+    w.Put(t.initialized).Put(static_cast<int>(t.fix_state)).Put(t.ratio).Put(t.reference);
+    w.Put(t.reference_cov).Put(t.d).Put(t.p).Put(t.last_stamp).Put(t.status);
+  }
+  for (const auto& row : links_)
+    for (const Link& l : row) w.Put(l.has_constant).Put(l.constant).Put(l.rejected_streak).Put(l.refixes);
+  w.Put(static_cast<int>(init_buffer_.size()));
+  for (size_t e = 0; e < init_buffer_.size(); ++e) {
+    w.Put(init_stamps_.at(e));
+    for (const auto& row : init_buffer_[e])
+      for (const Obs& o : row) w.Put(o.valid).Put(o.phase).Put(o.variance).Put(o.snr).Put(o.problem);
+  }
+  for (const auto& s : last_sequence_) w.Put(s.has_value()).Put(static_cast<int64_t>(s.value_or(0)));
+  const ReferenceSolution& r = reference_;
+  w.Put(r.solved).Put(r.stamp).Put(r.num_ambiguities).Put(r.num_fixed).Put(r.ratio);
+  w.Put(static_cast<int>(r.fix_state)).Put(static_cast<int>(r.excluded.size()));
+  for (const std::string& x : r.excluded) w.Put(x);
+  w.Put(static_cast<int>(r.mean_phase.size()));
+  for (const auto& row : r.mean_phase) {
+    w.Put(static_cast<int>(row.size()));
+    for (double v : row) w.Put(v);
+  }
+  w.Put(static_cast<int>(model_constant_.size()));
+  for (const auto& [link, v] : model_constant_) w.Put(link.first).Put(link.second).Put(v);
+  return w.str();
+}
+
+void RadioPhaseSolver::Load(const std::string& text) {
+  StateReader r(text, kSolverKind, kSolverVersion);
+  const std::string ids = r.String();
+  if (ids != NetworkIds(network_))
+    throw InvalidArgument(Message("the saved radio state is of another network (", ids,
+                                  "; this one: ", NetworkIds(network_), ")"));
+  const size_t nt = network_.transmitters.size(), nr = network_.receivers.size();
+  std::vector<TxState> tx(nt);
+  for (TxState& t : tx) {
+    t.initialized = r.Bool();
+    t.fix_state = static_cast<FixState>(r.Int());
+    t.ratio = r.Double();
+    r.Get(&t.reference);
+    r.Get(&t.reference_cov);
+    r.Get(&t.d);
+    r.Get(&t.p);
+    t.last_stamp = r.Double();
+    t.status = r.String();
+  }
+  std::vector<std::vector<Link>> links(nt, std::vector<Link>(nr));
+  for (auto& row : links)
+    for (Link& l : row) {
+      l.has_constant = r.Bool();
+      l.constant = r.Double();
+      l.rejected_streak = r.Int();
+      l.refixes = r.Int();
+    }
+  const int epochs = r.Int();
+  std::vector<std::vector<std::vector<Obs>>> buffer;
+  std::vector<double> stamps;
+  for (int e = 0; e < epochs; ++e) {
+    stamps.push_back(r.Double());
+    buffer.emplace_back(nt, std::vector<Obs>(nr));
+    for (auto& row : buffer.back())
+      for (Obs& o : row) {
+        o.valid = r.Bool();
+        o.phase = r.Double();
+        o.variance = r.Double();
+        o.snr = r.Double();
+        o.problem = r.String();
+      }
+  }
+  std::vector<std::optional<std::uint32_t>> sequences(nr);
+  for (auto& s : sequences) {
+    const bool has = r.Bool();
+    const int64_t v = r.Int64();
+    if (has) s = static_cast<std::uint32_t>(v);
+  }
+  ReferenceSolution ref;
+  ref.solved = r.Bool();
+  ref.stamp = r.Double();
+  ref.num_ambiguities = r.Int();
+  ref.num_fixed = r.Int();
+  ref.ratio = r.Double();
+  ref.fix_state = static_cast<FixState>(r.Int());
+  for (int n = r.Int(), i = 0; i < n; ++i) ref.excluded.push_back(r.String());
+  for (int n = r.Int(), i = 0; i < n; ++i) {
+    ref.mean_phase.emplace_back();
+    for (int m = r.Int(), j = 0; j < m; ++j) ref.mean_phase.back().push_back(r.Double());
+  }
+  std::map<std::pair<int, int>, double> constants;
+  for (int n = r.Int(), i = 0; i < n; ++i) {
+    const int a = r.Int(), b = r.Int();
+    constants[{a, b}] = r.Double();
+  }
+  tx_ = std::move(tx);
+  links_ = std::move(links);
+  init_buffer_ = std::move(buffer);
+  init_stamps_ = std::move(stamps);
+  last_sequence_ = std::move(sequences);
+  reference_ = std::move(ref);
+  model_constant_ = std::move(constants);
+}
+
+namespace {
+constexpr char kPhasesKind[] = "radio_phases";
+constexpr int kPhasesVersion = 1;
+}  // namespace
+
+std::string RadioPhaseSolver::LastPhases() const {
+  StateWriter w(kPhasesKind, kPhasesVersion);
+  w.Put(NetworkIds(network_)).Put(last_phases_.stamp);
+  w.Put(static_cast<int>(last_phases_.obs.size()));
+  for (const auto& row : last_phases_.obs) {
+    w.Put(static_cast<int>(row.size()));
+    for (const Obs& o : row) w.Put(o.valid).Put(o.phase).Put(o.variance).Put(o.snr).Put(o.problem);
+  }
+  return w.str();
+}
+
+RadioPhaseSolver::EpochPhases RadioPhaseSolver::LoadPhases(const std::string& text) const {
+  StateReader r(text, kPhasesKind, kPhasesVersion);
+  const std::string ids = r.String();
+  if (ids != NetworkIds(network_))
+    throw InvalidArgument(Message("saved radio phases are of another network (", ids,
+                                  "; this one: ", NetworkIds(network_), ")"));
+  EpochPhases p;
+  p.stamp = r.Double();
+  const int nt = r.Int();
+  if (nt != static_cast<int>(network_.transmitters.size()))
+    throw InvalidArgument("saved radio phases: wrong number of transmitters");
+  for (int tx = 0; tx < nt; ++tx) {
+    p.obs.emplace_back(static_cast<size_t>(r.Int()));
+    if (p.obs.back().size() != network_.receivers.size())
+      throw InvalidArgument("saved radio phases: wrong number of receivers");
+    for (Obs& o : p.obs.back()) {
+      o.valid = r.Bool();
+      o.phase = r.Double();
+      o.variance = r.Double();
+      o.snr = r.Double();
+      o.problem = r.String();
+    }
+  }
+  return p;
 }
 
 }  // namespace radio

@@ -487,6 +487,7 @@ SurveyGenerator::SurveyGenerator(const SurveyConfig& config) : config_(config) {
   // ---- truth: site, epochs, landslide, obstacles, targets ----
   truth_.seed = c.seed;
   truth_.config = c.path;
+  truth_.site_name = c.name;
   truth_.origin = c.origin;
   truth_.extent = ext;
   for (int k = 0; k < c.num_epochs; ++k)
@@ -664,6 +665,9 @@ void WriteSiteOverlay(const SurveyTruth& truth, const std::string& path) {
          "# measure the same point: their ids are aliased to the target's, so the estimator fuses "
          "both\n"
          "# sources and reports when they disagree.\n";
+  if (!truth.site_name.empty())
+    out << "site_name: " << truth.site_name
+        << "  # the site's history: ~/.ros/slope_monitor/<site_name>.db\n";
   out << std::setprecision(12) << "geodetic_origin: [" << truth.origin.x() << ", "
       << truth.origin.y() << ", " << truth.origin.z() << "]\n";
   out << "aliases: [";

@@ -85,6 +85,11 @@ namespace {
 void ReadSiteSection(io::YamlMap& root, SurveyConfig* out) {
   SurveyConfig& c = *out;
   io::YamlMap site = root.Map("site");
+  std::string stem = c.path.substr(c.path.find_last_of('/') + 1);  // demo_site.sim.yaml -> demo_site
+  stem = stem.substr(0, stem.find('.'));
+  c.name = site.String("name", stem.empty() ? "simulated_site" : stem);
+  if (c.name.empty() || c.name.find_first_of("/ \t") != std::string::npos)
+    site.Fail("name", "must be a non-empty name without '/' or spaces");
   const auto o = site.Doubles("origin", {46.5, 8.0, 1200.0}, 3);
   c.origin = Eigen::Vector3d(o[0], o[1], o[2]);
   if (std::abs(o[0]) > 90.0) site.Fail("origin", "latitude must be in [-90, 90] deg");

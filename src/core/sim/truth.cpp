@@ -400,6 +400,7 @@ std::string SurveyTruth::ToYaml() const {
   out << YAML::Key << "seed" << YAML::Value << seed;
   out << YAML::Key << "config" << YAML::Value << config;
   out << YAML::Key << "site" << YAML::Value << YAML::BeginMap;
+  if (!site_name.empty()) out << YAML::Key << "name" << YAML::Value << site_name;
   EmitVec3(out, "origin", origin);
   out << YAML::Key << "extent" << YAML::Value;
   Vec(out, extent.data(), 4);
@@ -595,6 +596,7 @@ SurveyTruth SurveyTruth::FromYaml(const std::string& text, const std::string& co
   t.seed = r.GetOr<unsigned int>(root, "seed", 0u, "");
   t.config = r.GetOr<std::string>(root, "config", "", "");
   const YAML::Node site = r.Need(root, "site", "");
+  t.site_name = r.GetOr<std::string>(site, "name", "", "site.");
   t.origin = r.Vec3(site, "origin", "site.");
   const std::vector<double> ext = r.Doubles(r.Need(site, "extent", "site."), 4, "site.extent");
   t.extent = Eigen::Vector4d(ext[0], ext[1], ext[2], ext[3]);

@@ -55,8 +55,12 @@ TEST(Duplicate, IdenticalMeasurementIsRefusedAndNotStored) {
     EXPECT_EQ(e.GetSnapshot().points.at(0).displacement,
               after_two);  // bit for bit: not fused again
     EXPECT_EQ(e.GetSnapshot().points.at(0).num_measurements, 2u);
-    // The same stamp with another value is a new measurement (e.g. a revised epoch).
-    EXPECT_EQ(e.AddBatch(MakeBatch(1, 3600.0, -0.0021)).accepted, 1);
+    // The same point, source and stamp with another value is the same
+    // measurement (a recording processed again with other settings): refused.
+    const BatchSummary revised = e.AddBatch(MakeBatch(1, 3600.0, -0.0021));
+    EXPECT_EQ(revised.accepted, 0);
+    EXPECT_EQ(revised.already_held, 1);
+    EXPECT_EQ(e.AddBatch(MakeBatch(2, 7200.0, -0.0041)).accepted, 1);
   }
   {
     // Restarted: the history's measurements count as received.
@@ -64,9 +68,9 @@ TEST(Duplicate, IdenticalMeasurementIsRefusedAndNotStored) {
     Estimator e(options, &h);
     EXPECT_EQ(e.GetSnapshot().points.at(0).num_measurements, 3u);
     EXPECT_EQ(e.AddBatch(MakeBatch(1, 3600.0, -0.002)).refused, 1);
-    EXPECT_EQ(e.AddBatch(MakeBatch(1, 3600.0, -0.0021)).refused, 1);
+    EXPECT_EQ(e.AddBatch(MakeBatch(2, 7200.0, -0.0041)).refused, 1);
     EXPECT_EQ(h.CountRows("observations"), 3);
-    EXPECT_EQ(e.AddBatch(MakeBatch(2, 7200.0, -0.004)).accepted, 1);
+    EXPECT_EQ(e.AddBatch(MakeBatch(3, 10800.0, -0.006)).accepted, 1);
   }
   std::remove(path.c_str());
   std::remove((path + "-wal").c_str());

@@ -360,5 +360,48 @@ TEST(RadioSolver, EpochAssemblerIsIndependentOfArrivalOrder) {
   EXPECT_EQ(a.pending(), 0u);
 }
 
+// The state a run saves in the site's history (issue 48): a solver loaded
+// from it after epoch 20 gives, epoch for epoch, bit for bit what the solver
+// that never stopped gives; the phases it saves track an epoch again to the
+// same numbers; another network's state is refused, naming it.
+TEST(RadioSolver, SavedStateAndPhasesContinueBitForBit) {
+  const Scenario s = MakeScenario(11, 0.003);
+  const sim::RadioSimulator sim(s.sim);
+  radio::RadioPhaseSolver whole(s.network), first(s.network);
+  std::string saved;
+  for (int e = 0; e < 20; ++e) {
+    const double t = kT0 + e;
+    whole.ProcessEpoch(t, sim.SynthesizeAll(t, e));
+    first.ProcessEpoch(t, sim.SynthesizeAll(t, e));
+  }
+  saved = first.Save();
+  radio::RadioPhaseSolver resumed(s.network), retracked(s.network);
+  resumed.Load(saved);
+  retracked.Load(saved);
+  ASSERT_TRUE(resumed.reference().solved);
+  for (int e = 20; e < 40; ++e) {
+    const double t = kT0 + e;
+    const auto a = whole.ProcessEpoch(t, sim.SynthesizeAll(t, e));
+    const auto b = resumed.ProcessEpoch(t, sim.SynthesizeAll(t, e));
+    const auto c = retracked.ProcessPhases(resumed.LastPhases());
+    ASSERT_EQ(a.transmitters.size(), b.transmitters.size());
+    for (size_t i = 0; i < a.transmitters.size(); ++i) {
+      EXPECT_EQ(a.transmitters[i].displacement, b.transmitters[i].displacement) << e;
+      EXPECT_EQ(a.transmitters[i].displacement_covariance, b.transmitters[i].displacement_covariance);
+      EXPECT_EQ(a.transmitters[i].displacement, c.transmitters[i].displacement) << e;
+    }
+  }
+  Scenario other = MakeScenario(11, 0.003);
+  other.network.transmitters[0].id = "elsewhere";
+  radio::RadioPhaseSolver foreign(other.network);
+  try {
+    foreign.Load(saved);
+    ADD_FAILURE() << "another network's state was loaded";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("elsewhere"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(foreign.Load("not a state"), InvalidArgument);
+}
+
 }  // namespace
 }  // namespace slope_monitor

@@ -193,7 +193,8 @@ class EpochCollector {
   uint64_t tie_points_used() const { return tie_points_used_; }
   uint64_t tie_points_low_quality() const { return tie_points_low_quality_; }
   uint64_t observations_dropped() const { return observations_dropped_; }
-  // Input that was ignored (duplicate or stale end markers), one line each.
+  // Input that was ignored (duplicate or stale end markers, a camera in
+  // another camera's frame), one line each.
   const std::vector<std::string>& ignored() const { return ignored_; }
 
  private:
@@ -226,6 +227,7 @@ class EpochCollector {
   bool tie_points_expected_ = true;
 
   std::map<std::string, CollectedImage> images_;
+  std::map<std::string, std::string> frame_owner_;  // optical frame -> the camera that uses it
   // Images whose targets message is in (every camera's centroider sends one
   // per photo, empty on a site without targets): only these count against
   // an end marker's image count. An image known only from tie points (the
@@ -279,6 +281,15 @@ class EpochStore {
   std::string SetReference(bool use_latest, int epoch, int* chosen);
   int reference_epoch() const { return reference_epoch_; }
   int accepted() const { return static_cast<int>(epochs_.size()); }
+
+  // What a later run of the same site needs (the site's history keeps it,
+  // deformation/history.h): the reference epoch's points (positions,
+  // roles, covariances), each camera's last pose and calibration (where the
+  // next epoch starts). Exact to the bit (core/common/state_text.h).
+  std::string Save() const;
+  // Replaces the store's content with a saved one (the reference becomes
+  // the saved reference); throws InvalidArgument for text that is not one.
+  void Load(const std::string& text);
 
  private:
   std::map<std::string, camera::CameraModel> calibrated_;

@@ -18,16 +18,31 @@
 // filter, and the flag stays until a later comparison passes.
 //
 // Alerts (per point): level L in {watch, warning, alarm} is a candidate when
-// the speed exceeds the level's threshold significantly:
-//   |v| - k sigma_v > threshold_L,  sigma_v = sqrt(u' P_v u), u = v / |v|.
+// the speed or the displacement since the reference exceeds the level's
+// threshold significantly:
+//   |v| - k sigma_v > threshold_L,  sigma_v = sqrt(u' P_v u), u = v / |v|,
+//   |d| - k sigma_d > displacement_threshold_L (sigma_d along d likewise).
 // A candidate is confirmed when at least `confirm_sources` sources' own
 // filters also exceed the threshold significantly, or at least
 // `confirm_points` points are candidates for L (or higher). A confirmed level
-// is lowered only when |v| falls below hysteresis * threshold_L.
+// is lowered only when both |v| and |d| fall below hysteresis * their threshold_L.
 // The slope's level is the highest confirmed point level.
 //
-// Reference: displacements are relative to the reference epoch. The first
-// batch's reference_stamp becomes the datum; measurements whose
+// The origin: each point's fused filter and each (point, source) filter
+// start at their reference epoch with a zero displacement (PointFilter::
+// Origin, an exact zero), so the first displacement after the reference
+// already gives a speed d / dt and can raise an alert.
+//
+// Identity and order: a measurement is what it measures (point, source,
+// source name, stamp); one already received is refused, whatever its values
+// (a recording processed again, a latched topic re-delivered). The state is
+// always that of the batches processed in stamp order: a batch older than
+// the newest one processed (a recording processed after a later one, weeks
+// apart, beyond the filters' reorder window) re-runs every point from the
+// batches held (the history's), in stamp order.
+//
+// Reference: displacements are relative to the reference epoch. The
+// history's datum (meta datum_stamp), else the first batch's reference_stamp, is the datum; measurements whose
 // reference_stamp differs from it by more than reference_tolerance are
 // refused (their source uses another datum) and counted. SetReferenceEpoch
 // re-bases the reported displacements on a later epoch: the fused
@@ -110,13 +125,20 @@ struct AreaBatch {
   std::vector<ChangeArea> areas;
 };
 
-// Velocity thresholds [m/s] of the three levels (watch < warning < alarm).
+// Thresholds of the three levels (watch < warning < alarm): on the speed
+// [m/s], and on the cumulative displacement since the reference epoch [m]
+// (monitoring systems offer both: a slope creeping a few mm a month between
+// flights weeks apart crosses a displacement threshold long before a speed one).
 struct Thresholds {
   double watch = 1.0 / 86400.0 * 1e-3 * 2.0;     // [m/s] 2 mm/day
   double warning = 1.0 / 86400.0 * 1e-3 * 10.0;  // [m/s] 10 mm/day
   double alarm = 1.0 / 86400.0 * 1e-3 * 50.0;    // [m/s] 50 mm/day
-  double Of(AlertLevel level) const;
-  void Check(const std::string& context) const;  // throws ConfigError
+  double displacement_watch = 0.010;             // [m] 10 mm since the reference
+  double displacement_warning = 0.030;           // [m] 30 mm
+  double displacement_alarm = 0.100;             // [m] 100 mm
+  double Of(AlertLevel level) const;              // speed threshold [m/s]
+  double DisplacementOf(AlertLevel level) const;  // displacement threshold [m]
+  void Check(const std::string& context) const;   // throws ConfigError
 };
 
 struct AlertOptions {
@@ -224,7 +246,9 @@ struct Snapshot {
 
 struct BatchSummary {
   int accepted = 0;
-  int refused = 0;                    // other datum, too late, bad covariance
+  int refused = 0;       // other datum, too late, bad covariance, already held
+  int already_held = 0;  // of `refused`: measurements already received (AddBatch)
+  int revised = 0;       // measurements replaced (ReviseBatch)
   std::vector<std::string> messages;  // one per refused measurement
 };
 
@@ -242,11 +266,17 @@ class Estimator {
   // Throws InvalidArgument for a batch that cannot be used at all (NaN,
   // non-positive-definite covariance: naming the point); refusals of single
   // measurements (other datum, too late) are reported in the summary.
-  // A measurement identical to one already received (same point, source,
-  // source name, stamp, displacement and covariance) is a re-delivery, e.g.
-  // of a latched topic's last message when a restarted node subscribes
-  // again: it is refused (reported in the summary), not stored or fused twice.
+  // A measurement already received (same point, source, source name and
+  // stamp) is refused (counted in BatchSummary::already_held), not stored or
+  // fused twice: a re-delivery (a latched topic's last message when a
+  // restarted node subscribes again) or a recording processed again.
   BatchSummary AddBatch(const Batch& batch);
+  // A source's revised measurements (the radio's epochs tracked again after
+  // an earlier recording was processed): each one already received is
+  // replaced, in the history too, and every point re-run in stamp order;
+  // one not received yet is added as AddBatch adds it. Counted in
+  // BatchSummary::revised.
+  BatchSummary ReviseBatch(const Batch& batch);
 
   // Areas of significant surface change of one epoch (source `surface`):
   // replaces the previous area epoch's, their growth against it sets the
@@ -267,11 +297,21 @@ class Estimator {
   const std::map<uint32_t, double>& epochs() const { return epochs_; }
   std::string ResolveAlias(const std::string& id) const;
   Thresholds ThresholdsOf(const std::string& point_id) const;
+  // The recording being processed: kept in the history (meta
+  // reference_recording) when its measurements set the datum.
+  void SetRecording(const std::string& name) { recording_ = name; }
 
  private:
   struct SourceTrack;
   struct Point;
+  struct Held {  // a batch processed, with its observation ids
+    Batch batch;
+    std::vector<uint64_t> sequences;
+  };
   BatchSummary Process(const Batch& batch, const std::vector<uint64_t>& sequences, bool replay);
+  // Every point again from the batches held, in stamp order (a late batch).
+  void Rerun();
+  void ResetState();
   void Validate(const Measurement& m) const;
   void UpdateAlerts();
   PointState StateOf(const Point& p) const;
@@ -293,6 +333,16 @@ class Estimator {
   bool has_areas_ = false;
   uint32_t last_area_epoch_ = 0;
   std::set<std::string> received_;  // keys of every measurement received (duplicate check)
+  std::vector<Held> held_;           // every batch processed, in stamp order
+  bool has_history_datum_ = false;  // the datum once fixed (or the history's), kept through a re-run
+  double history_datum_ = 0.0;
+  bool datum_pending_ = false;  // a new reference asked for: the next new measurement sets it
+  uint64_t reruns_ = 0;
+  std::string recording_;
+
+ public:
+  // Times a late batch made every point re-run in stamp order.
+  uint64_t reruns() const { return reruns_; }
 };
 
 }  // namespace deformation

@@ -50,6 +50,16 @@
 //   reference_offsets(point_id TEXT PRIMARY KEY,          -- (v2) fused displacement at the
 //           dx REAL, dy REAL, dz REAL, covariance BLOB)   --   reference epoch, subtracted on
 //           output
+//   saved_states(key TEXT PRIMARY KEY, stamp REAL,        -- (any version; SavedStates) the
+//           value TEXT, written TEXT)                     --   sources' references, see below
+//
+// The history belongs to a site (issue 48): meta `site` names it (a
+// recording of another site is refused by the caller), meta
+// `reference_recording` the recording the reference epoch came from. The
+// references the sources measure from live here too, not in a run's memory:
+// the bundle adjuster's reference epoch and the radio network's reference
+// solution and tracking state (SavedStates), so a later recording's
+// displacements are measured from the site's reference.
 //
 // Migrations: version 0 (empty file) -> 2 creates everything; 1 -> 2 adds
 // the estimates' alert and forecast columns and reference_offsets.
@@ -79,6 +89,55 @@ class HistoryInUse : public IoError {
   using IoError::IoError;
 };
 
+// What a history holds, read without the writer lock (process_bag's first
+// line). `exists` false: no file yet.
+struct HistoryInfo {
+  bool exists = false;
+  std::string site;                 // meta site ("" when not set)
+  bool has_reference = false;       // meta reference_stamp set
+  uint32_t reference_epoch = 0;     // meta reference_epoch
+  double reference_stamp = 0.0;     // [s]
+  std::string reference_recording;  // meta reference_recording
+  int64_t epochs = 0;               // survey epochs: distinct stamps of its non-radio observations
+  int64_t radio_epochs = 0;         // distinct stamps of its radio observations
+  int64_t observations = 0;
+  double newest_stamp = 0.0;  // [s] of its newest batch (0 when none)
+};
+// Throws IoError for a file that is not a history (naming it).
+HistoryInfo DescribeHistory(const std::string& path);
+
+// The sources' saved states in a history file (table saved_states), for the
+// steps that measure from a reference of their own (the bundle adjuster's
+// epoch store, the radio solver). Its own connection, no writer lock: the
+// estimator's History holds that, and SQLite serialises the writes. Creates
+// the file and the table when absent. Throws IoError naming the file.
+class SavedStates {
+ public:
+  struct Saved {
+    std::string key;
+    double stamp = 0.0;  // [s] the newest input the state has seen
+    std::string value;
+  };
+  explicit SavedStates(const std::string& path);
+  ~SavedStates();
+  SavedStates(const SavedStates&) = delete;
+  SavedStates& operator=(const SavedStates&) = delete;
+
+  void Put(const std::string& key, double stamp, const std::string& value);
+  std::optional<Saved> Get(const std::string& key) const;
+  // The state under a key starting with `prefix` with the newest stamp
+  // before `stamp` (a recording goes on from the one before it in time).
+  std::optional<Saved> LatestBefore(const std::string& prefix, double stamp) const;
+  // Every state under `prefix` with a stamp after `stamp`, in stamp order.
+  std::vector<Saved> After(const std::string& prefix, double stamp) const;
+  void Erase(const std::string& prefix);  // every key starting with it
+
+ private:
+  void Exec(const std::string& sql) const;
+  std::string path_;
+  sqlite3* db_ = nullptr;
+};
+
 class History {
  public:
   static constexpr int kSchemaVersion = 2;
@@ -100,6 +159,10 @@ class History {
 
   // One transaction; returns the observation ids (the replay order).
   std::vector<uint64_t> AppendBatch(const Batch& batch);
+  // Replaces the values (reference position, displacement, covariance) of
+  // the stored observation with m's identity (point, source, source name,
+  // stamp); false when there is none. One transaction per call.
+  bool ReviseObservation(const Measurement& m);
   std::vector<StoredBatch> LoadBatches() const;
 
   // One transaction for all points.
@@ -113,6 +176,20 @@ class History {
   std::map<std::string, std::pair<Eigen::Vector3d, Eigen::Matrix3d>> LoadReferenceOffsets() const;
 
   int64_t CountRows(const std::string& table) const;
+
+  // The site this history belongs to: a history without one takes `site`;
+  // one of another site is refused (ConfigError naming both sites and the
+  // file; nothing written). "" checks nothing.
+  void CheckSite(const std::string& site);
+  // A history holding observations but no reference (meta datum_stamp
+  // missing: edited, or written by hand) is refused with an IoError naming
+  // the file; nothing is written to it.
+  void CheckReference() const;
+  // A new reference on request (process_bag --new-reference): the datum and
+  // the reference epoch are cleared (the next measurement sets them), the
+  // reference offsets and the sources' saved states removed. The
+  // observations stay in the history.
+  void StartNewReference();
 
  private:
   void Exec(const std::string& sql) const;

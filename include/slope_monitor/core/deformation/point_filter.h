@@ -11,6 +11,17 @@
 //   I3
 // Measurement model: z = d + e, e ~ N(0, R) with R the source's 3x3 covariance.
 //
+// The origin (a source's reference epoch): displacements are measured from
+// the reference, so at the reference time the displacement is zero by
+// definition. PointFilter::Origin starts the state there with d = 0 exactly
+// (P_dd = 0: the reference's own uncertainty is already in every later
+// displacement's covariance, which the source computes from both epochs; the
+// correlation this leaves between successive displacements is not carried),
+// the velocity diffuse (origin_velocity_sigma) and the acceleration prior
+// initial_acceleration_sigma. The first displacement d at Delta t after it
+// then gives the velocity d / Delta t, its sigma from R, the process noise
+// over Delta t and the acceleration prior (sigma_a Delta t / 2).
+//
 // Internally the state is kept in metres and days so that the
 // covariance entries stay within a few orders of magnitude of each other;
 // the public accessors return SI units (m, m/s, m/s^2).
@@ -34,8 +45,12 @@ struct FilterOptions {
       2.0e-29;  // [m^2/s^5] q of the white jerk (2e-29 ~ (10 mm/day^2)^2 per day)
   double initial_velocity_sigma =
       1.0e-6;  // [m/s] prior sigma of the velocity at the first measurement (~86 mm/day)
-  double initial_acceleration_sigma =
-      1.0e-10;         // [m/s^2] prior sigma of the acceleration (~0.75 m/day^2)
+  // [m/s^2] prior sigma of the acceleration (~0.26 m/day^2: a slide near failure,
+  // the demo's half a day before it; 1e-10 (0.75 m/day^2) left the first
+  // movement's speed sigma at 95 mm/day for a 6 h interval, no alarm at 240 mm/day)
+  double initial_acceleration_sigma = 3.0e-11;
+  double origin_velocity_sigma =
+      1.0e-3;          // [m/s] velocity prior at the origin (~86 m/day: diffuse; the data decide)
   void Check() const;  // throws ConfigError naming the field
 };
 
@@ -65,6 +80,9 @@ class PointFilter {
   // Predicts a copy of `state` to `stamp` (>= state.stamp; earlier stamps are
   // not predicted backwards: the state is returned unchanged).
   FilterState Predict(const FilterState& state, double stamp) const;
+  // The state at a source's reference epoch: d = 0 exactly, the velocity
+  // diffuse (origin_velocity_sigma), the acceleration prior (see above).
+  FilterState Origin(double stamp) const;
   // Initialises (first measurement) or predicts and updates with z, R.
   UpdateResult Update(FilterState* state, double stamp, const Eigen::Vector3d& z,
                       const Eigen::Matrix3d& R) const;
@@ -98,6 +116,14 @@ class OrderedFilter {
   OrderedFilter(const FilterOptions& options, double reorder_window)
       : filter_(options), reorder_window_(reorder_window) {}
 
+  // Starts the filter at the origin (PointFilter::Origin) at `stamp`, before
+  // any measurement; false (nothing changed) when it already has a state.
+  // The origin is no measurement: count() does not include it.
+  bool AddOrigin(double stamp);
+  bool has_origin() const { return has_origin_; }
+  // The velocity is measured: two states (origin and a measurement, or two measurements).
+  bool has_velocity() const { return count_ + (has_origin_ ? 1 : 0) >= 2; }
+
   // False (and nothing changed) when the stamp is older than the base state.
   bool Add(double stamp, uint64_t sequence, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
            UpdateResult* result = nullptr);
@@ -116,6 +142,7 @@ class OrderedFilter {
   FilterState base_;
   std::deque<Entry> entries_;
   uint64_t count_ = 0;
+  bool has_origin_ = false;
 };
 
 }  // namespace deformation

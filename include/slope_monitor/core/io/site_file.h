@@ -19,6 +19,8 @@
 //     outline: [[0, 0], [200, 0], [200, 150], [0, 150]]
 //     stable: [[[0, 0], [40, 0], [40, 40], [0, 40]]]
 //   thresholds: {unit: mm/day, watch: 2, warning: 10, alarm: 50,   # any subset
+//                displacement_watch: 10, displacement_warning: 30,  # [mm] since the
+//                displacement_alarm: 100,                           #   reference epoch
 //                area_growth_watch: 25, area_growth_warning: 100}  # [m^2]
 //   aliases: ["radio/tx1 = tag36h11/10"]                          # measured id = monitoring point
 //   notification: {hook: /usr/local/bin/notify, timeout: 10, retries: 2, retry_delay: 30}
@@ -60,6 +62,8 @@ struct SiteCamera {
 struct SiteThresholds {
   std::string unit = "mm/day";                  // mm/day | mm/h
   std::optional<double> watch, warning, alarm;  // [unit]
+  // Cumulative displacement since the reference epoch [mm].
+  std::optional<double> displacement_watch, displacement_warning, displacement_alarm;
   // Growth of an area of significant surface change [m^2] (change_areas.h).
   std::optional<double> area_growth_watch, area_growth_warning;
 };

@@ -193,6 +193,16 @@ class RadioPhaseSolver {
   // wrong rate, saturation) goes to summary.problems and the rest is solved.
   RadioEpochSummary ProcessEpoch(double stamp, const std::vector<SampleBlock>& blocks);
 
+  // The phases the last epoch extracted from its blocks (every link's phase,
+  // variance, SNR), as text exact to the bit: the site's history keeps them,
+  // so that epochs can be tracked again in time order when an earlier
+  // recording is processed after them (ProcessPhases).
+  std::string LastPhases() const;
+  // One epoch from phases LastPhases() wrote: tracked as ProcessEpoch tracks
+  // (the summary has no PhaseObservation list). Throws InvalidArgument for
+  // text that is not such phases of this network.
+  RadioEpochSummary ProcessPhases(const std::string& phases);
+
   const NetworkConfig& network() const { return network_; }
   const ReferenceSolution& reference() const { return reference_; }
   // Tracking constant B_ij of a link (phi = k |x_i - X_j| + B_ij mod 2 pi,
@@ -203,6 +213,15 @@ class RadioPhaseSolver {
   // differences between two transmitters and two receivers are 2 pi times
   // the double-differenced integer ambiguity, comparable with the truth.
   std::optional<double> ModelConstant(int tx, int rx) const;
+
+  // The whole state (reference solution, link constants, each transmitter's
+  // tracking filter, the epochs still being averaged), exact to the bit
+  // (core/common/state_text.h): the site's history keeps it between
+  // recordings, so a later recording goes on from the same reference.
+  std::string Save() const;
+  // Throws InvalidArgument for text that is not a saved state of this
+  // network (other transmitter or receiver ids, naming them).
+  void Load(const std::string& text);
 
  private:
   struct Link {
@@ -236,6 +255,13 @@ class RadioPhaseSolver {
     std::vector<double> innovation;
     std::vector<std::string> status;
   };
+  struct EpochPhases {
+    double stamp = 0.0;
+    std::vector<std::vector<Obs>> obs;  // [tx][rx]
+  };
+  // Reference solution (first epochs) or tracking of one epoch's phases.
+  void Solve(double stamp, const std::vector<std::vector<Obs>>& obs, RadioEpochSummary* summary);
+  EpochPhases LoadPhases(const std::string& text) const;
   void SolveReference(RadioEpochSummary* summary);
   TrackInfo Track(int tx, double stamp, const std::vector<Obs>& obs, RadioEpochSummary* summary);
   double Wavenumber() const;
@@ -250,6 +276,7 @@ class RadioPhaseSolver {
   std::vector<std::optional<std::uint32_t>> last_sequence_;  // per receiver
   ReferenceSolution reference_;
   std::map<std::pair<int, int>, double> model_constant_;
+  EpochPhases last_phases_;
 };
 
 // Groups blocks arriving one by one (per receiver topic) into epochs by

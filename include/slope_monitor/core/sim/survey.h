@@ -97,6 +97,9 @@ struct RadioNetworkSpec {
 
 struct SurveyConfig {
   std::string path;  // the file it was loaded from
+  // The simulated site's name (site.name; default: the config file's name
+  // without .yaml): its history is ~/.ros/slope_monitor/<name>.db.
+  std::string name;
   unsigned int seed = 7;
   Eigen::Vector3d origin{46.5, 8.0, 1200.0};  // [deg, deg, m]
   SceneSpec scene;

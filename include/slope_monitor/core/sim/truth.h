@@ -215,6 +215,7 @@ struct SurveyTruth {
   std::string format = "slope_monitor_sim_truth/1";
   unsigned int seed = 0;
   std::string config;                      // path of the site config it was made from
+  std::string site_name;                   // the simulated site's name ("" in older files)
   Eigen::Vector3d origin{0, 0, 0};         // [deg, deg, m] geodetic origin of site
   Eigen::Vector4d extent{0, 200, 0, 150};  // [m] xmin, xmax, ymin, ymax
   std::vector<EpochTruth> epochs;
