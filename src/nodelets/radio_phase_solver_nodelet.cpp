@@ -64,6 +64,17 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
     end_sub_ = ros_adapters::SubscribeEndOfInput(nh, ros_adapters::kEndOfAdjustment, [this] {
       std::lock_guard<std::mutex> lock(mutex_);
       for (auto& r : order_->Flush()) Assemble(r.item);
+      // A recording before later ones already in the history: their radio
+      // epochs are tracked again (the saved states follow), but the graph's
+      // estimator keeps the displacements it holds; process_bag revises them.
+      std::vector<ros_adapters::LogLine> log;
+      const size_t revised = step_->Finish(&log).size();
+      Log(log);
+      if (revised > 0)
+        NODELET_WARN(
+            "radio_phase_solver: the history's displacements of those %zu epochs are "
+            "not revised by the graph: process this recording with process_bag",
+            revised);
     });
     obs_pub_ = nh.advertise<slope_monitor::RadioPhaseObservationArray>("phase_observations", 10);
     disp_pub_ =
@@ -112,21 +123,24 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
 
   // Caller holds mutex_.
   void Assemble(const slope_monitor::RadioSampleBlockConstPtr& msg) {
-    std::vector<ros_adapters::LogLine> dropped;
+    std::vector<ros_adapters::LogLine> dropped;  // and the state loaded from the history (kInfo)
     for (const ros_adapters::RadioEpochOutput& out : step_->Assemble(*msg, &dropped)) {
-      for (const ros_adapters::LogLine& line : out.log) {
-        if (line.level == ros_adapters::LogLine::kError)
-          NODELET_ERROR_THROTTLE(5.0, "radio_phase_solver: %s", line.text.c_str());
-        else if (line.level == ros_adapters::LogLine::kWarn)
-          NODELET_WARN_THROTTLE(5.0, "radio_phase_solver: %s", line.text.c_str());
-        else  // routine results (every ambiguity fixed): INFO (issue 38)
-          NODELET_INFO("radio_phase_solver: %s", line.text.c_str());
-      }
+      Log(out.log);
       obs_pub_.publish(out.messages.observations);
       if (out.messages.displacements) disp_pub_.publish(*out.messages.displacements);
     }
-    for (const ros_adapters::LogLine& line : dropped)
-      NODELET_ERROR_THROTTLE(5.0, "radio_phase_solver: %s", line.text.c_str());
+    Log(dropped);
+  }
+
+  void Log(const std::vector<ros_adapters::LogLine>& lines) const {
+    for (const ros_adapters::LogLine& line : lines) {
+      if (line.level == ros_adapters::LogLine::kError)
+        NODELET_ERROR_THROTTLE(5.0, "radio_phase_solver: %s", line.text.c_str());
+      else if (line.level == ros_adapters::LogLine::kWarn)
+        NODELET_WARN_THROTTLE(5.0, "radio_phase_solver: %s", line.text.c_str());
+      else  // routine results (every ambiguity fixed, the state loaded): INFO (issue 38)
+        NODELET_INFO("radio_phase_solver: %s", line.text.c_str());
+    }
   }
 
   std::unique_ptr<ros_adapters::RadioStep> step_;  // null: no radio network, idle

@@ -72,9 +72,9 @@ AdjusterStep::AdjusterStep(const AdjusterParameters& parameters, const std::stri
   if (const auto saved = states_->Get(kStoreKey)) {
     store_.Load(saved->value);
     if (const adjustment::EpochPoints* ref = store_.Reference())
-      resumed_ = Message("reference epoch ", ref->epoch, " (stamp ", Fixed(ref->stamp, 3), ", ",
-                         ref->points.size(), " points) from the history '",
-                         parameters_.database, "'");
+      resumed_ =
+          Message("reference epoch ", ref->epoch, " (stamp ", Fixed(ref->stamp, 3), ", ",
+                  ref->points.size(), " points) from the history '", parameters_.database, "'");
   }
 }
 

@@ -100,8 +100,8 @@ void EstimatorStep::Fuse(const Incoming& in, const std::string& topic, bool publ
   if (publish) out->publications.push_back(Publication(in.valid.header));
 }
 
-EstimatorResult EstimatorStep::ReviseDisplacements(
-    const slope_monitor::PointDisplacementArray& msg, const std::string& topic) {
+EstimatorResult EstimatorStep::ReviseDisplacements(const slope_monitor::PointDisplacementArray& msg,
+                                                   const std::string& topic) {
   EstimatorResult out;
   ++messages_;
   const slope_monitor::PointDisplacementArray valid = validator_.Filter(msg, topic, 0.0);

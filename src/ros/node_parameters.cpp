@@ -346,7 +346,13 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
   o->areas.growth_warning =
       p.Double("area_growth_warning", o->areas.growth_warning, 1e-6, 1e9, "m^2");
   e.frame_id = p.String("frame_id", e.frame_id);
-  e.recording = p.String("recording", e.recording);
+  // The recording's file names (bags: "a.bag, b.bag"), wherever they were read from.
+  std::stringstream bags(p.String("recording", e.recording));
+  e.recording.clear();
+  for (std::string bag; std::getline(bags, bag, ',');)
+    if (!Trim(bag).empty())
+      e.recording +=
+          (e.recording.empty() ? "" : ", ") + std::filesystem::path(Trim(bag)).filename().string();
   e.database = ReadDatabase(p, p.String("site_file", e.site_file), "", &e.site_name);
   e.report_dir = p.String("report_dir", e.report_dir);
   e.report_on_shutdown = p.Bool("report_on_shutdown", e.report_on_shutdown);

@@ -60,10 +60,9 @@ void RadioStep::Resume(double first_stamp, std::vector<LogLine>* log) {
   if (!saved) return;
   solver_.Load(saved->value);
   log->push_back({LogLine::kInfo,
-                  Message("radio reference solution of stamp ",
-                          Fixed(solver_.reference().stamp, 3), " and tracking state of stamp ",
-                          Fixed(saved->stamp, 3), " loaded from the history '",
-                          parameters_.database, "'")});
+                  Message("radio reference solution of stamp ", Fixed(solver_.reference().stamp, 3),
+                          " and tracking state of stamp ", Fixed(saved->stamp, 3),
+                          " loaded from the history '", parameters_.database, "'")});
 }
 
 std::vector<RadioEpochOutput> RadioStep::Assemble(const slope_monitor::RadioSampleBlock& block,
@@ -90,10 +89,10 @@ std::vector<RadioEpochOutput> RadioStep::Finish(std::vector<LogLine>* log) {
   for (const auto& s : states_->After(kStatePrefix, last_stamp_)) state_keys[s.stamp] = s.key;
   const auto later = states_->After(kPhasesPrefix, last_stamp_);
   if (later.empty()) return out;
-  log->push_back({LogLine::kWarn,
-                  Message("this recording precedes ", later.size(),
-                          " radio epoch(s) already in the history: tracked again after it, in "
-                          "time order; their displacements revised")});
+  log->push_back(
+      {LogLine::kWarn, Message("this recording precedes ", later.size(),
+                               " radio epoch(s) already in the history: tracked again after it, in "
+                               "time order; their displacements revised")});
   std_msgs::Header header;
   for (const auto& phases : later) {
     const radio::RadioEpochSummary s = solver_.ProcessPhases(phases.value);

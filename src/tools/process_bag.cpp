@@ -334,9 +334,9 @@ bool SayHistory(const Args& a) {
   const deformation::HistoryInfo h = deformation::DescribeHistory(a.database);
   const std::string site = a.site_name.empty() ? "(unnamed)" : a.site_name;
   if (!h.site.empty() && !a.site_name.empty() && h.site != a.site_name) {
-    std::cerr << "process_bag: the recording '" << a.bags.front() << "' is of site '"
-              << a.site_name << "' (" << a.site_from << ") but the history '" << a.database
-              << "' is of site '" << h.site << "': refused, nothing written\n";
+    std::cerr << "process_bag: the recording '" << a.bags.front() << "' is of site '" << a.site_name
+              << "' (" << a.site_from << ") but the history '" << a.database << "' is of site '"
+              << h.site << "': refused, nothing written\n";
     return false;
   }
   std::cerr << "process_bag: history '" << a.database << "' of site '" << site << "'";
@@ -379,6 +379,8 @@ int Run(Args args) {
   std::vector<BagBreak> breaks;
   for (const std::string& path : args.bags) bags.push_back(OpenBag(path, &temporaries, &breaks));
   CheckInputFiles(args);
+  // One writer per history: another writer is named before anything else is said.
+  { deformation::History probe(args.database); }
   if (!SayHistory(args)) return 1;
   rosbag::View view;
   for (const auto& bag : bags) view.addQuery(*bag);

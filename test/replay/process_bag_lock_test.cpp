@@ -101,19 +101,22 @@ TEST(ProcessBagLock, SecondWriterOnOneDatabaseFailsAtOnce) {
   for (const auto& [key, n] : stored) EXPECT_EQ(n, 1) << key << " stored " << n << " times";
 }
 
-// Safe defaults (issue 38 item 6), on bags cut to their first messages (no
-// epoch: nothing is solved, a run takes about a second):
-//   * without --database each bag keeps its own history,
-//     ~/.ros/slope_monitor/<bag name>.db (both used ~/.ros/slope_monitor/replay.db);
+// Safe defaults (issue 38 item 6; issue 48), on bags cut to their first
+// messages (no epoch: nothing is solved, a run takes about a second):
+//   * without --database every recording of a site keeps the site's one
+//     history, ~/.ros/slope_monitor/<site name>.db (the name make_survey_bag
+//     wrote beside the bags), and the first line says so; a recording
+//     nothing names keeps the history of its own name;
 //   * --target-list takes a surveyors' CSV (was: "YAML file '…csv' must hold a map");
 //   * the progress goes to a log as plain lines, no '\r', no ESC[K;
 //   * a run that solves nothing exits 1 (nothing produced; was 2).
-TEST(ProcessBagDefaults, EachBagItsOwnHistoryACsvTargetListPlainProgress) {
+TEST(ProcessBagDefaults, OneHistoryPerSiteACsvTargetListPlainProgress) {
   const fs::path dir = Scratch("defaults");
   const fs::path home = dir / "home";
   fs::create_directories(home);
   // Bag a: the static transforms, the first photo of fixed_cam_1 and its
-  // camera_info; bag b: only the transforms and the camera_infos.
+  // camera_info; bag b: only the transforms and the camera_infos; bag c as
+  // b without the files beside it (nothing names its site).
   int photos = 0;
   const std::string bag_a = CopySurvey(
       "replay_rates", dir, "site_a", [&photos](const rosbag::MessageInstance& m, rosbag::Bag* out) {
@@ -124,18 +127,22 @@ TEST(ProcessBagDefaults, EachBagItsOwnHistoryACsvTargetListPlainProgress) {
           out->write(t, m.getTime(), m);
         }
       });
-  const std::string bag_b = CopySurvey(
-      "replay_rates", dir, "site_b", [](const rosbag::MessageInstance& m, rosbag::Bag* out) {
-        const std::string& t = m.getTopic();
-        if (t == "/tf_static" || t.find("/camera_info") != std::string::npos)
-          out->write(t, m.getTime(), m);
-      });
+  auto transforms_and_infos = [](const rosbag::MessageInstance& m, rosbag::Bag* out) {
+    const std::string& t = m.getTopic();
+    if (t == "/tf_static" || t.find("/camera_info") != std::string::npos)
+      out->write(t, m.getTime(), m);
+  };
+  const std::string bag_b = CopySurvey("replay_rates", dir, "site_b", transforms_and_infos);
+  const std::string bag_c = CopySurvey("replay_rates", dir, "site_c", transforms_and_infos);
+  for (const char* ext : {".truth.yaml", ".site.yaml"})
+    fs::remove(dir / ("site_c" + std::string(ext)));
   // The surveyors' CSV of doc/your_own_site.md, in the site frame.
   const fs::path csv = dir / "targets.csv";
   std::ofstream(csv) << "# crs: site\nid,role,x,y,z,sigma_h,sigma_v\n"
                         "tag36h11/0,control,0.0,0.0,0.0,0.010,0.020\n"
                         "tag36h11/1,monitoring,5.0,5.0,1.0,0.30,0.50\n";
-  for (const std::string& bag : {bag_a, bag_b}) {
+  const std::string site_history = (home / ".ros/slope_monitor/replay_rates.db").string();
+  for (const std::string& bag : {bag_a, bag_b, bag_c}) {
     const fs::path run = dir / fs::path(bag).stem();
     fs::create_directories(run);
     const int status = Wait(Spawn({SM_PROCESS_BAG, "--bag", bag, "--target-list", csv.string(),
@@ -150,26 +157,18 @@ TEST(ProcessBagDefaults, EachBagItsOwnHistoryACsvTargetListPlainProgress) {
                                                                      << err;
     EXPECT_EQ(err.find('\r'), std::string::npos) << "a carriage return in the log";
     EXPECT_EQ(err.find('\033'), std::string::npos) << "an escape sequence in the log";
-    EXPECT_EQ(err.find("continuing the history"), std::string::npos)
-        << "a new bag continued a history";
+    // The first line: which history, of which site.
+    const std::string expected =
+        bag == bag_c
+            ? "process_bag: history '" + (home / ".ros/slope_monitor/site_c.db").string() +
+                  "' of site '(unnamed)': a new history"
+            : "process_bag: history '" + site_history + "' of site 'replay_rates': a new history";
+    EXPECT_EQ(err.rfind(expected, 0), 0u) << err;
   }
-  // The same bag again continues its own history, and says so.
-  const fs::path again = dir / "site_b_again";
-  fs::create_directories(again);
-  EXPECT_EQ(Wait(Spawn({SM_PROCESS_BAG, "--bag", bag_b, "--target-list", csv.string(),
-                        "--report-dir", (again / "reports").string()},
-                       again, {"HOME=" + home.string()})),
-            1);
-  EXPECT_NE(ReadFile(again / "stderr")
-                .find("process_bag: continuing the history '" +
-                      (home / ".ros/slope_monitor/site_b.db").string() +
-                      "' of an earlier run of this bag (no --database given); --database FILE "
-                      "starts another\n"),
-            std::string::npos)
-      << ReadFile(again / "stderr");
-  EXPECT_TRUE(fs::is_regular_file(home / ".ros/slope_monitor/site_a.db"));
-  EXPECT_TRUE(fs::is_regular_file(home / ".ros/slope_monitor/site_b.db"));
-  EXPECT_FALSE(fs::exists(home / ".ros/slope_monitor/replay.db")) << "a history shared by bags";
+  EXPECT_TRUE(fs::is_regular_file(site_history));
+  EXPECT_FALSE(fs::exists(home / ".ros/slope_monitor/site_a.db")) << "a history per recording";
+  EXPECT_FALSE(fs::exists(home / ".ros/slope_monitor/site_b.db")) << "a history per recording";
+  EXPECT_TRUE(fs::is_regular_file(home / ".ros/slope_monitor/site_c.db"));
 }
 
 }  // namespace

@@ -86,8 +86,12 @@ std::vector<std::string> WriteRecordings(const fs::path& dir) {
 // stdout, stderr in `run`. The exit status.
 int ProcessRecording(const std::string& stem, const fs::path& home, const fs::path& run) {
   fs::create_directories(run);
-  const std::vector<std::string> args = {SM_PROCESS_BAG, "--bag", stem + ".bag", "--site-config",
-                                         stem + ".site.yaml", "--report-dir",
+  const std::vector<std::string> args = {SM_PROCESS_BAG,
+                                         "--bag",
+                                         stem + ".bag",
+                                         "--site-config",
+                                         stem + ".site.yaml",
+                                         "--report-dir",
                                          (home / "reports").string()};
   return replay_test::Wait(replay_test::Spawn(args, run, {"HOME=" + home.string()}));
 }
@@ -174,9 +178,10 @@ class Season : public ::testing::Test {
     dir_ = new fs::path(Scratch("season"));
     recordings_ = new std::vector<std::string>(WriteRecordings(*dir_));
     // The whole survey in one go: the numbers a season must reproduce.
-    ASSERT_EQ(ProcessRecording(Survey(kSurvey, ".bag").substr(0, Survey(kSurvey, ".bag").size() - 4),
-                               *dir_ / "whole", *dir_ / "whole_run"),
-              0)
+    ASSERT_EQ(
+        ProcessRecording(Survey(kSurvey, ".bag").substr(0, Survey(kSurvey, ".bag").size() - 4),
+                         *dir_ / "whole", *dir_ / "whole_run"),
+        0)
         << replay_test::ReadFile(*dir_ / "whole_run" / "stderr");
   }
   static fs::path History(const fs::path& home) {
@@ -190,7 +195,7 @@ std::vector<std::string>* Season::recordings_ = nullptr;
 
 TEST_F(Season, RecordingsContinueTheSiteHistory) {
   const std::vector<std::string>& rec = *recordings_;
-  EXPECT_NE(replay_test::ReadFile(rec[0] + ".site.yaml").find("site_name: full_graph_replay\n"),
+  EXPECT_NE(replay_test::ReadFile(rec[0] + ".site.yaml").find("site_name: full_graph_replay "),
             std::string::npos);
   const fs::path home = *dir_ / "season";
   for (size_t k = 0; k < rec.size(); ++k) {
@@ -251,19 +256,26 @@ TEST_F(Season, LastRecordingThroughReplayLaunch) {
   const fs::path run = *dir_ / "launch_run3";
   fs::create_directories(run);
   const int port = replay_test::FreePort();
-  const std::vector<std::string> argv = {
-      "roslaunch", "-p", std::to_string(port), "slope_monitor", "replay.launch",
-      "bag:=" + rec[2] + ".bag", "site_config:=" + rec[2] + ".site.yaml", "dense:=false"};
+  const std::vector<std::string> argv = {"roslaunch",
+                                         "-p",
+                                         std::to_string(port),
+                                         "slope_monitor",
+                                         "replay.launch",
+                                         "bag:=" + rec[2] + ".bag",
+                                         "site_config:=" + rec[2] + ".site.yaml",
+                                         "dense:=false"};
   const int status = replay_test::WaitAtMost(
-      replay_test::Spawn(argv, run,
-                         {"HOME=" + home.string(),
-                          "ROS_MASTER_URI=http://127.0.0.1:" + std::to_string(port),
-                          "ROS_LOG_DIR=" + (run / "log").string(),
-                          "ROS_HOME=" + (run / "ros_home").string()}),
+      replay_test::Spawn(
+          argv, run,
+          {"HOME=" + home.string(), "ROS_MASTER_URI=http://127.0.0.1:" + std::to_string(port),
+           "ROS_LOG_DIR=" + (run / "log").string(), "ROS_HOME=" + (run / "ros_home").string()}),
       std::chrono::seconds(180));
-  ASSERT_EQ(status, 0) << replay_test::ReadFile(run / "stdout") << replay_test::ReadFile(run / "stderr");
+  ASSERT_EQ(status, 0) << replay_test::ReadFile(run / "stdout")
+                       << replay_test::ReadFile(run / "stderr");
+  // replay.launch's own report_dir default, ~/.ros/slope_monitor/reports.
   ExpectSameReport(*dir_ / "whole" / "reports" / "deformation.csv",
-                   home / "reports" / "deformation.csv", "the last recording by replay.launch");
+                   home / ".ros" / "slope_monitor" / "reports" / "deformation.csv",
+                   "the last recording by replay.launch");
 }
 
 // Bad input: another site's recording, a history without its reference.
@@ -282,15 +294,14 @@ TEST_F(Season, AnotherSiteAndAMissingReferenceAreRefused) {
   std::ofstream(other + ".site.yaml") << overlay;
   const fs::path run = *dir_ / "bad_other";
   fs::create_directories(run);
-  const int status = replay_test::Wait(replay_test::Spawn(
-      {SM_PROCESS_BAG, "--bag", other + ".bag", "--site-config", other + ".site.yaml",
-       "--database", History(home).string()},
-      run, {"HOME=" + home.string()}));
+  const int status = replay_test::Wait(
+      replay_test::Spawn({SM_PROCESS_BAG, "--bag", other + ".bag", "--site-config",
+                          other + ".site.yaml", "--database", History(home).string()},
+                         run, {"HOME=" + home.string()}));
   const std::string err = replay_test::ReadFile(run / "stderr");
   EXPECT_EQ(status, 1) << err;
   EXPECT_NE(err.find("is of site 'south_gully'"), std::string::npos) << err;
-  EXPECT_NE(err.find("is of site 'full_graph_replay': refused, nothing written"),
-            std::string::npos)
+  EXPECT_NE(err.find("is of site 'full_graph_replay': refused, nothing written"), std::string::npos)
       << err;
   EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
   EXPECT_EQ(Count(History(home), "SELECT count(*) FROM observations"), observations);
@@ -298,8 +309,9 @@ TEST_F(Season, AnotherSiteAndAMissingReferenceAreRefused) {
   // The history's reference removed (edited by hand): refused, the file as it was.
   sqlite3* h = nullptr;
   ASSERT_EQ(sqlite3_open(History(home).c_str(), &h), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(h, "DELETE FROM meta WHERE key = 'datum_stamp'", nullptr, nullptr, nullptr),
-            SQLITE_OK);
+  ASSERT_EQ(
+      sqlite3_exec(h, "DELETE FROM meta WHERE key = 'datum_stamp'", nullptr, nullptr, nullptr),
+      SQLITE_OK);
   sqlite3_close(h);
   const std::string before = replay_test::ReadFile(History(home));
   const fs::path missing = *dir_ / "bad_missing";
@@ -322,7 +334,8 @@ TEST_F(Season, FirstMovementIsMeasuredAndAlerted) {
   for (const sim::TargetTruth& t : truth.targets) {
     if (t.role != io::TargetRole::kMonitoring) continue;
     const Eigen::Vector3d x = t.positions.at(0);
-    const Eigen::Vector3d v_true = (truth.DisplacementAt(x, t1 + 1.0) - truth.DisplacementAt(x, t1 - 1.0)) / 2.0;
+    const Eigen::Vector3d v_true =
+        (truth.DisplacementAt(x, t1 + 1.0) - truth.DisplacementAt(x, t1 - 1.0)) / 2.0;
     if (v_true.norm() * 86400e3 < 50.0) continue;  // moving points only
     // The fused estimate right after the point's first target measurement at epoch 1.
     sqlite3* h = nullptr;

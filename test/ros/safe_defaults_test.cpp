@@ -86,8 +86,8 @@ TEST(SafeDefaults, OneHistoryPerSiteAndNoDataChangingServicesOnALiveSite) {
       {{"replay.launch", "bag:=" + bag_b}, {"live.launch", site + " services:=true"}});
   // The history: "auto" in replay.launch and live.launch, for every node
   // that keeps a reference, resolved by the same rule as process_bag's.
-  for (const char* node : {" /deformation_estimator", " /bundle_adjuster",
-                           " /radio/radio_phase_solver"}) {
+  for (const char* node :
+       {" /deformation_estimator", " /bundle_adjuster", " /radio/radio_phase_solver"}) {
     EXPECT_EQ(SdValue(first, std::string("replay.launch") + node, "database"), "auto") << node;
     EXPECT_EQ(SdValue(first, std::string("live.launch") + node, "database"), "auto") << node;
   }

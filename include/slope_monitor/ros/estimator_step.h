@@ -130,8 +130,7 @@ class EstimatorStep {
   MessageValidator validator_;
   deformation::AlertChangeTracker alert_changes_;
   std::unique_ptr<deformation::AlertHook> hook_;  // the site's notification hook, if any
-  uint64_t messages_ = 0, accepted_ = 0, refused_ = 0, errors_ = 0, already_held_ = 0,
-           revised_ = 0;
+  uint64_t messages_ = 0, accepted_ = 0, refused_ = 0, errors_ = 0, already_held_ = 0, revised_ = 0;
   size_t num_points_ = 0;
   deformation::AlertLevel last_alert_ = deformation::AlertLevel::kNone;
   std::string last_problem_;

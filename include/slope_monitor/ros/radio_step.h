@@ -90,7 +90,7 @@ class RadioStep {
   bool resumed_ = false;
   bool late_ = false;        // epochs of later recordings are in the history
   double last_stamp_ = 0.0;  // of this run's last epoch
-  std::string run_key_;  // this run's state: radio/<first block's stamp>
+  std::string run_key_;      // this run's state: radio/<first block's stamp>
   long blocks_received_ = 0, errors_ = 0;
   unsigned int epochs_ = 0;
   std::string last_error_, last_event_;

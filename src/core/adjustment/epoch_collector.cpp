@@ -130,7 +130,8 @@ std::vector<CollectedEpoch> EpochCollector::AddTargets(const ImageTargets& image
         Message("camera '", image.camera, "' sends its images in frame '", frame,
                 "', the frame of camera '", owner->second,
                 "': its images are refused (each camera its own frame: camera_capture.launch "
-                "camera_name:=", image.camera, ")");
+                "camera_name:=",
+                image.camera, ")");
     if (std::find(ignored_.begin(), ignored_.end(), line) == ignored_.end())
       ignored_.push_back(line);
     return done;
@@ -694,17 +695,6 @@ std::string EpochStore::Save() const {
     for (const auto& [id, p] : ref->points)
       w.Put(id).Put(static_cast<int>(p.role)).Put(p.position).Put(p.covariance);
   }
-  w.Put(static_cast<int>(calibrated_.size()));
-  for (const auto& [name, model] : calibrated_) {
-    w.Put(name).Put(model.sensor().width).Put(model.sensor().height);
-    w.Put(model.sensor().pixel_size).Put(static_cast<int>(model.model()));
-    for (double v : model.interior()) w.Put(v);
-  }
-  w.Put(static_cast<int>(last_pose_.size()));
-  for (const auto& [name, pose] : last_pose_) {
-    w.Put(name);
-    for (double v : pose.ToArray()) w.Put(v);
-  }
   return w.str();
 }
 
@@ -725,25 +715,6 @@ void EpochStore::Load(const std::string& text) {
     }
     loaded.epochs_[ref.epoch] = ref;
     loaded.reference_epoch_ = ref.epoch;
-  }
-  const int cameras = r.Int();
-  for (int i = 0; i < cameras; ++i) {
-    const std::string name = r.String();
-    camera::Sensor sensor;
-    sensor.width = r.Int();
-    sensor.height = r.Int();
-    sensor.pixel_size = r.Double();
-    const auto model = static_cast<camera::DistortionModel>(r.Int());
-    std::array<double, camera::kNumInterior> interior{};
-    for (double& v : interior) v = r.Double();
-    loaded.calibrated_[name] = camera::CameraModel(sensor, model, interior);
-  }
-  const int poses = r.Int();
-  for (int i = 0; i < poses; ++i) {
-    const std::string name = r.String();
-    double e[camera::kNumExterior];
-    for (double& v : e) v = r.Double();
-    loaded.last_pose_[name] = camera::ExteriorOrientation::FromArray(e);
   }
   *this = std::move(loaded);
 }

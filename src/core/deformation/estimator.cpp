@@ -289,10 +289,9 @@ BatchSummary Estimator::AddBatch(const Batch& batch_in) {
     for (size_t i = 0; i < batch.measurements.size(); ++i) sequences.push_back(next_sequence_++);
   }
   const uint64_t first = sequences.empty() ? 0 : sequences.front();
-  const bool late = !held_.empty() && StampOrder(batch, first, held_.back().batch,
-                                                 held_.back().sequences.empty()
-                                                     ? 0
-                                                     : held_.back().sequences.front());
+  const bool late = !held_.empty() &&
+                    StampOrder(batch, first, held_.back().batch,
+                               held_.back().sequences.empty() ? 0 : held_.back().sequences.front());
   held_.push_back({batch, sequences});
   BatchSummary s;
   if (late) {
@@ -612,26 +611,27 @@ void Estimator::UpdateAlerts() {
     }
     p->alert = static_cast<AlertLevel>(level);
     if (level == 0) {
-      p->alert_reason = candidate[id] > 0
-                            ? Message(by_displacement[id] ? "displacement " : "speed ",
-                                      by_displacement[id] ? Fixed(d * 1e3, 1) + " mm"
-                                                          : Fixed(speed * kMmPerDay, 2) + " mm/day",
-                                      " exceeds ", AlertName(static_cast<AlertLevel>(candidate[id])),
-                                      " but is not confirmed (", count[candidate[id]], " of ",
-                                      a.confirm_points, " points)")
-                            : "";
+      p->alert_reason =
+          candidate[id] > 0
+              ? Message(by_displacement[id] ? "displacement " : "speed ",
+                        by_displacement[id] ? Fixed(d * 1e3, 1) + " mm"
+                                            : Fixed(speed * kMmPerDay, 2) + " mm/day",
+                        " exceeds ", AlertName(static_cast<AlertLevel>(candidate[id])),
+                        " but is not confirmed (", count[candidate[id]], " of ", a.confirm_points,
+                        " points)")
+              : "";
     } else if (level > confirmed) {
-      p->alert_reason = Message("held by hysteresis: speed ", Fixed(speed * kMmPerDay, 2),
-                                " mm/day, displacement ", Fixed(d * 1e3, 1), " mm > ",
-                                a.hysteresis, " x ", AlertName(p->alert), " threshold ",
-                                Fixed(th.Of(p->alert) * kMmPerDay, 2), " mm/day or ",
-                                Fixed(th.DisplacementOf(p->alert) * 1e3, 1), " mm");
+      p->alert_reason =
+          Message("held by hysteresis: speed ", Fixed(speed * kMmPerDay, 2),
+                  " mm/day, displacement ", Fixed(d * 1e3, 1), " mm > ", a.hysteresis, " x ",
+                  AlertName(p->alert), " threshold ", Fixed(th.Of(p->alert) * kMmPerDay, 2),
+                  " mm/day or ", Fixed(th.DisplacementOf(p->alert) * 1e3, 1), " mm");
     } else if (by_displacement[id] && candidate[id] == level) {
-      p->alert_reason = Message(
-          "displacement ", Fixed(d * 1e3, 1), " +- ", Fixed(d_sigma * 1e3, 1), " mm > ",
-          AlertName(p->alert), " threshold ", Fixed(th.DisplacementOf(p->alert) * 1e3, 1),
-          " mm by ", k, " sigma; confirmed by ", count[level], " point(s), ", by_sources,
-          " source(s)");
+      p->alert_reason =
+          Message("displacement ", Fixed(d * 1e3, 1), " +- ", Fixed(d_sigma * 1e3, 1), " mm > ",
+                  AlertName(p->alert), " threshold ", Fixed(th.DisplacementOf(p->alert) * 1e3, 1),
+                  " mm by ", k, " sigma; confirmed by ", count[level], " point(s), ", by_sources,
+                  " source(s)");
     } else {
       p->alert_reason = Message(
           "speed ", Fixed(speed * kMmPerDay, 2), " +- ", Fixed(sigma * kMmPerDay, 2), " mm/day > ",

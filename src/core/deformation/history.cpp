@@ -251,7 +251,7 @@ namespace {
 
 const char* kSavedStates =
     "CREATE TABLE IF NOT EXISTS saved_states(key TEXT PRIMARY KEY, stamp REAL NOT NULL, "
-    "value TEXT NOT NULL, written TEXT)";
+    "value TEXT NOT NULL)";
 
 // Opens (creating when `create`) a SQLite file; IoError naming it.
 sqlite3* OpenDatabase(const std::string& path, bool create) {
@@ -287,7 +287,8 @@ HistoryInfo DescribeHistory(const std::string& path) {
       if (auto s = meta("reference_stamp"); s && !s->empty()) {
         info.has_reference = true;
         info.reference_stamp = std::stod(*s);
-        info.reference_epoch = static_cast<uint32_t>(std::stoul(meta("reference_epoch").value_or("0")));
+        info.reference_epoch =
+            static_cast<uint32_t>(std::stoul(meta("reference_epoch").value_or("0")));
       }
       info.reference_recording = meta("reference_recording").value_or("");
       Statement e(db,
@@ -336,13 +337,10 @@ void SavedStates::Exec(const std::string& sql) const {
 }
 
 void SavedStates::Put(const std::string& key, double stamp, const std::string& value) {
-  Statement q(db_,
-              "INSERT OR REPLACE INTO saved_states(key, stamp, value, written) VALUES(?, ?, ?, ?)",
-              path_);
+  Statement q(db_, "INSERT OR REPLACE INTO saved_states(key, stamp, value) VALUES(?, ?, ?)", path_);
   q.Bind(1, key);
   q.Bind(2, stamp);
   q.Bind(3, value);
-  q.Bind(4, UtcNow());
   q.Step();
 }
 
@@ -365,8 +363,7 @@ std::optional<SavedStates::Saved> SavedStates::LatestBefore(const std::string& p
   return Saved{q.Text(0), q.Double(1), q.Text(2)};
 }
 
-std::vector<SavedStates::Saved> SavedStates::After(const std::string& prefix,
-                                                   double stamp) const {
+std::vector<SavedStates::Saved> SavedStates::After(const std::string& prefix, double stamp) const {
   Statement q(db_,
               "SELECT key, stamp, value FROM saved_states WHERE substr(key, 1, length(?1)) = ?1 "
               "AND stamp > ?2 ORDER BY stamp, key",
@@ -598,10 +595,9 @@ void History::CheckSite(const std::string& site) {
     return;
   }
   if (*held != site)
-    throw ConfigError(Message("the recording is of site '", site, "' but the history '", path_,
-                              "' is of site '", *held,
-                              "'; nothing written (--database names the history of site '", site,
-                              "')"));
+    throw ConfigError(
+        Message("the recording is of site '", site, "' but the history '", path_, "' is of site '",
+                *held, "'; nothing written (--database names the history of site '", site, "')"));
 }
 
 void History::CheckReference() const {
@@ -616,8 +612,9 @@ void History::StartNewReference() {
   Exec("BEGIN IMMEDIATE");
   try {
     Exec("INSERT OR REPLACE INTO meta(key, value) VALUES('datum_stamp', '')");
-    Exec("DELETE FROM meta WHERE key IN ('reference_epoch', 'reference_stamp', "
-         "'reference_recording')");
+    Exec(
+        "DELETE FROM meta WHERE key IN ('reference_epoch', 'reference_stamp', "
+        "'reference_recording')");
     Exec("DELETE FROM reference_offsets");
     Exec(kSavedStates);
     Exec("DELETE FROM saved_states");

@@ -171,7 +171,8 @@ std::string WriteCsv(const Snapshot& s, const std::string& path, const ReportOpt
   const std::optional<SiteCrs> site = ReportSiteCrs(options);
   std::ostringstream o;
   // reference_epoch, reference_time_utc: what every displacement is measured from.
-  o << "id,x,y,z,lon,lat,h,time_utc,reference_epoch,reference_time_utc,dx_mm,dy_mm,dz_mm,d_mm,sigma_dx_mm,sigma_dy_mm,sigma_dz_mm,vx_"
+  o << "id,x,y,z,lon,lat,h,time_utc,reference_epoch,reference_time_utc,dx_mm,dy_mm,dz_mm,d_mm,"
+       "sigma_dx_mm,sigma_dy_mm,sigma_dz_mm,vx_"
        "mm_per_day,"
        "vy_mm_per_day,vz_mm_per_day,speed_mm_per_day,sigma_speed_mm_per_day,alert,forecast_valid,"
        "forecast_failure_time_utc,forecast_sigma_h,forecast_window_h,sources,sources_disagree,"

@@ -20,10 +20,12 @@ void ApplySite(const io::SiteFile& site, EstimatorOptions* o, ReportOptions* rep
   if (site.thresholds.warning) o->alerts.thresholds.warning = *site.thresholds.warning * to_si;
   if (site.thresholds.alarm) o->alerts.thresholds.alarm = *site.thresholds.alarm * to_si;
   Thresholds& th = o->alerts.thresholds;
-  if (site.thresholds.displacement_watch) th.displacement_watch = *site.thresholds.displacement_watch * 1e-3;
+  if (site.thresholds.displacement_watch)
+    th.displacement_watch = *site.thresholds.displacement_watch * 1e-3;
   if (site.thresholds.displacement_warning)
     th.displacement_warning = *site.thresholds.displacement_warning * 1e-3;
-  if (site.thresholds.displacement_alarm) th.displacement_alarm = *site.thresholds.displacement_alarm * 1e-3;
+  if (site.thresholds.displacement_alarm)
+    th.displacement_alarm = *site.thresholds.displacement_alarm * 1e-3;
   if (site.thresholds.area_growth_watch) o->areas.growth_watch = *site.thresholds.area_growth_watch;
   if (site.thresholds.area_growth_warning)
     o->areas.growth_warning = *site.thresholds.area_growth_warning;

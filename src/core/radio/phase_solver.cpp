@@ -898,14 +898,17 @@ std::string RadioPhaseSolver::Save() const {
     w.Put(t.reference_cov).Put(t.d).Put(t.p).Put(t.last_stamp).Put(t.status);
   }
   for (const auto& row : links_)
-    for (const Link& l : row) w.Put(l.has_constant).Put(l.constant).Put(l.rejected_streak).Put(l.refixes);
+    for (const Link& l : row)
+      w.Put(l.has_constant).Put(l.constant).Put(l.rejected_streak).Put(l.refixes);
   w.Put(static_cast<int>(init_buffer_.size()));
   for (size_t e = 0; e < init_buffer_.size(); ++e) {
     w.Put(init_stamps_.at(e));
     for (const auto& row : init_buffer_[e])
-      for (const Obs& o : row) w.Put(o.valid).Put(o.phase).Put(o.variance).Put(o.snr).Put(o.problem);
+      for (const Obs& o : row)
+        w.Put(o.valid).Put(o.phase).Put(o.variance).Put(o.snr).Put(o.problem);
   }
-  for (const auto& s : last_sequence_) w.Put(s.has_value()).Put(static_cast<int64_t>(s.value_or(0)));
+  for (const auto& s : last_sequence_)
+    w.Put(s.has_value()).Put(static_cast<int64_t>(s.value_or(0)));
   const ReferenceSolution& r = reference_;
   w.Put(r.solved).Put(r.stamp).Put(r.num_ambiguities).Put(r.num_fixed).Put(r.ratio);
   w.Put(static_cast<int>(r.fix_state)).Put(static_cast<int>(r.excluded.size()));

@@ -85,7 +85,8 @@ namespace {
 void ReadSiteSection(io::YamlMap& root, SurveyConfig* out) {
   SurveyConfig& c = *out;
   io::YamlMap site = root.Map("site");
-  std::string stem = c.path.substr(c.path.find_last_of('/') + 1);  // demo_site.sim.yaml -> demo_site
+  std::string stem =
+      c.path.substr(c.path.find_last_of('/') + 1);  // demo_site.sim.yaml -> demo_site
   stem = stem.substr(0, stem.find('.'));
   c.name = site.String("name", stem.empty() ? "simulated_site" : stem);
   if (c.name.empty() || c.name.find_first_of("/ \t") != std::string::npos)

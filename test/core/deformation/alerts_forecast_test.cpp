@@ -119,6 +119,11 @@ TEST(Alerts, HysteresisHoldsALevelJustBelowItsThreshold) {
   // 5 mm/day (< 6) they drop to watch. Radio noise 0.5 mm every 30 min.
   EstimatorOptions o = AlertTestOptions();
   o.alerts.hysteresis = 0.6;
+  // The speed's hysteresis alone: the 90 mm these points travel would raise
+  // the displacement levels (10 / 30 / 100 mm) and hold them.
+  o.alerts.thresholds.displacement_watch = 10.0;
+  o.alerts.thresholds.displacement_warning = 20.0;
+  o.alerts.thresholds.displacement_alarm = 30.0;
   Estimator est(o);
   std::mt19937 rng(3);
   std::normal_distribution<double> n(0.0, 0.0005);

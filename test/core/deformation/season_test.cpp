@@ -25,8 +25,8 @@ constexpr double kSeasonT0 = 1700000000.0;
 constexpr double kSeasonDay = 86400.0;
 
 // One source's measurement of `ids` at t0 + dt: each moved `d` [m] south, sigma per axis.
-Batch Epoch(uint32_t epoch, double dt, const std::vector<std::string>& ids, double d,
-            double sigma, Source source = Source::kTarget) {
+Batch Epoch(uint32_t epoch, double dt, const std::vector<std::string>& ids, double d, double sigma,
+            Source source = Source::kTarget) {
   Batch b;
   b.epoch = epoch;
   b.stamp = kSeasonT0 + dt;
@@ -138,7 +138,8 @@ TEST(Season, RevisedMeasurementsReplaceTheHeldOnes) {
     Estimator e(EstimatorOptions(), &h);
     e.AddBatch(Epoch(1, 1 * kSeasonDay, ids, 0.010, 0.002, Source::kRadio));
     e.AddBatch(Epoch(2, 2 * kSeasonDay, ids, 0.025, 0.002, Source::kRadio));
-    const BatchSummary r = e.ReviseBatch(Epoch(2, 2 * kSeasonDay, ids, 0.021, 0.002, Source::kRadio));
+    const BatchSummary r =
+        e.ReviseBatch(Epoch(2, 2 * kSeasonDay, ids, 0.021, 0.002, Source::kRadio));
     EXPECT_EQ(r.revised, 1);
     EXPECT_EQ(h.CountRows("observations"), 2);
     EXPECT_EQ(Point(e.GetSnapshot(), "a").displacement,
@@ -193,9 +194,9 @@ TEST(Season, HistoryOfOneSiteWithItsReference) {
     // Its reference removed (an edited file): refused, naming the file.
     sqlite3* db = nullptr;
     ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
-    ASSERT_EQ(sqlite3_exec(db, "DELETE FROM meta WHERE key = 'datum_stamp'", nullptr, nullptr,
-                           nullptr),
-              SQLITE_OK);
+    ASSERT_EQ(
+        sqlite3_exec(db, "DELETE FROM meta WHERE key = 'datum_stamp'", nullptr, nullptr, nullptr),
+        SQLITE_OK);
     sqlite3_close(db);
     History h(path);
     try {

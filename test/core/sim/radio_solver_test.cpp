@@ -387,7 +387,8 @@ TEST(RadioSolver, SavedStateAndPhasesContinueBitForBit) {
     ASSERT_EQ(a.transmitters.size(), b.transmitters.size());
     for (size_t i = 0; i < a.transmitters.size(); ++i) {
       EXPECT_EQ(a.transmitters[i].displacement, b.transmitters[i].displacement) << e;
-      EXPECT_EQ(a.transmitters[i].displacement_covariance, b.transmitters[i].displacement_covariance);
+      EXPECT_EQ(a.transmitters[i].displacement_covariance,
+                b.transmitters[i].displacement_covariance);
       EXPECT_EQ(a.transmitters[i].displacement, c.transmitters[i].displacement) << e;
     }
   }

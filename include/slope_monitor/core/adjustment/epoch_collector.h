@@ -283,12 +283,16 @@ class EpochStore {
   int accepted() const { return static_cast<int>(epochs_.size()); }
 
   // What a later run of the same site needs (the site's history keeps it,
-  // deformation/history.h): the reference epoch's points (positions,
-  // roles, covariances), each camera's last pose and calibration (where the
-  // next epoch starts). Exact to the bit (core/common/state_text.h).
+  // deformation/history.h): the reference epoch's points (positions, roles,
+  // covariances), exact to the bit (core/common/state_text.h). Not the
+  // cameras' last poses and calibrations: an epoch's start values then do
+  // not depend on which runs came before, so a run again on the same
+  // history (after kill -9) gives bit for bit the numbers of one that never
+  // stopped.
   std::string Save() const;
   // Replaces the store's content with a saved one (the reference becomes
-  // the saved reference); throws InvalidArgument for text that is not one.
+  // the saved reference; no poses, no calibrations); throws InvalidArgument
+  // for text that is not one.
   void Load(const std::string& text);
 
  private:

@@ -42,12 +42,11 @@
 // batches held (the history's), in stamp order.
 //
 // Reference: displacements are relative to the reference epoch. The
-// history's datum (meta datum_stamp), else the first batch's reference_stamp, is the datum; measurements whose
-// reference_stamp differs from it by more than reference_tolerance are
-// refused (their source uses another datum) and counted. SetReferenceEpoch
-// re-bases the reported displacements on a later epoch: the fused
-// displacement at that epoch's stamp is subtracted (its covariance added,
-// ignoring the correlation: conservative).
+// history's datum (meta datum_stamp), else the first batch's reference_stamp, is the datum;
+// measurements whose reference_stamp differs from it by more than reference_tolerance are refused
+// (their source uses another datum) and counted. SetReferenceEpoch re-bases the reported
+// displacements on a later epoch: the fused displacement at that epoch's stamp is subtracted (its
+// covariance added, ignoring the correlation: conservative).
 #pragma once
 
 #include <cstdint>
@@ -130,12 +129,12 @@ struct AreaBatch {
 // (monitoring systems offer both: a slope creeping a few mm a month between
 // flights weeks apart crosses a displacement threshold long before a speed one).
 struct Thresholds {
-  double watch = 1.0 / 86400.0 * 1e-3 * 2.0;     // [m/s] 2 mm/day
-  double warning = 1.0 / 86400.0 * 1e-3 * 10.0;  // [m/s] 10 mm/day
-  double alarm = 1.0 / 86400.0 * 1e-3 * 50.0;    // [m/s] 50 mm/day
-  double displacement_watch = 0.010;             // [m] 10 mm since the reference
-  double displacement_warning = 0.030;           // [m] 30 mm
-  double displacement_alarm = 0.100;             // [m] 100 mm
+  double watch = 1.0 / 86400.0 * 1e-3 * 2.0;      // [m/s] 2 mm/day
+  double warning = 1.0 / 86400.0 * 1e-3 * 10.0;   // [m/s] 10 mm/day
+  double alarm = 1.0 / 86400.0 * 1e-3 * 50.0;     // [m/s] 50 mm/day
+  double displacement_watch = 0.010;              // [m] 10 mm since the reference
+  double displacement_warning = 0.030;            // [m] 30 mm
+  double displacement_alarm = 0.100;              // [m] 100 mm
   double Of(AlertLevel level) const;              // speed threshold [m/s]
   double DisplacementOf(AlertLevel level) const;  // displacement threshold [m]
   void Check(const std::string& context) const;   // throws ConfigError
@@ -246,9 +245,9 @@ struct Snapshot {
 
 struct BatchSummary {
   int accepted = 0;
-  int refused = 0;       // other datum, too late, bad covariance, already held
-  int already_held = 0;  // of `refused`: measurements already received (AddBatch)
-  int revised = 0;       // measurements replaced (ReviseBatch)
+  int refused = 0;                    // other datum, too late, bad covariance, already held
+  int already_held = 0;               // of `refused`: measurements already received (AddBatch)
+  int revised = 0;                    // measurements replaced (ReviseBatch)
   std::vector<std::string> messages;  // one per refused measurement
 };
 
@@ -333,8 +332,9 @@ class Estimator {
   bool has_areas_ = false;
   uint32_t last_area_epoch_ = 0;
   std::set<std::string> received_;  // keys of every measurement received (duplicate check)
-  std::vector<Held> held_;           // every batch processed, in stamp order
-  bool has_history_datum_ = false;  // the datum once fixed (or the history's), kept through a re-run
+  std::vector<Held> held_;          // every batch processed, in stamp order
+  bool has_history_datum_ =
+      false;  // the datum once fixed (or the history's), kept through a re-run
   double history_datum_ = 0.0;
   bool datum_pending_ = false;  // a new reference asked for: the next new measurement sets it
   uint64_t reruns_ = 0;

@@ -51,7 +51,7 @@
 //           dx REAL, dy REAL, dz REAL, covariance BLOB)   --   reference epoch, subtracted on
 //           output
 //   saved_states(key TEXT PRIMARY KEY, stamp REAL,        -- (any version; SavedStates) the
-//           value TEXT, written TEXT)                     --   sources' references, see below
+//           value TEXT)                                   --   sources' references, see below
 //
 // The history belongs to a site (issue 48): meta `site` names it (a
 // recording of another site is refused by the caller), meta
