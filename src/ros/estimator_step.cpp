@@ -27,10 +27,11 @@ LogLine::Level LineLevel(deformation::LogLevel level) {
 
 EstimatorStep::EstimatorStep(const EstimatorParameters& parameters,
                              const std::vector<std::string>& ordered_inputs,
-                             deformation::AlertHook::Log hook_log)
-    : parameters_(parameters) {
-  if (!parameters_.database.empty()) {
-    history_ = std::make_unique<deformation::History>(parameters_.database);
+                             deformation::AlertHook::Log hook_log,
+                             std::unique_ptr<deformation::History> history)
+    : parameters_(parameters), history_(std::move(history)) {
+  if (history_ || !parameters_.database.empty()) {
+    if (!history_) history_ = std::make_unique<deformation::History>(parameters_.database);
     history_->CheckReference();
     history_->CheckSite(parameters_.site ? parameters_.site->name : parameters_.site_name);
   }

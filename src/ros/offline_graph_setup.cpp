@@ -201,7 +201,8 @@ void OfflineGraph::SetUpEstimator() {
       ReadEstimatorParameters(r), ordered,
       // The site's notification hook, from its worker thread: straight to
       // stderr, not through the progress line.
-      [](bool, const std::string& m) { std::cerr << "deformation_estimator: " << m << std::endl; });
+      [](bool, const std::string& m) { std::cerr << "deformation_estimator: " << m << std::endl; },
+      options_.history ? std::move(*options_.history) : nullptr);
 }
 
 // The fixed_targetless cameras of the site (launch/include/processing_graph.xml

@@ -330,7 +330,7 @@ void PrintSummary(const Args& args, bool has_points, bool has_output) {
 // the recording it came from, its epochs) or that it starts one. False (said
 // in one line) when the history is of another site, or --new-reference is
 // refused.
-bool SayHistory(const Args& a) {
+bool SayHistory(const Args& a, deformation::History* history) {
   const deformation::HistoryInfo h = deformation::DescribeHistory(a.database);
   const std::string site = a.site_name.empty() ? "(unnamed)" : a.site_name;
   if (!h.site.empty() && !a.site_name.empty() && h.site != a.site_name) {
@@ -354,7 +354,7 @@ bool SayHistory(const Args& a) {
               << (a.new_reference ? "; a new reference from this recording (--new-reference)" : "")
               << "\n";
   }
-  if (a.new_reference && h.exists) deformation::History(a.database).StartNewReference();
+  if (a.new_reference && h.observations > 0) history->StartNewReference();
   return true;
 }
 
@@ -379,9 +379,12 @@ int Run(Args args) {
   std::vector<BagBreak> breaks;
   for (const std::string& path : args.bags) bags.push_back(OpenBag(path, &temporaries, &breaks));
   CheckInputFiles(args);
-  // One writer per history: another writer is named before anything else is said.
-  { deformation::History probe(args.database); }
-  if (!SayHistory(args)) return 1;
+  // One writer per history: the history opened (its writer lock taken; another
+  // writer named in one line) before anything else is said, then handed to
+  // the graph's estimator.
+  auto history = std::make_unique<deformation::History>(args.database);
+  if (!SayHistory(args, history.get())) return 1;
+  args.history = std::make_shared<std::unique_ptr<deformation::History>>(std::move(history));
   rosbag::View view;
   for (const auto& bag : bags) view.addQuery(*bag);
   if (view.size() == 0) throw InvalidArgument("bag '" + args.bags.front() + "' holds no messages");

@@ -109,6 +109,28 @@ TEST(SafeDefaults, OneHistoryPerSiteAndNoDataChangingServicesOnALiveSite) {
   }
 }
 
+// Two cameras recorded with camera_capture.launch's own example lines
+// (ns:=north_ridge/camera, ns:=drone/camera, no camera_name) keep their own
+// optical frames (issue 48: both were camera_optical, and the adjuster
+// publishes one transform per frame); camera_name:= still names it.
+TEST(SafeDefaults, EachCapturedCameraItsOwnFrame) {
+  SdParams north = SdLaunchParams(
+      {{"camera_capture.launch", "ns:=north_ridge/camera source:=folder folder:=/data/n"}});
+  SdParams drone = SdLaunchParams(
+      {{"camera_capture.launch", "ns:=/drone/camera source:=folder folder:=/data/d"}});
+  SdParams named = SdLaunchParams(
+      {{"camera_capture.launch", "ns:=cam camera_name:=gully source:=folder folder:=/data/g"}});
+  EXPECT_EQ(SdValue(north, "camera_capture.launch /north_ridge/camera/camera_capture", "frame_id"),
+            "north_ridge_optical");
+  EXPECT_EQ(
+      SdValue(north, "camera_capture.launch /north_ridge/camera/camera_capture", "camera_name"),
+      "north_ridge");
+  EXPECT_EQ(SdValue(drone, "camera_capture.launch /drone/camera/camera_capture", "frame_id"),
+            "drone_optical");
+  EXPECT_EQ(SdValue(named, "camera_capture.launch /cam/camera_capture", "frame_id"),
+            "gully_optical");
+}
+
 // A target_list in the surveyors' CSV of doc/your_own_site.md, read as the
 // bundle adjuster (and process_bag's --target-list) reads it.
 AdjusterParameters SdReadAdjuster(const std::string& target_list, const std::string& site = "") {

@@ -56,9 +56,13 @@ class EstimatorStep {
   // arrival order. `hook_log`: the notification hook's lines (error or not),
   // from its worker thread. Throws ConfigError, or deformation::HistoryInUse
   // / IoError for a history that cannot be opened (nothing written to it).
+  // `history`: the database already opened (with its writer lock) by the
+  // caller (process_bag, which says what it holds before anything else);
+  // null: opened here from parameters.database.
   EstimatorStep(const EstimatorParameters& parameters,
                 const std::vector<std::string>& ordered_inputs,
-                deformation::AlertHook::Log hook_log);
+                deformation::AlertHook::Log hook_log,
+                std::unique_ptr<deformation::History> history = nullptr);
 
   const EstimatorParameters& parameters() const { return parameters_; }
   bool has_history() const { return history_ != nullptr; }

@@ -63,6 +63,9 @@ struct OfflineGraphOptions {
   bool verbose = false;  // the bundle adjuster's INFO lines too
   std::string database, report_dir;
   std::string site_name;  // the site the history belongs to (ros/replay_defaults.h); "" = unchecked
+  // `database` opened by the caller (its writer lock held); the graph takes
+  // it over (shared: the options are copied). Null: the estimator opens it.
+  std::shared_ptr<std::unique_ptr<deformation::History>> history;
   // Image messages above this many pixels, or whose header does not describe
   // their data, are skipped before conversion, named (ros/image_limits.h).
   ImageMessageLimits image_limits;

@@ -70,6 +70,31 @@ TEST(EpochCollector, InterleavedCamerasMakeOneEpochWhenBothEnded) {
   EXPECT_EQ(c.num_images(), 0u);
 }
 
+// Two cameras in one optical frame (camera_capture.launch's default frame
+// for both, issue 48): the adjuster publishes one transform per frame, so
+// the second camera's images are refused, the line naming both cameras.
+TEST(EpochCollector, ASecondCameraInAFrameInUseIsRefusedNamingBoth) {
+  EpochCollector c(EpochCollectorOptions(), nullptr);
+  ImageTargets north = Shot("north_ridge", 0), drone = Shot("drone", 1);
+  north.frame_id = drone.frame_id = "camera_optical";
+  c.AddTargets(north, 0);
+  c.AddTargets(drone, 0);
+  c.AddTargets(drone, 0);
+  EXPECT_EQ(c.num_images(), 1u);
+  EXPECT_EQ(c.num_observations(), 3u);
+  ASSERT_EQ(c.ignored().size(), 1u);  // said once
+  EXPECT_NE(c.ignored()[0].find("camera 'drone' sends its images in frame 'camera_optical', "
+                                "the frame of camera 'north_ridge'"),
+            std::string::npos)
+      << c.ignored()[0];
+  // Each camera its own frame: both taken.
+  EpochCollector d(EpochCollectorOptions(), nullptr);
+  d.AddTargets(Shot("north_ridge", 0), 0);
+  d.AddTargets(Shot("drone", 1), 0);
+  EXPECT_EQ(d.num_images(), 2u);
+  EXPECT_TRUE(d.ignored().empty());
+}
+
 TEST(EpochCollector, EndMarkerBeforeItsImagesWaitsForTheAnnouncedCount) {
   EpochCollector c(TwoCameras(), nullptr);
   // The markers come straight from the cameras; the centroider lags.
