@@ -226,6 +226,8 @@ class DeformationEstimatorNodelet : public nodelet::Nodelet {
     for (const ros_adapters::LogLine& line : result.problems) {
       if (line.level == ros_adapters::LogLine::kError)
         NODELET_ERROR_THROTTLE(5.0, "deformation_estimator: %s", line.text.c_str());
+      else if (line.level == ros_adapters::LogLine::kInfo)
+        NODELET_INFO("deformation_estimator: %s", line.text.c_str());
       else
         NODELET_WARN_THROTTLE(10.0, "deformation_estimator: %s", line.text.c_str());
     }

@@ -138,7 +138,7 @@ class RadioPhaseSolverNodelet : public nodelet::Nodelet {
         NODELET_ERROR_THROTTLE(5.0, "radio_phase_solver: %s", line.text.c_str());
       else if (line.level == ros_adapters::LogLine::kWarn)
         NODELET_WARN_THROTTLE(5.0, "radio_phase_solver: %s", line.text.c_str());
-      else  // routine results (every ambiguity fixed, the state loaded): INFO (issue 38)
+      else  // routine results (every ambiguity fixed, the state loaded): INFO
         NODELET_INFO("radio_phase_solver: %s", line.text.c_str());
     }
   }

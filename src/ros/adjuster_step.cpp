@@ -11,10 +11,6 @@
 
 namespace slope_monitor {
 namespace ros_adapters {
-namespace {
-// The adjuster's epoch store in the site's history (deformation::SavedStates).
-constexpr char kStoreKey[] = "adjuster";
-}  // namespace
 
 std::vector<std::string> ReplayCameras(const AdjusterParameters& parameters,
                                        const std::function<bool(const std::string&)>& present,

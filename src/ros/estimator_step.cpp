@@ -86,6 +86,12 @@ void EstimatorStep::Fuse(const Incoming& in, const std::string& topic, bool publ
     const deformation::BatchSummary s = estimator_->AddBatch(FromMsg(in.valid, topic));
     accepted_ += s.accepted;
     refused_ += s.refused;
+    if (already_held_ == 0 && s.already_held > 0)  // said once, then counted
+      out->problems.push_back(
+          {LogLine::kInfo, Message("topic '", topic,
+                                   "': measurements already in the history are not stored or "
+                                   "fused again (a recording processed again, or a latched topic "
+                                   "re-delivered after a restart); counted in diagnostics")});
     already_held_ += s.already_held;
     for (const std::string& m : s.messages) {
       out->problems.push_back({LogLine::kWarn, Message("topic '", topic, "': ", m)});
@@ -224,6 +230,7 @@ void EstimatorStep::Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) 
   stat.add("messages", messages_);
   stat.add("measurements accepted", accepted_);
   stat.add("measurements refused", refused_);
+  stat.add("measurements already held (not stored again)", already_held_);
   stat.add("messages dropped", errors_);
   for (const auto& [reason, count] : validator_.rejected()) stat.add("rejected: " + reason, count);
   stat.add("database", parameters_.database.empty() ? "(none)" : parameters_.database);

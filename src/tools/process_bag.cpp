@@ -21,7 +21,7 @@
 // (target list and truth beside the bag, reports under ~/.ros/slope_monitor).
 // See doc/process_bag.md.
 //
-// The site's one history (issue 48): without --database, every recording of
+// The site's one history: without --database, every recording of
 // a site continues ~/.ros/slope_monitor/<site name>.db (the name from the
 // --site file, the overlay's site_name, the truth beside the bag; else the
 // bag's name: ros/replay_defaults.h). The first line says which history and
@@ -70,6 +70,7 @@
 #include <rosbag/exceptions.h>
 #include <rosbag/view.h>
 
+#include "slope_monitor/core/adjustment/epoch_collector.h"
 #include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/format.h"
@@ -344,8 +345,21 @@ bool SayHistory(const Args& a, deformation::History* history) {
     std::cerr << ": a new history; its reference epoch is this recording's first\n";
   } else {
     std::cerr << ": continuing: ";
+    // The survey's reference epoch is the adjuster's (the estimator counts
+    // radio epochs too); without cameras, the estimator's.
+    uint32_t epoch = h.reference_epoch;
+    double stamp = h.reference_stamp;
+    if (const auto saved =
+            deformation::SavedStates(a.database).Get(ros_adapters::AdjusterStep::kStoreKey)) {
+      adjustment::EpochStore store;
+      store.Load(saved->value);
+      if (const adjustment::EpochPoints* ref = store.Reference()) {
+        epoch = static_cast<uint32_t>(ref->epoch);
+        stamp = ref->stamp;
+      }
+    }
     if (h.has_reference)
-      std::cerr << "reference epoch " << h.reference_epoch << " (" << Utc(h.reference_stamp)
+      std::cerr << "reference epoch " << epoch << " (" << Utc(stamp)
                 << (h.reference_recording.empty() ? "" : ", from " + h.reference_recording)
                 << "), ";
     else
@@ -360,7 +374,13 @@ bool SayHistory(const Args& a, deformation::History* history) {
 
 // A recording whose every measurement the history already held.
 void SayAlreadyHeld(const Args& a, const ros_adapters::OfflineGraph& graph) {
-  if (graph.estimator().accepted() > 0 || graph.estimator().already_held() == 0) return;
+  const uint64_t held = graph.estimator().already_held();
+  if (held == 0) return;
+  if (graph.estimator().accepted() > 0) {
+    std::cerr << "process_bag: " << held
+              << " measurement(s) already in the history were not stored again\n";
+    return;
+  }
   const deformation::HistoryInfo h = deformation::DescribeHistory(a.database);
   std::cerr << "process_bag: " << a.bags.front() << ": already in the history: " << h.epochs
             << " epochs (and " << h.radio_epochs << " radio epochs)\n";

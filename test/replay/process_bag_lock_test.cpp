@@ -101,7 +101,7 @@ TEST(ProcessBagLock, SecondWriterOnOneDatabaseFailsAtOnce) {
   for (const auto& [key, n] : stored) EXPECT_EQ(n, 1) << key << " stored " << n << " times";
 }
 
-// Safe defaults (issue 38 item 6; issue 48), on bags cut to their first
+// Safe defaults, on bags cut to their first
 // messages (no epoch: nothing is solved, a run takes about a second):
 //   * without --database every recording of a site keeps the site's one
 //     history, ~/.ros/slope_monitor/<site name>.db (the name make_survey_bag

@@ -1,4 +1,4 @@
-// A crew's season (issue 48): the full_graph_replay survey (four epochs 3 h
+// A crew's season: the full_graph_replay survey (four epochs 3 h
 // apart, two fixed cameras, five radio transmitters) written as the three
 // recordings a crew makes (before and the first event: epochs 0-1; after the
 // second event: epoch 2; after the third: epoch 3; /tf_static in each), each

@@ -111,7 +111,7 @@ TEST(SafeDefaults, OneHistoryPerSiteAndNoDataChangingServicesOnALiveSite) {
 
 // Two cameras recorded with camera_capture.launch's own example lines
 // (ns:=north_ridge/camera, ns:=drone/camera, no camera_name) keep their own
-// optical frames (issue 48: both were camera_optical, and the adjuster
+// optical frames (both were camera_optical, and the adjuster
 // publishes one transform per frame); camera_name:= still names it.
 TEST(SafeDefaults, EachCapturedCameraItsOwnFrame) {
   SdParams north = SdLaunchParams(

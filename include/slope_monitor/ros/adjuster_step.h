@@ -72,6 +72,10 @@ class EpochMarkerOrder {
 
 class AdjusterStep {
  public:
+  // The key of the epoch store (its reference epoch) in the site's history
+  // (deformation::SavedStates).
+  static constexpr char kStoreKey[] = "adjuster";
+
   // `source_name`: the displacement messages' source (the node's name).
   // Throws ConfigError from the collector's options.
   AdjusterStep(const AdjusterParameters& parameters, const std::string& source_name);

@@ -1,4 +1,4 @@
-// Where a site's history is kept when not named (issue 48): one history per
+// Where a site's history is kept when not named: one history per
 // site, whatever the recording. A crew records after every event and
 // processes each recording with the same command; every recording of a site
 // continues that site's one history, its reference epoch and its filters.

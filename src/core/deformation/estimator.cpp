@@ -262,13 +262,9 @@ BatchSummary Estimator::AddBatch(const Batch& batch_in) {
   Batch batch = batch_in;
   batch.measurements.clear();
   for (const Measurement& m : batch_in.measurements) {
-    if (received_.count(MeasurementKey(m))) {
+    if (received_.count(MeasurementKey(m))) {  // counted, not a problem: said once by the caller
       ++summary.refused;
-      if (++summary.already_held == 1)
-        summary.messages.push_back(Message(
-            "point '", m.point_id, "' from '", m.source_name, "' at stamp ", Fixed(m.stamp, 3),
-            ": already received (a recording processed again, or a latched topic re-delivered"
-            " after a restart); not stored or fused again"));
+      ++summary.already_held;
       continue;
     }
     try {
@@ -279,8 +275,6 @@ BatchSummary Estimator::AddBatch(const Batch& batch_in) {
       summary.messages.push_back(e.what());
     }
   }
-  if (summary.already_held > 1)
-    summary.messages[0] += Message(" (and ", summary.already_held - 1, " more of this batch)");
   if (batch.measurements.empty()) return summary;
   std::vector<uint64_t> sequences;
   if (history_) {

@@ -71,7 +71,7 @@ TEST(EpochCollector, InterleavedCamerasMakeOneEpochWhenBothEnded) {
 }
 
 // Two cameras in one optical frame (camera_capture.launch's default frame
-// for both, issue 48): the adjuster publishes one transform per frame, so
+// for both): the adjuster publishes one transform per frame, so
 // the second camera's images are refused, the line naming both cameras.
 TEST(EpochCollector, ASecondCameraInAFrameInUseIsRefusedNamingBoth) {
   EpochCollector c(EpochCollectorOptions(), nullptr);

@@ -1,4 +1,4 @@
-// A crew's season (issue 48) in the estimator: the first displacement after
+// A crew's season in the estimator: the first displacement after
 // the reference already gives a speed (the reference's exact zero enters
 // each filter), cumulative displacement raises alerts where speed does not
 // (flights weeks apart), and recordings processed in any order give the
@@ -120,8 +120,7 @@ TEST(Season, RecordingsInAnyOrderGiveTheInOrderState) {
   const BatchSummary again = shuffled.AddBatch(rec[1]);
   EXPECT_EQ(again.accepted, 0);
   EXPECT_EQ(again.already_held, 3);
-  ASSERT_EQ(again.messages.size(), 1u);
-  EXPECT_NE(again.messages[0].find("and 2 more"), std::string::npos) << again.messages[0];
+  EXPECT_TRUE(again.messages.empty());
 }
 
 // A revised measurement (the radio's epochs tracked again) replaces the one

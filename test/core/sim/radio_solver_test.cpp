@@ -360,7 +360,7 @@ TEST(RadioSolver, EpochAssemblerIsIndependentOfArrivalOrder) {
   EXPECT_EQ(a.pending(), 0u);
 }
 
-// The state a run saves in the site's history (issue 48): a solver loaded
+// The state a run saves in the site's history: a solver loaded
 // from it after epoch 20 gives, epoch for epoch, bit for bit what the solver
 // that never stopped gives; the phases it saves track an epoch again to the
 // same numbers; another network's state is refused, naming it.

@@ -266,9 +266,10 @@ class Estimator {
   // non-positive-definite covariance: naming the point); refusals of single
   // measurements (other datum, too late) are reported in the summary.
   // A measurement already received (same point, source, source name and
-  // stamp) is refused (counted in BatchSummary::already_held), not stored or
-  // fused twice: a re-delivery (a latched topic's last message when a
-  // restarted node subscribes again) or a recording processed again.
+  // stamp) is refused and counted in BatchSummary::already_held (no message:
+  // the caller says it once), not stored or fused twice: a re-delivery (a
+  // latched topic's last message when a restarted node subscribes again) or
+  // a recording processed again.
   BatchSummary AddBatch(const Batch& batch);
   // A source's revised measurements (the radio's epochs tracked again after
   // an earlier recording was processed): each one already received is

@@ -53,7 +53,7 @@
 //   saved_states(key TEXT PRIMARY KEY, stamp REAL,        -- (any version; SavedStates) the
 //           value TEXT)                                   --   sources' references, see below
 //
-// The history belongs to a site (issue 48): meta `site` names it (a
+// The history belongs to a site: meta `site` names it (a
 // recording of another site is refused by the caller), meta
 // `reference_recording` the recording the reference epoch came from. The
 // references the sources measure from live here too, not in a run's memory:
