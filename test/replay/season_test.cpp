@@ -30,12 +30,25 @@
 #include <string>
 #include <vector>
 
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/stat.h>
+
+#include <iomanip>
+#include <set>
+#include <thread>
+
 #include <gtest/gtest.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <tf2_msgs/TFMessage.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "process_bag_run.h"
 #include "replay_test_util.h"
+#include "slope_monitor/TargetObservationArray.h"
 #include "slope_monitor/core/sim/truth.h"
 
 namespace slope_monitor {
@@ -366,6 +379,121 @@ TEST_F(Season, FirstMovementIsMeasuredAndAlerted) {
     ++checked;
   }
   EXPECT_GE(checked, 6);
+}
+
+// Two fixed cameras recorded with camera_capture.launch's own example lines
+// (ns:=north_ridge/camera, ns:=gully/camera, no camera_name) through
+// record.launch, then process_bag: each camera keeps its frame (both were
+// camera_optical), so the adjustment has both cameras' targets and two
+// camera transforms. The photos: the survey's two fixed cameras, written as
+// PNG files stamped (file time) with their capture times, and their
+// CameraInfo as camera_calibration_parsers YAML.
+TEST_F(Season, TwoCamerasCapturedWithTheLaunchExamplesKeepTheirFrames) {
+  const fs::path dir = *dir_ / "two_cameras";
+  const std::map<std::string, std::string> cameras = {{"fixed_cam_1", "north_ridge"},
+                                                      {"fixed_cam_2", "gully"}};
+  {
+    rosbag::Bag whole(Survey(kSurvey, ".bag"), rosbag::bagmode::Read);
+    for (const auto& [from, to] : cameras) {
+      fs::create_directories(dir / to);
+      int k = 0;
+      rosbag::View images(whole, rosbag::TopicQuery("/" + from + "/camera/image_raw"));
+      for (const rosbag::MessageInstance& m : images) {
+        const auto im = m.instantiate<sensor_msgs::Image>();
+        ASSERT_TRUE(im && im->encoding == "mono8");
+        const cv::Mat pixels(static_cast<int>(im->height), static_cast<int>(im->width), CV_8UC1,
+                             const_cast<uint8_t*>(im->data.data()), im->step);
+        const fs::path file = dir / to / ("photo_" + std::to_string(k++) + ".png");
+        ASSERT_TRUE(cv::imwrite(file.string(), pixels));
+        const timespec t[2] = {{im->header.stamp.sec, static_cast<long>(im->header.stamp.nsec)},
+                               {im->header.stamp.sec, static_cast<long>(im->header.stamp.nsec)}};
+        ASSERT_EQ(utimensat(AT_FDCWD, file.c_str(), t, 0), 0);
+      }
+      EXPECT_EQ(k, 4) << from;
+      rosbag::View infos(whole, rosbag::TopicQuery("/" + from + "/camera/camera_info"));
+      const auto info = infos.begin()->instantiate<sensor_msgs::CameraInfo>();
+      ASSERT_TRUE(info);
+      std::ofstream cal(dir / (to + ".yaml"));
+      auto list = [&cal](const auto& v) {
+        for (size_t i = 0; i < v.size(); ++i)
+          cal << (i ? ", " : "") << std::setprecision(17) << v[i];
+      };
+      cal << "image_width: " << info->width << "\nimage_height: " << info->height
+          << "\ncamera_name: " << to << "\ncamera_matrix: {rows: 3, cols: 3, data: [";
+      list(info->K);
+      cal << "]}\ndistortion_model: " << info->distortion_model
+          << "\ndistortion_coefficients: {rows: 1, cols: " << info->D.size() << ", data: [";
+      list(info->D);
+      cal << "]}\nrectification_matrix: {rows: 3, cols: 3, data: [";
+      list(info->R);
+      cal << "]}\nprojection_matrix: {rows: 3, cols: 4, data: [";
+      list(info->P);
+      cal << "]}\n";
+    }
+  }
+  const fs::path site = dir / "two_cameras.yaml";
+  std::ofstream(site) << "name: two_cameras\ncrs: EPSG:4979\norigin: [8.0, 46.5, 1200.0]\n"
+                         "cameras:\n"
+                         "  - {name: north_ridge, kind: fixed, pixel_size: 0.0048}\n"
+                         "  - {name: gully, kind: fixed, pixel_size: 0.0048}\n"
+                         "targets: {file: "
+                      << Survey(kSurvey, ".targets.yaml") << "}\n";
+
+  // record.launch first (it starts the run's master), then both captures at once.
+  const int port = replay_test::FreePort();
+  const std::vector<std::string> env = {"ROS_MASTER_URI=http://127.0.0.1:" + std::to_string(port),
+                                        "ROS_LOG_DIR=" + (dir / "log").string(),
+                                        "ROS_HOME=" + (dir / "ros_home").string()};
+  for (const char* sub : {"bags", "record", "north_ridge_run", "gully_run"})
+    fs::create_directories(dir / sub);
+  const pid_t record =
+      replay_test::Spawn({"roslaunch", "-p", std::to_string(port), "slope_monitor", "record.launch",
+                          "site:=two_cameras", "dir:=" + (dir / "bags").string()},
+                         dir / "record", env);
+  ASSERT_GT(record, 0);
+  std::this_thread::sleep_for(std::chrono::seconds(8));  // the master and the recorder up
+  std::vector<pid_t> captures;
+  for (const auto& [from, to] : cameras)
+    captures.push_back(replay_test::Spawn(
+        {"roslaunch", "slope_monitor", "camera_capture.launch", "ns:=" + to + "/camera",
+         "source:=folder", "folder:=" + (dir / to).string(),
+         "camera_info_url:=file://" + (dir / (to + ".yaml")).string(), "site:=" + site.string()},
+        dir / (to + "_run"), env));
+  for (const pid_t c : captures)
+    EXPECT_EQ(replay_test::WaitAtMost(c, std::chrono::seconds(120)), 0);
+  std::this_thread::sleep_for(std::chrono::seconds(2));  // the recorder writes what it queued
+  kill(record, SIGINT);
+  replay_test::WaitAtMost(record, std::chrono::seconds(60));
+
+  std::vector<std::string> args = {SM_PROCESS_BAG, "--no-dense", "--site", site.string()};
+  for (const auto& f : fs::directory_iterator(dir / "bags"))
+    if (f.path().extension() == ".bag") {
+      args.push_back("--bag");
+      args.push_back(f.path().string());
+    }
+  ASSERT_GT(args.size(), 4u) << replay_test::ReadFile(dir / "record" / "stderr");
+  for (const std::string& a :
+       {std::string("--database"), (dir / "history.db").string(), std::string("--report-dir"),
+        (dir / "reports").string(), std::string("--output-bag"), (dir / "out.bag").string()})
+    args.push_back(a);
+  const int status = replay_test::Wait(replay_test::Spawn(args, dir));
+  ASSERT_EQ(status, 0) << replay_test::ReadFile(dir / "stderr");
+  // Two camera transforms (one per frame) and both cameras' targets.
+  std::set<std::string> frames;
+  std::map<std::string, int> targets;
+  rosbag::Bag out((dir / "out.bag").string(), rosbag::bagmode::Read);
+  for (const rosbag::MessageInstance& m : rosbag::View(out)) {
+    if (const auto tf = m.instantiate<tf2_msgs::TFMessage>())
+      for (const auto& t : tf->transforms) frames.insert(t.child_frame_id);
+    if (const auto t = m.instantiate<slope_monitor::TargetObservationArray>())
+      targets[m.getTopic()] += static_cast<int>(t->observations.size());
+  }
+  EXPECT_TRUE(frames.count("north_ridge_optical")) << "no transform of north_ridge";
+  EXPECT_TRUE(frames.count("gully_optical")) << "no transform of gully";
+  EXPECT_FALSE(frames.count("camera_optical"));
+  EXPECT_GT(targets["/north_ridge/targets"], 4 * 8);
+  EXPECT_GT(targets["/gully/targets"], 4 * 8);
+  EXPECT_EQ(replay_test::ReadFile(dir / "stderr").find("the frame of camera"), std::string::npos);
 }
 
 }  // namespace
