@@ -334,6 +334,38 @@ TEST_F(Season, AnotherSiteAndAMissingReferenceAreRefused) {
   EXPECT_TRUE(replay_test::ReadFile(History(home)) == before) << "the history was written";
 }
 
+// A new reference only on request: the third recording with --new-reference
+// on the history of the first two measures from its own reference (the
+// observations of the old one stay in the history, not fused).
+TEST_F(Season, NewReferenceOnRequest) {
+  const std::vector<std::string>& rec = *recordings_;
+  const fs::path home = *dir_ / "new_reference";
+  for (size_t k : {0, 1})
+    ASSERT_EQ(ProcessRecording(rec[k], home, *dir_ / ("new_reference_run" + std::to_string(k + 1))),
+              0);
+  const int64_t before = Count(History(home), "SELECT count(*) FROM observations");
+  const fs::path run = *dir_ / "new_reference_run3";
+  fs::create_directories(run);
+  const int status = replay_test::Wait(replay_test::Spawn(
+      {SM_PROCESS_BAG, "--bag", rec[2] + ".bag", "--site-config", rec[2] + ".site.yaml",
+       "--report-dir", (home / "reports").string(), "--new-reference"},
+      run, {"HOME=" + home.string()}));
+  ASSERT_EQ(status, 0) << replay_test::ReadFile(run / "stderr");
+  EXPECT_NE(FirstLine(run).find("; a new reference from this recording (--new-reference)"),
+            std::string::npos)
+      << FirstLine(run);
+  EXPECT_GT(Count(History(home), "SELECT count(*) FROM observations"), before);
+  // Measured from a reference in the third recording: every displacement
+  // smaller than the whole survey's, from its first reference.
+  const auto whole = ReadReport(*dir_ / "whole" / "reports" / "deformation.csv");
+  const auto fresh = ReadReport(home / "reports" / "deformation.csv");
+  ASSERT_FALSE(fresh.empty());
+  for (const auto& [id, r] : fresh) {
+    ASSERT_TRUE(whole.count(id)) << id;
+    EXPECT_LT(r.d.norm(), 0.7 * whole.at(id).d.norm()) << id;
+  }
+}
+
 // The first movement: at epoch 1 (3 h after the reference) every moving
 // target's fused speed is within 3 sigma of the simulator's true speed, and
 // its alert is alarm (true speed 240 mm/day, 4.8 x the alarm threshold,

@@ -241,12 +241,14 @@ void Estimator::Validate(const Measurement& m) const {
 namespace {
 
 // Identity of a measurement: what it measures (point, source, source name,
-// stamp), not its values: the same recording processed again (whatever the
-// settings) or a latched topic re-delivered is received once.
+// stamp, and the reference it is measured from), not its values: the same
+// recording processed again (whatever the settings) or a latched topic
+// re-delivered is received once; measured again from a new reference
+// (process_bag --new-reference) it is another measurement.
 std::string MeasurementKey(const Measurement& m) {
   std::ostringstream k;
   k << std::setprecision(17) << m.point_id << '|' << static_cast<int>(m.source) << '|'
-    << m.source_name << '|' << m.stamp;
+    << m.source_name << '|' << m.stamp << '|' << m.reference_stamp;
   return k.str();
 }
 

@@ -34,7 +34,8 @@
 // already gives a speed d / dt and can raise an alert.
 //
 // Identity and order: a measurement is what it measures (point, source,
-// source name, stamp); one already received is refused, whatever its values
+// source name, stamp, reference stamp); one already received is refused,
+// whatever its values
 // (a recording processed again, a latched topic re-delivered). The state is
 // always that of the batches processed in stamp order: a batch older than
 // the newest one processed (a recording processed after a later one, weeks
@@ -265,8 +266,8 @@ class Estimator {
   // Throws InvalidArgument for a batch that cannot be used at all (NaN,
   // non-positive-definite covariance: naming the point); refusals of single
   // measurements (other datum, too late) are reported in the summary.
-  // A measurement already received (same point, source, source name and
-  // stamp) is refused and counted in BatchSummary::already_held (no message:
+  // A measurement already received (same point, source, source name, stamp
+  // and reference stamp) is refused and counted in BatchSummary::already_held (no message:
   // the caller says it once), not stored or fused twice: a re-delivery (a
   // latched topic's last message when a restarted node subscribes again) or
   // a recording processed again.
