@@ -202,6 +202,11 @@ Estimator::Estimator(const EstimatorOptions& options, History* history)
     reference_epoch_ = static_cast<uint32_t>(std::stoul(*e));
   if (auto s = history_->Meta("reference_stamp")) reference_stamp_ = std::stod(*s);
   reference_offsets_ = history_->LoadReferenceOffsets();
+  StoreAllEstimates();
+}
+
+void Estimator::StoreAllEstimates() {
+  if (!history_) return;
   std::vector<PointState> states;
   for (const auto& [id, p] : points_) states.push_back(StateOf(*p));
   history_->StoreEstimates(states, newest_epoch_);
@@ -294,11 +299,7 @@ BatchSummary Estimator::AddBatch(const Batch& batch_in) {
     // Older than a batch already processed: every point again in stamp order.
     Rerun();
     s.accepted = static_cast<int>(batch.measurements.size());
-    if (history_) {
-      std::vector<PointState> states;
-      for (const auto& [id, p] : points_) states.push_back(StateOf(*p));
-      history_->StoreEstimates(states, newest_epoch_);
-    }
+    StoreAllEstimates();
   } else {
     s = Process(batch, sequences, false);
   }
@@ -326,11 +327,7 @@ BatchSummary Estimator::ReviseBatch(const Batch& batch) {
   }
   if (summary.revised > 0) {
     Rerun();
-    if (history_) {
-      std::vector<PointState> states;
-      for (const auto& [id, p] : points_) states.push_back(StateOf(*p));
-      history_->StoreEstimates(states, newest_epoch_);
-    }
+    StoreAllEstimates();
   }
   if (!fresh.measurements.empty()) {
     const BatchSummary added = AddBatch(fresh);
@@ -371,6 +368,32 @@ void Estimator::Rerun() {
   ++reruns_;
 }
 
+// The first measurement (of a new reference) sets the datum; false while a
+// new reference is awaited and `m` is a held one of the old.
+bool Estimator::TakeDatum(const Measurement& m, bool replay) {
+  // A new reference was asked for (meta datum_stamp ""): the held batches
+  // of the old one wait out; the first new measurement sets the datum.
+  if (datum_pending_ && replay) return false;
+  has_datum_ = true;
+  datum_pending_ = false;
+  has_history_datum_ = true;  // kept through a re-run
+  datum_stamp_ = history_datum_ = m.reference_stamp;
+  reference_stamp_ = datum_stamp_;
+  reference_epoch_ = 0;
+  for (const auto& [e, t] : epochs_)
+    if (std::abs(t - datum_stamp_) <= options_.reference_tolerance) {
+      reference_epoch_ = e;
+      break;
+    }
+  if (history_ && !replay) {
+    history_->SetMeta("datum_stamp", Fixed(datum_stamp_, 6));
+    history_->SetMeta("reference_epoch", std::to_string(reference_epoch_));
+    history_->SetMeta("reference_stamp", Fixed(reference_stamp_, 6));
+    if (!recording_.empty()) history_->SetMeta("reference_recording", recording_);
+  }
+  return true;
+}
+
 BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>& sequences,
                                 bool replay) {
   BatchSummary summary;
@@ -392,28 +415,7 @@ BatchSummary Estimator::Process(const Batch& batch, const std::vector<uint64_t>&
       }
     }
     if (!epochs_.count(m.epoch)) epochs_[m.epoch] = m.stamp;
-    if (!has_datum_) {
-      // A new reference was asked for (meta datum_stamp ""): the held batches
-      // of the old one wait out; the first new measurement sets the datum.
-      if (datum_pending_ && replay) continue;
-      has_datum_ = true;
-      datum_pending_ = false;
-      has_history_datum_ = true;  // kept through a re-run
-      datum_stamp_ = history_datum_ = m.reference_stamp;
-      reference_stamp_ = datum_stamp_;
-      reference_epoch_ = 0;
-      for (const auto& [e, t] : epochs_)
-        if (std::abs(t - datum_stamp_) <= options_.reference_tolerance) {
-          reference_epoch_ = e;
-          break;
-        }
-      if (history_ && !replay) {
-        history_->SetMeta("datum_stamp", Fixed(datum_stamp_, 6));
-        history_->SetMeta("reference_epoch", std::to_string(reference_epoch_));
-        history_->SetMeta("reference_stamp", Fixed(reference_stamp_, 6));
-        if (!recording_.empty()) history_->SetMeta("reference_recording", recording_);
-      }
-    }
+    if (!has_datum_ && !TakeDatum(m, replay)) continue;
     if (std::abs(m.reference_stamp - datum_stamp_) > options_.reference_tolerance) {
       ++summary.refused;
       summary.messages.push_back(

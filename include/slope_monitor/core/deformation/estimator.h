@@ -313,6 +313,9 @@ class Estimator {
   // Every point again from the batches held, in stamp order (a late batch).
   void Rerun();
   void ResetState();
+  void StoreAllEstimates();
+  bool TakeDatum(const Measurement& m,
+                 bool replay);  // every point's estimate into the history (one transaction)
   void Validate(const Measurement& m) const;
   void UpdateAlerts();
   PointState StateOf(const Point& p) const;
