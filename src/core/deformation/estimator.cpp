@@ -321,7 +321,11 @@ BatchSummary Estimator::ReviseBatch(const Batch& batch) {
     Validate(m);
     for (Held& h : held_)
       for (Measurement& held : h.batch.measurements)
-        if (held.stamp == m.stamp && MeasurementKey(held) == MeasurementKey(m)) held = m;
+        if (held.stamp == m.stamp && MeasurementKey(held) == MeasurementKey(m)) {
+          const uint32_t epoch = held.epoch;  // as stored: the values are revised, not the epoch
+          held = m;
+          held.epoch = epoch;
+        }
     if (history_) history_->ReviseObservation(m);
     ++summary.revised;
   }
