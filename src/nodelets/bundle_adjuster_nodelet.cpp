@@ -260,8 +260,7 @@ class BundleAdjusterNodelet : public nodelet::Nodelet {
     res.message = error.empty() ? "reference epoch set to " + std::to_string(chosen) : error;
     if (res.success) {
       res.reference_epoch = chosen;
-      const adjustment::EpochPoints* ref = step_->store().Reference();
-      step_->SaveStore(ref ? ref->stamp : 0.0);  // the site's history keeps the reference
+      step_->SaveStore();  // the site's history keeps the reference
     }
     return true;
   }

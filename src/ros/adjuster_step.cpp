@@ -67,6 +67,7 @@ AdjusterStep::AdjusterStep(const AdjusterParameters& parameters, const std::stri
   states_ = std::make_unique<deformation::SavedStates>(parameters_.database);
   if (const auto saved = states_->Get(kStoreKey)) {
     store_.Load(saved->value);
+    saved_reference_ = store_.reference_epoch();
     if (const adjustment::EpochPoints* ref = store_.Reference())
       resumed_ =
           Message("reference epoch ", ref->epoch, " (stamp ", Fixed(ref->stamp, 3), ", ",
@@ -74,8 +75,11 @@ AdjusterStep::AdjusterStep(const AdjusterParameters& parameters, const std::stri
   }
 }
 
-void AdjusterStep::SaveStore(double stamp) {
-  if (states_) states_->Put(kStoreKey, stamp, store_.Save());
+void AdjusterStep::SaveStore() {
+  const adjustment::EpochPoints* ref = store_.Reference();
+  if (!states_ || ref == nullptr) return;
+  states_->Put(kStoreKey, ref->stamp, store_.Save());
+  saved_reference_ = ref->epoch;
 }
 
 void AdjusterStep::KeepCameras(const std::vector<std::string>& cameras) {
@@ -149,7 +153,8 @@ SolvedEpoch AdjusterStep::Solve(const adjustment::CollectedEpoch& epoch) {
   last_usable_ = out.accepted;
   if (out.accepted) {
     ++accepted_;
-    SaveStore(out.solution.header.stamp.toSec());
+    // The history keeps the reference: written when it is new, not every epoch.
+    if (store_.reference_epoch() != saved_reference_) SaveStore();
   }
   return out;
 }

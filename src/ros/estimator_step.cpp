@@ -231,6 +231,7 @@ void EstimatorStep::Diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) 
   stat.add("measurements accepted", accepted_);
   stat.add("measurements refused", refused_);
   stat.add("measurements already held (not stored again)", already_held_);
+  stat.add("measurements revised (radio epochs tracked again)", revised_);
   stat.add("messages dropped", errors_);
   for (const auto& [reason, count] : validator_.rejected()) stat.add("rejected: " + reason, count);
   stat.add("database", parameters_.database.empty() ? "(none)" : parameters_.database);

@@ -6,7 +6,6 @@
 #include "slope_monitor/core/io/target_file.h"
 
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 #include <sstream>
 
@@ -22,23 +21,18 @@ namespace {
 
 // The `database` parameter ("auto": the site's history, ros/replay_defaults.h)
 // with what names the site: site_name (given), site_config (the estimator
-// overlay's site_name), truth_file, recording. *site_name: the site's name.
+// overlay's site_name), truth_file, recording. *site_name (may be null): the site's name.
 std::string ReadDatabase(ParamReader& p, const std::string& site_file,
-                         const std::string& truth_file, std::string* site_name) {
+                         const std::string& truth_file, std::string* site_name = nullptr) {
   const std::string database = p.String("database", "");
   SiteNameSources sources;
   sources.site_file = site_file;
   sources.site_config = p.String("site_config", "");
   sources.truth_file = truth_file.empty() ? p.String("truth_file", "") : truth_file;
   sources.recording = p.String("recording", "");
-  const std::string given = p.String("site_name", "");
-  *site_name = SiteNameOf(sources);
-  if (site_name->empty()) *site_name = given;
+  sources.site_name = p.String("site_name", "");
+  if (site_name) *site_name = SiteNameOf(sources);
   if (database != "auto") return database;
-  if (!given.empty() && sources.site_file.empty()) {
-    const char* home = std::getenv("HOME");
-    return std::string(home ? home : ".") + "/.ros/slope_monitor/" + given + ".db";
-  }
   try {
     return ResolveDatabase(database, sources);
   } catch (const ConfigError& e) {
@@ -260,8 +254,7 @@ void ReadAdjusterEpochOptions(ParamReader& p, AdjusterParameters& a) {
 AdjusterParameters ReadAdjusterParameters(ParamReader& p) {
   AdjusterParameters a;
   ReadAdjusterTargetsAndCameras(p, a);
-  std::string site_name;
-  a.database = ReadDatabase(p, a.site_file, "", &site_name);
+  a.database = ReadDatabase(p, a.site_file, "");
   ReadAdjusterCollectorAndScene(p, a);
   ReadAdjusterEpochOptions(p, a);
   a.displacement.stable_threshold =
@@ -283,8 +276,7 @@ RadioParameters ReadRadioParameters(ParamReader& p) {
   r.network_file = p.String("network_file", r.network_file);
   r.site_file = p.String("site_file", r.site_file);  // its radio_network, when it names one
   r.truth_file = p.String("truth_file", r.truth_file);
-  std::string site_name;
-  r.database = ReadDatabase(p, r.site_file, r.truth_file, &site_name);
+  r.database = ReadDatabase(p, r.site_file, r.truth_file);
   r.truth_initial_sigma = p.Double("truth_initial_sigma", r.truth_initial_sigma, 1e-5, 10.0, "m");
   r.truth_sample_rate = p.Double("truth_sample_rate", r.truth_sample_rate, 1.0, 1e10, "Hz");
   const std::string &network_file = r.network_file, &site_file = r.site_file,
@@ -353,7 +345,6 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
     if (!Trim(bag).empty())
       e.recording +=
           (e.recording.empty() ? "" : ", ") + std::filesystem::path(Trim(bag)).filename().string();
-  e.database = ReadDatabase(p, p.String("site_file", e.site_file), "", &e.site_name);
   e.report_dir = p.String("report_dir", e.report_dir);
   e.report_on_shutdown = p.Bool("report_on_shutdown", e.report_on_shutdown);
   e.report_formats = p.StringList("report_formats", e.report_formats);
@@ -470,6 +461,7 @@ EstimatorParameters ReadEstimatorParameters(ParamReader& p) {
   e.plot.script = p.String("plot_script", e.plot.script);
   e.plot.dem = p.String("report_dem", e.plot.dem);
   e.site_file = p.String("site_file", e.site_file);
+  e.database = ReadDatabase(p, e.site_file, "", &e.site_name);
   p.CheckNoUnknownKeys();
   if (!e.site_file.empty()) {
     e.site = io::LoadSiteFile(e.site_file);

@@ -74,7 +74,8 @@ bool BagHasTopic(rosbag::View& view, const std::string& topic) {
 
 OfflineGraph::OfflineGraph(const OfflineGraphOptions& options,
                            const std::vector<std::string>& cameras, rosbag::Bag* output,
-                           std::function<void(const std::string&)> log)
+                           std::function<void(const std::string&)> log,
+                           std::unique_ptr<deformation::History> history)
     : log_(std::move(log)), options_(options), output_(output) {
   SetUpTargetless();
   std::vector<std::string> with_targets;
@@ -84,7 +85,7 @@ OfflineGraph::OfflineGraph(const OfflineGraphOptions& options,
   for (const std::string& cam : with_targets) SetUpCentroider(cam);
   SetUpAdjuster(with_targets);
   SetUpRadio();
-  SetUpEstimator();
+  SetUpEstimator(std::move(history));
   if (options_.dense) SetUpDense();
 }
 
@@ -173,7 +174,7 @@ void OfflineGraph::SetUpRadio() {
   radio_ = std::make_unique<RadioStep>(params);
 }
 
-void OfflineGraph::SetUpEstimator() {
+void OfflineGraph::SetUpEstimator(std::unique_ptr<deformation::History> history) {
   const std::string config_dir = PackageConfigDir();
   XmlRpc::XmlRpcValue p = LoadNodeParams(config_dir, "deformation_estimator");
   if (!options_.site_config.empty()) MergeParams(&p, LoadParamFile(options_.site_config));
@@ -202,7 +203,7 @@ void OfflineGraph::SetUpEstimator() {
       // The site's notification hook, from its worker thread: straight to
       // stderr, not through the progress line.
       [](bool, const std::string& m) { std::cerr << "deformation_estimator: " << m << std::endl; },
-      options_.history ? std::move(*options_.history) : nullptr);
+      std::move(history));
 }
 
 // The fixed_targetless cameras of the site (launch/include/processing_graph.xml

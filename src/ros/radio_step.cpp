@@ -98,7 +98,6 @@ std::vector<RadioEpochOutput> RadioStep::Finish(std::vector<LogLine>* log) {
     const radio::RadioEpochSummary s = solver_.ProcessPhases(phases.value);
     header.stamp = ros::Time(s.stamp);
     out.push_back(Output(s, header));
-    out.back().revision = true;
     auto key = state_keys.find(phases.stamp);
     if (key != state_keys.end()) states_->Put(key->second, phases.stamp, solver_.Save());
   }

@@ -30,12 +30,21 @@ std::string YamlString(const std::string& file, const std::vector<std::string>& 
 }  // namespace
 
 std::string SiteNameOf(const SiteNameSources& s, std::string* from) {
+  // The site file's name, then a name given as it is, then the files that carry one.
+  const std::string file_name = YamlString(s.site_file, {"name"});
+  if (!file_name.empty()) {
+    if (from) *from = Message("site file '", s.site_file, "'");
+    return file_name;
+  }
+  if (!s.site_name.empty()) {
+    if (from) *from = "parameter site_name";
+    return s.site_name;
+  }
   const struct {
     const std::string& file;
     std::vector<std::string> path;
     const char* what;
-  } candidates[] = {{s.site_file, {"name"}, "site file"},
-                    {s.site_config, {"site_name"}, "estimator overlay"},
+  } candidates[] = {{s.site_config, {"site_name"}, "estimator overlay"},
                     {s.truth_file, {"site", "name"}, "simulator truth"}};
   for (const auto& c : candidates) {
     const std::string name = YamlString(c.file, c.path);

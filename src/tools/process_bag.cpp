@@ -328,9 +328,9 @@ void PrintSummary(const Args& args, bool has_points, bool has_output) {
 }
 
 // The first line: which history this run continues (its reference epoch,
-// the recording it came from, its epochs) or that it starts one. False (said
-// in one line) when the history is of another site, or --new-reference is
-// refused.
+// the recording it came from, its epochs) or that it starts one; with
+// --new-reference the history's reference is cleared. False (said in one
+// line) when the history is of another site.
 bool SayHistory(const Args& a, deformation::History* history) {
   const deformation::HistoryInfo h = deformation::DescribeHistory(a.database);
   const std::string site = a.site_name.empty() ? "(unnamed)" : a.site_name;
@@ -404,7 +404,6 @@ int Run(Args args) {
   // the graph's estimator.
   auto history = std::make_unique<deformation::History>(args.database);
   if (!SayHistory(args, history.get())) return 1;
-  args.history = std::make_shared<std::unique_ptr<deformation::History>>(std::move(history));
   rosbag::View view;
   for (const auto& bag : bags) view.addQuery(*bag);
   if (view.size() == 0) throw InvalidArgument("bag '" + args.bags.front() + "' holds no messages");
@@ -424,7 +423,8 @@ int Run(Args args) {
       &args, [&progress](const std::string& line) { progress.Print("process_bag: " + line); });
   std::vector<std::string> incomplete_at_end;  // "epoch 1 (end of input): incomplete: ..." lines
   ros_adapters::OfflineGraph graph(
-      args, cameras, output.get(), [&progress, &incomplete_at_end](const std::string& line) {
+      args, cameras, output.get(),
+      [&progress, &incomplete_at_end](const std::string& line) {
         progress.Print("process_bag: " + line);
         const std::string mark = " (end of input): incomplete: ";
         const size_t at = line.find(mark);
@@ -433,7 +433,8 @@ int Run(Args args) {
           incomplete_at_end.push_back(line.substr(epoch, at - epoch) + ": " +
                                       line.substr(at + mark.size()));
         }
-      });
+      },
+      std::move(history));
   if (args.uav_tie_points)
     graph.SetUpUavTiePoints(
         [&view](const std::string& topic) { return ros_adapters::BagHasTopic(view, topic); });

@@ -109,7 +109,7 @@ class AdjusterStep {
   int accepted() const { return accepted_; }
   // The store into the site's history (parameters().database), e.g. after
   // the set_reference_epoch service; nothing without a database.
-  void SaveStore(double stamp);
+  void SaveStore();
   // How the run started (a line for the log): the reference epoch loaded
   // from the site's history, or "" when it starts without one.
   const std::string& resumed() const { return resumed_; }
@@ -127,6 +127,7 @@ class AdjusterStep {
   adjustment::EpochStore store_;
   std::unique_ptr<deformation::SavedStates> states_;  // the site's history; null: none
   std::string resumed_;
+  int saved_reference_ = -1;  // the reference epoch the history holds (-1: none)
   std::map<std::string, camera::CameraModel> models_;
   size_t reported_ignored_ = 0;
   // The last epoch, for the diagnostics.

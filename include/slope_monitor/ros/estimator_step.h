@@ -114,8 +114,7 @@ class EstimatorStep {
   // Measurements fused, and refused as already in the history (a recording processed again).
   uint64_t accepted() const { return accepted_; }
   uint64_t already_held() const { return already_held_; }
-  uint64_t revised() const { return revised_; }
-  deformation::History* history() { return history_.get(); }
+
   void set_last_problem(const std::string& problem) { last_problem_ = problem; }
 
  private:

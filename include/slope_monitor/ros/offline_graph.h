@@ -63,9 +63,6 @@ struct OfflineGraphOptions {
   bool verbose = false;  // the bundle adjuster's INFO lines too
   std::string database, report_dir;
   std::string site_name;  // the site the history belongs to (ros/replay_defaults.h); "" = unchecked
-  // `database` opened by the caller (its writer lock held); the graph takes
-  // it over (shared: the options are copied). Null: the estimator opens it.
-  std::shared_ptr<std::unique_ptr<deformation::History>> history;
   // Image messages above this many pixels, or whose header does not describe
   // their data, are skipped before conversion, named (ros/image_limits.h).
   ImageMessageLimits image_limits;
@@ -94,9 +91,12 @@ class OfflineGraph {
 
   // `cameras`: the bags' /<camera>/camera/image_raw names. `output`: the bag
   // the graph's outputs are written to, or null. `log`: a line for the user.
+  // `history`: options.database already opened by the caller (its writer
+  // lock held), taken over by the estimator; null: the estimator opens it.
   // ConfigError / InvalidArgument naming the node's key or file.
   OfflineGraph(const OfflineGraphOptions& options, const std::vector<std::string>& cameras,
-               rosbag::Bag* output, std::function<void(const std::string&)> log);
+               rosbag::Bag* output, std::function<void(const std::string&)> log,
+               std::unique_ptr<deformation::History> history = nullptr);
 
   // --uav-tie-points: the graph's hex matcher (mode sequence) for every
   // camera of kind uav (the site file's, else io::DefaultCameras()'s `uav`)
@@ -157,7 +157,7 @@ class OfflineGraph {
   void SetUpCentroider(const std::string& cam);
   void SetUpAdjuster(const std::vector<std::string>& cameras);
   void SetUpRadio();
-  void SetUpEstimator();
+  void SetUpEstimator(std::unique_ptr<deformation::History> history);
   void SetUpTargetless();
   void SetUpDense();
 

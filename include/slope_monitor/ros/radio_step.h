@@ -30,9 +30,6 @@ std::string RadioReceiverOfTopic(const std::string& topic);
 
 struct RadioEpochOutput {
   RadioOutputs messages;  // phase_observations, and radio_displacements when usable
-  // An epoch of a later recording tracked again (Finish): its displacements
-  // replace those the history holds for the same stamps.
-  bool revision = false;
   // The solver's problems (kError), events (kWarn: faults handled) and notes
   // (kInfo: routine results), without the node's name.
   std::vector<LogLine> log;

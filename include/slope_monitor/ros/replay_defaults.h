@@ -13,12 +13,14 @@ namespace slope_monitor {
 namespace ros_adapters {
 
 // What may name a recording's site, in this order: the site file's `name`,
-// the estimator overlay's `site_name` (make_survey_bag writes it beside a
-// simulated survey), the simulator truth's `site.name`. Files that are
-// empty paths or absent are skipped.
+// a name given as it is (a node's `site_name` parameter: the overlay loaded
+// into its namespace), the estimator overlay's `site_name` (make_survey_bag
+// writes it beside a simulated survey), the simulator truth's `site.name`.
+// Files that are empty paths or absent are skipped.
 struct SiteNameSources {
   std::string site_file, site_config, truth_file;
   std::string recording;  // a bag's path: the last resort (its name less ".bag")
+  std::string site_name;  // given as it is ("" = none)
 };
 
 // The site's name, and in *from where it was read ("site file '/x/site.yaml'");

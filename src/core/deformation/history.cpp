@@ -107,6 +107,20 @@ const char* kMigrate1To2 =
     "CREATE TABLE reference_offsets(point_id TEXT PRIMARY KEY, dx REAL, dy REAL, dz REAL, "
     "covariance BLOB);";
 
+// Opens (creating when `create`) a SQLite file, waiting up to `busy_ms` for
+// another connection's lock; IoError naming it.
+sqlite3* OpenDatabase(const std::string& path, bool create, int busy_ms) {
+  sqlite3* db = nullptr;
+  const int flags = create ? SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE : SQLITE_OPEN_READONLY;
+  if (sqlite3_open_v2(path.c_str(), &db, flags, nullptr) != SQLITE_OK) {
+    const std::string msg = db ? sqlite3_errmsg(db) : "out of memory";
+    sqlite3_close(db);
+    throw IoError(Message("cannot open history database '", path, "': ", msg));
+  }
+  sqlite3_busy_timeout(db, busy_ms);
+  return db;
+}
+
 // The process id a lock file holds ("" when none is written yet) and, when
 // /proc knows it, the process' name: "4242 (process_bag)".
 std::string LockOwner(int fd) {
@@ -176,15 +190,7 @@ History::History(const std::string& path) : path_(path) {
   }
   // The writer lock first: a second writer is refused before the database is opened.
   lock_ = std::make_unique<WriterLock>(path);
-  const int rc =
-      sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, nullptr);
-  if (rc != SQLITE_OK) {
-    const std::string msg = db_ ? sqlite3_errmsg(db_) : "out of memory";
-    sqlite3_close(db_);
-    db_ = nullptr;
-    throw IoError(Message("cannot open history database '", path, "': ", msg));
-  }
-  sqlite3_busy_timeout(db_, 5000);
+  db_ = OpenDatabase(path, true, 5000);
   try {
     // Reading the header first: a non-SQLite file fails here, before any write.
     int version = schema_version();
@@ -253,19 +259,6 @@ const char* kSavedStates =
     "CREATE TABLE IF NOT EXISTS saved_states(key TEXT PRIMARY KEY, stamp REAL NOT NULL, "
     "value TEXT NOT NULL)";
 
-// Opens (creating when `create`) a SQLite file; IoError naming it.
-sqlite3* OpenDatabase(const std::string& path, bool create) {
-  sqlite3* db = nullptr;
-  const int flags = create ? SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE : SQLITE_OPEN_READONLY;
-  if (sqlite3_open_v2(path.c_str(), &db, flags, nullptr) != SQLITE_OK) {
-    const std::string msg = db ? sqlite3_errmsg(db) : "out of memory";
-    sqlite3_close(db);
-    throw IoError(Message("cannot open history database '", path, "': ", msg));
-  }
-  sqlite3_busy_timeout(db, 10000);
-  return db;
-}
-
 }  // namespace
 
 HistoryInfo DescribeHistory(const std::string& path) {
@@ -273,7 +266,7 @@ HistoryInfo DescribeHistory(const std::string& path) {
   struct stat st {};
   if (stat(path.c_str(), &st) != 0) return info;
   info.exists = true;
-  sqlite3* db = OpenDatabase(path, false);
+  sqlite3* db = OpenDatabase(path, false, 10000);
   try {
     auto meta = [&](const std::string& key) -> std::optional<std::string> {
       Statement q(db, "SELECT value FROM meta WHERE key = ?", path);
@@ -293,13 +286,11 @@ HistoryInfo DescribeHistory(const std::string& path) {
       info.reference_recording = meta("reference_recording").value_or("");
       Statement e(db,
                   "SELECT count(DISTINCT CASE WHEN source != 3 THEN stamp END), "
-                  "count(DISTINCT CASE WHEN source = 3 THEN stamp END), max(stamp) FROM "
-                  "observations",
+                  "count(DISTINCT CASE WHEN source = 3 THEN stamp END) FROM observations",
                   path);
       if (e.Step()) {
         info.epochs = e.Int(0);
         info.radio_epochs = e.Int(1);
-        info.newest_stamp = e.Double(2);
       }
       Statement o(db, "SELECT count(*) FROM observations", path);
       if (o.Step()) info.observations = o.Int(0);
@@ -313,7 +304,7 @@ HistoryInfo DescribeHistory(const std::string& path) {
 }
 
 SavedStates::SavedStates(const std::string& path) : path_(path) {
-  db_ = OpenDatabase(path, true);
+  db_ = OpenDatabase(path, true, 10000);
   try {
     Exec(kSavedStates);
   } catch (...) {
@@ -373,12 +364,6 @@ std::vector<SavedStates::Saved> SavedStates::After(const std::string& prefix, do
   std::vector<Saved> out;
   while (q.Step()) out.push_back({q.Text(0), q.Double(1), q.Text(2)});
   return out;
-}
-
-void SavedStates::Erase(const std::string& prefix) {
-  Statement q(db_, "DELETE FROM saved_states WHERE substr(key, 1, length(?1)) = ?1", path_);
-  q.Bind(1, prefix);
-  q.Step();
 }
 
 void History::Migrate() {

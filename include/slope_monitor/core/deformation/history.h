@@ -101,7 +101,6 @@ struct HistoryInfo {
   int64_t epochs = 0;               // survey epochs: distinct stamps of its non-radio observations
   int64_t radio_epochs = 0;         // distinct stamps of its radio observations
   int64_t observations = 0;
-  double newest_stamp = 0.0;  // [s] of its newest batch (0 when none)
 };
 // Throws IoError for a file that is not a history (naming it).
 HistoryInfo DescribeHistory(const std::string& path);
@@ -130,7 +129,6 @@ class SavedStates {
   std::optional<Saved> LatestBefore(const std::string& prefix, double stamp) const;
   // Every state under `prefix` with a stamp after `stamp`, in stamp order.
   std::vector<Saved> After(const std::string& prefix, double stamp) const;
-  void Erase(const std::string& prefix);  // every key starting with it
 
  private:
   void Exec(const std::string& sql) const;

@@ -120,7 +120,6 @@ class OrderedFilter {
   // any measurement; false (nothing changed) when it already has a state.
   // The origin is no measurement: count() does not include it.
   bool AddOrigin(double stamp);
-  bool has_origin() const { return has_origin_; }
   // The velocity is measured: two states (origin and a measurement, or two measurements).
   bool has_velocity() const { return count_ + (has_origin_ ? 1 : 0) >= 2; }
 
