@@ -1,5 +1,6 @@
 #include "slope_monitor/core/capture/calibration.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "slope_monitor/core/common/error.h"
@@ -23,6 +24,23 @@ camera::CameraModel NominalModelFromExif(const ExifInfo& exif, int width, int he
                             camera::DistortionModel::kNone, interior);
   model.Check();
   return model;
+}
+
+double PixelSizePrior(const ExifInfo& exif, int width, int height, const std::string& file,
+                      std::string* source) {
+  if (!(exif.focal_length_mm > 0.0) || width <= 0 || height <= 0) {
+    throw InvalidArgument(Message(file, ": a pixel size prior needs the EXIF focal length (",
+                                  exif.focal_length_mm, " mm) and the image size (", width, "x",
+                                  height, ")"));
+  }
+  double c_px = kFocalPriorOfLargerSide * std::max(width, height);
+  *source = Message(kFocalPriorOfLargerSide, " x the larger image side");
+  if (exif.focal_length_35mm > 0.0) {
+    const double diagonal_35mm = std::hypot(36.0, 24.0);
+    c_px = exif.focal_length_35mm / diagonal_35mm * std::hypot(width, height);
+    *source = Message("35 mm equivalent ", exif.focal_length_35mm, " mm");
+  }
+  return exif.focal_length_mm / c_px;
 }
 
 camera::CameraModel CheckCameraInfo(const camera::CameraInfoFields& info, double pixel_size,

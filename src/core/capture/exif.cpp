@@ -166,6 +166,9 @@ ExifInfo ReadExif(const std::string& path) {
   FindString(exif, "Exif.Image.Model", &info.model);
   const auto fl = exif.findKey(Exiv2::ExifKey("Exif.Photo.FocalLength"));
   if (fl != exif.end() && fl->count() >= 1) info.focal_length_mm = RationalAt(*fl, 0, path);
+  const auto f35 = exif.findKey(Exiv2::ExifKey("Exif.Photo.FocalLengthIn35mmFilm"));
+  if (f35 != exif.end() && f35->count() >= 1 && f35->toLong(0) > 0)
+    info.focal_length_35mm = static_cast<double>(f35->toLong(0));
 
   double lat = 0.0, lon = 0.0;
   const bool has_lat =

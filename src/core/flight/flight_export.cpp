@@ -218,6 +218,14 @@ void WriteFlightReport(const FlightReportInput& in, const std::string& json_path
   const auto& interior = in.result->scene.cameras.empty()
                              ? std::array<double, camera::kNumInterior>{}
                              : in.result->scene.cameras[0].model.interior();
+  // The principal distance in pixels: where it started and where the
+  // self-calibration took it (a wrong EXIF focal length, or a prior).
+  const double pixel = in.photos->nominal.sensor().pixel_size;
+  const double c0_px = in.photos->nominal.interior()[camera::kC] / pixel;
+  const double c_px = in.result->scene.cameras.empty() ? c0_px : interior[camera::kC] / pixel;
+  const double c_change = 100.0 * (c_px - c0_px) / c0_px;
+  const std::string c_source =
+      in.photos->focal_prior.empty() ? "EXIF focal length" : "prior: " + in.photos->focal_prior;
   std::ostringstream j;
   j << "{\n  \"flight\": " << in.flight << ",\n  \"folder\": " << JsonString(in.folder)
     << ",\n  \"camera\": " << JsonString(in.photos->camera_label) << ",\n  \"photos\": " << s.photos
@@ -234,7 +242,10 @@ void WriteFlightReport(const FlightReportInput& in, const std::string& json_path
   for (int k = 0; k < camera::kNumInterior; ++k)
     j << (k ? ", " : "") << "\"" << camera::InteriorNames()[k] << "\": ["
       << Fmt("%.6g", interior[k]) << ", " << Fmt("%.3g", s.interior_sigma[k]) << "]";
-  j << "},\n  \"control\": " << JsonResiduals(s.control)
+  j << "},\n  \"focal\": {\"source\": " << JsonString(c_source)
+    << ", \"start_px\": " << Fmt("%.2f", c0_px) << ", \"adjusted_px\": " << Fmt("%.2f", c_px)
+    << ", \"change_percent\": " << Fmt("%.2f", c_change) << "}";
+  j << ",\n  \"control\": " << JsonResiduals(s.control)
     << ",\n  \"control_rms_m\": " << Fmt("%.4f", s.control_rms)
     << ",\n  \"check\": " << JsonResiduals(s.check)
     << ",\n  \"check_rms_m\": " << Fmt("%.4f", s.check_rms)
@@ -252,9 +263,11 @@ void WriteFlightReport(const FlightReportInput& in, const std::string& json_path
 
   std::ostringstream m;
   m << "# Flight " << in.flight << ": " << in.folder << "\n\n| | |\n|---|---|\n| camera | "
-    << in.photos->camera_label << " |\n| photos oriented | " << s.oriented << " of " << s.photos
-    << " (" << in.photos->skipped.size() << " skipped) |\n| pairs tied / tried | "
-    << in.ties->pairs_tied << " / " << in.ties->pairs.size() << " |\n| 3-D points | " << s.points
+    << in.photos->camera_label << " |\n| principal distance | " << Fmt("%.1f", c_px) << " px, from "
+    << Fmt("%.1f", c0_px) << " px (" << c_source << "), " << Fmt("%+.1f", c_change)
+    << " % |\n| photos oriented | " << s.oriented << " of " << s.photos << " ("
+    << in.photos->skipped.size() << " skipped) |\n| pairs tied / tried | " << in.ties->pairs_tied
+    << " / " << in.ties->pairs.size() << " |\n| 3-D points | " << s.points
     << " |\n| reprojection error | rms " << Fmt("%.3f", s.rms_px) << " px, mean "
     << Fmt("%.3f", s.mean_px) << " px |\n| sigma0 | " << Fmt("%.3f", s.sigma0) << " |\n| datum | "
     << s.datum << (s.covariance_note.empty() ? "" : " (" + s.covariance_note + ")")

@@ -215,6 +215,7 @@ void FlightMatchingOptions::Check() const {
   RequireOption("flight matching", sequence_window >= 1, "sequence_window", "must be >= 1");
   RequireOption("flight matching", min_pair_tie_points >= 5, "min_pair_tie_points", "must be >= 5");
   RequireOption("flight matching", join_radius_px >= 0.0, "join_radius_px", "must be >= 0");
+  RequireOption("flight matching", growth_join_radius >= 0.0, "growth_join_radius", "must be >= 0");
   RequireOption("flight matching", threads >= 0 && threads <= 64, "threads", "must be in [0, 64]");
   footprint.Check();
   features.Check();
@@ -290,6 +291,16 @@ FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& 
     ties.pairs.push_back(st);
   }
   BuildTracks(pairs, results, used, grey_of, &ties);
+  // Tracks for the orientation's growth: joined at the interest points'
+  // precision (a pixel fraction of the reduced copy they are detected on);
+  // JoinTracks needs the tracks as built (each starting at its own point).
+  if (options.growth_join_radius > 0.0 && !photos.photos.empty()) {
+    const FlightPhoto& p = photos.photos.front();
+    const double reduce = std::min(
+        1.0, static_cast<double>(options.features.coarse_max_side) / std::max(p.width, p.height));
+    ties.growth_tracks = ties.tracks;
+    JoinTracks(options.growth_join_radius / reduce, &ties.growth_tracks);
+  }
   if (options.join_radius_px > 0.0) JoinTracks(options.join_radius_px, &ties.tracks);
   ties.feature_seconds = cache.seconds();
   ties.peak_feature_bytes = cache.peak_bytes();

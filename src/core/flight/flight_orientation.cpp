@@ -195,8 +195,12 @@ std::vector<int> FreeInterior(const Block& block, const StageSetup& s) {
   // While growing, c stays at the EXIF value: on a nadir block over gentle
   // relief c trades off against the depth of the ground (measured: c drifted
   // from 10 to 13 mm on the synthetic block), and the start pair held fixed
-  // would carry that into every photo added.
-  if (!s.final) return {camera::kK1};
+  // would carry that into every photo added. A prior (no focal-plane
+  // resolution in EXIF) may be off by a fifth: c is free from the start.
+  if (!s.final) {
+    if (!s.input->photos->focal_prior.empty()) return {camera::kC, camera::kK1};
+    return {camera::kK1};
+  }
   if (block.Oriented() < s.options->min_photos_full_calibration)
     return {camera::kC, camera::kK1, camera::kK2};
   return {camera::kC, camera::kX0, camera::kY0, camera::kK1, camera::kK2, camera::kK3};
@@ -451,6 +455,16 @@ std::string Georeference(const FlightInput& input, const FlightOrientationOption
 // The stages
 // ---------------------------------------------------------------------------
 
+void SetTracks(const std::vector<FlightTrack>& tracks, Block* b) {
+  b->tracks = tracks;
+  b->position.assign(tracks.size(), Eigen::Vector3d::Zero());
+  b->known.assign(tracks.size(), 0);
+  b->tracks_of_photo.assign(b->oriented.size(), {});
+  for (size_t t = 0; t < tracks.size(); ++t)
+    for (const auto& o : tracks[t].observations)
+      b->tracks_of_photo[o.first].push_back(static_cast<int>(t));
+}
+
 Block MakeBlock(const FlightInput& input) {
   Block b;
   const size_t n = input.photos->photos.size();
@@ -464,14 +478,18 @@ Block MakeBlock(const FlightInput& input) {
   b.exterior.resize(n);
   b.oriented.assign(n, 0);
   b.failed_at.assign(n, 0);
-  b.tracks = input.ties->tracks;
-  b.position.assign(b.tracks.size(), Eigen::Vector3d::Zero());
-  b.known.assign(b.tracks.size(), 0);
-  b.tracks_of_photo.resize(n);
-  for (size_t t = 0; t < b.tracks.size(); ++t)
-    for (const auto& o : b.tracks[t].observations)
-      b.tracks_of_photo[o.first].push_back(static_cast<int>(t));
+  SetTracks(input.ties->growth_tracks.empty() ? input.ties->tracks : input.ties->growth_tracks, &b);
   return b;
+}
+
+// The adjustment's tracks (the ties' own, not joined) in place of the
+// growth's: each intersected from the oriented photos.
+void UseAdjustmentTracks(const FlightInput& input, const FlightOrientationOptions& options,
+                         Block* block) {
+  if (input.ties->growth_tracks.empty()) return;
+  SetTracks(input.ties->tracks, block);
+  for (size_t t = 0; t < block->tracks.size(); ++t)
+    IntersectTrack(block, static_cast<int>(t), options, options.max_reprojection_px);
 }
 
 // Resection / intersection, with an adjustment each time the oriented photos
@@ -706,6 +724,7 @@ FlightResult OrientFlight(const FlightInput& input, const FlightOrientationOptio
   sum.seconds["start"] = SecondsSince(t0);
   t0 = Clock::now();
   Grow(&block, input, options);
+  UseAdjustmentTracks(input, options, &block);
   sum.seconds["growth"] = SecondsSince(t0);
   t0 = Clock::now();
   StageSetup s;

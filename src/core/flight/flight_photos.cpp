@@ -55,6 +55,7 @@ FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths,
   FlightPhotos out;
   out.options = options;
   std::vector<FlightPhoto> read;
+  std::vector<std::string> prior_of;  // per photo read: its focal prior ("" none)
   for (const std::string& path : paths) {
     FlightPhoto p;
     p.path = path;
@@ -82,13 +83,13 @@ FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths,
       p.attitude.pixel_size_mm = options.pixel_size_mm;
       p.attitude.has_pixel_size = options.pixel_size_mm > 0.0;
     }
+    std::string prior;
     if (!p.attitude.has_pixel_size) {
-      out.skipped.push_back(
-          {path,
-           "no pixel size in its EXIF (FocalPlaneXResolution; give the camera's pixel size)"});
-      continue;
+      p.attitude.pixel_size_mm = capture::PixelSizePrior(p.exif, p.width, p.height, p.path, &prior);
+      p.attitude.has_pixel_size = true;
     }
     read.push_back(p);
+    prior_of.push_back(prior);
   }
   std::vector<capture::PhotoCamera> cameras;
   for (const FlightPhoto& p : read) cameras.push_back(KeyOf(p));
@@ -100,7 +101,8 @@ FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths,
     throw IoError(Message("none of the ", paths.size(), " photos can be used (", why, ")"));
   }
   out.camera_label = main.Describe();
-  for (const FlightPhoto& p : read) {
+  for (size_t i = 0; i < read.size(); ++i) {
+    const FlightPhoto& p = read[i];
     if (KeyOf(p) != main) {
       out.skipped.push_back(
           {p.path, Message("another camera or size (", KeyOf(p).Describe(), ") than the flight's ",
@@ -109,6 +111,7 @@ FlightPhotos ReadFlightPhotos(const std::vector<std::string>& paths,
     }
     out.with_gnss += p.exif.has_gps ? 1 : 0;
     out.with_yaw += p.attitude.has_yaw ? 1 : 0;
+    if (out.photos.empty()) out.focal_prior = prior_of[i];
     out.photos.push_back(p);
   }
   const FlightPhoto& first = out.photos.front();

@@ -149,6 +149,38 @@ TEST(FlightOrientation, GnssBlockWithUnknownDistortionIsOrientedAndSelfCalibrate
   }
 }
 
+// Pairwise tracks (each ground point as the two-photo pieces a pair gives,
+// as when the pairs' tie points start at nearby but different interest
+// points) leave every photo but the start pair without known points; the
+// growth tracks (the pieces joined) orient the block, and the adjustment
+// keeps the pieces.
+TEST(FlightOrientation, GrowthTracksOrientTheBlockAndTheAdjustmentKeepsThePairwiseTracks) {
+  Synthetic s = MakeBlock(7);
+  FlightTies pieces = s.ties;
+  pieces.tracks.clear();
+  for (const FlightTrack& t : s.ties.tracks)
+    for (size_t k = 0; k + 1 < t.observations.size(); ++k)
+      pieces.tracks.push_back(FlightTrack{{t.observations[k], t.observations[k + 1]}, t.grey});
+  FlightInput in;
+  in.photos = &s.photos;
+  in.ties = &pieces;
+  for (const auto& g : s.gnss) in.gnss_in_site.emplace_back(g);
+  const FlightResult alone = OrientFlight(in);
+  EXPECT_LE(alone.summary.oriented, 2);  // the start pair at most
+
+  pieces.growth_tracks = s.ties.tracks;
+  const FlightResult r = OrientFlight(in);
+  ASSERT_TRUE(r.summary.success) << r.summary.message;
+  EXPECT_EQ(r.summary.oriented, 18);
+  EXPECT_LT(r.summary.rms_px, 0.45);  // 0.3 px noise per coordinate
+  EXPECT_GT(r.summary.points, static_cast<int>(s.ties.tracks.size()));  // the pieces
+  for (size_t i = 0; i < r.scene.images.size(); ++i) {
+    const Eigen::Vector3d d =
+        r.scene.images[i].exterior.position - s.truth[r.photo_of_image[i]].position;
+    EXPECT_LT(d.head<2>().norm(), 1.5) << r.scene.images[i].name;
+  }
+}
+
 TEST(FlightOrientation, ControlPointsPickedInPhotosGiveTheDatumAndCheckPointsStayOut) {
   Synthetic s = MakeBlock(11);
   FlightInput in;

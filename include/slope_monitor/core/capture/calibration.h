@@ -25,6 +25,20 @@ namespace capture {
 camera::CameraModel NominalModelFromExif(const ExifInfo& exif, int width, int height,
                                          double pixel_size, const std::string& file);
 
+// The pixel size [mm] of a camera whose EXIF has a focal length but no
+// focal-plane resolution (phones, many DJI cameras), so that the nominal
+// model's principal distance in pixels is a prior the adjustment refines:
+// from the 35 mm equivalent focal length where EXIF has it (c_px = f35 /
+// 43.27 mm x the image diagonal in px), else COLMAP's prior c_px = 1.2 x the
+// larger image side. *source says which ("35 mm equivalent 24 mm" or
+// "1.2 x the larger image side"). Throws InvalidArgument naming `file` when
+// there is no focal length or the size is not positive.
+double PixelSizePrior(const ExifInfo& exif, int width, int height, const std::string& file,
+                      std::string* source);
+// The prior of the principal distance in pixels when a camera has no focal
+// length in its EXIF: 1.2 x the larger image side.
+inline constexpr double kFocalPriorOfLargerSide = 1.2;
+
 // Converts camera_info fields to the collinearity model and back and checks
 // the round trip reproduces K, D (5 plumb_bob terms) and the size to a
 // relative 1e-9, and that the size matches the image (when width/height > 0).

@@ -28,6 +28,9 @@ struct ExifInfo {
   std::string make;              // Exif.Image.Make ("" when absent)
   std::string model;             // Exif.Image.Model
   double focal_length_mm = 0.0;  // Exif.Photo.FocalLength [mm]; 0 when absent
+  // Exif.Photo.FocalLengthIn35mmFilm [mm]: the focal length a 36 x 24 mm
+  // frame would need for the same angle of view (diagonal); 0 when absent.
+  double focal_length_35mm = 0.0;
 
   // Exif.GPSInfo.GPSLatitude/GPSLongitude (deg/min/sec with N/S, E/W refs)
   // and GPSAltitude (with GPSAltitudeRef: 0 above, 1 below sea level) [m].

@@ -51,6 +51,16 @@ struct FlightMatchingOptions {
   // [px] tracks are joined where one's observation in photo b lies this
   // close to the interest point another starts at in b (0: not joined), >= 0.
   double join_radius_px = 1.0;
+  // [px of the reduced copy, features.coarse_max_side] the tracks are also
+  // joined within this of the interest point another starts at, for the
+  // orientation's growth only (FlightTies::growth_tracks): a ground point
+  // seen from several strips then joins their photos, while the adjustment
+  // keeps the unjoined tracks (each an interest point and its LSC matches,
+  // so no track mixes two nearby points). Interest points are placed to
+  // about half a pixel of that copy: at 1 full-resolution px a 50-photo
+  // part of a real fixed-wing flight (3600 x 2700, copy 1200) oriented 5
+  // photos, at 2 px (2/3 of the copy's pixel) 41. 0: not joined, >= 0.
+  double growth_join_radius = 2.0 / 3.0;
   int threads = 0;     // pairs matched at once (0: the hardware's), [0, 64]
   void Check() const;  // throws ConfigError naming the field
 };
@@ -69,6 +79,9 @@ struct FlightPairStats {
 
 struct FlightTies {
   std::vector<FlightTrack> tracks;
+  // The tracks joined at growth_join_radius (the orientation's growth; empty:
+  // it grows on `tracks`).
+  std::vector<FlightTrack> growth_tracks;
   std::vector<FlightPairStats> pairs;   // every pair tried, in order
   int pairs_tied = 0;                   // with >= min_pair_tie_points
   long tie_points = 0;                  // pairwise tie points kept

@@ -8,7 +8,9 @@
 // named with the reason (FlightPhotos::skipped). The nominal camera model
 // (the adjustment's start for self-calibration): principal distance = EXIF
 // focal length, principal point at the centre, no distortion yet; pixel size
-// from EXIF FocalPlaneXResolution, else FlightPhotoOptions::pixel_size_mm.
+// from EXIF FocalPlaneXResolution, else FlightPhotoOptions::pixel_size_mm,
+// else a prior from the 35 mm equivalent focal length or 1.2 x the larger
+// image side (FlightPhotos::focal_prior says which).
 // GNSS positions (EXIF) and the autopilot's attitude (XMP) are kept per photo.
 // Each file is checked whole first (io::CheckImageFile): an empty,
 // truncated or damaged photo, or one whose header claims more pixels than
@@ -29,7 +31,8 @@ namespace flight {
 
 struct FlightPhotoOptions {
   // [mm] pixel size of a camera whose EXIF has no FocalPlaneXResolution (0:
-  // such photos cannot be used, they are named), >= 0.
+  // a prior from the focal length, capture::PixelSizePrior, which the
+  // orientation self-calibrates), >= 0.
   double pixel_size_mm = 0.0;
   // [mm] focal length of a camera whose EXIF has none (0: such photos are
   // named and left out), >= 0.
@@ -61,6 +64,11 @@ struct FlightPhotos {
   int with_gnss = 0;            // photos with an EXIF position
   int with_yaw = 0;             // photos with the autopilot's heading
   FlightPhotoOptions options;   // as read with
+  // Where the principal distance in pixels comes from: "" (EXIF focal
+  // length and focal-plane resolution, or the options' pixel size), else the
+  // prior (capture::PixelSizePrior's source), which the orientation frees
+  // from the start.
+  std::string focal_prior;
 };
 
 // Image files of a folder (.jpg .jpeg .png .tif .tiff, any case), sorted by
