@@ -243,6 +243,12 @@ std::vector<std::pair<int, int>> PlanFlightPairs(const FlightPhotos& photos,
   return pairs;
 }
 
+double GrowthJoinRadiusPx(const FlightMatchingOptions& options, int width, int height) {
+  const double reduce = std::min(
+      1.0, static_cast<double>(options.features.coarse_max_side) / std::max(width, height));
+  return options.growth_join_radius / reduce;
+}
+
 FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& options) {
   options.Check();
   const auto t0 = std::chrono::steady_clock::now();
@@ -295,11 +301,9 @@ FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& 
   // precision (a pixel fraction of the reduced copy they are detected on);
   // JoinTracks needs the tracks as built (each starting at its own point).
   if (options.growth_join_radius > 0.0 && !photos.photos.empty()) {
-    const FlightPhoto& p = photos.photos.front();
-    const double reduce = std::min(
-        1.0, static_cast<double>(options.features.coarse_max_side) / std::max(p.width, p.height));
     ties.growth_tracks = ties.tracks;
-    JoinTracks(options.growth_join_radius / reduce, &ties.growth_tracks);
+    JoinTracks(GrowthJoinRadiusPx(options, photos.photos[0].width, photos.photos[0].height),
+               &ties.growth_tracks);
   }
   if (options.join_radius_px > 0.0) JoinTracks(options.join_radius_px, &ties.tracks);
   ties.feature_seconds = cache.seconds();

@@ -182,6 +182,15 @@ FlightSummary OrientSceneFromTiePoints(adjustment::Scene* scene, const std::stri
   FlightOrientationOptions o = options;
   o.leave_one_out = false;
   SceneFlight f = FromScene(*scene, cam, &o);
+  // The growth's tracks as process_flight joins them (before JoinAsTheFlight
+  // joins the adjustment's: JoinTracks needs each track at its start).
+  const FlightMatchingOptions matching;
+  if (matching.growth_join_radius > 0.0) {
+    f.ties.growth_tracks = f.ties.tracks;
+    JoinTracks(GrowthJoinRadiusPx(matching, f.photos.nominal.sensor().width,
+                                  f.photos.nominal.sensor().height),
+               &f.ties.growth_tracks);
+  }
   adjustment::Scene joined = *scene;
   JoinAsTheFlight(&joined, &f);
   f.input.photos = &f.photos;

@@ -104,6 +104,10 @@ std::vector<std::pair<int, int>> PlanFlightPairs(const FlightPhotos& photos,
 std::vector<std::vector<std::pair<int, int>>> JoinTracks(double radius_px,
                                                          std::vector<FlightTrack>* tracks);
 
+// [full-resolution px] the growth's join radius for photos of this size:
+// options.growth_join_radius pixels of the reduced copy.
+double GrowthJoinRadiusPx(const FlightMatchingOptions& options, int width, int height);
+
 // Decodes the photos, matches the planned pairs and builds the tracks.
 FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& options);
 
