@@ -37,6 +37,9 @@ EstimatorStep::EstimatorStep(const EstimatorParameters& parameters,
   }
   estimator_ = std::make_unique<deformation::Estimator>(parameters_.options, history_.get());
   estimator_->SetRecording(parameters_.recording);
+  // A history continued: the levels it ends at were announced by the run
+  // that reached them; this run announces only what changes from there.
+  alert_changes_.Update(estimator_->GetSnapshot());
   if (!ordered_inputs.empty()) order_ = std::make_unique<InputOrder<Incoming>>(ordered_inputs);
   if (parameters_.site && !parameters_.site->notification.hook.empty())
     hook_ = std::make_unique<deformation::AlertHook>(parameters_.site->notification,

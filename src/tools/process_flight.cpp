@@ -59,6 +59,7 @@
 
 #include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/progress_line.h"
 #include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/flight/flight_export.h"
 #include "slope_monitor/core/flight/flight_orientation.h"
@@ -425,9 +426,20 @@ FlightOutcome ProcessFlight(int k, const std::string& folder, const Args& args,
     std::cerr << "process_flight: " << s.path << ": " << s.reason << "\n";
   outcome.skipped += static_cast<int>(photos.skipped.size());
   if (k == 1) *crs = MakeFrame(args, gcp, geo, photos, frame);
+  // One progress line per stage (features k/n, pairs k/n, oriented k/n):
+  // redrawn on a terminal, else a plain line at its start, its end and
+  // every half minute between.
+  ProgressLine line(stderr);
+  std::set<std::string> started;
+  const flight::StageProgress progress = [&](const char* stage, int done, int total) {
+    const bool first = started.insert(stage).second;
+    if (!line.Due(first || done == total)) return;
+    line.Show(Message("process_flight: flight ", k, ": ", stage, " ", done, "/", total));
+  };
   flight::FlightMatchingOptions mo;
   mo.threads = args.threads;
-  const flight::FlightTies ties = flight::MatchFlight(photos, mo);
+  const flight::FlightTies ties = flight::MatchFlight(photos, mo, progress);
+  line.End();
   for (const auto& u : ties.unreadable) std::cerr << "process_flight: " << u << "\n";
   flight::FlightInput input;
   input.photos = &photos;
@@ -453,7 +465,8 @@ FlightOutcome ProcessFlight(int k, const std::string& folder, const Args& args,
   oo.gnss_sigma_vertical_m =
       args.gnss_sigma * capture::kExifGnssSigmaVertical / capture::kExifGnssSigmaHorizontal;
   oo.leave_one_out = args.leave_one_out;
-  const flight::FlightResult result = flight::OrientFlight(input, oo);
+  const flight::FlightResult result = flight::OrientFlight(input, oo, progress);
+  line.End();
   const flight::FlightSummary& s = result.summary;
   for (const auto& n : s.not_oriented) std::cerr << "process_flight: not oriented: " << n << "\n";
   outcome.skipped += static_cast<int>(s.not_oriented.size());

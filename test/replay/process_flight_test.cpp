@@ -227,8 +227,14 @@ TEST(ProcessFlight, PhotosWithoutAFocalPlaneResolutionStartFromAPriorAndSelfCali
                     dir),
             0)
       << ReadFile(dir / "stderr");
-  const std::string out = ReadFile(dir / "stdout");
+  const std::string out = ReadFile(dir / "stdout"), err = ReadFile(dir / "stderr");
   EXPECT_NE(out.find("flight 1: 8 of 8 photos oriented"), std::string::npos) << out;
+  // Progress, one plain line per stage at its start and end (not a terminal).
+  for (const char* line :
+       {"flight 1: features 8/8\n", "flight 1: pairs 1/28\n", "flight 1: pairs 28/28\n",
+        "flight 1: oriented 2/8\n", "flight 1: oriented 8/8\n"})
+    EXPECT_NE(err.find(std::string("process_flight: ") + line), std::string::npos) << line << err;
+  EXPECT_EQ(err.find('\r'), std::string::npos);
   const std::string report = ReadFile(dir / "out_phone" / "flight_1" / "report.json");
   EXPECT_NE(
       report.find("\"source\": \"prior: 1.2 x the larger image side\", \"start_px\": 4800.00"),

@@ -242,6 +242,10 @@ TEST_F(Season, RecordingsContinueTheSiteHistory) {
       << replay_test::ReadFile(again / "stderr");
   ExpectSameReport(*dir_ / "whole" / "reports" / "deformation.csv",
                    home / "reports" / "deformation.csv", "the second recording again");
+  // The levels the history ends at were announced by the runs that reached
+  // them: a run that changes nothing announces no alert.
+  EXPECT_EQ(replay_test::ReadFile(again / "stderr").find(": alert "), std::string::npos)
+      << replay_test::ReadFile(again / "stderr");
 }
 
 TEST_F(Season, RecordingsOutOfOrderGiveTheInOrderNumbers) {

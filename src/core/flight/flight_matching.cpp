@@ -74,6 +74,10 @@ class FeatureCache {
     }
   }
   double seconds() const { return seconds_; }
+  int computed() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return computed_;
+  }
   std::size_t peak_bytes() const { return peak_; }
   std::vector<std::string> unreadable() const { return unreadable_; }
 
@@ -98,6 +102,7 @@ class FeatureCache {
     if (why.empty())
       f = std::make_shared<matching::PhotoFeatures>(image, p.name, options_.features);
     std::lock_guard<std::mutex> lock(mutex_);
+    ++computed_;
     if (!why.empty()) {
       unreadable_.push_back(Message(p.path, ": ", why));
       return;
@@ -114,6 +119,7 @@ class FeatureCache {
   std::vector<Slot> slots_;
   std::mutex mutex_;
   double seconds_ = 0.0;
+  int computed_ = 0;  // photos decoded (or found unreadable)
   std::size_t bytes_ = 0, peak_ = 0;
   std::vector<std::string> unreadable_;
 };
@@ -249,7 +255,8 @@ double GrowthJoinRadiusPx(const FlightMatchingOptions& options, int width, int h
   return options.growth_join_radius / reduce;
 }
 
-FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& options) {
+FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& options,
+                       const StageProgress& progress) {
   options.Check();
   const auto t0 = std::chrono::steady_clock::now();
   const std::vector<std::pair<int, int>> pairs = PlanFlightPairs(photos, options);
@@ -259,6 +266,17 @@ FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& 
   std::vector<matching::PhotoPairResult> results(pairs.size());
   std::vector<std::vector<std::uint8_t>> grey_of(pairs.size());
   const int threads = options.threads > 0 ? options.threads : cv::getNumberOfCPUs();
+  int with_pairs = 0;
+  for (int u : uses) with_pairs += u > 0;
+  std::mutex progress_mutex;
+  int pairs_done = 0, features_said = 0;
+  auto report = [&] {  // after a pair
+    if (!progress) return;
+    std::lock_guard<std::mutex> lock(progress_mutex);
+    const int features = cache.computed();
+    if (features > features_said) progress("features", features_said = features, with_pairs);
+    progress("pairs", ++pairs_done, static_cast<int>(pairs.size()));
+  };
   // Pairs in order, `threads` at a time: photo a's features come first, so a
   // photo is released soon after the pairs that need it.
   cv::parallel_for_(
@@ -276,6 +294,7 @@ FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& 
           }
           cache.Done(a);
           cache.Done(b);
+          report();
         }
       },
       threads);

@@ -494,7 +494,8 @@ void UseAdjustmentTracks(const FlightInput& input, const FlightOrientationOption
 
 // Resection / intersection, with an adjustment each time the oriented photos
 // grew by growth_for_adjustment.
-void Grow(Block* block, const FlightInput& input, const FlightOrientationOptions& options) {
+void Grow(Block* block, const FlightInput& input, const FlightOrientationOptions& options,
+          const StageProgress& progress) {
   StageSetup s;
   s.input = &input;
   s.options = &options;
@@ -504,6 +505,7 @@ void Grow(Block* block, const FlightInput& input, const FlightOrientationOptions
     const int next = NextPhoto(*block, options, &seen);
     if (next < 0) break;
     if (!ResectPhoto(block, next, options)) continue;
+    if (progress) progress("oriented", block->Oriented(), static_cast<int>(block->oriented.size()));
     IntersectNewTracks(block, options, next);
     if (block->Oriented() >= adjusted_at * options.growth_for_adjustment) {
       Adjust(block, s);
@@ -706,7 +708,8 @@ void FlightOrientationOptions::Check() const {
   RequireOption(o, intermediate_iterations > 0, "intermediate_iterations", "must be > 0");
 }
 
-FlightResult OrientFlight(const FlightInput& input, const FlightOrientationOptions& options) {
+FlightResult OrientFlight(const FlightInput& input, const FlightOrientationOptions& options,
+                          const StageProgress& progress) {
   options.Check();
   if (!input.photos || !input.ties)
     throw InvalidArgument("OrientFlight: photos and ties are required");
@@ -723,7 +726,8 @@ FlightResult OrientFlight(const FlightInput& input, const FlightOrientationOptio
   }
   sum.seconds["start"] = SecondsSince(t0);
   t0 = Clock::now();
-  Grow(&block, input, options);
+  if (progress) progress("oriented", 2, sum.photos);
+  Grow(&block, input, options, progress);
   UseAdjustmentTracks(input, options, &block);
   sum.seconds["growth"] = SecondsSince(t0);
   t0 = Clock::now();

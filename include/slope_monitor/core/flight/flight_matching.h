@@ -20,6 +20,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -31,6 +32,11 @@
 
 namespace slope_monitor {
 namespace flight {
+
+// Progress of a stage as work completes: ("features", photos done, photos),
+// ("pairs", pairs done, pairs), ("oriented", photos oriented, photos). Called
+// from one thread at a time.
+using StageProgress = std::function<void(const char* stage, int done, int total)>;
 
 struct FlightMatchingOptions {
   int exhaustive_max_photos = matching::kBlockExhaustiveMaxPhotos;  // all pairs up to it, >= 2
@@ -109,7 +115,8 @@ std::vector<std::vector<std::pair<int, int>>> JoinTracks(double radius_px,
 double GrowthJoinRadiusPx(const FlightMatchingOptions& options, int width, int height);
 
 // Decodes the photos, matches the planned pairs and builds the tracks.
-FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& options);
+FlightTies MatchFlight(const FlightPhotos& photos, const FlightMatchingOptions& options,
+                       const StageProgress& progress = {});
 
 }  // namespace flight
 }  // namespace slope_monitor

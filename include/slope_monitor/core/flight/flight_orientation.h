@@ -147,7 +147,9 @@ struct FlightResult {
   FlightSummary summary;
 };
 
-FlightResult OrientFlight(const FlightInput& input, const FlightOrientationOptions& options = {});
+// progress: ("oriented", photos oriented, photos) after each photo added.
+FlightResult OrientFlight(const FlightInput& input, const FlightOrientationOptions& options = {},
+                          const StageProgress& progress = {});
 
 // The reprojection error of result->scene (one camera) per observation and
 // point (observation_error_px, point_error_px) and the summary's
