@@ -196,7 +196,8 @@ std::vector<int> FreeInterior(const Block& block, const StageSetup& s) {
   // relief c trades off against the depth of the ground (measured: c drifted
   // from 10 to 13 mm on the synthetic block), and the start pair held fixed
   // would carry that into every photo added. A prior (no focal-plane
-  // resolution in EXIF) may be off by a fifth: c is free from the start.
+  // resolution in EXIF) may be far off (1.2 x the larger side: 65 % on the
+  // caliterra camera): c is free from the start.
   if (!s.final) {
     if (!s.input->photos->focal_prior.empty()) return {camera::kC, camera::kK1};
     return {camera::kK1};

@@ -16,7 +16,8 @@
 // matched into (>= 2 photos). Tracks are then joined through the photos they
 // share: a track's observation in b within join_radius_px of the interest
 // point another track starts at in b makes them one track (one observation
-// per photo).
+// per photo). A second set, joined within growth_join_radius, serves the
+// orientation's growth only (FlightTies::growth_tracks).
 #pragma once
 
 #include <cstdint>

@@ -9,7 +9,10 @@
 //     oriented photos grow by a quarter, a bundle adjustment of all oriented
 //     photos (self-calibrating c and k1; the start pair held) refines the
 //     block and observations off by more than max_reprojection_px are
-//     dropped (COLMAP's incremental mapper works the same way);
+//     dropped (COLMAP's incremental mapper works the same way). Start and
+//     growth run on FlightTies::growth_tracks when there are any; then the
+//     ties' own tracks are intersected from the oriented photos and carry
+//     the adjustments below;
 //  3. georeferencing: a similarity from the model to the site, fitted to the
 //     control points intersected from their picks (>= 3), else to the
 //     photos' GNSS positions (>= 3, not on one line); else the block stays in
