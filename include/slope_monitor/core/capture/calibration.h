@@ -35,8 +35,8 @@ camera::CameraModel NominalModelFromExif(const ExifInfo& exif, int width, int he
 // there is no focal length or the size is not positive.
 double PixelSizePrior(const ExifInfo& exif, int width, int height, const std::string& file,
                       std::string* source);
-// The prior of the principal distance in pixels when a camera has no focal
-// length in its EXIF: 1.2 x the larger image side.
+// PixelSizePrior without a 35 mm equivalent: the principal distance in
+// pixels taken as this x the larger image side.
 inline constexpr double kFocalPriorOfLargerSide = 1.2;
 
 // Converts camera_info fields to the collinearity model and back and checks

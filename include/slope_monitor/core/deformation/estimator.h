@@ -313,9 +313,10 @@ class Estimator {
   // Every point again from the batches held, in stamp order (a late batch).
   void Rerun();
   void ResetState();
-  void StoreAllEstimates();
-  bool TakeDatum(const Measurement& m,
-                 bool replay);  // every point's estimate into the history (one transaction)
+  void StoreAllEstimates();  // every point's estimate into the history (one transaction)
+  // The first measurement (of a new reference) sets the datum; false while a
+  // new reference is awaited and `m` is a held one of the old.
+  bool TakeDatum(const Measurement& m, bool replay);
   void Validate(const Measurement& m) const;
   void UpdateAlerts();
   PointState StateOf(const Point& p) const;
