@@ -11,7 +11,7 @@
 // and, with control points,
 //   flight <k>: control rms <x> m over <a> points, check rms <y> m over <b> points
 // and writes DIR/flight_<k>/ (flight_export.h: COLMAP text model, PLY, poses
-// with sigma, report.json / report.md, crs.txt).
+// with sigma, the pairs tried, report.json / report.md, crs.txt).
 //
 // --geo FILE: the photos' positions in ODM's geo.txt format (io/geo_list.h),
 // used instead of their EXIF GNSS (same sigma, --gnss-sigma).
@@ -38,7 +38,8 @@
 //   flagged f % ...
 // A dense stage or change that fails is named and counts as a left-out input.
 //
-// Exit status: 0 every flight oriented at least half its photos and every
+// Exit status: 0 every flight oriented at least half its photos (those of its
+// camera: another camera's photos in the folder are skipped) and every
 // input was used; 2 as 0 but some inputs were left out (photos skipped or
 // not oriented, picks naming photos not in the flight; each named on
 // stderr); 1 a flight oriented fewer than half its photos, nothing was
@@ -484,9 +485,12 @@ FlightOutcome ProcessFlight(int k, const std::string& folder, const Args& args,
   if (!s.success) std::cerr << "process_flight: flight " << k << ": " << s.message << "\n";
   if (s.success && args.dense && !DenseStage(k, photos, result, args, *crs, *frame, surface))
     ++outcome.skipped;
-  outcome.ok = s.success && 2 * s.oriented >= static_cast<int>(paths.size());
+  // Half of the flight's own photos: another camera's photos in the folder
+  // (a second flight) and unreadable files are named as skipped above.
+  const size_t own = photos.photos.size();
+  outcome.ok = s.success && 2 * s.oriented >= static_cast<int>(own);
   if (s.success && !outcome.ok)
-    std::cerr << "process_flight: flight " << k << ": only " << s.oriented << " of " << paths.size()
+    std::cerr << "process_flight: flight " << k << ": only " << s.oriented << " of " << own
               << " photos oriented (fewer than half)\n";
   return outcome;
 }

@@ -37,6 +37,8 @@ using replay_test::Wait;
 
 const fs::path kCaliterra =
     fs::path(SM_SOURCE_DIR) / ".." / "shared" / "data" / "uav_real_caliterra";
+const fs::path kCopr =
+    fs::path(SM_SOURCE_DIR) / ".." / "shared" / "data" / "uav_real_copr" / "images";
 const std::string kTool = std::string(SM_TOOL_DIR) + "/process_flight";
 
 fs::path Scratch(const std::string& name) {
@@ -131,8 +133,11 @@ void ExpectDenseOutputs(const std::string& out, const fs::path& f1) {
             std::string::npos);
 }
 
-// The folder a crew brings: four real photos, one photo of another size
-// without EXIF (written by OpenCV) and a zero-byte file.
+// The folder a crew brings: four real photos, three photos of another
+// flight (another camera, another height: copr), one photo of another size
+// without EXIF (written by OpenCV) and a zero-byte file. The larger flight
+// is oriented (4 of its 4 photos: more than half, though 4 of 9 files) and
+// every other photo is named.
 TEST(ProcessFlight, RealGnssFlightIsOrientedAndExportedAndBadPhotosAreNamed) {
   ASSERT_TRUE(fs::is_directory(kCaliterra))
       << kCaliterra << " (../shared/data beside the repository)";
@@ -141,6 +146,8 @@ TEST(ProcessFlight, RealGnssFlightIsOrientedAndExportedAndBadPhotosAreNamed) {
   fs::create_directories(photos);
   for (const char* n : {"IMG_9377.jpg", "IMG_9378.jpg", "IMG_9387.jpg", "IMG_9388.jpg"})
     fs::create_symlink(kCaliterra / n, photos / n);
+  const std::vector<std::string> other = {"IMG_0022.jpg", "IMG_0025.jpg", "IMG_0028.jpg"};
+  for (const std::string& n : other) fs::create_symlink(kCopr / n, photos / n);
   cv::Mat small;
   cv::resize(cv::imread((kCaliterra / "IMG_9379.jpg").string()), small, cv::Size(800, 600));
   cv::imwrite((photos / "IMG_small.jpg").string(), small);
@@ -153,13 +160,18 @@ TEST(ProcessFlight, RealGnssFlightIsOrientedAndExportedAndBadPhotosAreNamed) {
   ASSERT_TRUE(std::regex_search(
       out, m,
       std::regex(
-          R"(flight 1: 4 of 6 photos oriented, (\d+) points, reprojection rms ([0-9.]+) px, [0-9.]+ s\n)")))
+          R"(flight 1: 4 of 9 photos oriented, (\d+) points, reprojection rms ([0-9.]+) px, [0-9.]+ s\n)")))
       << out << err;
   EXPECT_GT(std::stoi(m[1]), 1000);
   EXPECT_LT(std::stod(m[2]),
             1.0);  // COLMAP 3.8 on all eight: 0.87 px mean (doc/uav_real_flight.md)
   EXPECT_NE(err.find("IMG_empty.jpg: cannot be read as a photo"), std::string::npos) << err;
   EXPECT_NE(err.find("IMG_small.jpg: no focal length in its EXIF"), std::string::npos) << err;
+  for (const std::string& n : other)
+    EXPECT_NE(err.find(n + ": another camera or size (Canon Canon EOS DIGITAL REBEL XSi "
+                           "4272x2848 f=30 mm) than the flight's 4 photos"),
+              std::string::npos)
+        << err;
 
   const fs::path f1 = dir / "out" / "flight_1";
   EXPECT_NE(ReadFile(f1 / "crs.txt").find("crs: EPSG:32614"),
@@ -178,13 +190,29 @@ TEST(ProcessFlight, RealGnssFlightIsOrientedAndExportedAndBadPhotosAreNamed) {
   const auto rows = ReadCsv(f1 / "cameras.csv");
   ASSERT_EQ(rows.size(), 5u);
   const std::string report = ReadFile(f1 / "report.md");
-  EXPECT_NE(report.find("| photos oriented | 4 of 4 (2 skipped) |"), std::string::npos) << report;
+  EXPECT_NE(report.find("| photos oriented | 4 of 4 (5 skipped) |"), std::string::npos) << report;
   for (size_t r = 1; r < rows.size(); ++r) {
     ASSERT_EQ(rows[r].size(), 15u);
     for (int c = 7; c <= 9; ++c)
       EXPECT_GT(std::stod(rows[r][c]), 0.0) << rows[r][0];  // sigma from the covariance
     EXPECT_LT(std::stod(rows[r][7]), 5.0) << rows[r][0];
   }
+  // Every pair of the flight's four photos, with its tie points or why not.
+  const auto pairs = ReadCsv(f1 / "pairs.csv");
+  ASSERT_EQ(pairs.size(), 7u);
+  EXPECT_EQ(pairs[0], (std::vector<std::string>{"photo_a", "photo_b", "tie_points",
+                                                "epipolar_rms_px", "why_not_used"}));
+  int tied = 0;
+  for (size_t r = 1; r < pairs.size(); ++r) {
+    ASSERT_EQ(pairs[r].size(), 5u);
+    const int n = std::stoi(pairs[r][2]);
+    EXPECT_EQ(n >= 15, pairs[r][4] == "\"\"") << pairs[r][0] << " " << pairs[r][1];
+    if (n < 15) continue;
+    ++tied;
+    EXPECT_LT(std::stod(pairs[r][3]), 1.0);
+  }
+  EXPECT_NE(ReadFile(f1 / "report.json").find("\"pairs_tied\": " + std::to_string(tied)),
+            std::string::npos);
   ExpectDenseOutputs(out, f1);
 }
 

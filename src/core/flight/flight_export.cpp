@@ -1,5 +1,6 @@
 #include "slope_monitor/core/flight/flight_export.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -290,10 +291,23 @@ void WriteFlightReport(const FlightReportInput& in, const std::string& json_path
   io::WriteFileAtomically(md_path, m.str());
 }
 
+void WritePairsCsv(const FlightPhotos& photos, const FlightTies& ties, const std::string& path) {
+  std::ostringstream o;
+  o << "photo_a,photo_b,tie_points,epipolar_rms_px,why_not_used\n";
+  for (const FlightPairStats& p : ties.pairs) {
+    std::string why = p.message;
+    std::replace(why.begin(), why.end(), '"', '\'');
+    o << photos.photos[p.a].name << "," << photos.photos[p.b].name << "," << p.tie_points << ","
+      << Fmt("%.3f", p.epipolar_rms) << ",\"" << why << "\"\n";
+  }
+  io::WriteFileAtomically(path, o.str());
+}
+
 void WriteFlightOutputs(const FlightReportInput& in, const std::string& dir) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw IoError(Message(dir, ": cannot be created (", ec.message(), ")"));
+  WritePairsCsv(*in.photos, *in.ties, dir + "/pairs.csv");
   if (in.result->summary.success) {
     WriteBlockOutputs(*in.result, in.frame, dir);
   } else {

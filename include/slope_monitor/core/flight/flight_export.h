@@ -56,6 +56,9 @@ struct FlightReportInput {
 // The block writers need of a FlightResult only scene (one camera),
 // point_grey, point_error_px, observation_error_px and bundle.precision.
 void WriteColmapModel(const FlightResult& block, const std::string& sparse_dir);
+// Every pair tried: its photos, tie points, epipolar rms and why it is not
+// used ("" when it is).
+void WritePairsCsv(const FlightPhotos& photos, const FlightTies& ties, const std::string& path);
 void WritePointsPly(const FlightResult& block, const std::string& path);
 void WriteCamerasCsv(const FlightResult& block, const std::string& path);
 void WriteFrame(const FlightFrame& frame, const std::string& path);
