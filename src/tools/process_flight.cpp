@@ -46,6 +46,7 @@
 // produced, or the command line / a file is wrong (one line on stderr).
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -415,6 +416,18 @@ std::vector<std::optional<Eigen::Vector3d>> GeoPositions(const io::GeoList& geo,
   return out;
 }
 
+// A flight with GNSS where some photos have none: each named (it is oriented
+// from its tie points only, without a position prior).
+void NameWithoutPosition(const flight::FlightPhotos& photos,
+                         const std::vector<std::optional<Eigen::Vector3d>>& gnss) {
+  const auto with = std::count_if(gnss.begin(), gnss.end(), [](const auto& g) { return g; });
+  if (with == 0) return;
+  for (size_t i = 0; i < gnss.size() && i < photos.photos.size(); ++i)
+    if (!gnss[i])
+      std::cerr << "process_flight: " << photos.photos[i].name
+                << ": no GNSS position (oriented from its tie points only, no position prior)\n";
+}
+
 FlightOutcome ProcessFlight(int k, const std::string& folder, const Args& args,
                             const std::optional<io::GcpList>& gcp,
                             const std::optional<io::GeoList>& geo, std::optional<SiteCrs>* crs,
@@ -458,6 +471,7 @@ FlightOutcome ProcessFlight(int k, const std::string& folder, const Args& args,
           Eigen::Vector3d(p.exif.gps.longitude_deg, p.exif.gps.latitude_deg, h)));
     }
   }
+  NameWithoutPosition(photos, input.gnss_in_site);
   if (*crs) {
     if (gcp) input.control = ControlPoints(*gcp, **crs, photos, args, &outcome.skipped);
   }

@@ -273,6 +273,44 @@ TEST(ProcessFlight, PhotosWithoutAFocalPlaneResolutionStartFromAPriorAndSelfCali
             std::string::npos);
 }
 
+// Two photos of a GNSS flight without a position (tags removed with Exiv2):
+// named, oriented from their tie points, and the datum comes from the others.
+TEST(ProcessFlight, PhotosWithoutGnssInAGnssFlightAreNamedAndOriented) {
+  const fs::path dir = Scratch("without_gnss");
+  fs::create_directories(dir / "photos");
+  const std::vector<std::string> names = {"IMG_9376.jpg", "IMG_9377.jpg", "IMG_9378.jpg",
+                                          "IMG_9386.jpg", "IMG_9387.jpg", "IMG_9388.jpg"};
+  for (const std::string& n : names) fs::copy_file(kCaliterra / n, dir / "photos" / n);
+  for (const char* n : {"IMG_9377.jpg", "IMG_9387.jpg"}) {
+    auto image = Exiv2::ImageFactory::open((dir / "photos" / n).string());
+    image->readMetadata();
+    Exiv2::ExifData& exif = image->exifData();
+    for (const char* key : {"Exif.GPSInfo.GPSLatitude", "Exif.GPSInfo.GPSLongitude",
+                            "Exif.GPSInfo.GPSLatitudeRef", "Exif.GPSInfo.GPSLongitudeRef"}) {
+      const auto it = exif.findKey(Exiv2::ExifKey(key));
+      ASSERT_NE(it, exif.end()) << n << " " << key;
+      exif.erase(it);
+    }
+    image->writeMetadata();
+  }
+  ASSERT_EQ(RunTool({"--photos", (dir / "photos").string(), "--no-dense", "--out",
+                     (dir / "out").string()},
+                    dir),
+            0)
+      << ReadFile(dir / "stderr");
+  const std::string out = ReadFile(dir / "stdout"), err = ReadFile(dir / "stderr");
+  EXPECT_NE(out.find("flight 1: 6 of 6 photos oriented"), std::string::npos) << out;
+  for (const char* n : {"IMG_9377.jpg", "IMG_9387.jpg"})
+    EXPECT_NE(err.find(std::string("process_flight: ") + n +
+                       ": no GNSS position (oriented from its tie points only"),
+              std::string::npos)
+        << err;
+  EXPECT_EQ(err.find("IMG_9376.jpg: no GNSS"), std::string::npos) << err;
+  EXPECT_NE(
+      ReadFile(dir / "out" / "flight_1" / "report.json").find("\"datum\": \"GNSS of 4 photos\""),
+      std::string::npos);
+}
+
 TEST(ProcessFlight, BadInputIsNamedWithExitOne) {
   const fs::path dir = Scratch("bad");
   fs::create_directories(dir / "empty");
