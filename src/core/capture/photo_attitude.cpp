@@ -47,17 +47,24 @@ PhotoAttitude ReadPhotoAttitude(const std::string& path) {
   a.width = image->pixelWidth();
   a.height = image->pixelHeight();
   const Exiv2::XmpData& xmp = image->xmpData();
-  a.has_yaw =
-      XmpNumber(xmp, {"Xmp.sensefly.Yaw", "Xmp.drone-dji.FlightYawDegree", "Xmp.Camera.Yaw"}, path,
-                &a.yaw_deg);
-  a.has_pitch_roll =
-      XmpNumber(xmp, {"Xmp.sensefly.Pitch", "Xmp.drone-dji.FlightPitchDegree", "Xmp.Camera.Pitch"},
-                path, &a.pitch_deg) &&
-      XmpNumber(xmp, {"Xmp.sensefly.Roll", "Xmp.drone-dji.FlightRollDegree", "Xmp.Camera.Roll"},
-                path, &a.roll_deg);
-  a.has_height_above_ground =
-      XmpNumber(xmp, {"Xmp.drone-dji.RelativeAltitude", "Xmp.Camera.AboveGroundAltitude"}, path,
-                &a.height_above_ground_m);
+  // senseFly writes Yaw / Pitch / Roll, or (older eMotion) Heading /
+  // PitchAngle / RollAngle and the Height above take-off.
+  a.has_yaw = XmpNumber(xmp,
+                        {"Xmp.sensefly.Yaw", "Xmp.sensefly.Heading",
+                         "Xmp.drone-dji.FlightYawDegree", "Xmp.Camera.Yaw"},
+                        path, &a.yaw_deg);
+  a.has_pitch_roll = XmpNumber(xmp,
+                               {"Xmp.sensefly.Pitch", "Xmp.sensefly.PitchAngle",
+                                "Xmp.drone-dji.FlightPitchDegree", "Xmp.Camera.Pitch"},
+                               path, &a.pitch_deg) &&
+                     XmpNumber(xmp,
+                               {"Xmp.sensefly.Roll", "Xmp.sensefly.RollAngle",
+                                "Xmp.drone-dji.FlightRollDegree", "Xmp.Camera.Roll"},
+                               path, &a.roll_deg);
+  a.has_height_above_ground = XmpNumber(
+      xmp,
+      {"Xmp.drone-dji.RelativeAltitude", "Xmp.Camera.AboveGroundAltitude", "Xmp.sensefly.Height"},
+      path, &a.height_above_ground_m);
   const Exiv2::ExifData& exif = image->exifData();
   const auto res = exif.findKey(Exiv2::ExifKey("Exif.Photo.FocalPlaneXResolution"));
   if (res != exif.end() && res->count() > 0) {

@@ -93,6 +93,37 @@ TEST(FlightPairs, TheRelativeAltitudeIsReadFromTheXmp) {
   std::filesystem::remove(path);
 }
 
+// The older senseFly schema (eMotion, e.g. the real seneca flight of
+// OpenDroneMap's data sets: Heading 30.44, PitchAngle -1.40, RollAngle
+// -2.65, Height 67.87 m above take-off).
+TEST(FlightPairs, TheOlderSenseFlyHeadingAndHeightAreRead) {
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "sm_flight_pairs_sensefly.jpg").string();
+  ASSERT_TRUE(cv::imwrite(path, cv::Mat(30, 40, CV_8UC1, cv::Scalar(90))));
+  Exiv2::XmpProperties::registerNs("http://www.sensefly.com/xmp/1.0/", "sensefly");
+  {
+    auto image = Exiv2::ImageFactory::open(path);
+    image->readMetadata();
+    Exiv2::XmpData xmp;
+    xmp["Xmp.sensefly.Heading"] = "30.438629150000001";
+    xmp["Xmp.sensefly.PitchAngle"] = "-1.403483152000000";
+    xmp["Xmp.sensefly.RollAngle"] = "-2.652293205000000";
+    xmp["Xmp.sensefly.Height"] = "67.874511720000001";
+    xmp["Xmp.sensefly.AltitudeWGS84"] = "283.824005100000022";  // not a height above ground
+    image->setXmpData(xmp);
+    image->writeMetadata();
+  }
+  const capture::PhotoAttitude a = capture::ReadPhotoAttitude(path);
+  EXPECT_TRUE(a.has_yaw);
+  EXPECT_DOUBLE_EQ(a.yaw_deg, 30.438629150000001);
+  EXPECT_TRUE(a.has_pitch_roll);
+  EXPECT_DOUBLE_EQ(a.pitch_deg, -1.403483152);
+  EXPECT_DOUBLE_EQ(a.roll_deg, -2.652293205);
+  EXPECT_TRUE(a.has_height_above_ground);
+  EXPECT_DOUBLE_EQ(a.height_above_ground_m, 67.874511720000001);
+  std::filesystem::remove(path);
+}
+
 }  // namespace
 }  // namespace flight
 }  // namespace slope_monitor
