@@ -30,7 +30,9 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <visualization_msgs/MarkerArray.h>
+#include <nlohmann/json.hpp>
 
+#include "replay_test_util.h"
 #include "slope_monitor/AdjustmentSolution.h"
 #include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
@@ -226,14 +228,10 @@ void ExpectProcessFlightProducts(const fs::path& reports, int epoch, bool later,
   EXPECT_TRUE(fs::exists(reports / name)) << name;
   EXPECT_EQ(report.find("\"change\"") != std::string::npos, later) << report;
   if (!later) return;
+  const nlohmann::json change = nlohmann::json::parse(report).at("change");
   auto pair = [&](const std::string& key) {
-    std::smatch m;
-    const std::regex re("\"" + key + "\": \\[([-0-9.e+]+), ([-0-9.e+]+)\\]");
-    if (!std::regex_search(report, m, re)) {
-      ADD_FAILURE() << "no " << key << " in " << report;
-      return Eigen::Vector2d(NAN, NAN);
-    }
-    return Eigen::Vector2d(std::stod(m[1]), std::stod(m[2]));
+    const nlohmann::json& v = change.at(key);
+    return Eigen::Vector2d(v.at(0).get<double>(), v.at(1).get<double>());
   };
   const Eigen::Vector2d shift = pair("shift_m"), sigma = pair("shift_sigma_m");
   const Eigen::Vector2d searched = pair("searched_shift_m");
@@ -348,6 +346,8 @@ TEST(ProcessBagDense, ACloudPerEpochTheGeoTiffsAndTheTruth) {
     ExpectProcessFlightProducts(dir / "reports", epoch, epoch != reference, in_map,
                                 out.clouds.at(stamp));
   }
+  // Every JSON and GeoJSON of the run (surface reports, deformation.geojson, ...).
+  replay_test::ExpectStrictJson(dir / "reports");
 }
 
 TEST(ProcessBagDense, NoDenseTurnsTheStepOff) {

@@ -109,6 +109,30 @@ inline int Wait(pid_t pid) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+// Every .json and .geojson file under `dir` (at least one) parses with
+// Python's json module in strict mode: NaN and Infinity, which Python
+// accepts by default but JSON does not have, are refused.
+inline void ExpectStrictJson(const fs::path& dir) {
+  const fs::path log = fs::temp_directory_path() / ("sm_strict_json_" + std::to_string(getpid()));
+  fs::create_directories(log);
+  int files = 0;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    const std::string ext = e.path().extension().string();
+    if (ext != ".json" && ext != ".geojson") continue;
+    ++files;
+    const pid_t pid =
+        Spawn({"/usr/bin/python3", "-c",
+               "import json, sys\n"
+               "def refuse(c): sys.exit(sys.argv[1] + ': ' + c + ' is not JSON')\n"
+               "json.load(open(sys.argv[1], encoding='utf-8'), parse_constant=refuse)",
+               e.path().string()},
+              log);
+    EXPECT_EQ(Wait(pid), 0) << ReadFile(log / "stderr");
+  }
+  EXPECT_GT(files, 0) << "no JSON file under " << dir;
+  fs::remove_all(log);
+}
+
 using run_command::FreePort;  // a TCP port for a run's own ROS master
 
 // Waits for `pid` at most `timeout`; a process still running then gets

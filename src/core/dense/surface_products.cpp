@@ -10,6 +10,7 @@
 
 #include "slope_monitor/core/common/error.h"
 #include "slope_monitor/core/common/numeric.h"
+#include "slope_monitor/core/io/json_text.h"
 #include "slope_monitor/core/io/safe_file.h"
 
 namespace slope_monitor {
@@ -359,41 +360,45 @@ CoregisteredChange CompareSurfaces(const SurfaceChangeInput& in,
   return out;
 }
 
-std::string ChangeReportJson(const SurfaceChangeSummary& change, const std::string& reference) {
+nlohmann::ordered_json ChangeReportJson(const SurfaceChangeSummary& change,
+                                        const std::string& reference) {
   const DemChangeSummary& d = change.dem;
   const Coregistration& c = d.coregistration;
-  std::ostringstream j;
-  j.precision(6);
-  j << "{\"reference\": \"" << reference << "\", \"shift_m\": [" << c.shift.x() << ", "
-    << c.shift.y() << "], \"searched_shift_m\": [" << change.searched_shift.x() << ", "
-    << change.searched_shift.y() << "], \"shift_sigma_m\": [" << c.shift_sigma.x() << ", "
-    << c.shift_sigma.y() << "], \"vertical_m\": " << c.vertical
-    << ", \"vertical_sigma_m\": " << c.level_sigma << ", \"tilt\": [" << c.tilt.x() << ", "
-    << c.tilt.y() << "], \"stable_cells\": " << c.inliers
-    << ", \"residual_before_m\": " << c.residual_before << ", \"residual_m\": " << c.residual
-    << ", \"stable_median_m\": " << change.stable_median
-    << ", \"stable_nmad_m\": " << change.stable_nmad
-    << ", \"stable_flagged\": " << change.stable_flagged
-    << ", \"common_cells\": " << change.common_cells << ", \"flagged\": " << change.flagged
-    << ", \"gain_m3\": [" << d.volume_fill << ", " << d.sigma_fill << "], \"loss_m3\": ["
-    << d.volume_cut << ", " << d.sigma_cut << "], \"net_m3\": [" << d.volume_net << ", "
-    << d.sigma_net << "], \"lod_model\": \""
-    << (d.error_model.empty() ? "global" : "slope_roughness") << "\"";
+  auto pair = [](double a, double b) { return nlohmann::ordered_json::array({a, b}); };
+  nlohmann::ordered_json j = {
+      {"reference", reference},
+      {"shift_m", pair(c.shift.x(), c.shift.y())},
+      {"searched_shift_m", pair(change.searched_shift.x(), change.searched_shift.y())},
+      {"shift_sigma_m", pair(c.shift_sigma.x(), c.shift_sigma.y())},
+      {"vertical_m", c.vertical},
+      {"vertical_sigma_m", c.level_sigma},
+      {"tilt", pair(c.tilt.x(), c.tilt.y())},
+      {"stable_cells", c.inliers},
+      {"residual_before_m", c.residual_before},
+      {"residual_m", c.residual},
+      {"stable_median_m", change.stable_median},
+      {"stable_nmad_m", change.stable_nmad},
+      {"stable_flagged", change.stable_flagged},
+      {"common_cells", change.common_cells},
+      {"flagged", change.flagged},
+      {"gain_m3", pair(d.volume_fill, d.sigma_fill)},
+      {"loss_m3", pair(d.volume_cut, d.sigma_cut)},
+      {"net_m3", pair(d.volume_net, d.sigma_net)},
+      {"lod_model", d.error_model.empty() ? "global" : "slope_roughness"}};
   if (!d.error_model.empty()) {
-    j << ", \"holdout_flagged\": " << d.holdout_flagged
-      << ", \"holdout_cells\": " << d.holdout_cells << ", \"holdout_block_m\": " << d.holdout_block
-      << ", \"error_bins\": [";
-    for (size_t i = 0; i < d.error_model.bins.size(); ++i) {
-      const ErrorBin& b = d.error_model.bins[i];
-      j << (i ? ", " : "") << "{\"slope_deg\": [" << b.slope_min << ", " << b.slope_max
-        << "], \"roughness_m\": [" << b.roughness_min << ", " << b.roughness_max
-        << "], \"cells\": " << b.cells << ", \"median_m\": " << b.median
-        << ", \"sigma_m\": " << b.sigma << "}";
-    }
-    j << "]";
+    j["holdout_flagged"] = d.holdout_flagged;
+    j["holdout_cells"] = d.holdout_cells;
+    j["holdout_block_m"] = d.holdout_block;
+    nlohmann::ordered_json bins = nlohmann::ordered_json::array();
+    for (const ErrorBin& b : d.error_model.bins)
+      bins.push_back({{"slope_deg", pair(b.slope_min, b.slope_max)},
+                      {"roughness_m", pair(b.roughness_min, b.roughness_max)},
+                      {"cells", b.cells},
+                      {"median_m", b.median},
+                      {"sigma_m", b.sigma}});
+    j["error_bins"] = std::move(bins);
   }
-  j << "}";
-  return j.str();
+  return j;
 }
 
 std::string ChangeReportMarkdown(const SurfaceChangeSummary& change, const std::string& reference) {
@@ -414,22 +419,23 @@ std::string ChangeReportMarkdown(const SurfaceChangeSummary& change, const std::
 void WriteEpochSurfaceReport(const EpochSurfaceSummary& s, const SurfaceChangeSummary* change,
                              const std::string& reference, const std::string& json_path,
                              const std::string& md_path) {
-  std::ostringstream j, m;
-  j.precision(6);
+  nlohmann::ordered_json j = {{"epoch", s.epoch},
+                              {"pairs_measured", s.pairs_measured},
+                              {"pairs_considered", s.candidate_pairs},
+                              {"points", s.points},
+                              {"cells", s.cells},
+                              {"filled_cells", s.filled_cells},
+                              {"seconds", {{"matching", s.seconds}}}};
+  std::ostringstream m;
   m.precision(4);
-  j << "{\n  \"epoch\": " << s.epoch << ",\n  \"pairs_measured\": " << s.pairs_measured
-    << ",\n  \"pairs_considered\": " << s.candidate_pairs << ",\n  \"points\": " << s.points
-    << ",\n  \"cells\": " << s.cells << ",\n  \"filled_cells\": " << s.filled_cells
-    << ",\n  \"seconds\": {\"matching\": " << s.seconds << "}";
   m << "# Surface\n\n" << s.BriefReport() << "\n";
   if (!s.pair_errors.empty()) m << "\nPairs not measured (" << s.pair_errors.size() << "):\n\n";
   for (const std::string& e : s.pair_errors) m << "* " << e << "\n";
   if (change) {
-    j << ",\n  \"change\": " << ChangeReportJson(*change, reference);
+    j["change"] = ChangeReportJson(*change, reference);
     m << ChangeReportMarkdown(*change, reference);
   }
-  j << "\n}\n";
-  io::WriteFileAtomically(json_path, j.str());
+  io::WriteFileAtomically(json_path, io::JsonText(j));
   io::WriteFileAtomically(md_path, m.str());
 }
 

@@ -8,6 +8,7 @@
 
 #include "slope_monitor/core/camera/rotation.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/io/json_text.h"
 #include "slope_monitor/core/io/safe_file.h"
 
 namespace slope_monitor {
@@ -20,39 +21,28 @@ std::string Fmt(const char* format, double v) {
   return buf;
 }
 
-std::string JsonString(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\')
-      out += '\\', out += c;
-    else if (c == '\n')
-      out += "\\n";
-    else if (static_cast<unsigned char>(c) < 0x20)
-      out += ' ';
-    else
-      out += c;
-  }
-  return out + "\"";
+// v rounded to `digits` decimals (NaN stays NaN: written as null).
+double Round(double v, int digits) {
+  const double f = std::pow(10.0, digits);
+  return std::round(v * f) / f;
 }
 
-std::string JsonResiduals(const std::vector<PointResidual>& v) {
-  std::ostringstream o;
-  o << "[";
-  for (size_t i = 0; i < v.size(); ++i) {
-    const PointResidual& r = v[i];
-    o << (i ? ", " : "") << "{\"name\": " << JsonString(r.name) << ", \"picks\": " << r.picks
-      << ", \"measured\": " << (r.measured ? "true" : "false");
-    if (r.measured)
-      o << ", \"dx\": " << Fmt("%.4f", r.residual.x())
-        << ", \"dy\": " << Fmt("%.4f", r.residual.y())
-        << ", \"dz\": " << Fmt("%.4f", r.residual.z())
-        << ", \"d3\": " << Fmt("%.4f", r.residual.norm())
-        << ", \"pick_rms_px\": " << Fmt("%.2f", r.pick_rms_px);
-    else
-      o << ", \"message\": " << JsonString(r.message);
-    o << "}";
+nlohmann::ordered_json JsonResiduals(const std::vector<PointResidual>& v) {
+  nlohmann::ordered_json out = nlohmann::ordered_json::array();
+  for (const PointResidual& r : v) {
+    nlohmann::ordered_json p = {{"name", r.name}, {"picks", r.picks}, {"measured", r.measured}};
+    if (r.measured) {
+      p["dx"] = Round(r.residual.x(), 4);
+      p["dy"] = Round(r.residual.y(), 4);
+      p["dz"] = Round(r.residual.z(), 4);
+      p["d3"] = Round(r.residual.norm(), 4);
+      p["pick_rms_px"] = Round(r.pick_rms_px, 2);
+    } else {
+      p["message"] = r.message;
+    }
+    out.push_back(std::move(p));
   }
-  return o.str() + "]";
+  return out;
 }
 
 std::string MdResiduals(const char* title, const std::vector<PointResidual>& v, double rms,
@@ -227,40 +217,54 @@ void WriteFlightReport(const FlightReportInput& in, const std::string& json_path
   const double c_change = 100.0 * (c_px - c0_px) / c0_px;
   const std::string c_source =
       in.photos->focal_prior.empty() ? "EXIF focal length" : "prior: " + in.photos->focal_prior;
-  std::ostringstream j;
-  j << "{\n  \"flight\": " << in.flight << ",\n  \"folder\": " << JsonString(in.folder)
-    << ",\n  \"camera\": " << JsonString(in.photos->camera_label) << ",\n  \"photos\": " << s.photos
-    << ",\n  \"skipped\": " << in.photos->skipped.size() << ",\n  \"oriented\": " << s.oriented
-    << ",\n  \"points\": " << s.points << ",\n  \"observations\": " << s.observations
-    << ",\n  \"pairs_tried\": " << in.ties->pairs.size()
-    << ",\n  \"pairs_tied\": " << in.ties->pairs_tied
-    << ",\n  \"tie_points\": " << in.ties->tie_points
-    << ",\n  \"reprojection_rms_px\": " << Fmt("%.4f", s.rms_px)
-    << ",\n  \"reprojection_mean_px\": " << Fmt("%.4f", s.mean_px)
-    << ",\n  \"sigma0\": " << Fmt("%.4f", s.sigma0) << ",\n  \"datum\": " << JsonString(s.datum)
-    << ",\n  \"covariance_note\": " << JsonString(s.covariance_note)
-    << ",\n  \"crs\": " << JsonString(in.frame.crs) << ",\n  \"interior\": {";
-  for (int k = 0; k < camera::kNumInterior; ++k)
-    j << (k ? ", " : "") << "\"" << camera::InteriorNames()[k] << "\": ["
-      << Fmt("%.6g", interior[k]) << ", " << Fmt("%.3g", s.interior_sigma[k]) << "]";
-  j << "},\n  \"focal\": {\"source\": " << JsonString(c_source)
-    << ", \"start_px\": " << Fmt("%.2f", c0_px) << ", \"adjusted_px\": " << Fmt("%.2f", c_px)
-    << ", \"change_percent\": " << Fmt("%.2f", c_change) << "}";
-  j << ",\n  \"control\": " << JsonResiduals(s.control)
-    << ",\n  \"control_rms_m\": " << Fmt("%.4f", s.control_rms)
-    << ",\n  \"check\": " << JsonResiduals(s.check)
-    << ",\n  \"check_rms_m\": " << Fmt("%.4f", s.check_rms)
-    << ",\n  \"leave_one_out\": " << JsonResiduals(s.leave_one_out)
-    << ",\n  \"leave_one_out_rms_m\": " << Fmt("%.4f", s.leave_one_out_rms)
-    << ",\n  \"seconds\": {\"features\": " << Fmt("%.2f", in.ties->feature_seconds)
-    << ", \"matching_wall\": " << Fmt("%.2f", in.ties->wall_seconds);
-  for (const auto& [k, v] : s.seconds) j << ", " << JsonString(k) << ": " << Fmt("%.2f", v);
-  j << ", \"total\": " << Fmt("%.2f", in.total_seconds)
-    << "},\n  \"peak_memory_gb\": " << Fmt("%.3f", in.peak_memory_gb) << ",\n  \"not_oriented\": [";
-  for (size_t i = 0; i < s.not_oriented.size(); ++i)
-    j << (i ? ", " : "") << JsonString(s.not_oriented[i]);
-  j << "]\n}\n";
-  io::WriteFileAtomically(json_path, j.str());
+  nlohmann::ordered_json interior_json = nlohmann::ordered_json::object();
+  for (int k = 0; k < camera::kNumInterior; ++k) {
+    // [value, sigma], 6 and 3 significant digits
+    const auto digits = [](double v, int n) {
+      return v == 0.0 || !std::isfinite(v)
+                 ? v
+                 : Round(v, n - 1 - static_cast<int>(std::floor(std::log10(std::abs(v)))));
+    };
+    interior_json[camera::InteriorNames()[k]] = {digits(interior[k], 6),
+                                                 digits(s.interior_sigma[k], 3)};
+  }
+  nlohmann::ordered_json seconds = {{"features", Round(in.ties->feature_seconds, 2)},
+                                    {"matching_wall", Round(in.ties->wall_seconds, 2)}};
+  for (const auto& [k, v] : s.seconds) seconds[k] = Round(v, 2);
+  seconds["total"] = Round(in.total_seconds, 2);
+  const nlohmann::ordered_json j = {{"flight", in.flight},
+                                    {"folder", in.folder},
+                                    {"camera", in.photos->camera_label},
+                                    {"photos", s.photos},
+                                    {"skipped", in.photos->skipped.size()},
+                                    {"oriented", s.oriented},
+                                    {"points", s.points},
+                                    {"observations", s.observations},
+                                    {"pairs_tried", in.ties->pairs.size()},
+                                    {"pairs_tied", in.ties->pairs_tied},
+                                    {"tie_points", in.ties->tie_points},
+                                    {"reprojection_rms_px", Round(s.rms_px, 4)},
+                                    {"reprojection_mean_px", Round(s.mean_px, 4)},
+                                    {"sigma0", Round(s.sigma0, 4)},
+                                    {"datum", s.datum},
+                                    {"covariance_note", s.covariance_note},
+                                    {"crs", in.frame.crs},
+                                    {"interior", std::move(interior_json)},
+                                    {"focal",
+                                     {{"source", c_source},
+                                      {"start_px", Round(c0_px, 2)},
+                                      {"adjusted_px", Round(c_px, 2)},
+                                      {"change_percent", Round(c_change, 2)}}},
+                                    {"control", JsonResiduals(s.control)},
+                                    {"control_rms_m", Round(s.control_rms, 4)},
+                                    {"check", JsonResiduals(s.check)},
+                                    {"check_rms_m", Round(s.check_rms, 4)},
+                                    {"leave_one_out", JsonResiduals(s.leave_one_out)},
+                                    {"leave_one_out_rms_m", Round(s.leave_one_out_rms, 4)},
+                                    {"seconds", std::move(seconds)},
+                                    {"peak_memory_gb", Round(in.peak_memory_gb, 3)},
+                                    {"not_oriented", s.not_oriented}};
+  io::WriteFileAtomically(json_path, io::JsonText(j));
 
   std::ostringstream m;
   m << "# Flight " << in.flight << ": " << in.folder << "\n\n| | |\n|---|---|\n| camera | "

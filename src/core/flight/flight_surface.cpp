@@ -14,6 +14,7 @@
 #include "slope_monitor/core/common/numeric.h"
 #include "slope_monitor/core/dense/surface.h"
 #include "slope_monitor/core/io/image_file.h"
+#include "slope_monitor/core/io/json_text.h"
 #include "slope_monitor/core/io/safe_file.h"
 
 namespace slope_monitor {
@@ -266,33 +267,32 @@ FlightChange CompareFlights(const FlightChangeInput& input, const FlightChangeOp
 void WriteSurfaceReport(const FlightSurfaceSummary& s, const FlightChangeSummary* change,
                         const std::string& reference, const std::string& json_path,
                         const std::string& md_path) {
-  std::ostringstream j, m;
-  j.precision(6);
+  nlohmann::ordered_json seconds = nlohmann::ordered_json::object();
+  for (const auto& [k, v] : s.seconds) seconds[k] = v;
+  nlohmann::ordered_json j = {
+      {"photos", s.photos},
+      {"working_size_px", nlohmann::ordered_json::array({s.working_width, s.working_height})},
+      {"decode_factor", s.decode_factor},
+      {"ground_sample_m", s.ground_sample},
+      {"cell_size_m", s.cell_size},
+      {"pairs_measured", s.dense.pairs_measured},
+      {"pairs_considered", s.dense.candidate_pairs},
+      {"points", s.dense.points},
+      {"cells", s.dense.cells},
+      {"filled_cells", s.dense.filled_cells},
+      {"seconds", std::move(seconds)}};
+  std::ostringstream m;
   m.precision(4);
-  j << "{\n  \"photos\": " << s.photos << ",\n  \"working_size_px\": [" << s.working_width << ", "
-    << s.working_height << "],\n  \"decode_factor\": " << s.decode_factor
-    << ",\n  \"ground_sample_m\": " << s.ground_sample << ",\n  \"cell_size_m\": " << s.cell_size
-    << ",\n  \"pairs_measured\": " << s.dense.pairs_measured
-    << ",\n  \"pairs_considered\": " << s.dense.candidate_pairs
-    << ",\n  \"points\": " << s.dense.points << ",\n  \"cells\": " << s.dense.cells
-    << ",\n  \"filled_cells\": " << s.dense.filled_cells << ",\n  \"seconds\": {";
   m << "# Surface\n\n" << s.BriefReport() << "\n\n| stage | s |\n|---|---|\n";
-  bool first = true;
-  for (const auto& [k, v] : s.seconds) {
-    j << (first ? "" : ", ") << "\"" << k << "\": " << v;
-    m << "| " << k << " | " << v << " |\n";
-    first = false;
-  }
-  j << "}";
+  for (const auto& [k, v] : s.seconds) m << "| " << k << " | " << v << " |\n";
   if (!s.dense.pair_errors.empty())
     m << "\nPairs not measured (" << s.dense.pair_errors.size() << "):\n\n";
   for (const std::string& e : s.dense.pair_errors) m << "* " << e << "\n";
   if (change) {
-    j << ",\n  \"change\": " << dense::ChangeReportJson(*change, reference);
+    j["change"] = dense::ChangeReportJson(*change, reference);
     m << dense::ChangeReportMarkdown(*change, reference);
   }
-  j << "\n}\n";
-  io::WriteFileAtomically(json_path, j.str());
+  io::WriteFileAtomically(json_path, io::JsonText(j));
   io::WriteFileAtomically(md_path, m.str());
 }
 

@@ -39,6 +39,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <nlohmann/json_fwd.hpp>
 
 #include "slope_monitor/core/dense/dem_change.h"
 #include "slope_monitor/core/dense/epoch_surface.h"
@@ -107,7 +108,8 @@ CoregisteredChange CompareSurfaces(const SurfaceChangeInput& input,
 // The change's figures for surface_report.json (the value of its "change":
 // shift, vertical, their sigma, stable figures, volumes, the error model's
 // bins) and surface_report.md (a section with the error model's table).
-std::string ChangeReportJson(const SurfaceChangeSummary& change, const std::string& reference);
+nlohmann::ordered_json ChangeReportJson(const SurfaceChangeSummary& change,
+                                        const std::string& reference);
 std::string ChangeReportMarkdown(const SurfaceChangeSummary& change, const std::string& reference);
 
 // surface_report_eNN.json / .md of a graph epoch (SurfaceSeries): the
