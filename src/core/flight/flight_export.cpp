@@ -27,6 +27,12 @@ double Round(double v, int digits) {
   return std::round(v * f) / f;
 }
 
+// v rounded to n significant digits.
+double Significant(double v, int n) {
+  if (v == 0.0 || !std::isfinite(v)) return v;
+  return Round(v, n - 1 - static_cast<int>(std::floor(std::log10(std::abs(v)))));
+}
+
 nlohmann::ordered_json JsonResiduals(const std::vector<PointResidual>& v) {
   nlohmann::ordered_json out = nlohmann::ordered_json::array();
   for (const PointResidual& r : v) {
@@ -218,16 +224,9 @@ void WriteFlightReport(const FlightReportInput& in, const std::string& json_path
   const std::string c_source =
       in.photos->focal_prior.empty() ? "EXIF focal length" : "prior: " + in.photos->focal_prior;
   nlohmann::ordered_json interior_json = nlohmann::ordered_json::object();
-  for (int k = 0; k < camera::kNumInterior; ++k) {
-    // [value, sigma], 6 and 3 significant digits
-    const auto digits = [](double v, int n) {
-      return v == 0.0 || !std::isfinite(v)
-                 ? v
-                 : Round(v, n - 1 - static_cast<int>(std::floor(std::log10(std::abs(v)))));
-    };
-    interior_json[camera::InteriorNames()[k]] = {digits(interior[k], 6),
-                                                 digits(s.interior_sigma[k], 3)};
-  }
+  for (int k = 0; k < camera::kNumInterior; ++k)  // [value, sigma]
+    interior_json[camera::InteriorNames()[k]] = {Significant(interior[k], 6),
+                                                 Significant(s.interior_sigma[k], 3)};
   nlohmann::ordered_json seconds = {{"features", Round(in.ties->feature_seconds, 2)},
                                     {"matching_wall", Round(in.ties->wall_seconds, 2)}};
   for (const auto& [k, v] : s.seconds) seconds[k] = Round(v, 2);
