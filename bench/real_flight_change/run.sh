@@ -38,7 +38,7 @@ mkdir -p "$work/odd" "$work/even"
 run() {  # name, args...
   local name=$1; shift
   rm -rf "$work/out_$name"
-  /usr/bin/time -v nice -n 5 "$tool" --threads 2 --working-size "$size" --out "$work/out_$name" "$@" \
+  /usr/bin/time -v nice -n 5 "$tool" --threads 2 --working-size "$size" --overwrite --out "$work/out_$name" "$@" \
       > "$work/$name.log" 2> "$work/$name.err" || echo "process_flight ($name): exit $?"
   sed "s/^/$name: /" "$work/$name.log"
   grep -E "Maximum resident|Elapsed" "$work/$name.err" | sed "s/^\s*/$name: /"

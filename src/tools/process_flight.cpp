@@ -16,6 +16,9 @@
 // --geo FILE: the photos' positions in ODM's geo.txt format (io/geo_list.h),
 // used instead of their EXIF GNSS (same sigma, --gnss-sigma).
 //
+// An --out folder holding an earlier run's results (flight_<k>/report.json)
+// is refused in one line unless --overwrite is given.
+//
 // Frame: the CRS of the gcp list (its first line), else the site file's (a local_enu
 // site's: the UTM zone of its origin),
 // else the geo list's, else the UTM zone of the first photo with GNSS (EPSG:326NN / 327NN); the
@@ -82,7 +85,7 @@ const char* kUsage =
     "[--focal MM]\n"
     "                      [--no-leave-one-out] [--threads N] [--no-dense] [--working-size PX] "
     "[--cell M]\n"
-    "                      [--reference DIR] --out DIR\n"
+    "                      [--reference DIR] [--overwrite] --out DIR\n"
     "  orients each folder of UAV photos (one flight each) and writes DIR/flight_<k>/\n";
 
 struct Args {
@@ -94,7 +97,8 @@ struct Args {
   bool leave_one_out = true;
   int threads = 0;
   bool dense = true;
-  std::string reference;  // an earlier run's --out folder
+  bool overwrite = false;  // replace an earlier run's results in --out
+  std::string reference;   // an earlier run's --out folder
   flight::FlightSurfaceOptions surface;
 };
 
@@ -112,6 +116,22 @@ double Number(const std::string& flag, const std::string& v) {
   if (v.empty() || *end || !std::isfinite(x) || x < 0.0)
     throw InvalidArgument(Message(flag, " '", v, "' is not a number >= 0"));
   return x;
+}
+
+// An --out folder that holds an earlier run's results is not written over
+// without --overwrite (a crew's earlier flight would be lost without a word).
+void RefuseEarlierResults(const Args& args) {
+  namespace fs = std::filesystem;
+  if (args.overwrite || !fs::is_directory(args.out)) return;
+  std::vector<std::string> reports;
+  for (const auto& e : fs::directory_iterator(args.out))
+    if (e.path().filename().string().rfind("flight_", 0) == 0 &&
+        fs::exists(e.path() / "report.json"))
+      reports.push_back((e.path() / "report.json").string());
+  if (reports.empty()) return;
+  std::sort(reports.begin(), reports.end());
+  throw InvalidArgument(Message("--out ", args.out, " holds an earlier run's results (", reports[0],
+                                "); give --overwrite to replace them, or another --out"));
 }
 
 std::string ReferencePath(const std::string& dir) {
@@ -132,6 +152,10 @@ bool ParseArgs(int argc, char** argv, Args* a) {
     }
     if (f == "--no-dense") {
       a->dense = false;
+      continue;
+    }
+    if (f == "--overwrite") {
+      a->overwrite = true;
       continue;
     }
     if (i + 1 >= argc) throw InvalidArgument(Message(f, " needs a value (or is unknown)"));
@@ -522,7 +546,8 @@ int main(int argc, char** argv) {
   }
   int failed = 0, skipped = 0;
   try {
-    io::CheckFolderWritable(args.out, "--out");  // fail early (issue 38): before any photo is read
+    io::CheckFolderWritable(args.out, "--out");  // fail early: before any photo is read
+    RefuseEarlierResults(args);
     std::optional<io::GcpList> gcp;
     if (!args.gcp.empty()) gcp = io::ReadGcpList(args.gcp);
     if (gcp && !io::HasHeights(*gcp))

@@ -216,6 +216,22 @@ TEST(ProcessFlight, RealGnssFlightIsOrientedAndExportedAndBadPhotosAreNamed) {
             std::string::npos);
   ExpectDenseOutputs(out, f1);
   replay_test::ExpectStrictJson(dir / "out");
+
+  // The same --out again: refused in one line naming the earlier results,
+  // which stay as they were; --overwrite goes on (here to the photos).
+  const std::string before = ReadFile(f1 / "report.json");
+  EXPECT_EQ(RunTool({"--photos", photos.string(), "--out", (dir / "out").string()}, dir), 1);
+  EXPECT_EQ(ReadFile(dir / "stderr"),
+            "process_flight: --out " + (dir / "out").string() +
+                " holds an earlier run's results (" + (f1 / "report.json").string() +
+                "); give --overwrite to replace them, or another --out\n");
+  EXPECT_EQ(ReadFile(f1 / "report.json"), before);
+  EXPECT_EQ(
+      RunTool({"--photos", (dir / "none").string(), "--overwrite", "--out", (dir / "out").string()},
+              dir),
+      1);
+  EXPECT_EQ(ReadFile(dir / "stderr").find("earlier run"), std::string::npos)
+      << ReadFile(dir / "stderr");
 }
 
 // The camera of a phone or a DJI drone: EXIF without the focal-plane
