@@ -5,12 +5,12 @@
 
 #include <chrono>
 #include <cstdio>
-#include <fstream>
 #include <set>
 
 #include <diagnostic_msgs/DiagnosticArray.h>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/peak_memory.h"
 #include "slope_monitor/ros/adjustment_conversions.h"
 #include "slope_monitor/ros/change_area_conversions.h"
 #include "slope_monitor/ros/conversions.h"
@@ -33,14 +33,6 @@ auto WallTimed(double* seconds, F&& f) {
     }
   } add{seconds};
   return f();
-}
-
-// The process's peak resident memory so far (VmHWM) [MB]; 0 where /proc has none.
-double PeakResidentMb() {
-  std::ifstream status("/proc/self/status");
-  for (std::string line; std::getline(status, line);)
-    if (line.rfind("VmHWM:", 0) == 0) return std::atof(line.c_str() + 6) / 1024.0;  // kB
-  return 0.0;
 }
 
 // Message types the graph takes input from (OnMessage's branches).
@@ -406,7 +398,7 @@ void OfflineGraph::LogStages(uint32_t epoch, const SolvedEpoch& out, double adju
                 epoch, stages_.targets, stages_.matching, stages_.pairs, stages_.tie_points,
                 FeatureSeconds() - stages_.features_before, adjustment, out.solution.solve_time,
                 out.solution.iterations, out.covariance_time, stages_.dense, stages_.estimator,
-                PeakResidentMb());
+                1024.0 * PeakResidentGb());
   Log(std::string(line) + (out.adjusted && out.photos.total > 0 ? "; " + out.photos.Brief() : ""));
   stages_ = StageTimes();
   stages_.features_before = FeatureSeconds();

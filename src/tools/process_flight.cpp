@@ -47,7 +47,6 @@
 // not oriented, picks naming photos not in the flight; each named on
 // stderr); 1 a flight oriented fewer than half its photos, nothing was
 // produced, or the command line / a file is wrong (one line on stderr).
-#include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
@@ -64,6 +63,7 @@
 
 #include "slope_monitor/core/common/allocator.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/peak_memory.h"
 #include "slope_monitor/core/common/progress_line.h"
 #include "slope_monitor/core/common/site_crs.h"
 #include "slope_monitor/core/flight/flight_export.h"
@@ -294,12 +294,6 @@ std::vector<flight::FlightControlPoint> ControlPoints(const io::GcpList& gcp, co
   return out;
 }
 
-double PeakMemoryGb() {
-  struct rusage u;
-  getrusage(RUSAGE_SELF, &u);
-  return u.ru_maxrss / 1024.0 / 1024.0;
-}
-
 // The site file's areas in this run's site frame (through WGS 84 when the
 // run's frame is not the site file's).
 void LoadAreas(const Args& args, const std::optional<SiteCrs>& crs, SurfaceState* st) {
@@ -400,7 +394,7 @@ bool DenseStage(int k, const flight::FlightPhotos& photos, const flight::FlightR
         "peak %.2f GB\n",
         k, s.summary.dense.filled_cells, s.summary.dense.cells, s.summary.cell_size,
         s.summary.dense.points, s.summary.dense.pairs_measured, s.summary.dense.candidate_pairs,
-        seconds, Seconds(s.summary.seconds).c_str(), PeakMemoryGb());
+        seconds, Seconds(s.summary.seconds).c_str(), PeakResidentGb());
     std::fflush(stdout);
     bool ok = true;
     flight::FlightChangeSummary change;
@@ -512,7 +506,7 @@ FlightOutcome ProcessFlight(int k, const std::string& folder, const Args& args,
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   flight::FlightReportInput rep{k,       folder, &photos, &ties,
-                                &result, *frame, seconds, PeakMemoryGb()};
+                                &result, *frame, seconds, PeakResidentGb()};
   flight::WriteFlightOutputs(rep, Message(args.out, "/flight_", k));
   std::printf("flight %d: %d of %zu photos oriented, %d points, reprojection rms %.3f px, %.1f s\n",
               k, s.oriented, paths.size(), s.points, s.rms_px, seconds);

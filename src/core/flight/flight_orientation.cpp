@@ -40,12 +40,6 @@ camera::ExteriorOrientation FromCamFromSite(const Eigen::Matrix3d& r, const Eige
       Rigid3(Eigen::Matrix3d(d * r), Eigen::Vector3d(d * t)));
 }
 
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
-
 // Intersects a track from its observations in oriented photos; keeps it when
 // every ray reprojects within max_px and the point lies in front of them.
 bool IntersectTrack(Block* block, int t, const FlightOrientationOptions& options, double max_px) {
@@ -115,7 +109,7 @@ bool StartBlock(Block* block, const FlightTies& ties, const FlightOrientationOpt
       angles.push_back(std::acos(std::clamp(ua.normalized().dot(ub.normalized()), -1.0, 1.0)) *
                        180.0 / M_PI);
     }
-    const double parallax = Median(angles);
+    const double parallax = UpperMedian(angles);
     if (parallax < options.min_start_parallax_deg) {
       *why = Message("the pairs with most tie points have too little parallax (",
                      block->tracks.empty() ? 0 : parallax, " deg)");

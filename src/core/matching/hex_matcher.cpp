@@ -9,6 +9,7 @@
 #include <Eigen/Dense>
 
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/numeric.h"
 #include "slope_monitor/core/matching/filters.h"
 
 namespace slope_monitor {
@@ -21,11 +22,6 @@ struct SearchResult {
   Eigen::Vector2d x = Eigen::Vector2d::Zero();
   double score = 0.0;
 };
-
-double Median(std::vector<double>* v) {
-  std::nth_element(v->begin(), v->begin() + v->size() / 2, v->end());
-  return (*v)[v->size() / 2];
-}
 
 double Dot(const float* a, const float* b, size_t n) {
   double s = 0;
@@ -296,12 +292,12 @@ void ApplyMatchQualityControl(const HexMatcherOptions::Quality& q, HexMatchResul
       ny.push_back(o.xb.y() - o.xa.y());
     }
     if (nx.size() < 3) continue;
-    const Eigen::Vector2d median(Median(&nx), Median(&ny));
+    const Eigen::Vector2d median(UpperMedian(nx), UpperMedian(ny));
     // Spread of the neighbours (MAD): a real displacement gradient (the
     // margin of a moving body) widens the tolerance.
     for (double& v : nx) v = std::fabs(v - median.x());
     for (double& v : ny) v = std::fabs(v - median.y());
-    const double spread = 1.4826 * std::hypot(Median(&nx), Median(&ny));
+    const double spread = 1.4826 * std::hypot(UpperMedian(nx), UpperMedian(ny));
     if ((m.xb - m.xa - median).norm() > q.max_neighbour_deviation + 3.0 * spread)
       m.flags |= kFlagNeighbours;
   }
