@@ -1,5 +1,5 @@
 // targetless_camera: the site's fixed cameras of kind fixed_targetless
-// (issue 19, doc/targetless_camera.md). Thin wrapper around
+// (doc/targetless_camera.md). Thin wrapper around
 // ros_adapters::TargetlessCameras (the same code process_bag runs), which
 // runs core dense::TargetlessCamera (the track_camera tool's chain):
 //   subscribes  /<camera>/camera/image_raw, /<camera>/camera/camera_info

@@ -58,7 +58,7 @@ void OfflineGraph::OnMessage(const rosbag::MessageInstance& m) {
   // photo being centroided running.
   if (!GraphInputType(m.getDataType())) return;
   // An image is read once, and only when its record and its header are
-  // within the pixel budget (issue 38); else it is skipped, named.
+  // within the pixel budget; else it is skipped, named.
   sensor_msgs::Image::ConstPtr image;
   if (m.getDataType() == ros::message_traits::datatype<sensor_msgs::Image>()) {
     image = CheckedImage(m);

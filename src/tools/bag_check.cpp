@@ -10,7 +10,7 @@
 // split is reported once.
 //
 // Exit status: 0 all bags readable, 1 some bag unreadable or a usage error
-// (the tools' convention, doc/security.md; a usage error was 2 before issue 38).
+// (the tools' convention, doc/security.md).
 #include <cstdlib>
 #include <iostream>
 #include <string>

@@ -177,7 +177,7 @@ void CheckInputFiles(const Args& a) {
        {&a.site, &a.site_config, &a.target_list, &a.radio_network, &a.adjuster_config})
     if (!f->empty() && !fs::is_regular_file(*f))
       throw InvalidArgument("file '" + *f + "' not found");
-  // Fail early (issue 38): the outputs' folders are written before a message is processed.
+  // Fail early: the outputs' folders are written before a message is processed.
   io::CheckFolderWritable(a.report_dir, "--report-dir");
   const fs::path database_folder = fs::path(a.database).parent_path();
   io::CheckFolderWritable(database_folder.empty() ? "." : database_folder.string(),
@@ -187,7 +187,7 @@ void CheckInputFiles(const Args& a) {
 // ------------------------------------------------------------------ bags
 
 // A bag read only up to its break (cut while recording or copying): named at
-// the end of the run, which then exits 2 (issue 38).
+// the end of the run, which then exits 2.
 struct BagBreak {
   std::string path;
   uintmax_t bytes = 0;                    // size of the cut file
@@ -477,7 +477,7 @@ int main(int argc, char** argv) {
   try {
     return slope_monitor::Run(slope_monitor::ParseArgs(argc, argv));
   } catch (const slope_monitor::deformation::HistoryInUse& e) {
-    // Another writer on --database: that one line, no usage text (issue 38).
+    // Another writer on --database: that one line, no usage text.
     std::cerr << "process_bag: " << e.what() << "\n";
     return 1;
   } catch (const slope_monitor::Error& e) {

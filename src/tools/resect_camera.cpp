@@ -1,5 +1,5 @@
 // resect_camera: a fixed camera's interior and exterior orientation from
-// surveyed points picked in one photo (issue 19), through the core's
+// surveyed points picked in one photo, through the core's
 // adjustment::ResectCamera.
 //
 //   rosrun slope_monitor resect_camera --image IMG --gcp FILE [--site FILE | --crs EPSG:NNNN]

@@ -1,5 +1,5 @@
 // track_camera: re-orientation of a fixed camera on stable ground, photo by
-// photo (issue 19, offline), through the package's hex matcher (global shift
+// photo, through the package's hex matcher (global shift
 // on, only stable points) and adjustment::ReorientCamera.
 //
 //   rosrun slope_monitor track_camera --camera PREFIX --reference A.jpg --image B.jpg [--image
@@ -165,7 +165,7 @@ int main(int argc, char** argv) {
   slope_monitor::KeepFreedMemoryForReuse();  // core/common/allocator.h
   try {
     std::map<std::string, std::vector<std::string>> a;
-    // --help: the usage on stdout, exit 0, nothing read or written (issue 38)
+    // --help: the usage on stdout, exit 0, nothing read or written
     if (argc == 2 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h"))
       return Usage(std::cout, 0);
     static const char* kKnown[] = {"--camera",      "--reference",       "--image",

@@ -1,5 +1,5 @@
-// Image messages checked before any conversion (issue 38: bounded memory on
-// any input). A sensor_msgs/Image whose header claims more pixels than
+// Image messages checked before any conversion (bounded memory on any
+// input). A sensor_msgs/Image whose header claims more pixels than
 // max_megapixels, or whose header does not describe its data (step * height
 // != data size, step shorter than a row), is refused before cv_bridge or any
 // step touches it: a message forged or broken in a bag, or sent on the site

@@ -1,4 +1,4 @@
-// The target centroider node's work, from ROS messages (issue 36): the
+// The target centroider node's work, from ROS messages: the
 // node's parameters and targets, the camera poses from /tf and /tf_static,
 // and per camera one photo (Image + CameraInfo of one stamp) into the
 // TargetObservationArray to publish (ros/target_conversions.h), with the

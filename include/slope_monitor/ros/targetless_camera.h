@@ -1,4 +1,4 @@
-// The fixed_targetless cameras of a site in the graph (issue 19, item 5):
+// The fixed_targetless cameras of a site in the graph:
 // one runner per camera turns its photos (sensor_msgs::Image + CameraInfo)
 // into the outputs of dense::TargetlessCamera, the core chain track_camera
 // runs. Used by the targetless_camera nodelet and by process_bag, so both

@@ -1,4 +1,4 @@
-// rviz markers a crew reads the slope with (issue 20, item 3), made from
+// rviz markers a crew reads the slope with, made from
 // what the nodes already compute: the camera frustums of an adjusted epoch
 // (bundle_adjuster `frustums`) and the colour scale of the dense surface's
 // `change` field (dense_matcher `change_legend`). Conversion only: the

@@ -162,7 +162,7 @@ FieldPictureSummary WriteDisplacementFieldPng(const std::string& path, const cv:
   FieldPictureSummary s;
   const cv::Mat out = DrawDisplacementField(photo, field, model, current, options, &s);
   // Encoded in memory, then written whole (a temporary in the folder, renamed): a full disk
-  // leaves the previous picture as it was (issue 38).
+  // leaves the previous picture as it was.
   std::vector<uchar> png;
   bool ok = false;
   try {

@@ -250,7 +250,7 @@ FlightChangeOptions::FlightChangeOptions() {
   change.max_shift = 10.0;
   change.min_stable_cells = 100;
   // Heteroscedastic LoD: real surfaces' errors grow on steep and rough
-  // ground (bushes, edges), one global residual flags them (issue 35).
+  // ground (bushes, edges), one global residual flags them.
   // Each bin's spread from its 95 % quantile: real DoDs have heavy tails
   // (blunders of metres on 1 % of copr's cells) that the NMAD does not see
   // (copr split: 10.8 % flagged with NMAD bins, 4.1 % with quantile bins;

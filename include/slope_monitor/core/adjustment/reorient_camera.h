@@ -1,4 +1,4 @@
-// Re-orientation of a fixed camera on stable ground (issue 19, step 2): the
+// Re-orientation of a fixed camera on stable ground: the
 // change of attitude between the reference photo (whose orientation is known:
 // resected or target-adjusted) and a new photo, from tie points on stable
 // ground (xa in the reference photo, xb in the new one).

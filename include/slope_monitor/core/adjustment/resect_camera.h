@@ -1,6 +1,6 @@
 // Resection of one camera from surveyed points picked in its photo, starting
 // from a nominal camera (focal length and sensor size, or EXIF) and no guess of
-// the attitude (issue 19).
+// the attitude.
 //
 //   1. Start: with a known position, the attitude is the rotation that best
 //      maps the site directions (X - X0) onto the pixels' bearings (Wahba's

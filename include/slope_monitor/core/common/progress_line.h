@@ -1,5 +1,5 @@
 // A progress line for the command-line tools (process_bag, make_survey_bag),
-// one rule for all of them (issue 38): on a terminal the line is redrawn in
+// one rule for all of them: on a terminal the line is redrawn in
 // place ('\r', and "ESC[K" to clear it before a log line); written to
 // anything else (a log file, a pipe) it is a plain line of its own, now and
 // then, with no carriage return and no escape sequence.

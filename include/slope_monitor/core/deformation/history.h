@@ -11,7 +11,7 @@
 // newer schema) is refused with an IoError naming the file; it is never
 // written to or replaced.
 //
-// One writer per history (issue 38): the constructor takes an exclusive
+// One writer per history: the constructor takes an exclusive
 // flock() on the sidecar file `<path>.lock` (created beside the database,
 // left there; it holds the owner's process id) without waiting. While
 // another History, in this or any other process, holds it, the constructor

@@ -1,4 +1,4 @@
-// The displacement field of a fixed camera without targets (issue 19, step 3):
+// The displacement field of a fixed camera without targets:
 // a grid of probe points over the monitored area of the reference photo,
 // tracked into a new photo by modified LSC (lsc.h: integer NCC search, then
 // LSC with its covariance) around the position the re-orientation predicts,

@@ -1,7 +1,6 @@
-// The displacement field of a fixed camera drawn over its photo (issue 19,
-// item 3): the picture the targetless_camera node and process_bag write into
-// the report folder (<camera>_field_eNN.png) and track_camera into its --out
-// folder, all through this one function.
+// The displacement field of a fixed camera drawn over its photo: the picture the targetless_camera
+// node and process_bag write into the report folder (<camera>_field_eNN.png) and track_camera into
+// its --out folder, all through this one function.
 //
 // Each probe that LSC matched is an arrow on the new photo: from where its
 // reference ground point x_ref appears in the new photo (projected with the

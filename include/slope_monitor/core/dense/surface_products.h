@@ -3,7 +3,7 @@
 // surface co-registered on stable ground with its report. process_flight
 // (a real flight, core/flight/flight_surface.h) and the graph's dense step
 // (dense::SurfaceSeries: the dense_epoch nodelet, process_bag, dense_surface
-// --bag) call these same functions (issue 35 item 4; doc/real_surfaces.md).
+// --bag) call these same functions (doc/real_surfaces.md).
 //
 //   io::GeoRaster ortho = dense::ColourOrthophoto(dem, photos, 4);
 //   dense::WriteCloudPly(points, dir + "/cloud_e02.ply");

@@ -4,7 +4,7 @@
 // (surface_products.h: a whole-cell shift search and the Nuth-Kaab
 // co-registration on stable ground, the DoD with its LoD, volumes), the
 // function process_flight calls for a real flight. With a report directory,
-// per epoch (issue 35 item 4: what process_flight writes per flight):
+// per epoch (what process_flight writes per flight):
 //
 //   surface_eNN.tif         the DEM (bands height, uncertainty, count, spread)
 //   ortho_eNN.tif           the RGB orthophoto of the epoch's UAV photos on it

@@ -1,4 +1,4 @@
-// A fixed camera without targets, photo by photo (issue 19, steps 2-3): the
+// A fixed camera without targets, photo by photo: the
 // one chain the track_camera tool, the targetless_camera nodelet and
 // process_bag run for a camera of kind `fixed_targetless`.
 //

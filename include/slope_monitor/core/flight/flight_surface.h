@@ -23,8 +23,8 @@
 // the reference's grid).
 //
 // Orthophoto, cloud file and change (CompareFlights) are
-// core/dense/surface_products.h's, which the graph's dense step calls too
-// (issue 35 item 4): ColourOrthophoto of the decoded photos on the DEM,
+// core/dense/surface_products.h's, which the graph's dense step calls too:
+// ColourOrthophoto of the decoded photos on the DEM,
 // WriteCloudPly, and dense::CompareSurfaces with a real flight's options
 // (FlightChangeOptions: more co-registration passes, an 8 m shift search,
 // the heteroscedastic LoD). The flight names below are those functions.

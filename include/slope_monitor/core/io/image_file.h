@@ -1,4 +1,4 @@
-// Reading photos from files without trusting them (issue 38): the size is
+// Reading photos from files without trusting them: the size is
 // taken from the header and refused above a pixel budget before anything is
 // decoded, and a file is checked to be whole before OpenCV decodes it.
 //

@@ -2,8 +2,8 @@
 // YAML (io::TargetList) or a surveyors' CSV (target_csv.h: a '# crs: ...'
 // line, then id,role,x,y,z,sigma_h,sigma_v; doc/your_own_site.md). The one
 // reader behind a site file's targets.file, the graph's target_list
-// parameter and process_bag's --target-list (issue 38: a CSV given there was
-// refused as "YAML file '…csv' must hold a map").
+// parameter and process_bag's --target-list (a CSV given there is read as
+// CSV, not refused as a YAML file that "must hold a map").
 #pragma once
 
 #include <string>
