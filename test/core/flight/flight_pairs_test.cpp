@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #pragma GCC diagnostic push
@@ -71,20 +72,25 @@ TEST(FlightPairs, BeyondItTheFootprintsAtTheXmpHeightChooseThePartners) {
   EXPECT_EQ(PartnersOf(at_50, 35), 2 * 2);
 }
 
+// A small JPEG at `path` with these XMP properties (written by exiv2).
+void WriteXmpPhoto(const std::string& path,
+                   const std::vector<std::pair<std::string, std::string>>& properties) {
+  ASSERT_TRUE(cv::imwrite(path, cv::Mat(30, 40, CV_8UC1, cv::Scalar(90))));
+  Exiv2::XmpProperties::registerNs("http://www.dji.com/drone-dji/1.0/", "drone-dji");
+  Exiv2::XmpProperties::registerNs("http://www.sensefly.com/xmp/1.0/", "sensefly");
+  auto image = Exiv2::ImageFactory::open(path);
+  image->readMetadata();
+  Exiv2::XmpData xmp;
+  for (const auto& [key, value] : properties) xmp[key] = value;
+  image->setXmpData(xmp);
+  image->writeMetadata();
+}
+
 TEST(FlightPairs, TheRelativeAltitudeIsReadFromTheXmp) {
   const std::string path =
       (std::filesystem::temp_directory_path() / "sm_flight_pairs_xmp.jpg").string();
-  ASSERT_TRUE(cv::imwrite(path, cv::Mat(30, 40, CV_8UC1, cv::Scalar(90))));
-  Exiv2::XmpProperties::registerNs("http://www.dji.com/drone-dji/1.0/", "drone-dji");
-  {
-    auto image = Exiv2::ImageFactory::open(path);
-    image->readMetadata();
-    Exiv2::XmpData xmp;
-    xmp["Xmp.drone-dji.RelativeAltitude"] = "+68.20";
-    xmp["Xmp.drone-dji.FlightYawDegree"] = "-12.5";
-    image->setXmpData(xmp);
-    image->writeMetadata();
-  }
+  WriteXmpPhoto(path, {{"Xmp.drone-dji.RelativeAltitude", "+68.20"},
+                       {"Xmp.drone-dji.FlightYawDegree", "-12.5"}});
   const capture::PhotoAttitude a = capture::ReadPhotoAttitude(path);
   EXPECT_TRUE(a.has_height_above_ground);
   EXPECT_DOUBLE_EQ(a.height_above_ground_m, 68.2);
@@ -99,20 +105,12 @@ TEST(FlightPairs, TheRelativeAltitudeIsReadFromTheXmp) {
 TEST(FlightPairs, TheOlderSenseFlyHeadingAndHeightAreRead) {
   const std::string path =
       (std::filesystem::temp_directory_path() / "sm_flight_pairs_sensefly.jpg").string();
-  ASSERT_TRUE(cv::imwrite(path, cv::Mat(30, 40, CV_8UC1, cv::Scalar(90))));
-  Exiv2::XmpProperties::registerNs("http://www.sensefly.com/xmp/1.0/", "sensefly");
-  {
-    auto image = Exiv2::ImageFactory::open(path);
-    image->readMetadata();
-    Exiv2::XmpData xmp;
-    xmp["Xmp.sensefly.Heading"] = "30.438629150000001";
-    xmp["Xmp.sensefly.PitchAngle"] = "-1.403483152000000";
-    xmp["Xmp.sensefly.RollAngle"] = "-2.652293205000000";
-    xmp["Xmp.sensefly.Height"] = "67.874511720000001";
-    xmp["Xmp.sensefly.AltitudeWGS84"] = "283.824005100000022";  // not a height above ground
-    image->setXmpData(xmp);
-    image->writeMetadata();
-  }
+  WriteXmpPhoto(path, {{"Xmp.sensefly.Heading", "30.438629150000001"},
+                       {"Xmp.sensefly.PitchAngle", "-1.403483152000000"},
+                       {"Xmp.sensefly.RollAngle", "-2.652293205000000"},
+                       {"Xmp.sensefly.Height", "67.874511720000001"},
+                       // not a height above ground:
+                       {"Xmp.sensefly.AltitudeWGS84", "283.824005100000022"}});
   const capture::PhotoAttitude a = capture::ReadPhotoAttitude(path);
   EXPECT_TRUE(a.has_yaw);
   EXPECT_DOUBLE_EQ(a.yaw_deg, 30.438629150000001);
