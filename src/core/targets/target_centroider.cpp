@@ -168,6 +168,8 @@ std::string CentreMethodName(CentreMethod method) {
       return "ellipse_model";
     case CentreMethod::kGrayCentroid:
       return "gray_centroid";
+    case CentreMethod::kRingCentre:
+      return "ring_centre";
   }
   return "unknown";
 }
@@ -368,12 +370,22 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
   // The stages (centroider_stages.h).
   if (!options_.families.empty()) detail::DetectTags(D.td, mono8, targets_, &D.px, &frame);
   if (options_.detect_circles) {
+    // Markers of three or more rings first; the other designs' candidates
+    // inside one are parts of it.
+    std::vector<detail::RingMarker> rings;
+    if (options_.circle_design == CircleDesign::kAuto ||
+        options_.circle_design == CircleDesign::kConcentric)
+      detail::AddRingMarkers(mono8, &frame, &rings);
     detail::FindBrightComponents(mono8, &D.candidates, &frame);
     const std::vector<detail::ExpectedCircle> expected =
         detail::ProjectListedCircles(view, targets_);
     for (int label = 1; label < D.candidates.n; ++label) {
       detail::Blob blob;
       if (!detail::CandidateBlob(D.candidates, label, &frame, &blob)) continue;
+      if (detail::InsideRingMarker(rings, blob.centre)) {
+        frame.Discard(blob.centre, RejectReason::kDesign, "inside a ring marker");
+        continue;
+      }
       detail::MeasureCircle(blob, detail::IdentifyCircle(expected, blob, options_), view, &D.px,
                             &frame);
     }

@@ -170,9 +170,11 @@ std::string RejectReasonName(
 constexpr int kNumRejectReasons = 11;
 
 // Which measurement gave an observation's centre.
-enum class CentreMethod { kEdgeModel, kDetector, kEllipseModel, kGrayCentroid };
-std::string CentreMethodName(
-    CentreMethod method);  // "edge_model", "detector", "ellipse_model", "gray_centroid"
+// kRingCentre: a marker of three or more rings, the image of the rings'
+// common centre from their ellipses (no pose needed).
+enum class CentreMethod { kEdgeModel, kDetector, kEllipseModel, kGrayCentroid, kRingCentre };
+std::string CentreMethodName(CentreMethod method);  // "edge_model", "detector", "ellipse_model",
+                                                    // "gray_centroid", "ring_centre"
 
 struct Observation {
   int id = -1;                         // tag ID; circle: list ID, -1 when not identified
@@ -199,6 +201,7 @@ struct Observation {
   double fit_residual = 0.0;  // [-] tags: worst edge, circles: ellipse fit residual RMS / contrast
   double ring_ratio = 0.0;    // circles: measured ring outer / disc diameter (dot: 0)
   CircleDesign design = CircleDesign::kAuto;  // circles: the design seen (never kAuto)
+  int rings = 0;  // circles measured as ring markers (method ring_centre): dark rings counted
   std::string Key() const { return family + "/" + std::to_string(id); }
 };
 
