@@ -101,8 +101,7 @@ int main() {
     cv::resize(m, big, cv::Size(4000, 3000), 0, 0, cv::INTER_CUBIC);
     photos.push_back({file + " x2.08", big, n});
   }
-  const cv::Mat uav =
-      cv::imread(data + "uav_real_caliterra/IMG_9388.jpg", cv::IMREAD_GRAYSCALE);
+  const cv::Mat uav = cv::imread(data + "uav_real_caliterra/IMG_9388.jpg", cv::IMREAD_GRAYSCALE);
   if (uav.empty()) {
     std::fprintf(stderr, "cannot read the caliterra photo\n");
     return 1;
@@ -145,11 +144,11 @@ int main() {
           best_ms = ms;
         }
       }
-  std::printf("SimpleBlobDetector best of 12 configurations: thresholdStep %.0f, minCircularity "
-              "%.1f, minInertiaRatio %.1f (%d markers' light centres, %d other keypoints on the "
-              "marker photos)\n",
-              best.thresholdStep, best.minCircularity, best.minInertiaRatio, best_hits,
-              best_others);
+  std::printf(
+      "SimpleBlobDetector best of 12 configurations: thresholdStep %.0f, minCircularity "
+      "%.1f, minInertiaRatio %.1f (%d markers' light centres, %d other keypoints on the "
+      "marker photos)\n",
+      best.thresholdStep, best.minCircularity, best.minInertiaRatio, best_hits, best_others);
   const auto blob = cv::SimpleBlobDetector::create(best);
   for (size_t i = 0; i < photos.size(); ++i) {
     std::vector<cv::KeyPoint> kp;

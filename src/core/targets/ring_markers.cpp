@@ -44,6 +44,9 @@ constexpr double kConcentricTolerance = 0.02;
 // radius; a marker with fewer than kPartialRayShare of its rays in the
 // image is not named.
 constexpr double kMaxInnerShare = 0.7, kPartialRayShare = 0.25;
+// Edge pairs whose radii are closer than this ratio do not give the centre
+// (their pencil is ill-conditioned).
+constexpr double kMaxPairRatio = 0.8;
 
 EdgeEllipse EllipseOf(const cv::RotatedRect& r) {
   EdgeEllipse e;
@@ -108,7 +111,8 @@ bool DarkSide(const cv::Mat& mask, int f, EdgeEllipse* e) {
   const double d = 1.5 * f;
   for (int k = 0; k < 36; ++k) {
     const double t = 2 * M_PI * k / 36;
-    const Eigen::Vector2d p = e->centre + e->a * std::cos(t) * e->major + e->b * std::sin(t) * minor;
+    const Eigen::Vector2d p =
+        e->centre + e->a * std::cos(t) * e->major + e->b * std::sin(t) * minor;
     const Eigen::Vector2d n =
         (std::cos(t) / e->a * e->major + std::sin(t) / e->b * minor).normalized();
     const int a = dark(p - d * n), b = dark(p + d * n);
@@ -185,8 +189,8 @@ bool RefineEdge(const ImageView& im, const EdgeEllipse& e, double inner, double 
     const Eigen::Vector2d n =
         (std::cos(t) / e.a * e.major + std::sin(t) / e.b * minor).normalized();
     const Eigen::Vector2d lo = p - inner * n, hi = p + outer * n;
-    if (lo.x() < 1 || lo.y() < 1 || hi.x() > im.cols - 2 || hi.y() > im.rows - 2 ||
-        p.x() < 1 || p.y() < 1 || p.x() > im.cols - 2 || p.y() > im.rows - 2)
+    if (lo.x() < 1 || lo.y() < 1 || hi.x() > im.cols - 2 || hi.y() > im.rows - 2 || p.x() < 1 ||
+        p.y() < 1 || p.x() > im.cols - 2 || p.y() > im.rows - 2)
       continue;
     const int m = static_cast<int>(std::ceil(2 * (inner + outer))) + 1;
     prof.resize(m);
@@ -297,8 +301,8 @@ void FindRingMarkerEdges(const cv::Mat& mono8, double min_contrast, double min_d
             [](const EdgeEllipse& x, const EdgeEllipse& y) { return x.a > y.a; });
 }
 
-std::vector<int> MarkerMembers(const std::vector<EdgeEllipse>& edges,
-                               const std::vector<bool>& used, size_t outer) {
+std::vector<int> MarkerMembers(const std::vector<EdgeEllipse>& edges, const std::vector<bool>& used,
+                               size_t outer) {
   std::vector<int> members{static_cast<int>(outer)};
   for (size_t j = outer + 1; j < edges.size(); ++j)
     if (!used[j] && SameMarker(edges[outer], edges[j])) members.push_back(static_cast<int>(j));
@@ -374,10 +378,30 @@ bool MeasureMarker(const std::vector<EdgeEllipse>& edges, RingMarker* m, std::st
       return false;
     }
   }
-  const double r1 = in.MeanRadius(), r2 = out.MeanRadius();
-  const double w1 = r2 * r2 / (r2 * r2 - r1 * r1), w2 = r1 * r1 / (r2 * r2 - r1 * r1);
+  // The centre: every pair of edges far enough apart (the smaller within
+  // kMaxPairRatio of the larger's radius), weighted by its variance; the
+  // pairs share edges, so the mean counts as half as many independent
+  // pairs as there are edges.
   auto var = [](const EdgeEllipse& e) { return 2.0 * e.rms * e.rms / std::max(e.points, 1); };
-  m->covariance = (w1 * w1 * var(in) + w2 * w2 * var(out)) * Eigen::Matrix2d::Identity();
+  Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+  double wsum = 0, best_var = 1e30;
+  for (size_t i = 0; i < edges.size(); ++i) {
+    for (size_t j = i + 1; j < edges.size(); ++j) {
+      const double r1 = edges[j].MeanRadius(), r2 = edges[i].MeanRadius();
+      if (r1 > kMaxPairRatio * r2) continue;
+      Eigen::Vector2d c;
+      double sij = 0;
+      if (!CommonCentre(edges[j], edges[i], &c, &sij)) continue;
+      const double w1 = r2 * r2 / (r2 * r2 - r1 * r1), w2 = r1 * r1 / (r2 * r2 - r1 * r1);
+      const double v = w1 * w1 * var(edges[j]) + w2 * w2 * var(edges[i]);
+      sum += c / v;
+      wsum += 1 / v;
+      best_var = std::min(best_var, v);
+    }
+  }
+  m->centre = sum / wsum;
+  m->covariance = std::max(1.0 / wsum, best_var / std::max(1.0, 0.5 * edges.size())) *
+                  Eigen::Matrix2d::Identity();
   m->fit_rms = 0;
   for (const auto& e : edges) m->fit_rms = std::max(m->fit_rms, e.rms);
   return true;
@@ -391,8 +415,7 @@ double RingContrast(const ImageView& im, const std::vector<EdgeEllipse>& edges) 
   for (int k = 0; k < 36; ++k) {
     const double t = 2 * M_PI * k / 36;
     const Eigen::Vector2d po = o.centre + o.a * std::cos(t) * o.major + o.b * std::sin(t) * minor;
-    const Eigen::Vector2d pi =
-        i.centre + i.a * std::cos(t) * i.major + i.b * std::sin(t) * minor_i;
+    const Eigen::Vector2d pi = i.centre + i.a * std::cos(t) * i.major + i.b * std::sin(t) * minor_i;
     const Eigen::Vector2d g = o.centre + 1.15 * (po - o.centre), r = 0.5 * (po + pi);
     if (g.x() < 0 || g.y() < 0 || g.x() > im.cols - 1 || g.y() > im.rows - 1) continue;
     ground.push_back(im.Sample(g.x(), g.y()));
@@ -410,8 +433,7 @@ struct RingProfile {
   std::vector<double> t, mean;  // mean over the rays in image
   std::vector<std::vector<double>> rays;
   std::vector<double> scale;  // per ray: pixels per unit of t
-  Eigen::Vector2d Point(const EdgeEllipse& in, const EdgeEllipse& out, double ang,
-                        double t) const {
+  Eigen::Vector2d Point(const EdgeEllipse& in, const EdgeEllipse& out, double ang, double t) const {
     const Eigen::Vector2d mi(-in.major.y(), in.major.x()), mo(-out.major.y(), out.major.x());
     const double flip = in.major.dot(out.major) < 0 ? -1.0 : 1.0;
     const Eigen::Vector2d pi =
@@ -489,8 +511,7 @@ bool ReadRings(const RingProfile& p, double min_contrast, std::vector<double>* e
   std::vector<std::vector<double>> sectors(nr, std::vector<double>(p.mean.size()));
   for (size_t i = 0; i < nr; ++i)
     for (size_t j = 0; j < p.mean.size(); ++j)
-      sectors[i][j] =
-          (p.rays[(i + nr - 1) % nr][j] + p.rays[i][j] + p.rays[(i + 1) % nr][j]) / 3.0;
+      sectors[i][j] = (p.rays[(i + nr - 1) % nr][j] + p.rays[i][j] + p.rays[(i + 1) % nr][j]) / 3.0;
   int rings = 0;
   edge_t->clear();
   for (size_t k = 1; k + 1 < ext.size(); k += 2) {
@@ -655,4 +676,3 @@ bool InsideRingMarker(const std::vector<RingMarker>& markers, const Eigen::Vecto
 }  // namespace detail
 }  // namespace targets
 }  // namespace slope_monitor
-
