@@ -16,11 +16,14 @@ namespace {
 // (p-c)^T A (p-c) = 1 on the edge), ring level, disc level, blur sigma.
 using EllipseParams = Eigen::Matrix<double, 8, 1>;
 
-// An unlisted dot (auto) is a disc when its edge blur sigma is at most this
-// share of its radius: measured, the renders' dots 4-75 px in radius show
-// 0.007-0.06, the specks of light taken for dots on the drone and room
-// photos (uav_real_caliterra, targets_real_cctag) 0.20-0.37.
-constexpr double kMaxDotBlurShare = 0.15;
+// An unlisted light centre with only a dark surround for evidence (dot,
+// disc_in_ring; auto) is a disc when its edge blur sigma is at most this
+// share of its radius. Measured: the renders' dots and discs 4-75 px in
+// radius show 0.007-0.06; the specks of light taken for them on the drone
+// and room photos (uav_real_caliterra, uav_real_copr, targets_real_cctag)
+// 0.20-0.42. (The ring designs' rings are evidence of their own: the real
+// ring board's markers show up to 0.15.)
+constexpr double kMaxSpeckBlurShare = 0.15;
 
 // Signed distance (inside positive) of p from the ellipse, to first order
 // (1 - r) / |grad r| with r = sqrt((p-c)^T A (p-c)), and its outward normal
@@ -303,14 +306,18 @@ void MeasureCircle(const Blob& blob, const ExpectedCircle* expected, const ViewG
     verdict.Fail(RejectReason::kBlurred, Message("edge blur sigma ", o.edge_blur, " px"));
     return;
   }
-  // An unlisted dot in auto: a light speck on a dark ground is everywhere
-  // (glints, sky through a canopy); a printed or retro-reflective dot is a
-  // resolved disc, its radius several times its edge blur (a point of light
-  // looks like a disc about 2 blur sigmas across).
-  if (s.seen.design == CircleDesign::kDot && !spec && opt.circle_design == CircleDesign::kAuto &&
-      o.edge_blur > kMaxDotBlurShare * rmean) {
-    verdict.Fail(RejectReason::kDesign, Message("dot of radius ", rmean, " px, edge blur sigma ",
-                                                o.edge_blur, " px: a speck of light, not a disc"));
+  // Unlisted, auto, a dark surround only: a light speck on a dark ground is
+  // everywhere (glints, sky through a canopy); a printed or retro-reflective
+  // disc is resolved, its radius several times its edge blur (a point of
+  // light looks like a disc about 2 blur sigmas across).
+  const bool surround_only =
+      s.seen.design == CircleDesign::kDot || s.seen.design == CircleDesign::kDiscInRing;
+  if (surround_only && !spec && opt.circle_design == CircleDesign::kAuto &&
+      o.edge_blur > kMaxSpeckBlurShare * rmean) {
+    verdict.marker_radius = 0.0;  // no marker: discarded
+    verdict.Fail(RejectReason::kDesign, Message(CircleDesignName(s.seen.design), " of radius ",
+                                                rmean, " px, edge blur sigma ", o.edge_blur,
+                                                " px: a speck of light, not a disc"));
     return;
   }
   if (rel > opt.max_residual) {
