@@ -495,7 +495,22 @@ std::vector<int> ProfileExtrema(const std::vector<double>& v, double step) {
 // on kRayShare of the rays (darker than both neighbouring maxima there);
 // their edges (steepest point between an extremum and the next) as radii
 // in t. False with the fault when fewer than kMinRings rings are seen.
-constexpr double kRayShare = 0.7, kStepShare = 0.15, kMinResolved = 5.0;
+constexpr double kRayShare = 0.7, kStepShare = 0.15, kMinResolved = 5.0, kResolvedBlurs = 4.5;
+
+// The blur sigma [px] of the profile's outer edge (from the last minimum to
+// the ground): a blurred step of height h rises by at most h / (sigma
+// sqrt(2 pi)) per pixel. (The mean over the rays smears a little more.)
+double OuterEdgeBlur(const RingProfile& p, const std::vector<int>& ext) {
+  if (ext.size() < 2) return 0.0;
+  const int a = ext[ext.size() - 2], b = ext.back();
+  double slope = 0.0;
+  for (int j = a; j < b; ++j)
+    slope = std::max(slope, (p.mean[j + 1] - p.mean[j]) / (p.t[j + 1] - p.t[j]));
+  double scale = 0.0;
+  for (double s : p.scale) scale += s / p.scale.size();
+  return slope > 0 ? (p.mean[b] - p.mean[a]) * scale / (std::sqrt(2 * M_PI) * slope) : 0.0;
+}
+
 bool ReadRings(const RingProfile& p, double min_contrast, std::vector<double>* edge_t,
                double* contrast, std::string* fault) {
   const auto lo = std::min_element(p.mean.begin(), p.mean.end());
@@ -506,6 +521,7 @@ bool ReadRings(const RingProfile& p, double min_contrast, std::vector<double>* e
     return false;
   }
   const std::vector<int> ext = ProfileExtrema(p.mean, kStepShare * *contrast);
+  const double resolved = std::max(kMinResolved, kResolvedBlurs * OuterEdgeBlur(p, ext));
   // Each ray averaged with its two neighbours (image noise on faint gaps).
   const size_t nr = p.rays.size();
   std::vector<std::vector<double>> sectors(nr, std::vector<double>(p.mean.size()));
@@ -526,10 +542,11 @@ bool ReadRings(const RingProfile& p, double min_contrast, std::vector<double>* e
       return v;
     };
     // Judged only on the rays where the ring and its gaps are resolved: the
-    // maxima around it kMinResolved [px] apart at least.
+    // maxima around it kMinResolved [px] and kResolvedBlurs blur sigmas
+    // apart at least (a period of 4.5 sigma keeps 38 % of its contrast).
     int seen = 0, judged = 0;
     for (size_t i = 0; i < nr; ++i) {
-      if ((p.t[ext[k + 1]] - p.t[ext[k - 1]]) * p.scale[i] < kMinResolved) continue;
+      if ((p.t[ext[k + 1]] - p.t[ext[k - 1]]) * p.scale[i] < resolved) continue;
       ++judged;
       const double d = near(sectors[i], k, true);
       seen += d < near(sectors[i], k - 1, false) && d < near(sectors[i], k + 1, false);
