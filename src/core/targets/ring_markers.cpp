@@ -309,54 +309,7 @@ std::vector<int> MarkerMembers(const std::vector<EdgeEllipse>& edges, const std:
   return members;
 }
 
-// A group's edges from the largest down, one per physical edge: an edge
-// of the same sign as the one kept before it (and within a tenth of its
-// radius) is the same edge seen in another mask.
-std::vector<EdgeEllipse> UniqueEdges(const std::vector<EdgeEllipse>& edges,
-                                     const std::vector<int>& members) {
-  std::vector<EdgeEllipse> unique;
-  for (int m : members) {
-    const EdgeEllipse& e = edges[m];
-    if (!unique.empty() && unique.back().dark_inside == e.dark_inside &&
-        unique.back().MeanRadius() - e.MeanRadius() < 0.1 * e.MeanRadius() + 1.5)
-      continue;
-    unique.push_back(e);
-  }
-  return unique;
-}
-
-bool RefineMarkerEdges(const ImageView& im, const std::vector<EdgeEllipse>& unique,
-                       double min_contrast, std::vector<EdgeEllipse>* refined) {
-  refined->clear();
-  for (size_t k = 0; k < unique.size(); ++k) {
-    const double r = 0.5 * (unique[k].a + unique[k].b);
-    const double gap_out = k > 0 ? 0.5 * (unique[k - 1].a + unique[k - 1].b) - r : 0.3 * r;
-    const double gap_in =
-        k + 1 < unique.size() ? r - 0.5 * (unique[k + 1].a + unique[k + 1].b) : 0.3 * r;
-    const double in = std::clamp(0.6 * gap_in, 1.5, 0.5 * r);
-    const double out = std::clamp(0.6 * gap_out, 1.5, 0.5 * r);
-    EdgeEllipse e;
-    if (!RefineEdge(im, unique[k], in, out, 0.5 * min_contrast, &e)) continue;
-    if (!refined->empty() && refined->back().dark_inside == e.dark_inside &&
-        0.5 * (refined->back().a + refined->back().b) - 0.5 * (e.a + e.b) < 1.0)
-      continue;
-    refined->push_back(e);
-  }
-  return !refined->empty();
-}
-
-int CountRings(const std::vector<EdgeEllipse>& refined) {
-  // From the outside in: dark inside (a ring's outer edge), then light
-  // inside (its inner edge), ring after ring.
-  int rings = 0;
-  for (size_t k = 0; k + 1 < refined.size(); k += 2) {
-    if (!refined[k].dark_inside || refined[k + 1].dark_inside) break;
-    ++rings;
-  }
-  return rings;
-}
-
-// The common centre (innermost and outermost edge) and its covariance: an
+// The common centre of the refined edges (outer first) and its covariance: an
 // ellipse's centre from n points at RMS distance s has variance ~ 2 s^2 / n
 // per axis; the pencil's centre is about (r2^2 c1 - r1^2 c2) / (r2^2 - r1^2)
 // (perspective shifts an ellipse's centre by ~ its radius squared).
@@ -407,28 +360,14 @@ bool MeasureMarker(const std::vector<EdgeEllipse>& edges, RingMarker* m, std::st
   return true;
 }
 
-// The ground and ring levels along the outer ring (contrast).
-double RingContrast(const ImageView& im, const std::vector<EdgeEllipse>& edges) {
-  const EdgeEllipse &o = edges[0], &i = edges[1];
-  const Eigen::Vector2d minor(-o.major.y(), o.major.x()), minor_i(-i.major.y(), i.major.x());
-  std::vector<double> ground, ring;
-  for (int k = 0; k < 36; ++k) {
-    const double t = 2 * M_PI * k / 36;
-    const Eigen::Vector2d po = o.centre + o.a * std::cos(t) * o.major + o.b * std::sin(t) * minor;
-    const Eigen::Vector2d pi = i.centre + i.a * std::cos(t) * i.major + i.b * std::sin(t) * minor_i;
-    const Eigen::Vector2d g = o.centre + 1.15 * (po - o.centre), r = 0.5 * (po + pi);
-    if (g.x() < 0 || g.y() < 0 || g.x() > im.cols - 1 || g.y() > im.rows - 1) continue;
-    ground.push_back(im.Sample(g.x(), g.y()));
-    ring.push_back(im.Sample(r.x(), r.y()));
-  }
-  return Percentile(ground, 0.5) - Percentile(ring, 0.5);
-}
-
 // The marker between its innermost light edge (t = 0) and its outer edge
 // (t = 1), sampled on kNormals rays (each from the inner ellipse's point to
 // the outer's at the same parametric angle) at steps of about half a pixel,
-// from kProfileIn inside to kProfileOut beyond; per ray and the mean.
-constexpr double kProfileIn = 0.3, kProfileOut = 0.25;
+// from kProfileIn inside to kProfileBeyond beyond; per ray and the mean. A
+// ray counts when it stays in the image to kProfileOut; beyond, a sample
+// outside repeats the last one. (Beyond the outer contour: rings whose
+// contour was broken by an occluder are still read.)
+constexpr double kProfileIn = 0.3, kProfileOut = 0.25, kProfileBeyond = 1.0;
 struct RingProfile {
   std::vector<double> t, mean;  // mean over the rays in image
   std::vector<std::vector<double>> rays;
@@ -446,20 +385,24 @@ struct RingProfile {
 
 RingProfile SampleProfile(const ImageView& im, const EdgeEllipse& in, const EdgeEllipse& out) {
   RingProfile p;
-  const double span = out.MeanRadius() - in.MeanRadius();
-  const int n = static_cast<int>(std::ceil(2.0 * span * (1 + kProfileIn + kProfileOut))) + 1;
-  for (int j = 0; j < n; ++j)
-    p.t.push_back(-kProfileIn + (1 + kProfileIn + kProfileOut) * j / (n - 1));
+  const double span = out.MeanRadius() - in.MeanRadius(), len = 1 + kProfileIn + kProfileBeyond;
+  const int n = static_cast<int>(std::ceil(2.0 * span * len)) + 1;
+  for (int j = 0; j < n; ++j) p.t.push_back(-kProfileIn + len * j / (n - 1));
   p.mean.assign(n, 0.0);
   int rays = 0;
   for (int k = 0; k < kNormals; ++k) {
     const double ang = 2 * M_PI * k / kNormals;
     std::vector<double> r(n);
     bool inside = true;
-    for (int j = 0; j < n && inside; ++j) {
+    for (int j = 0; j < n; ++j) {
       const Eigen::Vector2d q = p.Point(in, out, ang, p.t[j]);
-      inside = q.x() >= 0 && q.y() >= 0 && q.x() <= im.cols - 1 && q.y() <= im.rows - 1;
-      if (inside) r[j] = im.Sample(q.x(), q.y());
+      if (q.x() >= 0 && q.y() >= 0 && q.x() <= im.cols - 1 && q.y() <= im.rows - 1) {
+        r[j] = im.Sample(q.x(), q.y());
+      } else {
+        inside = inside && p.t[j] > 1 + kProfileOut;
+        if (!inside || j == 0) break;
+        r[j] = r[j - 1];
+      }
     }
     if (!inside) continue;
     for (int j = 0; j < n; ++j) p.mean[j] += r[j];
@@ -488,6 +431,13 @@ std::vector<int> ProfileExtrema(const std::vector<double>& v, double step) {
     }
   }
   ext.push_back(cand);
+  // A maximum after a minimum where its plateau begins (the ground beyond
+  // the marker may keep rising slowly).
+  for (size_t k = 2; k < ext.size(); k += 2) {
+    int j = ext[k - 1];
+    while (j < ext[k] && v[j] < v[ext[k]] - 0.25 * step) ++j;
+    ext[k] = j;
+  }
   return ext;
 }
 
@@ -513,9 +463,8 @@ double OuterEdgeBlur(const RingProfile& p, const std::vector<int>& ext) {
 
 bool ReadRings(const RingProfile& p, double min_contrast, std::vector<double>* edge_t,
                double* contrast, std::string* fault) {
-  const auto lo = std::min_element(p.mean.begin(), p.mean.end());
-  const double ground = p.mean.back();
-  *contrast = ground - *lo;
+  const auto [lo, hi] = std::minmax_element(p.mean.begin(), p.mean.end());
+  *contrast = *hi - *lo;
   if (*contrast < min_contrast || p.rays.size() < kPartialRayShare * kNormals) {
     *fault = Message("ring contrast ", *contrast, " DN on ", p.rays.size(), " rays");
     return false;

@@ -11,6 +11,8 @@
 //     deg;
 //   * its sigma is honest: the median |error| / sigma over the renders is
 //     within [0.2, 2];
+//   * a band across the outer rings (light or dark, 10-15 % of the outer
+//     ring's perimeter) does not hide the marker, centre within 0.1 px;
 //   * a marker cut in half by the image border is named "partial";
 //   * one or two dark rings (a tyre, the two-ring design) are no ring marker.
 #include <cstdio>
@@ -47,8 +49,14 @@ struct Shot {
 // A marker of outer radius 0.1 m, its normal tilted by tilt_deg from the
 // line of sight, at `depth` [m] in front of a 640 x 480 camera of focal 600
 // px, its centre imaged at `at` (+ a sub-pixel part from the seed).
+// An occluder in front of the plate: a band across it (plate coordinates
+// [m]: u from u0 to 0.2, |v| <= half), of reflectance `level`.
+struct Occluder {
+  double u0 = 1.0, half = 0.0, level = kLight;
+};
+
 Shot Render(const Rings& rings, double tilt_deg, double depth, double blur,
-            const Eigen::Vector2d& at, unsigned seed) {
+            const Eigen::Vector2d& at, unsigned seed, const Occluder& occ = Occluder()) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> uni(0.0, 1.0);
   const double f = 600.0, cx = 319.5, cy = 239.5, radius = 0.1;
@@ -72,12 +80,13 @@ Shot Render(const Rings& rings, double tilt_deg, double depth, double blur,
   ro.seed = seed;
   cv::Mat img = testing::Background(640, 480, ro);
   const testing::Pattern pattern = [=](double u, double v) {
+    if (u >= occ.u0 && std::abs(v) <= occ.half) return occ.level;
     const double q = std::hypot(u, v) / radius;
     for (const auto& [a, b] : rings)
       if (q >= a && q <= b) return kDark;
-    return q <= 1.2 ? kLight : -1.0;
+    return q <= 1.2 ? kLight : q <= 2.0 && occ.half > 0 ? kLight : -1.0;
   };
-  testing::RenderPlate(&img, s.h, pattern, 1.2 * radius, ro);
+  testing::RenderPlate(&img, s.h, pattern, 2.0 * radius, ro);
   if (blur > 0) cv::GaussianBlur(img, img, cv::Size(0, 0), blur, blur, cv::BORDER_REPLICATE);
   s.image = testing::ToMono8(img, ro);
   return s;
@@ -138,6 +147,25 @@ TEST(RingMarkersRendered, EachDesignFoundOnceCentredWithoutAPose) {
   EXPECT_GT(worst_ellipse, 1.0);
   EXPECT_GE(z[z.size() / 2], 0.2);
   EXPECT_LE(z[z.size() / 2], 2.0);
+}
+
+TEST(RingMarkersRendered, PartlyOccludedIsFound) {
+  const TargetCentroider c(CirclesOnly(), io::TargetList());
+  // A light band across the two outer rings, a light and a dark one across
+  // the outer ring (a dark one across two rings joins them: not found).
+  for (const Occluder& occ : {Occluder{0.07, 0.03, kLight}, Occluder{0.085, 0.05, kLight},
+                              Occluder{0.085, 0.05, kDark}}) {
+    const Shot s = Render(Designs()[0], 30, 1.0, 0, {300, 230}, 9, occ);
+    const Result r = c.Detect(s.image, "mono8");
+    const std::string what = std::string(occ.level == kLight ? "light" : "dark") + " band from " +
+                             std::to_string(occ.u0) + " m, half width " + std::to_string(occ.half) +
+                             " m";
+    ASSERT_EQ(r.observations.size(), 1u) << what;
+    EXPECT_EQ(r.observations[0].method, CentreMethod::kRingCentre) << what;
+    const Eigen::Vector2d e = r.observations[0].centre - s.truth;
+    std::printf("occluded, %s: error (%+.4f, %+.4f) px\n", what.c_str(), e.x(), e.y());
+    EXPECT_LE(e.norm(), 0.1) << what;
+  }
 }
 
 TEST(RingMarkersRendered, CutByTheBorderIsNamedPartial) {
