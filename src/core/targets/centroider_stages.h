@@ -354,9 +354,11 @@ struct RingDiscard {
 // The ring markers of mono8 (measured on im).
 void FindRingMarkers(const ImageView& im, const cv::Mat& mono8, const Options& o,
                      std::vector<RingMarker>* markers, std::vector<RingDiscard>* discarded);
-// The ring markers as observations (measured) and rejections (partial);
-// the groups that are none as discarded candidates.
-void AddRingMarkers(const cv::Mat& mono8, Frame* frame, std::vector<RingMarker>* markers);
+// The ring markers as observations (measured; the ID read from the edge
+// radii when one listed ring marker matches them) and rejections
+// (partial); the groups that are none as discarded candidates.
+void AddRingMarkers(const cv::Mat& mono8, const io::TargetList& list, Frame* frame,
+                    std::vector<RingMarker>* markers);
 // Whether p lies within a marker's outer edge.
 bool InsideRingMarker(const std::vector<RingMarker>& markers, const Eigen::Vector2d& p);
 // The conic matrix of an ellipse (x^T C x = 0 on it, x homogeneous).

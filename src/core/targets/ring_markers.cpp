@@ -362,7 +362,7 @@ bool MeasureMarker(const std::vector<EdgeEllipse>& edges, RingMarker* m, std::st
 
 // The marker between its innermost light edge (t = 0) and its outer edge
 // (t = 1), sampled on kNormals rays (each from the inner ellipse's point to
-// the outer's at the same parametric angle) at steps of about half a pixel,
+// the outer's at one parametric angle of the outer) at steps of about half a pixel,
 // from kProfileIn inside to kProfileBeyond beyond; per ray and the mean. A
 // ray counts when it stays in the image to kProfileOut; beyond, a sample
 // outside repeats the last one. (Beyond the outer contour: rings whose
@@ -372,13 +372,15 @@ struct RingProfile {
   std::vector<double> t, mean;  // mean over the rays in image
   std::vector<std::vector<double>> rays;
   std::vector<double> scale;  // per ray: pixels per unit of t
+  // The outer ellipse's point at parametric angle ang, the inner's in the
+  // same direction from its centre (a near circle's axes say nothing of its
+  // orientation).
   Eigen::Vector2d Point(const EdgeEllipse& in, const EdgeEllipse& out, double ang, double t) const {
-    const Eigen::Vector2d mi(-in.major.y(), in.major.x()), mo(-out.major.y(), out.major.x());
-    const double flip = in.major.dot(out.major) < 0 ? -1.0 : 1.0;
-    const Eigen::Vector2d pi =
-        in.centre + flip * (in.a * std::cos(ang) * in.major + in.b * std::sin(ang) * mi);
+    const Eigen::Vector2d mo(-out.major.y(), out.major.x()), mi(-in.major.y(), in.major.x());
     const Eigen::Vector2d po =
         out.centre + out.a * std::cos(ang) * out.major + out.b * std::sin(ang) * mo;
+    const Eigen::Vector2d d = (po - out.centre).normalized();
+    const Eigen::Vector2d pi = in.centre + d / std::hypot(d.dot(in.major) / in.a, d.dot(mi) / in.b);
     return pi + t * (po - pi);
   }
 };
@@ -518,13 +520,15 @@ bool ReadRings(const RingProfile& p, double min_contrast, std::vector<double>* e
   return true;
 }
 
-// The ellipse of the profile at t (between the inner and outer edges).
-EdgeEllipse Between(const EdgeEllipse& in, const EdgeEllipse& out, double t) {
-  EdgeEllipse e = out;
-  e.centre = in.centre + t * (out.centre - in.centre);
-  e.a = in.a + t * (out.a - in.a);
-  e.b = in.b + t * (out.b - in.b);
-  return e;
+// The ellipse of the profile at t (between the inner and outer edges): the
+// one through its points at t in 36 directions.
+EdgeEllipse Between(const RingProfile& p, const EdgeEllipse& in, const EdgeEllipse& out, double t) {
+  std::vector<cv::Point2f> pts;
+  for (int k = 0; k < 36; ++k) {
+    const Eigen::Vector2d q = p.Point(in, out, 2 * M_PI * k / 36, t);
+    pts.emplace_back(static_cast<float>(q.x()), static_cast<float>(q.y()));
+  }
+  return EllipseOf(cv::fitEllipseDirect(pts));
 }
 
 // The profile's value at t (linear).
@@ -563,7 +567,7 @@ bool MeasureRings(const ImageView& im, const EdgeEllipse& in, const EdgeEllipse&
     const double gout = k + 1 < static_cast<int>(edge_t.size()) ? edge_t[k + 1] - t : 1.0;
     const double win = std::max(0.45 * gin * span, 1.5), wout = std::max(0.45 * gout * span, 1.5);
     const double step = std::abs(ProfileAt(p, t + gout * 0.45) - ProfileAt(p, t - gin * 0.45));
-    EdgeEllipse e = Between(in, out, t), r;
+    EdgeEllipse e = Between(p, in, out, t), r;
     e.dark_inside = k % 2 == 1;
     const bool end = k == 0 || k + 1 == static_cast<int>(edge_t.size());
     if (RefineEdge(im, e, win, wout, 0.5 * step, &r)) {
@@ -601,10 +605,88 @@ void FindRingMarkers(const ImageView& im, const cv::Mat& mono8, const Options& o
   }
 }
 
-void AddRingMarkers(const cv::Mat& mono8, Frame* frame, std::vector<RingMarker>* markers) {
+namespace {
+
+// The radii of the edges over the outer edge's, free of perspective: on a
+// line through the image c of the centre, the cross ratio of c, the line's
+// vanishing point (on the polar of c, the image of the line at infinity)
+// and the points of two edges is the ratio of the two circles' radii.
+// Mean over kRadiiRays directions.
+constexpr int kRadiiRays = 36;
+std::vector<double> EdgeRadii(const std::vector<EdgeEllipse>& edges, const Eigen::Vector2d& c) {
+  const Eigen::Vector3d ch(c.x(), c.y(), 1.0);
+  const Eigen::Vector3d l = ConicOf(edges.front()) * ch;
+  std::vector<double> sum(edges.size(), 0.0);
+  for (int k = 0; k < kRadiiRays; ++k) {
+    const double t = 2 * M_PI * (k + 0.5) / kRadiiRays;
+    const Eigen::Vector2d d(std::cos(t), std::sin(t));
+    std::vector<double> s(edges.size());
+    for (size_t i = 0; i < edges.size(); ++i) {
+      const Eigen::Matrix3d ci = ConicOf(edges[i]);
+      const Eigen::Matrix2d a = ci.topLeftCorner<2, 2>();
+      const Eigen::Vector2d q = c - edges[i].centre;
+      const double qa = d.dot(a * d), qb = d.dot(a * q), qc = q.dot(a * q) - 1.0;
+      s[i] = (-qb + std::sqrt(std::max(qb * qb - qa * qc, 0.0))) / qa;
+    }
+    const double so = s.back(), den = l.head<2>().dot(d);
+    const double sv = std::abs(den) > 1e-12 ? -l.dot(ch) / den : 1e300;
+    for (size_t i = 0; i < edges.size(); ++i)
+      sum[i] += std::abs(sv) > 1e299 ? s[i] / so : s[i] * (so - sv) / ((s[i] - sv) * so);
+  }
+  for (double& v : sum) v /= kRadiiRays;
+  return sum;
+}
+
+// The listed ring marker whose edge radii (inner to outer, over the outer)
+// the measured ones match: every radius within kRingIdTolerance, and no
+// other listed marker within kRingIdTolerance of that; nullptr otherwise.
+constexpr double kRingIdTolerance = 0.02;
+const io::TargetSpec* ReadRingId(const std::vector<double>& radii, const io::TargetList& list) {
+  const io::TargetSpec* best = nullptr;
+  double best_d = 1e9, second_d = 1e9;
+  for (const auto& t : list.targets()) {
+    if (t.family != "circle" || t.rings.size() != radii.size()) continue;
+    double d = 0.0;
+    for (size_t k = 0; k < radii.size(); ++k) d = std::max(d, std::abs(radii[k] - t.rings[k]));
+    if (d < best_d) {
+      second_d = best_d;
+      best_d = d;
+      best = &t;
+    } else {
+      second_d = std::min(second_d, d);
+    }
+  }
+  return best && best_d <= kRingIdTolerance && second_d > best_d + kRingIdTolerance ? best
+                                                                                    : nullptr;
+}
+
+// An ID read twice in one image is read on neither.
+void DropTwiceReadIds(size_t first, Result* res) {
+  std::vector<Observation>& obs = res->observations;
+  for (size_t i = first; i < obs.size(); ++i) {
+    bool twice = false;
+    for (size_t j = first; j < obs.size(); ++j) twice = twice || (j != i && obs[j].id == obs[i].id);
+    if (obs[i].id < 0 || !twice) continue;
+    for (size_t j = i; j < obs.size(); ++j) {
+      if (obs[j].id != obs[i].id || j == i) continue;
+      obs[j].id = -1;
+      obs[j].role.reset();
+      res->summary.num_unknown++;
+    }
+    obs[i].id = -1;
+    obs[i].role.reset();
+    res->summary.num_unknown++;
+  }
+}
+
+}  // namespace
+
+void AddRingMarkers(const cv::Mat& mono8, const io::TargetList& list, Frame* frame,
+                    std::vector<RingMarker>* markers) {
   std::vector<RingDiscard> discarded;
   FindRingMarkers(frame->im, mono8, frame->options, markers, &discarded);
   for (const auto& d : discarded) frame->Discard(d.where, RejectReason::kDesign, d.detail);
+  const size_t first = frame->res.observations.size();
   for (const RingMarker& m : *markers) {
     const EdgeEllipse &out = m.edges.front(), &in = m.edges.back();
     if (m.partial) {
@@ -624,10 +706,19 @@ void AddRingMarkers(const cv::Mat& mono8, Frame* frame, std::vector<RingMarker>*
     o.contrast = m.contrast;
     o.fit_residual = m.fit_rms;
     o.quality = std::clamp(m.contrast / 100.0, 0.0, 1.0);
+    if (static_cast<int>(m.edges.size()) == 2 * m.rings) {
+      std::vector<EdgeEllipse> inner_first(m.edges.rbegin(), m.edges.rend());
+      o.ring_radii = EdgeRadii(inner_first, m.centre);
+      if (const io::TargetSpec* spec = ReadRingId(o.ring_radii, list)) {
+        o.id = spec->id;
+        o.role = spec->role;
+      }
+    }
     frame->res.observations.push_back(o);
     frame->res.summary.num_circles++;
-    frame->res.summary.num_unknown++;
+    if (!o.role) frame->res.summary.num_unknown++;
   }
+  DropTwiceReadIds(first, &frame->res);
 }
 
 bool InsideRingMarker(const std::vector<RingMarker>& markers, const Eigen::Vector2d& p) {

@@ -375,7 +375,7 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
     std::vector<detail::RingMarker> rings;
     if (options_.circle_design == CircleDesign::kAuto ||
         options_.circle_design == CircleDesign::kConcentric)
-      detail::AddRingMarkers(mono8, &frame, &rings);
+      detail::AddRingMarkers(mono8, targets_, &frame, &rings);
     detail::FindBrightComponents(mono8, &D.candidates, &frame);
     const std::vector<detail::ExpectedCircle> expected =
         detail::ProjectListedCircles(view, targets_);

@@ -14,7 +14,10 @@
 //   * a band across the outer rings (light or dark, 10-15 % of the outer
 //     ring's perimeter) does not hide the marker, centre within 0.1 px;
 //   * a marker cut in half by the image border is named "partial";
-//   * one or two dark rings (a tyre, the two-ring design) are no ring marker.
+//   * one or two dark rings (a tyre, the two-ring design) are no ring marker;
+//   * with a target list of ring markers (their edge radii), the ID is read
+//     where one listed marker matches (the radii read within 0.015 of the
+//     outer radius), -1 for a design not listed or two listed alike.
 #include <cstdio>
 
 #include <gtest/gtest.h>
@@ -147,6 +150,62 @@ TEST(RingMarkersRendered, EachDesignFoundOnceCentredWithoutAPose) {
   EXPECT_GT(worst_ellipse, 1.0);
   EXPECT_GE(z[z.size() / 2], 0.2);
   EXPECT_LE(z[z.size() / 2], 2.0);
+}
+
+// A target list of ring markers (id: the rings' edge radii).
+io::TargetList RingList(const std::vector<std::pair<int, Rings>>& markers) {
+  io::TargetList list;
+  for (const auto& [id, rings] : markers) {
+    io::TargetSpec s;
+    s.id = id;
+    s.family = "circle";
+    s.size = 0.2;
+    for (const auto& [a, b] : rings) {
+      s.rings.push_back(a);
+      s.rings.push_back(b);
+    }
+    list.Add(s);
+  }
+  return list;
+}
+
+TEST(RingMarkersRendered, IdReadFromTheRadiiWhenListedElseMinusOne) {
+  const Rings other3 = {{0.4, 0.5}, {0.6, 0.74}, {0.86, 1.0}};  // 0.04-0.05 from the first
+  const Rings unlisted = {{0.5, 0.6}, {0.7, 0.8}, {0.9, 1.0}};
+  const TargetCentroider c(CirclesOnly(),
+                           RingList({{7, Designs()[0]}, {8, other3}, {9, Designs()[1]}}));
+  double worst = 0.0;
+  unsigned seed = 40;
+  for (const auto& [rings, id] : std::vector<std::pair<Rings, int>>{
+           {Designs()[0], 7}, {other3, 8}, {Designs()[1], 9}, {unlisted, -1}, {Designs()[2], -1}}) {
+    for (const Case& cs :
+         {Case{0, 1.0, 0}, Case{50, 0.6, 0}, Case{60, 1.0, 0}, Case{40, 1.0, 1.5}}) {
+      const Shot s = Render(rings, cs.tilt, cs.depth, cs.blur, {300, 230}, ++seed);
+      const Result r = c.Detect(s.image, "mono8");
+      const std::string what = std::to_string(id) + ", tilt " + std::to_string(cs.tilt) +
+                               ", blur " + std::to_string(cs.blur);
+      ASSERT_EQ(r.observations.size(), 1u) << what;
+      const Observation& o = r.observations[0];
+      EXPECT_EQ(o.id, id) << what;
+      ASSERT_EQ(o.ring_radii.size(), 2 * rings.size()) << what;
+      for (size_t k = 0; k < rings.size(); ++k) {
+        worst = std::max(worst, std::abs(o.ring_radii[2 * k] - rings[k].first));
+        worst = std::max(worst, std::abs(o.ring_radii[2 * k + 1] - rings[k].second));
+      }
+    }
+  }
+  std::printf("worst edge radius read: %.4f of the outer radius\n", worst);
+  EXPECT_LE(worst, 0.015);
+  // Two listed markers whose radii are 0.015 apart: neither is read.
+  Rings near = Designs()[0];
+  for (auto& [a, b] : near) {
+    a += 0.015;
+    b = std::min(b + 0.015, 1.0);
+  }
+  const TargetCentroider twins(CirclesOnly(), RingList({{7, Designs()[0]}, {10, near}}));
+  const Result r = twins.Detect(Render(Designs()[0], 30, 1.0, 0, {300, 230}, 77).image, "mono8");
+  ASSERT_EQ(r.observations.size(), 1u);
+  EXPECT_EQ(r.observations[0].id, -1);
 }
 
 TEST(RingMarkersRendered, PartlyOccludedIsFound) {
