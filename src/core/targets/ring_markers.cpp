@@ -334,9 +334,11 @@ bool MeasureMarker(const std::vector<EdgeEllipse>& edges, RingMarker* m, std::st
   // The centre: every pair of edges far enough apart (the smaller within
   // kMaxPairRatio of the larger's radius), weighted by its variance; the
   // pairs share edges, so the mean counts as half as many independent
-  // pairs as there are edges.
+  // pairs as there are edges. The pairs' scatter about the mean (what the
+  // edge model leaves: blur, print, JPEG) is added for as many.
   auto var = [](const EdgeEllipse& e) { return 2.0 * e.rms * e.rms / std::max(e.points, 1); };
   Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+  std::vector<std::pair<Eigen::Vector2d, double>> pairs;
   double wsum = 0, best_var = 1e30;
   for (size_t i = 0; i < edges.size(); ++i) {
     for (size_t j = i + 1; j < edges.size(); ++j) {
@@ -350,11 +352,16 @@ bool MeasureMarker(const std::vector<EdgeEllipse>& edges, RingMarker* m, std::st
       sum += c / v;
       wsum += 1 / v;
       best_var = std::min(best_var, v);
+      pairs.emplace_back(c, 1 / v);
     }
   }
   m->centre = sum / wsum;
-  m->covariance = std::max(1.0 / wsum, best_var / std::max(1.0, 0.5 * edges.size())) *
-                  Eigen::Matrix2d::Identity();
+  const double n_eff = std::max(1.0, 0.5 * edges.size());
+  Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
+  for (const auto& [c, w] : pairs)
+    scatter += w / wsum * (c - m->centre) * (c - m->centre).transpose();
+  m->covariance =
+      std::max(1.0 / wsum, best_var / n_eff) * Eigen::Matrix2d::Identity() + scatter / n_eff;
   m->fit_rms = 0;
   for (const auto& e : edges) m->fit_rms = std::max(m->fit_rms, e.rms);
   return true;
