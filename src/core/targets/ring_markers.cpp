@@ -454,7 +454,7 @@ std::vector<int> ProfileExtrema(const std::vector<double>& v, double step) {
 // on kRayShare of the rays (darker than both neighbouring maxima there);
 // their edges (steepest point between an extremum and the next) as radii
 // in t. False with the fault when fewer than kMinRings rings are seen.
-constexpr double kRayShare = 0.7, kStepShare = 0.15, kMinResolved = 5.0, kResolvedBlurs = 4.5;
+constexpr double kRayShare = 0.7, kStepShare = 0.15, kMinResolved = 3.5, kResolvedBlurs = 4.5;
 
 // The blur sigma [px] of the profile's outer edge (from the last minimum to
 // the ground): a blurred step of height h rises by at most h / (sigma

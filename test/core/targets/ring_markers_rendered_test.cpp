@@ -13,6 +13,7 @@
 //     within [0.2, 2];
 //   * a band across the outer rings (light or dark, 10-15 % of the outer
 //     ring's perimeter) does not hide the marker, centre within 0.1 px;
+//   * small markers: three rings of 17 px outer radius, four of 20 px;
 //   * a marker cut in half by the image border is named "partial";
 //   * one or two dark rings (a tyre, the two-ring design) are no ring marker;
 //   * with a target list of ring markers (their edge radii), the ID is read
@@ -224,6 +225,21 @@ TEST(RingMarkersRendered, PartlyOccludedIsFound) {
     const Eigen::Vector2d e = r.observations[0].centre - s.truth;
     std::printf("occluded, %s: error (%+.4f, %+.4f) px\n", what.c_str(), e.x(), e.y());
     EXPECT_LE(e.norm(), 0.1) << what;
+  }
+}
+
+TEST(RingMarkersRendered, SmallMarkersAreFound) {
+  // 30 deg oblique, blurred by 0.7 px: three rings with an outer radius of
+  // 17 px (rings and gaps 1.7-2.2 px wide), four rings of 20 px.
+  const TargetCentroider c(CirclesOnly(), io::TargetList());
+  for (const auto& [d, depth] : std::vector<std::pair<size_t, double>>{{0, 3.5}, {1, 3.0}}) {
+    for (unsigned seed = 1; seed <= 4; ++seed) {
+      const Shot s = Render(Designs()[d], 30, depth, 0.7, {300, 230}, seed);
+      const Result r = c.Detect(s.image, "mono8");
+      ASSERT_EQ(r.observations.size(), 1u) << Designs()[d].size() << " rings, seed " << seed;
+      EXPECT_EQ(r.observations[0].method, CentreMethod::kRingCentre);
+      EXPECT_LE((r.observations[0].centre - s.truth).norm(), 0.15);
+    }
   }
 }
 
