@@ -1,14 +1,19 @@
 // Stage 2a of TargetCentroider::DetectMono: markers of three or more dark
 // rings on a light ground (CCTag-style and any other ring count or width
 // ratio), found by their nested ellipses. Dark masks at three window sizes
-// on one reduced level; every contour of a mask (hole or outer boundary,
-// the parts on the image border left out) fitted with an ellipse; ellipses
-// with one centre (within the perspective shift) grouped from the largest
-// down; each edge refined at full resolution (the strongest step along 72
-// normals, then a least-squares ellipse); the edges must alternate dark
-// inside / light inside, ring by ring. The marker's centre is the image of
-// the rings' common centre: the pole of the line at infinity, the one
-// point the pencil of the innermost and outermost conics degenerates to.
+// on one reduced level; every contour of a mask (the parts on the image
+// border left out) fitted with an ellipse; ellipses with one centre (within
+// the perspective shift) grouped from the largest dark-inside one down.
+// Between a group's innermost light-inside edge and its outer edge the
+// intensity is sampled on 72 rays: the rings are read from the mean
+// profile (count and edges, each ring checked ray by ray where resolved);
+// each edge refined at full resolution (the strongest step along 72
+// normals, then a least-squares ellipse). The marker's centre is the image
+// of the rings' common centre: for two edges, the point their pencil
+// degenerates to (the pole of the image of the line at infinity); the
+// variance-weighted mean over the pairs of edges. The edges' radii, free of
+// perspective, come from cross ratios along lines through that centre; a
+// target list's ring radii give the ID.
 #include <opencv2/imgproc.hpp>
 
 #include "centroider_stages.h"
