@@ -365,10 +365,8 @@ bool InsideRingMarker(const std::vector<RingMarker>& markers, const Eigen::Vecto
 Eigen::Matrix3d ConicOf(const EdgeEllipse& e);
 // The image of the common centre of two concentric circles from their
 // images: the point the pencil outer - lambda inner degenerates to at its
-// single eigenvalue; split: the other two eigenvalues' distance over their
-// distance to it (0 for exact concentric circles).
-bool CommonCentre(const EdgeEllipse& inner, const EdgeEllipse& outer, Eigen::Vector2d* centre,
-                  double* split);
+// single eigenvalue (the other two are equal for exact concentric circles).
+bool CommonCentre(const EdgeEllipse& inner, const EdgeEllipse& outer, Eigen::Vector2d* centre);
 
 // --- circle_identification.cpp ---
 // A listed circle projected into the image (with a view).

@@ -252,8 +252,7 @@ Eigen::Matrix3d ConicOf(const EdgeEllipse& e) {
   return c;
 }
 
-bool CommonCentre(const EdgeEllipse& inner, const EdgeEllipse& outer, Eigen::Vector2d* centre,
-                  double* split) {
+bool CommonCentre(const EdgeEllipse& inner, const EdgeEllipse& outer, Eigen::Vector2d* centre) {
   // In coordinates centred on the outer ellipse and scaled by its size.
   const double s = outer.a;
   auto local = [&](EdgeEllipse e) {
@@ -277,7 +276,6 @@ bool CommonCentre(const EdgeEllipse& inner, const EdgeEllipse& outer, Eigen::Vec
     }
   }
   const double lambda = l[single].real();
-  *split = std::abs(l[(single + 1) % 3] - l[(single + 2) % 3]) / std::max(far, 1e-12);
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(co - lambda * ci, Eigen::ComputeFullV);
   const Eigen::Vector3d v = svd.matrixV().col(2);
   if (std::abs(v.z()) < 1e-9) return false;
@@ -320,16 +318,14 @@ std::vector<int> MarkerMembers(const std::vector<EdgeEllipse>& edges, const std:
 // (perspective shifts an ellipse's centre by ~ its radius squared).
 bool MeasureMarker(const std::vector<EdgeEllipse>& edges, RingMarker* m, std::string* fault) {
   const EdgeEllipse &out = edges.front(), &in = edges.back();
-  double split = 0;
-  if (!CommonCentre(in, out, &m->centre, &split)) {
+  if (!CommonCentre(in, out, &m->centre)) {
     *fault = "the edges' pencil has no centre";
     return false;
   }
   // Every edge's pencil with the outer edge must give the same centre.
   for (size_t k = 1; k + 1 < edges.size(); ++k) {
     Eigen::Vector2d c;
-    double sk = 0;
-    if (!CommonCentre(edges[k], out, &c, &sk) ||
+    if (!CommonCentre(edges[k], out, &c) ||
         (c - m->centre).norm() > kConcentricTolerance * out.a + 1.0) {
       *fault = Message("edge ", k, " of ", edges.size(), " not concentric: centre ",
                        (c - m->centre).norm(), " px off");
@@ -350,8 +346,7 @@ bool MeasureMarker(const std::vector<EdgeEllipse>& edges, RingMarker* m, std::st
       const double r1 = edges[j].MeanRadius(), r2 = edges[i].MeanRadius();
       if (r1 > kMaxPairRatio * r2) continue;
       Eigen::Vector2d c;
-      double sij = 0;
-      if (!CommonCentre(edges[j], edges[i], &c, &sij)) continue;
+      if (!CommonCentre(edges[j], edges[i], &c)) continue;
       const double w1 = r2 * r2 / (r2 * r2 - r1 * r1), w2 = r1 * r1 / (r2 * r2 - r1 * r1);
       const double v = w1 * w1 * var(edges[j]) + w2 * w2 * var(edges[i]);
       sum += c / v;
