@@ -14,6 +14,7 @@
 //   * a band across the outer rings (light or dark, 10-15 % of the outer
 //     ring's perimeter) does not hide the marker, centre within 0.1 px;
 //   * small markers: three rings of 17 px outer radius, four of 20 px;
+//   * a crowded board of 4 x 3 markers: each found once, nothing between;
 //   * a marker cut in half by the image border is named "partial";
 //   * one or two dark rings (a tyre, the two-ring design) are no ring marker;
 //   * with a target list of ring markers (their edge radii), the ID is read
@@ -241,6 +242,53 @@ TEST(RingMarkersRendered, SmallMarkersAreFound) {
       EXPECT_LE((r.observations[0].centre - s.truth).norm(), 0.15);
     }
   }
+}
+
+TEST(RingMarkersRendered, CrowdedBoardEveryMarkerOnce) {
+  // 4 x 3 markers of three rings, 0.24 m apart (0.04 m of light between
+  // neighbours' outer rings), 35 deg oblique at 2.5 m (outer radius ~24 px).
+  const double pitch = 0.24, radius = 0.1, f = 600.0, depth = 2.5;
+  const Eigen::Matrix3d r =
+      Eigen::AngleAxisd(35 * M_PI / 180, Eigen::Vector3d(0.6, 0.8, 0)).toRotationMatrix();
+  Eigen::Matrix3d k, rt;
+  k << f, 0, 319.5, 0, f, 239.5, 0, 0, 1;
+  rt << r.col(0), r.col(1), Eigen::Vector3d(0.013, -0.021, depth);
+  const Eigen::Matrix3d h = k * rt;
+  const Rings& rings = Designs()[0];
+  const testing::Pattern pattern = [=](double u, double v) {
+    const double iu = std::clamp(std::round(u / pitch + 1.5), 0.0, 3.0) - 1.5,
+                 iv = std::clamp(std::round(v / pitch + 1.0), 0.0, 2.0) - 1.0;
+    const double q = std::hypot(u - iu * pitch, v - iv * pitch) / radius;
+    for (const auto& [a, b] : rings)
+      if (q >= a && q <= b) return kDark;
+    return kLight;
+  };
+  testing::RenderOptions ro;
+  ro.background = kLight;
+  ro.read_noise = 1.0;
+  ro.photons_per_dn = 50.0;
+  cv::Mat img = testing::Background(640, 480, ro);
+  testing::RenderPlate(&img, h, pattern, 2.5 * pitch, ro);
+  const TargetCentroider c(CirclesOnly(), io::TargetList());
+  const Result res = c.Detect(testing::ToMono8(img, ro), "mono8");
+  int found = 0;
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      const Eigen::Vector2d truth = Apply(h, (i - 1.5) * pitch, (j - 1.0) * pitch);
+      int here = 0;
+      for (const Observation& o : res.observations)
+        if ((o.centre - truth).norm() < 10) {
+          ++here;
+          EXPECT_EQ(o.method, CentreMethod::kRingCentre);
+          EXPECT_LE((o.centre - truth).norm(), 0.15) << i << ", " << j;
+        }
+      EXPECT_EQ(here, 1) << "marker " << i << ", " << j;
+      found += here;
+    }
+  }
+  EXPECT_EQ(res.observations.size(), 12u);
+  std::printf("crowded board: %d of 12 markers found once, %zu observations\n", found,
+              res.observations.size());
 }
 
 TEST(RingMarkersRendered, CutByTheBorderIsNamedPartial) {
