@@ -36,9 +36,10 @@ constexpr double kMaxFitRms = 1.0, kFitRmsShare = 0.04, kMinCoverage = 0.5;
 // semi-major axis (+ 2 px), the same axis ratio within kAxisRatioTolerance
 // and, when eccentric, the same orientation within kMaxTilt [deg].
 constexpr double kCentreShift = 0.1, kAxisRatioTolerance = 0.2, kMaxTilt = 20.0;
-// The refined edge: a step of at least half min_contrast on
-// kMinEdgeShare of the 72 normals.
-constexpr double kMinEdgeShare = 0.6;
+// The refined edge: a step of at least half the profile's step there on
+// kMinEdgeShare of the 72 normals (on a blurred thin ring a window between
+// neighbouring edges does not reach both levels on every normal).
+constexpr double kMinEdgeShare = 0.5;
 constexpr int kNormals = 72;
 // A marker: kMinRings dark rings at least; every edge's pencil with the
 // outer edge giving the common centre within kConcentricTolerance of the
@@ -47,8 +48,8 @@ constexpr int kMinRings = 3;
 constexpr double kConcentricTolerance = 0.02;
 // The innermost light edge within kMaxInnerShare of the outer edge's
 // radius; a marker with fewer than kPartialRayShare of its rays in the
-// image is not named.
-constexpr double kMaxInnerShare = 0.7, kPartialRayShare = 0.25;
+// image is not named, with fewer than kMinWholeRayShare it is "partial".
+constexpr double kMaxInnerShare = 0.7, kPartialRayShare = 0.25, kMinWholeRayShare = 0.6;
 // Edge pairs whose radii are closer than this ratio do not give the centre
 // (their pencil is ill-conditioned).
 constexpr double kMaxPairRatio = 0.8;
@@ -559,7 +560,7 @@ bool MeasureRings(const ImageView& im, const EdgeEllipse& in, const EdgeEllipse&
     return false;
   m->rings = static_cast<int>(edge_t.size() / 2);
   m->centre = out.centre;
-  if (p.rays.size() < kMinEdgeShare * kNormals || in.cut || out.cut) {
+  if (p.rays.size() < kMinWholeRayShare * kNormals || in.cut || out.cut) {
     m->partial = true;
     m->edges = {out};
     m->detail = Message(m->rings, " rings seen on ", p.rays.size(), " of ", kNormals,
