@@ -560,7 +560,9 @@ bool MeasureRings(const ImageView& im, const EdgeEllipse& in, const EdgeEllipse&
     return false;
   m->rings = static_cast<int>(edge_t.size() / 2);
   m->centre = out.centre;
-  if (p.rays.size() < kMinWholeRayShare * kNormals || in.cut || out.cut) {
+  // Measured while most of the outer ring and the whole light centre are
+  // in the image; else named.
+  if (p.rays.size() < kMinWholeRayShare * kNormals || in.cut) {
     m->partial = true;
     m->edges = {out};
     m->detail = Message(m->rings, " rings seen on ", p.rays.size(), " of ", kNormals,

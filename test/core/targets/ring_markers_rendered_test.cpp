@@ -15,7 +15,8 @@
 //     ring's perimeter) does not hide the marker, centre within 0.1 px;
 //   * small markers: three rings of 17 px outer radius, four of 20 px;
 //   * a crowded board of 4 x 3 markers: each found once, nothing between;
-//   * a marker cut in half by the image border is named "partial";
+//   * a marker whose outer ring the image border cuts is measured, one cut
+//     in half is named "partial";
 //   * one or two dark rings (a tyre, the two-ring design) are no ring marker;
 //   * with a target list of ring markers (their edge radii), the ID is read
 //     where one listed marker matches (the radii read within 0.015 of the
@@ -289,6 +290,17 @@ TEST(RingMarkersRendered, CrowdedBoardEveryMarkerOnce) {
   EXPECT_EQ(res.observations.size(), 12u);
   std::printf("crowded board: %d of 12 markers found once, %zu observations\n", found,
               res.observations.size());
+}
+
+TEST(RingMarkersRendered, OuterRingCutByTheBorderIsMeasured) {
+  // Facing the camera, the centre 0.8 outer radii from the left border: a
+  // tenth of the outer ring is outside the image.
+  const TargetCentroider c(CirclesOnly(), io::TargetList());
+  const Shot s = Render(Designs()[0], 0, 1.0, 0, {47, 240}, 3);
+  const Result r = c.Detect(s.image, "mono8");
+  ASSERT_EQ(r.observations.size(), 1u) << r.rejections.size() << " rejected";
+  EXPECT_EQ(r.observations[0].method, CentreMethod::kRingCentre);
+  EXPECT_LE((r.observations[0].centre - s.truth).norm(), 0.15);
 }
 
 TEST(RingMarkersRendered, CutByTheBorderIsNamedPartial) {
