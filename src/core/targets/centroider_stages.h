@@ -269,7 +269,8 @@ struct Frame {
   }
   const ImageView im;
   const Options& options;
-  const double noise_floor;  // [DN] minimum image noise of the covariances
+  const double noise_floor;     // [DN] minimum image noise of the covariances
+  bool listed_circles = false;  // the target list holds circles
   Result res;
   std::vector<double> residuals;                          // fit RMS of what was measured
   std::vector<std::array<Eigen::Vector2d, 4>> tag_quads;  // every decoded tag (no circle there)

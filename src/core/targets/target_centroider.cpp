@@ -367,6 +367,8 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
   const double noise_floor =
       options_.noise_floor > 0 ? options_.noise_floor : mono.quantisation / std::sqrt(12.0);
   detail::Frame frame(meas, options_, noise_floor);
+  for (const auto& t : targets_.targets())
+    frame.listed_circles = frame.listed_circles || t.family == "circle";
   // The stages (centroider_stages.h).
   if (!options_.families.empty()) detail::DetectTags(D.td, mono8, targets_, &D.px, &frame);
   if (options_.detect_circles) {
