@@ -309,11 +309,12 @@ void MeasureCircle(const Blob& blob, const ExpectedCircle* expected, const ViewG
   // Unlisted, auto, a dark surround only: a light speck on a dark ground is
   // everywhere (glints, sky through a canopy); a printed or retro-reflective
   // disc is resolved, its radius several times its edge blur (a point of
-  // light looks like a disc about 2 blur sigmas across). A disc_in_ring
-  // plate not identified while the list holds circles (no pose for this
-  // image) stays: the adjuster names such circles later.
-  const bool surround_only = s.seen.design == CircleDesign::kDot ||
-                             (s.seen.design == CircleDesign::kDiscInRing && !frame->listed_circles);
+  // light looks like a disc about 2 blur sigmas across). While the list
+  // holds circles, an unidentified one (no pose for this image) stays: the
+  // adjuster names such circles later.
+  const bool surround_only =
+      (s.seen.design == CircleDesign::kDot || s.seen.design == CircleDesign::kDiscInRing) &&
+      !frame->listed_circles;
   if (surround_only && !spec && opt.circle_design == CircleDesign::kAuto &&
       o.edge_blur > kMaxSpeckBlurShare * rmean) {
     verdict.marker_radius = 0.0;  // no marker: discarded
