@@ -1,7 +1,7 @@
 // centroid_targets: run the target centroider over an image folder or a bag
 // topic and write CSV, one row per observation: image, stamp, id, family,
 // role, method (what gave the centre: edge_model / detector for tags,
-// ellipse_model / gray_centroid for circles), x, y, cov_xx, cov_xy, cov_yy,
+// ellipse_model / gray_centroid / ring_centre for circles), x, y, cov_xx, cov_xy, cov_yy,
 // quality, fit residual, the perspective correction subtracted from a
 // circle's centre, and the four corners of a tag. The header lines (starting
 // with '#') state the pixel convention.
@@ -91,7 +91,8 @@ void WriteHeader(std::ostream& out) {
          "top-left pixel (libapriltag's coordinates minus 0.5 px)\n"
          "# method: edge_model (tag corners from the edge-model fit), detector (libapriltag's "
          "corners), ellipse_model, "
-         "gray_centroid; cov in px^2; persp_dx/dy: perspective bias subtracted from a circle's "
+         "gray_centroid, ring_centre (a marker of three or more rings: the rings' common "
+         "centre); cov in px^2; persp_dx/dy: perspective bias subtracted from a circle's "
          "centre [px]\n"
          "# c0..c3: tag corners in libapriltag order (tag's bottom-left, bottom-right, top-right, "
          "top-left); empty for "

@@ -81,6 +81,23 @@ void CheckDistinctPositions(const TargetList& list, const YamlMap& root) {
                                      t[i].position->y(), ", ", t[i].position->z(), ")"));
 }
 
+// A ring marker's edge radii (any unit, inner to outer), over the outer.
+std::vector<double> ReadRings(YamlMap& t, const TargetSpec& s) {
+  std::vector<double> r = t.RequiredDoubles("rings");
+  if (s.family != "circle")
+    t.Fail("rings", Message("of target ", s.Key(), ": only circles have rings"));
+  if (r.size() < 6 || r.size() % 2 != 0)
+    t.Fail("rings",
+           Message("of target ", s.Key(), ": ", r.size(),
+                   " radii; two per dark ring (inner and outer edge), three rings at least"));
+  for (size_t k = 0; k < r.size(); ++k)
+    if (!(r[k] > 0.0) || (k > 0 && !(r[k] > r[k - 1])))
+      t.Fail("rings", Message("of target ", s.Key(), ": the radii must be positive and increase"));
+  const double outer = r.back();
+  for (double& v : r) v /= outer;
+  return r;
+}
+
 TargetList FromMap(YamlMap root) {
   root.String("frame", "site", {"site"});
   if (!root.Has("targets")) root.Fail("targets", "is missing (a list of targets; [] for none)");
@@ -115,6 +132,7 @@ TargetList FromMap(YamlMap root) {
       if (v.norm() < 1e-9) t.Fail("normal", "must not be zero");
       s.normal = v.normalized();
     }
+    if (t.Has("rings")) s.rings = ReadRings(t, s);
     t.CheckNoUnknownKeys();
     if (list.Find(s.family, s.id)) t.Fail("id", Message("duplicates target ", s.Key()));
     list.Add(s);
@@ -138,7 +156,7 @@ std::string TargetList::ToYaml() const {
   out << "# slope_monitor target list (schema: include/slope_monitor/core/io/target_list.h)\n";
   out << "# id: int; family: tag36h11|...|circle; size [m]; role: control|monitoring|check;\n";
   out << "# position [m] site frame; sigma [m] (horizontal, vertical); normal: unit vector "
-         "(optional)\n";
+         "(optional); rings: ring markers' edge radii over the outer (optional)\n";
   out << "frame: site\ntargets:\n";
   for (const auto& t : targets_) {
     out << "  - {id: " << t.id << ", family: " << t.family << ", size: " << t.size
@@ -151,6 +169,11 @@ std::string TargetList::ToYaml() const {
     if (t.normal)
       out << ", normal: [" << t.normal->x() << ", " << t.normal->y() << ", " << t.normal->z()
           << "]";
+    if (!t.rings.empty()) {
+      out << ", rings: [";
+      for (size_t k = 0; k < t.rings.size(); ++k) out << (k ? ", " : "") << t.rings[k];
+      out << "]";
+    }
     out << "}\n";
   }
   return out.str();

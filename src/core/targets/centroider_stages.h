@@ -1,6 +1,7 @@
 // Internal to the targets module (not installed): what the centroider's
 // stage files share. The stages of TargetCentroider::DetectMono, in order:
 //   tag_detection.cpp         libapriltag's quads, then our edge-model refinement
+//   ring_markers.cpp          markers of three or more rings, by their nested ellipses
 //   circle_candidates.cpp     bright blobs with a dark surround, their ellipse
 //   circle_identification.cpp listed circles projected, a candidate's ID, one target per marker
 //   circle_design.cpp         which design the rays from a candidate show
@@ -268,7 +269,8 @@ struct Frame {
   }
   const ImageView im;
   const Options& options;
-  const double noise_floor;  // [DN] minimum image noise of the covariances
+  const double noise_floor;     // [DN] minimum image noise of the covariances
+  bool listed_circles = false;  // the target list holds circles
   Result res;
   std::vector<double> residuals;                          // fit RMS of what was measured
   std::vector<std::array<Eigen::Vector2d, 4>> tag_quads;  // every decoded tag (no circle there)
@@ -319,6 +321,53 @@ void FindBrightComponents(const cv::Mat& mono8, CandidateBuffers* b, Frame* fram
 // The full-resolution ellipse of component `label`; false (discarded with
 // the reason, or silently when it is no candidate at all) otherwise.
 bool CandidateBlob(const CandidateBuffers& b, int label, Frame* frame, Blob* blob);
+
+// --- ring_markers.cpp ---
+// One edge of a ring marker: an ellipse [px] and which side is dark.
+struct EdgeEllipse {
+  Eigen::Vector2d centre{0, 0};
+  double a = 0, b = 0;  // semi-axes [px], a >= b
+  Eigen::Vector2d major{1, 0};
+  bool dark_inside = false;  // the outer edge of a dark ring
+  bool cut = false;          // its contour ran into the image border
+  double rms = 0;            // [px] distance of its points from the ellipse
+  double coverage = 0;       // share of its perimeter with points
+  int points = 0;            // refined edges: the points fitted
+  double MeanRadius() const { return 0.5 * (a + b); }
+};
+// A marker of kMinRings or more dark rings: its edges from the outside in,
+// the image of the rings' common centre and its covariance.
+struct RingMarker {
+  std::vector<EdgeEllipse> edges;
+  int rings = 0;
+  Eigen::Vector2d centre{0, 0};
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity();
+  bool partial = false;  // cut by the image border: named, not measured
+  std::string detail;    // partial: why
+  double contrast = 0;   // [DN] light ground minus dark ring
+  double fit_rms = 0;    // [px] worst edge's RMS distance
+};
+// A candidate group of nested ellipses that is no marker (debug output).
+struct RingDiscard {
+  Eigen::Vector2d where;
+  std::string detail;
+};
+// The ring markers of mono8 (measured on im).
+void FindRingMarkers(const ImageView& im, const cv::Mat& mono8, const Options& o,
+                     std::vector<RingMarker>* markers, std::vector<RingDiscard>* discarded);
+// The ring markers as observations (measured; the ID read from the edge
+// radii when one listed ring marker matches them) and rejections
+// (partial); the groups that are none as discarded candidates.
+void AddRingMarkers(const cv::Mat& mono8, const io::TargetList& list, Frame* frame,
+                    std::vector<RingMarker>* markers);
+// Whether p lies within a marker's outer edge.
+bool InsideRingMarker(const std::vector<RingMarker>& markers, const Eigen::Vector2d& p);
+// The conic matrix of an ellipse (x^T C x = 0 on it, x homogeneous).
+Eigen::Matrix3d ConicOf(const EdgeEllipse& e);
+// The image of the common centre of two concentric circles from their
+// images: the point the pencil outer - lambda inner degenerates to at its
+// single eigenvalue (the other two are equal for exact concentric circles).
+bool CommonCentre(const EdgeEllipse& inner, const EdgeEllipse& outer, Eigen::Vector2d* centre);
 
 // --- circle_identification.cpp ---
 // A listed circle projected into the image (with a view).

@@ -16,6 +16,15 @@ namespace {
 // (p-c)^T A (p-c) = 1 on the edge), ring level, disc level, blur sigma.
 using EllipseParams = Eigen::Matrix<double, 8, 1>;
 
+// An unlisted light centre with only a dark surround for evidence (dot,
+// disc_in_ring; auto) is a disc when its edge blur sigma is at most this
+// share of its radius. Measured: the renders' dots and discs 4-75 px in
+// radius show 0.007-0.06; the specks of light taken for them on the drone
+// and room photos (uav_real_caliterra, uav_real_copr, targets_real_cctag)
+// 0.20-0.42. (The ring designs' rings are evidence of their own: the real
+// ring board's markers show up to 0.15.)
+constexpr double kMaxSpeckBlurShare = 0.15;
+
 // Signed distance (inside positive) of p from the ellipse, to first order
 // (1 - r) / |grad r| with r = sqrt((p-c)^T A (p-c)), and its outward normal
 // A (p - c) / |A (p - c)| (the pixel footprint's direction).
@@ -295,6 +304,23 @@ void MeasureCircle(const Blob& blob, const ExpectedCircle* expected, const ViewG
   o.edge_blur = std::max(fit.x[7], kMinBlur);
   if (o.edge_blur > opt.max_edge_blur) {
     verdict.Fail(RejectReason::kBlurred, Message("edge blur sigma ", o.edge_blur, " px"));
+    return;
+  }
+  // Unlisted, auto, a dark surround only: a light speck on a dark ground is
+  // everywhere (glints, sky through a canopy); a printed or retro-reflective
+  // disc is resolved, its radius several times its edge blur (a point of
+  // light looks like a disc about 2 blur sigmas across). While the list
+  // holds circles, an unidentified one (no pose for this image) stays: the
+  // adjuster names such circles later.
+  const bool surround_only =
+      (s.seen.design == CircleDesign::kDot || s.seen.design == CircleDesign::kDiscInRing) &&
+      !frame->listed_circles;
+  if (surround_only && !spec && opt.circle_design == CircleDesign::kAuto &&
+      o.edge_blur > kMaxSpeckBlurShare * rmean) {
+    verdict.marker_radius = 0.0;  // no marker: discarded
+    verdict.Fail(RejectReason::kDesign, Message(CircleDesignName(s.seen.design), " of radius ",
+                                                rmean, " px, edge blur sigma ", o.edge_blur,
+                                                " px: a speck of light, not a disc"));
     return;
   }
   if (rel > opt.max_residual) {

@@ -168,6 +168,8 @@ std::string CentreMethodName(CentreMethod method) {
       return "ellipse_model";
     case CentreMethod::kGrayCentroid:
       return "gray_centroid";
+    case CentreMethod::kRingCentre:
+      return "ring_centre";
   }
   return "unknown";
 }
@@ -365,15 +367,27 @@ Result TargetCentroider::DetectMono(const MonoImage& mono, const ViewGeometry* v
   const double noise_floor =
       options_.noise_floor > 0 ? options_.noise_floor : mono.quantisation / std::sqrt(12.0);
   detail::Frame frame(meas, options_, noise_floor);
+  for (const auto& t : targets_.targets())
+    frame.listed_circles = frame.listed_circles || t.family == "circle";
   // The stages (centroider_stages.h).
   if (!options_.families.empty()) detail::DetectTags(D.td, mono8, targets_, &D.px, &frame);
   if (options_.detect_circles) {
+    // Markers of three or more rings first; the other designs' candidates
+    // inside one are parts of it.
+    std::vector<detail::RingMarker> rings;
+    if (options_.circle_design == CircleDesign::kAuto ||
+        options_.circle_design == CircleDesign::kConcentric)
+      detail::AddRingMarkers(mono8, targets_, &frame, &rings);
     detail::FindBrightComponents(mono8, &D.candidates, &frame);
     const std::vector<detail::ExpectedCircle> expected =
         detail::ProjectListedCircles(view, targets_);
     for (int label = 1; label < D.candidates.n; ++label) {
       detail::Blob blob;
       if (!detail::CandidateBlob(D.candidates, label, &frame, &blob)) continue;
+      if (detail::InsideRingMarker(rings, blob.centre)) {
+        frame.Discard(blob.centre, RejectReason::kDesign, "inside a ring marker");
+        continue;
+      }
       detail::MeasureCircle(blob, detail::IdentifyCircle(expected, blob, options_), view, &D.px,
                             &frame);
     }

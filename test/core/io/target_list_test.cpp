@@ -50,6 +50,27 @@ TEST(TargetList, BadInputNamesTheKey) {
             std::string::npos);
 }
 
+TEST(TargetList, RingMarkerRadiiAreReadOverTheOuterAndChecked) {
+  const TargetList list = TargetList::FromYaml(
+      "targets:\n  - {id: 5, family: circle, size: 0.2, rings: [45, 55, 65, 78, 88, 100]}\n",
+      "test.yaml");
+  const std::vector<double> want{0.45, 0.55, 0.65, 0.78, 0.88, 1.0};
+  ASSERT_EQ(list.Find("circle", 5)->rings.size(), want.size());
+  for (size_t k = 0; k < want.size(); ++k)
+    EXPECT_DOUBLE_EQ(list.Find("circle", 5)->rings[k], want[k]);
+  const TargetList back = TargetList::FromYaml(list.ToYaml(), "roundtrip");
+  EXPECT_DOUBLE_EQ(back.Find("circle", 5)->rings[1], 0.55);
+  EXPECT_NE(ErrorOf("targets:\n  - {id: 1, size: 1, rings: [1, 2, 3, 4, 5, 6]}\n")
+                .find("only circles have rings"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("targets:\n  - {id: 1, size: 1, family: circle, rings: [1, 2, 3, 4]}\n")
+                .find("three rings at least"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("targets:\n  - {id: 1, size: 1, family: circle, rings: [1, 3, 2, 4, 5, 6]}\n")
+                .find("must be positive and increase"),
+            std::string::npos);
+}
+
 }  // namespace
 }  // namespace io
 }  // namespace slope_monitor

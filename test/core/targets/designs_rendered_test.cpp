@@ -77,6 +77,30 @@ TEST(DesignsRendered, NamedDesignRefusesTheOthers) {
   }
 }
 
+// A small blurred plate (light centre 10 px, blur 1.2 px: its radius under
+// 7 blur sigmas) unidentified (no pose): without circles in the list it is
+// a speck of light (discarded, "design"); with the list holding circles it
+// is measured, unidentified, for the adjuster to name.
+TEST(DesignsRendered, BlurredSmallDiscStandsOnlyWithListedCircles) {
+  testing::DesignShotSpec s;
+  s.design = CircleDesign::kDiscInRing;
+  s.centre_px = 10.0;
+  s.blur_px = 1.2;
+  s.seed = 4;
+  const testing::DesignShot shot = testing::RenderDesignShot(s);
+  const TargetCentroider bare(CirclesOnly(CircleDesign::kAuto), io::TargetList());
+  const Result alone = bare.Detect(shot.image, "mono8");
+  EXPECT_TRUE(alone.observations.empty());
+  bool speck = false;
+  for (const auto& d : alone.discarded)
+    speck = speck || d.detail.find("a speck of light") != std::string::npos;
+  EXPECT_TRUE(speck);
+  const TargetCentroider listed(CirclesOnly(CircleDesign::kAuto), shot.list);
+  const Result r = listed.Detect(shot.image, "mono8");
+  ASSERT_EQ(r.observations.size(), 1u);
+  EXPECT_EQ(r.observations[0].id, -1);
+}
+
 }  // namespace
 }  // namespace targets
 }  // namespace slope_monitor

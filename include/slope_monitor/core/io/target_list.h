@@ -15,6 +15,9 @@
 //       [0.01, 0.01] normal: [nx, ny, nz]     # optional unit normal of the target plane (site),
 //       for the
 //                                #     perspective correction of circle centres
+//       rings: [45, 55, 65, 78, 88, 100]  # optional, circles that are ring markers:
+//                                #     the radii of the rings' edges (any unit,
+//                                #     inner to outer); the ID is read from them
 #pragma once
 
 #include <map>
@@ -40,6 +43,11 @@ struct TargetSpec {
   Eigen::Vector2d sigma{0.01, 0.01};        // [m] horizontal, vertical
   std::optional<Eigen::Vector3d> normal;    // unit, site
   std::string name;  // the survey's own name ("gcp03" of a gcp list); "": none
+  // Circles that are ring markers (three or more dark rings): the radii of
+  // the rings' edges, inner to outer, over the outer edge's (the last is 1;
+  // two per dark ring). The marker's ID is read from them in the image (no
+  // pose needed); empty: not a ring marker.
+  std::vector<double> rings;
 
   // "tag36h11/3", "circle/12": the key used across the package.
   std::string Key() const { return family + "/" + std::to_string(id); }

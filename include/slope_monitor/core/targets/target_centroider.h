@@ -170,13 +170,15 @@ std::string RejectReasonName(
 constexpr int kNumRejectReasons = 11;
 
 // Which measurement gave an observation's centre.
-enum class CentreMethod { kEdgeModel, kDetector, kEllipseModel, kGrayCentroid };
-std::string CentreMethodName(
-    CentreMethod method);  // "edge_model", "detector", "ellipse_model", "gray_centroid"
+// kRingCentre: a marker of three or more rings, the image of the rings'
+// common centre from their ellipses (no pose needed).
+enum class CentreMethod { kEdgeModel, kDetector, kEllipseModel, kGrayCentroid, kRingCentre };
+std::string CentreMethodName(CentreMethod method);  // "edge_model", "detector", "ellipse_model",
+                                                    // "gray_centroid", "ring_centre"
 
 struct Observation {
-  int id = -1;                         // tag ID; circle: list ID, -1 when not identified
-  std::string family;                  // "tag36h11", ..., "circle"
+  int id = -1;         // tag ID; circle: list ID (ring markers: read), -1 when not identified
+  std::string family;  // "tag36h11", ..., "circle"
   std::optional<io::TargetRole> role;  // nullopt: unknown (not in the target list)
   Eigen::Vector2d centre{0, 0};        // [px] OpenCV convention
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();  // [px^2]
@@ -199,6 +201,10 @@ struct Observation {
   double fit_residual = 0.0;  // [-] tags: worst edge, circles: ellipse fit residual RMS / contrast
   double ring_ratio = 0.0;    // circles: measured ring outer / disc diameter (dot: 0)
   CircleDesign design = CircleDesign::kAuto;  // circles: the design seen (never kAuto)
+  int rings = 0;  // circles measured as ring markers (method ring_centre): dark rings counted
+  // ... and their edges' radii over the outer edge's, inner to outer, free of
+  // perspective (empty when an edge was not refined); the ID is read from them.
+  std::vector<double> ring_radii;
   std::string Key() const { return family + "/" + std::to_string(id); }
 };
 
