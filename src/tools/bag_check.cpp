@@ -21,10 +21,11 @@
 
 namespace {
 
-int Usage(const std::string& why) {
-  std::cerr << "bag_check: " << why << "\n"
-            << "usage: bag_check [--gap SECONDS] [--epoch-gap SECONDS] [--session] file.bag "
-               "[more.bag ...]\n";
+// The usage, after `why` (none for --help, which goes to stdout).
+int Usage(const std::string& why, std::ostream& out = std::cerr) {
+  if (!why.empty()) out << "bag_check: " << why << "\n";
+  out << "usage: bag_check [--gap SECONDS] [--epoch-gap SECONDS] [--session] file.bag "
+         "[more.bag ...]\n";
   return 1;
 }
 
@@ -52,7 +53,7 @@ int main(int argc, char** argv) {
       if (!ParsePositive(argv[++i], target))
         return Usage(a + " value '" + argv[i] + "' is not a positive number");
     } else if (a == "-h" || a == "--help") {
-      Usage("help");
+      Usage("", std::cout);
       return 0;
     } else if (!a.empty() && a[0] == '-') {
       return Usage("unknown option '" + a + "'");

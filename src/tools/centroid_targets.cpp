@@ -171,9 +171,8 @@ void Explain(const std::string& image, const targets::Result& r) {
   for (const auto& rj : r.discarded) line("not a target:", rj);
 }
 
-int Usage() {
-  std::cerr
-      << "usage: centroid_targets (--images DIR | --bag FILE --topic TOPIC) [--out FILE.csv] "
+int Usage(std::ostream& out = std::cerr) {  // --help: std::cout
+  out << "usage: centroid_targets (--images DIR | --bag FILE --topic TOPIC) [--out FILE.csv] "
          "[--targets LIST.yaml] [--config OPTIONS.yaml] [--layout BOARD] [--max-megapixels MP] "
          "[--explain]\n"
          "exit status: 0 all read, 2 some images skipped, 1 nothing processed or an error\n";
@@ -280,7 +279,7 @@ int main(int argc, char** argv) {
     if (a == "--explain") {
       explain = true;
     } else if (a == "-h" || a == "--help") {
-      Usage();
+      Usage(std::cout);
       return 0;
     } else if ((a == "--images" || a == "--bag" || a == "--topic" || a == "--out" ||
                 a == "--targets" || a == "--config" || a == "--max-megapixels" ||

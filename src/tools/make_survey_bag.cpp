@@ -20,10 +20,10 @@
 
 namespace {
 
-void Usage() {
-  std::cerr << "usage: make_survey_bag --config <site.yaml> --out <name.bag> [--compression "
-               "lz4|bz2|none] "
-               "[--seed N] [--quiet]\n";
+void Usage(std::ostream& out = std::cerr) {  // --help: std::cout
+  out << "usage: make_survey_bag --config <site.yaml> --out <name.bag> [--compression "
+         "lz4|bz2|none] "
+         "[--seed N] [--quiet]\n";
 }
 
 }  // namespace
@@ -69,7 +69,7 @@ int main(int argc, char** argv) {
     } else if (a == "--quiet") {
       quiet = true;
     } else if (a == "-h" || a == "--help") {
-      Usage();
+      Usage(std::cout);
       return 0;
     } else if (a.rfind("__", 0) == 0 || a.find(":=") != std::string::npos) {
       continue;  // ROS arguments (__name:=..., __log:=...) when launched as a node

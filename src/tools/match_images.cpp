@@ -51,11 +51,11 @@ using namespace slope_monitor;
 
 namespace {
 
-int Usage(const std::string& why) {
-  std::cerr << "match_images: " << why << "\n"
-            << "usage: match_images --image A.jpg --image B.jpg [--image C.jpg ...] [--out "
-               "tie_points.csv] [--max-megapixels MP]\n"
-               "exit status: 0 all read, 2 some photos skipped, 1 nothing matched or an error\n";
+int Usage(const std::string& why, std::ostream& out = std::cerr) {  // --help: std::cout
+  out << "match_images: " << why << "\n"
+      << "usage: match_images --image A.jpg --image B.jpg [--image C.jpg ...] [--out "
+         "tie_points.csv] [--max-megapixels MP]\n"
+         "exit status: 0 all read, 2 some photos skipped, 1 nothing matched or an error\n";
   return 1;
 }
 
@@ -128,7 +128,7 @@ int main(int argc, char** argv) {
       if (v.empty() || *end != '\0' || !(image_options.max_megapixels > 0))
         return Usage("--max-megapixels '" + v + "' is not a number > 0");
     } else if (a == "-h" || a == "--help") {
-      Usage("tie points between overlapping photos");
+      Usage("tie points between overlapping photos", std::cout);
       return 0;
     } else {
       return Usage("unknown argument '" + a + "'");

@@ -57,21 +57,22 @@ struct PlayerOptions {
   double status_hz = 1.0;  // [1/s wall] progress lines on stdout (> 0)
 };
 
-int Usage(const std::string& why) {
+// The usage, after `why` (none for --help, which goes to stdout).
+int Usage(const std::string& why, std::ostream& out = std::cerr) {
   const PlayerOptions d;
-  std::cerr << "replay_player: " << why << "\n"
-            << "usage: replay_player [--pause] [--rate R] [--delay S] [--clock-hz F] file.bag\n"
-               "  --pause       start paused; ~pause_playback (std_srvs/SetBool, false) plays\n"
-               "  --rate R      playback rate [x bag time] (default "
-            << d.rate << ")\n"
-            << "  --delay S     wall seconds between advertising and playing (default " << d.delay
-            << ")\n"
-            << "  --clock-hz F  /clock messages per wall second (default " << d.clock_hz << ")\n"
-            << "Started by launch/replay.launch as node `player`. Publishes every message of the\n"
-               "bag (nothing dropped whatever its size and the rate) and /clock; after the last\n"
-               "message it publishes ~finished (std_msgs/Bool, latched) and sleeps until it is\n"
-               "stopped (replay_end ends the launch once the graph has taken everything).\n"
-               "Exit status 0 when stopped, 1 on a usage error or an unreadable bag.\n";
+  if (!why.empty()) out << "replay_player: " << why << "\n";
+  out << "usage: replay_player [--pause] [--rate R] [--delay S] [--clock-hz F] file.bag\n"
+         "  --pause       start paused; ~pause_playback (std_srvs/SetBool, false) plays\n"
+         "  --rate R      playback rate [x bag time] (default "
+      << d.rate << ")\n"
+      << "  --delay S     wall seconds between advertising and playing (default " << d.delay
+      << ")\n"
+      << "  --clock-hz F  /clock messages per wall second (default " << d.clock_hz << ")\n"
+      << "Started by launch/replay.launch as node `player`. Publishes every message of the\n"
+         "bag (nothing dropped whatever its size and the rate) and /clock; after the last\n"
+         "message it publishes ~finished (std_msgs/Bool, latched) and sleeps until it is\n"
+         "stopped (replay_end ends the launch once the graph has taken everything).\n"
+         "Exit status 0 when stopped, 1 on a usage error or an unreadable bag.\n";
   return 1;
 }
 
@@ -149,7 +150,7 @@ int main(int argc, char** argv) {
   // --help: the usage, before ros::init (no master contacted, nothing changed).
   for (int i = 1; i < argc; ++i)
     if (std::string(argv[i]) == "-h" || std::string(argv[i]) == "--help") {
-      Usage("help");
+      Usage("", std::cout);
       return 0;
     }
   ros::init(argc, argv, "player");

@@ -54,13 +54,13 @@ using namespace slope_monitor;
 
 namespace {
 
-int Usage() {
-  std::cerr << "usage: resect_camera --image IMG --gcp FILE [--site FILE | --crs EPSG:NNNN] "
-               "[--position X Y Z "
-               "[--position-sigma S]] [--camera-info YAML | --focal-mm F --sensor-mm W H] [--free "
-               "c,k1,...] "
-               "[--pixel-sigma S] [--point-sigma S] [--pixel-origin opencv|corner] --out PREFIX\n"
-               "exit status: 0 resected and written, 1 otherwise\n";
+int Usage(std::ostream& out = std::cerr) {  // --help: std::cout
+  out << "usage: resect_camera --image IMG --gcp FILE [--site FILE | --crs EPSG:NNNN] "
+         "[--position X Y Z "
+         "[--position-sigma S]] [--camera-info YAML | --focal-mm F --sensor-mm W H] [--free "
+         "c,k1,...] "
+         "[--pixel-sigma S] [--point-sigma S] [--pixel-origin opencv|corner] --out PREFIX\n"
+         "exit status: 0 resected and written, 1 otherwise\n";
   return 1;
 }
 
@@ -243,7 +243,7 @@ int main(int argc, char** argv) {
   try {
     if (argc < 2) return Usage();
     if (std::string(argv[1]) == "-h" || std::string(argv[1]) == "--help") {
-      Usage();
+      Usage(std::cout);
       return 0;
     }
     const auto a = ParseArgs(argc, argv);

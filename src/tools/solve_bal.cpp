@@ -17,7 +17,7 @@ int main(int argc, char** argv) {
   const bool help = argc >= 2 && (std::string(argv[1]) == "-h" || std::string(argv[1]) == "--help");
   if (argc < 2 || help) {
     std::fprintf(
-        stderr,
+        help ? stdout : stderr,  // --help on stdout, a usage error on stderr
         "usage: %s <problem.txt> [--solver auto|dense_schur|sparse_schur|iterative_schur] "
         "[--autodiff]\n"
         "          [--iterations N] [--threads N] [--loss none|huber|cauchy] [--progress]\n",
