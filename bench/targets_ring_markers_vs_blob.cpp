@@ -21,23 +21,17 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "bench_timing.h"
 #include "slope_monitor/core/targets/target_centroider.h"
 
 using namespace slope_monitor;
 
 namespace {
 
+// Median of 5 runs [ms].
 template <typename F>
 double MedianMs(F f) {
-  std::vector<double> t;
-  for (int k = 0; k < 5; ++k) {
-    const auto a = std::chrono::steady_clock::now();
-    f();
-    t.push_back(
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - a).count());
-  }
-  std::sort(t.begin(), t.end());
-  return t[t.size() / 2];
+  return bench::MedianMs(f, 5);
 }
 
 struct Photo {

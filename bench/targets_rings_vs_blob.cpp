@@ -17,6 +17,7 @@
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "bench_timing.h"
 #include "slope_monitor/core/targets/board_layout.h"
 #include "slope_monitor/core/targets/target_centroider.h"
 
@@ -24,17 +25,10 @@ using namespace slope_monitor;
 
 namespace {
 
+// Median of 20 runs [ms].
 template <typename F>
 double MedianMs(F f) {
-  std::vector<double> t;
-  for (int k = 0; k < 20; ++k) {
-    const auto a = std::chrono::steady_clock::now();
-    f();
-    t.push_back(
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - a).count());
-  }
-  std::sort(t.begin(), t.end());
-  return t[t.size() / 2];
+  return bench::MedianMs(f, 20);
 }
 
 void Report(const char* name, double ms, const std::vector<Eigen::Vector2d>& c,
