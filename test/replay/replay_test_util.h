@@ -113,23 +113,23 @@ inline int Wait(pid_t pid) {
 // Python's json module in strict mode: NaN and Infinity, which Python
 // accepts by default but JSON does not have, are refused.
 inline void ExpectStrictJson(const fs::path& dir) {
-  const fs::path log = fs::temp_directory_path() / ("sm_strict_json_" + std::to_string(getpid()));
-  fs::create_directories(log);
-  int files = 0;
+  std::vector<std::string> argv = {
+      "/usr/bin/python3", "-c",
+      "import json, sys\n"
+      "def refuse(c): raise ValueError(c + ' is not JSON')\n"
+      "bad = 0\n"
+      "for path in sys.argv[1:]:\n"
+      "    try: json.load(open(path, encoding='utf-8'), parse_constant=refuse)\n"
+      "    except ValueError as e: print(path + ': ' + str(e), file=sys.stderr); bad += 1\n"
+      "sys.exit(1 if bad else 0)"};
   for (const auto& e : fs::recursive_directory_iterator(dir)) {
     const std::string ext = e.path().extension().string();
-    if (ext != ".json" && ext != ".geojson") continue;
-    ++files;
-    const pid_t pid =
-        Spawn({"/usr/bin/python3", "-c",
-               "import json, sys\n"
-               "def refuse(c): sys.exit(sys.argv[1] + ': ' + c + ' is not JSON')\n"
-               "json.load(open(sys.argv[1], encoding='utf-8'), parse_constant=refuse)",
-               e.path().string()},
-              log);
-    EXPECT_EQ(Wait(pid), 0) << ReadFile(log / "stderr");
+    if (ext == ".json" || ext == ".geojson") argv.push_back(e.path().string());
   }
-  EXPECT_GT(files, 0) << "no JSON file under " << dir;
+  ASSERT_GT(argv.size(), 3u) << "no JSON file under " << dir;
+  const fs::path log = fs::temp_directory_path() / ("sm_strict_json_" + std::to_string(getpid()));
+  fs::create_directories(log);
+  EXPECT_EQ(Wait(Spawn(argv, log)), 0) << ReadFile(log / "stderr");
   fs::remove_all(log);
 }
 

@@ -21,4 +21,10 @@ std::string Utc(double unix_seconds) {
   return b;
 }
 
+std::string CsvQuote(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return out + "\"";
+}
+
 }  // namespace slope_monitor

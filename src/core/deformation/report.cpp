@@ -57,12 +57,6 @@ std::string JsonEscape(const std::string& s) {
   return out;
 }
 
-std::string CsvQuote(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return out + "\"";
-}
-
 std::string Num(double v, int digits = 6) {
   if (!std::isfinite(v)) return "null";
   std::ostringstream o;

@@ -8,6 +8,7 @@
 
 #include "slope_monitor/core/camera/rotation.h"
 #include "slope_monitor/core/common/error.h"
+#include "slope_monitor/core/common/format.h"
 #include "slope_monitor/core/io/json_text.h"
 #include "slope_monitor/core/io/safe_file.h"
 
@@ -297,12 +298,9 @@ void WriteFlightReport(const FlightReportInput& in, const std::string& json_path
 void WritePairsCsv(const FlightPhotos& photos, const FlightTies& ties, const std::string& path) {
   std::ostringstream o;
   o << "photo_a,photo_b,tie_points,epipolar_rms_px,why_not_used\n";
-  for (const FlightPairStats& p : ties.pairs) {
-    std::string why = p.message;
-    std::replace(why.begin(), why.end(), '"', '\'');
+  for (const FlightPairStats& p : ties.pairs)
     o << photos.photos[p.a].name << "," << photos.photos[p.b].name << "," << p.tie_points << ","
-      << Fmt("%.3f", p.epipolar_rms) << ",\"" << why << "\"\n";
-  }
+      << Fmt("%.3f", p.epipolar_rms) << "," << CsvQuote(p.message) << "\n";
   io::WriteFileAtomically(path, o.str());
 }
 

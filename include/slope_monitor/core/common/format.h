@@ -13,4 +13,7 @@ std::string Fixed(double v, int digits);
 // the fraction is dropped (floor), so 0.999 s before a second is that second.
 std::string Utc(double unix_seconds);
 
+// A CSV field in double quotes, a quote inside doubled (RFC 4180).
+std::string CsvQuote(const std::string& s);
+
 }  // namespace slope_monitor
